@@ -25,7 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from .forces import force_jacobian, total_forces
+from .forces import force_jacobian, internal_energy, total_forces
 from .linalg import assemble_system, band_solve, HALF
 from .params import ParameterError
 
@@ -70,13 +70,14 @@ def get_integrator(name: str) -> Integrator:
 class NewtonOptions:
     """Newton settings for implicit methods.
 
-    max_iter: iterations per step (``implicit_euler`` always does exactly one: it is the
-    linearly implicit method); tol: convergence when max|dv| <= tol * max(|v|, v_floor);
+    max_iter: Newton iterations per step at most (``max_iter=1`` makes ``implicit_euler`` the
+    pure linearly implicit method); tol: convergence when the momentum residual is below
+    tol * (momentum change of the step + gravity impulse) plus the round-off floor;
     definite: filter the compressive stretch Hessian so the system stays positive definite.
     """
 
     max_iter: int = 8
-    tol: float = 1e-9
+    tol: float = 1e-6
     definite: bool = True
 
 
@@ -157,11 +158,57 @@ def _rk4(x, v, h, m, hold_pos, hold_vel, hold_dir, f_ext):
 
 # ----- implicit methods -----------------------------------------------------------------------
 @njit(cache=True)
+def _residual(vn, xe0, cx, ve0, cv, av, hf, m, pos_e, vel_e, dirs, f_ext, xe, ve, f, r):
+    """r <- hf F(X, V) - M (v' - av) on free nodes (0 on held), X = xe0 + cx v', V = ve0 + cv v'.
+
+    Returns max |r| [N s].
+    """
+    n = vn.shape[0]
+    for i in range(n):
+        for j in range(3):
+            xe[i, j] = xe0[i, j] + cx * vn[i, j]
+            ve[i, j] = ve0[i, j] + cv * vn[i, j]
+    _set_held(xe, ve, m.held, pos_e, vel_e)
+    total_forces(xe, ve, m.mass, m.damp, m.k_stretch, m.rest_length, m.k_bend, m.gravity,
+                 dirs[0], dirs[1], f_ext, f)
+    worst = 0.0
+    for i in range(n):
+        for j in range(3):
+            val = 0.0 if m.held[i] else hf * f[i, j] - m.mass[i] * (vn[i, j] - av[i, j])
+            r[3 * i + j] = val
+            if not abs(val) <= worst:  # also catches NaN
+                worst = abs(val)
+    return worst
+
+
+@njit(cache=True)
+def _merit(vn, xe, ve, av, cx, cv, hf, m, dirs, f_ext):
+    """Incremental potential whose gradient in v' is (cx/hf) * residual [J].
+
+    Phi = (cx/hf) 1/2 |v' - av|_M^2 + E_el(X) - (M g + f_ext) . X + (cx/cv) 1/2 |V|_C^2,
+    evaluated at the X, V left in xe, ve by the last residual call.
+    """
+    phi = internal_energy(xe, m.k_stretch, m.rest_length, m.k_bend, dirs[0], dirs[1])
+    for i in range(vn.shape[0]):
+        for j in range(3):
+            dv = vn[i, j] - av[i, j]
+            phi += 0.5 * (cx / hf) * m.mass[i] * dv * dv
+            phi -= (m.mass[i] * m.gravity[j] + f_ext[i, j]) * xe[i, j]
+            phi += 0.5 * (cx / cv) * m.damp[i] * ve[i, j] * ve[i, j]
+    return phi
+
+
+@njit(cache=True)
 def _implicit(kind, x, v, xp, vp, has_prev, h, m, hold_pos, hold_vel, hold_dir, f_ext, max_iter, tol, definite):
-    """Newton on the end-of-step velocity v' for implicit Euler, BDF2 or implicit midpoint.
+    """Newton with line search on the end-of-step velocity v' (implicit Euler, BDF2, midpoint).
 
     Each method evaluates forces at X = xe0 + cx v', V = ve0 + cv v' and solves
-    M (v' - av) = hf F(X, V); the Newton matrix M - hf cx dF/dx + hf cv C is block-banded.
+    M (v' - av) = hf F(X, V). That is the stationarity condition of an incremental
+    potential (see ``_merit``), so a step that lowers the residual or the potential is
+    accepted and otherwise halved: no blow-up from a poor linearisation. The Newton matrix
+    M - hf cx dF/dx + hf cv C is block-banded (O(n) solve). The first iteration of implicit
+    Euler is the classical linearly implicit (Baraff-Witkin) step; later iterations run only
+    when its residual is above tolerance (large held-end jumps, strong nonlinearity).
     Returns (iterations, converged).
     """
     n = x.shape[0]
@@ -189,7 +236,6 @@ def _implicit(kind, x, v, xp, vp, has_prev, h, m, hold_pos, hold_vel, hold_dir, 
         av = v.copy()
         ve0 = np.zeros_like(v)
         cx, cv, hf = h, 1.0, h
-    iters = max_iter if kind != IMPLICIT_EULER else 1
     vn = v.copy()
     if held[0]:
         vn[0] = hold_vel[2, 0]
@@ -198,36 +244,60 @@ def _implicit(kind, x, v, xp, vp, has_prev, h, m, hold_pos, hold_vel, hold_dir, 
     xe = np.empty_like(x)
     ve = np.empty_like(v)
     f = np.empty_like(x)
+    r = np.empty(3 * n)
+    r_try = np.empty(3 * n)
+    v_try = np.empty_like(v)
     jac = np.empty((n, 5, 3, 3))
     band = np.empty((3 * n, 2 * HALF + 1))
-    rhs = np.empty(3 * n)
-    converged = False
+    # Residual scale: momentum gravity and external forces give in one step, and round-off
+    # floor of stiff spring forces (k eps |x|) below which no iteration can go.
+    g_norm = np.sqrt(np.sum(m.gravity ** 2))
+    xscale = 0.0
+    for i in range(n):
+        for j in range(3):
+            xscale = max(xscale, abs(x[i, j]))
+    r_scale = hf * (np.max(m.mass) * g_norm + np.max(np.abs(f_ext))) + 1e-300
+    r_floor = 10.0 * 2.2e-16 * hf * (np.max(m.k_stretch) * (xscale + np.max(m.rest_length)))
+    rnorm = _residual(vn, xe0, cx, ve0, cv, av, hf, m, pos_e, vel_e, dirs, f_ext, xe, ve, f, r)
     it = 0
-    while it < iters:
+    converged = False
+    while it < max_iter:
         it += 1
-        for i in range(n):
-            for j in range(3):
-                xe[i, j] = xe0[i, j] + cx * vn[i, j]
-                ve[i, j] = ve0[i, j] + cv * vn[i, j]
-        _set_held(xe, ve, held, pos_e, vel_e)
-        total_forces(xe, ve, m.mass, m.damp, m.k_stretch, m.rest_length, m.k_bend, m.gravity,
-                     dirs[0], dirs[1], f_ext, f)
-        for i in range(n):
-            for j in range(3):
-                rhs[3 * i + j] = 0.0 if held[i] else hf * f[i, j] - m.mass[i] * (vn[i, j] - av[i, j])
         force_jacobian(xe, m.k_stretch, m.rest_length, m.k_bend, dirs[0], dirs[1], definite, jac)
         assemble_system(jac, m.mass, m.damp, hf * cx, hf * cv, held, band)
-        band_solve(band, rhs)
-        step_size = 0.0
-        vscale = 1e-9
+        band_solve(band, r)  # r becomes the Newton direction dv
+        phi0 = np.nan
+        alpha = 1.0
+        accepted = False
+        for _ in range(12):
+            for i in range(n):
+                for j in range(3):
+                    v_try[i, j] = vn[i, j] + alpha * r[3 * i + j]
+            rn_try = _residual(v_try, xe0, cx, ve0, cv, av, hf, m, pos_e, vel_e, dirs, f_ext, xe, ve, f, r_try)
+            if rn_try < rnorm or rn_try <= tol * r_scale + r_floor:
+                accepted = True
+                break
+            if phi0 != phi0:  # merit at the current iterate, computed once when first needed
+                _residual(vn, xe0, cx, ve0, cv, av, hf, m, pos_e, vel_e, dirs, f_ext, xe, ve, f, r_try)
+                phi0 = _merit(vn, xe, ve, av, cx, cv, hf, m, dirs, f_ext)
+                _residual(v_try, xe0, cx, ve0, cv, av, hf, m, pos_e, vel_e, dirs, f_ext, xe, ve, f, r_try)
+            if _merit(v_try, xe, ve, av, cx, cv, hf, m, dirs, f_ext) <= phi0:
+                accepted = True
+                break
+            alpha *= 0.5
+        if not accepted:
+            break  # stagnated: keep the current iterate (reported as not converged)
+        vn[:, :] = v_try
+        r[:] = r_try
+        rnorm = rn_try
+        # residual tolerance relative to the momentum change of this step
+        dmom = 0.0
         for i in range(n):
+            if held[i]:
+                continue
             for j in range(3):
-                vn[i, j] += rhs[3 * i + j]
-                step_size = max(step_size, abs(rhs[3 * i + j]))
-                vscale = max(vscale, abs(vn[i, j]))
-        if not (step_size == step_size):  # NaN: give up, the detector will report it
-            break
-        if step_size <= tol * vscale:
+                dmom = max(dmom, m.mass[i] * abs(vn[i, j] - av[i, j]))
+        if rnorm <= tol * (r_scale + dmom) + r_floor:
             converged = True
             break
     # position update consistent with each method
@@ -239,7 +309,7 @@ def _implicit(kind, x, v, xp, vp, has_prev, h, m, hold_pos, hold_vel, hold_dir, 
         x += h * vn
     v[:, :] = vn
     _set_held(x, v, held, hold_pos[2], hold_vel[2])
-    return it, converged or kind == IMPLICIT_EULER
+    return it, converged
 
 
 @njit(cache=True)

@@ -1,0 +1,206 @@
+"""``bullet-dlo``: the command-line entry point (one subcommand per task).
+
+Every invalid input ends with a one-line ``error: ...`` naming the bad key or option and
+exit code 2.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+from typing import Sequence
+
+import numpy as np
+
+from .params import ParameterError
+
+
+def _write_json(path: str, data: object) -> None:
+    out = Path(path)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(json.dumps(data, indent=2))
+
+
+def cmd_simulate(args: argparse.Namespace) -> int:
+    from dataclasses import replace
+
+    from .integrators import get_integrator
+    from .params import check_positive
+    from .scene import Scene, result_json
+
+    scene = Scene.from_yaml(args.scene)
+    if args.integrator is not None:
+        scene = replace(scene, integrator=get_integrator(args.integrator).name)
+    for key in ("dt", "duration"):
+        if getattr(args, key) is not None:
+            scene = replace(scene, **{key: check_positive(f"--{key}", getattr(args, key))})
+    if args.engine != "core":
+        raise ParameterError(f"--engine {args.engine!r} is not available yet; use --engine core")
+    model, result = scene.run()
+    data = result_json(scene, model, result)
+    if args.json:
+        _write_json(args.json, data)
+    if args.npz:
+        Path(args.npz).parent.mkdir(parents=True, exist_ok=True)
+        np.savez_compressed(args.npz, t=result.t, x=result.x, v=result.v, end_forces=result.end_forces,
+                            energy=result.energy)
+    status = "stable" if data["stable"] else f"UNSTABLE at t = {data['time_to_instability']:.6g} s ({data['reason']})"
+    print(f"{scene.name}: {data['integrator']} dt={scene.dt:g} s, {data['steps']} steps in "
+          f"{data['wall_time_s']:.3f} s: {status}")
+    if data["stable"]:
+        for end in ("first", "last"):
+            if data["end_forces"][end] is not None:
+                print(f"  end force {end}: " + " ".join(f"{v:+.5f}" for v in data["end_forces"][end]) + " N")
+    return 0
+
+
+def cmd_stability(args: argparse.Namespace) -> int:
+    from .integrators import INTEGRATORS
+    from .scene import Scene
+    from .stability import critical_dt, damping_bounds
+
+    scene = Scene.from_yaml(args.scene)
+    model = scene.build_model()
+    report = {"dt": scene.dt, "critical_dt": {}, "stable_at_dt": {}}
+    print(f"{scene.name}: n={model.n}, E={scene.cable.youngs_modulus:.4g} Pa, dt={scene.dt:g} s")
+    for name in INTEGRATORS:
+        crit = critical_dt(model, name)
+        report["critical_dt"][name] = crit
+        report["stable_at_dt"][name] = True if crit is None else bool(scene.dt <= crit)
+        txt = "unconditionally stable (linear analysis)" if crit is None else f"{crit:.4g} s"
+        print(f"  {name:18s} critical dt: {txt}")
+    b = damping_bounds(model, scene.dt)
+    report["damping"] = b.__dict__
+    print(f"  omega_max = {b.omega_max:.4g} rad/s, damping ratio of the stiffest mode = {b.damping_ratio:.3g}")
+    print(f"  k_d that critically damps one segment spring: {b.k_d_critical_spring:.4g} N s/m;"
+          f" explicit Euler needs k_d >= {b.k_d_min_explicit_euler:.4g}; explicit methods need k_d <= "
+          f"{b.k_d_max_explicit:.4g} N s/m at this dt")
+    if args.json:
+        _write_json(args.json, report)
+    return 0
+
+
+def cmd_paper_table(args: argparse.Namespace) -> int:
+    from . import paper
+
+    moduli = [float(e) * 1e6 for e in args.moduli] if args.moduli else paper.PAPER_E
+    masses = args.masses or paper.PAPER_N
+    steps = args.steps or paper.PAPER_DT
+    integrators = args.integrators or paper.PAPER_INTEGRATORS
+    for name in integrators:
+        from .integrators import get_integrator
+        get_integrator(name)
+    print("The study's scenario: Lv cable, both ends clamped at rest length, settled, last end moved 5 mm "
+          f"(k_d = {args.damping} N s/m, {args.duration} s per run).", flush=True)
+    done = []
+
+    def progress(run: paper.PaperRun) -> None:
+        done.append(run)
+        if args.verbose:
+            state = "stable" if run.stable else f"unstable at {run.time_to_instability:.4g} s"
+            print(f"  E={run.youngs_modulus / 1e6:g} MPa n={run.n_masses} dt={run.dt:g} {run.integrator}: {state}"
+                  f" ({run.wall_time_s:.1f} s)", flush=True)
+
+    runs = paper.paper_table(moduli, masses, steps, integrators, damping=args.damping, duration=args.duration,
+                             progress=progress)
+    table = paper.format_table(runs)
+    print(table)
+    text = "## The study's time steps\n\n" + table + "\n"
+    if args.rates:
+        rate_runs = paper.robot_rate_table(moduli, masses, damping=args.damping, duration=args.rate_duration)
+        rate_table = paper.format_table(rate_runs)
+        print("\nAt the robot simulators' rates (1 kHz Gazebo, 60 Hz Isaac Sim):")
+        print(rate_table)
+        text += "\n## At robot-simulator rates\n\n" + rate_table + "\n"
+        runs = runs + rate_runs
+    if args.markdown:
+        Path(args.markdown).parent.mkdir(parents=True, exist_ok=True)
+        Path(args.markdown).write_text(text)
+    if args.json:
+        _write_json(args.json, [r.__dict__ for r in runs])
+    return 0
+
+
+def cmd_convergence(args: argparse.Namespace) -> int:
+    from .validation import cantilever_convergence
+
+    rows = cantilever_convergence(args.masses)
+    print("Clamped cantilever under its own weight vs delta = w L^4 / (8 E I) (small deflection):")
+    print("| n | default error | paper error |\n|---|---|---|")
+    for r in rows:
+        print(f"| {r['n_masses']} | {100 * r['default']:+.3f} % | {100 * r['paper']:+.2f} % |")
+    if args.json:
+        _write_json(args.json, rows)
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(
+        prog="bullet-dlo",
+        description="Mass-spring-damper cables with stable integrators (PyBullet-free core). "
+                    "All quantities in SI units.",
+    )
+    sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
+
+    s = sub.add_parser("simulate", help="run a scene file and write JSON results",
+                       description="Run SCENE.yaml (see README for the schema) and write results.")
+    s.add_argument("scene", help="scene YAML file")
+    s.add_argument("--json", metavar="OUT.json", help="write stable, time_to_instability, critical_dt, "
+                   "final_positions, end_forces, steps, wall_time_s (and more) to this file")
+    s.add_argument("--npz", metavar="OUT.npz", help="also save the recorded trajectory (t, x, v, end_forces, energy)")
+    s.add_argument("--engine", default="core", choices=["core", "bullet"],
+                   help="core: the NumPy/Numba engine (default); bullet: PyBullet-coupled (not yet available)")
+    s.add_argument("--integrator", help="override the scene's integrator")
+    s.add_argument("--dt", type=float, help="override the scene's time step [s]")
+    s.add_argument("--duration", type=float, help="override the scene's duration [s]")
+    s.set_defaults(func=cmd_simulate)
+
+    s = sub.add_parser("stability", help="predicted critical time step of every integrator for a scene",
+                       description="Linear stability analysis of SCENE.yaml's cable: critical dt per integrator "
+                                   "and damping bounds.")
+    s.add_argument("scene", help="scene YAML file")
+    s.add_argument("--json", metavar="OUT.json", help="write the report as JSON")
+    s.set_defaults(func=cmd_stability)
+
+    s = sub.add_parser("paper-table", help="re-run the study's stability table with every integrator",
+                       description="Lv cable clamped at both ends, settled, last end moved 5 mm; for each "
+                                   "E, n and dt report stable/unstable and time to instability.")
+    s.add_argument("--moduli", nargs="+", type=float, metavar="MPA",
+                   help="Young's moduli in MPa (default: 12.6 526 1002 1002.6)")
+    s.add_argument("--masses", nargs="+", type=int, metavar="N", help="numbers of masses (default: 6 10)")
+    s.add_argument("--steps", nargs="+", type=float, metavar="DT", help="time steps [s] (default: 5e-6 1e-7)")
+    s.add_argument("--integrators", nargs="+", metavar="NAME",
+                   help="integrators (default: explicit_euler symplectic_euler rk4 implicit_euler)")
+    s.add_argument("--damping", type=float, default=0.01, help="k_d [N s/m] (default 0.01)")
+    s.add_argument("--duration", type=float, default=0.25, help="simulated seconds per run (default 0.25)")
+    s.add_argument("--rates", action="store_true",
+                   help="also run the scenario at 1 kHz and 60 Hz with symplectic Euler and the implicit methods")
+    s.add_argument("--rate-duration", type=float, default=2.0, help="seconds per run for --rates (default 2)")
+    s.add_argument("--markdown", metavar="OUT.md", help="write the table(s) as Markdown")
+    s.add_argument("--json", metavar="OUT.json", help="write every run as JSON")
+    s.add_argument("-v", "--verbose", action="store_true", help="print each run as it finishes")
+    s.set_defaults(func=cmd_paper_table)
+
+    s = sub.add_parser("convergence", help="cantilever static convergence of both discretisations",
+                       description="Tip deflection of a clamped cantilever under its own weight vs beam "
+                                   "theory, for the default and the paper discretisation.")
+    s.add_argument("--masses", nargs="+", type=int, default=[5, 10, 20, 40], metavar="N",
+                   help="numbers of masses (default: 5 10 20 40)")
+    s.add_argument("--json", metavar="OUT.json", help="write the table as JSON")
+    s.set_defaults(func=cmd_convergence)
+    return p
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return int(args.func(args) or 0)
+    except ParameterError as err:
+        print(f"error: {err}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())

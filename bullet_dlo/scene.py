@@ -1,0 +1,193 @@
+"""Scene files: a portable YAML description of one cable run, and running it.
+
+Schema (extra keys are rejected with a message naming them)::
+
+    cable: {length: 0.3, diameter: 0.004, mass: 0.03, youngs_modulus: 126.0e6,
+            n_masses: 10, damping: 0.01}           # or {preset: lv2017, n_masses: 20}
+    layout: {start: [0, 0, 0.5], direction: [1, 0, 0]}   # straight from mass 0
+    ends: {first: clamped, last: clamped}                 # free | pinned | clamped
+    motion: [{end: last, displacement: [0, 0, 0.005], start: 0.5, duration: 0.1}]
+    gravity: [0, 0, -9.81]
+    integrator: implicit_euler
+    dt: 0.001
+    duration: 2.0
+    # optional
+    initial: straight            # or static: start from the equilibrium under gravity
+    detector: {max_strain: 0.5, energy_factor: 1.0, check_every: 1}
+    newton: {max_iter: 8, tol: 1.0e-9}
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Mapping
+
+import numpy as np
+import yaml
+
+from .boundary import END_MODES, Move, parse_motion
+from .integrators import INTEGRATORS, NewtonOptions, get_integrator
+from .model import STANDARD_GRAVITY, CableModel, CableState
+from .params import CableSpec, ParameterError, check_positive, check_vector3
+from .simulate import DetectorOptions, SimulationResult, simulate
+from .stability import critical_dt
+from .statics import solve_static
+
+TOP_KEYS = ("cable", "layout", "ends", "motion", "gravity", "integrator", "dt", "duration",
+            "initial", "detector", "newton", "name")
+INITIAL = ("straight", "static")
+
+
+def _mapping(value: Any, key: str) -> Mapping[str, Any]:
+    if value is None:
+        return {}
+    if not isinstance(value, Mapping):
+        raise ParameterError(f"{key} must be a mapping, got {type(value).__name__}")
+    return value
+
+
+def _only(data: Mapping[str, Any], allowed: tuple[str, ...], where: str) -> None:
+    unknown = sorted(set(data) - set(allowed))
+    if unknown:
+        raise ParameterError(f"unknown key(s) {', '.join(unknown)} in {where}; allowed: {', '.join(allowed)}")
+
+
+def _prefixed(where: str, fn, *args, **kwargs):
+    """Call fn, re-raising ParameterError with the scene key it came from."""
+    try:
+        return fn(*args, **kwargs)
+    except ParameterError as err:
+        raise ParameterError(f"{where}: {err}") from None
+    except TypeError as err:
+        raise ParameterError(f"{where}: {err}") from None
+
+
+@dataclass(frozen=True)
+class Scene:
+    """A validated scene: cable, layout, end conditions, motion, integration settings."""
+
+    cable: CableSpec
+    start: tuple[float, float, float] = (0.0, 0.0, 0.5)
+    direction: tuple[float, float, float] = (1.0, 0.0, 0.0)
+    ends: tuple[str, str] = ("clamped", "clamped")
+    motion: tuple[Move, ...] = ()
+    gravity: tuple[float, float, float] = STANDARD_GRAVITY
+    integrator: str = "implicit_euler"
+    dt: float = 1e-3
+    duration: float = 1.0
+    initial: str = "straight"
+    detector: DetectorOptions = field(default_factory=DetectorOptions)
+    newton: NewtonOptions = field(default_factory=NewtonOptions)
+    name: str = "scene"
+
+    # ----- parsing -------------------------------------------------------------------------
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> "Scene":
+        """Validate a parsed scene mapping; errors name the offending key."""
+        data = _mapping(data, "scene")
+        _only(data, TOP_KEYS, "scene")
+        if "cable" not in data:
+            raise ParameterError("cable: missing (give cable parameters or {preset: lv2017})")
+        cable = _prefixed("cable", CableSpec.from_dict, _mapping(data["cable"], "cable"))
+        layout = _mapping(data.get("layout"), "layout")
+        _only(layout, ("start", "direction"), "layout")
+        start = tuple(_prefixed("layout.start", check_vector3, "start", layout.get("start", (0.0, 0.0, 0.5))))
+        direction = tuple(_prefixed("layout.direction", check_vector3, "direction",
+                                    layout.get("direction", (1.0, 0.0, 0.0)), unit=True))
+        ends_map = _mapping(data.get("ends"), "ends")
+        _only(ends_map, ("first", "last"), "ends")
+        ends = []
+        for key in ("first", "last"):
+            mode = str(ends_map.get(key, "clamped")).lower()
+            if mode not in END_MODES:
+                raise ParameterError(f"ends.{key} must be one of {', '.join(END_MODES)}, got {ends_map.get(key)!r}")
+            ends.append(mode)
+        motion = _prefixed("motion", parse_motion, data.get("motion"))
+        for mv in motion:
+            if ends[0 if mv.end == "first" else 1] == "free":
+                raise ParameterError(f"motion: end '{mv.end}' is free; only pinned or clamped ends can be moved")
+        gravity = tuple(_prefixed("gravity", check_vector3, "gravity", data.get("gravity", STANDARD_GRAVITY)))
+        integrator = str(data.get("integrator", "implicit_euler"))
+        if integrator not in INTEGRATORS:
+            raise ParameterError(f"integrator must be one of {', '.join(INTEGRATORS)}, got {integrator!r}")
+        dt = _prefixed("dt", check_positive, "dt", data.get("dt", 1e-3))
+        duration = _prefixed("duration", check_positive, "duration", data.get("duration", 1.0))
+        if duration / dt > 1e10:
+            raise ParameterError(f"duration/dt = {duration / dt:.3g} steps; at most 1e10 steps per run")
+        initial = str(data.get("initial", "straight"))
+        if initial not in INITIAL:
+            raise ParameterError(f"initial must be one of {', '.join(INITIAL)}, got {initial!r}")
+        det = _mapping(data.get("detector"), "detector")
+        _only(det, ("max_strain", "energy_factor", "check_every"), "detector")
+        detector = DetectorOptions(**det)
+        nwt = _mapping(data.get("newton"), "newton")
+        _only(nwt, ("max_iter", "tol", "definite"), "newton")
+        newton = NewtonOptions(**nwt)
+        return cls(cable, start, direction, (ends[0], ends[1]), motion, gravity, integrator, dt, duration,
+                   initial, detector, newton, str(data.get("name", "scene")))
+
+    @classmethod
+    def from_yaml(cls, path: str | Path) -> "Scene":
+        """Load and validate a YAML scene file."""
+        p = Path(path)
+        if not p.is_file():
+            raise ParameterError(f"scene file {str(path)!r} does not exist")
+        try:
+            data = yaml.safe_load(p.read_text())
+        except yaml.YAMLError as err:
+            raise ParameterError(f"scene file {str(path)!r} is not valid YAML: {str(err).splitlines()[0]}") from None
+        return cls.from_dict(data)
+
+    # ----- running -------------------------------------------------------------------------
+    def build_model(self) -> CableModel:
+        """The discretised cable with its end conditions and motion."""
+        return CableModel.straight(self.cable, self.start, self.direction, self.ends, self.motion, self.gravity)
+
+    def initial_state(self, model: CableModel) -> CableState:
+        """Straight at rest, or the static equilibrium under gravity (``initial: static``)."""
+        if self.initial == "static":
+            return solve_static(model).state()
+        return model.initial_state()
+
+    def run(self, **overrides: Any) -> tuple[CableModel, SimulationResult]:
+        """Run with the core engine; ``overrides`` go to :func:`simulate`."""
+        model = self.build_model()
+        kwargs: dict[str, Any] = dict(state=self.initial_state(model), newton=self.newton, detector=self.detector)
+        kwargs.update(overrides)
+        return model, simulate(model, self.integrator, self.dt, self.duration, **kwargs)
+
+
+def result_json(scene: Scene, model: CableModel, result: SimulationResult) -> dict[str, Any]:
+    """The portable output of ``bullet-dlo simulate`` (see README for the keys)."""
+    def vec(a: np.ndarray) -> list[float]:
+        return [float(v) for v in a]
+
+    held = model.arrays.held
+    forces = result.end_forces[-1] if len(result.end_forces) else np.zeros((2, 3))
+    ok = result.stable
+    crit = critical_dt(model, scene.integrator)
+    return {
+        "stable": bool(ok),
+        "time_to_instability": result.time_to_instability,
+        "reason": result.reason,
+        "critical_dt": crit if crit is None or math.isfinite(crit) else None,
+        "final_positions": result.final_state.x.tolist(),
+        "end_forces": {
+            "first": vec(forces[0]) if held[0] and ok else None,
+            "last": vec(forces[1]) if held[-1] and ok else None,
+        },
+        "end_moments": {
+            "first": vec(result.end_moments[0]) if scene.ends[0] == "clamped" and ok else None,
+            "last": vec(result.end_moments[1]) if scene.ends[1] == "clamped" and ok else None,
+        },
+        "steps": result.steps,
+        "wall_time_s": result.wall_time_s,
+        "integrator": get_integrator(scene.integrator).name,
+        "dt": scene.dt,
+        "duration": scene.duration,
+        "n_masses": scene.cable.n_masses,
+        "cable_weight": scene.cable.mass * float(np.linalg.norm(scene.gravity)),
+        "newton_failures": result.newton_failures,
+        "engine": "core",
+    }
