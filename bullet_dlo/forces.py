@@ -180,8 +180,8 @@ def force_jacobian(x, k_stretch, rest_length, k_bend, dir_first, dir_last, defin
     n = x.shape[0]
     jac[:, :, :, :] = 0.0
     hs = np.empty((3, 3))
+    d = np.empty(3)
     for i in range(n - 1):
-        d = np.empty(3)
         d[0] = x[i + 1, 0] - x[i, 0]
         d[1] = x[i + 1, 1] - x[i, 1]
         d[2] = x[i + 1, 2] - x[i, 2]
@@ -200,6 +200,7 @@ def force_jacobian(x, k_stretch, rest_length, k_bend, dir_first, dir_last, defin
         _add_block(jac, i + 1, i, -1.0, hs, 0, 0)
         _add_block(jac, i + 1, i + 1, 1.0, hs, 0, 0)
     hb = np.empty((6, 6))
+    g = np.empty(6)
     for i in range(n):
         k = k_bend[i]
         if k == 0.0:
@@ -212,7 +213,7 @@ def force_jacobian(x, k_stretch, rest_length, k_bend, dir_first, dir_last, defin
             b0, b1, b2 = dir_last[0], dir_last[1], dir_last[2]
         else:
             b0, b1, b2 = x[i + 1, 0] - x[i, 0], x[i + 1, 1] - x[i, 1], x[i + 1, 2] - x[i, 2]
-        _bend_hessian(a0, a1, a2, b0, b1, b2, k, hb)
+        _bend_hessian(a0, a1, a2, b0, b1, b2, k, g, hb)
         # node weights of a = x_i - x_{i-1} and b = x_{i+1} - x_i over nodes (i-1, i, i+1)
         for p in range(3):
             node_p = i - 1 + p
@@ -237,8 +238,8 @@ def force_jacobian(x, k_stretch, rest_length, k_bend, dir_first, dir_last, defin
 
 
 @njit(cache=True)
-def _bend_hessian(a0, a1, a2, b0, b1, b2, k, out):
-    """Hessian of 1/2 k theta(a, b)^2 with respect to (a, b), shape (6, 6), into ``out``.
+def _bend_hessian(a0, a1, a2, b0, b1, b2, k, g, out):
+    """Hessian of 1/2 k theta(a, b)^2 with respect to (a, b), shape (6, 6), into ``out`` (g: scratch (6,)).
 
     H = k [alpha grad(c) grad(c)^T - (theta/s) hess(c)], c = cos(theta), written so that
     every term stays finite at theta = 0 (straight cable).
@@ -246,7 +247,6 @@ def _bend_hessian(a0, a1, a2, b0, b1, b2, k, out):
     _, s, c, la, lb, ux, uy, uz, wx, wy, wz, ratio, alpha = _angle_terms(a0, a1, a2, b0, b1, b2)
     u = (ux, uy, uz)
     w = (wx, wy, wz)
-    g = np.empty(6)
     for r in range(3):
         g[r] = (w[r] - c * u[r]) / la
         g[3 + r] = (u[r] - c * w[r]) / lb

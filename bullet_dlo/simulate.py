@@ -248,7 +248,7 @@ def simulate(
         record_every = max(1, math.ceil(n_steps / max(1, max_records - 1)))
     record_every = check_int("record_every", record_every, 1)
     check_int("newton max_iter", newton.max_iter, 1)
-    check_positive("newton tol", newton.tol)
+    tol = check_positive("newton tol", newton.tolerance(method.name))
     check_positive("max_strain", detector.max_strain)
     check_positive("energy_factor", detector.energy_factor)
     check_int("check_every", detector.check_every, 1)
@@ -273,7 +273,7 @@ def simulate(
     steps, status, t_bad, rows, failures, iters = run_loop(
         method.code, x, v, st.t, dt, n_steps, model.arrays, p0s, d0s, mf, ml, f_ext,
         record_every, rec_t, rec_x, rec_v, rec_f, rec_e,
-        newton.max_iter, newton.tol, newton.definite,
+        newton.max_iter, tol, newton.definite,
         detector.max_strain, detector.energy_factor, detector.check_every, energy_scale(model, st),
     )
     wall = time.perf_counter() - tic

@@ -179,3 +179,33 @@ def stability_report(model: CableModel, integrator: str, dt: float) -> dict:
         "predicted_stable": True if crit is None else bool(dt <= crit),
         "dt_over_critical": None if crit is None else (math.inf if crit == 0 else dt / crit),
     }
+
+
+def measured_critical_dt(model: CableModel, integrator: str, duration: float = 0.2, *,
+                         state: CableState | None = None, guess: float | None = None,
+                         rel_tol: float = 0.01) -> float:
+    """Largest step [s] at which a run of ``duration`` stays stable, found by bisection.
+
+    Brackets the boundary around ``guess`` (default: the predicted critical step, or 1 ms)
+    and bisects in log space to ``rel_tol``. The answer depends on the run's duration and
+    start state: a slowly growing mode may need a long run to show.
+    """
+    from .simulate import simulate
+
+    def stable(dt: float) -> bool:
+        return simulate(model, integrator, dt, duration, state=state, max_records=3).stable
+
+    g = guess or critical_dt(model, integrator) or 1e-3
+    lo, hi = g / 1.7, g * 2.3  # asymmetric, so no bisection point lands on the prediction itself
+    while not stable(lo):
+        lo, hi = lo / 4.0, lo
+        if lo < 1e-12:
+            return 0.0
+    while stable(hi):
+        lo, hi = hi, hi * 4.0
+        if hi > 10.0:
+            return math.inf
+    while hi / lo > 1.0 + rel_tol:
+        mid = math.sqrt(lo * hi)
+        lo, hi = (mid, hi) if stable(mid) else (lo, mid)
+    return lo

@@ -1,0 +1,31 @@
+"""Keep Numba's on-disk cache consistent with the package sources.
+
+Numba invalidates a cached function only when *its own* file changes, not when a kernel it
+inlines from another module does; after editing e.g. ``forces.py`` the cached time loop in
+``simulate.py`` would silently keep the old physics. At import we hash every module of the
+package and, if the hash differs from the one stored beside the cache, delete the cache.
+"""
+from __future__ import annotations
+
+import hashlib
+from pathlib import Path
+
+
+def ensure_fresh_cache() -> None:
+    """Delete stale ``*.nbi``/``*.nbc`` files of this package if any source changed."""
+    pkg = Path(__file__).resolve().parent
+    cache = pkg / "__pycache__"
+    digest = hashlib.sha1()
+    for src in sorted(pkg.glob("*.py")):
+        digest.update(src.name.encode())
+        digest.update(src.read_bytes())
+    stamp = cache / "numba_sources.sha1"
+    try:
+        if stamp.is_file() and stamp.read_text() == digest.hexdigest():
+            return
+        for old in list(cache.glob("*.nbi")) + list(cache.glob("*.nbc")):
+            old.unlink(missing_ok=True)
+        cache.mkdir(exist_ok=True)
+        stamp.write_text(digest.hexdigest())
+    except OSError:  # read-only install: Numba then uses its own cache location
+        pass
