@@ -55,6 +55,21 @@ def _angle_terms(ax, ay, az, bx, by, bz):
     return theta, s, c, la, lb, ux, uy, uz, wx, wy, wz, ratio, alpha
 
 
+@njit(cache=True, inline="always")
+def _node_edges(x, i, dir_first, dir_last):
+    """Incoming edge a and outgoing edge b at node i; the clamp directions stand in at the ends."""
+    n = x.shape[0]
+    if i == 0:
+        a0, a1, a2 = dir_first[0], dir_first[1], dir_first[2]
+    else:
+        a0, a1, a2 = x[i, 0] - x[i - 1, 0], x[i, 1] - x[i - 1, 1], x[i, 2] - x[i - 1, 2]
+    if i == n - 1:
+        b0, b1, b2 = dir_last[0], dir_last[1], dir_last[2]
+    else:
+        b0, b1, b2 = x[i + 1, 0] - x[i, 0], x[i + 1, 1] - x[i, 1], x[i + 1, 2] - x[i, 2]
+    return a0, a1, a2, b0, b1, b2
+
+
 @njit(cache=True)
 def internal_energy(x, k_stretch, rest_length, k_bend, dir_first, dir_last):
     """Elastic energy of stretch, bending and clamp springs [J]."""
@@ -70,14 +85,7 @@ def internal_energy(x, k_stretch, rest_length, k_bend, dir_first, dir_last):
         k = k_bend[i]
         if k == 0.0:
             continue
-        if i == 0:
-            a0, a1, a2 = dir_first[0], dir_first[1], dir_first[2]
-        else:
-            a0, a1, a2 = x[i, 0] - x[i - 1, 0], x[i, 1] - x[i - 1, 1], x[i, 2] - x[i - 1, 2]
-        if i == n - 1:
-            b0, b1, b2 = dir_last[0], dir_last[1], dir_last[2]
-        else:
-            b0, b1, b2 = x[i + 1, 0] - x[i, 0], x[i + 1, 1] - x[i, 1], x[i + 1, 2] - x[i, 2]
+        a0, a1, a2, b0, b1, b2 = _node_edges(x, i, dir_first, dir_last)
         theta = _angle_terms(a0, a1, a2, b0, b1, b2)[0]
         e += 0.5 * k * theta * theta
     return e
@@ -104,14 +112,7 @@ def internal_forces(x, k_stretch, rest_length, k_bend, dir_first, dir_last, out)
         k = k_bend[i]
         if k == 0.0:
             continue
-        if i == 0:
-            a0, a1, a2 = dir_first[0], dir_first[1], dir_first[2]
-        else:
-            a0, a1, a2 = x[i, 0] - x[i - 1, 0], x[i, 1] - x[i - 1, 1], x[i, 2] - x[i - 1, 2]
-        if i == n - 1:
-            b0, b1, b2 = dir_last[0], dir_last[1], dir_last[2]
-        else:
-            b0, b1, b2 = x[i + 1, 0] - x[i, 0], x[i + 1, 1] - x[i, 1], x[i + 1, 2] - x[i, 2]
+        a0, a1, a2, b0, b1, b2 = _node_edges(x, i, dir_first, dir_last)
         _, s, c, la, lb, ux, uy, uz, wx, wy, wz, ratio, _ = _angle_terms(a0, a1, a2, b0, b1, b2)
         # dE/da = -k (theta/s) (w - c u)/|a| ; dE/db = -k (theta/s) (u - c w)/|b|
         ga = -k * ratio / la
@@ -205,14 +206,7 @@ def force_jacobian(x, k_stretch, rest_length, k_bend, dir_first, dir_last, defin
         k = k_bend[i]
         if k == 0.0:
             continue
-        if i == 0:
-            a0, a1, a2 = dir_first[0], dir_first[1], dir_first[2]
-        else:
-            a0, a1, a2 = x[i, 0] - x[i - 1, 0], x[i, 1] - x[i - 1, 1], x[i, 2] - x[i - 1, 2]
-        if i == n - 1:
-            b0, b1, b2 = dir_last[0], dir_last[1], dir_last[2]
-        else:
-            b0, b1, b2 = x[i + 1, 0] - x[i, 0], x[i + 1, 1] - x[i, 1], x[i + 1, 2] - x[i, 2]
+        a0, a1, a2, b0, b1, b2 = _node_edges(x, i, dir_first, dir_last)
         _bend_hessian(a0, a1, a2, b0, b1, b2, k, g, hb)
         # node weights of a = x_i - x_{i-1} and b = x_{i+1} - x_i over nodes (i-1, i, i+1)
         for p in range(3):

@@ -36,6 +36,18 @@ def _setup(n=7, ends=("clamped", "clamped"), noise=0.006, seed=0):
     return spec, model.arrays, x, d1, d2
 
 
+def finite_difference(fn, x, eps=1e-7):
+    """Central differences of fn (array -> array or scalar) with respect to every entry of x."""
+    cols = []
+    for i in range(x.shape[0]):
+        for j in range(3):
+            xp, xm = x.copy(), x.copy()
+            xp[i, j] += eps
+            xm[i, j] -= eps
+            cols.append(np.ravel((fn(xp) - fn(xm)) / (2 * eps)))
+    return np.array(cols).T
+
+
 def _forces(x, a, d1, d2):
     f = np.zeros_like(x)
     forces.internal_forces(x, a.k_stretch, a.rest_length, a.k_bend, d1, d2, f)
@@ -55,16 +67,7 @@ def test_energy_matches_reference(ends):
 def test_forces_are_minus_energy_gradient(seed, ends):
     spec, a, x, d1, d2 = _setup(ends=ends, seed=seed)
     f = _forces(x, a, d1, d2)
-    eps = 1e-7
-    fd = np.zeros_like(x)
-    for i in range(x.shape[0]):
-        for j in range(3):
-            xp, xm = x.copy(), x.copy()
-            xp[i, j] += eps
-            xm[i, j] -= eps
-            ep = reference_energy(xp, spec, a.k_bend, d1, d2)
-            em = reference_energy(xm, spec, a.k_bend, d1, d2)
-            fd[i, j] = -(ep - em) / (2 * eps)
+    fd = -finite_difference(lambda y: reference_energy(y, spec, a.k_bend, d1, d2), x).reshape(x.shape)
     assert np.max(np.abs(f - fd)) < 1e-6 * np.max(np.abs(f))
 
 
@@ -76,14 +79,7 @@ def test_jacobian_matches_force_differences(noise):
     jac = np.zeros((x.shape[0], 5, 3, 3))
     forces.force_jacobian(x, a.k_stretch, a.rest_length, a.k_bend, d1, d2, False, jac)
     dense = forces.band_to_dense(jac)
-    eps = 1e-7
-    fd = np.zeros_like(dense)
-    for i in range(x.shape[0]):
-        for j in range(3):
-            xp, xm = x.copy(), x.copy()
-            xp[i, j] += eps
-            xm[i, j] -= eps
-            fd[:, 3 * i + j] = ((_forces(xp, a, d1, d2) - _forces(xm, a, d1, d2)) / (2 * eps)).ravel()
+    fd = finite_difference(lambda y: _forces(y, a, d1, d2), x)
     assert np.all(np.isfinite(dense))
     assert np.max(np.abs(dense - fd)) < 1e-6 * np.max(np.abs(dense))
     assert np.allclose(dense, dense.T, atol=1e-9 * np.abs(dense).max())  # conservative forces
