@@ -124,6 +124,42 @@ def _check(x, v, m, dirs, max_strain_bound, e0, work, e_scale, energy_factor):
 
 
 @njit(cache=True)
+def advance(code, x, v, hist, has_prev, h, m, hp, hv, hd, f_ext, max_iter, tol, definite):
+    """One step of method ``code`` in place, keeping BDF2's history in ``hist`` (4, n, 3).
+
+    hist[0], hist[1] are the previous x, v (valid when ``has_prev``); hist[2:] is scratch.
+    Returns (Newton iterations, converged).
+    """
+    if code == BDF2:
+        hist[2] = x
+        hist[3] = v
+    its, ok = step_kernel(code, x, v, hist[0], hist[1], has_prev, h, m, hp, hv, hd, f_ext, max_iter, tol, definite)
+    if code == BDF2:
+        hist[0] = hist[2]
+        hist[1] = hist[3]
+    return its, ok
+
+
+@njit(cache=True)
+def monitor(x, v, m, hp2, ha2, hd2, f_ext, ef, last_hold, last_force, acc, e0, max_strain_bound, energy_factor):
+    """Instability check after a step (held ends at hp2/ha2/hd2, each (2, 3)).
+
+    Writes the end forces into ``ef``; accumulates the work the holders did on the cable
+    since the last call (trapezoid of force times held-end displacement) into acc[0] and its
+    absolute value into the energy scale acc[1]. Returns a status code (STABLE, ...).
+    """
+    end_forces_kernel(x, v, m, hd2, ha2, f_ext, ef)
+    for e in range(2):
+        for j in range(3):
+            dw = -0.5 * (ef[e, j] + last_force[e, j]) * (hp2[e, j] - last_hold[e, j])
+            acc[0] += dw
+            acc[1] += abs(dw)
+    last_hold[:, :] = hp2
+    last_force[:, :] = ef
+    return _check(x, v, m, hd2, max_strain_bound, e0, acc[0], acc[1], energy_factor)
+
+
+@njit(cache=True)
 def run_loop(code, x, v, t0, h, n_steps, m, p0s, d0s, moves_first, moves_last, f_ext,
              record_every, rec_t, rec_x, rec_v, rec_f, rec_e,
              max_iter, tol, definite, max_strain_bound, energy_factor, check_every, e_scale0):
@@ -138,16 +174,11 @@ def run_loop(code, x, v, t0, h, n_steps, m, p0s, d0s, moves_first, moves_last, f
     ha = np.empty((3, 2, 3))
     hd = np.empty((3, 2, 3))
     ef = np.empty((2, 3))
-    xp = x.copy()
-    vp = v.copy()
-    xprev = x.copy()
-    vprev = v.copy()
-    has_prev = False
+    hist = np.zeros((4, n, 3))
     sample_holders(t0, h, p0s, d0s, moves_first, moves_last, hp, hv, ha, hd)
     e0 = energy_kernel(x, v, m, hd[0])
     end_forces_kernel(x, v, m, hd[0], ha[0], f_ext, ef)
-    e_scale = e_scale0
-    work = 0.0
+    acc = np.array([0.0, e_scale0])  # holder work, energy scale
     last_hold = hp[0].copy()
     last_force = ef.copy()
     rec_t[0] = t0
@@ -162,44 +193,26 @@ def run_loop(code, x, v, t0, h, n_steps, m, p0s, d0s, moves_first, moves_last, f
     total_iters = 0
     steps = 0
     for k in range(n_steps):
-        t = t0 + k * h
-        sample_holders(t, h, p0s, d0s, moves_first, moves_last, hp, hv, ha, hd)
-        if code == BDF2:
-            xp[:, :] = x
-            vp[:, :] = v
-        its, ok = step_kernel(code, x, v, xprev, vprev, has_prev, h, m, hp, hv, hd, f_ext, max_iter, tol, definite)
-        if code == BDF2:
-            xprev[:, :] = xp
-            vprev[:, :] = vp
-            has_prev = True
+        sample_holders(t0 + k * h, h, p0s, d0s, moves_first, moves_last, hp, hv, ha, hd)
+        its, ok = advance(code, x, v, hist, k > 0, h, m, hp, hv, hd, f_ext, max_iter, tol, definite)
         total_iters += its
         if not ok:
             failures += 1
         steps = k + 1
         t_new = t0 + steps * h
-        do_check = steps % check_every == 0 or steps == n_steps
         do_rec = steps % record_every == 0 or steps == n_steps
-        if do_check or do_rec:
-            # held-end state at t + h: sample index 2
+        if steps % check_every == 0 or steps == n_steps:
+            status = monitor(x, v, m, hp[2], ha[2], hd[2], f_ext, ef, last_hold, last_force, acc, e0,
+                             max_strain_bound, energy_factor)
+        elif do_rec:
             end_forces_kernel(x, v, m, hd[2], ha[2], f_ext, ef)
-        if do_check:
-            # work done by the holders on the cable since the last check: -F_cable_on_holder . dx
-            for e in range(2):
-                for j in range(3):
-                    dw = -0.5 * (ef[e, j] + last_force[e, j]) * (hp[2, e, j] - last_hold[e, j])
-                    work += dw
-                    e_scale += abs(dw)
-            last_hold[:, :] = hp[2]
-            last_force[:, :] = ef
-            status = _check(x, v, m, hd[2], max_strain_bound, e0, work, e_scale, energy_factor)
-        if do_rec or status != STABLE:
-            if rows < rec_t.shape[0]:
-                rec_t[rows] = t_new
-                rec_x[rows] = x
-                rec_v[rows] = v
-                rec_f[rows] = ef
-                rec_e[rows] = energy_kernel(x, v, m, hd[2])
-                rows += 1
+        if (do_rec or status != STABLE) and rows < rec_t.shape[0]:
+            rec_t[rows] = t_new
+            rec_x[rows] = x
+            rec_v[rows] = v
+            rec_f[rows] = ef
+            rec_e[rows] = energy_kernel(x, v, m, hd[2])
+            rows += 1
         if status != STABLE:
             t_bad = t_new
             break
