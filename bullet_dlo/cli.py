@@ -35,10 +35,13 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     for key in ("dt", "duration"):
         if getattr(args, key) is not None:
             scene = replace(scene, **{key: check_positive(f"--{key}", getattr(args, key))})
-    if args.engine != "core":
-        raise ParameterError(f"--engine {args.engine!r} is not available yet; use --engine core")
-    model, result = scene.run()
-    data = result_json(scene, model, result)
+    if args.engine == "bullet":
+        from .bullet_scene import run_scene_bullet
+
+        model, result = run_scene_bullet(scene)
+    else:
+        model, result = scene.run()
+    data = result_json(scene, model, result, engine=args.engine)
     if args.json:
         _write_json(args.json, data)
     if args.npz:
@@ -150,7 +153,9 @@ def build_parser() -> argparse.ArgumentParser:
                    "final_positions, end_forces, steps, wall_time_s (and more) to this file")
     s.add_argument("--npz", metavar="OUT.npz", help="also save the recorded trajectory (t, x, v, end_forces, energy)")
     s.add_argument("--engine", default="core", choices=["core", "bullet"],
-                   help="core: the NumPy/Numba engine (default); bullet: PyBullet-coupled (not yet available)")
+                   help="core: the NumPy/Numba engine (default, no contacts); bullet: the cable as PyBullet spheres "
+                        "driven by the same integrator, with contacts against the ground and the scene's "
+                        "bullet.obstacles (same JSON keys)")
     s.add_argument("--integrator", help="override the scene's integrator")
     s.add_argument("--dt", type=float, help="override the scene's time step [s]")
     s.add_argument("--duration", type=float, help="override the scene's duration [s]")

@@ -35,7 +35,55 @@ from .stability import critical_dt
 from .statics import solve_static
 
 TOP_KEYS = ("cable", "layout", "ends", "motion", "gravity", "integrator", "dt", "duration",
-            "initial", "detector", "newton", "name")
+            "initial", "detector", "newton", "name", "bullet")
+BULLET_KEYS = ("ground", "ground_height", "ground_friction", "substeps", "self_collision", "sync", "obstacles")
+OBSTACLE_KEYS = {"box": ("half_extents", "position", "orientation", "mass", "friction", "name"),
+                 "cylinder": ("radius", "height", "position", "orientation", "mass", "friction", "name"),
+                 "urdf": ("path", "position", "orientation", "fixed", "name")}
+
+
+@dataclass(frozen=True)
+class BulletOptions:
+    """The scene's ``bullet:`` section (used by ``--engine bullet`` only).
+
+    ground: add a ground plane at ground_height [m]; substeps: integrator steps per Bullet
+    step; self_collision: neighbours | none | all; sync: contacts | always; obstacles: list
+    of {type: box|cylinder|urdf, ...} (see README).
+    """
+
+    ground: bool = True
+    ground_height: float = 0.0
+    ground_friction: float = 0.5
+    substeps: int = 1
+    self_collision: str = "neighbours"
+    sync: str = "contacts"
+    obstacles: tuple[dict, ...] = ()
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> "BulletOptions":
+        data = _mapping(data, "bullet")
+        _only(data, BULLET_KEYS, "bullet")
+        obstacles = data.get("obstacles") or []
+        if not isinstance(obstacles, list):
+            raise ParameterError("bullet.obstacles must be a list")
+        checked = []
+        for k, ob in enumerate(obstacles):
+            ob = dict(_mapping(ob, f"bullet.obstacles[{k}]"))
+            kind = ob.pop("type", None)
+            if kind not in OBSTACLE_KEYS:
+                raise ParameterError(f"bullet.obstacles[{k}].type must be one of {', '.join(OBSTACLE_KEYS)}, "
+                                     f"got {kind!r}")
+            _only(ob, OBSTACLE_KEYS[kind], f"bullet.obstacles[{k}] ({kind})")
+            checked.append({"type": kind, **ob})
+        kwargs = {k: data[k] for k in BULLET_KEYS if k in data and k != "obstacles"}
+        opts = cls(**kwargs, obstacles=tuple(checked))
+        from .params import check_int
+        _prefixed("bullet.substeps", check_int, "substeps", opts.substeps, 1)
+        if opts.self_collision not in ("neighbours", "none", "all"):
+            raise ParameterError(f"bullet.self_collision must be neighbours, none or all, got {opts.self_collision!r}")
+        if opts.sync not in ("contacts", "always"):
+            raise ParameterError(f"bullet.sync must be contacts or always, got {opts.sync!r}")
+        return opts
 INITIAL = ("straight", "static")
 
 
@@ -80,6 +128,7 @@ class Scene:
     detector: DetectorOptions = field(default_factory=DetectorOptions)
     newton: NewtonOptions = field(default_factory=NewtonOptions)
     name: str = "scene"
+    bullet: BulletOptions = field(default_factory=BulletOptions)
 
     # ----- parsing -------------------------------------------------------------------------
     @classmethod
@@ -124,8 +173,9 @@ class Scene:
         nwt = _mapping(data.get("newton"), "newton")
         _only(nwt, ("max_iter", "tol", "definite"), "newton")
         newton = NewtonOptions(**nwt)
+        bullet = BulletOptions.from_dict(data.get("bullet"))
         return cls(cable, start, direction, (ends[0], ends[1]), motion, gravity, integrator, dt, duration,
-                   initial, detector, newton, str(data.get("name", "scene")))
+                   initial, detector, newton, str(data.get("name", "scene")), bullet)
 
     @classmethod
     def from_yaml(cls, path: str | Path) -> "Scene":
@@ -158,7 +208,7 @@ class Scene:
         return model, simulate(model, self.integrator, self.dt, self.duration, **kwargs)
 
 
-def result_json(scene: Scene, model: CableModel, result: SimulationResult) -> dict[str, Any]:
+def result_json(scene: Scene, model: CableModel, result: SimulationResult, engine: str = "core") -> dict[str, Any]:
     """The portable output of ``bullet-dlo simulate`` (see README for the keys)."""
     def vec(a: np.ndarray) -> list[float]:
         return [float(v) for v in a]
@@ -189,5 +239,5 @@ def result_json(scene: Scene, model: CableModel, result: SimulationResult) -> di
         "n_masses": scene.cable.n_masses,
         "cable_weight": scene.cable.mass * float(np.linalg.norm(scene.gravity)),
         "newton_failures": result.newton_failures,
-        "engine": "core",
+        "engine": engine,
     }
