@@ -121,21 +121,20 @@ def min_jerk(tau):
 
 @njit(cache=True)
 def _rotate(vec, rx, ry, rz):
-    """Rotate ``vec`` by the rotation vector (rx, ry, rz) (Rodrigues)."""
+    """Rotate the 3-vector ``vec`` in place by the rotation vector (rx, ry, rz) (Rodrigues)."""
     angle = math.sqrt(rx * rx + ry * ry + rz * rz)
-    out = vec.copy()
     if angle < 1e-15:
-        return out
+        return
     kx, ky, kz = rx / angle, ry / angle, rz / angle
     ca, sa = math.cos(angle), math.sin(angle)
-    dot = kx * vec[0] + ky * vec[1] + kz * vec[2]
-    cx = ky * vec[2] - kz * vec[1]
-    cy = kz * vec[0] - kx * vec[2]
-    cz = kx * vec[1] - ky * vec[0]
-    out[0] = vec[0] * ca + cx * sa + kx * dot * (1.0 - ca)
-    out[1] = vec[1] * ca + cy * sa + ky * dot * (1.0 - ca)
-    out[2] = vec[2] * ca + cz * sa + kz * dot * (1.0 - ca)
-    return out
+    v0, v1, v2 = vec[0], vec[1], vec[2]
+    dot = kx * v0 + ky * v1 + kz * v2
+    cx = ky * v2 - kz * v1
+    cy = kz * v0 - kx * v2
+    cz = kx * v1 - ky * v0
+    vec[0] = v0 * ca + cx * sa + kx * dot * (1.0 - ca)
+    vec[1] = v1 * ca + cy * sa + ky * dot * (1.0 - ca)
+    vec[2] = v2 * ca + cz * sa + kz * dot * (1.0 - ca)
 
 
 @njit(cache=True)
@@ -148,7 +147,7 @@ def held_pose(t, p0, d0, moves, pos, vel, acc, direction):
     pos[:] = p0
     vel[:] = 0.0
     acc[:] = 0.0
-    d = d0.copy()
+    direction[:] = d0
     for k in range(moves.shape[0]):
         start, dur = moves[k, 0], moves[k, 1]
         s, ds, dds = min_jerk((t - start) / dur)
@@ -157,8 +156,7 @@ def held_pose(t, p0, d0, moves, pos, vel, acc, direction):
             vel[j] += moves[k, 2 + j] * ds / dur
             acc[j] += moves[k, 2 + j] * dds / (dur * dur)
         if s > 0.0:
-            d = _rotate(d, moves[k, 5] * s, moves[k, 6] * s, moves[k, 7] * s)
-    direction[:] = d
+            _rotate(direction, moves[k, 5] * s, moves[k, 6] * s, moves[k, 7] * s)
 
 
 @njit(cache=True)

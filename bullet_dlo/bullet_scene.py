@@ -221,17 +221,21 @@ class BulletWorld:
         for _ in range(n):
             for c in cables:
                 c.apply_forces()
-            pb.stepSimulation(physicsClientId=self.client)
-            touched: dict[str, set[int]] = {c.name: set() for c in cables}
-            if cables:
+            pb.stepSimulation(self.client)
+            contacts = pb.getContactPoints(-1, -1, -2, -2, self.client) if cables else ()  # all, one call
+            if contacts:
+                touched: dict[str, set[int]] = {c.name: set() for c in cables}
                 owners = self._owners
-                for cp in pb.getContactPoints(physicsClientId=self.client):
+                for cp in contacts:
                     for body in (cp[1], cp[2]):
                         hit = owners.get(body)
                         if hit is not None:
                             touched[hit[0]].add(hit[1])
-            for c in cables:
-                c.sync_after_step(touched[c.name])
+                for c in cables:
+                    c.sync_after_step(touched[c.name])
+            else:
+                for c in cables:
+                    c.sync_after_step(())
             self.time += self.dt
             self.steps += 1
 
@@ -244,7 +248,7 @@ class BulletWorld:
     def step_bare(self, n: int = 1) -> None:
         """Bullet's own step only, no cable forces (the baseline of the overhead benchmark)."""
         for _ in range(n):
-            pb.stepSimulation(physicsClientId=self.client)
+            pb.stepSimulation(self.client)
 
     def close(self) -> None:
         """Disconnect the PyBullet client."""

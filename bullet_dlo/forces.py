@@ -163,15 +163,6 @@ def clamp_torque(x, k_bend, dir_first, dir_last, end):
     return out
 
 
-@njit(cache=True, inline="always")
-def _add_block(jac, p, q, coef, h, r0, c0):
-    """jac[p, q-p+2] -= coef * h[r0:r0+3, c0:c0+3] (force Jacobian = -Hessian)."""
-    o = q - p + BAND
-    for r in range(3):
-        for col in range(3):
-            jac[p, o, r, col] -= coef * h[r0 + r, c0 + col]
-
-
 @njit(cache=True)
 def force_jacobian(x, k_stretch, rest_length, k_bend, dir_first, dir_last, definite, jac):
     """Write dF/dx of the elastic forces [N/m] into ``jac`` (shape (n, 5, 3, 3), overwritten).
@@ -196,60 +187,73 @@ def force_jacobian(x, k_stretch, rest_length, k_bend, dir_first, dir_last, defin
                 dd = d[r] * d[col] / (length * length)
                 hs[r, col] = k * (dd + geo * ((1.0 if r == col else 0.0) - dd))
         # e = x_{i+1} - x_i: Hessian blocks (i,i)=+H, (i,i+1)=-H, (i+1,i)=-H, (i+1,i+1)=+H
-        _add_block(jac, i, i, 1.0, hs, 0, 0)
-        _add_block(jac, i, i + 1, -1.0, hs, 0, 0)
-        _add_block(jac, i + 1, i, -1.0, hs, 0, 0)
-        _add_block(jac, i + 1, i + 1, 1.0, hs, 0, 0)
+        for r in range(3):
+            for col in range(3):
+                hv = hs[r, col]
+                jac[i, 2, r, col] -= hv
+                jac[i, 3, r, col] += hv
+                jac[i + 1, 1, r, col] += hv
+                jac[i + 1, 2, r, col] -= hv
     hb = np.empty((6, 6))
-    g = np.empty(6)
+    g = np.empty(12)
     for i in range(n):
         k = k_bend[i]
         if k == 0.0:
             continue
         a0, a1, a2, b0, b1, b2 = _node_edges(x, i, dir_first, dir_last)
         _bend_hessian(a0, a1, a2, b0, b1, b2, k, g, hb)
-        # node weights of a = x_i - x_{i-1} and b = x_{i+1} - x_i over nodes (i-1, i, i+1)
-        for p in range(3):
-            node_p = i - 1 + p
-            if node_p < 0 or node_p > n - 1:
-                continue
-            tap = (-1.0, 1.0, 0.0)[p] if i > 0 else 0.0
-            tbp = (0.0, -1.0, 1.0)[p] if i < n - 1 else 0.0
-            for q in range(3):
-                node_q = i - 1 + q
-                if node_q < 0 or node_q > n - 1:
-                    continue
-                taq = (-1.0, 1.0, 0.0)[q] if i > 0 else 0.0
-                tbq = (0.0, -1.0, 1.0)[q] if i < n - 1 else 0.0
-                if tap * taq != 0.0:
-                    _add_block(jac, node_p, node_q, tap * taq, hb, 0, 0)
-                if tap * tbq != 0.0:
-                    _add_block(jac, node_p, node_q, tap * tbq, hb, 0, 3)
-                if tbp * taq != 0.0:
-                    _add_block(jac, node_p, node_q, tbp * taq, hb, 3, 0)
-                if tbp * tbq != 0.0:
-                    _add_block(jac, node_p, node_q, tbp * tbq, hb, 3, 3)
+        # a = x_i - x_{i-1}, b = x_{i+1} - x_i: chain rule onto the nodes (jac[p, q-p+2] -= H_pq)
+        for r in range(3):
+            for col in range(3):
+                haa, hab = hb[r, col], hb[r, 3 + col]
+                hba, hbb = hb[3 + r, col], hb[3 + r, 3 + col]
+                if i == 0:  # clamp at the first end: only b moves (nodes 0, 1)
+                    jac[0, 2, r, col] -= hbb
+                    jac[0, 3, r, col] += hbb
+                    jac[1, 1, r, col] += hbb
+                    jac[1, 2, r, col] -= hbb
+                elif i == n - 1:  # clamp at the last end: only a moves (nodes n-2, n-1)
+                    jac[n - 2, 2, r, col] -= haa
+                    jac[n - 2, 3, r, col] += haa
+                    jac[n - 1, 1, r, col] += haa
+                    jac[n - 1, 2, r, col] -= haa
+                else:
+                    jac[i - 1, 2, r, col] -= haa
+                    jac[i - 1, 3, r, col] -= hab - haa
+                    jac[i - 1, 4, r, col] += hab
+                    jac[i, 1, r, col] -= hba - haa
+                    jac[i, 2, r, col] -= haa - hab - hba + hbb
+                    jac[i, 3, r, col] -= hab - hbb
+                    jac[i + 1, 0, r, col] += hba
+                    jac[i + 1, 1, r, col] -= hba - hbb
+                    jac[i + 1, 2, r, col] -= hbb
 
 
 @njit(cache=True)
 def _bend_hessian(a0, a1, a2, b0, b1, b2, k, g, out):
-    """Hessian of 1/2 k theta(a, b)^2 with respect to (a, b), shape (6, 6), into ``out`` (g: scratch (6,)).
+    """Hessian of 1/2 k theta(a, b)^2 with respect to (a, b), shape (6, 6), into ``out`` (g: scratch (12,)).
 
     H = k [alpha grad(c) grad(c)^T - (theta/s) hess(c)], c = cos(theta), written so that
     every term stays finite at theta = 0 (straight cable).
     """
     _, s, c, la, lb, ux, uy, uz, wx, wy, wz, ratio, alpha = _angle_terms(a0, a1, a2, b0, b1, b2)
-    u = (ux, uy, uz)
-    w = (wx, wy, wz)
+    u = g[6:9]
+    w = g[9:12]
+    u[0], u[1], u[2] = ux, uy, uz
+    w[0], w[1], w[2] = wx, wy, wz
     for r in range(3):
         g[r] = (w[r] - c * u[r]) / la
         g[3 + r] = (u[r] - c * w[r]) / lb
+    iaa = 1.0 / (la * la)
+    ibb = 1.0 / (lb * lb)
+    iab = 1.0 / (la * lb)
     for r in range(3):
         for col in range(3):
             eye = 1.0 if r == col else 0.0
-            caa = (-(w[r] * u[col] + u[r] * w[col]) + 3.0 * c * u[r] * u[col] - c * eye) / (la * la)
-            cbb = (-(u[r] * w[col] + w[r] * u[col]) + 3.0 * c * w[r] * w[col] - c * eye) / (lb * lb)
-            cab = (eye - w[r] * w[col] - u[r] * u[col] + c * u[r] * w[col]) / (la * lb)
+            uw = w[r] * u[col] + u[r] * w[col]
+            caa = (-uw + 3.0 * c * u[r] * u[col] - c * eye) * iaa
+            cbb = (-uw + 3.0 * c * w[r] * w[col] - c * eye) * ibb
+            cab = (eye - w[r] * w[col] - u[r] * u[col] + c * u[r] * w[col]) * iab
             out[r, col] = k * (alpha * g[r] * g[col] - ratio * caa)
             out[3 + r, 3 + col] = k * (alpha * g[3 + r] * g[3 + col] - ratio * cbb)
             out[r, 3 + col] = k * (alpha * g[r] * g[3 + col] - ratio * cab)

@@ -114,9 +114,8 @@ def _accel(x, v, m, dirs, f_ext, f, a):
 
 # ----- explicit methods -----------------------------------------------------------------------
 @njit(cache=True)
-def _explicit_euler(x, v, h, m, hold_pos, hold_vel, hold_dir, f_ext):
-    f = np.empty_like(x)
-    a = np.empty_like(x)
+def _explicit_euler(x, v, h, m, hold_pos, hold_vel, hold_dir, f_ext, W):
+    f, a = W[0], W[1]
     _accel(x, v, m, hold_dir[0], f_ext, f, a)
     x += h * v
     v += h * a
@@ -124,9 +123,8 @@ def _explicit_euler(x, v, h, m, hold_pos, hold_vel, hold_dir, f_ext):
 
 
 @njit(cache=True)
-def _symplectic_euler(x, v, h, m, hold_pos, hold_vel, hold_dir, f_ext):
-    f = np.empty_like(x)
-    a = np.empty_like(x)
+def _symplectic_euler(x, v, h, m, hold_pos, hold_vel, hold_dir, f_ext, W):
+    f, a = W[0], W[1]
     _accel(x, v, m, hold_dir[0], f_ext, f, a)
     v += h * a
     x += h * v
@@ -134,34 +132,29 @@ def _symplectic_euler(x, v, h, m, hold_pos, hold_vel, hold_dir, f_ext):
 
 
 @njit(cache=True)
-def _rk4(x, v, h, m, hold_pos, hold_vel, hold_dir, f_ext):
-    f = np.empty_like(x)
-    k1v = np.empty_like(x)
-    k2v = np.empty_like(x)
-    k3v = np.empty_like(x)
-    k4v = np.empty_like(x)
-    xs = x.copy()
-    vs = v.copy()
-    _set_held(xs, vs, m.held, hold_pos[0], hold_vel[0])
-    k1x = vs.copy()
-    _accel(xs, vs, m, hold_dir[0], f_ext, f, k1v)
-    xs = x + 0.5 * h * k1x
-    vs = v + 0.5 * h * k1v
-    _set_held(xs, vs, m.held, hold_pos[1], hold_vel[1])
-    k2x = vs.copy()
-    _accel(xs, vs, m, hold_dir[1], f_ext, f, k2v)
-    xs = x + 0.5 * h * k2x
-    vs = v + 0.5 * h * k2v
-    _set_held(xs, vs, m.held, hold_pos[1], hold_vel[1])
-    k3x = vs.copy()
-    _accel(xs, vs, m, hold_dir[1], f_ext, f, k3v)
-    xs = x + h * k3x
-    vs = v + h * k3v
-    _set_held(xs, vs, m.held, hold_pos[2], hold_vel[2])
-    k4x = vs.copy()
-    _accel(xs, vs, m, hold_dir[2], f_ext, f, k4v)
-    x += (h / 6.0) * (k1x + 2.0 * k2x + 2.0 * k3x + k4x)
-    v += (h / 6.0) * (k1v + 2.0 * k2v + 2.0 * k3v + k4v)
+def _rk4_stage(x, v, kx_prev, kv_prev, c, h, m, pos, vel, dirs, f_ext, f, xs, vs, kx, kv):
+    """Stage state (x, v) + c h (kx_prev, kv_prev), held ends at (pos, vel); its slopes into kx, kv."""
+    for i in range(x.shape[0]):
+        for j in range(3):
+            xs[i, j] = x[i, j] + c * h * kx_prev[i, j]
+            vs[i, j] = v[i, j] + c * h * kv_prev[i, j]
+    _set_held(xs, vs, m.held, pos, vel)
+    kx[:, :] = vs
+    _accel(xs, vs, m, dirs, f_ext, f, kv)
+
+
+@njit(cache=True)
+def _rk4(x, v, h, m, hold_pos, hold_vel, hold_dir, f_ext, W):
+    f, xs, vs = W[0], W[1], W[2]
+    k1x, k1v, k2x, k2v, k3x, k3v, k4x, k4v = W[3], W[4], W[5], W[6], W[7], W[8], W[9], W[10]
+    _rk4_stage(x, v, k1x, k1v, 0.0, h, m, hold_pos[0], hold_vel[0], hold_dir[0], f_ext, f, xs, vs, k1x, k1v)
+    _rk4_stage(x, v, k1x, k1v, 0.5, h, m, hold_pos[1], hold_vel[1], hold_dir[1], f_ext, f, xs, vs, k2x, k2v)
+    _rk4_stage(x, v, k2x, k2v, 0.5, h, m, hold_pos[1], hold_vel[1], hold_dir[1], f_ext, f, xs, vs, k3x, k3v)
+    _rk4_stage(x, v, k3x, k3v, 1.0, h, m, hold_pos[2], hold_vel[2], hold_dir[2], f_ext, f, xs, vs, k4x, k4v)
+    for i in range(x.shape[0]):
+        for j in range(3):
+            x[i, j] += (h / 6.0) * (k1x[i, j] + 2.0 * k2x[i, j] + 2.0 * k3x[i, j] + k4x[i, j])
+            v[i, j] += (h / 6.0) * (k1v[i, j] + 2.0 * k2v[i, j] + 2.0 * k3v[i, j] + k4v[i, j])
     _set_held(x, v, m.held, hold_pos[2], hold_vel[2])
 
 
@@ -208,7 +201,7 @@ def _merit(vn, xe, ve, av, cx, cv, hf, m, dirs, f_ext):
 
 
 @njit(cache=True)
-def _implicit(kind, x, v, xp, vp, has_prev, h, m, hold_pos, hold_vel, hold_dir, f_ext, max_iter, tol, definite):
+def _implicit(kind, x, v, xp, vp, has_prev, h, m, hold_pos, hold_vel, hold_dir, f_ext, max_iter, tol, definite, W):
     """Newton with line search on the end-of-step velocity v' (implicit Euler, BDF2, midpoint).
 
     Each method evaluates forces at X = xe0 + cx v', V = ve0 + cv v' and solves
@@ -225,15 +218,20 @@ def _implicit(kind, x, v, xp, vp, has_prev, h, m, hold_pos, hold_vel, hold_dir, 
     dirs = hold_dir[2]
     pos_e = hold_pos[2].copy()
     vel_e = hold_vel[2].copy()
+    xe0, av, ve0 = W[0], W[1], W[2]
     if kind == BDF2 and has_prev:
-        xe0 = (4.0 * x - xp) / 3.0
-        av = (4.0 * v - vp) / 3.0
-        ve0 = np.zeros_like(v)
+        for i in range(n):
+            for j in range(3):
+                xe0[i, j] = (4.0 * x[i, j] - xp[i, j]) / 3.0
+                av[i, j] = (4.0 * v[i, j] - vp[i, j]) / 3.0
+                ve0[i, j] = 0.0
         cx, cv, hf = 2.0 * h / 3.0, 1.0, 2.0 * h / 3.0
     elif kind == IMPLICIT_MIDPOINT:
-        xe0 = x + 0.25 * h * v
-        av = v.copy()
-        ve0 = 0.5 * v
+        for i in range(n):
+            for j in range(3):
+                xe0[i, j] = x[i, j] + 0.25 * h * v[i, j]
+                av[i, j] = v[i, j]
+                ve0[i, j] = 0.5 * v[i, j]
         cx, cv, hf = 0.25 * h, 0.5, h
         dirs = hold_dir[1]
         pos_e[0] = 0.5 * (x[0] + hold_pos[2, 0])
@@ -241,23 +239,20 @@ def _implicit(kind, x, v, xp, vp, has_prev, h, m, hold_pos, hold_vel, hold_dir, 
         vel_e[0] = 0.5 * (v[0] + hold_vel[2, 0])
         vel_e[1] = 0.5 * (v[n - 1] + hold_vel[2, 1])
     else:  # implicit Euler (and the first BDF2 step)
-        xe0 = x.copy()
-        av = v.copy()
-        ve0 = np.zeros_like(v)
+        xe0[:, :] = x
+        av[:, :] = v
+        ve0[:, :] = 0.0
         cx, cv, hf = h, 1.0, h
-    vn = v.copy()
+    vn, xe, ve, f, v_try = W[3], W[4], W[5], W[6], W[7]
+    vn[:, :] = v
     if held[0]:
         vn[0] = hold_vel[2, 0]
     if held[n - 1]:
         vn[n - 1] = hold_vel[2, 1]
-    xe = np.empty_like(x)
-    ve = np.empty_like(v)
-    f = np.empty_like(x)
-    r = np.empty(3 * n)
-    r_try = np.empty(3 * n)
-    v_try = np.empty_like(v)
-    jac = np.empty((n, 5, 3, 3))
-    band = np.empty((3 * n, 2 * HALF + 1))
+    r = W[8].reshape(3 * n)
+    r_try = W[9].reshape(3 * n)
+    jac = W[10:25].reshape((n, 5, 3, 3))
+    band = W[25:25 + 2 * HALF + 1].reshape((3 * n, 2 * HALF + 1))
     # Residual scale: momentum gravity and external forces give in one step, and round-off
     # floor of stiff spring forces (k eps |x|) below which no iteration can go.
     g_norm = np.sqrt(np.sum(m.gravity ** 2))
@@ -310,32 +305,43 @@ def _implicit(kind, x, v, xp, vp, has_prev, h, m, hold_pos, hold_vel, hold_dir, 
             converged = True
             break
     # position update consistent with each method
-    if kind == IMPLICIT_MIDPOINT:
-        x += 0.5 * h * (v + vn)
-    elif kind == BDF2 and has_prev:
-        x[:, :] = xe0 + cx * vn
-    else:
-        x += h * vn
+    for i in range(n):
+        for j in range(3):
+            if kind == IMPLICIT_MIDPOINT:
+                x[i, j] += 0.5 * h * (v[i, j] + vn[i, j])
+            elif kind == BDF2 and has_prev:
+                x[i, j] = xe0[i, j] + cx * vn[i, j]
+            else:
+                x[i, j] += h * vn[i, j]
     v[:, :] = vn
     _set_held(x, v, held, hold_pos[2], hold_vel[2])
     return it, converged
 
 
+WORK_SLOTS = 25 + 2 * HALF + 1  # (n, 3) slots of the integrator workspace
+
+
+def workspace(n: int) -> np.ndarray:
+    """Scratch memory for :func:`step_kernel` (so that no step allocates), shape (WORK_SLOTS, n, 3)."""
+    return np.zeros((WORK_SLOTS, n, 3))
+
+
 @njit(cache=True)
-def step_kernel(code, x, v, xp, vp, has_prev, h, m, hold_pos, hold_vel, hold_dir, f_ext, max_iter, tol, definite):
+def step_kernel(code, x, v, xp, vp, has_prev, h, m, hold_pos, hold_vel, hold_dir, f_ext, max_iter, tol, definite, W):
     """Advance (x, v) in place by one step h [s] with method ``code``.
 
     For BDF2 the caller passes the previous state (xp, vp) and ``has_prev``; the kernel
     does not update them. hold_*: held-end samples at (t, t+h/2, t+h), shape (3, 2, 3).
-    Returns (Newton iterations, converged); explicit methods return (0, True).
+    W: workspace from :func:`workspace`. Returns (Newton iterations, converged); explicit
+    methods return (0, True).
     """
     if code == EXPLICIT_EULER:
-        _explicit_euler(x, v, h, m, hold_pos, hold_vel, hold_dir, f_ext)
+        _explicit_euler(x, v, h, m, hold_pos, hold_vel, hold_dir, f_ext, W)
     elif code == SYMPLECTIC_EULER:
-        _symplectic_euler(x, v, h, m, hold_pos, hold_vel, hold_dir, f_ext)
+        _symplectic_euler(x, v, h, m, hold_pos, hold_vel, hold_dir, f_ext, W)
     elif code == RK4:
-        _rk4(x, v, h, m, hold_pos, hold_vel, hold_dir, f_ext)
+        _rk4(x, v, h, m, hold_pos, hold_vel, hold_dir, f_ext, W)
     else:
         return _implicit(code, x, v, xp, vp, has_prev, h, m, hold_pos, hold_vel, hold_dir, f_ext,
-                         max_iter, tol, definite)
+                         max_iter, tol, definite, W)
     return 0, True

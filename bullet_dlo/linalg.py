@@ -2,9 +2,10 @@
 
 The system matrix of an implicit step, A = M - a K + b C, inherits the block-banded
 structure of the force Jacobian: 3x3 blocks up to two nodes apart, i.e. a scalar band of
-half-width 8. It is stored as ``band[r, c - r + HALF]`` (shape (3n, 2*HALF+1)) and factorised
-by Gaussian elimination without pivoting, which is safe because A is dominated by its
-positive diagonal (mass) plus a positive semi-definite (filtered) stiffness.
+half-width 8. It is stored as ``band[r, c - r + HALF]`` (shape (3n, 2*HALF+1)). A is
+symmetric (conservative forces, diagonal damping, held nodes as identity rows and columns),
+so it is factorised by symmetric elimination without pivoting, which is safe because A is
+dominated by its positive diagonal (mass) plus a positive semi-definite (filtered) stiffness.
 """
 from __future__ import annotations
 
@@ -41,7 +42,12 @@ def assemble_system(jac, mass, damp, k_coef, c_coef, held, band):
 
 @njit(cache=True)
 def band_solve(band, rhs):
-    """Solve band * y = rhs in place (band is destroyed, rhs becomes y); returns min |pivot|."""
+    """Solve band * y = rhs in place for a *symmetric* band matrix (rhs becomes y).
+
+    Gaussian elimination without pivoting that updates only the upper triangle (the lower
+    multipliers equal the upper entries by symmetry): half the work of a general band LU.
+    ``band`` is destroyed. Returns min |pivot|.
+    """
     size = rhs.shape[0]
     min_pivot = np.inf
     for k in range(size):
@@ -50,10 +56,10 @@ def band_solve(band, rhs):
             min_pivot = abs(piv)
         last = min(k + HALF, size - 1)
         for i in range(k + 1, last + 1):
-            f = band[i, k - i + HALF] / piv
+            f = band[k, i - k + HALF] / piv  # = a_ik / a_kk by symmetry
             if f == 0.0:
                 continue
-            for j in range(k, last + 1):
+            for j in range(i, last + 1):
                 band[i, j - i + HALF] -= f * band[k, j - k + HALF]
             rhs[i] -= f * rhs[k]
     for k in range(size - 1, -1, -1):

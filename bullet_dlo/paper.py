@@ -56,7 +56,7 @@ def run_cell(youngs_modulus: float, n_masses: int, dt: float, integrator: str, *
     start = solve_static(model).state()
     check_every = max(1, int(1e-6 / dt))  # time-to-instability resolution ~1 us
     res = simulate(model, integrator, dt, duration, state=start, max_records=3,
-                   detector=DetectorOptions(check_every=check_every))
+                   detector=DetectorOptions(check_every=check_every, energy_every=check_every))
     return PaperRun(youngs_modulus, n_masses, dt, integrator, critical_dt(model, integrator), res.stable,
                     res.time_to_instability, res.wall_time_s, damping)
 

@@ -13,7 +13,7 @@ Schema (extra keys are rejected with a message naming them)::
     duration: 2.0
     # optional
     initial: straight            # or static: start from the equilibrium under gravity
-    detector: {max_strain: 0.5, energy_factor: 1.0, check_every: 1}
+    detector: {max_strain: 0.5, energy_factor: 1.0, check_every: 1, energy_every: 10}
     newton: {max_iter: 8, tol: 1.0e-9}
 """
 from __future__ import annotations
@@ -168,7 +168,7 @@ class Scene:
         if initial not in INITIAL:
             raise ParameterError(f"initial must be one of {', '.join(INITIAL)}, got {initial!r}")
         det = _mapping(data.get("detector"), "detector")
-        _only(det, ("max_strain", "energy_factor", "check_every"), "detector")
+        _only(det, ("max_strain", "energy_factor", "check_every", "energy_every"), "detector")
         detector = DetectorOptions(**det)
         nwt = _mapping(data.get("newton"), "newton")
         _only(nwt, ("max_iter", "tol", "definite"), "newton")

@@ -4,7 +4,7 @@
 Numba (so even 1e-7 s steps are affordable) and returns a :class:`SimulationResult`.
 An unstable run is data, not an exception: the result says when it went unstable and why.
 
-Instability detector (checked every ``check_every`` steps):
+Instability detector (cheap checks every ``check_every`` steps, energy every ``energy_every``):
 
 * non-finite positions or velocities;
 * a segment stretched or compressed beyond ``max_strain`` (default 50 %);
@@ -25,7 +25,7 @@ from numba import njit
 
 from .boundary import sample_holders
 from .forces import clamp_torque, internal_energy, max_strain, total_forces
-from .integrators import BDF2, NewtonOptions, get_integrator, step_kernel
+from .integrators import BDF2, WORK_SLOTS, NewtonOptions, get_integrator, step_kernel
 from .model import CableModel, CableState
 from .params import ParameterError, check_int, check_positive
 
@@ -39,12 +39,15 @@ class DetectorOptions:
     """Instability detector thresholds.
 
     max_strain: largest allowed |l/l0 - 1| of any segment; energy_factor: allowed energy
-    created, as a multiple of the energy scale (see module doc); check_every: steps between checks.
+    created, as a multiple of the energy scale (see module doc); check_every: steps between
+    the cheap checks (finite, strain); energy_every: steps between energy-balance checks
+    (an energy evaluation costs about a force evaluation).
     """
 
     max_strain: float = 0.5
     energy_factor: float = 1.0
     check_every: int = 1
+    energy_every: int = 10
 
 
 @dataclass
@@ -110,30 +113,49 @@ def energy_kernel(x, v, m, dirs):
 
 
 @njit(cache=True)
-def _check(x, v, m, dirs, max_strain_bound, e0, work, e_scale, energy_factor):
+def _check_state(x, v, m, max_strain_bound):
+    """The cheap checks: finite state, strain within bound."""
     for i in range(x.shape[0]):
         for j in range(3):
             if not (math.isfinite(x[i, j]) and math.isfinite(v[i, j])):
                 return NONFINITE
     if not max_strain(x, m.rest_length) <= max_strain_bound:
         return STRETCH
+    return STABLE
+
+
+@njit(cache=True)
+def _check(x, v, m, dirs, max_strain_bound, e0, work, e_scale, energy_factor):
+    status = _check_state(x, v, m, max_strain_bound)
+    if status != STABLE:
+        return status
     e = energy_kernel(x, v, m, dirs)
     if not (e - e0 - work <= energy_factor * e_scale):
         return ENERGY
     return STABLE
 
 
+HIST_SLOTS = 4 + WORK_SLOTS
+
+
+def history(n: int) -> np.ndarray:
+    """Multistep history plus integrator workspace for :func:`advance`, shape (HIST_SLOTS, n, 3)."""
+    return np.zeros((HIST_SLOTS, n, 3))
+
+
 @njit(cache=True)
 def advance(code, x, v, hist, has_prev, h, m, hp, hv, hd, f_ext, max_iter, tol, definite):
-    """One step of method ``code`` in place, keeping BDF2's history in ``hist`` (4, n, 3).
+    """One step of method ``code`` in place, keeping BDF2's history in ``hist``.
 
-    hist[0], hist[1] are the previous x, v (valid when ``has_prev``); hist[2:] is scratch.
+    hist: (HIST_SLOTS, n, 3) from :func:`history`: hist[0], hist[1] are the previous x, v
+    (valid when ``has_prev``), hist[2:4] scratch, hist[4:] the integrator workspace.
     Returns (Newton iterations, converged).
     """
     if code == BDF2:
         hist[2] = x
         hist[3] = v
-    its, ok = step_kernel(code, x, v, hist[0], hist[1], has_prev, h, m, hp, hv, hd, f_ext, max_iter, tol, definite)
+    its, ok = step_kernel(code, x, v, hist[0], hist[1], has_prev, h, m, hp, hv, hd, f_ext, max_iter, tol, definite,
+                          hist[4:])
     if code == BDF2:
         hist[0] = hist[2]
         hist[1] = hist[3]
@@ -141,13 +163,18 @@ def advance(code, x, v, hist, has_prev, h, m, hp, hv, hd, f_ext, max_iter, tol, 
 
 
 @njit(cache=True)
-def monitor(x, v, m, hp2, ha2, hd2, f_ext, ef, last_hold, last_force, acc, e0, max_strain_bound, energy_factor):
+def monitor(x, v, m, hp2, ha2, hd2, f_ext, ef, last_hold, last_force, acc, e0, max_strain_bound, energy_factor,
+            energy_check):
     """Instability check after a step (held ends at hp2/ha2/hd2, each (2, 3)).
 
-    Writes the end forces into ``ef``; accumulates the work the holders did on the cable
-    since the last call (trapezoid of force times held-end displacement) into acc[0] and its
-    absolute value into the energy scale acc[1]. Returns a status code (STABLE, ...).
+    Without ``energy_check`` only the cheap checks run (finite, strain). With it, also writes
+    the end forces into ``ef``; accumulates the work the holders did on the cable since the
+    last energy check (trapezoid of force times held-end displacement) into acc[0] and its
+    absolute value into the energy scale acc[1]; and checks the energy balance.
+    Returns a status code (STABLE, ...).
     """
+    if not energy_check:
+        return _check_state(x, v, m, max_strain_bound)
     end_forces_kernel(x, v, m, hd2, ha2, f_ext, ef)
     for e in range(2):
         for j in range(3):
@@ -162,7 +189,7 @@ def monitor(x, v, m, hp2, ha2, hd2, f_ext, ef, last_hold, last_force, acc, e0, m
 @njit(cache=True)
 def run_loop(code, x, v, t0, h, n_steps, m, p0s, d0s, moves_first, moves_last, f_ext,
              record_every, rec_t, rec_x, rec_v, rec_f, rec_e,
-             max_iter, tol, definite, max_strain_bound, energy_factor, check_every, e_scale0):
+             max_iter, tol, definite, max_strain_bound, energy_factor, check_every, energy_every, e_scale0):
     """Fixed-step loop; records every ``record_every`` steps into rec_* (first row = start).
 
     Returns (steps done, status, time of instability, rows recorded, Newton failures,
@@ -174,7 +201,7 @@ def run_loop(code, x, v, t0, h, n_steps, m, p0s, d0s, moves_first, moves_last, f
     ha = np.empty((3, 2, 3))
     hd = np.empty((3, 2, 3))
     ef = np.empty((2, 3))
-    hist = np.zeros((4, n, 3))
+    hist = np.zeros((4 + WORK_SLOTS, n, 3))
     sample_holders(t0, h, p0s, d0s, moves_first, moves_last, hp, hv, ha, hd)
     e0 = energy_kernel(x, v, m, hd[0])
     end_forces_kernel(x, v, m, hd[0], ha[0], f_ext, ef)
@@ -201,10 +228,11 @@ def run_loop(code, x, v, t0, h, n_steps, m, p0s, d0s, moves_first, moves_last, f
         steps = k + 1
         t_new = t0 + steps * h
         do_rec = steps % record_every == 0 or steps == n_steps
-        if steps % check_every == 0 or steps == n_steps:
+        energy_check = steps % energy_every == 0 or steps == n_steps
+        if steps % check_every == 0 or energy_check:
             status = monitor(x, v, m, hp[2], ha[2], hd[2], f_ext, ef, last_hold, last_force, acc, e0,
-                             max_strain_bound, energy_factor)
-        elif do_rec:
+                             max_strain_bound, energy_factor, energy_check)
+        if do_rec and not energy_check:
             end_forces_kernel(x, v, m, hd[2], ha[2], f_ext, ef)
         if (do_rec or status != STABLE) and rows < rec_t.shape[0]:
             rec_t[rows] = t_new
@@ -265,6 +293,7 @@ def simulate(
     check_positive("max_strain", detector.max_strain)
     check_positive("energy_factor", detector.energy_factor)
     check_int("check_every", detector.check_every, 1)
+    check_int("energy_every", detector.energy_every, 1)
     st = (state or model.initial_state()).copy()
     n = model.n
     if st.x.shape != (n, 3) or st.v.shape != (n, 3):
@@ -287,7 +316,8 @@ def simulate(
         method.code, x, v, st.t, dt, n_steps, model.arrays, p0s, d0s, mf, ml, f_ext,
         record_every, rec_t, rec_x, rec_v, rec_f, rec_e,
         newton.max_iter, tol, newton.definite,
-        detector.max_strain, detector.energy_factor, detector.check_every, energy_scale(model, st),
+        detector.max_strain, detector.energy_factor, detector.check_every, detector.energy_every,
+        energy_scale(model, st),
     )
     wall = time.perf_counter() - tic
     t_final = st.t + steps * dt
