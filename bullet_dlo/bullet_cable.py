@@ -23,7 +23,7 @@ import numpy as np
 import pybullet as pb
 from numba import njit
 
-from .boundary import sample_holders
+from .boundary import _rotate, sample_holders
 from .forces import clamp_torque
 from .integrators import NewtonOptions, get_integrator
 from .model import CableModel, CableState
@@ -35,12 +35,31 @@ SELF_COLLISION = ("neighbours", "none", "all")
 
 
 @njit(cache=True)
+def external_samples(ext, e, tau0, hs, hp, hv, ha, hd):
+    """Held-end samples of end ``e`` at tau0 + (0, hs/2, hs) after the time of ``ext``.
+
+    ext: (5, 2, 3) = position [m], velocity [m/s], acceleration [m/s^2], angular velocity
+    [rad/s] and clamp direction of each end, measured now (e.g. from a gripper link);
+    extrapolated at constant velocity and angular velocity over the step.
+    """
+    for k in range(3):
+        tau = tau0 + 0.5 * hs * k
+        for j in range(3):
+            hp[k, e, j] = ext[0, e, j] + tau * ext[1, e, j]
+            hv[k, e, j] = ext[1, e, j]
+            ha[k, e, j] = ext[2, e, j]
+            hd[k, e, j] = ext[4, e, j]
+        _rotate(hd[k, e], tau * ext[3, e, 0], tau * ext[3, e, 1], tau * ext[3, e, 2])
+
+
+@njit(cache=True)
 def coupled_targets(code, x, v, hist, has_prev, t, h, substeps, m, p0s, d0s, moves_first, moves_last, f_ext,
-                    max_iter, tol, definite, v_bullet, g_bullet, x_new, v_new, forces, hp, hv, ha, hd):
+                    max_iter, tol, definite, v_bullet, g_bullet, ext_mask, ext, x_new, v_new, forces, hp, hv, ha, hd):
     """Advance the core state by one Bullet step h (``substeps`` integrator steps) and compute
     the sphere forces [N] that make Bullet reproduce it. x_new, v_new, forces: (n, 3) outputs.
 
-    hp/hv/ha/hd receive the held-end samples of the last substep (for monitoring).
+    Ends with ``ext_mask`` follow the measured poses in ``ext`` (see :func:`external_samples`)
+    instead of the move tables. hp/hv/ha/hd receive the held-end samples of the last substep.
     Returns (Newton iterations, all converged).
     """
     x_new[:, :] = x
@@ -50,6 +69,9 @@ def coupled_targets(code, x, v, hist, has_prev, t, h, substeps, m, p0s, d0s, mov
     ok_all = True
     for k in range(substeps):
         sample_holders(t + k * hs, hs, p0s, d0s, moves_first, moves_last, hp, hv, ha, hd)
+        for e in range(2):
+            if ext_mask[e]:
+                external_samples(ext, e, k * hs, hs, hp, hv, ha, hd)
         its, ok = advance(code, x_new, v_new, hist, has_prev or k > 0, hs, m, hp, hv, hd, f_ext, max_iter, tol,
                           definite)
         iters += its
@@ -63,7 +85,7 @@ def coupled_targets(code, x, v, hist, has_prev, t, h, substeps, m, p0s, d0s, mov
 
 @njit(cache=True)
 def sync_and_advance(code, S, hist, has_prev, t, h, substeps, m, p0s, d0s, moves_first, moves_last, f_ext, max_iter,
-                     tol, definite, g_bullet, do_sync, touched_idx, touched_pos, touched_vel, H, mon, acc, e0,
+                     tol, definite, g_bullet, ext_mask, ext, do_sync, touched_idx, touched_pos, touched_vel, H, mon, acc, e0,
                      max_strain_bound, energy_factor, do_check, energy_check):
     """One call per Bullet step (few, packed arguments: the step loop is overhead-bound).
 
@@ -101,7 +123,8 @@ def sync_and_advance(code, S, hist, has_prev, t, h, substeps, m, p0s, d0s, moves
     if status != STABLE:
         return status, 0, True
     its, ok = coupled_targets(code, x, v, hist, has_prev, t, h, substeps, m, p0s, d0s, moves_first, moves_last,
-                              f_ext, max_iter, tol, definite, v_bullet, g_bullet, x_new, v_new, forces, hp, hv, ha, hd)
+                              f_ext, max_iter, tol, definite, v_bullet, g_bullet, ext_mask, ext, x_new, v_new,
+                              forces, hp, hv, ha, hd)
     return status, its, ok
 
 
@@ -156,16 +179,21 @@ class BulletCable:
         self.f_ext = np.zeros((n, 3))
         self._H = np.zeros((4, 3, 2, 3))  # held-end samples: pos, vel, acc, dir
         self._samples = list(self._H)
+        # own copy of the model arrays: grasp and release change the end conditions in place
+        self.arrays = type(model.arrays)(*[np.array(a, copy=True) for a in model.arrays])
+        self._ext = np.zeros((5, 2, 3))  # measured held-end poses: pos, vel, acc, omega, dir
+        self._ext_mask = np.zeros(2, dtype=np.bool_)
         self._no_rows = np.zeros((0, 3))
         self._no_index = np.zeros(0, dtype=np.int64)
         self._tables = model.holder_tables()
+        self._ext[4] = self._tables[1]  # clamp directions until a gripper takes over
         self.radius = 0.5 * model.spec.diameter
         self.body_ids = self._spawn(color, self_collision)
         # instability monitor
         hp, hv, ha, hd = self._samples
         p0s, d0s, mf, ml = self._tables
         sample_holders(self.t, world.dt, p0s, d0s, mf, ml, hp, hv, ha, hd)
-        a = model.arrays
+        a = self.arrays
         self._e0 = energy_kernel(self.x, self.v, a, hd[0])
         self._mon = np.zeros((3, 2, 3))  # end forces, last held positions, last end forces
         self._ef = self._mon[0]
@@ -183,7 +211,7 @@ class BulletCable:
         # argument groups of the per-step kernel, bound once (the step loop is overhead-bound)
         self._args_state = (self.method.code, self._S, self.hist)
         self._args_model = (self.substeps, a, *self._tables, self.f_ext, newton.max_iter, self.tol, newton.definite,
-                            world.gravity)
+                            world.gravity, self._ext_mask, self._ext)
         self._args_monitor = (self._H, self._mon, self._acc, self._e0, detector.max_strain, detector.energy_factor)
         self._advance(None)  # plan the first step
 
@@ -263,7 +291,7 @@ class BulletCable:
 
     def _record_row(self) -> None:
         hp, hv, ha, hd = self._samples
-        a = self.model.arrays
+        a = self.arrays
         k = 0  # samples always start at the current time (they are planned for the coming step)
         out = np.zeros((2, 3))
         end_forces_kernel(self.x, self.v, a, hd[k], ha[k], self.f_ext, out)
@@ -272,6 +300,49 @@ class BulletCable:
         self.record.v.append(self.v.copy())
         self.record.end_forces.append(out)
         self.record.energy.append(energy_kernel(self.x, self.v, a, hd[k]))
+
+    # ----- grasping -----------------------------------------------------------------------
+    def hold_externally(self, end: int, mode: str = "clamped") -> None:
+        """Make end ``end`` (0 first, 1 last) follow poses given by :meth:`set_external_pose`.
+
+        mode: ``clamped`` (position and tangent held, like a gripper) or ``pinned``.
+        The clamp's bending stiffness is the spec's half-segment value (see CableSpec).
+        """
+        if mode not in ("clamped", "pinned"):
+            raise ParameterError(f"grasp mode must be clamped or pinned, got {mode!r}")
+        a, spec, n = self.arrays, self.model.spec, self.model.n
+        node = 0 if end == 0 else n - 1
+        a.held[node] = True
+        a.end_mode[end] = 2 if mode == "clamped" else 1
+        a.k_bend[node] = spec.k_bend_clamp if mode == "clamped" else 0.0
+        self._ext_mask[end] = True
+        self._replan()
+
+    def release(self, end: int) -> None:
+        """Let end ``end`` go: it becomes free and no longer follows any holder."""
+        a, n = self.arrays, self.model.n
+        node = 0 if end == 0 else n - 1
+        a.held[node] = False
+        a.end_mode[end] = 0
+        a.k_bend[node] = 0.0
+        self._ext_mask[end] = False
+        self._replan()
+
+    def set_external_pose(self, end: int, position, velocity, acceleration, omega, direction) -> None:
+        """Measured pose of the holder of ``end`` now (world frame, SI); direction: clamp tangent
+        pointing along the cable from its first to its last mass."""
+        e = self._ext
+        e[0, end], e[1, end], e[2, end], e[3, end] = position, velocity, acceleration, omega
+        e[4, end] = np.asarray(direction, float) / np.linalg.norm(direction)
+
+    def held_end_wrench(self, end: int) -> tuple[np.ndarray, np.ndarray]:
+        """Force [N] and clamp torque [N m] the cable exerts on the holder of ``end`` now."""
+        return self.end_forces()[end], self.end_moments()[end]
+
+    def _replan(self) -> None:
+        """Re-plan the coming step after the end conditions changed (the forces must match)."""
+        if self.status == STABLE:
+            self._advance(None)
 
     # ----- read-outs ----------------------------------------------------------------------
     @property
@@ -290,13 +361,13 @@ class BulletCable:
         """Force [N] the cable exerts on each held end now, (2, 3) (first, last)."""
         hp, hv, ha, hd = self._samples
         out = np.zeros((2, 3))
-        end_forces_kernel(self.x, self.v, self.model.arrays, hd[0], ha[0], self.f_ext, out)
+        end_forces_kernel(self.x, self.v, self.arrays, hd[0], ha[0], self.f_ext, out)
         return out
 
     def end_moments(self) -> np.ndarray:
         """Torque [N m] the cable exerts on each clamp now, (2, 3) (zero rows for unclamped ends)."""
         hd = self._samples[3]
-        a = self.model.arrays
+        a = self.arrays
         return np.stack([clamp_torque(self.x, a.k_bend, hd[0, 0], hd[0, 1], e) for e in (0, 1)])
 
     def bullet_positions(self) -> np.ndarray:

@@ -74,6 +74,11 @@ class BulletWorld:
             self.bodies[self.ground_id] = "ground"
         self.time = 0.0
         self.steps = 0
+        # hooks (callables without arguments): before Bullet's step (apply loads, set motor
+        # targets), after it but before the cables take it over (read link poses), after all
+        self.before_step: list = []
+        self.after_physics: list = []
+        self.after_step: list = []
 
     # ----- obstacles --------------------------------------------------------------------------
     def add_box(self, half_extents: Sequence[float], position: Sequence[float],
@@ -150,6 +155,7 @@ class BulletWorld:
         newton: NewtonOptions = NewtonOptions(),
         detector=None,
         record_every: int = 1,
+        overlap_ok: Sequence[int] = (),
     ) -> BulletCable:
         """Spawn a cable as Bullet spheres driven by the MSD model.
 
@@ -166,6 +172,7 @@ class BulletWorld:
             sync: ``contacts`` (read back only spheres that touched something) or ``always``.
             detector: instability thresholds (DetectorOptions).
             record_every: Bullet steps between recorded rows.
+            overlap_ok: bodies the cable may touch at spawn (e.g. the grippers that hold it).
         """
         from .simulate import DetectorOptions
 
@@ -184,7 +191,7 @@ class BulletWorld:
                         self_collision=self_collision, sync=sync, newton=newton,
                         detector=detector or DetectorOptions(), record_every=record_every)
         try:
-            self._check_spawn_overlap(c)
+            self._check_spawn_overlap(c, set(overlap_ok))
         except ParameterError:
             for b in c.body_ids:
                 pb.removeBody(b, physicsClientId=self.client)
@@ -193,7 +200,7 @@ class BulletWorld:
         self._owners.update({b: (name, i) for i, b in enumerate(c.body_ids)})
         return c
 
-    def _check_spawn_overlap(self, cable: BulletCable) -> None:
+    def _check_spawn_overlap(self, cable: BulletCable, overlap_ok: set[int]) -> None:
         """Refuse a cable that starts inside the ground or another body."""
         low = float(np.min(cable.x[:, 2])) - cable.radius
         if self.ground_id is not None and low < self.ground_height - SPAWN_TOLERANCE:
@@ -205,7 +212,7 @@ class BulletWorld:
         for b in cable.body_ids:
             for cp in pb.getContactPoints(bodyA=b, physicsClientId=self.client):
                 other = cp[2]
-                if other in own or cp[8] > -SPAWN_TOLERANCE:
+                if other in own or other in overlap_ok or cp[8] > -SPAWN_TOLERANCE:
                     continue
                 what = self.bodies.get(other, f"body {other}")
                 for cname, c in self.cables.items():
@@ -221,7 +228,13 @@ class BulletWorld:
         for _ in range(n):
             for c in cables:
                 c.apply_forces()
+            for hook in self.before_step:
+                hook()
             pb.stepSimulation(self.client)
+            self.time += self.dt
+            self.steps += 1
+            for hook in self.after_physics:
+                hook()
             contacts = pb.getContactPoints(-1, -1, -2, -2, self.client) if cables else ()  # all, one call
             if contacts:
                 touched: dict[str, set[int]] = {c.name: set() for c in cables}
@@ -236,8 +249,8 @@ class BulletWorld:
             else:
                 for c in cables:
                     c.sync_after_step(())
-            self.time += self.dt
-            self.steps += 1
+            for hook in self.after_step:
+                hook()
 
     def run(self, duration: float) -> int:
         """Step for ``duration`` seconds (rounded to whole steps); returns the number of steps."""
