@@ -143,16 +143,18 @@ class DualArmScene:
         return x_axis if arm == 0 else -x_axis
 
     # ----- grasp / release / move ------------------------------------------------------------
-    def grasp(self, arm: int | None = None) -> None:
+    def grasp(self, arm: int | str | None = None) -> None:
         """Clamp the cable end(s) to the gripper(s) (both when ``arm`` is None)."""
-        for a in (0, 1) if arm is None else (arm,):
+        arms = (0, 1) if arm is None else (ARMS.index(arm) if isinstance(arm, str) else int(arm),)
+        for a in arms:
             self.cable.hold_externally(a, "clamped")
             self.grasped[a] = True
         self._read_grippers()
 
-    def release(self, arm: int | None = None) -> None:
+    def release(self, arm: int | str | None = None) -> None:
         """Open the gripper(s): the cable end falls free."""
-        for a in (0, 1) if arm is None else (arm,):
+        arms = (0, 1) if arm is None else (ARMS.index(arm) if isinstance(arm, str) else int(arm),)
+        for a in arms:
             self.cable.release(a)
             self.grasped[a] = False
 
