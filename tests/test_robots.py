@@ -141,3 +141,20 @@ def test_clear_errors():
         robot.spec = bad
         with pytest.raises(ParameterError, match="no joint 'wrist_ft' for the F/T sensor"):
             WristSensor(robot)
+
+
+def test_cli_grasp_json(tmp_path):
+    import json
+
+    from bullet_dlo.cli import main
+
+    out = tmp_path / "g.json"
+    assert main(["grasp", "--robot", "panda", "--duration", "2.5", "--json", str(out)]) == 0
+    data = json.loads(out.read_text())
+    for key in ("cable_weight", "wrench_world", "ground_truth_end_forces", "stable"):
+        assert key in data
+    assert data["stable"] is True
+    w = {arm: np.array(data["wrench_world"][arm]) for arm in ("left", "right")}
+    assert len(w["left"]) == 6
+    assert w["left"][2] + w["right"][2] == pytest.approx(-data["cable_weight"], rel=0.01)
+    assert main(["grasp", "--robot", "abb"]) == 2
