@@ -45,11 +45,14 @@ class BulletWorld:
         ground: add a ground plane at ``ground_height`` [m].
         ground_friction: lateral friction of the ground.
         solver_iterations: Bullet constraint-solver iterations (None: Bullet's default).
+        renderer: set up an image renderer now (``auto``/``tiny``/``egl``, see
+            :class:`bullet_dlo.render.Renderer`); None: no rendering. The EGL plugin only draws
+            bodies created after it was loaded, so a world that will be filmed says so here.
     """
 
     def __init__(self, dt: float = 1.0 / 240.0, gravity: Sequence[float] = STANDARD_GRAVITY, *, gui: bool = False,
                  ground: bool = True, ground_height: float = 0.0, ground_friction: float = 0.5,
-                 solver_iterations: int | None = None):
+                 solver_iterations: int | None = None, renderer: str | None = None):
         self.dt = check_positive("dt", dt)
         self.gravity = check_vector3("gravity", gravity)
         self.ground_height = float(ground_height)
@@ -59,6 +62,11 @@ class BulletWorld:
             raise ParameterError("could not connect to PyBullet (GUI mode needs a display; use gui=False)")
         pb.setTimeStep(self.dt, physicsClientId=self.client)
         pb.setGravity(*self.gravity.tolist(), physicsClientId=self.client)
+        self.renderer = None
+        if renderer is not None:
+            from .render import Renderer
+
+            self.renderer = Renderer(self.client, renderer)
         if solver_iterations is not None:
             pb.setPhysicsEngineParameter(numSolverIterations=int(solver_iterations), physicsClientId=self.client)
         self.cables: dict[str, BulletCable] = {}
@@ -275,11 +283,11 @@ class BulletWorld:
         self.close()
 
 
-def build_world(scene, gui: bool = False) -> BulletWorld:
+def build_world(scene, gui: bool = False, renderer: str | None = None) -> BulletWorld:
     """A world for ``scene`` (a :class:`bullet_dlo.scene.Scene`): ground and obstacles, no cable yet."""
     opts = scene.bullet
     world = BulletWorld(scene.dt, scene.gravity, gui=gui, ground=opts.ground, ground_height=opts.ground_height,
-                        ground_friction=opts.ground_friction)
+                        ground_friction=opts.ground_friction, renderer=renderer)
     for k, ob in enumerate(opts.obstacles):
         spec = {key: val for key, val in ob.items() if key != "type"}
         try:

@@ -187,6 +187,19 @@ def cmd_grasp(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_render(args: argparse.Namespace) -> int:
+    from .recording import render_scene
+    from .scene import Scene
+
+    scene = Scene.from_yaml(args.scene)
+    summary = render_scene(scene, args.out, robot=args.robot, fps=args.fps, width=args.width, height=args.height,
+                           renderer=args.renderer, fmt=args.format, progress=not args.quiet)
+    print(f"renderer: {summary['renderer']} ({summary['renderer_note']}); {summary['frames']} frames, "
+          f"{summary['format']} ({summary['codec']}) in {summary['wall_time_s']:.1f} s")
+    print(f"outputs written to {Path(args.out).resolve()}")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
         prog="bullet-dlo",
@@ -252,6 +265,23 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--sensor-rate", type=float, default=None, help="F/T sensor rate [Hz] (default: every step)")
     s.add_argument("--noise", type=float, default=0.0, help="F/T force noise std [N] (default 0)")
     s.set_defaults(func=cmd_grasp)
+
+    s = sub.add_parser("render", help="headless video and force plots of a scene",
+                       description="Run SCENE.yaml in PyBullet (DIRECT mode, no display) and write scene.mp4 "
+                                   "(H.264; WebM or PNG frames as fallbacks), forces.png, side_by_side.mp4 (scene "
+                                   "left, force plot with a moving cursor right), still.png and render.json.")
+    s.add_argument("scene", help="scene YAML file")
+    s.add_argument("--out", required=True, metavar="DIR", help="output folder")
+    s.add_argument("--robot", help="hold the cable with two arms (kuka, panda); plots show the wrist sensors")
+    s.add_argument("--fps", type=float, default=30.0, help="video frame rate, independent of the physics (30)")
+    s.add_argument("--width", type=int, default=640, help="frame width [px] (640)")
+    s.add_argument("--height", type=int, default=480, help="frame height [px] (480)")
+    s.add_argument("--renderer", default="auto", choices=["auto", "tiny", "egl"],
+                   help="auto: EGL when its plugin loads, else TinyRenderer (reported); tiny; egl (error if absent)")
+    s.add_argument("--format", default="auto", choices=["auto", "mp4", "webm", "png"],
+                   help="video format: auto tries H.264 MP4, then VP9 WebM, then a PNG sequence")
+    s.add_argument("--quiet", action="store_true", help="no progress bar")
+    s.set_defaults(func=cmd_render)
 
     s = sub.add_parser("convergence", help="cantilever static convergence of both discretisations",
                        description="Tip deflection of a clamped cantilever under its own weight vs beam "

@@ -48,6 +48,7 @@ class DualArmConfig:
     noise_std: tuple[float, ...] = (0.0,) * 6
     bias: tuple[float, ...] = (0.0,) * 6
     seed: int = 0
+    renderer: str | None = None
 
 
 @dataclass
@@ -89,7 +90,7 @@ class DualArmScene:
         h = check_positive("hold_height", config.hold_height)
         if config.table_height and h - config.table_height < 0.05:
             raise ParameterError(f"hold_height {h} m must be at least 5 cm above the table top {config.table_height} m")
-        self.world = BulletWorld(dt=config.dt)
+        self.world = BulletWorld(dt=config.dt, renderer=config.renderer)
         w = self.world
         if config.table_height > 0:
             th = config.table_height
