@@ -49,6 +49,7 @@ class DualArmConfig:
     bias: tuple[float, ...] = (0.0,) * 6
     seed: int = 0
     renderer: str | None = None
+    substeps: int = 1
 
 
 @dataclass
@@ -116,7 +117,7 @@ class DualArmScene:
         start, _ = self.robots[0].grasp_pose()
         model = CableModel.straight(cable, start, (1.0, 0.0, 0.0), ("free", "free"), (), w.gravity)
         self.cable = w.add_cable(model, integrator=config.integrator, record_every=10**9,
-                                 overlap_ok=[r.body for r in self.robots])
+                                 overlap_ok=[r.body for r in self.robots], substeps=config.substeps)
         self._no_self_contact_at_grasps()
         self.moves: list[CartesianMove] = []
         self.grasped = [False, False]
