@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 from pathlib import Path
 from typing import Sequence
@@ -29,7 +30,7 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     from .params import check_positive
     from .scene import Scene, result_json
 
-    scene = Scene.from_yaml(args.scene)
+    scene = Scene.from_yaml(args.scene).resolved()
     if args.integrator is not None:
         scene = replace(scene, integrator=get_integrator(args.integrator).name)
     for key in ("dt", "duration"):
@@ -144,7 +145,7 @@ def cmd_grasp(args: argparse.Namespace) -> int:
     from .scene import Scene
 
     if args.scene:
-        scene = Scene.from_yaml(args.scene)
+        scene = Scene.from_yaml(args.scene).resolved()
         cable, dt, integrator, duration = scene.cable, scene.dt, scene.integrator, scene.duration
         moves = [("left" if m.end == "first" else "right", m.displacement, m.start, m.duration, m.rotation)
                  for m in scene.motion]
@@ -191,7 +192,7 @@ def cmd_render(args: argparse.Namespace) -> int:
     from .recording import render_scene
     from .scene import Scene
 
-    scene = Scene.from_yaml(args.scene)
+    scene = Scene.from_yaml(args.scene).resolved()
     summary = render_scene(scene, args.out, robot=args.robot, fps=args.fps, width=args.width, height=args.height,
                            renderer=args.renderer, fmt=args.format, progress=not args.quiet)
     print(f"renderer: {summary['renderer']} ({summary['renderer_note']}); {summary['frames']} frames, "
@@ -228,6 +229,26 @@ def cmd_dataset_summary(args: argparse.Namespace) -> int:
     if args.json:
         _write_json(args.json, summary)
     return 0
+
+
+def cmd_resolve(args: argparse.Namespace) -> int:
+    from .resolve import resolve
+    from .scene import Scene
+
+    scene = Scene.from_yaml(args.scene)
+    r = resolve(scene, args.tol, args.target, args.rollout)
+    print(f"{scene.name}: n_masses = {r.n_masses}, integrator = {r.integrator}, dt = {r.dt:.4g} s; predicted error "
+          f"{r.predicted_error:.4f} (spatial {r.spatial_error:.4f} + temporal {r.temporal_error:.4f}) <= "
+          f"{r.tolerance} on {r.target}; {r.wall_time_per_sim_s:.4f} s wall per simulated second")
+    if args.json:
+        _write_json(args.json, r.to_dict())
+    return 0
+
+
+def cmd_bench(args: argparse.Namespace) -> int:
+    from . import bench_cli
+
+    return bench_cli.run(args)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -332,6 +353,33 @@ def build_parser() -> argparse.ArgumentParser:
     d.add_argument("dir", help="capture directory")
     d.add_argument("--json", metavar="OUT.json", help="write the summary as JSON")
     d.set_defaults(func=cmd_dataset_summary)
+
+    s = sub.add_parser("resolve", help="fewest masses, integrator and largest step meeting a tolerance",
+                       description="Convergence tests on a short rollout of SCENE.yaml pick the fewest masses, then "
+                                   "the cheapest integrator and largest step, that keep the error on what the scene "
+                                   "needs within --tol. Scenes may also say n_masses: auto / dt: auto.")
+    s.add_argument("scene", help="scene YAML file")
+    s.add_argument("--tol", type=float, default=0.01, help="relative tolerance (default 0.01)")
+    s.add_argument("--target", default="both", choices=["forces", "shape", "both"],
+                   help="what must be accurate: end forces (0.2 s means), final shape, or both")
+    s.add_argument("--rollout", type=float, default=None, help="seconds per trial (default: duration, at most 2)")
+    s.add_argument("--json", metavar="OUT.json", help="write n_masses, dt, integrator, predicted_error, "
+                   "wall_time_per_sim_s and the trials")
+    s.set_defaults(func=cmd_resolve)
+
+    s = sub.add_parser("bench", help="speed against accuracy: work-precision, stability map, peers, scaling")
+    bsub = s.add_subparsers(dest="bench_command", required=True, metavar="BENCH")
+    for name, text in (("work-precision", "error vs wall time per simulated second for every integrator, dt, n, "
+                        "scenario S1-S4 and engine; PNG + CSV"),
+                       ("stability", "largest stable dt vs E and n per method, measured by bisection, with the "
+                        "predicted limit"),
+                       ("peers", "PyElastica and MuJoCo on S1 and S2 next to ours (pip install '.[peers]')"),
+                       ("scaling", "cost of the implicit solve vs n up to 1000 and its fitted exponent"),
+                       ("resolve", "resolve's choices on S1-S4 checked against their references")):
+        b = bsub.add_parser(name, help=text, description=text)
+        b.add_argument("--out", default=os.path.join("out", "bench"), help="output folder (default out/bench)")
+        b.add_argument("--quick", action="store_true", help="a few points only (seconds; for CI)")
+        b.set_defaults(func=cmd_bench)
 
     s = sub.add_parser("convergence", help="cantilever static convergence of both discretisations",
                        description="Tip deflection of a clamped cantilever under its own weight vs beam "

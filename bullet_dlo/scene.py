@@ -35,7 +35,7 @@ from .stability import critical_dt
 from .statics import solve_static
 
 TOP_KEYS = ("cable", "layout", "ends", "motion", "gravity", "integrator", "dt", "duration",
-            "initial", "detector", "newton", "name", "bullet")
+            "initial", "detector", "newton", "name", "bullet", "tolerance")
 BULLET_KEYS = ("ground", "ground_height", "ground_friction", "substeps", "self_collision", "sync", "obstacles")
 OBSTACLE_KEYS = {"box": ("half_extents", "position", "orientation", "mass", "friction", "name"),
                  "cylinder": ("radius", "height", "position", "orientation", "mass", "friction", "name"),
@@ -129,6 +129,10 @@ class Scene:
     newton: NewtonOptions = field(default_factory=NewtonOptions)
     name: str = "scene"
     bullet: BulletOptions = field(default_factory=BulletOptions)
+    auto_n: bool = False  # n_masses: auto
+    auto_dt: bool = False  # dt: auto (also picks the integrator)
+    tolerance: float = 0.01
+    tolerance_target: str = "both"
 
     # ----- parsing -------------------------------------------------------------------------
     @classmethod
@@ -138,7 +142,20 @@ class Scene:
         _only(data, TOP_KEYS, "scene")
         if "cable" not in data:
             raise ParameterError("cable: missing (give cable parameters or {preset: lv2017})")
-        cable = _prefixed("cable", CableSpec.from_dict, _mapping(data["cable"], "cable"))
+        cable_map = dict(_mapping(data["cable"], "cable"))
+        auto_n = cable_map.get("n_masses") == "auto"
+        if auto_n:
+            cable_map["n_masses"] = 10  # placeholder until resolve() picks it
+        cable = _prefixed("cable", CableSpec.from_dict, cable_map)
+        auto_dt = data.get("dt") == "auto"
+        if auto_dt:
+            data = {**data, "dt": 1e-3}
+        tol = _mapping(data.get("tolerance"), "tolerance")
+        _only(tol, ("value", "target"), "tolerance")
+        tol_value = _prefixed("tolerance.value", check_positive, "tolerance", tol.get("value", 0.01))
+        tol_target = str(tol.get("target", "both"))
+        if tol_target not in ("forces", "shape", "both"):
+            raise ParameterError(f"tolerance.target must be forces, shape or both, got {tol_target!r}")
         layout = _mapping(data.get("layout"), "layout")
         _only(layout, ("start", "direction"), "layout")
         start = tuple(_prefixed("layout.start", check_vector3, "start", layout.get("start", (0.0, 0.0, 0.5))))
@@ -175,7 +192,8 @@ class Scene:
         newton = NewtonOptions(**nwt)
         bullet = BulletOptions.from_dict(data.get("bullet"))
         return cls(cable, start, direction, (ends[0], ends[1]), motion, gravity, integrator, dt, duration,
-                   initial, detector, newton, str(data.get("name", "scene")), bullet)
+                   initial, detector, newton, str(data.get("name", "scene")), bullet, auto_n, auto_dt,
+                   tol_value, tol_target)
 
     @classmethod
     def from_yaml(cls, path: str | Path) -> "Scene":
@@ -190,6 +208,22 @@ class Scene:
         return cls.from_dict(data)
 
     # ----- running -------------------------------------------------------------------------
+    def resolved(self) -> "Scene":
+        """This scene with ``n_masses: auto`` / ``dt: auto`` replaced by :func:`bullet_dlo.resolve.resolve`'s choice."""
+        if not (self.auto_n or self.auto_dt):
+            return self
+        from dataclasses import replace
+
+        from .resolve import resolve
+
+        r = resolve(self, self.tolerance, self.tolerance_target)
+        new = replace(self, auto_n=False, auto_dt=False)
+        if self.auto_n:
+            new = replace(new, cable=self.cable.with_(n_masses=r.n_masses))
+        if self.auto_dt:
+            new = replace(new, dt=r.dt, integrator=r.integrator)
+        return new
+
     def build_model(self) -> CableModel:
         """The discretised cable with its end conditions and motion."""
         return CableModel.straight(self.cable, self.start, self.direction, self.ends, self.motion, self.gravity)
@@ -201,11 +235,12 @@ class Scene:
         return model.initial_state()
 
     def run(self, **overrides: Any) -> tuple[CableModel, SimulationResult]:
-        """Run with the core engine; ``overrides`` go to :func:`simulate`."""
-        model = self.build_model()
-        kwargs: dict[str, Any] = dict(state=self.initial_state(model), newton=self.newton, detector=self.detector)
+        """Run with the core engine (resolving ``auto`` first); ``overrides`` go to :func:`simulate`."""
+        scene = self.resolved()
+        model = scene.build_model()
+        kwargs: dict[str, Any] = dict(state=scene.initial_state(model), newton=scene.newton, detector=scene.detector)
         kwargs.update(overrides)
-        return model, simulate(model, self.integrator, self.dt, self.duration, **kwargs)
+        return model, simulate(model, scene.integrator, scene.dt, scene.duration, **kwargs)
 
 
 def result_json(scene: Scene, model: CableModel, result: SimulationResult, engine: str = "core") -> dict[str, Any]:
