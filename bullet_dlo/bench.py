@@ -9,7 +9,8 @@ second of the run that produced it):
 * S2: the same cantilever released from a small deflection, undamped: first frequency vs
   f1 = 1.8751^2/(2 pi) sqrt(E I / (rho A L^4)), and the amplitude kept after 1 s.
 * S3: the study's scenario (Lv cable clamped at both ends, one end lifted 5 mm): end forces
-  against a converged reference run (n = 41, BDF2 at 0.1 ms).
+  against a converged reference run (n = 41, BDF2 at 0.1 ms), as 0.2 s means (see
+  :func:`force_error`).
 * S4: a slack, thin cable hanging between two pinned ends 0.25 m apart: sag and end forces
   against the catenary.
 """
@@ -108,7 +109,8 @@ def s2(n: int, integrator: str, dt: float, engine: str = "core", duration: float
 
 
 def s3_model(n: int) -> CableModel:
-    spec = CableSpec.lv2017(n_masses=n, damping=0.01)
+    """The study's scenario with the damping rate of k_d = 0.01 N s/m at n = 10 (gamma = 3.3 1/s) for every n."""
+    spec = CableSpec.lv2017(n_masses=n, damping=0.01 * 10 / n)
     return CableModel.straight(spec, (0, 0, 0.5), (1, 0, 0), ("clamped", "clamped"),
                                [Move("last", (0.0, 0.0, 0.005), 0.1, 0.1)])
 
@@ -127,12 +129,24 @@ def s3(n: int, integrator: str, dt: float, engine: str = "core", duration: float
     if not ok:
         return BenchPoint("S3", engine, integrator, n, dt, False, float("nan"), cost)
     tr, fr = s3_reference(duration)
-    fi = np.empty_like(fr)
-    for e in range(2):
-        for j in range(3):
-            fi[:, e, j] = np.interp(tr, t, f[:, e, j])
-    err = float(np.max(np.abs(fi - fr)) / np.max(np.abs(fr)))
+    err = force_error(t, f, tr, fr)
     return BenchPoint("S3", engine, integrator, n, dt, True, err, cost)
+
+
+def force_error(t: np.ndarray, f: np.ndarray, t_ref: np.ndarray, f_ref: np.ndarray, block: float = 0.2) -> float:
+    """RMS difference of end forces (k, 2, 3) [N] in ``block``-second means (what a 5 Hz force
+    sensor sees), relative to the reference's peak force.
+
+    Pointwise histories are not a fair target: with absolute (air-like) damping only, the
+    stiff axial and clamp modes that a move excites ring on, and refining n adds new ones.
+    """
+    edges = np.arange(t_ref[0], t_ref[-1] + 1e-12, block)
+    rows_a, rows_b = [], []
+    for lo, hi in zip(edges[:-1], edges[1:]):
+        rows_a.append(f[(t >= lo) & (t < hi)].mean(axis=0))
+        rows_b.append(f_ref[(t_ref >= lo) & (t_ref < hi)].mean(axis=0))
+    a, b = np.array(rows_a), np.array(rows_b)
+    return float(np.sqrt(np.mean(np.sum((a - b) ** 2, axis=-1))) / np.max(np.abs(f_ref)))
 
 
 def catenary(span: float, length: float, weight_per_length: float) -> tuple[float, float, float]:
@@ -188,7 +202,7 @@ def default_steps(integrator: str, quick: bool, critical: float | None = None) -
     """Steps to sweep: robot rates and below for implicit methods; fractions of the predicted
     limit for explicit ones (and one step beyond it, to show the failure)."""
     if INTEGRATORS[integrator].explicit:
-        fractions = (1.2, 0.9, 0.3) if quick else (1.2, 0.9, 0.5, 0.25, 0.1)
+        fractions = (1.2, 0.9, 0.3) if quick else (1.2, 0.9, 0.5, 0.2)
         return [f * critical for f in fractions] if critical else []
     return [1e-3, 1 / 240] if quick else [1 / 60, 1 / 240, 1e-3, 5e-4, 2e-4]
 

@@ -219,7 +219,7 @@ class Scene:
         r = resolve(self, self.tolerance, self.tolerance_target)
         new = replace(self, auto_n=False, auto_dt=False)
         if self.auto_n:
-            new = replace(new, cable=self.cable.with_(n_masses=r.n_masses))
+            new = replace(new, cable=self.cable.with_(n_masses=r.n_masses, damping=r.damping))
         if self.auto_dt:
             new = replace(new, dt=r.dt, integrator=r.integrator)
         return new
