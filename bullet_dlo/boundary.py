@@ -104,7 +104,7 @@ class EndHolder:
         return np.stack([m.as_row() for m in self.moves])
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def min_jerk(tau):
     """Quintic minimum-jerk profile s(tau) and its first two derivatives for tau in [0, 1]."""
     if tau <= 0.0:
@@ -119,7 +119,7 @@ def min_jerk(tau):
     return s, ds, dds
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _rotate(vec, rx, ry, rz):
     """Rotate the 3-vector ``vec`` in place by the rotation vector (rx, ry, rz) (Rodrigues)."""
     angle = math.sqrt(rx * rx + ry * ry + rz * rz)
@@ -137,7 +137,7 @@ def _rotate(vec, rx, ry, rz):
     vec[2] = v2 * ca + cz * sa + kz * dot * (1.0 - ca)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def held_pose(t, p0, d0, moves, pos, vel, acc, direction):
     """Pose of a held end at time t [s] from its start pose and move table (k, 8).
 
@@ -159,7 +159,7 @@ def held_pose(t, p0, d0, moves, pos, vel, acc, direction):
             _rotate(direction, moves[k, 5] * s, moves[k, 6] * s, moves[k, 7] * s)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def sample_holders(t, h, p0s, d0s, moves_first, moves_last, hold_pos, hold_vel, hold_acc, hold_dir):
     """Held-end poses at t, t + h/2 and t + h for both ends.
 

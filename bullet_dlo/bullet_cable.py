@@ -34,7 +34,7 @@ from .simulate import (REASONS, STABLE, DetectorOptions, advance, history, end_f
 SELF_COLLISION = ("neighbours", "none", "all")
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def external_samples(ext, e, tau0, hs, hp, hv, ha, hd):
     """Held-end samples of end ``e`` at tau0 + (0, hs/2, hs) after the time of ``ext``.
 
@@ -52,7 +52,7 @@ def external_samples(ext, e, tau0, hs, hp, hv, ha, hd):
         _rotate(hd[k, e], tau * ext[3, e, 0], tau * ext[3, e, 1], tau * ext[3, e, 2])
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def coupled_targets(code, x, v, hist, has_prev, t, h, substeps, m, p0s, d0s, moves_first, moves_last, f_ext,
                     max_iter, tol, definite, v_bullet, g_bullet, ext_mask, ext, x_new, v_new, forces, hp, hv, ha, hd):
     """Advance the core state by one Bullet step h (``substeps`` integrator steps) and compute
@@ -83,7 +83,7 @@ def coupled_targets(code, x, v, hist, has_prev, t, h, substeps, m, p0s, d0s, mov
     return iters, ok_all
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def sync_and_advance(code, S, hist, has_prev, t, h, substeps, m, p0s, d0s, moves_first, moves_last, f_ext, max_iter,
                      tol, definite, g_bullet, ext_mask, ext, do_sync, touched_idx, touched_pos, touched_vel, H, mon, acc, e0,
                      max_strain_bound, energy_factor, do_check, energy_check):

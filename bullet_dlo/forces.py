@@ -27,7 +27,7 @@ from numba import njit
 BAND = 2  # block half-bandwidth of the force Jacobian
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy", inline="always")
 def _angle_terms(ax, ay, az, bx, by, bz):
     """Angle between vectors a and b and the pieces its derivatives need.
 
@@ -55,7 +55,7 @@ def _angle_terms(ax, ay, az, bx, by, bz):
     return theta, s, c, la, lb, ux, uy, uz, wx, wy, wz, ratio, alpha
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy", inline="always")
 def _node_edges(x, i, dir_first, dir_last):
     """Incoming edge a and outgoing edge b at node i; the clamp directions stand in at the ends."""
     n = x.shape[0]
@@ -70,7 +70,7 @@ def _node_edges(x, i, dir_first, dir_last):
     return a0, a1, a2, b0, b1, b2
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def internal_energy(x, k_stretch, rest_length, k_bend, dir_first, dir_last):
     """Elastic energy of stretch, bending and clamp springs [J]."""
     n = x.shape[0]
@@ -91,7 +91,7 @@ def internal_energy(x, k_stretch, rest_length, k_bend, dir_first, dir_last):
     return e
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def internal_forces(x, k_stretch, rest_length, k_bend, dir_first, dir_last, out):
     """Write the elastic forces -dE/dx [N], shape (n, 3), into ``out`` (overwritten)."""
     n = x.shape[0]
@@ -136,7 +136,7 @@ def internal_forces(x, k_stretch, rest_length, k_bend, dir_first, dir_last, out)
             out[i + 1, 2] -= gbz
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def clamp_torque(x, k_bend, dir_first, dir_last, end):
     """Torque [N m] the cable exerts on the clamp at ``end`` (0 first, 1 last), world frame.
 
@@ -163,7 +163,7 @@ def clamp_torque(x, k_bend, dir_first, dir_last, end):
     return out
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def force_jacobian(x, k_stretch, rest_length, k_bend, dir_first, dir_last, definite, jac):
     """Write dF/dx of the elastic forces [N/m] into ``jac`` (shape (n, 5, 3, 3), overwritten).
 
@@ -229,7 +229,7 @@ def force_jacobian(x, k_stretch, rest_length, k_bend, dir_first, dir_last, defin
                     jac[i + 1, 2, r, col] -= hbb
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _bend_hessian(a0, a1, a2, b0, b1, b2, k, g, out):
     """Hessian of 1/2 k theta(a, b)^2 with respect to (a, b), shape (6, 6), into ``out`` (g: scratch (12,)).
 
@@ -260,7 +260,7 @@ def _bend_hessian(a0, a1, a2, b0, b1, b2, k, g, out):
             out[3 + col, r] = out[r, 3 + col]
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def total_forces(x, v, mass, damp, k_stretch, rest_length, k_bend, gravity, dir_first, dir_last, f_ext, out):
     """Elastic + gravity + viscous damping + external forces [N], shape (n, 3), into ``out``."""
     internal_forces(x, k_stretch, rest_length, k_bend, dir_first, dir_last, out)
@@ -270,7 +270,7 @@ def total_forces(x, v, mass, damp, k_stretch, rest_length, k_bend, gravity, dir_
             out[i, j] += mass[i] * gravity[j] - damp[i] * v[i, j] + f_ext[i, j]
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def max_strain(x, rest_length):
     """Largest |l/l0 - 1| over segments (dimensionless)."""
     worst = 0.0

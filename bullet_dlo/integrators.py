@@ -91,7 +91,7 @@ class NewtonOptions:
 
 
 # ----- helpers -------------------------------------------------------------------------------
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _set_held(x, v, held, pos, vel):
     """Put held nodes at the prescribed positions/velocities (pos, vel: (2, 3))."""
     n = x.shape[0]
@@ -103,7 +103,7 @@ def _set_held(x, v, held, pos, vel):
         v[n - 1, :] = vel[1]
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _accel(x, v, m, dirs, f_ext, f, a):
     """a <- M^-1 F(x, v) with clamp directions dirs (2, 3)."""
     total_forces(x, v, m.mass, m.damp, m.k_stretch, m.rest_length, m.k_bend, m.gravity, dirs[0], dirs[1], f_ext, f)
@@ -113,7 +113,7 @@ def _accel(x, v, m, dirs, f_ext, f, a):
 
 
 # ----- explicit methods -----------------------------------------------------------------------
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _explicit_euler(x, v, h, m, hold_pos, hold_vel, hold_dir, f_ext, W):
     f, a = W[0], W[1]
     _accel(x, v, m, hold_dir[0], f_ext, f, a)
@@ -122,7 +122,7 @@ def _explicit_euler(x, v, h, m, hold_pos, hold_vel, hold_dir, f_ext, W):
     _set_held(x, v, m.held, hold_pos[2], hold_vel[2])
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _symplectic_euler(x, v, h, m, hold_pos, hold_vel, hold_dir, f_ext, W):
     f, a = W[0], W[1]
     _accel(x, v, m, hold_dir[0], f_ext, f, a)
@@ -131,7 +131,7 @@ def _symplectic_euler(x, v, h, m, hold_pos, hold_vel, hold_dir, f_ext, W):
     _set_held(x, v, m.held, hold_pos[2], hold_vel[2])
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _rk4_stage(x, v, kx_prev, kv_prev, c, h, m, pos, vel, dirs, f_ext, f, xs, vs, kx, kv):
     """Stage state (x, v) + c h (kx_prev, kv_prev), held ends at (pos, vel); its slopes into kx, kv."""
     for i in range(x.shape[0]):
@@ -143,7 +143,7 @@ def _rk4_stage(x, v, kx_prev, kv_prev, c, h, m, pos, vel, dirs, f_ext, f, xs, vs
     _accel(xs, vs, m, dirs, f_ext, f, kv)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _rk4(x, v, h, m, hold_pos, hold_vel, hold_dir, f_ext, W):
     f, xs, vs = W[0], W[1], W[2]
     k1x, k1v, k2x, k2v, k3x, k3v, k4x, k4v = W[3], W[4], W[5], W[6], W[7], W[8], W[9], W[10]
@@ -159,7 +159,7 @@ def _rk4(x, v, h, m, hold_pos, hold_vel, hold_dir, f_ext, W):
 
 
 # ----- implicit methods -----------------------------------------------------------------------
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _residual(vn, xe0, cx, ve0, cv, av, hf, m, pos_e, vel_e, dirs, f_ext, xe, ve, f, r):
     """r <- hf F(X, V) - M (v' - av) on free nodes (0 on held), X = xe0 + cx v', V = ve0 + cv v'.
 
@@ -183,7 +183,7 @@ def _residual(vn, xe0, cx, ve0, cv, av, hf, m, pos_e, vel_e, dirs, f_ext, xe, ve
     return worst
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _merit(vn, xe, ve, av, cx, cv, hf, m, dirs, f_ext):
     """Incremental potential whose gradient in v' is (cx/hf) * residual [J].
 
@@ -200,7 +200,7 @@ def _merit(vn, xe, ve, av, cx, cv, hf, m, dirs, f_ext):
     return phi
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _implicit(kind, x, v, xp, vp, has_prev, h, m, hold_pos, hold_vel, hold_dir, f_ext, max_iter, tol, definite, W):
     """Newton with line search on the end-of-step velocity v' (implicit Euler, BDF2, midpoint).
 
@@ -326,7 +326,7 @@ def workspace(n: int) -> np.ndarray:
     return np.zeros((WORK_SLOTS, n, 3))
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def step_kernel(code, x, v, xp, vp, has_prev, h, m, hold_pos, hold_vel, hold_dir, f_ext, max_iter, tol, definite, W):
     """Advance (x, v) in place by one step h [s] with method ``code``.
 

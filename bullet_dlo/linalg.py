@@ -17,7 +17,7 @@ from .forces import BAND
 HALF = 3 * BAND + 2  # scalar half-bandwidth: 8
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def assemble_system(jac, mass, damp, k_coef, c_coef, held, band):
     """band <- diag(m) - k_coef * jac + c_coef * diag(c), held nodes replaced by identity rows/cols.
 
@@ -40,7 +40,7 @@ def assemble_system(jac, mass, damp, k_coef, c_coef, held, band):
                 band[3 * i + r, HALF] += mass[i] + c_coef * damp[i]
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def band_solve(band, rhs):
     """Solve band * y = rhs in place for a *symmetric* band matrix (rhs becomes y).
 

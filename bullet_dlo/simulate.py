@@ -85,7 +85,7 @@ class SimulationResult:
         }
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def end_forces_kernel(x, v, m, dirs, acc, f_ext, out):
     """Force [N] the cable exerts on each held end, (2, 3): F_node - m a (zero for free ends).
 
@@ -102,7 +102,7 @@ def end_forces_kernel(x, v, m, dirs, acc, f_ext, out):
         out[1, :] = f[n - 1] - m.mass[n - 1] * acc[1]
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def energy_kernel(x, v, m, dirs):
     """Kinetic + elastic + gravitational energy [J]."""
     e = internal_energy(x, m.k_stretch, m.rest_length, m.k_bend, dirs[0], dirs[1])
@@ -112,7 +112,7 @@ def energy_kernel(x, v, m, dirs):
     return e
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _check_state(x, v, m, max_strain_bound):
     """The cheap checks: finite state, strain within bound."""
     for i in range(x.shape[0]):
@@ -124,7 +124,7 @@ def _check_state(x, v, m, max_strain_bound):
     return STABLE
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _check(x, v, m, dirs, max_strain_bound, e0, work, e_scale, energy_factor):
     status = _check_state(x, v, m, max_strain_bound)
     if status != STABLE:
@@ -143,7 +143,7 @@ def history(n: int) -> np.ndarray:
     return np.zeros((HIST_SLOTS, n, 3))
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def advance(code, x, v, hist, has_prev, h, m, hp, hv, hd, f_ext, max_iter, tol, definite):
     """One step of method ``code`` in place, keeping BDF2's history in ``hist``.
 
@@ -162,7 +162,7 @@ def advance(code, x, v, hist, has_prev, h, m, hp, hv, hd, f_ext, max_iter, tol, 
     return its, ok
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def monitor(x, v, m, hp2, ha2, hd2, f_ext, ef, last_hold, last_force, acc, e0, max_strain_bound, energy_factor,
             energy_check):
     """Instability check after a step (held ends at hp2/ha2/hd2, each (2, 3)).
@@ -186,7 +186,7 @@ def monitor(x, v, m, hp2, ha2, hd2, f_ext, ef, last_hold, last_force, acc, e0, m
     return _check(x, v, m, hd2, max_strain_bound, e0, acc[0], acc[1], energy_factor)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def run_loop(code, x, v, t0, h, n_steps, m, p0s, d0s, moves_first, moves_last, f_ext,
              record_every, rec_t, rec_x, rec_v, rec_f, rec_e,
              max_iter, tol, definite, max_strain_bound, energy_factor, check_every, energy_every, e_scale0):
