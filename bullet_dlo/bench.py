@@ -240,35 +240,61 @@ def write_csv(rows: Sequence[BenchPoint], path: str | Path) -> Path:
     return path
 
 
+COLORS = {"symplectic_euler": "tab:red", "rk4": "tab:brown", "implicit_euler": "tab:blue", "bdf2": "tab:orange",
+          "implicit_midpoint": "tab:purple", "explicit_euler": "tab:gray"}
+PEER_STYLE = {"pyelastica": ("*", "tab:green"), "mujoco": ("P", "tab:cyan")}
+
+
+def pareto(points: Sequence[tuple[float, float]]) -> list[tuple[float, float]]:
+    """Lower-left envelope of (cost, error) points: the cheapest run for each accuracy."""
+    front, best = [], math.inf
+    for cost, err in sorted(points):
+        if err < best:
+            front.append((cost, err))
+            best = err
+    return front
+
+
 def plot_work_precision(rows: Sequence[BenchPoint], path: str | Path, peers: Sequence = ()) -> Path:
-    """Log-log error vs wall time per simulated second, one panel per scenario, one curve per
-    method and engine; unstable runs as x at the top of each panel; peers as stars."""
+    """Log-log error vs wall time per simulated second, one panel per scenario: every run as a
+    dot (hollow: Bullet engine), the cheapest-for-its-accuracy front of each method as a line,
+    unstable runs as x along the top, peers as stars/crosses."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     scen = sorted({r.scenario for r in rows})
-    fig, axes = plt.subplots(1, len(scen), figsize=(4.2 * len(scen), 3.8), squeeze=False)
+    fig, axes = plt.subplots(1, len(scen), figsize=(4.3 * len(scen), 4.0), squeeze=False)
     for ax, sc in zip(axes[0], scen):
         sel = [r for r in rows if r.scenario == sc]
         top = max([r.error for r in sel if r.stable and r.error > 0] or [1.0]) * 3
-        for key in sorted({(r.integrator, r.engine) for r in sel}):
-            pts = sorted([(r.wall_per_sim_s, r.error) for r in sel if (r.integrator, r.engine) == key and r.stable
-                          and r.error > 0])
-            label = key[0] + ("" if key[1] == "core" else f" ({key[1]})")
-            line, = ax.loglog(*zip(*pts), "o-", ms=3, label=label) if pts else ax.loglog([], [], label=label)
-            bad = [r.wall_per_sim_s for r in sel if (r.integrator, r.engine) == key and not r.stable]
+        for name in [m for m in COLORS if any(r.integrator == m for r in sel)]:
+            color = COLORS[name]
+            for engine, face in (("core", color), ("bullet", "none")):
+                pts = [(r.wall_per_sim_s, r.error) for r in sel
+                       if r.integrator == name and r.engine == engine and r.stable and r.error > 0]
+                if not pts:
+                    continue
+                ax.loglog(*zip(*pts), "o", ms=3.5, mfc=face, mec=color, alpha=0.6)
+                front = pareto(pts)
+                ax.loglog(*zip(*front), color=color, lw=1.5 if engine == "core" else 0.8,
+                          ls="-" if engine == "core" else "--",
+                          label=name + ("" if engine == "core" else " (Bullet)"))
+            bad = [r.wall_per_sim_s for r in sel if r.integrator == name and not r.stable]
             if bad:
-                ax.loglog(bad, [top] * len(bad), "x", color=line.get_color())
-        for p in peers:
-            if p.get("scenario") == sc and p.get("error") and p.get("stable"):
-                ax.loglog([p["wall_per_sim_s"]], [p["error"]], "*", ms=10, label=p["label"])
-        ax.set_title(f"{sc} (x: unstable)")
+                ax.loglog(bad, [top] * len(bad), "x", color=color)
+        for peer, (marker, color) in PEER_STYLE.items():
+            pts = [(p["wall_per_sim_s"], p["error"]) for p in peers
+                   if p.get("scenario") == sc and p.get("peer") == peer and p.get("stable") and p.get("error")]
+            if pts:
+                ax.loglog(*zip(*pts), marker, ms=9, color=color, label=peer)
+        ax.axhline(0.01, color="grey", lw=0.8, ls=":")
+        ax.set_title(f"{sc}  (x: unstable run)")
         ax.set_xlabel("wall time per simulated second [s]")
         ax.set_ylabel("relative error")
-        ax.grid(True, which="both", alpha=0.3)
-    axes[0][0].legend(fontsize=6)
+        ax.grid(True, which="both", alpha=0.25)
+        ax.legend(fontsize=6, loc="lower left")
     fig.tight_layout()
     path = Path(path)
     fig.savefig(path, dpi=110)
