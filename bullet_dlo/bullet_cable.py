@@ -335,6 +335,10 @@ class BulletCable:
         e[0, end], e[1, end], e[2, end], e[3, end] = position, velocity, acceleration, omega
         e[4, end] = np.asarray(direction, float) / np.linalg.norm(direction)
 
+    def holder_positions(self) -> np.ndarray:
+        """Positions [m] of the external holders (e.g. grasp frames) as last measured, (2, 3)."""
+        return self._ext[0].copy()
+
     def held_end_wrench(self, end: int) -> tuple[np.ndarray, np.ndarray]:
         """Force [N] and clamp torque [N m] the cable exerts on the holder of ``end`` now."""
         return self.end_forces()[end], self.end_moments()[end]

@@ -222,7 +222,7 @@ class DualArmScene:
         r.wrench_world.append([s.last.world() for s in self.sensors])
         r.end_forces.append(self.cable.end_forces())
         r.end_moments.append(self.cable.end_moments())
-        r.grasp_pos.append([self.cable._ext[0, 0].copy(), self.cable._ext[0, 1].copy()])
+        r.grasp_pos.append(self.cable.holder_positions())
         r.cable_end_pos.append([self.cable.x[0].copy(), self.cable.x[-1].copy()])
 
     # ----- running ------------------------------------------------------------------------------
