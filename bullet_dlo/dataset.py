@@ -48,12 +48,16 @@ def plan_episode(spec: CaptureSpec, index: int) -> tuple[dict, dict]:
     attempt = 0
     while True:
         params = spec.draw(index, attempt)
+        resolved_n = None
+        if params["n_masses"] == "auto":
+            params["n_masses"], params["damping"] = auto_masses(spec, params)
+            resolved_n = params["n_masses"]
         cable = cable_spec(params)
         model = CableModel.straight(cable, ends=("clamped", "clamped"))
         crit = critical_dt(model, params["integrator"])
         safe = crit is None or params["dt"] <= SAFETY * crit
         decision = {"policy": spec.policy, "critical_dt": crit, "attempts": attempt + 1, "action": "none",
-                    "substeps": 1}
+                    "substeps": 1, "resolved_n_masses": resolved_n}
         if safe:
             return params, decision
         if spec.policy == "reject" and attempt + 1 < spec.max_resamples:
@@ -68,6 +72,21 @@ def plan_episode(spec: CaptureSpec, index: int) -> tuple[dict, dict]:
             decision["action"] += f" after {attempt + 1} rejected samples"
         params["integrator"] = "implicit_euler"
         return params, decision
+
+
+def auto_masses(spec: CaptureSpec, params: dict) -> tuple[int, float]:
+    """Number of masses (and its k_d) for ``n_masses: auto``: a convergence test on the episode's
+    own motion (both ends clamped, the right end's move), end forces within ``spec.resolve_tol``."""
+    from .boundary import Move
+    from .resolve import resolve_masses
+    from .scene import Scene
+
+    disp = (params["displacement_x"], params["displacement_y"], params["displacement_z"])
+    dist = float(np.linalg.norm(disp))
+    motion = (Move("last", disp, params["move_start"], dist / params["speed"]),) if dist > 0 else ()
+    scene = Scene(cable=cable_spec({**params, "n_masses": 10}), motion=motion, duration=spec.duration,
+                  initial="static", name="episode")
+    return resolve_masses(scene, spec.resolve_tol, "forces")
 
 
 def cable_spec(params: dict) -> CableSpec:

@@ -19,6 +19,9 @@ A spec (YAML or :class:`CaptureSpec`) gives, for each parameter, a distribution:
     camera: {fps: 0}                  # > 0 stores compressed frames at that rate
 
 Episode i's parameters depend only on (seed, i): its generator is seeded with [seed, i].
+``n_masses: auto`` lets each episode pick its number of masses by a convergence test on its
+own scene (:func:`bullet_dlo.resolve.resolve_masses`, tolerance ``resolve_tol`` on end
+forces); the sampled damping is then the k_d of a 10-mass cable, rescaled to keep its rate.
 """
 from __future__ import annotations
 
@@ -87,7 +90,7 @@ class Distribution:
             if bounds:
                 out = min(max(out, bounds[0]), bounds[1])
         if kind == "int":
-            return int(round(out))
+            return out if out == "auto" else int(round(out))
         if kind == "float":
             return float(out)
         return str(out)
@@ -110,6 +113,8 @@ def parse_distribution(key: str, data: Mapping[str, Any]) -> Distribution:
     if not isinstance(data, Mapping):
         data = {"dist": "fixed", "value": data}
     data = dict(data)
+    if key == "n_masses" and data == {"dist": "fixed", "value": "auto"}:
+        return Distribution("fixed", value="auto")  # chosen per episode by resolve_masses
     kind, _, bounds = PARAMETERS[key]
     dist = data.pop("dist", None)
     if dist not in DISTS:
@@ -166,13 +171,14 @@ class CaptureSpec:
     camera_fps: float = 0.0
     camera_width: int = 160
     camera_height: int = 120
+    resolve_tol: float = 0.02
     sample: dict[str, Distribution] = field(default_factory=dict)
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any]) -> "CaptureSpec":
         if not isinstance(data, Mapping):
             raise ParameterError("a capture spec must be a mapping")
-        allowed = {"seed", "episode", "policy", "max_resamples", "camera", "sample"}
+        allowed = {"seed", "episode", "policy", "max_resamples", "camera", "sample", "resolve_tol"}
         unknown = sorted(set(data) - allowed)
         if unknown:
             raise ParameterError(f"unknown key(s) {', '.join(unknown)} in capture spec; allowed: "
@@ -202,7 +208,7 @@ class CaptureSpec:
                    record_rate=check_positive("episode.record_rate", episode.get("record_rate", 120.0)),
                    policy=policy, max_resamples=int(data.get("max_resamples", 20)), camera_fps=fps,
                    camera_width=int(camera.get("width", 160)), camera_height=int(camera.get("height", 120)),
-                   sample=sample)
+                   resolve_tol=check_positive("resolve_tol", data.get("resolve_tol", 0.02)), sample=sample)
 
     @classmethod
     def from_yaml(cls, path: str | Path) -> "CaptureSpec":
@@ -220,7 +226,7 @@ class CaptureSpec:
         return {"seed": self.seed, "episode": {"duration": self.duration, "record_rate": self.record_rate},
                 "policy": self.policy, "max_resamples": self.max_resamples,
                 "camera": {"fps": self.camera_fps, "width": self.camera_width, "height": self.camera_height},
-                "sample": sample}
+                "resolve_tol": self.resolve_tol, "sample": sample}
 
     def digest(self) -> str:
         """Hash of the spec: a capture directory holds episodes of one spec only."""

@@ -92,6 +92,36 @@ def _difference(a, b, target: str, length: float, n_a: int, n_b: int) -> float:
     return max(errs)
 
 
+def _resolve_masses(scene, tol, target, rollout, masses, fine_dt, trials):
+    """Spatial part: the fewest masses whose estimated error is within half of ``tol``.
+
+    Returns (n, estimated spatial error, the n-mass run at the fine step).
+    """
+    length = scene.cable.length
+    for n in masses:
+        a, _ = _quantities(scene, n, "bdf2", fine_dt, rollout)
+        b, _ = _quantities(scene, 2 * n - 1, "bdf2", fine_dt, rollout)
+        if not (a.stable and b.stable):
+            trials.append({"n": n, "spatial": None, "note": "unstable"})
+            continue
+        # twice the segments of a second-order discretisation: error(n) ~ 4/3 of the difference
+        err = 4.0 / 3.0 * _difference(a, b, target, length, n, 2 * n - 1)
+        trials.append({"n": n, "spatial": err})
+        if err <= 0.5 * tol:
+            return n, err, a
+    raise ParameterError(f"no n up to {max(masses)} meets tol = {tol} on {target}; loosen the tolerance")
+
+
+def resolve_masses(scene, tol: float = 0.02, target: str = "forces", rollout: float | None = None) -> tuple[int, float]:
+    """Only the number of masses (the step and integrator stay the scene's): (n, k_d for that n).
+
+    k_d keeps the scene's damping rate gamma = k_d n / M (see module doc).
+    """
+    rollout = min(scene.duration, 2.0) if rollout is None else rollout
+    n, _, _ = _resolve_masses(scene, check_positive("tol", tol), target, rollout, MASSES, 1e-3, [])
+    return n, scene.cable.damping * scene.cable.n_masses / n
+
+
 def resolve(scene, tol: float = 0.01, target: str = "both", rollout: float | None = None,
             masses=MASSES, steps=STEPS, integrators=INTEGRATORS) -> Resolution:
     """Fewest masses, cheapest integrator and largest step meeting ``tol`` on ``target``.
@@ -106,23 +136,9 @@ def resolve(scene, tol: float = 0.01, target: str = "both", rollout: float | Non
     fine_dt = min(steps) / 2
     if fine_dt > 1e-3:
         fine_dt = 1e-3
+    trials: list = []
+    chosen_n, spatial, reference = _resolve_masses(scene, tol, target, rollout, masses, fine_dt, trials)
     length = scene.cable.length
-    trials = []
-    chosen_n, spatial = None, None
-    for n in masses:
-        a, _ = _quantities(scene, n, "bdf2", fine_dt, rollout)
-        b, _ = _quantities(scene, 2 * n - 1, "bdf2", fine_dt, rollout)
-        if not (a.stable and b.stable):
-            trials.append({"n": n, "spatial": None, "note": "unstable"})
-            continue
-        # twice the segments of a second-order discretisation: error(n) ~ 4/3 of the difference
-        err = 4.0 / 3.0 * _difference(a, b, target, length, n, 2 * n - 1)
-        trials.append({"n": n, "spatial": err})
-        if err <= 0.5 * tol:
-            chosen_n, spatial, reference = n, err, a
-            break
-    if chosen_n is None:
-        raise ParameterError(f"no n up to {max(masses)} meets tol = {tol} on {target}; loosen the tolerance")
     for dt in sorted(steps, reverse=True):
         for integ in integrators:
             res, cost = _quantities(scene, chosen_n, integ, dt, rollout)

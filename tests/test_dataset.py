@@ -178,3 +178,17 @@ def test_frames_are_stored_compressed(tmp_path):
     ep = load_episode(tmp_path / "v" / "episode_000000.h5")
     assert ep["frames"].shape == (6, 72, 96, 3) and ep["frames"].dtype == np.uint8
     assert ep["frames"].std() > 5.0 and np.allclose(np.diff(ep["frame_t"]), 0.1, atol=0.01)
+
+
+def test_auto_masses_per_episode(tmp_path):
+    data = json.loads(json.dumps(SMALL))
+    data["episode"]["duration"] = 0.6
+    data["sample"]["n_masses"] = "auto"
+    data["resolve_tol"] = 0.05
+    spec = CaptureSpec.from_dict(data)
+    params, decision = plan_episode(spec, 0)
+    assert isinstance(params["n_masses"], int) and 5 <= params["n_masses"] <= 80
+    assert decision["resolved_n_masses"] == params["n_masses"]
+    assert CaptureSpec.from_dict(spec.to_dict()).sample["n_masses"].value == "auto"  # round-trips
+    res = capture(spec, tmp_path / "auto", 1, progress=False)
+    assert res.done == 1 and res.failed == 0
