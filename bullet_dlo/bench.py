@@ -18,7 +18,6 @@ from __future__ import annotations
 
 import csv
 import math
-import time
 from dataclasses import asdict, dataclass
 from functools import lru_cache
 from pathlib import Path
@@ -74,12 +73,7 @@ def _run(model, integrator, dt, duration, engine, state=None, record=400):
     every = max(1, steps // record)
     with BulletWorld(dt=dt, gravity=model.gravity, ground=False) as world:
         cable = world.add_cable(model, integrator=integrator, state=state, record_every=every)
-        tic = time.perf_counter()
-        for _ in range(steps):
-            world.step()
-            if not cable.stable:
-                break
-        wall = time.perf_counter() - tic
+        wall = world.run_while_stable(steps, cable)
         rec = cable.record.arrays()
         return cable.stable, rec["t"], rec["x"], rec["end_forces"], wall / max(cable.steps * dt, 1e-12)
 

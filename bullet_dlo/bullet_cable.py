@@ -339,10 +339,6 @@ class BulletCable:
         """Positions [m] of the external holders (e.g. grasp frames) as last measured, (2, 3)."""
         return self._ext[0].copy()
 
-    def held_end_wrench(self, end: int) -> tuple[np.ndarray, np.ndarray]:
-        """Force [N] and clamp torque [N m] the cable exerts on the holder of ``end`` now."""
-        return self.end_forces()[end], self.end_moments()[end]
-
     def _replan(self) -> None:
         """Re-plan the coming step after the end conditions changed (the forces must match)."""
         if self.status == STABLE:

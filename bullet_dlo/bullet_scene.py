@@ -7,6 +7,7 @@ physics comes from the MSD core, contacts from Bullet (see :mod:`bullet_dlo.bull
 from __future__ import annotations
 
 import os
+import time
 from pathlib import Path
 from typing import Any, Sequence
 
@@ -266,6 +267,15 @@ class BulletWorld:
         self.step(n)
         return n
 
+    def run_while_stable(self, steps: int, cable: BulletCable) -> float:
+        """Step up to ``steps`` times, stopping early when ``cable`` goes unstable; returns the wall time [s]."""
+        tic = time.perf_counter()
+        for _ in range(steps):
+            self.step()
+            if not cable.stable:
+                break
+        return time.perf_counter() - tic
+
     def step_bare(self, n: int = 1) -> None:
         """Bullet's own step only, no cable forces (the baseline of the overhead benchmark)."""
         for _ in range(n):
@@ -306,7 +316,6 @@ def build_world(scene, gui: bool = False, renderer: str | None = None) -> Bullet
 def run_scene_bullet(scene, *, gui: bool = False, record_every: int | None = None, max_records: int = 2001):
     """Run a scene with the Bullet-coupled engine. Returns (model, SimulationResult), like Scene.run."""
     import math
-    import time
 
     from .simulate import SimulationResult
 
@@ -320,12 +329,7 @@ def run_scene_bullet(scene, *, gui: bool = False, record_every: int | None = Non
                                 substeps=scene.bullet.substeps, self_collision=scene.bullet.self_collision,
                                 sync=scene.bullet.sync, newton=scene.newton, detector=scene.detector,
                                 record_every=record_every)
-        tic = time.perf_counter()
-        for _ in range(n_steps):
-            world.step()
-            if not cable.stable:
-                break
-        wall = time.perf_counter() - tic
+        wall = world.run_while_stable(n_steps, cable)
         rec = cable.record.arrays()
         result = SimulationResult(
             integrator=cable.method.name, dt=scene.dt, stable=cable.stable,

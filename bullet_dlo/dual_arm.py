@@ -9,7 +9,6 @@ inverse kinematics and joint position control.
 """
 from __future__ import annotations
 
-import time
 from dataclasses import dataclass, field
 from typing import Sequence
 
@@ -182,11 +181,13 @@ class DualArmScene:
     # ----- per-step hooks ---------------------------------------------------------------------
     def _before_step(self) -> None:
         t_next = self.world.time + self.world.dt
+        if any(self.grasped):  # what the cable exerts on both holders, computed once per step
+            forces, torques = self.cable.end_forces(), self.cable.end_moments()
         for a, robot in enumerate(self.robots):
             if any(m.arm == a and m.start <= t_next <= m.start + m.duration + self.world.dt for m in self.moves):
                 robot.set_targets(self._ik_track(robot, self._target(a, t_next), self.grasp_targets[a][1]))
             if self.grasped[a]:
-                force, torque = self.cable.held_end_wrench(a)
+                force, torque = forces[a], torques[a]
                 pos = self.cable.x[0 if a == 0 else -1].tolist()
                 cid = self.world.client
                 pb.applyExternalForce(robot.body, robot.grasp_link, force.tolist(), pos, pb.WORLD_FRAME, cid)
@@ -228,13 +229,8 @@ class DualArmScene:
     # ----- running ------------------------------------------------------------------------------
     def run(self, duration: float) -> float:
         """Step for ``duration`` [s]; returns the wall time [s]."""
-        tic = time.perf_counter()
         n = max(1, int(round(check_positive("duration", duration) / self.world.dt)))
-        for _ in range(n):
-            self.world.step()
-            if not self.cable.stable:
-                break
-        return time.perf_counter() - tic
+        return self.world.run_while_stable(n, self.cable)
 
     def window_mean(self, seconds: float = 0.5) -> dict[str, np.ndarray]:
         """Averages over the last ``seconds`` [s]: sensor wrench (2, 6) and model end forces (2, 3)."""
