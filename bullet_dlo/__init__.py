@@ -8,24 +8,51 @@ Typical use::
                                 motion=[Move("last", (0, 0, 0.005), start=0.5, duration=0.1)])
     result = simulate(model, "implicit_euler", dt=1e-3, duration=2.0)
 """
-from ._numba_cache import ensure_fresh_cache
+from bullet_dlo._numba_cache import ensure_fresh_cache
 
 ensure_fresh_cache()  # before any kernel loads from the on-disk cache
 
-from .boundary import EndHolder, Move  # noqa: E402
-from .integrators import INTEGRATORS, Integrator, NewtonOptions, get_integrator
-from .model import CableModel, CableState
-from .params import CableSpec, ParameterError, preset, preset_names
-from .scene import Scene
-from .simulate import DetectorOptions, SimulationResult, simulate
-from .stability import critical_dt, damping_bounds, measured_critical_dt, stability_report, stiffness_spectrum
-from .statics import solve_static
+from bullet_dlo import _aliases  # noqa: E402
+from bullet_dlo.core import (  # noqa: E402
+    INTEGRATORS,
+    CableModel,
+    CableSpec,
+    CableState,
+    DetectorOptions,
+    EndHolder,
+    Integrator,
+    Move,
+    NewtonOptions,
+    ParameterError,
+    SimulationResult,
+    critical_dt,
+    damping_bounds,
+    get_integrator,
+    measured_critical_dt,
+    preset,
+    preset_names,
+    simulate,
+    solve_static,
+    stiffness_spectrum,
+)
 
-__version__ = "0.1.0"
+__version__ = "0.2.0"
+
+_aliases.install()
+
+
+def __getattr__(name: str):
+    """``bullet_dlo.Scene`` lives in the config layer (it reads YAML); import it on first use."""
+    if name == "Scene":
+        from bullet_dlo.config.scene import Scene
+
+        return Scene
+    raise AttributeError(f"module 'bullet_dlo' has no attribute {name!r}")
+
 
 __all__ = [
     "CableSpec", "ParameterError", "preset", "preset_names", "CableModel", "CableState", "EndHolder", "Move",
     "INTEGRATORS", "Integrator", "NewtonOptions", "get_integrator", "simulate", "SimulationResult",
-    "DetectorOptions", "critical_dt", "damping_bounds", "measured_critical_dt", "stability_report",
-    "stiffness_spectrum", "solve_static", "Scene", "__version__",
+    "DetectorOptions", "critical_dt", "damping_bounds", "measured_critical_dt", "stiffness_spectrum",
+    "solve_static", "Scene", "__version__",
 ]

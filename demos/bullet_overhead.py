@@ -32,12 +32,12 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pybullet as pb  # noqa: E402
 
-from bullet_dlo.boundary import Move  # noqa: E402
-from bullet_dlo.bullet_scene import BulletWorld  # noqa: E402
-from bullet_dlo.model import CableModel  # noqa: E402
-from bullet_dlo.params import CableSpec  # noqa: E402
-from bullet_dlo.simulate import simulate  # noqa: E402
-from bullet_dlo.stability import critical_dt  # noqa: E402
+from bullet_dlo.bullet.world import BulletWorld  # noqa: E402
+from bullet_dlo.core.boundary import Move  # noqa: E402
+from bullet_dlo.core.engine import simulate  # noqa: E402
+from bullet_dlo.core.model import CableModel  # noqa: E402
+from bullet_dlo.core.spec import CableSpec  # noqa: E402
+from bullet_dlo.core.stability import critical_dt  # noqa: E402
 
 
 def study(n: int, modulus: float = 126e6) -> CableModel:

@@ -18,8 +18,8 @@ from pathlib import Path
 
 import yaml
 
-from bullet_dlo.dataset import capture
-from bullet_dlo.randomization import CaptureSpec
+from bullet_dlo.config.capture import CaptureSpec
+from bullet_dlo.data.capture import capture
 
 SPEC = Path(__file__).resolve().parent / "specs" / "dr_small.yaml"
 

@@ -21,12 +21,12 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
-from bullet_dlo.boundary import Move  # noqa: E402
-from bullet_dlo.integrators import INTEGRATORS  # noqa: E402
-from bullet_dlo.model import CableModel  # noqa: E402
-from bullet_dlo.params import CableSpec  # noqa: E402
-from bullet_dlo.simulate import simulate  # noqa: E402
-from bullet_dlo.stability import critical_dt  # noqa: E402
+from bullet_dlo.core.boundary import Move  # noqa: E402
+from bullet_dlo.core.engine import simulate  # noqa: E402
+from bullet_dlo.core.integrators import INTEGRATORS  # noqa: E402
+from bullet_dlo.core.model import CableModel  # noqa: E402
+from bullet_dlo.core.spec import CableSpec  # noqa: E402
+from bullet_dlo.core.stability import critical_dt  # noqa: E402
 
 
 def measure(model: CableModel, integrator: str, dt: float, duration: float, repeats: int) -> float:

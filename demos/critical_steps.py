@@ -14,9 +14,9 @@ import json
 import os
 from pathlib import Path
 
-from bullet_dlo.paper import study_model
-from bullet_dlo.stability import critical_dt, measured_critical_dt
-from bullet_dlo.statics import solve_static
+from bullet_dlo.analysis.study import study_model
+from bullet_dlo.core.stability import critical_dt, measured_critical_dt
+from bullet_dlo.core.statics import solve_static
 
 
 def main() -> None:

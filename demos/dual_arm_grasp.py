@@ -23,7 +23,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from bullet_dlo.dual_arm import DualArmConfig, DualArmScene  # noqa: E402
+from bullet_dlo.robots.dual_arm import DualArmConfig, DualArmScene  # noqa: E402
 
 
 def choreography(scene: DualArmScene, quick: bool) -> float:

@@ -25,13 +25,13 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
-from bullet_dlo.boundary import Move  # noqa: E402
-from bullet_dlo.model import CableModel  # noqa: E402
-from bullet_dlo.params import CableSpec  # noqa: E402
-from bullet_dlo.simulate import simulate  # noqa: E402
-from bullet_dlo.stability import critical_dt  # noqa: E402
-from bullet_dlo.statics import solve_static  # noqa: E402
-from bullet_dlo.validation import cantilever_convergence  # noqa: E402
+from bullet_dlo.analysis.closed_forms import cantilever_convergence  # noqa: E402
+from bullet_dlo.core.boundary import Move  # noqa: E402
+from bullet_dlo.core.engine import simulate  # noqa: E402
+from bullet_dlo.core.model import CableModel  # noqa: E402
+from bullet_dlo.core.spec import CableSpec  # noqa: E402
+from bullet_dlo.core.stability import critical_dt  # noqa: E402
+from bullet_dlo.core.statics import solve_static  # noqa: E402
 
 
 def study_model(n: int, modulus: float) -> CableModel:
@@ -97,8 +97,8 @@ def main() -> None:
                                                  f"(paper {100 * r['paper']:.1f} %)" for r in rows))
     (out / "summary.json").write_text(json.dumps({"runs": summary, "cantilever": rows}, indent=2))
     if not args.quick:
-        from bullet_dlo.recording import render_scene
-        from bullet_dlo.scene import Scene
+        from bullet_dlo.config.scene import Scene
+        from bullet_dlo.render.pipeline import render_scene
 
         scene = Scene(cable=CableSpec.lv2017(n_masses=15, damping=0.02), motion=(Move("last", (0, 0, 0.005), 1.0, 0.1),),
                       dt=1 / 240, duration=2.5, name="Lv cable held by two Pandas")

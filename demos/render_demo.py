@@ -17,12 +17,12 @@ import statistics
 import time
 from pathlib import Path
 
-from bullet_dlo.boundary import Move
-from bullet_dlo.dual_arm import DualArmConfig, DualArmScene
-from bullet_dlo.params import CableSpec
-from bullet_dlo.recording import render_scene
-from bullet_dlo.render import RenderError, capture, default_camera
-from bullet_dlo.scene import Scene
+from bullet_dlo.config.scene import Scene
+from bullet_dlo.core.boundary import Move
+from bullet_dlo.core.spec import CableSpec
+from bullet_dlo.render.camera import RenderError, capture, default_camera
+from bullet_dlo.render.pipeline import render_scene
+from bullet_dlo.robots.dual_arm import DualArmConfig, DualArmScene
 
 
 def frame_time(renderer: str, robot: str, repeats: int = 5) -> dict:

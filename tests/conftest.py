@@ -1,16 +1,23 @@
-"""Shared fixtures: small cables and scenarios used across the tests."""
+"""Shared fixtures, and markers by layer: ``core`` tests (core, analysis, config) need no PyBullet.
+
+``pytest -m core`` runs the numerical core's suite alone; ``tests/test_layers.py`` runs it
+once with PyBullet, h5py, matplotlib and PyAV made unimportable to prove it.
+"""
 from __future__ import annotations
+
+from pathlib import Path
 
 import numpy as np
 import pytest
 
-from bullet_dlo.params import CableSpec
+CORE_DIRS = {"core", "analysis", "config"}
 
 
-@pytest.fixture
-def lv() -> CableSpec:
-    """Lv et al. 2017 cable, 10 masses, light damping."""
-    return CableSpec.lv2017(n_masses=10, damping=0.01)
+def pytest_collection_modifyitems(config, items):
+    for item in items:
+        parts = Path(str(item.fspath)).parts
+        layer = parts[parts.index("tests") + 1] if "tests" in parts else ""
+        item.add_marker(pytest.mark.core if layer in CORE_DIRS else pytest.mark.bullet)
 
 
 @pytest.fixture

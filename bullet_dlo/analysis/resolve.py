@@ -1,0 +1,156 @@
+"""Automatic resolution: model no more than a scene needs.
+
+``resolve(scene, tol)`` picks the fewest masses, then the cheapest integrator and the largest
+step that meet a tolerance on what the scene needs (end forces, shape, or both), by
+convergence tests on a short rollout of the scene itself (never by a lookup table):
+
+Forces are compared as a 5 Hz force sensor would see them (0.2 s block means, RMS over the
+rollout, relative to the peak force); shape as the largest distance between the final
+shapes, relative to the largest displacement of the cable during the rollout.
+
+1. spatial: for n = 5, 7, 10, 14, 20, 28, 40, 56, 80, compare a run with n masses against one
+   with 2n - 1 masses (both BDF2 at a small step); the first n whose difference is within half
+   the tolerance is kept (the difference times 4/3 estimates the error of n: twice the
+   segments of a second-order discretisation leave a quarter of it);
+2. temporal: with that n, try the steps from 1/60 s down and the integrators from the
+   cheapest; the first whose difference from the small-step run is within the other half wins.
+
+The predicted error is the sum of both differences. When it changes n, resolve keeps the
+damping rate gamma = k_d n / M fixed (k_d is the paper's per-mass coefficient), so that all
+trials describe the same cable; the chosen n comes with the k_d that keeps gamma.
+"""
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field, replace
+
+import numpy as np
+
+from bullet_dlo.core.engine import simulate
+from bullet_dlo.core.validate import ParameterError, check_positive
+
+TARGETS = ("forces", "shape", "both")
+MASSES = (5, 7, 10, 14, 20, 28, 40, 56, 80)
+STEPS = (1 / 60, 1 / 120, 1 / 240, 1 / 500, 1e-3, 5e-4, 2.5e-4)
+INTEGRATORS = ("implicit_euler", "bdf2")
+
+
+@dataclass
+class Resolution:
+    """What :func:`resolve` chose and why (SI units)."""
+
+    n_masses: int
+    dt: float
+    integrator: str
+    damping: float
+    predicted_error: float
+    spatial_error: float
+    temporal_error: float
+    wall_time_per_sim_s: float
+    target: str
+    tolerance: float
+    rollout_s: float
+    trials: list = field(default_factory=list)
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+
+def _quantities(scene, n: int, integrator: str, dt: float, rollout: float):
+    """End forces over time (k, 2, 3) [N], final positions (n, 3) [m], wall/sim-s, stable."""
+    # keep the damping *rate* gamma = k_d n / M, not k_d, when n changes (k_d is per mass)
+    cable = scene.cable.with_(n_masses=n, damping=scene.cable.damping * scene.cable.n_masses / n)
+    s = replace(scene, cable=cable, integrator=integrator, dt=dt, duration=rollout)
+    model = s.build_model()
+    res = simulate(model, integrator, dt, rollout, state=s.initial_state(model), max_records=201,
+                   newton=s.newton, detector=s.detector)
+    return res, res.wall_time_s / max(res.steps * dt, 1e-12)
+
+
+def _blocks(res, block: float = 0.2) -> np.ndarray:
+    """Mean end forces over consecutive blocks of ``block`` seconds, (k, 2, 3)."""
+    edges = np.arange(res.t[0], res.t[-1] + 1e-12, block)
+    rows = [res.end_forces[(res.t >= lo) & (res.t < hi)].mean(axis=0) for lo, hi in zip(edges[:-1], edges[1:])]
+    return np.array(rows) if rows else res.end_forces[-1:]
+
+
+def _difference(a, b, target: str, length: float, n_a: int, n_b: int) -> float:
+    """Relative difference of two runs in what the scene needs."""
+    errs = []
+    if target in ("forces", "both"):
+        # end forces as a 5 Hz force sensor sees them: means over 0.2 s blocks (pointwise force
+        # histories of lightly damped cables carry stiff modes that refining n only adds to)
+        fa, fb = _blocks(a), _blocks(b)
+        scale = max(float(np.max(np.abs(b.end_forces))), 1e-12)
+        errs.append(float(np.sqrt(np.mean(np.sum((fa - fb) ** 2, axis=-1)))) / scale)
+    if target in ("shape", "both"):
+        # final shape, relative to how far the cable moved from its start (1e-3 L at least)
+        xa, xb = a.final_state.x, b.final_state.x
+        sa, sb = np.linspace(0, 1, n_a), np.linspace(0, 1, n_b)
+        xi = np.stack([np.interp(sb, sa, xa[:, j]) for j in range(3)], axis=1)
+        moved = float(np.max(np.linalg.norm(b.x[-1] - b.x[0], axis=1)))
+        errs.append(float(np.max(np.linalg.norm(xi - xb, axis=1))) / max(moved, 1e-3 * length))
+    return max(errs)
+
+
+def _resolve_masses(scene, tol, target, rollout, masses, fine_dt, trials):
+    """Spatial part: the fewest masses whose estimated error is within half of ``tol``.
+
+    Returns (n, estimated spatial error, the n-mass run at the fine step).
+    """
+    length = scene.cable.length
+    for n in masses:
+        a, _ = _quantities(scene, n, "bdf2", fine_dt, rollout)
+        b, _ = _quantities(scene, 2 * n - 1, "bdf2", fine_dt, rollout)
+        if not (a.stable and b.stable):
+            trials.append({"n": n, "spatial": None, "note": "unstable"})
+            continue
+        # twice the segments of a second-order discretisation: error(n) ~ 4/3 of the difference
+        err = 4.0 / 3.0 * _difference(a, b, target, length, n, 2 * n - 1)
+        trials.append({"n": n, "spatial": err})
+        if err <= 0.5 * tol:
+            return n, err, a
+    raise ParameterError(f"no n up to {max(masses)} meets tol = {tol} on {target}; loosen the tolerance")
+
+
+def resolve_masses(scene, tol: float = 0.02, target: str = "forces", rollout: float | None = None) -> tuple[int, float]:
+    """Only the number of masses (the step and integrator stay the scene's): (n, k_d for that n).
+
+    k_d keeps the scene's damping rate gamma = k_d n / M (see module doc).
+    """
+    rollout = min(scene.duration, 2.0) if rollout is None else rollout
+    n, _, _ = _resolve_masses(scene, check_positive("tol", tol), target, rollout, MASSES, 1e-3, [])
+    return n, scene.cable.damping * scene.cable.n_masses / n
+
+
+def resolve(scene, tol: float = 0.01, target: str = "both", rollout: float | None = None,
+            masses=MASSES, steps=STEPS, integrators=INTEGRATORS) -> Resolution:
+    """Fewest masses, cheapest integrator and largest step meeting ``tol`` on ``target``.
+
+    scene: a :class:`bullet_dlo.scene.Scene` (its n_masses, dt and integrator are what is chosen);
+    rollout: seconds simulated per trial (default: the scene's duration, at most 2 s).
+    """
+    tol = check_positive("tol", tol)
+    if target not in TARGETS:
+        raise ParameterError(f"target must be one of {', '.join(TARGETS)}, got {target!r}")
+    rollout = min(scene.duration, 2.0) if rollout is None else check_positive("rollout", rollout)
+    fine_dt = min(steps) / 2
+    if fine_dt > 1e-3:
+        fine_dt = 1e-3
+    trials: list = []
+    chosen_n, spatial, reference = _resolve_masses(scene, tol, target, rollout, masses, fine_dt, trials)
+    length = scene.cable.length
+    for dt in sorted(steps, reverse=True):
+        for integ in integrators:
+            res, cost = _quantities(scene, chosen_n, integ, dt, rollout)
+            if not res.stable:
+                trials.append({"n": chosen_n, "dt": dt, "integrator": integ, "temporal": None})
+                continue
+            err = _difference(res, reference, target, length, chosen_n, chosen_n)
+            trials.append({"n": chosen_n, "dt": dt, "integrator": integ, "temporal": err})
+            if err <= 0.5 * tol:
+                res, cost = _quantities(scene, chosen_n, integ, dt, rollout)  # again, compiled: a fair cost
+                damping = scene.cable.damping * scene.cable.n_masses / chosen_n
+                return Resolution(chosen_n, dt, integ, damping, spatial + err, spatial, err, cost, target, tol, rollout,
+                                  trials)
+    raise ParameterError(f"n = {chosen_n} meets the spatial part, but no step down to {min(steps)} s meets "
+                         f"the temporal part of tol = {tol}")

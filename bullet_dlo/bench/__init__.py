@@ -1,0 +1,1 @@
+"""Benchmarks: scenarios with known answers, work-precision sweeps, stability maps, peers."""

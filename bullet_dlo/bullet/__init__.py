@@ -1,0 +1,1 @@
+"""The PyBullet coupling: a world with ground and obstacles, cables as driven spheres."""

@@ -1,0 +1,343 @@
+"""The PyBullet world: client, fixed step, gravity, ground, obstacles and cables.
+
+``BulletWorld`` owns one PyBullet client (DIRECT by default: no display needed) and steps
+everything at a fixed rate. Cables are added with :meth:`BulletWorld.add_cable`; their own
+physics comes from the MSD core, contacts from Bullet (see :mod:`bullet_dlo.bullet_cable`).
+"""
+from __future__ import annotations
+
+import os
+import time
+from pathlib import Path
+from typing import Any, Sequence
+
+import numpy as np
+import pybullet as pb
+import pybullet_data
+
+from bullet_dlo.assets import URDF_DIR as PROJECT_URDF
+from bullet_dlo.bullet.cable import BulletCable
+from bullet_dlo.core.boundary import Move
+from bullet_dlo.core.integrators import NewtonOptions
+from bullet_dlo.core.model import STANDARD_GRAVITY, CableModel, CableState
+from bullet_dlo.core.spec import CableSpec
+from bullet_dlo.core.validate import ParameterError, check_nonnegative, check_positive, check_vector3
+
+SPAWN_TOLERANCE = 1e-4  # [m] penetration allowed at spawn before it counts as an overlap
+
+
+def resolve_asset(path: str | os.PathLike) -> Path:
+    """Find a URDF/mesh: absolute, relative to the working directory, the project's ``urdf/``
+    folder or ``pybullet_data``; ParameterError naming the searched places otherwise."""
+    p = Path(path)
+    candidates = [p] if p.is_absolute() else [Path.cwd() / p, PROJECT_URDF / p, Path(pybullet_data.getDataPath()) / p]
+    for c in candidates:
+        if c.is_file():
+            return c
+    raise ParameterError(f"file {str(path)!r} not found (looked in: {', '.join(str(c.parent) for c in candidates)})")
+
+
+class BulletWorld:
+    """A PyBullet world stepping at a fixed rate.
+
+    Args:
+        dt: Bullet time step [s], > 0.
+        gravity: gravitational acceleration [m/s^2].
+        gui: open the PyBullet GUI instead of DIRECT mode (needs a display).
+        ground: add a ground plane at ``ground_height`` [m].
+        ground_friction: lateral friction of the ground.
+        solver_iterations: Bullet constraint-solver iterations (None: Bullet's default).
+        renderer: set up an image renderer now (``auto``/``tiny``/``egl``, see
+            :class:`bullet_dlo.bullet.renderer.Renderer`); None: no rendering. The EGL plugin only draws
+            bodies created after it was loaded, so a world that will be filmed says so here.
+    """
+
+    def __init__(self, dt: float = 1.0 / 240.0, gravity: Sequence[float] = STANDARD_GRAVITY, *, gui: bool = False,
+                 ground: bool = True, ground_height: float = 0.0, ground_friction: float = 0.5,
+                 solver_iterations: int | None = None, renderer: str | None = None):
+        self.dt = check_positive("dt", dt)
+        self.gravity = check_vector3("gravity", gravity)
+        self.ground_height = float(ground_height)
+        ground_friction = check_nonnegative("ground_friction", ground_friction)
+        self.client = pb.connect(pb.GUI if gui else pb.DIRECT)
+        if self.client < 0:
+            raise ParameterError("could not connect to PyBullet (GUI mode needs a display; use gui=False)")
+        pb.setTimeStep(self.dt, physicsClientId=self.client)
+        pb.setGravity(*self.gravity.tolist(), physicsClientId=self.client)
+        self.renderer = None
+        if renderer is not None:
+            from bullet_dlo.bullet.renderer import Renderer
+
+            self.renderer = Renderer(self.client, renderer)
+        if solver_iterations is not None:
+            pb.setPhysicsEngineParameter(numSolverIterations=int(solver_iterations), physicsClientId=self.client)
+        self.cables: dict[str, BulletCable] = {}
+        self._owners: dict[int, tuple[str, int]] = {}  # sphere body id -> (cable name, mass index)
+        self.bodies: dict[int, str] = {}  # non-cable bodies and their names (for messages)
+        self._groups_used = 0
+        self.ground_id: int | None = None
+        if ground:
+            plane = str(Path(pybullet_data.getDataPath()) / "plane.urdf")
+            self.ground_id = pb.loadURDF(plane, [0, 0, self.ground_height], useFixedBase=True,
+                                         physicsClientId=self.client)
+            pb.changeDynamics(self.ground_id, -1, lateralFriction=ground_friction, physicsClientId=self.client)
+            self.bodies[self.ground_id] = "ground"
+        self.time = 0.0
+        self.steps = 0
+        # hooks (callables without arguments): before Bullet's step (apply loads, set motor
+        # targets), after it but before the cables take it over (read link poses), after all
+        self.before_step: list = []
+        self.after_physics: list = []
+        self.after_step: list = []
+
+    # ----- obstacles --------------------------------------------------------------------------
+    def add_box(self, half_extents: Sequence[float], position: Sequence[float],
+                orientation: Sequence[float] = (0, 0, 0, 1), *, mass: float = 0.0, friction: float = 0.5,
+                name: str = "box", color: Sequence[float] = (0.6, 0.6, 0.65, 1.0)) -> int:
+        """A box (static when ``mass`` = 0) with half extents [m] at ``position`` [m]."""
+        he = check_vector3("half_extents", half_extents)
+        if np.any(he <= 0):
+            raise ParameterError(f"half_extents must be > 0, got {list(half_extents)}")
+        col = pb.createCollisionShape(pb.GEOM_BOX, halfExtents=he.tolist(), physicsClientId=self.client)
+        vis = pb.createVisualShape(pb.GEOM_BOX, halfExtents=he.tolist(), rgbaColor=list(color),
+                                   physicsClientId=self.client)
+        return self._add_body(col, vis, position, orientation, mass, friction, name)
+
+    def add_cylinder(self, radius: float, height: float, position: Sequence[float],
+                     orientation: Sequence[float] = (0, 0, 0, 1), *, mass: float = 0.0, friction: float = 0.5,
+                     name: str = "cylinder", color: Sequence[float] = (0.6, 0.6, 0.65, 1.0)) -> int:
+        """A cylinder (axis along its local z) of ``radius`` and ``height`` [m]."""
+        r = check_positive("radius", radius)
+        hgt = check_positive("height", height)
+        col = pb.createCollisionShape(pb.GEOM_CYLINDER, radius=r, height=hgt, physicsClientId=self.client)
+        vis = pb.createVisualShape(pb.GEOM_CYLINDER, radius=r, length=hgt, rgbaColor=list(color),
+                                   physicsClientId=self.client)
+        return self._add_body(col, vis, position, orientation, mass, friction, name)
+
+    def add_urdf(self, path: str | os.PathLike, position: Sequence[float] = (0, 0, 0),
+                 orientation: Sequence[float] = (0, 0, 0, 1), *, fixed: bool = True, name: str | None = None) -> int:
+        """Load a URDF (absolute, relative, from the project's ``urdf/`` or ``pybullet_data``)."""
+        file = resolve_asset(path)
+        pos = check_vector3("position", position)
+        try:
+            body = pb.loadURDF(str(file), pos.tolist(), list(orientation), useFixedBase=fixed,
+                               physicsClientId=self.client)
+        except pb.error as err:
+            raise ParameterError(f"could not load URDF {str(file)!r}: {err}") from None
+        self.bodies[body] = name or file.stem
+        return body
+
+    def _add_body(self, col: int, vis: int, position, orientation, mass, friction, name) -> int:
+        pos = check_vector3("position", position)
+        quat = np.asarray(orientation, dtype=float)
+        if quat.shape != (4,) or not np.all(np.isfinite(quat)) or np.linalg.norm(quat) < 1e-9:
+            raise ParameterError(f"orientation must be a quaternion [x, y, z, w], got {list(orientation)}")
+        body = pb.createMultiBody(baseMass=check_nonnegative("mass", mass), baseCollisionShapeIndex=col,
+                                  baseVisualShapeIndex=vis, basePosition=pos.tolist(),
+                                  baseOrientation=(quat / np.linalg.norm(quat)).tolist(), physicsClientId=self.client)
+        pb.changeDynamics(body, -1, lateralFriction=check_nonnegative("friction", friction),
+                          physicsClientId=self.client)
+        self.bodies[body] = name
+        return body
+
+    def next_cable_group(self) -> int:
+        """A collision-group bit of its own for a cable whose spheres never collide with each other."""
+        self._groups_used += 1
+        if self._groups_used > 14:
+            raise ParameterError("at most 14 cables can have self_collision='none' in one world")
+        return 1 << self._groups_used
+
+    # ----- cables -----------------------------------------------------------------------------
+    def add_cable(
+        self,
+        cable: CableSpec | CableModel,
+        start: Sequence[float] = (0.0, 0.0, 0.5),
+        direction: Sequence[float] = (1.0, 0.0, 0.0),
+        ends: tuple[str, str] = ("free", "free"),
+        motion: Sequence[Move] = (),
+        integrator: str = "implicit_euler",
+        *,
+        name: str = "cable",
+        state: CableState | None = None,
+        substeps: int = 1,
+        self_collision: str = "neighbours",
+        sync: str = "contacts",
+        newton: NewtonOptions = NewtonOptions(),
+        detector=None,
+        record_every: int = 1,
+        overlap_ok: Sequence[int] = (),
+    ) -> BulletCable:
+        """Spawn a cable as Bullet spheres driven by the MSD model.
+
+        Args:
+            cable: a CableSpec (laid out straight from ``start`` along ``direction``) or a
+                ready CableModel (its own layout, ends and motion are used; gravity must match).
+            ends, motion: end conditions and prescribed moves (see :class:`CableModel`).
+            integrator: core integrator name; the Bullet step is ``dt``/``substeps`` for it.
+            name: unique name of this cable in the world.
+            state: start state (default: the layout at rest).
+            substeps: integrator steps per Bullet step (for explicit methods at small steps).
+            self_collision: ``neighbours`` (spheres closer than a diameter at rest never collide,
+                the others do), ``none`` (no cable-cable contacts: fastest), ``all``.
+            sync: ``contacts`` (read back only spheres that touched something) or ``always``.
+            detector: instability thresholds (DetectorOptions).
+            record_every: Bullet steps between recorded rows.
+            overlap_ok: bodies the cable may touch at spawn (e.g. the grippers that hold it).
+        """
+        from bullet_dlo.core.engine import DetectorOptions
+
+        if name in self.cables:
+            raise ParameterError(f"a cable named {name!r} already exists in this world; names must be unique")
+        if isinstance(cable, CableModel):
+            model = cable
+            if not np.allclose(model.gravity, self.gravity):
+                raise ParameterError(f"cable model gravity {model.gravity.tolist()} differs from the world's "
+                                     f"{self.gravity.tolist()}")
+        elif isinstance(cable, CableSpec):
+            model = CableModel.straight(cable, start, direction, ends, motion, self.gravity)
+        else:
+            raise ParameterError(f"cable must be a CableSpec or CableModel, got {type(cable).__name__}")
+        c = BulletCable(self, name, model, integrator, state=state, substeps=substeps,
+                        self_collision=self_collision, sync=sync, newton=newton,
+                        detector=detector or DetectorOptions(), record_every=record_every)
+        try:
+            self._check_spawn_overlap(c, set(overlap_ok))
+        except ParameterError:
+            for b in c.body_ids:
+                pb.removeBody(b, physicsClientId=self.client)
+            raise
+        self.cables[name] = c
+        self._owners.update({b: (name, i) for i, b in enumerate(c.body_ids)})
+        return c
+
+    def _check_spawn_overlap(self, cable: BulletCable, overlap_ok: set[int]) -> None:
+        """Refuse a cable that starts inside the ground or another body."""
+        low = float(np.min(cable.x[:, 2])) - cable.radius
+        if self.ground_id is not None and low < self.ground_height - SPAWN_TOLERANCE:
+            raise ParameterError(
+                f"cable {cable.name!r} overlaps the ground at spawn: its lowest sphere reaches z = {low:.4f} m, "
+                f"below the ground at {self.ground_height:.4f} m; raise the layout start")
+        pb.performCollisionDetection(physicsClientId=self.client)
+        own = set(cable.body_ids)
+        for b in cable.body_ids:
+            for cp in pb.getContactPoints(bodyA=b, physicsClientId=self.client):
+                other = cp[2]
+                if other in own or other in overlap_ok or cp[8] > -SPAWN_TOLERANCE:
+                    continue
+                what = self.bodies.get(other, f"body {other}")
+                for cname, c in self.cables.items():
+                    if other in c.body_ids:
+                        what = f"cable {cname!r}"
+                raise ParameterError(f"cable {cable.name!r} overlaps {what} at spawn (sphere {cable.body_ids.index(b)} "
+                                     f"penetrates by {-cp[8] * 1000:.2f} mm); move the layout")
+
+    # ----- stepping ---------------------------------------------------------------------------
+    def step(self, n: int = 1) -> None:
+        """Advance the world by ``n`` fixed steps."""
+        cables = list(self.cables.values())
+        for _ in range(n):
+            for c in cables:
+                c.apply_forces()
+            for hook in self.before_step:
+                hook()
+            pb.stepSimulation(self.client)
+            self.time += self.dt
+            self.steps += 1
+            for hook in self.after_physics:
+                hook()
+            contacts = pb.getContactPoints(-1, -1, -2, -2, self.client) if cables else ()  # all, one call
+            if contacts:
+                touched: dict[str, set[int]] = {c.name: set() for c in cables}
+                owners = self._owners
+                for cp in contacts:
+                    for body in (cp[1], cp[2]):
+                        hit = owners.get(body)
+                        if hit is not None:
+                            touched[hit[0]].add(hit[1])
+                for c in cables:
+                    c.sync_after_step(touched[c.name])
+            else:
+                for c in cables:
+                    c.sync_after_step(())
+            for hook in self.after_step:
+                hook()
+
+    def run(self, duration: float) -> int:
+        """Step for ``duration`` seconds (rounded to whole steps); returns the number of steps."""
+        n = max(1, int(round(check_positive("duration", duration) / self.dt)))
+        self.step(n)
+        return n
+
+    def run_while_stable(self, steps: int, cable: BulletCable) -> float:
+        """Step up to ``steps`` times, stopping early when ``cable`` goes unstable; returns the wall time [s]."""
+        tic = time.perf_counter()
+        for _ in range(steps):
+            self.step()
+            if not cable.stable:
+                break
+        return time.perf_counter() - tic
+
+    def step_bare(self, n: int = 1) -> None:
+        """Bullet's own step only, no cable forces (the baseline of the overhead benchmark)."""
+        for _ in range(n):
+            pb.stepSimulation(self.client)
+
+    def close(self) -> None:
+        """Disconnect the PyBullet client."""
+        if pb.isConnected(self.client):
+            pb.disconnect(self.client)
+
+    def __enter__(self) -> "BulletWorld":
+        return self
+
+    def __exit__(self, *exc: Any) -> None:
+        self.close()
+
+
+def build_world(scene, gui: bool = False, renderer: str | None = None) -> BulletWorld:
+    """A world for ``scene`` (a :class:`bullet_dlo.scene.Scene`): ground and obstacles, no cable yet."""
+    opts = scene.bullet
+    world = BulletWorld(scene.dt, scene.gravity, gui=gui, ground=opts.ground, ground_height=opts.ground_height,
+                        ground_friction=opts.ground_friction, renderer=renderer)
+    for k, ob in enumerate(opts.obstacles):
+        spec = {key: val for key, val in ob.items() if key != "type"}
+        try:
+            if ob["type"] == "box":
+                world.add_box(**spec)
+            elif ob["type"] == "cylinder":
+                world.add_cylinder(**spec)
+            else:
+                world.add_urdf(**spec)
+        except (ParameterError, TypeError) as err:
+            world.close()
+            raise ParameterError(f"bullet.obstacles[{k}]: {err}") from None
+    return world
+
+
+def run_scene_bullet(scene, *, gui: bool = False, record_every: int | None = None, max_records: int = 2001):
+    """Run a scene with the Bullet-coupled engine. Returns (model, SimulationResult), like Scene.run."""
+    import math
+
+    from bullet_dlo.core.engine import SimulationResult
+
+    model = scene.build_model()
+    n_steps = max(1, int(round(scene.duration / scene.dt)))
+    if record_every is None:
+        record_every = max(1, math.ceil(n_steps / max(1, max_records - 1)))
+    world = build_world(scene, gui)
+    try:
+        cable = world.add_cable(model, integrator=scene.integrator, state=scene.initial_state(model),
+                                substeps=scene.bullet.substeps, self_collision=scene.bullet.self_collision,
+                                sync=scene.bullet.sync, newton=scene.newton, detector=scene.detector,
+                                record_every=record_every)
+        wall = world.run_while_stable(n_steps, cable)
+        rec = cable.record.arrays()
+        result = SimulationResult(
+            integrator=cable.method.name, dt=scene.dt, stable=cable.stable,
+            time_to_instability=cable.time_to_instability, reason=cable.reason, steps=cable.steps,
+            wall_time_s=wall, t=rec["t"], x=rec["x"], v=rec["v"], end_forces=rec["end_forces"],
+            energy=rec["energy"], final_state=cable.state(), end_moments=cable.end_moments(),
+            newton_failures=cable.newton_failures, newton_iterations=cable.newton_iterations)
+    finally:
+        world.close()
+    return model, result

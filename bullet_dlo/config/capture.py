@@ -1,0 +1,256 @@
+"""Domain-randomisation specs: distributions over every parameter of a dual-arm episode.
+
+A spec (YAML or :class:`CaptureSpec`) gives, for each parameter, a distribution::
+
+    seed: 7
+    episode: {duration: 2.0, record_rate: 120}
+    policy: substeps                  # reject | implicit | substeps (unstable samples)
+    sample:
+      youngs_modulus: {dist: log_uniform, low: 1.0e7, high: 5.0e9}
+      n_masses: {dist: choice, values: [8, 10, 12]}
+      diameter: {dist: uniform, low: 0.003, high: 0.006}
+      ...
+      dt: {dist: choice, values: [0.004166666666666667, 0.001]}
+      integrator: {dist: choice, values: [implicit_euler, symplectic_euler]}
+      robot: {dist: choice, values: [kuka, panda]}
+      displacement_x: {dist: uniform, low: -0.1, high: 0.0}
+      speed: {dist: uniform, low: 0.05, high: 0.2}
+      noise_std: {dist: fixed, value: 0.0}
+    camera: {fps: 0}                  # > 0 stores compressed frames at that rate
+
+Episode i's parameters depend only on (seed, i): its generator is seeded with [seed, i].
+``n_masses: auto`` lets each episode pick its number of masses by a convergence test on its
+own scene (:func:`bullet_dlo.resolve.resolve_masses`, tolerance ``resolve_tol`` on end
+forces); the sampled damping is then the k_d of a 10-mass cable, rescaled to keep its rate.
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any, Mapping
+
+import numpy as np
+import yaml
+
+from bullet_dlo.core.validate import ParameterError, check_positive
+
+DISTS = ("uniform", "log_uniform", "normal", "choice", "fixed")
+POLICIES = ("reject", "implicit", "substeps")
+
+# parameter -> (kind, default distribution, allowed range) ; kind: float | int | str
+PARAMETERS: dict[str, tuple[str, dict, tuple]] = {
+    "length": ("float", {"dist": "fixed", "value": 0.3}, (0.05, 2.0)),
+    "diameter": ("float", {"dist": "fixed", "value": 0.004}, (5e-4, 0.05)),
+    "mass": ("float", {"dist": "fixed", "value": 0.03}, (1e-4, 5.0)),
+    "youngs_modulus": ("float", {"dist": "fixed", "value": 126e6}, (1e4, 1e12)),
+    "n_masses": ("int", {"dist": "fixed", "value": 10}, (3, 200)),
+    "damping": ("float", {"dist": "fixed", "value": 0.02}, (0.0, 10.0)),
+    "friction": ("float", {"dist": "fixed", "value": 0.2}, (0.0, 2.0)),
+    "dt": ("float", {"dist": "fixed", "value": 1.0 / 240.0}, (1e-5, 0.05)),
+    "integrator": ("str", {"dist": "fixed", "value": "implicit_euler"}, ()),
+    "robot": ("str", {"dist": "fixed", "value": "kuka"}, ()),
+    "hold_height": ("float", {"dist": "fixed", "value": 0.35}, (0.27, 0.6)),
+    "displacement_x": ("float", {"dist": "fixed", "value": 0.0}, (-0.15, 0.1)),
+    "displacement_y": ("float", {"dist": "fixed", "value": 0.0}, (-0.15, 0.15)),
+    "displacement_z": ("float", {"dist": "fixed", "value": 0.005}, (-0.1, 0.2)),
+    "speed": ("float", {"dist": "fixed", "value": 0.05}, (1e-3, 1.0)),
+    "move_start": ("float", {"dist": "fixed", "value": 0.5}, (0.0, 100.0)),
+    "noise_std": ("float", {"dist": "fixed", "value": 0.0}, (0.0, 10.0)),
+    "sensor_rate": ("float", {"dist": "fixed", "value": 0.0}, (0.0, 1e5)),
+}
+
+
+@dataclass(frozen=True)
+class Distribution:
+    """One parameter's distribution: uniform(low, high), log_uniform(low, high),
+    normal(mean, std, clipped to the parameter's range), choice(values) or fixed(value)."""
+
+    dist: str
+    low: float | None = None
+    high: float | None = None
+    mean: float | None = None
+    std: float | None = None
+    values: tuple | None = None
+    value: Any = None
+
+    def sample(self, rng: np.random.Generator, kind: str, bounds: tuple) -> Any:
+        if self.dist == "fixed":
+            out = self.value
+        elif self.dist == "choice":
+            out = self.values[int(rng.integers(len(self.values)))]
+        elif self.dist == "uniform":
+            out = rng.uniform(self.low, self.high)
+        elif self.dist == "log_uniform":
+            out = math.exp(rng.uniform(math.log(self.low), math.log(self.high)))
+        else:
+            out = rng.normal(self.mean, self.std)
+            if bounds:
+                out = min(max(out, bounds[0]), bounds[1])
+        if kind == "int":
+            return out if out == "auto" else int(round(out))
+        if kind == "float":
+            return float(out)
+        return str(out)
+
+
+def _number(key: str, field_name: str, value: Any) -> float:
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise ParameterError(f"sample.{key}.{field_name} must be a number, got {value!r}") from None
+    if not math.isfinite(v):
+        raise ParameterError(f"sample.{key}.{field_name} must be finite, got {value!r}")
+    return v
+
+
+def parse_distribution(key: str, data: Mapping[str, Any]) -> Distribution:
+    """Validate one parameter's distribution; errors name ``sample.<key>``."""
+    if key not in PARAMETERS:
+        raise ParameterError(f"unknown parameter sample.{key}; known: {', '.join(PARAMETERS)}")
+    if not isinstance(data, Mapping):
+        data = {"dist": "fixed", "value": data}
+    data = dict(data)
+    if key == "n_masses" and data == {"dist": "fixed", "value": "auto"}:
+        return Distribution("fixed", value="auto")  # chosen per episode by resolve_masses
+    kind, _, bounds = PARAMETERS[key]
+    dist = data.pop("dist", None)
+    if dist not in DISTS:
+        raise ParameterError(f"sample.{key}.dist must be one of {', '.join(DISTS)}, got {dist!r}")
+    allowed = {"uniform": {"low", "high"}, "log_uniform": {"low", "high"}, "normal": {"mean", "std"},
+               "choice": {"values"}, "fixed": {"value"}}[dist]
+    if set(data) != allowed:
+        raise ParameterError(f"sample.{key} ({dist}) needs exactly {', '.join(sorted(allowed))}; got "
+                             f"{', '.join(sorted(data)) or 'nothing'}")
+
+    def in_range(name: str, v: Any) -> None:
+        if kind in ("float", "int") and bounds:
+            num = _number(key, name, v)
+            if not bounds[0] <= num <= bounds[1]:
+                raise ParameterError(f"sample.{key}.{name} = {v} is outside the allowed range "
+                                     f"[{bounds[0]}, {bounds[1]}]")
+
+    if dist in ("uniform", "log_uniform"):
+        low, high = _number(key, "low", data["low"]), _number(key, "high", data["high"])
+        if low > high:
+            raise ParameterError(f"sample.{key}: low ({low}) > high ({high})")
+        if dist == "log_uniform" and low <= 0:
+            raise ParameterError(f"sample.{key}: log_uniform needs low > 0, got {low}")
+        in_range("low", low)
+        in_range("high", high)
+        return Distribution(dist, low=low, high=high)
+    if dist == "normal":
+        std = _number(key, "std", data["std"])
+        if std < 0:
+            raise ParameterError(f"sample.{key}.std must be >= 0, got {std}")
+        mean = _number(key, "mean", data["mean"])
+        in_range("mean", mean)
+        return Distribution(dist, mean=mean, std=std)
+    if dist == "choice":
+        values = data["values"]
+        if not isinstance(values, (list, tuple)) or not values:
+            raise ParameterError(f"sample.{key}.values must be a non-empty list")
+        for v in values:
+            in_range("values", v)
+        return Distribution(dist, values=tuple(values))
+    in_range("value", data["value"])
+    return Distribution(dist, value=data["value"])
+
+
+@dataclass(frozen=True)
+class CaptureSpec:
+    """A validated randomisation spec (see module doc)."""
+
+    seed: int = 0
+    duration: float = 2.0
+    record_rate: float = 120.0
+    policy: str = "substeps"
+    max_resamples: int = 20
+    camera_fps: float = 0.0
+    camera_width: int = 160
+    camera_height: int = 120
+    resolve_tol: float = 0.02
+    sample: dict[str, Distribution] = field(default_factory=dict)
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> "CaptureSpec":
+        if not isinstance(data, Mapping):
+            raise ParameterError("a capture spec must be a mapping")
+        allowed = {"seed", "episode", "policy", "max_resamples", "camera", "sample", "resolve_tol"}
+        unknown = sorted(set(data) - allowed)
+        if unknown:
+            raise ParameterError(f"unknown key(s) {', '.join(unknown)} in capture spec; allowed: "
+                                 f"{', '.join(sorted(allowed))}")
+        episode = dict(data.get("episode") or {})
+        bad = sorted(set(episode) - {"duration", "record_rate"})
+        if bad:
+            raise ParameterError(f"unknown key(s) {', '.join(bad)} in episode; allowed: duration, record_rate")
+        camera = dict(data.get("camera") or {})
+        bad = sorted(set(camera) - {"fps", "width", "height"})
+        if bad:
+            raise ParameterError(f"unknown key(s) {', '.join(bad)} in camera; allowed: fps, width, height")
+        policy = str(data.get("policy", "substeps"))
+        if policy not in POLICIES:
+            raise ParameterError(f"policy must be one of {', '.join(POLICIES)}, got {policy!r}")
+        sample = {k: parse_distribution(k, v) for k, v in (data.get("sample") or {}).items()}
+        for key in ("integrator", "robot"):
+            if key in sample:
+                _check_names(key, sample[key])
+        seed = data.get("seed", 0)
+        if not isinstance(seed, int) or seed < 0:
+            raise ParameterError(f"seed must be an integer >= 0, got {seed!r}")
+        fps = float(camera.get("fps", 0.0))
+        if fps < 0:
+            raise ParameterError(f"camera.fps must be >= 0, got {fps}")
+        return cls(seed=seed, duration=check_positive("episode.duration", episode.get("duration", 2.0)),
+                   record_rate=check_positive("episode.record_rate", episode.get("record_rate", 120.0)),
+                   policy=policy, max_resamples=int(data.get("max_resamples", 20)), camera_fps=fps,
+                   camera_width=int(camera.get("width", 160)), camera_height=int(camera.get("height", 120)),
+                   resolve_tol=check_positive("resolve_tol", data.get("resolve_tol", 0.02)), sample=sample)
+
+    @classmethod
+    def from_yaml(cls, path: str | Path) -> "CaptureSpec":
+        p = Path(path)
+        if not p.is_file():
+            raise ParameterError(f"capture spec {str(path)!r} does not exist")
+        return cls.from_dict(yaml.safe_load(p.read_text()))
+
+    def to_dict(self) -> dict:
+        """The spec in its YAML form (``from_dict(to_dict())`` round-trips)."""
+        sample = {}
+        for k, v in self.sample.items():
+            entry = {kk: (list(vv) if isinstance(vv, tuple) else vv) for kk, vv in asdict(v).items() if vv is not None}
+            sample[k] = entry
+        return {"seed": self.seed, "episode": {"duration": self.duration, "record_rate": self.record_rate},
+                "policy": self.policy, "max_resamples": self.max_resamples,
+                "camera": {"fps": self.camera_fps, "width": self.camera_width, "height": self.camera_height},
+                "resolve_tol": self.resolve_tol, "sample": sample}
+
+    def digest(self) -> str:
+        """Hash of the spec: a capture directory holds episodes of one spec only."""
+        return hashlib.sha256(json.dumps(self.to_dict(), sort_keys=True, default=str).encode()).hexdigest()[:16]
+
+    def draw(self, index: int, attempt: int = 0) -> dict[str, Any]:
+        """Parameters of episode ``index`` (attempt > 0: a resample), from the generator [seed, index, attempt]."""
+        rng = np.random.default_rng([self.seed, index, attempt])
+        out = {}
+        for key, (kind, default, bounds) in PARAMETERS.items():
+            dist = self.sample.get(key) or parse_distribution(key, default)
+            out[key] = dist.sample(rng, kind, bounds)
+        out["noise_seed"] = int(rng.integers(2**31 - 1))
+        return out
+
+
+def _check_names(key: str, dist: Distribution) -> None:
+    from bullet_dlo.core.integrators import INTEGRATORS
+    from bullet_dlo.config.robot import robot_names
+
+    known = list(INTEGRATORS) if key == "integrator" else robot_names()
+    values = list(dist.values or ()) + ([dist.value] if dist.value is not None else [])
+    if dist.dist not in ("choice", "fixed"):
+        raise ParameterError(f"sample.{key} must be a choice or fixed, got {dist.dist}")
+    for v in values:
+        if v not in known:
+            raise ParameterError(f"sample.{key}: unknown {key} {v!r}; known: {', '.join(known)}")

@@ -1,0 +1,279 @@
+"""Scene files: a portable YAML description of one cable run, and running it.
+
+Schema (extra keys are rejected with a message naming them)::
+
+    cable: {length: 0.3, diameter: 0.004, mass: 0.03, youngs_modulus: 126.0e6,
+            n_masses: 10, damping: 0.01}           # or {preset: lv2017, n_masses: 20}
+    layout: {start: [0, 0, 0.5], direction: [1, 0, 0]}   # straight from mass 0
+    ends: {first: clamped, last: clamped}                 # free | pinned | clamped
+    motion: [{end: last, displacement: [0, 0, 0.005], start: 0.5, duration: 0.1}]
+    gravity: [0, 0, -9.81]
+    integrator: implicit_euler
+    dt: 0.001
+    duration: 2.0
+    # optional
+    initial: straight            # or static: start from the equilibrium under gravity
+    detector: {max_strain: 0.5, energy_factor: 1.0, check_every: 1, energy_every: 10}
+    newton: {max_iter: 8, tol: 1.0e-9}
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Mapping
+
+import numpy as np
+import yaml
+
+from bullet_dlo.core.boundary import END_MODES, Move, parse_motion
+from bullet_dlo.core.engine import DetectorOptions, SimulationResult, simulate
+from bullet_dlo.core.integrators import INTEGRATORS, NewtonOptions, get_integrator
+from bullet_dlo.core.model import STANDARD_GRAVITY, CableModel, CableState
+from bullet_dlo.core.spec import CableSpec
+from bullet_dlo.core.stability import critical_dt
+from bullet_dlo.core.statics import solve_static
+from bullet_dlo.core.validate import ParameterError, check_positive, check_vector3
+
+TOP_KEYS = ("cable", "layout", "ends", "motion", "gravity", "integrator", "dt", "duration",
+            "initial", "detector", "newton", "name", "bullet", "tolerance")
+BULLET_KEYS = ("ground", "ground_height", "ground_friction", "substeps", "self_collision", "sync", "obstacles")
+OBSTACLE_KEYS = {"box": ("half_extents", "position", "orientation", "mass", "friction", "name"),
+                 "cylinder": ("radius", "height", "position", "orientation", "mass", "friction", "name"),
+                 "urdf": ("path", "position", "orientation", "fixed", "name")}
+
+
+@dataclass(frozen=True)
+class BulletOptions:
+    """The scene's ``bullet:`` section (used by ``--engine bullet`` only).
+
+    ground: add a ground plane at ground_height [m]; substeps: integrator steps per Bullet
+    step; self_collision: neighbours | none | all; sync: contacts | always; obstacles: list
+    of {type: box|cylinder|urdf, ...} (see README).
+    """
+
+    ground: bool = True
+    ground_height: float = 0.0
+    ground_friction: float = 0.5
+    substeps: int = 1
+    self_collision: str = "neighbours"
+    sync: str = "contacts"
+    obstacles: tuple[dict, ...] = ()
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> "BulletOptions":
+        data = _mapping(data, "bullet")
+        _only(data, BULLET_KEYS, "bullet")
+        obstacles = data.get("obstacles") or []
+        if not isinstance(obstacles, list):
+            raise ParameterError("bullet.obstacles must be a list")
+        checked = []
+        for k, ob in enumerate(obstacles):
+            ob = dict(_mapping(ob, f"bullet.obstacles[{k}]"))
+            kind = ob.pop("type", None)
+            if kind not in OBSTACLE_KEYS:
+                raise ParameterError(f"bullet.obstacles[{k}].type must be one of {', '.join(OBSTACLE_KEYS)}, "
+                                     f"got {kind!r}")
+            _only(ob, OBSTACLE_KEYS[kind], f"bullet.obstacles[{k}] ({kind})")
+            checked.append({"type": kind, **ob})
+        kwargs = {k: data[k] for k in BULLET_KEYS if k in data and k != "obstacles"}
+        opts = cls(**kwargs, obstacles=tuple(checked))
+        from bullet_dlo.core.validate import check_int
+        _prefixed("bullet.substeps", check_int, "substeps", opts.substeps, 1)
+        if opts.self_collision not in ("neighbours", "none", "all"):
+            raise ParameterError(f"bullet.self_collision must be neighbours, none or all, got {opts.self_collision!r}")
+        if opts.sync not in ("contacts", "always"):
+            raise ParameterError(f"bullet.sync must be contacts or always, got {opts.sync!r}")
+        return opts
+INITIAL = ("straight", "static")
+
+
+def _mapping(value: Any, key: str) -> Mapping[str, Any]:
+    if value is None:
+        return {}
+    if not isinstance(value, Mapping):
+        raise ParameterError(f"{key} must be a mapping, got {type(value).__name__}")
+    return value
+
+
+def _only(data: Mapping[str, Any], allowed: tuple[str, ...], where: str) -> None:
+    unknown = sorted(set(data) - set(allowed))
+    if unknown:
+        raise ParameterError(f"unknown key(s) {', '.join(unknown)} in {where}; allowed: {', '.join(allowed)}")
+
+
+def _prefixed(where: str, fn, *args, **kwargs):
+    """Call fn, re-raising ParameterError with the scene key it came from."""
+    try:
+        return fn(*args, **kwargs)
+    except ParameterError as err:
+        raise ParameterError(f"{where}: {err}") from None
+    except TypeError as err:
+        raise ParameterError(f"{where}: {err}") from None
+
+
+@dataclass(frozen=True)
+class Scene:
+    """A validated scene: cable, layout, end conditions, motion, integration settings."""
+
+    cable: CableSpec
+    start: tuple[float, float, float] = (0.0, 0.0, 0.5)
+    direction: tuple[float, float, float] = (1.0, 0.0, 0.0)
+    ends: tuple[str, str] = ("clamped", "clamped")
+    motion: tuple[Move, ...] = ()
+    gravity: tuple[float, float, float] = STANDARD_GRAVITY
+    integrator: str = "implicit_euler"
+    dt: float = 1e-3
+    duration: float = 1.0
+    initial: str = "straight"
+    detector: DetectorOptions = field(default_factory=DetectorOptions)
+    newton: NewtonOptions = field(default_factory=NewtonOptions)
+    name: str = "scene"
+    bullet: BulletOptions = field(default_factory=BulletOptions)
+    auto_n: bool = False  # n_masses: auto
+    auto_dt: bool = False  # dt: auto (also picks the integrator)
+    tolerance: float = 0.01
+    tolerance_target: str = "both"
+
+    # ----- parsing -------------------------------------------------------------------------
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> "Scene":
+        """Validate a parsed scene mapping; errors name the offending key."""
+        data = _mapping(data, "scene")
+        _only(data, TOP_KEYS, "scene")
+        if "cable" not in data:
+            raise ParameterError("cable: missing (give cable parameters or {preset: lv2017})")
+        cable_map = dict(_mapping(data["cable"], "cable"))
+        auto_n = cable_map.get("n_masses") == "auto"
+        if auto_n:
+            cable_map["n_masses"] = 10  # placeholder until resolve() picks it
+        cable = _prefixed("cable", CableSpec.from_dict, cable_map)
+        auto_dt = data.get("dt") == "auto"
+        if auto_dt:
+            data = {**data, "dt": 1e-3}
+        tol = _mapping(data.get("tolerance"), "tolerance")
+        _only(tol, ("value", "target"), "tolerance")
+        tol_value = _prefixed("tolerance.value", check_positive, "tolerance", tol.get("value", 0.01))
+        tol_target = str(tol.get("target", "both"))
+        if tol_target not in ("forces", "shape", "both"):
+            raise ParameterError(f"tolerance.target must be forces, shape or both, got {tol_target!r}")
+        layout = _mapping(data.get("layout"), "layout")
+        _only(layout, ("start", "direction"), "layout")
+        start = tuple(_prefixed("layout.start", check_vector3, "start", layout.get("start", (0.0, 0.0, 0.5))))
+        direction = tuple(_prefixed("layout.direction", check_vector3, "direction",
+                                    layout.get("direction", (1.0, 0.0, 0.0)), unit=True))
+        ends_map = _mapping(data.get("ends"), "ends")
+        _only(ends_map, ("first", "last"), "ends")
+        ends = []
+        for key in ("first", "last"):
+            mode = str(ends_map.get(key, "clamped")).lower()
+            if mode not in END_MODES:
+                raise ParameterError(f"ends.{key} must be one of {', '.join(END_MODES)}, got {ends_map.get(key)!r}")
+            ends.append(mode)
+        motion = _prefixed("motion", parse_motion, data.get("motion"))
+        for mv in motion:
+            if ends[0 if mv.end == "first" else 1] == "free":
+                raise ParameterError(f"motion: end '{mv.end}' is free; only pinned or clamped ends can be moved")
+        gravity = tuple(_prefixed("gravity", check_vector3, "gravity", data.get("gravity", STANDARD_GRAVITY)))
+        integrator = str(data.get("integrator", "implicit_euler"))
+        if integrator not in INTEGRATORS:
+            raise ParameterError(f"integrator must be one of {', '.join(INTEGRATORS)}, got {integrator!r}")
+        dt = _prefixed("dt", check_positive, "dt", data.get("dt", 1e-3))
+        duration = _prefixed("duration", check_positive, "duration", data.get("duration", 1.0))
+        if duration / dt > 1e10:
+            raise ParameterError(f"duration/dt = {duration / dt:.3g} steps; at most 1e10 steps per run")
+        initial = str(data.get("initial", "straight"))
+        if initial not in INITIAL:
+            raise ParameterError(f"initial must be one of {', '.join(INITIAL)}, got {initial!r}")
+        det = _mapping(data.get("detector"), "detector")
+        _only(det, ("max_strain", "energy_factor", "check_every", "energy_every"), "detector")
+        detector = DetectorOptions(**det)
+        nwt = _mapping(data.get("newton"), "newton")
+        _only(nwt, ("max_iter", "tol", "definite"), "newton")
+        newton = NewtonOptions(**nwt)
+        bullet = BulletOptions.from_dict(data.get("bullet"))
+        return cls(cable, start, direction, (ends[0], ends[1]), motion, gravity, integrator, dt, duration,
+                   initial, detector, newton, str(data.get("name", "scene")), bullet, auto_n, auto_dt,
+                   tol_value, tol_target)
+
+    @classmethod
+    def from_yaml(cls, path: str | Path) -> "Scene":
+        """Load and validate a YAML scene file."""
+        p = Path(path)
+        if not p.is_file():
+            raise ParameterError(f"scene file {str(path)!r} does not exist")
+        try:
+            data = yaml.safe_load(p.read_text())
+        except yaml.YAMLError as err:
+            raise ParameterError(f"scene file {str(path)!r} is not valid YAML: {str(err).splitlines()[0]}") from None
+        return cls.from_dict(data)
+
+    # ----- running -------------------------------------------------------------------------
+    def resolved(self) -> "Scene":
+        """This scene with ``n_masses: auto`` / ``dt: auto`` replaced by :func:`bullet_dlo.resolve.resolve`'s choice."""
+        if not (self.auto_n or self.auto_dt):
+            return self
+        from dataclasses import replace
+
+        from bullet_dlo.analysis.resolve import resolve
+
+        r = resolve(self, self.tolerance, self.tolerance_target)
+        new = replace(self, auto_n=False, auto_dt=False)
+        if self.auto_n:
+            new = replace(new, cable=self.cable.with_(n_masses=r.n_masses, damping=r.damping))
+        if self.auto_dt:
+            new = replace(new, dt=r.dt, integrator=r.integrator)
+        return new
+
+    def build_model(self) -> CableModel:
+        """The discretised cable with its end conditions and motion."""
+        return CableModel.straight(self.cable, self.start, self.direction, self.ends, self.motion, self.gravity)
+
+    def initial_state(self, model: CableModel) -> CableState:
+        """Straight at rest, or the static equilibrium under gravity (``initial: static``)."""
+        if self.initial == "static":
+            return solve_static(model).state()
+        return model.initial_state()
+
+    def run(self, **overrides: Any) -> tuple[CableModel, SimulationResult]:
+        """Run with the core engine (resolving ``auto`` first); ``overrides`` go to :func:`simulate`."""
+        scene = self.resolved()
+        model = scene.build_model()
+        kwargs: dict[str, Any] = dict(state=scene.initial_state(model), newton=scene.newton, detector=scene.detector)
+        kwargs.update(overrides)
+        return model, simulate(model, scene.integrator, scene.dt, scene.duration, **kwargs)
+
+
+def result_json(scene: Scene, model: CableModel, result: SimulationResult, engine: str = "core") -> dict[str, Any]:
+    """The portable output of ``bullet-dlo simulate`` (see README for the keys)."""
+    def vec(a: np.ndarray) -> list[float]:
+        return [float(v) for v in a]
+
+    held = model.arrays.held
+    forces = result.end_forces[-1] if len(result.end_forces) else np.zeros((2, 3))
+    ok = result.stable
+    crit = critical_dt(model, scene.integrator)
+    return {
+        "stable": bool(ok),
+        "time_to_instability": result.time_to_instability,
+        "reason": result.reason,
+        "critical_dt": crit if crit is None or math.isfinite(crit) else None,
+        "final_positions": result.final_state.x.tolist(),
+        "end_forces": {
+            "first": vec(forces[0]) if held[0] and ok else None,
+            "last": vec(forces[1]) if held[-1] and ok else None,
+        },
+        "end_moments": {
+            "first": vec(result.end_moments[0]) if scene.ends[0] == "clamped" and ok else None,
+            "last": vec(result.end_moments[1]) if scene.ends[1] == "clamped" and ok else None,
+        },
+        "steps": result.steps,
+        "wall_time_s": result.wall_time_s,
+        "integrator": get_integrator(scene.integrator).name,
+        "dt": scene.dt,
+        "duration": scene.duration,
+        "n_masses": scene.cable.n_masses,
+        "cable_weight": scene.cable.mass * float(np.linalg.norm(scene.gravity)),
+        "newton_failures": result.newton_failures,
+        "engine": engine,
+    }

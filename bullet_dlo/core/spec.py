@@ -1,0 +1,215 @@
+"""Cable specification: the physical parameters of a cable and what follows from them.
+
+Everything is SI: metres, kilograms, seconds, pascals, newtons.
+
+A :class:`CableSpec` is immutable and validated on construction; every bad value raises
+:class:`ParameterError` naming the field and the allowed range. Discretised quantities
+(rest length, spring constants, point masses) are derived here so that every layer
+(core, Bullet, datasets) agrees on them.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass, fields, replace
+from typing import Any, Mapping
+
+import numpy as np
+
+from bullet_dlo.core.validate import ParameterError, check_in_range, check_int, check_nonnegative, check_positive
+
+DISCRETISATIONS = ("default", "paper")
+
+
+@dataclass(frozen=True)
+class CableSpec:
+    """Physical cable parameters (SI) and how the cable is discretised.
+
+    Attributes:
+        length: cable length L [m], > 0.
+        diameter: cross-section diameter d [m], > 0.
+        mass: total mass M [kg], > 0.
+        youngs_modulus: Young's modulus E [Pa], > 0.
+        n_masses: number of point masses n, >= 2.
+        damping: viscous damping k_d [N s/m] per average point mass (see :meth:`damping_coefficients`), >= 0.
+        friction: dynamic (sliding) friction coefficient against the environment, >= 0.
+        static_friction: static friction coefficient, >= 0.
+        poisson_ratio: Poisson's ratio nu, in [0, 0.5) (used by contact and shear-aware layers).
+        discretisation: ``"default"`` (ends lumped with half a segment of mass, clamp nodes
+            with the half-segment bending stiffness 2EI/l0: second-order static convergence)
+            or ``"paper"`` (Lv et al. 2017: m_i = M/n, k_b = EI/l0 at every bending node).
+    """
+
+    length: float
+    diameter: float
+    mass: float
+    youngs_modulus: float
+    n_masses: int = 10
+    damping: float = 0.0
+    friction: float = 0.2
+    static_friction: float = 0.3
+    poisson_ratio: float = 0.3
+    discretisation: str = "default"
+
+    def __post_init__(self) -> None:
+        set_ = lambda k, v: object.__setattr__(self, k, v)  # noqa: E731 (frozen dataclass)
+        set_("length", check_positive("length", self.length))
+        set_("diameter", check_positive("diameter", self.diameter))
+        set_("mass", check_positive("mass", self.mass))
+        set_("youngs_modulus", check_positive("youngs_modulus", self.youngs_modulus))
+        set_("n_masses", check_int("n_masses", self.n_masses, 2, 100_000))
+        set_("damping", check_nonnegative("damping", self.damping))
+        set_("friction", check_nonnegative("friction", self.friction))
+        set_("static_friction", check_nonnegative("static_friction", self.static_friction))
+        set_("poisson_ratio", check_in_range("poisson_ratio", self.poisson_ratio, 0.0, 0.5, open_hi=True))
+        if self.discretisation not in DISCRETISATIONS:
+            raise ParameterError(
+                f"discretisation must be one of {', '.join(DISCRETISATIONS)}, got {self.discretisation!r}"
+            )
+
+    # ----- derived continuum quantities -------------------------------------------------
+    @property
+    def area(self) -> float:
+        """Cross-section area A = pi d^2 / 4 [m^2]."""
+        return math.pi * self.diameter**2 / 4.0
+
+    @property
+    def second_moment(self) -> float:
+        """Second moment of area I = pi d^4 / 64 [m^4]."""
+        return math.pi * self.diameter**4 / 64.0
+
+    @property
+    def linear_density(self) -> float:
+        """Mass per length rho*A [kg/m]."""
+        return self.mass / self.length
+
+    @property
+    def density(self) -> float:
+        """Volumetric density rho [kg/m^3]."""
+        return self.mass / (self.area * self.length)
+
+    @property
+    def bending_rigidity(self) -> float:
+        """EI [N m^2]."""
+        return self.youngs_modulus * self.second_moment
+
+    @property
+    def axial_rigidity(self) -> float:
+        """EA [N]."""
+        return self.youngs_modulus * self.area
+
+    @property
+    def weight(self) -> float:
+        """Weight M*9.81 [N] under standard gravity (for reports; simulations use their own g)."""
+        return self.mass * 9.81
+
+    # ----- discretisation -----------------------------------------------------------------
+    @property
+    def rest_length(self) -> float:
+        """Segment rest length l0 = L / (n - 1) [m]."""
+        return self.length / (self.n_masses - 1)
+
+    @property
+    def k_stretch(self) -> float:
+        """Linear spring constant k_s = E A / l0 [N/m]."""
+        return self.axial_rigidity / self.rest_length
+
+    @property
+    def k_bend(self) -> float:
+        """Bending spring constant k_b = E I / l0 at interior nodes [N m/rad^2]."""
+        return self.bending_rigidity / self.rest_length
+
+    @property
+    def k_bend_clamp(self) -> float:
+        """Bending spring constant at a clamped end node [N m/rad^2].
+
+        The clamp node represents half a segment of cable, so its discrete curvature is the
+        turning angle over l0/2: k = 2 E I / l0 (default). The paper uses E I / l0.
+        """
+        return self.k_bend * (2.0 if self.discretisation == "default" else 1.0)
+
+    def point_masses(self) -> np.ndarray:
+        """Point masses m_i [kg], shape (n,), summing to M.
+
+        default: trapezoidal lumping (ends carry half a segment, M/(2(n-1))), which loads a
+        cantilever with exactly the right moments; paper: uniform M/n.
+        """
+        n = self.n_masses
+        if self.discretisation == "paper":
+            return np.full(n, self.mass / n)
+        m = np.full(n, self.mass / (n - 1))
+        m[0] *= 0.5
+        m[-1] *= 0.5
+        return m
+
+    def damping_coefficients(self) -> np.ndarray:
+        """Per-mass viscous damping c_i [N s/m], shape (n,): F_i = -c_i v_i.
+
+        c_i = k_d * m_i / (M/n): every mass decays at the same rate k_d / (M/n) [1/s] and
+        with uniform masses (``paper``) c_i = k_d exactly as in Lv et al.
+        """
+        return self.damping * self.point_masses() / (self.mass / self.n_masses)
+
+    @property
+    def damping_rate(self) -> float:
+        """gamma = c_i / m_i [1/s], the same for every mass."""
+        return self.damping * self.n_masses / self.mass
+
+    # ----- convenience --------------------------------------------------------------------
+    def with_(self, **changes: Any) -> "CableSpec":
+        """Return a copy with some fields changed (validated again)."""
+        return replace(self, **changes)
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain dict of the fields (for JSON/YAML/HDF5 attributes)."""
+        return asdict(self)
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> "CableSpec":
+        """Build from a mapping; unknown keys raise ParameterError naming them.
+
+        A ``preset`` key starts from a named preset and the other keys override it.
+        """
+        data = dict(data)
+        names = {f.name for f in fields(cls)}
+        base: dict[str, Any] = {}
+        if "preset" in data:
+            base = preset(str(data.pop("preset"))).to_dict()
+        unknown = sorted(set(data) - names)
+        if unknown:
+            raise ParameterError(
+                f"unknown cable parameter(s) {', '.join(unknown)}; allowed: preset, {', '.join(sorted(names))}"
+            )
+        base.update(data)
+        missing = [k for k in ("length", "diameter", "mass", "youngs_modulus") if k not in base]
+        if missing:
+            raise ParameterError(f"cable parameter(s) {', '.join(missing)} missing (or give preset: lv2017)")
+        return cls(**base)
+
+    @classmethod
+    def lv2017(cls, **overrides: Any) -> "CableSpec":
+        """Lv et al. 2017, Table 2: L 0.3 m, d 4 mm, M 30 g, E 126 MPa, nu 0.3, mu 0.2/0.3."""
+        return preset("lv2017").with_(**overrides) if overrides else preset("lv2017")
+
+
+_PRESETS: dict[str, dict[str, Any]] = {
+    "lv2017": dict(
+        length=0.3, diameter=0.004, mass=0.03, youngs_modulus=126.0e6, n_masses=10,
+        damping=0.0, friction=0.2, static_friction=0.3, poisson_ratio=0.3,
+    ),
+}
+
+
+def preset(name: str) -> CableSpec:
+    """A named cable preset (``lv2017``); unknown names raise ParameterError listing the known ones."""
+    key = str(name).lower()
+    if key not in _PRESETS:
+        raise ParameterError(f"unknown cable preset {name!r}; known presets: {', '.join(sorted(_PRESETS))}")
+    return CableSpec(**_PRESETS[key])
+
+
+def preset_names() -> list[str]:
+    """Names accepted by :func:`preset`."""
+    return sorted(_PRESETS)
+
+
+__all__ = ["CableSpec", "ParameterError", "preset", "preset_names", "DISCRETISATIONS"]

@@ -1,0 +1,199 @@
+"""Linear stability analysis: predicted critical time steps and damping bounds.
+
+Linearising the cable about a state (default: straight, at rest, ends held as the model
+says) gives M x'' + C x' + K x = 0 on the free degrees of freedom, with C = gamma M
+(every mass decays at the same rate gamma = k_d n / M, see :class:`CableSpec`). The modes
+decouple: each has eigenvalues lambda = -gamma/2 +- sqrt(gamma^2/4 - omega^2), omega^2 an
+eigenvalue of M^-1 K. A fixed-step method is stable when every mode is:
+
+* explicit Euler:   |1 + h lambda| <= 1          ->  h <= -2 Re(lambda) / |lambda|^2
+                    (h <= gamma / omega^2 for an underdamped mode: no damping, no stability)
+* symplectic Euler: amplification [[1 - h^2 w^2, h(1 - h g)], [-h w^2, 1 - h g]]
+                    ->  h <= (-gamma + sqrt(gamma^2 + 4 omega^2)) / omega^2  and  h <= 2 / gamma
+                    (2 / omega_max without damping)
+* RK4:              |1 + z + z^2/2 + z^3/6 + z^4/24| <= 1 along the ray z = h lambda
+                    (2 sqrt(2) / omega_max without damping)
+* implicit Euler, BDF2, implicit midpoint: A-stable, no limit for the linear problem.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.linalg import eigvals_banded
+
+from bullet_dlo.core.integrators import get_integrator
+from bullet_dlo.core.kernels.forces import force_jacobian
+from bullet_dlo.core.model import CableModel, CableState
+
+
+def stiffness_spectrum(model: CableModel, state: CableState | None = None) -> np.ndarray:
+    """Eigenvalues omega^2 [1/s^2] of M^-1 K on the free DOFs, ascending, shape (3 n_free,).
+
+    K = -dF/dx (exact, undamped) evaluated at ``state`` (default: the model's initial state).
+    """
+    st = state or model.initial_state()
+    a = model.arrays
+    n = model.n
+    jac = np.zeros((n, 5, 3, 3))
+    force_jacobian(st.x, a.k_stretch, a.rest_length, a.k_bend, model.first.direction,
+                   model.last.direction, False, jac)
+    free = np.flatnonzero(~a.held)
+    if free.size == 0:
+        return np.zeros(0)
+    # Symmetric scaled stiffness S = M^-1/2 K M^-1/2 on free DOFs, in LAPACK upper band storage.
+    # Free nodes are contiguous (only the two ends can be held), so the band structure survives.
+    first_free = free[0]
+    nf = free.size
+    half = 8
+    ab = np.zeros((half + 1, 3 * nf))
+    inv_sqrt_m = 1.0 / np.sqrt(a.mass)
+    for li in range(nf):
+        i = first_free + li
+        for o in range(5):
+            j = i + o - 2
+            if j < i or j < first_free or j >= first_free + nf:
+                continue
+            block = -jac[i, o] * inv_sqrt_m[i] * inv_sqrt_m[j]
+            lj = j - first_free
+            for r in range(3):
+                for c in range(3):
+                    row, col = 3 * li + r, 3 * lj + c
+                    if col >= row:
+                        ab[half + row - col, col] = block[r, c]
+    return np.sort(eigvals_banded(ab, lower=False))
+
+
+def _rk4_limit_on_ray(direction: complex) -> float:
+    """Largest s with |R(s * direction)| <= 1 for all s' <= s, |direction| = 1, RK4."""
+    def growth(s: np.ndarray) -> np.ndarray:
+        z = s * direction
+        return np.abs(1 + z + z**2 / 2 + z**3 / 6 + z**4 / 24)
+
+    s = np.linspace(1e-6, 4.0, 4001)
+    bad = np.flatnonzero(growth(s) > 1.0 + 1e-12)
+    if bad.size == 0:
+        return math.inf
+    lo, hi = (s[bad[0] - 1] if bad[0] > 0 else 0.0), s[bad[0]]
+    for _ in range(60):
+        mid = 0.5 * (lo + hi)
+        if growth(np.array([mid]))[0] > 1.0 + 1e-12:
+            hi = mid
+        else:
+            lo = mid
+    return lo
+
+
+def critical_dt_from_modes(method: str, omega2: np.ndarray, gamma: float) -> float | None:
+    """Largest stable step [s] for modes omega^2 [1/s^2] and damping rate gamma [1/s].
+
+    Returns None for unconditionally stable (implicit) methods and 0.0 when no positive
+    step is stable (explicit Euler without damping).
+    """
+    integ = get_integrator(method)
+    if not integ.explicit:
+        return None
+    w2 = np.maximum(np.asarray(omega2, dtype=float), 0.0)
+    g = float(gamma)
+    limits = [math.inf]
+    if g > 0:
+        limits.append(2.0 / g)  # the damping alone (omega -> 0 mode) for all three methods
+    if integ.name == "symplectic_euler":
+        w2p = w2[w2 > 0]
+        if w2p.size:
+            limits.append(float(np.min((-g + np.sqrt(g * g + 4.0 * w2p)) / w2p)))
+        return min(limits)
+    # explicit Euler / RK4 act on the first-order eigenvalues lambda
+    disc = np.sqrt((g * g / 4.0 - w2).astype(complex))
+    lams = np.concatenate([-g / 2 + disc, -g / 2 - disc])
+    lams = lams[np.abs(lams) > 0]
+    if integ.name == "explicit_euler":
+        limits.append(float(np.min(-2.0 * lams.real / np.abs(lams) ** 2)))
+        return max(0.0, min(limits))
+    # RK4: scan the distinct ray directions
+    dirs = lams / np.abs(lams)
+    mags = np.abs(lams)
+    keys = np.round(np.angle(dirs), 9)
+    for key in np.unique(keys):
+        sel = keys == key
+        s_max = _rk4_limit_on_ray(complex(dirs[sel][0]))
+        limits.append(s_max / float(np.max(mags[sel])))
+    return min(limits)
+
+
+def critical_dt(model: CableModel, integrator: str, state: CableState | None = None) -> float | None:
+    """Predicted largest stable fixed step [s] of ``integrator`` for ``model``.
+
+    From the linearisation about ``state`` (default: the initial straight state at rest),
+    damping included. None for unconditionally stable implicit methods.
+    """
+    if not get_integrator(integrator).explicit:
+        return None
+    return critical_dt_from_modes(integrator, stiffness_spectrum(model, state), model.spec.damping_rate)
+
+
+@dataclass(frozen=True)
+class DampingBounds:
+    """Damping numbers that matter for explicit MSD simulation (all per average mass m = M/n).
+
+    omega_max: highest angular frequency [rad/s]; k_d_critical_mode: k_d that critically
+    damps the highest mode, 2 m omega_max [N s/m]; k_d_critical_spring: 2 sqrt(k_s m), the
+    critical damping of one segment spring with one mass [N s/m]; damping_ratio: zeta of the
+    highest mode at the spec's k_d; k_d_min_explicit_euler: smallest k_d that makes explicit
+    Euler stable at step dt (gamma >= dt omega_max^2) [N s/m]; k_d_max_explicit: largest k_d
+    for which an explicit method stays stable at step dt (dt <= 2/gamma) [N s/m].
+    """
+
+    omega_max: float
+    k_d_critical_mode: float
+    k_d_critical_spring: float
+    damping_ratio: float
+    k_d_min_explicit_euler: float
+    k_d_max_explicit: float
+
+
+def damping_bounds(model: CableModel, dt: float) -> DampingBounds:
+    """Damping bounds for ``model`` at step ``dt`` [s] (see :class:`DampingBounds`)."""
+    spec = model.spec
+    w_max = math.sqrt(max(float(stiffness_spectrum(model)[-1]), 0.0))
+    m_avg = spec.mass / spec.n_masses
+    gamma = spec.damping_rate
+    return DampingBounds(
+        omega_max=w_max,
+        k_d_critical_mode=2.0 * m_avg * w_max,
+        k_d_critical_spring=2.0 * math.sqrt(spec.k_stretch * m_avg),
+        damping_ratio=gamma / (2.0 * w_max) if w_max > 0 else math.inf,
+        k_d_min_explicit_euler=dt * w_max**2 * m_avg,
+        k_d_max_explicit=2.0 * m_avg / dt,
+    )
+
+
+def measured_critical_dt(model: CableModel, integrator: str, duration: float = 0.2, *,
+                         state: CableState | None = None, guess: float | None = None,
+                         rel_tol: float = 0.01) -> float:
+    """Largest step [s] at which a run of ``duration`` stays stable, found by bisection.
+
+    Brackets the boundary around ``guess`` (default: the predicted critical step, or 1 ms)
+    and bisects in log space to ``rel_tol``. The answer depends on the run's duration and
+    start state: a slowly growing mode may need a long run to show.
+    """
+    from bullet_dlo.core.engine import simulate
+
+    def stable(dt: float) -> bool:
+        return simulate(model, integrator, dt, duration, state=state, max_records=3).stable
+
+    g = guess or critical_dt(model, integrator) or 1e-3
+    lo, hi = g / 1.7, g * 2.3  # asymmetric, so no bisection point lands on the prediction itself
+    while not stable(lo):
+        lo, hi = lo / 4.0, lo
+        if lo < 1e-12:
+            return 0.0
+    while stable(hi):
+        lo, hi = hi, hi * 4.0
+        if hi > 10.0:
+            return math.inf
+    while hi / lo > 1.0 + rel_tol:
+        mid = math.sqrt(lo * hi)
+        lo, hi = (mid, hi) if stable(mid) else (lo, mid)
+    return lo

@@ -1,0 +1,93 @@
+"""Static equilibrium by damped Newton (Levenberg-Marquardt) on the banded stiffness.
+
+Solves F_elastic(x) + m g + f_ext = 0 on the free nodes with the held ends at their start
+poses. Used to start runs from a settled cable (the study's "settle" phase without
+simulating it) and to measure discretisation error against beam theory without any
+integrator in the loop.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from bullet_dlo.core.kernels.banded import HALF, assemble_system, band_solve
+from bullet_dlo.core.kernels.forces import force_jacobian, internal_energy, total_forces
+from bullet_dlo.core.model import CableModel, CableState
+
+
+@dataclass
+class StaticResult:
+    """Equilibrium positions x [m] (n, 3), residual force [N] (max over free nodes), iterations."""
+
+    x: np.ndarray
+    residual: float
+    iterations: int
+    converged: bool
+
+    def state(self) -> CableState:
+        return CableState(self.x.copy(), np.zeros_like(self.x), 0.0)
+
+
+def _potential(model: CableModel, x: np.ndarray, f_ext: np.ndarray) -> float:
+    a = model.arrays
+    e = internal_energy(x, a.k_stretch, a.rest_length, a.k_bend, model.first.direction, model.last.direction)
+    return float(e - np.sum(a.mass[:, None] * a.gravity[None, :] * x) - np.sum(f_ext * x))
+
+
+def solve_static(
+    model: CableModel,
+    x_start: np.ndarray | None = None,
+    f_ext: np.ndarray | None = None,
+    *,
+    tol: float = 1e-10,
+    max_iter: int = 200,
+) -> StaticResult:
+    """Equilibrium of ``model`` under gravity (and ``f_ext`` [N], (n, 3)) from ``x_start``.
+
+    tol: convergence when the largest free-node force is below tol * (M |g| + sum |f_ext|) [N],
+    or below the round-off floor of the force evaluation (k_s * eps * |x|, stiff cables).
+    """
+    a = model.arrays
+    n = model.n
+    x = (model.x0 if x_start is None else np.asarray(x_start, dtype=float)).copy()
+    x[0] = model.first.position if a.held[0] else x[0]
+    x[-1] = model.last.position if a.held[-1] else x[-1]
+    fe = np.zeros((n, 3)) if f_ext is None else np.asarray(f_ext, dtype=float)
+    zeros_v = np.zeros((n, 3))
+    no_damp = np.zeros(n)
+    free = ~a.held
+    d1, d2 = model.first.direction, model.last.direction
+    scale = model.spec.mass * float(np.linalg.norm(a.gravity)) + float(np.abs(fe).sum()) + 1e-30
+    floor = 1e3 * np.finfo(float).eps * float(np.max(a.k_stretch)) * (float(np.abs(x).max()) + model.spec.length)
+    target = max(tol * scale, floor)
+    f = np.zeros((n, 3))
+    jac = np.zeros((n, 5, 3, 3))
+    band = np.zeros((3 * n, 2 * HALF + 1))
+
+    def residual(xx: np.ndarray) -> tuple[np.ndarray, float]:
+        total_forces(xx, zeros_v, a.mass, no_damp, a.k_stretch, a.rest_length, a.k_bend, a.gravity, d1, d2, fe, f)
+        r = f.copy()
+        r[~free] = 0.0
+        return r, float(np.abs(r).max())
+
+    # Regularisation in units of M^-1 K: start tiny, grow when a step fails.
+    mu = 1e-8 * float(np.max(a.k_stretch) / np.min(a.mass))
+    r, res = residual(x)
+    pot = _potential(model, x, fe)
+    it = 0
+    while it < max_iter and res > target:
+        it += 1
+        force_jacobian(x, a.k_stretch, a.rest_length, a.k_bend, d1, d2, False, jac)
+        assemble_system(jac, mu * a.mass, no_damp, 1.0, 0.0, a.held, band)
+        rhs = r.reshape(-1).copy()
+        band_solve(band, rhs)
+        x_try = x + rhs.reshape(n, 3)
+        r_try, res_try = residual(x_try)
+        pot_try = _potential(model, x_try, fe)
+        if np.isfinite(res_try) and (pot_try <= pot or res_try < res):
+            x, r, res, pot = x_try, r_try, res_try, pot_try
+            mu *= 0.1
+        else:
+            mu = max(mu, 1e-12) * 10.0
+    return StaticResult(x, res, it, bool(res <= target))

@@ -1,0 +1,1 @@
+"""Headless rendering: renderers, cameras, the cable tube, video and force plots."""

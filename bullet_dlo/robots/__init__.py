@@ -1,0 +1,1 @@
+"""Robot arms (URDF as data), wrist force/torque sensors and the two-arm cable scene."""

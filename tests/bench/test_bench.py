@@ -1,0 +1,94 @@
+"""Benchmarks in --quick mode: the shape of the results (no speed assertions)."""
+from __future__ import annotations
+
+import csv
+import json
+
+import pytest
+
+from bullet_dlo.analysis.resolve import resolve
+from bullet_dlo.bench import scenarios as bench
+from bullet_dlo.cli.main import main
+from bullet_dlo.config.scene import Scene
+
+
+def test_work_precision_quick(tmp_path):
+    assert main(["bench", "work-precision", "--quick", "--out", str(tmp_path)]) == 0
+    rows = list(csv.DictReader(open(tmp_path / "work_precision.csv")))
+    methods = {r["integrator"] for r in rows}
+    assert methods == {"symplectic_euler", "rk4", "implicit_euler", "bdf2", "implicit_midpoint"}
+    assert {r["scenario"] for r in rows} == set(bench.SCENARIOS)
+    assert {r["engine"] for r in rows} == {"core", "bullet"}
+    unstable = [r for r in rows if r["stable"] == "False"]
+    assert unstable and all(r["integrator"] in ("symplectic_euler", "rk4") for r in unstable)  # 1.2x their limit
+    assert all(float(r["error"]) < 0.05 for r in rows if r["stable"] == "True" and r["scenario"] in ("S1", "S4"))
+    assert (tmp_path / "work_precision.png").stat().st_size > 10_000
+    summary = json.loads((tmp_path / "work_precision_summary.json").read_text())
+    # second-order energy-conserving midpoint keeps S2's oscillation, implicit Euler damps it away
+    assert summary["S2_amplitude/implicit_midpoint"] > 0.9 > summary["S2_amplitude/implicit_euler"]
+
+
+def test_resolve_meets_its_tolerance_and_picks_few_masses():
+    scene = Scene(cable=bench.s1_spec(10), ends=("clamped", "free"), duration=1.0, name="S1")
+    r = resolve(scene, 0.03, "shape")
+    check = bench.s1(r.n_masses, r.integrator, r.dt)
+    assert check.error <= 0.03
+    assert r.n_masses < 50 and r.predicted_error <= 0.03
+    with pytest.raises(Exception, match="tol"):
+        resolve(scene, -1.0)
+
+
+def test_scene_auto_resolution(tmp_path):
+    path = tmp_path / "auto.yaml"
+    path.write_text("""
+cable: {preset: lv2017, n_masses: auto, damping: 0.01}
+ends: {first: clamped, last: clamped}
+motion: [{end: last, displacement: [0, 0, 0.005], start: 0.2, duration: 0.1}]
+dt: auto
+duration: 0.6
+initial: static
+tolerance: {value: 0.05, target: forces}
+""")
+    out = tmp_path / "o.json"
+    assert main(["simulate", str(path), "--json", str(out)]) == 0
+    data = json.loads(out.read_text())
+    assert data["stable"] and 5 <= data["n_masses"] < 50
+    res = tmp_path / "r.json"
+    assert main(["resolve", str(path), "--tol", "0.05", "--target", "forces", "--json", str(res)]) == 0
+    r = json.loads(res.read_text())
+    for key in ("n_masses", "dt", "integrator", "predicted_error", "wall_time_per_sim_s"):
+        assert key in r
+    assert r["n_masses"] == data["n_masses"] and r["dt"] == data["dt"]
+
+
+def test_stability_and_scaling_quick(tmp_path):
+    assert main(["bench", "stability", "--quick", "--out", str(tmp_path)]) == 0
+    rows = json.loads((tmp_path / "stability.json").read_text())
+    for r in rows:
+        if r["predicted"] is not None:
+            assert r["measured"] == pytest.approx(r["predicted"], rel=0.05)  # bisection agrees with theory
+        else:
+            assert r["measured"] is not None  # implicit: stable at 1 kHz and 60 Hz
+    assert main(["bench", "scaling", "--quick", "--out", str(tmp_path)]) == 0
+    exponent = json.loads((tmp_path / "scaling.json").read_text())["exponent"]
+    assert 0.5 < exponent < 1.5  # linear-ish: the banded solve is O(n)
+
+
+def test_catenary_closed_form():
+    sag, h, v = bench.catenary(0.25, 0.3, 1.0)
+    assert v == pytest.approx(0.15)
+    a = h  # w = 1
+    assert 2 * a * __import__("math").sinh(0.25 / (2 * a)) == pytest.approx(0.3, rel=1e-9)
+    assert sag == pytest.approx(a * (__import__("math").cosh(0.25 / (2 * a)) - 1))
+
+
+def test_peers_quick(tmp_path):
+    """PyElastica and MuJoCo run the same cantilever; their whole-first-segment clamp shows as ~ -2/n."""
+    assert main(["bench", "peers", "--quick", "--out", str(tmp_path)]) == 0
+    data = json.loads((tmp_path / "peers.json").read_text())
+    points = data["points"]
+    assert {p["peer"] for p in points} == {"pyelastica", "mujoco"}
+    assert {p["scenario"] for p in points} == {"S1", "S2"}
+    s1 = [p for p in points if p["scenario"] == "S1" and p["stable"] and p["n"] == 10]
+    assert s1 and all(0.15 < p["error"] < 0.25 for p in s1)  # clamp bias: 2/n of the deflection
+    assert data["ours"]["S1"]["error"] <= 0.01 and data["ours"]["S2"]["error"] <= 0.01

@@ -1,0 +1,80 @@
+"""Static shapes against beam and bar theory, and the convergence order of both discretisations."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from bullet_dlo.analysis.closed_forms import (
+    cantilever_convergence,
+    cantilever_deflection,
+    cantilever_model,
+    hanging_elongation,
+    hanging_model,
+    small_deflection_spec,
+)
+from bullet_dlo.core.model import CableModel
+from bullet_dlo.core.spec import CableSpec
+from bullet_dlo.core.statics import solve_static
+
+
+@pytest.fixture(scope="module")
+def convergence():
+    return {r["n_masses"]: r for r in cantilever_convergence((5, 10, 20, 40))}
+
+
+def test_default_discretisation_meets_targets(convergence):
+    assert abs(convergence[10]["default"]) <= 0.02
+    assert abs(convergence[20]["default"]) <= 0.005
+
+
+def test_default_converges_at_second_order(convergence):
+    for n_coarse, n_fine in ((10, 20), (20, 40)):
+        # error ~ (L/(n-1))^2: halving the segment length quarters it
+        ratio = convergence[n_coarse]["default"] / convergence[n_fine]["default"]
+        h_ratio = (n_fine - 1) / (n_coarse - 1)
+        order = math.log(ratio) / math.log(h_ratio)
+        assert 1.9 < order < 2.1, order
+
+
+def test_paper_discretisation_is_first_order_and_worse(convergence):
+    for n_coarse, n_fine in ((10, 20), (20, 40)):
+        ratio = convergence[n_coarse]["paper"] / convergence[n_fine]["paper"]
+        order = math.log(ratio) / math.log((n_fine - 1) / (n_coarse - 1))
+        assert 0.8 < order < 1.2, order
+    for n in (5, 10, 20, 40):
+        assert abs(convergence[n]["paper"]) > 5 * abs(convergence[n]["default"])
+
+
+def test_cantilever_clamp_moment_balances_weight():
+    spec = small_deflection_spec(10)
+    model = cantilever_model(spec)
+    from bullet_dlo.core.kernels.forces import clamp_torque
+
+    res = solve_static(model)
+    tau = clamp_torque(res.x, model.arrays.k_bend, model.first.direction, model.last.direction, 0)
+    weight = spec.mass * 9.81
+    # moment of the weight about the clamp: (L/2) M g about +y (arm shortened by the tiny sag only)
+    assert tau[1] == pytest.approx(weight * spec.length / 2, rel=1e-3)
+    assert abs(tau[0]) < 1e-9 and abs(tau[2]) < 1e-9
+
+
+@pytest.mark.parametrize("n", [2, 5, 17])
+@pytest.mark.parametrize("modulus", [1e6, 126e6])
+def test_hanging_cable_stretch_matches_bar_theory(n, modulus):
+    spec = CableSpec.lv2017(n_masses=n, youngs_modulus=modulus)
+    res = solve_static(hanging_model(spec))
+    elongation = res.x[0, 2] - res.x[-1, 2] - spec.length
+    # geometric nonlinearity is strain^2-small; trapezoidal lumping makes the sum exact
+    assert elongation == pytest.approx(hanging_elongation(spec), rel=1e-3)
+
+
+def test_static_solver_reports_convergence():
+    spec = CableSpec.lv2017(n_masses=15)
+    model = CableModel.straight(spec, ends=("clamped", "clamped"))
+    res = solve_static(model)
+    assert res.converged and res.iterations < 50
+    assert np.all(np.isfinite(res.x))
+    assert res.x[7, 2] < 0.5  # it sags
+    assert cantilever_deflection(spec) > 0
