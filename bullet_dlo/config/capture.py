@@ -20,7 +20,7 @@ A spec (YAML or :class:`CaptureSpec`) gives, for each parameter, a distribution:
 
 Episode i's parameters depend only on (seed, i): its generator is seeded with [seed, i].
 ``n_masses: auto`` lets each episode pick its number of masses by a convergence test on its
-own scene (:func:`bullet_dlo.resolve.resolve_masses`, tolerance ``resolve_tol`` on end
+own scene (:func:`bullet_dlo.analysis.resolve.resolve_masses`, tolerance ``resolve_tol`` on end
 forces); the sampled damping is then the k_d of a 10-mass cable, rescaled to keep its rate.
 """
 from __future__ import annotations
@@ -33,12 +33,16 @@ from pathlib import Path
 from typing import Any, Mapping
 
 import numpy as np
-import yaml
 
-from bullet_dlo.core.validate import ParameterError, check_positive
+from bullet_dlo.config.loader import load_yaml
+from bullet_dlo.config.robot import robot_names
+from bullet_dlo.config.schema import one_of, only_keys, section
+from bullet_dlo.core.integrators import INTEGRATORS
+from bullet_dlo.core.validate import ParameterError, check_int, check_nonnegative, check_positive
 
 DISTS = ("uniform", "log_uniform", "normal", "choice", "fixed")
 POLICIES = ("reject", "implicit", "substeps")
+SPEC_KEYS = ("seed", "episode", "policy", "max_resamples", "camera", "sample", "resolve_tol")
 
 # parameter -> (kind, default distribution, allowed range) ; kind: float | int | str
 PARAMETERS: dict[str, tuple[str, dict, tuple]] = {
@@ -116,9 +120,7 @@ def parse_distribution(key: str, data: Mapping[str, Any]) -> Distribution:
     if key == "n_masses" and data == {"dist": "fixed", "value": "auto"}:
         return Distribution("fixed", value="auto")  # chosen per episode by resolve_masses
     kind, _, bounds = PARAMETERS[key]
-    dist = data.pop("dist", None)
-    if dist not in DISTS:
-        raise ParameterError(f"sample.{key}.dist must be one of {', '.join(DISTS)}, got {dist!r}")
+    dist = one_of(f"sample.{key}.dist", data.pop("dist", None), DISTS)
     allowed = {"uniform": {"low", "high"}, "log_uniform": {"low", "high"}, "normal": {"mean", "std"},
                "choice": {"values"}, "fixed": {"value"}}[dist]
     if set(data) != allowed:
@@ -176,46 +178,31 @@ class CaptureSpec:
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any]) -> "CaptureSpec":
-        if not isinstance(data, Mapping):
-            raise ParameterError("a capture spec must be a mapping")
-        allowed = {"seed", "episode", "policy", "max_resamples", "camera", "sample", "resolve_tol"}
-        unknown = sorted(set(data) - allowed)
-        if unknown:
-            raise ParameterError(f"unknown key(s) {', '.join(unknown)} in capture spec; allowed: "
-                                 f"{', '.join(sorted(allowed))}")
-        episode = dict(data.get("episode") or {})
-        bad = sorted(set(episode) - {"duration", "record_rate"})
-        if bad:
-            raise ParameterError(f"unknown key(s) {', '.join(bad)} in episode; allowed: duration, record_rate")
-        camera = dict(data.get("camera") or {})
-        bad = sorted(set(camera) - {"fps", "width", "height"})
-        if bad:
-            raise ParameterError(f"unknown key(s) {', '.join(bad)} in camera; allowed: fps, width, height")
-        policy = str(data.get("policy", "substeps"))
-        if policy not in POLICIES:
-            raise ParameterError(f"policy must be one of {', '.join(POLICIES)}, got {policy!r}")
-        sample = {k: parse_distribution(k, v) for k, v in (data.get("sample") or {}).items()}
+        """Validate a parsed spec; errors name the offending key (``sample.<parameter>``, ``episode.duration``)."""
+        data = section(data, "capture spec")
+        only_keys(data, SPEC_KEYS, "capture spec")
+        episode = section(data.get("episode"), "episode")
+        only_keys(episode, ("duration", "record_rate"), "episode")
+        camera = section(data.get("camera"), "camera")
+        only_keys(camera, ("fps", "width", "height"), "camera")
+        sample = {k: parse_distribution(k, v) for k, v in section(data.get("sample"), "sample").items()}
         for key in ("integrator", "robot"):
             if key in sample:
                 _check_names(key, sample[key])
-        seed = data.get("seed", 0)
-        if not isinstance(seed, int) or seed < 0:
-            raise ParameterError(f"seed must be an integer >= 0, got {seed!r}")
-        fps = float(camera.get("fps", 0.0))
-        if fps < 0:
-            raise ParameterError(f"camera.fps must be >= 0, got {fps}")
-        return cls(seed=seed, duration=check_positive("episode.duration", episode.get("duration", 2.0)),
+        return cls(seed=check_int("seed", data.get("seed", 0), 0),
+                   duration=check_positive("episode.duration", episode.get("duration", 2.0)),
                    record_rate=check_positive("episode.record_rate", episode.get("record_rate", 120.0)),
-                   policy=policy, max_resamples=int(data.get("max_resamples", 20)), camera_fps=fps,
-                   camera_width=int(camera.get("width", 160)), camera_height=int(camera.get("height", 120)),
+                   policy=one_of("policy", str(data.get("policy", "substeps")), POLICIES),
+                   max_resamples=check_int("max_resamples", data.get("max_resamples", 20), 1),
+                   camera_fps=check_nonnegative("camera.fps", camera.get("fps", 0.0)),
+                   camera_width=check_int("camera.width", camera.get("width", 160), 1),
+                   camera_height=check_int("camera.height", camera.get("height", 120), 1),
                    resolve_tol=check_positive("resolve_tol", data.get("resolve_tol", 0.02)), sample=sample)
 
     @classmethod
     def from_yaml(cls, path: str | Path) -> "CaptureSpec":
-        p = Path(path)
-        if not p.is_file():
-            raise ParameterError(f"capture spec {str(path)!r} does not exist")
-        return cls.from_dict(yaml.safe_load(p.read_text()))
+        """Load and validate a YAML capture spec."""
+        return cls.from_dict(load_yaml(path, "capture spec"))
 
     def to_dict(self) -> dict:
         """The spec in its YAML form (``from_dict(to_dict())`` round-trips)."""
@@ -244,9 +231,7 @@ class CaptureSpec:
 
 
 def _check_names(key: str, dist: Distribution) -> None:
-    from bullet_dlo.core.integrators import INTEGRATORS
-    from bullet_dlo.config.robot import robot_names
-
+    """A choice or fixed value of ``integrator`` or ``robot`` naming only known ones."""
     known = list(INTEGRATORS) if key == "integrator" else robot_names()
     values = list(dist.values or ()) + ([dist.value] if dist.value is not None else [])
     if dist.dist not in ("choice", "fixed"):

@@ -19,13 +19,14 @@ Schema (extra keys are rejected with a message naming them)::
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Mapping
 
 import numpy as np
-import yaml
 
+from bullet_dlo.config.loader import load_yaml
+from bullet_dlo.config.schema import keyed, one_of, only_keys, section
 from bullet_dlo.core.boundary import END_MODES, Move, parse_motion
 from bullet_dlo.core.engine import DetectorOptions, SimulationResult, simulate
 from bullet_dlo.core.integrators import INTEGRATORS, NewtonOptions, get_integrator
@@ -33,7 +34,7 @@ from bullet_dlo.core.model import STANDARD_GRAVITY, CableModel, CableState
 from bullet_dlo.core.spec import CableSpec
 from bullet_dlo.core.stability import critical_dt
 from bullet_dlo.core.statics import solve_static
-from bullet_dlo.core.validate import ParameterError, check_positive, check_vector3
+from bullet_dlo.core.validate import ParameterError, check_int, check_nonnegative, check_positive, check_vector3
 
 TOP_KEYS = ("cable", "layout", "ends", "motion", "gravity", "integrator", "dt", "duration",
             "initial", "detector", "newton", "name", "bullet", "tolerance")
@@ -41,15 +42,21 @@ BULLET_KEYS = ("ground", "ground_height", "ground_friction", "substeps", "self_c
 OBSTACLE_KEYS = {"box": ("half_extents", "position", "orientation", "mass", "friction", "name"),
                  "cylinder": ("radius", "height", "position", "orientation", "mass", "friction", "name"),
                  "urdf": ("path", "position", "orientation", "fixed", "name")}
+SELF_COLLISION = ("neighbours", "none", "all")
+SYNC = ("contacts", "always")
+INITIAL = ("straight", "static")
+TOLERANCE_TARGETS = ("forces", "shape", "both")
 
 
 @dataclass(frozen=True)
 class BulletOptions:
-    """The scene's ``bullet:`` section (used by ``--engine bullet`` only).
+    """The scene's ``bullet:`` section (used by ``--engine bullet`` only), validated on construction.
 
-    ground: add a ground plane at ground_height [m]; substeps: integrator steps per Bullet
-    step; self_collision: neighbours | none | all; sync: contacts | always; obstacles: list
-    of {type: box|cylinder|urdf, ...} (see README).
+    ground: add a ground plane at ground_height [m]; ground_friction: its lateral friction (>= 0);
+    substeps: integrator steps per Bullet step (>= 1); self_collision: neighbours | none | all;
+    sync: contacts | always; obstacles: {type: box|cylinder|urdf, ...} entries whose keys are
+    checked here and whose values are checked when :func:`bullet_dlo.bullet.world.build_world`
+    adds them (see README).
     """
 
     ground: bool = True
@@ -60,56 +67,32 @@ class BulletOptions:
     sync: str = "contacts"
     obstacles: tuple[dict, ...] = ()
 
+    def __post_init__(self) -> None:
+        # the same check_* helpers BulletWorld and BulletCable apply to these values
+        set_ = object.__setattr__
+        set_(self, "ground_friction", check_nonnegative("bullet.ground_friction", self.ground_friction))
+        set_(self, "substeps", check_int("bullet.substeps", self.substeps, 1))
+        set_(self, "self_collision", one_of("bullet.self_collision", self.self_collision, SELF_COLLISION))
+        set_(self, "sync", one_of("bullet.sync", self.sync, SYNC))
+
     @classmethod
-    def from_dict(cls, data: Mapping[str, Any]) -> "BulletOptions":
-        data = _mapping(data, "bullet")
-        _only(data, BULLET_KEYS, "bullet")
+    def from_dict(cls, data: Mapping[str, Any] | None) -> "BulletOptions":
+        """Validate a parsed ``bullet:`` section; errors name the offending key."""
+        data = section(data, "bullet")
+        only_keys(data, BULLET_KEYS, "bullet")
         obstacles = data.get("obstacles") or []
         if not isinstance(obstacles, list):
             raise ParameterError("bullet.obstacles must be a list")
-        checked = []
-        for k, ob in enumerate(obstacles):
-            ob = dict(_mapping(ob, f"bullet.obstacles[{k}]"))
-            kind = ob.pop("type", None)
-            if kind not in OBSTACLE_KEYS:
-                raise ParameterError(f"bullet.obstacles[{k}].type must be one of {', '.join(OBSTACLE_KEYS)}, "
-                                     f"got {kind!r}")
-            _only(ob, OBSTACLE_KEYS[kind], f"bullet.obstacles[{k}] ({kind})")
-            checked.append({"type": kind, **ob})
         kwargs = {k: data[k] for k in BULLET_KEYS if k in data and k != "obstacles"}
-        opts = cls(**kwargs, obstacles=tuple(checked))
-        from bullet_dlo.core.validate import check_int
-        _prefixed("bullet.substeps", check_int, "substeps", opts.substeps, 1)
-        if opts.self_collision not in ("neighbours", "none", "all"):
-            raise ParameterError(f"bullet.self_collision must be neighbours, none or all, got {opts.self_collision!r}")
-        if opts.sync not in ("contacts", "always"):
-            raise ParameterError(f"bullet.sync must be contacts or always, got {opts.sync!r}")
-        return opts
-INITIAL = ("straight", "static")
+        return cls(**kwargs, obstacles=tuple(_obstacle(k, ob) for k, ob in enumerate(obstacles)))
 
 
-def _mapping(value: Any, key: str) -> Mapping[str, Any]:
-    if value is None:
-        return {}
-    if not isinstance(value, Mapping):
-        raise ParameterError(f"{key} must be a mapping, got {type(value).__name__}")
-    return value
-
-
-def _only(data: Mapping[str, Any], allowed: tuple[str, ...], where: str) -> None:
-    unknown = sorted(set(data) - set(allowed))
-    if unknown:
-        raise ParameterError(f"unknown key(s) {', '.join(unknown)} in {where}; allowed: {', '.join(allowed)}")
-
-
-def _prefixed(where: str, fn, *args, **kwargs):
-    """Call fn, re-raising ParameterError with the scene key it came from."""
-    try:
-        return fn(*args, **kwargs)
-    except ParameterError as err:
-        raise ParameterError(f"{where}: {err}") from None
-    except TypeError as err:
-        raise ParameterError(f"{where}: {err}") from None
+def _obstacle(k: int, data: Any) -> dict:
+    """One ``bullet.obstacles`` entry with its type and keys checked."""
+    ob = dict(section(data, f"bullet.obstacles[{k}]"))
+    kind = one_of(f"bullet.obstacles[{k}].type", ob.pop("type", None), OBSTACLE_KEYS)
+    only_keys(ob, OBSTACLE_KEYS[kind], f"bullet.obstacles[{k}] ({kind})")
+    return {"type": kind, **ob}
 
 
 @dataclass(frozen=True)
@@ -139,82 +122,60 @@ class Scene:
     @classmethod
     def from_dict(cls, data: Mapping[str, Any]) -> "Scene":
         """Validate a parsed scene mapping; errors name the offending key."""
-        data = _mapping(data, "scene")
-        _only(data, TOP_KEYS, "scene")
+        data = section(data, "scene")
+        only_keys(data, TOP_KEYS, "scene")
         if "cable" not in data:
             raise ParameterError("cable: missing (give cable parameters or {preset: lv2017})")
-        cable_map = dict(_mapping(data["cable"], "cable"))
+        cable_map = dict(section(data["cable"], "cable"))
         auto_n = cable_map.get("n_masses") == "auto"
         if auto_n:
             cable_map["n_masses"] = 10  # placeholder until resolve() picks it
-        cable = _prefixed("cable", CableSpec.from_dict, cable_map)
+        cable = keyed("cable", CableSpec.from_dict, cable_map)
         auto_dt = data.get("dt") == "auto"
         if auto_dt:
             data = {**data, "dt": 1e-3}
-        tol = _mapping(data.get("tolerance"), "tolerance")
-        _only(tol, ("value", "target"), "tolerance")
-        tol_value = _prefixed("tolerance.value", check_positive, "tolerance", tol.get("value", 0.01))
-        tol_target = str(tol.get("target", "both"))
-        if tol_target not in ("forces", "shape", "both"):
-            raise ParameterError(f"tolerance.target must be forces, shape or both, got {tol_target!r}")
-        layout = _mapping(data.get("layout"), "layout")
-        _only(layout, ("start", "direction"), "layout")
-        start = tuple(_prefixed("layout.start", check_vector3, "start", layout.get("start", (0.0, 0.0, 0.5))))
-        direction = tuple(_prefixed("layout.direction", check_vector3, "direction",
-                                    layout.get("direction", (1.0, 0.0, 0.0)), unit=True))
-        ends_map = _mapping(data.get("ends"), "ends")
-        _only(ends_map, ("first", "last"), "ends")
-        ends = []
-        for key in ("first", "last"):
-            mode = str(ends_map.get(key, "clamped")).lower()
-            if mode not in END_MODES:
-                raise ParameterError(f"ends.{key} must be one of {', '.join(END_MODES)}, got {ends_map.get(key)!r}")
-            ends.append(mode)
-        motion = _prefixed("motion", parse_motion, data.get("motion"))
+        tol = section(data.get("tolerance"), "tolerance")
+        only_keys(tol, ("value", "target"), "tolerance")
+        tol_value = keyed("tolerance.value", check_positive, "tolerance", tol.get("value", 0.01))
+        tol_target = one_of("tolerance.target", str(tol.get("target", "both")), TOLERANCE_TARGETS)
+        layout = section(data.get("layout"), "layout")
+        only_keys(layout, ("start", "direction"), "layout")
+        start = tuple(keyed("layout.start", check_vector3, "start", layout.get("start", (0.0, 0.0, 0.5))))
+        direction = tuple(keyed("layout.direction", check_vector3, "direction",
+                                layout.get("direction", (1.0, 0.0, 0.0)), unit=True))
+        ends_map = section(data.get("ends"), "ends")
+        only_keys(ends_map, ("first", "last"), "ends")
+        ends = tuple(one_of(f"ends.{key}", str(ends_map.get(key, "clamped")).lower(), END_MODES)
+                     for key in ("first", "last"))
+        motion = keyed("motion", parse_motion, data.get("motion"))
         for mv in motion:
             if ends[0 if mv.end == "first" else 1] == "free":
                 raise ParameterError(f"motion: end '{mv.end}' is free; only pinned or clamped ends can be moved")
-        gravity = tuple(_prefixed("gravity", check_vector3, "gravity", data.get("gravity", STANDARD_GRAVITY)))
-        integrator = str(data.get("integrator", "implicit_euler"))
-        if integrator not in INTEGRATORS:
-            raise ParameterError(f"integrator must be one of {', '.join(INTEGRATORS)}, got {integrator!r}")
-        dt = _prefixed("dt", check_positive, "dt", data.get("dt", 1e-3))
-        duration = _prefixed("duration", check_positive, "duration", data.get("duration", 1.0))
+        gravity = tuple(keyed("gravity", check_vector3, "gravity", data.get("gravity", STANDARD_GRAVITY)))
+        integrator = one_of("integrator", str(data.get("integrator", "implicit_euler")), INTEGRATORS)
+        dt = keyed("dt", check_positive, "dt", data.get("dt", 1e-3))
+        duration = keyed("duration", check_positive, "duration", data.get("duration", 1.0))
         if duration / dt > 1e10:
             raise ParameterError(f"duration/dt = {duration / dt:.3g} steps; at most 1e10 steps per run")
-        initial = str(data.get("initial", "straight"))
-        if initial not in INITIAL:
-            raise ParameterError(f"initial must be one of {', '.join(INITIAL)}, got {initial!r}")
-        det = _mapping(data.get("detector"), "detector")
-        _only(det, ("max_strain", "energy_factor", "check_every", "energy_every"), "detector")
-        detector = DetectorOptions(**det)
-        nwt = _mapping(data.get("newton"), "newton")
-        _only(nwt, ("max_iter", "tol", "definite"), "newton")
-        newton = NewtonOptions(**nwt)
-        bullet = BulletOptions.from_dict(data.get("bullet"))
-        return cls(cable, start, direction, (ends[0], ends[1]), motion, gravity, integrator, dt, duration,
-                   initial, detector, newton, str(data.get("name", "scene")), bullet, auto_n, auto_dt,
-                   tol_value, tol_target)
+        initial = one_of("initial", str(data.get("initial", "straight")), INITIAL)
+        det = section(data.get("detector"), "detector")
+        only_keys(det, ("max_strain", "energy_factor", "check_every", "energy_every"), "detector")
+        nwt = section(data.get("newton"), "newton")
+        only_keys(nwt, ("max_iter", "tol", "definite"), "newton")
+        return cls(cable, start, direction, ends, motion, gravity, integrator, dt, duration, initial,
+                   DetectorOptions(**det), NewtonOptions(**nwt), str(data.get("name", "scene")),
+                   BulletOptions.from_dict(data.get("bullet")), auto_n, auto_dt, tol_value, tol_target)
 
     @classmethod
     def from_yaml(cls, path: str | Path) -> "Scene":
         """Load and validate a YAML scene file."""
-        p = Path(path)
-        if not p.is_file():
-            raise ParameterError(f"scene file {str(path)!r} does not exist")
-        try:
-            data = yaml.safe_load(p.read_text())
-        except yaml.YAMLError as err:
-            raise ParameterError(f"scene file {str(path)!r} is not valid YAML: {str(err).splitlines()[0]}") from None
-        return cls.from_dict(data)
+        return cls.from_dict(load_yaml(path, "scene file"))
 
     # ----- running -------------------------------------------------------------------------
     def resolved(self) -> "Scene":
-        """This scene with ``n_masses: auto`` / ``dt: auto`` replaced by :func:`bullet_dlo.resolve.resolve`'s choice."""
+        """This scene with ``n_masses: auto`` / ``dt: auto`` replaced by :func:`bullet_dlo.analysis.resolve.resolve`'s choice."""
         if not (self.auto_n or self.auto_dt):
             return self
-        from dataclasses import replace
-
         from bullet_dlo.analysis.resolve import resolve
 
         r = resolve(self, self.tolerance, self.tolerance_target)

@@ -1,0 +1,53 @@
+"""The one YAML reader of scene files, capture specs and robot descriptions.
+
+Every failure to turn a path into parsed data (missing file, a directory, bytes that are
+not UTF-8, invalid YAML, a Python object tag) becomes one :class:`ParameterError` line that
+names the file and, for syntax errors, the line and column. Only ``yaml.safe_load`` is
+used: a file can hold plain data, never Python objects.
+"""
+from __future__ import annotations
+
+import os
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from bullet_dlo.core.validate import ParameterError
+
+
+def load_yaml(path: str | os.PathLike, what: str = "file") -> Any:
+    """Parse the YAML file at ``path``; ``what`` names it in errors (``scene file``, ``capture spec``).
+
+    Returns whatever the file holds (a mapping for every schema of this package; None when empty).
+    """
+    name = f"{what} {str(path)!r}"
+    p = Path(path)
+    if not p.exists():
+        raise ParameterError(f"{name} does not exist")
+    if p.is_dir():
+        raise ParameterError(f"{name} is a directory, not a YAML file")
+    try:
+        text = p.read_bytes().decode("utf-8")
+    except UnicodeDecodeError as err:
+        raise ParameterError(f"{name} is not UTF-8 text (byte {err.start} is {err.object[err.start]:#04x})") from None
+    except OSError as err:
+        raise ParameterError(f"{name} cannot be read: {err.strerror}") from None
+    try:
+        return yaml.safe_load(text)
+    except yaml.YAMLError as err:
+        raise ParameterError(f"{name} is not valid YAML{_where(err)}: {_problem(err)}") from None
+
+
+def _where(err: yaml.YAMLError) -> str:
+    mark = getattr(err, "problem_mark", None)
+    return "" if mark is None else f" (line {mark.line + 1}, column {mark.column + 1})"
+
+
+def _problem(err: yaml.YAMLError) -> str:
+    problem = getattr(err, "problem", None) or str(err).splitlines()[0]
+    if isinstance(err, yaml.constructor.ConstructorError) and "python/" in problem:
+        return "Python object tags (!!python/...) are not allowed; write plain values"
+    if isinstance(err, yaml.constructor.ConstructorError):
+        return f"{problem}; only standard YAML tags are allowed"
+    return problem

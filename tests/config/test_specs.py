@@ -1,0 +1,99 @@
+"""Scene and capture specs: validated once, on construction, with errors that name the key."""
+from __future__ import annotations
+
+import dataclasses
+from pathlib import Path
+
+import pytest
+
+from bullet_dlo.config.capture import CaptureSpec
+from bullet_dlo.config.scene import BulletOptions, Scene
+from bullet_dlo.core.validate import ParameterError
+
+ROOT = Path(__file__).resolve().parents[2]
+CABLE = {"preset": "lv2017", "n_masses": 8}
+
+
+@pytest.mark.parametrize(
+    "section,needle",
+    [
+        ({"substeps": 0}, "bullet.substeps must be an integer >= 1, got 0"),
+        ({"substeps": 1.5}, "bullet.substeps must be an integer >= 1"),
+        ({"self_collision": "some"}, "bullet.self_collision must be one of neighbours, none, all, got 'some'"),
+        ({"sync": "never"}, "bullet.sync must be one of contacts, always, got 'never'"),
+        ({"ground_friction": -0.1}, "bullet.ground_friction must be a finite number >= 0"),
+        ({"gravity": 1}, "unknown key(s) gravity in bullet; allowed: ground,"),
+        ({"obstacles": {"type": "box"}}, "bullet.obstacles must be a list"),
+        ({"obstacles": [{"type": "cone"}]}, "bullet.obstacles[0].type must be one of box, cylinder, urdf, got 'cone'"),
+        ({"obstacles": [{"type": "box", "radius": 1}]}, "unknown key(s) radius in bullet.obstacles[0] (box)"),
+        ({"obstacles": [[1, 2]]}, "bullet.obstacles[0] must be a mapping, got list"),
+    ],
+)
+def test_bullet_section_errors_name_the_key(section, needle):
+    with pytest.raises(ParameterError) as info:
+        Scene.from_dict({"cable": CABLE, "bullet": section})
+    assert needle in str(info.value)
+
+
+def test_bullet_options_are_checked_on_construction_too():
+    """The same checks whether the options come from a file or from code."""
+    with pytest.raises(ParameterError, match="bullet.substeps"):
+        BulletOptions(substeps=0)
+    with pytest.raises(ParameterError, match="bullet.sync"):
+        BulletOptions(sync="sometimes")
+    opts = BulletOptions.from_dict({"substeps": 3.0, "ground_friction": 1, "obstacles": [
+        {"type": "box", "half_extents": [0.1, 0.1, 0.1], "position": [0, 0, 0.1]}]})
+    assert opts.substeps == 3 and isinstance(opts.substeps, int) and opts.ground_friction == 1.0
+    assert opts.obstacles == ({"type": "box", "half_extents": [0.1, 0.1, 0.1], "position": [0, 0, 0.1]},)
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        opts.substeps = 2  # type: ignore[misc]
+    assert BulletOptions.from_dict(None) == BulletOptions()
+
+
+@pytest.mark.parametrize(
+    "edit,needle",
+    [
+        ({"tolerance": {"target": "speed"}}, "tolerance.target must be one of forces, shape, both, got 'speed'"),
+        ({"initial": "bent"}, "initial must be one of straight, static, got 'bent'"),
+        ({"layout": [0, 0, 1]}, "layout must be a mapping, got list"),
+        ({"detector": {"max_strain": 0.5, "every": 2}}, "unknown key(s) every in detector"),
+    ],
+)
+def test_scene_errors_name_the_key(edit, needle):
+    with pytest.raises(ParameterError) as info:
+        Scene.from_dict({"cable": CABLE, **edit})
+    assert needle in str(info.value)
+
+
+@pytest.mark.parametrize(
+    "data,needle",
+    [
+        ({"seed": -1}, "seed must be an integer >= 0, got -1"),
+        ({"seed": True}, "seed must be an integer >= 0"),
+        ({"policy": "retry"}, "policy must be one of reject, implicit, substeps, got 'retry'"),
+        ({"episode": [2.0]}, "episode must be a mapping, got list"),
+        ({"episode": {"length": 2.0}}, "unknown key(s) length in episode; allowed: duration, record_rate"),
+        ({"episode": {"duration": 0}}, "episode.duration must be a finite number > 0"),
+        ({"camera": {"fps": -1}}, "camera.fps must be a finite number >= 0"),
+        ({"camera": {"width": "wide"}}, "camera.width must be an integer >= 1, got 'wide'"),
+        ({"max_resamples": 0}, "max_resamples must be an integer >= 1"),
+        ({"sample": ["dt"]}, "sample must be a mapping, got list"),
+        ({"sample": {"integrator": {"dist": "uniform", "low": 0, "high": 1}}}, "sample.integrator"),
+        ({"seeds": 1}, "unknown key(s) seeds in capture spec"),
+    ],
+)
+def test_capture_spec_errors_name_the_key(data, needle):
+    with pytest.raises(ParameterError) as info:
+        CaptureSpec.from_dict(data)
+    assert needle in str(info.value)
+
+
+def test_capture_spec_round_trips_and_keeps_its_digest():
+    """The digest ties a capture directory to its spec: it must not change across releases,
+    or ``--resume`` would refuse directories captured before."""
+    spec = CaptureSpec.from_yaml(ROOT / "demos" / "specs" / "dr_small.yaml")
+    assert CaptureSpec.from_dict(spec.to_dict()) == spec
+    assert spec.digest() == "8b3a7c464c6f30fa"
+    assert CaptureSpec().digest() == "e883660e79932801"
+    assert spec.draw(3) == CaptureSpec.from_dict(spec.to_dict()).draw(3) != spec.draw(4)
+    assert spec.camera_width == 160 and isinstance(spec.camera_width, int) and spec.seed == 7
