@@ -8,6 +8,8 @@ Typical use::
                                 motion=[Move("last", (0, 0, 0.005), start=0.5, duration=0.1)])
     result = simulate(model, "implicit_euler", dt=1e-3, duration=2.0)
 """
+import importlib
+
 from bullet_dlo._numba_cache import ensure_fresh_cache
 
 ensure_fresh_cache()  # before any kernel loads from the on-disk cache
@@ -42,12 +44,18 @@ _aliases.install()
 
 
 def __getattr__(name: str):
-    """``bullet_dlo.Scene`` lives in the config layer (it reads YAML); import it on first use."""
+    """Names loaded on first use: ``Scene`` (the config layer reads YAML) and the 0.1 module paths.
+
+    ``import bullet_dlo; bullet_dlo.stability.critical_dt(...)`` worked in 0.1 and keeps working
+    through the alias (with its DeprecationWarning); see :mod:`bullet_dlo._aliases`.
+    """
     if name == "Scene":
         from bullet_dlo.config.scene import Scene
 
         return Scene
-    raise AttributeError(f"module 'bullet_dlo' has no attribute {name!r}")
+    if f"{__name__}.{name}" in _aliases.OLD_TO_NEW:
+        return importlib.import_module(f"{__name__}.{name}")
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 __all__ = [
