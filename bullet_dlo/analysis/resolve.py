@@ -25,13 +25,19 @@ from dataclasses import asdict, dataclass, field, replace
 
 import numpy as np
 
-from bullet_dlo.core.engine import simulate
+from bullet_dlo.analysis.closed_forms import with_damping_rate
+from bullet_dlo.analysis.measures import force_error, shape_error
+from bullet_dlo.core.engine import SimulationResult, simulate
+from bullet_dlo.core.spec import CableSpec
 from bullet_dlo.core.validate import ParameterError, check_positive
 
 TARGETS = ("forces", "shape", "both")
-MASSES = (5, 7, 10, 14, 20, 28, 40, 56, 80)
-STEPS = (1 / 60, 1 / 120, 1 / 240, 1 / 500, 1e-3, 5e-4, 2.5e-4)
+N_MASSES = (5, 7, 10, 14, 20, 28, 40, 56, 80)
+"""Numbers of masses tried, fewest first."""
+DTS = (1 / 60, 1 / 120, 1 / 240, 1 / 500, 1e-3, 5e-4, 2.5e-4)
+"""Time steps tried [s], largest first."""
 INTEGRATORS = ("implicit_euler", "bdf2")
+"""Integrators tried, cheapest first."""
 
 
 @dataclass
@@ -55,102 +61,92 @@ class Resolution:
         return asdict(self)
 
 
-def _quantities(scene, n: int, integrator: str, dt: float, rollout: float):
-    """End forces over time (k, 2, 3) [N], final positions (n, 3) [m], wall/sim-s, stable."""
-    # keep the damping *rate* gamma = k_d n / M, not k_d, when n changes (k_d is per mass)
-    cable = scene.cable.with_(n_masses=n, damping=scene.cable.damping * scene.cable.n_masses / n)
-    s = replace(scene, cable=cable, integrator=integrator, dt=dt, duration=rollout)
+def _cable(scene, n: int) -> CableSpec:
+    """The scene's cable with n masses and the scene's damping *rate* gamma = k_d n / M (k_d is per mass)."""
+    return with_damping_rate(scene.cable.with_(n_masses=n), scene.cable.damping_rate)
+
+
+def _rollout(scene, n: int, integrator: str, dt: float, rollout: float) -> tuple[SimulationResult, float]:
+    """A ``rollout``-second run of the scene with n masses: (result, wall time per simulated second [s])."""
+    s = replace(scene, cable=_cable(scene, n), integrator=integrator, dt=dt, duration=rollout)
     model = s.build_model()
     res = simulate(model, integrator, dt, rollout, state=s.initial_state(model), max_records=201,
                    newton=s.newton, detector=s.detector)
     return res, res.wall_time_s / max(res.steps * dt, 1e-12)
 
 
-def _blocks(res, block: float = 0.2) -> np.ndarray:
-    """Mean end forces over consecutive blocks of ``block`` seconds, (k, 2, 3)."""
-    edges = np.arange(res.t[0], res.t[-1] + 1e-12, block)
-    rows = [res.end_forces[(res.t >= lo) & (res.t < hi)].mean(axis=0) for lo, hi in zip(edges[:-1], edges[1:])]
-    return np.array(rows) if rows else res.end_forces[-1:]
+def _difference(a: SimulationResult, b: SimulationResult, target: str, length: float) -> float:
+    """Relative difference of run ``a`` from run ``b`` in what the scene needs.
 
-
-def _difference(a, b, target: str, length: float, n_a: int, n_b: int) -> float:
-    """Relative difference of two runs in what the scene needs."""
+    forces: end forces as a 5 Hz force sensor sees them (0.2 s means; pointwise force histories
+    of lightly damped cables carry stiff modes that refining n only adds to); shape: the final
+    shapes, relative to how far the cable moved from its start (1e-3 L at least).
+    """
     errs = []
     if target in ("forces", "both"):
-        # end forces as a 5 Hz force sensor sees them: means over 0.2 s blocks (pointwise force
-        # histories of lightly damped cables carry stiff modes that refining n only adds to)
-        fa, fb = _blocks(a), _blocks(b)
-        scale = max(float(np.max(np.abs(b.end_forces))), 1e-12)
-        errs.append(float(np.sqrt(np.mean(np.sum((fa - fb) ** 2, axis=-1)))) / scale)
+        errs.append(force_error(a.t, a.end_forces, b.t, b.end_forces))
     if target in ("shape", "both"):
-        # final shape, relative to how far the cable moved from its start (1e-3 L at least)
-        xa, xb = a.final_state.x, b.final_state.x
-        sa, sb = np.linspace(0, 1, n_a), np.linspace(0, 1, n_b)
-        xi = np.stack([np.interp(sb, sa, xa[:, j]) for j in range(3)], axis=1)
         moved = float(np.max(np.linalg.norm(b.x[-1] - b.x[0], axis=1)))
-        errs.append(float(np.max(np.linalg.norm(xi - xb, axis=1))) / max(moved, 1e-3 * length))
+        errs.append(shape_error(a.final_state.x, b.final_state.x, max(moved, 1e-3 * length)))
     return max(errs)
 
 
-def _resolve_masses(scene, tol, target, rollout, masses, fine_dt, trials):
+def _resolve_masses(scene, tol, target, rollout, n_masses, fine_dt, trials):
     """Spatial part: the fewest masses whose estimated error is within half of ``tol``.
 
     Returns (n, estimated spatial error, the n-mass run at the fine step).
     """
     length = scene.cable.length
-    for n in masses:
-        a, _ = _quantities(scene, n, "bdf2", fine_dt, rollout)
-        b, _ = _quantities(scene, 2 * n - 1, "bdf2", fine_dt, rollout)
+    for n in n_masses:
+        a, _ = _rollout(scene, n, "bdf2", fine_dt, rollout)
+        b, _ = _rollout(scene, 2 * n - 1, "bdf2", fine_dt, rollout)
         if not (a.stable and b.stable):
             trials.append({"n": n, "spatial": None, "note": "unstable"})
             continue
         # twice the segments of a second-order discretisation: error(n) ~ 4/3 of the difference
-        err = 4.0 / 3.0 * _difference(a, b, target, length, n, 2 * n - 1)
+        err = 4.0 / 3.0 * _difference(a, b, target, length)
         trials.append({"n": n, "spatial": err})
         if err <= 0.5 * tol:
             return n, err, a
-    raise ParameterError(f"no n up to {max(masses)} meets tol = {tol} on {target}; loosen the tolerance")
+    raise ParameterError(f"no n up to {max(n_masses)} meets tol = {tol} on {target}; loosen the tolerance")
 
 
 def resolve_masses(scene, tol: float = 0.02, target: str = "forces", rollout: float | None = None) -> tuple[int, float]:
-    """Only the number of masses (the step and integrator stay the scene's): (n, k_d for that n).
+    """Only the number of masses (the step and integrator stay the scene's): (n, k_d [N s/m] for that n).
 
     k_d keeps the scene's damping rate gamma = k_d n / M (see module doc).
     """
     rollout = min(scene.duration, 2.0) if rollout is None else rollout
-    n, _, _ = _resolve_masses(scene, check_positive("tol", tol), target, rollout, MASSES, 1e-3, [])
-    return n, scene.cable.damping * scene.cable.n_masses / n
+    n, _, _ = _resolve_masses(scene, check_positive("tol", tol), target, rollout, N_MASSES, 1e-3, [])
+    return n, _cable(scene, n).damping
 
 
 def resolve(scene, tol: float = 0.01, target: str = "both", rollout: float | None = None,
-            masses=MASSES, steps=STEPS, integrators=INTEGRATORS) -> Resolution:
+            n_masses=N_MASSES, dts=DTS, integrators=INTEGRATORS) -> Resolution:
     """Fewest masses, cheapest integrator and largest step meeting ``tol`` on ``target``.
 
-    scene: a :class:`bullet_dlo.scene.Scene` (its n_masses, dt and integrator are what is chosen);
-    rollout: seconds simulated per trial (default: the scene's duration, at most 2 s).
+    scene: a :class:`bullet_dlo.config.scene.Scene` (its n_masses, dt and integrator are what is chosen);
+    rollout: seconds simulated per trial (default: the scene's duration, at most 2 s);
+    n_masses, dts [s], integrators: the candidates, tried fewest, largest and cheapest first.
     """
     tol = check_positive("tol", tol)
     if target not in TARGETS:
         raise ParameterError(f"target must be one of {', '.join(TARGETS)}, got {target!r}")
     rollout = min(scene.duration, 2.0) if rollout is None else check_positive("rollout", rollout)
-    fine_dt = min(steps) / 2
-    if fine_dt > 1e-3:
-        fine_dt = 1e-3
+    fine_dt = min(min(dts) / 2, 1e-3)
     trials: list = []
-    chosen_n, spatial, reference = _resolve_masses(scene, tol, target, rollout, masses, fine_dt, trials)
-    length = scene.cable.length
-    for dt in sorted(steps, reverse=True):
+    chosen_n, spatial, reference = _resolve_masses(scene, tol, target, rollout, n_masses, fine_dt, trials)
+    for dt in sorted(dts, reverse=True):
         for integ in integrators:
-            res, cost = _quantities(scene, chosen_n, integ, dt, rollout)
+            res, cost = _rollout(scene, chosen_n, integ, dt, rollout)
             if not res.stable:
                 trials.append({"n": chosen_n, "dt": dt, "integrator": integ, "temporal": None})
                 continue
-            err = _difference(res, reference, target, length, chosen_n, chosen_n)
+            err = _difference(res, reference, target, scene.cable.length)
             trials.append({"n": chosen_n, "dt": dt, "integrator": integ, "temporal": err})
             if err <= 0.5 * tol:
-                res, cost = _quantities(scene, chosen_n, integ, dt, rollout)  # again, compiled: a fair cost
-                damping = scene.cable.damping * scene.cable.n_masses / chosen_n
-                return Resolution(chosen_n, dt, integ, damping, spatial + err, spatial, err, cost, target, tol, rollout,
-                                  trials)
-    raise ParameterError(f"n = {chosen_n} meets the spatial part, but no step down to {min(steps)} s meets "
+                res, cost = _rollout(scene, chosen_n, integ, dt, rollout)  # again, compiled: a fair cost
+                return Resolution(chosen_n, dt, integ, _cable(scene, chosen_n).damping, spatial + err, spatial, err,
+                                  cost, target, tol, rollout, trials)
+    raise ParameterError(f"n = {chosen_n} meets the spatial part, but no step down to {min(dts)} s meets "
                          f"the temporal part of tol = {tol}")

@@ -63,17 +63,18 @@ def run_cell(youngs_modulus: float, n_masses: int, dt: float, integrator: str, *
 
 def paper_table(
     moduli: Sequence[float] = PAPER_E,
-    masses: Sequence[int] = PAPER_N,
-    steps: Sequence[float] = PAPER_DT,
+    n_masses: Sequence[int] = PAPER_N,
+    dts: Sequence[float] = PAPER_DT,
     integrators: Sequence[str] = PAPER_INTEGRATORS,
     *,
     damping: float = 0.01,
     duration: float = 0.25,
     progress: Callable[[PaperRun], None] | None = None,
 ) -> list[PaperRun]:
-    """Run every combination; ``progress`` is called after each cell."""
+    """Run every combination of Young's modulus [Pa], number of masses, time step [s] and integrator;
+    ``progress`` is called after each cell."""
     runs = []
-    for e, n, dt, integ in itertools.product(moduli, masses, steps, integrators):
+    for e, n, dt, integ in itertools.product(moduli, n_masses, dts, integrators):
         run = run_cell(e, n, dt, integ, damping=damping, duration=duration)
         runs.append(run)
         if progress:
@@ -113,11 +114,11 @@ def format_table(runs: Iterable[PaperRun]) -> str:
     return "\n".join(lines)
 
 
-def robot_rate_table(moduli: Sequence[float] = PAPER_E, masses: Sequence[int] = PAPER_N,
+def robot_rate_table(moduli: Sequence[float] = PAPER_E, n_masses: Sequence[int] = PAPER_N,
                      integrators: Sequence[str] = ("symplectic_euler", "implicit_euler", "bdf2", "implicit_midpoint"),
                      *, damping: float = 0.01, duration: float = 2.0) -> list[PaperRun]:
     """The same scenario at the robot simulators' fixed rates (1 kHz, 60 Hz)."""
-    return paper_table(moduli, masses, tuple(ROBOT_RATES.values()), integrators, damping=damping, duration=duration)
+    return paper_table(moduli, n_masses, tuple(ROBOT_RATES.values()), integrators, damping=damping, duration=duration)
 
 
 __all__ = ["paper_table", "robot_rate_table", "format_table", "run_cell", "study_model", "PaperRun",

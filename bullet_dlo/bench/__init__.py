@@ -1,1 +1,2 @@
-"""Benchmarks: scenarios with known answers, work-precision sweeps, stability maps, peers."""
+"""Benchmarks: scenarios (S1-S4 with their references) · sweeps (work-precision, stability map,
+scaling) · plots · peers (PyElastica and MuJoCo on S1/S2; runners in peer_pyelastica, peer_mujoco)."""

@@ -1,59 +1,76 @@
-"""``bullet-dlo bench ...``: run a benchmark, print ratios, write CSV/JSON and charts."""
+"""``bullet-dlo bench ...``: run a benchmark, print what it found, write CSV/JSON and charts into ``--out``.
+
+Progress and ETA go to stderr (tqdm); ``--quiet`` leaves only the results.
+"""
 from __future__ import annotations
 
+import argparse
+import functools
 import json
-import math
+import os
+import sys
 from dataclasses import asdict
 from pathlib import Path
 
-from bullet_dlo.bench import scenarios as bench
+from tqdm import tqdm
+
+from bullet_dlo.analysis.closed_forms import cantilever_deflection, cantilever_frequency
+from bullet_dlo.bench import peers as peer_mod
+from bullet_dlo.bench import plots, sweeps
+from bullet_dlo.bench.scenarios import s1, s1_spec, s3, s3_model, s4, s4_model
 from bullet_dlo.core.engine import simulate
 from bullet_dlo.core.integrators import INTEGRATORS
+
+TOL = 0.01  # "equal accuracy": 1 % relative error
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """The options every bench command takes."""
+    parser.add_argument("--out", default=os.path.join("out", "bench"), help="output folder (default out/bench)")
+    parser.add_argument("--quick", action="store_true", help="a few points only (seconds to minutes; for CI)")
+    parser.add_argument("--quiet", action="store_true", help="no progress bars, only the results")
+
+
+def _progress(args, desc: str, unit: str = "run"):
+    """A tqdm wrapper for a sweep's ``progress`` argument: bar and ETA on stderr unless --quiet."""
+    return functools.partial(tqdm, desc=desc, unit=unit, file=sys.stderr, leave=False,
+                             disable=bool(getattr(args, "quiet", False)))
+
+
+def _out(args) -> Path:
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    return out
 
 
 def _warm_up() -> None:
     """Compile every kernel once so that no measured run pays for it."""
-    model = bench.s3_model(6)
+    model = s3_model(6)
     for name in INTEGRATORS:
         simulate(model, name, 1e-5, 1e-4, max_records=3)
 
 
-def _cheapest(rows, scenario, tol):
-    """Cheapest stable point per (integrator, engine) with error <= tol (None if none)."""
-    out = {}
-    for r in rows:
-        if r.scenario == scenario and r.stable and r.error <= tol:
-            key = (r.integrator, r.engine)
-            if key not in out or r.wall_per_sim_s < out[key].wall_per_sim_s:
-                out[key] = r
-    return out
-
-
 def work_precision(args) -> int:
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
+    out = _out(args)
     _warm_up()
-    masses = (10, 20) if args.quick else (10, 20, 40)
-    rows = bench.work_precision(masses=masses, quick=args.quick)
-    bullet_rows = bench.work_precision(scenarios=("S1", "S3"), integrators=("implicit_euler", "bdf2"),
-                                       masses=(10,) if args.quick else (10, 20, 40), engines=("bullet",),
-                                       quick=True)
-    rows += bullet_rows
-    peers = []
+    quick = args.quick
+    cases = sweeps.work_precision_cases(n_masses=(10, 20) if quick else (10, 20, 40), quick=quick)
+    cases += sweeps.work_precision_cases(scenarios=("S1", "S3"), integrators=("implicit_euler", "bdf2"),
+                                         n_masses=(10,) if quick else (10, 20, 40), engines=("bullet",), quick=True)
+    rows = sweeps.work_precision(cases, _progress(args, "work-precision"))
     peers_file = out / "peers.json"
-    if peers_file.is_file():
-        peers = json.loads(peers_file.read_text()).get("points", [])
-    bench.write_csv(rows, out / "work_precision.csv")
-    bench.plot_work_precision(rows, out / "work_precision.png", peers)
-    print(f"{len(rows)} runs ({sum(not r.stable for r in rows)} unstable, marked x) -> {out / 'work_precision.png'}")
-    print("\ncheapest configuration reaching 1 % (wall time per simulated second):")
+    peer_points = json.loads(peers_file.read_text()).get("points", []) if peers_file.is_file() else []
+    sweeps.write_csv(rows, out / "work_precision.csv")
+    png = plots.plot_work_precision(rows, out / "work_precision.png", peer_points)
+    print(f"{len(rows)} runs ({sum(not r.stable for r in rows)} unstable, marked x) -> {png}")
+    print(f"\ncheapest configuration reaching {TOL:.0%} (wall time per simulated second):")
     summary = {}
     for sc in ("S1", "S2"):
-        for (name, engine), r in sorted(_cheapest(rows, sc, 0.01).items()):
+        for (name, engine), r in sorted(sweeps.cheapest(rows, sc, TOL).items()):
             print(f"  {sc} {name:18s} {engine:6s} n={r.n:3d} dt={r.dt:.3g}s error={r.error:.4f} "
                   f"cost={r.wall_per_sim_s:.4g} s")
             summary[f"{sc}/{name}/{engine}"] = asdict(r)
-    print("\namplitude kept after 1 s in S2 at 1 kHz (n = 20; 1 = no numerical damping):")
+    print("\namplitude kept over the last period of S2 at 1 kHz (n = 20; 1 = no numerical damping):")
     for r in rows:
         if r.scenario == "S2" and r.n == 20 and r.engine == "core" and abs(r.dt - 1e-3) < 1e-12 and r.stable:
             print(f"  {r.integrator:18s} {r.extra:.3f}")
@@ -63,28 +80,28 @@ def work_precision(args) -> int:
 
 
 def stability(args) -> int:
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
+    out = _out(args)
     moduli = (1e6, 1e8, 1e10) if args.quick else (1e6, 1e7, 1e8, 1e9, 1e10)
-    rows = bench.stability_map(moduli, (10,) if args.quick else (10, 40))
+    rows = sweeps.stability_map(moduli, (10,) if args.quick else (10, 40),
+                                progress=_progress(args, "stability", "cable"))
     (out / "stability.json").write_text(json.dumps(rows, indent=2))
-    bench.plot_stability_map(rows, out / "stability.png")
+    png = plots.plot_stability_map(rows, out / "stability.png")
+    rates = " and ".join(f"{dt:.3g} s" for dt in sweeps.ROBOT_DTS)
     print(f"{'E [Pa]':>8s} {'n':>3s} {'integrator':18s} {'predicted [s]':>14s} {'measured [s]':>13s}")
     for r in rows:
         pred = "-" if r["predicted"] is None else f"{r['predicted']:.4g}"
         meas = "unstable" if r["measured"] is None else f"{r['measured']:.4g}"
         if r["predicted"] is None and r["measured"] is not None:
-            meas = "stable at 1 ms and 1/60 s"
+            meas = f"stable at {rates}"
         print(f"{r['youngs_modulus']:8.0e} {r['n_masses']:3d} {r['integrator']:18s} {pred:>14s} {meas:>13s}")
-    print(f"-> {out / 'stability.png'}")
+    print(f"-> {png}")
     return 0
 
 
 def scaling(args) -> int:
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    masses = (50, 100, 200) if args.quick else (50, 100, 200, 500, 1000)
-    rows, exponent = bench.implicit_scaling(masses)
+    out = _out(args)
+    n_masses = (50, 100, 200) if args.quick else (50, 100, 200, 500, 1000)
+    rows, exponent = sweeps.implicit_scaling(n_masses, progress=_progress(args, "scaling", "cable"))
     for r in rows:
         print(f"  n={r['n_masses']:5d}: {1e6 * r['seconds_per_step']:.1f} us per implicit Euler step")
     print(f"cost ~ n^{exponent:.2f}")
@@ -97,100 +114,76 @@ def resolve_check(args) -> int:
     from bullet_dlo.analysis.resolve import resolve
     from bullet_dlo.config.scene import Scene
 
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    tol = 0.05 if args.quick else 0.01
+    out = _out(args)
+    tol = 0.05 if args.quick else TOL
     cases = {
-        "S1": (Scene(cable=bench.s1_spec(10), ends=("clamped", "free"), duration=1.0, name="S1"), "shape", bench.s1),
-        "S3": (Scene(cable=bench.s3_model(10).spec, motion=bench.s3_model(10).last.moves, duration=0.6,
-                     initial="static", name="S3"), "forces", bench.s3),
-        "S4": (Scene(cable=bench.s4_model(10).spec, ends=("pinned", "pinned"),
-                     motion=bench.s4_model(10).last.moves, duration=2.0, name="S4"), "both", bench.s4),
+        "S1": (Scene(cable=s1_spec(10), ends=("clamped", "free"), duration=1.0, name="S1"), "shape", s1),
+        "S3": (Scene(cable=s3_model(10).spec, motion=s3_model(10).last.moves, duration=0.6, initial="static",
+                     name="S3"), "forces", s3),
+        "S4": (Scene(cable=s4_model(10).spec, ends=("pinned", "pinned"), motion=s4_model(10).last.moves,
+                     duration=2.0, name="S4"), "both", s4),
     }
-    results = {}
-    for name, (scene, target, runner) in cases.items():
+    results, lines = {}, []
+    for name in _progress(args, "resolve", "scene")(list(cases)):
+        scene, target, runner = cases[name]
         r = resolve(scene, tol, target)
         check = runner(r.n_masses, r.integrator, r.dt)
-        results[name] = dict(r.to_dict(), measured_error=check.error, meets=bool(check.error <= tol))
-        print(f"{name}: n={r.n_masses} {r.integrator} dt={r.dt:.4g}s predicted {r.predicted_error:.4f}, "
-              f"measured against the reference {check.error:.4f} (tol {tol}): {'ok' if check.error <= tol else 'MISSED'}")
+        meets = bool(check.error <= tol)
+        results[name] = dict(r.to_dict(), measured_error=check.error, meets=meets)
+        lines.append(f"{name}: n={r.n_masses} {r.integrator} dt={r.dt:.4g}s predicted {r.predicted_error:.4f}, "
+                     f"measured against the reference {check.error:.4f} (tol {tol}): {'ok' if meets else 'MISSED'}")
+    print("\n".join(lines))
     (out / "resolve.json").write_text(json.dumps(results, indent=2, default=float))
     return 0
 
 
 def peers(args) -> int:
-    from bullet_dlo.bench import peers as peer_mod
-
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    avail = peer_mod.available()
-    print("peers available:", avail)
+    """PyElastica and MuJoCo on S1 and S2 next to our cheapest run at 1 %; MuJoCo's warnings go to
+    ``peers_warnings.log`` in the output folder and are counted per point in ``peers.json``."""
+    out = _out(args)
+    available = peer_mod.available()
+    print("peers available:", available)
     _warm_up()
-    spec = bench.s1_spec(10)  # the stiff cantilever of S1/S2: tip deflects 1e-3 L, f1 = 36 Hz
-    L, d, M, E = spec.length, spec.diameter, spec.mass, spec.youngs_modulus
-    f1 = bench.cantilever_frequency(spec)
-    delta = bench.cantilever_deflection(spec)
-    points = []
+    spec = s1_spec(10)  # the stiff cantilever of S1/S2: tip deflects 1e-3 L, f1 = 36 Hz
     # both peers clamp the whole first segment (-2/n of the tip deflection), so 1 % needs n ~ 200
-    ns = (10, 20) if args.quick else (10, 40, 120, 250)
-    configs = [("pyelastica", "PositionVerlet", 5e-7)]  # stable up to ~5e-7 s for this stiff rod
-    configs += [("mujoco", "discrete", 1e-3), ("mujoco", "RK4", 1e-4)]
-    for peer, integ, dt in configs:
-        fn = getattr(peer_mod, f"run_{peer}", None)
-        if not avail.get(peer) or fn is None:
-            continue
-        for n in ns:
-            if peer == "pyelastica" and n > 120 and args.quick:
-                continue
-            for mode, sc in (("static", "S1"), ("free", "S2")):
-                kwargs = {"integrator": integ} if peer == "mujoco" else {}
-                dur = 0.1 if mode == "static" else 0.15  # free: ~5 periods of the 36 Hz mode
-                try:
-                    res = fn(L, d, M, E, n, dt, mode, dur, **kwargs)
-                except Exception as err:  # noqa: BLE001 - a peer failing is a result
-                    print(f"  {peer} {integ} n={n} dt={dt:g} {mode}: failed ({err})")
-                    continue
-                err = None
-                if res.stable and mode == "static" and res.tip_deflection is not None:
-                    err = abs(res.tip_deflection / delta - 1)
-                if res.stable and mode == "free" and res.frequency:
-                    err = abs(res.frequency / f1 - 1)
-                cost = res.wall_time_s / max(res.sim_time_s, 1e-12)
-                points.append(dict(label=f"{peer} ({integ})", peer=peer, integrator=integ, scenario=sc, n=n, dt=dt,
-                                   stable=res.stable, error=err, wall_per_sim_s=cost,
-                                   amplitude_kept=res.amplitude_kept, note=res.note))
-                print(f"  {peer:10s} {integ:14s} {sc} n={n:3d} dt={dt:.0e} stable={res.stable} error="
-                      f"{'-' if err is None else f'{err:.4f}'} amplitude={res.amplitude_kept} cost={cost:.4g} s/s",
-                      flush=True)
-    (out / "peers.json").write_text(json.dumps({"points": points}, indent=2, default=float))
-    # ours: fastest configuration at 1 % on S1 and on S2's frequency
-    ours = {}
-    for sc, runner in (("S1", bench.s1), ("S2", bench.s2)):
-        best = None
-        for n in (10, 20, 40):
-            for name in ("implicit_euler", "bdf2", "implicit_midpoint"):
-                for dt in (1 / 60, 1 / 240, 1e-3):
-                    p = runner(n, name, dt)
-                    if p.stable and p.error <= 0.01 and (best is None or p.wall_per_sim_s < best.wall_per_sim_s):
-                        best = p
-        ours[sc] = best
+    n_masses = {"pyelastica": (10,), "mujoco": (10, 20)} if args.quick else \
+        {"pyelastica": (10, 40, 120, 250), "mujoco": (10, 40, 120, 250)}
+    points, log = [], []
+    for case in _progress(args, "peers")(peer_mod.peer_cases(n_masses, available)):
+        point, warnings = case.run(spec)
+        points.append(point)
+        log += [f"{case.peer} {case.integrator} {case.scenario} n={case.n} dt={case.dt:g}: {w}" for w in warnings]
+    (out / "peers_warnings.log").write_text("".join(line + "\n" for line in log))
+    for p in points:
+        err = "-" if p["error"] is None else f"{p['error']:.4f}"
+        kept = "-" if p["amplitude_kept"] is None else f"{p['amplitude_kept']:.3f}"
+        print(f"  {p['peer']:10s} {p['integrator']:14s} {p['scenario']} n={p['n']:3d} dt={p['dt']:.0e} "
+              f"stable={p['stable']!s:5s} error={err:7s} amplitude kept={kept:6s} cost={p['wall_per_sim_s']:.4g} s/s"
+              + (f" ({p['warnings']} MuJoCo warnings)" if p["warnings"] else ""))
+    if log:
+        print(f"{len(log)} peer warnings -> {out / 'peers_warnings.log'}")
+
+    ours_cases = [sweeps.Case(sc, "core", name, n, dt) for sc in ("S1", "S2") for n in (10, 20, 40)
+                  for name in ("implicit_euler", "bdf2", "implicit_midpoint") for dt in (1 / 60, 1 / 240, 1e-3)]
+    rows = sweeps.work_precision(ours_cases, _progress(args, "ours"))
+    ours = {sc: sweeps.fastest(rows, sc, TOL) for sc in ("S1", "S2")}
+    for sc, best in ours.items():
         if best:
             print(f"ours {sc}: {best.integrator} n={best.n} dt={best.dt:.3g}: error {best.error:.4f}, "
                   f"{best.wall_per_sim_s:.4g} s/s")
-    ratios = {}
-    for peer in ("pyelastica", "mujoco"):
-        for sc in ("S1", "S2"):
-            ok = [p for p in points if p["peer"] == peer and p["scenario"] == sc and p["stable"] and p["error"] is not None
-                  and p["error"] <= 0.01]
-            if ok and ours.get(sc):
-                cheapest = min(p["wall_per_sim_s"] for p in ok)
-                ratios[f"{peer}/{sc}"] = cheapest / ours[sc].wall_per_sim_s
-                print(f"equal accuracy (1 %) on {sc}: {peer} needs {ratios[f'{peer}/{sc}']:.0f}x our wall time")
+    ratios = peer_mod.equal_accuracy_ratios(points, {sc: b.wall_per_sim_s if b else None for sc, b in ours.items()},
+                                            TOL)
+    for peer in dict.fromkeys(p["peer"] for p in points):
+        for sc in ours:
+            if f"{peer}/{sc}" in ratios:
+                print(f"equal accuracy ({TOL:.0%}) on {sc}: {peer} needs {ratios[f'{peer}/{sc}']:.0f}x our wall time")
             else:
-                best_err = min([p["error"] for p in points if p["peer"] == peer and p["scenario"] == sc
-                                and p["error"] is not None] or [math.nan])
-                print(f"equal accuracy (1 %) on {sc}: {peer} did not reach 1 % in this sweep (best {best_err:.3f})")
-    (out / "peers.json").write_text(json.dumps({"points": points, "ratios": ratios,
+                errors = [p["error"] for p in points if p["peer"] == peer and p["scenario"] == sc and p["error"]]
+                best = f"{min(errors):.3f}" if errors else "none stable"
+                print(f"equal accuracy ({TOL:.0%}) on {sc}: {peer} did not reach it in this sweep (best {best})")
+    closed = {"tip_deflection_m": cantilever_deflection(spec), "frequency_hz": cantilever_frequency(spec)}
+    (out / "peers.json").write_text(json.dumps({"points": points, "ratios": ratios, "closed_forms": closed,
+                                                "warnings": len(log),
                                                 "ours": {k: (asdict(v) if v else None) for k, v in ours.items()}},
                                                indent=2, default=float))
     return 0

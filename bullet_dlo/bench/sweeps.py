@@ -1,0 +1,139 @@
+"""Sweeps over the scenarios: work-precision, stability map, cost of the implicit solve.
+
+Each sweep first lists its cases, then runs them through ``progress`` (any wrapper of a
+sequence that yields its items, e.g. ``tqdm``), so that a caller can show progress and ETA.
+"""
+from __future__ import annotations
+
+import csv
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Callable, Iterable, Sequence, TypeVar
+
+import numpy as np
+
+from bullet_dlo.analysis.study import study_model
+from bullet_dlo.bench.scenarios import RUNNERS, SCENARIOS, BenchPoint, scenario_model
+from bullet_dlo.core.engine import DetectorOptions, simulate
+from bullet_dlo.core.integrators import INTEGRATORS
+from bullet_dlo.core.model import CableModel
+from bullet_dlo.core.spec import CableSpec
+from bullet_dlo.core.stability import critical_dt, measured_critical_dt
+from bullet_dlo.core.statics import solve_static
+
+T = TypeVar("T")
+Progress = Callable[[Sequence[T]], Iterable[T]]
+ROBOT_DTS = (1e-3, 1 / 60)
+"""Time steps of the robot simulators [s]: Gazebo at 1 kHz, Isaac Sim at 60 Hz."""
+
+
+def _no_progress(items: Sequence[T]) -> Iterable[T]:
+    return items
+
+
+# ----- work-precision ----------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Case:
+    """One work-precision run: scenario, engine, integrator, number of masses n, time step dt [s]."""
+
+    scenario: str
+    engine: str
+    integrator: str
+    n: int
+    dt: float
+
+    def run(self) -> BenchPoint:
+        return RUNNERS[self.scenario](self.n, self.integrator, self.dt, self.engine)
+
+
+def default_dts(integrator: str, quick: bool, critical: float | None = None) -> list[float]:
+    """Time steps [s] to sweep: robot rates and below for implicit methods; fractions of the
+    predicted limit ``critical`` [s] for explicit ones (and one step beyond it, to show the failure)."""
+    if INTEGRATORS[integrator].explicit:
+        fractions = (1.2, 0.9, 0.3) if quick else (1.2, 0.9, 0.5, 0.2)
+        return [f * critical for f in fractions] if critical else []
+    return [1e-3, 1 / 240] if quick else [1 / 60, 1 / 240, 1e-3, 5e-4, 2e-4]
+
+
+def work_precision_cases(scenarios: Sequence[str] = SCENARIOS, integrators: Iterable[str] | None = None,
+                         n_masses: Sequence[int] = (10, 20, 40), engines: Sequence[str] = ("core",),
+                         quick: bool = False) -> list[Case]:
+    """Every scenario x engine x integrator x n x dt (explicit Euler is left out: it needs heavy
+    damping to be stable at all, which would change the scenarios)."""
+    names = list(integrators or [i for i in INTEGRATORS if i != "explicit_euler"])
+    cases = []
+    for sc in scenarios:
+        for name in names:
+            for n in n_masses:
+                dts = default_dts(name, quick, critical_dt(scenario_model(sc, n), name))
+                cases += [Case(sc, engine, name, n, dt) for engine in engines for dt in dts]
+    return cases
+
+
+def work_precision(cases: Sequence[Case], progress: Progress = _no_progress) -> list[BenchPoint]:
+    """Run ``cases`` (from :func:`work_precision_cases`)."""
+    return [case.run() for case in progress(cases)]
+
+
+def cheapest(rows: Sequence[BenchPoint], scenario: str, tol: float) -> dict[tuple[str, str], BenchPoint]:
+    """Cheapest stable run per (integrator, engine) of ``scenario`` with error <= ``tol``."""
+    out: dict[tuple[str, str], BenchPoint] = {}
+    for r in rows:
+        if r.scenario == scenario and r.stable and r.error <= tol:
+            key = (r.integrator, r.engine)
+            if key not in out or r.wall_per_sim_s < out[key].wall_per_sim_s:
+                out[key] = r
+    return out
+
+
+def fastest(rows: Sequence[BenchPoint], scenario: str, tol: float) -> BenchPoint | None:
+    """The cheapest stable run of ``scenario`` with error <= ``tol`` over every method, or None."""
+    return min(cheapest(rows, scenario, tol).values(), key=lambda r: r.wall_per_sim_s, default=None)
+
+
+def write_csv(rows: Sequence[BenchPoint], path: str | Path) -> Path:
+    """One CSV row per :class:`BenchPoint`."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with open(path, "w", newline="") as fh:
+        writer = csv.DictWriter(fh, fieldnames=list(asdict(rows[0])))
+        writer.writeheader()
+        writer.writerows(asdict(r) for r in rows)
+    return path
+
+
+# ----- stability map -----------------------------------------------------------------------------
+def stability_map(moduli: Sequence[float] = (1e6, 1e7, 1e8, 1e9, 1e10), n_masses: Sequence[int] = (10, 40),
+                  integrators: Sequence[str] = ("symplectic_euler", "rk4"), duration: float = 0.2,
+                  implicit_dts: Sequence[float] = ROBOT_DTS, progress: Progress = _no_progress) -> list[dict]:
+    """Largest stable dt [s] (bisection on ``duration``-second runs) and the predicted one, per E [Pa],
+    n and explicit method (study's scenario, k_d = 0.01 N s/m); implicit Euler and BDF2 are
+    checked at ``implicit_dts`` instead (measured: the largest of them if stable at all, else None)."""
+    rows = []
+    for e, n in progress([(e, n) for e in moduli for n in n_masses]):
+        model = study_model(e, n, 0.01)
+        start = solve_static(model).state()
+        for name in integrators:
+            rows.append(dict(youngs_modulus=e, n_masses=n, integrator=name, predicted=critical_dt(model, name),
+                             measured=measured_critical_dt(model, name, duration, state=start, rel_tol=0.02)))
+        for name in ("implicit_euler", "bdf2"):
+            ok = all(simulate(model, name, dt, 1.0, state=start, max_records=3).stable for dt in implicit_dts)
+            rows.append(dict(youngs_modulus=e, n_masses=n, integrator=name, predicted=None,
+                             measured=max(implicit_dts) if ok else None))
+    return rows
+
+
+# ----- cost of the implicit solve ----------------------------------------------------------------
+def implicit_scaling(n_masses: Sequence[int] = (50, 100, 200, 500, 1000), n_steps: int = 200,
+                     progress: Progress = _no_progress) -> tuple[list[dict], float]:
+    """Wall time per implicit-Euler step [s] vs n (``n_steps`` steps of 1 ms each), and the fitted
+    exponent p of cost ~ n^p."""
+    rows = []
+    for n in progress(list(n_masses)):
+        model = CableModel.straight(CableSpec.lv2017(n_masses=n, damping=0.01), ends=("clamped", "clamped"))
+        simulate(model, "implicit_euler", 1e-3, 5e-3, max_records=3)  # warm the caches
+        res = simulate(model, "implicit_euler", 1e-3, n_steps * 1e-3, max_records=3,
+                       detector=DetectorOptions(energy_every=10**6))
+        rows.append({"n_masses": n, "seconds_per_step": res.wall_time_s / res.steps})
+    exponent = np.polyfit(np.log([r["n_masses"] for r in rows]), np.log([r["seconds_per_step"] for r in rows]), 1)[0]
+    return rows, float(exponent)
