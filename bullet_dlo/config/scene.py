@@ -173,7 +173,8 @@ class Scene:
 
     # ----- running -------------------------------------------------------------------------
     def resolved(self) -> "Scene":
-        """This scene with ``n_masses: auto`` / ``dt: auto`` replaced by :func:`bullet_dlo.analysis.resolve.resolve`'s choice."""
+        """This scene with ``n_masses: auto`` / ``dt: auto`` replaced by the choice of
+        :func:`bullet_dlo.analysis.resolve.resolve`."""
         if not (self.auto_n or self.auto_dt):
             return self
         from bullet_dlo.analysis.resolve import resolve

@@ -1,0 +1,84 @@
+"""Planning an episode: its drawn parameters after the stability-aware policy.
+
+Every episode is checked against the core's stability analysis before it runs. When the
+drawn integrator cannot run the drawn step stably (beyond ``SAFETY`` x its critical step),
+the spec's policy decides: ``reject`` the sample and draw again (up to ``max_resamples``),
+switch to ``implicit`` Euler, or split each Bullet step into integrator ``substeps``. The
+decision is returned with the parameters and stored with the episode.
+"""
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from bullet_dlo.analysis.resolve import resolve_masses
+from bullet_dlo.config.capture import CaptureSpec
+from bullet_dlo.config.scene import Scene
+from bullet_dlo.core.boundary import Move
+from bullet_dlo.core.model import CableModel
+from bullet_dlo.core.spec import CableSpec
+from bullet_dlo.core.stability import critical_dt
+
+SAFETY = 0.9  # run explicit methods at most at 0.9 x their predicted critical step
+MAX_SUBSTEPS = 2000
+
+
+def plan_episode(spec: CaptureSpec, index: int) -> tuple[dict[str, Any], dict[str, Any]]:
+    """Parameters of episode ``index`` after the stability policy, and the recorded decision.
+
+    The decision holds the policy, the drawn integrator's critical step [s] (None: unconditionally
+    stable), the number of draws, the action taken, the substeps and the resolved number of
+    masses (``n_masses: auto`` only).
+    """
+    attempt = 0
+    while True:
+        params = spec.draw(index, attempt)
+        resolved_n = None
+        if params["n_masses"] == "auto":
+            params["n_masses"], params["damping"] = auto_masses(spec, params)
+            resolved_n = params["n_masses"]
+        model = CableModel.straight(cable_spec(params), ends=("clamped", "clamped"))
+        crit = critical_dt(model, params["integrator"])
+        decision = {"policy": spec.policy, "critical_dt": crit, "attempts": attempt + 1, "action": "none",
+                    "substeps": 1, "resolved_n_masses": resolved_n}
+        if crit is None or params["dt"] <= SAFETY * crit:
+            return params, decision
+        if spec.policy == "reject" and attempt + 1 < spec.max_resamples:
+            attempt += 1
+            continue
+        if spec.policy == "substeps" and crit and params["dt"] / (SAFETY * crit) <= MAX_SUBSTEPS:
+            decision["substeps"] = int(math.ceil(params["dt"] / (SAFETY * crit)))
+            decision["action"] = f"substeps x{decision['substeps']}"
+            return params, decision
+        decision["action"] = f"switched {params['integrator']} -> implicit_euler"
+        if spec.policy == "reject":
+            decision["action"] += f" after {attempt + 1} rejected samples"
+        params["integrator"] = "implicit_euler"
+        return params, decision
+
+
+def auto_masses(spec: CaptureSpec, params: dict[str, Any]) -> tuple[int, float]:
+    """Number of masses and its k_d [N s/m] for ``n_masses: auto``: a convergence test on the
+    episode's own motion (both ends clamped, the right end's move), end forces within ``spec.resolve_tol``."""
+    displacement, duration = gripper_move(params)
+    motion = (Move("last", displacement, params["move_start"], duration),) if duration > 0 else ()
+    scene = Scene(cable=cable_spec({**params, "n_masses": 10}), motion=motion, duration=spec.duration,
+                  initial="static", name="episode")
+    return resolve_masses(scene, spec.resolve_tol, "forces")
+
+
+def gripper_move(params: dict[str, Any]) -> tuple[np.ndarray, float]:
+    """The right gripper's straight move: displacement [m], shape (3,), and its duration [s] at
+    the drawn ``speed`` [m/s] (0 when the displacement is zero: no move)."""
+    displacement = np.array([params["displacement_x"], params["displacement_y"], params["displacement_z"]])
+    distance = float(np.linalg.norm(displacement))
+    return displacement, distance / params["speed"]
+
+
+def cable_spec(params: dict[str, Any]) -> CableSpec:
+    """The drawn cable."""
+    return CableSpec(length=params["length"], diameter=params["diameter"], mass=params["mass"],
+                     youngs_modulus=params["youngs_modulus"], n_masses=params["n_masses"],
+                     damping=params["damping"], friction=params["friction"])

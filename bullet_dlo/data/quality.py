@@ -1,0 +1,56 @@
+"""Force quality of an episode, and the histograms that show it across a dataset."""
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Iterable
+
+import numpy as np
+
+HF_CUTOFF = 10.0  # [Hz] above this, force variance counts as oscillation
+
+
+def quality_metrics(t: np.ndarray, sensor: np.ndarray, model: np.ndarray, cutoff: float = HF_CUTOFF) -> dict:
+    """Force-quality numbers of an episode.
+
+    Args:
+        t: sample times [s], shape (k,).
+        sensor: wrist-sensor forces [N], shape (k, 2, 3) (left, right).
+        model: the cable model's end forces [N], shape (k, 2, 3).
+        cutoff: frequency [Hz] above which variance counts as high-frequency.
+
+    Returns:
+        hf_energy: share of the sensor force's variance above ``cutoff`` (oscillation);
+        peak_to_mean: max |F| / mean |F| of the sensor force; sensor_model_rms: RMS of
+        |F_sensor - F_model| [N]. NaN for fewer than 4 samples.
+    """
+    if len(t) < 4:
+        return {"hf_energy": float("nan"), "peak_to_mean": float("nan"), "sensor_model_rms": float("nan")}
+    dt = float(np.median(np.diff(t)))
+    sig = sensor.reshape(len(t), -1) - sensor.reshape(len(t), -1).mean(axis=0)
+    power = np.abs(np.fft.rfft(sig, axis=0)) ** 2
+    freq = np.fft.rfftfreq(len(t), dt)
+    total = power[1:].sum()
+    hf = float(power[freq > cutoff].sum() / total) if total > 0 else 0.0
+    mag = np.linalg.norm(sensor, axis=2)
+    return {"hf_energy": hf, "peak_to_mean": float(mag.max() / max(mag.mean(), 1e-12)),
+            "sensor_model_rms": float(np.sqrt(np.mean(np.sum((sensor - model) ** 2, axis=2))))}
+
+
+def plot_quality(records: Iterable[dict], png: str | Path) -> None:
+    """Histograms of the episodes' high-frequency share and sensor-model RMS, written to ``png``."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    metrics = [r["metrics"] for r in records if r.get("metrics")]
+    fig, axes = plt.subplots(1, 2, figsize=(9, 3.5))
+    axes[0].hist([m["hf_energy"] for m in metrics], bins=20)
+    axes[0].set_xlabel(f"high-frequency share of the F/T signal (> {HF_CUTOFF:g} Hz)")
+    axes[1].hist([m["sensor_model_rms"] for m in metrics], bins=20)
+    axes[1].set_xlabel("RMS |sensor - model end force| [N]")
+    for ax in axes:
+        ax.set_ylabel("episodes")
+    fig.tight_layout()
+    fig.savefig(png, dpi=100)
+    plt.close(fig)

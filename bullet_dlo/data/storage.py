@@ -1,0 +1,165 @@
+"""A capture directory on disk: atomic HDF5 episode files, the manifest, the spec it belongs to.
+
+Layout of a capture directory::
+
+    capture.json            the spec and its digest: a directory never mixes specs
+    manifest.jsonl          one JSON record per finished episode (written by the coordinator only)
+    episode_000012.h5       one file per episode, written as ``*.h5.tmp-<pid>`` and renamed when complete
+
+A manifest record holds ``episode``, ``file``, ``status`` (ok | flagged | failed), ``error``,
+``time_to_instability``, ``reason``, ``params``, ``decision`` and ``metrics``. A finished
+episode file carries everything needed to rebuild its record, so a manifest line lost to a
+kill is recovered from the file.
+"""
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from bullet_dlo.config.capture import CaptureSpec
+from bullet_dlo.core.validate import ParameterError
+
+MANIFEST = "manifest.jsonl"
+SPEC_FILE = "capture.json"
+JSON_ATTRS = ("params", "decision", "metrics")  # episode attributes stored as JSON text
+
+
+def version() -> str:
+    """The package version stored with every episode."""
+    from bullet_dlo import __version__
+
+    return __version__
+
+
+def episode_name(index: int) -> str:
+    """File name of episode ``index``."""
+    return f"episode_{index:06d}.h5"
+
+
+# ----- records ---------------------------------------------------------------------------------
+def episode_result(index: int, file: str, stable: bool, time_to_instability: float | None, reason: str | None,
+                   params: dict, decision: dict, metrics: dict) -> dict[str, Any]:
+    """The manifest record of a finished episode (``flagged`` when it went unstable)."""
+    return {"episode": index, "file": file, "status": "ok" if stable else "flagged", "error": None,
+            "time_to_instability": time_to_instability, "reason": reason, "params": params, "decision": decision,
+            "metrics": metrics}
+
+
+def failed_record(index: int, error: str, **extra: Any) -> dict[str, Any]:
+    """The manifest record of an episode that did not finish (``extra``: e.g. its traceback)."""
+    return {"episode": index, "file": None, "status": "failed", "error": error, **extra}
+
+
+# ----- episode files ---------------------------------------------------------------------------
+def write_episode(out_dir: str | Path, index: int, arrays: dict[str, np.ndarray], attrs: dict[str, Any],
+                  frames: np.ndarray | None = None, frame_t: np.ndarray | None = None) -> str:
+    """Write episode ``index`` atomically (temporary name, then rename); returns its file name.
+
+    arrays: the recorded columns, written in their order; attrs: scalar or JSON-able
+    attributes (``params``, ``decision``, ``metrics`` dicts are stored as JSON text);
+    frames: RGB frames, shape (f, h, w, 3) uint8, stored gzip-compressed one frame per chunk,
+    with their times ``frame_t`` [s], shape (f,). No timestamps: equal episodes give equal bytes.
+    """
+    import h5py
+
+    name = episode_name(index)
+    final = Path(out_dir) / name
+    tmp = final.with_suffix(f".h5.tmp-{os.getpid()}")
+    with h5py.File(tmp, "w", libver="latest") as f:
+        for key, arr in arrays.items():
+            f.create_dataset(key, data=arr, track_times=False)
+        if frames is not None and len(frames):
+            f.create_dataset("frames", data=frames, track_times=False, compression="gzip", compression_opts=4,
+                             chunks=(1,) + frames.shape[1:])
+            f.create_dataset("frame_t", data=frame_t, track_times=False)
+        for k, v in attrs.items():
+            f.attrs[k] = json.dumps(v, sort_keys=True) if k in JSON_ATTRS else v
+    os.replace(tmp, final)
+    return name
+
+
+def episode_record(path: Path) -> dict | None:
+    """Rebuild the manifest record of a finished episode file; an unreadable file is deleted (None)."""
+    import h5py
+
+    try:
+        with h5py.File(path, "r") as f:
+            a = f.attrs
+            t_bad = float(a["time_to_instability"])
+            return episode_result(int(a["episode"]), path.name, bool(a["stable"]), None if t_bad < 0 else t_bad,
+                                  None, *(json.loads(a[k]) for k in JSON_ATTRS))
+    except Exception:  # noqa: BLE001 - a corrupt file is re-run
+        path.unlink(missing_ok=True)
+        return None
+
+
+# ----- manifest and directory ------------------------------------------------------------------
+def read_manifest(out: Path) -> dict[int, dict]:
+    """Manifest records by episode index (the last line of an episode wins)."""
+    records: dict[int, dict] = {}
+    path = out / MANIFEST
+    if path.is_file():
+        for line in path.read_text().splitlines():
+            try:
+                rec = json.loads(line)
+            except json.JSONDecodeError:
+                continue  # a line cut by a kill: the episode will be reconciled or re-run
+            records[int(rec["episode"])] = rec
+    return records
+
+
+def append_manifest(out: Path, record: dict) -> None:
+    """Append one record and flush it to disk before returning."""
+    path = out / MANIFEST
+    with open(path, "a") as fh:
+        if _ends_mid_line(path):
+            fh.write("\n")  # a line cut by a kill: start a fresh one, or both lines are lost
+        fh.write(json.dumps(record, sort_keys=True, default=float) + "\n")
+        fh.flush()
+        os.fsync(fh.fileno())
+
+
+def _ends_mid_line(path: Path) -> bool:
+    """True if the file is non-empty and its last byte is not a newline."""
+    with open(path, "rb") as fh:
+        if fh.seek(0, os.SEEK_END) == 0:
+            return False
+        fh.seek(-1, os.SEEK_END)
+        return fh.read(1) != b"\n"
+
+
+def is_capture_dir(root: Path) -> bool:
+    """True if ``root`` holds a capture (its spec file)."""
+    return (root / SPEC_FILE).is_file()
+
+
+def prepare(spec: CaptureSpec, out: Path, resume: bool) -> dict[int, dict]:
+    """Claim ``out`` for ``spec`` (or check it holds this spec), clean temporaries, reconcile finished
+    files whose manifest line was lost; returns the manifest records."""
+    out.mkdir(parents=True, exist_ok=True)
+    meta = out / SPEC_FILE
+    if meta.is_file():
+        old = json.loads(meta.read_text())
+        if old.get("digest") != spec.digest():
+            raise ParameterError(f"{out} holds a capture of a different spec (digest {old.get('digest')} vs "
+                                 f"{spec.digest()}); use another directory")
+        if not resume and read_manifest(out):
+            raise ParameterError(f"{out} already holds episodes of this spec; pass --resume to continue")
+    else:
+        meta.write_text(json.dumps({"digest": spec.digest(), "spec": spec.to_dict(), "version": version()},
+                                   indent=2, default=str))
+    for tmp in out.glob("*.tmp-*"):
+        tmp.unlink()
+    records = read_manifest(out)
+    for path in sorted(out.glob("episode_*.h5")):
+        index = int(path.stem.split("_")[1])
+        if index not in records or records[index].get("status") == "failed":
+            rec = episode_record(path)
+            if rec is not None:
+                append_manifest(out, rec)
+                records[index] = rec
+    return records
