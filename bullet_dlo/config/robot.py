@@ -1,18 +1,21 @@
-"""Robot descriptions as data: ``robots/<name>.yaml`` read into :class:`RobotSpec`.
+"""Robot descriptions and the dual-arm scene, as data.
 
-A description names the arm's URDF (from ``pybullet_data``), an optional gripper from the
-project's ``urdf/`` with its mount, the F/T sensor joint, the grasp link, the fingers and
-the home pose. Loading and composing the URDF is the robots layer's job
-(:func:`bullet_dlo.robots.compose.robot_urdf`).
+:class:`RobotSpec`: ``robots/<name>.yaml``, naming the arm's URDF (from ``pybullet_data``), an
+optional gripper from the project's ``urdf/`` with its mount, the F/T sensor joint, the grasp
+link, the fingers and the home pose. :class:`DualArmSpec`: two such arms holding a cable.
+Loading, composing and simulating them is the robots layer's job (:mod:`bullet_dlo.robots`).
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import yaml
 
 from bullet_dlo.assets import ROBOTS_DIR
-from bullet_dlo.core.validate import ParameterError
+from bullet_dlo.core.spec import CableSpec
+from bullet_dlo.core.validate import ParameterError, check_int, check_nonnegative, check_positive
+
+MIN_TABLE_CLEARANCE = 0.05  # [m] the held ends stay this far above the table top
 
 
 @dataclass(frozen=True)
@@ -55,3 +58,42 @@ def load_robot_spec(name: str) -> RobotSpec:
                     data[key] = tuple(data[key])
             return RobotSpec(**data, source=str(path))
     raise ParameterError(f"unknown robot {name!r}; supported robots: {', '.join(robot_names())}")
+
+
+@dataclass(frozen=True)
+class DualArmSpec:
+    """Two arms facing each other across a table, holding the two ends of a cable (SI units).
+
+    robot: robot name in ``robots/``; cable: the cable; dt: Bullet step [s]; integrator: the
+    cable's; substeps: cable steps per Bullet step; hold_height: height of the held cable ends
+    above the floor [m]; base_distance: distance of each arm base from the cable's midpoint
+    along x [m]; table_height: top of the table [m] (0: no table); renderer: Bullet renderer
+    (None: none). Wrist sensors: sensor_rate [Hz] (None: every step); noise_std, bias: per
+    component (fx fy fz mx my mz) [N, N m], checked where the sensors are built; seed: for the noise.
+    """
+
+    robot: str = "kuka"
+    cable: CableSpec = field(default_factory=lambda: CableSpec.lv2017(n_masses=10, damping=0.02))
+    dt: float = 1.0 / 240.0
+    integrator: str = "implicit_euler"
+    hold_height: float = 0.35
+    base_distance: float = 0.6
+    table_height: float = 0.2
+    sensor_rate: float | None = None
+    noise_std: tuple[float, ...] = (0.0,) * 6
+    bias: tuple[float, ...] = (0.0,) * 6
+    seed: int = 0
+    renderer: str | None = None
+    substeps: int = 1
+
+    def __post_init__(self) -> None:
+        check_positive("dt", self.dt)
+        check_positive("hold_height", self.hold_height)
+        check_positive("base_distance", self.base_distance)
+        check_nonnegative("table_height", self.table_height)
+        if self.table_height and self.hold_height - self.table_height < MIN_TABLE_CLEARANCE:
+            raise ParameterError(f"hold_height {self.hold_height} m must be at least "
+                                 f"{MIN_TABLE_CLEARANCE * 100:.0f} cm above the table top {self.table_height} m")
+        if self.sensor_rate is not None:
+            check_positive("sensor_rate", self.sensor_rate)
+        check_int("substeps", self.substeps, 1)

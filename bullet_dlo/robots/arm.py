@@ -1,9 +1,9 @@
-"""Robot arms as data (``robots/*.yaml``) and as PyBullet bodies with IK and position control.
+"""An arm in a PyBullet world: loading from a description, kinematics (FK, IK) and position control.
 
-A description names the arm URDF (from ``pybullet_data``), optionally a gripper from the
-project's ``urdf/`` mounted through a fixed sensor joint (composed with ``yourdfpy``), the
-joint that carries the wrist F/T sensor, the grasp link and the home configuration. Joint
-limits are read from the URDF with ``yourdfpy``.
+The description (:class:`~bullet_dlo.config.robot.RobotSpec`, from ``robots/<name>.yaml``)
+names the arm URDF, the optional gripper (composed on by :mod:`bullet_dlo.robots.compose`),
+the joint that carries the wrist F/T sensor, the grasp link and the home pose. Joint limits
+and motor forces are read from the loaded body.
 """
 from __future__ import annotations
 
@@ -13,15 +13,22 @@ from typing import Sequence
 import numpy as np
 import pybullet as pb
 
-from bullet_dlo.config.robot import RobotSpec, load_robot_spec, robot_names  # noqa: F401
+from bullet_dlo.config.robot import RobotSpec
 from bullet_dlo.core.validate import ParameterError, check_vector3
 from bullet_dlo.robots.compose import robot_urdf
-from bullet_dlo.robots.transforms import quat_from_axes, quat_from_matrix, rotation  # noqa: F401
+from bullet_dlo.robots.transforms import angle_between
+
+FINGER_FORCE = 20.0  # [N] position-control force of each finger joint
 
 
 @dataclass
 class Robot:
-    """An arm in a Bullet world, with a kinematic twin (own DIRECT client) for IK and FK."""
+    """An arm in a Bullet world, with a kinematic twin (own DIRECT client) for IK and FK.
+
+    arm_joints: indices of the arm's revolute joints (n_arm); movable: every non-fixed joint
+    (arm and fingers), the order of PyBullet's IK solution; lower, upper [rad] and max_force
+    [N m]: per movable joint.
+    """
 
     spec: RobotSpec
     client: int
@@ -38,16 +45,21 @@ class Robot:
     finger_joints: list[int] = field(default_factory=list)
     q_target: np.ndarray | None = None
 
+    def __post_init__(self) -> None:
+        # where the arm joints sit among the movable ones, worked out once (IK and control run every step)
+        self._arm_columns = np.array([self.movable.index(j) for j in self.arm_joints])
+        self._arm_force = self.max_force[self._arm_columns].tolist()
+        home = dict(zip(self.arm_joints, self.spec.home))
+        self._rest_poses = np.array([home.get(j, self.spec.finger_closed) for j in self.movable])
+
     @classmethod
     def load(cls, spec: RobotSpec, client: int, base_position: Sequence[float], base_yaw: float = 0.0) -> "Robot":
-        """Load the arm at ``base_position`` [m] rotated by ``base_yaw`` [rad] about z, at home."""
+        """Load the arm at ``base_position`` [m] rotated by ``base_yaw`` [rad] about z, at home, its F/T joint on."""
         path = str(robot_urdf(spec))
         pos = check_vector3("base_position", base_position).tolist()
         quat = pb.getQuaternionFromEuler([0.0, 0.0, float(base_yaw)])
         flags = pb.URDF_USE_INERTIA_FROM_FILE
         body = pb.loadURDF(path, pos, quat, useFixedBase=True, flags=flags, physicsClientId=client)
-        kin_client = pb.connect(pb.DIRECT)
-        kin_body = pb.loadURDF(path, pos, quat, useFixedBase=True, flags=flags, physicsClientId=kin_client)
         joint_index, link_index, movable = {}, {}, []
         lower, upper, force = [], [], []
         for j in range(pb.getNumJoints(body, physicsClientId=client)):
@@ -67,7 +79,12 @@ class Robot:
         fingers = [joint_index[n] for n in spec.finger_joints]
         arm = [j for j in movable if j not in fingers]
         if len(spec.home) != len(arm):
-            raise ParameterError(f"robot {spec.name!r}: home has {len(spec.home)} angles, the arm has {len(arm)} joints")
+            raise ParameterError(f"robot {spec.name!r}: home has {len(spec.home)} angles, "
+                                 f"the arm has {len(arm)} joints")
+        # the wrist joint reports its reaction wrench (for a WristSensor) from the next step on
+        pb.enableJointForceTorqueSensor(body, joint_index[spec.sensor_joint], True, physicsClientId=client)
+        kin_client = pb.connect(pb.DIRECT)  # the twin, once the description is known to fit
+        kin_body = pb.loadURDF(path, pos, quat, useFixedBase=True, flags=flags, physicsClientId=kin_client)
         robot = cls(spec, client, body, kin_client, kin_body, arm, movable, np.array(lower), np.array(upper),
                     np.array(force), link_index, joint_index, fingers)
         robot.reset_joints(np.array(spec.home))
@@ -76,6 +93,7 @@ class Robot:
     # ----- kinematics ---------------------------------------------------------------------
     @property
     def grasp_link(self) -> int:
+        """Link index of the grasp frame."""
         return self.link_index[self.spec.grasp_link]
 
     def joint_positions(self) -> np.ndarray:
@@ -86,7 +104,7 @@ class Robot:
         """Teleport the arm (and its twin) to joint angles q [rad]; fingers to closed; hold there."""
         for j, val in zip(self.arm_joints, q):
             pb.resetJointState(self.body, j, float(val), physicsClientId=self.client)
-            pb.resetJointState(self.kin_body, j, float(val), physicsClientId=self.kin_client)
+        self._set_twin(q)
         for j in self.finger_joints:
             pb.resetJointState(self.body, j, self.spec.finger_closed, physicsClientId=self.client)
         self.set_targets(q)
@@ -106,48 +124,66 @@ class Robot:
 
     def solve_ik(self, position: Sequence[float], quat: Sequence[float], seed: np.ndarray | None = None,
                  tol: float = 1e-4, iterations: int = 20) -> np.ndarray:
-        """Arm joint angles [rad] that put the grasp frame at ``position`` [m], ``quat``.
+        """Arm joint angles [rad], shape (n_arm,), that put the grasp frame at ``position`` [m], ``quat``.
 
-        PyBullet's damped least-squares IK with joint limits, iterated on the kinematic twin
-        and checked with forward kinematics; ParameterError if the pose is not reached within
-        ``tol`` (position [m] and orientation [rad]).
+        PyBullet's damped least-squares IK (:meth:`_ik`) iterated on the kinematic twin from
+        ``seed`` (default: the current joints) and checked with forward kinematics: with joint
+        limits and the home pose as rest pose (null space) for the first half of the iterations,
+        plain to polish. ParameterError if the pose is not reached within ``tol`` [m] in position
+        and ``10 tol`` [rad] in orientation. Use it to check targets; :meth:`track` follows them.
         """
         pos = check_vector3("target position", position)
         q = self.joint_positions() if seed is None else np.asarray(seed, float)
-        rest = np.array(self.spec.home)
         err_p = err_r = np.inf
-        for _ in range(iterations):
-            for j, val in zip(self.arm_joints, q):
-                pb.resetJointState(self.kin_body, j, float(val), physicsClientId=self.kin_client)
+        for k in range(iterations):
+            self._set_twin(q)
             p_now, q_now = self.grasp_pose(kinematic=True)
             err_p = float(np.linalg.norm(p_now - pos))
-            err_r = _angle_between(q_now, quat)
+            err_r = angle_between(q_now, quat)
             if err_p < tol and err_r < 10 * tol:
                 return q
-            kwargs = {}
-            if _ < iterations // 2:  # null-space IK (limits, rest pose) first, plain DLS to polish
-                kwargs = dict(lowerLimits=self.lower.tolist(), upperLimits=self.upper.tolist(),
-                              jointRanges=(self.upper - self.lower).tolist(), restPoses=_full(self, rest).tolist())
-            sol = pb.calculateInverseKinematics(self.kin_body, self.grasp_link, pos.tolist(), list(quat),
-                                                maxNumIterations=100, residualThreshold=1e-7,
-                                                physicsClientId=self.kin_client, **kwargs)
-            full = np.array(sol)
-            idx = [self.movable.index(j) for j in self.arm_joints]
-            q = np.clip(full[idx], self.lower[idx], self.upper[idx])
+            q = self._ik(pos, quat, null_space=k < iterations // 2, iterations=100, residual=1e-7)
         raise ParameterError(f"pose unreachable for robot {self.spec.name!r}: target {np.round(pos, 4).tolist()} "
                              f"missed by {err_p * 1000:.1f} mm / {np.degrees(err_r):.1f} deg after IK")
+
+    def track(self, position: np.ndarray, quat: Sequence[float]) -> np.ndarray:
+        """Arm joint angles [rad] for a grasp-frame target near the current pose: one IK solve seeded at the
+        measured joints, for targets :meth:`solve_ik` found reachable (per-step tracking, no FK check)."""
+        self._set_twin(self.joint_positions())
+        return self._ik(position, quat, null_space=False, iterations=50, residual=1e-8)
+
+    def _ik(self, position: Sequence[float], quat: Sequence[float], null_space: bool, iterations: int,
+            residual: float) -> np.ndarray:
+        """The IK inner loop, once: PyBullet's IK on the twin from its current joints; arm angles clipped to limits.
+
+        null_space: respect joint limits and pull towards the home pose (the rest pose).
+        """
+        extra = {}
+        if null_space:
+            extra = dict(lowerLimits=self.lower.tolist(), upperLimits=self.upper.tolist(),
+                         jointRanges=(self.upper - self.lower).tolist(), restPoses=self._rest_poses.tolist())
+        sol = pb.calculateInverseKinematics(self.kin_body, self.grasp_link, list(position), list(quat),
+                                            maxNumIterations=iterations, residualThreshold=residual,
+                                            physicsClientId=self.kin_client, **extra)
+        cols = self._arm_columns
+        return np.clip(np.array(sol)[cols], self.lower[cols], self.upper[cols])
+
+    def _set_twin(self, q: np.ndarray) -> None:
+        """Put the kinematic twin's arm at joint angles q [rad]."""
+        for j, val in zip(self.arm_joints, q):
+            pb.resetJointState(self.kin_body, j, float(val), physicsClientId=self.kin_client)
 
     # ----- control ------------------------------------------------------------------------
     def set_targets(self, q: np.ndarray) -> None:
         """Joint position targets [rad] for the arm (strong position control), fingers closed."""
         self.q_target = np.asarray(q, float).copy()
-        arm_force = [float(self.max_force[self.movable.index(j)]) for j in self.arm_joints]
         pb.setJointMotorControlArray(self.body, self.arm_joints, pb.POSITION_CONTROL, targetPositions=self.q_target,
-                                     forces=arm_force, physicsClientId=self.client)
+                                     forces=self._arm_force, physicsClientId=self.client)
         if self.finger_joints:
+            n = len(self.finger_joints)
             pb.setJointMotorControlArray(self.body, self.finger_joints, pb.POSITION_CONTROL,
-                                         targetPositions=[self.spec.finger_closed] * len(self.finger_joints),
-                                         forces=[20.0] * len(self.finger_joints), physicsClientId=self.client)
+                                         targetPositions=[self.spec.finger_closed] * n, forces=[FINGER_FORCE] * n,
+                                         physicsClientId=self.client)
 
     def subtree_links(self, joint: int) -> list[int]:
         """Links carried by ``joint`` (its child and everything below it)."""
@@ -160,19 +196,7 @@ class Robot:
         return out
 
     def close(self) -> None:
+        """Disconnect the kinematic twin (the arm goes with its world)."""
         if pb.isConnected(self.kin_client):
             pb.disconnect(self.kin_client)
 
-
-def _full(robot: Robot, arm_values: np.ndarray) -> np.ndarray:
-    """Values for every movable joint (IK rest poses): arm values, fingers closed."""
-    out = []
-    for j in robot.movable:
-        out.append(arm_values[robot.arm_joints.index(j)] if j in robot.arm_joints else robot.spec.finger_closed)
-    return np.array(out)
-
-
-def _angle_between(q1: Sequence[float], q2: Sequence[float]) -> float:
-    """Rotation angle [rad] between two quaternions."""
-    d = abs(float(np.dot(np.asarray(q1) / np.linalg.norm(q1), np.asarray(q2) / np.linalg.norm(q2))))
-    return 2.0 * float(np.arccos(min(1.0, d)))

@@ -5,7 +5,9 @@ link applies to the child through the joint, in the child link's centre-of-mass 
 (moments about that centre of mass). A :class:`WristSensor` turns that into what a user of
 an ATI-style sensor sees: the load on the tool side, zeroed by a tare taken in a reference
 pose, sampled at the sensor's own rate, with optional Gaussian noise and bias, in the
-sensor frame and in the world frame.
+sensor frame and in the world frame. Sampling follows :class:`~bullet_dlo.core.timing.RateGate`,
+the rule video and dataset frames follow too: samples on the grid start + k / rate, the
+reading held in between.
 
 Sign convention of :attr:`Wrench.force`: the load applied to the tool side, e.g. the force
 the held cable pulls on the gripper (a hanging cable gives a negative z force in world).
@@ -17,8 +19,10 @@ from dataclasses import dataclass
 import numpy as np
 import pybullet as pb
 
-from bullet_dlo.core.validate import ParameterError, check_nonnegative, check_positive
-from bullet_dlo.robots.arm import Robot, rotation
+from bullet_dlo.core.timing import RateGate
+from bullet_dlo.core.validate import ParameterError, check_nonnegative
+from bullet_dlo.robots.arm import Robot
+from bullet_dlo.robots.transforms import rotation
 
 
 @dataclass(frozen=True)
@@ -64,68 +68,69 @@ class WristSensor:
             raise ParameterError(f"robot {robot.spec.name!r} has no joint {name!r} for the F/T sensor")
         self.robot = robot
         self.joint = robot.joint_index[name]
-        self.rate = None if rate is None else check_positive("sensor rate", rate)
+        self.gate = RateGate(rate)
         self.noise_std = np.array([check_nonnegative("noise_std", v) for v in noise_std], dtype=float)
         self.bias = np.asarray(bias, dtype=float)
         if self.noise_std.shape != (6,) or self.bias.shape != (6,):
             raise ParameterError("noise_std and bias must have 6 components (fx fy fz mx my mz)")
         self.compensate_inertia = compensate_inertia
         self.rng = rng or np.random.default_rng(0)
-        c = robot.client
-        pb.enableJointForceTorqueSensor(robot.body, self.joint, True, physicsClientId=c)
+        c = robot.client  # Robot.load switched the joint's reaction reporting on
         self.payload = robot.subtree_links(self.joint)
         self.payload_mass = np.array([pb.getDynamicsInfo(robot.body, j, physicsClientId=c)[0] for j in self.payload])
         self._tare = np.zeros(6)
-        self._v_prev: np.ndarray | None = None
+        self._momentum_prev: np.ndarray | None = None  # payload momentum [kg m/s] one step ago
         self._last: Wrench | None = None
-        self._last_t = -np.inf
 
     # ----- raw physics ------------------------------------------------------------------------
-    def _frame(self) -> tuple[np.ndarray, np.ndarray]:
-        """Sensor frame: the child link's centre of mass (position [m], rotation to world)."""
-        st = pb.getLinkState(self.robot.body, self.joint, computeForwardKinematics=True,
-                             physicsClientId=self.robot.client)
-        return np.array(st[0]), rotation(st[1])
-
     def raw(self) -> np.ndarray:
-        """Wrench the arm applies to the tool side, sensor frame, as PyBullet reports it."""
+        """Wrench the arm applies to the tool side, sensor frame, as PyBullet reports it, shape (6,)."""
         return np.array(pb.getJointState(self.robot.body, self.joint, physicsClientId=self.robot.client)[2])
 
-    def _payload_momentum(self) -> np.ndarray:
+    def _rotation(self) -> np.ndarray:
+        """Sensor frame (the child link's centre-of-mass frame) to world, (3, 3)."""
+        st = pb.getLinkState(self.robot.body, self.joint, computeForwardKinematics=True,
+                             physicsClientId=self.robot.client)
+        return rotation(st[1])
+
+    def _inertial_force(self, dt: float) -> np.ndarray:
+        """Payload's sum of m a [N] in world, from the change of its momentum over the last step dt [s]."""
         states = pb.getLinkStates(self.robot.body, self.payload, computeLinkVelocity=True,
                                   physicsClientId=self.robot.client)
-        return np.sum([m * np.array(s[6]) for m, s in zip(self.payload_mass, states)], axis=0)
+        momentum = np.sum([m * np.array(s[6]) for m, s in zip(self.payload_mass, states)], axis=0)
+        prev, self._momentum_prev = self._momentum_prev, momentum
+        return np.zeros(3) if prev is None else (momentum - prev) / dt
 
     def tare(self) -> None:
         """Zero the sensor in the current (reference) pose: later readings are relative to it."""
         self._tare = self.raw()
-        self._v_prev = None
+        self._momentum_prev = None
 
     # ----- readings ---------------------------------------------------------------------------
     def update(self, t: float, dt: float) -> Wrench:
         """Sample (if due at the sensor's rate) and return the current reading at time t [s].
 
-        dt: physics step [s] (for the payload acceleration of the inertia compensation).
+        dt: physics step [s] (for the payload acceleration of the inertia compensation,
+        tracked at every step, sampled or not).
         """
-        momentum = self._payload_momentum() if self.compensate_inertia else None
-        inertial = np.zeros(3)
-        if momentum is not None:
-            if self._v_prev is not None:
-                inertial = (momentum - self._v_prev) / dt  # d(sum m v)/dt = sum m a
-            self._v_prev = momentum
-        due = self.rate is None or self._last is None or t - self._last_t >= 1.0 / self.rate - 1e-12
-        if not due:
-            return self._last
-        pos, rot = self._frame()
+        inertial = self._inertial_force(dt) if self.compensate_inertia else np.zeros(3)
+        if not self.gate.due(t):
+            return self._last  # held between samples
+        rot = self._rotation()
         tared = self.raw() - self._tare
         # the load on the tool side is minus what the arm must apply (statics of the tool)
         f_sensor = -tared[:3] + rot.T @ inertial
         m_sensor = -tared[3:]
         noisy = np.concatenate([f_sensor, m_sensor]) + self.bias + self.rng.normal(size=6) * self.noise_std
         self._last = Wrench(t, noisy[:3], noisy[3:], rot @ noisy[:3], rot @ noisy[3:])
-        self._last_t = t
         return self._last
 
     @property
+    def rate(self) -> float | None:
+        """Sampling rate [Hz] (None: every physics step)."""
+        return self.gate.rate
+
+    @property
     def last(self) -> Wrench | None:
+        """The latest reading (None before the first :meth:`update`)."""
         return self._last

@@ -1,44 +1,23 @@
-"""Dual-arm grasping with wrist F/T sensors: the physics the sensors must reproduce."""
+"""Dual-arm grasping with wrist F/T sensors: the physics the sensors must reproduce, and the scene's parts."""
 from __future__ import annotations
+
+import sys
 
 import numpy as np
 import pytest
-import yourdfpy
 
+from bullet_dlo.config.robot import DualArmSpec, load_robot_spec
 from bullet_dlo.core.validate import ParameterError
-from bullet_dlo.robots.arm import Robot, load_robot_spec, robot_names
-from bullet_dlo.robots.dual_arm import DualArmConfig, DualArmScene
-from bullet_dlo.robots.sensors import WristSensor
+from bullet_dlo.robots.arm import Robot
+from bullet_dlo.robots.dual_arm import DualArmObservation, DualArmPhysics, DualArmScene
 
 ROBOTS = ["kuka", "panda"]
-
-
-@pytest.mark.parametrize("name", ROBOTS)
-def test_robot_descriptions_are_valid_urdf(name):
-    spec = load_robot_spec(name)
-    urdf = yourdfpy.URDF.load(str(spec.urdf_path()), build_scene_graph=False, load_meshes=False)
-    assert urdf.validate()
-    joints = {j.name: j for j in urdf.robot.joints}
-    assert joints[spec.sensor_joint].type == "fixed"  # reports all six wrench components
-    assert spec.grasp_link in {link.name for link in urdf.robot.links}
-    arm = [j for j in urdf.robot.joints if j.type == "revolute"]
-    assert len(arm) == len(spec.home) == 7
-    for j, q in zip(arm, spec.home):
-        assert j.limit.lower <= q <= j.limit.upper
-    assert set(ROBOTS) <= set(robot_names())
-
-
-def test_project_urdfs_validate():
-    from bullet_dlo.robots.arm import URDF_DIR
-
-    for path in URDF_DIR.glob("*.urdf"):
-        assert yourdfpy.URDF.load(str(path), build_scene_graph=False, load_meshes=False).validate(), path
 
 
 @pytest.fixture(params=ROBOTS)
 def held(request):
     """Both ends grasped, held still for 3 s at 240 Hz."""
-    scene = DualArmScene(DualArmConfig(robot=request.param))
+    scene = DualArmScene(DualArmSpec(robot=request.param))
     scene.grasp()
     scene.run(3.0)
     yield scene
@@ -73,7 +52,7 @@ def _tracking(scene, displacement, duration, arm="right"):
 @pytest.mark.parametrize("displacement,duration", [((0.0, 0.0, 0.005), 0.1), ((-0.1, 0.0, 0.0), 1.0)])
 def test_sensor_tracks_model_force_during_moves(robot, displacement, duration):
     """The study's 5 mm lift, and bringing the ends 10 cm closer: RMS error below 5 % of the peak force."""
-    with DualArmScene(DualArmConfig(robot=robot, dt=1e-3)) as scene:
+    with DualArmScene(DualArmSpec(robot=robot, dt=1e-3)) as scene:
         scene.grasp()
         scene.run(1.0)
         rms, peak = _tracking(scene, displacement, duration)
@@ -84,7 +63,7 @@ def test_sensor_tracks_model_force_during_moves(robot, displacement, duration):
 @pytest.mark.parametrize("robot", ROBOTS)
 def test_grasp_holds_through_fast_move(robot):
     """Both grippers lift 0.3 m in 1.5 s (0.2 m/s on average): the ends stay within 1 mm."""
-    with DualArmScene(DualArmConfig(robot=robot, dt=1e-3)) as scene:
+    with DualArmScene(DualArmSpec(robot=robot, dt=1e-3)) as scene:
         scene.grasp()
         scene.run(0.3)
         start = scene.world.time
@@ -96,10 +75,11 @@ def test_grasp_holds_through_fast_move(robot):
         assert scene.cable.stable
         assert gap.max() < 1e-3
         assert rec["grasp_pos"][-1, :, 2] == pytest.approx([0.65, 0.65], abs=5e-3)  # the arms got there
+        assert np.allclose(scene.task.target(1, scene.world.time), [0.5 * scene.cable.model.spec.length, 0, 0.65])
 
 
 def test_release_lets_the_end_fall():
-    with DualArmScene(DualArmConfig(robot="kuka")) as scene:
+    with DualArmScene(DualArmSpec(robot="kuka")) as scene:
         scene.grasp()
         scene.run(0.5)
         scene.release("right")
@@ -110,37 +90,66 @@ def test_release_lets_the_end_fall():
         assert np.linalg.norm(f) < 0.01  # the right sensor feels nothing any more
 
 
-def test_sensor_rate_noise_and_bias():
-    config = DualArmConfig(robot="panda", dt=1e-3, sensor_rate=100.0, noise_std=(0.05, 0.05, 0.05, 0, 0, 0),
-                           bias=(0.0, 0.0, 0.2, 0, 0, 0), seed=3)
-    with DualArmScene(config) as scene:
-        scene.grasp()
-        scene.run(2.0)
-        rec = scene.record.arrays()
-        fz = rec["wrench_world"][-1000:, 0, 2]
-        changes = np.count_nonzero(np.diff(fz))
-        assert 95 <= changes <= 101  # 100 Hz samples held between 1 kHz physics steps
-        samples = fz[np.r_[True, np.diff(fz) != 0]]
-        clean = rec["end_forces"][-1000:, 0, 2].mean()
-        assert np.std(samples) == pytest.approx(0.05, rel=0.25)
-        # the bias is in the sensor frame, whose z axis (the approach direction) points down in world
-        assert np.mean(samples) - clean == pytest.approx(-0.2, abs=0.02)
+def test_physics_and_observation_with_a_task_of_their_own():
+    """What an environment or a capture does: its own controller (joint targets), no scene record;
+    the sensors still equal the model's end forces once the arm has stopped."""
+    physics = DualArmPhysics(DualArmSpec(robot="panda"))
+    try:
+        observation = DualArmObservation(physics, record=False)
+        physics.clamp(0)
+        physics.clamp(1)
+        right = physics.robots[1]
+        pos, quat = physics.grasp_poses[1]
+        lifted = right.solve_ik(pos + np.array([-0.05, 0.0, 0.03]), quat)
+        physics.world.before_step.append(lambda: right.set_targets(lifted))  # a step target, not a profile
+        physics.run(2.0)
+        assert physics.cable.stable
+        assert observation.record.t == []
+        assert physics.cable.holder_positions()[1] == pytest.approx(pos + [-0.05, 0.0, 0.03], abs=1e-3)
+        wrench = np.array([s.last.world()[:3] for s in observation.sensors])
+        weight = physics.spec.cable.mass * 9.81
+        assert np.max(np.abs(wrench - physics.cable.end_forces())) < 0.02 * weight
+    finally:
+        physics.close()
+
+
+def test_spec_checks_name_the_field():
+    with pytest.raises(ParameterError, match="hold_height 0.22 m must be at least 5 cm above the table top 0.2 m"):
+        DualArmSpec(hold_height=0.22)
+    assert DualArmSpec(hold_height=0.22, table_height=0.0).hold_height == 0.22  # no table, no clearance
+    with pytest.raises(ParameterError, match="dt must be a finite number > 0"):
+        DualArmSpec(dt=0.0)
+    with pytest.raises(ParameterError, match="sensor_rate"):
+        DualArmSpec(sensor_rate=0.0)
+    with pytest.raises(ParameterError, match="substeps must be an integer >= 1"):
+        DualArmSpec(substeps=0)
 
 
 def test_clear_errors():
     with pytest.raises(ParameterError, match="unknown robot 'ur5'; supported robots: kuka, panda"):
-        DualArmScene(DualArmConfig(robot="ur5"))
-    with DualArmScene(DualArmConfig(robot="kuka")) as scene:
+        DualArmScene(DualArmSpec(robot="ur5"))
+    with DualArmScene(DualArmSpec(robot="kuka")) as scene:
         with pytest.raises(ParameterError, match="pose unreachable for robot 'kuka'"):
             scene.move("left", (0.0, 0.0, 2.0), 1.0)
+        with pytest.raises(ParameterError, match="arm must be one of left, right"):
+            scene.move("middle", (0.0, 0.0, 0.01), 1.0)
+        with pytest.raises(ParameterError, match="arm must be one of left, right"):
+            scene.grasp(2)
         spec = load_robot_spec("panda")
-        bad = type(spec)(**{**spec.__dict__, "sensor_joint": "wrist_ft"})
+        bad = type(spec)(**{**spec.__dict__, "sensor_joint": "wrist_ft"})  # the KUKA's name for it
         with pytest.raises(ParameterError, match="has no joint 'wrist_ft'"):
             Robot.load(bad, scene.world.client, (0.0, 1.0, 0.0))
-        robot = scene.robots[0]
-        robot.spec = bad
-        with pytest.raises(ParameterError, match="no joint 'wrist_ft' for the F/T sensor"):
-            WristSensor(robot)
+
+
+def test_old_names_and_paths():
+    sys.modules.pop("bullet_dlo.dual_arm", None)  # the alias warns on first import only
+    with pytest.warns(DeprecationWarning, match="bullet_dlo.dual_arm moved to bullet_dlo.robots.dual_arm"):
+        import bullet_dlo.dual_arm as old
+    assert old.DualArmConfig is DualArmSpec and old.DualArmScene is DualArmScene
+    DualArmConfig = old.DualArmConfig
+    with DualArmScene(DualArmConfig(robot="kuka", hold_height=0.4)) as scene:
+        assert scene.config is scene.spec and scene.config.hold_height == 0.4
+        assert scene.robots[1].grasp_pose()[0][2] == pytest.approx(0.4, abs=1e-4)
 
 
 def test_cli_grasp_json(tmp_path):

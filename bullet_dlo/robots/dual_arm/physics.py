@@ -1,0 +1,169 @@
+"""The dual-arm scene's physics: world, table, two arms and the cable, coupled at the grasps.
+
+Everything needed to step, and nothing about what an episode does (:mod:`.task`) or what is
+measured (:mod:`.observation`). The left arm (index 0) holds the cable's first end, the right
+arm (index 1) its last. A held end is clamped to its gripper's grasp frame (position and
+tangent). Stepping order, by the world's hooks:
+
+1. before the Bullet step: the force and clamp torque the cable exerts on each held end are
+   applied to the gripper link, so they flow through the arm into its wrist joint;
+2. Bullet steps the arms;
+3. after it: each held cable end is given the measured grasp frame (position, velocity,
+   acceleration, angular velocity, tangent) to follow in the cable's own step.
+"""
+from __future__ import annotations
+
+from typing import Sequence
+
+import numpy as np
+import pybullet as pb
+
+from bullet_dlo.bullet.world import BulletWorld
+from bullet_dlo.config.robot import DualArmSpec, load_robot_spec
+from bullet_dlo.core.model import CableModel
+from bullet_dlo.core.validate import ParameterError, check_positive
+from bullet_dlo.robots.arm import Robot
+from bullet_dlo.robots.transforms import quat_from_axes, rotation
+
+ARMS = ("left", "right")
+"""Arm names by index; arm i holds cable end i (the cable's API numbers its ends 0 = first, 1 = last)."""
+END_NODE = (0, -1)
+"""Cable node held by arm i."""
+SETTLE_STEPS = 22
+"""Bare Bullet steps before the cable is attached: the position controllers settle the arms,
+and the wrist joints' reaction (a sensor's tare) is then that of the unloaded arms."""
+NO_CONTACT_NODES = 3
+"""Cable masses at each end that do not collide with the gripper holding that end."""
+
+
+def arm_index(arm: int | str) -> int:
+    """Index (0 left, 1 right) of an arm given by name or index; ParameterError otherwise."""
+    if isinstance(arm, str) and arm in ARMS:
+        return ARMS.index(arm)
+    if not isinstance(arm, (str, bool)) and arm in (0, 1):
+        return int(arm)
+    raise ParameterError(f"arm must be one of {', '.join(ARMS)} (or 0, 1), got {arm!r}")
+
+
+def arm_indices(arm: int | str | None) -> tuple[int, ...]:
+    """Both arms for None, else the one arm's index."""
+    return (0, 1) if arm is None else (arm_index(arm),)
+
+
+class DualArmPhysics:
+    """World, table, two arms at their grasp poses and the cable between them, ready to step.
+
+    Built in this order: the arms are placed by IK so that their grasp frames hold the ends of
+    the straight cable (z down, x along the cable pointing into it), settled for
+    :data:`SETTLE_STEPS` bare steps, then the cable is added, both ends free. Build the
+    observation (:class:`~.observation.DualArmObservation`) right after, before the first step:
+    its sensors tare on the unloaded arms. Any task then clamps ends (:meth:`clamp`) and drives
+    the arms (``robots[i].set_targets``) from a ``world.before_step`` hook.
+
+    Attributes: ``world`` (:class:`BulletWorld`), ``robots`` (left, right), ``cable``
+    (:class:`~bullet_dlo.bullet.cable.BulletCable`), ``grasp_poses``: per arm, the grasp
+    frame it was built at (position [m] (3,), quaternion [x, y, z, w] (4,)), ``held``: per arm,
+    whether its cable end is clamped.
+    """
+
+    def __init__(self, spec: DualArmSpec = DualArmSpec()):
+        self.spec = spec
+        robot_spec = load_robot_spec(spec.robot)
+        self.world = BulletWorld(dt=spec.dt, renderer=spec.renderer)
+        try:
+            self._add_table()
+            self.robots: list[Robot] = []
+            self.grasp_poses: list[tuple[np.ndarray, np.ndarray]] = []
+            for arm, sign in zip(ARMS, (-1.0, 1.0)):
+                self._add_arm(robot_spec, sign, 0.0 if arm == "left" else np.pi)
+            self.world.step_bare(SETTLE_STEPS)
+            self.cable = self._add_cable()
+        except Exception:
+            self.close()
+            raise
+        self.held = [False, False]
+        self._grasp_velocity = [np.zeros(3), np.zeros(3)]  # [m/s] one step ago, for the acceleration
+        self.world.before_step.append(self._apply_cable_wrench)
+        self.world.after_physics.append(self._follow_grippers)
+        self._follow_grippers(first=True)
+
+    # ----- building ------------------------------------------------------------------------------
+    def _add_table(self) -> None:
+        th = self.spec.table_height
+        if th > 0:
+            half = 0.5 * self.spec.cable.length
+            self.world.add_box((max(half - 0.05, 0.05), 0.3, th / 2), (0.0, 0.0, th / 2), name="table")
+
+    def _add_arm(self, robot_spec, sign: float, base_yaw: float) -> None:
+        """Load an arm at x = sign * base_distance and put its grasp frame on the cable end at x = sign * L/2."""
+        spec = self.spec
+        robot = Robot.load(robot_spec, self.world.client, (sign * spec.base_distance, 0.0, 0.0), base_yaw)
+        self.robots.append(robot)  # before the IK, so that close() releases its twin if the pose is unreachable
+        quat = quat_from_axes((-sign, 0.0, 0.0), (0.0, 0.0, -1.0))  # top grasp, x pointing into the cable
+        position = np.array([sign * 0.5 * spec.cable.length, 0.0, spec.hold_height])
+        robot.reset_joints(robot.solve_ik(position, quat, seed=np.array(robot_spec.home)))
+        self.grasp_poses.append((position, quat))
+
+    def _add_cable(self):
+        """The straight cable from the left grasp frame along +x, both ends free, not colliding with its holders."""
+        start, _ = self.robots[0].grasp_pose()
+        model = CableModel.straight(self.spec.cable, start, (1.0, 0.0, 0.0), ("free", "free"), (), self.world.gravity)
+        cable = self.world.add_cable(model, integrator=self.spec.integrator, record_every=10**9,
+                                     overlap_ok=[r.body for r in self.robots], substeps=self.spec.substeps)
+        cid = self.world.client
+        ends = (cable.body_ids[:NO_CONTACT_NODES], cable.body_ids[-NO_CONTACT_NODES:])
+        for robot, spheres in zip(self.robots, ends):
+            for sphere in spheres:
+                for link in range(-1, pb.getNumJoints(robot.body, physicsClientId=cid)):
+                    pb.setCollisionFilterPair(robot.body, sphere, link, -1, 0, physicsClientId=cid)
+        return cable
+
+    # ----- the grasp coupling --------------------------------------------------------------------
+    def clamp(self, arm: int) -> None:
+        """Clamp cable end ``arm`` to that arm's grasp frame (from the current measured pose)."""
+        self.cable.hold_externally(arm, "clamped")
+        self.held[arm] = True
+        self._follow_grippers()
+
+    def unclamp(self, arm: int) -> None:
+        """Let cable end ``arm`` go: it is free from the next step on."""
+        self.cable.release(arm)
+        self.held[arm] = False
+
+    @staticmethod
+    def cable_direction(arm: int, quat: Sequence[float]) -> np.ndarray:
+        """Clamp tangent (first -> last mass) from arm ``arm``'s grasp frame: its x axis points into the cable."""
+        x_axis = rotation(quat)[:, 0]
+        return x_axis if arm == 0 else -x_axis
+
+    def _apply_cable_wrench(self) -> None:
+        """Before the Bullet step: the cable's force [N] (at the end mass) and clamp torque [N m] on each holder."""
+        if not any(self.held):
+            return
+        forces, torques = self.cable.end_forces(), self.cable.end_moments()  # both ends, once per step
+        cid = self.world.client
+        for arm, robot in enumerate(self.robots):
+            if self.held[arm]:
+                at = self.cable.x[END_NODE[arm]].tolist()
+                pb.applyExternalForce(robot.body, robot.grasp_link, forces[arm].tolist(), at, pb.WORLD_FRAME, cid)
+                pb.applyExternalTorque(robot.body, robot.grasp_link, torques[arm].tolist(), pb.WORLD_FRAME, cid)
+
+    def _follow_grippers(self, first: bool = False) -> None:
+        """After the Bullet step: the measured grasp frames become the holder poses of the cable's ends."""
+        for arm, robot in enumerate(self.robots):
+            pos, quat, vel, omega = robot.grasp_state()
+            acc = np.zeros(3) if first else (vel - self._grasp_velocity[arm]) / self.world.dt
+            self._grasp_velocity[arm] = vel
+            self.cable.set_external_pose(arm, pos, vel, acc, omega, self.cable_direction(arm, quat))
+
+    # ----- running -------------------------------------------------------------------------------
+    def run(self, duration: float) -> float:
+        """Step for ``duration`` [s] (whole steps), stopping if the cable goes unstable; returns the wall time [s]."""
+        n = max(1, int(round(check_positive("duration", duration) / self.world.dt)))
+        return self.world.run_while_stable(n, self.cable)
+
+    def close(self) -> None:
+        """Disconnect the arms' kinematic twins and the world."""
+        for r in getattr(self, "robots", ()):
+            r.close()
+        self.world.close()

@@ -1,0 +1,97 @@
+"""Robot descriptions, loading, and the one IK (checked solve and per-step tracking) against forward kinematics."""
+from __future__ import annotations
+
+import numpy as np
+import pybullet as pb
+import pytest
+import yourdfpy
+
+from bullet_dlo.assets import URDF_DIR
+from bullet_dlo.config.robot import load_robot_spec, robot_names
+from bullet_dlo.core.validate import ParameterError
+from bullet_dlo.robots.arm import Robot
+from bullet_dlo.robots.compose import robot_urdf
+from bullet_dlo.robots.transforms import angle_between
+
+ROBOTS = ["kuka", "panda"]
+
+
+@pytest.mark.parametrize("name", ROBOTS)
+def test_robot_descriptions_are_valid_urdf(name):
+    spec = load_robot_spec(name)
+    urdf = yourdfpy.URDF.load(str(robot_urdf(spec)), build_scene_graph=False, load_meshes=False)
+    assert urdf.validate()
+    joints = {j.name: j for j in urdf.robot.joints}
+    assert joints[spec.sensor_joint].type == "fixed"  # reports all six wrench components
+    assert spec.grasp_link in {link.name for link in urdf.robot.links}
+    arm = [j for j in urdf.robot.joints if j.type == "revolute"]
+    assert len(arm) == len(spec.home) == 7
+    for j, q in zip(arm, spec.home):
+        assert j.limit.lower <= q <= j.limit.upper
+    assert set(ROBOTS) <= set(robot_names())
+
+
+def test_project_urdfs_validate():
+    paths = list(URDF_DIR.glob("*.urdf"))
+    assert paths
+    for path in paths:
+        assert yourdfpy.URDF.load(str(path), build_scene_graph=False, load_meshes=False).validate(), path
+
+
+@pytest.fixture(params=ROBOTS)
+def arm(request):
+    client = pb.connect(pb.DIRECT)
+    robot = Robot.load(load_robot_spec(request.param), client, (0.0, 0.0, 0.0))
+    yield robot
+    robot.close()
+    pb.disconnect(client)
+
+
+def _fk_error(robot: Robot, q: np.ndarray, pos: np.ndarray, quat: np.ndarray) -> tuple[float, float]:
+    robot.reset_joints(q)
+    p, r = robot.grasp_pose()
+    return float(np.linalg.norm(p - pos)), angle_between(r, quat)
+
+
+def test_solve_ik_reaches_the_pose_within_limits(arm):
+    home_pos, quat = arm.grasp_pose()
+    target = home_pos + np.array([0.05, -0.04, -0.06])
+    q = arm.solve_ik(target, quat)
+    assert np.all(q >= arm.lower[arm._arm_columns]) and np.all(q <= arm.upper[arm._arm_columns])
+    err_p, err_r = _fk_error(arm, q, target, quat)
+    assert err_p < 1e-4 and err_r < 1e-3  # solve_ik's own tolerances, checked on the simulated arm
+
+
+def test_track_follows_a_nearby_target(arm):
+    """One IK solve from the current joints (what runs every step of a move) lands within 0.1 mm."""
+    pos, quat = arm.grasp_pose()
+    for step in ([0.0, 0.0, 0.002], [0.003, -0.002, 0.0]):
+        pos = pos + np.array(step)
+        q = arm.track(pos, quat)
+        err_p, err_r = _fk_error(arm, q, pos, quat)
+        assert err_p < 1e-4 and err_r < 1e-3
+
+
+def test_unreachable_pose_is_refused(arm):
+    with pytest.raises(ParameterError, match=f"pose unreachable for robot '{arm.spec.name}'"):
+        arm.solve_ik((0.0, 0.0, 3.0), (0.0, 0.0, 0.0, 1.0))
+
+
+def test_wrist_joint_reports_its_reaction_after_a_step(arm):
+    """Robot.load switches the F/T joint on: one step later it carries the tool's weight."""
+    joint = arm.joint_index[arm.spec.sensor_joint]
+    pb.setGravity(0, 0, -9.81, physicsClientId=arm.client)
+    pb.stepSimulation(arm.client)
+    force = np.array(pb.getJointState(arm.body, joint, physicsClientId=arm.client)[2][:3])
+    assert np.linalg.norm(force) > 0.1  # [N]: a gripper weighs more than 10 g
+
+
+def test_old_flat_names_still_import():
+    import bullet_dlo.robots as robots
+
+    with pytest.warns(DeprecationWarning, match="moved to bullet_dlo.robots.arm.Robot"):
+        assert robots.Robot is Robot
+    with pytest.warns(DeprecationWarning):
+        assert robots.load_robot_spec is load_robot_spec
+    with pytest.raises(AttributeError):
+        robots.no_such_name
