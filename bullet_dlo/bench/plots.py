@@ -11,7 +11,7 @@ from typing import Sequence
 
 from bullet_dlo.bench.scenarios import BenchPoint
 
-COLORS = {"symplectic_euler": "tab:red", "rk4": "tab:brown", "implicit_euler": "tab:blue", "bdf2": "tab:orange",
+COLORS = {"symplectic_euler": "tab:red", "rk4": "tab:olive", "implicit_euler": "tab:blue", "bdf2": "tab:orange",
           "implicit_midpoint": "tab:purple", "explicit_euler": "tab:gray"}
 PEER_STYLE = {"pyelastica": ("*", "tab:green"), "mujoco": ("P", "tab:cyan")}
 SCENARIO_TITLES = {"S1": "S1: cantilever, static tip deflection", "S2": "S2: cantilever, first frequency",
@@ -38,12 +38,11 @@ def pareto(points: Sequence[tuple[float, float]]) -> list[tuple[float, float]]:
     return front
 
 
-def _log_limits(values: Sequence[float], margin: float = 1.5) -> tuple[float, float]:
-    """Axis limits around positive ``values`` with a margin factor, at least one decade wide."""
-    lo, hi = min(values) / margin, max(values) * margin
-    if hi / lo < 10.0:
-        mid = math.sqrt(lo * hi)
-        lo, hi = mid / math.sqrt(10.0), mid * math.sqrt(10.0)
+def _log_limits(values: Sequence[float]) -> tuple[float, float]:
+    """Axis limits around positive ``values``: the whole decades that hold them (so at least two
+    powers of ten are labelled), with a margin of 1.5 x where a value sits near a decade."""
+    lo = 10.0 ** math.floor(math.log10(min(values) / 1.5))
+    hi = 10.0 ** math.ceil(math.log10(max(values) * 1.5))
     return lo, hi
 
 
@@ -64,9 +63,14 @@ def _save(fig, path: str | Path) -> Path:
 
 
 def plot_work_precision(rows: Sequence[BenchPoint], path: str | Path, peers: Sequence[dict] = ()) -> Path:
+    """:func:`work_precision_figure` saved as a PNG at ``path``."""
+    return _save(work_precision_figure(rows, peers), path)
+
+
+def work_precision_figure(rows: Sequence[BenchPoint], peers: Sequence[dict] = ()):
     """Log-log error vs wall time per simulated second, one panel per scenario: every run as a dot
     (hollow: Bullet engine), each method's cheapest-for-its-accuracy front as a line, unstable runs
-    as x along the top of the panel, peers (dicts with scenario, peer, stable, error, wall_per_sim_s)
+    as x in a grey band above the data, peers (dicts with scenario, peer, stable, error, wall_per_sim_s)
     as stars and crosses; one legend for all panels, below them."""
     plt = _pyplot()
     from matplotlib.lines import Line2D
@@ -84,8 +88,7 @@ def plot_work_precision(rows: Sequence[BenchPoint], path: str | Path, peers: Seq
         errors = [r.error for r in ok] + [p["error"] for p in peer_pts] + [TARGET_ERROR]
         costs = [r.wall_per_sim_s for r in sel if r.wall_per_sim_s > 0] + [p["wall_per_sim_s"] for p in peer_pts]
         y_lo, y_hi = _log_limits(errors)
-        top = y_hi / 1.6  # unstable runs: a row of x under the top edge
-        y_hi *= 1.3
+        ax.axhspan(y_hi, 4 * y_hi, color="grey", alpha=0.12, lw=0)  # a band above the data for unstable runs
         for name in [m for m in COLORS if any(r.integrator == m for r in sel)]:
             color = COLORS[name]
             for engine, face, style in (("core", color, "-"), ("bullet", "none", "--")):
@@ -98,14 +101,14 @@ def plot_work_precision(rows: Sequence[BenchPoint], path: str | Path, peers: Seq
                                             lw=1.6 if engine == "core" else 1.0, label=label)
             bad = [r.wall_per_sim_s for r in sel if r.integrator == name and not r.stable]
             if bad:
-                ax.loglog(bad, [top] * len(bad), "x", color=color, ms=7)
+                ax.loglog(bad, [2 * y_hi] * len(bad), "x", color=color, ms=7)
         for peer, (marker, color) in PEER_STYLE.items():
             pts = [(p["wall_per_sim_s"], p["error"]) for p in peer_pts if p.get("peer") == peer]
             if pts:
                 handles[peer], = ax.loglog(*zip(*pts), marker, ms=9, color=color, ls="none", label=peer)
         ax.axhline(TARGET_ERROR, color="grey", lw=0.8, ls=":")
         ax.set_xlim(*_log_limits(costs))
-        ax.set_ylim(y_lo, y_hi)
+        ax.set_ylim(y_lo, 4 * y_hi)
         _decade_ticks(ax)
         ax.set_title(SCENARIO_TITLES.get(sc, sc), fontsize=10)
         ax.set_xlabel("wall time per simulated second [s/s]")
@@ -113,36 +116,44 @@ def plot_work_precision(rows: Sequence[BenchPoint], path: str | Path, peers: Seq
         ax.grid(True, which="major", alpha=0.3)
     for ax in axes.flat[len(scen):]:
         ax.set_visible(False)
-    handles["unstable run"] = Line2D([], [], marker="x", color="k", ls="none", label="unstable run (top row)")
+    handles["unstable run"] = Line2D([], [], marker="x", color="k", ls="none", label="unstable run (grey band)")
     handles["target"] = Line2D([], [], color="grey", lw=0.8, ls=":", label="1 % error")
     handles["dots"] = Line2D([], [], marker="o", color="k", mfc="none", ls="none",
                              label="dot: one run (hollow: in Bullet)")
     fig.legend(handles=list(handles.values()), loc="outside lower center", ncol=4, fontsize=8, frameon=False)
     fig.suptitle("Work-precision: error against cost, lines join each method's cheapest runs (lower left is better)",
                  fontsize=11)
-    return _save(fig, path)
+    return fig
 
 
 def plot_stability_map(rows: Sequence[dict], path: str | Path) -> Path:
+    """:func:`stability_figure` saved as a PNG at ``path``."""
+    return _save(stability_figure(rows), path)
+
+
+def stability_figure(rows: Sequence[dict]):
     """Largest stable time step vs Young's modulus per explicit method and n: measured (dots) and
     predicted (lines), with the robot simulators' steps as horizontal lines; legend right of the axes."""
     plt = _pyplot()
     fig, ax = plt.subplots(figsize=(8.0, 4.6), layout="constrained")
     explicit = sorted({(r["integrator"], r["n_masses"]) for r in rows if r["predicted"]})
     moduli = sorted({r["youngs_modulus"] for r in rows})
+    styles = dict(zip(sorted({n for _, n in explicit}), (("-", "o"), ("--", "s"), (":", "^"))))
     for name, n in explicit:
         sel = sorted([r for r in rows if r["integrator"] == name and r["n_masses"] == n],
                      key=lambda r: r["youngs_modulus"])
         e = [r["youngs_modulus"] for r in sel]
-        line, = ax.loglog(e, [r["predicted"] for r in sel], "-", lw=1.2, label=f"{name}, n = {n}: predicted")
-        ax.loglog(e, [r["measured"] for r in sel], "o", color=line.get_color(), label=f"{name}, n = {n}: measured")
+        line_style, marker = styles[n]
+        color = COLORS.get(name)
+        ax.loglog(e, [r["predicted"] for r in sel], line_style, color=color, lw=1.2, label=f"{name}, n = {n}: predicted")
+        ax.loglog(e, [r["measured"] for r in sel], marker, color=color, ls="none", label=f"{name}, n = {n}: measured")
     implicit_ok = all(r["measured"] is not None for r in rows if r["predicted"] is None)
     for dt, text in ((1e-3, "1 kHz (Gazebo)"), (1 / 60, "60 Hz (Isaac Sim)")):
         ax.axhline(dt, color="grey", ls="--", lw=0.8)
         ax.annotate(text, (moduli[-1], dt), xytext=(-4, 3), textcoords="offset points", ha="right", fontsize=8,
                     color="dimgrey")
     steps = [r["predicted"] for r in rows if r["predicted"]] + [r["measured"] for r in rows if r["measured"]]
-    ax.set_ylim(*_log_limits(steps + [1 / 60], margin=2.0))
+    ax.set_ylim(*_log_limits(steps + [1 / 60]))
     _decade_ticks(ax)
     ax.set_xlabel("Young's modulus E [Pa]")
     ax.set_ylabel("largest stable time step [s]")
@@ -150,4 +161,4 @@ def plot_stability_map(rows: Sequence[dict], path: str | Path) -> Path:
     ax.set_title(f"Stability limits, study's scenario (k_d = 0.01 N s/m)\n{note}", fontsize=10)
     ax.grid(True, which="major", alpha=0.3)
     fig.legend(handles=ax.get_legend_handles_labels()[0], loc="outside right upper", fontsize=8, frameon=False)
-    return _save(fig, path)
+    return fig
