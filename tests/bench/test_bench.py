@@ -1,6 +1,7 @@
 """Benchmarks in --quick mode: the shape of the results (no speed assertions)."""
 from __future__ import annotations
 
+import argparse
 import csv
 import json
 
@@ -8,6 +9,7 @@ import pytest
 
 from bullet_dlo.analysis.resolve import resolve
 from bullet_dlo.bench import scenarios as bench
+from bullet_dlo.cli import bench as bench_cli
 from bullet_dlo.cli.main import main
 from bullet_dlo.config.scene import Scene
 
@@ -61,7 +63,7 @@ tolerance: {value: 0.05, target: forces}
     assert r["n_masses"] == data["n_masses"] and r["dt"] == data["dt"]
 
 
-def test_stability_and_scaling_quick(tmp_path):
+def test_stability_quick(tmp_path):
     assert main(["bench", "stability", "--quick", "--out", str(tmp_path)]) == 0
     rows = json.loads((tmp_path / "stability.json").read_text())
     for r in rows:
@@ -69,6 +71,20 @@ def test_stability_and_scaling_quick(tmp_path):
             assert r["measured"] == pytest.approx(r["predicted"], rel=0.05)  # bisection agrees with theory
         else:
             assert r["measured"] is not None  # implicit: stable at 1 kHz and 60 Hz
-    assert main(["bench", "scaling", "--quick", "--out", str(tmp_path)]) == 0
+
+
+def test_scaling_quick_with_progress_on_stderr_and_quiet(tmp_path, capsys):
+    parser = argparse.ArgumentParser()
+    bench_cli.add_arguments(parser)
+    args = parser.parse_args(["--quick", "--out", str(tmp_path)])
+    args.bench_command = "scaling"
+    assert bench_cli.run(args) == 0
+    captured = capsys.readouterr()
+    assert "scaling" in captured.err and "cable" in captured.err  # the bar, on stderr
+    assert "cost ~ n^" in captured.out
     exponent = json.loads((tmp_path / "scaling.json").read_text())["exponent"]
     assert 0.5 < exponent < 1.5  # linear-ish: the banded solve is O(n)
+    args.quiet = True
+    assert bench_cli.run(args) == 0
+    captured = capsys.readouterr()
+    assert captured.err == "" and "cost ~ n^" in captured.out
