@@ -1,19 +1,20 @@
-"""Headless rendering in PyBullet's DIRECT mode: renderers, cameras, frames, the cable's look.
+"""Cameras and frames in PyBullet's DIRECT mode (no display).
 
-* :class:`Renderer` picks TinyRenderer (software, works everywhere) or the EGL plugin
-  (Mesa llvmpipe on CPU machines, the GPU where there is one): ``"auto" | "tiny" | "egl"``,
-  and says which it uses and why. A frame without content raises :class:`RenderError`
-  (a loaded-then-unloaded EGL plugin returns blank images without any error).
-* :class:`Camera` is fixed (look-at) or attached to a link (e.g. a wrist camera);
-  :func:`capture` returns RGB, depth in metres and segmentation (body, link and, for cable
-  spheres and tube segments, the cable mass) from one ``getCameraImage`` call.
-* :class:`CableTube` draws the cable as a continuous tube: a cylinder per segment between
-  the spheres, segments in alternating shades, held ends highlighted.
+* :class:`Camera` is fixed (look-at) or attached to a link (e.g. a wrist camera); it also
+  carries the light, so shadows are drawn from the first frame on with either renderer.
+* :func:`render_frame` returns RGB, depth in metres and segmentation (body, link and, for
+  cable spheres and tube segments, the cable mass) from one ``getCameraImage`` call.
+* :func:`framing_camera` places a camera so that given points fill the frame;
+  :func:`default_camera` looks at points from the front-right, above.
+
+The renderer itself (TinyRenderer or the EGL plugin) is part of the world's set-up:
+:class:`bullet_dlo.bullet.renderer.Renderer`, re-exported here.
 """
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+import weakref
+from dataclasses import dataclass
 from typing import Sequence
 
 import numpy as np
@@ -21,6 +22,10 @@ import pybullet as pb
 
 from bullet_dlo.bullet.renderer import RENDERERS, Renderer, RenderError  # noqa: F401  (re-exported)
 from bullet_dlo.core.validate import ParameterError, check_int, check_positive, check_vector3
+from bullet_dlo.robots.transforms import rotation
+
+LIGHT_DISTANCE = 10.0  # [m] the EGL renderer puts its shadow-casting light at lightDirection: beyond the scene
+_SHADOWS_READY: weakref.WeakSet = weakref.WeakSet()  # EGL renderers whose shadow map exists
 
 
 @dataclass(frozen=True)
@@ -29,7 +34,9 @@ class Camera:
 
     Fixed: ``eye`` and ``target`` [m] with ``up``. Attached: ``link`` = (body id, link index)
     with ``eye``/``target`` in that link's frame (e.g. a wrist camera). width, height [px];
-    fov: vertical field of view [deg]; near, far: clipping planes [m].
+    fov: vertical field of view [deg]; near, far: clipping planes [m]; light_direction: towards
+    the light (world frame, any length); shadows: cast shadows with TinyRenderer (the EGL
+    renderer always casts them once it is given a light, which :func:`render_frame` always does).
     """
 
     eye: tuple[float, float, float] = (0.7, -0.9, 0.75)
@@ -41,6 +48,8 @@ class Camera:
     near: float = 0.02
     far: float = 5.0
     link: tuple[int, int] | None = None
+    light_direction: tuple[float, float, float] = (0.4, -0.5, 1.0)
+    shadows: bool = True
 
     def __post_init__(self) -> None:
         check_int("camera width", self.width, 16, 8192)
@@ -53,6 +62,8 @@ class Camera:
         eye, target = check_vector3("camera eye", self.eye), check_vector3("camera target", self.target)
         if np.linalg.norm(eye - target) < 1e-9:
             raise ParameterError("camera eye and target must differ")
+        if np.linalg.norm(check_vector3("camera light_direction", self.light_direction)) < 1e-9:
+            raise ParameterError("camera light_direction must not be zero")
 
     def world_eye_target_up(self, client: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Eye, target and up in world coordinates (follows the link if attached)."""
@@ -65,7 +76,7 @@ class Camera:
         else:
             st = pb.getLinkState(body, link, computeForwardKinematics=True, physicsClientId=client)
             pos, quat = st[4], st[5]
-        rot = np.array(pb.getMatrixFromQuaternion(quat)).reshape(3, 3)
+        rot = rotation(quat)
         return np.asarray(pos) + rot @ eye, np.asarray(pos) + rot @ target, rot @ up
 
     def matrices(self, client: int) -> tuple[np.ndarray, np.ndarray]:
@@ -89,7 +100,7 @@ class Camera:
 
 @dataclass
 class Frame:
-    """One capture: rgb (H, W, 3) uint8; depth [m] (H, W) along the optical axis; body, link
+    """One rendered view: rgb (H, W, 3) uint8; depth [m] (H, W) along the optical axis; body, link
     (H, W) int (-1: background); cable_mass (H, W) int (-1: not a cable mass)."""
 
     rgb: np.ndarray
@@ -100,101 +111,68 @@ class Frame:
     renderer: str
 
 
-def capture(client: int, camera: Camera, renderer: Renderer, mass_of_body: dict[int, int] | None = None) -> Frame:
+def render_frame(client: int, camera: Camera, renderer: Renderer, mass_of_body: dict[int, int] | None = None) -> Frame:
     """Render ``camera`` and return RGB, metric depth and segmentation from one call.
 
     mass_of_body: body id -> cable mass index (spheres and tube segments), for ``cable_mass``.
     """
     view, proj = camera.matrices(client)
     w, h = camera.width, camera.height
-    img = pb.getCameraImage(w, h, view.T.reshape(-1).tolist(), proj.T.reshape(-1).tolist(), renderer=renderer.flag,
-                            flags=pb.ER_SEGMENTATION_MASK_OBJECT_AND_LINKINDEX, physicsClientId=client)
+    light = np.asarray(camera.light_direction, float)
+    light *= LIGHT_DISTANCE / np.linalg.norm(light)
+    if renderer.name == "egl" and renderer not in _SHADOWS_READY:
+        # the EGL renderer draws shadows from its third image on: two 16x16 ones first, so frame 0 has them
+        for _ in range(2):
+            pb.getCameraImage(16, 16, view.T.reshape(-1).tolist(), proj.T.reshape(-1).tolist(),
+                              lightDirection=light.tolist(), renderer=renderer.flag, physicsClientId=client)
+        _SHADOWS_READY.add(renderer)
+    img = pb.getCameraImage(w, h, view.T.reshape(-1).tolist(), proj.T.reshape(-1).tolist(),
+                            shadow=int(camera.shadows), lightDirection=light.tolist(),
+                            renderer=renderer.flag, flags=pb.ER_SEGMENTATION_MASK_OBJECT_AND_LINKINDEX,
+                            physicsClientId=client)
     rgb = np.reshape(np.asarray(img[2], dtype=np.uint8), (h, w, 4))[:, :, :3].copy()
     renderer.check(rgb)
     zbuf = np.reshape(np.asarray(img[3], dtype=float), (h, w))
     near, far = camera.near, camera.far
-    depth = far * near / (far - (far - near) * zbuf)
+    depth = far * near / (far - (far - near) * zbuf)  # OpenGL depth buffer -> distance along the axis
     seg = np.reshape(np.asarray(img[4], dtype=np.int64), (h, w))
     body = np.where(seg >= 0, seg & ((1 << 24) - 1), -1)
     link = np.where(seg >= 0, (seg >> 24) - 1, -2)
     cable_mass = np.full((h, w), -1, dtype=np.int64)
     if mass_of_body:
-        lut_ids = np.array(list(mass_of_body.keys()))
-        lut_mass = np.array(list(mass_of_body.values()))
-        order = np.argsort(lut_ids)
-        idx = np.searchsorted(lut_ids[order], body)
-        idx = np.clip(idx, 0, len(order) - 1)
-        hit = lut_ids[order][idx] == body
-        cable_mass[hit] = lut_mass[order][idx][hit]
+        ids = np.array(sorted(mass_of_body))
+        masses = np.array([mass_of_body[b] for b in ids])
+        idx = np.clip(np.searchsorted(ids, body), 0, len(ids) - 1)
+        hit = ids[idx] == body
+        cable_mass[hit] = masses[idx][hit]
     return Frame(rgb, depth, body, link, cable_mass, renderer.name)
 
 
-@dataclass
-class CableTube:
-    """Visual-only cylinders between a cable's spheres (the spheres are the joints of the tube).
+capture = render_frame  # the name before 0.2; data/ and scripts move to render_frame
 
-    Segments alternate between two shades so that the discretisation shows; the spheres of
-    held ends are drawn in ``held_color``.
+
+def framing_camera(points: Sequence[Sequence[float]], view_direction: Sequence[float] = (0.35, -1.0, 0.45),
+                   width: int = 640, height: int = 480, fov: float = 40.0, margin: float = 1.1) -> Camera:
+    """A camera looking along ``-view_direction`` at the box around ``points`` [m], (k, 3), so close that
+    every point is in the frame with ``margin`` (1.1: 10 % of the half-width to spare).
+
+    For each point at offset q from the box centre, with right/up/towards-eye axes r, u, f, a
+    distance d keeps it in view when |r.q| <= tan(hfov/2) (d - f.q) / margin (and the same with u
+    and the vertical fov); the camera takes the smallest d that satisfies every point.
     """
-
-    cable: object  # BulletCable
-    colors: tuple = ((0.95, 0.45, 0.1, 1.0), (0.8, 0.3, 0.05, 1.0))
-    held_color: tuple = (0.1, 0.75, 0.3, 1.0)
-    bodies: list[int] = field(default_factory=list)
-
-    def __post_init__(self) -> None:
-        c = self.cable
-        cid = c.world.client
-        r = c.radius
-        lengths = c.model.arrays.rest_length
-        shapes = [pb.createVisualShape(pb.GEOM_CYLINDER, radius=r, length=float(lengths[0]), rgbaColor=list(col),
-                                       physicsClientId=cid) for col in self.colors]
-        for i in range(c.model.n - 1):
-            self.bodies.append(pb.createMultiBody(baseMass=0.0, baseCollisionShapeIndex=-1,
-                                                  baseVisualShapeIndex=shapes[i % 2], basePosition=[0, 0, -10],
-                                                  physicsClientId=cid))
-        for b in c.body_ids:
-            pb.changeVisualShape(b, -1, rgbaColor=list(self.colors[0]), physicsClientId=cid)
-        self._held = None
-        self.update()
-
-    def mass_of_body(self) -> dict[int, int]:
-        """Body id -> cable mass index (a segment counts as its first mass)."""
-        out = {b: i for i, b in enumerate(self.cable.body_ids)}
-        out.update({b: i for i, b in enumerate(self.bodies)})
-        return out
-
-    def update(self) -> None:
-        """Move the segments onto the current sphere positions (call before rendering)."""
-        c = self.cable
-        cid = c.world.client
-        x = c.x
-        for i, b in enumerate(self.bodies):
-            d = x[i + 1] - x[i]
-            mid = 0.5 * (x[i + 1] + x[i])
-            pb.resetBasePositionAndOrientation(b, mid.tolist(), _quat_z_to(d), physicsClientId=cid)
-        held = tuple(bool(h) for h in (c.arrays.held[0], c.arrays.held[-1]))
-        if held != self._held:
-            for flag, b in zip(held, (c.body_ids[0], c.body_ids[-1])):
-                col = self.held_color if flag else self.colors[0]
-                pb.changeVisualShape(b, -1, rgbaColor=list(col), physicsClientId=cid)
-            self._held = held
-
-
-def _quat_z_to(d: np.ndarray) -> list[float]:
-    """Quaternion rotating +z onto direction d."""
-    n = np.linalg.norm(d)
-    if n < 1e-12:
-        return [0.0, 0.0, 0.0, 1.0]
-    d = d / n
-    axis = np.cross([0.0, 0.0, 1.0], d)
-    s = np.linalg.norm(axis)
-    c = float(d[2])
-    if s < 1e-12:
-        return [0.0, 0.0, 0.0, 1.0] if c > 0 else [1.0, 0.0, 0.0, 0.0]
-    angle = math.atan2(s, c)
-    axis = axis / s * math.sin(angle / 2)
-    return [float(axis[0]), float(axis[1]), float(axis[2]), math.cos(angle / 2)]
+    pts = np.asarray(points, float).reshape(-1, 3)
+    centre = 0.5 * (pts.min(axis=0) + pts.max(axis=0))
+    f = np.asarray(view_direction, float) / np.linalg.norm(view_direction)
+    r = np.cross([0.0, 0.0, 1.0], f)
+    r /= np.linalg.norm(r)
+    u = np.cross(f, r)
+    tan_v = math.tan(math.radians(fov) / 2.0)
+    tan_h = tan_v * width / height
+    q = pts - centre
+    need = np.maximum(np.abs(q @ r) * margin / tan_h, np.abs(q @ u) * margin / tan_v) + q @ f
+    distance = max(float(need.max()), 0.1)
+    return Camera(eye=tuple(centre + distance * f), target=tuple(centre), width=width, height=height, fov=fov,
+                  far=max(5.0, 3.0 * distance))
 
 
 def default_camera(points: Sequence[Sequence[float]], width: int = 640, height: int = 480) -> Camera:

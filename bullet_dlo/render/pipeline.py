@@ -1,23 +1,63 @@
-"""One call from a scene file to a folder of video and plots (``bullet-dlo render``)."""
+"""One call from a scene to a folder of video and plots (``bullet-dlo render``)."""
 from __future__ import annotations
 
 import json
-import time
 from pathlib import Path
+from typing import Sequence
 
 import numpy as np
 from tqdm import tqdm
 
-from bullet_dlo.render.camera import CableTube, Camera, default_camera
-from bullet_dlo.render.video import Recorder, VideoWriter, plot_wrenches, probe_video, side_by_side
+from bullet_dlo.render.camera import Camera, framing_camera
+from bullet_dlo.render.plots import plot_wrenches
+from bullet_dlo.render.tube import CableTube
+from bullet_dlo.render.video import Recorder, VideoWriter, probe_video, side_by_side
+
+
+def cable_envelope(ends: np.ndarray, length: float, motion: Sequence, free: Sequence[bool] = (False, False),
+                   ground: float = 0.0) -> np.ndarray:
+    """Points (k, 3) [m] that bound where a cable of ``length`` goes while its ends follow ``motion``.
+
+    ends: the two end positions at t = 0, (2, 3); motion: :class:`~bullet_dlo.core.boundary.Move`
+    items. At every move's start and end the two held ends are taken, and below their midpoint
+    the lowest point an inextensible cable between them can reach (half of sqrt(L^2 - s^2) for
+    ends s apart); a ``free`` end may swing anywhere within ``length`` of the other end, above
+    ``ground`` [m].
+    """
+    ends = np.asarray(ends, float)
+    times = sorted({0.0} | {m.start for m in motion} | {m.start + m.duration for m in motion})
+    points = []
+    for t in times:
+        now = ends.copy()
+        for m in motion:
+            done = min(max((t - m.start) / m.duration, 0.0), 1.0)
+            now[0 if m.end == "first" else 1] += done * np.asarray(m.displacement)
+        span = float(np.linalg.norm(now[1] - now[0]))
+        sag = 0.5 * np.sqrt(max(length**2 - span**2, 0.0))
+        points += [now[0], now[1], 0.5 * (now[0] + now[1]) - (0.0, 0.0, sag)]
+        for k, is_free in enumerate(free):
+            if is_free:
+                anchor = now[1 - k]
+                points += [anchor + d for d in length * np.vstack([np.eye(3), -np.eye(3)])]
+    pts = np.array(points)
+    pts[:, 2] = np.maximum(pts[:, 2], ground)
+    return pts
 
 
 def render_scene(scene, out: str | Path, *, robot: str | None = None, fps: float = 30.0, width: int = 640,
                  height: int = 480, renderer: str = "auto", fmt: str = "auto", camera: Camera | None = None,
-                 progress: bool = True) -> dict:
-    """Run ``scene`` in Bullet (with two arms holding the cable when ``robot`` is given) and
-    write ``scene.<mp4|webm>``, ``forces.png``, ``side_by_side.<ext>``, ``still.png`` and
-    ``render.json`` into ``out``. Returns the summary (renderer, codec, frame time, sizes).
+                 arm_options: dict | None = None, phases: Sequence[tuple[float, float, str]] = (),
+                 still_time: float | None = None, progress: bool = True) -> dict:
+    """Run ``scene`` in Bullet and film it; write ``scene.<mp4|webm>``, ``forces.png``,
+    ``side_by_side.<ext>``, ``still.png`` and ``render.json`` into ``out``.
+
+    robot: two arms of this kind hold the cable ends (the scene's first end is the left arm's)
+    and the plot shows their wrist sensors; arm_options: more :class:`DualArmConfig` fields
+    (e.g. ``hold_height``); camera: default frames the cable's whole motion (see
+    :func:`cable_envelope`); phases: (start [s], end [s], label) spans marked on the force plot;
+    still_time: time [s] of the frame saved as ``still.png`` (default: the last frame);
+    progress: a frame counter with ETA on stderr. Returns the summary (renderer, codec,
+    frames, wall time, sizes).
     """
     import cv2
 
@@ -26,12 +66,12 @@ def render_scene(scene, out: str | Path, *, robot: str | None = None, fps: float
     if robot:
         from bullet_dlo.robots.dual_arm import DualArmConfig, DualArmScene
 
-        arm_scene = DualArmScene(DualArmConfig(robot=robot, cable=scene.cable, dt=scene.dt,
-                                               integrator=scene.integrator, renderer=renderer))
+        arm_scene = DualArmScene(DualArmConfig(robot=robot, cable=scene.cable, dt=scene.dt, integrator=scene.integrator,
+                                               renderer=renderer, **(arm_options or {})))
         arm_scene.grasp()
         for m in scene.motion:
             arm_scene.move("left" if m.end == "first" else "right", m.displacement, m.duration, start=m.start)
-        world, cable = arm_scene.world, arm_scene.cable
+        world, cable, free = arm_scene.world, arm_scene.cable, (False, False)
     else:
         from bullet_dlo.bullet.world import build_world
 
@@ -40,44 +80,40 @@ def render_scene(scene, out: str | Path, *, robot: str | None = None, fps: float
         model = scene.build_model()
         cable = world.add_cable(model, integrator=scene.integrator, state=scene.initial_state(model),
                                 substeps=scene.bullet.substeps, self_collision=scene.bullet.self_collision)
+        free = tuple(mode == "free" for mode in scene.ends)
     try:
-        frame_points = np.vstack([cable.x] + ([[(-0.6, 0.0, 0.0), (0.6, 0.0, 0.0), (0.0, 0.0, 0.6)]] if robot else []))
-        cam = camera or default_camera(frame_points, width, height)
-        rend = world.renderer
+        ground = world.ground_height if world.ground_id is not None else -np.inf
+        cam = camera or framing_camera(cable_envelope(cable.x[[0, -1]], scene.cable.length, scene.motion, free, ground),
+                                       width=width, height=height)
         tube = CableTube(cable)
         writer = VideoWriter(out / "scene", fps, fmt)
         n_frames = int(np.floor(scene.duration * fps + 1e-9)) + 1
         bar = tqdm(total=n_frames, desc="rendering", unit="frame", disable=not progress)
-        rec = Recorder(world, cam, rend, fps, writer, tube, progress=bar)
-        forces, times = [], []
-        world.after_step.append(rec.on_step)
-        world.after_step.append(lambda: (times.append(world.time), forces.append(cable.end_forces())))
+        rec = Recorder(world, cam, world.renderer, fps, writer, tube, progress=bar)
+        forces, times, still = [], [], []
+
+        def after_step() -> None:
+            rec.on_step()
+            times.append(world.time)
+            forces.append(cable.end_forces())
+            if not still and still_time is not None and rec.times[-1] >= still_time - 1e-9:
+                still.append(rec.last.rgb)
+
+        world.after_step.append(after_step)
         rec.on_step()  # frame at t = 0
-        tic = time.perf_counter()
-        n_steps = max(1, int(round(scene.duration / scene.dt)))
-        for _ in range(n_steps):
-            world.step()
-            if not cable.stable:
-                break
-        wall = time.perf_counter() - tic
+        wall = world.run_while_stable(max(1, int(round(scene.duration / scene.dt))), cable)
         bar.close()
         writer.close()
-        cv2.imwrite(str(out / "still.png"), rec.last.rgb[:, :, ::-1])  # the last frame
-        t = np.array(times)
-        sensor = None
-        if arm_scene is not None:
-            r = arm_scene.record.arrays()
-            sensor = r["wrench_world"]
-        plot = plot_wrenches(t, sensor, np.array(forces), out / "forces.png",
-                             title=f"{scene.name}: " + ("wrist sensors vs model" if sensor is not None
-                                                        else "force on the held ends (model)"))
-        summary = {"renderer": rend.name, "renderer_note": rend.note, "frames": writer.frames,
+        cv2.imwrite(str(out / "still.png"), (still[0] if still else rec.last.rgb)[:, :, ::-1])
+        sensor = arm_scene.record.arrays()["wrench_world"] if arm_scene is not None else None
+        title = f"{scene.name}: " + ("wrist sensors vs model" if sensor is not None else "force on the held ends")
+        plot = plot_wrenches(np.array(times), sensor, np.array(forces), out / "forces.png", title=title, phases=phases)
+        summary = {"renderer": world.renderer.name, "renderer_note": world.renderer.note, "frames": writer.frames,
                    "video": str(writer.path), "format": writer.format, "codec": writer.codec,
                    "fps": fps, "width": cam.width, "height": cam.height, "wall_time_s": wall,
                    "stable": bool(cable.stable)}
         if writer.format != "png":
-            info = probe_video(writer.path)
-            summary["decoded"] = info
+            summary["decoded"] = probe_video(writer.path)
             summary["bytes_per_second"] = writer.path.stat().st_size / max(scene.duration, 1e-9)
             sbs = side_by_side(writer.path, plot, np.array(rec.times), out / "side_by_side", fps)
             summary["side_by_side"] = str(sbs.path)

@@ -1,13 +1,11 @@
-"""Videos and plots from headless runs.
+"""Videos from headless runs.
 
 * :class:`VideoWriter`: browser-playable H.264 MP4 (yuv420p, faststart) through PyAV, which
   ships its own FFmpeg with libx264; falls back to VP9 WebM, then to a PNG sequence, and
   reports what it wrote.
-* :class:`Recorder`: captures frames at a chosen fps, independent of the physics rate, from
-  a :class:`~bullet_dlo.bullet_scene.BulletWorld` hook.
-* :func:`plot_wrenches` / :func:`side_by_side`: force time series of both wrists with the
-  model's end forces, and a video with the scene on the left and the plot with a moving
-  cursor on the right.
+* :class:`Recorder`: renders frames at a chosen fps, independent of the physics rate, from
+  a :class:`~bullet_dlo.bullet.world.BulletWorld` hook.
+* :func:`side_by_side`: the scene on the left, a force plot with a moving time cursor on the right.
 """
 from __future__ import annotations
 
@@ -17,8 +15,11 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from bullet_dlo.core.timing import RateGate
 from bullet_dlo.core.validate import ParameterError, check_positive
-from bullet_dlo.render.camera import CableTube, Camera, Frame, Renderer, capture
+from bullet_dlo.render.camera import Camera, Frame, Renderer, render_frame
+from bullet_dlo.render.plots import PlotInfo, plot_wrenches  # noqa: F401  (re-exported: their home before 0.2)
+from bullet_dlo.render.tube import CableTube
 
 FORMATS = ("mp4", "webm", "png")
 
@@ -85,6 +86,7 @@ class VideoWriter:
         self.frames += 1
 
     def close(self) -> None:
+        """Flush the encoder and close the file (a no-op for PNG sequences and when closed)."""
         if self._container is not None:
             for packet in self._stream.encode():
                 self._container.mux(packet)
@@ -105,10 +107,12 @@ def probe_video(path: str | Path) -> dict:
 
 @dataclass
 class Recorder:
-    """Capture frames of a Bullet world at ``fps``, independent of its step.
+    """Render frames of a Bullet world at ``fps`` [Hz], independent of its step.
 
     Attach with ``world.after_step.append(recorder.on_step)``; frames go to ``writer`` (if
-    any) and the last one is kept in ``last``. ``tube``: a CableTube to update before each frame.
+    any) and the last one is kept in ``last``; ``times`` holds the time [s] of each frame.
+    ``tube``: a CableTube to update before each frame; ``progress``: anything with
+    ``update(1)`` (a tqdm bar), called per frame.
     """
 
     world: object
@@ -122,21 +126,19 @@ class Recorder:
     progress: object = None
 
     def __post_init__(self) -> None:
-        check_positive("fps", self.fps)
-        self._next = 0.0
+        self._gate = RateGate(check_positive("fps", self.fps))
 
     def on_step(self) -> None:
-        """Capture if the world's time reached the next frame time."""
-        if self.world.time + 1e-12 < self._next:
-            return
-        self.snap()
-        self._next += 1.0 / self.fps
+        """Render if the world's time reached the next frame time."""
+        if self._gate.due(self.world.time):
+            self.snap()
 
     def snap(self) -> Frame:
+        """Render one frame now."""
         if self.tube is not None:
             self.tube.update()
         mass_of_body = self.tube.mass_of_body() if self.tube is not None else None
-        self.last = capture(self.world.client, self.camera, self.renderer, mass_of_body)
+        self.last = render_frame(self.world.client, self.camera, self.renderer, mass_of_body)
         self.times.append(self.world.time)
         if self.writer is not None:
             self.writer.write(self.last.rgb)
@@ -145,54 +147,12 @@ class Recorder:
         return self.last
 
 
-@dataclass(frozen=True)
-class PlotInfo:
-    """A written plot: its file, time range [s] and the pixel x-range of each time axis."""
-
-    path: Path
-    t_range: tuple[float, float]
-    axes_px: tuple[tuple[int, int], ...]
-
-
-def plot_wrenches(t: np.ndarray, sensor: np.ndarray | None, model: np.ndarray, path: str | Path,
-                  title: str = "wrist forces") -> PlotInfo:
-    """PNG of sensor forces (k, 2, >=3) and model end forces (k, 2, 3) [N] over t [s], per arm."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, axes = plt.subplots(3, 2, figsize=(10, 6.5), sharex=True)
-    for a, arm in enumerate(("left / first end", "right / last end")):
-        for k, comp in enumerate("xyz"):
-            ax = axes[k, a]
-            if sensor is not None:
-                ax.plot(t, sensor[:, a, k], lw=1.2, label="wrist sensor (tared, world)")
-            ax.plot(t, model[:, a, k], "--", lw=1.0, label="model end force")
-            ax.set_ylabel(f"F{comp} [N]")
-            if k == 0:
-                ax.set_title(arm)
-    axes[0, 0].legend(fontsize=7)
-    for ax in axes[-1]:
-        ax.set_xlabel("time [s]")
-    fig.suptitle(title)
-    fig.tight_layout()
-    for ax in axes.ravel():
-        ax.set_xlim(float(t[0]), float(t[-1]))
-    path = Path(path)
-    fig.savefig(path, dpi=100)
-    fig.canvas.draw()
-    cols = tuple((int(axes[0, a].get_window_extent().x0), int(axes[0, a].get_window_extent().x1)) for a in range(2))
-    plt.close(fig)
-    return PlotInfo(path, (float(t[0]), float(t[-1])), cols)
-
-
 def side_by_side(scene_video: str | Path, plot: PlotInfo, t_frames: np.ndarray, out_path: str | Path,
                  fps: float) -> VideoWriter:
     """Video with the scene (left) and the force plot with a moving time cursor (right).
 
     scene_video: a video written by :class:`VideoWriter` (decoded again); t_frames: the time
-    [s] of each of its frames.
+    [s] of each of its frames; the cursor is drawn inside each of the plot's time axes.
     """
     import av
 
@@ -204,11 +164,12 @@ def side_by_side(scene_video: str | Path, plot: PlotInfo, t_frames: np.ndarray, 
             scene = frame.to_ndarray(format="rgb24")
             h = scene.shape[0]
             scale = h / image.shape[0]
-            right = np.ascontiguousarray(cv2.resize(image, (int(image.shape[1] * scale), h)))
+            right = np.ascontiguousarray(cv2.resize(image, (int(image.shape[1] * scale), h),
+                                                    interpolation=cv2.INTER_AREA))
             t = t_frames[min(k, len(t_frames) - 1)]
-            for x0, x1 in plot.axes_px:
+            for x0, x1, y0, y1 in plot.axes_px:
                 x = int((x0 + (x1 - x0) * (t - t0) / max(t1 - t0, 1e-9)) * scale)
-                cv2.line(right, (x, 0), (x, h - 1), (220, 30, 30), 2)
+                cv2.line(right, (x, int(y0 * scale)), (x, int(y1 * scale)), (220, 30, 30), 2)
             writer.write(np.concatenate([scene, right], axis=1))
     writer.close()
     return writer

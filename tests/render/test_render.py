@@ -9,8 +9,10 @@ import bullet_dlo.bullet.renderer as bullet_renderer
 from bullet_dlo.bullet.world import BulletWorld
 from bullet_dlo.core.spec import CableSpec
 from bullet_dlo.core.validate import ParameterError
-from bullet_dlo.render.camera import CableTube, Camera, Renderer, RenderError, capture
-from bullet_dlo.render.video import Recorder, VideoWriter, plot_wrenches, probe_video, side_by_side
+from bullet_dlo.render.camera import Camera, Renderer, RenderError, render_frame
+from bullet_dlo.render.plots import plot_wrenches
+from bullet_dlo.render.tube import CableTube
+from bullet_dlo.render.video import Recorder, VideoWriter, probe_video, side_by_side
 
 CAMERA = Camera(eye=(0.15, -0.6, 0.75), target=(0.15, 0.0, 0.5), width=320, height=240, fov=50)
 
@@ -28,7 +30,7 @@ def test_frame_shows_the_cable_where_it_is(renderer):
     world, cable = cable_world(renderer)
     with world:
         tube = CableTube(cable)
-        frame = capture(world.client, CAMERA, world.renderer, tube.mass_of_body())
+        frame = render_frame(world.client, CAMERA, world.renderer, tube.mass_of_body())
         assert frame.rgb.shape == (240, 320, 3) and frame.rgb.std() > 5.0  # not blank
         uv, _ = CAMERA.project(cable.x, world.client)
         view, _ = CAMERA.matrices(world.client)
@@ -63,7 +65,7 @@ def test_blank_frame_is_an_error_not_a_picture():
     with world:
         empty_sky = Camera(eye=(0, 0, 3), target=(0, 0, 10), width=64, height=48)  # looks at nothing
         with pytest.raises(RenderError, match="blank frame"):
-            capture(world.client, empty_sky, world.renderer)
+            render_frame(world.client, empty_sky, world.renderer)
 
 
 def test_camera_validation():

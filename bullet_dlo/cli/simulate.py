@@ -1,0 +1,215 @@
+"""``bullet-dlo simulate | stability | paper-table | convergence``: the numerical core from the command line."""
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+import numpy as np
+
+from bullet_dlo.cli.quiet import bar
+
+TABLES = ("base", "rates")
+RATE_INTEGRATORS = ("symplectic_euler", "implicit_euler", "bdf2", "implicit_midpoint")
+
+
+def write_json(path: str, data: object) -> None:
+    """Write ``data`` as indented JSON, creating the folder."""
+    out = Path(path)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(json.dumps(data, indent=2))
+
+
+def cmd_simulate(args: argparse.Namespace) -> int:
+    from dataclasses import replace
+
+    from bullet_dlo.config.scene import Scene, result_json
+    from bullet_dlo.core.integrators import get_integrator
+    from bullet_dlo.core.validate import check_positive
+
+    scene = Scene.from_yaml(args.scene).resolved()
+    if args.integrator is not None:
+        scene = replace(scene, integrator=get_integrator(args.integrator).name)
+    for key in ("dt", "duration"):
+        if getattr(args, key) is not None:
+            scene = replace(scene, **{key: check_positive(f"--{key}", getattr(args, key))})
+    if args.engine == "bullet":
+        from bullet_dlo.bullet.world import run_scene_bullet
+
+        model, result = run_scene_bullet(scene)
+    else:
+        model, result = scene.run()
+    data = result_json(scene, model, result, engine=args.engine)
+    if args.json:
+        write_json(args.json, data)
+    if args.npz:
+        Path(args.npz).parent.mkdir(parents=True, exist_ok=True)
+        np.savez_compressed(args.npz, t=result.t, x=result.x, v=result.v, end_forces=result.end_forces,
+                            energy=result.energy)
+    status = "stable" if data["stable"] else f"UNSTABLE at t = {data['time_to_instability']:.6g} s ({data['reason']})"
+    print(f"{scene.name}: {data['integrator']} dt={scene.dt:g} s, {data['steps']} steps in "
+          f"{data['wall_time_s']:.3f} s: {status}")
+    if data["stable"]:
+        for end in ("first", "last"):
+            if data["end_forces"][end] is not None:
+                print(f"  end force {end}: " + " ".join(f"{v:+.5f}" for v in data["end_forces"][end]) + " N")
+    return 0
+
+
+def cmd_stability(args: argparse.Namespace) -> int:
+    from bullet_dlo.config.scene import Scene
+    from bullet_dlo.core.integrators import INTEGRATORS
+    from bullet_dlo.core.stability import critical_dt, damping_bounds
+
+    scene = Scene.from_yaml(args.scene)
+    model = scene.build_model()
+    report = {"dt": scene.dt, "critical_dt": {}, "stable_at_dt": {}}
+    print(f"{scene.name}: n={model.n}, E={scene.cable.youngs_modulus:.4g} Pa, dt={scene.dt:g} s")
+    for name in INTEGRATORS:
+        crit = critical_dt(model, name)
+        report["critical_dt"][name] = crit
+        report["stable_at_dt"][name] = True if crit is None else bool(scene.dt <= crit)
+        txt = "unconditionally stable (linear analysis)" if crit is None else f"{crit:.4g} s"
+        print(f"  {name:18s} critical dt: {txt}")
+    b = damping_bounds(model, scene.dt)
+    report["damping"] = b.__dict__
+    print(f"  omega_max = {b.omega_max:.4g} rad/s, damping ratio of the stiffest mode = {b.damping_ratio:.3g}")
+    print(f"  k_d that critically damps one segment spring: {b.k_d_critical_spring:.4g} N s/m;"
+          f" explicit Euler needs k_d >= {b.k_d_min_explicit_euler:.4g}; explicit methods need k_d <= "
+          f"{b.k_d_max_explicit:.4g} N s/m at this dt")
+    if args.json:
+        write_json(args.json, report)
+    return 0
+
+
+def parse_tables(text: str) -> tuple[str, ...]:
+    """``base,rates`` -> ("base", "rates"); argparse reports anything else."""
+    names = tuple(t.strip() for t in text.split(",") if t.strip())
+    bad = [t for t in names if t not in TABLES]
+    if bad or not names:
+        raise argparse.ArgumentTypeError(f"tables must be a comma-separated subset of {','.join(TABLES)}, got {text!r}")
+    return names
+
+
+def cmd_paper_table(args: argparse.Namespace) -> int:
+    from bullet_dlo.analysis import study
+    from bullet_dlo.core.integrators import get_integrator
+
+    tables = ("base", "rates") if args.rates else args.tables
+    moduli = [float(e) * 1e6 for e in args.moduli] if args.moduli else study.PAPER_E
+    masses = args.masses or study.PAPER_N
+    plans = []  # (heading, steps, integrators, duration)
+    if "base" in tables:
+        plans.append(("The study's time steps", args.steps or study.PAPER_DT,
+                      args.integrators or study.PAPER_INTEGRATORS, args.duration))
+    if "rates" in tables:
+        plans.append(("At robot-simulator rates (1 kHz Gazebo, 60 Hz Isaac Sim)", tuple(study.ROBOT_RATES.values()),
+                      RATE_INTEGRATORS, args.rate_duration))
+    for _, _, integrators, _ in plans:
+        for name in integrators:
+            get_integrator(name)  # a bad name fails before any run
+    print("The study's scenario: Lv cable, both ends clamped at rest length, settled, last end moved 5 mm "
+          f"(k_d = {args.damping} N s/m).", flush=True)
+    total = sum(len(moduli) * len(masses) * len(steps) * len(integ) for _, steps, integ, _ in plans)
+    progress = bar(total, "paper-table", args.quiet)
+
+    def report(run) -> None:
+        progress.update(1)
+        progress.set_postfix_str(f"E={run.youngs_modulus / 1e6:g} MPa n={run.n_masses} dt={run.dt:g} {run.integrator}")
+        if args.verbose:
+            state = "stable" if run.stable else f"unstable at {run.time_to_instability:.4g} s"
+            progress.write(f"  E={run.youngs_modulus / 1e6:g} MPa n={run.n_masses} dt={run.dt:g} {run.integrator}: "
+                           f"{state} ({run.wall_time_s:.1f} s)")
+
+    all_runs, text = [], ""
+    with progress:
+        for heading, steps, integrators, duration in plans:
+            runs = study.paper_table(moduli, masses, steps, integrators, damping=args.damping, duration=duration,
+                                     progress=report)
+            table = study.format_table(runs)
+            progress.write(f"\n{heading}, {duration:g} s per run:\n{table}")
+            text += f"## {heading}\n\n{table}\n\n"
+            all_runs += runs
+    if args.markdown:
+        Path(args.markdown).parent.mkdir(parents=True, exist_ok=True)
+        Path(args.markdown).write_text(text)
+    if args.json:
+        write_json(args.json, [r.__dict__ for r in all_runs])
+    return 0
+
+
+def cmd_convergence(args: argparse.Namespace) -> int:
+    from bullet_dlo.analysis.closed_forms import cantilever_convergence
+
+    rows = []
+    with bar(len(args.masses), "convergence", args.quiet, unit="n") as progress:
+        for n in args.masses:
+            rows += cantilever_convergence([n])
+            progress.update(1)
+    print("Clamped cantilever under its own weight vs delta = w L^4 / (8 E I) (small deflection):")
+    print("| n | default error | paper error |\n|---|---|---|")
+    for r in rows:
+        print(f"| {r['n_masses']} | {100 * r['default']:+.3f} % | {100 * r['paper']:+.2f} % |")
+    if args.json:
+        write_json(args.json, rows)
+    return 0
+
+
+def add_parsers(sub, common: argparse.ArgumentParser) -> None:
+    """The four subcommands of this group, on ``sub`` (argparse subparsers); ``common``: shared options."""
+    s = sub.add_parser("simulate", parents=[common], help="run a scene file and write JSON results",
+                       description="Run SCENE.yaml (see the README for its keys) with the core engine or in "
+                                   "PyBullet and print stability and end forces.")
+    s.add_argument("scene", help="scene YAML file")
+    s.add_argument("--json", metavar="OUT.json", help="write stable, time_to_instability, critical_dt, "
+                   "final_positions, end_forces, steps, wall_time_s (and more) to this file")
+    s.add_argument("--npz", metavar="OUT.npz", help="also save the recorded trajectory (t, x, v, end_forces, energy)")
+    s.add_argument("--engine", default="core", choices=["core", "bullet"],
+                   help="core: the NumPy/Numba engine (default, no contacts); bullet: the cable as PyBullet spheres "
+                        "driven by the same integrator, with contacts against the ground and the scene's "
+                        "bullet.obstacles (same JSON keys)")
+    s.add_argument("--integrator", help="override the scene's integrator (explicit_euler, symplectic_euler, rk4, "
+                   "implicit_euler, bdf2, implicit_midpoint)")
+    s.add_argument("--dt", type=float, help="override the scene's time step [s]")
+    s.add_argument("--duration", type=float, help="override the scene's duration [s]")
+    s.set_defaults(func=cmd_simulate)
+
+    s = sub.add_parser("stability", parents=[common], help="predicted critical time step of every integrator",
+                       description="Linear stability analysis of SCENE.yaml's cable: critical dt per integrator "
+                                   "and damping bounds.")
+    s.add_argument("scene", help="scene YAML file")
+    s.add_argument("--json", metavar="OUT.json", help="write the report as JSON")
+    s.set_defaults(func=cmd_stability)
+
+    s = sub.add_parser("paper-table", parents=[common], help="re-run the study's stability table with every integrator",
+                       description="Lv cable clamped at both ends, settled, last end moved 5 mm; for each E, n and "
+                                   "dt report stable/unstable and the time to instability. The full base table "
+                                   "takes about 13 minutes on 2 cores (a progress bar shows the ETA); the rates "
+                                   "table about a minute.")
+    s.add_argument("--tables", type=parse_tables, default=("base",), metavar="base,rates",
+                   help="which tables to compute: base (the study's steps 5e-6 and 1e-7 s), rates (1 kHz and "
+                        "60 Hz with symplectic Euler and the implicit methods), or both (default: base)")
+    s.add_argument("--rates", action="store_true", help="same as --tables base,rates (kept for old scripts)")
+    s.add_argument("--moduli", nargs="+", type=float, metavar="MPA",
+                   help="Young's moduli in MPa (default: 12.6 526 1002 1002.6)")
+    s.add_argument("--masses", nargs="+", type=int, metavar="N", help="numbers of masses (default: 6 10)")
+    s.add_argument("--steps", nargs="+", type=float, metavar="DT",
+                   help="time steps [s] of the base table (default: 5e-6 1e-7)")
+    s.add_argument("--integrators", nargs="+", metavar="NAME",
+                   help="integrators of the base table (default: explicit_euler symplectic_euler rk4 implicit_euler)")
+    s.add_argument("--damping", type=float, default=0.01, help="k_d [N s/m] (default 0.01)")
+    s.add_argument("--duration", type=float, default=0.25, help="simulated seconds per base-table run (default 0.25)")
+    s.add_argument("--rate-duration", type=float, default=2.0,
+                   help="simulated seconds per rates-table run (default 2)")
+    s.add_argument("--markdown", metavar="OUT.md", help="write the table(s) as Markdown")
+    s.add_argument("--json", metavar="OUT.json", help="write every run as JSON")
+    s.add_argument("-v", "--verbose", action="store_true", help="print each run as it finishes")
+    s.set_defaults(func=cmd_paper_table)
+
+    s = sub.add_parser("convergence", parents=[common], help="cantilever static convergence of both discretisations",
+                       description="Tip deflection of a clamped cantilever under its own weight vs beam "
+                                   "theory, for the default and the paper discretisation.")
+    s.add_argument("--masses", nargs="+", type=int, default=[5, 10, 20, 40], metavar="N",
+                   help="numbers of masses (default: 5 10 20 40)")
+    s.add_argument("--json", metavar="OUT.json", help="write the table as JSON")
+    s.set_defaults(func=cmd_convergence)
