@@ -182,6 +182,26 @@ def test_grasp_runs_from_the_installed_wheel(venv, tmp_path, robot):
     assert result["sensor_vs_model_error"] < 0.10
 
 
+def joints_in_file(urdf: Path) -> set[str]:
+    """Names of the joints the URDF file declares."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        robot = yourdfpy.URDF.load(str(urdf), build_scene_graph=False, load_meshes=False).robot
+    return {joint.name for joint in robot.joints}
+
+
+def joints_as_loaded(urdf: Path, client: int) -> set[str] | None:
+    """Names of the joints PyBullet builds from the URDF file (None if it rejects the file)."""
+    try:
+        body = pb.loadURDF(str(urdf), useFixedBase=True, flags=pb.URDF_USE_INERTIA_FROM_FILE, physicsClientId=client)
+    except pb.error:
+        return None
+    names = {pb.getJointInfo(body, j, physicsClientId=client)[1].decode()
+             for j in range(pb.getNumJoints(body, physicsClientId=client))}
+    pb.removeBody(body, physicsClientId=client)
+    return names
+
+
 def test_robots_load_on_install_paths_of_any_length(tmp_path, monkeypatch):
     """Compose and load both robots with pybullet_data and urdf/ under 24 consecutive path lengths.
 
@@ -209,21 +229,10 @@ def test_robots_load_on_install_paths_of_any_length(tmp_path, monkeypatch):
                     assert path == prefix / "pybullet_data" / spec.urdf
                 else:  # composed: the arm's meshes are referred to by their absolute paths under the prefix
                     assert path.is_relative_to(tmp_path / "tmp") and str(prefix.resolve()) in path.read_text()
-                with warnings.catch_warnings():
-                    warnings.simplefilter("ignore")
-                    urdf = yourdfpy.URDF.load(str(path), build_scene_graph=False, load_meshes=False)
-                expected = {j.name for j in urdf.robot.joints}
+                expected = joints_in_file(path)
                 assert spec.sensor_joint in expected
-                try:
-                    body = pb.loadURDF(str(path), useFixedBase=True, flags=pb.URDF_USE_INERTIA_FROM_FILE,
-                                       physicsClientId=client)
-                    joints = {pb.getJointInfo(body, j, physicsClientId=client)[1].decode()
-                              for j in range(pb.getNumJoints(body, physicsClientId=client))}
-                except pb.error:
-                    joints = None
-                if joints != expected:  # not loaded, or loaded with joints missing
+                if joints_as_loaded(path, client) != expected:  # rejected, or loaded with joints missing
                     failed.append((spec.name, lengths[-1]))
-                pb.resetSimulation(physicsClientId=client)
     finally:
         pb.disconnect(client)
     assert failed == [], f"(robot, prefix length) that did not load, of lengths {lengths}: {failed}"
