@@ -97,7 +97,7 @@ class WristSensor:
         """Payload's sum of m a [N] in world, from the change of its momentum over the last step dt [s]."""
         states = pb.getLinkStates(self.robot.body, self.payload, computeLinkVelocity=True,
                                   physicsClientId=self.robot.client)
-        momentum = np.sum([m * np.array(s[6]) for m, s in zip(self.payload_mass, states)], axis=0)
+        momentum = self.payload_mass @ np.array([s[6] for s in states])  # sum of m v over the payload links
         prev, self._momentum_prev = self._momentum_prev, momentum
         return np.zeros(3) if prev is None else (momentum - prev) / dt
 
