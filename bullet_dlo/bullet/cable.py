@@ -1,15 +1,25 @@
 """A cable inside PyBullet: one Bullet sphere per mass, moved by MSD forces from the core.
 
-Every fixed Bullet step:
+Stepping order of one Bullet step (``BulletWorld.step`` drives it; the kernels are in
+:mod:`bullet_dlo.bullet.kernels`):
 
-1. the core integrator advances the cable's own state (x, v) -> (x', v') (Numba, one call);
-2. each sphere gets the external force that makes Bullet's semi-implicit update land on x':
-   F = m ((x' - x)/h - v_b)/h - m g_bullet, with v_b Bullet's current velocity of the sphere;
+1. plan (done at the end of the previous step): the core integrator advances the model's
+   state (x, v) -> (x', v') over the Bullet step h in ``substeps`` steps, held ends following
+   their move tables or the measured gripper poses;
+2. forces: each sphere gets the external force that makes Bullet's semi-implicit update land
+   on x': F = m ((x' - x)/h - v_b)/h - m g_bullet, v_b Bullet's current sphere velocity
+   (:meth:`BulletCable.apply_forces`);
 3. Bullet steps, resolving contacts with everything else;
-4. one ``getContactPoints`` call says which spheres something touched. Only those are read
-   back; for them the contact's velocity change (read - target) is added to v'. Untouched
-   spheres are exactly where step 2 sent them, so there is nothing to read.
+4. contacts: one ``getContactPoints`` call says which spheres something touched; only those
+   are read back (untouched spheres are exactly where step 2 sent them);
+5. take over: the model state becomes (x', v'), with the read-back position of each touched
+   sphere and its contact velocity change (read - target) added to v';
+6. check: the instability detector runs on the new state (cheap checks every
+   ``check_every`` steps, the energy balance every ``energy_every``); an unstable cable
+   stops here and receives no more forces;
+7. record (every ``record_every`` steps) and plan the next step (1).
 
+Steps 5, 6 and 1 are one Numba call (:func:`~bullet_dlo.bullet.kernels.sync_and_advance`).
 Without contacts the Bullet trajectory therefore equals the core trajectory of every
 integrator (x' is reproduced exactly; v' is kept on our side when the method's x' is not
 x + h v'). Bullet clamps body speeds at 100 m/s: only an unstable run gets there.
@@ -21,120 +31,18 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import pybullet as pb
-from numba import njit
 
-from bullet_dlo.core.boundary import _rotate, sample_holders
-from bullet_dlo.core.engine import (
-    REASONS,
-    STABLE,
-    DetectorOptions,
-    advance,
-    end_forces_kernel,
-    energy_kernel,
-    energy_scale,
-    history,
-    monitor,
-)
-from bullet_dlo.core.integrators import NewtonOptions, get_integrator
-from bullet_dlo.core.kernels.forces import clamp_torque
+from bullet_dlo.bullet.kernels import Coupling, ExternalHolders, StepInput, bind, sync_and_advance
+from bullet_dlo.core.engine import DetectorOptions, start_detector
+from bullet_dlo.core.integrators import NewtonOptions, get_integrator, make_stepper
+from bullet_dlo.core.kernels.forces import clamp_torque, mechanical_energy
+from bullet_dlo.core.kernels.holders import empty_samples, sample_holders
+from bullet_dlo.core.kernels.monitor import REASONS, STABLE, end_forces
+from bullet_dlo.core.kernels.steppers import make_workspace
 from bullet_dlo.core.model import CableModel, CableState
 from bullet_dlo.core.validate import ParameterError, check_int
 
 SELF_COLLISION = ("neighbours", "none", "all")
-
-
-@njit(cache=True, error_model="numpy")
-def external_samples(ext, e, tau0, hs, hp, hv, ha, hd):
-    """Held-end samples of end ``e`` at tau0 + (0, hs/2, hs) after the time of ``ext``.
-
-    ext: (5, 2, 3) = position [m], velocity [m/s], acceleration [m/s^2], angular velocity
-    [rad/s] and clamp direction of each end, measured now (e.g. from a gripper link);
-    extrapolated at constant velocity and angular velocity over the step.
-    """
-    for k in range(3):
-        tau = tau0 + 0.5 * hs * k
-        for j in range(3):
-            hp[k, e, j] = ext[0, e, j] + tau * ext[1, e, j]
-            hv[k, e, j] = ext[1, e, j]
-            ha[k, e, j] = ext[2, e, j]
-            hd[k, e, j] = ext[4, e, j]
-        _rotate(hd[k, e], tau * ext[3, e, 0], tau * ext[3, e, 1], tau * ext[3, e, 2])
-
-
-@njit(cache=True, error_model="numpy")
-def coupled_targets(code, x, v, hist, has_prev, t, h, substeps, m, p0s, d0s, moves_first, moves_last, f_ext,
-                    max_iter, tol, definite, v_bullet, g_bullet, ext_mask, ext, x_new, v_new, forces, hp, hv, ha, hd):
-    """Advance the core state by one Bullet step h (``substeps`` integrator steps) and compute
-    the sphere forces [N] that make Bullet reproduce it. x_new, v_new, forces: (n, 3) outputs.
-
-    Ends with ``ext_mask`` follow the measured poses in ``ext`` (see :func:`external_samples`)
-    instead of the move tables. hp/hv/ha/hd receive the held-end samples of the last substep.
-    Returns (Newton iterations, all converged).
-    """
-    x_new[:, :] = x
-    v_new[:, :] = v
-    hs = h / substeps
-    iters = 0
-    ok_all = True
-    for k in range(substeps):
-        sample_holders(t + k * hs, hs, p0s, d0s, moves_first, moves_last, hp, hv, ha, hd)
-        for e in range(2):
-            if ext_mask[e]:
-                external_samples(ext, e, k * hs, hs, hp, hv, ha, hd)
-        its, ok = advance(code, x_new, v_new, hist, has_prev or k > 0, hs, m, hp, hv, hd, f_ext, max_iter, tol,
-                          definite)
-        iters += its
-        ok_all = ok_all and ok
-    for i in range(x.shape[0]):
-        for j in range(3):
-            v_target = (x_new[i, j] - x[i, j]) / h
-            forces[i, j] = m.mass[i] * ((v_target - v_bullet[i, j]) / h - g_bullet[j])
-    return iters, ok_all
-
-
-@njit(cache=True, error_model="numpy")
-def sync_and_advance(code, S, hist, has_prev, t, h, substeps, m, p0s, d0s, moves_first, moves_last, f_ext, max_iter,
-                     tol, definite, g_bullet, ext_mask, ext, do_sync, touched_idx, touched_pos, touched_vel, H, mon, acc, e0,
-                     max_strain_bound, energy_factor, do_check, energy_check):
-    """One call per Bullet step (few, packed arguments: the step loop is overhead-bound).
-
-    S: (6, n, 3) = x, v (model), v_bullet (Bullet's velocity), x_new, v_new (planned), forces.
-    H: (4, 3, 2, 3) held-end samples (pos, vel, acc, dir) of the planned step.
-    mon: (3, 2, 3) = end forces, last held positions, last end forces (for the holder work).
-
-    1. (``do_sync``) take over the step Bullet just made: the planned x_new/v_new for untouched
-       spheres; for touched ones the read-back position and velocity (``touched_*``), the
-       contact's velocity change added to v_new;
-    2. (``do_check``, ``energy_check``) monitor stability at the new time;
-    3. if stable, plan the next step from time t (:func:`coupled_targets`).
-    Returns (status, Newton iterations, converged).
-    """
-    x, v, v_bullet, x_new, v_new, forces = S[0], S[1], S[2], S[3], S[4], S[5]
-    hp, hv, ha, hd = H[0], H[1], H[2], H[3]
-    status = STABLE
-    if do_sync:
-        n = x.shape[0]
-        for i in range(n):
-            for j in range(3):
-                vt = (x_new[i, j] - x[i, j]) / h
-                x[i, j] = x_new[i, j]
-                v[i, j] = v_new[i, j]
-                v_bullet[i, j] = vt
-        for k in range(touched_idx.shape[0]):
-            i = touched_idx[k]
-            for j in range(3):
-                x[i, j] = touched_pos[k, j]
-                v[i, j] += touched_vel[k, j] - v_bullet[i, j]
-                v_bullet[i, j] = touched_vel[k, j]
-        if do_check or energy_check:
-            status = monitor(x, v, m, hp[2], ha[2], hd[2], f_ext, mon[0], mon[1], mon[2], acc, e0,
-                             max_strain_bound, energy_factor, energy_check)
-    if status != STABLE:
-        return status, 0, True
-    its, ok = coupled_targets(code, x, v, hist, has_prev, t, h, substeps, m, p0s, d0s, moves_first, moves_last,
-                              f_ext, max_iter, tol, definite, v_bullet, g_bullet, ext_mask, ext, x_new, v_new,
-                              forces, hp, hv, ha, hd)
-    return status, its, ok
 
 
 @dataclass
@@ -154,7 +62,9 @@ class CableRecord:
 class BulletCable:
     """A cable's spheres in a Bullet world and the state the MSD model keeps for them.
 
-    Create with :meth:`bullet_dlo.bullet_scene.BulletWorld.add_cable`.
+    Create with :meth:`bullet_dlo.bullet.world.BulletWorld.add_cable`. ``x`` [m], ``v`` [m/s]
+    (n, 3) are the model's state, ``t`` [s] its time; ``arrays`` its own copy of the model
+    arrays (grasp and release change the end conditions in place).
     """
 
     def __init__(self, world, name: str, model: CableModel, integrator: str, *, state: CableState | None,
@@ -170,46 +80,31 @@ class BulletCable:
         if sync not in ("contacts", "always"):
             raise ParameterError(f"sync must be 'contacts' or 'always', got {sync!r}")
         self.sync = sync
-        self.newton = newton
-        self.tol = newton.tolerance(self.method.name)
-        self.detector = detector
+        self.stepper = make_stepper(self.method, world.dt / self.substeps, newton)
         self.record_every = check_int("record_every", record_every, 1)
         st = (state or model.initial_state()).copy()
         n = model.n
-        # packed per-step arrays (views below): x, v, v_bullet, x_new, v_new, forces
-        self._S = np.zeros((6, n, 3))
-        self.x, self.v, self.v_bullet, self._x_new, self._v_new, self._forces = self._S
-        self.x[:] = st.x
-        self.v[:] = st.v
-        self.v_bullet[:] = st.v
         self.t = float(st.t)
-        self.hist = history(n)
         self.steps = 0
-        self.f_ext = np.zeros((n, 3))
-        self._H = np.zeros((4, 3, 2, 3))  # held-end samples: pos, vel, acc, dir
-        self._samples = list(self._H)
-        # own copy of the model arrays: grasp and release change the end conditions in place
         self.arrays = type(model.arrays)(*[np.array(a, copy=True) for a in model.arrays])
-        self._ext = np.zeros((5, 2, 3))  # measured held-end poses: pos, vel, acc, omega, dir
-        self._ext_mask = np.zeros(2, dtype=np.bool_)
+        self.plan = model.holder_plan()
+        zeros = np.zeros((2, 3))
+        self.ext = ExternalHolders(active=np.zeros(2, dtype=np.bool_), pos=zeros.copy(), vel=zeros.copy(),
+                                   acc=zeros.copy(), omega=zeros.copy(),
+                                   dir=self.plan.start_dir.copy())  # clamp directions until a gripper takes over
+        self._cp = Coupling(dt=float(world.dt), substeps=self.substeps,
+                            gravity=np.asarray(world.gravity, dtype=float), x=st.x.copy(), v=st.v.copy(),
+                            v_bullet=st.v.copy(), x_new=np.zeros((n, 3)), v_new=np.zeros((n, 3)),
+                            force=np.zeros((n, 3)), samples=empty_samples())
+        self.x, self.v = self._cp.x, self._cp.v
+        self.ws = make_workspace(n)
         self._no_rows = np.zeros((0, 3))
         self._no_index = np.zeros(0, dtype=np.int64)
-        self._tables = model.holder_tables()
-        self._ext[4] = self._tables[1]  # clamp directions until a gripper takes over
         self.radius = 0.5 * model.spec.diameter
         self.body_ids = self._spawn(color, self_collision)
-        # instability monitor
-        hp, hv, ha, hd = self._samples
-        p0s, d0s, mf, ml = self._tables
-        sample_holders(self.t, world.dt, p0s, d0s, mf, ml, hp, hv, ha, hd)
-        a = self.arrays
-        self._e0 = energy_kernel(self.x, self.v, a, hd[0])
-        self._mon = np.zeros((3, 2, 3))  # end forces, last held positions, last end forces
-        self._ef = self._mon[0]
-        end_forces_kernel(self.x, self.v, a, hd[0], ha[0], self.f_ext, self._ef)
-        self._mon[1] = hp[0]
-        self._mon[2] = self._ef
-        self._acc = np.array([0.0, energy_scale(model, st)])
+        samples = self._cp.samples
+        sample_holders(self.plan, self.t, world.dt, samples)
+        self.detector = start_detector(detector, model, self.arrays, self.x, self.v, samples)
         self.status = STABLE
         self.time_to_instability: float | None = None
         self.newton_iterations = 0
@@ -217,11 +112,8 @@ class BulletCable:
         self.contacts_last_step = 0
         self.record = CableRecord()
         self._record_row()
-        # argument groups of the per-step kernel, bound once (the step loop is overhead-bound)
-        self._args_state = (self.method.code, self._S, self.hist)
-        self._args_model = (self.substeps, a, *self._tables, self.f_ext, newton.max_iter, self.tol, newton.definite,
-                            world.gravity, self._ext_mask, self._ext)
-        self._args_monitor = (self._H, self._mon, self._acc, self._e0, detector.max_strain, detector.energy_factor)
+        spawn = self._step_input(False, self._no_index, self._no_rows, self._no_rows)
+        self._sync_and_advance = bind(sync_and_advance, *self._kernel_args(spawn))
         self._advance(None)  # plan the first step
 
     # ----- set-up -------------------------------------------------------------------------
@@ -271,10 +163,8 @@ class BulletCable:
             self.t += self.world.dt
             self.steps += 1
             self.contacts_last_step = len(touched)
-        status, its, ok = sync_and_advance(
-            *self._args_state, self.steps > 0, self.t, self.world.dt, *self._args_model, do_sync, idx_arr, pos, vel,
-            *self._args_monitor, do_sync and self.steps % self.detector.check_every == 0,
-            do_sync and self.steps % self.detector.energy_every == 0)
+        inp = self._step_input(do_sync, idx_arr, pos, vel)
+        status, its, ok = self._sync_and_advance(*self._kernel_args(inp))
         self.newton_iterations += its
         self.newton_failures += 0 if ok else 1
         if status != STABLE:
@@ -283,6 +173,16 @@ class BulletCable:
         if do_sync and (self.steps % self.record_every == 0 or status != STABLE):
             self._record_row()
 
+    def _step_input(self, do_sync: bool, index: np.ndarray, pos: np.ndarray, vel: np.ndarray) -> StepInput:
+        """What the kernel needs from this step: time, flags, the touched spheres' read-back state."""
+        det = self.detector
+        return StepInput(self.t, self.steps > 0, do_sync, do_sync and self.steps % det.check_every == 0,
+                         do_sync and self.steps % det.energy_every == 0, index, pos, vel)
+
+    def _kernel_args(self, inp: StepInput) -> tuple:
+        """Arguments of :func:`~bullet_dlo.bullet.kernels.sync_and_advance` (the same objects every step)."""
+        return self.stepper, self.arrays, self.plan, self.ext, self._cp, self.ws, self.detector, inp
+
     def apply_forces(self) -> None:
         """Apply the forces planned for the coming Bullet step (nothing once unstable)."""
         if self.status != STABLE:
@@ -290,7 +190,7 @@ class BulletCable:
         cid = self.world.client
         apply = pb.applyExternalForce
         frame = pb.WORLD_FRAME
-        for b, f, pos in zip(self.body_ids, self._forces.tolist(), self.x.tolist()):
+        for b, f, pos in zip(self.body_ids, self._cp.force.tolist(), self.x.tolist()):
             apply(b, -1, f, pos, frame, cid)  # positional: keyword parsing costs 50 % more per call
 
     def sync_after_step(self, touched) -> None:
@@ -299,16 +199,12 @@ class BulletCable:
             self._advance(sorted(touched) if touched else [])
 
     def _record_row(self) -> None:
-        hp, hv, ha, hd = self._samples
-        a = self.arrays
-        k = 0  # samples always start at the current time (they are planned for the coming step)
-        out = np.zeros((2, 3))
-        end_forces_kernel(self.x, self.v, a, hd[k], ha[k], self.f_ext, out)
+        # sample 0 of the held-end samples is the current time (they are planned for the coming step)
         self.record.t.append(self.t)
         self.record.x.append(self.x.copy())
         self.record.v.append(self.v.copy())
-        self.record.end_forces.append(out)
-        self.record.energy.append(energy_kernel(self.x, self.v, a, hd[k]))
+        self.record.end_forces.append(self.end_forces())
+        self.record.energy.append(mechanical_energy(self.arrays, self.x, self.v, self._cp.samples.dir[0]))
 
     # ----- grasping -----------------------------------------------------------------------
     def hold_externally(self, end: int, mode: str = "clamped") -> None:
@@ -322,9 +218,8 @@ class BulletCable:
         a, spec, n = self.arrays, self.model.spec, self.model.n
         node = 0 if end == 0 else n - 1
         a.held[node] = True
-        a.end_mode[end] = 2 if mode == "clamped" else 1
         a.k_bend[node] = spec.k_bend_clamp if mode == "clamped" else 0.0
-        self._ext_mask[end] = True
+        self.ext.active[end] = True
         self._replan()
 
     def release(self, end: int) -> None:
@@ -332,21 +227,21 @@ class BulletCable:
         a, n = self.arrays, self.model.n
         node = 0 if end == 0 else n - 1
         a.held[node] = False
-        a.end_mode[end] = 0
         a.k_bend[node] = 0.0
-        self._ext_mask[end] = False
+        self.ext.active[end] = False
         self._replan()
 
     def set_external_pose(self, end: int, position, velocity, acceleration, omega, direction) -> None:
-        """Measured pose of the holder of ``end`` now (world frame, SI); direction: clamp tangent
-        pointing along the cable from its first to its last mass."""
-        e = self._ext
-        e[0, end], e[1, end], e[2, end], e[3, end] = position, velocity, acceleration, omega
-        e[4, end] = np.asarray(direction, float) / np.linalg.norm(direction)
+        """Measured pose of the holder of ``end`` now, world frame: position [m], velocity [m/s],
+        acceleration [m/s^2], angular velocity omega [rad/s], each (3,); direction: clamp tangent
+        pointing along the cable from its first to its last mass (normalised here)."""
+        e = self.ext
+        e.pos[end], e.vel[end], e.acc[end], e.omega[end] = position, velocity, acceleration, omega
+        e.dir[end] = np.asarray(direction, float) / np.linalg.norm(direction)
 
     def holder_positions(self) -> np.ndarray:
         """Positions [m] of the external holders (e.g. grasp frames) as last measured, (2, 3)."""
-        return self._ext[0].copy()
+        return self.ext.pos.copy()
 
     def _replan(self) -> None:
         """Re-plan the coming step after the end conditions changed (the forces must match)."""
@@ -368,16 +263,15 @@ class BulletCable:
 
     def end_forces(self) -> np.ndarray:
         """Force [N] the cable exerts on each held end now, (2, 3) (first, last)."""
-        hp, hv, ha, hd = self._samples
+        samples = self._cp.samples
         out = np.zeros((2, 3))
-        end_forces_kernel(self.x, self.v, self.arrays, hd[0], ha[0], self.f_ext, out)
+        end_forces(self.arrays, self.x, self.v, samples.dir[0], samples.acc[0], out)
         return out
 
     def end_moments(self) -> np.ndarray:
         """Torque [N m] the cable exerts on each clamp now, (2, 3) (zero rows for unclamped ends)."""
-        hd = self._samples[3]
-        a = self.arrays
-        return np.stack([clamp_torque(self.x, a.k_bend, hd[0, 0], hd[0, 1], e) for e in (0, 1)])
+        dirs = self._cp.samples.dir[0]
+        return np.stack([clamp_torque(self.arrays, self.x, dirs, e) for e in (0, 1)])
 
     def bullet_positions(self) -> np.ndarray:
         """Sphere positions read from Bullet [m], (n, 3) (n PyBullet calls: for checks, not loops)."""

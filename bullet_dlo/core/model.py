@@ -6,13 +6,13 @@ does (positions, velocities, time). Integrators read the model and advance the s
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import NamedTuple, Sequence
 
 import numpy as np
 
-from bullet_dlo.core.boundary import CLAMPED, EndHolder, Move
-from bullet_dlo.core.kernels import forces
+from bullet_dlo.core.boundary import EndHolder, Move
+from bullet_dlo.core.kernels.holders import HolderPlan
 from bullet_dlo.core.spec import CableSpec
 from bullet_dlo.core.validate import ParameterError, check_vector3
 
@@ -20,13 +20,13 @@ STANDARD_GRAVITY = (0.0, 0.0, -9.81)
 
 
 class ModelArrays(NamedTuple):
-    """Arrays the Numba kernels need (SI units).
+    """The model as the Numba kernels take it (SI units); a new force term adds its arrays here.
 
     mass: point masses [kg], (n,); damp: viscous coefficients [N s/m], (n,);
-    k_stretch: segment spring constants [N/m], (n-1,); rest_length: [m], (n-1,);
+    k_stretch: segment spring constants [N/m], (n-1,); rest_length: segment rest lengths [m], (n-1,);
     k_bend: bending constants [N m/rad^2], (n,) (index 0 / n-1 are the clamp springs, 0 if
-    that end is not clamped); gravity: [m/s^2], (3,); end_mode: 0 free, 1 pinned, 2 clamped, (2,);
-    held: which nodes are kinematic, (n,) bool.
+    that end is not clamped); gravity: gravitational acceleration [m/s^2], (3,);
+    f_ext: constant external forces [N], (n, 3); held: which nodes are kinematic, (n,) bool.
     """
 
     mass: np.ndarray
@@ -35,7 +35,7 @@ class ModelArrays(NamedTuple):
     rest_length: np.ndarray
     k_bend: np.ndarray
     gravity: np.ndarray
-    end_mode: np.ndarray
+    f_ext: np.ndarray
     held: np.ndarray
 
 
@@ -88,39 +88,32 @@ class CableModel:
         moves = tuple(motion)
         first = EndHolder(ends[0], x0[0].copy(), dir_v.copy(), tuple(m for m in moves if m.end == "first"))
         last = EndHolder(ends[1], x0[-1].copy(), dir_v.copy(), tuple(m for m in moves if m.end == "last"))
-        return cls(spec, first, last, grav, build_arrays(spec, first.code, last.code, grav), x0)
+        return cls(spec, first, last, grav, build_arrays(spec, first.mode, last.mode, grav), x0)
 
     # ----- helpers used by the engines ---------------------------------------------------
     def initial_state(self) -> "CableState":
         """State at rest in the initial layout, t = 0."""
         return CableState(self.x0.copy(), np.zeros_like(self.x0), 0.0)
 
-    def holder_tables(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """(start positions (2,3), start directions (2,3), first moves (k,8), last moves (k,8))."""
-        p0 = np.stack([self.first.position, self.last.position])
-        d0 = np.stack([self.first.direction, self.last.direction])
-        return p0, d0, self.first.move_table(), self.last.move_table()
-
-    def energy(self, state: "CableState") -> float:
-        """Total mechanical energy [J]: kinetic + elastic + gravitational (zero at z = 0)."""
-        a = self.arrays
-        d = self.first.direction, self.last.direction
-        return float(
-            0.5 * np.sum(a.mass[:, None] * state.v**2)
-            + forces.internal_energy(state.x, a.k_stretch, a.rest_length, a.k_bend, d[0], d[1])
-            - np.sum(a.mass[:, None] * state.x * a.gravity[None, :])
+    def holder_plan(self) -> HolderPlan:
+        """Start poses and move tables of both ends, as the kernels take them."""
+        return HolderPlan(
+            start_pos=np.stack([self.first.position, self.last.position]),
+            start_dir=np.stack([self.first.direction, self.last.direction]),
+            moves_first=self.first.move_table(),
+            moves_last=self.last.move_table(),
         )
 
 
-def build_arrays(spec: CableSpec, first_mode: int, last_mode: int, gravity: np.ndarray) -> ModelArrays:
-    """Kernel arrays for ``spec`` with end modes (0 free, 1 pinned, 2 clamped)."""
+def build_arrays(spec: CableSpec, first_mode: str, last_mode: str, gravity: np.ndarray) -> ModelArrays:
+    """Kernel arrays for ``spec`` with end modes ``free``/``pinned``/``clamped`` and no external forces."""
     n = spec.n_masses
     k_bend = np.full(n, spec.k_bend)
-    k_bend[0] = spec.k_bend_clamp if first_mode == CLAMPED else 0.0
-    k_bend[-1] = spec.k_bend_clamp if last_mode == CLAMPED else 0.0
+    k_bend[0] = spec.k_bend_clamp if first_mode == "clamped" else 0.0
+    k_bend[-1] = spec.k_bend_clamp if last_mode == "clamped" else 0.0
     held = np.zeros(n, dtype=np.bool_)
-    held[0] = first_mode > 0
-    held[-1] = held[-1] or last_mode > 0
+    held[0] = first_mode != "free"
+    held[-1] = held[-1] or last_mode != "free"
     return ModelArrays(
         mass=spec.point_masses(),
         damp=spec.damping_coefficients(),
@@ -128,25 +121,18 @@ def build_arrays(spec: CableSpec, first_mode: int, last_mode: int, gravity: np.n
         rest_length=np.full(n - 1, spec.rest_length),
         k_bend=k_bend,
         gravity=np.asarray(gravity, dtype=float),
-        end_mode=np.array([first_mode, last_mode], dtype=np.int64),
+        f_ext=np.zeros((n, 3)),
         held=held,
     )
 
 
 @dataclass
 class CableState:
-    """Time-varying state: positions x [m] (n,3), velocities v [m/s] (n,3), time t [s].
-
-    ``x_prev``/``v_prev`` hold the previous step for multistep methods (BDF2); ``None``
-    until a step has been taken.
-    """
+    """Time-varying state: positions x [m] (n, 3), velocities v [m/s] (n, 3), time t [s]."""
 
     x: np.ndarray
     v: np.ndarray
     t: float = 0.0
-    x_prev: np.ndarray | None = field(default=None)
-    v_prev: np.ndarray | None = field(default=None)
 
     def copy(self) -> "CableState":
-        cp = lambda a: None if a is None else a.copy()  # noqa: E731
-        return CableState(self.x.copy(), self.v.copy(), self.t, cp(self.x_prev), cp(self.v_prev))
+        return CableState(self.x.copy(), self.v.copy(), self.t)

@@ -97,11 +97,6 @@ class CableSpec:
         """EA [N]."""
         return self.youngs_modulus * self.area
 
-    @property
-    def weight(self) -> float:
-        """Weight M*9.81 [N] under standard gravity (for reports; simulations use their own g)."""
-        return self.mass * 9.81
-
     # ----- discretisation -----------------------------------------------------------------
     @property
     def rest_length(self) -> float:

@@ -37,8 +37,7 @@ def stiffness_spectrum(model: CableModel, state: CableState | None = None) -> np
     a = model.arrays
     n = model.n
     jac = np.zeros((n, 5, 3, 3))
-    force_jacobian(st.x, a.k_stretch, a.rest_length, a.k_bend, model.first.direction,
-                   model.last.direction, False, jac)
+    force_jacobian(a, st.x, model.holder_plan().start_dir, False, jac)
     free = np.flatnonzero(~a.held)
     if free.size == 0:
         return np.zeros(0)

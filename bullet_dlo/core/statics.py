@@ -13,7 +13,7 @@ import numpy as np
 
 from bullet_dlo.core.kernels.banded import HALF, assemble_system, band_solve
 from bullet_dlo.core.kernels.forces import force_jacobian, internal_energy, total_forces
-from bullet_dlo.core.model import CableModel, CableState
+from bullet_dlo.core.model import CableModel, CableState, ModelArrays
 
 
 @dataclass
@@ -29,10 +29,10 @@ class StaticResult:
         return CableState(self.x.copy(), np.zeros_like(self.x), 0.0)
 
 
-def _potential(model: CableModel, x: np.ndarray, f_ext: np.ndarray) -> float:
-    a = model.arrays
-    e = internal_energy(x, a.k_stretch, a.rest_length, a.k_bend, model.first.direction, model.last.direction)
-    return float(e - np.sum(a.mass[:, None] * a.gravity[None, :] * x) - np.sum(f_ext * x))
+def _potential(a: ModelArrays, x: np.ndarray, dirs: np.ndarray) -> float:
+    """Elastic + gravitational + external-force potential [J] at positions x [m], (n, 3)."""
+    e = internal_energy(a, x, dirs)
+    return float(e - np.sum(a.mass[:, None] * a.gravity[None, :] * x) - np.sum(a.f_ext * x))
 
 
 def solve_static(
@@ -48,16 +48,15 @@ def solve_static(
     tol: convergence when the largest free-node force is below tol * (M |g| + sum |f_ext|) [N],
     or below the round-off floor of the force evaluation (k_s * eps * |x|, stiff cables).
     """
-    a = model.arrays
     n = model.n
+    fe = np.zeros((n, 3)) if f_ext is None else np.asarray(f_ext, dtype=float)
+    a = model.arrays._replace(f_ext=fe)
     x = (model.x0 if x_start is None else np.asarray(x_start, dtype=float)).copy()
     x[0] = model.first.position if a.held[0] else x[0]
     x[-1] = model.last.position if a.held[-1] else x[-1]
-    fe = np.zeros((n, 3)) if f_ext is None else np.asarray(f_ext, dtype=float)
-    zeros_v = np.zeros((n, 3))
-    no_damp = np.zeros(n)
+    zeros_v = np.zeros((n, 3))  # static: no damping forces
     free = ~a.held
-    d1, d2 = model.first.direction, model.last.direction
+    dirs = model.holder_plan().start_dir
     scale = model.spec.mass * float(np.linalg.norm(a.gravity)) + float(np.abs(fe).sum()) + 1e-30
     floor = 1e3 * np.finfo(float).eps * float(np.max(a.k_stretch)) * (float(np.abs(x).max()) + model.spec.length)
     target = max(tol * scale, floor)
@@ -66,7 +65,7 @@ def solve_static(
     band = np.zeros((3 * n, 2 * HALF + 1))
 
     def residual(xx: np.ndarray) -> tuple[np.ndarray, float]:
-        total_forces(xx, zeros_v, a.mass, no_damp, a.k_stretch, a.rest_length, a.k_bend, a.gravity, d1, d2, fe, f)
+        total_forces(a, xx, zeros_v, dirs, f)
         r = f.copy()
         r[~free] = 0.0
         return r, float(np.abs(r).max())
@@ -74,17 +73,17 @@ def solve_static(
     # Regularisation in units of M^-1 K: start tiny, grow when a step fails.
     mu = 1e-8 * float(np.max(a.k_stretch) / np.min(a.mass))
     r, res = residual(x)
-    pot = _potential(model, x, fe)
+    pot = _potential(a, x, dirs)
     it = 0
     while it < max_iter and res > target:
         it += 1
-        force_jacobian(x, a.k_stretch, a.rest_length, a.k_bend, d1, d2, False, jac)
-        assemble_system(jac, mu * a.mass, no_damp, 1.0, 0.0, a.held, band)
+        force_jacobian(a, x, dirs, False, jac)
+        assemble_system(a, jac, mu, 1.0, 0.0, band)
         rhs = r.reshape(-1).copy()
         band_solve(band, rhs)
         x_try = x + rhs.reshape(n, 3)
         r_try, res_try = residual(x_try)
-        pot_try = _potential(model, x_try, fe)
+        pot_try = _potential(a, x_try, dirs)
         if np.isfinite(res_try) and (pot_try <= pot or res_try < res):
             x, r, res, pot = x_try, r_try, res_try, pot_try
             mu *= 0.1

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from bullet_dlo.core.kernels import forces
-from bullet_dlo.core.kernels.banded import HALF, assemble_system, band_solve, band_to_dense
+from bullet_dlo.core.kernels.banded import HALF, assemble_system, band_matrix_to_dense, band_solve
 from bullet_dlo.core.model import CableModel
 from bullet_dlo.core.spec import CableSpec
 
@@ -36,6 +36,11 @@ def _setup(n=7, ends=("clamped", "clamped"), noise=0.006, seed=0):
     return spec, model.arrays, x, d1, d2
 
 
+def dirs(d1, d2):
+    """Clamp directions as the kernels take them, (2, 3)."""
+    return np.stack([d1, d2])
+
+
 def finite_difference(fn, x, eps=1e-7):
     """Central differences of fn (array -> array or scalar) with respect to every entry of x."""
     cols = []
@@ -50,14 +55,14 @@ def finite_difference(fn, x, eps=1e-7):
 
 def _forces(x, a, d1, d2):
     f = np.zeros_like(x)
-    forces.internal_forces(x, a.k_stretch, a.rest_length, a.k_bend, d1, d2, f)
+    forces.internal_forces(a, x, dirs(d1, d2), f)
     return f
 
 
 @pytest.mark.parametrize("ends", [("clamped", "clamped"), ("free", "free"), ("pinned", "clamped")])
 def test_energy_matches_reference(ends):
     spec, a, x, d1, d2 = _setup(ends=ends)
-    e = forces.internal_energy(x, a.k_stretch, a.rest_length, a.k_bend, d1, d2)
+    e = forces.internal_energy(a, x, dirs(d1, d2))
     assert e == pytest.approx(reference_energy(x, spec, a.k_bend, d1, d2), rel=1e-12)
     assert e > 0
 
@@ -77,8 +82,8 @@ def test_jacobian_matches_force_differences(noise):
     if noise == 0.0:  # exactly straight: the bending terms must stay finite (theta -> 0 limit)
         d1 = d2 = np.array([1.0, 0.0, 0.0])
     jac = np.zeros((x.shape[0], 5, 3, 3))
-    forces.force_jacobian(x, a.k_stretch, a.rest_length, a.k_bend, d1, d2, False, jac)
-    dense = forces.band_to_dense(jac)
+    forces.force_jacobian(a, x, dirs(d1, d2), False, jac)
+    dense = forces.jacobian_blocks_to_dense(jac)
     fd = finite_difference(lambda y: _forces(y, a, d1, d2), x)
     assert np.all(np.isfinite(dense))
     assert np.max(np.abs(dense - fd)) < 1e-6 * np.max(np.abs(dense))
@@ -90,10 +95,10 @@ def test_definite_jacobian_is_negative_semidefinite_under_compression():
     x = x * np.array([0.9, 1.0, 1.0]) + np.array([0.0, 0.0, 0.05])  # compress every segment by 10 %
     jac = np.zeros((x.shape[0], 5, 3, 3))
     d = np.array([1.0, 0.0, 0.0])
-    forces.force_jacobian(x, a.k_stretch, a.rest_length, a.k_bend, d, d, False, jac)
-    exact = np.linalg.eigvalsh(forces.band_to_dense(jac))
-    forces.force_jacobian(x, a.k_stretch, a.rest_length, a.k_bend, d, d, True, jac)
-    filtered = np.linalg.eigvalsh(forces.band_to_dense(jac))
+    forces.force_jacobian(a, x, dirs(d, d), False, jac)
+    exact = np.linalg.eigvalsh(forces.jacobian_blocks_to_dense(jac))
+    forces.force_jacobian(a, x, dirs(d, d), True, jac)
+    filtered = np.linalg.eigvalsh(forces.jacobian_blocks_to_dense(jac))
     assert exact.max() > 1.0  # the exact Jacobian has unstable (buckling) directions
     assert filtered.max() < 1e-6 * abs(filtered.min())
 
@@ -108,7 +113,7 @@ def test_internal_forces_balance_without_clamps():
 
 def test_clamp_torque_is_minus_energy_rotation_derivative():
     _, a, x, d1, d2 = _setup()
-    tau = forces.clamp_torque(x, a.k_bend, d1, d2, 0)
+    tau = forces.clamp_torque(a, x, dirs(d1, d2), 0)
     eps = 1e-7
     for axis in range(3):
         w = np.zeros(3)
@@ -117,8 +122,8 @@ def test_clamp_torque_is_minus_energy_rotation_derivative():
         def rotated(d, w):
             return d + np.cross(w, d)
 
-        ep = forces.internal_energy(x, a.k_stretch, a.rest_length, a.k_bend, rotated(d1, w), d2)
-        em = forces.internal_energy(x, a.k_stretch, a.rest_length, a.k_bend, rotated(d1, -w), d2)
+        ep = forces.internal_energy(a, x, dirs(rotated(d1, w), d2))
+        em = forces.internal_energy(a, x, dirs(rotated(d1, -w), d2))
         assert tau[axis] == pytest.approx(-(ep - em) / (2 * eps), rel=1e-5, abs=1e-9)
 
 
@@ -126,12 +131,13 @@ def test_banded_solve_matches_dense(rng):
     n = 12
     spec, a, x, d1, d2 = _setup(n=n)
     jac = np.zeros((n, 5, 3, 3))
-    forces.force_jacobian(x, a.k_stretch, a.rest_length, a.k_bend, d1, d2, True, jac)
+    forces.force_jacobian(a, x, dirs(d1, d2), True, jac)
     held = np.zeros(n, dtype=bool)
     held[0] = held[-1] = True
+    m = a._replace(damp=a.damp + 0.1, held=held)
     band = np.zeros((3 * n, 2 * HALF + 1))
-    assemble_system(jac, a.mass, a.damp + 0.1, 1e-6, 1e-3, held, band)
-    dense = band_to_dense(band)
+    assemble_system(m, jac, 1.0, 1e-6, 1e-3, band)
+    dense = band_matrix_to_dense(band)
     rhs = rng.normal(size=3 * n)
     rhs[:3] = rhs[-3:] = 0.0
     y = rhs.copy()

@@ -18,12 +18,15 @@ HALF = 3 * BAND + 2  # scalar half-bandwidth: 8
 
 
 @njit(cache=True, error_model="numpy")
-def assemble_system(jac, mass, damp, k_coef, c_coef, held, band):
-    """band <- diag(m) - k_coef * jac + c_coef * diag(c), held nodes replaced by identity rows/cols.
+def assemble_system(m, jac, m_coef, k_coef, c_coef, band):
+    """band <- m_coef M - k_coef K + c_coef C, held nodes replaced by identity rows and columns.
 
-    jac: force Jacobian dF/dx, shape (n, 5, 3, 3); mass, damp: (n,); held: (n,) bool.
+    m: ModelArrays (M = diag(mass) [kg], C = diag(damp) [N s/m], held nodes); jac: force
+    Jacobian K = dF/dx [N/m], shape (n, 5, 3, 3); band: output, shape (3n, 2*HALF+1).
+    An implicit step uses (1, h^2-like, h-like) coefficients, the static solver (mu, 1, 0).
     """
-    n = mass.shape[0]
+    n = m.mass.shape[0]
+    held = m.held
     band[:, :] = 0.0
     for i in range(n):
         for o in range(2 * BAND + 1):
@@ -37,12 +40,12 @@ def assemble_system(jac, mass, damp, k_coef, c_coef, held, band):
             if held[i]:
                 band[3 * i + r, HALF] = 1.0
             else:
-                band[3 * i + r, HALF] += mass[i] + c_coef * damp[i]
+                band[3 * i + r, HALF] += m_coef * m.mass[i] + c_coef * m.damp[i]
 
 
 @njit(cache=True, error_model="numpy")
 def band_solve(band, rhs):
-    """Solve band * y = rhs in place for a *symmetric* band matrix (rhs becomes y).
+    """Solve band * y = rhs in place for a *symmetric* band matrix (rhs, shape (3n,), becomes y).
 
     Gaussian elimination without pivoting that updates only the upper triangle (the lower
     multipliers equal the upper entries by symmetry): half the work of a general band LU.
@@ -71,8 +74,8 @@ def band_solve(band, rhs):
     return min_pivot
 
 
-def band_to_dense(band: np.ndarray) -> np.ndarray:
-    """Expand scalar band storage to a dense matrix (tests)."""
+def band_matrix_to_dense(band: np.ndarray) -> np.ndarray:
+    """Expand scalar band storage (3n, 2*HALF+1) to a dense (3n, 3n) matrix (tests)."""
     size = band.shape[0]
     dense = np.zeros((size, size))
     for r in range(size):

@@ -9,8 +9,12 @@ The chain has n nodes x_i (shape (n, 3), m) and n-1 segments e_i = x_{i+1} - x_i
   (held by the gripper) and the first (last) segment, stiffness ``k_bend[0]`` (``k_bend[-1]``);
   a stiffness of 0 means the end is not clamped.
 
-Kernels take plain arrays, write into preallocated outputs and never allocate per node, so
-the same code serves the core time loop and the per-step PyBullet coupling.
+Kernels take the model as :class:`bullet_dlo.core.model.ModelArrays` (``m``), positions x
+[m] (n, 3), velocities v [m/s] (n, 3) and the clamp directions ``dirs`` (unit, (2, 3): first,
+last end; used only where ``k_bend`` of that end is nonzero). They write into preallocated
+outputs and never allocate per node, so the same code serves the core time loop, the static
+solver and the per-step PyBullet coupling. A new force term goes into :func:`total_forces`
+(and, if it depends on x, :func:`force_jacobian`), its parameters into ``ModelArrays``.
 
 Jacobian storage: block-banded, ``jac[i, o] = dF_i / dx_{i+o-2}`` with shape (n, 5, 3, 3)
 (bending couples nodes up to two apart). ``definite=True`` drops the compressive part of the
@@ -56,22 +60,22 @@ def _angle_terms(ax, ay, az, bx, by, bz):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _node_edges(x, i, dir_first, dir_last):
+def _node_edges(x, i, dirs):
     """Incoming edge a and outgoing edge b at node i; the clamp directions stand in at the ends."""
     n = x.shape[0]
     if i == 0:
-        a0, a1, a2 = dir_first[0], dir_first[1], dir_first[2]
+        a0, a1, a2 = dirs[0, 0], dirs[0, 1], dirs[0, 2]
     else:
         a0, a1, a2 = x[i, 0] - x[i - 1, 0], x[i, 1] - x[i - 1, 1], x[i, 2] - x[i - 1, 2]
     if i == n - 1:
-        b0, b1, b2 = dir_last[0], dir_last[1], dir_last[2]
+        b0, b1, b2 = dirs[1, 0], dirs[1, 1], dirs[1, 2]
     else:
         b0, b1, b2 = x[i + 1, 0] - x[i, 0], x[i + 1, 1] - x[i, 1], x[i + 1, 2] - x[i, 2]
     return a0, a1, a2, b0, b1, b2
 
 
 @njit(cache=True, error_model="numpy")
-def internal_energy(x, k_stretch, rest_length, k_bend, dir_first, dir_last):
+def internal_energy(m, x, dirs):
     """Elastic energy of stretch, bending and clamp springs [J]."""
     n = x.shape[0]
     e = 0.0
@@ -79,20 +83,30 @@ def internal_energy(x, k_stretch, rest_length, k_bend, dir_first, dir_last):
         dx = x[i + 1, 0] - x[i, 0]
         dy = x[i + 1, 1] - x[i, 1]
         dz = x[i + 1, 2] - x[i, 2]
-        d = math.sqrt(dx * dx + dy * dy + dz * dz) - rest_length[i]
-        e += 0.5 * k_stretch[i] * d * d
+        d = math.sqrt(dx * dx + dy * dy + dz * dz) - m.rest_length[i]
+        e += 0.5 * m.k_stretch[i] * d * d
     for i in range(n):
-        k = k_bend[i]
+        k = m.k_bend[i]
         if k == 0.0:
             continue
-        a0, a1, a2, b0, b1, b2 = _node_edges(x, i, dir_first, dir_last)
+        a0, a1, a2, b0, b1, b2 = _node_edges(x, i, dirs)
         theta = _angle_terms(a0, a1, a2, b0, b1, b2)[0]
         e += 0.5 * k * theta * theta
     return e
 
 
 @njit(cache=True, error_model="numpy")
-def internal_forces(x, k_stretch, rest_length, k_bend, dir_first, dir_last, out):
+def mechanical_energy(m, x, v, dirs):
+    """Kinetic + elastic + gravitational energy [J] (gravitational zero at the origin)."""
+    e = internal_energy(m, x, dirs)
+    for i in range(x.shape[0]):
+        for j in range(3):
+            e += 0.5 * m.mass[i] * v[i, j] * v[i, j] - m.mass[i] * m.gravity[j] * x[i, j]
+    return e
+
+
+@njit(cache=True, error_model="numpy")
+def internal_forces(m, x, dirs, out):
     """Write the elastic forces -dE/dx [N], shape (n, 3), into ``out`` (overwritten)."""
     n = x.shape[0]
     out[:, :] = 0.0
@@ -101,7 +115,7 @@ def internal_forces(x, k_stretch, rest_length, k_bend, dir_first, dir_last, out)
         dy = x[i + 1, 1] - x[i, 1]
         dz = x[i + 1, 2] - x[i, 2]
         length = math.sqrt(dx * dx + dy * dy + dz * dz)
-        f = k_stretch[i] * (length - rest_length[i]) / length  # tension / length
+        f = m.k_stretch[i] * (length - m.rest_length[i]) / length  # tension / length
         out[i, 0] += f * dx
         out[i, 1] += f * dy
         out[i, 2] += f * dz
@@ -109,10 +123,10 @@ def internal_forces(x, k_stretch, rest_length, k_bend, dir_first, dir_last, out)
         out[i + 1, 1] -= f * dy
         out[i + 1, 2] -= f * dz
     for i in range(n):
-        k = k_bend[i]
+        k = m.k_bend[i]
         if k == 0.0:
             continue
-        a0, a1, a2, b0, b1, b2 = _node_edges(x, i, dir_first, dir_last)
+        a0, a1, a2, b0, b1, b2 = _node_edges(x, i, dirs)
         _, s, c, la, lb, ux, uy, uz, wx, wy, wz, ratio, _ = _angle_terms(a0, a1, a2, b0, b1, b2)
         # dE/da = -k (theta/s) (w - c u)/|a| ; dE/db = -k (theta/s) (u - c w)/|b|
         ga = -k * ratio / la
@@ -137,7 +151,7 @@ def internal_forces(x, k_stretch, rest_length, k_bend, dir_first, dir_last, out)
 
 
 @njit(cache=True, error_model="numpy")
-def clamp_torque(x, k_bend, dir_first, dir_last, end):
+def clamp_torque(m, x, dirs, end):
     """Torque [N m] the cable exerts on the clamp at ``end`` (0 first, 1 last), world frame.
 
     The clamp spring pulls the clamp direction towards the adjacent segment with magnitude
@@ -146,12 +160,12 @@ def clamp_torque(x, k_bend, dir_first, dir_last, end):
     n = x.shape[0]
     out = np.zeros(3)
     if end == 0:
-        k = k_bend[0]
-        d = dir_first
+        k = m.k_bend[0]
+        d = dirs[0]
         e0, e1, e2 = x[1, 0] - x[0, 0], x[1, 1] - x[0, 1], x[1, 2] - x[0, 2]
     else:
-        k = k_bend[n - 1]
-        d = -dir_last  # direction from the clamp into the cable
+        k = m.k_bend[n - 1]
+        d = -dirs[1]  # direction from the clamp into the cable
         e0, e1, e2 = x[n - 2, 0] - x[n - 1, 0], x[n - 2, 1] - x[n - 1, 1], x[n - 2, 2] - x[n - 1, 2]
     if k == 0.0:
         return out
@@ -164,10 +178,11 @@ def clamp_torque(x, k_bend, dir_first, dir_last, end):
 
 
 @njit(cache=True, error_model="numpy")
-def force_jacobian(x, k_stretch, rest_length, k_bend, dir_first, dir_last, definite, jac):
+def force_jacobian(m, x, dirs, definite, jac):
     """Write dF/dx of the elastic forces [N/m] into ``jac`` (shape (n, 5, 3, 3), overwritten).
 
-    Gravity adds nothing; viscous damping enters as dF/dv = -diag(c) (see integrators).
+    Gravity and external forces add nothing; viscous damping enters as dF/dv = -diag(c)
+    (see :func:`bullet_dlo.core.kernels.banded.assemble_system`).
     """
     n = x.shape[0]
     jac[:, :, :, :] = 0.0
@@ -178,8 +193,8 @@ def force_jacobian(x, k_stretch, rest_length, k_bend, dir_first, dir_last, defin
         d[1] = x[i + 1, 1] - x[i, 1]
         d[2] = x[i + 1, 2] - x[i, 2]
         length = math.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
-        k = k_stretch[i]
-        geo = 1.0 - rest_length[i] / length
+        k = m.k_stretch[i]
+        geo = 1.0 - m.rest_length[i] / length
         if definite and geo < 0.0:
             geo = 0.0
         for r in range(3):
@@ -197,10 +212,10 @@ def force_jacobian(x, k_stretch, rest_length, k_bend, dir_first, dir_last, defin
     hb = np.empty((6, 6))
     g = np.empty(12)
     for i in range(n):
-        k = k_bend[i]
+        k = m.k_bend[i]
         if k == 0.0:
             continue
-        a0, a1, a2, b0, b1, b2 = _node_edges(x, i, dir_first, dir_last)
+        a0, a1, a2, b0, b1, b2 = _node_edges(x, i, dirs)
         _bend_hessian(a0, a1, a2, b0, b1, b2, k, g, hb)
         # a = x_i - x_{i-1}, b = x_{i+1} - x_i: chain rule onto the nodes (jac[p, q-p+2] -= H_pq)
         for r in range(3):
@@ -261,31 +276,31 @@ def _bend_hessian(a0, a1, a2, b0, b1, b2, k, g, out):
 
 
 @njit(cache=True, error_model="numpy")
-def total_forces(x, v, mass, damp, k_stretch, rest_length, k_bend, gravity, dir_first, dir_last, f_ext, out):
+def total_forces(m, x, v, dirs, out):
     """Elastic + gravity + viscous damping + external forces [N], shape (n, 3), into ``out``."""
-    internal_forces(x, k_stretch, rest_length, k_bend, dir_first, dir_last, out)
+    internal_forces(m, x, dirs, out)
     n = x.shape[0]
     for i in range(n):
         for j in range(3):
-            out[i, j] += mass[i] * gravity[j] - damp[i] * v[i, j] + f_ext[i, j]
+            out[i, j] += m.mass[i] * m.gravity[j] - m.damp[i] * v[i, j] + m.f_ext[i, j]
 
 
 @njit(cache=True, error_model="numpy")
-def max_strain(x, rest_length):
+def max_strain(m, x):
     """Largest |l/l0 - 1| over segments (dimensionless)."""
     worst = 0.0
     for i in range(x.shape[0] - 1):
         dx = x[i + 1, 0] - x[i, 0]
         dy = x[i + 1, 1] - x[i, 1]
         dz = x[i + 1, 2] - x[i, 2]
-        s = abs(math.sqrt(dx * dx + dy * dy + dz * dz) / rest_length[i] - 1.0)
+        s = abs(math.sqrt(dx * dx + dy * dy + dz * dz) / m.rest_length[i] - 1.0)
         if not s <= worst:  # also propagates NaN
             worst = s
     return worst
 
 
-def band_to_dense(jac: np.ndarray) -> np.ndarray:
-    """Expand a block-banded Jacobian (n, 5, 3, 3) into a dense (3n, 3n) matrix (tests, analysis)."""
+def jacobian_blocks_to_dense(jac: np.ndarray) -> np.ndarray:
+    """Expand a block-banded Jacobian (n, 5, 3, 3) into a dense (3n, 3n) matrix (tests)."""
     n = jac.shape[0]
     dense = np.zeros((3 * n, 3 * n))
     for i in range(n):

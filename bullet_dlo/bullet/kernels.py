@@ -1,0 +1,169 @@
+"""Numba kernels of the Bullet coupling: plan a Bullet step with the core integrator, take it over.
+
+One :func:`sync_and_advance` call per Bullet step (the step loop is overhead-bound, so the
+sync, the stability check and the planning of the next step share one call). The stepping
+order is written down in :mod:`bullet_dlo.bullet.cable`.
+"""
+from __future__ import annotations
+
+from typing import Callable, NamedTuple
+
+import numba
+import numpy as np
+from numba import njit
+
+from bullet_dlo.core.kernels.holders import HeldSamples, rotate, sample_holders
+from bullet_dlo.core.kernels.monitor import STABLE, monitor
+from bullet_dlo.core.kernels.steppers import advance
+
+
+class ExternalHolders(NamedTuple):
+    """Measured holder poses (e.g. gripper links) that ends follow instead of their move tables.
+
+    active: which ends follow them, (2,) bool; pos [m], vel [m/s], acc [m/s^2], omega
+    (angular velocity) [rad/s], dir (clamp direction, unit, along the cable from its first to
+    its last node): world frame, (2, 3) each, measured now and extrapolated over a step at
+    constant velocity and angular velocity.
+    """
+
+    active: np.ndarray
+    pos: np.ndarray
+    vel: np.ndarray
+    acc: np.ndarray
+    omega: np.ndarray
+    dir: np.ndarray
+
+
+class Coupling(NamedTuple):
+    """A cable coupled to Bullet: the model's state and what the coming Bullet step needs.
+
+    dt: Bullet step [s]; substeps: integrator steps per Bullet step; gravity: Bullet's gravity
+    [m/s^2], (3,); x [m], v [m/s]: the model's state, (n, 3); v_bullet: Bullet's sphere
+    velocities [m/s], (n, 3); x_new [m], v_new [m/s]: the state planned for the end of the coming
+    Bullet step, (n, 3); force: sphere forces [N] that make Bullet land there, (n, 3);
+    samples: held-end samples of the planned step's last substep (HeldSamples).
+    """
+
+    dt: float
+    substeps: int
+    gravity: np.ndarray
+    x: np.ndarray
+    v: np.ndarray
+    v_bullet: np.ndarray
+    x_new: np.ndarray
+    v_new: np.ndarray
+    force: np.ndarray
+    samples: HeldSamples
+
+
+class StepInput(NamedTuple):
+    """What changes from one Bullet step to the next.
+
+    t: time of the state the next step is planned from [s]; has_prev: the integrator's history
+    (BDF2) is valid; sync: take over the step Bullet just made; check, energy_check: run the
+    cheap / energy checks of the detector; touched_index: spheres that had contacts, (k,) int;
+    touched_pos [m], touched_vel [m/s]: their state read back from Bullet, (k, 3).
+    """
+
+    t: float
+    has_prev: bool
+    sync: bool
+    check: bool
+    energy_check: bool
+    touched_index: np.ndarray
+    touched_pos: np.ndarray
+    touched_vel: np.ndarray
+
+
+def bind(kernel, *args) -> Callable:
+    """``kernel``'s machine code for the argument types of ``args`` (compiled or loaded from cache now).
+
+    Calling it skips Numba's per-call type dispatch, which for the ~60 arrays inside the
+    NamedTuples of a Bullet step costs about 30 us, more than the step's own work at n = 10.
+    The caller must keep passing arguments of exactly these types (BulletCable passes the same
+    objects every step).
+    """
+    return kernel.compile(tuple(numba.typeof(a) for a in args))
+
+
+@njit(cache=True, error_model="numpy")
+def external_samples(ext, e, tau0, hs, samples):
+    """Held-end samples of end ``e`` at tau0 + (0, hs/2, hs) [s] after the measurement in ``ext``."""
+    for k in range(3):
+        tau = tau0 + 0.5 * hs * k
+        for j in range(3):
+            samples.pos[k, e, j] = ext.pos[e, j] + tau * ext.vel[e, j]
+            samples.vel[k, e, j] = ext.vel[e, j]
+            samples.acc[k, e, j] = ext.acc[e, j]
+            samples.dir[k, e, j] = ext.dir[e, j]
+        rotate(samples.dir[k, e], tau * ext.omega[e, 0], tau * ext.omega[e, 1], tau * ext.omega[e, 2])
+
+
+@njit(cache=True, error_model="numpy")
+def coupled_targets(stepper, m, plan, ext, cp, ws, t, has_prev):
+    """Plan the coming Bullet step from (cp.x, cp.v) at time t [s].
+
+    Runs ``cp.substeps`` integrator steps into cp.x_new, cp.v_new (held ends in ``ext.active``
+    follow the measured poses, the others their move tables) and writes the sphere forces that
+    make Bullet's semi-implicit update land on x_new into cp.force:
+    F = m ((x_new - x)/dt - v_bullet)/dt - m g_bullet. Returns (Newton iterations, all converged).
+    """
+    cp.x_new[:, :] = cp.x
+    cp.v_new[:, :] = cp.v
+    hs = stepper.h
+    iters = 0
+    ok_all = True
+    for k in range(cp.substeps):
+        sample_holders(plan, t + k * hs, hs, cp.samples)
+        for e in range(2):
+            if ext.active[e]:
+                external_samples(ext, e, k * hs, hs, cp.samples)
+        its, ok = advance(stepper, m, cp.x_new, cp.v_new, cp.samples, ws, has_prev or k > 0)
+        iters += its
+        ok_all = ok_all and ok
+    h = cp.dt
+    for i in range(cp.x.shape[0]):
+        for j in range(3):
+            v_target = (cp.x_new[i, j] - cp.x[i, j]) / h
+            cp.force[i, j] = m.mass[i] * ((v_target - cp.v_bullet[i, j]) / h - cp.gravity[j])
+    return iters, ok_all
+
+
+@njit(cache=True, error_model="numpy")
+def take_over(cp, inp):
+    """Make the step Bullet just made the model's state.
+
+    Untouched spheres are exactly where the planned forces sent them: the model takes x_new,
+    v_new. Touched spheres take the read-back position, and the contact's velocity change
+    (read-back minus target velocity) is added to v_new.
+    """
+    h = cp.dt
+    for i in range(cp.x.shape[0]):
+        for j in range(3):
+            v_target = (cp.x_new[i, j] - cp.x[i, j]) / h
+            cp.x[i, j] = cp.x_new[i, j]
+            cp.v[i, j] = cp.v_new[i, j]
+            cp.v_bullet[i, j] = v_target
+    for k in range(inp.touched_index.shape[0]):
+        i = inp.touched_index[k]
+        for j in range(3):
+            cp.x[i, j] = inp.touched_pos[k, j]
+            cp.v[i, j] += inp.touched_vel[k, j] - cp.v_bullet[i, j]
+            cp.v_bullet[i, j] = inp.touched_vel[k, j]
+
+
+@njit(cache=True, error_model="numpy")
+def sync_and_advance(stepper, m, plan, ext, cp, ws, det, inp):
+    """One Bullet step's work on the model side: take over (if ``inp.sync``), check, plan the next.
+
+    Returns (status, Newton iterations, converged); an unstable status plans nothing.
+    """
+    status = STABLE
+    if inp.sync:
+        take_over(cp, inp)
+        if inp.check or inp.energy_check:
+            status = monitor(m, cp.x, cp.v, cp.samples, det, inp.energy_check)
+    if status != STABLE:
+        return status, 0, True
+    its, ok = coupled_targets(stepper, m, plan, ext, cp, ws, inp.t, inp.has_prev)
+    return status, its, ok

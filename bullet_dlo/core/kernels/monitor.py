@@ -1,0 +1,99 @@
+"""Numba kernels of the instability detector and the end-force read-out.
+
+Cheap checks (every ``check_every`` steps): finite state, segment strain within bound.
+Energy check (every ``energy_every`` steps): E(t) - E(0) - W_holders(t) <= factor * E_scale,
+with E the mechanical energy, W the work the held ends did on the cable (trapezoid rule on
+end force times held-end displacement between energy checks) and E_scale a floor plus
+sum |dW|. See :mod:`bullet_dlo.core.engine` for the thresholds and the floor.
+"""
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+import numpy as np
+from numba import njit
+
+from bullet_dlo.core.kernels.forces import max_strain, mechanical_energy, total_forces
+
+STABLE, NONFINITE, STRETCH, ENERGY = 0, 1, 2, 3
+REASONS = {STABLE: None, NONFINITE: "non-finite state", STRETCH: "segment strain beyond bound",
+           ENERGY: "energy growth beyond the work done on the cable"}
+
+
+class Detector(NamedTuple):
+    """Detector thresholds and its running energy balance (the arrays change during a run).
+
+    max_strain: largest allowed |l/l0 - 1|; energy_factor: allowed energy created, in units of
+    the energy scale; check_every, energy_every: steps between cheap checks / energy checks;
+    e0: mechanical energy at the start [J]; work: work the holders did on the cable so far
+    [J], (1,); scale: energy scale, floor + sum |dW| [J], (1,); end_force: end forces at the
+    last energy check [N], (2, 3); hold_pos: held-end positions then [m], (2, 3).
+    """
+
+    max_strain: float
+    energy_factor: float
+    check_every: int
+    energy_every: int
+    e0: float
+    work: np.ndarray
+    scale: np.ndarray
+    end_force: np.ndarray
+    hold_pos: np.ndarray
+
+
+@njit(cache=True, error_model="numpy")
+def end_forces(m, x, v, dirs, acc, out):
+    """Force [N] the cable exerts on each held end, (2, 3) into ``out``: F_node - m a (0 if free).
+
+    F_node is everything acting on the held node except the holder (elastic incl. clamp spring,
+    gravity, damping, external) with clamp directions ``dirs`` and held-end accelerations ``acc``
+    [m/s^2] (both (2, 3)); for a static cable the two rows sum to M g.
+    """
+    n = x.shape[0]
+    f = np.empty_like(x)
+    total_forces(m, x, v, dirs, f)
+    out[:, :] = 0.0
+    if m.held[0]:
+        out[0, :] = f[0] - m.mass[0] * acc[0]
+    if m.held[n - 1]:
+        out[1, :] = f[n - 1] - m.mass[n - 1] * acc[1]
+
+
+@njit(cache=True, error_model="numpy")
+def check_state(m, x, v, strain_bound):
+    """The cheap checks: finite state, every segment strain within ``strain_bound``."""
+    for i in range(x.shape[0]):
+        for j in range(3):
+            if not (math.isfinite(x[i, j]) and math.isfinite(v[i, j])):
+                return NONFINITE
+    if not max_strain(m, x) <= strain_bound:
+        return STRETCH
+    return STABLE
+
+
+@njit(cache=True, error_model="numpy")
+def monitor(m, x, v, samples, det, energy_check):
+    """Status (STABLE, ...) of the state (x, v) at the end of a step (held-end sample 2).
+
+    With ``energy_check`` also updates the energy balance in ``det``: end forces now, the
+    holders' work since the last energy check, then the check itself.
+    """
+    status = check_state(m, x, v, det.max_strain)
+    if not energy_check:
+        return status
+    f_now = np.empty((2, 3))
+    end_forces(m, x, v, samples.dir[2], samples.acc[2], f_now)
+    for e in range(2):
+        for j in range(3):
+            dw = -0.5 * (f_now[e, j] + det.end_force[e, j]) * (samples.pos[2, e, j] - det.hold_pos[e, j])
+            det.work[0] += dw
+            det.scale[0] += abs(dw)
+    det.hold_pos[:, :] = samples.pos[2]
+    det.end_force[:, :] = f_now
+    if status != STABLE:
+        return status
+    e = mechanical_energy(m, x, v, samples.dir[2])
+    if not (e - det.e0 - det.work[0] <= det.energy_factor * det.scale[0]):
+        return ENERGY
+    return STABLE

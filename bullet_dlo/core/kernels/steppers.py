@@ -1,0 +1,363 @@
+"""Numba step kernels: one fixed step of each time integrator, in place.
+
+Every method advances positions x [m] and velocities v [m/s], both (n, 3), by one step h
+given the model (:class:`~bullet_dlo.core.model.ModelArrays`) and the held-end samples at t,
+t + h/2 and t + h (:class:`~bullet_dlo.core.kernels.holders.HeldSamples`). Scratch memory is
+a :class:`Workspace` allocated once by :func:`make_workspace`, so no step allocates. Held
+nodes are kinematic: after every step they sit exactly at the prescribed pose. The method
+table (names, orders, defaults) is :mod:`bullet_dlo.core.integrators`.
+"""
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+from numba import njit
+
+from bullet_dlo.core.kernels.banded import HALF, assemble_system, band_solve
+from bullet_dlo.core.kernels.forces import force_jacobian, internal_energy, total_forces
+
+EXPLICIT_EULER, SYMPLECTIC_EULER, RK4, IMPLICIT_EULER, BDF2, IMPLICIT_MIDPOINT = range(6)
+
+
+class Stepper(NamedTuple):
+    """How to take a step: method code (above), step h [s], and the Newton settings of the
+    implicit methods: at most ``max_iter`` iterations, residual tolerance ``tol`` (relative, see
+    :class:`~bullet_dlo.core.integrators.NewtonOptions`), ``definite`` stiffness filter."""
+
+    method: int
+    h: float
+    max_iter: int
+    tol: float
+    definite: bool
+
+
+class Workspace(NamedTuple):
+    """Scratch arrays of the step kernels (and BDF2's history), allocated once per cable.
+
+    force [N], accel [m/s^2]: forces and accelerations at a stage, (n, 3);
+    x_stage [m], v_stage [m/s]: the state a stage (RK4) or Newton iterate evaluates forces at, (n, 3);
+    kx [m/s], kv [m/s^2]: RK4 slopes of the four stages, (4, n, 3);
+    x_base [m], v_base [m/s], v_avg [m/s]: the implicit method's affine map from the end-of-step
+    velocity v' to the evaluation state, X = x_base + cx v', V = v_base + cv v', and the
+    velocity its momentum balance starts from, M (v' - v_avg) = hf F(X, V), (n, 3);
+    v_new, v_try [m/s]: Newton iterate of v' and the line-search trial, (n, 3);
+    residual, residual_try [N s]: momentum residuals of both, (3n,);
+    jacobian [N/m]: block-banded dF/dx, (n, 5, 3, 3); band: Newton matrix, (3n, 2*HALF+1);
+    x_prev [m], v_prev [m/s]: state before the last step (BDF2), (n, 3).
+    """
+
+    force: np.ndarray
+    accel: np.ndarray
+    x_stage: np.ndarray
+    v_stage: np.ndarray
+    kx: np.ndarray
+    kv: np.ndarray
+    x_base: np.ndarray
+    v_base: np.ndarray
+    v_avg: np.ndarray
+    v_new: np.ndarray
+    v_try: np.ndarray
+    residual: np.ndarray
+    residual_try: np.ndarray
+    jacobian: np.ndarray
+    band: np.ndarray
+    x_prev: np.ndarray
+    v_prev: np.ndarray
+
+
+def make_workspace(n: int) -> Workspace:
+    """Zeroed scratch arrays for an n-node cable."""
+    shapes = {"kx": (4, n, 3), "kv": (4, n, 3), "residual": (3 * n,), "residual_try": (3 * n,),
+              "jacobian": (n, 5, 3, 3), "band": (3 * n, 2 * HALF + 1)}
+    return Workspace(*(np.zeros(shapes.get(name, (n, 3))) for name in Workspace._fields))
+
+
+# ----- helpers -------------------------------------------------------------------------------
+@njit(cache=True, error_model="numpy")
+def _set_held(held, x, v, pos, vel):
+    """Put held nodes at the prescribed positions [m] and velocities [m/s] (pos, vel: (2, 3))."""
+    n = x.shape[0]
+    if held[0]:
+        x[0, :] = pos[0]
+        v[0, :] = vel[0]
+    if held[n - 1]:
+        x[n - 1, :] = pos[1]
+        v[n - 1, :] = vel[1]
+
+
+@njit(cache=True, error_model="numpy")
+def _accel(m, x, v, dirs, f, a):
+    """a <- M^-1 F(x, v) [m/s^2] with clamp directions dirs (2, 3); f receives F [N]."""
+    total_forces(m, x, v, dirs, f)
+    for i in range(x.shape[0]):
+        for j in range(3):
+            a[i, j] = f[i, j] / m.mass[i]
+
+
+# ----- explicit methods -----------------------------------------------------------------------
+@njit(cache=True, error_model="numpy")
+def _explicit_euler(m, x, v, h, samples, ws):
+    _accel(m, x, v, samples.dir[0], ws.force, ws.accel)
+    x += h * v
+    v += h * ws.accel
+    _set_held(m.held, x, v, samples.pos[2], samples.vel[2])
+
+
+@njit(cache=True, error_model="numpy")
+def _symplectic_euler(m, x, v, h, samples, ws):
+    _accel(m, x, v, samples.dir[0], ws.force, ws.accel)
+    v += h * ws.accel
+    x += h * v
+    _set_held(m.held, x, v, samples.pos[2], samples.vel[2])
+
+
+@njit(cache=True, error_model="numpy")
+def _rk4_stage(m, x, v, h, samples, ws, stage, c):
+    """Slopes of RK4 stage ``stage`` (0..3) into ws.kx[stage], ws.kv[stage].
+
+    The stage state is (x, v) + c h (slopes of the previous stage) with the held ends at the
+    stage's time sample (t, t + h/2, t + h/2, t + h); stage 0 has c = 0.
+    """
+    prev = max(stage - 1, 0)
+    k = (stage + 1) // 2
+    xs, vs = ws.x_stage, ws.v_stage
+    for i in range(x.shape[0]):
+        for j in range(3):
+            xs[i, j] = x[i, j] + c * h * ws.kx[prev, i, j]
+            vs[i, j] = v[i, j] + c * h * ws.kv[prev, i, j]
+    _set_held(m.held, xs, vs, samples.pos[k], samples.vel[k])
+    ws.kx[stage] = vs
+    _accel(m, xs, vs, samples.dir[k], ws.force, ws.kv[stage])
+
+
+@njit(cache=True, error_model="numpy")
+def _rk4(m, x, v, h, samples, ws):
+    _rk4_stage(m, x, v, h, samples, ws, 0, 0.0)
+    _rk4_stage(m, x, v, h, samples, ws, 1, 0.5)
+    _rk4_stage(m, x, v, h, samples, ws, 2, 0.5)
+    _rk4_stage(m, x, v, h, samples, ws, 3, 1.0)
+    kx, kv = ws.kx, ws.kv
+    for i in range(x.shape[0]):
+        for j in range(3):
+            x[i, j] += (h / 6.0) * (kx[0, i, j] + 2.0 * kx[1, i, j] + 2.0 * kx[2, i, j] + kx[3, i, j])
+            v[i, j] += (h / 6.0) * (kv[0, i, j] + 2.0 * kv[1, i, j] + 2.0 * kv[2, i, j] + kv[3, i, j])
+    _set_held(m.held, x, v, samples.pos[2], samples.vel[2])
+
+
+# ----- implicit methods -----------------------------------------------------------------------
+class ImplicitMap(NamedTuple):
+    """Where an implicit method evaluates forces, given the end-of-step velocity v'.
+
+    X = x_base + cx v', V = v_base + cv v' (cx [s], cv [-]; arrays in the Workspace), momentum
+    balance M (v' - v_avg) = hf F(X, V) (hf [s]); held ends at pos_end [m], vel_end [m/s] and
+    clamp directions dirs, each (2, 3), at the evaluation time.
+    """
+
+    cx: float
+    cv: float
+    hf: float
+    pos_end: np.ndarray
+    vel_end: np.ndarray
+    dirs: np.ndarray
+
+
+@njit(cache=True, error_model="numpy")
+def _implicit_map(method, x, v, h, samples, ws, has_prev):
+    """Fill ws.x_base, v_base, v_avg for ``method`` and return its :class:`ImplicitMap`.
+
+    BDF2 (with history): X = (4x - x_prev)/3 + 2h/3 v'; implicit midpoint: X = x + h/4 (v + v'),
+    V = (v + v')/2 at t + h/2; implicit Euler (and BDF2's first step): X = x + h v'.
+    BDF2 then stores (x, v) as the history of the next step.
+    """
+    n = x.shape[0]
+    xb, vb, va = ws.x_base, ws.v_base, ws.v_avg
+    if method == BDF2 and has_prev:
+        for i in range(n):
+            for j in range(3):
+                xb[i, j] = (4.0 * x[i, j] - ws.x_prev[i, j]) / 3.0
+                va[i, j] = (4.0 * v[i, j] - ws.v_prev[i, j]) / 3.0
+                vb[i, j] = 0.0
+        imp = ImplicitMap(2.0 * h / 3.0, 1.0, 2.0 * h / 3.0, samples.pos[2], samples.vel[2], samples.dir[2])
+    elif method == IMPLICIT_MIDPOINT:
+        for i in range(n):
+            for j in range(3):
+                xb[i, j] = x[i, j] + 0.25 * h * v[i, j]
+                va[i, j] = v[i, j]
+                vb[i, j] = 0.5 * v[i, j]
+        pos_mid = np.empty((2, 3))
+        vel_mid = np.empty((2, 3))
+        pos_mid[0] = 0.5 * (x[0] + samples.pos[2, 0])
+        pos_mid[1] = 0.5 * (x[n - 1] + samples.pos[2, 1])
+        vel_mid[0] = 0.5 * (v[0] + samples.vel[2, 0])
+        vel_mid[1] = 0.5 * (v[n - 1] + samples.vel[2, 1])
+        imp = ImplicitMap(0.25 * h, 0.5, h, pos_mid, vel_mid, samples.dir[1])
+    else:
+        xb[:, :] = x
+        va[:, :] = v
+        vb[:, :] = 0.0
+        imp = ImplicitMap(h, 1.0, h, samples.pos[2], samples.vel[2], samples.dir[2])
+    if method == BDF2:
+        ws.x_prev[:, :] = x
+        ws.v_prev[:, :] = v
+    return imp
+
+
+@njit(cache=True, error_model="numpy")
+def _residual(m, imp, ws, vn, r):
+    """r <- hf F(X, V) - M (v' - v_avg) [N s] on free nodes (0 on held), v' = vn; returns max |r|.
+
+    Leaves X, V in ws.x_stage, ws.v_stage (read by :func:`_merit`).
+    """
+    n = vn.shape[0]
+    xe, ve, f = ws.x_stage, ws.v_stage, ws.force
+    for i in range(n):
+        for j in range(3):
+            xe[i, j] = ws.x_base[i, j] + imp.cx * vn[i, j]
+            ve[i, j] = ws.v_base[i, j] + imp.cv * vn[i, j]
+    _set_held(m.held, xe, ve, imp.pos_end, imp.vel_end)
+    total_forces(m, xe, ve, imp.dirs, f)
+    worst = 0.0
+    for i in range(n):
+        for j in range(3):
+            val = 0.0 if m.held[i] else imp.hf * f[i, j] - m.mass[i] * (vn[i, j] - ws.v_avg[i, j])
+            r[3 * i + j] = val
+            if not abs(val) <= worst:  # also catches NaN
+                worst = abs(val)
+    return worst
+
+
+@njit(cache=True, error_model="numpy")
+def _merit(m, imp, ws, vn):
+    """Incremental potential whose gradient in v' is (cx/hf) * residual [J].
+
+    Phi = (cx/hf) 1/2 |v' - v_avg|_M^2 + E_el(X) - (M g + f_ext) . X + (cx/cv) 1/2 |V|_C^2,
+    evaluated at the X, V left in ws.x_stage, ws.v_stage by the last residual call.
+    """
+    xe, ve = ws.x_stage, ws.v_stage
+    cx, cv, hf = imp.cx, imp.cv, imp.hf
+    phi = internal_energy(m, xe, imp.dirs)
+    for i in range(vn.shape[0]):
+        for j in range(3):
+            dv = vn[i, j] - ws.v_avg[i, j]
+            phi += 0.5 * (cx / hf) * m.mass[i] * dv * dv
+            phi -= (m.mass[i] * m.gravity[j] + m.f_ext[i, j]) * xe[i, j]
+            phi += 0.5 * (cx / cv) * m.damp[i] * ve[i, j] * ve[i, j]
+    return phi
+
+
+@njit(cache=True, error_model="numpy")
+def _newton(stepper, m, x, imp, ws):
+    """Newton with line search on v' (in ws.v_new, started from the current velocity).
+
+    The system M (v' - v_avg) = hf F(X, V) is the stationarity condition of an incremental
+    potential (see :func:`_merit`), so a step that lowers the residual or the potential is
+    accepted and otherwise halved: no blow-up from a poor linearisation. The Newton matrix
+    M - hf cx dF/dx + hf cv C is block-banded (O(n) solve). The first iteration of implicit
+    Euler is the classical linearly implicit (Baraff-Witkin) step; later iterations run only
+    when its residual is above tolerance (large held-end jumps, strong nonlinearity).
+    Returns (iterations, converged).
+    """
+    n = x.shape[0]
+    held = m.held
+    vn, v_try, r, r_try = ws.v_new, ws.v_try, ws.residual, ws.residual_try
+    tol = stepper.tol
+    # Residual scale: momentum gravity and external forces give in one step, and round-off
+    # floor of stiff spring forces (k eps |x|) below which no iteration can go.
+    g_norm = np.sqrt(np.sum(m.gravity ** 2))
+    xscale = 0.0
+    for i in range(n):
+        for j in range(3):
+            xscale = max(xscale, abs(x[i, j]))
+    r_scale = imp.hf * (np.max(m.mass) * g_norm + np.max(np.abs(m.f_ext))) + 1e-300
+    r_floor = 10.0 * 2.2e-16 * imp.hf * (np.max(m.k_stretch) * (xscale + np.max(m.rest_length)))
+    rnorm = _residual(m, imp, ws, vn, r)
+    it = 0
+    converged = False
+    while it < stepper.max_iter:
+        it += 1
+        force_jacobian(m, ws.x_stage, imp.dirs, stepper.definite, ws.jacobian)
+        assemble_system(m, ws.jacobian, 1.0, imp.hf * imp.cx, imp.hf * imp.cv, ws.band)
+        band_solve(ws.band, r)  # r becomes the Newton direction dv
+        phi0 = np.nan
+        alpha = 1.0
+        accepted = False
+        for _ in range(12):
+            for i in range(n):
+                for j in range(3):
+                    v_try[i, j] = vn[i, j] + alpha * r[3 * i + j]
+            rn_try = _residual(m, imp, ws, v_try, r_try)
+            if rn_try < rnorm or rn_try <= tol * r_scale + r_floor:
+                accepted = True
+                break
+            if phi0 != phi0:  # merit at the current iterate, computed once when first needed
+                _residual(m, imp, ws, vn, r_try)
+                phi0 = _merit(m, imp, ws, vn)
+                _residual(m, imp, ws, v_try, r_try)
+            if _merit(m, imp, ws, v_try) <= phi0:
+                accepted = True
+                break
+            alpha *= 0.5
+        if not accepted:
+            break  # stagnated: keep the current iterate (reported as not converged)
+        vn[:, :] = v_try
+        r[:] = r_try
+        rnorm = rn_try
+        # residual tolerance relative to the momentum change of this step
+        dmom = 0.0
+        for i in range(n):
+            if held[i]:
+                continue
+            for j in range(3):
+                dmom = max(dmom, m.mass[i] * abs(vn[i, j] - ws.v_avg[i, j]))
+        if rnorm <= tol * (r_scale + dmom) + r_floor:
+            converged = True
+            break
+    return it, converged
+
+
+@njit(cache=True, error_model="numpy")
+def _implicit(stepper, m, x, v, samples, ws, has_prev):
+    """Implicit Euler, BDF2 or implicit midpoint: solve for v', then update x consistently."""
+    method, h = stepper.method, stepper.h
+    n = x.shape[0]
+    imp = _implicit_map(method, x, v, h, samples, ws, has_prev)
+    vn = ws.v_new
+    vn[:, :] = v
+    if m.held[0]:
+        vn[0] = samples.vel[2, 0]
+    if m.held[n - 1]:
+        vn[n - 1] = samples.vel[2, 1]
+    its, converged = _newton(stepper, m, x, imp, ws)
+    for i in range(n):
+        for j in range(3):
+            if method == IMPLICIT_MIDPOINT:
+                x[i, j] += 0.5 * h * (v[i, j] + vn[i, j])
+            elif method == BDF2 and has_prev:
+                x[i, j] = ws.x_base[i, j] + imp.cx * vn[i, j]
+            else:
+                x[i, j] += h * vn[i, j]
+    v[:, :] = vn
+    _set_held(m.held, x, v, samples.pos[2], samples.vel[2])
+    return its, converged
+
+
+@njit(cache=True, error_model="numpy")
+def advance(stepper, m, x, v, samples, ws, has_prev):
+    """Advance (x, v) in place by one step of ``stepper`` (a :class:`Stepper`).
+
+    samples: held-end poses at t, t + h/2, t + h; ws: scratch from :func:`make_workspace`;
+    has_prev: whether ws.x_prev, ws.v_prev hold the state before this one (BDF2 falls back to
+    implicit Euler without it). Returns (Newton iterations, converged); explicit methods
+    return (0, True).
+    """
+    method, h = stepper.method, stepper.h
+    if method == EXPLICIT_EULER:
+        _explicit_euler(m, x, v, h, samples, ws)
+    elif method == SYMPLECTIC_EULER:
+        _symplectic_euler(m, x, v, h, samples, ws)
+    elif method == RK4:
+        _rk4(m, x, v, h, samples, ws)
+    else:
+        return _implicit(stepper, m, x, v, samples, ws, has_prev)
+    return 0, True
