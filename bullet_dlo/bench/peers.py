@@ -186,54 +186,59 @@ def run_peer(rod: PeerRod, spec: CableSpec, dt: float, mode: str, duration: floa
         raise ValueError("dt and duration must be positive")
     if spec.n_masses < 4:
         raise ValueError(f"need at least 4 nodes, got n_masses = {spec.n_masses}")
-    c_settle = 2.0 * cantilever_angular_frequency(spec)
-    seg = spec.rest_length
     n_steps = int(round(duration / dt))
+    run = _static if mode == "static" else _free
+    stable, wall, note, measured = run(rod, spec, dt, n_steps, damping)
+    return PeerResult(rod.name, mode, spec.n_masses, dt, stable, measured.get("tip_deflection"),
+                      measured.get("frequency"), measured.get("amplitude_kept"), wall, n_steps * dt, note,
+                      list(rod.warnings))
 
-    def result(stable: bool, wall: float, note: str, **measured) -> PeerResult:
-        fields = dict(tip_deflection=None, frequency=None, amplitude_kept=None) | measured
-        return PeerResult(rod.name, mode, spec.n_masses, dt, stable, wall_time_s=wall, sim_time_s=n_steps * dt,
-                          note=note, warnings=list(rod.warnings), **fields)
 
-    if mode == "static":
-        c = c_settle if damping is None else float(damping)
-        rod.set_gravity(GRAVITY)
-        rod.set_damping(c)
-        stable, wall = _advance(rod, n_steps, seg)
-        rod.refresh()
-        note = f"{rod.note}; damping rate {c:.6g} 1/s; final max strain {max_strain(rod.positions(), seg):.3g}"
-        return result(stable, wall, note, tip_deflection=-rod.tip_z() if stable else None)
+def _static(rod: PeerRod, spec: CableSpec, dt: float, n_steps: int, damping: float | None):
+    """S1: damped under gravity; measures the tip deflection [m]. Returns (stable, wall [s], note, measures)."""
+    c = 2.0 * cantilever_angular_frequency(spec) if damping is None else float(damping)
+    rod.set_gravity(GRAVITY)
+    rod.set_damping(c)
+    stable, wall = _advance(rod, n_steps, spec.rest_length)
+    rod.refresh()
+    note = f"{rod.note}; damping rate {c:.6g} 1/s; final max strain {max_strain(rod.positions(), spec.rest_length):.3g}"
+    return stable, wall, note, {"tip_deflection": -rod.tip_z()} if stable else {}
 
-    omega1 = 0.5 * c_settle
+
+def _free(rod: PeerRod, spec: CableSpec, dt: float, n_steps: int, damping: float | None):
+    """S2: settle (untimed) under the release gravity, then swing free; measures the frequency [Hz]
+    and the amplitude kept [-]. Returns (stable, wall [s], note, measures)."""
+    omega1 = cantilever_angular_frequency(spec)
     g_small = release_gravity(spec, FREE_AMPLITUDE)
     settle_steps = int(math.ceil(SETTLE_OMEGA_T / omega1 / dt))
     rod.set_gravity(g_small)
-    rod.set_damping(c_settle)
-    stable, _ = _advance(rod, settle_steps, seg)
-    note = f"{rod.note}; settled {settle_steps * dt:.4g} s (untimed) at {c_settle:.6g} 1/s under g = {g_small:.6g} m/s^2"
+    rod.set_damping(2.0 * omega1)
+    stable, _ = _advance(rod, settle_steps, spec.rest_length)
+    note = (f"{rod.note}; settled {settle_steps * dt:.4g} s (untimed) at {2.0 * omega1:.6g} 1/s "
+            f"under g = {g_small:.6g} m/s^2")
     if not stable:
-        return result(False, 0.0, note)
-    rod.set_gravity(0.0)
+        return False, 0.0, note, {}
     c = 0.0 if damping is None else float(damping)
+    rod.set_gravity(0.0)
     rod.set_damping(c)
     rod.zero_velocities()
     rod.refresh()
     z = np.empty(n_steps + 1)  # tip height = displacement (the clamp is at z = 0)
     z[0] = rod.tip_z()
-    stable, wall = _advance(rod, n_steps, seg, z[1:])
+    stable, wall = _advance(rod, n_steps, spec.rest_length, z[1:])
     note += f"; free phase damping rate {c:.6g} 1/s; initial tip displacement {z[0]:.6g} m"
     growth = np.abs(z).max() / abs(z[0])
     if stable and growth > GROWTH_LIMIT:
         stable = False
         note += f"; tip excursion grew to {growth:.3g} x the initial one: numerical instability (energy gain)"
     if not stable:
-        return result(False, wall, note)
+        return False, wall, note, {}
     t = np.arange(n_steps + 1) * dt
     freq = zero_crossing_frequency(t, z)
     if math.isnan(freq):
-        return result(True, wall, note + "; fewer than two upward zero crossings: run longer")
+        return True, wall, note + "; fewer than two upward zero crossings: run longer", {}
     note += f"; first-period amplitude / initial = {period_amplitude(t, z, 0) / abs(z[0]):.6f}"
-    return result(True, wall, note, frequency=freq, amplitude_kept=amplitude_kept(t, z))
+    return True, wall, note, {"frequency": freq, "amplitude_kept": amplitude_kept(t, z)}
 
 
 def run_pyelastica(spec: CableSpec, dt: float, mode: str, duration: float, damping: float | None = None) -> PeerResult:

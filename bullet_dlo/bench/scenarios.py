@@ -6,7 +6,7 @@ answer and the wall time per simulated second of the run that produced it.
 * S1: clamped cantilever under its own weight, small deflection: tip deflection vs
   delta = w L^4 / (8 E I) (settled with damping from the straight start).
 * S2: the same cantilever released from a small deflection, undamped: first frequency vs
-  f1 = 1.8751^2/(2 pi) sqrt(E I / (rho A L^4)), and the amplitude kept after 1 s.
+  f1 = 1.8751^2/(2 pi) sqrt(E I / (rho A L^4)), and the amplitude kept over the last full period of 1 s.
 * S3: the study's scenario (Lv cable clamped at both ends, one end lifted 5 mm): end forces
   against a converged reference run (n = 41, BDF2 at 0.1 ms), as 0.2 s means
   (:func:`bullet_dlo.analysis.measures.force_error`).
