@@ -23,7 +23,8 @@ def assemble_system(m, jac, m_coef, k_coef, c_coef, band):
 
     m: ModelArrays (M = diag(mass) [kg], C = diag(damp) [N s/m], held nodes); jac: force
     Jacobian K = dF/dx [N/m], shape (n, 5, 3, 3); band: output, shape (3n, 2*HALF+1).
-    An implicit step uses (1, h^2-like, h-like) coefficients, the static solver (mu, 1, 0).
+    An implicit step uses m_coef = 1, k_coef = hf cx [s^2], c_coef = hf cv [s] (see
+    :mod:`bullet_dlo.core.kernels.steppers`); the static solver (mu [1/s^2], 1, 0).
     """
     n = m.mass.shape[0]
     held = m.held
