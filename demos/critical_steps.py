@@ -5,7 +5,8 @@ k_d = 0.01 N s/m) the predicted critical step of symplectic Euler and RK4 (linea
 ``critical_dt``) is compared with the largest stable step found by bisection on short runs
 (``measured_critical_dt``). Writes ``critical_steps.md`` and ``critical_steps.json``.
 
-Usage: ``python demos/critical_steps.py [--out DIR] [--duration 0.2]``
+Usage: ``python demos/critical_steps.py [--out DIR] [--duration 0.2] [--quick]`` (``--quick``: E = 126 MPa,
+n = 10, 0.1 s runs; seconds, for smoke tests).
 """
 from __future__ import annotations
 
@@ -25,7 +26,10 @@ def main() -> None:
     parser.add_argument("--duration", type=float, default=0.2, help="seconds per bisection run")
     parser.add_argument("--moduli", nargs="+", type=float, default=[126.0, 1002.6], help="E in MPa")
     parser.add_argument("--masses", nargs="+", type=int, default=[10, 40], help="numbers of masses")
+    parser.add_argument("--quick", action="store_true", help="one cable (126 MPa, n = 10), 0.1 s runs (smoke test)")
     args = parser.parse_args()
+    if args.quick:
+        args.moduli, args.masses, args.duration = [126.0], [10], 0.1
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     rows = []

@@ -41,7 +41,7 @@ from bullet_dlo.core.statics import solve_static  # noqa: E402
 INTEGRATORS = ("explicit_euler", "symplectic_euler", "rk4", "implicit_euler", "bdf2", "implicit_midpoint")
 CORD = CableSpec(length=0.6, diameter=0.012, mass=0.15, youngs_modulus=20e6, n_masses=20, damping=0.03)
 LIFT, INWARD, SWING = 0.15, 0.13, 0.12  # [m]
-PHASES = ((0.5, 1.7, "lift"), (1.7, 3.2, "ends together"), (3.2, 4.4, "swing"), (5.6, 7.0, "pull apart"))
+PHASES = ((0.0, 0.5, "grasp"), (0.5, 1.7, "lift"), (1.7, 3.2, "ends together"), (3.2, 4.4, "swing"), (5.6, 7.0, "pull apart"))
 
 
 def choreography() -> tuple[Move, ...]:
@@ -120,7 +120,7 @@ def plot_convergence(out: Path) -> list[dict]:
     ax.loglog(ns, [100 * abs(r["default"]) for r in rows], "o-", label="default (2nd order)")
     ax.loglog(ns, [100 * abs(r["paper"]) for r in rows], "s-", label="paper (1st order)")
     ax.set_xticks(ns, [str(n) for n in ns])
-    ax.minorticks_off()
+    ax.xaxis.set_minor_locator(plt.NullLocator())
     ax.set_xlabel("number of masses n")
     ax.set_ylabel("tip-deflection error [%]")
     ax.set_title("Cantilever under its own weight vs w L^4 / (8 E I)")

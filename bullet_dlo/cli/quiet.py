@@ -101,3 +101,29 @@ def elapsed(desc: str, quiet: bool) -> Iterator[None]:
         done.set()
         thread.join()
         counter.close()
+
+
+@contextlib.contextmanager
+def native_output() -> Iterator[list[str]]:
+    """Collect what C code writes to file descriptors 1 and 2 (e.g. the EGL plugin naming its GL
+    renderer); the text is in the yielded list when the block ends."""
+    import tempfile
+
+    sys.stdout.flush()
+    sys.stderr.flush()
+    _flush_c_streams()
+    text: list[str] = []
+    saved = {fd: os.dup(fd) for fd in (1, 2)}
+    with tempfile.TemporaryFile() as sink:
+        try:
+            for fd in (1, 2):
+                os.dup2(sink.fileno(), fd)
+            with _python_stream_on("stdout", saved[1]), _python_stream_on("stderr", saved[2]):
+                yield text
+        finally:
+            _flush_c_streams()
+            for fd in (1, 2):
+                os.dup2(saved[fd], fd)
+                os.close(saved[fd])
+            sink.seek(0)
+            text.append(sink.read().decode(errors="replace"))

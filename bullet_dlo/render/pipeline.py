@@ -13,6 +13,8 @@ from bullet_dlo.render.plots import plot_wrenches
 from bullet_dlo.render.tube import CableTube
 from bullet_dlo.render.video import Recorder, VideoWriter, probe_video, side_by_side
 
+GRIPPER_HEIGHT = 0.08  # [m] of gripper shown above a held cable end
+
 
 def cable_envelope(ends: np.ndarray, length: float, motion: Sequence, free: Sequence[bool] = (False, False),
                    ground: float = 0.0) -> np.ndarray:
@@ -83,8 +85,10 @@ def render_scene(scene, out: str | Path, *, robot: str | None = None, fps: float
         free = tuple(mode == "free" for mode in scene.ends)
     try:
         ground = world.ground_height if world.ground_id is not None else -np.inf
-        cam = camera or framing_camera(cable_envelope(cable.x[[0, -1]], scene.cable.length, scene.motion, free, ground),
-                                       width=width, height=height)
+        envelope = cable_envelope(cable.x[[0, -1]], scene.cable.length, scene.motion, free, ground)
+        if robot:  # the fingers above each held end stay in the picture too
+            envelope = np.vstack([envelope, envelope + (0.0, 0.0, GRIPPER_HEIGHT)])
+        cam = camera or framing_camera(envelope, width=width, height=height)
         tube = CableTube(cable)
         writer = VideoWriter(out / "scene", fps, fmt)
         n_frames = int(np.floor(scene.duration * fps + 1e-9)) + 1

@@ -1,50 +1,82 @@
-"""Every demo runs and writes its outputs into the folder it prints."""
+"""Every demo runs in its --quick form and writes what it promises into the folder it prints."""
 from __future__ import annotations
 
+import json
+import re
 import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 ROOT = Path(__file__).resolve().parents[2]
 
 
-def test_main_demo_quick(tmp_path):
-    res = subprocess.run([sys.executable, str(ROOT / "demos" / "main_demo.py"), "--quick", "--out", str(tmp_path)],
+def run_demo(name: str, out: Path, *args: str) -> str:
+    res = subprocess.run([sys.executable, str(ROOT / "demos" / name), "--quick", "--out", str(out), *args],
                          capture_output=True, text=True, timeout=600)
     assert res.returncode == 0, res.stderr
-    assert str(tmp_path.resolve()) in res.stdout
-    for name in ("end_forces.png", "convergence.png", "summary.json"):
-        assert (tmp_path / name).stat().st_size > 1000
-    assert "implicit_euler" in res.stdout
+    assert f"outputs written to {out.resolve()}" in res.stdout
+    return res.stdout
+
+
+def test_main_demo_quick(tmp_path):
+    stdout = run_demo("main_demo.py", tmp_path)
+    for name in ("end_forces.png", "convergence.png", "summary.json", "dual_arm/side_by_side.mp4",
+                 "dual_arm/forces.png", "dual_arm/still.png"):
+        assert (tmp_path / name).stat().st_size > 1000, name
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert summary["video"]["stable"] and summary["video"]["decoded"]["frames"] == 21  # 2 s at 10 fps, t = 0 too
+    runs = {(r["integrator"], r["dt"]): r for r in summary["runs"]}
+    assert runs[("implicit_euler", 1.0 / 60.0)]["stable"] and not runs[("symplectic_euler", 1e-3)]["stable"]
+    # the trapezoidal lumping's error is (L/(n-1))^2 / L^2: 1/81 at n = 10
+    assert abs(summary["cantilever"][1]["default"] - 1 / 81) < 1e-4
+    assert "implicit_euler" in stdout
 
 
 def test_dual_arm_demo_quick(tmp_path):
-    res = subprocess.run([sys.executable, str(ROOT / "demos" / "dual_arm_grasp.py"), "--quick", "--robots", "kuka",
-                          "--out", str(tmp_path)], capture_output=True, text=True, timeout=600)
-    assert res.returncode == 0, res.stderr
-    assert str(tmp_path.resolve()) in res.stdout
+    run_demo("dual_arm_grasp.py", tmp_path, "--robots", "kuka")
     assert (tmp_path / "kuka_forces.png").stat().st_size > 1000
-    import json
-
     summary = json.loads((tmp_path / "summary.json").read_text())
     assert summary[0]["stable"] and abs(summary[0]["vertical_balance_error"]) < 0.01
 
 
-def test_bullet_overhead_demo_runs(tmp_path):
-    res = subprocess.run([sys.executable, str(ROOT / "demos" / "bullet_overhead.py"), "--masses", "10",
-                          "--integrators", "implicit_euler", "--repeats", "1", "--block", "20", "--out", str(tmp_path)],
-                         capture_output=True, text=True, timeout=600)
-    assert res.returncode == 0, res.stderr
-    assert (tmp_path / "bullet_overhead.json").is_file()
+def test_bullet_overhead_demo_quick(tmp_path):
+    stdout = run_demo("bullet_overhead.py", tmp_path)
+    data = json.loads((tmp_path / "bullet_overhead.json").read_text())
+    assert [r["n_masses"] for r in data["overhead"]] == [10] and data["overhead"][0]["ratio"] > 1.0
+    assert data["deviation_m"] < 1e-9  # Bullet and core integrate the same equations without contacts
+    assert "deviation" in stdout
+
+
+def test_core_speed_demo_prints_the_readme_table(tmp_path):
+    stdout = run_demo("core_speed.py", tmp_path)
+    assert "| n | implicit_euler 1 kHz | bdf2 1 kHz | implicit_midpoint 1 kHz | symplectic_euler (dt) | rk4 (dt) |" \
+        in stdout
+    row = re.search(r"^\| 10 \| .*\|$", stdout, re.MULTILINE).group(0)
+    assert len(row.split("|")) == 8  # n and five integrators
+    rows = json.loads((tmp_path / "core_speed.json").read_text())
+    crit = {r["integrator"]: r["dt"] / 0.9 for r in rows if r["integrator"] in ("symplectic_euler", "rk4")}
+    assert crit["rk4"] / crit["symplectic_euler"] == pytest.approx(2.8284 / 2.0, rel=0.02)  # RK4: 2.83/w, SE: 2/w
+
+
+def test_critical_steps_demo_quick(tmp_path):
+    run_demo("critical_steps.py", tmp_path)
+    rows = json.loads((tmp_path / "critical_steps.json").read_text())
+    assert len(rows) == 2
+    for r in rows:
+        assert 0.97 < r["measured"] / r["predicted"] < 1.03  # the linear analysis predicts the bisection
 
 
 def test_render_demo_quick(tmp_path):
-    res = subprocess.run([sys.executable, str(ROOT / "demos" / "render_demo.py"), "--quick", "--out", str(tmp_path)],
-                         capture_output=True, text=True, timeout=600)
-    assert res.returncode == 0, res.stderr
-    assert str(tmp_path.resolve()) in res.stdout
+    stdout = run_demo("render_demo.py", tmp_path)
     for name in ("scene.mp4", "side_by_side.mp4", "forces.png", "still.png", "render.json", "frame_times.json"):
         assert (tmp_path / name).stat().st_size > 100, name
+    timing = json.loads((tmp_path / "frame_times.json").read_text())
+    assert timing["resolution"] == "640x480" and timing["frames"] == 3
+    assert set(timing["median_ms"]) >= {"tiny, shadows on", "tiny, shadows off"}
+    assert all(0 < ms < 10_000 for ms in timing["median_ms"].values())
+    assert "GL renderer:" in stdout and "tiny, shadows on" in stdout
 
 
 def test_cli_render(tmp_path):
@@ -61,8 +93,6 @@ duration: 0.5
     out = tmp_path / "r"
     assert main(["render", str(scene), "--out", str(out), "--width", "160", "--height", "120", "--fps", "20",
                  "--renderer", "tiny", "--quiet"]) == 0
-    import json
-
     summary = json.loads((out / "render.json").read_text())
     assert summary["renderer"] == "tiny" and summary["codec"] == "h264"
     assert summary["decoded"]["frames"] == 11 and summary["decoded"]["width"] == 160
