@@ -1,23 +1,20 @@
 """``bullet-dlo bench ...``: run a benchmark, print what it found, write CSV/JSON and charts into ``--out``.
 
-Progress and ETA go to stderr (tqdm); ``--quiet`` leaves only the results.
+Progress and ETA go to stderr (:func:`bullet_dlo.cli.quiet.bar`); ``--quiet`` leaves only the results.
 """
 from __future__ import annotations
 
 import argparse
-import functools
 import json
 import os
-import sys
 from dataclasses import asdict
 from pathlib import Path
-
-from tqdm import tqdm
 
 from bullet_dlo.analysis.closed_forms import cantilever_deflection, cantilever_frequency
 from bullet_dlo.bench import peers as peer_mod
 from bullet_dlo.bench import plots, sweeps
 from bullet_dlo.bench.scenarios import s1, s1_spec, s3, s3_model, s4, s4_model
+from bullet_dlo.cli.quiet import bar
 from bullet_dlo.core.engine import simulate
 from bullet_dlo.core.integrators import INTEGRATORS
 
@@ -32,9 +29,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def _progress(args, desc: str, unit: str = "run"):
-    """A tqdm wrapper for a sweep's ``progress`` argument: bar and ETA on stderr unless --quiet."""
-    return functools.partial(tqdm, desc=desc, unit=unit, file=sys.stderr, leave=False,
-                             disable=bool(getattr(args, "quiet", False)))
+    """A sweep's ``progress`` argument: its items, with a bar and ETA on stderr unless --quiet."""
+
+    def wrap(items):
+        with bar(len(items), desc, bool(getattr(args, "quiet", False)), unit) as progress_bar:
+            for item in items:
+                yield item
+                progress_bar.update()
+
+    return wrap
 
 
 def _out(args) -> Path:

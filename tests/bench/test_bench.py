@@ -1,7 +1,6 @@
 """Benchmarks in --quick mode: the shape of the results (no speed assertions)."""
 from __future__ import annotations
 
-import argparse
 import csv
 import json
 
@@ -9,7 +8,6 @@ import pytest
 
 from bullet_dlo.analysis.resolve import resolve
 from bullet_dlo.bench import scenarios as bench
-from bullet_dlo.cli import bench as bench_cli
 from bullet_dlo.cli.main import main
 from bullet_dlo.config.scene import Scene
 
@@ -74,17 +72,13 @@ def test_stability_quick(tmp_path):
 
 
 def test_scaling_quick_with_progress_on_stderr_and_quiet(tmp_path, capsys):
-    parser = argparse.ArgumentParser()
-    bench_cli.add_arguments(parser)
-    args = parser.parse_args(["--quick", "--out", str(tmp_path)])
-    args.bench_command = "scaling"
-    assert bench_cli.run(args) == 0
+    args = ["bench", "scaling", "--quick", "--out", str(tmp_path)]
+    assert main(args) == 0
     captured = capsys.readouterr()
     assert "scaling" in captured.err and "cable" in captured.err  # the bar, on stderr
     assert "cost ~ n^" in captured.out
     exponent = json.loads((tmp_path / "scaling.json").read_text())["exponent"]
     assert 0.5 < exponent < 1.5  # linear-ish: the banded solve is O(n)
-    args.quiet = True
-    assert bench_cli.run(args) == 0
+    assert main(args + ["--quiet"]) == 0
     captured = capsys.readouterr()
     assert captured.err == "" and "cost ~ n^" in captured.out
