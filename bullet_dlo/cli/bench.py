@@ -162,7 +162,7 @@ def peers(args) -> int:
         kept = "-" if p["amplitude_kept"] is None else f"{p['amplitude_kept']:.3f}"
         print(f"  {p['peer']:10s} {p['integrator']:14s} {p['scenario']} n={p['n']:3d} dt={p['dt']:.0e} "
               f"stable={p['stable']!s:5s} error={err:7s} amplitude kept={kept:6s} cost={p['wall_per_sim_s']:.4g} s/s"
-              + (f" ({p['warnings']} MuJoCo warnings)" if p["warnings"] else ""))
+              + (f" (MuJoCo warnings: {p['warnings']})" if p["warnings"] else ""))
     if log:
         print(f"{len(log)} peer warnings -> {out / 'peers_warnings.log'}")
 
