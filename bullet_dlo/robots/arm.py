@@ -16,7 +16,7 @@ import pybullet as pb
 from bullet_dlo.config.robot import RobotSpec
 from bullet_dlo.core.validate import ParameterError, check_vector3
 from bullet_dlo.robots.compose import robot_urdf
-from bullet_dlo.robots.transforms import angle_between
+from bullet_dlo.robots.transforms import angle_between, cross3
 
 FINGER_FORCE = 20.0  # [N] position-control force of each finger joint
 
@@ -43,7 +43,6 @@ class Robot:
     link_index: dict[str, int]
     joint_index: dict[str, int]
     finger_joints: list[int] = field(default_factory=list)
-    q_target: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         # where the arm joints sit among the movable ones, worked out once (IK and control run every step)
@@ -120,7 +119,7 @@ class Robot:
         st = pb.getLinkState(self.body, self.grasp_link, computeLinkVelocity=True, computeForwardKinematics=True,
                              physicsClientId=self.client)
         com, frame, v_com, omega = np.array(st[0]), np.array(st[4]), np.array(st[6]), np.array(st[7])
-        return frame, np.array(st[5]), v_com + _cross(omega, frame - com), omega
+        return frame, np.array(st[5]), v_com + cross3(omega, frame - com), omega
 
     def solve_ik(self, position: Sequence[float], quat: Sequence[float], seed: np.ndarray | None = None,
                  tol: float = 1e-4, iterations: int = 20) -> np.ndarray:
@@ -176,8 +175,7 @@ class Robot:
     # ----- control ------------------------------------------------------------------------
     def set_targets(self, q: np.ndarray) -> None:
         """Joint position targets [rad] for the arm (strong position control), fingers closed."""
-        self.q_target = np.asarray(q, float).copy()
-        pb.setJointMotorControlArray(self.body, self.arm_joints, pb.POSITION_CONTROL, targetPositions=self.q_target,
+        pb.setJointMotorControlArray(self.body, self.arm_joints, pb.POSITION_CONTROL, targetPositions=list(q),
                                      forces=self._arm_force, physicsClientId=self.client)
         if self.finger_joints:
             n = len(self.finger_joints)
@@ -199,8 +197,3 @@ class Robot:
         """Disconnect the kinematic twin (the arm goes with its world)."""
         if pb.isConnected(self.kin_client):
             pb.disconnect(self.kin_client)
-
-
-def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """a x b for two 3-vectors: np.cross's arithmetic at a tenth of its cost (it runs every step)."""
-    return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])

@@ -9,7 +9,7 @@ sensor frame and in the world frame. Sampling follows :class:`~bullet_dlo.core.t
 the rule video and dataset frames follow too: samples on the grid start + k / rate, the
 reading held in between.
 
-Sign convention of :attr:`Wrench.force`: the load applied to the tool side, e.g. the force
+Sign convention of the forces in a :class:`Wrench`: the load applied to the tool side, e.g. the force
 the held cable pulls on the gripper (a hanging cable gives a negative z force in world).
 """
 from __future__ import annotations
@@ -49,7 +49,7 @@ class Wrench:
 
 
 class WristSensor:
-    """F/T sensor on ``robot``'s sensor joint.
+    """F/T sensor on ``robot``'s sensor joint (whose reaction reporting :meth:`Robot.load` switched on).
 
     Args:
         robot: the arm.
@@ -75,8 +75,8 @@ class WristSensor:
             raise ParameterError("noise_std and bias must have 6 components (fx fy fz mx my mz)")
         self.compensate_inertia = compensate_inertia
         self.rng = rng or np.random.default_rng(0)
-        c = robot.client  # Robot.load switched the joint's reaction reporting on
-        self.payload = robot.subtree_links(self.joint)
+        c = robot.client
+        self.payload = robot.subtree_links(self.joint)  # the tool side: links the sensor carries
         self.payload_mass = np.array([pb.getDynamicsInfo(robot.body, j, physicsClientId=c)[0] for j in self.payload])
         self._tare = np.zeros(6)
         self._momentum_prev: np.ndarray | None = None  # payload momentum [kg m/s] one step ago

@@ -1,13 +1,13 @@
 """Rotations in one place: quaternions [x, y, z, w] (PyBullet's order) and 3x3 matrices.
 
-Set-up code (grasp frames, IK convergence checks) uses :class:`scipy.spatial.transform.Rotation`.
-The two conversions called every physics step or every rendered frame avoid it: building a
-SciPy Rotation costs ~20 us a call against ~1 us for Bullet's own quaternion-to-matrix
-(:func:`rotation`, four calls per dual-arm step) and a few us for :func:`quat_z_onto`.
+The conversions run every physics step (:func:`rotation`, four calls per dual-arm step) or
+per rendered cable segment per frame (:func:`quat_from_axes`), so they avoid SciPy: building
+a :class:`scipy.spatial.transform.Rotation` costs about 20 us, against about 1 us for Bullet's
+own quaternion-to-matrix and a third of SciPy's cost for the written-out matrix-to-quaternion
+(measured). The IK convergence check (:func:`angle_between`, set-up only) uses SciPy.
 """
 from __future__ import annotations
 
-import math
 from typing import Sequence
 
 import numpy as np
@@ -24,8 +24,23 @@ def rotation(quat: Sequence[float]) -> np.ndarray:
 
 
 def quat_from_matrix(rot: np.ndarray) -> np.ndarray:
-    """3x3 rotation matrix -> unit quaternion [x, y, z, w], shape (4,)."""
-    return Rotation.from_matrix(np.asarray(rot, float)).as_quat()
+    """3x3 rotation matrix -> unit quaternion [x, y, z, w], shape (4,) (Shepperd: pivot on the largest component)."""
+    m = np.asarray(rot, float)
+    tr = np.trace(m)
+    if tr > 0:
+        s = 2.0 * np.sqrt(tr + 1.0)
+        w, x, y, z = 0.25 * s, (m[2, 1] - m[1, 2]) / s, (m[0, 2] - m[2, 0]) / s, (m[1, 0] - m[0, 1]) / s
+    elif m[0, 0] > m[1, 1] and m[0, 0] > m[2, 2]:
+        s = 2.0 * np.sqrt(1.0 + m[0, 0] - m[1, 1] - m[2, 2])
+        w, x, y, z = (m[2, 1] - m[1, 2]) / s, 0.25 * s, (m[0, 1] + m[1, 0]) / s, (m[0, 2] + m[2, 0]) / s
+    elif m[1, 1] > m[2, 2]:
+        s = 2.0 * np.sqrt(1.0 + m[1, 1] - m[0, 0] - m[2, 2])
+        w, x, y, z = (m[0, 2] - m[2, 0]) / s, (m[0, 1] + m[1, 0]) / s, 0.25 * s, (m[1, 2] + m[2, 1]) / s
+    else:
+        s = 2.0 * np.sqrt(1.0 + m[2, 2] - m[0, 0] - m[1, 1])
+        w, x, y, z = (m[1, 0] - m[0, 1]) / s, (m[0, 2] + m[2, 0]) / s, (m[1, 2] + m[2, 1]) / s, 0.25 * s
+    q = np.array([x, y, z, w])
+    return q / np.linalg.norm(q)
 
 
 def quat_from_axes(x_axis: Sequence[float], z_axis: Sequence[float]) -> np.ndarray:
@@ -33,7 +48,7 @@ def quat_from_axes(x_axis: Sequence[float], z_axis: Sequence[float]) -> np.ndarr
     z = np.asarray(z_axis, float) / np.linalg.norm(z_axis)
     x = np.asarray(x_axis, float) - np.dot(x_axis, z) * z
     x /= np.linalg.norm(x)
-    return quat_from_matrix(np.column_stack([x, np.cross(z, x), z]))
+    return quat_from_matrix(np.column_stack([x, cross3(z, x), z]))
 
 
 def angle_between(q1: Sequence[float], q2: Sequence[float]) -> float:
@@ -41,21 +56,6 @@ def angle_between(q1: Sequence[float], q2: Sequence[float]) -> float:
     return float((Rotation.from_quat(q1).inv() * Rotation.from_quat(q2)).magnitude())
 
 
-def quat_z_onto(direction: Sequence[float]) -> list[float]:
-    """Quaternion [x, y, z, w] of the shortest rotation taking +z onto ``direction`` (identity for a zero vector).
-
-    Per rendered segment per frame, hence written out (see the module docstring).
-    """
-    d = np.asarray(direction, float)
-    n = np.linalg.norm(d)
-    if n < 1e-12:
-        return [0.0, 0.0, 0.0, 1.0]
-    d = d / n
-    axis = np.cross([0.0, 0.0, 1.0], d)
-    s = np.linalg.norm(axis)
-    c = float(d[2])
-    if s < 1e-12:  # parallel or antiparallel: any axis normal to z
-        return [0.0, 0.0, 0.0, 1.0] if c > 0 else [1.0, 0.0, 0.0, 0.0]
-    angle = math.atan2(s, c)
-    axis = axis / s * math.sin(angle / 2)
-    return [float(axis[0]), float(axis[1]), float(axis[2]), math.cos(angle / 2)]
+def cross3(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """a x b for two 3-vectors: np.cross's arithmetic (same bits) at a tenth of its cost, for per-step code."""
+    return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])

@@ -18,8 +18,9 @@ from typing import Sequence
 import numpy as np
 import pybullet as pb
 
+from bullet_dlo.bullet.cable import BulletCable
 from bullet_dlo.bullet.world import BulletWorld
-from bullet_dlo.config.robot import DualArmSpec, load_robot_spec
+from bullet_dlo.config.robot import DualArmSpec, RobotSpec, load_robot_spec
 from bullet_dlo.core.model import CableModel
 from bullet_dlo.core.validate import ParameterError, check_positive
 from bullet_dlo.robots.arm import Robot
@@ -94,7 +95,7 @@ class DualArmPhysics:
             half = 0.5 * self.spec.cable.length
             self.world.add_box((max(half - 0.05, 0.05), 0.3, th / 2), (0.0, 0.0, th / 2), name="table")
 
-    def _add_arm(self, robot_spec, sign: float, base_yaw: float) -> None:
+    def _add_arm(self, robot_spec: RobotSpec, sign: float, base_yaw: float) -> None:
         """Load an arm at x = sign * base_distance and put its grasp frame on the cable end at x = sign * L/2."""
         spec = self.spec
         robot = Robot.load(robot_spec, self.world.client, (sign * spec.base_distance, 0.0, 0.0), base_yaw)
@@ -104,7 +105,7 @@ class DualArmPhysics:
         robot.reset_joints(robot.solve_ik(position, quat, seed=np.array(robot_spec.home)))
         self.grasp_poses.append((position, quat))
 
-    def _add_cable(self):
+    def _add_cable(self) -> BulletCable:
         """The straight cable from the left grasp frame along +x, both ends free, not colliding with its holders."""
         start, _ = self.robots[0].grasp_pose()
         model = CableModel.straight(self.spec.cable, start, (1.0, 0.0, 0.0), ("free", "free"), (), self.world.gravity)
