@@ -17,13 +17,12 @@ import json
 import os
 from pathlib import Path
 
-import matplotlib
+import numpy as np
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
+from bullet_dlo.render.plots import plot_wrenches
+from bullet_dlo.robots.dual_arm import DualArmConfig, DualArmScene
 
-from bullet_dlo.robots.dual_arm import DualArmConfig, DualArmScene  # noqa: E402
+PHASES = ((1.0, 1.1, "5 mm"), (2.0, 3.5, "ends together"), (4.0, 5.5, "lift"), (6.0, 8.1, "swing"))
 
 
 def choreography(scene: DualArmScene, quick: bool) -> float:
@@ -69,26 +68,6 @@ def run_robot(robot: str, dt: float, quick: bool) -> tuple[DualArmScene, dict]:
     return scene, summary
 
 
-def plot(scene: DualArmScene, path: Path, title: str) -> None:
-    rec = scene.record.arrays()
-    fig, axes = plt.subplots(3, 2, figsize=(10, 7), sharex=True)
-    for a, arm in enumerate(("left", "right")):
-        for k, comp in enumerate("xyz"):
-            ax = axes[k, a]
-            ax.plot(rec["t"], rec["wrench_world"][:, a, k], label="wrist sensor (tared, world)", lw=1.2)
-            ax.plot(rec["t"], rec["end_forces"][:, a, k], "--", label="model end force", lw=1)
-            ax.set_ylabel(f"F{comp} [N]")
-            if k == 0:
-                ax.set_title(f"{arm} arm")
-    axes[0, 0].legend(fontsize=7)
-    for ax in axes[-1]:
-        ax.set_xlabel("time [s]")
-    fig.suptitle(title)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-
-
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", default=os.path.join("out", "dual_arm_grasp"), help="output folder")
@@ -102,7 +81,9 @@ def main() -> None:
         for dt in ((1 / 240,) if args.quick else (1 / 240, 1e-3)):
             scene, summary = run_robot(robot, dt, args.quick)
             if dt == 1 / 240:
-                plot(scene, out / f"{robot}_forces.png", f"{robot}: hold, 5 mm lift, bring together, lift, swing")
+                rec = scene.record.arrays()
+                plot_wrenches(rec["t"], rec["wrench_world"], rec["end_forces"], out / f"{robot}_forces.png",
+                              f"{robot}: hold, 5 mm lift, bring together, lift, swing", PHASES)
             scene.close()
             summaries.append(summary)
             print(f"{robot:6s} dt={dt:.4g}s stable={summary['stable']} vertical balance "

@@ -74,9 +74,9 @@ def test_render_demo_quick(tmp_path):
         assert (tmp_path / name).stat().st_size > 100, name
     timing = json.loads((tmp_path / "frame_times.json").read_text())
     assert timing["resolution"] == "640x480" and timing["frames"] == 3
-    assert set(timing["median_ms"]) >= {"tiny, shadows on", "tiny, shadows off"}
+    assert set(timing["median_ms"]) >= {"framed, tiny, shadows on", "framed, tiny, shadows off", "wide, tiny, shadows on"}
     assert all(0 < ms < 10_000 for ms in timing["median_ms"].values())
-    assert "GL renderer:" in stdout and "tiny, shadows on" in stdout
+    assert "GL renderer:" in stdout and "framed, tiny, shadows on" in stdout
 
 
 def test_cli_render(tmp_path):
