@@ -16,7 +16,7 @@ import pybullet as pb
 from bullet_dlo.config.robot import RobotSpec
 from bullet_dlo.core.validate import ParameterError, check_vector3
 from bullet_dlo.robots.compose import robot_urdf
-from bullet_dlo.robots.transforms import angle_between, cross3
+from bullet_dlo.robots.transforms import angle_between
 
 FINGER_FORCE = 20.0  # [N] position-control force of each finger joint
 
@@ -118,8 +118,12 @@ class Robot:
         """Grasp frame position [m], quaternion, linear velocity [m/s] and angular velocity [rad/s]."""
         st = pb.getLinkState(self.body, self.grasp_link, computeLinkVelocity=True, computeForwardKinematics=True,
                              physicsClientId=self.client)
-        com, frame, v_com, omega = np.array(st[0]), np.array(st[4]), np.array(st[6]), np.array(st[7])
-        return frame, np.array(st[5]), v_com + cross3(omega, frame - com), omega
+        # v_frame = v_com + omega x (frame - com), in scalars: this runs twice per dual-arm step
+        (cx, cy, cz), (fx, fy, fz), (vx, vy, vz), omega = st[0], st[4], st[6], st[7]
+        wx, wy, wz = omega
+        dx, dy, dz = fx - cx, fy - cy, fz - cz
+        v_frame = [vx + (wy * dz - wz * dy), vy + (wz * dx - wx * dz), vz + (wx * dy - wy * dx)]
+        return np.array(st[4]), np.array(st[5]), np.array(v_frame), np.array(omega)
 
     def solve_ik(self, position: Sequence[float], quat: Sequence[float], seed: np.ndarray | None = None,
                  tol: float = 1e-4, iterations: int = 20) -> np.ndarray:

@@ -76,10 +76,14 @@ class WristSensor:
         self.compensate_inertia = compensate_inertia
         self.rng = rng or np.random.default_rng(0)
         c = robot.client
-        self.payload = robot.subtree_links(self.joint)  # the tool side: links the sensor carries
+        self.payload = robot.subtree_links(self.joint)  # the tool side: links the sensor carries, its own first
         self.payload_mass = np.array([pb.getDynamicsInfo(robot.body, j, physicsClientId=c)[0] for j in self.payload])
+        self._payload_mass = self.payload_mass.tolist()
+        self._bias_list = self.bias.tolist()
+        self._noisy = bool(np.any(self.noise_std > 0))  # no noise: no draws (the generator is used only here)
         self._tare = np.zeros(6)
-        self._momentum_prev: np.ndarray | None = None  # payload momentum [kg m/s] one step ago
+        self._tare_list = [0.0] * 6
+        self._momentum_prev: tuple[float, float, float] | None = None  # payload momentum [kg m/s] one step ago
         self._last: Wrench | None = None
 
     # ----- raw physics ------------------------------------------------------------------------
@@ -93,17 +97,33 @@ class WristSensor:
                              physicsClientId=self.robot.client)
         return rotation(st[1])
 
-    def _inertial_force(self, dt: float) -> np.ndarray:
-        """Payload's sum of m a [N] in world, from the change of its momentum over the last step dt [s]."""
-        states = pb.getLinkStates(self.robot.body, self.payload, computeLinkVelocity=True,
-                                  physicsClientId=self.robot.client)
-        momentum = self.payload_mass @ np.array([s[6] for s in states])  # sum of m v over the payload links
-        prev, self._momentum_prev = self._momentum_prev, momentum
-        return np.zeros(3) if prev is None else (momentum - prev) / dt
+    def _payload_states(self) -> tuple:
+        """PyBullet's link states of the payload links (the sensor's own link first), with velocities."""
+        return pb.getLinkStates(self.robot.body, self.payload, computeLinkVelocity=True, computeForwardKinematics=True,
+                                physicsClientId=self.robot.client)
+
+    def _inertial_force(self, states: tuple, dt: float) -> tuple[float, float, float]:
+        """Payload's sum of m a [N] in world, from the change of its momentum over the last step dt [s].
+
+        states: :meth:`_payload_states` now. Plain floats: the payload has a handful of links and
+        this runs every physics step, where numpy's per-call cost (a few microseconds) would
+        exceed the arithmetic many times over.
+        """
+        px = py = pz = 0.0  # sum of m v over the payload links [kg m/s]
+        for m, s in zip(self._payload_mass, states):
+            v = s[6]
+            px += m * v[0]
+            py += m * v[1]
+            pz += m * v[2]
+        prev, self._momentum_prev = self._momentum_prev, (px, py, pz)
+        if prev is None:
+            return 0.0, 0.0, 0.0
+        return (px - prev[0]) / dt, (py - prev[1]) / dt, (pz - prev[2]) / dt
 
     def tare(self) -> None:
         """Zero the sensor in the current (reference) pose: later readings are relative to it."""
         self._tare = self.raw()
+        self._tare_list = self._tare.tolist()
         self._momentum_prev = None
 
     # ----- readings ---------------------------------------------------------------------------
@@ -111,18 +131,41 @@ class WristSensor:
         """Sample (if due at the sensor's rate) and return the current reading at time t [s].
 
         dt: physics step [s] (for the payload acceleration of the inertia compensation,
-        tracked at every step, sampled or not).
+        tracked at every step, sampled or not). Per-step code: scalar arithmetic on the
+        tuples PyBullet returns, one numpy array per reading component.
         """
-        inertial = self._inertial_force(dt) if self.compensate_inertia else np.zeros(3)
-        if not self.gate.due(t):
-            return self._last  # held between samples
-        rot = self._rotation()
-        tared = self.raw() - self._tare
-        # the load on the tool side is minus what the arm must apply (statics of the tool)
-        f_sensor = -tared[:3] + rot.T @ inertial
-        m_sensor = -tared[3:]
-        noisy = np.concatenate([f_sensor, m_sensor]) + self.bias + self.rng.normal(size=6) * self.noise_std
-        self._last = Wrench(t, noisy[:3], noisy[3:], rot @ noisy[:3], rot @ noisy[3:])
+        if self.compensate_inertia:
+            states = self._payload_states()  # one call: velocities for the inertia, the sensor link's orientation
+            inertial = self._inertial_force(states, dt)
+            if not self.gate.due(t):
+                return self._last  # held between samples
+            quat = states[0][1]
+        else:
+            if not self.gate.due(t):
+                return self._last
+            inertial = (0.0, 0.0, 0.0)
+            quat = pb.getLinkState(self.robot.body, self.joint, computeForwardKinematics=True,
+                                   physicsClientId=self.robot.client)[1]
+        robot = self.robot
+        raw = pb.getJointState(robot.body, self.joint, physicsClientId=robot.client)[2]
+        r = pb.getMatrixFromQuaternion(quat)  # row-major 3x3, sensor frame -> world
+        ax, ay, az = inertial
+        tare = self._tare_list
+        # the load on the tool side is minus what the arm must apply (statics of the tool); inertia in sensor frame
+        w = [tare[0] - raw[0] + (r[0] * ax + r[3] * ay + r[6] * az),
+             tare[1] - raw[1] + (r[1] * ax + r[4] * ay + r[7] * az),
+             tare[2] - raw[2] + (r[2] * ax + r[5] * ay + r[8] * az),
+             tare[3] - raw[3], tare[4] - raw[4], tare[5] - raw[5]]
+        bias = self._bias_list
+        w = [w[k] + bias[k] for k in range(6)]
+        if self._noisy:
+            w = (np.array(w) + self.rng.normal(size=6) * self.noise_std).tolist()
+        fx, fy, fz, mx, my, mz = w
+        f_world = [r[0] * fx + r[1] * fy + r[2] * fz, r[3] * fx + r[4] * fy + r[5] * fz,
+                   r[6] * fx + r[7] * fy + r[8] * fz]
+        m_world = [r[0] * mx + r[1] * my + r[2] * mz, r[3] * mx + r[4] * my + r[5] * mz,
+                   r[6] * mx + r[7] * my + r[8] * mz]
+        self._last = Wrench(t, np.array(w[:3]), np.array(w[3:]), np.array(f_world), np.array(m_world))
         return self._last
 
     @property
