@@ -42,6 +42,10 @@ __version__ = "0.2.0"
 
 _aliases.install()
 
+from bullet_dlo._gym_registration import register_when_gymnasium_loads  # noqa: E402
+
+register_when_gymnasium_loads()  # the bullet_dlo/ Gymnasium ids, once Gymnasium is imported (never imports it)
+
 
 def __getattr__(name: str):
     """Names loaded on first use: ``Scene`` (the config layer reads YAML) and the 0.1 module paths.

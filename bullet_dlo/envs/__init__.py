@@ -1,0 +1,39 @@
+"""Gymnasium environments for two-arm cable manipulation with force feedback.
+
+Registered under the ``bullet_dlo/`` namespace as soon as both ``bullet_dlo`` and ``gymnasium``
+are imported (in either order; :mod:`bullet_dlo._gym_registration`), so::
+
+    import gymnasium as gym
+    import bullet_dlo  # noqa: F401  (registers the environments)
+    env = gym.make("bullet_dlo/TensionTracking-v0")
+
+* ``bullet_dlo/TensionTracking-v0`` (:class:`~.tension.TensionTrackingEnv`): both grippers hold
+  the cable; follow a target axial tension profile while carrying the cable's midpoint to a point.
+* ``bullet_dlo/Shaping-v0`` (:class:`~.shaping.ShapingEnv`): bring the held cable to a target shape.
+
+Routing around pegs needs cable contact with fixed obstacles that holds under load; it is not
+built here. The common machinery (arms, actions, observations, randomisation, rendering) is
+:class:`~.dual_arm_env.DualArmEnv`. Importing this package does not import Gymnasium or PyBullet:
+the classes load on first use.
+"""
+from __future__ import annotations
+
+import importlib
+
+from bullet_dlo._gym_registration import ENV_IDS, register_envs
+
+_LAZY = {
+    "DualArmEnv": "bullet_dlo.envs.dual_arm_env",
+    "TensionTrackingEnv": "bullet_dlo.envs.tension",
+    "ShapingEnv": "bullet_dlo.envs.shaping",
+    "EnvRandomisation": "bullet_dlo.envs.randomisation",
+}
+
+
+def __getattr__(name: str):
+    if name in _LAZY:
+        return getattr(importlib.import_module(_LAZY[name]), name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+__all__ = ["ENV_IDS", "register_envs", *_LAZY]

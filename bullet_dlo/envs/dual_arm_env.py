@@ -1,0 +1,260 @@
+"""The common part of the dual-arm environments: two arms holding a cable, driven by gripper velocities.
+
+Every reset draws a scene (:class:`~.randomisation.EnvRandomisation`), builds it
+(:class:`~bullet_dlo.robots.dual_arm.DualArmPhysics` and its wrist sensors), clamps both cable
+ends, lets the cable settle for ``settle_time`` and asks the task (a subclass) for its targets.
+
+**Action** (6,) in [-1, 1]: the grippers' linear velocities (left xyz, right xyz) as fractions of
+``max_speed`` [m/s], world frame; clipped. The gripper targets integrate them over the control
+period, stay inside a box of half-width ``workspace`` [m] around the grasp poses after reset, keep
+their orientation, and become joint targets by one IK solve per arm per control step (the arms'
+position control follows). ``control_dt`` [s] must be a whole multiple of the physics step
+(ParameterError otherwise), checked at construction for every dt the randomisation can draw.
+
+**Observation** (a Dict, float32 unless said; arms in the order left, right; j arm joints):
+
+============ ================================================================== ==============
+key          meaning                                                            shape
+============ ================================================================== ==============
+joint_q      arm joint angles [rad]                                             (2, j)
+joint_qd     arm joint velocities [rad/s]                                       (2, j)
+gripper_pos  grasp-frame positions [m]                                          (2, 3)
+gripper_quat grasp-frame quaternions (x, y, z, w)                               (2, 4)
+wrench       wrist F/T readings as the sensors report them (their rate, noise,  (2, 6)
+             bias): load on the tool [N, N m], world frame
+task         the task's targets and measures (see the subclass)                 (task_dim,)
+cable        privileged: ``shape_points`` points along the cable [m]            (shape_points, 3)
+             (``privileged=True``)
+rgb / depth  camera image uint8 / depth [m] (``camera="rgb" | "depth" |         (H, W, 3) / (H, W, 1)
+             "rgbd"``), rendered through :func:`bullet_dlo.render.camera.render_frame`
+============ ================================================================== ==============
+
+Every value is finite and inside its box: a non-finite reading (an unstable step) is replaced by
+0 and ends the episode. **Termination**: the cable went unstable (``info["unstable"]``, with
+``info["reason"]``), or the task's own condition; the time limit is the registration's
+``max_episode_steps`` (a truncation). **Rendering**: ``render_mode="rgb_array"`` returns the
+``render_size`` view of :meth:`render`.
+"""
+from __future__ import annotations
+
+from typing import Any, Mapping
+
+import gymnasium as gym
+import numpy as np
+import pybullet as pb
+from gymnasium import spaces
+
+from bullet_dlo.config.robot import load_robot_spec
+from bullet_dlo.core.validate import ParameterError, check_int, check_positive
+from bullet_dlo.envs.randomisation import EnvRandomisation, RandomisationLike, check_control_period
+from bullet_dlo.render.camera import default_camera, render_frame
+from bullet_dlo.robots.dual_arm import DualArmObservation, DualArmPhysics
+
+CAMERA_VIEW = [(-0.45, 0.0, 0.2), (0.45, 0.0, 0.2), (0.0, 0.0, 0.5)]  # points [m] the cameras frame
+CAMERAS = (None, "rgb", "depth", "rgbd")
+BOUNDS = {"joint_q": 2 * np.pi, "joint_qd": 50.0, "gripper_pos": 3.0, "gripper_quat": 1.0, "wrench": 500.0,
+          "cable": 3.0, "depth": 10.0}
+"""Half-width of each observation box (values are clipped into it)."""
+
+
+class DualArmEnv(gym.Env):
+    """Two arms holding a cable; subclasses set the task (:meth:`_task_reset`, :meth:`_task_observation`,
+    :meth:`_task_reward`, ``task_dim``, ``default_randomisation``).
+
+    Args:
+        randomisation: a capture spec (CaptureSpec, dict or YAML path) whose distributions are
+            re-drawn at every reset; None: the task's ``default_randomisation``.
+        control_dt: control period [s], a whole multiple of the physics step.
+        max_speed: gripper speed [m/s] of a full action.
+        workspace: half-width [m] of the box the gripper targets stay in, around the reset grasp poses.
+        settle_time: time [s] the clamped cable settles (actions held at zero) before the episode starts.
+        privileged: add the cable's shape (``cable``) to the observation.
+        shape_points: points along the cable in ``cable`` (and in shape targets).
+        camera: None, "rgb", "depth" or "rgbd": camera images in the observation, ``image_size`` (width, height).
+        render_mode: None or "rgb_array"; render_size: (width, height) [px] of :meth:`render`.
+    """
+
+    metadata = {"render_modes": ["rgb_array"], "render_fps": 20}
+    task_dim = 0
+    default_randomisation: Mapping[str, Any] = {}
+
+    def __init__(self, randomisation: RandomisationLike = None, control_dt: float = 0.05, max_speed: float = 0.05,
+                 workspace: float = 0.1, settle_time: float = 0.25, privileged: bool = False, shape_points: int = 10,
+                 camera: str | None = None, image_size: tuple[int, int] = (64, 64), render_mode: str | None = None,
+                 render_size: tuple[int, int] = (320, 240)):
+        if render_mode not in (None, "rgb_array"):
+            raise ParameterError(f"render_mode must be None or 'rgb_array', got {render_mode!r}")
+        if camera not in CAMERAS:
+            raise ParameterError(f"camera must be one of None, rgb, depth, rgbd, got {camera!r}")
+        self.randomisation = EnvRandomisation(randomisation, self.default_randomisation)
+        self.control_dt = check_positive("control_dt", control_dt)
+        self.max_speed = check_positive("max_speed", max_speed)
+        self.workspace = check_positive("workspace", workspace)
+        self.settle_time = float(settle_time)
+        self.privileged = bool(privileged)
+        self.shape_points = check_int("shape_points", shape_points, 2)
+        self.camera = camera
+        self.image_size = (check_int("image width", image_size[0], 16), check_int("image height", image_size[1], 16))
+        self.render_mode = render_mode
+        self.render_size = tuple(render_size)
+        for dt in self.randomisation.values("dt"):  # refuse a control period the physics cannot hit, now
+            check_control_period(self.control_dt, float(dt))
+        self.n_joints = self._joint_count()
+        self.action_space = spaces.Box(-1.0, 1.0, (6,), np.float32)
+        self.observation_space = spaces.Dict(self._observation_boxes())
+        self.physics: DualArmPhysics | None = None
+        self.sensors = None
+        self.draw = None
+
+    # ----- spaces ---------------------------------------------------------------------------------
+    def _joint_count(self) -> int:
+        robots = self.randomisation.values("robot")
+        counts = {len(load_robot_spec(name).home) for name in robots}
+        if len(counts) != 1:
+            raise ParameterError(f"sample.robot: the robots drawn must have one joint count, got {sorted(counts)}")
+        return counts.pop()
+
+    def _observation_boxes(self) -> dict[str, spaces.Space]:
+        def box(key: str, shape: tuple[int, ...], bound: float | None = None) -> spaces.Box:
+            b = BOUNDS[key] if bound is None else bound
+            return spaces.Box(-b, b, shape, np.float32)
+
+        j = self.n_joints
+        out = {"joint_q": box("joint_q", (2, j)), "joint_qd": box("joint_qd", (2, j)),
+               "gripper_pos": box("gripper_pos", (2, 3)), "gripper_quat": box("gripper_quat", (2, 4)),
+               "wrench": box("wrench", (2, 6)), "task": box("task", (self.task_dim,), 1e3)}
+        if self.privileged:
+            out["cable"] = box("cable", (self.shape_points, 3))
+        w, h = self.image_size
+        if self.camera in ("rgb", "rgbd"):
+            out["rgb"] = spaces.Box(0, 255, (h, w, 3), np.uint8)
+        if self.camera in ("depth", "rgbd"):
+            out["depth"] = spaces.Box(0.0, BOUNDS["depth"], (h, w, 1), np.float32)
+        return out
+
+    # ----- episode --------------------------------------------------------------------------------
+    def reset(self, *, seed: int | None = None, options: dict | None = None):
+        super().reset(seed=seed)
+        self._close_scene()
+        renderer = "tiny" if (self.camera or self.render_mode) else None
+        self.draw = self.randomisation.draw(self.np_random, renderer)
+        setup = self.draw.setup
+        self.substeps = check_control_period(self.control_dt, setup.dt)
+        self.physics = DualArmPhysics(setup)
+        try:
+            self.sensors = DualArmObservation(self.physics, record=False).sensors
+            self.physics.clamp(0)
+            self.physics.clamp(1)
+        except Exception:
+            self._close_scene()
+            raise
+        robots = self.physics.robots
+        self._quat = [q for _, q in self.physics.grasp_poses]
+        self._q_target = [r.joint_positions() for r in robots]
+        self.physics.world.step(max(1, int(round(self.settle_time / setup.dt))))
+        self.home = np.array([r.grasp_pose()[0] for r in robots])  # (2, 3) [m] after settling
+        self.target = self.home.copy()
+        self.unstable = not self.physics.cable.stable
+        self._task_reset(self.np_random)
+        self._cameras = None
+        return self._observation(), self._info()
+
+    def step(self, action):
+        if self.physics is None:
+            raise RuntimeError("call reset() before step()")
+        a = np.clip(np.nan_to_num(np.asarray(action, dtype=float).reshape(2, 3)), -1.0, 1.0)
+        self.target = np.clip(self.target + a * self.max_speed * self.control_dt,
+                              self.home - self.workspace, self.home + self.workspace)
+        for arm, robot in enumerate(self.physics.robots):
+            self._q_target[arm] = robot.track(self.target[arm], self._quat[arm])
+            robot.set_targets(self._q_target[arm])
+        world, cable = self.physics.world, self.physics.cable
+        for _ in range(self.substeps):
+            world.step()
+            if not cable.stable:
+                break
+        self.unstable = not cable.stable
+        obs = self._observation()
+        reward, done = (0.0, True) if self.unstable else self._task_reward()
+        return obs, float(reward), bool(done or self.unstable), False, self._info()
+
+    def _info(self) -> dict[str, Any]:
+        cable = self.physics.cable
+        return {"unstable": bool(self.unstable), "reason": cable.reason if self.unstable else None,
+                "time": float(self.physics.world.time), "params": self.draw.params, **self._task_info()}
+
+    # ----- observation ----------------------------------------------------------------------------
+    def _observation(self) -> dict[str, np.ndarray]:
+        robots = self.physics.robots
+        states = [pb.getJointStates(r.body, r.arm_joints, physicsClientId=r.client) for r in robots]
+        poses = [r.grasp_pose() for r in robots]
+        raw = {"joint_q": [[s[0] for s in st] for st in states], "joint_qd": [[s[1] for s in st] for st in states],
+               "gripper_pos": [p for p, _ in poses], "gripper_quat": [q for _, q in poses],
+               "wrench": [s.last.world() for s in self.sensors], "task": self._task_observation()}
+        if self.privileged:
+            raw["cable"] = self.cable_points()
+        obs = {}
+        for key, value in raw.items():
+            obs[key] = self._finite(key, np.asarray(value, dtype=np.float32))
+        if self.camera:
+            obs.update(self._images())
+        return obs
+
+    def _finite(self, key: str, value: np.ndarray) -> np.ndarray:
+        """``value`` inside its box; a non-finite entry (an unstable step) becomes 0 and ends the episode."""
+        if not np.all(np.isfinite(value)):
+            self.unstable = True
+            value = np.nan_to_num(value, nan=0.0, posinf=0.0, neginf=0.0)
+        space = self.observation_space[key]
+        return np.clip(value, space.low, space.high)
+
+    def cable_points(self, x: np.ndarray | None = None) -> np.ndarray:
+        """``shape_points`` points [m] evenly spaced by node index along the cable's nodes ``x`` (n, 3)
+        (default: now), linearly interpolated: a fixed-size shape whatever the number of masses."""
+        x = self.physics.cable.x if x is None else x
+        s = np.linspace(0.0, len(x) - 1.0, self.shape_points)
+        return np.stack([np.interp(s, np.arange(len(x)), x[:, k]) for k in range(3)], axis=1)
+
+    def _images(self) -> dict[str, np.ndarray]:
+        if self._cameras is None:
+            self._cameras = default_camera(CAMERA_VIEW, *self.image_size)
+        world = self.physics.world
+        frame = render_frame(world.client, self._cameras, world.renderer)
+        out = {}
+        if self.camera in ("rgb", "rgbd"):
+            out["rgb"] = frame.rgb
+        if self.camera in ("depth", "rgbd"):
+            out["depth"] = self._finite("depth", frame.depth[:, :, None].astype(np.float32))
+        return out
+
+    def render(self) -> np.ndarray | None:
+        """The scene as RGB (H, W, 3) uint8 at ``render_size`` (``render_mode="rgb_array"``), else None."""
+        if self.render_mode != "rgb_array" or self.physics is None:
+            return None
+        world = self.physics.world
+        if getattr(self, "_render_camera", None) is None:
+            self._render_camera = default_camera(CAMERA_VIEW, *self.render_size)
+        return render_frame(world.client, self._render_camera, world.renderer).rgb
+
+    # ----- the task (subclasses) ------------------------------------------------------------------
+    def _task_reset(self, rng: np.random.Generator) -> None:
+        """Draw the episode's targets (after the cable settled)."""
+
+    def _task_observation(self) -> np.ndarray:
+        return np.zeros(self.task_dim)
+
+    def _task_reward(self) -> tuple[float, bool]:
+        """Reward of the step just taken and whether the task ends the episode."""
+        return 0.0, False
+
+    def _task_info(self) -> dict[str, Any]:
+        return {}
+
+    # ----- closing --------------------------------------------------------------------------------
+    def _close_scene(self) -> None:
+        if self.physics is not None:
+            self.physics.close()
+        self.physics = None
+
+    def close(self) -> None:
+        self._close_scene()

@@ -1,0 +1,77 @@
+"""Domain randomisation for the environments: a capture spec's distributions, re-drawn at every reset.
+
+The same spec format as dataset captures (:class:`~bullet_dlo.config.capture.CaptureSpec`, a
+YAML file or a dict), the same planning (:func:`~bullet_dlo.data.plan.plan_episode`: its
+stability policy may switch integrator or add substeps) and the same scene
+(:func:`~bullet_dlo.data.episode.dual_arm_spec`). An environment's reset draws one episode seed
+from its own generator (seeded by ``reset(seed=...)``), so the drawn parameters depend only on
+the reset seed. Used: the cable (length, diameter, mass, youngs_modulus, n_masses, damping,
+friction), dt, integrator, robot, hold_height and the wrist sensors (noise_std, sensor_rate);
+the capture's scripted move (displacement_*, speed, move_start) and its episode/camera
+sections are not: the policy moves the arms, the environment sets its own length and camera.
+"""
+from __future__ import annotations
+
+import dataclasses
+from pathlib import Path
+from typing import Any, Mapping
+
+import numpy as np
+
+from bullet_dlo.config.capture import CaptureSpec
+from bullet_dlo.config.robot import DualArmSpec
+from bullet_dlo.core.validate import ParameterError
+from bullet_dlo.data.episode import dual_arm_spec
+from bullet_dlo.data.plan import plan_episode
+
+RandomisationLike = CaptureSpec | Mapping[str, Any] | str | Path | None
+
+
+@dataclasses.dataclass(frozen=True)
+class Draw:
+    """One reset's scene: the dual-arm spec, the drawn parameters and the stability decision (as a capture stores)."""
+
+    setup: DualArmSpec
+    params: dict
+    decision: dict
+
+
+class EnvRandomisation:
+    """Draws a scene per reset from ``spec`` (a CaptureSpec, its dict form or a YAML path; None: ``default``)."""
+
+    def __init__(self, spec: RandomisationLike, default: Mapping[str, Any] | None = None):
+        if spec is None:
+            spec = default or {}
+        if isinstance(spec, (str, Path)):
+            spec = CaptureSpec.from_yaml(spec)
+        elif not isinstance(spec, CaptureSpec):
+            spec = CaptureSpec.from_dict(spec)
+        self.spec = spec
+
+    def draw(self, rng: np.random.Generator, renderer: str | None) -> Draw:
+        """The scene of one episode, from ``rng`` (the environment's, seeded at reset); ``renderer`` for images."""
+        seeded = dataclasses.replace(self.spec, seed=int(rng.integers(2**31 - 1)), camera_fps=0.0)
+        params, decision = plan_episode(seeded, 0)
+        setup = dataclasses.replace(dual_arm_spec(seeded, params, decision), renderer=renderer)
+        return Draw(setup, params, decision)
+
+    def values(self, key: str) -> list:
+        """Every value parameter ``key`` can take, for a ``fixed`` or ``choice`` distribution (else [])."""
+        dist = self.spec.sample.get(key)
+        if dist is None:
+            from bullet_dlo.config.capture import PARAMETERS
+
+            return [PARAMETERS[key][1]["value"]]
+        if dist.dist == "fixed":
+            return [dist.value]
+        return list(dist.values) if dist.dist == "choice" else []
+
+
+def check_control_period(control_dt: float, dt: float) -> int:
+    """Physics steps per control step: ``control_dt / dt`` [s / s] must be a whole number >= 1 (as dm_control asks)."""
+    ratio = control_dt / dt
+    steps = int(round(ratio))
+    if steps < 1 or abs(ratio - steps) > 1e-6 * max(1.0, ratio):
+        raise ParameterError(f"control_dt = {control_dt} s must be a whole multiple (>= 1) of the physics step "
+                             f"dt = {dt} s (ratio {ratio:.6g})")
+    return steps
