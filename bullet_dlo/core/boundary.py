@@ -1,18 +1,38 @@
 """Boundary conditions: how each cable end is held, and prescribed motion of held ends.
 
 An end is ``free``, ``pinned`` (position held) or ``clamped`` (position and tangent held,
-like a gripper). A held end follows a pose trajectory: its start pose plus a sum of
-:class:`Move` s, each a straight-line displacement and/or a rotation about the held node
-with a smooth (minimum-jerk, quintic) start and stop.
+like a gripper). A held end follows a pose trajectory: its start pose plus the superposition
+of motion items, all relative to that start pose (displacements [m], rotation vectors [rad]
+about world axes, turning the clamp direction about the held node):
+
+* :class:`Move`: a straight-line displacement and/or rotation, minimum-jerk, rest to rest;
+* :class:`Waypoints`: a smooth path through displacements and rotations at given times
+  (C2 piecewise quintic: the knot velocities and accelerations of a C2 cubic spline, at rest
+  at the first and last waypoint; rotations interpolated as rotation vectors, exact at the
+  waypoints, so keep steps between waypoints below ~90 degrees); at most one per end;
+* :class:`Sine`: amplitude * sin(2 pi f (t - start) + phase) in position and/or rotation, for
+  ``duration`` seconds (default: forever), with optional minimum-jerk ramps in and out.
+
+Rotations turn the clamp direction in this order: moves (in the order given), the path, the sines.
+In a scene file's ``motion:`` list each entry has ``type: move`` (the default), ``waypoints`` or ``sine``.
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import Any, Mapping, Sequence
 
 import numpy as np
 
-from bullet_dlo.core.kernels.holders import MOVE_COLUMNS, min_jerk  # noqa: F401 (min_jerk: robots.dual_arm)
+from bullet_dlo.core.kernels.holders import (
+    MOVE_COLUMNS,
+    PATH_COLUMNS,
+    SINE_COLUMNS,
+    HolderPlan,
+    empty_samples,
+    min_jerk,  # noqa: F401 (min_jerk: robots.dual_arm)
+    sample_holders,
+)
 from bullet_dlo.core.validate import ParameterError, check_nonnegative, check_positive, check_vector3
 
 END_MODES = ("free", "pinned", "clamped")
@@ -47,8 +67,7 @@ class Move:
     rotation: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
     def __post_init__(self) -> None:
-        if self.end not in END_NAMES:
-            raise ParameterError(f"motion end must be 'first' or 'last', got {self.end!r}")
+        _check_end(self.end)
         object.__setattr__(self, "displacement", tuple(check_vector3("motion displacement", self.displacement)))
         object.__setattr__(self, "rotation", tuple(check_vector3("motion rotation", self.rotation)))
         object.__setattr__(self, "start", check_nonnegative("motion start", self.start))
@@ -56,17 +75,174 @@ class Move:
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any]) -> "Move":
-        allowed = {"end", "displacement", "start", "duration", "rotation"}
-        unknown = sorted(set(data) - allowed)
-        if unknown:
-            raise ParameterError(f"unknown motion key(s) {', '.join(unknown)}; allowed: {', '.join(sorted(allowed))}")
-        if "end" not in data:
-            raise ParameterError("motion entry needs 'end' (first or last)")
-        return cls(**dict(data))
+        return cls(**_motion_keys(data, {"end", "displacement", "start", "duration", "rotation"}, "move"))
 
     def as_row(self) -> np.ndarray:
         """[start, duration, dx, dy, dz, rx, ry, rz] (SI) for the Numba evaluator, shape (8,)."""
         return np.array([self.start, self.duration, *self.displacement, *self.rotation], dtype=float)
+
+
+def _motion_keys(data: Mapping[str, Any], allowed: set[str], kind: str) -> dict[str, Any]:
+    """The keys of a motion entry of type ``kind`` (without ``type``), unknown keys and a missing ``end`` refused."""
+    data = {k: v for k, v in dict(data).items() if k != "type"}
+    unknown = sorted(set(data) - allowed)
+    if unknown:
+        raise ParameterError(f"unknown {kind} motion key(s) {', '.join(unknown)}; allowed: type, "
+                             f"{', '.join(sorted(allowed))}")
+    if "end" not in data:
+        raise ParameterError(f"{kind} motion entry needs 'end' (first or last)")
+    return data
+
+
+def _check_end(end: str) -> None:
+    if end not in END_NAMES:
+        raise ParameterError(f"motion end must be 'first' or 'last', got {end!r}")
+
+
+@dataclass(frozen=True)
+class Waypoints:
+    """A smooth path of one held end through waypoints (relative to its start pose).
+
+    Attributes:
+        end: ``"first"`` or ``"last"``.
+        times: waypoint times [s], strictly increasing, >= 0, shape (k,), k >= 2.
+        displacements: displacement from the start position at each waypoint [m], shape (k, 3);
+            the first must be zero (the path starts from the start pose).
+        rotations: rotation vector of the clamp direction at each waypoint [rad], shape (k, 3)
+            (default: none); the first must be zero.
+
+    Between waypoints: quintic segments matching position, velocity and acceleration of a C2
+    cubic spline with zero end velocities at every waypoint, and zero velocity and
+    acceleration at the first and last (so the whole path is C2, at rest at both ends).
+    """
+
+    end: str
+    times: tuple[float, ...]
+    displacements: tuple[tuple[float, float, float], ...]
+    rotations: tuple[tuple[float, float, float], ...] | None = None
+
+    def __post_init__(self) -> None:
+        _check_end(self.end)
+        t = np.asarray(self.times, dtype=float)
+        if t.ndim != 1 or len(t) < 2 or not np.all(np.isfinite(t)):
+            raise ParameterError("waypoints times must be a list of at least 2 finite times [s]")
+        if t[0] < 0 or np.any(np.diff(t) <= 0):
+            raise ParameterError("waypoints times must be >= 0 and strictly increasing")
+        arrays = {}
+        for name in ("displacements", "rotations"):
+            value = getattr(self, name)
+            a = np.zeros((len(t), 3)) if value is None else np.asarray(value, dtype=float)
+            if a.shape != (len(t), 3) or not np.all(np.isfinite(a)):
+                raise ParameterError(f"waypoints {name} must be {len(t)} finite [x, y, z] rows (one per time)")
+            if np.any(a[0] != 0.0):
+                raise ParameterError(f"waypoints {name}: the first waypoint must be [0, 0, 0] (the start pose)")
+            arrays[name] = tuple(tuple(float(v) for v in row) for row in a)
+        object.__setattr__(self, "times", tuple(float(v) for v in t))
+        object.__setattr__(self, "displacements", arrays["displacements"])
+        object.__setattr__(self, "rotations", arrays["rotations"])
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> "Waypoints":
+        return cls(**_motion_keys(data, {"end", "times", "displacements", "rotations"}, "waypoints"))
+
+    @property
+    def start(self) -> float:
+        return self.times[0]
+
+    @property
+    def duration(self) -> float:
+        return self.times[-1] - self.times[0]
+
+    def segments(self) -> np.ndarray:
+        """The path as kernel rows (see :class:`~bullet_dlo.core.kernels.holders.HolderPlan`), shape (k - 1, 38)."""
+        t = np.asarray(self.times)
+        rows = np.zeros((len(t) - 1, PATH_COLUMNS))
+        rows[:, 0], rows[:, 1] = t[:-1], t[1:]
+        for col, values in ((2, self.displacements), (20, self.rotations)):
+            rows[:, col:col + 18] = quintic_segments(t, np.asarray(values))
+        return rows
+
+
+def quintic_segments(t: np.ndarray, p: np.ndarray) -> np.ndarray:
+    """Coefficients c_0..c_5 of C2 quintic segments through values ``p`` (k, 3) at times ``t`` (k,) [s],
+    in u = (t - t_i)/(t_{i+1} - t_i): rows of (c_0 (3), ..., c_5 (3)), shape (k - 1, 18).
+
+    Knot velocities and accelerations are those of the C2 cubic spline with zero end velocities,
+    with the accelerations at the first and last knot set to zero.
+    """
+    from scipy.interpolate import CubicSpline
+
+    spline = CubicSpline(t, p, axis=0, bc_type="clamped")
+    v, a = spline(t, 1), spline(t, 2)
+    v[[0, -1]] = 0.0
+    a[[0, -1]] = 0.0
+    T = np.diff(t)[:, None]
+    p0, p1, v0, v1, a0, a1 = p[:-1], p[1:], v[:-1] * T, v[1:] * T, a[:-1] * T**2, a[1:] * T**2
+    dp = p1 - p0
+    c = [p0, v0, 0.5 * a0,
+         10 * dp - 6 * v0 - 4 * v1 - 0.5 * (3 * a0 - a1),
+         -15 * dp + 8 * v0 + 7 * v1 + 0.5 * (3 * a0 - 2 * a1),
+         6 * dp - 3 * v0 - 3 * v1 - 0.5 * (a0 - a1)]
+    return np.concatenate(c, axis=1)
+
+
+@dataclass(frozen=True)
+class Sine:
+    """A periodic motion of one held end about its (otherwise prescribed) pose.
+
+    displacement(t) = amplitude * e(t) * sin(2 pi frequency (t - start) + phase) [m], and the
+    clamp direction turned by rotation * e(t) * sin(...) [rad]; e rises from 0 to 1 over
+    ``ramp`` seconds after ``start`` and falls back over ``ramp`` before ``start + duration``
+    (minimum jerk; ramp 0: the sine starts and stops abruptly).
+
+    Attributes:
+        end: ``"first"`` or ``"last"``.
+        amplitude: [m], shape (3,).
+        frequency: [Hz], > 0.
+        phase: [rad].
+        rotation: rotation amplitude (rotation vector) [rad], shape (3,).
+        start: [s], >= 0.
+        duration: [s], > 0 (default, or None: forever).
+        ramp: [s], >= 0, at most half the duration.
+    """
+
+    end: str
+    amplitude: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    frequency: float = 1.0
+    phase: float = 0.0
+    rotation: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    start: float = 0.0
+    duration: float = math.inf
+    ramp: float = 0.0
+
+    def __post_init__(self) -> None:
+        _check_end(self.end)
+        object.__setattr__(self, "amplitude", tuple(check_vector3("sine amplitude", self.amplitude)))
+        object.__setattr__(self, "rotation", tuple(check_vector3("sine rotation", self.rotation)))
+        object.__setattr__(self, "frequency", check_positive("sine frequency", self.frequency))
+        if not math.isfinite(float(self.phase)):
+            raise ParameterError(f"sine phase must be finite [rad], got {self.phase!r}")
+        object.__setattr__(self, "phase", float(self.phase))
+        object.__setattr__(self, "start", check_nonnegative("sine start", self.start))
+        forever = self.duration is None or self.duration == math.inf
+        object.__setattr__(self, "duration", math.inf if forever else check_positive("sine duration", self.duration))
+        object.__setattr__(self, "ramp", check_nonnegative("sine ramp", self.ramp))
+        if 2 * self.ramp > self.duration:
+            raise ParameterError(f"sine ramp must be at most half the duration ({self.duration / 2} s), got {self.ramp}")
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> "Sine":
+        allowed = {"end", "amplitude", "frequency", "phase", "rotation", "start", "duration", "ramp"}
+        return cls(**_motion_keys(data, allowed, "sine"))
+
+    def as_row(self) -> np.ndarray:
+        """Kernel row (see :class:`~bullet_dlo.core.kernels.holders.HolderPlan`), shape (11,)."""
+        return np.array([self.start, self.duration, self.ramp, self.frequency, self.phase, *self.amplitude,
+                         *self.rotation], dtype=float)
+
+
+MOTION_TYPES = {"move": Move, "waypoints": Waypoints, "sine": Sine}
+Motion = Move | Waypoints | Sine
 
 
 @dataclass(frozen=True)
@@ -78,13 +254,13 @@ class EndHolder:
         position: start position of the held node [m], shape (3,).
         direction: start tangent held by a clamp, pointing along the cable from first to last
             node (unit vector), shape (3,).
-        moves: prescribed moves of this end.
+        moves: prescribed motion items of this end (Move, Waypoints, Sine).
     """
 
     mode: str
     position: np.ndarray
     direction: np.ndarray
-    moves: tuple[Move, ...] = field(default_factory=tuple)
+    moves: tuple[Motion, ...] = field(default_factory=tuple)
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "mode", check_end_mode(self.mode))
@@ -98,15 +274,75 @@ class EndHolder:
 
     def move_table(self) -> np.ndarray:
         """Moves as rows of shape (k, 8); shape (0, 8) without moves."""
-        if not self.moves:
-            return np.zeros((0, MOVE_COLUMNS))
-        return np.stack([m.as_row() for m in self.moves])
+        rows = [m.as_row() for m in self.moves if isinstance(m, Move)]
+        return np.stack(rows) if rows else np.zeros((0, MOVE_COLUMNS))
+
+    def path_table(self) -> np.ndarray:
+        """The waypoint path as segment rows, shape (k, 38); (0, 38) without one."""
+        paths = [m for m in self.moves if isinstance(m, Waypoints)]
+        if len(paths) > 1:
+            raise ParameterError("at most one waypoints trajectory per end (put all its waypoints in one entry)")
+        return paths[0].segments() if paths else np.zeros((0, PATH_COLUMNS))
+
+    def sine_table(self) -> np.ndarray:
+        """Sines as rows of shape (k, 11); (0, 11) without sines."""
+        rows = [m.as_row() for m in self.moves if isinstance(m, Sine)]
+        return np.stack(rows) if rows else np.zeros((0, SINE_COLUMNS))
 
 
-def parse_motion(items: Sequence[Mapping[str, Any]] | None) -> tuple[Move, ...]:
-    """Parse the scene file's ``motion`` list into Moves."""
+def holder_plan(first: EndHolder, last: EndHolder) -> HolderPlan:
+    """Start poses and motion tables of both ends, as the kernels take them."""
+    return HolderPlan(
+        start_pos=np.stack([first.position, last.position]).astype(float),
+        start_dir=np.stack([first.direction, last.direction]).astype(float),
+        moves_first=first.move_table(), moves_last=last.move_table(),
+        path_first=first.path_table(), path_last=last.path_table(),
+        sines_first=first.sine_table(), sines_last=last.sine_table(),
+    )
+
+
+def motion_offset(items: Sequence[Motion], end: str, times: np.ndarray | Sequence[float]
+                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """What the motion ``items`` of end ``end`` do at ``times`` [s], shape (k,), evaluated by the kernels:
+    displacement [m], velocity [m/s], acceleration [m/s^2], each (k, 3), and the rotation matrix
+    that turns the start orientation, (k, 3, 3) (columns: the images of the world axes).
+
+    A gripper holding that end follows ``position0 + displacement`` with orientation ``R @ R0``.
+    """
+    mine = tuple(m for m in items if m.end == end)
+    times = np.atleast_1d(np.asarray(times, dtype=float))
+    out = [np.zeros((len(times), 3)) for _ in range(3)] + [np.zeros((len(times), 3, 3))]
+    samples = empty_samples()
+    for axis in range(3):
+        e = np.eye(3)[axis]
+        holder = EndHolder("clamped", np.zeros(3), e, mine)
+        plan = holder_plan(holder, holder)
+        for i, t in enumerate(times):
+            sample_holders(plan, float(t), 0.0, samples)
+            out[3][i, :, axis] = samples.dir[0, 0]
+            if axis == 0:
+                out[0][i], out[1][i], out[2][i] = samples.pos[0, 0], samples.vel[0, 0], samples.acc[0, 0]
+    return out[0], out[1], out[2], out[3]
+
+
+def parse_motion(items: Sequence[Mapping[str, Any]] | None) -> tuple[Motion, ...]:
+    """Parse the scene file's ``motion`` list (entries with ``type: move`` (default), ``waypoints`` or ``sine``)."""
     if items is None:
         return ()
     if not isinstance(items, (list, tuple)):
         raise ParameterError("motion must be a list of moves")
-    return tuple(m if isinstance(m, Move) else Move.from_dict(m) for m in items)
+    out = []
+    for k, item in enumerate(items):
+        if isinstance(item, (Move, Waypoints, Sine)):
+            out.append(item)
+            continue
+        if not isinstance(item, Mapping):
+            raise ParameterError(f"motion[{k}] must be a mapping with 'type' (move, waypoints, sine) and 'end'")
+        kind = str(item.get("type", "move")).lower()
+        if kind not in MOTION_TYPES:
+            raise ParameterError(f"motion[{k}].type must be one of {', '.join(MOTION_TYPES)}, got {kind!r}")
+        out.append(MOTION_TYPES[kind].from_dict(item))
+    for end in END_NAMES:
+        if sum(isinstance(m, Waypoints) and m.end == end for m in out) > 1:
+            raise ParameterError(f"motion: at most one waypoints entry per end ('{end}' has more)")
+    return tuple(out)

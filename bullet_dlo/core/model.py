@@ -11,7 +11,7 @@ from typing import NamedTuple, Sequence
 
 import numpy as np
 
-from bullet_dlo.core.boundary import EndHolder, Move
+from bullet_dlo.core.boundary import EndHolder, Motion, holder_plan
 from bullet_dlo.core.kernels.holders import HolderPlan
 from bullet_dlo.core.spec import CableSpec
 from bullet_dlo.core.validate import ParameterError, check_vector3
@@ -64,7 +64,7 @@ class CableModel:
         start: Sequence[float] = (0.0, 0.0, 0.5),
         direction: Sequence[float] = (1.0, 0.0, 0.0),
         ends: tuple[str, str] = ("clamped", "clamped"),
-        motion: Sequence[Move] = (),
+        motion: Sequence[Motion] = (),
         gravity: Sequence[float] = STANDARD_GRAVITY,
     ) -> "CableModel":
         """A cable laid straight at rest length from ``start`` along ``direction``.
@@ -96,13 +96,8 @@ class CableModel:
         return CableState(self.x0.copy(), np.zeros_like(self.x0), 0.0)
 
     def holder_plan(self) -> HolderPlan:
-        """Start poses and move tables of both ends, as the kernels take them."""
-        return HolderPlan(
-            start_pos=np.stack([self.first.position, self.last.position]),
-            start_dir=np.stack([self.first.direction, self.last.direction]),
-            moves_first=self.first.move_table(),
-            moves_last=self.last.move_table(),
-        )
+        """Start poses and motion tables of both ends, as the kernels take them."""
+        return holder_plan(self.first, self.last)
 
 
 def build_arrays(spec: CableSpec, first_mode: str, last_mode: str, gravity: np.ndarray) -> ModelArrays:

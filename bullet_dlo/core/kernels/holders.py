@@ -1,10 +1,18 @@
-"""Numba kernels for held ends: minimum-jerk moves and the held-end samples a step needs.
+"""Numba kernels for held ends: the trajectories they follow and the held-end samples a step needs.
 
-A held end starts at a pose (position, clamp direction) and follows the sum of its moves,
-each a straight-line displacement plus a rotation of the clamp direction about the held
-node, both with a minimum-jerk (quintic) time profile. A step of length h needs the poses at
-t, t + h/2 and t + h (RK4 and the implicit midpoint use the middle one): :func:`sample_holders`
-writes them into a :class:`HeldSamples`.
+A held end starts at a pose (position, clamp direction) and follows the superposition of
+three kinds of motion, each in its own table of a :class:`HolderPlan`:
+
+* moves: a straight-line displacement plus a rotation of the clamp direction about the held
+  node, both with a minimum-jerk (quintic) time profile, rest to rest;
+* a path through waypoints: piecewise quintic polynomials in position and rotation vector
+  (C2: position, velocity and acceleration continuous, at rest at the first and last waypoint);
+* sines: amplitude * envelope(t) * sin(2 pi f (t - start) + phase) in position and rotation
+  vector, the envelope rising and falling with minimum-jerk ramps.
+
+Translations add; the clamp direction is turned by the moves (table order), then the path,
+then the sines. A step of length h needs the poses at t, t + h/2 and t + h (RK4 and the
+implicit midpoint use the middle one): :func:`sample_holders` writes them into a :class:`HeldSamples`.
 """
 from __future__ import annotations
 
@@ -14,7 +22,10 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-MOVE_COLUMNS = 8  # move table row: start [s], duration [s], displacement [m] (3), rotation vector [rad] (3)
+MOVE_COLUMNS = 8  # move row: start [s], duration [s], displacement [m] (3), rotation vector [rad] (3)
+PATH_COLUMNS = 38  # path row: t0 [s], t1 [s], position coefficients c0..c5 [m] (6 x 3), rotation c0..c5 [rad] (6 x 3)
+SINE_COLUMNS = 11  # sine row: start [s], duration [s], ramp [s], frequency [Hz], phase [rad], amplitude [m] (3),
+#                    rotation amplitude [rad] (3)
 
 
 class HolderPlan(NamedTuple):
@@ -23,14 +34,22 @@ class HolderPlan(NamedTuple):
     start_pos: start positions of the first and last end [m], (2, 3);
     start_dir: start clamp directions, unit vectors along the cable from its first to its
     last node, (2, 3);
-    moves_first, moves_last: move tables of each end, rows [start s, duration s, dx, dy, dz m,
-    rx, ry, rz rad], (k, 8) (k = 0 without moves).
+    moves_first, moves_last: move tables, rows [start s, duration s, dx, dy, dz m, rx, ry, rz rad], (k, 8);
+    path_first, path_last: waypoint path segments in time order, rows [t0 s, t1 s, then the
+    coefficients c_0..c_5 of p(u) = sum c_i u^i, u = (t - t0)/(t1 - t0), for the displacement
+    [m] (3 per coefficient) and then for the rotation vector [rad]], (k, 38);
+    sines_first, sines_last: rows [start s, duration s (inf: forever), ramp s, frequency Hz,
+    phase rad, amplitude m (3), rotation amplitude rad (3)], (k, 11). k = 0: none of that kind.
     """
 
     start_pos: np.ndarray
     start_dir: np.ndarray
     moves_first: np.ndarray
     moves_last: np.ndarray
+    path_first: np.ndarray
+    path_last: np.ndarray
+    sines_first: np.ndarray
+    sines_last: np.ndarray
 
 
 class HeldSamples(NamedTuple):
@@ -85,17 +104,8 @@ def rotate(vec, rx, ry, rz):
 
 
 @njit(cache=True, error_model="numpy")
-def held_pose(plan, end, t, samples, k):
-    """Pose of held end ``end`` (0 first, 1 last) at time t [s] into sample ``k`` of ``samples``.
-
-    Moves superpose: translations add, rotations of the clamp direction compose in table order.
-    """
-    moves = plan.moves_first if end == 0 else plan.moves_last
-    pos, vel, acc, direction = samples.pos[k, end], samples.vel[k, end], samples.acc[k, end], samples.dir[k, end]
-    pos[:] = plan.start_pos[end]
-    vel[:] = 0.0
-    acc[:] = 0.0
-    direction[:] = plan.start_dir[end]
+def add_moves(moves, t, pos, vel, acc, direction):
+    """Add the minimum-jerk moves of a move table at time t [s] to pos/vel/acc, turning ``direction``."""
     for row in range(moves.shape[0]):
         start, dur = moves[row, 0], moves[row, 1]
         s, ds, dds = min_jerk((t - start) / dur)
@@ -105,6 +115,97 @@ def held_pose(plan, end, t, samples, k):
             acc[j] += moves[row, 2 + j] * dds / (dur * dur)
         if s > 0.0:
             rotate(direction, moves[row, 5] * s, moves[row, 6] * s, moves[row, 7] * s)
+
+
+@njit(cache=True, error_model="numpy")
+def quintic(path, row, col, u):
+    """p(u) = sum_i c_i u^i with c_i = path[row, col + 3 i], and dp/du, d2p/du2 (Horner)."""
+    p = dp = ddp = 0.0
+    for i in range(5, -1, -1):
+        ddp = ddp * u + 2.0 * dp
+        dp = dp * u + p
+        p = p * u + path[row, col + 3 * i]
+    return p, dp, ddp
+
+
+@njit(cache=True, error_model="numpy")
+def add_path(path, t, pos, vel, acc, direction):
+    """Add the waypoint path (segment table) at time t [s]; before its first and after its last
+    waypoint the end rests there."""
+    k = path.shape[0]
+    if k == 0:
+        return
+    lo, hi = 0, k - 1  # the last segment whose t0 <= t (binary search)
+    while lo < hi:
+        mid = (lo + hi + 1) // 2
+        if path[mid, 0] <= t:
+            lo = mid
+        else:
+            hi = mid - 1
+    dur = path[lo, 1] - path[lo, 0]
+    u = min(max((t - path[lo, 0]) / dur, 0.0), 1.0)
+    moving = path[0, 0] < t < path[k - 1, 1]
+    for j in range(3):
+        p, dp, ddp = quintic(path, lo, 2 + j, u)
+        pos[j] += p
+        if moving:
+            vel[j] += dp / dur
+            acc[j] += ddp / (dur * dur)
+    rotate(direction, quintic(path, lo, 20, u)[0], quintic(path, lo, 21, u)[0], quintic(path, lo, 22, u)[0])
+
+
+@njit(cache=True, error_model="numpy")
+def envelope(t, start, duration, ramp):
+    """Sine envelope e(t) and its first two time derivatives [1/s, 1/s^2]: 0 outside [start, start + duration],
+    rising over ``ramp`` [s] from ``start`` and falling over ``ramp`` before the end (minimum jerk)."""
+    if t < start or t > start + duration:
+        return 0.0, 0.0, 0.0
+    if ramp <= 0.0:
+        return 1.0, 0.0, 0.0
+    s1, d1, dd1 = min_jerk((t - start) / ramp)
+    s2, d2, dd2 = min_jerk((start + duration - t) / ramp)
+    e = s1 * s2
+    de = (d1 * s2 - s1 * d2) / ramp
+    dde = (dd1 * s2 - 2.0 * d1 * d2 + s1 * dd2) / (ramp * ramp)
+    return e, de, dde
+
+
+@njit(cache=True, error_model="numpy")
+def add_sines(sines, t, pos, vel, acc, direction):
+    """Add the sines of a sine table at time t [s] to pos/vel/acc, turning ``direction``."""
+    for row in range(sines.shape[0]):
+        e, de, dde = envelope(t, sines[row, 0], sines[row, 1], sines[row, 2])
+        if e == 0.0 and de == 0.0:
+            continue
+        w = 2.0 * math.pi * sines[row, 3]
+        arg = w * (t - sines[row, 0]) + sines[row, 4]
+        sn, cs = math.sin(arg), math.cos(arg)
+        f = e * sn
+        df = de * sn + e * w * cs
+        ddf = dde * sn + 2.0 * de * w * cs - e * w * w * sn
+        for j in range(3):
+            pos[j] += sines[row, 5 + j] * f
+            vel[j] += sines[row, 5 + j] * df
+            acc[j] += sines[row, 5 + j] * ddf
+        rotate(direction, sines[row, 8] * f, sines[row, 9] * f, sines[row, 10] * f)
+
+
+@njit(cache=True, error_model="numpy")
+def held_pose(plan, end, t, samples, k):
+    """Pose of held end ``end`` (0 first, 1 last) at time t [s] into sample ``k`` of ``samples``."""
+    pos, vel, acc, direction = samples.pos[k, end], samples.vel[k, end], samples.acc[k, end], samples.dir[k, end]
+    pos[:] = plan.start_pos[end]
+    vel[:] = 0.0
+    acc[:] = 0.0
+    direction[:] = plan.start_dir[end]
+    if end == 0:
+        add_moves(plan.moves_first, t, pos, vel, acc, direction)
+        add_path(plan.path_first, t, pos, vel, acc, direction)
+        add_sines(plan.sines_first, t, pos, vel, acc, direction)
+    else:
+        add_moves(plan.moves_last, t, pos, vel, acc, direction)
+        add_path(plan.path_last, t, pos, vel, acc, direction)
+        add_sines(plan.sines_last, t, pos, vel, acc, direction)
 
 
 @njit(cache=True, error_model="numpy")
