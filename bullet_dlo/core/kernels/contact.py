@@ -1,0 +1,416 @@
+"""Contact and Coulomb friction inside the implicit step (Numba): penalty normal force, anchored friction.
+
+A contact k joins a point of the cable to a body surface for one step. The cable point is
+p = w_a x_a + w_b x_b (a node: w_b = 0; a segment interior at parameter s: w_a = 1 - s, w_b = s,
+b = a + 1), the surface a plane through the point c with unit normal n (both at the start of the
+step, moved at the body's velocity u_b over it). With the cable radius r:
+
+- gap g = n . (p - c) - r; normal force f_n = k_n max(0, -g) - c_n (n . (p' - u_b)) while g < 0;
+- friction: an anchor a tied to a MATERIAL point of the cable (parameter s_a on the segment,
+  ``anchor[k, 3]``) holds it with a tangential spring, u = P_t((1 - s_a) x_a + s_a x_b - a),
+  P_t = I - n n^T; f_t = -k_t u while k_t |u| <= cap (stick), else -cap u/|u| (slide), with
+  cap = mu_s f_n if the contact stuck last step, mu_d f_n if it slid. After a slide the anchor
+  moves so that the spring carries exactly mu_d f_n (and s_a to the current closest point).
+
+f_t is minus the gradient of a convex Huber potential (cap frozen), so a step with contacts keeps
+an incremental potential (merit) and its Newton matrix stays symmetric and block-banded (a
+segment contact couples a and a + 1). The caps follow the normal force as a fixed point after
+each Newton solve. Contacts are evaluated at the END of the step (backward Euler contact) for
+every implicit method; the implicit midpoint rule is unstable with stiff one-sided contact even
+so, and takes implicit Euler steps while contacts are active (BDF2 too, on the step after an
+impact, which its two-step history would turn into a bounce).
+
+Stiffness: k_n = alpha m_k / h^2 per contact, m_k the cable mass at the contact point (one
+stiffness for all contacts would load the half-mass end nodes wrongly), alpha = 1e4 by default
+(penetration about g h^2 / alpha at rest: microns at 60 Hz); k_t = k_n.
+"""
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+import numpy as np
+from numba import njit
+
+from bullet_dlo.core.kernels.banded import HALF, assemble_system, band_solve
+from bullet_dlo.core.kernels.forces import add_damping_jacobian, force_jacobian
+from bullet_dlo.core.kernels.steppers import (
+    BDF2,
+    IMPLICIT_EULER,
+    IMPLICIT_MIDPOINT,
+    _implicit_map,
+    _merit,
+    _residual,
+    _set_held,
+)
+
+STICK, SLIDE = 0, 1
+DEFAULT_ALPHA = 1.0e4  # k_n h^2 / m: contact frequency times step, squared
+
+
+class Contacts(NamedTuple):
+    """The contacts of one cable for the coming step (capacity M rows; the first ``count[0]`` used).
+
+    Geometry (filled by the detector): node (M, 2) int, weight (M, 2): the contact point
+    p = w0 x[node0] + w1 x[node1]; normal (M, 3) unit, from the body to the cable; point (M, 3)
+    [m]: surface point at the start of the step; body_vel (M, 3) [m/s]: the body's velocity at it.
+    Parameters: k_n, k_t [N/m], c_n [N s/m], mu_s, mu_d [-], each (M,).
+    Friction state (persisted by the detector between steps): anchor (M, 4): anchor position
+    [m] and material parameter s_a on the segment; state (M,) int: STICK or SLIDE.
+    Results of the step: f_n (M,) [N] normal force (>= 0), f_t (M, 3) [N] friction force, both on
+    the cable; cap (M,) [N] friction limit used. Scalars (1,): count, radius [m] (cable radius),
+    body_work [J] work the touched bodies did on the cable so far, impact (1 when a contact took
+    load at an approach speed above g h: the next BDF2 step restarts with implicit Euler).
+    node_force (n, 3) [N]: scratch for the contact forces on the nodes.
+    """
+
+    count: np.ndarray
+    radius: np.ndarray
+    node: np.ndarray
+    weight: np.ndarray
+    normal: np.ndarray
+    point: np.ndarray
+    body_vel: np.ndarray
+    k_n: np.ndarray
+    k_t: np.ndarray
+    c_n: np.ndarray
+    mu_s: np.ndarray
+    mu_d: np.ndarray
+    anchor: np.ndarray
+    state: np.ndarray
+    f_n: np.ndarray
+    f_t: np.ndarray
+    cap: np.ndarray
+    body_work: np.ndarray
+    impact: np.ndarray
+    node_force: np.ndarray
+
+
+def make_contacts(n: int, capacity: int, radius: float) -> Contacts:
+    """Empty contact arrays for an n-node cable of radius [m], room for ``capacity`` contacts."""
+    m = max(1, int(capacity))
+    f = np.zeros
+    return Contacts(count=np.zeros(1, np.int64), radius=np.full(1, float(radius)), node=np.zeros((m, 2), np.int64),
+                    weight=f((m, 2)), normal=f((m, 3)), point=f((m, 3)), body_vel=f((m, 3)), k_n=f(m), k_t=f(m),
+                    c_n=f(m), mu_s=f(m), mu_d=f(m), anchor=f((m, 4)), state=np.zeros(m, np.int64), f_n=f(m),
+                    f_t=f((m, 3)), cap=f(m), body_work=f(1), impact=np.zeros(1, np.int64), node_force=f((n, 3)))
+
+
+# ----- one contact ---------------------------------------------------------------------------
+@njit(cache=True, error_model="numpy", inline="always")
+def _gap(c, k, x):
+    """Gap g [m] of contact k at positions x (negative: penetration)."""
+    a, b = c.node[k, 0], c.node[k, 1]
+    wa, wb = c.weight[k, 0], c.weight[k, 1]
+    g = 0.0
+    for j in range(3):
+        g += c.normal[k, j] * (wa * x[a, j] + wb * x[b, j] - c.point[k, j])
+    return g - c.radius[0]
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _slip(c, k, x, u):
+    """Tangential offset u [m] (3,) of the anchored material point from the anchor; returns |u|."""
+    a, b = c.node[k, 0], c.node[k, 1]
+    sa = c.anchor[k, 3]
+    dn = 0.0
+    for j in range(3):
+        u[j] = (1.0 - sa) * x[a, j] + sa * x[b, j] - c.anchor[k, j]
+        dn += u[j] * c.normal[k, j]
+    ul = 0.0
+    for j in range(3):
+        u[j] -= dn * c.normal[k, j]
+        ul += u[j] * u[j]
+    return math.sqrt(ul)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _approach(c, k, v):
+    """Normal velocity [m/s] of the cable point relative to the body (negative: approaching)."""
+    a, b = c.node[k, 0], c.node[k, 1]
+    wa, wb = c.weight[k, 0], c.weight[k, 1]
+    q = 0.0
+    for j in range(3):
+        q += c.normal[k, j] * (wa * v[a, j] + wb * v[b, j] - c.body_vel[k, j])
+    return q
+
+
+# ----- forces, potential, Jacobian -----------------------------------------------------------
+@njit(cache=True, error_model="numpy")
+def contact_forces(c, x, v, f):
+    """f <- contact forces on the nodes [N] at (x, v), (n, 3); also fills c.f_n, c.f_t (caps frozen)."""
+    f[:, :] = 0.0
+    u = np.empty(3)
+    for k in range(c.count[0]):
+        a, b = c.node[k, 0], c.node[k, 1]
+        wa, wb = c.weight[k, 0], c.weight[k, 1]
+        g = _gap(c, k, x)
+        fn = 0.0
+        if g < 0.0:
+            fn = -c.k_n[k] * g - c.c_n[k] * _approach(c, k, v)
+        ul = _slip(c, k, x, u)
+        kt, cap = c.k_t[k], c.cap[k]
+        if kt * ul <= cap and cap > 0.0:
+            sc = -kt
+        elif ul > 0.0:
+            sc = -cap / ul
+        else:
+            sc = 0.0
+        sa = c.anchor[k, 3]
+        for j in range(3):
+            ft = sc * u[j]
+            c.f_t[k, j] = ft
+            f[a, j] += wa * fn * c.normal[k, j] + (1.0 - sa) * ft
+            f[b, j] += wb * fn * c.normal[k, j] + sa * ft
+        c.f_n[k] = fn
+
+
+@njit(cache=True, error_model="numpy")
+def contact_potential(c, x, v, damping_weight):
+    """Potential [J] of the contact forces at (x, v): penalty 1/2 k_n g^2, friction Huber potential
+    (caps frozen) and ``damping_weight`` [s] times the normal dampers' Rayleigh term (merit only)."""
+    phi = 0.0
+    u = np.empty(3)
+    for k in range(c.count[0]):
+        g = _gap(c, k, x)
+        if g < 0.0:
+            qn = _approach(c, k, v)
+            phi += 0.5 * c.k_n[k] * g * g + 0.5 * damping_weight * c.c_n[k] * qn * qn
+        ul = _slip(c, k, x, u)
+        kt, cap = c.k_t[k], c.cap[k]
+        if kt * ul <= cap:
+            phi += 0.5 * kt * ul * ul
+        else:
+            phi += cap * ul - 0.5 * cap * cap / kt
+    return phi
+
+
+@njit(cache=True, error_model="numpy")
+def contact_energy(c, x):
+    """Energy [J] stored in the contacts at x: penalty springs and friction anchor springs."""
+    e = 0.0
+    u = np.empty(3)
+    for k in range(c.count[0]):
+        g = _gap(c, k, x)
+        if g < 0.0:
+            e += 0.5 * c.k_n[k] * g * g
+        ul = _slip(c, k, x, u)
+        ft = min(c.k_t[k] * ul, c.cap[k])
+        e += 0.5 * ft * ft / c.k_t[k] if c.k_t[k] > 0.0 else 0.0
+    return e
+
+
+@njit(cache=True, error_model="numpy")
+def add_contact_jacobian(c, held, x, kx, kv, band):
+    """band += kx (-dF/dx) + kv (-dF/dv) of the contact forces at x (3x3 blocks, symmetric).
+
+    Normal: k_n n n^T (+ c_n n n^T on dF/dv) while g < 0; stick: k_t P_t; slide:
+    (cap/|u|)(P_t - u u^T/|u|^2). Rows and columns of held nodes are left alone (identity).
+    """
+    blk = np.empty((2, 3, 3))
+    wts = np.empty((2, 2))
+    u = np.empty(3)
+    for k in range(c.count[0]):
+        g = _gap(c, k, x)
+        ul = _slip(c, k, x, u)
+        kt, cap = c.k_t[k], c.cap[k]
+        stick = kt * ul <= cap and cap > 0.0
+        nv = c.normal[k]
+        for r in range(3):
+            for q in range(3):
+                nn = nv[r] * nv[q]
+                pt = (1.0 if r == q else 0.0) - nn
+                blk[0, r, q] = (kx * c.k_n[k] + kv * c.c_n[k]) * nn if g < 0.0 else 0.0
+                if stick:
+                    blk[1, r, q] = kx * kt * pt
+                elif ul > 0.0:
+                    blk[1, r, q] = kx * (cap / ul) * (pt - u[r] * u[q] / (ul * ul))
+                else:
+                    blk[1, r, q] = 0.0
+        wts[0, 0], wts[0, 1] = c.weight[k, 0], c.weight[k, 1]  # normal force at the closest point
+        wts[1, 0], wts[1, 1] = 1.0 - c.anchor[k, 3], c.anchor[k, 3]  # friction at the anchored point
+        for p in range(2):
+            for aa in range(2):
+                na = c.node[k, aa]
+                if wts[p, aa] == 0.0 or held[na]:
+                    continue
+                for bb in range(2):
+                    nb = c.node[k, bb]
+                    if wts[p, bb] == 0.0 or held[nb]:
+                        continue
+                    w = wts[p, aa] * wts[p, bb]
+                    for r in range(3):
+                        for q in range(3):
+                            row = 3 * na + r
+                            band[row, 3 * nb + q - row + HALF] += w * blk[p, r, q]
+
+
+@njit(cache=True, error_model="numpy")
+def elastic_caps(c, x, out):
+    """out <- friction limits mu f_n [N] from the penalty force at x (mu_s if stuck, mu_d if sliding)."""
+    for k in range(c.count[0]):
+        g = _gap(c, k, x)
+        mu = c.mu_s[k] if c.state[k] == STICK else c.mu_d[k]
+        out[k] = mu * c.k_n[k] * (-g) if g < 0.0 else 0.0
+
+
+# ----- the implicit step with contacts ------------------------------------------------------
+@njit(cache=True, error_model="numpy")
+def _residual_c(m, imp, ws, vn, r, c):
+    """Momentum residual with contact forces (at the evaluation point X, V); returns max |r|."""
+    _residual(m, imp, ws, vn, r)
+    fc = c.node_force
+    contact_forces(c, ws.x_stage, ws.v_stage, fc)
+    worst = 0.0
+    for i in range(vn.shape[0]):
+        for j in range(3):
+            if not m.held[i]:
+                r[3 * i + j] += imp.hf * fc[i, j]
+            if not abs(r[3 * i + j]) <= worst:
+                worst = abs(r[3 * i + j])
+    return worst
+
+
+@njit(cache=True, error_model="numpy")
+def _merit_c(m, imp, ws, vn, c):
+    """Incremental potential with the contact terms (at X, V left by the last residual call)."""
+    return _merit(m, imp, ws, vn) + contact_potential(c, ws.x_stage, ws.v_stage, imp.cx / imp.cv)
+
+
+@njit(cache=True, error_model="numpy")
+def _newton_c(stepper, m, x, imp, ws, c, cap_tol, max_passes):
+    """Newton on v' with contacts; merit-decrease line search; caps as an outer fixed point.
+
+    Only a merit decrease (with a round-off allowance) accepts a trial step: accepting residual
+    decrease lets Newton cycle between stick and slide. Returns (iterations, converged).
+    """
+    n = x.shape[0]
+    vn, v_try, r = ws.v_new, ws.v_try, ws.residual
+    g_norm = np.sqrt(np.sum(m.gravity ** 2))
+    xscale = 0.0
+    phi_scale = 0.0
+    for i in range(n):
+        for j in range(3):
+            xscale = max(xscale, abs(x[i, j]))
+        phi_scale += m.mass[i] * g_norm * (abs(x[i, 0]) + abs(x[i, 1]) + abs(x[i, 2]) + 1.0)
+    r_scale = imp.hf * (np.max(m.mass) * g_norm + np.max(np.abs(m.f_ext))) + 1e-300
+    r_floor = 10.0 * 2.2e-16 * imp.hf * (np.max(m.k_stretch) * (xscale + np.max(m.rest_length)))
+    nc = c.count[0]
+    caps_new = np.empty(max(nc, 1))
+    _residual(m, imp, ws, vn, r)  # X at the predictor: caps from its penetration
+    elastic_caps(c, ws.x_stage, c.cap)
+    it = 0
+    passes = 0
+    converged = False
+    while True:
+        rnorm = _residual_c(m, imp, ws, vn, r, c)
+        dmom = 0.0
+        for i in range(n):
+            if not m.held[i]:
+                for j in range(3):
+                    dmom = max(dmom, m.mass[i] * abs(vn[i, j] - ws.v_avg[i, j]))
+        if it > 0 and rnorm <= stepper.tol * (r_scale + dmom) + r_floor:
+            elastic_caps(c, ws.x_stage, caps_new)
+            cmax = 0.0
+            dcap = 0.0
+            for k in range(nc):
+                cmax = max(cmax, caps_new[k])
+                dcap = max(dcap, abs(caps_new[k] - c.cap[k]))
+            if dcap <= cap_tol * cmax or passes >= max_passes or it >= stepper.max_iter:
+                converged = True
+                break
+            passes += 1
+            c.cap[:nc] = caps_new[:nc]
+            continue
+        if it >= stepper.max_iter:
+            break
+        it += 1
+        force_jacobian(m, ws.x_stage, imp.dirs, stepper.definite, ws.jacobian)
+        add_damping_jacobian(m, ws.x_stage, imp.dirs, imp.cv / imp.cx, ws.jacobian)
+        assemble_system(m, ws.jacobian, 1.0, imp.hf * imp.cx, imp.hf * imp.cv, ws.band)
+        add_contact_jacobian(c, m.held, ws.x_stage, imp.hf * imp.cx, imp.hf * imp.cv, ws.band)
+        phi0 = _merit_c(m, imp, ws, vn, c)
+        band_solve(ws.band, r)  # r becomes the Newton direction
+        alpha = 1.0
+        accepted = False
+        for _ in range(30):
+            for i in range(n):
+                for j in range(3):
+                    v_try[i, j] = vn[i, j] + alpha * r[3 * i + j]
+            _residual_c(m, imp, ws, v_try, ws.residual_try, c)
+            if _merit_c(m, imp, ws, v_try, c) <= phi0 + 1e-13 * (abs(phi0) + phi_scale):
+                accepted = True
+                break
+            alpha *= 0.5
+        if not accepted:
+            break
+        vn[:, :] = v_try
+    _residual_c(m, imp, ws, vn, r, c)  # forces and c.f_n, c.f_t at the accepted iterate
+    return it, converged
+
+
+@njit(cache=True, error_model="numpy")
+def _update_friction(c, x_end):
+    """After the step: stick or slide by the final normal force; the anchors of sliding contacts follow."""
+    u = np.empty(3)
+    for k in range(c.count[0]):
+        a, b = c.node[k, 0], c.node[k, 1]
+        ul = _slip(c, k, x_end, u)
+        kt = c.k_t[k]
+        mu_now = c.mu_s[k] if c.state[k] == STICK else c.mu_d[k]
+        cap_final = max(c.cap[k], mu_now * max(c.f_n[k], 0.0))
+        if kt * ul <= cap_final * (1.0 + 1e-6):
+            c.state[k] = STICK
+        else:
+            c.state[k] = SLIDE
+            capd = c.mu_d[k] * max(c.f_n[k], 0.0)
+            wb = c.weight[k, 1]
+            c.anchor[k, 3] = wb if a != b else 0.0
+            for j in range(3):
+                p = c.weight[k, 0] * x_end[a, j] + wb * x_end[b, j]
+                c.anchor[k, j] = p - (capd / kt) * u[j] / ul
+
+
+@njit(cache=True, error_model="numpy")
+def contact_step(stepper, m, x, v, samples, ws, has_prev, c):
+    """One implicit step of (x, v) in place with the contacts ``c`` (see the module docstring).
+
+    Like :func:`~bullet_dlo.core.kernels.steppers.advance` for the implicit methods (implicit
+    midpoint takes an implicit Euler step while contacts are active). Updates the friction state
+    and c.body_work; sets c.impact. Returns (Newton iterations, converged).
+    """
+    method, h = stepper.method, stepper.h
+    n = x.shape[0]
+    if method == IMPLICIT_MIDPOINT:
+        method = IMPLICIT_EULER
+    use_prev = has_prev and method == BDF2
+    imp = _implicit_map(method, x, v, h, samples, ws, use_prev)
+    vn = ws.v_new
+    vn[:, :] = v
+    if m.held[0]:
+        vn[0] = samples.vel[2, 0]
+    if m.held[n - 1]:
+        vn[n - 1] = samples.vel[2, 1]
+    # surface points and anchors on moving bodies: at the end of the step (where forces are evaluated)
+    for k in range(c.count[0]):
+        for j in range(3):
+            c.point[k, j] += h * c.body_vel[k, j]
+            c.anchor[k, j] += h * c.body_vel[k, j]
+    its, converged = _newton_c(stepper, m, x, imp, ws, c, 1e-3, 10)
+    g_h = math.sqrt(m.gravity[0] ** 2 + m.gravity[1] ** 2 + m.gravity[2] ** 2) * h
+    c.impact[0] = 0
+    for k in range(c.count[0]):
+        if c.f_n[k] > 0.0 and -_approach(c, k, v) > g_h:
+            c.impact[0] = 1
+        for j in range(3):  # work of the body on the cable: f . u_b h
+            c.body_work[0] += (c.f_n[k] * c.normal[k, j] + c.f_t[k, j]) * c.body_vel[k, j] * h
+    for i in range(n):
+        for j in range(3):
+            if use_prev:
+                x[i, j] = ws.x_base[i, j] + imp.cx * vn[i, j]
+            else:
+                x[i, j] += h * vn[i, j]
+    v[:, :] = vn
+    _set_held(m.held, x, v, samples.pos[2], samples.vel[2])
+    _update_friction(c, x)  # contact points stay at the end of the step: the next step's start
+    return its, converged
