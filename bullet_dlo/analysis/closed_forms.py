@@ -77,8 +77,8 @@ def catenary(span: float, length: float, weight_per_length: float) -> tuple[floa
 
 # ----- reference set-ups -------------------------------------------------------------------------
 def with_damping_rate(spec: CableSpec, rate: float) -> CableSpec:
-    """``spec`` with the k_d [N s/m] that makes every mass decay at ``rate`` gamma = k_d n / M [1/s]."""
-    return spec.with_(damping=rate * spec.mass / spec.n_masses)
+    """``spec`` with mass-proportional drag: every mass decays at ``rate`` [1/s] (no k_d)."""
+    return spec.with_(damping=0.0, damping_rate=rate)
 
 
 def small_deflection_spec(n_masses: int, discretisation: str = "default", deflection_ratio: float = 1e-3) -> CableSpec:

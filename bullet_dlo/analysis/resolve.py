@@ -18,6 +18,7 @@ shapes, relative to the largest displacement of the cable during the rollout.
 The predicted error is the sum of both differences. When it changes n, resolve keeps the
 damping rate gamma = k_d n / M fixed (k_d is the paper's per-mass coefficient), so that all
 trials describe the same cable; the chosen n comes with the k_d that keeps gamma.
+``damping_rate`` and ``internal_damping`` need no rescaling: they mean the same at any n.
 """
 from __future__ import annotations
 
@@ -25,7 +26,6 @@ from dataclasses import asdict, dataclass, field, replace
 
 import numpy as np
 
-from bullet_dlo.analysis.closed_forms import with_damping_rate
 from bullet_dlo.analysis.measures import force_error, shape_error
 from bullet_dlo.core.engine import SimulationResult, simulate
 from bullet_dlo.core.spec import CableSpec
@@ -62,8 +62,10 @@ class Resolution:
 
 
 def _cable(scene, n: int) -> CableSpec:
-    """The scene's cable with n masses and the scene's damping *rate* gamma = k_d n / M (k_d is per mass)."""
-    return with_damping_rate(scene.cable.with_(n_masses=n), scene.cable.damping_rate)
+    """The scene's cable with n masses, k_d rescaled to keep its rate k_d n / M (k_d is per mass;
+    ``damping_rate`` and ``internal_damping`` mean the same at any n)."""
+    c = scene.cable
+    return c.with_(n_masses=n, damping=c.damping * c.n_masses / n)
 
 
 def _rollout(scene, n: int, integrator: str, dt: float, rollout: float) -> tuple[SimulationResult, float]:

@@ -22,6 +22,8 @@ Episode i's parameters depend only on (seed, i): its generator is seeded with [s
 ``n_masses: auto`` lets each episode pick its number of masses by a convergence test on its
 own scene (:func:`bullet_dlo.analysis.resolve.resolve_masses`, tolerance ``resolve_tol`` on end
 forces); the sampled damping is then the k_d of a 10-mass cable, rescaled to keep its rate.
+``damping_rate`` [1/s] and ``internal_damping`` [s] (see :class:`~bullet_dlo.core.spec.CableSpec`)
+mean the same at any n and need no rescaling; ``damping`` (k_d, default 0.02) adds to them.
 """
 from __future__ import annotations
 
@@ -52,6 +54,8 @@ PARAMETERS: dict[str, tuple[str, dict, tuple]] = {
     "youngs_modulus": ("float", {"dist": "fixed", "value": 126e6}, (1e4, 1e12)),
     "n_masses": ("int", {"dist": "fixed", "value": 10}, (3, 200)),
     "damping": ("float", {"dist": "fixed", "value": 0.02}, (0.0, 10.0)),
+    "damping_rate": ("float", {"dist": "fixed", "value": 0.0}, (0.0, 1e3)),
+    "internal_damping": ("float", {"dist": "fixed", "value": 0.0}, (0.0, 0.1)),
     "friction": ("float", {"dist": "fixed", "value": 0.2}, (0.0, 2.0)),
     "dt": ("float", {"dist": "fixed", "value": 1.0 / 240.0}, (1e-5, 0.05)),
     "integrator": ("str", {"dist": "fixed", "value": "implicit_euler"}, ()),

@@ -22,11 +22,13 @@ STANDARD_GRAVITY = (0.0, 0.0, -9.81)
 class ModelArrays(NamedTuple):
     """The model as the Numba kernels take it (SI units); a new force term adds its arrays here.
 
-    mass: point masses [kg], (n,); damp: viscous coefficients [N s/m], (n,);
+    mass: point masses [kg], (n,); damp: viscous drag coefficients [N s/m], (n,);
     k_stretch: segment spring constants [N/m], (n-1,); rest_length: segment rest lengths [m], (n-1,);
     k_bend: bending constants [N m/rad^2], (n,) (index 0 / n-1 are the clamp springs, 0 if
     that end is not clamped); gravity: gravitational acceleration [m/s^2], (3,);
-    f_ext: constant external forces [N], (n, 3); held: which nodes are kinematic, (n,) bool.
+    f_ext: constant external forces [N], (n, 3); held: which nodes are kinematic, (n,) bool;
+    c_stretch: Kelvin-Voigt segment dampers k_s tau [N s/m], (n-1,);
+    c_bend: Kelvin-Voigt bending dampers k_b tau [N m s/rad^2], (n,) (clamp dampers as k_bend).
     """
 
     mass: np.ndarray
@@ -37,6 +39,8 @@ class ModelArrays(NamedTuple):
     gravity: np.ndarray
     f_ext: np.ndarray
     held: np.ndarray
+    c_stretch: np.ndarray
+    c_bend: np.ndarray
 
 
 @dataclass(frozen=True)
@@ -118,6 +122,8 @@ def build_arrays(spec: CableSpec, first_mode: str, last_mode: str, gravity: np.n
         gravity=np.asarray(gravity, dtype=float),
         f_ext=np.zeros((n, 3)),
         held=held,
+        c_stretch=np.full(n - 1, spec.stretch_damping),
+        c_bend=k_bend * spec.internal_damping,
     )
 
 

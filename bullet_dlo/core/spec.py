@@ -30,7 +30,17 @@ class CableSpec:
         mass: total mass M [kg], > 0.
         youngs_modulus: Young's modulus E [Pa], > 0.
         n_masses: number of point masses n, >= 2.
-        damping: viscous damping k_d [N s/m] per average point mass (see :meth:`damping_coefficients`), >= 0.
+        damping: the paper's viscous damping k_d [N s/m] per average point mass, >= 0 (see
+            :meth:`damping_coefficients`). Its meaning depends on n: every mode decays at k_d n / (2M),
+            so refining the cable changes the physics. Kept for ``discretisation: paper`` (Lv et al.)
+            and old scene files; use ``damping_rate`` and ``internal_damping`` instead.
+        damping_rate: mass-proportional drag c [1/s], F_i = -c m_i v_i, in [0, 1e4]. The same at any
+            n: a free mass's velocity (and the cable's rigid motion) decays as exp(-c t); an
+            oscillating mode's amplitude decays as exp(-c t / 2).
+        internal_damping: Kelvin-Voigt retardation time tau [s], in [0, 1]: stretch and bending
+            stresses get E tau d(strain)/dt and E I tau d(curvature)/dt. Mode k (angular frequency
+            omega_k) decays as exp(-tau omega_k^2 t / 2) (damping ratio omega_k tau / 2: high
+            modes are damped more); rigid translation and rotation are not damped.
         friction: dynamic (sliding) friction coefficient against the environment, >= 0.
         static_friction: static friction coefficient, >= 0.
         poisson_ratio: Poisson's ratio nu, in [0, 0.5) (used by contact and shear-aware layers).
@@ -45,6 +55,8 @@ class CableSpec:
     youngs_modulus: float
     n_masses: int = 10
     damping: float = 0.0
+    damping_rate: float = 0.0
+    internal_damping: float = 0.0
     friction: float = 0.2
     static_friction: float = 0.3
     poisson_ratio: float = 0.3
@@ -58,6 +70,8 @@ class CableSpec:
         set_("youngs_modulus", check_positive("youngs_modulus", self.youngs_modulus))
         set_("n_masses", check_int("n_masses", self.n_masses, 2, 100_000))
         set_("damping", check_nonnegative("damping", self.damping))
+        set_("damping_rate", check_in_range("damping_rate", self.damping_rate, 0.0, 1e4))
+        set_("internal_damping", check_in_range("internal_damping", self.internal_damping, 0.0, 1.0))
         set_("friction", check_nonnegative("friction", self.friction))
         set_("static_friction", check_nonnegative("static_friction", self.static_friction))
         set_("poisson_ratio", check_in_range("poisson_ratio", self.poisson_ratio, 0.0, 0.5, open_hi=True))
@@ -137,17 +151,22 @@ class CableSpec:
         return m
 
     def damping_coefficients(self) -> np.ndarray:
-        """Per-mass viscous damping c_i [N s/m], shape (n,): F_i = -c_i v_i.
+        """Per-mass viscous drag c_i [N s/m], shape (n,): F_i = -c_i v_i.
 
-        c_i = k_d * m_i / (M/n): every mass decays at the same rate k_d / (M/n) [1/s] and
-        with uniform masses (``paper``) c_i = k_d exactly as in Lv et al.
+        c_i = gamma m_i with gamma = :attr:`mass_damping_rate`: every mass decays at the same
+        rate; with uniform masses (``paper``) and no ``damping_rate``, c_i = k_d exactly as in Lv et al.
         """
-        return self.damping * self.point_masses() / (self.mass / self.n_masses)
+        return self.mass_damping_rate * self.point_masses()
 
     @property
-    def damping_rate(self) -> float:
-        """gamma = c_i / m_i [1/s], the same for every mass."""
-        return self.damping * self.n_masses / self.mass
+    def mass_damping_rate(self) -> float:
+        """gamma = c_i / m_i [1/s], the same for every mass: ``damping_rate`` + k_d n / M."""
+        return self.damping_rate + self.damping * self.n_masses / self.mass
+
+    @property
+    def stretch_damping(self) -> float:
+        """Kelvin-Voigt segment damper c_s = k_s tau = E A tau / l0 [N s/m]."""
+        return self.k_stretch * self.internal_damping
 
     # ----- convenience --------------------------------------------------------------------
     def with_(self, **changes: Any) -> "CableSpec":
@@ -189,7 +208,7 @@ class CableSpec:
 _PRESETS: dict[str, dict[str, Any]] = {
     "lv2017": dict(
         length=0.3, diameter=0.004, mass=0.03, youngs_modulus=126.0e6, n_masses=10,
-        damping=0.0, friction=0.2, static_friction=0.3, poisson_ratio=0.3,
+        damping=0.0, damping_rate=0.0, internal_damping=0.0, friction=0.2, static_friction=0.3, poisson_ratio=0.3,
     ),
 }
 

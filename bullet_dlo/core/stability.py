@@ -1,10 +1,15 @@
 """Linear stability analysis: predicted critical time steps and damping bounds.
 
 Linearising the cable about a state (default: straight, at rest, ends held as the model
-says) gives M x'' + C x' + K x = 0 on the free degrees of freedom, with C = gamma M
-(every mass decays at the same rate gamma = k_d n / M, see :class:`CableSpec`). The modes
-decouple: each has eigenvalues lambda = -gamma/2 +- sqrt(gamma^2/4 - omega^2), omega^2 an
-eigenvalue of M^-1 K. A fixed-step method is stable when every mode is:
+says) gives M x'' + C x' + K x = 0 on the free degrees of freedom, with C = c M + tau K:
+drag at the rate c = :attr:`CableSpec.mass_damping_rate` [1/s] and Kelvin-Voigt internal
+damping with retardation time tau = ``internal_damping`` [s] (exact about a straight
+unstressed cable; about a stressed one the geometric stiffness is left out of tau K). The
+modes decouple: mode k (omega_k^2 an eigenvalue of M^-1 K) has the damping rate
+gamma_k = c + tau omega_k^2 and eigenvalues lambda = -gamma_k/2 +- sqrt(gamma_k^2/4 - omega_k^2).
+Internal damping makes the stiff modes overdamped with a fast real eigenvalue near
+-tau omega^2, so it *lowers* the explicit methods' critical steps (about 2 / (tau omega_max^2)).
+A fixed-step method is stable when every mode is:
 
 * explicit Euler:   |1 + h lambda| <= 1          ->  h <= -2 Re(lambda) / |lambda|^2
                     (h <= gamma / omega^2 for an underdamped mode: no damping, no stability)
@@ -84,8 +89,9 @@ def _rk4_limit_on_ray(direction: complex) -> float:
     return lo
 
 
-def critical_dt_from_modes(method: str, omega2: np.ndarray, gamma: float) -> float | None:
-    """Largest stable step [s] for modes omega^2 [1/s^2] and damping rate gamma [1/s].
+def critical_dt_from_modes(method: str, omega2: np.ndarray, gamma: float, tau: float = 0.0) -> float | None:
+    """Largest stable step [s] for modes omega^2 [1/s^2], drag rate gamma [1/s] and internal
+    damping tau [s] (mode k damped at gamma + tau omega_k^2).
 
     Returns None for unconditionally stable (implicit) methods and 0.0 when no positive
     step is stable (explicit Euler without damping).
@@ -94,14 +100,16 @@ def critical_dt_from_modes(method: str, omega2: np.ndarray, gamma: float) -> flo
     if not integ.explicit:
         return None
     w2 = np.maximum(np.asarray(omega2, dtype=float), 0.0)
-    g = float(gamma)
+    g = float(gamma) + float(tau) * w2  # damping rate of each mode [1/s]
     limits = [math.inf]
-    if g > 0:
-        limits.append(2.0 / g)  # the damping alone (omega -> 0 mode) for all three methods
+    if float(gamma) > 0:
+        limits.append(2.0 / float(gamma))  # the damping alone (omega -> 0 mode) for all three methods
     if integ.name == "symplectic_euler":
-        w2p = w2[w2 > 0]
+        pos = w2 > 0
+        w2p, gp = w2[pos], g[pos]
         if w2p.size:
-            limits.append(float(np.min((-g + np.sqrt(g * g + 4.0 * w2p)) / w2p)))
+            limits.append(float(np.min((-gp + np.sqrt(gp * gp + 4.0 * w2p)) / w2p)))
+            limits.append(float(np.min(2.0 / np.maximum(gp, 1e-300))))
         return min(limits)
     # explicit Euler / RK4 act on the first-order eigenvalues lambda
     disc = np.sqrt((g * g / 4.0 - w2).astype(complex))
@@ -110,10 +118,10 @@ def critical_dt_from_modes(method: str, omega2: np.ndarray, gamma: float) -> flo
     if integ.name == "explicit_euler":
         limits.append(float(np.min(-2.0 * lams.real / np.abs(lams) ** 2)))
         return max(0.0, min(limits))
-    # RK4: scan the distinct ray directions
+    # RK4: scan the distinct ray directions (to 1e-6 rad), each with its largest |lambda|
     dirs = lams / np.abs(lams)
     mags = np.abs(lams)
-    keys = np.round(np.angle(dirs), 9)
+    keys = np.round(np.angle(dirs), 6 if tau > 0 else 9)
     for key in np.unique(keys):
         sel = keys == key
         s_max = _rk4_limit_on_ray(complex(dirs[sel][0]))
@@ -129,7 +137,9 @@ def critical_dt(model: CableModel, integrator: str, state: CableState | None = N
     """
     if not get_integrator(integrator).explicit:
         return None
-    return critical_dt_from_modes(integrator, stiffness_spectrum(model, state), model.spec.damping_rate)
+    spec = model.spec
+    return critical_dt_from_modes(integrator, stiffness_spectrum(model, state), spec.mass_damping_rate,
+                                  spec.internal_damping)
 
 
 @dataclass(frozen=True)
@@ -142,6 +152,9 @@ class DampingBounds:
     highest mode at the spec's k_d; k_d_min_explicit_euler: smallest k_d that makes explicit
     Euler stable at step dt (gamma >= dt omega_max^2) [N s/m]; k_d_max_explicit: largest k_d
     for which an explicit method stays stable at step dt (dt <= 2/gamma) [N s/m].
+    damping_ratio counts every damping term: gamma / (2 omega_max) + tau omega_max / 2;
+    internal_damping_max_explicit: largest internal_damping tau [s] whose fast overdamped
+    eigenvalue (about -tau omega_max^2) keeps an explicit method stable at step dt (2 / (dt omega_max^2)).
     """
 
     omega_max: float
@@ -150,6 +163,7 @@ class DampingBounds:
     damping_ratio: float
     k_d_min_explicit_euler: float
     k_d_max_explicit: float
+    internal_damping_max_explicit: float
 
 
 def damping_bounds(model: CableModel, dt: float) -> DampingBounds:
@@ -157,14 +171,15 @@ def damping_bounds(model: CableModel, dt: float) -> DampingBounds:
     spec = model.spec
     w_max = math.sqrt(max(float(stiffness_spectrum(model)[-1]), 0.0))
     m_avg = spec.mass / spec.n_masses
-    gamma = spec.damping_rate
+    gamma = spec.mass_damping_rate
     return DampingBounds(
         omega_max=w_max,
         k_d_critical_mode=2.0 * m_avg * w_max,
         k_d_critical_spring=2.0 * math.sqrt(spec.k_stretch * m_avg),
-        damping_ratio=gamma / (2.0 * w_max) if w_max > 0 else math.inf,
+        damping_ratio=gamma / (2.0 * w_max) + spec.internal_damping * w_max / 2.0 if w_max > 0 else math.inf,
         k_d_min_explicit_euler=dt * w_max**2 * m_avg,
         k_d_max_explicit=2.0 * m_avg / dt,
+        internal_damping_max_explicit=2.0 / (dt * w_max**2) if w_max > 0 else math.inf,
     )
 
 

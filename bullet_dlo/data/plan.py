@@ -81,4 +81,5 @@ def cable_spec(params: dict[str, Any]) -> CableSpec:
     """The drawn cable."""
     return CableSpec(length=params["length"], diameter=params["diameter"], mass=params["mass"],
                      youngs_modulus=params["youngs_modulus"], n_masses=params["n_masses"],
-                     damping=params["damping"], friction=params["friction"])
+                     damping=params["damping"], damping_rate=params.get("damping_rate", 0.0),
+                     internal_damping=params.get("internal_damping", 0.0), friction=params["friction"])

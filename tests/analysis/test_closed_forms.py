@@ -58,5 +58,5 @@ def test_release_gravity_and_start_shape():
 
 def test_with_damping_rate():
     spec = with_damping_rate(CableSpec.lv2017(n_masses=7), 5.0)
-    assert spec.damping_rate == pytest.approx(5.0)
-    assert spec.damping == pytest.approx(5.0 * spec.mass / 7)
+    assert spec.damping_rate == pytest.approx(5.0) and spec.damping == 0.0  # the n-independent drag key
+    assert spec.damping_coefficients() == pytest.approx(5.0 * spec.point_masses())

@@ -44,7 +44,7 @@ def test_point_masses_sum_to_total(disc):
 def test_damping_gives_uniform_decay_rate():
     spec = CableSpec.lv2017(n_masses=8, damping=0.02)
     rate = spec.damping_coefficients() / spec.point_masses()
-    assert np.allclose(rate, spec.damping_rate)
+    assert np.allclose(rate, spec.mass_damping_rate)
     paper = spec.with_(discretisation="paper")
     assert np.allclose(paper.damping_coefficients(), 0.02)  # Lv's per-mass k_d exactly
 

@@ -3,7 +3,8 @@
 The system matrix of an implicit step, A = M - a K + b C, inherits the block-banded
 structure of the force Jacobian: 3x3 blocks up to two nodes apart, i.e. a scalar band of
 half-width 8. It is stored as ``band[r, c - r + HALF]`` (shape (3n, 2*HALF+1)). A is
-symmetric (conservative forces, diagonal damping, held nodes as identity rows and columns),
+symmetric (conservative forces, diagonal drag, Kelvin-Voigt dampers -c G^T G added into the
+Jacobian by the caller, held nodes as identity rows and columns),
 so it is factorised by symmetric elimination without pivoting, which is safe because A is
 dominated by its positive diagonal (mass) plus a positive semi-definite (filtered) stiffness.
 """
@@ -22,7 +23,9 @@ def assemble_system(m, jac, m_coef, k_coef, c_coef, band):
     """band <- m_coef M - k_coef K + c_coef C, held nodes replaced by identity rows and columns.
 
     m: ModelArrays (M = diag(mass) [kg], C = diag(damp) [N s/m], held nodes); jac: force
-    Jacobian K = dF/dx [N/m], shape (n, 5, 3, 3); band: output, shape (3n, 2*HALF+1).
+    Jacobian K = dF/dx [N/m], shape (n, 5, 3, 3) (an implicit step adds (cv/cx) times the
+    Kelvin-Voigt dF/dv into it, see :func:`~bullet_dlo.core.kernels.forces.add_damping_jacobian`);
+    band: output, shape (3n, 2*HALF+1).
     An implicit step uses m_coef = 1, k_coef = hf cx [s^2], c_coef = hf cv [s] (see
     :mod:`bullet_dlo.core.kernels.steppers`); the static solver (mu [1/s^2], 1, 0).
     """

@@ -16,6 +16,10 @@ outputs and never allocate per node, so the same code serves the core time loop,
 solver and the per-step PyBullet coupling. A new force term goes into :func:`total_forces`
 (and, if it depends on x, :func:`force_jacobian`), its parameters into ``ModelArrays``.
 
+Damping: drag -c_i v_i per node and Kelvin-Voigt dampers on stretch and bending
+(:func:`internal_damping_forces`), all from the Rayleigh function :func:`dissipation`; their
+velocity Jacobian is :func:`add_damping_jacobian` (KV) plus -diag(c) (drag).
+
 Jacobian storage: block-banded, ``jac[i, o] = dF_i / dx_{i+o-2}`` with shape (n, 5, 3, 3)
 (bending couples nodes up to two apart). ``definite=True`` drops the compressive part of the
 stretch Hessian (the usual filter that keeps M + h^2 K positive definite for implicit steps);
@@ -181,8 +185,9 @@ def clamp_torque(m, x, dirs, end):
 def force_jacobian(m, x, dirs, definite, jac):
     """Write dF/dx of the elastic forces [N/m] into ``jac`` (shape (n, 5, 3, 3), overwritten).
 
-    Gravity and external forces add nothing; viscous damping enters as dF/dv = -diag(c)
-    (see :func:`bullet_dlo.core.kernels.banded.assemble_system`).
+    Gravity and external forces add nothing; damping enters through dF/dv: -diag(c) for the
+    drag (see :func:`bullet_dlo.core.kernels.banded.assemble_system`) and
+    :func:`add_damping_jacobian` for the Kelvin-Voigt dampers.
     """
     n = x.shape[0]
     jac[:, :, :, :] = 0.0
@@ -277,12 +282,214 @@ def _bend_hessian(a0, a1, a2, b0, b1, b2, k, g, out):
 
 @njit(cache=True, error_model="numpy")
 def total_forces(m, x, v, dirs, out):
-    """Elastic + gravity + viscous damping + external forces [N], shape (n, 3), into ``out``."""
+    """Elastic + gravity + damping + external forces [N], shape (n, 3), into ``out``."""
     internal_forces(m, x, dirs, out)
     n = x.shape[0]
     for i in range(n):
         for j in range(3):
             out[i, j] += m.mass[i] * m.gravity[j] - m.damp[i] * v[i, j] + m.f_ext[i, j]
+    if _has_internal_damping(m):
+        internal_damping_forces(m, x, v, dirs, out)
+
+
+# ----- Kelvin-Voigt internal damping ------------------------------------------------------------
+# Both dampers derive from a Rayleigh dissipation function R(x, v), quadratic in v for fixed x:
+#   stretch: 1/2 c_s,i (u_i . (v_{i+1} - v_i))^2         (strain rate of segment i times l0)
+#   bending: 1/2 c_b,i |phi_dot_i|^2, phi_dot_i = Ka (v_i - v_{i-1}) + Kb (v_{i+1} - v_i)
+# with phi = (theta/sin theta) (u x w) the turning-angle vector at node i (|phi| = theta, the
+# variable of the bending energy 1/2 k_b theta^2) and phi_dot its co-rotational rate: the rate
+# of phi minus the part the pair of edges' mean rotation (u x u' + w x w')/2 carries along. So
+# F = -dR/dv is linear in v, dF/dv = -c G^T G is symmetric, and about a straight unstressed
+# cable C = tau K exactly (Rayleigh damping: mode k decays at tau omega_k^2 / 2). Translation
+# and rotation about any axis normal to the local tangents are not damped (zero net force and
+# torque); a bent node spinning about its own tangent is indistinguishable, at the velocity level,
+# from out-of-plane bending in a chain without twist, and is damped as such.
+@njit(cache=True, error_model="numpy", inline="always")
+def _has_internal_damping(m):
+    return m.c_stretch.shape[0] > 0 and (np.max(m.c_stretch) > 0.0 or np.max(m.c_bend) > 0.0)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _bend_rate_blocks(a0, a1, a2, b0, b1, b2, ka, kb):
+    """Ka, Kb (3, 3) with phi_dot = Ka a_dot + Kb b_dot for the turning angle between edges a and b."""
+    _, s, c, la, lb, ux, uy, uz, wx, wy, wz, ratio, alpha = _angle_terms(a0, a1, a2, b0, b1, b2)
+    u = (ux, uy, uz)
+    w = (wx, wy, wz)
+    chi = (uy * wz - uz * wy, uz * wx - ux * wz, ux * wy - uy * wx)  # u x w = s n
+    for r in range(3):
+        for col in range(3):
+            ga = (w[col] - c * u[col]) / la  # d(cos theta)/da
+            gb = (u[col] - c * w[col]) / lb
+            ka[r, col] = -alpha * chi[r] * ga - (ratio / la) * chi[r] * u[col] + (0.5 * ratio / la) * u[r] * chi[col]
+            kb[r, col] = -alpha * chi[r] * gb - (ratio / lb) * chi[r] * w[col] + (0.5 * ratio / lb) * w[r] * chi[col]
+    # cross-product matrices: -(ratio/la) [w]x and +(ratio/lb) [u]x
+    fa, fb = -ratio / la, ratio / lb
+    ka[0, 1] -= fa * w[2]
+    ka[0, 2] += fa * w[1]
+    ka[1, 0] += fa * w[2]
+    ka[1, 2] -= fa * w[0]
+    ka[2, 0] -= fa * w[1]
+    ka[2, 1] += fa * w[0]
+    kb[0, 1] -= fb * u[2]
+    kb[0, 2] += fb * u[1]
+    kb[1, 0] += fb * u[2]
+    kb[1, 2] -= fb * u[0]
+    kb[2, 0] -= fb * u[1]
+    kb[2, 1] += fb * u[0]
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _bend_node_blocks(x, i, dirs, g):
+    """Blocks g[0:3] of phi_dot_i = sum_k g[k] v_{i-1+k} at node i (clamp directions held fixed).
+
+    g: scratch (5, 3, 3); g[3], g[4] receive Ka, Kb.
+    """
+    n = x.shape[0]
+    a0, a1, a2, b0, b1, b2 = _node_edges(x, i, dirs)
+    ka = g[3]
+    kb = g[4]
+    _bend_rate_blocks(a0, a1, a2, b0, b1, b2, ka, kb)
+    if i == 0:  # the clamp direction stands in for a: a_dot = 0
+        ka[:, :] = 0.0
+    if i == n - 1:
+        kb[:, :] = 0.0
+    for r in range(3):
+        for col in range(3):
+            g[0, r, col] = -ka[r, col]
+            g[1, r, col] = ka[r, col] - kb[r, col]
+            g[2, r, col] = kb[r, col]
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _bend_rate(x, v, i, g, rate):
+    """rate <- phi_dot_i [rad/s] from the blocks g of node i (nodes outside the chain skipped)."""
+    n = x.shape[0]
+    rate[:] = 0.0
+    for k in range(3):
+        p = i - 1 + k
+        if p < 0 or p >= n:
+            continue
+        for r in range(3):
+            rate[r] += g[k, r, 0] * v[p, 0] + g[k, r, 1] * v[p, 1] + g[k, r, 2] * v[p, 2]
+
+
+@njit(cache=True, error_model="numpy")
+def internal_damping_forces(m, x, v, dirs, out):
+    """Add the Kelvin-Voigt damping forces -dR/dv [N], (n, 3), to ``out`` (see the block comment)."""
+    n = x.shape[0]
+    for i in range(n - 1):
+        c_s = m.c_stretch[i]
+        if c_s == 0.0:
+            continue
+        dx = x[i + 1, 0] - x[i, 0]
+        dy = x[i + 1, 1] - x[i, 1]
+        dz = x[i + 1, 2] - x[i, 2]
+        length = math.sqrt(dx * dx + dy * dy + dz * dz)
+        rel = (dx * (v[i + 1, 0] - v[i, 0]) + dy * (v[i + 1, 1] - v[i, 1]) + dz * (v[i + 1, 2] - v[i, 2])) / length
+        f = c_s * rel / length  # damper tension / length
+        out[i, 0] += f * dx
+        out[i, 1] += f * dy
+        out[i, 2] += f * dz
+        out[i + 1, 0] -= f * dx
+        out[i + 1, 1] -= f * dy
+        out[i + 1, 2] -= f * dz
+    g = np.empty((5, 3, 3))
+    rate = np.empty(3)
+    for i in range(n):
+        c_b = m.c_bend[i]
+        if c_b == 0.0:
+            continue
+        _bend_node_blocks(x, i, dirs, g)
+        _bend_rate(x, v, i, g, rate)
+        for k in range(3):
+            p = i - 1 + k
+            if p < 0 or p >= n:
+                continue
+            for col in range(3):
+                out[p, col] -= c_b * (g[k, 0, col] * rate[0] + g[k, 1, col] * rate[1] + g[k, 2, col] * rate[2])
+
+
+@njit(cache=True, error_model="numpy")
+def dissipation(m, x, v, dirs):
+    """Rayleigh dissipation function R [W] of all damping terms: F_damping = -dR/dv.
+
+    R = 1/2 sum c_i |v_i|^2 (drag) + the Kelvin-Voigt terms; the power dissipated is 2 R.
+    """
+    n = x.shape[0]
+    r_sum = 0.0
+    for i in range(n):
+        for j in range(3):
+            r_sum += 0.5 * m.damp[i] * v[i, j] * v[i, j]
+    if not _has_internal_damping(m):
+        return r_sum
+    for i in range(n - 1):
+        c_s = m.c_stretch[i]
+        if c_s == 0.0:
+            continue
+        dx = x[i + 1, 0] - x[i, 0]
+        dy = x[i + 1, 1] - x[i, 1]
+        dz = x[i + 1, 2] - x[i, 2]
+        length = math.sqrt(dx * dx + dy * dy + dz * dz)
+        rel = (dx * (v[i + 1, 0] - v[i, 0]) + dy * (v[i + 1, 1] - v[i, 1]) + dz * (v[i + 1, 2] - v[i, 2])) / length
+        r_sum += 0.5 * c_s * rel * rel
+    g = np.empty((5, 3, 3))
+    rate = np.empty(3)
+    for i in range(n):
+        c_b = m.c_bend[i]
+        if c_b == 0.0:
+            continue
+        _bend_node_blocks(x, i, dirs, g)
+        _bend_rate(x, v, i, g, rate)
+        r_sum += 0.5 * c_b * (rate[0] * rate[0] + rate[1] * rate[1] + rate[2] * rate[2])
+    return r_sum
+
+
+@njit(cache=True, error_model="numpy")
+def add_damping_jacobian(m, x, dirs, scale, jac):
+    """jac += scale * dF/dv of the Kelvin-Voigt dampers [N s/m] (block-banded (n, 5, 3, 3)).
+
+    Exact: dF/dv = -c_s u u^T per segment, -c_b G^T G per bending node (G: the three blocks
+    of phi_dot, nodes up to two apart). The drag -diag(damp) is not included (see
+    :func:`bullet_dlo.core.kernels.banded.assemble_system`). No-op without internal damping.
+    """
+    if not _has_internal_damping(m):
+        return
+    n = x.shape[0]
+    d = np.empty(3)
+    for i in range(n - 1):
+        c_s = m.c_stretch[i]
+        if c_s == 0.0:
+            continue
+        d[0] = x[i + 1, 0] - x[i, 0]
+        d[1] = x[i + 1, 1] - x[i, 1]
+        d[2] = x[i + 1, 2] - x[i, 2]
+        l2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2]
+        for r in range(3):
+            for col in range(3):
+                hv = scale * c_s * d[r] * d[col] / l2
+                jac[i, 2, r, col] -= hv
+                jac[i, 3, r, col] += hv
+                jac[i + 1, 1, r, col] += hv
+                jac[i + 1, 2, r, col] -= hv
+    g = np.empty((5, 3, 3))
+    for i in range(n):
+        c_b = m.c_bend[i]
+        if c_b == 0.0:
+            continue
+        _bend_node_blocks(x, i, dirs, g)
+        for k in range(3):
+            p = i - 1 + k
+            if p < 0 or p >= n:
+                continue
+            for q_k in range(3):
+                q = i - 1 + q_k
+                if q < 0 or q >= n:
+                    continue
+                o = q - p + BAND
+                for r in range(3):
+                    for col in range(3):
+                        acc = g[k, 0, r] * g[q_k, 0, col] + g[k, 1, r] * g[q_k, 1, col] + g[k, 2, r] * g[q_k, 2, col]
+                        jac[p, o, r, col] -= scale * c_b * acc
 
 
 @njit(cache=True, error_model="numpy")

@@ -15,7 +15,13 @@ import numpy as np
 from numba import njit
 
 from bullet_dlo.core.kernels.banded import HALF, assemble_system, band_solve
-from bullet_dlo.core.kernels.forces import force_jacobian, internal_energy, total_forces
+from bullet_dlo.core.kernels.forces import (
+    add_damping_jacobian,
+    dissipation,
+    force_jacobian,
+    internal_energy,
+    total_forces,
+)
 
 EXPLICIT_EULER, SYMPLECTIC_EULER, RK4, IMPLICIT_EULER, BDF2, IMPLICIT_MIDPOINT = range(6)
 
@@ -231,18 +237,19 @@ def _residual(m, imp, ws, vn, r):
 def _merit(m, imp, ws, vn):
     """Incremental potential whose gradient in v' is (cx/hf) * residual [J].
 
-    Phi = (cx/hf) 1/2 |v' - v_avg|_M^2 + E_el(X) - (M g + f_ext) . X + (cx/cv) 1/2 |V|_C^2,
-    evaluated at the X, V left in ws.x_stage, ws.v_stage by the last residual call.
+    Phi = (cx/hf) 1/2 |v' - v_avg|_M^2 + E_el(X) - (M g + f_ext) . X + (cx/cv) R(X, V), with R
+    the Rayleigh dissipation of all damping terms (drag 1/2 |V|_C^2 and Kelvin-Voigt, quadratic in V;
+    its X-dependence is not differentiated), at the X, V left in ws.x_stage, ws.v_stage by the
+    last residual call.
     """
     xe, ve = ws.x_stage, ws.v_stage
     cx, cv, hf = imp.cx, imp.cv, imp.hf
-    phi = internal_energy(m, xe, imp.dirs)
+    phi = internal_energy(m, xe, imp.dirs) + (cx / cv) * dissipation(m, xe, ve, imp.dirs)
     for i in range(vn.shape[0]):
         for j in range(3):
             dv = vn[i, j] - ws.v_avg[i, j]
             phi += 0.5 * (cx / hf) * m.mass[i] * dv * dv
             phi -= (m.mass[i] * m.gravity[j] + m.f_ext[i, j]) * xe[i, j]
-            phi += 0.5 * (cx / cv) * m.damp[i] * ve[i, j] * ve[i, j]
     return phi
 
 
@@ -253,7 +260,7 @@ def _newton(stepper, m, x, imp, ws):
     The system M (v' - v_avg) = hf F(X, V) is the stationarity condition of an incremental
     potential (see :func:`_merit`), so a step that lowers the residual or the potential is
     accepted and otherwise halved: no blow-up from a poor linearisation. The Newton matrix
-    M - hf cx dF/dx + hf cv C is block-banded (O(n) solve). The first iteration of implicit
+    M - hf cx dF/dx - hf cv dF/dv is block-banded (O(n) solve). The first iteration of implicit
     Euler is the classical linearly implicit (Baraff-Witkin) step; later iterations run only
     when its residual is above tolerance (large held-end jumps, strong nonlinearity).
     Returns (iterations, converged).
@@ -277,6 +284,7 @@ def _newton(stepper, m, x, imp, ws):
     while it < stepper.max_iter:
         it += 1
         force_jacobian(m, ws.x_stage, imp.dirs, stepper.definite, ws.jacobian)
+        add_damping_jacobian(m, ws.x_stage, imp.dirs, imp.cv / imp.cx, ws.jacobian)  # dF/dx + (cv/cx) dF/dv
         assemble_system(m, ws.jacobian, 1.0, imp.hf * imp.cx, imp.hf * imp.cv, ws.band)
         band_solve(ws.band, r)  # r becomes the Newton direction dv
         phi0 = np.nan
