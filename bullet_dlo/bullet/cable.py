@@ -1,5 +1,15 @@
 """A cable inside PyBullet: one Bullet sphere per mass, moved by MSD forces from the core.
 
+Contact (``contact`` option): with ``model`` (the default for the implicit integrators) the
+cable's spheres do not collide in Bullet; contacts with the world's bodies are detected from the
+bodies' shapes before each step (nodes as spheres, segments as capsules of the cable radius, see
+:mod:`bullet_dlo.bullet.contact`) and enter the implicit step as stiff penalties with anchored
+Coulomb friction (:mod:`bullet_dlo.core.kernels.contact`); their reactions are applied to the
+touched dynamic bodies (two-way), and they are reported per contact and per body
+(:meth:`BulletCable.contact_forces`, :meth:`BulletCable.body_forces`). With ``bullet`` (the
+default for the explicit integrators, whose steps cannot carry a stiff penalty) Bullet resolves
+the spheres' contacts as below (steps 3-5).
+
 Stepping order of one Bullet step (``BulletWorld.step`` drives it; the kernels are in
 :mod:`bullet_dlo.bullet.kernels`):
 
@@ -32,17 +42,20 @@ from dataclasses import dataclass, field
 import numpy as np
 import pybullet as pb
 
+from bullet_dlo.bullet.contact import ContactSet
 from bullet_dlo.bullet.kernels import Coupling, ExternalHolders, StepInput, bind, sync_and_advance
 from bullet_dlo.core.engine import DetectorOptions, start_detector
 from bullet_dlo.core.integrators import NewtonOptions, get_integrator, make_stepper
 from bullet_dlo.core.kernels.forces import clamp_torque, mechanical_energy
+from bullet_dlo.core.kernels.contact import DEFAULT_ALPHA, make_contacts
 from bullet_dlo.core.kernels.holders import empty_samples, sample_holders
 from bullet_dlo.core.kernels.monitor import REASONS, STABLE, end_forces
 from bullet_dlo.core.kernels.steppers import make_workspace
 from bullet_dlo.core.model import CableModel, CableState
-from bullet_dlo.core.validate import ParameterError, check_int
+from bullet_dlo.core.validate import ParameterError, check_int, check_nonnegative, check_positive
 
 SELF_COLLISION = ("neighbours", "none", "all")
+CONTACT = ("auto", "model", "bullet")
 
 
 @dataclass
@@ -69,7 +82,8 @@ class BulletCable:
 
     def __init__(self, world, name: str, model: CableModel, integrator: str, *, state: CableState | None,
                  substeps: int, self_collision: str, sync: str, newton: NewtonOptions,
-                 detector: DetectorOptions, record_every: int, color=(0.9, 0.35, 0.1, 1.0)):
+                 detector: DetectorOptions, record_every: int, color=(0.9, 0.35, 0.1, 1.0),
+                 contact: str = "auto", contact_stiffness: float = DEFAULT_ALPHA, contact_damping: float = 0.0):
         self.world = world
         self.name = name
         self.model = model
@@ -80,6 +94,15 @@ class BulletCable:
         if sync not in ("contacts", "always"):
             raise ParameterError(f"sync must be 'contacts' or 'always', got {sync!r}")
         self.sync = sync
+        if contact not in CONTACT:
+            raise ParameterError(f"contact must be one of {', '.join(CONTACT)}, got {contact!r}")
+        implicit = not self.method.explicit
+        if contact == "model" and not implicit:
+            raise ParameterError(f"contact='model' needs an implicit integrator (implicit_euler, bdf2, "
+                                 f"implicit_midpoint), got {integrator!r}")
+        self.model_contact = contact == "model" or (contact == "auto" and implicit)
+        self.contact_stiffness = check_positive("contact_stiffness", contact_stiffness)
+        self.contact_damping = check_nonnegative("contact_damping", contact_damping)
         self.stepper = make_stepper(self.method, world.dt / self.substeps, newton)
         self.record_every = check_int("record_every", record_every, 1)
         st = (state or model.initial_state()).copy()
@@ -102,6 +125,10 @@ class BulletCable:
         self._no_index = np.zeros(0, dtype=np.int64)
         self.radius = 0.5 * model.spec.diameter
         self.body_ids = self._spawn(color, self_collision)
+        self._contact_set: ContactSet | None = None
+        self._bodies_seen = -1
+        self._no_contacts = make_contacts(n, 1, self.radius)
+        self._refresh_contact_set()
         samples = self._cp.samples
         sample_holders(self.plan, self.t, world.dt, samples)
         self.detector = start_detector(detector, model, self.arrays, self.x, self.v, samples)
@@ -144,6 +171,26 @@ class BulletCable:
                     pb.setCollisionFilterPair(body[i], body[j], -1, -1, 0, physicsClientId=cid)
         return body
 
+    def _refresh_contact_set(self) -> None:
+        """(Re)read the world's bodies for the contact model when they changed (new obstacles)."""
+        if not self.model_contact or self._bodies_seen == len(self.world.bodies):
+            return
+        spec = self.model.spec
+        self._bodies_seen = len(self.world.bodies)
+        self._contact_set = ContactSet(self.world.client, list(self.world.bodies), self.model.n, self.radius,
+                                       spec.static_friction, spec.friction, self.contact_stiffness,
+                                       self.contact_damping)
+
+    def disable_bullet_collisions(self) -> None:
+        """Take the spheres out of Bullet's collision detection (the model handles contact)."""
+        for b in self.body_ids:
+            pb.setCollisionFilterGroupMask(b, -1, 0, 0, physicsClientId=self.world.client)
+
+    @property
+    def contacts(self):
+        """The core Contacts of the coming step (empty arrays when Bullet handles contact)."""
+        return self._contact_set.contacts if self._contact_set is not None else self._no_contacts
+
     # ----- stepping -----------------------------------------------------------------------
     def _advance(self, touched: list[int] | None) -> None:
         """Sync the step Bullet made (unless ``touched`` is None: spawn) and plan the next one."""
@@ -163,6 +210,11 @@ class BulletCable:
             self.t += self.world.dt
             self.steps += 1
             self.contacts_last_step = len(touched)
+        if self.model_contact:
+            self._refresh_contact_set()
+            cp = self._cp
+            x0, v0 = (cp.x_new, cp.v_new) if do_sync else (cp.x, cp.v)  # the state this step starts from
+            self.contacts_last_step = self._contact_set.update(x0, v0, self.arrays.mass, self.stepper.h)
         inp = self._step_input(do_sync, idx_arr, pos, vel)
         status, its, ok = self._sync_and_advance(*self._kernel_args(inp))
         self.newton_iterations += its
@@ -176,12 +228,12 @@ class BulletCable:
     def _step_input(self, do_sync: bool, index: np.ndarray, pos: np.ndarray, vel: np.ndarray) -> StepInput:
         """What the kernel needs from this step: time, flags, the touched spheres' read-back state."""
         det = self.detector
-        return StepInput(self.t, self.steps > 0, do_sync, do_sync and self.steps % det.check_every == 0,
+        return StepInput(self.t, self.steps > 0 and self.contacts.impact[0] == 0, do_sync, do_sync and self.steps % det.check_every == 0,
                          do_sync and self.steps % det.energy_every == 0, index, pos, vel)
 
     def _kernel_args(self, inp: StepInput) -> tuple:
         """Arguments of :func:`~bullet_dlo.bullet.kernels.sync_and_advance` (the same objects every step)."""
-        return self.stepper, self.arrays, self.plan, self.ext, self._cp, self.ws, self.detector, inp
+        return self.stepper, self.arrays, self.plan, self.ext, self._cp, self.ws, self.detector, inp, self.contacts
 
     def apply_forces(self) -> None:
         """Apply the forces planned for the coming Bullet step (nothing once unstable)."""
@@ -192,6 +244,8 @@ class BulletCable:
         frame = pb.WORLD_FRAME
         for b, f, pos in zip(self.body_ids, self._cp.force.tolist(), self.x.tolist()):
             apply(b, -1, f, pos, frame, cid)  # positional: keyword parsing costs 50 % more per call
+        if self._contact_set is not None:
+            self._contact_set.apply_to_bodies()
 
     def sync_after_step(self, touched) -> None:
         """Take over Bullet's step: ``touched`` holds the spheres that had contacts (read back)."""
@@ -267,6 +321,22 @@ class BulletCable:
         out = np.zeros((2, 3))
         end_forces(self.arrays, self.x, self.v, samples.dir[0], samples.acc[0], out)
         return out
+
+    def contact_forces(self) -> dict[str, np.ndarray]:
+        """The model's contacts of the step just planned, with the forces on the cable [N]: keys body,
+        node (k, 2), weight (k, 2), point [m], normal, normal_force (k,), friction (k, 3), force (k, 3),
+        sliding (k,) (see :meth:`bullet_dlo.bullet.contact.ContactSet.per_contact`); empty when Bullet
+        handles contact."""
+        if self._contact_set is None:
+            z = np.zeros((0, 3))
+            return {"body": np.zeros(0, np.int64), "node": np.zeros((0, 2), np.int64), "weight": np.zeros((0, 2)),
+                    "point": z, "normal": z, "normal_force": np.zeros(0), "friction": z, "force": z,
+                    "sliding": np.zeros(0, bool)}
+        return self._contact_set.per_contact()
+
+    def body_forces(self) -> dict[int, np.ndarray]:
+        """Total force [N] the cable exerts on each body it touches, {body id: (3,)}."""
+        return self._contact_set.per_body() if self._contact_set is not None else {}
 
     def end_moments(self) -> np.ndarray:
         """Torque [N m] the cable exerts on each clamp now, (2, 3) (zero rows for unclamped ends)."""

@@ -12,9 +12,10 @@ import numba
 import numpy as np
 from numba import njit
 
+from bullet_dlo.core.kernels.contact import contact_energy, contact_step
 from bullet_dlo.core.kernels.holders import HeldSamples, rotate, sample_holders
 from bullet_dlo.core.kernels.monitor import STABLE, monitor
-from bullet_dlo.core.kernels.steppers import advance
+from bullet_dlo.core.kernels.steppers import IMPLICIT_EULER, advance
 
 
 class ExternalHolders(NamedTuple):
@@ -100,11 +101,14 @@ def external_samples(ext, e, tau0, hs, samples):
 
 
 @njit(cache=True, error_model="numpy")
-def coupled_targets(stepper, m, plan, ext, cp, ws, t, has_prev):
+def coupled_targets(stepper, m, plan, ext, cp, ws, t, has_prev, contacts):
     """Plan the coming Bullet step from (cp.x, cp.v) at time t [s].
 
     Runs ``cp.substeps`` integrator steps into cp.x_new, cp.v_new (held ends in ``ext.active``
-    follow the measured poses, the others their move tables) and writes the sphere forces that
+    follow the measured poses, the others their move tables; with ``contacts`` (core
+    :class:`~bullet_dlo.core.kernels.contact.Contacts`, detected for this step) an implicit
+    method takes them into its step; a BDF2 step after an impact restarts with implicit Euler)
+    and writes the sphere forces that
     make Bullet's semi-implicit update land on x_new into cp.force:
     F = m ((x_new - x)/dt - v_bullet)/dt - m g_bullet. Returns (Newton iterations, all converged).
     """
@@ -118,7 +122,12 @@ def coupled_targets(stepper, m, plan, ext, cp, ws, t, has_prev):
         for e in range(2):
             if ext.active[e]:
                 external_samples(ext, e, k * hs, hs, cp.samples)
-        its, ok = advance(stepper, m, cp.x_new, cp.v_new, cp.samples, ws, has_prev or k > 0)
+        prev = has_prev or k > 0
+        if contacts.count[0] > 0 and stepper.method >= IMPLICIT_EULER:
+            its, ok = contact_step(stepper, m, cp.x_new, cp.v_new, cp.samples, ws, prev and contacts.impact[0] == 0,
+                                   contacts)
+        else:
+            its, ok = advance(stepper, m, cp.x_new, cp.v_new, cp.samples, ws, prev)
         iters += its
         ok_all = ok_all and ok
     h = cp.dt
@@ -153,17 +162,20 @@ def take_over(cp, inp):
 
 
 @njit(cache=True, error_model="numpy")
-def sync_and_advance(stepper, m, plan, ext, cp, ws, det, inp):
+def sync_and_advance(stepper, m, plan, ext, cp, ws, det, inp, contacts):
     """One Bullet step's work on the model side: take over (if ``inp.sync``), check, plan the next.
 
+    ``contacts``: the model's contacts for the coming step (detected from the taken-over state);
+    the energy check counts the energy stored in them and the work of the bodies they touch.
     Returns (status, Newton iterations, converged); an unstable status plans nothing.
     """
     status = STABLE
     if inp.sync:
         take_over(cp, inp)
         if inp.check or inp.energy_check:
-            status = monitor(m, cp.x, cp.v, cp.samples, det, inp.energy_check)
+            extra = contact_energy(contacts, cp.x) - contacts.body_work[0] if inp.energy_check else 0.0
+            status = monitor(m, cp.x, cp.v, cp.samples, det, inp.energy_check, extra)
     if status != STABLE:
         return status, 0, True
-    its, ok = coupled_targets(stepper, m, plan, ext, cp, ws, inp.t, inp.has_prev)
+    its, ok = coupled_targets(stepper, m, plan, ext, cp, ws, inp.t, inp.has_prev, contacts)
     return status, its, ok

@@ -166,6 +166,9 @@ class BulletWorld:
         detector=None,
         record_every: int = 1,
         overlap_ok: Sequence[int] = (),
+        contact: str = "auto",
+        contact_stiffness: float = 1.0e4,
+        contact_damping: float = 0.0,
     ) -> BulletCable:
         """Spawn a cable as Bullet spheres driven by the MSD model.
 
@@ -183,6 +186,13 @@ class BulletWorld:
             detector: instability thresholds (DetectorOptions).
             record_every: Bullet steps between recorded rows.
             overlap_ok: bodies the cable may touch at spawn (e.g. the grippers that hold it).
+            contact: ``model`` (contact and Coulomb friction inside the cable's implicit step, the
+                spheres out of Bullet's collisions, reactions applied to the touched bodies),
+                ``bullet`` (Bullet resolves the spheres' contacts) or ``auto`` (model for the
+                implicit integrators, bullet for the explicit ones). See :mod:`bullet_dlo.bullet.contact`.
+            contact_stiffness: alpha = k_n h^2 / m of the model's contact penalty, > 0 (1e4: the
+                contact's natural period is 2 pi h / 100; penetration at rest about g h^2 / alpha).
+            contact_damping: damping ratio of the model's normal contact, >= 0.
         """
         from bullet_dlo.core.engine import DetectorOptions
 
@@ -199,13 +209,16 @@ class BulletWorld:
             raise ParameterError(f"cable must be a CableSpec or CableModel, got {type(cable).__name__}")
         c = BulletCable(self, name, model, integrator, state=state, substeps=substeps,
                         self_collision=self_collision, sync=sync, newton=newton,
-                        detector=detector or DetectorOptions(), record_every=record_every)
+                        detector=detector or DetectorOptions(), record_every=record_every, contact=contact,
+                        contact_stiffness=contact_stiffness, contact_damping=contact_damping)
         try:
             self._check_spawn_overlap(c, set(overlap_ok))
         except ParameterError:
             for b in c.body_ids:
                 pb.removeBody(b, physicsClientId=self.client)
             raise
+        if c.model_contact:
+            c.disable_bullet_collisions()
         self.cables[name] = c
         self._owners.update({b: (name, i) for i, b in enumerate(c.body_ids)})
         return c

@@ -2,7 +2,8 @@
 
 Cheap checks (every ``check_every`` steps): finite state, segment strain within bound.
 Energy check (every ``energy_every`` steps): E(t) - E(0) - W_holders(t) <= factor * E_scale,
-with E the mechanical energy, W the work the held ends did on the cable (trapezoid rule on
+with E the mechanical energy (plus, in contact, the energy stored in the contacts minus the work
+of the touched bodies), W the work the held ends did on the cable (trapezoid rule on
 end force times held-end displacement between energy checks) and E_scale a floor plus
 sum |dW|. See :mod:`bullet_dlo.core.engine` for the thresholds and the floor.
 """
@@ -73,11 +74,14 @@ def check_state(m, x, v, strain_bound):
 
 
 @njit(cache=True, error_model="numpy")
-def monitor(m, x, v, samples, det, energy_check):
+def monitor(m, x, v, samples, det, energy_check, extra=0.0):
     """Status (STABLE, ...) of the state (x, v) at the end of a step (held-end sample 2).
 
     With ``energy_check`` also updates the energy balance in ``det``: end forces now, the
-    holders' work since the last energy check, then the check itself.
+    holders' work since the last energy check, then the check itself. ``extra`` [J] joins the
+    cable's mechanical energy in the balance: for a cable in contact, the energy stored in the
+    contact springs minus the work the touched bodies did on the cable (counting contact force
+    times displacement as external work instead would hide a blow-up inside a contact).
     """
     status = check_state(m, x, v, det.max_strain)
     if not energy_check:
@@ -93,7 +97,7 @@ def monitor(m, x, v, samples, det, energy_check):
     det.end_force[:, :] = f_now
     if status != STABLE:
         return status
-    e = mechanical_energy(m, x, v, samples.dir[2])
+    e = mechanical_energy(m, x, v, samples.dir[2]) + extra
     if not (e - det.e0 - det.work[0] <= det.energy_factor * det.scale[0]):
         return ENERGY
     return STABLE

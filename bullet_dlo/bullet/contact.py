@@ -1,0 +1,434 @@
+"""Contact detection for a cable in a Bullet world: body shapes, closest points, persistent friction anchors.
+
+The cable's own spheres do not collide in Bullet when the model handles contact
+(:class:`BulletCable` with ``contact="model"``): each step, before the cable's implicit step, the
+contacts are found analytically from the bodies' primitive shapes (box, sphere, cylinder, capsule;
+the ground plane is a box) at their current Bullet poses, and written into the core's
+:class:`~bullet_dlo.core.kernels.contact.Contacts`:
+
+- every node, as a sphere of the cable radius, against the solid (closest point on its surface;
+  a node inside a box takes the nearest face);
+- every segment interior, as a capsule of the cable radius, against cylinders and capsules
+  (closest point between the segment and the axis), spheres (closest point to the centre) and the
+  twelve edges of boxes (segments against zero-radius edges): nothing thicker than the cable
+  passes between two masses, at any n.
+
+Contacts are kept when the gap is below a margin (cable radius + twice the distance the fastest
+node moves in a step + 1 mm), so the implicit step sees a contact before it closes. Each
+(body, feature, node or segment) has a key; a contact seen again keeps its friction anchor and
+stick/slide state.
+
+Friction: the spec's ``static_friction`` and ``friction`` (dynamic) are the cable's; a body's
+Bullet ``lateralFriction`` mu_b combines with them by the geometric mean, mu = sqrt(mu_cable mu_b)
+(Bullet multiplies the two, so a cable of 0.3 on a body of 0.5 slides at 0.15, below both; the
+geometric mean is symmetric like Bullet's rule, lies between the two, and equals the cable's own
+coefficient on a body given the same value). Meshes and convex hulls are not handled (ignored,
+with a warning at set-up).
+"""
+from __future__ import annotations
+
+import math
+import warnings
+from typing import NamedTuple
+
+import numpy as np
+import pybullet as pb
+from numba import njit
+
+from bullet_dlo.core.kernels.contact import STICK, Contacts, make_contacts
+
+BOX, SPHERE, CYLINDER, CAPSULE = range(4)
+N_EDGES = 12  # a box's edges, each a segment feature of its own
+S_MIN = 1e-3  # segment interior: 0 < s < 1 away from the nodes by this much (nodes are contacts of their own)
+_GEOMS = {pb.GEOM_BOX: BOX, pb.GEOM_SPHERE: SPHERE, pb.GEOM_CYLINDER: CYLINDER, pb.GEOM_CAPSULE: CAPSULE}
+
+
+class Shapes(NamedTuple):
+    """The bodies a cable touches, as the detection kernel takes them (B shapes).
+
+    kind (B,) int: BOX/SPHERE/CYLINDER/CAPSULE; pos [m] (B, 3) and rot (B, 3, 3) (world from
+    shape frame) of each shape; size (B, 3) [m]: box half extents, or (radius, half length, 0);
+    com (B, 3) [m]: the body's centre of mass; lin_vel [m/s], ang_vel [rad/s] (B, 3): the body's
+    velocity; mu_s, mu_d (B,): combined friction coefficients with the cable.
+    """
+
+    kind: np.ndarray
+    pos: np.ndarray
+    rot: np.ndarray
+    size: np.ndarray
+    com: np.ndarray
+    lin_vel: np.ndarray
+    ang_vel: np.ndarray
+    mu_s: np.ndarray
+    mu_d: np.ndarray
+
+
+class Store(NamedTuple):
+    """Friction state by contact key, kept from step to step: anchor (K, 4), state (K,), active (K,) bool;
+    keys (M,) int: the key of each row of the current Contacts; body (M,) int: its shape index."""
+
+    anchor: np.ndarray
+    state: np.ndarray
+    active: np.ndarray
+    keys: np.ndarray
+    body: np.ndarray
+
+
+def _rotation(quat) -> np.ndarray:
+    return np.array(pb.getMatrixFromQuaternion(quat)).reshape(3, 3)
+
+
+class ContactSet:
+    """Shapes of the bodies in a world, the cable's Contacts and their persistence.
+
+    ``bodies``: the body ids to collide with (the world's ground and obstacles). Static bodies
+    (mass 0) are read once; dynamic ones every step (pose and velocity), and they receive the
+    contact forces (:meth:`apply_to_bodies`).
+    """
+
+    def __init__(self, client: int, bodies, n: int, radius: float, mu_s: float, mu_d: float,
+                 alpha: float, damping_ratio: float):
+        self.client = client
+        self.n = n
+        self.alpha = float(alpha)
+        self.zeta = float(damping_ratio)
+        rows = []  # (body id, kind, local pos, local rot, size, dynamic, mu_b)
+        for body in bodies:
+            mass, mu_b = pb.getDynamicsInfo(body, -1, physicsClientId=client)[0:2]
+            for shape in pb.getCollisionShapeData(body, -1, physicsClientId=client):
+                geom, dims, lpos, lorn = shape[2], shape[3], shape[5], shape[6]
+                if geom not in _GEOMS:
+                    warnings.warn(f"body {body}: collision geometry {geom} (mesh/hull/plane) is not handled by the "
+                                  f"cable's contact model; the cable passes through it", stacklevel=3)
+                    continue
+                kind = _GEOMS[geom]
+                if kind == BOX:
+                    size = 0.5 * np.asarray(dims[:3], float)
+                elif kind == SPHERE:
+                    size = np.array([dims[0], 0.0, 0.0])
+                else:  # cylinder, capsule: (length, radius)
+                    size = np.array([dims[1], 0.5 * dims[0], 0.0])
+                rows.append((body, kind, np.asarray(lpos, float), _rotation(lorn), size, mass > 0.0, float(mu_b)))
+        self.rows = rows
+        self.body_ids = np.array([r[0] for r in rows], dtype=np.int64)
+        self.dynamic = np.array([r[5] for r in rows], dtype=np.bool_)
+        nb = len(rows)
+        mu_b = np.array([r[6] for r in rows])
+        self.shapes = Shapes(kind=np.array([r[1] for r in rows], dtype=np.int64), pos=np.zeros((nb, 3)),
+                             rot=np.zeros((nb, 3, 3)), size=np.array([r[4] for r in rows]).reshape(nb, 3),
+                             com=np.zeros((nb, 3)), lin_vel=np.zeros((nb, 3)), ang_vel=np.zeros((nb, 3)),
+                             mu_s=np.sqrt(mu_s * mu_b), mu_d=np.sqrt(mu_d * mu_b))
+        self.keys_per_shape = n + (N_EDGES + 1) * (n - 1)
+        nkeys = max(1, nb * self.keys_per_shape)
+        capacity = max(1, nb * (n + 2 * (n - 1)))
+        self.contacts: Contacts = make_contacts(n, capacity, radius)
+        self.store = Store(anchor=np.zeros((nkeys, 4)), state=np.zeros(nkeys, np.int64),
+                           active=np.zeros(nkeys, np.bool_), keys=np.zeros(capacity, np.int64),
+                           body=np.zeros(capacity, np.int64))
+        for s in range(nb):
+            self._read_pose(s, with_velocity=False)
+
+    def _read_pose(self, s: int, with_velocity: bool) -> None:
+        body, _, lpos, lrot = self.rows[s][0:4]
+        cid = self.client
+        com, orn = pb.getBasePositionAndOrientation(body, physicsClientId=cid)
+        rot = _rotation(orn)
+        sh = self.shapes
+        sh.com[s] = com
+        sh.pos[s] = np.asarray(com) + rot @ lpos
+        sh.rot[s] = rot @ lrot
+        if with_velocity:
+            lin, ang = pb.getBaseVelocity(body, physicsClientId=cid)
+            sh.lin_vel[s] = lin
+            sh.ang_vel[s] = ang
+
+    def update(self, x: np.ndarray, v: np.ndarray, mass: np.ndarray, h: float) -> int:
+        """Read the moving bodies, detect the contacts of positions x [m] (n, 3) for a step of h [s]."""
+        for s in np.flatnonzero(self.dynamic):
+            self._read_pose(int(s), with_velocity=True)
+        vmax = float(np.max(np.abs(v))) if v.size else 0.0
+        margin = float(self.contacts.radius[0]) + 2.0 * vmax * h + 1e-3
+        k_per_mass = self.alpha / (h * h)
+        return detect(x, mass, self.shapes, self.contacts, self.store, margin, k_per_mass, self.zeta)
+
+    def per_contact(self) -> dict[str, np.ndarray]:
+        """The current contacts (forces of the last step, on the cable [N]): body, node (k, 2),
+        weight (k, 2), point [m] (k, 3), normal (k, 3), normal_force (k,), friction (k, 3),
+        force (k, 3) = normal_force normal + friction, sliding (k,) bool."""
+        c = self.contacts
+        k = int(c.count[0])
+        fn = c.f_n[:k].clip(min=0.0)
+        return {"body": self.body_ids[self.store.body[:k]], "node": c.node[:k].copy(),
+                "weight": c.weight[:k].copy(), "point": c.point[:k].copy(), "normal": c.normal[:k].copy(),
+                "normal_force": fn, "friction": c.f_t[:k].copy(),
+                "force": fn[:, None] * c.normal[:k] + c.f_t[:k], "sliding": c.state[:k] != STICK}
+
+    def per_body(self) -> dict[int, np.ndarray]:
+        """Total force [N] the cable exerts on each touched body, {body id: (3,)}."""
+        out: dict[int, np.ndarray] = {}
+        pc = self.per_contact()
+        for b, f in zip(pc["body"].tolist(), pc["force"]):
+            out[b] = out.get(b, np.zeros(3)) - f
+        return out
+
+    def apply_to_bodies(self) -> None:
+        """Apply the reaction of every contact to its dynamic body (force at the centre of mass plus
+        the torque of the forces about it), for the coming Bullet step."""
+        c = self.contacts
+        k = int(c.count[0])
+        if k == 0 or not self.dynamic.any():
+            return
+        idx = self.store.body[:k]
+        fn = c.f_n[:k].clip(min=0.0)
+        force = -(fn[:, None] * c.normal[:k] + c.f_t[:k])
+        cid = self.client
+        for s in np.unique(idx[self.dynamic[idx]]):
+            sel = idx == s
+            arm = c.point[:k][sel] - self.shapes.com[s]
+            f_tot = force[sel].sum(axis=0)
+            tau = np.cross(arm, force[sel]).sum(axis=0)
+            body = int(self.body_ids[s])
+            pb.applyExternalForce(body, -1, f_tot.tolist(), self.shapes.com[s].tolist(), pb.WORLD_FRAME, cid)
+            pb.applyExternalTorque(body, -1, tau.tolist(), pb.WORLD_FRAME, cid)
+
+
+# ----- detection kernel --------------------------------------------------------------------------
+@njit(cache=True, error_model="numpy")
+def _node_closest(kind, size, q, out_c, out_n):
+    """Closest surface point out_c and outward normal out_n (shape frame) to point q; returns the
+    signed distance [m] (negative inside)."""
+    if kind == BOX:
+        inside = True
+        for j in range(3):
+            out_c[j] = min(max(q[j], -size[j]), size[j])
+            if q[j] < -size[j] or q[j] > size[j]:
+                inside = False
+        if inside:  # nearest face
+            best = 1e300
+            for j in range(3):
+                for sg in (-1.0, 1.0):
+                    dist = size[j] - sg * q[j]
+                    if dist < best:
+                        best = dist
+                        out_n[:] = 0.0
+                        out_n[j] = sg
+            for j in range(3):
+                out_c[j] = q[j] + best * out_n[j]
+            return -best
+        d2 = 0.0
+        for j in range(3):
+            out_n[j] = q[j] - out_c[j]
+            d2 += out_n[j] ** 2
+        dl = math.sqrt(d2)
+        for j in range(3):
+            out_n[j] /= dl
+        return dl
+    R = size[0]
+    if kind == SPHERE or kind == CAPSULE:
+        t = 0.0 if kind == SPHERE else min(max(q[2], -size[1]), size[1])
+        d0, d1, d2 = q[0], q[1], q[2] - t
+        dl = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+        if dl == 0.0:
+            return 1e300
+        out_n[0], out_n[1], out_n[2] = d0 / dl, d1 / dl, d2 / dl
+        for j in range(3):
+            out_c[j] = R * out_n[j]
+        out_c[2] += t
+        return dl - R
+    # cylinder, axis z, half length size[1]
+    hl = size[1]
+    rho = math.sqrt(q[0] * q[0] + q[1] * q[1])
+    sz = 1.0 if q[2] >= 0.0 else -1.0
+    side = rho - R
+    cap = abs(q[2]) - hl
+    if side <= 0.0 and cap <= 0.0:  # inside: the nearer of side and cap
+        if side >= cap and rho > 0.0:
+            out_n[0], out_n[1], out_n[2] = q[0] / rho, q[1] / rho, 0.0
+            out_c[0], out_c[1], out_c[2] = R * out_n[0], R * out_n[1], q[2]
+            return side
+        out_n[0], out_n[1], out_n[2] = 0.0, 0.0, sz
+        out_c[0], out_c[1], out_c[2] = q[0], q[1], sz * hl
+        return cap
+    if cap <= 0.0:  # beside the mantle
+        out_n[0], out_n[1], out_n[2] = q[0] / rho, q[1] / rho, 0.0
+        out_c[0], out_c[1], out_c[2] = R * out_n[0], R * out_n[1], q[2]
+        return side
+    if side <= 0.0:  # above a flat end
+        out_n[0], out_n[1], out_n[2] = 0.0, 0.0, sz
+        out_c[0], out_c[1], out_c[2] = q[0], q[1], sz * hl
+        return cap
+    out_c[0], out_c[1], out_c[2] = R * q[0] / rho, R * q[1] / rho, sz * hl  # the rim
+    d2 = 0.0
+    for j in range(3):
+        out_n[j] = q[j] - out_c[j]
+        d2 += out_n[j] ** 2
+    dl = math.sqrt(d2)
+    for j in range(3):
+        out_n[j] /= dl
+    return dl
+
+
+@njit(cache=True, error_model="numpy")
+def _segment_axis(qa, qb, P, A, hl, R, out_c, out_n):
+    """Segment qa-qb against a capped line P + t A (|t| <= hl) of radius R (shape frame): the interior
+    parameter s of the closest point (or -1 if not interior / out of range); fills surface point and normal;
+    the distance goes to out_c[3]."""
+    e0, e1, e2 = qb[0] - qa[0], qb[1] - qa[1], qb[2] - qa[2]
+    w0, w1, w2 = qa[0] - P[0], qa[1] - P[1], qa[2] - P[2]
+    a = e0 * e0 + e1 * e1 + e2 * e2
+    b = e0 * A[0] + e1 * A[1] + e2 * A[2]
+    d = e0 * w0 + e1 * w1 + e2 * w2
+    ee = A[0] * w0 + A[1] * w1 + A[2] * w2
+    den = a - b * b
+    if den <= 1e-12 * a:
+        return -1.0
+    s = (b * ee - d) / den
+    t = (w0 + s * e0) * A[0] + (w1 + s * e1) * A[1] + (w2 + s * e2) * A[2]
+    if abs(t) > hl:  # beyond the end: closest point of the segment to the end point
+        t = hl if t > 0.0 else -hl
+        s = ((P[0] + t * A[0] - qa[0]) * e0 + (P[1] + t * A[1] - qa[1]) * e1 + (P[2] + t * A[2] - qa[2]) * e2) / a
+    if s <= S_MIN or s >= 1.0 - S_MIN:
+        return -1.0
+    r2 = 0.0
+    for j in range(3):
+        out_n[j] = qa[j] + s * (qb[j] - qa[j]) - (P[j] + t * A[j])
+        r2 += out_n[j] ** 2
+    rl = math.sqrt(r2)
+    if rl == 0.0:
+        return -1.0
+    for j in range(3):
+        out_n[j] /= rl
+        out_c[j] = P[j] + t * A[j] + R * out_n[j]
+    out_c[3] = rl - R
+    return s
+
+
+@njit(cache=True, error_model="numpy")
+def _add(c, st, key, shape, ia, ib, wa, wb, cl, nl, sh, k_per_mass, zeta, mass, x):
+    """Append a contact (surface point cl, normal nl in the shape frame) unless the arrays are full."""
+    k = c.count[0]
+    if k >= c.node.shape[0]:
+        return
+    rot, pos = sh.rot[shape], sh.pos[shape]
+    for j in range(3):
+        c.point[k, j] = pos[j] + rot[j, 0] * cl[0] + rot[j, 1] * cl[1] + rot[j, 2] * cl[2]
+        c.normal[k, j] = rot[j, 0] * nl[0] + rot[j, 1] * nl[1] + rot[j, 2] * nl[2]
+    arm = c.point[k] - sh.com[shape]
+    w = sh.ang_vel[shape]
+    c.body_vel[k, 0] = sh.lin_vel[shape, 0] + w[1] * arm[2] - w[2] * arm[1]
+    c.body_vel[k, 1] = sh.lin_vel[shape, 1] + w[2] * arm[0] - w[0] * arm[2]
+    c.body_vel[k, 2] = sh.lin_vel[shape, 2] + w[0] * arm[1] - w[1] * arm[0]
+    c.node[k, 0], c.node[k, 1] = ia, ib
+    c.weight[k, 0], c.weight[k, 1] = wa, wb
+    mk = wa * mass[ia] + wb * mass[ib]  # stiffness by the mass at the contact point
+    c.k_n[k] = k_per_mass * mk
+    c.k_t[k] = c.k_n[k]
+    c.c_n[k] = 2.0 * zeta * math.sqrt(c.k_n[k] * mk)
+    c.mu_s[k] = sh.mu_s[shape]
+    c.mu_d[k] = sh.mu_d[shape]
+    if st.active[key]:
+        c.anchor[k] = st.anchor[key]
+        c.state[k] = st.state[key]
+    else:
+        for j in range(3):
+            c.anchor[k, j] = wa * x[ia, j] + wb * x[ib, j]
+        c.anchor[k, 3] = wb
+        c.state[k] = STICK
+    g = 0.0
+    for j in range(3):
+        g += c.normal[k, j] * (wa * x[ia, j] + wb * x[ib, j] - c.point[k, j])
+    g -= c.radius[0]
+    c.cap[k] = c.mu_s[k] * c.k_n[k] * (-g) if g < 0.0 else 0.0
+    c.f_n[k] = 0.0
+    c.f_t[k, :] = 0.0
+    st.keys[k] = key
+    st.body[k] = shape
+    c.count[0] = k + 1
+
+
+@njit(cache=True, error_model="numpy")
+def detect(x, mass, sh, c, st, margin, k_per_mass, zeta):
+    """Store the friction state of the last step's contacts by key, then fill ``c`` with the contacts
+    of positions x [m] (n, 3) whose gap is below ``margin`` [m]. Returns the number of contacts."""
+    for k in range(c.count[0]):  # persist what the last step left
+        key = st.keys[k]
+        st.anchor[key] = c.anchor[k]
+        st.state[key] = c.state[k]
+    seen = np.zeros(st.active.shape[0], dtype=np.bool_)
+    n = x.shape[0]
+    per_shape = n + (N_EDGES + 1) * (n - 1)
+    radius = c.radius[0]
+    c.count[0] = 0
+    q = np.empty((n, 3))
+    cl = np.empty(4)
+    nl = np.empty(3)
+    P = np.empty(3)
+    A = np.empty(3)
+    for s in range(sh.kind.shape[0]):
+        kind = sh.kind[s]
+        size = sh.size[s]
+        rot, pos = sh.rot[s], sh.pos[s]
+        for i in range(n):  # nodes in the shape frame
+            for j in range(3):
+                q[i, j] = rot[0, j] * (x[i, 0] - pos[0]) + rot[1, j] * (x[i, 1] - pos[1]) + rot[2, j] * (x[i, 2] - pos[2])
+        base = s * per_shape
+        for i in range(n):
+            d = _node_closest(kind, size, q[i], cl, nl)
+            if d - radius < margin:
+                _add(c, st, base + i, s, i, i, 1.0, 0.0, cl, nl, sh, k_per_mass, zeta, mass, x)
+                seen[base + i] = True
+        if kind == BOX:  # segments against the 12 edges
+            for ax in range(3):
+                o1 = (ax + 1) % 3
+                o2 = (ax + 2) % 3
+                A[:] = 0.0
+                A[ax] = 1.0
+                for e in range(4):
+                    P[ax] = 0.0
+                    P[o1] = size[o1] if e % 2 == 0 else -size[o1]
+                    P[o2] = size[o2] if e // 2 == 0 else -size[o2]
+                    feat = 1 + 4 * ax + e
+                    for i in range(n - 1):
+                        sp = _segment_axis(q[i], q[i + 1], P, A, size[ax], 0.0, cl, nl)
+                        if sp > 0.0 and cl[3] - radius < margin:
+                            key = base + n + (n - 1) * feat + i
+                            _add(c, st, key, s, i, i + 1, 1.0 - sp, sp, cl, nl, sh, k_per_mass, zeta, mass, x)
+                            seen[key] = True
+        elif kind == SPHERE:
+            P[:] = 0.0
+            for i in range(n - 1):
+                e2 = 0.0
+                dot = 0.0
+                for j in range(3):
+                    ej = q[i + 1, j] - q[i, j]
+                    e2 += ej * ej
+                    dot -= q[i, j] * ej
+                sp = dot / e2
+                if sp <= S_MIN or sp >= 1.0 - S_MIN:
+                    continue
+                r2 = 0.0
+                for j in range(3):
+                    nl[j] = q[i, j] + sp * (q[i + 1, j] - q[i, j])
+                    r2 += nl[j] ** 2
+                rl = math.sqrt(r2)
+                if rl > 0.0 and rl - size[0] - radius < margin:
+                    for j in range(3):
+                        nl[j] /= rl
+                        cl[j] = size[0] * nl[j]
+                    key = base + n + i
+                    _add(c, st, key, s, i, i + 1, 1.0 - sp, sp, cl, nl, sh, k_per_mass, zeta, mass, x)
+                    seen[key] = True
+        else:  # cylinder mantle / capsule core: segments against the axis
+            P[:] = 0.0
+            A[0], A[1], A[2] = 0.0, 0.0, 1.0
+            for i in range(n - 1):
+                sp = _segment_axis(q[i], q[i + 1], P, A, size[1], size[0], cl, nl)
+                if sp > 0.0 and cl[3] - radius < margin:
+                    if kind == CYLINDER and abs(cl[2] - size[0] * nl[2]) >= size[1]:
+                        continue  # beyond a cylinder's flat end: the nodes handle it
+                    key = base + n + i
+                    _add(c, st, key, s, i, i + 1, 1.0 - sp, sp, cl, nl, sh, k_per_mass, zeta, mass, x)
+                    seen[key] = True
+    for key in range(st.active.shape[0]):
+        st.active[key] = seen[key]
+    return c.count[0]
