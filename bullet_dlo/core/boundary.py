@@ -110,9 +110,12 @@ class Waypoints:
             the first must be zero (the path starts from the start pose).
         rotations: rotation vector of the clamp direction at each waypoint [rad], shape (k, 3)
             (default: none); the first must be zero.
+        rest: start and end at rest (default). False (for poses sampled from a motion that
+            does not start or end at rest, e.g. a recording): the spline's own end velocities
+            and accelerations (not-a-knot), and the end stops dead after the last waypoint.
 
     Between waypoints: quintic segments matching position, velocity and acceleration of a C2
-    cubic spline with zero end velocities at every waypoint, and zero velocity and
+    cubic spline (zero end velocities) at every waypoint, with zero velocity and
     acceleration at the first and last (so the whole path is C2, at rest at both ends).
     """
 
@@ -120,6 +123,7 @@ class Waypoints:
     times: tuple[float, ...]
     displacements: tuple[tuple[float, float, float], ...]
     rotations: tuple[tuple[float, float, float], ...] | None = None
+    rest: bool = True
 
     def __post_init__(self) -> None:
         _check_end(self.end)
@@ -143,7 +147,7 @@ class Waypoints:
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any]) -> "Waypoints":
-        return cls(**_motion_keys(data, {"end", "times", "displacements", "rotations"}, "waypoints"))
+        return cls(**_motion_keys(data, {"end", "times", "displacements", "rotations", "rest"}, "waypoints"))
 
     @property
     def start(self) -> float:
@@ -159,23 +163,24 @@ class Waypoints:
         rows = np.zeros((len(t) - 1, PATH_COLUMNS))
         rows[:, 0], rows[:, 1] = t[:-1], t[1:]
         for col, values in ((2, self.displacements), (20, self.rotations)):
-            rows[:, col:col + 18] = quintic_segments(t, np.asarray(values))
+            rows[:, col:col + 18] = quintic_segments(t, np.asarray(values), bool(self.rest))
         return rows
 
 
-def quintic_segments(t: np.ndarray, p: np.ndarray) -> np.ndarray:
+def quintic_segments(t: np.ndarray, p: np.ndarray, rest: bool = True) -> np.ndarray:
     """Coefficients c_0..c_5 of C2 quintic segments through values ``p`` (k, 3) at times ``t`` (k,) [s],
     in u = (t - t_i)/(t_{i+1} - t_i): rows of (c_0 (3), ..., c_5 (3)), shape (k - 1, 18).
 
-    Knot velocities and accelerations are those of the C2 cubic spline with zero end velocities,
-    with the accelerations at the first and last knot set to zero.
+    Knot velocities and accelerations are those of the C2 cubic spline; ``rest``: with zero end
+    velocities and the accelerations at the first and last knot set to zero, else not-a-knot.
     """
     from scipy.interpolate import CubicSpline
 
-    spline = CubicSpline(t, p, axis=0, bc_type="clamped")
+    spline = CubicSpline(t, p, axis=0, bc_type="clamped" if rest else "not-a-knot")
     v, a = spline(t, 1), spline(t, 2)
-    v[[0, -1]] = 0.0
-    a[[0, -1]] = 0.0
+    if rest:
+        v[[0, -1]] = 0.0
+        a[[0, -1]] = 0.0
     T = np.diff(t)[:, None]
     p0, p1, v0, v1, a0, a1 = p[:-1], p[1:], v[:-1] * T, v[1:] * T, a[:-1] * T**2, a[1:] * T**2
     dp = p1 - p0

@@ -144,7 +144,7 @@ def add_path(path, t, pos, vel, acc, direction):
             hi = mid - 1
     dur = path[lo, 1] - path[lo, 0]
     u = min(max((t - path[lo, 0]) / dur, 0.0), 1.0)
-    moving = path[0, 0] < t < path[k - 1, 1]
+    moving = path[0, 0] <= t <= path[k - 1, 1]  # (a path at rest has zero end velocity anyway)
     for j in range(3):
         p, dp, ddp = quintic(path, lo, 2 + j, u)
         pos[j] += p
