@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 
 from bullet_dlo.cli.simulate import write_json
@@ -16,7 +17,20 @@ def cmd_capture(args: argparse.Namespace) -> int:
                   progress=not args.quiet)
     print(f"{res.done} episodes in {res.out} ({res.flagged} flagged unstable, {res.failed} failed); ran {res.ran} "
           f"in {res.wall_time_s:.1f} s = {res.episodes_per_second:.2f} episodes/s with {args.workers} worker(s)")
-    return 0
+    if res.complete:
+        return 0
+    lost = [f"{len(res.failed_episodes)} of {args.episodes} episodes failed ({_first(res.failed_episodes)}; "
+            "errors in manifest.jsonl)"] if res.failed_episodes else []
+    lost += [f"{len(res.missing_episodes)} have no record ({_first(res.missing_episodes)})"] \
+        if res.missing_episodes else []
+    print(f"error: {'; '.join(lost)}; bullet-dlo capture ... --resume re-runs them", file=sys.stderr)
+    return 1
+
+
+def _first(indices: tuple[int, ...], count: int = 10) -> str:
+    """``episodes 3, 5, 9`` (the first ``count`` of them)."""
+    more = f", ... (+{len(indices) - count})" if len(indices) > count else ""
+    return "episodes " + ", ".join(map(str, indices[:count])) + more
 
 
 def cmd_dataset_summary(args: argparse.Namespace) -> int:

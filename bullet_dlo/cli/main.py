@@ -5,7 +5,8 @@ simulate, stability, paper-table, convergence: :mod:`bullet_dlo.cli.simulate`; g
 :mod:`bullet_dlo.cli.resolve`; bench: :mod:`bullet_dlo.cli.bench`.
 
 Every invalid input ends with a one-line ``error: ...`` naming the bad key or option and
-exit code 2. ``--quiet`` (before or after the command) leaves only results and errors: no
+exit code 2, before any work starts: argparse's own errors too (:class:`Parser`), and output
+paths are checked first (:func:`check_outputs`). A capture with failed episodes exits with 1. ``--quiet`` (before or after the command) leaves only results and errors: no
 progress bars, no warnings, nothing from PyBullet's C code (see :mod:`bullet_dlo.cli.quiet`).
 """
 from __future__ import annotations
@@ -16,7 +17,28 @@ from typing import Sequence
 
 from bullet_dlo.cli import data, resolve, robots, simulate
 from bullet_dlo.cli.quiet import quiet_output
+from bullet_dlo.config.schema import output_dir, output_file
 from bullet_dlo.core.validate import ParameterError
+
+OUTPUT_FILES = ("json", "npz", "markdown")  # options naming a file the command writes
+
+
+class Parser(argparse.ArgumentParser):
+    """argparse with its errors on one line (``error: bullet-dlo simulate: argument --dt: ...``), exit 2.
+    Subcommand parsers are of this class too (argparse makes them of the parent's class)."""
+
+    def error(self, message: str):
+        self.exit(2, f"error: {self.prog}: {message}\n")
+
+
+def check_outputs(args: argparse.Namespace) -> None:
+    """Every output path of the command, checked before it runs (a folder where a file is meant,
+    a path under a file, a read-only location)."""
+    for name in OUTPUT_FILES:
+        if getattr(args, name, None):
+            output_file(f"--{name}", getattr(args, name))
+    if getattr(args, "out", None):
+        output_dir("--out", args.out)
 
 BENCH_COMMANDS = {
     "work-precision": "error vs wall time per simulated second for every integrator, dt, n, scenario S1-S4 and "
@@ -48,7 +70,7 @@ def _add_bench_parsers(sub) -> None:
 
 def build_parser() -> argparse.ArgumentParser:
     """The whole command line (``bullet-dlo --help``; ``bullet-dlo COMMAND --help`` for each command)."""
-    p = argparse.ArgumentParser(
+    p = Parser(
         prog="bullet-dlo",
         description="Mass-spring-damper cables with stable integrators (PyBullet-free core), two robot arms "
                     "holding them, headless video and force datasets. All quantities in SI units.",
@@ -56,7 +78,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("-q", "--quiet", dest="quiet_all", action="store_true",
                    help="print only results and errors (no progress bars, warnings or PyBullet output); "
                         "also accepted after the command")
-    common = argparse.ArgumentParser(add_help=False)
+    common = Parser(add_help=False)
     common.add_argument("-q", "--quiet", action="store_true",
                         help="print only results and errors (no progress bars, warnings or PyBullet output)")
     sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
@@ -73,6 +95,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     args.quiet = bool(args.quiet_all or getattr(args, "quiet", False))
     with quiet_output(args.quiet):
         try:
+            check_outputs(args)
             return int(args.func(args) or 0)
         except ParameterError as err:
             print(f"error: {err}", file=sys.stderr)

@@ -10,8 +10,12 @@ from bullet_dlo.cli.simulate import write_json
 def cmd_resolve(args: argparse.Namespace) -> int:
     from bullet_dlo.analysis.resolve import resolve
     from bullet_dlo.config.scene import Scene
+    from bullet_dlo.core.validate import check_in_range
 
+    check_in_range("--tol", args.tol, 1e-6, 1.0, open_hi=True)
     scene = Scene.from_yaml(args.scene)
+    if args.rollout is not None:  # at most the scene's duration: a trial never outlasts the run it stands for
+        check_in_range("--rollout [s]", args.rollout, scene.dt, scene.duration)
     with elapsed("resolve: convergence trials", args.quiet):
         r = resolve(scene, args.tol, args.target, args.rollout)
     print(f"{scene.name}: n_masses = {r.n_masses}, integrator = {r.integrator}, dt = {r.dt:.4g} s; predicted error "

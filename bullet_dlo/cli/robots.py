@@ -13,9 +13,18 @@ from bullet_dlo.core.validate import ParameterError
 
 def _grasp_setup(args: argparse.Namespace):
     """Cable, dt [s], integrator, duration [s] and moves (arm, displacement, start, duration) for ``grasp``."""
+    from bullet_dlo.config.capture import PARAMETERS
+    from bullet_dlo.config.robot import robot_names
     from bullet_dlo.config.scene import Scene
+    from bullet_dlo.config.schema import one_of
     from bullet_dlo.core.spec import CableSpec
-    from bullet_dlo.core.validate import check_positive
+    from bullet_dlo.core.validate import check_in_range, check_positive, check_steps
+
+    one_of("--robot", args.robot, robot_names())
+    # the ranges a capture spec allows for the same quantities (config.capture.PARAMETERS)
+    check_in_range("--noise [N]", args.noise, *PARAMETERS["noise_std"][2])
+    if args.sensor_rate is not None:
+        check_in_range("--sensor-rate [Hz]", args.sensor_rate, 1e-3, PARAMETERS["sensor_rate"][2][1])
 
     if args.scene:
         scene = Scene.from_yaml(args.scene).resolved()
@@ -27,8 +36,12 @@ def _grasp_setup(args: argparse.Namespace):
         cable = CableSpec.lv2017(n_masses=10, damping=0.02)
         dt, integrator, duration = 1.0 / 240.0, "implicit_euler", 3.0
         moves = [("right", (0.0, 0.0, 0.005), 1.5, 0.1)]  # the study's 5 mm move
-    dt = check_positive("--dt", args.dt) if args.dt is not None else dt
+    dt_lo, dt_hi = PARAMETERS["dt"][2]  # a robot controller's step
+    dt = check_in_range("--dt [s]" if args.dt is not None else "dt [s] (robot scenes)",
+                        dt if args.dt is None else args.dt, dt_lo, dt_hi)
     duration = check_positive("--duration", args.duration) if args.duration is not None else duration
+    check_steps(dt, duration, dt_name="--dt" if args.dt is not None else "dt",
+                duration_name="--duration" if args.duration is not None else "duration")
     return cable, dt, integrator, duration, moves
 
 
@@ -70,9 +83,17 @@ def cmd_grasp(args: argparse.Namespace) -> int:
 
 
 def cmd_render(args: argparse.Namespace) -> int:
+    from bullet_dlo.config.robot import robot_names
     from bullet_dlo.config.scene import Scene
+    from bullet_dlo.config.schema import LIMITS, one_of
+    from bullet_dlo.core.validate import check_in_range, check_int
     from bullet_dlo.render.pipeline import render_scene
 
+    check_in_range("--fps [Hz]", args.fps, 0.1, 1000.0)
+    check_int("--width [px]", args.width, 16, int(LIMITS["pixels"]))
+    check_int("--height [px]", args.height, 16, int(LIMITS["pixels"]))
+    if args.robot is not None:
+        one_of("--robot", args.robot, robot_names())
     scene = Scene.from_yaml(args.scene).resolved()
     summary = render_scene(scene, args.out, robot=args.robot, fps=args.fps, width=args.width, height=args.height,
                            renderer=args.renderer, fmt=args.format, progress=not args.quiet)

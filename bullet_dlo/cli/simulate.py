@@ -25,7 +25,7 @@ def cmd_simulate(args: argparse.Namespace) -> int:
 
     from bullet_dlo.config.scene import Scene, result_json
     from bullet_dlo.core.integrators import get_integrator
-    from bullet_dlo.core.validate import check_positive
+    from bullet_dlo.core.validate import check_positive, check_steps
 
     scene = Scene.from_yaml(args.scene).resolved()
     if args.integrator is not None:
@@ -33,6 +33,9 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     for key in ("dt", "duration"):
         if getattr(args, key) is not None:
             scene = replace(scene, **{key: check_positive(f"--{key}", getattr(args, key))})
+    substeps = scene.bullet.substeps if args.engine == "bullet" else 1
+    check_steps(scene.dt, scene.duration, substeps, "--dt" if args.dt is not None else "dt",
+                "--duration" if args.duration is not None else "duration")  # the caps apply to flags too
     if args.engine == "bullet":
         from bullet_dlo.bullet.world import run_scene_bullet
 
@@ -96,6 +99,7 @@ def cmd_paper_table(args: argparse.Namespace) -> int:
     from bullet_dlo.core.integrators import get_integrator
 
     tables = ("base", "rates") if args.rates else args.tables
+    check_paper_table(args)
     moduli = [float(e) * 1e6 for e in args.moduli] if args.moduli else study.PAPER_E
     masses = args.masses or study.PAPER_N
     plans = []  # (heading, steps, integrators, duration)
@@ -138,8 +142,33 @@ def cmd_paper_table(args: argparse.Namespace) -> int:
     return 0
 
 
+def check_paper_table(args: argparse.Namespace) -> None:
+    """Every number of ``paper-table``'s flags, against the cable bounds and the step cap (before any run)."""
+    from bullet_dlo.analysis import study
+    from bullet_dlo.config.schema import CABLE_BOUNDS
+    from bullet_dlo.core.validate import check_in_range, check_int, check_positive, check_steps
+
+    lo, hi = CABLE_BOUNDS["youngs_modulus"]
+    for e in args.moduli or ():
+        check_in_range("--moduli [MPa]", e, lo / 1e6, hi / 1e6)
+    for n in args.masses or ():
+        check_int("--masses", n, *(int(b) for b in CABLE_BOUNDS["n_masses"]))
+    check_in_range("--damping", args.damping, *CABLE_BOUNDS["damping"])
+    duration = check_positive("--duration", args.duration)
+    rate_duration = check_positive("--rate-duration", args.rate_duration)
+    for dt in args.steps or study.PAPER_DT:
+        check_steps(check_positive("--steps", dt), duration, dt_name="--steps", duration_name="--duration")
+    for dt in study.ROBOT_RATES.values():
+        check_steps(dt, rate_duration, dt_name="the rates table's dt", duration_name="--rate-duration")
+
+
 def cmd_convergence(args: argparse.Namespace) -> int:
     from bullet_dlo.analysis.closed_forms import cantilever_convergence
+    from bullet_dlo.config.schema import CABLE_BOUNDS
+    from bullet_dlo.core.validate import check_int
+
+    for n in args.masses:
+        check_int("--masses", n, 3, int(CABLE_BOUNDS["n_masses"][1]))
 
     rows = []
     with bar(len(args.masses), "convergence", args.quiet, unit="n") as progress:

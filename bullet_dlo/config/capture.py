@@ -36,11 +36,11 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from bullet_dlo.config.loader import load_yaml
+from bullet_dlo.config.loader import load_mapping
 from bullet_dlo.config.robot import robot_names
 from bullet_dlo.config.schema import one_of, only_keys, section
 from bullet_dlo.core.integrators import INTEGRATORS
-from bullet_dlo.core.validate import ParameterError, check_int, check_nonnegative, check_positive
+from bullet_dlo.core.validate import ParameterError, check_in_range, check_int, check_positive
 
 DISTS = ("uniform", "log_uniform", "normal", "choice", "fixed")
 POLICIES = ("reject", "implicit", "substeps")
@@ -160,8 +160,12 @@ def parse_distribution(key: str, data: Mapping[str, Any]) -> Distribution:
             raise ParameterError(f"sample.{key}.values must be a non-empty list")
         for v in values:
             in_range("values", v)
+            if kind == "int":  # a whole number: 8.4 is refused, never rounded
+                check_int(f"sample.{key}.values", v, *bounds)
         return Distribution(dist, values=tuple(values))
     in_range("value", data["value"])
+    if kind == "int":
+        check_int(f"sample.{key}.value", data["value"], *bounds)
     return Distribution(dist, value=data["value"])
 
 
@@ -194,19 +198,19 @@ class CaptureSpec:
             if key in sample:
                 _check_names(key, sample[key])
         return cls(seed=check_int("seed", data.get("seed", 0), 0),
-                   duration=check_positive("episode.duration", episode.get("duration", 2.0)),
-                   record_rate=check_positive("episode.record_rate", episode.get("record_rate", 120.0)),
+                   duration=check_in_range("episode.duration", episode.get("duration", 2.0), 1e-3, 3600.0),
+                   record_rate=check_in_range("episode.record_rate", episode.get("record_rate", 120.0), 0.01, 1e5),
                    policy=one_of("policy", str(data.get("policy", "substeps")), POLICIES),
-                   max_resamples=check_int("max_resamples", data.get("max_resamples", 20), 1),
-                   camera_fps=check_nonnegative("camera.fps", camera.get("fps", 0.0)),
-                   camera_width=check_int("camera.width", camera.get("width", 160), 1),
-                   camera_height=check_int("camera.height", camera.get("height", 120), 1),
+                   max_resamples=check_int("max_resamples", data.get("max_resamples", 20), 1, 10_000),
+                   camera_fps=check_in_range("camera.fps", camera.get("fps", 0.0), 0.0, 1000.0),
+                   camera_width=check_int("camera.width", camera.get("width", 160), 1, 8192),
+                   camera_height=check_int("camera.height", camera.get("height", 120), 1, 8192),
                    resolve_tol=check_positive("resolve_tol", data.get("resolve_tol", 0.02)), sample=sample)
 
     @classmethod
     def from_yaml(cls, path: str | Path) -> "CaptureSpec":
         """Load and validate a YAML capture spec."""
-        return cls.from_dict(load_yaml(path, "capture spec"))
+        return cls.from_dict(load_mapping(path, "capture spec"))
 
     def to_dict(self) -> dict:
         """The spec in its YAML form (``from_dict(to_dict())`` round-trips)."""

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
-from typing import Any
+from typing import Any, Mapping
 
 import yaml
 
@@ -37,6 +37,18 @@ def load_yaml(path: str | os.PathLike, what: str = "file") -> Any:
         return yaml.safe_load(text)
     except yaml.YAMLError as err:
         raise ParameterError(f"{name} is not valid YAML{_where(err)}: {_problem(err)}") from None
+
+
+def load_mapping(path: str | os.PathLike, what: str = "file") -> Mapping[str, Any]:
+    """:func:`load_yaml` for files that must hold a mapping of keys (scene files, capture specs);
+    an empty file is an empty mapping, a list or a scalar raises ParameterError naming the file."""
+    data = load_yaml(path, what)
+    if data is None:
+        return {}
+    if not isinstance(data, Mapping):
+        raise ParameterError(f"{what} {str(path)!r} must hold a mapping of keys (key: value lines), "
+                             f"got a {type(data).__name__}")
+    return data
 
 
 def _where(err: yaml.YAMLError) -> str:

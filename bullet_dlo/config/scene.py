@@ -25,8 +25,8 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from bullet_dlo.config.loader import load_yaml
-from bullet_dlo.config.schema import keyed, one_of, only_keys, section
+from bullet_dlo.config.loader import load_mapping
+from bullet_dlo.config.schema import LIMITS, check_cable, keyed, one_of, only_keys, section
 from bullet_dlo.core.boundary import END_MODES, Move, parse_motion
 from bullet_dlo.core.engine import DetectorOptions, SimulationResult, simulate
 from bullet_dlo.core.integrators import INTEGRATORS, NewtonOptions, get_integrator
@@ -34,7 +34,16 @@ from bullet_dlo.core.model import STANDARD_GRAVITY, CableModel, CableState
 from bullet_dlo.core.spec import CableSpec
 from bullet_dlo.core.stability import critical_dt
 from bullet_dlo.core.statics import solve_static
-from bullet_dlo.core.validate import ParameterError, check_int, check_nonnegative, check_positive, check_vector3
+from bullet_dlo.core.validate import (
+    ParameterError,
+    check_bool,
+    check_finite,
+    check_int,
+    check_nonnegative,
+    check_positive,
+    check_steps,
+    check_vector3,
+)
 
 TOP_KEYS = ("cable", "layout", "ends", "motion", "gravity", "integrator", "dt", "duration",
             "initial", "detector", "newton", "name", "bullet", "tolerance")
@@ -70,8 +79,10 @@ class BulletOptions:
     def __post_init__(self) -> None:
         # the same check_* helpers BulletWorld and BulletCable apply to these values
         set_ = object.__setattr__
+        set_(self, "ground", check_bool("bullet.ground", self.ground))
+        set_(self, "ground_height", check_finite("bullet.ground_height", self.ground_height))
         set_(self, "ground_friction", check_nonnegative("bullet.ground_friction", self.ground_friction))
-        set_(self, "substeps", check_int("bullet.substeps", self.substeps, 1))
+        set_(self, "substeps", check_int("bullet.substeps", self.substeps, 1, int(LIMITS["substeps"])))
         set_(self, "self_collision", one_of("bullet.self_collision", self.self_collision, SELF_COLLISION))
         set_(self, "sync", one_of("bullet.sync", self.sync, SYNC))
 
@@ -130,6 +141,7 @@ class Scene:
         auto_n = cable_map.get("n_masses") == "auto"
         if auto_n:
             cable_map["n_masses"] = 10  # placeholder until resolve() picks it
+        check_cable(cable_map)  # the bounds capture specs share (config.schema.CABLE_BOUNDS)
         cable = keyed("cable", CableSpec.from_dict, cable_map)
         auto_dt = data.get("dt") == "auto"
         if auto_dt:
@@ -155,21 +167,22 @@ class Scene:
         integrator = one_of("integrator", str(data.get("integrator", "implicit_euler")), INTEGRATORS)
         dt = keyed("dt", check_positive, "dt", data.get("dt", 1e-3))
         duration = keyed("duration", check_positive, "duration", data.get("duration", 1.0))
-        if duration / dt > 1e10:
-            raise ParameterError(f"duration/dt = {duration / dt:.3g} steps; at most 1e10 steps per run")
+        check_steps(dt, duration)
         initial = one_of("initial", str(data.get("initial", "straight")), INITIAL)
         det = section(data.get("detector"), "detector")
         only_keys(det, ("max_strain", "energy_factor", "check_every", "energy_every"), "detector")
         nwt = section(data.get("newton"), "newton")
         only_keys(nwt, ("max_iter", "tol", "definite"), "newton")
+        bullet = BulletOptions.from_dict(data.get("bullet"))
+        check_steps(dt, duration, bullet.substeps, duration_name="duration x bullet.substeps")
         return cls(cable, start, direction, ends, motion, gravity, integrator, dt, duration, initial,
                    DetectorOptions(**det), NewtonOptions(**nwt), str(data.get("name", "scene")),
-                   BulletOptions.from_dict(data.get("bullet")), auto_n, auto_dt, tol_value, tol_target)
+                   bullet, auto_n, auto_dt, tol_value, tol_target)
 
     @classmethod
     def from_yaml(cls, path: str | Path) -> "Scene":
         """Load and validate a YAML scene file."""
-        return cls.from_dict(load_yaml(path, "scene file"))
+        return cls.from_dict(load_mapping(path, "scene file"))
 
     # ----- running -------------------------------------------------------------------------
     def resolved(self) -> "Scene":

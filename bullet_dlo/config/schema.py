@@ -3,9 +3,13 @@
 Scene files and capture specs are checked with these helpers only, so every message has the
 same shape: ``<section.key>: <what is wrong>`` on one line. Values themselves are checked by
 the ``check_*`` helpers of :mod:`bullet_dlo.core.validate`, the same ones the runtime classes use.
+Also here: the one table of cable bounds (:data:`CABLE_BOUNDS`), the caps on work (:data:`LIMITS`)
+and the checks of output paths, all applied before any work starts.
 """
 from __future__ import annotations
 
+import os
+from pathlib import Path
 from typing import Any, Callable, Iterable, Mapping, TypeVar
 
 from bullet_dlo.core.validate import ParameterError
@@ -44,3 +48,90 @@ def keyed(where: str, fn: Callable[..., T], *args: Any, **kwargs: Any) -> T:
         return fn(*args, **kwargs)
     except (ParameterError, TypeError) as err:
         raise ParameterError(f"{where}: {err}") from None
+
+
+# ----- one table of bounds -----------------------------------------------------------------------
+# Physical bounds of a cable, shared by scene files and capture specs (a capture spec's ranges,
+# config.capture.PARAMETERS, are narrower robot-scene ranges inside these; tests/config checks it).
+CABLE_BOUNDS: dict[str, tuple[float, float]] = {
+    "length": (1e-3, 1e3),  # [m]
+    "diameter": (1e-5, 1.0),  # [m], and at most DIAMETER_PER_LENGTH x the length
+    "mass": (1e-6, 1e4),  # [kg]
+    "youngs_modulus": (1e3, 1e13),  # [Pa] soft rubber 1e6, steel 2e11; 1e13 is stiffer than diamond
+    "n_masses": (2, 100_000),
+    "damping": (0.0, 1e4),  # [N s/m]
+    "friction": (0.0, 10.0),
+    "static_friction": (0.0, 10.0),
+}
+DIAMETER_PER_LENGTH = 0.5  # a cable is slender: its diameter is at most half its length
+
+# Caps on work, applied to values from files and from command-line flags alike.
+LIMITS: dict[str, float] = {
+    "steps": 1e10,  # time steps of one run (duration / dt x substeps)
+    "episodes": 1_000_000,  # episodes of one capture
+    "workers": 1024,  # worker processes of one capture
+    "substeps": 10_000,  # integrator steps per Bullet step
+    "pixels": 8192,  # frame width or height [px]
+}
+
+
+def check_cable(data: Mapping[str, Any], where: str = "cable") -> None:
+    """Check the numbers of a parsed cable mapping against :data:`CABLE_BOUNDS` (keys it has only;
+    the cable class checks the rest), each error naming ``<where>.<key>`` and its range."""
+    from bullet_dlo.core.validate import check_in_range, check_int
+
+    for key, (lo, hi) in CABLE_BOUNDS.items():
+        if key in data:
+            if key == "n_masses":
+                check_int(f"{where}.{key}", data[key], int(lo), int(hi))
+            else:
+                check_in_range(f"{where}.{key}", data[key], lo, hi)
+    if "diameter" in data and "length" in data and float(data["diameter"]) > DIAMETER_PER_LENGTH * float(data["length"]):
+        raise ParameterError(f"{where}.diameter = {data['diameter']} m must be at most {DIAMETER_PER_LENGTH} x "
+                             f"{where}.length ({data['length']} m)")
+
+
+# ----- output paths ------------------------------------------------------------------------------
+def _existing_ancestor(path: Path) -> Path:
+    """The nearest part of ``path`` (itself or a parent) that exists."""
+    p = path
+    while not p.exists() and p != p.parent:
+        p = p.parent
+    return p
+
+
+def output_dir(name: str, path: str | os.PathLike) -> Path:
+    """``path`` as a folder this process can create or write into, checked before any work starts;
+    ParameterError naming the option ``name`` otherwise (a file, a folder under a file, read-only)."""
+    p = Path(path)
+    if p.exists() and not p.is_dir():
+        raise ParameterError(f"{name} {str(p)!r} is a file; give a folder")
+    base = _existing_ancestor(p.absolute())
+    if not base.is_dir():
+        raise ParameterError(f"{name} {str(p)!r} lies under the file {str(base)!r}; give a folder")
+    if not _can_write_in(base):
+        raise ParameterError(f"{name} {str(p)!r} cannot be written ({str(base)!r} is not writable)")
+    return p
+
+
+def _can_write_in(folder: Path) -> bool:
+    """True if a file can be created in ``folder`` (tried: os.access says yes to root on /proc)."""
+    import tempfile
+
+    try:
+        with tempfile.TemporaryFile(dir=folder):
+            return True
+    except OSError:
+        return False
+
+
+def output_file(name: str, path: str | os.PathLike) -> Path:
+    """``path`` as a file this process can create or replace, checked before any work starts;
+    ParameterError naming the option ``name`` otherwise (a folder, under a file, read-only)."""
+    p = Path(path)
+    if p.is_dir():
+        raise ParameterError(f"{name} {str(p)!r} is a folder; give a file name")
+    if p.exists() and not os.access(p, os.W_OK):
+        raise ParameterError(f"{name} {str(p)!r} cannot be written (read-only)")
+    output_dir(name, p.parent)
+    return p

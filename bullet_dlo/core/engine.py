@@ -47,6 +47,13 @@ class DetectorOptions:
     check_every: int = 1
     energy_every: int = 10
 
+    def __post_init__(self) -> None:
+        set_ = object.__setattr__
+        set_(self, "max_strain", check_positive("detector.max_strain", self.max_strain))
+        set_(self, "energy_factor", check_positive("detector.energy_factor", self.energy_factor))
+        set_(self, "check_every", check_int("detector.check_every", self.check_every, 1))
+        set_(self, "energy_every", check_int("detector.energy_every", self.energy_every, 1))
+
 
 @dataclass
 class SimulationResult:

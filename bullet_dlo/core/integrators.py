@@ -33,7 +33,9 @@ from bullet_dlo.core.kernels.steppers import (
     SYMPLECTIC_EULER,
     Stepper,
 )
-from bullet_dlo.core.validate import ParameterError, check_int, check_positive
+from bullet_dlo.core.validate import ParameterError, check_bool, check_in_range, check_int, check_positive
+
+MAX_NEWTON_ITER = 1000
 
 
 @dataclass(frozen=True)
@@ -85,6 +87,14 @@ class NewtonOptions:
     max_iter: int = 8
     tol: float | None = None
     definite: bool = True
+
+    def __post_init__(self) -> None:
+        # checked here, in Python: a non-bool ``definite`` would make Numba compile a new kernel specialisation
+        set_ = object.__setattr__
+        set_(self, "max_iter", check_int("newton.max_iter", self.max_iter, 1, MAX_NEWTON_ITER))
+        if self.tol is not None:
+            set_(self, "tol", check_in_range("newton.tol", self.tol, 1e-16, 1.0))
+        set_(self, "definite", check_bool("newton.definite", self.definite))
 
     def tolerance(self, integrator: str) -> float:
         """The residual tolerance used for ``integrator``."""

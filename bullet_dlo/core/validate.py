@@ -15,12 +15,22 @@ class ParameterError(ValueError):
     """A parameter is outside its allowed range; the message names it and the range."""
 
 
+MAX_STEPS = 1e10  # time steps of one run at most, whether dt and duration come from files or flags
+
+
+def _float(name: str, value: Any, wanted: str) -> float:
+    """``value`` as a float; booleans, None and non-numbers raise ParameterError (``wanted``: the range)."""
+    if isinstance(value, bool) or value is None:
+        raise ParameterError(f"{name} must be {wanted}, got {value!r}")
+    try:
+        return float(value)
+    except (TypeError, ValueError, OverflowError):
+        raise ParameterError(f"{name} must be {wanted}, got {value!r}") from None
+
+
 def check_positive(name: str, value: Any) -> float:
     """Return ``value`` as a finite float > 0 or raise ParameterError naming ``name``."""
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise ParameterError(f"{name} must be a number > 0, got {value!r}") from None
+    v = _float(name, value, "a number > 0")
     if not math.isfinite(v) or v <= 0.0:
         raise ParameterError(f"{name} must be a finite number > 0, got {value!r}")
     return v
@@ -28,10 +38,7 @@ def check_positive(name: str, value: Any) -> float:
 
 def check_nonnegative(name: str, value: Any) -> float:
     """Return ``value`` as a finite float >= 0 or raise ParameterError naming ``name``."""
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise ParameterError(f"{name} must be a number >= 0, got {value!r}") from None
+    v = _float(name, value, "a number >= 0")
     if not math.isfinite(v) or v < 0.0:
         raise ParameterError(f"{name} must be a finite number >= 0, got {value!r}")
     return v
@@ -39,10 +46,7 @@ def check_nonnegative(name: str, value: Any) -> float:
 
 def check_in_range(name: str, value: Any, lo: float, hi: float, *, open_hi: bool = False) -> float:
     """Return ``value`` as a float in [lo, hi] (or [lo, hi)) or raise ParameterError."""
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise ParameterError(f"{name} must be a number in [{lo}, {hi}], got {value!r}") from None
+    v = _float(name, value, f"a number in [{lo}, {hi}]")
     bad = not math.isfinite(v) or v < lo or (v >= hi if open_hi else v > hi)
     if bad:
         bracket = ")" if open_hi else "]"
@@ -51,17 +55,46 @@ def check_in_range(name: str, value: Any, lo: float, hi: float, *, open_hi: bool
 
 
 def check_int(name: str, value: Any, lo: int, hi: int | None = None) -> int:
-    """Return ``value`` as an int in [lo, hi] or raise ParameterError."""
+    """Return ``value`` as an int in [lo, hi] or raise ParameterError (a float must be a whole
+    number: 10.0 is 10, 8.4 is refused, never rounded)."""
+    rng = f">= {lo}" if hi is None else f"in [{lo}, {hi}]"
     if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
-        if isinstance(value, float) and value.is_integer():
+        if isinstance(value, (float, np.floating)) and float(value).is_integer():
             value = int(value)
         else:
-            raise ParameterError(f"{name} must be an integer >= {lo}, got {value!r}")
+            raise ParameterError(f"{name} must be an integer {rng}, got {value!r}")
     v = int(value)
     if v < lo or (hi is not None and v > hi):
-        rng = f">= {lo}" if hi is None else f"in [{lo}, {hi}]"
         raise ParameterError(f"{name} must be an integer {rng}, got {value!r}")
     return v
+
+
+def check_bool(name: str, value: Any) -> bool:
+    """Return ``value`` if it is true or false (YAML true/false); anything else raises ParameterError."""
+    if isinstance(value, (bool, np.bool_)):
+        return bool(value)
+    raise ParameterError(f"{name} must be true or false, got {value!r}")
+
+
+def check_finite(name: str, value: Any) -> float:
+    """Return ``value`` as a finite float or raise ParameterError naming ``name``."""
+    v = _float(name, value, "a finite number")
+    if not math.isfinite(v):
+        raise ParameterError(f"{name} must be a finite number, got {value!r}")
+    return v
+
+
+def check_steps(dt: float, duration: float, substeps: int = 1, dt_name: str = "dt",
+                duration_name: str = "duration") -> int:
+    """Number of steps of a run of ``duration`` [s] at ``dt`` [s] (x ``substeps``), after checking that
+    dt is at most the duration and that the run has at most :data:`MAX_STEPS` steps."""
+    if dt > duration:
+        raise ParameterError(f"{dt_name} = {dt:g} s must be at most {duration_name} = {duration:g} s")
+    steps = duration / dt * substeps
+    if steps > MAX_STEPS:
+        raise ParameterError(f"{duration_name} / {dt_name} = {steps:.3g} steps; at most {MAX_STEPS:.0e} steps "
+                             "per run (raise dt or shorten the duration)")
+    return max(1, int(round(duration / dt)))
 
 
 def check_vector3(name: str, value: Any, *, unit: bool = False) -> np.ndarray:

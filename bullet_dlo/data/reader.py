@@ -14,7 +14,7 @@ from typing import Any, Callable
 
 from bullet_dlo.core.validate import ParameterError
 from bullet_dlo.data.quality import plot_quality
-from bullet_dlo.data.storage import JSON_ATTRS, is_capture_dir, read_manifest
+from bullet_dlo.data.storage import JSON_ATTRS, is_capture_dir, read_manifest, read_spec_file
 
 
 def load_episode(path: str | Path) -> dict[str, Any]:
@@ -30,13 +30,18 @@ def load_episode(path: str | Path) -> dict[str, Any]:
 
 
 class Dataset:
-    """A capture directory: its manifest records (sorted by episode) and episode files."""
+    """A capture directory: its manifest records (sorted by episode) and episode files.
+
+    A damaged ``capture.json`` or manifest line raises ParameterError naming it (a torn last
+    line, the trace of a killed capture, is skipped: ``bullet-dlo capture --resume`` repairs it).
+    """
 
     def __init__(self, root: str | Path):
         self.root = Path(root)
         if not is_capture_dir(self.root):
             raise ParameterError(f"{self.root} is not a capture directory (no capture.json)")
-        self.records = [r for _, r in sorted(read_manifest(self.root).items())]
+        self.spec = read_spec_file(self.root)
+        self.records = [r for _, r in sorted(read_manifest(self.root, strict=True).items())]
 
     def select(self, status: str | None = "ok", where: Callable[[dict], bool] | None = None,
                max_hf_energy: float | None = None) -> list[dict]:

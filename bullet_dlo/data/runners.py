@@ -1,13 +1,20 @@
 """Running episodes in parallel: a local process pool or Ray tasks.
 
 A runner takes the spec (its dict form, cheap to send to workers), the episode indices and the
-output directory, and yields ``(index, record)`` as episodes finish, in any order. Records of
-episodes that crashed are ``failed`` records; the coordinator decides about retries.
+output directory, and yields ``(index, record)`` as episodes finish, in any order; it yields
+exactly one record per index. Records of episodes that crashed are ``failed`` records; the
+coordinator decides about retries. ``task`` replaces the episode function (tests use it to
+kill workers on purpose); it must be importable by name in a spawned process.
+
+Local workers watch their parent: when the coordinator dies (even by SIGKILL) they exit
+within ``PARENT_POLL_S`` instead of running on as orphans that write files no manifest lists.
 """
 from __future__ import annotations
 
 import multiprocessing as mp
 import os
+import threading
+import time
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from concurrent.futures.process import BrokenProcessPool
 from typing import Callable, Iterator
@@ -15,7 +22,9 @@ from typing import Callable, Iterator
 from bullet_dlo.core.validate import ParameterError
 from bullet_dlo.data.storage import failed_record
 
-Runner = Callable[[dict, list[int], str, int], Iterator[tuple[int, dict]]]
+Task = Callable[[dict, int, str], dict]
+Runner = Callable[..., Iterator[tuple[int, dict]]]
+PARENT_POLL_S = 0.5  # [s] how often a local worker checks that its coordinator is alive
 
 
 def _episode_task() -> Callable[[dict, int, str], dict]:
@@ -25,23 +34,37 @@ def _episode_task() -> Callable[[dict, int, str], dict]:
     return run_episode_safely
 
 
-def run_local(spec_dict: dict, indices: list[int], out: str, workers: int) -> Iterator[tuple[int, dict]]:
+def watch_parent(parent: int) -> None:
+    """Worker initializer: exit this process as soon as ``parent`` (the coordinator's pid) is gone."""
+
+    def watch() -> None:
+        while os.getppid() == parent:
+            time.sleep(PARENT_POLL_S)
+        os._exit(3)  # orphaned: the coordinator will not record anything this worker writes
+
+    threading.Thread(target=watch, name="watch-parent", daemon=True).start()
+
+
+def run_local(spec_dict: dict, indices: list[int], out: str, workers: int,
+              task: Task | None = None) -> Iterator[tuple[int, dict]]:
     """Process pool (spawned workers); a crashed worker (BrokenProcessPool) is replaced and its
     episodes re-submitted once; an episode whose worker dies twice is recorded as failed."""
-    task = _episode_task()
+    task = task or _episode_task()
     remaining = list(indices)
     crashes = {i: 0 for i in indices}
     while remaining:
-        with ProcessPoolExecutor(max_workers=workers, mp_context=mp.get_context("spawn")) as pool:
+        with ProcessPoolExecutor(max_workers=min(workers, len(remaining)), mp_context=mp.get_context("spawn"),
+                                 initializer=watch_parent, initargs=(os.getpid(),)) as pool:
             futures = {pool.submit(task, spec_dict, i, out): i for i in remaining}
             finished: set[int] = set()
-            try:
-                for fut in as_completed(futures):
-                    i = futures[fut]
-                    finished.add(i)
-                    yield i, fut.result()
-            except BrokenProcessPool:
-                pass
+            for fut in as_completed(futures):
+                i = futures[fut]
+                try:
+                    record = fut.result()
+                except BrokenProcessPool:
+                    continue  # its worker died (or the pool broke): re-submitted below
+                finished.add(i)  # only once its record is in hand: a killed episode is never lost
+                yield i, record
         lost = [i for i in remaining if i not in finished]
         for i in lost:
             crashes[i] += 1
@@ -50,7 +73,8 @@ def run_local(spec_dict: dict, indices: list[int], out: str, workers: int) -> It
         remaining = [i for i in lost if crashes[i] <= 1]
 
 
-def run_ray(spec_dict: dict, indices: list[int], out: str, workers: int) -> Iterator[tuple[int, dict]]:
+def run_ray(spec_dict: dict, indices: list[int], out: str, workers: int,
+            task: Task | None = None) -> Iterator[tuple[int, dict]]:
     """Ray tasks (``ray.init()`` joins RAY_ADDRESS if set, else starts a local instance with ``workers`` CPUs);
     a task whose worker died is retried once by Ray, then recorded as failed."""
     try:
@@ -60,8 +84,8 @@ def run_ray(spec_dict: dict, indices: list[int], out: str, workers: int) -> Iter
     if not ray.is_initialized():
         ray.init(num_cpus=None if os.environ.get("RAY_ADDRESS") else workers, include_dashboard=False,
                  log_to_driver=False)
-    task = ray.remote(max_retries=1)(_episode_task())
-    refs = {task.remote(spec_dict, i, out): i for i in indices}
+    remote = ray.remote(max_retries=1)(task or _episode_task())
+    refs = {remote.remote(spec_dict, i, out): i for i in indices}
     while refs:
         done, _ = ray.wait(list(refs), num_returns=1)
         for ref in done:

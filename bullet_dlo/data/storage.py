@@ -3,6 +3,7 @@
 Layout of a capture directory::
 
     capture.json            the spec and its digest: a directory never mixes specs
+    .lock                   held (flock) by the capture writing into the directory
     manifest.jsonl          one JSON record per finished episode (written by the coordinator only)
     episode_000012.h5       one file per episode, written as ``*.h5.tmp-<pid>`` and renamed when complete
 
@@ -15,8 +16,9 @@ from __future__ import annotations
 
 import json
 import os
+from contextlib import contextmanager
 from pathlib import Path
-from typing import Any
+from typing import Any, Iterator
 
 import numpy as np
 
@@ -25,6 +27,8 @@ from bullet_dlo.core.validate import ParameterError
 
 MANIFEST = "manifest.jsonl"
 SPEC_FILE = "capture.json"
+LOCK_FILE = ".lock"
+STATUSES = ("ok", "flagged", "failed")
 JSON_ATTRS = ("params", "decision", "metrics")  # episode attributes stored as JSON text
 
 
@@ -82,34 +86,67 @@ def write_episode(out_dir: str | Path, index: int, arrays: dict[str, np.ndarray]
     return name
 
 
-def episode_record(path: Path) -> dict | None:
-    """Rebuild the manifest record of a finished episode file; an unreadable file is deleted (None)."""
+def episode_record(path: Path, digest: str | None = None) -> dict | None:
+    """Rebuild the manifest record of a finished episode file; an unreadable file is deleted (None).
+
+    With ``digest``, a file written for another spec raises ParameterError (never mixed in).
+    """
     import h5py
 
     try:
         with h5py.File(path, "r") as f:
             a = f.attrs
+            if digest is not None and "spec_digest" in a and str(a["spec_digest"]) != digest:
+                raise ParameterError(f"{path} was captured with another spec (digest {a['spec_digest']} vs "
+                                     f"{digest}); use another directory")
             t_bad = float(a["time_to_instability"])
             return episode_result(int(a["episode"]), path.name, bool(a["stable"]), None if t_bad < 0 else t_bad,
                                   None, *(json.loads(a[k]) for k in JSON_ATTRS))
+    except ParameterError:
+        raise
     except Exception:  # noqa: BLE001 - a corrupt file is re-run
         path.unlink(missing_ok=True)
         return None
 
 
 # ----- manifest and directory ------------------------------------------------------------------
-def read_manifest(out: Path) -> dict[int, dict]:
-    """Manifest records by episode index (the last line of an episode wins)."""
+def read_manifest(out: Path, strict: bool = False) -> dict[int, dict]:
+    """Manifest records by episode index (the last line of an episode wins).
+
+    A line cut by a kill (not JSON, or not a record with an integer ``episode`` and a ``status``)
+    is skipped: its episode is reconciled from its file or re-run. With ``strict`` such a line
+    raises ParameterError naming it, except a torn last line (the normal trace of a kill).
+    """
     records: dict[int, dict] = {}
     path = out / MANIFEST
-    if path.is_file():
-        for line in path.read_text().splitlines():
-            try:
-                rec = json.loads(line)
-            except json.JSONDecodeError:
-                continue  # a line cut by a kill: the episode will be reconciled or re-run
-            records[int(rec["episode"])] = rec
+    if not path.is_file():
+        return records
+    try:
+        text = path.read_bytes().decode("utf-8")
+    except (OSError, UnicodeDecodeError) as err:
+        raise ParameterError(f"{path} cannot be read as UTF-8 text: {err}") from None
+    lines = text.splitlines()
+    for number, line in enumerate(lines, 1):
+        rec = _record(line)
+        if rec is None:
+            torn = number == len(lines) and not text.endswith("\n")
+            if strict and line.strip() and not torn:
+                raise ParameterError(f"{path} line {number} is not a manifest record (a JSON object with an "
+                                     f"integer episode >= 0 and a status): {line[:60]!r}")
+            continue
+        records[rec["episode"]] = rec
     return records
+
+
+def _record(line: str) -> dict | None:
+    """The manifest record on ``line``, or None when the line is not one."""
+    try:
+        rec = json.loads(line)
+    except json.JSONDecodeError:
+        return None
+    ok = (isinstance(rec, dict) and isinstance(rec.get("episode"), int) and not isinstance(rec["episode"], bool)
+          and rec["episode"] >= 0 and rec.get("status") in STATUSES)
+    return rec if ok else None
 
 
 def append_manifest(out: Path, record: dict) -> None:
@@ -137,29 +174,87 @@ def is_capture_dir(root: Path) -> bool:
     return (root / SPEC_FILE).is_file()
 
 
+def read_spec_file(out: Path) -> dict:
+    """The parsed ``capture.json`` of ``out``; ParameterError when it is damaged."""
+    path = out / SPEC_FILE
+    try:
+        meta = json.loads(path.read_bytes().decode("utf-8"))
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as err:
+        raise ParameterError(f"{path} is damaged ({type(err).__name__}); the spec of this capture directory is "
+                             "unknown: capture into a new directory") from None
+    if not isinstance(meta, dict) or not isinstance(meta.get("digest"), str):
+        raise ParameterError(f"{path} holds no spec digest; the spec of this capture directory is unknown: "
+                             "capture into a new directory")
+    return meta
+
+
+@contextmanager
+def locked(out: Path) -> Iterator[None]:
+    """Hold an exclusive lock on the capture directory ``out`` (a ``.lock`` file, ``fcntl.flock``):
+    a second capture or resume into it refuses instead of running every episode twice. The lock
+    goes with the process, so a killed capture never leaves it behind."""
+    import fcntl
+
+    path = out / LOCK_FILE
+    fh = open(path, "a+")
+    try:
+        fcntl.flock(fh.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        fh.seek(0)
+        holder = fh.read().strip() or "another process"
+        fh.close()
+        raise ParameterError(f"--out {out} is in use by another capture (pid {holder}); wait for it to finish "
+                             "or capture into another directory") from None
+    try:
+        fh.seek(0)
+        fh.truncate()
+        fh.write(str(os.getpid()))
+        fh.flush()
+        yield
+    finally:
+        fh.close()
+
+
 def prepare(spec: CaptureSpec, out: Path, resume: bool) -> dict[int, dict]:
     """Claim ``out`` for ``spec`` (or check it holds this spec), clean temporaries, reconcile finished
-    files whose manifest line was lost; returns the manifest records."""
+    files whose manifest line was lost; returns the manifest records.
+
+    A directory whose ``capture.json`` is missing or damaged while it holds episodes is refused:
+    its spec is unknown, and mixing two specs in one directory is never allowed.
+    """
     out.mkdir(parents=True, exist_ok=True)
     meta = out / SPEC_FILE
-    if meta.is_file():
-        old = json.loads(meta.read_text())
-        if old.get("digest") != spec.digest():
-            raise ParameterError(f"{out} holds a capture of a different spec (digest {old.get('digest')} vs "
+    if meta.exists():
+        old = read_spec_file(out)
+        if old["digest"] != spec.digest():
+            raise ParameterError(f"{out} holds a capture of a different spec (digest {old['digest']} vs "
                                  f"{spec.digest()}); use another directory")
-        if not resume and read_manifest(out):
+        if not resume and (read_manifest(out) or any(out.glob("episode_*.h5"))):
             raise ParameterError(f"{out} already holds episodes of this spec; pass --resume to continue")
     else:
-        meta.write_text(json.dumps({"digest": spec.digest(), "spec": spec.to_dict(), "version": version()},
-                                   indent=2, default=str))
+        if (out / MANIFEST).exists() or any(out.glob("episode_*.h5")):
+            raise ParameterError(f"{out} holds episodes but no {SPEC_FILE}: their spec is unknown; capture into "
+                                 "a new directory")
+        tmp = meta.with_suffix(f".json.tmp-{os.getpid()}")
+        tmp.write_text(json.dumps({"digest": spec.digest(), "spec": spec.to_dict(), "version": version()},
+                                  indent=2, default=str))
+        os.replace(tmp, meta)  # atomic: a kill leaves either no spec file or a whole one
     for tmp in out.glob("*.tmp-*"):
         tmp.unlink()
     records = read_manifest(out)
     for path in sorted(out.glob("episode_*.h5")):
-        index = int(path.stem.split("_")[1])
+        index = _file_index(path)
+        if index is None:
+            continue
         if index not in records or records[index].get("status") == "failed":
-            rec = episode_record(path)
+            rec = episode_record(path, spec.digest())
             if rec is not None:
                 append_manifest(out, rec)
                 records[index] = rec
     return records
+
+
+def _file_index(path: Path) -> int | None:
+    """Episode index from a file name ``episode_000012.h5`` (None for other names)."""
+    digits = path.stem.split("_")[-1]
+    return int(digits) if digits.isdigit() else None
