@@ -82,8 +82,11 @@ def bind(kernel, *args) -> Callable:
     Calling it skips Numba's per-call type dispatch, which for the ~60 arrays inside the
     NamedTuples of a Bullet step costs about 30 us, more than the step's own work at n = 10.
     The caller must keep passing arguments of exactly these types (BulletCable passes the same
-    objects every step).
+    objects every step). With ``NUMBA_DISABLE_JIT=1`` the kernel is a plain Python function and
+    is returned as it is.
     """
+    if not hasattr(kernel, "compile"):  # JIT disabled: nothing to bind
+        return kernel
     return kernel.compile(tuple(numba.typeof(a) for a in args))
 
 
