@@ -306,48 +306,35 @@ def holder_plan(first: EndHolder, last: EndHolder) -> HolderPlan:
     )
 
 
+class MotionOffset:
+    """What the motion ``items`` of end ``end`` do to a pose held by that end, evaluated by the kernels
+    (the plans are built once, so that calling it every step is cheap).
+
+    ``offset(t)`` at time t [s] gives the displacement [m], velocity [m/s], acceleration [m/s^2],
+    each (3,), and the rotation matrix that turns the start orientation, (3, 3) (columns: the
+    images of the world axes). A gripper holding that end follows ``position0 + displacement``
+    with orientation ``R @ R0``.
+    """
+
+    def __init__(self, items: Sequence[Motion], end: str):
+        mine = tuple(m for m in items if m.end == end)
+        holders = [EndHolder("clamped", np.zeros(3), axis, mine) for axis in np.eye(3)]
+        self.plans = [holder_plan(h, h) for h in holders]
+        self.samples = empty_samples()
+
+    def __call__(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        s = self.samples
+        turn = np.empty((3, 3))
+        for axis, plan in enumerate(self.plans):
+            sample_holders(plan, float(t), 0.0, s)
+            turn[:, axis] = s.dir[0, 0]
+        return s.pos[0, 0].copy(), s.vel[0, 0].copy(), s.acc[0, 0].copy(), turn
+
+
 def motion_offset(items: Sequence[Motion], end: str, times: np.ndarray | Sequence[float]
                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """What the motion ``items`` of end ``end`` do at ``times`` [s], shape (k,), evaluated by the kernels:
-    displacement [m], velocity [m/s], acceleration [m/s^2], each (k, 3), and the rotation matrix
-    that turns the start orientation, (k, 3, 3) (columns: the images of the world axes).
-
-    A gripper holding that end follows ``position0 + displacement`` with orientation ``R @ R0``.
-    """
-    mine = tuple(m for m in items if m.end == end)
-    times = np.atleast_1d(np.asarray(times, dtype=float))
-    out = [np.zeros((len(times), 3)) for _ in range(3)] + [np.zeros((len(times), 3, 3))]
-    samples = empty_samples()
-    for axis in range(3):
-        e = np.eye(3)[axis]
-        holder = EndHolder("clamped", np.zeros(3), e, mine)
-        plan = holder_plan(holder, holder)
-        for i, t in enumerate(times):
-            sample_holders(plan, float(t), 0.0, samples)
-            out[3][i, :, axis] = samples.dir[0, 0]
-            if axis == 0:
-                out[0][i], out[1][i], out[2][i] = samples.pos[0, 0], samples.vel[0, 0], samples.acc[0, 0]
-    return out[0], out[1], out[2], out[3]
-
-
-def parse_motion(items: Sequence[Mapping[str, Any]] | None) -> tuple[Motion, ...]:
-    """Parse the scene file's ``motion`` list (entries with ``type: move`` (default), ``waypoints`` or ``sine``)."""
-    if items is None:
-        return ()
-    if not isinstance(items, (list, tuple)):
-        raise ParameterError("motion must be a list of moves")
-    out = []
-    for k, item in enumerate(items):
-        if isinstance(item, (Move, Waypoints, Sine)):
-            out.append(item)
-            continue
-        if not isinstance(item, Mapping):
-            raise ParameterError(f"motion[{k}] must be a mapping with 'type' (move, waypoints, sine) and 'end'")
-        kind = str(item.get("type", "move")).lower()
-        if kind not in MOTION_TYPES:
-            raise ParameterError(f"motion[{k}].type must be one of {', '.join(MOTION_TYPES)}, got {kind!r}")
-        out.append(MOTION_TYPES[kind].from_dict(item))
-    for end in END_NAMES:
-        if sum(isinstance(m, Waypoints) and m.end == end for m in out) > 1:
-            raise ParameterError(f"motion: at most one waypoints entry per end ('{end}' has more)")
-    return tuple(out)
+    """:class:`MotionOffset` at several ``times`` [s], shape (k,): displacement, velocity, acceleration,
+    each (k, 3), and rotation matrices, (k, 3, 3)."""
+    offset = MotionOffset(items, end)
+    rows = [offset(t) for t in np.atleast_1d(np.asarray(times, dtype=float))]
+    return tuple(np.array([r[i] for r in rows]) for i in range(4))  # type: ignore[return-value]

@@ -1,9 +1,13 @@
-"""What happens in a dual-arm episode of the grasp study: grasp, release, and Cartesian gripper moves.
+"""What happens in a dual-arm episode of the grasp study: grasp, release, and gripper trajectories.
 
 A move translates one grasp frame along a straight line with a minimum-jerk profile (the
-orientation is kept). Before every Bullet step during a move, the arm's joint targets are set
-by one IK solve (:meth:`~bullet_dlo.robots.arm.Robot.track`) for the frame's target at the
-end of that step; the arm's position control follows. Another task (e.g. an environment
+orientation is kept). Any core motion item (:class:`~bullet_dlo.core.boundary.Move` with
+rotation, :class:`~bullet_dlo.core.boundary.Waypoints`, :class:`~bullet_dlo.core.boundary.Sine`;
+end ``first`` = left arm, ``last`` = right arm) moves and turns the grasp frame as the core
+moves and turns a held end (:meth:`DualArmTask.follow`): the held tangent turns with the gripper.
+Before every Bullet step during a motion, the arm's joint targets are set by one IK solve
+(:meth:`~bullet_dlo.robots.arm.Robot.track`) for the frame's target at the end of that step;
+the arm's position control follows. Another task (e.g. an environment
 whose actions are joint targets) replaces this one and keeps the physics and observation.
 """
 from __future__ import annotations
@@ -13,9 +17,12 @@ from typing import Sequence
 
 import numpy as np
 
-from bullet_dlo.core.boundary import min_jerk
+from bullet_dlo.core.boundary import Motion, MotionOffset, min_jerk
 from bullet_dlo.core.validate import check_positive, check_vector3
 from bullet_dlo.robots.dual_arm.physics import DualArmPhysics, arm_index, arm_indices
+from bullet_dlo.robots.transforms import quat_from_matrix, rotation
+
+END_OF_ARM = ("first", "last")
 
 
 @dataclass(frozen=True)
@@ -39,6 +46,8 @@ class DualArmTask:
     def __init__(self, physics: DualArmPhysics):
         self.physics = physics
         self.moves: list[CartesianMove] = []
+        self.motion: list[Motion] = []  # core motion items (end first = left, last = right), times from t = 0
+        self._offsets: list[MotionOffset | None] = [None, None]  # per arm, rebuilt when an item is added
         physics.world.before_step.append(self._track)
 
     def grasp(self, arm: int | str | None = None) -> None:
@@ -64,18 +73,48 @@ class DualArmTask:
         robot.solve_ik(end, quat, seed=robot.joint_positions())
         self.moves.append(CartesianMove(a, d, t0, check_positive("move duration", duration)))
 
+    def follow(self, item: Motion) -> None:
+        """Add a core motion item (Move, Waypoints, Sine) to the grasp frame of the arm holding its end
+        (first = left, last = right): displacements [m] and rotations [rad] about world axes, relative
+        to the grasp pose, times [s] of the world clock. Checks the targets at the item's start, end and
+        every 50 ms between (at most 1 s) for reachability with IK (ParameterError if unreachable)."""
+        self.motion.append(item)
+        a = END_OF_ARM.index(item.end)
+        self._offsets[a] = MotionOffset(self.motion, item.end)
+        robot = self.physics.robots[a]
+        end = item.start + min(item.duration, 1.0)
+        for t in np.unique(np.r_[np.arange(item.start, end, 0.05), end]):
+            robot.solve_ik(*self.target_pose(a, float(t)), seed=robot.joint_positions())
+
     def target(self, arm: int, t: float) -> np.ndarray:
         """Grasp-frame position [m] of arm ``arm`` scheduled for time ``t`` [s], shape (3,)."""
-        pos = self.physics.grasp_poses[arm][0].copy()
+        return self.target_pose(arm, t)[0]
+
+    def target_pose(self, arm: int, t: float) -> tuple[np.ndarray, np.ndarray]:
+        """Grasp-frame position [m] (3,) and quaternion (x, y, z, w) (4,) of arm ``arm`` scheduled for ``t`` [s]."""
+        pos, quat = self.physics.grasp_poses[arm]
+        pos = pos.copy()
         for m in self.moves:
             if m.arm == arm:
                 pos += m.displacement * m.fraction(t)
-        return pos
+        offset = self._offsets[arm]
+        if offset is not None:
+            disp, _, _, turn = offset(t)
+            pos += disp
+            quat = quat_from_matrix(turn @ rotation(quat))
+        return pos, quat
+
+    def _moving(self, arm: int, t: float) -> bool:
+        """Whether arm ``arm`` has a move or motion item under way at ``t`` [s] (one step of slack)."""
+        dt = self.physics.world.dt
+        if any(m.arm == arm and m.start <= t <= m.start + m.duration + dt for m in self.moves):
+            return True
+        return any(m.end == END_OF_ARM[arm] and m.start <= t <= m.start + m.duration + dt for m in self.motion)
 
     def _track(self) -> None:
         """Before the Bullet step: joint targets for the arms that move during it."""
         world = self.physics.world
         t_next = world.time + world.dt
         for a, robot in enumerate(self.physics.robots):
-            if any(m.arm == a and m.start <= t_next <= m.start + m.duration + world.dt for m in self.moves):
-                robot.set_targets(robot.track(self.target(a, t_next), self.physics.grasp_poses[a][1]))
+            if self._moving(a, t_next):
+                robot.set_targets(robot.track(*self.target_pose(a, t_next)))
