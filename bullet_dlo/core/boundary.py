@@ -338,3 +338,27 @@ def motion_offset(items: Sequence[Motion], end: str, times: np.ndarray | Sequenc
     offset = MotionOffset(items, end)
     rows = [offset(t) for t in np.atleast_1d(np.asarray(times, dtype=float))]
     return tuple(np.array([r[i] for r in rows]) for i in range(4))  # type: ignore[return-value]
+
+
+def parse_motion(items: Sequence[Mapping[str, Any]] | None) -> tuple[Motion, ...]:
+    """Parse the scene file's ``motion`` list (entries with ``type: move`` (default), ``waypoints`` or ``sine``)."""
+    if items is None:
+        return ()
+    if not isinstance(items, (list, tuple)):
+        raise ParameterError("motion must be a list of moves")
+    out = []
+    for k, item in enumerate(items):
+        if isinstance(item, (Move, Waypoints, Sine)):
+            out.append(item)
+            continue
+        if not isinstance(item, Mapping):
+            raise ParameterError(f"motion[{k}] must be a mapping with 'type' (move, waypoints, sine) and 'end'")
+        kind = str(item.get("type", "move")).lower()
+        if kind not in MOTION_TYPES:
+            raise ParameterError(f"motion[{k}].type must be one of {', '.join(MOTION_TYPES)}, got {kind!r}")
+        out.append(MOTION_TYPES[kind].from_dict(item))
+    for end in END_NAMES:
+        if sum(isinstance(m, Waypoints) and m.end == end for m in out) > 1:
+            raise ParameterError(f"motion: at most one waypoints entry per end ('{end}' has more)")
+    return tuple(out)
+
