@@ -70,6 +70,9 @@ class DualArmSpec:
     along x [m]; table_height: top of the table [m] (0: no table); renderer: Bullet renderer
     (None: none). Wrist sensors: sensor_rate [Hz] (None: every step); noise_std, bias: per
     component (fx fy fz mx my mz) [N, N m], checked where the sensors are built; seed: for the noise.
+    start: the cable's shape when it is attached: ``settled`` (static equilibrium with both ends
+    clamped in the grippers' hold: the first sample reads the static load) or ``straight`` (at
+    full length between the grippers, released into a start transient; the behaviour before 0.3).
     """
 
     robot: str = "kuka"
@@ -85,9 +88,12 @@ class DualArmSpec:
     seed: int = 0
     renderer: str | None = None
     substeps: int = 1
+    start: str = "settled"
 
     def __post_init__(self) -> None:
         check_positive("dt", self.dt)
+        if self.start not in ("settled", "straight"):
+            raise ParameterError(f"start must be one of settled, straight, got {self.start!r}")
         check_positive("hold_height", self.hold_height)
         check_positive("base_distance", self.base_distance)
         check_nonnegative("table_height", self.table_height)

@@ -13,6 +13,7 @@ tangent). Stepping order, by the world's hooks:
 """
 from __future__ import annotations
 
+from dataclasses import replace
 from typing import Sequence
 
 import numpy as np
@@ -21,7 +22,8 @@ import pybullet as pb
 from bullet_dlo.bullet.cable import BulletCable
 from bullet_dlo.bullet.world import BulletWorld
 from bullet_dlo.config.robot import DualArmSpec, RobotSpec, load_robot_spec
-from bullet_dlo.core.model import CableModel
+from bullet_dlo.core.model import CableModel, CableState
+from bullet_dlo.core.statics import solve_static
 from bullet_dlo.core.validate import ParameterError, check_positive
 from bullet_dlo.robots.arm import Robot
 from bullet_dlo.robots.transforms import quat_from_axes, rotation
@@ -56,7 +58,8 @@ class DualArmPhysics:
 
     Built in this order: the arms are placed by IK so that their grasp frames hold the ends of
     the straight cable (z down, x along the cable pointing into it), settled for
-    :data:`SETTLE_STEPS` bare steps, then the cable is added, both ends free. Build the
+    :data:`SETTLE_STEPS` bare steps, then the cable is added, both ends free, in its static
+    shape in the grippers' hold (:meth:`settled_state`; ``spec.start = "straight"``: straight). Build the
     observation (:class:`~.observation.DualArmObservation`) right after, before the first step:
     its sensors tare on the unloaded arms. Any task then clamps ends (:meth:`clamp`) and drives
     the arms (``robots[i].set_targets``) from a ``world.before_step`` hook.
@@ -106,10 +109,12 @@ class DualArmPhysics:
         self.grasp_poses.append((position, quat))
 
     def _add_cable(self) -> BulletCable:
-        """The straight cable from the left grasp frame along +x, both ends free, not colliding with its holders."""
+        """The cable from the left grasp frame along +x, both ends free, not colliding with its holders;
+        settled in the grippers' hold (``spec.start``) or straight."""
         start, _ = self.robots[0].grasp_pose()
         model = CableModel.straight(self.spec.cable, start, (1.0, 0.0, 0.0), ("free", "free"), (), self.world.gravity)
-        cable = self.world.add_cable(model, integrator=self.spec.integrator, record_every=10**9,
+        state = self.settled_state(model) if self.spec.start == "settled" else None
+        cable = self.world.add_cable(model, integrator=self.spec.integrator, record_every=10**9, state=state,
                                      overlap_ok=[r.body for r in self.robots], substeps=self.spec.substeps)
         cid = self.world.client
         ends = (cable.body_ids[:NO_CONTACT_NODES], cable.body_ids[-NO_CONTACT_NODES:])
@@ -118,6 +123,29 @@ class DualArmPhysics:
                 for link in range(-1, pb.getNumJoints(robot.body, physicsClientId=cid)):
                     pb.setCollisionFilterPair(robot.body, sphere, link, -1, 0, physicsClientId=cid)
         return cable
+
+    def settled_state(self, model: CableModel) -> CableState:
+        """Static equilibrium of ``model``'s cable under gravity with both ends clamped in the grasp
+        frames as the arms hold them now (positions and tangents), at rest: (n, 3) positions [m].
+
+        Contact is not part of the static solve: the table must stay below the hold (checked by
+        DualArmSpec's clearance); a cable that would sag through it is refused.
+        """
+        (p0, q0), (p1, q1) = (robot.grasp_pose() for robot in self.robots)
+        d0, d1 = self.cable_direction(0, q0), self.cable_direction(1, q1)
+        held = CableModel.straight(model.spec, p0, d0, ("clamped", "clamped"), (), model.gravity)
+        held = replace(held, last=replace(held.last, position=np.asarray(p1, dtype=float), direction=d1))
+        x_start = model.x0.copy()  # the straight layout, its last node pulled onto the right grasp
+        x_start += np.outer(np.linspace(0.0, 1.0, model.n), np.asarray(p1) - x_start[-1])
+        res = solve_static(held, x_start)
+        if not res.converged:
+            raise ParameterError(f"the cable's static shape in the grippers' hold did not converge "
+                                 f"(residual {res.residual:.3g} N); use start: straight")
+        top = self.spec.table_height
+        if top > 0 and float(res.x[:, 2].min()) - 0.5 * model.spec.diameter < top:
+            raise ParameterError(f"the settled cable sags to z = {res.x[:, 2].min():.4f} m, through the table top "
+                                 f"{top} m; raise hold_height or use start: straight")
+        return res.state()
 
     # ----- the grasp coupling --------------------------------------------------------------------
     def clamp(self, arm: int) -> None:
