@@ -8,7 +8,6 @@ import numpy as np
 
 from bullet_dlo.cli.quiet import bar
 from bullet_dlo.cli.simulate import write_json
-from bullet_dlo.core.validate import ParameterError
 
 
 def _grasp_setup(args: argparse.Namespace):
@@ -17,6 +16,7 @@ def _grasp_setup(args: argparse.Namespace):
     from bullet_dlo.config.robot import robot_names
     from bullet_dlo.config.scene import Scene
     from bullet_dlo.config.schema import one_of
+    from bullet_dlo.core.boundary import Move
     from bullet_dlo.core.spec import CableSpec
     from bullet_dlo.core.validate import check_in_range, check_positive, check_steps
 
@@ -28,14 +28,12 @@ def _grasp_setup(args: argparse.Namespace):
 
     if args.scene:
         scene = Scene.from_yaml(args.scene).resolved()
-        if any(np.any(np.asarray(m.rotation) != 0.0) for m in scene.motion):
-            raise ParameterError("motion: gripper rotations are not supported by grasp yet; use displacements")
         cable, dt, integrator, duration = scene.cable, scene.dt, scene.integrator, scene.duration
-        moves = [("left" if m.end == "first" else "right", m.displacement, m.start, m.duration) for m in scene.motion]
+        moves = list(scene.motion)  # core motion items: first end = left arm, last = right
     else:
         cable = CableSpec.lv2017(n_masses=10, damping=0.02)
         dt, integrator, duration = 1.0 / 240.0, "implicit_euler", 3.0
-        moves = [("right", (0.0, 0.0, 0.005), 1.5, 0.1)]  # the study's 5 mm move
+        moves = [Move("last", (0.0, 0.0, 0.005), 1.5, 0.1)]  # the study's 5 mm move
     dt_lo, dt_hi = PARAMETERS["dt"][2]  # a robot controller's step
     dt = check_in_range("--dt [s]" if args.dt is not None else "dt [s] (robot scenes)",
                         dt if args.dt is None else args.dt, dt_lo, dt_hi)
@@ -53,8 +51,18 @@ def cmd_grasp(args: argparse.Namespace) -> int:
                            sensor_rate=args.sensor_rate, noise_std=(args.noise,) * 3 + (0.0,) * 3)
     with DualArmScene(config) as sc:
         sc.grasp()
-        for arm, disp, start, dur in moves:
-            sc.move(arm, disp, dur, start=start)
+        for m in moves:
+            if type(m).__name__ == "Move" and not any(m.rotation):  # the straight-line move of the study
+                sc.move("left" if m.end == "first" else "right", m.displacement, m.duration, start=m.start)
+            else:  # rotations, waypoints, sines: position and orientation of the gripper
+                sc.task.follow(m)
+        recorder = None
+        if args.series:
+            from bullet_dlo.data.recording import SeriesRecorder, series_format
+
+            series_format(args.series)  # a bad suffix fails before the run, not after
+            recorder = SeriesRecorder(sc)
+            sc.world.after_step.append(recorder)
         with bar(int(round(duration / dt)), f"grasp ({args.robot})", args.quiet, unit="step") as progress:
             sc.world.after_step.append(lambda: progress.update(1))
             wall = sc.run(duration)
@@ -71,6 +79,11 @@ def cmd_grasp(args: argparse.Namespace) -> int:
             "sensor_vs_model_error": float(np.max(np.abs(w[:, :3] - f)) / weight),
             "wall_time_s": wall, "steps": sc.world.steps,
         }
+        if recorder is not None:
+            from bullet_dlo.data.recording import write_series
+
+            write_series(args.series, recorder.arrays(), {k: v for k, v in data.items() if not isinstance(v, dict)}
+                         | {"cable": cable.to_dict()})
     if args.json:
         write_json(args.json, data)
     print(f"{args.robot}: {'stable' if data['stable'] else 'UNSTABLE'}, {data['steps']} steps in {wall:.2f} s; "
@@ -120,6 +133,10 @@ def add_parsers(sub, common: argparse.ArgumentParser) -> None:
     s.add_argument("--duration", type=float, help="simulated time [s] (default 3 or the scene's)")
     s.add_argument("--sensor-rate", type=float, default=None, help="F/T sensor rate [Hz] (default: every step)")
     s.add_argument("--noise", type=float, default=0.0, help="F/T force noise standard deviation [N] (default 0)")
+    s.add_argument("--series", metavar="OUT.npz|OUT.h5|OUT.csv", help="write the per-step time series (wrist "
+                   "wrenches in world and sensor frame, model end forces and moments, grasp poses, joint states, "
+                   "cable positions; names as in dataset episodes, see bullet_dlo.data.recording); .csv holds what "
+                   "bullet-dlo fit needs")
     s.set_defaults(func=cmd_grasp)
 
     s = sub.add_parser("render", parents=[common], help="headless video and force plots of a scene",
