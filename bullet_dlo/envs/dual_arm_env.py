@@ -181,7 +181,7 @@ class DualArmEnv(gym.Env):
     def _info(self) -> dict[str, Any]:
         cable = self.physics.cable
         return {"unstable": bool(self.unstable), "reason": cable.reason if self.unstable else None,
-                "time": float(self.physics.world.time), "params": self.draw.params, **self._task_info()}
+                "time": float(self.physics.world.time), "params": dict(self.draw.params), **self._task_info()}
 
     # ----- observation ----------------------------------------------------------------------------
     def _observation(self) -> dict[str, np.ndarray]:

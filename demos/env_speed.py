@@ -1,0 +1,164 @@
+"""How fast the dual-arm step and the environments run, against Bullet's own step.
+
+1. The dual-arm step (arms, cable, wrist sensors, grasp coupling: ``world.step`` of a
+   :class:`~bullet_dlo.robots.dual_arm.DualArmPhysics` with both ends clamped) against a bare
+   ``stepSimulation`` of the same world, in interleaved blocks (Bullet's state saved before each
+   bare block and restored after it, so both always step the same world), medians, at n = 10
+   and 40 masses for both robots; then where the rest of the time goes (per-step hooks timed).
+2. ``bullet_dlo/TensionTracking-v0`` steps per second on one core (random actions).
+3. An AsyncVectorEnv over 2 worker processes against one environment in this process.
+
+Prints ratios and rates; writes nothing. ``--quick`` for a short run (smoke test).
+
+    python demos/env_speed.py [--quick] [--robots panda kuka] [--masses 10 40]
+"""
+from __future__ import annotations
+
+import argparse
+import statistics
+import time
+
+import numpy as np
+import pybullet as pb
+
+from bullet_dlo.core.spec import CableSpec
+from bullet_dlo.robots.dual_arm import DualArmObservation, DualArmPhysics, DualArmSpec
+
+BLOCK = 24  # physics steps per timed block (0.1 s at 240 Hz: the bare cable spheres fall 5 cm, no contact)
+
+
+def build(robot: str, n: int) -> DualArmPhysics:
+    """The dual-arm scene, sensors on, both ends clamped, settled for 0.25 s."""
+    physics = DualArmPhysics(DualArmSpec(robot=robot, cable=CableSpec.lv2017(n_masses=n, damping=0.02)))
+    DualArmObservation(physics, record=False)
+    physics.clamp(0)
+    physics.clamp(1)
+    physics.world.step(60)
+    return physics
+
+
+def step_vs_bare(physics: DualArmPhysics, blocks: int) -> tuple[float, float]:
+    """Median wall time [s] per simulated second of the dual-arm step and of the bare Bullet step."""
+    world, cid = physics.world, physics.world.client
+    full, bare = [], []
+    for _ in range(blocks):
+        tic = time.perf_counter()
+        world.step(BLOCK)
+        full.append(time.perf_counter() - tic)
+        state = pb.saveState(physicsClientId=cid)
+        tic = time.perf_counter()
+        world.step_bare(BLOCK)
+        bare.append(time.perf_counter() - tic)
+        pb.restoreState(stateId=state, physicsClientId=cid)
+        pb.removeState(state, physicsClientId=cid)
+    per_second = 1.0 / (BLOCK * world.dt)
+    return statistics.median(full) * per_second, statistics.median(bare) * per_second
+
+
+def breakdown(physics: DualArmPhysics, steps: int) -> dict[str, float]:
+    """Wall time [us] per step of each part of the dual-arm step (hooks wrapped with timers)."""
+    world, cable = physics.world, physics.cable
+    spent: dict[str, float] = {}
+
+    def timed(name, fn):
+        def run(*args):
+            tic = time.perf_counter()
+            out = fn(*args)
+            spent[name] = spent.get(name, 0.0) + time.perf_counter() - tic
+            return out
+        return run
+
+    groups = {"_apply_cable_wrench": "grasp coupling (robots/dual_arm/physics.py)",
+              "_follow_grippers": "grasp coupling (robots/dual_arm/physics.py)",
+              "_update_sensors": "wrist sensors (robots/sensors.py)"}
+    saved = (list(world.before_step), list(world.after_physics), cable.apply_forces, cable.sync_after_step)
+    world.before_step[:] = [timed(groups.get(h.__name__, h.__name__), h) for h in world.before_step]
+    world.after_physics[:] = [timed(groups.get(h.__name__, h.__name__), h) for h in world.after_physics]
+    cable.apply_forces = timed("cable step (bullet/cable.py)", cable.apply_forces)
+    cable.sync_after_step = timed("cable step (bullet/cable.py)", cable.sync_after_step)
+    step_simulation = pb.stepSimulation
+    pb.stepSimulation = timed("Bullet stepSimulation", step_simulation)
+    try:
+        tic = time.perf_counter()
+        world.step(steps)
+        total = time.perf_counter() - tic
+    finally:
+        pb.stepSimulation = step_simulation
+        world.before_step[:], world.after_physics[:] = saved[0], saved[1]
+        del cable.apply_forces, cable.sync_after_step
+    out = {k: v / steps * 1e6 for k, v in spent.items()}
+    out["rest (world loop, contact query, timers)"] = total / steps * 1e6 - sum(out.values())
+    return out
+
+
+def env_rate(steps: int) -> tuple[float, float]:
+    """Control steps per second of one TensionTracking env on this core, and simulated seconds per wall second."""
+    from bullet_dlo.envs.tension import TensionTrackingEnv
+
+    env = TensionTrackingEnv()
+    env.reset(seed=0)
+    rng = np.random.default_rng(0)
+    tic = time.perf_counter()
+    for _ in range(steps):
+        env.step(rng.uniform(-0.2, 0.2, 6).astype(np.float32))
+    wall = time.perf_counter() - tic
+    env.close()
+    return steps / wall, steps * env.control_dt / wall
+
+
+def make_env():
+    from bullet_dlo.envs.tension import TensionTrackingEnv
+
+    return TensionTrackingEnv()
+
+
+def vector_rate(steps: int, workers: int = 2) -> float:
+    """Environment steps per second (all workers together) of an AsyncVectorEnv."""
+    import gymnasium as gym
+
+    envs = gym.vector.AsyncVectorEnv([make_env] * workers)
+    envs.reset(seed=list(range(workers)))
+    rng = np.random.default_rng(0)
+    envs.step(rng.uniform(-0.2, 0.2, (workers, 6)).astype(np.float32))  # workers warmed up
+    tic = time.perf_counter()
+    for _ in range(steps):
+        envs.step(rng.uniform(-0.2, 0.2, (workers, 6)).astype(np.float32))
+    wall = time.perf_counter() - tic
+    envs.close()
+    return steps * workers / wall
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--quick", action="store_true", help="short run (a smoke test, noisy numbers)")
+    parser.add_argument("--robots", nargs="+", default=["panda", "kuka"])
+    parser.add_argument("--masses", nargs="+", type=int, default=[10, 40])
+    args = parser.parse_args(argv)
+    blocks, env_steps = (5, 10) if args.quick else (60, 150)
+
+    print(f"dual-arm step vs bare stepSimulation, same world, {blocks} interleaved blocks of {BLOCK} steps, medians")
+    print(f"{'robot':6} {'n':>3} {'dual-arm s/s':>13} {'bare s/s':>9} {'ratio':>6}")
+    parts = None
+    for robot in args.robots:
+        for n in args.masses:
+            physics = build(robot, n)
+            try:
+                full, bare = step_vs_bare(physics, blocks)
+                print(f"{robot:6} {n:3d} {full:13.4f} {bare:9.4f} {full / bare:6.2f}")
+                if parts is None:
+                    parts = (robot, n, breakdown(physics, BLOCK * blocks))
+            finally:
+                physics.close()
+    robot, n, times = parts
+    print(f"\nwhere a dual-arm step goes ({robot}, n = {n}), us per step:")
+    for name, us in sorted(times.items(), key=lambda kv: -kv[1]):
+        print(f"  {us:7.1f}  {name}")
+
+    rate, sim_rate = env_rate(env_steps)
+    print(f"\nTensionTracking-v0 on one core: {rate:.0f} env steps/s ({sim_rate:.1f} simulated s per wall s)")
+    vec = vector_rate(env_steps // 2 if args.quick else env_steps)
+    print(f"AsyncVectorEnv, 2 processes: {vec:.0f} env steps/s together, {vec / rate:.2f}x one env in-process")
+
+
+if __name__ == "__main__":
+    main()
