@@ -78,7 +78,9 @@ class WristSensor:
         c = robot.client
         self.payload = robot.subtree_links(self.joint)  # the tool side: links the sensor carries, its own first
         self.payload_mass = np.array([pb.getDynamicsInfo(robot.body, j, physicsClientId=c)[0] for j in self.payload])
-        self._payload_mass = self.payload_mass.tolist()
+        # links queried every step: the sensor's own (its orientation) and those with mass (the momentum)
+        self._queried = [j for k, j in enumerate(self.payload) if k == 0 or self.payload_mass[k] > 0]
+        self._payload_mass = [float(self.payload_mass[self.payload.index(j)]) for j in self._queried]
         self._bias_list = self.bias.tolist()
         self._noisy = bool(np.any(self.noise_std > 0))  # no noise: no draws (the generator is used only here)
         self._tare = np.zeros(6)
@@ -98,9 +100,9 @@ class WristSensor:
         return rotation(st[1])
 
     def _payload_states(self) -> tuple:
-        """PyBullet's link states of the payload links (the sensor's own link first), with velocities."""
-        return pb.getLinkStates(self.robot.body, self.payload, computeLinkVelocity=True, computeForwardKinematics=True,
-                                physicsClientId=self.robot.client)
+        """PyBullet's link states, with velocities, of the sensor's own link and the payload links with mass."""
+        return pb.getLinkStates(self.robot.body, self._queried, computeLinkVelocity=True,
+                                computeForwardKinematics=True, physicsClientId=self.robot.client)
 
     def _inertial_force(self, states: tuple, dt: float) -> tuple[float, float, float]:
         """Payload's sum of m a [N] in world, from the change of its momentum over the last step dt [s].
