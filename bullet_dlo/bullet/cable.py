@@ -131,6 +131,7 @@ class BulletCable:
         self._refresh_contact_set()
         samples = self._cp.samples
         sample_holders(self.plan, self.t, world.dt, samples)
+        self._detector_options = detector
         self.detector = start_detector(detector, model, self.arrays, self.x, self.v, samples)
         self.status = STABLE
         self.time_to_instability: float | None = None
@@ -260,6 +261,22 @@ class BulletCable:
         self.record.end_forces.append(self.end_forces())
         self.record.energy.append(mechanical_energy(self.arrays, self.x, self.v, self._cp.samples.dir[0]))
 
+    def add_point_mass(self, node: int, mass: float) -> None:
+        """Hang a weight of ``mass`` [kg] (> 0) on node ``node`` (its sphere gets heavier too).
+
+        Meant for set-up (before stepping): the instability detector restarts from the new state.
+        """
+        n = self.model.n
+        if not -n <= node < n:
+            raise ParameterError(f"node must be in [0, {n - 1}], got {node}")
+        node = node % n
+        self.arrays.mass[node] += check_positive("point mass", mass)
+        pb.changeDynamics(self.body_ids[node], -1, mass=float(self.arrays.mass[node]),
+                          physicsClientId=self.world.client)
+        self.detector = start_detector(self._detector_options, self.model, self.arrays, self.x, self.v,
+                                       self._cp.samples)
+        self._replan()
+
     # ----- grasping -----------------------------------------------------------------------
     def hold_externally(self, end: int, mode: str = "clamped") -> None:
         """Make end ``end`` (0 first, 1 last) follow poses given by :meth:`set_external_pose`.
@@ -324,19 +341,20 @@ class BulletCable:
 
     def contact_forces(self) -> dict[str, np.ndarray]:
         """The model's contacts of the step just planned, with the forces on the cable [N]: keys body,
-        node (k, 2), weight (k, 2), point [m], normal, normal_force (k,), friction (k, 3), force (k, 3),
+        node (k, 2), weight (k, 2), point [m], normal, gap [m] (k,), normal_force (k,), friction (k, 3), force (k, 3),
         sliding (k,) (see :meth:`bullet_dlo.bullet.contact.ContactSet.per_contact`); empty when Bullet
         handles contact."""
         if self._contact_set is None:
             z = np.zeros((0, 3))
-            return {"body": np.zeros(0, np.int64), "node": np.zeros((0, 2), np.int64), "weight": np.zeros((0, 2)),
+            return {"body": np.zeros(0, np.int64), "node": np.zeros((0, 2), np.int64), "gap": np.zeros(0),
+                    "weight": np.zeros((0, 2)),
                     "point": z, "normal": z, "normal_force": np.zeros(0), "friction": z, "force": z,
                     "sliding": np.zeros(0, bool)}
-        return self._contact_set.per_contact()
+        return self._contact_set.per_contact(self.x)
 
     def body_forces(self) -> dict[int, np.ndarray]:
         """Total force [N] the cable exerts on each body it touches, {body id: (3,)}."""
-        return self._contact_set.per_body() if self._contact_set is not None else {}
+        return self._contact_set.per_body(self.x) if self._contact_set is not None else {}
 
     def end_moments(self) -> np.ndarray:
         """Torque [N m] the cable exerts on each clamp now, (2, 3) (zero rows for unclamped ends)."""

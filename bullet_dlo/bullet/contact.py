@@ -151,22 +151,26 @@ class ContactSet:
         k_per_mass = self.alpha / (h * h)
         return detect(x, mass, self.shapes, self.contacts, self.store, margin, k_per_mass, self.zeta)
 
-    def per_contact(self) -> dict[str, np.ndarray]:
+    def per_contact(self, x: np.ndarray) -> dict[str, np.ndarray]:
         """The current contacts (forces of the last step, on the cable [N]): body, node (k, 2),
-        weight (k, 2), point [m] (k, 3), normal (k, 3), normal_force (k,), friction (k, 3),
-        force (k, 3) = normal_force normal + friction, sliding (k,) bool."""
+        weight (k, 2), point [m] (k, 3), normal (k, 3), gap [m] (k,) at positions x (negative:
+        penetration), normal_force (k,), friction (k, 3), force (k, 3) = normal_force normal +
+        friction, sliding (k,) bool."""
         c = self.contacts
         k = int(c.count[0])
         fn = c.f_n[:k].clip(min=0.0)
-        return {"body": self.body_ids[self.store.body[:k]], "node": c.node[:k].copy(),
+        idx, w = c.node[:k], c.weight[:k]
+        p = w[:, :1] * x[idx[:, 0]] + w[:, 1:] * x[idx[:, 1]]
+        gap = np.einsum("kj,kj->k", c.normal[:k], p - c.point[:k]) - c.radius[0]
+        return {"body": self.body_ids[self.store.body[:k]], "node": c.node[:k].copy(), "gap": gap,
                 "weight": c.weight[:k].copy(), "point": c.point[:k].copy(), "normal": c.normal[:k].copy(),
                 "normal_force": fn, "friction": c.f_t[:k].copy(),
                 "force": fn[:, None] * c.normal[:k] + c.f_t[:k], "sliding": c.state[:k] != STICK}
 
-    def per_body(self) -> dict[int, np.ndarray]:
+    def per_body(self, x: np.ndarray) -> dict[int, np.ndarray]:
         """Total force [N] the cable exerts on each touched body, {body id: (3,)}."""
         out: dict[int, np.ndarray] = {}
-        pc = self.per_contact()
+        pc = self.per_contact(x)
         for b, f in zip(pc["body"].tolist(), pc["force"]):
             out[b] = out.get(b, np.zeros(3)) - f
         return out

@@ -82,7 +82,9 @@ def test_cable_drapes_over_a_box_edge_and_stays():
             worst_clearance = min(worst_clearance, _box_clearance(world, cable, box))
         assert cable.stable
         x = cable.x
-        assert x[-1, 2] < 0.2 - 0.02  # the free part droops over the edge (25 mm for this stiff cable)
+        # the free part droops over the edge: 11.2 mm by Euler-Bernoulli beam theory with the cable lifting off
+        # the table behind the edge (bound-constrained energy minimum); 12.6 mm here (n = 20, large deflection)
+        assert 0.2 - 0.016 < x[-1, 2] < 0.2 - 0.008
         assert np.all(x[:8, 2] > 0.2)  # the rest still lies on the box
         assert worst_clearance > -1e-3  # no penetration beyond 1 mm
         energies = np.array(cable.record.energy)

@@ -46,6 +46,7 @@ from bullet_dlo.core.kernels.steppers import (
 
 STICK, SLIDE = 0, 1
 DEFAULT_ALPHA = 1.0e4  # k_n h^2 / m: contact frequency times step, squared
+MIN_CONTACT_ITER = 30  # Newton iterations allowed in contact at least (stick/slide kinks need more than 8)
 
 
 class Contacts(NamedTuple):
@@ -296,6 +297,7 @@ def _newton_c(stepper, m, x, imp, ws, c, cap_tol, max_passes):
     r_scale = imp.hf * (np.max(m.mass) * g_norm + np.max(np.abs(m.f_ext))) + 1e-300
     r_floor = 10.0 * 2.2e-16 * imp.hf * (np.max(m.k_stretch) * (xscale + np.max(m.rest_length)))
     nc = c.count[0]
+    max_iter = max(stepper.max_iter, MIN_CONTACT_ITER)
     caps_new = np.empty(max(nc, 1))
     _residual(m, imp, ws, vn, r)  # X at the predictor: caps from its penetration
     elastic_caps(c, ws.x_stage, c.cap)
@@ -316,13 +318,13 @@ def _newton_c(stepper, m, x, imp, ws, c, cap_tol, max_passes):
             for k in range(nc):
                 cmax = max(cmax, caps_new[k])
                 dcap = max(dcap, abs(caps_new[k] - c.cap[k]))
-            if dcap <= cap_tol * cmax or passes >= max_passes or it >= stepper.max_iter:
+            if dcap <= cap_tol * cmax or passes >= max_passes or it >= max_iter:
                 converged = True
                 break
             passes += 1
             c.cap[:nc] = caps_new[:nc]
             continue
-        if it >= stepper.max_iter:
+        if it >= max_iter:
             break
         it += 1
         force_jacobian(m, ws.x_stage, imp.dirs, stepper.definite, ws.jacobian)

@@ -1,0 +1,141 @@
+"""Coulomb friction of the cable's contact model against closed forms: the capstan law and the inclined plane.
+
+Before the contact model (Bullet's sphere contacts), a cable hung over a cylinder slid off at every
+friction coefficient (the spheres rolled) and these tests failed.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from bullet_dlo.bullet.world import BulletWorld
+from bullet_dlo.core.model import CableState
+from bullet_dlo.core.spec import CableSpec
+
+G = 9.81
+R_CAPSTAN = 0.020  # [m] capstan cylinder radius
+Q_AXIS_Y = (math.sin(math.pi / 4), 0.0, 0.0, math.cos(math.pi / 4))  # a cylinder's axis (local z) along y
+
+
+def _along(points, spacing: float, n: int) -> np.ndarray:
+    """n points at arc-length ``spacing`` [m] along the polyline ``points``, (n, 3)."""
+    p = np.asarray(points, float)
+    s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(p, axis=0), axis=1))])
+    return np.stack([np.interp(np.arange(n) * spacing, s, p[:, j]) for j in range(3)], axis=1)
+
+
+def _arc(cx, cz, radius, a0, a1, k=300):
+    a = np.linspace(a0, a1, k)
+    return np.stack([cx + radius * np.cos(a), 0 * a, cz + radius * np.sin(a)], axis=1)
+
+
+def capstan_onset(theta: float, mu: float, hz: float = 240.0, integrator: str = "implicit_euler"):
+    """Soft cable over a fixed cylinder, wrap ``theta`` (pi, or pi/2 with a frictionless guide turning the
+    short side down), 50 g on the short end; the long end's load ramps the static tension ratio
+    T_long/T_short from 1 to 2 exp(mu theta) over 4 s. Returns (ratio at slip onset, the cable):
+    onset is the short end rising 2 mm."""
+    n = 60
+    spec = CableSpec(length=0.6, diameter=0.004, mass=0.009, youngs_modulus=2e6, n_masses=n,
+                     friction=mu, static_friction=mu)
+    lam, r = spec.mass / spec.length, spec.diameter / 2
+    rr = R_CAPSTAN + r
+    world = BulletWorld(dt=1.0 / hz, ground=False)
+    world.add_cylinder(R_CAPSTAN, 0.2, (0, 0, 0), Q_AXIS_Y, friction=mu)  # same mu: the combined value is mu
+    hang = (spec.length - theta * rr) / 2  # long side
+    if theta == math.pi:
+        short = hang
+        path = np.vstack([[[-rr, 0, -hang]], _arc(0, 0, rr, math.pi, 0), [[rr, 0, -hang]]])
+    else:
+        guide_x, guide_r = 0.15, 0.010
+        rg = guide_r + r
+        zg = rr - rg  # guide top level with the cylinder top
+        world.add_cylinder(guide_r, 0.2, (guide_x, 0, zg), Q_AXIS_Y, friction=0.0)
+        short = spec.length - hang - theta * rr - guide_x - math.pi / 2 * rg
+        path = np.vstack([[[-rr, 0, -hang]], _arc(0, 0, rr, math.pi, math.pi / 2),
+                          _arc(guide_x, zg, rg, math.pi / 2, 0), [[guide_x + rg, 0, zg - short]]])
+    x0 = _along(path, spec.rest_length, n)
+    cable = world.add_cable(spec, state=CableState(x0, np.zeros_like(x0)), integrator=integrator)
+    t_short = (0.05 + lam * short) * G  # tension where the short side leaves the cylinder
+    cable.add_point_mass(-1, 0.05)
+    cable.add_point_mass(0, t_short / G - lam * hang)  # ratio 1
+    cable.arrays.damp[:] = 5.0 * cable.arrays.mass  # drag 5 1/s settles the weights' bounce (no effect at rest)
+    ratio_max, ramp, settle = 2.0 * math.exp(mu * theta), 4.0, 0.5
+    z_settled = None
+    try:
+        for k in range(int((ramp + settle) * hz)):
+            t = (k + 1) / hz
+            ratio = 1.0 + (ratio_max - 1.0) * max(0.0, t - settle) / ramp
+            cable.arrays.f_ext[0, 2] = -(ratio - 1.0) * t_short
+            world.step()
+            assert cable.stable, cable.reason
+            if t <= settle:
+                z_settled = cable.x[-1, 2]
+            elif cable.x[-1, 2] - z_settled > 2e-3:
+                return ratio, cable
+    finally:
+        world.close()
+    return None, cable
+
+
+@pytest.mark.parametrize("theta", [math.pi, math.pi / 2])
+@pytest.mark.parametrize("mu", [0.2, 0.4])
+def test_capstan_threshold_within_ten_percent(theta, mu):
+    onset, cable = capstan_onset(theta, mu)
+    exact = math.exp(mu * theta)
+    assert onset is not None, "never slipped"
+    assert onset == pytest.approx(exact, rel=0.10)
+    assert cable.newton_failures == 0
+
+
+def test_capstan_holds_at_sixty_hertz():
+    onset, _ = capstan_onset(math.pi, 0.4, hz=60.0)
+    assert onset == pytest.approx(math.exp(0.4 * math.pi), rel=0.10)
+
+
+def incline(angle: float, *, hz: float = 240.0, integrator: str = "implicit_euler", duration: float = 0.6):
+    """An Lv cable lying straight down a slope (a thin box tilted by ``angle`` [rad] about y).
+
+    Cable friction mu_s 0.5 / mu_d 0.4, slope 0.45: combined sqrt(0.5 * 0.45), sqrt(0.4 * 0.45).
+    Returns (times [s], distance travelled down the slope by the centre of mass [m], the cable).
+    """
+    spec = CableSpec.lv2017(n_masses=20, static_friction=0.5, friction=0.4)
+    r = spec.diameter / 2
+    down = np.array([math.cos(angle), 0.0, -math.sin(angle)])
+    normal = np.array([math.sin(angle), 0.0, math.cos(angle)])
+    half = (1.5, 0.1, 0.01)
+    quat = (0.0, math.sin(angle / 2), 0.0, math.cos(angle / 2))
+    ts, ds = [], []
+    with BulletWorld(dt=1.0 / hz, ground=False) as world:
+        world.add_box(half, (0, 0, 0), quat, friction=0.45)
+        start = (half[2] + r) * normal - 0.6 * down
+        cable = world.add_cable(spec, start=start, direction=down, integrator=integrator)
+        com0 = cable.x.mean(axis=0)
+        for k in range(int(duration * hz)):
+            world.step()
+            ts.append((k + 1) / hz)
+            ds.append(float((cable.x.mean(axis=0) - com0) @ down))
+        assert cable.stable, cable.reason
+    return np.array(ts), np.array(ds), cable
+
+
+MU_S, MU_D = math.sqrt(0.5 * 0.45), math.sqrt(0.4 * 0.45)
+
+
+@pytest.mark.parametrize("integrator", ["implicit_euler", "bdf2", "implicit_midpoint"])
+def test_incline_sticks_below_the_friction_angle(integrator):
+    _, d, cable = incline(0.95 * math.atan(MU_S), integrator=integrator)
+    assert abs(d[-1]) < 1e-5  # stuck (it slid 0.2-0.5 m with Bullet's contacts)
+    assert not cable.contact_forces()["sliding"].any()
+
+
+@pytest.mark.parametrize("integrator", ["implicit_euler", "bdf2", "implicit_midpoint"])
+@pytest.mark.parametrize("factor", [1.1, 1.5])
+def test_incline_slides_with_coulomb_acceleration(integrator, factor):
+    angle = factor * math.atan(MU_S)
+    t, d, cable = incline(angle, integrator=integrator)
+    late = t > 0.2
+    accel = 2.0 * np.polyfit(t[late], d[late], 2)[0]
+    assert accel == pytest.approx(G * (math.sin(angle) - MU_D * math.cos(angle)), rel=0.05)
+    assert cable.contact_forces()["sliding"].all()
