@@ -51,11 +51,7 @@ def cmd_grasp(args: argparse.Namespace) -> int:
                            sensor_rate=args.sensor_rate, noise_std=(args.noise,) * 3 + (0.0,) * 3)
     with DualArmScene(config) as sc:
         sc.grasp()
-        for m in moves:
-            if type(m).__name__ == "Move" and not any(m.rotation):  # the straight-line move of the study
-                sc.move("left" if m.end == "first" else "right", m.displacement, m.duration, start=m.start)
-            else:  # rotations, waypoints, sines: position and orientation of the gripper
-                sc.task.follow(m)
+        sc.follow_motion(moves)
         recorder = None
         if args.series:
             from bullet_dlo.data.recording import SeriesRecorder, series_format

@@ -8,6 +8,7 @@ from typing import Sequence
 import numpy as np
 from tqdm import tqdm
 
+from bullet_dlo.core.boundary import motion_offset
 from bullet_dlo.render.camera import Camera, framing_camera
 from bullet_dlo.render.plots import plot_wrenches
 from bullet_dlo.render.tube import CableTube
@@ -16,24 +17,34 @@ from bullet_dlo.render.video import Recorder, VideoWriter, probe_video, side_by_
 GRIPPER_HEIGHT = 0.08  # [m] of gripper shown above a held cable end
 
 
+def _sample_times(motion: Sequence, step: float = 0.05) -> np.ndarray:
+    """Times [s] at which to sample ``motion`` (Move, Waypoints, Sine items): every ``step`` over its span
+    and every item's start and end; an endless sine is sampled over one period after its start."""
+    marks = [0.0]
+    for m in motion:
+        duration = m.duration if m.duration is not None and np.isfinite(m.duration) else 1.0 / m.frequency
+        marks += [m.start, m.start + duration]
+    return np.unique(np.r_[np.arange(0.0, max(marks), step), marks])
+
+
 def cable_envelope(ends: np.ndarray, length: float, motion: Sequence, free: Sequence[bool] = (False, False),
                    ground: float = 0.0) -> np.ndarray:
     """Points (k, 3) [m] that bound where a cable of ``length`` goes while its ends follow ``motion``.
 
-    ends: the two end positions at t = 0, (2, 3); motion: :class:`~bullet_dlo.core.boundary.Move`
-    items. At every move's start and end the two held ends are taken, and below their midpoint
+    ends: the two end positions at t = 0, (2, 3); motion: Move, Waypoints or Sine items of
+    :mod:`bullet_dlo.core.boundary`. Every 50 ms and at every item's start and end the two held
+    ends are taken, and below their midpoint
     the lowest point an inextensible cable between them can reach (half of sqrt(L^2 - s^2) for
     ends s apart); a ``free`` end may swing anywhere within ``length`` of the other end, above
     ``ground`` [m].
     """
     ends = np.asarray(ends, float)
-    times = sorted({0.0} | {m.start for m in motion} | {m.start + m.duration for m in motion})
+    motion = tuple(motion)
+    times = _sample_times(motion)
+    shift = [motion_offset(motion, end, times)[0] for end in ("first", "last")]  # (k, 3) each
     points = []
-    for t in times:
-        now = ends.copy()
-        for m in motion:
-            done = min(max((t - m.start) / m.duration, 0.0), 1.0)
-            now[0 if m.end == "first" else 1] += done * np.asarray(m.displacement)
+    for k in range(len(times)):
+        now = ends + np.stack([shift[0][k], shift[1][k]])
         span = float(np.linalg.norm(now[1] - now[0]))
         sag = 0.5 * np.sqrt(max(length**2 - span**2, 0.0))
         points += [now[0], now[1], 0.5 * (now[0] + now[1]) - (0.0, 0.0, sag)]
@@ -71,8 +82,7 @@ def render_scene(scene, out: str | Path, *, robot: str | None = None, fps: float
         arm_scene = DualArmScene(DualArmConfig(robot=robot, cable=scene.cable, dt=scene.dt, integrator=scene.integrator,
                                                renderer=renderer, **(arm_options or {})))
         arm_scene.grasp()
-        for m in scene.motion:
-            arm_scene.move("left" if m.end == "first" else "right", m.displacement, m.duration, start=m.start)
+        arm_scene.follow_motion(scene.motion)
         world, cable, free = arm_scene.world, arm_scene.cable, (False, False)
     else:
         from bullet_dlo.bullet.world import build_world

@@ -46,7 +46,12 @@ def test_cable_envelope_holds_the_moved_ends_and_the_deepest_sag():
     assert any(np.allclose(p, final[0]) for p in pts) and any(np.allclose(p, final[1]) for p in pts)
     span = np.linalg.norm(final[1] - final[0])
     lowest = 0.5 * (final[0, 2] + final[1, 2]) - 0.5 * np.sqrt(0.6**2 - span**2)  # inextensible cable
-    assert np.isclose(pts[:, 2].min(), lowest)
+    assert any(np.isclose(p[2], lowest) for p in pts)
+    # half-way (min-jerk fraction 1/2) the ends are closer and lower on average: the cable hangs deeper
+    # than at either end of the move, and the envelope must hold that too
+    mid = np.array([[-0.25, 0.0, 0.4], [0.25, 0.0, 0.5]])
+    mid_low = 0.5 * (mid[0, 2] + mid[1, 2]) - 0.5 * np.sqrt(0.6**2 - np.linalg.norm(mid[1] - mid[0]) ** 2)
+    assert mid_low < lowest and pts[:, 2].min() <= mid_low + 1e-9
     free = cable_envelope(ends, 0.6, (), free=(False, True), ground=0.0)
     assert np.isclose(free[:, 0].max(), -0.3 + 0.6) and free[:, 2].min() == 0.0  # swings about the held end
 
@@ -108,3 +113,15 @@ def test_force_plot_layout_without_warnings_and_cursor_boxes(tmp_path):
     column = int(x0 + (x1 - x0) * (np.pi / 2) / 2.0)
     blue = np.flatnonzero((image[:, column, 0] > 150) & (image[:, column, 2] < 100))
     assert len(blue) and top0 <= blue.min() and blue.max() <= bottom0
+
+
+def test_cable_envelope_follows_waypoints_and_sines():
+    """Any motion item frames: a waypoint path's farthest knot and a sine's crest are inside the envelope."""
+    from bullet_dlo.core.boundary import Sine, Waypoints
+
+    ends = np.array([[-0.3, 0.0, 0.4], [0.3, 0.0, 0.4]])
+    path = Waypoints("first", times=(0.0, 0.5, 1.0), displacements=((0, 0, 0), (0.0, 0.0, 0.15), (0.05, 0, 0)))
+    wave = Sine("last", amplitude=(0.0, 0.08, 0.0), frequency=2.0, start=0.0, duration=1.0)
+    pts = cable_envelope(ends, 0.6, [path, wave])
+    assert pts[:, 2].max() >= 0.4 + 0.15 - 1e-9  # the path's highest knot (C2 path through it)
+    assert pts[:, 1].max() > 0.06  # the sine's crest (sampled every 50 ms at 2 Hz: within 10 % of 0.08)

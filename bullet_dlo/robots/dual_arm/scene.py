@@ -74,6 +74,16 @@ class DualArmScene:
         """Schedule a straight-line gripper move [m] over ``duration`` [s]; see :meth:`DualArmTask.move`."""
         self.task.move(arm, displacement, duration, start)
 
+    def follow_motion(self, items: Sequence) -> None:
+        """Schedule a scene's motion items for the grippers (the first cable end is the left gripper's):
+        a plain straight-line Move as a gripper move (:meth:`move`), anything with rotations,
+        waypoints or sines as a pose the gripper follows (:meth:`DualArmTask.follow`)."""
+        for m in items:
+            if type(m).__name__ == "Move" and not any(m.rotation):
+                self.move("left" if m.end == "first" else "right", m.displacement, m.duration, start=m.start)
+            else:
+                self.task.follow(m)
+
     def run(self, duration: float) -> float:
         """Step for ``duration`` [s] (stopping early if the cable goes unstable); returns the wall time [s]."""
         return self.physics.run(duration)
