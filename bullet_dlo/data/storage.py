@@ -149,6 +149,25 @@ def _record(line: str) -> dict | None:
     return rec if ok else None
 
 
+def repair_manifest(out: Path) -> int:
+    """Drop the lines of the manifest that are no record (a line cut by a kill), atomically; returns
+    how many were dropped. Their episodes are then rebuilt from their files or re-run."""
+    path = out / MANIFEST
+    if not path.is_file():
+        return 0
+    lines = path.read_bytes().decode("utf-8", errors="replace").splitlines()
+    good = [line for line in lines if _record(line) is not None]
+    if len(good) == len(lines):
+        return 0
+    tmp = path.with_suffix(f".jsonl.tmp-{os.getpid()}")
+    with open(tmp, "w") as fh:
+        fh.write("".join(line + "\n" for line in good))
+        fh.flush()
+        os.fsync(fh.fileno())
+    os.replace(tmp, path)
+    return len(lines) - len(good)
+
+
 def append_manifest(out: Path, record: dict) -> None:
     """Append one record and flush it to disk before returning."""
     path = out / MANIFEST
@@ -241,6 +260,7 @@ def prepare(spec: CaptureSpec, out: Path, resume: bool) -> dict[int, dict]:
         os.replace(tmp, meta)  # atomic: a kill leaves either no spec file or a whole one
     for tmp in out.glob("*.tmp-*"):
         tmp.unlink()
+    repair_manifest(out)
     records = read_manifest(out)
     for path in sorted(out.glob("episode_*.h5")):
         index = _file_index(path)
