@@ -46,8 +46,8 @@ from bullet_dlo.bullet.contact import ContactSet
 from bullet_dlo.bullet.kernels import Coupling, ExternalHolders, StepInput, bind, sync_and_advance
 from bullet_dlo.core.engine import DetectorOptions, start_detector
 from bullet_dlo.core.integrators import NewtonOptions, get_integrator, make_stepper
-from bullet_dlo.core.kernels.forces import clamp_torque, mechanical_energy
 from bullet_dlo.core.kernels.contact import DEFAULT_ALPHA, make_contacts
+from bullet_dlo.core.kernels.forces import clamp_torque, mechanical_energy
 from bullet_dlo.core.kernels.holders import empty_samples, sample_holders
 from bullet_dlo.core.kernels.monitor import REASONS, STABLE, end_forces
 from bullet_dlo.core.kernels.steppers import make_workspace
@@ -229,7 +229,8 @@ class BulletCable:
     def _step_input(self, do_sync: bool, index: np.ndarray, pos: np.ndarray, vel: np.ndarray) -> StepInput:
         """What the kernel needs from this step: time, flags, the touched spheres' read-back state."""
         det = self.detector
-        return StepInput(self.t, self.steps > 0 and self.contacts.impact[0] == 0, do_sync, do_sync and self.steps % det.check_every == 0,
+        has_prev = self.steps > 0 and self.contacts.impact[0] == 0  # BDF2 restarts after an impact
+        return StepInput(self.t, has_prev, do_sync, do_sync and self.steps % det.check_every == 0,
                          do_sync and self.steps % det.energy_every == 0, index, pos, vel)
 
     def _kernel_args(self, inp: StepInput) -> tuple:
@@ -341,8 +342,8 @@ class BulletCable:
 
     def contact_forces(self) -> dict[str, np.ndarray]:
         """The model's contacts of the step just planned, with the forces on the cable [N]: keys body,
-        node (k, 2), weight (k, 2), point [m], normal, gap [m] (k,), normal_force (k,), friction (k, 3), force (k, 3),
-        sliding (k,) (see :meth:`bullet_dlo.bullet.contact.ContactSet.per_contact`); empty when Bullet
+        node (k, 2), weight (k, 2), point [m], normal, gap [m] (k,), normal_force (k,), friction (k, 3),
+        force (k, 3), sliding (k,) (see :meth:`bullet_dlo.bullet.contact.ContactSet.per_contact`); empty when Bullet
         handles contact."""
         if self._contact_set is None:
             z = np.zeros((0, 3))

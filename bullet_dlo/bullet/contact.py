@@ -374,7 +374,8 @@ def detect(x, mass, sh, c, st, margin, k_per_mass, zeta):
         rot, pos = sh.rot[s], sh.pos[s]
         for i in range(n):  # nodes in the shape frame
             for j in range(3):
-                q[i, j] = rot[0, j] * (x[i, 0] - pos[0]) + rot[1, j] * (x[i, 1] - pos[1]) + rot[2, j] * (x[i, 2] - pos[2])
+                q[i, j] = (rot[0, j] * (x[i, 0] - pos[0]) + rot[1, j] * (x[i, 1] - pos[1])
+                           + rot[2, j] * (x[i, 2] - pos[2]))
         base = s * per_shape
         for i in range(n):
             d = _node_closest(kind, size, q[i], cl, nl)
