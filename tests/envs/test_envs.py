@@ -237,3 +237,24 @@ def test_speed_benchmark_steps_the_same_world_in_both_arms_of_the_comparison():
         assert parts["Bullet stepSimulation"] > 0 and parts["wrist sensors (robots/sensors.py)"] > 0
     finally:
         physics.close()
+
+
+
+def test_training_demo_feeds_forces_of_order_one_and_its_scripted_baseline_beats_random():
+    """demos/train_tension.py without stable-baselines3 (an optional extra): the policy's flat force-feedback
+    observation, and the evaluation that the learning curve is compared on."""
+    import importlib.util
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[2] / "demos" / "train_tension.py"
+    spec = importlib.util.spec_from_file_location("train_tension", path)
+    demo = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(demo)
+    env = demo.make_env(episode_steps=20)
+    try:
+        obs, _ = env.reset(seed=0)
+        assert obs.shape == (24,) and obs.dtype == np.float32 and np.abs(obs).max() < 10.0
+        base = demo.baselines(env, seeds=(1000,))
+        assert base["scripted"] > base["random"] + 2.0 and base["scripted"] <= 20.0
+    finally:
+        env.close()
