@@ -258,3 +258,19 @@ def test_training_demo_feeds_forces_of_order_one_and_its_scripted_baseline_beats
         assert base["scripted"] > base["random"] + 2.0 and base["scripted"] <= 20.0
     finally:
         env.close()
+
+
+def test_randomisation_takes_a_capture_spec_file_or_dict_and_names_bad_keys(tmp_path):
+    import yaml
+
+    from bullet_dlo.envs.randomisation import EnvRandomisation
+
+    path = tmp_path / "spec.yaml"
+    path.write_text(yaml.safe_dump(NOISY))
+    from_file, from_dict = EnvRandomisation(path), EnvRandomisation(NOISY)
+    a = from_file.draw(np.random.default_rng(3), None)
+    b = from_dict.draw(np.random.default_rng(3), None)
+    assert a.params == b.params and a.setup == b.setup
+    assert 0.05 <= a.setup.noise_std[0] <= 0.2 and a.setup.robot == "panda"
+    with pytest.raises(ParameterError, match=r"sample.youngs_modulus: low \(2.0\) > high \(1.0\)"):
+        TensionTrackingEnv({"sample": {"youngs_modulus": {"dist": "uniform", "low": 2.0, "high": 1.0}}})
