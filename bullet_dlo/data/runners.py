@@ -24,6 +24,7 @@ from bullet_dlo.data.storage import failed_record
 
 Task = Callable[[dict, int, str], dict]
 Runner = Callable[..., Iterator[tuple[int, dict]]]
+SHARED_ROUNDS = 2  # broken pool rounds before lost episodes run one per pool
 PARENT_POLL_S = 0.5  # [s] how often a local worker checks that its coordinator is alive
 
 
@@ -47,30 +48,43 @@ def watch_parent(parent: int) -> None:
 
 def run_local(spec_dict: dict, indices: list[int], out: str, workers: int,
               task: Task | None = None) -> Iterator[tuple[int, dict]]:
-    """Process pool (spawned workers); a crashed worker (BrokenProcessPool) is replaced and its
-    episodes re-submitted once; an episode whose worker dies twice is recorded as failed."""
+    """Process pool (spawned workers). When a worker dies the pool breaks and every episode it had
+    not returned is lost: those are re-run. A broken pool cannot say whose worker died, so after
+    ``SHARED_ROUNDS`` broken rounds the rest run one per pool; an episode whose worker dies twice
+    alone is recorded as failed (an innocent episode that shared a pool is never blamed)."""
     task = task or _episode_task()
     remaining = list(indices)
-    crashes = {i: 0 for i in indices}
+    deaths = {i: 0 for i in indices}
+    rounds = 0
     while remaining:
-        with ProcessPoolExecutor(max_workers=min(workers, len(remaining)), mp_context=mp.get_context("spawn"),
-                                 initializer=watch_parent, initargs=(os.getpid(),)) as pool:
-            futures = {pool.submit(task, spec_dict, i, out): i for i in remaining}
-            finished: set[int] = set()
-            for fut in as_completed(futures):
-                i = futures[fut]
-                try:
-                    record = fut.result()
-                except BrokenProcessPool:
-                    continue  # its worker died (or the pool broke): re-submitted below
-                finished.add(i)  # only once its record is in hand: a killed episode is never lost
-                yield i, record
-        lost = [i for i in remaining if i not in finished]
-        for i in lost:
-            crashes[i] += 1
-        for i in [i for i in lost if crashes[i] > 1]:
+        isolated = rounds >= SHARED_ROUNDS
+        groups = [[i] for i in remaining] if isolated else [remaining]
+        lost: list[int] = []
+        for group in groups:
+            yield from _pool_round(task, spec_dict, group, out, workers, lost)
+        if isolated:
+            for i in lost:
+                deaths[i] += 1
+        for i in [i for i in lost if deaths[i] >= 2]:
             yield i, failed_record(i, "worker process died twice")
-        remaining = [i for i in lost if crashes[i] <= 1]
+        remaining = [i for i in lost if deaths[i] < 2]
+        rounds += 1
+
+
+def _pool_round(task: Task, spec_dict: dict, group: list[int], out: str, workers: int,
+                lost: list[int]) -> Iterator[tuple[int, dict]]:
+    """Run ``group`` on one pool, yielding records as they come; episodes without one go to ``lost``."""
+    with ProcessPoolExecutor(max_workers=min(workers, len(group)), mp_context=mp.get_context("spawn"),
+                             initializer=watch_parent, initargs=(os.getpid(),)) as pool:
+        futures = {pool.submit(task, spec_dict, i, out): i for i in group}
+        for fut in as_completed(futures):
+            i = futures[fut]
+            try:
+                record = fut.result()
+            except BrokenProcessPool:
+                lost.append(i)  # its worker died, or another one and the pool broke: re-run
+                continue
+            yield i, record  # finished only once its record is in hand: a killed episode is never lost
 
 
 def run_ray(spec_dict: dict, indices: list[int], out: str, workers: int,
