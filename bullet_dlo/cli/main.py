@@ -12,6 +12,7 @@ progress bars, no warnings, nothing from PyBullet's C code (see :mod:`bullet_dlo
 from __future__ import annotations
 
 import argparse
+import re
 import sys
 from typing import Sequence
 
@@ -20,12 +21,18 @@ from bullet_dlo.cli.quiet import quiet_output
 from bullet_dlo.config.schema import output_dir, output_file
 from bullet_dlo.core.validate import ParameterError
 
-OUTPUT_FILES = ("json", "npz", "markdown")  # options naming a file the command writes
+OUTPUT_FILES = ("json", "npz", "markdown")
+NEGATIVE_NUMBER = re.compile(r"^-(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?$|^-(inf|infinity|nan)$", re.IGNORECASE)  # options naming a file the command writes
 
 
 class Parser(argparse.ArgumentParser):
     """argparse with its errors on one line (``error: bullet-dlo simulate: argument --dt: ...``), exit 2.
     Subcommand parsers are of this class too (argparse makes them of the parent's class)."""
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        # values like -1e-3, -inf or -nan are numbers (argparse's own pattern takes them for options)
+        self._negative_number_matcher = NEGATIVE_NUMBER
 
     def error(self, message: str):
         self.exit(2, f"error: {self.prog}: {message}\n")

@@ -104,13 +104,16 @@ class Distribution:
         return str(out)
 
 
-def _number(key: str, field_name: str, value: Any) -> float:
+def _number(key: str, field_name: str, value: Any, bounds: tuple = ()) -> float:
+    wanted = f"a number in [{bounds[0]}, {bounds[1]}]" if bounds else "a finite number"
     try:
+        if isinstance(value, bool):
+            raise TypeError
         v = float(value)
     except (TypeError, ValueError):
-        raise ParameterError(f"sample.{key}.{field_name} must be a number, got {value!r}") from None
+        raise ParameterError(f"sample.{key}.{field_name} must be {wanted}, got {value!r}") from None
     if not math.isfinite(v):
-        raise ParameterError(f"sample.{key}.{field_name} must be finite, got {value!r}")
+        raise ParameterError(f"sample.{key}.{field_name} must be {wanted}, got {value!r}")
     return v
 
 
@@ -133,7 +136,7 @@ def parse_distribution(key: str, data: Mapping[str, Any]) -> Distribution:
 
     def in_range(name: str, v: Any) -> None:
         if kind in ("float", "int") and bounds:
-            num = _number(key, name, v)
+            num = _number(key, name, v, bounds)
             if not bounds[0] <= num <= bounds[1]:
                 raise ParameterError(f"sample.{key}.{name} = {v} is outside the allowed range "
                                      f"[{bounds[0]}, {bounds[1]}]")
