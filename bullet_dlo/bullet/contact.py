@@ -35,6 +35,7 @@ import numpy as np
 import pybullet as pb
 from numba import njit
 
+from bullet_dlo.bullet.kernels import bind
 from bullet_dlo.core.kernels.contact import STICK, Contacts, make_contacts
 
 BOX, SPHERE, CYLINDER, CAPSULE = range(4)
@@ -127,22 +128,28 @@ class ContactSet:
         self.store = Store(anchor=np.zeros((nkeys, 4)), state=np.zeros(nkeys, np.int64),
                            active=np.zeros(nkeys, np.bool_), keys=np.zeros(capacity, np.int64),
                            body=np.zeros(capacity, np.int64))
+        self._poses: list = [None] * nb
         for s in range(nb):
             self._read_pose(s, with_velocity=False)
+        self._detect = None  # bound to the argument types on first use (skips Numba's per-call dispatch)
 
     def _read_pose(self, s: int, with_velocity: bool) -> None:
         body, _, lpos, lrot = self.rows[s][0:4]
         cid = self.client
-        com, orn = pb.getBasePositionAndOrientation(body, physicsClientId=cid)
+        pose = pb.getBasePositionAndOrientation(body, physicsClientId=cid)
+        if with_velocity:
+            lin, ang = pb.getBaseVelocity(body, physicsClientId=cid)
+            self.shapes.lin_vel[s] = lin
+            self.shapes.ang_vel[s] = ang
+        if pose == self._poses[s]:
+            return  # not moved: keep the frame
+        self._poses[s] = pose
+        com, orn = pose
         rot = _rotation(orn)
         sh = self.shapes
         sh.com[s] = com
         sh.pos[s] = np.asarray(com) + rot @ lpos
         sh.rot[s] = rot @ lrot
-        if with_velocity:
-            lin, ang = pb.getBaseVelocity(body, physicsClientId=cid)
-            sh.lin_vel[s] = lin
-            sh.ang_vel[s] = ang
 
     def update(self, x: np.ndarray, v: np.ndarray, mass: np.ndarray, h: float) -> int:
         """Read the moving bodies, detect the contacts of positions x [m] (n, 3) for a step of h [s]."""
@@ -151,7 +158,10 @@ class ContactSet:
         vmax = float(np.max(np.abs(v))) if v.size else 0.0
         margin = float(self.contacts.radius[0]) + 2.0 * vmax * h + 1e-3
         k_per_mass = self.alpha / (h * h)
-        return detect(x, mass, self.shapes, self.contacts, self.store, margin, k_per_mass, self.zeta)
+        args = (x, mass, self.shapes, self.contacts, self.store, margin, k_per_mass, self.zeta)
+        if self._detect is None:
+            self._detect = bind(detect, *args)
+        return self._detect(*args)
 
     def per_contact(self, x: np.ndarray) -> dict[str, np.ndarray]:
         """The current contacts (forces of the last step, on the cable [N]): body, node (k, 2),

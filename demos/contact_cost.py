@@ -1,0 +1,166 @@
+"""Cost of contact: coupled step with the cable lying on a table / wrapped on a peg vs the contact-free step.
+
+For n = 20 and 80, each scene's coupled step (Bullet step + the cable's implicit step with its
+contacts, detection included) is timed against the same cable's contact-free coupled step (both
+ends clamped in the air, same world, same integrator: implicit Euler at 240 Hz). Blocks of steps
+are interleaved and the median ratio printed (ratios, not absolute times, survive a noisy machine).
+The goal of issue 10 is at most 2x. Writes ``contact_cost.json``, ``contact_cost.png`` (chart)
+and a picture of each scene (``contact_table.png``, ``contact_peg.png``) rendered through
+``bullet_dlo.render``.
+
+Scenes: ``table``: the Lv cable lying on the ground (every node in contact); ``peg``: a soft
+cable (0.6 m, E 2 MPa) over a fixed 20 mm cylinder, both sides hanging with 50 g weights.
+
+Usage: ``python demos/contact_cost.py [--out DIR] [--masses 20 80] [--repeats 5] [--block 200] [--quick]``
+(``--quick``: n = 20, one block of 20 steps, no pictures; for smoke tests).
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import statistics
+import time
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+from bullet_dlo.bullet.world import BulletWorld  # noqa: E402
+from bullet_dlo.core.model import CableState  # noqa: E402
+from bullet_dlo.core.spec import CableSpec  # noqa: E402
+
+HZ = 240.0
+Q_AXIS_Y = (math.sin(math.pi / 4), 0.0, 0.0, math.cos(math.pi / 4))
+R_PEG = 0.02
+
+
+def _soft(n: int) -> CableSpec:
+    return CableSpec(length=0.6, diameter=0.004, mass=0.009, youngs_modulus=2e6, n_masses=n, friction=0.4,
+                     static_friction=0.4)
+
+
+def _wrapped(spec: CableSpec) -> np.ndarray:
+    """Node positions of a cable hanging symmetrically over the peg (axis y at the origin), (n, 3)."""
+    rr = R_PEG + spec.diameter / 2
+    hang = (spec.length - math.pi * rr) / 2
+    a = np.linspace(math.pi, 0.0, 400)
+    path = np.vstack([[[-rr, 0, -hang]], np.stack([rr * np.cos(a), 0 * a, rr * np.sin(a)], 1), [[rr, 0, -hang]]])
+    s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(path, axis=0), axis=1))])
+    t = np.arange(spec.n_masses) * spec.rest_length
+    return np.stack([np.interp(t, s, path[:, j]) for j in range(3)], axis=1)
+
+
+def scene(kind: str, n: int, contact: bool, renderer: str | None = None):
+    """(world, cable) of ``kind`` (table/peg); contact=False: the same cable clamped in the air."""
+    if kind == "table":
+        spec = CableSpec.lv2017(n_masses=n, damping=0.02)
+        world = BulletWorld(dt=1 / HZ, renderer=renderer)
+        r = spec.diameter / 2
+        if contact:
+            cable = world.add_cable(spec, start=(-0.15, 0, r), direction=(1, 0, 0))
+        else:
+            cable = world.add_cable(spec, start=(-0.15, 0, 0.5), direction=(1, 0, 0), ends=("clamped", "clamped"))
+        return world, cable
+    spec = _soft(n)
+    world = BulletWorld(dt=1 / HZ, renderer=renderer)
+    world.add_cylinder(R_PEG, 0.2, (0, 0, 0.4), Q_AXIS_Y, friction=0.4)
+    if contact:
+        x0 = _wrapped(spec) + np.array([0, 0, 0.4])
+        cable = world.add_cable(spec, state=CableState(x0, np.zeros_like(x0)))
+        cable.add_point_mass(0, 0.05)
+        cable.add_point_mass(-1, 0.05)
+    else:
+        cable = world.add_cable(spec, start=(-0.3, 0.3, 0.8), direction=(1, 0, 0), ends=("clamped", "clamped"))
+    return world, cable
+
+
+def per_step(world: BulletWorld, steps: int) -> float:
+    tic = time.perf_counter()
+    world.step(steps)
+    return (time.perf_counter() - tic) / steps
+
+
+def measure(kind: str, n: int, repeats: int, block: int) -> dict:
+    """Median per-step times [s] of the contact scene and its contact-free twin, and their ratio."""
+    (wc, cc), (wf, cf) = scene(kind, n, True), scene(kind, n, False)
+    try:
+        wc.run(0.5)
+        wf.run(0.5)
+        with_c, free = [], []
+        for _ in range(repeats):
+            with_c.append(per_step(wc, block))
+            free.append(per_step(wf, block))
+        assert cc.stable and cf.stable
+        ratio = statistics.median(a / b for a, b in zip(with_c, free))
+        return {"scene": kind, "n": n, "contacts": int(cc.contacts_last_step),
+                "step_us": 1e6 * statistics.median(with_c), "free_step_us": 1e6 * statistics.median(free),
+                "ratio": ratio, "newton_per_step": cc.newton_iterations / max(cc.steps, 1)}
+    finally:
+        wc.close()
+        wf.close()
+
+
+def picture(kind: str, n: int, path: Path) -> None:
+    """Render the settled scene (1 s) through bullet_dlo.render to ``path``."""
+    from bullet_dlo.render.camera import framing_camera, render_frame
+
+    world, cable = scene(kind, n, True, renderer="tiny")
+    try:
+        world.run(1.0)
+        pts = np.vstack([cable.x, cable.x + [0, 0.1, 0], cable.x - [0, 0.1, 0]])
+        cam = framing_camera(pts, view_direction=(0.3, -1.0, 0.35), width=480, height=360)
+        frame = render_frame(world.client, cam, world.renderer)
+        plt.imsave(path, frame.rgb)
+    finally:
+        world.close()
+
+
+def chart(rows: list[dict], path: Path) -> None:
+    fig, ax = plt.subplots(figsize=(6, 3.5))
+    labels = [f"{r['scene']}\nn={r['n']} ({r['contacts']} contacts)" for r in rows]
+    ax.bar(range(len(rows)), [r["ratio"] for r in rows], color=["#c46a2b" if r["scene"] == "table" else "#3b6ea5"
+                                                               for r in rows])
+    ax.axhline(2.0, color="k", ls="--", lw=1, label="goal: 2x")
+    ax.set_xticks(range(len(rows)), labels)
+    ax.set_ylabel("step time / contact-free step time")
+    ax.set_title(f"Cost of contact (implicit Euler, {HZ:.0f} Hz, detection included)")
+    ax.legend()
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--out", default="demos/gallery", help="output folder")
+    ap.add_argument("--masses", type=int, nargs="+", default=[20, 80])
+    ap.add_argument("--repeats", type=int, default=5)
+    ap.add_argument("--block", type=int, default=200, help="steps per timed block")
+    ap.add_argument("--quick", action="store_true", help="n = 20, one block of 20 steps, no pictures")
+    args = ap.parse_args()
+    if args.quick:
+        args.masses, args.repeats, args.block = [20], 1, 20
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    rows = []
+    for kind in ("table", "peg"):
+        for n in args.masses:
+            row = measure(kind, n, args.repeats, args.block)
+            rows.append(row)
+            print(f"{kind:5s} n={n:3d} contacts {row['contacts']:3d}: {row['step_us']:7.1f} us vs contact-free "
+                  f"{row['free_step_us']:7.1f} us -> {row['ratio']:.2f}x (Newton {row['newton_per_step']:.2f}/step)",
+                  flush=True)
+    (out / "contact_cost.json").write_text(json.dumps(rows, indent=1))
+    chart(rows, out / "contact_cost.png")
+    if not args.quick:
+        for kind in ("table", "peg"):
+            picture(kind, 40, out / f"contact_{kind}.png")
+    print(f"wrote {out / 'contact_cost.json'} and {out / 'contact_cost.png'}")
+
+
+if __name__ == "__main__":
+    main()
