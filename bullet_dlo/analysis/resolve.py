@@ -15,6 +15,13 @@ shapes, relative to the largest displacement of the cable during the rollout.
 2. temporal: with that n, try the steps from 1/60 s down and the integrators from the
    cheapest; the first whose difference from the small-step run is within the other half wins.
 
+Contact sets a floor on n before the convergence test (the rollouts have no obstacles, so they
+cannot see it): a cable wrapping a cylinder or sphere of radius R follows it with a polygon,
+whose segments cut into the arc by l^2 / (8 (R + r)); keeping that sag within half the cable
+radius r needs l <= 2 sqrt((R + r) r), i.e. n >= L / l + 1 for the smallest curved obstacle of
+the scene (``bullet.obstacles`` cylinders). Boxes and the ground set no floor: segments collide
+as capsules, so an edge is caught at any n. :attr:`Resolution.why` says which bound chose n.
+
 The predicted error is the sum of both differences. When it changes n, resolve keeps the
 damping rate gamma = k_d n / M fixed (k_d is the paper's per-mass coefficient), so that all
 trials describe the same cable; the chosen n comes with the k_d that keeps gamma.
@@ -56,6 +63,7 @@ class Resolution:
     tolerance: float
     rollout_s: float
     trials: list = field(default_factory=list)
+    why: str = ""
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -66,6 +74,22 @@ def _cable(scene, n: int) -> CableSpec:
     ``damping_rate`` and ``internal_damping`` mean the same at any n)."""
     c = scene.cable
     return c.with_(n_masses=n, damping=c.damping * c.n_masses / n)
+
+
+def contact_floor(scene) -> tuple[int, str]:
+    """The fewest masses the scene's curved obstacles need (see module doc): (n, why); (2, "") if none."""
+    bullet = getattr(scene, "bullet", None)
+    c = scene.cable
+    r = c.diameter / 2
+    radii = [float(ob["radius"]) for ob in (getattr(bullet, "obstacles", ()) or ()) if ob.get("type") == "cylinder"]
+    if not radii:
+        return 2, ""
+    radius = min(radii)
+    seg = 2.0 * np.sqrt((radius + r) * r)
+    n = int(np.ceil(c.length / seg)) + 1
+    why = (f"contact floor n >= {n}: the smallest cylinder (radius {radius * 1e3:.1f} mm) is wrapped by segments of "
+           f"at most {seg * 1e3:.1f} mm (chord sag within half the cable radius)")
+    return n, why
 
 
 def _rollout(scene, n: int, integrator: str, dt: float, rollout: float) -> tuple[SimulationResult, float]:
@@ -119,7 +143,9 @@ def resolve_masses(scene, tol: float = 0.02, target: str = "forces", rollout: fl
     k_d keeps the scene's damping rate gamma = k_d n / M (see module doc).
     """
     rollout = min(scene.duration, 2.0) if rollout is None else rollout
-    n, _, _ = _resolve_masses(scene, check_positive("tol", tol), target, rollout, N_MASSES, 1e-3, [])
+    floor, _ = contact_floor(scene)
+    candidates = tuple(n for n in N_MASSES if n >= floor) or (floor,)
+    n, _, _ = _resolve_masses(scene, check_positive("tol", tol), target, rollout, candidates, 1e-3, [])
     return n, _cable(scene, n).damping
 
 
@@ -137,7 +163,12 @@ def resolve(scene, tol: float = 0.01, target: str = "both", rollout: float | Non
     rollout = min(scene.duration, 2.0) if rollout is None else check_positive("rollout", rollout)
     fine_dt = min(min(dts) / 2, 1e-3)
     trials: list = []
-    chosen_n, spatial, reference = _resolve_masses(scene, tol, target, rollout, n_masses, fine_dt, trials)
+    floor, why_floor = contact_floor(scene)
+    candidates = tuple(n for n in n_masses if n >= floor) or (floor,)
+    chosen_n, spatial, reference = _resolve_masses(scene, tol, target, rollout, candidates, fine_dt, trials)
+    why = f"n = {chosen_n}: the fewest masses whose estimated {target} error ({spatial:.2g}) is within tol/2"
+    if floor > 2:
+        why += f"; {why_floor}" + (" (the binding bound)" if chosen_n == candidates[0] else "")
     for dt in sorted(dts, reverse=True):
         for integ in integrators:
             res, cost = _rollout(scene, chosen_n, integ, dt, rollout)
@@ -149,6 +180,6 @@ def resolve(scene, tol: float = 0.01, target: str = "both", rollout: float | Non
             if err <= 0.5 * tol:
                 res, cost = _rollout(scene, chosen_n, integ, dt, rollout)  # again, compiled: a fair cost
                 return Resolution(chosen_n, dt, integ, _cable(scene, chosen_n).damping, spatial + err, spatial, err,
-                                  cost, target, tol, rollout, trials)
+                                  cost, target, tol, rollout, trials, why)
     raise ParameterError(f"n = {chosen_n} meets the spatial part, but no step down to {min(dts)} s meets "
                          f"the temporal part of tol = {tol}")
