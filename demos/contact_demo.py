@@ -126,7 +126,8 @@ def drop_grid() -> list[dict]:
                "final_max_speed_mm_s": float(np.abs(cable.v).max()) * 1e3, "newton_failures": cable.newton_failures}
         rows.append(row)
         print(f"{target:6s} {integ:17s} {hz:5d} Hz n={n:3d}: stable {cable.stable} tunnelled {tunnelled} "
-              f"penetration {row['penetration_um']:6.1f} um final speed {row['final_max_speed_mm_s']:7.3f} mm/s", flush=True)
+              f"penetration {row['penetration_um']:6.1f} um final speed {row['final_max_speed_mm_s']:7.3f} mm/s",
+              flush=True)
     bad = [r for r in rows if not r["stable"] or r["tunnelled"]]
     print(f"{len(rows)} drops: {len(bad)} unstable or tunnelled")
     return rows
