@@ -250,5 +250,8 @@ def result_json(scene: Scene, model: CableModel, result: SimulationResult, engin
         "n_masses": scene.cable.n_masses,
         "cable_weight": scene.cable.mass * float(np.linalg.norm(scene.gravity)),
         "newton_failures": result.newton_failures,
+        "newton_failure_share": result.newton_failure_share,
+        "max_strain_seen": result.max_strain_seen,
+        "warnings": list(result.warnings),
         "engine": engine,
     }

@@ -69,8 +69,8 @@ def test_unstable_run_is_reported_not_raised(tmp_path, capsys):
 @pytest.mark.parametrize(
     "edit,needle",
     [
-        (lambda d: d["cable"].update(length=-1), "cable: length must be a finite number > 0"),
-        (lambda d: d["cable"].update(n_masses=1), "cable: n_masses must be an integer in [2,"),
+        (lambda d: d["cable"].update(length=-1), "cable.length must be in [0.001, 1000.0]"),
+        (lambda d: d["cable"].update(n_masses=1), "cable.n_masses must be an integer in [2,"),
         (lambda d: d.update(dt=0), "dt: dt must be a finite number > 0"),
         (lambda d: d.update(dt=".nan"), "dt"),
         (lambda d: d.update(integrator="verlet"), "integrator must be one of"),

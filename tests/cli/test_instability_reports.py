@@ -1,0 +1,72 @@
+"""Honest instability reports (issue 11): a numerical blow-up is instability, a physically large
+strain is a warning, Newton failures are surfaced, in the result, the JSON and the CLI output."""
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+import yaml
+
+from bullet_dlo.cli.main import main
+from bullet_dlo.core.engine import DEFAULT_STRAIN_BOUND, DetectorOptions, simulate
+from bullet_dlo.core.integrators import NewtonOptions
+from bullet_dlo.core.kernels.forces import max_strain
+from bullet_dlo.core.model import CableModel
+from bullet_dlo.core.spec import CableSpec
+from bullet_dlo.core.statics import solve_static
+
+SOFT = CableSpec.lv2017(n_masses=10, youngs_modulus=1e4, damping=0.01)  # sags under its own weight, stretching > 100 % at rest
+
+
+def test_soft_cable_under_its_own_weight_is_stable_with_a_strain_warning():
+    model = CableModel.straight(SOFT, ends=("clamped", "clamped"))
+    res = simulate(model, "implicit_euler", 1e-3, 2.0)
+    assert res.stable and res.reason is None
+    assert res.max_strain_seen > 2 * DEFAULT_STRAIN_BOUND and "physically large stretch" in res.warnings[0]
+    # physics, not a blow-up: the run settles onto the static equilibrium (an independent solver) ...
+    static = solve_static(model).state().x
+    assert np.max(np.abs(res.final_state.x - static)) < 2e-3 * SOFT.length
+    assert max_strain(model.arrays, static) > 2 * DEFAULT_STRAIN_BOUND  # ... itself stretched > 100 %
+    # ... it converges in dt, and it dissipates: no energy created
+    fine = simulate(model, "implicit_euler", 2.5e-4, 2.0)
+    assert np.max(np.abs(res.final_state.x - fine.final_state.x)) < 1e-3 * SOFT.length
+    assert res.energy[-1] <= res.energy[0]
+
+
+def test_an_explicit_strain_bound_is_still_a_hard_stop():
+    model = CableModel.straight(SOFT, ends=("clamped", "clamped"))
+    res = simulate(model, "implicit_euler", 1e-3, 2.0, detector=DetectorOptions(max_strain=0.5))
+    assert not res.stable and res.reason == "segment strain beyond bound" and not res.warnings
+
+
+def test_a_numerical_blow_up_stays_unstable():
+    model = CableModel.straight(CableSpec.lv2017(n_masses=10), ends=("clamped", "clamped"))
+    res = simulate(model, "symplectic_euler", 1e-3, 0.5)  # 30x beyond its critical step
+    assert not res.stable and res.time_to_instability < 0.05
+    assert "confirmed by a re-run without the strain bound" in res.warnings[0]
+
+
+def test_newton_failures_are_surfaced():
+    model = CableModel.straight(CableSpec.lv2017(n_masses=10), ends=("clamped", "clamped"))
+    res = simulate(model, "bdf2", 1e-3, 0.3, newton=NewtonOptions(max_iter=1, tol=1e-12))
+    assert res.newton_failure_share > 0.9 and "Newton did not converge" in res.warnings[0]
+    ok = simulate(model, "bdf2", 1e-3, 0.3)
+    assert ok.newton_failure_share <= 0.01 and not ok.warnings
+
+
+@pytest.mark.parametrize("newton,needle", [({"max_iter": 1, "tol": 1e-12}, "Newton did not converge"),
+                                           (None, "physically large stretch")])
+def test_cli_prints_and_writes_the_warnings(tmp_path, capsys, newton, needle):
+    scene = {"cable": {"preset": "lv2017", "n_masses": 10, "youngs_modulus": 1e4 if newton is None else 126e6},
+             "integrator": "bdf2", "dt": 1e-3, "duration": 1.0}
+    if newton:
+        scene["newton"] = newton
+    path = tmp_path / "s.yaml"
+    path.write_text(yaml.safe_dump(scene))
+    assert main(["simulate", str(path), "--json", str(tmp_path / "o.json")]) == 0
+    out = capsys.readouterr().out
+    data = json.loads((tmp_path / "o.json").read_text())
+    assert data["stable"] and any(needle in w for w in data["warnings"])
+    assert "warning: " in out and needle in out
+    assert 0.0 <= data["newton_failure_share"] <= 1.0
