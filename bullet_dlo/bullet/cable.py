@@ -56,6 +56,7 @@ from bullet_dlo.core.validate import ParameterError, check_int, check_nonnegativ
 
 SELF_COLLISION = ("neighbours", "none", "all")
 CONTACT = ("auto", "model", "bullet")
+CABLE_GROUP = 1 << 15  # collision group of cable spheres when the model handles contact with the world
 
 
 @dataclass
@@ -94,6 +95,7 @@ class BulletCable:
         if sync not in ("contacts", "always"):
             raise ParameterError(f"sync must be 'contacts' or 'always', got {sync!r}")
         self.sync = sync
+        self.self_collision = self_collision
         if contact not in CONTACT:
             raise ParameterError(f"contact must be one of {', '.join(CONTACT)}, got {contact!r}")
         implicit = not self.method.explicit
@@ -183,9 +185,12 @@ class BulletCable:
                                        self.contact_damping)
 
     def disable_bullet_collisions(self) -> None:
-        """Take the spheres out of Bullet's collision detection (the model handles contact)."""
+        """Leave the world's bodies to the contact model: the spheres collide in Bullet only with cable
+        spheres (self-contact and cable-cable contact stay Bullet's, as with ``contact="bullet"``;
+        none at all with ``self_collision="none"``)."""
+        bits = 0 if self.self_collision == "none" else CABLE_GROUP
         for b in self.body_ids:
-            pb.setCollisionFilterGroupMask(b, -1, 0, 0, physicsClientId=self.world.client)
+            pb.setCollisionFilterGroupMask(b, -1, bits, bits, physicsClientId=self.world.client)
 
     @property
     def contacts(self):
