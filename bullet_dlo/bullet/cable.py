@@ -56,7 +56,7 @@ from bullet_dlo.core.validate import ParameterError, check_int, check_nonnegativ
 
 SELF_COLLISION = ("neighbours", "none", "all")
 CONTACT = ("auto", "model", "bullet")
-CABLE_GROUP = 1 << 15  # collision group of cable spheres when the model handles contact with the world
+CABLE_GROUPS = 0x7FFE  # the collision-group bits of cables (bit 0 is the world's default group)
 
 
 @dataclass
@@ -162,8 +162,9 @@ class BulletCable:
             pb.resetBaseVelocity(b, self.v[i].tolist(), [0, 0, 0], physicsClientId=cid)
             pb.changeDynamics(b, -1, linearDamping=0.0, angularDamping=0.0, lateralFriction=spec.friction,
                               activationState=pb.ACTIVATION_STATE_DISABLE_SLEEPING, physicsClientId=cid)
+        self._group = None
         if self_collision == "none":
-            group = self.world.next_cable_group()
+            group = self._group = self.world.next_cable_group()
             for b in body:
                 pb.setCollisionFilterGroupMask(b, -1, group, 0xFFFF & ~group, physicsClientId=cid)
         elif self_collision == "neighbours":
@@ -182,15 +183,15 @@ class BulletCable:
         self._bodies_seen = len(self.world.bodies)
         self._contact_set = ContactSet(self.world.client, list(self.world.bodies), self.model.n, self.radius,
                                        spec.static_friction, spec.friction, self.contact_stiffness,
-                                       self.contact_damping)
+                                       self.contact_damping, self_contact=self.self_collision != "none")
 
     def disable_bullet_collisions(self) -> None:
-        """Leave the world's bodies to the contact model: the spheres collide in Bullet only with cable
-        spheres (self-contact and cable-cable contact stay Bullet's, as with ``contact="bullet"``;
-        none at all with ``self_collision="none"``)."""
-        bits = 0 if self.self_collision == "none" else CABLE_GROUP
+        """Leave the world's bodies and the cable's self-contact to the contact model: in Bullet the
+        spheres collide only with other cables' spheres (cable-cable contact stays Bullet's, as with
+        ``contact="bullet"``)."""
+        own = self._group or self.world.next_cable_group()
         for b in self.body_ids:
-            pb.setCollisionFilterGroupMask(b, -1, bits, bits, physicsClientId=self.world.client)
+            pb.setCollisionFilterGroupMask(b, -1, own, CABLE_GROUPS & ~own, physicsClientId=self.world.client)
 
     @property
     def contacts(self):

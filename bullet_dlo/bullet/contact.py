@@ -6,6 +6,10 @@ contacts are found analytically from the bodies' primitive shapes (box, sphere, 
 the ground plane is a box) at their current Bullet poses, and written into the core's
 :class:`~bullet_dlo.core.kernels.contact.Contacts`:
 
+- segments of the cable against each other when they are not close along it (a cable lying across
+  itself): each side's contact treats the other segment's capsule as a body held at its start-of-step
+  place (lagged, so the Newton matrix stays banded), with the cable's own friction;
+
 - every node, as a sphere of the cable radius, against the solid (closest point on its surface;
   a node inside a box takes the nearest face);
 - every segment interior, as a capsule of the cable radius, against cylinders and capsules
@@ -90,7 +94,7 @@ class ContactSet:
     """
 
     def __init__(self, client: int, bodies, n: int, radius: float, mu_s: float, mu_d: float,
-                 alpha: float, damping_ratio: float):
+                 alpha: float, damping_ratio: float, self_contact: bool = True):
         self.client = client
         self.n = n
         self.alpha = float(alpha)
@@ -122,8 +126,10 @@ class ContactSet:
                              com=np.zeros((nb, 3)), lin_vel=np.zeros((nb, 3)), ang_vel=np.zeros((nb, 3)),
                              mu_s=np.sqrt(mu_s * mu_b), mu_d=np.sqrt(mu_d * mu_b))
         self.keys_per_shape = n + (N_EDGES + 1) * (n - 1)
-        nkeys = max(1, nb * self.keys_per_shape)
-        capacity = max(1, nb * (n + 2 * (n - 1)))
+        nkeys = max(1, nb * self.keys_per_shape + 2 * (n - 1) ** 2)
+        capacity = max(1, nb * (n + 2 * (n - 1)) + 4 * n)
+        # self-contact friction: the cable's own coefficients (negative: no self-contact)
+        self.self_mu = np.array([mu_s, mu_d]) if self_contact else np.array([-1.0, -1.0])
         self.contacts: Contacts = make_contacts(n, capacity, radius)
         self.store = Store(anchor=np.zeros((nkeys, 4)), state=np.zeros(nkeys, np.int64),
                            active=np.zeros(nkeys, np.bool_), keys=np.zeros(capacity, np.int64),
@@ -158,7 +164,7 @@ class ContactSet:
         vmax = float(np.max(np.abs(v))) if v.size else 0.0
         margin = float(self.contacts.radius[0]) + 2.0 * vmax * h + 1e-3
         k_per_mass = self.alpha / (h * h)
-        args = (x, mass, self.shapes, self.contacts, self.store, margin, k_per_mass, self.zeta)
+        args = (x, v, mass, self.shapes, self.contacts, self.store, margin, k_per_mass, self.zeta, self.self_mu)
         if self._detect is None:
             self._detect = bind(detect, *args)
         return self._detect(*args)
@@ -174,7 +180,9 @@ class ContactSet:
         idx, w = c.node[:k], c.weight[:k]
         p = w[:, :1] * x[idx[:, 0]] + w[:, 1:] * x[idx[:, 1]]
         gap = np.einsum("kj,kj->k", c.normal[:k], p - c.point[:k]) - c.radius[0]
-        return {"body": self.body_ids[self.store.body[:k]], "node": c.node[:k].copy(), "gap": gap,
+        shape = self.store.body[:k]
+        body = np.where(shape >= 0, self.body_ids[np.maximum(shape, 0)] if len(self.body_ids) else -1, -1)
+        return {"body": body, "node": c.node[:k].copy(), "gap": gap,
                 "weight": c.weight[:k].copy(), "point": c.point[:k].copy(), "normal": c.normal[:k].copy(),
                 "normal_force": fn, "friction": c.f_t[:k].copy(),
                 "force": fn[:, None] * c.normal[:k] + c.f_t[:k], "sliding": c.state[:k] != STICK}
@@ -184,7 +192,8 @@ class ContactSet:
         out: dict[int, np.ndarray] = {}
         pc = self.per_contact(x)
         for b, f in zip(pc["body"].tolist(), pc["force"]):
-            out[b] = out.get(b, np.zeros(3)) - f
+            if b >= 0:  # -1: the cable on itself
+                out[b] = out.get(b, np.zeros(3)) - f
         return out
 
     def apply_to_bodies(self) -> None:
@@ -198,7 +207,8 @@ class ContactSet:
         fn = c.f_n[:k].clip(min=0.0)
         force = -(fn[:, None] * c.normal[:k] + c.f_t[:k])
         cid = self.client
-        for s in np.unique(idx[self.dynamic[idx]]):
+        moving = (idx >= 0) & self.dynamic[np.maximum(idx, 0)]
+        for s in np.unique(idx[moving]):
             sel = idx == s
             arm = c.point[:k][sel] - self.shapes.com[s]
             f_tot = force[sel].sum(axis=0)
@@ -334,14 +344,23 @@ def _add(c, st, key, shape, ia, ib, wa, wb, cl, nl, sh, k_per_mass, zeta, mass, 
     c.body_vel[k, 0] = sh.lin_vel[shape, 0] + w[1] * arm[2] - w[2] * arm[1]
     c.body_vel[k, 1] = sh.lin_vel[shape, 1] + w[2] * arm[0] - w[0] * arm[2]
     c.body_vel[k, 2] = sh.lin_vel[shape, 2] + w[0] * arm[1] - w[1] * arm[0]
+    c.internal[k] = False
+    mk = wa * mass[ia] + wb * mass[ib]  # stiffness by the mass at the contact point
+    _fill(c, st, key, shape, ia, ib, wa, wb, sh.mu_s[shape], sh.mu_d[shape], k_per_mass * mk, zeta, mk, x)
+
+
+@njit(cache=True, error_model="numpy")
+def _fill(c, st, key, shape, ia, ib, wa, wb, mu_s, mu_d, k_n, zeta, mk, x):
+    """The rest of row count[0] (point, normal, body velocity set): nodes, stiffness k_n [N/m] (damping
+    ratio zeta for the mass mk [kg]), friction, friction state."""
+    k = c.count[0]
     c.node[k, 0], c.node[k, 1] = ia, ib
     c.weight[k, 0], c.weight[k, 1] = wa, wb
-    mk = wa * mass[ia] + wb * mass[ib]  # stiffness by the mass at the contact point
-    c.k_n[k] = k_per_mass * mk
-    c.k_t[k] = c.k_n[k]
+    c.k_n[k] = k_n
+    c.k_t[k] = k_n
     c.c_n[k] = 2.0 * zeta * math.sqrt(c.k_n[k] * mk)
-    c.mu_s[k] = sh.mu_s[shape]
-    c.mu_d[k] = sh.mu_d[shape]
+    c.mu_s[k] = mu_s
+    c.mu_d[k] = mu_d
     if st.active[key]:
         c.anchor[k] = st.anchor[key]
         c.state[k] = st.state[key]
@@ -363,9 +382,10 @@ def _add(c, st, key, shape, ia, ib, wa, wb, cl, nl, sh, k_per_mass, zeta, mass, 
 
 
 @njit(cache=True, error_model="numpy")
-def detect(x, mass, sh, c, st, margin, k_per_mass, zeta):
+def detect(x, v, mass, sh, c, st, margin, k_per_mass, zeta, self_mu):
     """Store the friction state of the last step's contacts by key, then fill ``c`` with the contacts
-    of positions x [m] (n, 3) whose gap is below ``margin`` [m]. Returns the number of contacts."""
+    of positions x [m] (n, 3) (velocities v [m/s]) whose gap is below ``margin`` [m]; self-contacts too
+    unless self_mu[0] < 0 (self_mu: static and dynamic friction cable on cable). Returns the count."""
     for k in range(c.count[0]):  # persist what the last step left
         key = st.keys[k]
         st.anchor[key] = c.anchor[k]
@@ -446,6 +466,80 @@ def detect(x, mass, sh, c, st, margin, k_per_mass, zeta):
                     key = base + n + i
                     _add(c, st, key, s, i, i + 1, 1.0 - sp, sp, cl, nl, sh, k_per_mass, zeta, mass, x)
                     seen[key] = True
+    if self_mu[0] >= 0.0:
+        _self_contacts(x, mass, c, st, sh.kind.shape[0] * per_shape, self_mu, margin, k_per_mass, zeta, seen)
     for key in range(st.active.shape[0]):
         st.active[key] = seen[key]
     return c.count[0]
+
+
+@njit(cache=True, error_model="numpy")
+def _segments_closest(a0, a1, b0, b1):
+    """Parameters (s, t) in [0, 1] of the closest points of segments a0-a1 and b0-b1."""
+    d1 = a1 - a0
+    d2 = b1 - b0
+    r = a0 - b0
+    aa = d1 @ d1
+    ee = d2 @ d2
+    ff = d2 @ r
+    cc = d1 @ r
+    bb = d1 @ d2
+    den = aa * ee - bb * bb
+    s = min(max((bb * ff - cc * ee) / den, 0.0), 1.0) if den > 1e-14 * aa * ee else 0.0
+    t = (bb * s + ff) / ee
+    if t < 0.0:
+        t = 0.0
+        s = min(max(-cc / aa, 0.0), 1.0)
+    elif t > 1.0:
+        t = 1.0
+        s = min(max((bb - cc) / aa, 0.0), 1.0)
+    return s, t
+
+
+@njit(cache=True, error_model="numpy")
+def _self_contacts(x, mass, c, st, key0, self_mu, margin, k_per_mass, zeta, seen):
+    """Contacts between segments of the cable that are not close along it (a cable lying across itself).
+
+    Each side of a close pair of segments i, j gets a contact against the other's capsule held where it
+    is at the start of the step (lagged: the Newton matrix stays banded; extrapolating the other side
+    at its velocity pushed a falling segment through the one it lands on), both with the stiffness of
+    the pair's mean mass.
+    A node's closest point belongs to the segment that starts at it (no double contacts).
+    """
+    n = x.shape[0]
+    radius = c.radius[0]
+    l0 = 0.0
+    for j in range(3):
+        l0 += (x[1, j] - x[0, j]) ** 2
+    skip = 1 + int(math.ceil(math.pi * radius / max(math.sqrt(l0), 1e-12)))  # segments closer along the cable
+    nl = np.empty(3)
+    for i in range(n - 1):
+        for j in range(i + 1 + skip, n - 1):
+            s, t = _segments_closest(x[i], x[i + 1], x[j], x[j + 1])
+            if (s >= 1.0 and i < n - 2) or (t >= 1.0 and j < n - 2):
+                continue  # the next segment owns this node
+            d2 = 0.0
+            for q in range(3):
+                nl[q] = (1.0 - s) * x[i, q] + s * x[i + 1, q] - (1.0 - t) * x[j, q] - t * x[j + 1, q]
+                d2 += nl[q] ** 2
+            d = math.sqrt(d2)
+            if d == 0.0 or d - 2.0 * radius >= margin:
+                continue
+            for q in range(3):
+                nl[q] /= d
+            m_pair = 0.5 * ((1.0 - s) * mass[i] + s * mass[i + 1] + (1.0 - t) * mass[j] + t * mass[j + 1])
+            for side in range(2):  # the same stiffness on both sides: equal and opposite forces at rest
+                k = c.count[0]
+                if k >= c.node.shape[0]:
+                    return
+                a, u, b, w = (i, s, j, t) if side == 0 else (j, t, i, s)
+                sg = 1.0 if side == 0 else -1.0
+                for q in range(3):
+                    c.normal[k, q] = sg * nl[q]
+                    c.point[k, q] = (1.0 - w) * x[b, q] + w * x[b + 1, q] + radius * c.normal[k, q]
+                    c.body_vel[k, q] = 0.0  # the other side held where it is (extrapolating it pushes through)
+                c.internal[k] = True
+                key = key0 + 2 * (i * (n - 1) + j) + side
+                _fill(c, st, key, -1, a, a + 1, 1.0 - u, u, self_mu[0], self_mu[1], k_per_mass * m_pair, zeta,
+                      m_pair, x)
+                seen[key] = True

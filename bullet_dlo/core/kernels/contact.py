@@ -62,7 +62,8 @@ class Contacts(NamedTuple):
     the cable; cap (M,) [N] friction limit used. Scalars (1,): count, radius [m] (cable radius),
     body_work [J] work the touched bodies did on the cable so far, impact (1 when a contact took
     load at an approach speed above g h: the next BDF2 step restarts with implicit Euler).
-    node_force (n, 3) [N]: scratch for the contact forces on the nodes.
+    internal (M,) bool: the "body" is another part of the same cable (self-contact: its work is not
+    external). node_force (n, 3) [N]: scratch for the contact forces on the nodes.
     """
 
     count: np.ndarray
@@ -84,6 +85,7 @@ class Contacts(NamedTuple):
     cap: np.ndarray
     body_work: np.ndarray
     impact: np.ndarray
+    internal: np.ndarray
     node_force: np.ndarray
 
 
@@ -94,7 +96,8 @@ def make_contacts(n: int, capacity: int, radius: float) -> Contacts:
     return Contacts(count=np.zeros(1, np.int64), radius=np.full(1, float(radius)), node=np.zeros((m, 2), np.int64),
                     weight=f((m, 2)), normal=f((m, 3)), point=f((m, 3)), body_vel=f((m, 3)), k_n=f(m), k_t=f(m),
                     c_n=f(m), mu_s=f(m), mu_d=f(m), anchor=f((m, 4)), state=np.zeros(m, np.int64), f_n=f(m),
-                    f_t=f((m, 3)), cap=f(m), body_work=f(1), impact=np.zeros(1, np.int64), node_force=f((n, 3)))
+                    f_t=f((m, 3)), cap=f(m), body_work=f(1), impact=np.zeros(1, np.int64),
+                    internal=np.zeros(m, np.bool_), node_force=f((n, 3)))
 
 
 # ----- one contact ---------------------------------------------------------------------------
@@ -404,8 +407,9 @@ def contact_step(stepper, m, x, v, samples, ws, has_prev, c):
     for k in range(c.count[0]):
         if c.f_n[k] > 0.0 and -_approach(c, k, v) > g_h:
             c.impact[0] = 1
-        for j in range(3):  # work of the body on the cable: f . u_b h
-            c.body_work[0] += (c.f_n[k] * c.normal[k, j] + c.f_t[k, j]) * c.body_vel[k, j] * h
+        for j in range(3):  # work of the body on the cable: f . u_b h (self-contact: internal, not counted)
+            if not c.internal[k]:
+                c.body_work[0] += (c.f_n[k] * c.normal[k, j] + c.f_t[k, j]) * c.body_vel[k, j] * h
     for i in range(n):
         for j in range(3):
             if use_prev:
