@@ -67,7 +67,10 @@ def capture(spec: CaptureSpec, out: str | Path, episodes: int, *, workers: int =
     workers = check_int("--workers", workers, 1, LIMITS["workers"])
     retries = check_int("retries", retries, 0, 100)
     out = output_dir("--out", out)
-    cable_spec(spec.draw(0))  # a drawn cable the core refuses fails here, not in N x (1 + retries) episodes
+    first = spec.draw(0)
+    if first["n_masses"] == "auto":
+        first["n_masses"] = 10  # a placeholder: each episode resolves its own
+    cable_spec(first)  # a drawn cable the core refuses fails here, not in N x (1 + retries) episodes
     out.mkdir(parents=True, exist_ok=True)
     with locked(out):
         return _capture_locked(spec, out, episodes, workers, backend, resume, progress, retries, task)
