@@ -513,8 +513,13 @@ def _self_contacts(x, mass, c, st, key0, self_mu, margin, k_per_mass, zeta, seen
         l0 += (x[1, j] - x[0, j]) ** 2
     skip = 1 + int(math.ceil(math.pi * radius / max(math.sqrt(l0), 1e-12)))  # segments closer along the cable
     nl = np.empty(3)
+    reach = 2.5 * math.sqrt(l0) + 2.0 * radius + margin  # first nodes farther apart: the segments cannot touch
+    reach2 = reach * reach
     for i in range(n - 1):
         for j in range(i + 1 + skip, n - 1):
+            d2 = (x[i, 0] - x[j, 0]) ** 2 + (x[i, 1] - x[j, 1]) ** 2 + (x[i, 2] - x[j, 2]) ** 2
+            if d2 > reach2:
+                continue
             s, t = _segments_closest(x[i], x[i + 1], x[j], x[j + 1])
             if (s >= 1.0 and i < n - 2) or (t >= 1.0 and j < n - 2):
                 continue  # the next segment owns this node
