@@ -511,7 +511,9 @@ def _self_contacts(x, mass, c, st, key0, self_mu, margin, k_per_mass, zeta, seen
     l0 = 0.0
     for j in range(3):
         l0 += (x[1, j] - x[0, j]) ** 2
-    skip = 1 + int(math.ceil(math.pi * radius / max(math.sqrt(l0), 1e-12)))  # segments closer along the cable
+    # segments closer along the cable than pi r (a loop tighter than the cable is thick) never touch, and
+    # those within 2 r + margin would be near each other on a straight cable: both are left out
+    skip = 1 + int(math.ceil(max(math.pi * radius, 2.0 * radius + margin) / max(math.sqrt(l0), 1e-12)))
     nl = np.empty(3)
     reach = 2.5 * math.sqrt(l0) + 2.0 * radius + margin  # first nodes farther apart: the segments cannot touch
     reach2 = reach * reach
