@@ -114,7 +114,7 @@ def s1(n: int, integrator: str, dt: float, engine: str = "core", duration: float
 def s2(n: int, integrator: str, dt: float, engine: str = "core", duration: float = 1.0) -> BenchPoint:
     """S2: first frequency of the undamped cantilever released from a 1e-3 L tip deflection, vs f1;
     ``extra`` is the amplitude kept over the last period."""
-    spec = s1_spec(n).with_(damping=0.0)
+    spec = s1_spec(n).with_(damping=0.0, damping_rate=0.0)
     model, start = cantilever_release(spec, 1e-3)
     run = run_model(model, integrator, dt, duration, engine, start, records=4000)
     if not run.stable:
@@ -185,5 +185,5 @@ def scenario_model(scenario: str, n: int) -> CableModel:
     if scenario == "S1":
         return cantilever_model(s1_spec(n))
     if scenario == "S2":
-        return cantilever_release(s1_spec(n).with_(damping=0.0))[0]
+        return cantilever_release(s1_spec(n).with_(damping=0.0, damping_rate=0.0))[0]
     return s3_model(n) if scenario == "S3" else s4_model(n)
