@@ -96,3 +96,31 @@ duration: 0.5
     summary = json.loads((out / "render.json").read_text())
     assert summary["renderer"] == "tiny" and summary["codec"] == "h264"
     assert summary["decoded"]["frames"] == 11 and summary["decoded"]["width"] == 160
+
+
+def test_capture_bench_demo_quick(tmp_path):
+    """Two short episodes per capture: every episode lands, and frames make the files larger."""
+    run_demo("capture_bench.py", tmp_path)
+    result = json.loads((tmp_path / "capture_bench.json").read_text())
+    for workers in (1, 2):
+        assert len(list((tmp_path / f"w{workers}").glob("episode_*.h5"))) == 2
+        assert result[f"episodes_per_s_{workers}_workers"] > 0
+    assert result["bytes_per_episode_with_frames"] > result["bytes_per_episode"] > 1000
+
+
+def test_contact_cost_demo_quick(tmp_path):
+    """The contact benchmark prints a ratio per scene and writes its chart and numbers."""
+    res = subprocess.run([sys.executable, str(ROOT / "demos" / "contact_cost.py"), "--quick", "--out", str(tmp_path)],
+                         capture_output=True, text=True, timeout=600)
+    assert res.returncode == 0, res.stderr
+    ratios = [float(r) for r in re.findall(r"-> ([0-9.]+)x", res.stdout)]
+    assert len(ratios) >= 2 and all(r > 0 for r in ratios)  # a ratio for the table and the peg
+    assert (tmp_path / "contact_cost.json").stat().st_size > 50
+
+
+def test_env_speed_demo_quick():
+    """The environment benchmark prints the dual-arm/bare ratio per robot and n, and env steps per second."""
+    res = subprocess.run([sys.executable, str(ROOT / "demos" / "env_speed.py"), "--quick", "--robots", "panda"],
+                         capture_output=True, text=True, timeout=600)
+    assert res.returncode == 0, res.stderr
+    assert "env steps/s" in res.stdout and "Bullet stepSimulation" in res.stdout
