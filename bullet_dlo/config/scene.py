@@ -119,7 +119,7 @@ class Scene:
     integrator: str = "implicit_euler"
     dt: float = 1e-3
     duration: float = 1.0
-    initial: str = "straight"
+    initial: str | None = None  # None: not given (straight for simulate, settled for the dual-arm scene)
     detector: DetectorOptions = field(default_factory=DetectorOptions)
     newton: NewtonOptions = field(default_factory=NewtonOptions)
     name: str = "scene"
@@ -168,7 +168,7 @@ class Scene:
         dt = keyed("dt", check_positive, "dt", data.get("dt", 1e-3))
         duration = keyed("duration", check_positive, "duration", data.get("duration", 1.0))
         check_steps(dt, duration)
-        initial = one_of("initial", str(data.get("initial", "straight")), INITIAL)
+        initial = one_of("initial", str(data["initial"]), INITIAL) if "initial" in data else None
         det = section(data.get("detector"), "detector")
         only_keys(det, ("max_strain", "energy_factor", "check_every", "energy_every"), "detector")
         nwt = section(data.get("newton"), "newton")
@@ -209,6 +209,12 @@ class Scene:
         if self.initial == "static":
             return solve_static(model).state()
         return model.initial_state()
+
+    @property
+    def arm_start(self) -> str:
+        """How the dual-arm scene attaches the cable (``DualArmSpec.start``): in its static shape
+        between the grippers unless the scene file says ``initial: straight``."""
+        return "straight" if self.initial == "straight" else "settled"
 
     def run(self, **overrides: Any) -> tuple[CableModel, SimulationResult]:
         """Run with the core engine (resolving ``auto`` first); ``overrides`` go to :func:`simulate`."""

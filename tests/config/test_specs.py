@@ -4,6 +4,7 @@ from __future__ import annotations
 import dataclasses
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from bullet_dlo.config.capture import CaptureSpec
@@ -97,3 +98,17 @@ def test_capture_spec_round_trips_and_keeps_its_digest():
     assert CaptureSpec().digest() == "e883660e79932801"
     assert spec.draw(3) == CaptureSpec.from_dict(spec.to_dict()).draw(3) != spec.draw(4)
     assert spec.camera_width == 160 and isinstance(spec.camera_width, int) and spec.seed == 7
+
+
+def test_dual_arm_start_follows_the_scene_file():
+    """A scene's ``initial`` decides how grasp/render attach the cable: settled unless it says straight."""
+    from bullet_dlo.config.scene import Scene
+
+    base = {"cable": {"preset": "lv2017", "n_masses": 8}}
+    assert Scene.from_dict(base).arm_start == "settled"
+    assert Scene.from_dict({**base, "initial": "static"}).arm_start == "settled"
+    assert Scene.from_dict({**base, "initial": "straight"}).arm_start == "straight"
+    # the core engine still starts straight when the file does not say otherwise
+    scene = Scene.from_dict(base)
+    model = scene.build_model()
+    assert np.array_equal(scene.initial_state(model).x, model.initial_state().x)
