@@ -373,6 +373,17 @@ def _bend_rate(x, v, i, g, rate):
             rate[r] += g[k, r, 0] * v[p, 0] + g[k, r, 1] * v[p, 1] + g[k, r, 2] * v[p, 2]
 
 
+@njit(cache=True, error_model="numpy", inline="always")
+def _stretch_rate(x, v, i):
+    """Segment i's edge (dx, dy, dz) [m], length [m] and stretch rate d(length)/dt [m/s]."""
+    dx = x[i + 1, 0] - x[i, 0]
+    dy = x[i + 1, 1] - x[i, 1]
+    dz = x[i + 1, 2] - x[i, 2]
+    length = math.sqrt(dx * dx + dy * dy + dz * dz)
+    rel = (dx * (v[i + 1, 0] - v[i, 0]) + dy * (v[i + 1, 1] - v[i, 1]) + dz * (v[i + 1, 2] - v[i, 2])) / length
+    return dx, dy, dz, length, rel
+
+
 @njit(cache=True, error_model="numpy")
 def internal_damping_forces(m, x, v, dirs, out):
     """Add the Kelvin-Voigt damping forces -dR/dv [N], (n, 3), to ``out`` (see the block comment)."""
@@ -381,11 +392,7 @@ def internal_damping_forces(m, x, v, dirs, out):
         c_s = m.c_stretch[i]
         if c_s == 0.0:
             continue
-        dx = x[i + 1, 0] - x[i, 0]
-        dy = x[i + 1, 1] - x[i, 1]
-        dz = x[i + 1, 2] - x[i, 2]
-        length = math.sqrt(dx * dx + dy * dy + dz * dz)
-        rel = (dx * (v[i + 1, 0] - v[i, 0]) + dy * (v[i + 1, 1] - v[i, 1]) + dz * (v[i + 1, 2] - v[i, 2])) / length
+        dx, dy, dz, length, rel = _stretch_rate(x, v, i)
         f = c_s * rel / length  # damper tension / length
         out[i, 0] += f * dx
         out[i, 1] += f * dy
@@ -426,11 +433,7 @@ def dissipation(m, x, v, dirs):
         c_s = m.c_stretch[i]
         if c_s == 0.0:
             continue
-        dx = x[i + 1, 0] - x[i, 0]
-        dy = x[i + 1, 1] - x[i, 1]
-        dz = x[i + 1, 2] - x[i, 2]
-        length = math.sqrt(dx * dx + dy * dy + dz * dz)
-        rel = (dx * (v[i + 1, 0] - v[i, 0]) + dy * (v[i + 1, 1] - v[i, 1]) + dz * (v[i + 1, 2] - v[i, 2])) / length
+        dx, dy, dz, length, rel = _stretch_rate(x, v, i)
         r_sum += 0.5 * c_s * rel * rel
     g = np.empty((5, 3, 3))
     rate = np.empty(3)
