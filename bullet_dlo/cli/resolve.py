@@ -21,6 +21,8 @@ def cmd_resolve(args: argparse.Namespace) -> int:
     print(f"{scene.name}: n_masses = {r.n_masses}, integrator = {r.integrator}, dt = {r.dt:.4g} s; predicted error "
           f"{r.predicted_error:.4f} (spatial {r.spatial_error:.4f} + temporal {r.temporal_error:.4f}) <= "
           f"{r.tolerance} on {r.target}; {r.wall_time_per_sim_s:.4f} s wall per simulated second")
+    if r.why:
+        print(f"why n = {r.n_masses}: {r.why}")
     if args.json:
         write_json(args.json, r.to_dict())
     return 0
