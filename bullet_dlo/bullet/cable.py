@@ -46,7 +46,7 @@ from bullet_dlo.bullet.contact import ContactSet
 from bullet_dlo.bullet.kernels import Coupling, ExternalHolders, StepInput, bind, sync_and_advance
 from bullet_dlo.core.engine import DetectorOptions, start_detector
 from bullet_dlo.core.integrators import NewtonOptions, get_integrator, make_stepper
-from bullet_dlo.core.kernels.contact import DEFAULT_ALPHA, make_contacts
+from bullet_dlo.core.kernels.contact import DEFAULT_ALPHA, SLIDE, make_contacts, make_grip
 from bullet_dlo.core.kernels.forces import clamp_torque, mechanical_energy
 from bullet_dlo.core.kernels.holders import empty_samples, sample_holders
 from bullet_dlo.core.kernels.monitor import REASONS, STABLE, end_forces
@@ -129,7 +129,8 @@ class BulletCable:
         self.body_ids = self._spawn(color, self_collision)
         self._contact_set: ContactSet | None = None
         self._bodies_seen = -1
-        self._no_contacts = make_contacts(n, 1, self.radius)
+        self.grip = make_grip()  # friction grips of the ends (grip_with_friction), shared by every contact set
+        self._no_contacts = make_contacts(n, 1, self.radius, self.grip)
         self._refresh_contact_set()
         samples = self._cp.samples
         sample_holders(self.plan, self.t, world.dt, samples)
@@ -183,7 +184,8 @@ class BulletCable:
         self._bodies_seen = len(self.world.bodies)
         self._contact_set = ContactSet(self.world.client, list(self.world.bodies), self.model.n, self.radius,
                                        spec.static_friction, spec.friction, self.contact_stiffness,
-                                       self.contact_damping, self_contact=self.self_collision != "none")
+                                       self.contact_damping, self_contact=self.self_collision != "none",
+                                       grip=self.grip)
 
     def disable_bullet_collisions(self) -> None:
         """Leave the world's bodies and the cable's self-contact to the contact model: in Bullet the
@@ -223,7 +225,10 @@ class BulletCable:
             x0, v0 = (cp.x_new, cp.v_new) if do_sync else (cp.x, cp.v)  # the state this step starts from
             self.contacts_last_step = self._contact_set.update(x0, v0, self.arrays.mass, self.stepper.h)
         inp = self._step_input(do_sync, idx_arr, pos, vel)
+        gripped = self.grip.active.copy()
         status, its, ok = self._sync_and_advance(*self._kernel_args(inp))
+        for end in np.flatnonzero(gripped & ~self.grip.active):  # the end slid out of the gripper
+            self._let_go(int(end))
         self.newton_iterations += its
         self.newton_failures += 0 if ok else 1
         if status != STABLE:
@@ -298,15 +303,62 @@ class BulletCable:
         a.held[node] = True
         a.k_bend[node] = spec.k_bend_clamp if mode == "clamped" else 0.0
         self.ext.active[end] = True
+        self.grip.active[end] = False
         self._replan()
 
-    def release(self, end: int) -> None:
-        """Let end ``end`` go: it becomes free and no longer follows any holder."""
+    def grip_with_friction(self, end: int, normal_force: float, mu_static: float, mu_dynamic: float,
+                           reach: float = 0.02) -> None:
+        """Hold end ``end`` (0 first, 1 last) by a friction grip on the pose given by :meth:`set_external_pose`.
+
+        Two fingers pinch the end node with ``normal_force`` F_n [N] (> 0) each: along the
+        gripper's axis (the clamp direction) the grip holds up to 2 mu_static F_n, then the end
+        slips along the gripper against 2 mu_dynamic F_n (0 <= mu_dynamic <= mu_static); across
+        it a stiff spring keeps the end on the axis, and the clamp's bending spring holds the
+        tangent. The end leaves the gripper (the grip is lost) after slipping ``reach`` [m] (> 0).
+        Needs an implicit integrator (the grip is part of its step). Call it with the gripper's
+        pose set; the end starts at rest on the gripper's axis where it is now.
+        """
+        if self.method.explicit:
+            raise ParameterError("a friction grip needs an implicit integrator (implicit_euler, bdf2, "
+                                 "implicit_midpoint)")
+        if end not in (0, 1):
+            raise ParameterError(f"end must be 0 or 1, got {end!r}")
+        f_n = check_positive("grip normal force", normal_force)
+        mu_s = check_nonnegative("grip static friction", mu_static)
+        mu_d = check_nonnegative("grip dynamic friction", mu_dynamic)
+        if mu_d > mu_s:
+            raise ParameterError(f"grip dynamic friction must be in [0, static friction {mu_s}], got {mu_d}")
+        a, n, g = self.arrays, self.model.n, self.grip
+        node = 0 if end == 0 else n - 1
+        a.held[node] = False
+        a.k_bend[node] = self.model.spec.k_bend_clamp
+        self.ext.active[end] = True
+        g.k_ax[end] = g.k_lat[end] = self.contact_stiffness * a.mass[node] / self.stepper.h ** 2
+        g.cap_s[end], g.cap_d[end] = 2.0 * mu_s * f_n, 2.0 * mu_d * f_n
+        g.reach[end] = check_positive("grip reach", reach)
+        g.offset[end] = float(np.dot(self.x[node] - self.ext.pos[end], self.ext.dir[end]))
+        g.state[end] = 0
+        g.active[end] = True
+        self._replan()
+
+    def grip_state(self) -> dict[str, np.ndarray]:
+        """The friction grips now: active (2,) bool, sliding (2,) bool, slip [m] (2,) (the anchor's
+        offset along the gripper axis), force [N] (2, 3) the grip exerts on the cable."""
+        g = self.grip
+        return {"active": g.active.copy(), "sliding": (g.state == SLIDE) & g.active, "slip": g.offset.copy(),
+                "force": g.force.copy()}
+
+    def _let_go(self, end: int) -> None:
         a, n = self.arrays, self.model.n
         node = 0 if end == 0 else n - 1
         a.held[node] = False
         a.k_bend[node] = 0.0
         self.ext.active[end] = False
+        self.grip.active[end] = False
+
+    def release(self, end: int) -> None:
+        """Let end ``end`` go: it becomes free and no longer follows any holder."""
+        self._let_go(end)
         self._replan()
 
     def set_external_pose(self, end: int, position, velocity, acceleration, omega, direction) -> None:
@@ -340,10 +392,12 @@ class BulletCable:
         return CableState(self.x.copy(), self.v.copy(), self.t)
 
     def end_forces(self) -> np.ndarray:
-        """Force [N] the cable exerts on each held end now, (2, 3) (first, last)."""
+        """Force [N] the cable exerts on each held or gripped end now, (2, 3) (first, last)."""
         samples = self._cp.samples
         out = np.zeros((2, 3))
         end_forces(self.arrays, self.x, self.v, samples.dir[0], samples.acc[0], out)
+        for e in np.flatnonzero(self.grip.active):  # a friction grip: the reaction of its force on the cable
+            out[e] = -self.grip.force[e]
         return out
 
     def contact_forces(self) -> dict[str, np.ndarray]:

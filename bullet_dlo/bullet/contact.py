@@ -94,7 +94,7 @@ class ContactSet:
     """
 
     def __init__(self, client: int, bodies, n: int, radius: float, mu_s: float, mu_d: float,
-                 alpha: float, damping_ratio: float, self_contact: bool = True):
+                 alpha: float, damping_ratio: float, self_contact: bool = True, grip=None):
         self.client = client
         self.n = n
         self.alpha = float(alpha)
@@ -130,7 +130,7 @@ class ContactSet:
         capacity = max(1, nb * (n + 2 * (n - 1)) + 4 * n)
         # self-contact friction: the cable's own coefficients (negative: no self-contact)
         self.self_mu = np.array([mu_s, mu_d]) if self_contact else np.array([-1.0, -1.0])
-        self.contacts: Contacts = make_contacts(n, capacity, radius)
+        self.contacts: Contacts = make_contacts(n, capacity, radius, grip)  # grip: the cable's, kept across sets
         self.store = Store(anchor=np.zeros((nkeys, 4)), state=np.zeros(nkeys, np.int64),
                            active=np.zeros(nkeys, np.bool_), keys=np.zeros(capacity, np.int64),
                            body=np.zeros(capacity, np.int64))

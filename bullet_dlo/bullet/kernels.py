@@ -12,7 +12,7 @@ import numba
 import numpy as np
 from numba import njit
 
-from bullet_dlo.core.kernels.contact import contact_energy, contact_step
+from bullet_dlo.core.kernels.contact import contact_energy, contact_step, grip_active
 from bullet_dlo.core.kernels.holders import HeldSamples, rotate, sample_holders
 from bullet_dlo.core.kernels.monitor import STABLE, monitor
 from bullet_dlo.core.kernels.steppers import IMPLICIT_EULER, advance
@@ -109,8 +109,8 @@ def coupled_targets(stepper, m, plan, ext, cp, ws, t, has_prev, contacts):
 
     Runs ``cp.substeps`` integrator steps into cp.x_new, cp.v_new (held ends in ``ext.active``
     follow the measured poses, the others their move tables; with ``contacts`` (core
-    :class:`~bullet_dlo.core.kernels.contact.Contacts`, detected for this step) an implicit
-    method takes them into its step; a BDF2 step after an impact restarts with implicit Euler)
+    :class:`~bullet_dlo.core.kernels.contact.Contacts`, detected for this step, and its friction
+    grips) an implicit method takes them into its step; a BDF2 step after an impact restarts with implicit Euler)
     and writes the sphere forces that
     make Bullet's semi-implicit update land on x_new into cp.force:
     F = m ((x_new - x)/dt - v_bullet)/dt - m g_bullet. Returns (Newton iterations, all converged).
@@ -126,7 +126,7 @@ def coupled_targets(stepper, m, plan, ext, cp, ws, t, has_prev, contacts):
             if ext.active[e]:
                 external_samples(ext, e, k * hs, hs, cp.samples)
         prev = has_prev or k > 0
-        if contacts.count[0] > 0 and stepper.method >= IMPLICIT_EULER:
+        if (contacts.count[0] > 0 or grip_active(contacts.grip)) and stepper.method >= IMPLICIT_EULER:
             its, ok = contact_step(stepper, m, cp.x_new, cp.v_new, cp.samples, ws, prev and contacts.impact[0] == 0,
                                    contacts)
         else:

@@ -20,6 +20,15 @@ every implicit method; the implicit midpoint rule is unstable with stiff one-sid
 so, and takes implicit Euler steps while contacts are active (BDF2 too, on the step after an
 impact, which its two-step history would turn into a bounce).
 
+Grip with friction (:class:`Grip`, field ``grip`` of :class:`Contacts`): a gripper pinching an end
+node with F_n per finger (two fingers). The end node is free (not held); it is tied to an anchor A
+= c + xi d on the gripper's axis (c the grasp centre, d the cable's direction in the gripper,
+both at the end of the step, xi the anchor's offset along the axis) by a stiff lateral spring
+k (I - d d^T) (the fingers enclose the cable) and an axial friction spring with the Huber
+potential above, capacity 2 mu_s F_n while stuck, 2 mu_d F_n while slipping. After a slipping
+step xi moves so that the spring carries 2 mu_d F_n: the end slides along the gripper and
+leaves it (the grip is lost) once |xi| exceeds the finger's reach.
+
 Stiffness: k_n = alpha m_k / h^2 per contact, m_k the cable mass at the contact point (one
 stiffness for all contacts would load the half-mass end nodes wrongly), alpha = 1e4 by default
 (penetration about g h^2 / alpha at rest: microns at 60 Hz); k_t = k_n.
@@ -49,6 +58,38 @@ DEFAULT_ALPHA = 1.0e4  # k_n h^2 / m: contact frequency times step, squared
 MIN_CONTACT_ITER = 30  # Newton iterations allowed in contact at least (stick/slide kinks need more than 8)
 
 
+class Grip(NamedTuple):
+    """Friction grips of the two cable ends (index 0 first, 1 last), see the module docstring.
+
+    active (2,) bool; k_ax, k_lat (2,) [N/m] axial friction spring and lateral spring; cap_s,
+    cap_d (2,) [N] axial capacity stuck / slipping (2 mu F_n); reach (2,) [m] how far the anchor
+    may slide along the gripper before the end leaves it; offset (2,) [m] anchor offset xi along
+    the axis; state (2,) int STICK / SLIDE; center (2, 3) [m], axis (2, 3) unit, vel (2, 3)
+    [m/s]: the gripper at the end of the step; force (2, 3) [N]: the grip's force on the cable.
+    """
+
+    active: np.ndarray
+    k_ax: np.ndarray
+    k_lat: np.ndarray
+    cap_s: np.ndarray
+    cap_d: np.ndarray
+    reach: np.ndarray
+    offset: np.ndarray
+    state: np.ndarray
+    center: np.ndarray
+    axis: np.ndarray
+    vel: np.ndarray
+    force: np.ndarray
+
+
+def make_grip() -> Grip:
+    """Two inactive grips."""
+    f = np.zeros
+    return Grip(active=np.zeros(2, np.bool_), k_ax=f(2), k_lat=f(2), cap_s=f(2), cap_d=f(2), reach=f(2),
+                offset=f(2), state=np.zeros(2, np.int64), center=f((2, 3)), axis=f((2, 3)), vel=f((2, 3)),
+                force=f((2, 3)))
+
+
 class Contacts(NamedTuple):
     """The contacts of one cable for the coming step (capacity M rows; the first ``count[0]`` used).
 
@@ -63,7 +104,8 @@ class Contacts(NamedTuple):
     body_work [J] work the touched bodies did on the cable so far, impact (1 when a contact took
     load at an approach speed above g h: the next BDF2 step restarts with implicit Euler).
     internal (M,) bool: the "body" is another part of the same cable (self-contact: its work is not
-    external). node_force (n, 3) [N]: scratch for the contact forces on the nodes.
+    external). node_force (n, 3) [N]: scratch for the contact forces on the nodes. grip: the
+    friction grips of the ends (:class:`Grip`), evaluated with the contacts.
     """
 
     count: np.ndarray
@@ -87,17 +129,133 @@ class Contacts(NamedTuple):
     impact: np.ndarray
     internal: np.ndarray
     node_force: np.ndarray
+    grip: Grip
 
 
-def make_contacts(n: int, capacity: int, radius: float) -> Contacts:
-    """Empty contact arrays for an n-node cable of radius [m], room for ``capacity`` contacts."""
+def make_contacts(n: int, capacity: int, radius: float, grip: Grip | None = None) -> Contacts:
+    """Empty contact arrays for an n-node cable of radius [m], room for ``capacity`` contacts
+    (``grip``: the cable's grips, shared between successive contact sets; None: inactive ones)."""
     m = max(1, int(capacity))
     f = np.zeros
     return Contacts(count=np.zeros(1, np.int64), radius=np.full(1, float(radius)), node=np.zeros((m, 2), np.int64),
                     weight=f((m, 2)), normal=f((m, 3)), point=f((m, 3)), body_vel=f((m, 3)), k_n=f(m), k_t=f(m),
                     c_n=f(m), mu_s=f(m), mu_d=f(m), anchor=f((m, 4)), state=np.zeros(m, np.int64), f_n=f(m),
                     f_t=f((m, 3)), cap=f(m), body_work=f(1), impact=np.zeros(1, np.int64),
-                    internal=np.zeros(m, np.bool_), node_force=f((n, 3)))
+                    internal=np.zeros(m, np.bool_), node_force=f((n, 3)),
+                    grip=grip if grip is not None else make_grip())
+
+
+# ----- the grips -----------------------------------------------------------------------------
+@njit(cache=True, error_model="numpy", inline="always")
+def _grip_offset(g, e, x, w):
+    """w <- lateral offset [m] (3,) of end e's node from the gripper axis; returns the axial offset
+    u [m] of the node from the anchor."""
+    i = 0 if e == 0 else x.shape[0] - 1
+    ua = 0.0
+    for j in range(3):
+        w[j] = x[i, j] - g.center[e, j] - g.offset[e] * g.axis[e, j]
+        ua += w[j] * g.axis[e, j]
+    for j in range(3):
+        w[j] -= ua * g.axis[e, j]
+    return ua
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _grip_cap(g, e):
+    return g.cap_s[e] if g.state[e] == STICK else g.cap_d[e]
+
+
+@njit(cache=True, error_model="numpy")
+def grip_forces(g, x, f):
+    """f += the grips' forces on the end nodes [N] at x (caps frozen); also fills g.force."""
+    w = np.empty(3)
+    n = x.shape[0]
+    for e in range(2):
+        if not g.active[e]:
+            continue
+        ua = _grip_offset(g, e, x, w)
+        cap, k = _grip_cap(g, e), g.k_ax[e]
+        fa = -k * ua if k * abs(ua) <= cap else -cap * math.copysign(1.0, ua)
+        i = 0 if e == 0 else n - 1
+        for j in range(3):
+            fj = -g.k_lat[e] * w[j] + fa * g.axis[e, j]
+            g.force[e, j] = fj
+            f[i, j] += fj
+
+
+@njit(cache=True, error_model="numpy")
+def grip_potential(g, x):
+    """Potential [J] of the grips' forces at x (caps frozen): lateral spring plus axial Huber term."""
+    w = np.empty(3)
+    phi = 0.0
+    for e in range(2):
+        if not g.active[e]:
+            continue
+        ua = _grip_offset(g, e, x, w)
+        cap, k = _grip_cap(g, e), g.k_ax[e]
+        phi += 0.5 * g.k_lat[e] * (w[0] * w[0] + w[1] * w[1] + w[2] * w[2])
+        if k * abs(ua) <= cap:
+            phi += 0.5 * k * ua * ua
+        else:
+            phi += cap * abs(ua) - 0.5 * cap * cap / k
+    return phi
+
+
+@njit(cache=True, error_model="numpy")
+def grip_energy(g, x):
+    """Energy [J] stored in the grips' springs at x."""
+    w = np.empty(3)
+    e_sum = 0.0
+    for e in range(2):
+        if not g.active[e]:
+            continue
+        ua = _grip_offset(g, e, x, w)
+        fa = min(g.k_ax[e] * abs(ua), _grip_cap(g, e))
+        e_sum += 0.5 * g.k_lat[e] * (w[0] * w[0] + w[1] * w[1] + w[2] * w[2]) + 0.5 * fa * fa / g.k_ax[e]
+    return e_sum
+
+
+@njit(cache=True, error_model="numpy")
+def add_grip_jacobian(g, x, kx, band):
+    """band += kx (-dF/dx) of the grips: k_lat (I - d d^T), plus k_ax d d^T while within the cap."""
+    w = np.empty(3)
+    n = x.shape[0]
+    for e in range(2):
+        if not g.active[e]:
+            continue
+        ua = _grip_offset(g, e, x, w)
+        k_axial = g.k_ax[e] if g.k_ax[e] * abs(ua) <= _grip_cap(g, e) else 0.0
+        i = 0 if e == 0 else n - 1
+        for r in range(3):
+            for q in range(3):
+                dd = g.axis[e, r] * g.axis[e, q]
+                val = g.k_lat[e] * ((1.0 if r == q else 0.0) - dd) + k_axial * dd
+                row = 3 * i + r
+                band[row, 3 * i + q - row + HALF] += kx * val
+
+
+@njit(cache=True, error_model="numpy")
+def grip_active(g):
+    return g.active[0] or g.active[1]
+
+
+@njit(cache=True, error_model="numpy")
+def _update_grips(g, x_end):
+    """After the step: stick or slip; a slipping grip's anchor follows (the spring carries cap_d);
+    a grip whose anchor slid past its reach has let the end go (active False)."""
+    w = np.empty(3)
+    for e in range(2):
+        if not g.active[e]:
+            continue
+        ua = _grip_offset(g, e, x_end, w)
+        k = g.k_ax[e]
+        if k * abs(ua) <= _grip_cap(g, e) * (1.0 + 1e-6):
+            g.state[e] = STICK
+        else:
+            g.state[e] = SLIDE
+            g.offset[e] += ua - math.copysign(g.cap_d[e] / k, ua)
+            if abs(g.offset[e]) > g.reach[e]:
+                g.active[e] = False
 
 
 # ----- one contact ---------------------------------------------------------------------------
@@ -167,6 +325,7 @@ def contact_forces(c, x, v, f):
             f[a, j] += wa * fn * c.normal[k, j] + (1.0 - sa) * ft
             f[b, j] += wb * fn * c.normal[k, j] + sa * ft
         c.f_n[k] = fn
+    grip_forces(c.grip, x, f)
 
 
 @njit(cache=True, error_model="numpy")
@@ -186,7 +345,7 @@ def contact_potential(c, x, v, damping_weight):
             phi += 0.5 * kt * ul * ul
         else:
             phi += cap * ul - 0.5 * cap * cap / kt
-    return phi
+    return phi + grip_potential(c.grip, x)
 
 
 @njit(cache=True, error_model="numpy")
@@ -201,7 +360,7 @@ def contact_energy(c, x):
         ul = _slip(c, k, x, u)
         ft = min(c.k_t[k] * ul, c.cap[k])
         e += 0.5 * ft * ft / c.k_t[k] if c.k_t[k] > 0.0 else 0.0
-    return e
+    return e + grip_energy(c.grip, x)
 
 
 @njit(cache=True, error_model="numpy")
@@ -247,6 +406,7 @@ def add_contact_jacobian(c, held, x, kx, kv, band):
                         for q in range(3):
                             row = 3 * na + r
                             band[row, 3 * nb + q - row + HALF] += w * blk[p, r, q]
+    add_grip_jacobian(c.grip, x, kx, band)
 
 
 @njit(cache=True, error_model="numpy")
@@ -396,6 +556,12 @@ def contact_step(stepper, m, x, v, samples, ws, has_prev, c):
         vn[0] = samples.vel[2, 0]
     if m.held[n - 1]:
         vn[n - 1] = samples.vel[2, 1]
+    gr = c.grip
+    for e in range(2):  # the grippers at the end of the step (where forces are evaluated)
+        for j in range(3):
+            gr.center[e, j] = samples.pos[2, e, j]
+            gr.axis[e, j] = samples.dir[2, e, j]
+            gr.vel[e, j] = samples.vel[2, e, j]
     # surface points and anchors on moving bodies: at the end of the step (where forces are evaluated)
     for k in range(c.count[0]):
         for j in range(3):
@@ -410,6 +576,10 @@ def contact_step(stepper, m, x, v, samples, ws, has_prev, c):
         for j in range(3):  # work of the body on the cable: f . u_b h (self-contact: internal, not counted)
             if not c.internal[k]:
                 c.body_work[0] += (c.f_n[k] * c.normal[k, j] + c.f_t[k, j]) * c.body_vel[k, j] * h
+    for e in range(2):  # work of the grippers on the cable
+        if gr.active[e]:
+            for j in range(3):
+                c.body_work[0] += gr.force[e, j] * gr.vel[e, j] * h
     for i in range(n):
         for j in range(3):
             if use_prev:
@@ -419,4 +589,5 @@ def contact_step(stepper, m, x, v, samples, ws, has_prev, c):
     v[:, :] = vn
     _set_held(m.held, x, v, samples.pos[2], samples.vel[2])
     _update_friction(c, x)  # contact points stay at the end of the step: the next step's start
+    _update_grips(gr, x)
     return its, converged
