@@ -73,6 +73,10 @@ class DualArmSpec:
     start: the cable's shape when it is attached: ``settled`` (static equilibrium with both ends
     clamped in the grippers' hold: the first sample reads the static load) or ``straight`` (at
     full length between the grippers, released into a start transient; the behaviour before 0.3).
+    grip: how a grasp holds its end: ``clamp`` (rigid: position and tangent) or ``friction`` (the
+    fingers pinch it with ``grip_force`` [N] each; along the gripper it holds up to
+    2 mu_s grip_force and then slips against 2 mu_d grip_force, ``grip_friction`` = (mu_s, mu_d);
+    it lets go after slipping ``grip_reach`` [m]).
     """
 
     robot: str = "kuka"
@@ -89,6 +93,10 @@ class DualArmSpec:
     renderer: str | None = None
     substeps: int = 1
     start: str = "settled"
+    grip: str = "clamp"
+    grip_force: float = 5.0
+    grip_friction: tuple[float, float] = (0.5, 0.4)
+    grip_reach: float = 0.02
 
     def __post_init__(self) -> None:
         check_positive("dt", self.dt)
@@ -103,3 +111,10 @@ class DualArmSpec:
         if self.sensor_rate is not None:
             check_positive("sensor_rate", self.sensor_rate)
         check_int("substeps", self.substeps, 1)
+        if self.grip not in ("clamp", "friction"):
+            raise ParameterError(f"grip must be one of clamp, friction, got {self.grip!r}")
+        check_positive("grip_force", self.grip_force)
+        check_positive("grip_reach", self.grip_reach)
+        if len(self.grip_friction) != 2 or not 0.0 <= self.grip_friction[1] <= self.grip_friction[0]:
+            raise ParameterError(f"grip_friction must be (mu_static, mu_dynamic) with 0 <= mu_dynamic <= mu_static, "
+                                 f"got {self.grip_friction!r}")

@@ -3,7 +3,9 @@
 Everything needed to step, and nothing about what an episode does (:mod:`.task`) or what is
 measured (:mod:`.observation`). The left arm (index 0) holds the cable's first end, the right
 arm (index 1) its last. A held end is clamped to its gripper's grasp frame (position and
-tangent). Stepping order, by the world's hooks:
+tangent), or, with ``spec.grip = "friction"``, held by a friction grip that slips along the
+gripper at 2 mu F_n (:meth:`~bullet_dlo.bullet.cable.BulletCable.grip_with_friction`). Stepping
+order, by the world's hooks:
 
 1. before the Bullet step: the force and clamp torque the cable exerts on each held end are
    applied to the gripper link, so they flow through the arm into its wrist joint;
@@ -149,8 +151,13 @@ class DualArmPhysics:
 
     # ----- the grasp coupling --------------------------------------------------------------------
     def clamp(self, arm: int) -> None:
-        """Clamp cable end ``arm`` to that arm's grasp frame (from the current measured pose)."""
-        self.cable.hold_externally(arm, "clamped")
+        """Clamp cable end ``arm`` to that arm's grasp frame (from the current measured pose), rigidly or
+        by a friction grip (``spec.grip``)."""
+        spec = self.spec
+        if spec.grip == "friction":
+            self.cable.grip_with_friction(arm, spec.grip_force, *spec.grip_friction, reach=spec.grip_reach)
+        else:
+            self.cable.hold_externally(arm, "clamped")
         self.held[arm] = True
         self._follow_grippers()
 
@@ -167,6 +174,9 @@ class DualArmPhysics:
 
     def _apply_cable_wrench(self) -> None:
         """Before the Bullet step: the cable's force [N] (at the end mass) and clamp torque [N m] on each holder."""
+        for arm in (0, 1):  # a friction grip that the end slid out of holds nothing any more
+            if self.held[arm] and self.spec.grip == "friction" and not self.cable.grip.active[arm]:
+                self.held[arm] = False
         if not any(self.held):
             return
         forces, torques = self.cable.end_forces(), self.cable.end_moments()  # both ends, once per step
