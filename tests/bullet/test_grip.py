@@ -43,9 +43,11 @@ def _pull(world, cable, duration, settle=0.2):
     return np.array(rows, dtype=float)
 
 
-@pytest.mark.parametrize("normal_force, mu_s, mu_d", [(1.0, 0.5, 0.3), (2.0, 0.4, 0.35)])
-def test_grip_holds_below_and_slips_at_two_mu_fn(normal_force, mu_s, mu_d):
-    world, cable, weight = _hanging(normal_force, mu_s, mu_d)
+@pytest.mark.parametrize("normal_force, mu_s, mu_d, integrator", [(1.0, 0.5, 0.3, "implicit_euler"),
+                                                                  (2.0, 0.4, 0.35, "implicit_euler"),
+                                                                  (1.0, 0.5, 0.3, "bdf2")])
+def test_grip_holds_below_and_slips_at_two_mu_fn(normal_force, mu_s, mu_d, integrator):
+    world, cable, weight = _hanging(normal_force, mu_s, mu_d, integrator=integrator)
     cap_s, cap_d = 2 * mu_s * normal_force, 2 * mu_d * normal_force
     duration = 0.2 + (cap_s - weight) / RAMP + 0.3
     with world:
