@@ -15,7 +15,8 @@ def cmd_capture(args: argparse.Namespace) -> int:
     spec = CaptureSpec.from_yaml(args.spec)
     res = capture(spec, args.out, args.episodes, workers=args.workers, backend=args.backend, resume=args.resume,
                   progress=not args.quiet)
-    print(f"{res.done} episodes in {res.out} ({res.flagged} flagged unstable, {res.failed} failed); ran {res.ran} "
+    print(f"{res.done} episodes in {res.out} ({res.flagged} flagged: unstable or failing a quality limit, "
+          f"{res.failed} failed); ran {res.ran} "
           f"in {res.wall_time_s:.1f} s = {res.episodes_per_second:.2f} episodes/s with {args.workers} worker(s)")
     if res.complete:
         return 0
@@ -38,10 +39,14 @@ def cmd_dataset_summary(args: argparse.Namespace) -> int:
 
     png = Path(args.dir) / "quality.png"
     summary = Dataset(args.dir).summary(png)
-    print(f"{summary['episodes']} episodes: {summary['ok']} ok, {summary['flagged']} flagged unstable, "
+    print(f"{summary['episodes']} episodes: {summary['ok']} ok, {summary['flagged']} flagged "
+          f"({summary['flagged_for_quality']} for force quality), "
           f"{summary['failed']} failed; stability decisions: {summary['decisions']}")
     for run in summary["flagged_runs"]:
-        print(f"  flagged: episode {run['episode']} unstable at t = {run['time_to_instability']} s")
+        if run["time_to_instability"] is not None:
+            print(f"  flagged: episode {run['episode']} unstable at t = {run['time_to_instability']} s")
+        else:
+            print(f"  flagged: episode {run['episode']}: {run['reason']}")
     for key, (lo, hi) in sorted(summary["coverage"].items()):
         print(f"  {key:16s} {lo:.4g} .. {hi:.4g}")
     print(f"quality histogram: {png}")

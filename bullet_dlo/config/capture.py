@@ -44,7 +44,8 @@ from bullet_dlo.core.validate import ParameterError, check_in_range, check_int, 
 
 DISTS = ("uniform", "log_uniform", "normal", "choice", "fixed")
 POLICIES = ("reject", "implicit", "substeps")
-SPEC_KEYS = ("seed", "episode", "policy", "max_resamples", "camera", "sample", "resolve_tol")
+SPEC_KEYS = ("seed", "episode", "policy", "max_resamples", "camera", "sample", "resolve_tol", "quality")
+QUALITY_DEFAULTS = {"max_sensor_model_rms": 1.0, "max_hf_energy": None}  # [cable weights], [share]
 
 # parameter -> (kind, default distribution, allowed range) ; kind: float | int | str
 PARAMETERS: dict[str, tuple[str, dict, tuple]] = {
@@ -186,6 +187,8 @@ class CaptureSpec:
     camera_height: int = 120
     resolve_tol: float = 0.02
     sample: dict[str, Distribution] = field(default_factory=dict)
+    max_sensor_model_rms: float | None = 1.0  # [cable weights] RMS |sensor - model| above it flags an episode
+    max_hf_energy: float | None = None  # share of the F/T variance above 10 Hz that flags an episode
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any]) -> "CaptureSpec":
@@ -196,6 +199,9 @@ class CaptureSpec:
         only_keys(episode, ("duration", "record_rate"), "episode")
         camera = section(data.get("camera"), "camera")
         only_keys(camera, ("fps", "width", "height"), "camera")
+        quality = {**QUALITY_DEFAULTS, **section(data.get("quality"), "quality")}
+        only_keys(quality, tuple(QUALITY_DEFAULTS), "quality")
+        rms_limit, hf_limit = quality["max_sensor_model_rms"], quality["max_hf_energy"]
         sample = {k: parse_distribution(k, v) for k, v in section(data.get("sample"), "sample").items()}
         for key in ("integrator", "robot"):
             if key in sample:
@@ -208,7 +214,11 @@ class CaptureSpec:
                    camera_fps=check_in_range("camera.fps", camera.get("fps", 0.0), 0.0, 1000.0),
                    camera_width=check_int("camera.width", camera.get("width", 160), 1, 8192),
                    camera_height=check_int("camera.height", camera.get("height", 120), 1, 8192),
-                   resolve_tol=check_positive("resolve_tol", data.get("resolve_tol", 0.02)), sample=sample)
+                   resolve_tol=check_positive("resolve_tol", data.get("resolve_tol", 0.02)), sample=sample,
+                   max_sensor_model_rms=None if rms_limit is None else check_in_range(
+                       "quality.max_sensor_model_rms [cable weights]", rms_limit, 1e-6, 1e6),
+                   max_hf_energy=None if hf_limit is None else check_in_range(
+                       "quality.max_hf_energy [share of the variance]", hf_limit, 0.0, 1.0))
 
     @classmethod
     def from_yaml(cls, path: str | Path) -> "CaptureSpec":
@@ -221,10 +231,14 @@ class CaptureSpec:
         for k, v in self.sample.items():
             entry = {kk: (list(vv) if isinstance(vv, tuple) else vv) for kk, vv in asdict(v).items() if vv is not None}
             sample[k] = entry
-        return {"seed": self.seed, "episode": {"duration": self.duration, "record_rate": self.record_rate},
-                "policy": self.policy, "max_resamples": self.max_resamples,
-                "camera": {"fps": self.camera_fps, "width": self.camera_width, "height": self.camera_height},
-                "resolve_tol": self.resolve_tol, "sample": sample}
+        out = {"seed": self.seed, "episode": {"duration": self.duration, "record_rate": self.record_rate},
+               "policy": self.policy, "max_resamples": self.max_resamples,
+               "camera": {"fps": self.camera_fps, "width": self.camera_width, "height": self.camera_height},
+               "resolve_tol": self.resolve_tol, "sample": sample}
+        quality = {"max_sensor_model_rms": self.max_sensor_model_rms, "max_hf_energy": self.max_hf_energy}
+        if quality != QUALITY_DEFAULTS:  # written only when set, so the digests of older specs stay the same
+            out["quality"] = quality
+        return out
 
     def digest(self) -> str:
         """Hash of the spec: a capture directory holds episodes of one spec only."""

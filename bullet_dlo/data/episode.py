@@ -30,9 +30,15 @@ import numpy as np
 import pybullet as pb
 
 from bullet_dlo.config.capture import CaptureSpec
+from bullet_dlo.core.model import STANDARD_GRAVITY
 from bullet_dlo.data.plan import cable_spec, gripper_move, plan_episode
-from bullet_dlo.data.quality import quality_metrics
-from bullet_dlo.data.storage import episode_result, failed_record, version, write_episode
+from bullet_dlo.data.quality import quality_issues, quality_metrics
+from bullet_dlo.data.storage import (
+    episode_result,
+    failed_record,
+    version,
+    write_episode,
+)
 from bullet_dlo.render.camera import default_camera, render_frame
 from bullet_dlo.robots.arm import Robot
 from bullet_dlo.robots.dual_arm import DualArmScene, DualArmSpec
@@ -127,7 +133,9 @@ def run_episode(spec_dict: dict, index: int, out_dir: str) -> dict:
              "time_to_instability": -1.0 if t_bad is None else float(t_bad), "columns": COLUMNS_NOTE}
     frames = np.asarray(recorder.frames, dtype=np.uint8) if recorder.frames else None
     name = write_episode(out_dir, index, data, attrs, frames, np.asarray(recorder.frame_t))
-    return episode_result(index, name, stable, t_bad, reason, params, decision, metrics)
+    weight = setup.cable.mass * float(np.linalg.norm(STANDARD_GRAVITY))
+    issues = quality_issues(metrics, weight, spec.max_sensor_model_rms, spec.max_hf_energy) if stable else []
+    return episode_result(index, name, stable, t_bad, reason, params, decision, metrics, issues)
 
 
 def run_episode_safely(spec_dict: dict, index: int, out_dir: str) -> dict:

@@ -36,6 +36,24 @@ def quality_metrics(t: np.ndarray, sensor: np.ndarray, model: np.ndarray, cutoff
             "sensor_model_rms": float(np.sqrt(np.mean(np.sum((sensor - model) ** 2, axis=2))))}
 
 
+def quality_issues(metrics: dict, weight: float, max_rms_weights: float | None, max_hf: float | None) -> list[str]:
+    """Why an episode's forces should not be trusted, as short reasons (empty: none).
+
+    metrics: from :func:`quality_metrics`; weight: the cable's weight [N]; max_rms_weights: limit on
+    the RMS of sensor minus model end force, in cable weights (None: no limit); max_hf: limit on the
+    high-frequency share (None: no limit). NaN metrics (too few samples) are not flagged.
+    """
+    issues = []
+    rms = metrics.get("sensor_model_rms", float("nan"))
+    if max_rms_weights is not None and rms > max_rms_weights * weight:
+        limit = max_rms_weights * weight
+        issues.append(f"sensor-model RMS {rms:.3g} N > {max_rms_weights:g} cable weights ({limit:.3g} N)")
+    hf = metrics.get("hf_energy", float("nan"))
+    if max_hf is not None and hf > max_hf:
+        issues.append(f"high-frequency share {hf:.3g} > {max_hf:g}")
+    return issues
+
+
 def plot_quality(records: Iterable[dict], png: str | Path) -> None:
     """Histograms of the episodes' high-frequency share and sensor-model RMS, written to ``png``."""
     import matplotlib

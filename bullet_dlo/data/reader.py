@@ -71,8 +71,8 @@ class Dataset:
                 if isinstance(v, (int, float)) and not isinstance(v, bool):
                     numeric.setdefault(k, []).append(v)
         coverage = {k: [float(min(v)), float(max(v))] for k, v in numeric.items() if min(v) != max(v)}
-        flagged = [{"episode": r["episode"], "time_to_instability": r.get("time_to_instability")}
-                   for r in self.records if r["status"] == "flagged"]
+        flagged = [{"episode": r["episode"], "time_to_instability": r.get("time_to_instability"),
+                    "reason": r.get("reason")} for r in self.records if r["status"] == "flagged"]
         decisions: dict[str, int] = {}
         for r in self.records:
             action = (r.get("decision") or {}).get("action", "n/a")
@@ -80,6 +80,8 @@ class Dataset:
             decisions[key] = decisions.get(key, 0) + 1
         if png is not None:
             plot_quality(self.records, png)
+        quality = sum(1 for r in flagged if str(r["reason"]).startswith("quality"))
         return {"episodes": len(self.records), "ok": statuses.count("ok"), "flagged": statuses.count("flagged"),
+                "flagged_for_quality": quality,
                 "failed": statuses.count("failed"), "flagged_runs": flagged, "coverage": coverage,
                 "decisions": decisions}

@@ -46,9 +46,14 @@ def episode_name(index: int) -> str:
 
 # ----- records ---------------------------------------------------------------------------------
 def episode_result(index: int, file: str, stable: bool, time_to_instability: float | None, reason: str | None,
-                   params: dict, decision: dict, metrics: dict) -> dict[str, Any]:
-    """The manifest record of a finished episode (``flagged`` when it went unstable)."""
-    return {"episode": index, "file": file, "status": "ok" if stable else "flagged", "error": None,
+                   params: dict, decision: dict, metrics: dict, quality: list[str] = ()) -> dict[str, Any]:
+    """The manifest record of a finished episode: ``flagged`` when it went unstable (``reason``: why) or
+    when its forces failed a quality limit (``quality``: the reasons, from
+    :func:`~bullet_dlo.data.quality.quality_issues`)."""
+    flagged = not stable or bool(quality)
+    if stable and quality:
+        reason = "quality: " + "; ".join(quality)
+    return {"episode": index, "file": file, "status": "flagged" if flagged else "ok", "error": None,
             "time_to_instability": time_to_instability, "reason": reason, "params": params, "decision": decision,
             "metrics": metrics}
 
