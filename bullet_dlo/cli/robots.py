@@ -11,8 +11,8 @@ from bullet_dlo.cli.simulate import write_json
 
 
 def _grasp_setup(args: argparse.Namespace):
-    """Cable, dt [s], integrator, duration [s], motion items and how the cable starts (settled or straight)
-    for ``grasp``."""
+    """Cable, dt [s], integrator, duration [s], motion items and the dual-arm layout and start the scene
+    file sets (DualArmSpec keywords) for ``grasp``."""
     from bullet_dlo.config.capture import PARAMETERS
     from bullet_dlo.config.robot import robot_names
     from bullet_dlo.config.scene import Scene
@@ -31,27 +31,27 @@ def _grasp_setup(args: argparse.Namespace):
         scene = Scene.from_yaml(args.scene).resolved()
         cable, dt, integrator, duration = scene.cable, scene.dt, scene.integrator, scene.duration
         moves = list(scene.motion)  # core motion items: first end = left arm, last = right
-        start = scene.arm_start
+        arm_options = scene.arm_options()
     else:
         cable = CableSpec.lv2017(n_masses=10, damping=0.02)
         dt, integrator, duration = 1.0 / 240.0, "implicit_euler", 3.0
         moves = [Move("last", (0.0, 0.0, 0.005), 1.5, 0.1)]  # the study's 5 mm move
-        start = "settled"
+        arm_options = {}
     dt_lo, dt_hi = PARAMETERS["dt"][2]  # a robot controller's step
     dt = check_in_range("--dt [s]" if args.dt is not None else "dt [s] (robot scenes)",
                         dt if args.dt is None else args.dt, dt_lo, dt_hi)
     duration = check_positive("--duration", args.duration) if args.duration is not None else duration
     check_steps(dt, duration, dt_name="--dt" if args.dt is not None else "dt",
                 duration_name="--duration" if args.duration is not None else "duration")
-    return cable, dt, integrator, duration, moves, start
+    return cable, dt, integrator, duration, moves, arm_options
 
 
 def cmd_grasp(args: argparse.Namespace) -> int:
     from bullet_dlo.robots.dual_arm import DualArmConfig, DualArmScene
 
-    cable, dt, integrator, duration, moves, start = _grasp_setup(args)
+    cable, dt, integrator, duration, moves, arm_options = _grasp_setup(args)
     config = DualArmConfig(robot=args.robot, cable=cable, dt=dt, integrator=integrator,
-                           sensor_rate=args.sensor_rate, noise_std=(args.noise,) * 3 + (0.0,) * 3, start=start)
+                           sensor_rate=args.sensor_rate, noise_std=(args.noise,) * 3 + (0.0,) * 3, **arm_options)
     with DualArmScene(config) as sc:
         sc.grasp()
         sc.follow_motion(moves)

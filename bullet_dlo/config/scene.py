@@ -38,6 +38,7 @@ from bullet_dlo.core.validate import (
     ParameterError,
     check_bool,
     check_finite,
+    check_in_range,
     check_int,
     check_nonnegative,
     check_positive,
@@ -46,7 +47,9 @@ from bullet_dlo.core.validate import (
 )
 
 TOP_KEYS = ("cable", "layout", "ends", "motion", "gravity", "integrator", "dt", "duration",
-            "initial", "detector", "newton", "name", "bullet", "tolerance")
+            "initial", "detector", "newton", "name", "bullet", "tolerance", "arms")
+# the dual-arm scene's layout (grasp, render --robot), with the defaults of DualArmSpec
+ARMS_KEYS = ("hold_height", "base_distance", "table_height")
 BULLET_KEYS = ("ground", "ground_height", "ground_friction", "substeps", "self_collision", "sync", "obstacles")
 OBSTACLE_KEYS = {"box": ("half_extents", "position", "orientation", "mass", "friction", "name"),
                  "cylinder": ("radius", "height", "position", "orientation", "mass", "friction", "name"),
@@ -128,6 +131,7 @@ class Scene:
     auto_dt: bool = False  # dt: auto (also picks the integrator)
     tolerance: float = 0.01
     tolerance_target: str = "both"
+    arms: tuple[tuple[str, float], ...] = ()  # dual-arm layout keys given in the file (ARMS_KEYS)
 
     # ----- parsing -------------------------------------------------------------------------
     @classmethod
@@ -175,9 +179,16 @@ class Scene:
         only_keys(nwt, ("max_iter", "tol", "definite"), "newton")
         bullet = BulletOptions.from_dict(data.get("bullet"))
         check_steps(dt, duration, bullet.substeps, duration_name="duration x bullet.substeps")
+        arms = section(data.get("arms"), "arms")
+        only_keys(arms, ARMS_KEYS, "arms")
+        arms = tuple((key, check_in_range(f"arms.{key} [m]", value, 0.0, 10.0)) for key, value in arms.items())
+        if arms:  # the layout's own rules (table clearance, positive heights), named as scene keys
+            from bullet_dlo.config.robot import DualArmSpec
+
+            keyed("arms", DualArmSpec, **dict(arms))
         return cls(cable, start, direction, ends, motion, gravity, integrator, dt, duration, initial,
                    DetectorOptions(**det), NewtonOptions(**nwt), str(data.get("name", "scene")),
-                   bullet, auto_n, auto_dt, tol_value, tol_target)
+                   bullet, auto_n, auto_dt, tol_value, tol_target, arms)
 
     @classmethod
     def from_yaml(cls, path: str | Path) -> "Scene":
@@ -209,6 +220,11 @@ class Scene:
         if self.initial == "static":
             return solve_static(model).state()
         return model.initial_state()
+
+    def arm_options(self) -> dict[str, Any]:
+        """Keyword arguments of :class:`~bullet_dlo.config.robot.DualArmSpec` this scene sets: the
+        layout (``arms:`` section) and how the cable starts (:attr:`arm_start`)."""
+        return {"start": self.arm_start, **dict(self.arms)}
 
     @property
     def arm_start(self) -> str:

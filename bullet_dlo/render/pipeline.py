@@ -80,7 +80,7 @@ def render_scene(scene, out: str | Path, *, robot: str | None = None, fps: float
         from bullet_dlo.robots.dual_arm import DualArmConfig, DualArmScene
 
         arm_scene = DualArmScene(DualArmConfig(robot=robot, cable=scene.cable, dt=scene.dt, integrator=scene.integrator,
-                                               renderer=renderer, **{"start": scene.arm_start, **(arm_options or {})}))
+                                               renderer=renderer, **{**scene.arm_options(), **(arm_options or {})}))
         arm_scene.grasp()
         arm_scene.follow_motion(scene.motion)
         world, cable, free = arm_scene.world, arm_scene.cable, (False, False)
