@@ -312,7 +312,17 @@ def build_world(scene, gui: bool = False, renderer: str | None = None) -> Bullet
     opts = scene.bullet
     world = BulletWorld(scene.dt, scene.gravity, gui=gui, ground=opts.ground, ground_height=opts.ground_height,
                         ground_friction=opts.ground_friction, renderer=renderer)
-    for k, ob in enumerate(opts.obstacles):
+    try:
+        add_obstacles(world, opts.obstacles)
+    except ParameterError:
+        world.close()
+        raise
+    return world
+
+
+def add_obstacles(world: BulletWorld, obstacles) -> None:
+    """Add a scene's ``bullet.obstacles`` (mappings with ``type: box | cylinder | urdf``) to ``world``."""
+    for k, ob in enumerate(obstacles):
         spec = {key: val for key, val in ob.items() if key != "type"}
         try:
             if ob["type"] == "box":
@@ -322,9 +332,7 @@ def build_world(scene, gui: bool = False, renderer: str | None = None) -> Bullet
             else:
                 world.add_urdf(**spec)
         except (ParameterError, TypeError) as err:
-            world.close()
             raise ParameterError(f"bullet.obstacles[{k}]: {err}") from None
-    return world
 
 
 def run_scene_bullet(scene, *, gui: bool = False, record_every: int | None = None, max_records: int = 2001):

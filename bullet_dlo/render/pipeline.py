@@ -81,6 +81,9 @@ def render_scene(scene, out: str | Path, *, robot: str | None = None, fps: float
 
         arm_scene = DualArmScene(DualArmConfig(robot=robot, cable=scene.cable, dt=scene.dt, integrator=scene.integrator,
                                                renderer=renderer, **{**scene.arm_options(), **(arm_options or {})}))
+        from bullet_dlo.bullet.world import add_obstacles
+
+        add_obstacles(arm_scene.world, scene.bullet.obstacles)  # pegs, fixtures: the cable touches them
         arm_scene.grasp()
         arm_scene.follow_motion(scene.motion)
         world, cable, free = arm_scene.world, arm_scene.cable, (False, False)
