@@ -21,7 +21,7 @@ from bullet_dlo.cli.quiet import quiet_output
 from bullet_dlo.config.schema import output_dir, output_file
 from bullet_dlo.core.validate import ParameterError
 
-OUTPUT_FILES = ("json", "npz", "markdown")
+OUTPUT_FILES = ("json", "npz", "markdown", "series")
 NEGATIVE_NUMBER = re.compile(r"^-(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?$|^-(inf|infinity|nan)$", re.IGNORECASE)  # options naming a file the command writes
 
 

@@ -57,11 +57,10 @@ def cmd_grasp(args: argparse.Namespace) -> int:
         sc.follow_motion(moves)
         recorder = None
         if args.series:
-            from bullet_dlo.data.recording import SeriesRecorder, series_format
+            from bullet_dlo.data.recording import series_format
 
             series_format(args.series)  # a bad suffix fails before the run, not after
-            recorder = SeriesRecorder(sc)
-            sc.world.after_step.append(recorder)
+            recorder = _attach_series(sc)
         with bar(int(round(duration / dt)), f"grasp ({args.robot})", args.quiet, unit="step") as progress:
             sc.world.after_step.append(lambda: progress.update(1))
             wall = sc.run(duration)
@@ -94,6 +93,15 @@ def cmd_grasp(args: argparse.Namespace) -> int:
     return 0
 
 
+def _attach_series(scene):
+    """A per-step series recorder on ``scene``'s world (see bullet_dlo.data.recording)."""
+    from bullet_dlo.data.recording import SeriesRecorder
+
+    recorder = SeriesRecorder(scene)
+    scene.world.after_step.append(recorder)
+    return recorder
+
+
 def cmd_render(args: argparse.Namespace) -> int:
     from bullet_dlo.config.robot import robot_names
     from bullet_dlo.config.scene import Scene
@@ -106,9 +114,24 @@ def cmd_render(args: argparse.Namespace) -> int:
     check_int("--height [px]", args.height, 16, int(LIMITS["pixels"]))
     if args.robot is not None:
         one_of("--robot", args.robot, robot_names())
+    recorders = []
+    if args.series:
+        from bullet_dlo.core.validate import ParameterError
+        from bullet_dlo.data.recording import series_format
+
+        if args.robot is None:
+            raise ParameterError("--series needs --robot (the series are the dual-arm scene's: wrist wrenches, "
+                                 "grasp poses, joint states)")
+        series_format(args.series)  # a bad suffix fails before the run, not after
     scene = Scene.from_yaml(args.scene).resolved()
     summary = render_scene(scene, args.out, robot=args.robot, fps=args.fps, width=args.width, height=args.height,
-                           renderer=args.renderer, fmt=args.format, progress=not args.quiet)
+                           renderer=args.renderer, fmt=args.format, progress=not args.quiet,
+                           on_arm_scene=(lambda sc: recorders.append(_attach_series(sc))) if args.series else None)
+    if recorders:
+        from bullet_dlo.data.recording import write_series
+
+        write_series(args.series, recorders[0].arrays(), {"robot": args.robot, "dt": scene.dt,
+                                                           "cable": scene.cable.to_dict()})
     print(f"renderer: {summary['renderer']} ({summary['renderer_note']}); {summary['frames']} frames, "
           f"{summary['format']} ({summary['codec']}) in {summary['wall_time_s']:.1f} s")
     print(f"outputs written to {Path(args.out).resolve()}")
@@ -153,4 +176,6 @@ def add_parsers(sub, common: argparse.ArgumentParser) -> None:
                    help="auto: EGL when its plugin loads, else TinyRenderer (reported); tiny; egl (error if absent)")
     s.add_argument("--format", default="auto", choices=["auto", "mp4", "webm", "png"],
                    help="video format: auto tries H.264 MP4, then VP9 WebM, then a PNG sequence")
+    s.add_argument("--series", metavar="OUT.npz|OUT.h5|OUT.csv", help="with --robot: write the per-step time "
+                   "series as grasp --series does (names as in dataset episodes, see bullet_dlo.data.recording)")
     s.set_defaults(func=cmd_render)

@@ -60,7 +60,7 @@ def cable_envelope(ends: np.ndarray, length: float, motion: Sequence, free: Sequ
 def render_scene(scene, out: str | Path, *, robot: str | None = None, fps: float = 30.0, width: int = 640,
                  height: int = 480, renderer: str = "auto", fmt: str = "auto", camera: Camera | None = None,
                  arm_options: dict | None = None, phases: Sequence[tuple[float, float, str]] = (),
-                 still_time: float | None = None, progress: bool = True) -> dict:
+                 still_time: float | None = None, progress: bool = True, on_arm_scene=None) -> dict:
     """Run ``scene`` in Bullet and film it; write ``scene.<mp4|webm>``, ``forces.png``,
     ``side_by_side.<ext>``, ``still.png`` and ``render.json`` into ``out``.
 
@@ -69,7 +69,8 @@ def render_scene(scene, out: str | Path, *, robot: str | None = None, fps: float
     (e.g. ``hold_height``); camera: default frames the cable's whole motion (see
     :func:`cable_envelope`); phases: (start [s], end [s], label) spans marked on the force plot;
     still_time: time [s] of the frame saved as ``still.png`` (default: the last frame);
-    progress: a frame counter with ETA on stderr. Returns the summary (renderer, codec,
+    progress: a frame counter with ETA on stderr; on_arm_scene: called with the dual-arm scene once it
+    is built, before it runs (e.g. to attach a time-series recorder). Returns the summary (renderer, codec,
     frames, wall time, sizes).
     """
     import cv2
@@ -86,6 +87,8 @@ def render_scene(scene, out: str | Path, *, robot: str | None = None, fps: float
         add_obstacles(arm_scene.world, scene.bullet.obstacles)  # pegs, fixtures: the cable touches them
         arm_scene.grasp()
         arm_scene.follow_motion(scene.motion)
+        if on_arm_scene is not None:
+            on_arm_scene(arm_scene)
         world, cable, free = arm_scene.world, arm_scene.cable, (False, False)
     else:
         from bullet_dlo.bullet.world import build_world

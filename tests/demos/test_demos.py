@@ -137,8 +137,17 @@ def test_panda_peg_scene_renders(tmp_path):
     scene = tmp_path / "peg.yaml"
     scene.write_text(yaml.safe_dump(data))
     out = tmp_path / "r"
+    series = tmp_path / "run.npz"
     assert main(["-q", "render", str(scene), "--robot", "panda", "--out", str(out), "--width", "160", "--height",
-                 "120", "--fps", "4", "--renderer", "tiny"]) == 0
+                 "120", "--fps", "4", "--renderer", "tiny", "--series", str(series)]) == 0
     summary = json.loads((out / "render.json").read_text())
     assert summary["stable"] and summary["decoded"]["frames"] == 11
     assert (out / "side_by_side.mp4").stat().st_size > 1000
+    import numpy as np
+
+    data = np.load(series)  # one row per physics step, as grasp --series writes them
+    steps = int(round(2.5 * 240))
+    assert data["wrench_world"].shape == (steps, 2, 6) and data["ee_pos"].shape == (steps, 2, 3)
+    # the grippers came 10 cm down and 10 cm together (the scene's first two moves)
+    assert np.allclose(data["ee_pos"][-1, :, 2] - data["ee_pos"][0, :, 2], -0.1, atol=3e-3)
+    assert main(["-q", "render", str(scene), "--out", str(out), "--series", str(series)]) == 2  # needs --robot
