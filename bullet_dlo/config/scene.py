@@ -48,8 +48,9 @@ from bullet_dlo.core.validate import (
 
 TOP_KEYS = ("cable", "layout", "ends", "motion", "gravity", "integrator", "dt", "duration",
             "initial", "detector", "newton", "name", "bullet", "tolerance", "arms")
-# the dual-arm scene's layout (grasp, render --robot), with the defaults of DualArmSpec
-ARMS_KEYS = ("hold_height", "base_distance", "table_height")
+# the dual-arm scene (grasp, render --robot): layout [m] and how the grippers hold the ends (DualArmSpec)
+ARMS_LENGTHS = ("hold_height", "base_distance", "table_height", "grip_reach")
+ARMS_KEYS = ARMS_LENGTHS + ("grip", "grip_force", "grip_friction")
 BULLET_KEYS = ("ground", "ground_height", "ground_friction", "substeps", "self_collision", "sync", "obstacles")
 OBSTACLE_KEYS = {"box": ("half_extents", "position", "orientation", "mass", "friction", "name"),
                  "cylinder": ("radius", "height", "position", "orientation", "mass", "friction", "name"),
@@ -107,6 +108,19 @@ def _obstacle(k: int, data: Any) -> dict:
     kind = one_of(f"bullet.obstacles[{k}].type", ob.pop("type", None), OBSTACLE_KEYS)
     only_keys(ob, OBSTACLE_KEYS[kind], f"bullet.obstacles[{k}] ({kind})")
     return {"type": kind, **ob}
+
+
+def _arms_value(key: str, value: Any) -> Any:
+    """One ``arms:`` entry checked for its type and range (DualArmSpec checks how they go together)."""
+    if key in ARMS_LENGTHS:
+        return check_in_range(f"arms.{key} [m]", value, 0.0, 10.0)
+    if key == "grip_force":
+        return check_in_range("arms.grip_force [N]", value, 0.0, 1e4)
+    if key == "grip_friction":
+        if not isinstance(value, (list, tuple)) or len(value) != 2:
+            raise ParameterError(f"arms.grip_friction must be [mu_static, mu_dynamic], got {value!r}")
+        return tuple(check_in_range(f"arms.grip_friction[{k}]", v, 0.0, 10.0) for k, v in enumerate(value))
+    return one_of("arms.grip", str(value), ("clamp", "friction"))
 
 
 @dataclass(frozen=True)
@@ -181,7 +195,7 @@ class Scene:
         check_steps(dt, duration, bullet.substeps, duration_name="duration x bullet.substeps")
         arms = section(data.get("arms"), "arms")
         only_keys(arms, ARMS_KEYS, "arms")
-        arms = tuple((key, check_in_range(f"arms.{key} [m]", value, 0.0, 10.0)) for key, value in arms.items())
+        arms = tuple((key, _arms_value(key, value)) for key, value in arms.items())
         if arms:  # the layout's own rules (table clearance, positive heights), named as scene keys
             from bullet_dlo.config.robot import DualArmSpec
 

@@ -37,3 +37,26 @@ def test_arms_section_is_validated_with_the_key_named():
         Scene.from_dict({**base, "arms": {"span": 0.3}})
     assert Scene.from_dict({**base, "arms": {"table_height": 0}}).arm_options() == {"start": "settled",
                                                                                      "table_height": 0.0}
+
+
+def test_friction_grip_from_a_scene_file_saturates_at_two_mu_fn(tmp_path):
+    """arms: {grip: friction, ...}: grippers pulling apart make the ends slip; the wrist force along the
+    cable saturates at 2 mu_d F_n (two fingers), the closed form of a friction grip."""
+    scene = tmp_path / "grip.yaml"
+    scene.write_text("""
+cable: {preset: lv2017, n_masses: 10}
+arms: {grip: friction, grip_force: 2.0, grip_friction: [0.5, 0.4], grip_reach: 0.05}
+motion:
+  - {end: first, displacement: [-0.015, 0, 0], start: 0.5, duration: 1.0}
+  - {end: last, displacement: [0.015, 0, 0], start: 0.5, duration: 1.0}
+dt: 0.004166666666666667
+duration: 1.5
+""")
+    series = tmp_path / "run.npz"
+    assert main(["-q", "grasp", "--robot", "kuka", "--scene", str(scene), "--series", str(series)]) == 0
+    data = np.load(series)
+    fx = data["wrench_world"][:, :, 0]  # (k, 2): the force along the cable at each wrist
+    t = data["t"]
+    late = (t > 1.2) & (t < 1.45)  # the ends slip: the grip force is at its dynamic cap
+    assert np.all(np.abs(fx[late]) == pytest.approx(2 * 0.4 * 2.0, rel=0.05))
+    assert np.max(np.abs(fx)) <= 1.05 * 2 * 0.5 * 2.0  # never beyond the static cap
