@@ -151,3 +151,12 @@ def test_panda_peg_scene_renders(tmp_path):
     # the grippers came 10 cm down and 10 cm together (the scene's first two moves)
     assert np.allclose(data["ee_pos"][-1, :, 2] - data["ee_pos"][0, :, 2], -0.1, atol=3e-3)
     assert main(["-q", "render", str(scene), "--out", str(out), "--series", str(series)]) == 2  # needs --robot
+
+
+def test_sensor_bias_demo_quick(tmp_path):
+    """Both robots at both rates; the hand's tilt under load explains only a small part of the error."""
+    run_demo("sensor_bias.py", tmp_path)
+    rows = json.loads((tmp_path / "sensor_bias.json").read_text())
+    assert {(r["robot"], r["rate_hz"]) for r in rows} == {("panda", 240), ("panda", 1000), ("kuka", 240), ("kuka", 1000)}
+    for r in rows:
+        assert abs(r["z_percent"]) < 5 and r["tilt_explains_mN"] < r["error_mN"]  # small, and not the tilt
