@@ -160,3 +160,13 @@ def test_sensor_bias_demo_quick(tmp_path):
     assert {(r["robot"], r["rate_hz"]) for r in rows} == {("panda", 240), ("panda", 1000), ("kuka", 240), ("kuka", 1000)}
     for r in rows:
         assert abs(r["z_percent"]) < 5 and r["tilt_explains_mN"] < r["error_mN"]  # small, and not the tilt
+
+
+def test_contact_demo_quick(tmp_path):
+    """A held cable pulled over a peg: stable, sliding contacts seen, the frames and force plot written."""
+    res = subprocess.run([sys.executable, str(ROOT / "demos" / "contact_demo.py"), "--quick", "--out", str(tmp_path)],
+                         capture_output=True, text=True, timeout=600)
+    assert res.returncode == 0, res.stderr
+    pull = json.loads((tmp_path / "contact_demo.json").read_text())["pull"]
+    assert pull["stable"] and pull["max_sliding_contacts"] > 0
+    assert (tmp_path / "contact_demo.png").stat().st_size > 10_000
