@@ -219,6 +219,19 @@ class ContactSet:
 
 
 # ----- detection kernel --------------------------------------------------------------------------
+@njit(cache=True, error_model="numpy", inline="always")
+def _normal_from(q, c, out_n):
+    """Unit vector from surface point ``c`` to the outside point ``q`` into ``out_n``; returns |q - c| [m]."""
+    d2 = 0.0
+    for j in range(3):
+        out_n[j] = q[j] - c[j]
+        d2 += out_n[j] ** 2
+    dl = math.sqrt(d2)
+    for j in range(3):
+        out_n[j] /= dl
+    return dl
+
+
 @njit(cache=True, error_model="numpy")
 def _node_closest(kind, size, q, out_c, out_n):
     """Closest surface point out_c and outward normal out_n (shape frame) to point q; returns the
@@ -241,14 +254,7 @@ def _node_closest(kind, size, q, out_c, out_n):
             for j in range(3):
                 out_c[j] = q[j] + best * out_n[j]
             return -best
-        d2 = 0.0
-        for j in range(3):
-            out_n[j] = q[j] - out_c[j]
-            d2 += out_n[j] ** 2
-        dl = math.sqrt(d2)
-        for j in range(3):
-            out_n[j] /= dl
-        return dl
+        return _normal_from(q, out_c, out_n)
     R = size[0]
     if kind == SPHERE or kind == CAPSULE:
         t = 0.0 if kind == SPHERE else min(max(q[2], -size[1]), size[1])
@@ -284,14 +290,7 @@ def _node_closest(kind, size, q, out_c, out_n):
         out_c[0], out_c[1], out_c[2] = q[0], q[1], sz * hl
         return cap
     out_c[0], out_c[1], out_c[2] = R * q[0] / rho, R * q[1] / rho, sz * hl  # the rim
-    d2 = 0.0
-    for j in range(3):
-        out_n[j] = q[j] - out_c[j]
-        d2 += out_n[j] ** 2
-    dl = math.sqrt(d2)
-    for j in range(3):
-        out_n[j] /= dl
-    return dl
+    return _normal_from(q, out_c, out_n)
 
 
 @njit(cache=True, error_model="numpy")

@@ -47,10 +47,10 @@ from bullet_dlo.core.kernels.steppers import (
     BDF2,
     IMPLICIT_EULER,
     IMPLICIT_MIDPOINT,
-    _implicit_map,
     _merit,
     _residual,
     _set_held,
+    _start_implicit,
 )
 
 STICK, SLIDE = 0, 1
@@ -549,13 +549,8 @@ def contact_step(stepper, m, x, v, samples, ws, has_prev, c):
     if method == IMPLICIT_MIDPOINT:
         method = IMPLICIT_EULER
     use_prev = has_prev and method == BDF2
-    imp = _implicit_map(method, x, v, h, samples, ws, use_prev)
+    imp = _start_implicit(method, m, x, v, h, samples, ws, use_prev)
     vn = ws.v_new
-    vn[:, :] = v
-    if m.held[0]:
-        vn[0] = samples.vel[2, 0]
-    if m.held[n - 1]:
-        vn[n - 1] = samples.vel[2, 1]
     gr = c.grip
     for e in range(2):  # the grippers at the end of the step (where forces are evaluated)
         for j in range(3):

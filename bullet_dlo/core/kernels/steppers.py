@@ -325,17 +325,27 @@ def _newton(stepper, m, x, imp, ws):
 
 
 @njit(cache=True, error_model="numpy")
-def _implicit(stepper, m, x, v, samples, ws, has_prev):
-    """Implicit Euler, BDF2 or implicit midpoint: solve for v', then update x consistently."""
-    method, h = stepper.method, stepper.h
-    n = x.shape[0]
+def _start_implicit(method, m, x, v, h, samples, ws, has_prev):
+    """The implicit method's affine map (see :func:`_implicit_map`) and Newton's first iterate in
+    ws.v_new: the current velocities, held ends at their end-of-step velocities."""
     imp = _implicit_map(method, x, v, h, samples, ws, has_prev)
+    n = x.shape[0]
     vn = ws.v_new
     vn[:, :] = v
     if m.held[0]:
         vn[0] = samples.vel[2, 0]
     if m.held[n - 1]:
         vn[n - 1] = samples.vel[2, 1]
+    return imp
+
+
+@njit(cache=True, error_model="numpy")
+def _implicit(stepper, m, x, v, samples, ws, has_prev):
+    """Implicit Euler, BDF2 or implicit midpoint: solve for v', then update x consistently."""
+    method, h = stepper.method, stepper.h
+    n = x.shape[0]
+    imp = _start_implicit(method, m, x, v, h, samples, ws, has_prev)
+    vn = ws.v_new
     its, converged = _newton(stepper, m, x, imp, ws)
     for i in range(n):
         for j in range(3):
