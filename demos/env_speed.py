@@ -25,6 +25,7 @@ from bullet_dlo.core.spec import CableSpec
 from bullet_dlo.robots.dual_arm import DualArmObservation, DualArmPhysics, DualArmSpec
 
 BLOCK = 24  # physics steps per timed block (0.1 s at 240 Hz: the bare cable spheres fall 5 cm, no contact)
+CLOCK = time.thread_time  # CPU time of this thread: other jobs on a shared machine inflate wall time, not this
 
 
 def build(robot: str, n: int) -> DualArmPhysics:
@@ -38,17 +39,17 @@ def build(robot: str, n: int) -> DualArmPhysics:
 
 
 def step_vs_bare(physics: DualArmPhysics, blocks: int) -> tuple[float, float]:
-    """Median wall time [s] per simulated second of the dual-arm step and of the bare Bullet step."""
+    """Median CPU time [s] per simulated second of the dual-arm step and of the bare Bullet step."""
     world, cid = physics.world, physics.world.client
     full, bare = [], []
     for _ in range(blocks):
-        tic = time.perf_counter()
+        tic = CLOCK()
         world.step(BLOCK)
-        full.append(time.perf_counter() - tic)
+        full.append(CLOCK() - tic)
         state = pb.saveState(physicsClientId=cid)
-        tic = time.perf_counter()
+        tic = CLOCK()
         world.step_bare(BLOCK)
-        bare.append(time.perf_counter() - tic)
+        bare.append(CLOCK() - tic)
         pb.restoreState(stateId=state, physicsClientId=cid)
         pb.removeState(state, physicsClientId=cid)
     per_second = 1.0 / (BLOCK * world.dt)
@@ -56,15 +57,15 @@ def step_vs_bare(physics: DualArmPhysics, blocks: int) -> tuple[float, float]:
 
 
 def breakdown(physics: DualArmPhysics, steps: int) -> dict[str, float]:
-    """Wall time [us] per step of each part of the dual-arm step (hooks wrapped with timers)."""
+    """CPU time [us] per step of each part of the dual-arm step (hooks wrapped with timers)."""
     world, cable = physics.world, physics.cable
     spent: dict[str, float] = {}
 
     def timed(name, fn):
         def run(*args):
-            tic = time.perf_counter()
+            tic = CLOCK()
             out = fn(*args)
-            spent[name] = spent.get(name, 0.0) + time.perf_counter() - tic
+            spent[name] = spent.get(name, 0.0) + CLOCK() - tic
             return out
         return run
 
@@ -79,9 +80,9 @@ def breakdown(physics: DualArmPhysics, steps: int) -> dict[str, float]:
     step_simulation = pb.stepSimulation
     pb.stepSimulation = timed("Bullet stepSimulation", step_simulation)
     try:
-        tic = time.perf_counter()
+        tic = CLOCK()
         world.step(steps)
-        total = time.perf_counter() - tic
+        total = CLOCK() - tic
     finally:
         pb.stepSimulation = step_simulation
         world.before_step[:], world.after_physics[:] = saved[0], saved[1]
@@ -136,7 +137,8 @@ def main(argv: list[str] | None = None) -> None:
     args = parser.parse_args(argv)
     blocks, env_steps = (5, 10) if args.quick else (60, 150)
 
-    print(f"dual-arm step vs bare stepSimulation, same world, {blocks} interleaved blocks of {BLOCK} steps, medians")
+    print(f"dual-arm step vs bare stepSimulation, same world, {blocks} interleaved blocks of {BLOCK} steps, "
+          "medians of CPU time per simulated second")
     print(f"{'robot':6} {'n':>3} {'dual-arm s/s':>13} {'bare s/s':>9} {'ratio':>6}")
     parts = None
     for robot in args.robots:

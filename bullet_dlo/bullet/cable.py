@@ -43,16 +43,33 @@ import numpy as np
 import pybullet as pb
 
 from bullet_dlo.bullet.contact import ContactSet
-from bullet_dlo.bullet.kernels import Coupling, ExternalHolders, StepInput, bind, sync_and_advance
+from bullet_dlo.bullet.kernels import (
+    Coupling,
+    ExternalHolders,
+    StepInput,
+    bind,
+    end_loads,
+    sync_and_advance,
+)
 from bullet_dlo.core.engine import DetectorOptions, start_detector
 from bullet_dlo.core.integrators import NewtonOptions, get_integrator, make_stepper
-from bullet_dlo.core.kernels.contact import DEFAULT_ALPHA, SLIDE, make_contacts, make_grip
-from bullet_dlo.core.kernels.forces import clamp_torque, mechanical_energy
+from bullet_dlo.core.kernels.contact import (
+    DEFAULT_ALPHA,
+    SLIDE,
+    make_contacts,
+    make_grip,
+)
+from bullet_dlo.core.kernels.forces import mechanical_energy
 from bullet_dlo.core.kernels.holders import empty_samples, sample_holders
-from bullet_dlo.core.kernels.monitor import REASONS, STABLE, end_forces
+from bullet_dlo.core.kernels.monitor import REASONS, STABLE
 from bullet_dlo.core.kernels.steppers import make_workspace
 from bullet_dlo.core.model import CableModel, CableState
-from bullet_dlo.core.validate import ParameterError, check_int, check_nonnegative, check_positive
+from bullet_dlo.core.validate import (
+    ParameterError,
+    check_int,
+    check_nonnegative,
+    check_positive,
+)
 
 SELF_COLLISION = ("neighbours", "none", "all")
 CONTACT = ("auto", "model", "bullet")
@@ -142,6 +159,7 @@ class BulletCable:
         self.newton_failures = 0
         self.contacts_last_step = 0
         self.record = CableRecord()
+        self._end_loads = None  # end_loads's machine code, bound on first use
         self._record_row()
         spawn = self._step_input(False, self._no_index, self._no_rows, self._no_rows)
         self._sync_and_advance = bind(sync_and_advance, *self._kernel_args(spawn))
@@ -225,10 +243,12 @@ class BulletCable:
             x0, v0 = (cp.x_new, cp.v_new) if do_sync else (cp.x, cp.v)  # the state this step starts from
             self.contacts_last_step = self._contact_set.update(x0, v0, self.arrays.mass, self.stepper.h)
         inp = self._step_input(do_sync, idx_arr, pos, vel)
-        gripped = self.grip.active.copy()
+        active = self.grip.active
+        gripped = (bool(active[0]), bool(active[1]))
         status, its, ok = self._sync_and_advance(*self._kernel_args(inp))
-        for end in np.flatnonzero(gripped & ~self.grip.active):  # the end slid out of the gripper
-            self._let_go(int(end))
+        for end in (0, 1):
+            if gripped[end] and not active[end]:  # the end slid out of the gripper
+                self._let_go(end)
         self.newton_iterations += its
         self.newton_failures += 0 if ok else 1
         if status != STABLE:
@@ -367,7 +387,9 @@ class BulletCable:
         pointing along the cable from its first to its last mass (normalised here)."""
         e = self.ext
         e.pos[end], e.vel[end], e.acc[end], e.omega[end] = position, velocity, acceleration, omega
-        e.dir[end] = np.asarray(direction, float) / np.linalg.norm(direction)
+        dx, dy, dz = direction  # normalised in scalars: this runs twice per coupled step
+        scale = 1.0 / math.sqrt(dx * dx + dy * dy + dz * dz)
+        e.dir[end] = (dx * scale, dy * scale, dz * scale)
 
     def holder_positions(self) -> np.ndarray:
         """Positions [m] of the external holders (e.g. grasp frames) as last measured, (2, 3)."""
@@ -393,12 +415,17 @@ class BulletCable:
 
     def end_forces(self) -> np.ndarray:
         """Force [N] the cable exerts on each held or gripped end now, (2, 3) (first, last)."""
-        samples = self._cp.samples
-        out = np.zeros((2, 3))
-        end_forces(self.arrays, self.x, self.v, samples.dir[0], samples.acc[0], out)
-        for e in np.flatnonzero(self.grip.active):  # a friction grip: the reaction of its force on the cable
-            out[e] = -self.grip.force[e]
-        return out
+        return self.end_loads()[0]
+
+    def end_loads(self) -> tuple[np.ndarray, np.ndarray]:
+        """Force [N] (the reaction of a friction grip's force where one holds the end) and clamp torque
+        [N m] the cable exerts on each held end now, (2, 3) each (first, last): one kernel call."""
+        force, torque = np.empty((2, 3)), np.empty((2, 3))
+        args = (self.arrays, self.x, self.v, self._cp.samples, self.grip, force, torque)
+        if self._end_loads is None:
+            self._end_loads = bind(end_loads, *args)
+        self._end_loads(*args)
+        return force, torque
 
     def contact_forces(self) -> dict[str, np.ndarray]:
         """The model's contacts of the step just planned, with the forces on the cable [N]: keys body,
@@ -419,8 +446,7 @@ class BulletCable:
 
     def end_moments(self) -> np.ndarray:
         """Torque [N m] the cable exerts on each clamp now, (2, 3) (zero rows for unclamped ends)."""
-        dirs = self._cp.samples.dir[0]
-        return np.stack([clamp_torque(self.arrays, self.x, dirs, e) for e in (0, 1)])
+        return self.end_loads()[1]
 
     def bullet_positions(self) -> np.ndarray:
         """Sphere positions read from Bullet [m], (n, 3) (n PyBullet calls: for checks, not loops)."""

@@ -385,11 +385,11 @@ def detect(x, v, mass, sh, c, st, margin, k_per_mass, zeta, self_mu):
     """Store the friction state of the last step's contacts by key, then fill ``c`` with the contacts
     of positions x [m] (n, 3) (velocities v [m/s]) whose gap is below ``margin`` [m]; self-contacts too
     unless self_mu[0] < 0 (self_mu: static and dynamic friction cable on cable). Returns the count."""
-    for k in range(c.count[0]):  # persist what the last step left
-        key = st.keys[k]
+    previous = st.keys[:c.count[0]].copy()  # the keys in contact last step (their rows get overwritten)
+    for k in range(previous.shape[0]):  # persist what the last step left
+        key = previous[k]
         st.anchor[key] = c.anchor[k]
         st.state[key] = c.state[k]
-    seen = np.zeros(st.active.shape[0], dtype=np.bool_)
     n = x.shape[0]
     per_shape = n + (N_EDGES + 1) * (n - 1)
     radius = c.radius[0]
@@ -407,12 +407,13 @@ def detect(x, v, mass, sh, c, st, margin, k_per_mass, zeta, self_mu):
             for j in range(3):
                 q[i, j] = (rot[0, j] * (x[i, 0] - pos[0]) + rot[1, j] * (x[i, 1] - pos[1])
                            + rot[2, j] * (x[i, 2] - pos[2]))
+        if _out_of_reach(q, kind, size, radius + margin):
+            continue  # the cable's bounding box misses the shape's: nothing of it can touch
         base = s * per_shape
         for i in range(n):
             d = _node_closest(kind, size, q[i], cl, nl)
             if d - radius < margin:
                 _add(c, st, base + i, s, i, i, 1.0, 0.0, cl, nl, sh, k_per_mass, zeta, mass, x)
-                seen[base + i] = True
         if kind == BOX:  # segments against the 12 edges
             for ax in range(3):
                 o1 = (ax + 1) % 3
@@ -425,11 +426,12 @@ def detect(x, v, mass, sh, c, st, margin, k_per_mass, zeta, self_mu):
                     P[o2] = size[o2] if e // 2 == 0 else -size[o2]
                     feat = 1 + 4 * ax + e
                     for i in range(n - 1):
+                        if not _may_reach_edge(q[i], q[i + 1], P, ax, size[ax], radius + margin):
+                            continue
                         sp = _segment_axis(q[i], q[i + 1], P, A, size[ax], 0.0, cl, nl)
                         if sp > 0.0 and cl[3] - radius < margin:
                             key = base + n + (n - 1) * feat + i
                             _add(c, st, key, s, i, i + 1, 1.0 - sp, sp, cl, nl, sh, k_per_mass, zeta, mass, x)
-                            seen[key] = True
         elif kind == SPHERE:
             P[:] = 0.0
             for i in range(n - 1):
@@ -453,7 +455,6 @@ def detect(x, v, mass, sh, c, st, margin, k_per_mass, zeta, self_mu):
                         cl[j] = size[0] * nl[j]
                     key = base + n + i
                     _add(c, st, key, s, i, i + 1, 1.0 - sp, sp, cl, nl, sh, k_per_mass, zeta, mass, x)
-                    seen[key] = True
         else:  # cylinder mantle / capsule core: segments against the axis
             P[:] = 0.0
             A[0], A[1], A[2] = 0.0, 0.0, 1.0
@@ -464,12 +465,47 @@ def detect(x, v, mass, sh, c, st, margin, k_per_mass, zeta, self_mu):
                         continue  # beyond a cylinder's flat end: the nodes handle it
                     key = base + n + i
                     _add(c, st, key, s, i, i + 1, 1.0 - sp, sp, cl, nl, sh, k_per_mass, zeta, mass, x)
-                    seen[key] = True
     if self_mu[0] >= 0.0:
-        _self_contacts(x, mass, c, st, sh.kind.shape[0] * per_shape, self_mu, margin, k_per_mass, zeta, seen)
-    for key in range(st.active.shape[0]):
-        st.active[key] = seen[key]
+        _self_contacts(x, mass, c, st, sh.kind.shape[0] * per_shape, self_mu, margin, k_per_mass, zeta)
+    for k in range(previous.shape[0]):  # active: in contact this step (what the next step continues)
+        st.active[previous[k]] = False
+    for k in range(c.count[0]):
+        st.active[st.keys[k]] = True
     return c.count[0]
+
+
+@njit(cache=True, error_model="numpy")
+def _out_of_reach(q, kind, size, reach):
+    """True when the bounding box of the nodes q (n, 3) (shape frame) is farther than ``reach`` [m] from
+    the shape's bounding box in some coordinate (an exact reject: every distance is at least that)."""
+    for j in range(3):
+        if kind == BOX:
+            half = size[j]
+        elif kind == SPHERE or j < 2:
+            half = size[0]
+        else:  # along a cylinder's or capsule's axis
+            half = size[1] + (size[0] if kind == CAPSULE else 0.0)
+        lo, hi = q[0, j], q[0, j]
+        for i in range(1, q.shape[0]):
+            lo = min(lo, q[i, j])
+            hi = max(hi, q[i, j])
+        if lo - reach > half or hi + reach < -half:
+            return True
+    return False
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _may_reach_edge(qa, qb, P, ax, hl, reach):
+    """False when segment qa-qb (shape frame) is farther than ``reach`` [m] from the box edge through P
+    along axis ``ax`` (|t| <= hl) in some coordinate: then it cannot touch it (a cheap exact reject)."""
+    for j in range(3):
+        lo, hi = min(qa[j], qb[j]) - reach, max(qa[j], qb[j]) + reach
+        if j == ax:
+            if lo > hl or hi < -hl:
+                return False
+        elif lo > P[j] or hi < P[j]:
+            return False
+    return True
 
 
 @njit(cache=True, error_model="numpy")
@@ -496,7 +532,7 @@ def _segments_closest(a0, a1, b0, b1):
 
 
 @njit(cache=True, error_model="numpy")
-def _self_contacts(x, mass, c, st, key0, self_mu, margin, k_per_mass, zeta, seen):
+def _self_contacts(x, mass, c, st, key0, self_mu, margin, k_per_mass, zeta):
     """Contacts between segments of the cable that are not close along it (a cable lying across itself).
 
     Each side of a close pair of segments i, j gets a contact against the other's capsule held where it
@@ -548,4 +584,3 @@ def _self_contacts(x, mass, c, st, key0, self_mu, margin, k_per_mass, zeta, seen
                 key = key0 + 2 * (i * (n - 1) + j) + side
                 _fill(c, st, key, -1, a, a + 1, 1.0 - u, u, self_mu[0], self_mu[1], k_per_mass * m_pair, zeta,
                       m_pair, x)
-                seen[key] = True

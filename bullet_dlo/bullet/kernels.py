@@ -13,8 +13,9 @@ import numpy as np
 from numba import njit
 
 from bullet_dlo.core.kernels.contact import contact_energy, contact_step, grip_active
+from bullet_dlo.core.kernels.forces import clamp_torque
 from bullet_dlo.core.kernels.holders import HeldSamples, rotate, sample_holders
-from bullet_dlo.core.kernels.monitor import STABLE, monitor
+from bullet_dlo.core.kernels.monitor import STABLE, end_forces, monitor
 from bullet_dlo.core.kernels.steppers import IMPLICIT_EULER, advance
 
 
@@ -88,6 +89,20 @@ def bind(kernel, *args) -> Callable:
     if not hasattr(kernel, "compile"):  # JIT disabled: nothing to bind
         return kernel
     return kernel.compile(tuple(numba.typeof(a) for a in args))
+
+
+@njit(cache=True, error_model="numpy")
+def end_loads(m, x, v, samples, grip, out_force, out_torque):
+    """What the cable exerts on each held end now (first, last): force [N] into ``out_force`` (2, 3), the
+    reaction of a friction grip's force where one holds the end, and clamp torque [N m] into
+    ``out_torque`` (2, 3) (zero rows for free ends). One call per coupled step: the grasp coupling
+    applies both to the grippers."""
+    end_forces(m, x, v, samples.dir[0], samples.acc[0], out_force)
+    for e in range(2):
+        if grip.active[e]:
+            for j in range(3):
+                out_force[e, j] = -grip.force[e, j]
+        out_torque[e, :] = clamp_torque(m, x, samples.dir[0], e)
 
 
 @njit(cache=True, error_model="numpy")

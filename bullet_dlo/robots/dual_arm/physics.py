@@ -28,7 +28,7 @@ from bullet_dlo.core.model import CableModel, CableState
 from bullet_dlo.core.statics import solve_static
 from bullet_dlo.core.validate import ParameterError, check_positive
 from bullet_dlo.robots.arm import Robot
-from bullet_dlo.robots.transforms import quat_from_axes, rotation
+from bullet_dlo.robots.transforms import quat_from_axes
 
 ARMS = ("left", "right")
 """Arm names by index; arm i holds cable end i (the cable's API numbers its ends 0 = first, 1 = last)."""
@@ -169,8 +169,10 @@ class DualArmPhysics:
     @staticmethod
     def cable_direction(arm: int, quat: Sequence[float]) -> np.ndarray:
         """Clamp tangent (first -> last mass) from arm ``arm``'s grasp frame: its x axis points into the cable."""
-        x_axis = rotation(quat)[:, 0]
-        return x_axis if arm == 0 else -x_axis
+        x, y, z, w = quat  # the rotation matrix's first column, in scalars: this runs twice per step
+        sign = 1.0 if arm == 0 else -1.0
+        return np.array((sign * (1.0 - 2.0 * (y * y + z * z)), sign * 2.0 * (x * y + z * w),
+                         sign * 2.0 * (x * z - y * w)))
 
     def _apply_cable_wrench(self) -> None:
         """Before the Bullet step: the cable's force [N] (at the end mass) and clamp torque [N m] on each holder."""
@@ -179,19 +181,20 @@ class DualArmPhysics:
                 self.held[arm] = False
         if not any(self.held):
             return
-        forces, torques = self.cable.end_forces(), self.cable.end_moments()  # both ends, once per step
-        cid = self.world.client
+        forces, torques = self.cable.end_loads()  # both ends, one kernel call per step
+        cid, x = self.world.client, self.cable.x
         for arm, robot in enumerate(self.robots):
             if self.held[arm]:
-                at = self.cable.x[END_NODE[arm]].tolist()
+                at = x[END_NODE[arm]].tolist()
                 pb.applyExternalForce(robot.body, robot.grasp_link, forces[arm].tolist(), at, pb.WORLD_FRAME, cid)
                 pb.applyExternalTorque(robot.body, robot.grasp_link, torques[arm].tolist(), pb.WORLD_FRAME, cid)
 
     def _follow_grippers(self, first: bool = False) -> None:
         """After the Bullet step: the measured grasp frames become the holder poses of the cable's ends."""
+        rate = 0.0 if first else 1.0 / self.world.dt
         for arm, robot in enumerate(self.robots):
             pos, quat, vel, omega = robot.grasp_state()
-            acc = np.zeros(3) if first else (vel - self._grasp_velocity[arm]) / self.world.dt
+            acc = (vel - self._grasp_velocity[arm]) * rate  # [m/s^2] backward difference (0 at the start)
             self._grasp_velocity[arm] = vel
             self.cable.set_external_pose(arm, pos, vel, acc, omega, self.cable_direction(arm, quat))
 
