@@ -1,4 +1,4 @@
-"""``bullet-dlo capture | dataset summary``: domain-randomised force datasets."""
+"""``bullet-dlo capture | rollouts | dataset summary``: domain-randomised force datasets and policy rollouts."""
 from __future__ import annotations
 
 import argparse
@@ -25,6 +25,24 @@ def cmd_capture(args: argparse.Namespace) -> int:
     lost += [f"{len(res.missing_episodes)} have no record ({_first(res.missing_episodes)})"] \
         if res.missing_episodes else []
     print(f"error: {'; '.join(lost)}; bullet-dlo capture ... --resume re-runs them", file=sys.stderr)
+    return 1
+
+
+def cmd_rollouts(args: argparse.Namespace) -> int:
+    from bullet_dlo.core.validate import check_int
+    from bullet_dlo.envs.rollouts import record_rollouts
+
+    kwargs = {} if args.max_steps is None else {"max_episode_steps": check_int("--max-steps", args.max_steps, 1,
+                                                                                1_000_000)}
+    res = record_rollouts(args.env, args.policy, args.out, args.episodes, seed=args.seed,
+                          record_rate=args.record_rate, env_kwargs=kwargs, resume=args.resume,
+                          progress=not args.quiet)
+    print(f"{res.done} rollouts of {args.policy} in {res.out} ({res.flagged} flagged, {res.failed} failed); "
+          f"ran {res.ran} in {res.wall_time_s:.1f} s")
+    if res.complete:
+        return 0
+    print(f"error: {len(res.failed_episodes)} of {args.episodes} rollouts failed ({_first(res.failed_episodes)}; "
+          "errors in manifest.jsonl); bullet-dlo rollouts ... --resume re-runs them", file=sys.stderr)
     return 1
 
 
@@ -69,6 +87,25 @@ def add_parsers(sub, common: argparse.ArgumentParser) -> None:
                    help="local process pool (default) or a Ray cluster (RAY_ADDRESS, else a local Ray instance)")
     s.add_argument("--resume", action="store_true", help="continue an interrupted capture in DIR")
     s.set_defaults(func=cmd_capture)
+
+    s = sub.add_parser("rollouts", parents=[common], help="record policy rollouts of an environment as a dataset",
+                       description="Run a policy in a bullet_dlo Gymnasium environment for N episodes (reset seeds "
+                                   "SEED, SEED+1, ...) and write them into DIR in the dataset's episode format "
+                                   "(the capture's columns plus actions, rewards and observations), readable by "
+                                   "'dataset summary' and 'fit'.")
+    s.add_argument("env", help="environment id, e.g. bullet_dlo/TensionTracking-v0")
+    s.add_argument("--policy", default="scripted",
+                   help="random | scripted (the environment's scripted controller) | zero | package.module:function "
+                        "(a callable obs -> action); default scripted")
+    s.add_argument("--out", required=True, metavar="DIR", help="rollout directory")
+    s.add_argument("--episodes", type=int, required=True, help="number of episodes N")
+    s.add_argument("--seed", type=int, default=0, help="reset seed of episode 0 (episode i: SEED + i); default 0")
+    s.add_argument("--record-rate", type=float, default=120.0, help="rate [Hz] of the recorded physics rows "
+                   "(default 120; control steps are always all recorded)")
+    s.add_argument("--max-steps", type=int, default=None, help="episode length in control steps (default: the "
+                   "environment's registered limit)")
+    s.add_argument("--resume", action="store_true", help="continue an interrupted recording in DIR")
+    s.set_defaults(func=cmd_rollouts)
 
     s = sub.add_parser("dataset", parents=[common], help="inspect a captured dataset",
                        description="Inspect a capture directory written by bullet-dlo capture.")
