@@ -1,24 +1,55 @@
-"""Wrist-sensor bias in a static hold: sensor minus model end force, both robots, 240 Hz and 1 kHz.
+"""Wrist-sensor bias in a static hold: sensor minus model end force, both robots, 240 Hz and 1 kHz, and its cause.
 
-Prints, per robot and rate, the difference between the tared wrist force (world frame) and the
-cable model's end force, averaged over the last 0.5 s of a hold, as a share of the model force
-(x along the cable, z vertical) and in mN sideways (y), with the tilt of the hand under the load
-and the error that tilt alone would explain. Writes ``sensor_bias.json`` into ``--out``.
+Three tables:
 
-Usage: ``python demos/sensor_bias.py [--out DIR] [--quick]`` (``--quick``: 0.5 s holds).
+1. per robot and rate, the difference between the tared wrist force (world frame) and the
+   cable model's end force, averaged over the last 0.5 s of a hold, as a share of the model
+   force (x along the cable, z vertical) and in mN sideways (y), with the tilt of the hand
+   under the load and the error that tilt alone would explain;
+2. the cause: the arms are still settling when the sensors tare (the position motors remove
+   10 % of the arm's sag per step, Bullet's default position gain 0.1), so the tare holds the
+   payload's inertial force m a of that step, and every later reading carries it. Shown
+   without any load: the reading of an unloaded arm after the hold against m a at the tare
+   step (from the payload momentum one step before and at the tare: (p_T - p_{T-1}) / dt);
+3. suspects, one varied at a time (a module constant, an engine parameter or the arms'
+   control patched for that run only): the bias at each robot and rate, and the vertical
+   balance (both sensors' vertical forces plus the cable weight W, in % of W).
+
+Writes ``sensor_bias.json`` (table 1), ``sensor_bias_cause.json`` and
+``sensor_bias_suspects.json`` into ``--out``.
+
+Usage: ``python demos/sensor_bias.py [--out DIR] [--quick]`` (``--quick``: 0.5 s holds and
+only the baseline and settled-tare suspects).
 """
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import os
 from pathlib import Path
+from typing import Callable, ContextManager
+from unittest import mock
 
 import numpy as np
 import pybullet as pb
 
+import bullet_dlo.robots.arm as arm_module
+import bullet_dlo.robots.dual_arm.physics as physics_module
+from bullet_dlo.bullet.world import BulletWorld
 from bullet_dlo.core.spec import CableSpec
+from bullet_dlo.robots.arm import Robot
 from bullet_dlo.robots.dual_arm import DualArmScene, DualArmSpec
+from bullet_dlo.robots.dual_arm.physics import DualArmPhysics
+
+CASES = (("panda", 1 / 240), ("panda", 1e-3), ("kuka", 1 / 240), ("kuka", 1e-3))
+SETTLED_STEPS = 150
+"""Settle steps after which the motors' transient (x 0.9 per step) is below 1e-6 of its start."""
+
+
+def spec(robot: str, dt: float) -> DualArmSpec:
+    """The scene of every measurement here: the 10-mass Lv cable held by ``robot`` at step dt [s]."""
+    return DualArmSpec(robot=robot, cable=CableSpec.lv2017(n_masses=10, damping=0.02), dt=dt)
 
 
 def frame(sensor) -> np.ndarray:
@@ -30,7 +61,7 @@ def frame(sensor) -> np.ndarray:
 
 def hold(robot: str, dt: float, seconds: float) -> dict:
     """A static hold of the Lv cable: sensor-model differences and what the hand's tilt explains."""
-    with DualArmScene(DualArmSpec(robot=robot, cable=CableSpec.lv2017(n_masses=10, damping=0.02), dt=dt)) as sc:
+    with DualArmScene(spec(robot, dt)) as sc:
         sensor = sc.sensors[0]
         r0, f_tare = frame(sensor), np.array(sensor._tare[:3])
         sc.grasp()
@@ -41,21 +72,135 @@ def hold(robot: str, dt: float, seconds: float) -> dict:
         model = w["end_forces"][0]
         tilt_error = r1 @ (f_tare - r1.T @ r0 @ f_tare)  # the tare's payload weight, seen from the tilted frame
         tilt = float(np.degrees(np.arccos(np.clip((np.trace(r0.T @ r1) - 1) / 2, -1, 1))))
+        weight = sc.cable.model.spec.mass * float(np.linalg.norm(sc.world.gravity))
+        balance = (w["wrench_world"][0, 2] + w["wrench_world"][1, 2] + weight) / weight
     return {"robot": robot, "rate_hz": round(1 / dt), "x_percent": float(100 * err[0] / abs(model[0])),
             "z_percent": float(100 * err[2] / abs(model[2])), "y_mN": float(1e3 * err[1]),
             "model_y_mN": float(1e3 * model[1]), "tilt_deg": tilt,
-            "tilt_explains_mN": float(1e3 * np.linalg.norm(tilt_error)), "error_mN": float(1e3 * np.linalg.norm(err))}
+            "tilt_explains_mN": float(1e3 * np.linalg.norm(tilt_error)), "error_mN": float(1e3 * np.linalg.norm(err)),
+            "balance_percent_W": float(100 * balance)}
+
+
+# ----- the cause -------------------------------------------------------------------------------
+def payload_momentum(robot: str, dt: float, settle_steps: int) -> np.ndarray:
+    """World momentum [kg m/s] (3,) of the left sensor's payload after ``settle_steps`` settle steps
+    (Bullet is deterministic: a scene built again with one step less gives the step before)."""
+    with mock.patch.object(physics_module, "SETTLE_STEPS", settle_steps):
+        ph = DualArmPhysics(spec(robot, dt))
+    try:
+        r = ph.robots[0]
+        links = r.subtree_links(r.joint_index[r.spec.sensor_joint])
+        states = pb.getLinkStates(r.body, links, computeLinkVelocity=True, physicsClientId=r.client)
+        masses = [pb.getDynamicsInfo(r.body, j, physicsClientId=r.client)[0] for j in links]
+        return sum(m * np.array(s[6]) for m, s in zip(masses, states))
+    finally:
+        ph.close()
+
+
+def tare_inertia(robot: str, dt: float, seconds: float) -> dict:
+    """The unloaded arm's reading [mN] after ``seconds`` of hold against the payload's m a [mN] at the tare step."""
+    steps = physics_module.SETTLE_STEPS
+    ma = (payload_momentum(robot, dt, steps) - payload_momentum(robot, dt, steps - 1)) / dt
+    with DualArmScene(spec(robot, dt)) as sc:  # no grasp: nothing loads the grippers
+        sc.run(seconds)
+        reading = sc.window_mean(min(0.5, seconds / 2))["wrench_world"][0, :3]
+    return {"robot": robot, "rate_hz": round(1 / dt), "settle_steps": steps,
+            "unloaded_reading_mN": (1e3 * reading).tolist(), "m_a_at_tare_mN": (1e3 * ma).tolist()}
+
+
+# ----- suspects, one varied at a time ----------------------------------------------------------
+def engine(**params) -> ContextManager:
+    """Bullet engine parameters set on every world built inside the context (before the arms settle)."""
+    init = BulletWorld.__init__
+
+    def patched(self, *args, **kwargs):
+        init(self, *args, **kwargs)
+        pb.setPhysicsEngineParameter(physicsClientId=self.client, **params)
+    return mock.patch.object(BulletWorld, "__init__", patched)
+
+
+def after_load(change: Callable[[Robot], None]) -> ContextManager:
+    """``change`` applied to every robot right after :meth:`Robot.load` inside the context."""
+    load = Robot.load.__func__
+
+    def patched(cls, *args, **kwargs):
+        robot = load(cls, *args, **kwargs)
+        change(robot)
+        return robot
+    return mock.patch.object(Robot, "load", classmethod(patched))
+
+
+def no_link_damping(robot: Robot) -> None:
+    for j in range(-1, pb.getNumJoints(robot.body, physicsClientId=robot.client)):
+        pb.changeDynamics(robot.body, j, linearDamping=0.0, angularDamping=0.0, physicsClientId=robot.client)
+
+
+def stronger_arm(robot: Robot) -> None:
+    robot._arm_force = [10.0 * f for f in robot._arm_force]
+    robot.set_targets(robot.joint_positions())
+
+
+def arm_gain(kp: float) -> ContextManager:
+    """Arm position gain ``kp`` (Bullet's default 0.1: the share of the position error removed per step)."""
+    set_targets = Robot.set_targets
+
+    def patched(self, q):
+        set_targets(self, q)
+        pb.setJointMotorControlArray(self.body, self.arm_joints, pb.POSITION_CONTROL, targetPositions=list(q),
+                                     forces=self._arm_force, positionGains=[kp] * len(self.arm_joints),
+                                     physicsClientId=self.client)
+    return mock.patch.object(Robot, "set_targets", patched)
+
+
+@contextlib.contextmanager
+def no_inertia_compensation():
+    init = DualArmScene.__init__
+
+    def patched(self, *args, **kwargs):
+        init(self, *args, **kwargs)
+        for s in self.sensors:
+            s.compensate_inertia = False
+    with mock.patch.object(DualArmScene, "__init__", patched):
+        yield
+
+
+SUSPECTS: dict[str, Callable[[], ContextManager]] = {
+    "baseline": contextlib.nullcontext,
+    f"tare after {SETTLED_STEPS} settle steps (not {physics_module.SETTLE_STEPS})":
+        lambda: mock.patch.object(physics_module, "SETTLE_STEPS", SETTLED_STEPS),
+    "numSolverIterations 200": lambda: engine(numSolverIterations=200),
+    "solverResidualThreshold 1e-12": lambda: engine(solverResidualThreshold=1e-12),
+    "erp, contactERP, frictionERP 0.8": lambda: engine(erp=0.8, contactERP=0.8, frictionERP=0.8),
+    "globalCFM 1e-4": lambda: engine(globalCFM=1e-4),
+    "finger force 1000 N (locked)": lambda: mock.patch.object(arm_module, "FINGER_FORCE", 1000.0),
+    "finger force 0.1 N (loose)": lambda: mock.patch.object(arm_module, "FINGER_FORCE", 0.1),
+    "arm motor forces x 10": lambda: after_load(stronger_arm),
+    "link damping 0": lambda: after_load(no_link_damping),
+    "arm position gain 0.5": lambda: arm_gain(0.5),
+    "inertia compensation off": no_inertia_compensation,
+}
+QUICK_SUSPECTS = tuple(list(SUSPECTS)[:2])
+
+
+def suspects(names, seconds: float) -> list[dict]:
+    """Each suspect's holds at every robot and rate."""
+    out = []
+    for name in names:
+        with SUSPECTS[name]():
+            out.append({"suspect": name, "holds": [hold(robot, dt, seconds) for robot, dt in CASES]})
+    return out
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", default=os.path.join("out", "sensor_bias"), help="output folder")
-    parser.add_argument("--quick", action="store_true", help="0.5 s holds (a smoke test)")
+    parser.add_argument("--quick", action="store_true", help="0.5 s holds, two suspects (a smoke test)")
     args = parser.parse_args()
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    rows = [hold(robot, dt, 0.5 if args.quick else 2.0) for robot in ("panda", "kuka") for dt in (1 / 240, 1e-3)]
-    print("| robot | rate | x: sensor - model | z: sensor - model | y sensor [mN] | y model [mN] | hand tilt | "
+    seconds = 0.5 if args.quick else 2.0
+    rows = [hold(robot, dt, seconds) for robot, dt in CASES]
+    print("| robot | rate | x: sensor - model | z: sensor - model | y: sensor - model [mN] | y model [mN] | hand tilt | "
           "tilt explains | total error |")
     print("|---|---|---|---|---|---|---|---|---|")
     for r in rows:
@@ -63,6 +208,24 @@ def main() -> None:
               f"{r['y_mN']:+.3f} | {r['model_y_mN']:+.3f} | {r['tilt_deg']:.1e} deg | {r['tilt_explains_mN']:.3f} mN | "
               f"{r['error_mN']:.3f} mN |")
     (out / "sensor_bias.json").write_text(json.dumps(rows, indent=2))
+
+    cause = [tare_inertia(robot, dt, seconds) for robot, dt in CASES]
+    print("\nCause: unloaded arm (no grasp), reading after the hold vs the payload's m a at the tare step [mN, world]\n")
+    print("| robot | rate | unloaded reading x, y, z | m a at the tare x, y, z |")
+    print("|---|---|---|---|")
+    for c in cause:
+        print(f"| {c['robot']} | {c['rate_hz']} Hz | " + ", ".join(f"{v:+.3f}" for v in c["unloaded_reading_mN"])
+              + " | " + ", ".join(f"{v:+.3f}" for v in c["m_a_at_tare_mN"]) + " |")
+    (out / "sensor_bias_cause.json").write_text(json.dumps(cause, indent=2))
+
+    table = suspects(QUICK_SUSPECTS if args.quick else SUSPECTS, seconds)
+    print("\nSuspects, one at a time: z: sensor - model [% of model] / y: sensor - model [mN] / vertical balance [% W]\n")
+    print("| suspect | " + " | ".join(f"{robot} {round(1 / dt)} Hz" for robot, dt in CASES) + " |")
+    print("|---|" + "---|" * len(CASES))
+    for s in table:
+        print(f"| {s['suspect']} | " + " | ".join(f"{h['z_percent']:+.3f} % / {h['y_mN']:+.3f} / "
+                                                   f"{h['balance_percent_W']:+.3f} %" for h in s["holds"]) + " |")
+    (out / "sensor_bias_suspects.json").write_text(json.dumps(table, indent=2))
     print(f"\noutputs written to {out.resolve()}")
 
 
