@@ -34,15 +34,20 @@ EVAL_SEEDS = (1000, 1001, 1002)
 
 
 class ForceFeedback(gym.ObservationWrapper):
-    """The Dict observation as a flat vector of order one: task (6), wrenches / 10 N (12), gripper offsets / 10 cm (6)."""
+    """The Dict observation as a flat vector of order one (25,): the task vector with the sensed tension
+    error made explicit and every entry on its reward scale (tension target, its change, sensed tension
+    / 5 N, error / 1 N; midpoint offset / 3 cm), the wrist wrenches / 10 N and the gripper offsets from
+    their reset poses / 5 cm. Only what a force-controlled cell measures: no privileged cable state."""
 
     def __init__(self, env: TensionTrackingEnv):
         super().__init__(env)
-        self.observation_space = gym.spaces.Box(-np.inf, np.inf, (24,), np.float32)
+        self.observation_space = gym.spaces.Box(-np.inf, np.inf, (25,), np.float32)
 
     def observation(self, obs: dict) -> np.ndarray:
-        offsets = (obs["gripper_pos"] - self.env.unwrapped.home) / 0.1
-        return np.concatenate([obs["task"], obs["wrench"].reshape(-1) / 10.0, offsets.reshape(-1)]).astype(np.float32)
+        target, change, sensed, *offset = obs["task"]
+        task = [target / 5.0, change, sensed / 5.0, target - sensed, *(np.asarray(offset) / 0.03)]
+        offsets = (obs["gripper_pos"] - self.env.unwrapped.home) / 0.05
+        return np.concatenate([task, obs["wrench"].reshape(-1) / 10.0, offsets.reshape(-1)]).astype(np.float32)
 
 
 def make_env(render: bool = False, episode_steps: int = EPISODE_STEPS) -> gym.Env:
@@ -111,7 +116,10 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--quick", action="store_true", help="a smoke test: 20-step episodes, one round of 60 steps")
     args = parser.parse_args(argv)
+    import torch
     from stable_baselines3 import SAC
+
+    torch.set_num_threads(1)  # the environment steps in this process too: one thread each, no oversubscription
 
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)

@@ -253,7 +253,7 @@ def test_training_demo_feeds_forces_of_order_one_and_its_scripted_baseline_beats
     env = demo.make_env(episode_steps=20)
     try:
         obs, _ = env.reset(seed=0)
-        assert obs.shape == (24,) and obs.dtype == np.float32 and np.abs(obs).max() < 10.0
+        assert obs.shape == (25,) and obs.dtype == np.float32 and np.abs(obs).max() < 10.0
         base = demo.baselines(env, seeds=(1000,))
         assert base["scripted"] > base["random"] + 2.0 and base["scripted"] <= 20.0
     finally:
