@@ -38,13 +38,14 @@ import numpy as np
 
 from bullet_dlo.config.loader import load_mapping
 from bullet_dlo.config.robot import robot_names
-from bullet_dlo.config.schema import one_of, only_keys, section
+from bullet_dlo.config.schema import keyed, one_of, only_keys, section
+from bullet_dlo.core.boundary import MOTION_TYPES, parse_motion
 from bullet_dlo.core.integrators import INTEGRATORS
 from bullet_dlo.core.validate import ParameterError, check_in_range, check_int, check_positive
 
 DISTS = ("uniform", "log_uniform", "normal", "choice", "fixed")
 POLICIES = ("reject", "implicit", "substeps")
-SPEC_KEYS = ("seed", "episode", "policy", "max_resamples", "camera", "sample", "resolve_tol", "quality")
+SPEC_KEYS = ("seed", "episode", "policy", "max_resamples", "camera", "sample", "resolve_tol", "quality", "motion")
 QUALITY_DEFAULTS = {"max_sensor_model_rms": 1.0, "max_hf_energy": None}  # [cable weights], [share]
 
 # parameter -> (kind, default distribution, allowed range) ; kind: float | int | str
@@ -69,7 +70,15 @@ PARAMETERS: dict[str, tuple[str, dict, tuple]] = {
     "move_start": ("float", {"dist": "fixed", "value": 0.5}, (0.0, 100.0)),
     "noise_std": ("float", {"dist": "fixed", "value": 0.0}, (0.0, 10.0)),
     "sensor_rate": ("float", {"dist": "fixed", "value": 0.0}, (0.0, 1e5)),
+    # drawn after everything above (and after noise_seed): older specs keep their draws
+    "grip": ("str", {"dist": "fixed", "value": "clamp"}, ()),
+    "grip_force": ("float", {"dist": "fixed", "value": 5.0}, (1e-3, 1e3)),
+    "grip_mu_static": ("float", {"dist": "fixed", "value": 0.5}, (0.0, 2.0)),
+    "grip_mu_dynamic": ("float", {"dist": "fixed", "value": 0.4}, (0.0, 2.0)),
+    "grip_reach": ("float", {"dist": "fixed", "value": 0.02}, (1e-4, 0.5)),
 }
+DRAWN_LAST = ("grip", "grip_force", "grip_mu_static", "grip_mu_dynamic", "grip_reach")
+GRIPS = ("clamp", "friction")
 
 
 @dataclass(frozen=True)
@@ -105,16 +114,17 @@ class Distribution:
         return str(out)
 
 
-def _number(key: str, field_name: str, value: Any, bounds: tuple = ()) -> float:
+def _number(name: str, field_name: str, value: Any, bounds: tuple = ()) -> float:
+    """``value`` as a finite float; the error names ``<name>.<field_name>`` (e.g. ``sample.length.low``)."""
     wanted = f"a number in [{bounds[0]}, {bounds[1]}]" if bounds else "a finite number"
     try:
         if isinstance(value, bool):
             raise TypeError
         v = float(value)
     except (TypeError, ValueError):
-        raise ParameterError(f"sample.{key}.{field_name} must be {wanted}, got {value!r}") from None
+        raise ParameterError(f"{name}.{field_name} must be {wanted}, got {value!r}") from None
     if not math.isfinite(v):
-        raise ParameterError(f"sample.{key}.{field_name} must be {wanted}, got {value!r}")
+        raise ParameterError(f"{name}.{field_name} must be {wanted}, got {value!r}")
     return v
 
 
@@ -128,49 +138,220 @@ def parse_distribution(key: str, data: Mapping[str, Any]) -> Distribution:
     if key == "n_masses" and data == {"dist": "fixed", "value": "auto"}:
         return Distribution("fixed", value="auto")  # chosen per episode by resolve_masses
     kind, _, bounds = PARAMETERS[key]
-    dist = one_of(f"sample.{key}.dist", data.pop("dist", None), DISTS)
+    return _distribution(f"sample.{key}", data, kind, bounds)
+
+
+def _distribution(name: str, data: Mapping[str, Any], kind: str, bounds: tuple) -> Distribution:
+    """Validate a distribution mapping of the value called ``name`` (``sample.length``, ``motion[0].frequency``)
+    of ``kind`` (float | int | str) whose every value must lie in ``bounds`` (() for names)."""
+    data = dict(data)
+    dist = one_of(f"{name}.dist", data.pop("dist", None), DISTS)
     allowed = {"uniform": {"low", "high"}, "log_uniform": {"low", "high"}, "normal": {"mean", "std"},
                "choice": {"values"}, "fixed": {"value"}}[dist]
     if set(data) != allowed:
-        raise ParameterError(f"sample.{key} ({dist}) needs exactly {', '.join(sorted(allowed))}; got "
+        raise ParameterError(f"{name} ({dist}) needs exactly {', '.join(sorted(allowed))}; got "
                              f"{', '.join(sorted(data)) or 'nothing'}")
 
-    def in_range(name: str, v: Any) -> None:
+    def in_range(field_name: str, v: Any) -> None:
         if kind in ("float", "int") and bounds:
-            num = _number(key, name, v, bounds)
+            num = _number(name, field_name, v, bounds)
             if not bounds[0] <= num <= bounds[1]:
-                raise ParameterError(f"sample.{key}.{name} = {v} is outside the allowed range "
+                raise ParameterError(f"{name}.{field_name} = {v} is outside the allowed range "
                                      f"[{bounds[0]}, {bounds[1]}]")
 
     if dist in ("uniform", "log_uniform"):
-        low, high = _number(key, "low", data["low"]), _number(key, "high", data["high"])
+        low, high = _number(name, "low", data["low"]), _number(name, "high", data["high"])
         if low > high:
-            raise ParameterError(f"sample.{key}: low ({low}) > high ({high})")
+            raise ParameterError(f"{name}: low ({low}) > high ({high})")
         if dist == "log_uniform" and low <= 0:
-            raise ParameterError(f"sample.{key}: log_uniform needs low > 0, got {low}")
+            raise ParameterError(f"{name}: log_uniform needs low > 0, got {low}")
         in_range("low", low)
         in_range("high", high)
         return Distribution(dist, low=low, high=high)
     if dist == "normal":
-        std = _number(key, "std", data["std"])
+        std = _number(name, "std", data["std"])
         if std < 0:
-            raise ParameterError(f"sample.{key}.std must be >= 0, got {std}")
-        mean = _number(key, "mean", data["mean"])
+            raise ParameterError(f"{name}.std must be >= 0, got {std}")
+        mean = _number(name, "mean", data["mean"])
         in_range("mean", mean)
         return Distribution(dist, mean=mean, std=std)
     if dist == "choice":
         values = data["values"]
         if not isinstance(values, (list, tuple)) or not values:
-            raise ParameterError(f"sample.{key}.values must be a non-empty list")
+            raise ParameterError(f"{name}.values must be a non-empty list")
         for v in values:
             in_range("values", v)
             if kind == "int":  # a whole number: 8.4 is refused, never rounded
-                check_int(f"sample.{key}.values", v, *bounds)
+                check_int(f"{name}.values", v, *bounds)
         return Distribution(dist, values=tuple(values))
     in_range("value", data["value"])
     if kind == "int":
-        check_int(f"sample.{key}.value", data["value"], *bounds)
+        check_int(f"{name}.value", data["value"], *bounds)
     return Distribution(dist, value=data["value"])
+
+
+def support(dist: Distribution, bounds: tuple) -> tuple[float, float]:
+    """Smallest and largest value ``dist`` can draw (a normal is clipped to ``bounds``, so it spans them)."""
+    if dist.dist == "fixed":
+        return float(dist.value), float(dist.value)
+    if dist.dist == "choice":
+        return float(min(dist.values)), float(max(dist.values))
+    if dist.dist == "normal":
+        return float(bounds[0]), float(bounds[1])
+    return float(dist.low), float(dist.high)
+
+
+def _distribution_dict(dist: Distribution) -> dict:
+    """A distribution in its YAML form."""
+    return {k: (list(v) if isinstance(v, tuple) else v) for k, v in asdict(dist).items() if v is not None}
+
+
+# ----- the motion: section ------------------------------------------------------------------------
+# every number of a motion entry, given or drawn, lies in its key's range: (low, high, unit)
+MOTION_NUMBERS: dict[str, tuple[float, float, str]] = {
+    "start": (0.0, 3600.0, "s"), "duration": (1e-3, 3600.0, "s"), "ramp": (0.0, 1800.0, "s"),
+    "frequency": (1e-3, 1e3, "Hz"), "phase": (-6.2832, 6.2832, "rad"), "times": (0.0, 3600.0, "s"),
+    "displacement": (-1.0, 1.0, "m"), "amplitude": (-1.0, 1.0, "m"), "displacements": (-1.0, 1.0, "m"),
+    "rotation": (-6.2832, 6.2832, "rad"), "rotations": (-6.2832, 6.2832, "rad"),
+}
+MOTION_VECTORS = ("displacement", "amplitude", "rotation")  # [x, y, z]
+MOTION_ROWS = ("displacements", "rotations")  # one [x, y, z] per waypoint
+MOTION_STREAM = 0x6D6F74  # tags the motion's generator [seed, index, attempt, tag], apart from sample:'s
+MOVE_KEYS = ("displacement_x", "displacement_y", "displacement_z", "speed", "move_start")  # the default move's
+
+
+def parse_motion_section(items: Any) -> tuple[dict, ...]:
+    """Validate a capture spec's ``motion:`` list: scene-file motion entries whose numbers may be
+    distributions. Returns the entries with every number a float or a :class:`Distribution`.
+
+    Refused (one ParameterError naming ``motion[k].<key>``): a number or distribution outside its
+    key's range (:data:`MOTION_NUMBERS`), waypoint times whose ranges overlap, a sine ramp that can
+    exceed half its duration, and anything the core item refuses at the lowest, highest or typical values.
+    """
+    if items is None:
+        return ()
+    if not isinstance(items, (list, tuple)) or not items:
+        raise ParameterError(f"motion must be a non-empty list of motion entries (type: {' | '.join(MOTION_TYPES)}),"
+                             f" got {'[]' if isinstance(items, (list, tuple)) else type(items).__name__}; leave it out for the default straight move (no move: "
+                             "sample.displacement_z: 0)")
+    entries = []
+    for k, item in enumerate(items):
+        where = f"motion[{k}]"
+        data = section(item, where)
+        kind = one_of(f"{where}.type", str(data.get("type", "move")).lower(), MOTION_TYPES)
+        entry = {"type": kind, **{key: _motion_value(f"{where}.{key}", key, v) for key, v in data.items()
+                                  if key != "type"}}
+        _check_overlaps(where, entry)
+        entries.append(entry)
+    for pick in ("low", "high", "typical"):  # the core's own checks, at the ends of every range
+        built = [_pick(e, pick) for e in entries]
+        for k, entry in enumerate(built):
+            keyed(f"motion[{k}]", parse_motion, [entry])
+        parse_motion(built)  # rules across entries (one waypoints entry per end); its message names motion
+    return tuple(entries)
+
+
+def _motion_value(name: str, key: str, value: Any) -> Any:
+    """One key of a motion entry: numbers (or lists of them) checked against the key's range, others kept."""
+    if key not in MOTION_NUMBERS or (value is None and key in ("duration", "rotations")):  # the core's defaults
+        return value
+    lo, hi, unit = MOTION_NUMBERS[key]
+    if key in MOTION_VECTORS:
+        return [_motion_number(f"{name}[{i}]", v, key) for i, v in enumerate(_list(name, value, 3, unit, lo, hi))]
+    if key == "times":
+        return [_motion_number(f"{name}[{i}]", v, key) for i, v in enumerate(_list(name, value, 0, unit, lo, hi))]
+    if key in MOTION_ROWS:
+        rows = _list(name, value, 0, unit, lo, hi)
+        return [[_motion_number(f"{name}[{i}][{j}]", v, key) for j, v in enumerate(_list(f"{name}[{i}]", row, 3,
+                                                                                            unit, lo, hi))]
+                for i, row in enumerate(rows)]
+    return _motion_number(name, value, key)
+
+
+def _list(name: str, value: Any, n: int, unit: str, lo: float, hi: float) -> list:
+    """``value`` as a list (of ``n`` items when n > 0), else a ParameterError naming ``name``."""
+    if not isinstance(value, (list, tuple)) or (n and len(value) != n) or not value:
+        what = "[x, y, z]" if n == 3 else "a non-empty list"
+        raise ParameterError(f"{name} must be {what} of numbers in [{lo}, {hi}] {unit} (or distributions), "
+                             f"got {value!r}")
+    return list(value)
+
+
+def _motion_number(name: str, value: Any, key: str) -> float | Distribution:
+    """A number of a motion entry: a float in the key's range, or a distribution whose every draw is."""
+    lo, hi, unit = MOTION_NUMBERS[key]
+    if isinstance(value, Mapping):
+        return _distribution(name, value, "float", (lo, hi))
+    return check_in_range(f"{name} [{unit}]", value, lo, hi)
+
+
+def _span(value: Any, key: str) -> tuple[float, float]:
+    """Smallest and largest value of a motion number (a float or a distribution)."""
+    if isinstance(value, Distribution):
+        return support(value, MOTION_NUMBERS[key][:2])
+    return float(value), float(value)
+
+
+def _check_overlaps(where: str, entry: dict) -> None:
+    """Every draw keeps waypoint times increasing, the first waypoint at the start pose and a sine's
+    ramps within its duration."""
+    for key in MOTION_ROWS:
+        rows = entry.get(key)
+        if entry["type"] == "waypoints" and rows and any(_span(v, key) != (0.0, 0.0) for v in rows[0]):
+            raise ParameterError(f"{where}.{key}[0] must be [0, 0, 0] (the start pose; nothing drawn), "
+                                 f"got {_motion_yaml({key: rows[0]})[key]!r}")
+    times = entry.get("times")
+    if entry["type"] == "waypoints" and isinstance(times, list):
+        for i in range(1, len(times)):
+            (_, before), (after, _) = _span(times[i - 1], "times"), _span(times[i], "times")
+            if after <= before:
+                raise ParameterError(f"{where}.times[{i}] can be drawn at or before times[{i - 1}] "
+                                     f"(from {after} s, while times[{i - 1}] reaches {before} s): each time's "
+                                     "range must lie above the previous one's")
+    if entry["type"] == "sine" and "ramp" in entry and entry.get("duration") is not None:
+        ramp, duration = _span(entry["ramp"], "ramp")[1], _span(entry["duration"], "duration")[0]
+        if 2 * ramp > duration:
+            raise ParameterError(f"{where}.ramp can be drawn above half the duration (ramp up to {ramp} s, "
+                                 f"duration from {duration} s): keep 2 x ramp <= duration")
+
+
+def _pick(entry: dict, pick: str) -> dict:
+    """The entry with each distribution replaced by its lowest, highest or typical (mean, first, middle) value."""
+    def one(value: Any, key: str) -> Any:
+        if isinstance(value, list):
+            return [one(v, key) for v in value]
+        if not isinstance(value, Distribution):
+            return value
+        lo, hi = _span(value, key)
+        if pick != "typical":
+            return lo if pick == "low" else hi
+        return {"fixed": value.value, "choice": (value.values or (0,))[0], "normal": value.mean}.get(
+            value.dist, 0.5 * (lo + hi))
+
+    return {key: one(v, key) for key, v in entry.items()}
+
+
+def draw_motion_entries(entries: tuple[dict, ...], rng: np.random.Generator) -> list[dict]:
+    """The motion entries with every distribution drawn from ``rng`` (keys in sorted order, so the draws do
+    not depend on how the spec was written), JSON-able: what :func:`~bullet_dlo.core.boundary.parse_motion` takes."""
+    def one(value: Any, key: str) -> Any:
+        if isinstance(value, list):
+            return [one(v, key) for v in value]
+        if isinstance(value, Distribution):
+            return value.sample(rng, "float", MOTION_NUMBERS[key][:2])
+        return value
+
+    return [{key: one(entry[key], key) for key in sorted(entry)} for entry in entries]
+
+
+def _motion_yaml(entry: dict) -> dict:
+    """A motion entry in its YAML form (distributions as mappings)."""
+    def one(value: Any) -> Any:
+        if isinstance(value, list):
+            return [one(v) for v in value]
+        return _distribution_dict(value) if isinstance(value, Distribution) else value
+
+    return {key: one(v) for key, v in entry.items()}
 
 
 @dataclass(frozen=True)
@@ -189,6 +370,7 @@ class CaptureSpec:
     sample: dict[str, Distribution] = field(default_factory=dict)
     max_sensor_model_rms: float | None = 1.0  # [cable weights] RMS |sensor - model| above it flags an episode
     max_hf_energy: float | None = None  # share of the F/T variance above 10 Hz that flags an episode
+    motion: tuple[dict, ...] = ()  # motion entries, numbers as floats or Distributions (parse_motion_section)
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any]) -> "CaptureSpec":
@@ -203,9 +385,15 @@ class CaptureSpec:
         only_keys(quality, tuple(QUALITY_DEFAULTS), "quality")
         rms_limit, hf_limit = quality["max_sensor_model_rms"], quality["max_hf_energy"]
         sample = {k: parse_distribution(k, v) for k, v in section(data.get("sample"), "sample").items()}
-        for key in ("integrator", "robot"):
+        for key in ("integrator", "robot", "grip"):
             if key in sample:
                 _check_names(key, sample[key])
+        _check_friction_order(sample)
+        motion = parse_motion_section(data.get("motion"))
+        for key in MOVE_KEYS:
+            if motion and key in sample:
+                raise ParameterError(f"sample.{key} sets the default straight move of the right gripper, which "
+                                     f"the motion: section replaces; with motion:, leave out {', '.join(MOVE_KEYS)}")
         return cls(seed=check_int("seed", data.get("seed", 0), 0),
                    duration=check_in_range("episode.duration", episode.get("duration", 2.0), 1e-3, 3600.0),
                    record_rate=check_in_range("episode.record_rate", episode.get("record_rate", 120.0), 0.01, 1e5),
@@ -218,7 +406,7 @@ class CaptureSpec:
                    max_sensor_model_rms=None if rms_limit is None else check_in_range(
                        "quality.max_sensor_model_rms [cable weights]", rms_limit, 1e-6, 1e6),
                    max_hf_energy=None if hf_limit is None else check_in_range(
-                       "quality.max_hf_energy [share of the variance]", hf_limit, 0.0, 1.0))
+                       "quality.max_hf_energy [share of the variance]", hf_limit, 0.0, 1.0), motion=motion)
 
     @classmethod
     def from_yaml(cls, path: str | Path) -> "CaptureSpec":
@@ -227,10 +415,7 @@ class CaptureSpec:
 
     def to_dict(self) -> dict:
         """The spec in its YAML form (``from_dict(to_dict())`` round-trips)."""
-        sample = {}
-        for k, v in self.sample.items():
-            entry = {kk: (list(vv) if isinstance(vv, tuple) else vv) for kk, vv in asdict(v).items() if vv is not None}
-            sample[k] = entry
+        sample = {k: _distribution_dict(v) for k, v in self.sample.items()}
         out = {"seed": self.seed, "episode": {"duration": self.duration, "record_rate": self.record_rate},
                "policy": self.policy, "max_resamples": self.max_resamples,
                "camera": {"fps": self.camera_fps, "width": self.camera_width, "height": self.camera_height},
@@ -238,6 +423,8 @@ class CaptureSpec:
         quality = {"max_sensor_model_rms": self.max_sensor_model_rms, "max_hf_energy": self.max_hf_energy}
         if quality != QUALITY_DEFAULTS:  # written only when set, so the digests of older specs stay the same
             out["quality"] = quality
+        if self.motion:  # likewise
+            out["motion"] = [_motion_yaml(e) for e in self.motion]
         return out
 
     def digest(self) -> str:
@@ -245,22 +432,52 @@ class CaptureSpec:
         return hashlib.sha256(json.dumps(self.to_dict(), sort_keys=True, default=str).encode()).hexdigest()[:16]
 
     def draw(self, index: int, attempt: int = 0) -> dict[str, Any]:
-        """Parameters of episode ``index`` (attempt > 0: a resample), from the generator [seed, index, attempt]."""
+        """Parameters of episode ``index`` (attempt > 0: a resample), from the generator [seed, index, attempt];
+        with a ``motion:`` section, ``motion`` holds the drawn entries (:meth:`draw_motion`) in place of the
+        default move's parameters (:data:`MOVE_KEYS`)."""
         rng = np.random.default_rng([self.seed, index, attempt])
         out = {}
-        for key, (kind, default, bounds) in PARAMETERS.items():
-            dist = self.sample.get(key) or parse_distribution(key, default)
-            out[key] = dist.sample(rng, kind, bounds)
+        for key in [k for k in PARAMETERS if k not in DRAWN_LAST]:
+            out[key] = self._sample(key, rng)
         out["noise_seed"] = int(rng.integers(2**31 - 1))
+        for key in DRAWN_LAST:
+            out[key] = self._sample(key, rng)
+        if self.motion:
+            for key in MOVE_KEYS:
+                del out[key]
+            out["motion"] = self.draw_motion(index, attempt)
         return out
+
+    def draw_motion(self, index: int, attempt: int = 0) -> list[dict]:
+        """The ``motion:`` entries of episode ``index`` with their distributions drawn (JSON-able, what
+        :func:`~bullet_dlo.core.boundary.parse_motion` takes), from a generator of their own,
+        [seed, index, attempt, MOTION_STREAM], so ``sample:``'s draws do not depend on them."""
+        return draw_motion_entries(self.motion, np.random.default_rng([self.seed, index, attempt, MOTION_STREAM]))
+
+    def _sample(self, key: str, rng: np.random.Generator) -> Any:
+        kind, default, bounds = PARAMETERS[key]
+        return (self.sample.get(key) or parse_distribution(key, default)).sample(rng, kind, bounds)
 
 
 def _check_names(key: str, dist: Distribution) -> None:
-    """A choice or fixed value of ``integrator`` or ``robot`` naming only known ones."""
-    known = list(INTEGRATORS) if key == "integrator" else robot_names()
+    """A choice or fixed value of ``integrator``, ``robot`` or ``grip`` naming only known ones."""
+    known = {"integrator": list(INTEGRATORS), "grip": list(GRIPS)}.get(key) or robot_names()
     values = list(dist.values or ()) + ([dist.value] if dist.value is not None else [])
     if dist.dist not in ("choice", "fixed"):
         raise ParameterError(f"sample.{key} must be a choice or fixed, got {dist.dist}")
     for v in values:
         if v not in known:
             raise ParameterError(f"sample.{key}: unknown {key} {v!r}; known: {', '.join(known)}")
+
+
+def _check_friction_order(sample: dict[str, Distribution]) -> None:
+    """Refuse grip friction ranges that allow a draw with mu_dynamic > mu_static (Coulomb friction needs
+    mu_dynamic <= mu_static; refusing at load rather than clipping keeps every draw what the spec says)."""
+    keys = ("grip_mu_static", "grip_mu_dynamic")
+    dists = {k: sample.get(k) or parse_distribution(k, PARAMETERS[k][1]) for k in keys}
+    lowest_static = support(dists["grip_mu_static"], PARAMETERS["grip_mu_static"][2])[0]
+    highest_dynamic = support(dists["grip_mu_dynamic"], PARAMETERS["grip_mu_dynamic"][2])[1]
+    if highest_dynamic > lowest_static:
+        raise ParameterError(f"sample.grip_mu_dynamic can be drawn above sample.grip_mu_static (up to "
+                             f"{highest_dynamic} > {lowest_static}); every draw needs 0 <= mu_dynamic <= mu_static: make the whole "
+                             "grip_mu_dynamic range lie at or below the grip_mu_static range")

@@ -1,8 +1,10 @@
 """Running one episode: the dual-arm scene with the planned parameters, recorded and stored.
 
-The scene is :class:`bullet_dlo.robots.dual_arm.DualArmScene`: both grippers grasp the cable,
-the right one makes the planned straight move, and the episode runs for the spec's duration
-(stopped early, and flagged, if the cable goes unstable). Every ``1 / record_rate`` seconds a
+The scene is :class:`bullet_dlo.robots.dual_arm.DualArmScene`: both grippers grasp the cable
+(clamped, or pinched by a friction grip: the spec's ``grip`` parameters), follow the episode's
+motion (the drawn ``motion:`` entries, else the right gripper's straight move; stored in the
+``params`` attribute) and the episode runs for the spec's duration (stopped early, and flagged,
+if the cable goes unstable). Every ``1 / record_rate`` seconds a
 row of the columns below is recorded; frames come from :func:`bullet_dlo.render.camera.render_frame`
 at the spec's camera rate. Left arm = the cable's first end, right arm = its last end; k rows,
 n masses, j arm joints:
@@ -31,7 +33,7 @@ import pybullet as pb
 
 from bullet_dlo.config.capture import CaptureSpec
 from bullet_dlo.core.model import STANDARD_GRAVITY
-from bullet_dlo.data.plan import cable_spec, gripper_move, plan_episode
+from bullet_dlo.data.plan import cable_spec, episode_motion, plan_episode
 from bullet_dlo.data.quality import quality_issues, quality_metrics
 from bullet_dlo.data.storage import (
     episode_result,
@@ -101,12 +103,15 @@ def joint_state(robot: Robot) -> tuple[list[float], list[float], list[float]]:
 
 
 def dual_arm_spec(spec: CaptureSpec, params: dict[str, Any], decision: dict[str, Any]) -> DualArmSpec:
-    """The dual-arm scene of a planned episode."""
+    """The dual-arm scene of a planned episode (parameters of older episodes without the grip ones: a clamp)."""
+    grip = {k: params[k] for k in ("grip", "grip_force", "grip_reach") if k in params}
+    if "grip_mu_static" in params:
+        grip["grip_friction"] = (params["grip_mu_static"], params["grip_mu_dynamic"])
     return DualArmSpec(robot=params["robot"], cable=cable_spec(params), dt=params["dt"],
                        integrator=params["integrator"], hold_height=params["hold_height"],
                        sensor_rate=params["sensor_rate"] or None, noise_std=(params["noise_std"],) * 3 + (0.0,) * 3,
                        seed=params["noise_seed"], renderer="tiny" if spec.camera_fps > 0 else None,
-                       substeps=decision["substeps"])
+                       substeps=decision["substeps"], **grip)
 
 
 def run_episode(spec_dict: dict, index: int, out_dir: str) -> dict:
@@ -119,9 +124,7 @@ def run_episode(spec_dict: dict, index: int, out_dir: str) -> dict:
     setup = dual_arm_spec(spec, params, decision)
     with DualArmScene(setup) as scene:
         scene.grasp()
-        displacement, duration = gripper_move(params)
-        if duration > 0:
-            scene.move("right", displacement, duration, start=params["move_start"])
+        scene.follow_motion(episode_motion(params))
         recorder = EpisodeRecorder(scene, max(1, int(round(1.0 / (spec.record_rate * setup.dt)))), spec)
         scene.world.after_step.append(recorder)
         scene.run(spec.duration)

@@ -16,7 +16,7 @@ import numpy as np
 from bullet_dlo.analysis.resolve import resolve_masses
 from bullet_dlo.config.capture import CaptureSpec
 from bullet_dlo.config.scene import Scene
-from bullet_dlo.core.boundary import Move
+from bullet_dlo.core.boundary import Motion, Move, parse_motion
 from bullet_dlo.core.model import CableModel
 from bullet_dlo.core.spec import CableSpec
 from bullet_dlo.core.stability import critical_dt
@@ -61,12 +61,21 @@ def plan_episode(spec: CaptureSpec, index: int) -> tuple[dict[str, Any], dict[st
 
 def auto_masses(spec: CaptureSpec, params: dict[str, Any]) -> tuple[int, float]:
     """Number of masses and its k_d [N s/m] for ``n_masses: auto``: a convergence test on the
-    episode's own motion (both ends clamped, the right end's move), end forces within ``spec.resolve_tol``."""
-    displacement, duration = gripper_move(params)
-    motion = (Move("last", displacement, params["move_start"], duration),) if duration > 0 else ()
-    scene = Scene(cable=cable_spec({**params, "n_masses": 10}), motion=motion, duration=spec.duration,
-                  initial="static", name="episode")
+    episode's own motion (both ends clamped, moving as :func:`episode_motion`), end forces within
+    ``spec.resolve_tol``."""
+    scene = Scene(cable=cable_spec({**params, "n_masses": 10}), motion=episode_motion(params),
+                  duration=spec.duration, initial="static", name="episode")
     return resolve_masses(scene, spec.resolve_tol, "forces")
+
+
+def episode_motion(params: dict[str, Any]) -> tuple[Motion, ...]:
+    """What the grippers do in a planned episode, as core motion items (end first = left gripper, last = right):
+    the drawn ``motion`` entries of a spec with a ``motion:`` section, else the right gripper's straight move
+    (:func:`gripper_move`, from ``move_start`` [s]; none when its displacement is zero)."""
+    if "motion" in params:
+        return parse_motion(params["motion"])
+    displacement, duration = gripper_move(params)
+    return (Move("last", tuple(displacement), params["move_start"], duration),) if duration > 0 else ()
 
 
 def gripper_move(params: dict[str, Any]) -> tuple[np.ndarray, float]:
