@@ -24,6 +24,41 @@ own scene (:func:`bullet_dlo.analysis.resolve.resolve_masses`, tolerance ``resol
 forces); the sampled damping is then the k_d of a 10-mass cable, rescaled to keep its rate.
 ``damping_rate`` [1/s] and ``internal_damping`` [s] (see :class:`~bullet_dlo.core.spec.CableSpec`)
 mean the same at any n and need no rescaling; ``damping`` (k_d, default 0.02) adds to them.
+
+**Gripper motion.** Without a ``motion:`` section the right gripper makes one straight
+minimum-jerk move (``displacement_x/y/z`` [m] at ``speed`` [m/s] from ``move_start`` [s]). A
+``motion:`` section replaces it: a list of entries exactly as in a scene file's ``motion:``
+(:func:`~bullet_dlo.core.boundary.parse_motion`: ``type: move | waypoints | sine``, end ``first`` =
+left gripper, ``last`` = right gripper, times on the episode clock) in which any number (a time,
+duration, frequency, phase, ramp, one component of a displacement, rotation or amplitude, one
+waypoint coordinate) may be a distribution of the ``sample:`` grammar::
+
+    motion:
+      - {type: sine, end: last, amplitude: [0, 0, {dist: uniform, low: 0.01, high: 0.03}],
+         frequency: {dist: uniform, low: 1.0, high: 3.0}, start: 0.2, duration: 1.2, ramp: 0.2}
+      - {type: move, end: first, rotation: [0, 0, {dist: uniform, low: -0.3, high: 0.3}],
+         start: 0.3, duration: 0.8}
+
+Every number, given or drawn, lies in its key's range (:data:`MOTION_NUMBERS`: times [0, 3600] s,
+durations [1e-3, 3600] s, frequency [1e-3, 1e3] Hz, phase and rotations [-6.2832, 6.2832] rad,
+displacements and amplitudes [-1, 1] m; a normal is clipped to it). The spec is refused at load
+unless every draw builds a valid core item: waypoint time ranges may not overlap, the first
+waypoint is exactly [0, 0, 0], 2 x ramp <= duration for every draw, and each entry is built
+with its distributions at their lowest, highest and typical values; errors name the key
+(``motion[1].frequency``). With ``motion:``, the default move's parameters (:data:`MOVE_KEYS`) are
+refused in ``sample:`` (they would do nothing) and left out of the drawn parameters, which hold
+the drawn entries as ``motion`` instead. The motion's draws come from a generator of their own,
+[seed, index, attempt, MOTION_STREAM], so they never change ``sample:``'s draws.
+
+**Grip.** ``grip`` (choice or fixed of ``clamp`` | ``friction``), ``grip_force`` [N] per finger,
+``grip_mu_static``, ``grip_mu_dynamic`` and ``grip_reach`` [m] are passed to
+:class:`~bullet_dlo.config.robot.DualArmSpec` (a friction grip holds up to 2 mu_s grip_force along
+the gripper, then slips at 2 mu_d grip_force and lets go after slipping ``grip_reach``). Defaults:
+a clamp (force 5 N, mu 0.5 / 0.4, reach 0.02 m). Coulomb friction needs mu_dynamic <= mu_static
+in every draw, so a spec whose ``grip_mu_dynamic`` range reaches above the lowest
+``grip_mu_static`` is refused at load (no clipping: every draw is what the spec says; a normal
+spans the whole [0, 2] range, so use uniform or choice). They are drawn after every older
+parameter and after ``noise_seed``: specs written before them keep their draws and digests.
 """
 from __future__ import annotations
 

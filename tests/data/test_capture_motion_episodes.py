@@ -99,7 +99,7 @@ def test_a_drawn_rotation_turns_the_gripper_by_the_drawn_angle(shaken):
     turn = parse_motion(ep["params"]["motion"])[1]
     t, quat = ep["t"], ep["ee_quat"][:, 0]  # the left gripper holds the first end
     turned = Rotation.from_quat(quat[-1]) * Rotation.from_quat(quat[0]).inv()  # world-frame rotation, as the motion
-    assert np.allclose(turned.as_rotvec(), turn.rotation, atol=2e-3)
+    assert np.allclose(turned.as_rotvec(), turn.rotation, atol=1e-4)
     assert abs(turn.rotation[2]) > 0.2
     early = Rotation.from_quat(quat[t < turn.start][-1]) * Rotation.from_quat(quat[0]).inv()
     assert early.magnitude() < 1e-3  # not before the move starts
