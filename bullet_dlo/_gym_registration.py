@@ -19,6 +19,7 @@ import sys
 ENV_IDS = {
     "bullet_dlo/TensionTracking-v0": ("bullet_dlo.envs.tension:TensionTrackingEnv", 100),
     "bullet_dlo/Shaping-v0": ("bullet_dlo.envs.shaping:ShapingEnv", 100),
+    "bullet_dlo/Routing-v0": ("bullet_dlo.envs.routing:RoutingEnv", 250),
 }
 """Environment id -> (entry point, episode length in control steps: the TimeLimit's ``max_episode_steps``)."""
 

@@ -10,9 +10,11 @@ are imported (in either order; :mod:`bullet_dlo._gym_registration`), so::
 * ``bullet_dlo/TensionTracking-v0`` (:class:`~.tension.TensionTrackingEnv`): both grippers hold
   the cable; follow a target axial tension profile while carrying the cable's midpoint to a point.
 * ``bullet_dlo/Shaping-v0`` (:class:`~.shaping.ShapingEnv`): bring the held cable to a target shape.
+* ``bullet_dlo/Routing-v0`` (:class:`~.routing.RoutingEnv`): the left end held fixed, the right
+  gripper routes the cable around 1-2 pegs on their required sides and into a clip's slot (the
+  cable's own contact model against the pegs and clip boxes).
 
-Routing around pegs needs cable contact with fixed obstacles that holds under load; it is not
-built here. The common machinery (arms, actions, observations, randomisation, rendering) is
+The common machinery (arms, actions, observations, randomisation, rendering) is
 :class:`~.dual_arm_env.DualArmEnv`. Importing this package does not import Gymnasium or PyBullet:
 the classes load on first use.
 """
@@ -26,6 +28,7 @@ _LAZY = {
     "DualArmEnv": "bullet_dlo.envs.dual_arm_env",
     "TensionTrackingEnv": "bullet_dlo.envs.tension",
     "ShapingEnv": "bullet_dlo.envs.shaping",
+    "RoutingEnv": "bullet_dlo.envs.routing",
     "EnvRandomisation": "bullet_dlo.envs.randomisation",
 }
 

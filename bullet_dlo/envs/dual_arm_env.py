@@ -5,7 +5,8 @@ Every reset draws a scene (:class:`~.randomisation.EnvRandomisation`), builds it
 ends, lets the cable settle for ``settle_time`` and asks the task (a subclass) for its targets.
 
 **Action** (6,) in [-1, 1]: the grippers' linear velocities (left xyz, right xyz) as fractions of
-``max_speed`` [m/s], world frame; clipped. The gripper targets integrate them over the control
+``max_speed`` [m/s], world frame; clipped (a task may define its own: :meth:`DualArmEnv._action_space`,
+:meth:`DualArmEnv._apply_action`). The gripper targets integrate them over the control
 period, stay inside a box of half-width ``workspace`` [m] around the grasp poses after reset, keep
 their orientation, and become joint targets by one IK solve per arm per control step (the arms'
 position control follows). ``control_dt`` [s] must be a whole multiple of the physics step
@@ -100,13 +101,23 @@ class DualArmEnv(gym.Env):
         for dt in self.randomisation.values("dt"):  # refuse a control period the physics cannot hit, now
             check_control_period(self.control_dt, float(dt))
         self.n_joints = self._joint_count()
-        self.action_space = spaces.Box(-1.0, 1.0, (6,), np.float32)
+        self.action_space = self._action_space()
         self.observation_space = spaces.Dict(self._observation_boxes())
         self.physics: DualArmPhysics | None = None
         self.sensors = None
         self.draw = None
 
     # ----- spaces ---------------------------------------------------------------------------------
+    def _action_space(self) -> spaces.Box:
+        """Both grippers' velocities (left xyz, right xyz) as fractions of ``max_speed``."""
+        return spaces.Box(-1.0, 1.0, (6,), np.float32)
+
+    def _apply_action(self, a: np.ndarray) -> None:
+        """Move the gripper targets ``self.target`` (2, 3) [m] (and orientations ``self._quat``) by the clipped
+        action ``a`` over one control period."""
+        self.target = np.clip(self.target + a.reshape(2, 3) * self.max_speed * self.control_dt,
+                              self.home - self.workspace, self.home + self.workspace)
+
     def _joint_count(self) -> int:
         robots = self.randomisation.values("robot")
         counts = {len(load_robot_spec(name).home) for name in robots}
@@ -162,9 +173,7 @@ class DualArmEnv(gym.Env):
     def step(self, action):
         if self.physics is None:
             raise RuntimeError("call reset() before step()")
-        a = np.clip(np.nan_to_num(np.asarray(action, dtype=float).reshape(2, 3)), -1.0, 1.0)
-        self.target = np.clip(self.target + a * self.max_speed * self.control_dt,
-                              self.home - self.workspace, self.home + self.workspace)
+        self._apply_action(np.clip(np.nan_to_num(np.asarray(action, dtype=float)), -1.0, 1.0))
         for arm, robot in enumerate(self.physics.robots):
             self._q_target[arm] = robot.track(self.target[arm], self._quat[arm])
             robot.set_targets(self._q_target[arm])
