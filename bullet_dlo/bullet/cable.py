@@ -322,6 +322,7 @@ class BulletCable:
         node = 0 if end == 0 else n - 1
         a.held[node] = True
         a.k_bend[node] = spec.k_bend_clamp if mode == "clamped" else 0.0
+        a.c_bend[node] = a.k_bend[node] * spec.internal_damping  # the clamp's Kelvin-Voigt damper
         self.ext.active[end] = True
         self.grip.active[end] = False
         self._replan()
@@ -352,6 +353,7 @@ class BulletCable:
         node = 0 if end == 0 else n - 1
         a.held[node] = False
         a.k_bend[node] = self.model.spec.k_bend_clamp
+        a.c_bend[node] = a.k_bend[node] * self.model.spec.internal_damping
         self.ext.active[end] = True
         g.k_ax[end] = g.k_lat[end] = self.contact_stiffness * a.mass[node] / self.stepper.h ** 2
         g.cap_s[end], g.cap_d[end] = 2.0 * mu_s * f_n, 2.0 * mu_d * f_n
@@ -372,7 +374,7 @@ class BulletCable:
         a, n = self.arrays, self.model.n
         node = 0 if end == 0 else n - 1
         a.held[node] = False
-        a.k_bend[node] = 0.0
+        a.k_bend[node] = a.c_bend[node] = 0.0
         self.ext.active[end] = False
         self.grip.active[end] = False
 

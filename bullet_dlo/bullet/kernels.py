@@ -102,7 +102,7 @@ def end_loads(m, x, v, samples, grip, out_force, out_torque):
         if grip.active[e]:
             for j in range(3):
                 out_force[e, j] = -grip.force[e, j]
-        out_torque[e, :] = clamp_torque(m, x, samples.dir[0], e)
+        out_torque[e, :] = clamp_torque(m, x, v, samples.dir[0], e)
 
 
 @njit(cache=True, error_model="numpy")

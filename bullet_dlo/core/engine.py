@@ -226,7 +226,7 @@ def _simulate(model: CableModel, integrator: str, dt: float, duration: float, *,
     moments = np.zeros((2, 3))
     if status == STABLE:
         sample_holders(plan, t_final, 0.0, samples)  # clamp directions at the end
-        moments = np.stack([clamp_torque(m, x, samples.dir[0], e) for e in (0, 1)])
+        moments = np.stack([clamp_torque(m, x, v, samples.dir[0], e) for e in (0, 1)])
     return SimulationResult(
         integrator=method.name, dt=stepper.h, stable=status == STABLE,
         time_to_instability=None if status == STABLE else float(t_bad), reason=REASONS[status],

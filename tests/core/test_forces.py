@@ -113,7 +113,7 @@ def test_internal_forces_balance_without_clamps():
 
 def test_clamp_torque_is_minus_energy_rotation_derivative():
     _, a, x, d1, d2 = _setup()
-    tau = forces.clamp_torque(a, x, dirs(d1, d2), 0)
+    tau = forces.clamp_torque(a, x, np.zeros_like(x), dirs(d1, d2), 0)
     eps = 1e-7
     for axis in range(3):
         w = np.zeros(3)
@@ -125,6 +125,35 @@ def test_clamp_torque_is_minus_energy_rotation_derivative():
         ep = forces.internal_energy(a, x, dirs(rotated(d1, w), d2))
         em = forces.internal_energy(a, x, dirs(rotated(d1, -w), d2))
         assert tau[axis] == pytest.approx(-(ep - em) / (2 * eps), rel=1e-5, abs=1e-9)
+
+
+@pytest.mark.parametrize("end", [0, 1])
+def test_clamp_moment_includes_its_kelvin_voigt_damper(end):
+    """Angular momentum balance of the damping terms for a planar motion (x-z plane).
+
+    A rigid rotation of cable and clamp about the plane's normal changes no turning-angle rate,
+    so the Rayleigh function is invariant under it: the damping forces' moment about y plus the
+    damping moment on the clamp must vanish. Without the clamp damper's moment (only the spring's,
+    as before) the balance is off by the damper's whole moment.
+    """
+    spec = CableSpec.lv2017(n_masses=7, internal_damping=0.01)
+    model = CableModel.straight(spec, ends=("clamped", "clamped"))
+    a = model.arrays
+    rng = np.random.default_rng(3)
+    x = model.x0.copy()
+    x[:, 2] += 0.01 * np.sin(np.linspace(0.0, 3.0, len(x)))  # bent in the x-z plane
+    v = rng.normal(scale=0.05, size=x.shape)
+    v[:, 1] = 0.0  # planar velocities
+    d = np.stack([np.array([1.0, 0.0, 0.2]) / np.hypot(1.0, 0.2), np.array([1.0, 0.0, -0.3]) / np.hypot(1.0, 0.3)])
+    f_damp = np.zeros_like(x)
+    forces.internal_damping_forces(a, x, v, d, f_damp)
+    nodes_moment = np.cross(x, f_damp).sum(axis=0)[1]
+    clamp_moment = (forces.clamp_torque(a, x, v, d, end) - forces.clamp_torque(a, x, np.zeros_like(v), d, end))[1]
+    other = 1 - end  # the other clamp's damper takes its share too
+    other_moment = (forces.clamp_torque(a, x, v, d, other) - forces.clamp_torque(a, x, np.zeros_like(v), d, other))[1]
+    assert abs(clamp_moment) > 1e-3 * abs(nodes_moment) > 0.0  # not vacuous
+    scale = np.abs(np.cross(x, f_damp)[:, 1]).sum()  # the size of the terms that cancel
+    assert nodes_moment + clamp_moment + other_moment == pytest.approx(0.0, abs=1e-9 * scale)
 
 
 def test_banded_solve_matches_dense(rng):

@@ -155,11 +155,12 @@ def internal_forces(m, x, dirs, out):
 
 
 @njit(cache=True, error_model="numpy")
-def clamp_torque(m, x, dirs, end):
+def clamp_torque(m, x, v, dirs, end):
     """Torque [N m] the cable exerts on the clamp at ``end`` (0 first, 1 last), world frame.
 
     The clamp spring pulls the clamp direction towards the adjacent segment with magnitude
-    k * beta about the axis d x e (zero when the end is not clamped).
+    k * beta about the axis d x e; with internal damping its Kelvin-Voigt damper adds
+    -d x (K_d^T c phi_dot) (see :func:`clamp_damping_torque`). Zero when the end is not clamped.
     """
     n = x.shape[0]
     out = np.zeros(3)
@@ -178,6 +179,43 @@ def clamp_torque(m, x, dirs, end):
     out[0] = k * ratio * (uy * wz - uz * wy)
     out[1] = k * ratio * (uz * wx - ux * wz)
     out[2] = k * ratio * (ux * wy - uy * wx)
+    if _has_internal_damping(m):
+        out += clamp_damping_torque(m, x, v, dirs, end)
+    return out
+
+
+@njit(cache=True, error_model="numpy")
+def clamp_damping_torque(m, x, v, dirs, end):
+    """Moment [N m] of the clamp's Kelvin-Voigt bending damper on the clamp at ``end``, world frame.
+
+    The damper's Rayleigh term 1/2 c |phi_dot|^2 at the end node depends on the clamp direction d
+    through K_d (phi_dot = K_a a_dot + K_b b_dot, d standing in for a at the first end and for b
+    at the last). A rotation of the clamp by dalpha changes d by dalpha x d, so the moment on the
+    clamp is -d x (K_d^T c phi_dot): what keeps the angular momentum of cable plus clamp balanced
+    (the nodes' damping forces are computed with the clamp direction held fixed).
+    """
+    n = x.shape[0]
+    out = np.zeros(3)
+    i = 0 if end == 0 else n - 1
+    if m.c_bend[i] == 0.0 or m.k_bend[i] == 0.0:
+        return out
+    g = np.empty((5, 3, 3))
+    rate = np.empty(3)
+    _bend_node_blocks(x, i, dirs, g)
+    _bend_rate(x, v, i, g, rate)
+    a0, a1, a2, b0, b1, b2 = _node_edges(x, i, dirs)
+    ka = np.empty((3, 3))
+    kb = np.empty((3, 3))
+    _bend_rate_blocks(a0, a1, a2, b0, b1, b2, ka, kb)  # K_d unmasked (the node blocks zero the clamp's)
+    kd = ka if end == 0 else kb
+    d = dirs[0] if end == 0 else dirs[1]
+    c = m.c_bend[i]
+    q0 = c * (kd[0, 0] * rate[0] + kd[1, 0] * rate[1] + kd[2, 0] * rate[2])  # K_d^T c phi_dot
+    q1 = c * (kd[0, 1] * rate[0] + kd[1, 1] * rate[1] + kd[2, 1] * rate[2])
+    q2 = c * (kd[0, 2] * rate[0] + kd[1, 2] * rate[1] + kd[2, 2] * rate[2])
+    out[0] = -(d[1] * q2 - d[2] * q1)
+    out[1] = -(d[2] * q0 - d[0] * q2)
+    out[2] = -(d[0] * q1 - d[1] * q0)
     return out
 
 
