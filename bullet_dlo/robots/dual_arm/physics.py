@@ -34,9 +34,13 @@ ARMS = ("left", "right")
 """Arm names by index; arm i holds cable end i (the cable's API numbers its ends 0 = first, 1 = last)."""
 END_NODE = (0, -1)
 """Cable node held by arm i."""
-SETTLE_STEPS = 22
+SETTLE_STEPS = 150
 """Bare Bullet steps before the cable is attached: the position controllers settle the arms,
-and the wrist joints' reaction (a sensor's tare) is then that of the unloaded arms."""
+and the wrist joints' reaction (a sensor's tare) is then that of the unloaded arms at rest.
+Bullet's position motors (gain 0.1) remove 10 % of the arms' sag per step, so 150 steps leave
+below 1e-6 of it; with 22, the tare held the payload's m a of a still-settling arm, which every
+later (inertia-compensated) reading carried as a bias ~ 1/dt: +1.0 % of the vertical load and
+0.5 mN sideways on the Panda at 1 kHz (``python demos/sensor_bias.py``)."""
 NO_CONTACT_NODES = 3
 """Cable masses at each end that do not collide with the gripper holding that end."""
 
