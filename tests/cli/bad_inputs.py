@@ -107,6 +107,13 @@ SPEC_VALUES = {
     "sample.speed": [{"dist": "log_uniform", "low": 0, "high": 1}],
     "sample.robot": [{"dist": "fixed", "value": "r2d2"}],
     "sample.foo": [1],
+    "motion": [[{"type": "sine", "end": "last", "amplitude": [0, 0, 0.01], "frequency": -1}],
+               [{"type": "sine", "end": "last", "frequency": {"dist": "uniform", "low": 1, "high": NAN}}],
+               [{"type": "waypoints", "end": "first", "times": [0, 1], "displacements": [[0.01, 0, 0], [0, 0, 0]]}],
+               [{"type": "wiggle", "end": "last"}], [], "x"],
+    "sample.grip": [{"dist": "fixed", "value": "glue"}],
+    "sample.grip_mu_dynamic": [{"dist": "uniform", "low": 0.3, "high": 0.9}],
+    "sample.grip_force": [{"dist": "fixed", "value": -2}],
 }
 
 

@@ -46,7 +46,7 @@ def test_importing_the_package_registers_the_ids_without_importing_gymnasium():
                "assert 'pybullet' not in sys.modules; print(ids)")
     proc = subprocess.run([sys.executable, "-c", program], capture_output=True, text=True, timeout=120)
     assert proc.returncode == 0, proc.stderr
-    assert "['bullet_dlo/Shaping-v0', 'bullet_dlo/TensionTracking-v0']" in proc.stdout
+    assert "['bullet_dlo/Routing-v0', 'bullet_dlo/Shaping-v0', 'bullet_dlo/TensionTracking-v0']" in proc.stdout
 
 
 @pytest.mark.parametrize("env_id", ["bullet_dlo/TensionTracking-v0", "bullet_dlo/Shaping-v0"])
