@@ -339,7 +339,7 @@ def run_scene_bullet(scene, *, gui: bool = False, record_every: int | None = Non
     """Run a scene with the Bullet-coupled engine. Returns (model, SimulationResult), like Scene.run."""
     import math
 
-    from bullet_dlo.core.engine import SimulationResult
+    from bullet_dlo.core.engine import SimulationResult, held_move_warnings
 
     model = scene.build_model()
     n_steps = max(1, int(round(scene.duration / scene.dt)))
@@ -358,7 +358,8 @@ def run_scene_bullet(scene, *, gui: bool = False, record_every: int | None = Non
             time_to_instability=cable.time_to_instability, reason=cable.reason, steps=cable.steps,
             wall_time_s=wall, t=rec["t"], x=rec["x"], v=rec["v"], end_forces=rec["end_forces"],
             energy=rec["energy"], final_state=cable.state(), end_moments=cable.end_moments(),
-            newton_failures=cable.newton_failures, newton_iterations=cable.newton_iterations)
+            newton_failures=cable.newton_failures, newton_iterations=cable.newton_iterations,
+            warnings=held_move_warnings(model, scene.dt, scene.duration))
     finally:
         world.close()
     return model, result

@@ -28,7 +28,7 @@ import numpy as np
 
 from bullet_dlo.core.integrators import NewtonOptions, get_integrator, make_stepper
 from bullet_dlo.core.kernels.forces import clamp_torque, internal_energy, max_strain, mechanical_energy
-from bullet_dlo.core.kernels.holders import HeldSamples, empty_samples, sample_holders
+from bullet_dlo.core.kernels.holders import HeldSamples, empty_samples, peak_speeds, sample_holders
 from bullet_dlo.core.kernels.loop import make_records, run_loop
 from bullet_dlo.core.kernels.monitor import REASONS, STABLE, STRETCH, Detector, end_forces
 from bullet_dlo.core.kernels.steppers import make_workspace
@@ -70,6 +70,8 @@ class DetectorOptions:
 DEFAULT_STRAIN_BOUND = 0.5
 CONFIRM_STRAIN_BOUND = 1e3  # the re-run's bound: a segment 1000x its rest length is a blow-up whatever the loads
 NEWTON_WARN_SHARE = 0.01  # warn when Newton fails to converge in more than this share of the steps
+MOVE_WARN_SEGMENTS = 1.5  # warn when a held end moves more than this many segment lengths in one step
+MOVE_SAMPLES = 20_000  # times at which the held ends' speed is sampled for that warning
 STRAIN_REASON = REASONS[STRETCH]
 
 
@@ -158,12 +160,14 @@ def simulate(
         f_ext: constant external forces [N], (n, 3).
 
     The result's ``warnings`` say what a user should know although the run is stable (Newton
-    failing in more than ``NEWTON_WARN_SHARE`` of the steps; a large but physical strain).
+    failing in more than ``NEWTON_WARN_SHARE`` of the steps; a large but physical strain; a held
+    end moved more than ``MOVE_WARN_SEGMENTS`` segment lengths per step).
     """
     kwargs = dict(state=state, record_every=record_every, max_records=max_records, newton=newton, f_ext=f_ext)
     result = _simulate(model, integrator, dt, duration, detector=detector, **kwargs)
     if result.reason == STRAIN_REASON and detector.max_strain is None:
         result = _confirm_strain(model, integrator, dt, duration, detector, result, kwargs)
+    result.warnings.extend(held_move_warnings(model, dt, duration))
     share = result.newton_failure_share
     if share > NEWTON_WARN_SHARE:
         result.warnings.append(
@@ -171,6 +175,36 @@ def simulate(
             "the implicit equations were solved only approximately; use a smaller dt, raise newton.max_iter, "
             "or use implicit_euler")
     return result
+
+
+def held_move_warnings(model: CableModel, dt: float, duration: float) -> list[str]:
+    """A warning when a prescribed held end moves more than :data:`MOVE_WARN_SEGMENTS` segment lengths
+    in one step (measured: at 60 Hz, n = 200-1000, every run at <= 1.56 was stable, every run at >= 4.2
+    diverged), else none."""
+    segments, end, speed = fastest_held_move(model, dt, duration)
+    if segments <= MOVE_WARN_SEGMENTS:
+        return []
+    return [f"the {end} end is moved up to {segments:.2g} segment lengths per step ({speed:.3g} m/s x dt / rest "
+            f"length): beyond about {MOVE_WARN_SEGMENTS}, runs of the study's cable were seen to diverge (every run "
+            "at 4.2 or more did); use a smaller dt, fewer masses or a slower motion"]
+
+
+def fastest_held_move(model: CableModel, dt: float, duration: float) -> tuple[float, str, float]:
+    """The largest distance a prescribed held end travels in one step at its peak speed, in rest segment
+    lengths (peak speed x dt / rest length), that end's name (first | last) and the peak speed [m/s]:
+    (0, "", 0) without a moving held end. The speed is sampled at :data:`MOVE_SAMPLES` times (at least
+    4 per step) over the duration."""
+    plan = model.holder_plan()
+    tables = ((plan.moves_first, plan.path_first, plan.sines_first), (plan.moves_last, plan.path_last, plan.sines_last))
+    held = (bool(model.arrays.held[0]), bool(model.arrays.held[-1]))
+    moving = [held[e] and any(t.shape[0] for t in tables[e]) for e in (0, 1)]
+    if not any(moving):
+        return 0.0, "", 0.0
+    peak = np.zeros(2)
+    peak_speeds(plan, duration, max(MOVE_SAMPLES, 4 * int(duration / dt) + 1), empty_samples(), peak)
+    peak[~np.array(moving)] = 0.0
+    e = int(np.argmax(peak))
+    return float(peak[e]) * dt / float(np.min(model.arrays.rest_length)), ("first", "last")[e], float(peak[e])
 
 
 def _confirm_strain(model: CableModel, integrator: str, dt: float, duration: float, detector: DetectorOptions,

@@ -100,3 +100,27 @@ def test_implicit_methods_at_60_hz_stable_while_the_end_moves_under_1_5_segments
         for name in ("implicit_euler", "bdf2", "implicit_midpoint"):
             res = simulate(fast, name, dt, 2.0, state=start, max_records=3)
             assert not res.stable and 0.02 <= res.time_to_instability <= 0.07  # during the move, reported
+
+
+@pytest.mark.parametrize("move_duration, warned", [(0.05, True), (1.0, False)])
+def test_a_held_end_moved_beyond_1_5_segments_per_step_is_warned(move_duration, warned, tmp_path, capsys):
+    """The warning names the end and its travel per step, which matches the minimum-jerk closed form
+    (peak speed 1.875 d / T); a slow move gets none. Through the CLI's output and JSON too."""
+    from bullet_dlo.analysis.study import study_model
+    from bullet_dlo.core.engine import fastest_held_move
+
+    n, dt = 200, 1 / 60
+    model = study_model(526e6, n, 0.01, move_duration=move_duration)
+    segments, end, _ = fastest_held_move(model, dt, 2.0)
+    assert end == "last" and segments == pytest.approx(end_steps_per_segment(n, 0.005, move_duration, dt), rel=1e-3)
+    res = simulate(model, "implicit_euler", dt, 0.3, max_records=3)
+    assert any("segment lengths per step" in w for w in res.warnings) == warned
+    scene = {"cable": {"length": 0.3, "diameter": 0.004, "mass": 0.03, "youngs_modulus": 1e7, "n_masses": 30},
+             "ends": {"first": "clamped", "last": "clamped"}, "dt": dt, "duration": 0.3,
+             "motion": [{"end": "last", "displacement": [0, 0, 0.04], "start": 0.05, "duration": move_duration}]}
+    path = tmp_path / "s.yaml"
+    path.write_text(yaml.safe_dump(scene))
+    assert main(["simulate", str(path), "--json", str(tmp_path / "r.json")]) == 0
+    out = capsys.readouterr().out
+    warnings = json.loads((tmp_path / "r.json").read_text())["warnings"]
+    assert ("segment lengths per step" in out) == warned == any("segment lengths per step" in w for w in warnings)

@@ -215,3 +215,16 @@ def sample_holders(plan, t, h, samples):
         tk = t + 0.5 * h * k
         held_pose(plan, 0, tk, samples, k)
         held_pose(plan, 1, tk, samples, k)
+
+
+@njit(cache=True, error_model="numpy")
+def peak_speeds(plan, t_end, count, samples, out):
+    """Largest prescribed speed [m/s] of each end over [0, t_end] [s], sampled at ``count`` evenly spaced
+    times, into ``out`` (2,) (first, last); ``samples``: scratch HeldSamples."""
+    out[:] = 0.0
+    for k in range(count):
+        t = t_end * k / max(count - 1, 1)
+        sample_holders(plan, t, 0.0, samples)
+        for e in range(2):
+            v = samples.vel[0, e]
+            out[e] = max(out[e], math.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]))
