@@ -259,6 +259,11 @@ class DualArmEnv(gym.Env):
     def _task_info(self) -> dict[str, Any]:
         return {}
 
+    def scripted_policy(self):
+        """The task's scripted baseline: a callable ``policy(obs) -> action``, optionally with a
+        ``reset(obs)`` called at the first observation of every episode (subclasses)."""
+        raise NotImplementedError(f"{type(self).__name__} has no scripted policy")
+
     # ----- closing --------------------------------------------------------------------------------
     def _close_scene(self) -> None:
         if self.physics is not None:

@@ -22,8 +22,9 @@ seed ``seed + i``, so a rollout directory reproduces with the same policy. The d
 ``capture.json`` holds the :class:`RolloutSpec` (environment, its arguments and randomisation,
 policy, seed, rate): a directory never mixes rollouts of two specs.
 
-Policies: a callable ``policy(obs) -> action``, or by name: ``random`` (the action space,
-seeded per episode), ``scripted`` (the environment module's ``scripted_action``),
+Policies: a callable ``policy(obs) -> action`` (with a ``reset(obs)`` method, it is called at
+every episode's first observation), or by name: ``random`` (the action space, seeded per episode), ``scripted``
+(the environment's :meth:`~bullet_dlo.envs.dual_arm_env.DualArmEnv.scripted_policy`),
 ``zero`` (no motion) or ``package.module:function``.
 """
 from __future__ import annotations
@@ -92,11 +93,11 @@ def resolve_policy(policy: str | Policy, env) -> tuple[Policy, str]:
     if name == "zero":
         return (lambda obs: np.zeros(env.action_space.shape, env.action_space.dtype)), name
     if name == "scripted":
-        module = importlib.import_module(type(env.unwrapped).__module__)
-        if not hasattr(module, "scripted_action"):
-            raise ParameterError(f"--policy scripted: {type(env.unwrapped).__name__} has no scripted_action; "
-                                 f"use one of random, zero or package.module:function")
-        return module.scripted_action, name
+        try:
+            return env.unwrapped.scripted_policy(), name
+        except NotImplementedError:
+            raise ParameterError(f"--policy scripted: {type(env.unwrapped).__name__} has no scripted policy; "
+                                 f"use one of random, zero or package.module:function") from None
     if ":" in name:
         mod, _, attr = name.partition(":")
         try:
@@ -165,6 +166,9 @@ def run_rollout(env, policy: Policy, spec: RolloutSpec, index: int, out: Path) -
     """One episode of ``policy`` in ``env`` (reset seed ``spec.seed + index``), written to ``out``;
     returns its manifest record."""
     obs, _ = env.reset(seed=spec.seed + index)
+    env.action_space.seed(spec.seed + index)  # the random policy's draws repeat with the episode
+    if hasattr(policy, "reset"):  # a stateful policy plans from the episode's first observation
+        policy.reset(obs)
     inner = env.unwrapped
     physics = inner.physics
     every = max(1, int(round(1.0 / (spec.record_rate * physics.world.dt))))

@@ -356,6 +356,10 @@ class RoutingEnv(DualArmEnv):
         success = wrapped and m["threaded"]
         return reward + SUCCESS_BONUS * success, success or m["end_force"] > self.overload
 
+    def scripted_policy(self) -> "RoutingPolicy":
+        """A fresh :class:`RoutingPolicy` (observation only; plans at ``reset(obs)``)."""
+        return RoutingPolicy()
+
     def _task_info(self) -> dict[str, Any]:
         m = self.measures()
         return {"wraps": m["wraps"].copy(), "clip_distance": m["clip_distance"], "threaded": bool(m["threaded"]),

@@ -94,6 +94,10 @@ class ShapingEnv(DualArmEnv):
     def _task_reward(self) -> tuple[float, bool]:
         return math.exp(-self.shape_error() / SHAPE_SCALE), False
 
+    def scripted_policy(self):
+        """The privileged expert :func:`scripted_action` on this environment (it reads the target's moves)."""
+        return lambda obs: scripted_action(self)
+
     def _task_info(self) -> dict[str, Any]:
         error = self.shape_error()
         return {"shape_error": error, "is_success": bool(error < self.success_error)}

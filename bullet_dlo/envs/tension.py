@@ -108,6 +108,10 @@ class TensionTrackingEnv(DualArmEnv):
         reward = 0.5 * math.exp(-err_t / TENSION_SCALE) + 0.5 * math.exp(-err_p / POSITION_SCALE)
         return reward, self.tension() > self.overload
 
+    def scripted_policy(self):
+        """The proportional controller :func:`scripted_action` (observation only)."""
+        return scripted_action
+
     def _task_info(self) -> dict[str, Any]:
         tension = self.tension()
         return {"tension": tension, "tension_sensed": self.tension_sensed(), "tension_target": self.tension_target(),
