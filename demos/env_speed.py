@@ -92,6 +92,21 @@ def breakdown(physics: DualArmPhysics, steps: int) -> dict[str, float]:
     return out
 
 
+def reset_time(resets: int) -> float:
+    """Median wall time [s] of a TensionTracking reset (a new scene: world, arms, settling, cable), after a first one."""
+    from bullet_dlo.envs.tension import TensionTrackingEnv
+
+    env = TensionTrackingEnv()
+    env.reset(seed=0)
+    times = []
+    for seed in range(1, resets + 1):
+        tic = time.perf_counter()
+        env.reset(seed=seed)
+        times.append(time.perf_counter() - tic)
+    env.close()
+    return statistics.median(times)
+
+
 def env_rate(steps: int) -> tuple[float, float]:
     """Control steps per second of one TensionTracking env on this core, and simulated seconds per wall second."""
     from bullet_dlo.envs.tension import TensionTrackingEnv
@@ -157,7 +172,8 @@ def main(argv: list[str] | None = None) -> None:
         print(f"  {us:7.1f}  {name}")
 
     rate, sim_rate = env_rate(env_steps)
-    print(f"\nTensionTracking-v0 on one core: {rate:.0f} env steps/s ({sim_rate:.1f} simulated s per wall s)")
+    print(f"\nTensionTracking-v0 on one core: {rate:.0f} env steps/s ({sim_rate:.1f} simulated s per wall s); "
+          f"a reset takes {reset_time(3 if args.quick else 10):.3f} s")
     vec = vector_rate(env_steps // 2 if args.quick else env_steps)
     print(f"AsyncVectorEnv, 2 processes: {vec:.0f} env steps/s together, {vec / rate:.2f}x one env in-process")
 
