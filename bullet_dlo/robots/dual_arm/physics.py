@@ -107,7 +107,8 @@ class DualArmPhysics:
     def _add_arm(self, robot_spec: RobotSpec, sign: float, base_yaw: float) -> None:
         """Load an arm at x = sign * base_distance and put its grasp frame on the cable end at x = sign * L/2."""
         spec = self.spec
-        robot = Robot.load(robot_spec, self.world.client, (sign * spec.base_distance, 0.0, 0.0), base_yaw)
+        robot = Robot.load(robot_spec, self.world.client, (sign * spec.base_distance, 0.0, 0.0), base_yaw,
+                           visuals=spec.renderer is not None)  # no renderer: nothing will draw the meshes
         self.robots.append(robot)  # before the IK, so that close() releases its twin if the pose is unreachable
         quat = quat_from_axes((-sign, 0.0, 0.0), (0.0, 0.0, -1.0))  # top grasp, x pointing into the cable
         position = np.array([sign * 0.5 * spec.cable.length, 0.0, spec.hold_height])
