@@ -167,3 +167,19 @@ def test_cli_grasp_json(tmp_path):
     assert len(w["left"]) == 6
     assert w["left"][2] + w["right"][2] == pytest.approx(-data["cable_weight"], rel=0.01)
     assert main(["grasp", "--robot", "abb"]) == 2
+
+
+@pytest.mark.parametrize("robot", ["panda", "kuka"])
+def test_arms_without_visual_meshes_move_and_sense_the_same(robot):
+    """A scene built without a renderer loads its arms without visual meshes (faster resets); the physics
+    must not notice: the same grasp and move give the same cable and wrist readings to the bit."""
+    runs = []
+    for renderer in (None, "tiny"):
+        with DualArmScene(DualArmSpec(robot=robot, renderer=renderer)) as sc:
+            sc.grasp()
+            sc.move("right", (0.0, 0.0, 0.01), 0.2)
+            sc.run(0.25)
+            runs.append((sc.cable.x.copy(), np.array([s.last.world() for s in sc.sensors])))
+    (x0, w0), (x1, w1) = runs
+    assert np.array_equal(x0, x1) and np.array_equal(w0, w1)
+    assert np.abs(w0[:, 2]).max() > 0.05  # the wrists carry the cable
