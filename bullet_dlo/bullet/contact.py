@@ -161,10 +161,8 @@ class ContactSet:
         """Read the moving bodies, detect the contacts of positions x [m] (n, 3) for a step of h [s]."""
         for s in range(len(self.rows)):  # static bodies too: a script may move them (about 1 us each)
             self._read_pose(s, with_velocity=bool(self.dynamic[s]))
-        vmax = float(np.max(np.abs(v))) if v.size else 0.0
-        margin = float(self.contacts.radius[0]) + 2.0 * vmax * h + 1e-3
         k_per_mass = self.alpha / (h * h)
-        args = (x, v, mass, self.shapes, self.contacts, self.store, margin, k_per_mass, self.zeta, self.self_mu)
+        args = (x, v, mass, self.shapes, self.contacts, self.store, float(h), k_per_mass, self.zeta, self.self_mu)
         if self._detect is None:
             self._detect = bind(detect, *args)
         return self._detect(*args)
@@ -381,10 +379,16 @@ def _fill(c, st, key, shape, ia, ib, wa, wb, mu_s, mu_d, k_n, zeta, mk, x):
 
 
 @njit(cache=True, error_model="numpy")
-def detect(x, v, mass, sh, c, st, margin, k_per_mass, zeta, self_mu):
+def detect(x, v, mass, sh, c, st, h, k_per_mass, zeta, self_mu):
     """Store the friction state of the last step's contacts by key, then fill ``c`` with the contacts
-    of positions x [m] (n, 3) (velocities v [m/s]) whose gap is below ``margin`` [m]; self-contacts too
-    unless self_mu[0] < 0 (self_mu: static and dynamic friction cable on cable). Returns the count."""
+    of positions x [m] (n, 3) (velocities v [m/s]) whose gap is below the margin (cable radius + twice
+    the distance the fastest node moves in a step of h [s] + 1 mm); self-contacts too unless
+    self_mu[0] < 0 (self_mu: static and dynamic friction cable on cable). Returns the count."""
+    vmax = 0.0
+    for i in range(v.shape[0]):
+        for j in range(3):
+            vmax = max(vmax, abs(v[i, j]))
+    margin = c.radius[0] + 2.0 * vmax * h + 1e-3
     previous = st.keys[:c.count[0]].copy()  # the keys in contact last step (their rows get overwritten)
     for k in range(previous.shape[0]):  # persist what the last step left
         key = previous[k]

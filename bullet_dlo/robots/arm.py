@@ -124,14 +124,19 @@ class Robot:
 
     def grasp_state(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """Grasp frame position [m], quaternion, linear velocity [m/s] and angular velocity [rad/s]."""
+        return tuple(np.array(v) for v in self.grasp_state_tuples())
+
+    def grasp_state_tuples(self) -> tuple[tuple, tuple, tuple, tuple]:
+        """:meth:`grasp_state` as plain tuples of floats (the per-step coupling reads it twice per step,
+        where building four small arrays costs more than Bullet's query)."""
         st = pb.getLinkState(self.body, self.grasp_link, computeLinkVelocity=True, computeForwardKinematics=True,
                              physicsClientId=self.client)
-        # v_frame = v_com + omega x (frame - com), in scalars: this runs twice per dual-arm step
+        # v_frame = v_com + omega x (frame - com)
         (cx, cy, cz), (fx, fy, fz), (vx, vy, vz), omega = st[0], st[4], st[6], st[7]
         wx, wy, wz = omega
         dx, dy, dz = fx - cx, fy - cy, fz - cz
-        v_frame = [vx + (wy * dz - wz * dy), vy + (wz * dx - wx * dz), vz + (wx * dy - wy * dx)]
-        return np.array(st[4]), np.array(st[5]), np.array(v_frame), np.array(omega)
+        v_frame = (vx + (wy * dz - wz * dy), vy + (wz * dx - wx * dz), vz + (wx * dy - wy * dx))
+        return st[4], st[5], v_frame, omega
 
     def solve_ik(self, position: Sequence[float], quat: Sequence[float], seed: np.ndarray | None = None,
                  tol: float = 1e-4, iterations: int = 20) -> np.ndarray:

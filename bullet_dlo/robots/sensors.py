@@ -134,7 +134,7 @@ class WristSensor:
 
         dt: physics step [s] (for the payload acceleration of the inertia compensation,
         tracked at every step, sampled or not). Per-step code: scalar arithmetic on the
-        tuples PyBullet returns, one numpy array per reading component.
+        tuples PyBullet returns, one numpy array per reading (the Wrench fields are views of it).
         """
         if self.compensate_inertia:
             states = self._payload_states()  # one call: velocities for the inertia, the sensor link's orientation
@@ -167,7 +167,8 @@ class WristSensor:
                    r[6] * fx + r[7] * fy + r[8] * fz]
         m_world = [r[0] * mx + r[1] * my + r[2] * mz, r[3] * mx + r[4] * my + r[5] * mz,
                    r[6] * mx + r[7] * my + r[8] * mz]
-        self._last = Wrench(t, np.array(w[:3]), np.array(w[3:]), np.array(f_world), np.array(m_world))
+        values = np.array(w + f_world + m_world)  # one array, four views: this runs twice per step
+        self._last = Wrench(t, values[0:3], values[3:6], values[6:9], values[9:12])
         return self._last
 
     @property

@@ -92,7 +92,7 @@ class DualArmPhysics:
             self.close()
             raise
         self.held = [False, False]
-        self._grasp_velocity = [np.zeros(3), np.zeros(3)]  # [m/s] one step ago, for the acceleration
+        self._grasp_velocity = [(0.0, 0.0, 0.0), (0.0, 0.0, 0.0)]  # [m/s] one step ago, for the acceleration
         self.world.before_step.append(self._apply_cable_wrench)
         self.world.after_physics.append(self._follow_grippers)
         self._follow_grippers(first=True)
@@ -174,10 +174,14 @@ class DualArmPhysics:
     @staticmethod
     def cable_direction(arm: int, quat: Sequence[float]) -> np.ndarray:
         """Clamp tangent (first -> last mass) from arm ``arm``'s grasp frame: its x axis points into the cable."""
-        x, y, z, w = quat  # the rotation matrix's first column, in scalars: this runs twice per step
+        return np.array(DualArmPhysics._direction(arm, quat))
+
+    @staticmethod
+    def _direction(arm: int, quat: Sequence[float]) -> tuple[float, float, float]:
+        """:meth:`cable_direction` as a tuple: the rotation matrix's first column, signed, in scalars."""
+        x, y, z, w = quat
         sign = 1.0 if arm == 0 else -1.0
-        return np.array((sign * (1.0 - 2.0 * (y * y + z * z)), sign * 2.0 * (x * y + z * w),
-                         sign * 2.0 * (x * z - y * w)))
+        return sign * (1.0 - 2.0 * (y * y + z * z)), sign * 2.0 * (x * y + z * w), sign * 2.0 * (x * z - y * w)
 
     def _apply_cable_wrench(self) -> None:
         """Before the Bullet step: the cable's force [N] (at the end mass) and clamp torque [N m] on each holder."""
@@ -197,11 +201,12 @@ class DualArmPhysics:
     def _follow_grippers(self, first: bool = False) -> None:
         """After the Bullet step: the measured grasp frames become the holder poses of the cable's ends."""
         rate = 0.0 if first else 1.0 / self.world.dt
-        for arm, robot in enumerate(self.robots):
-            pos, quat, vel, omega = robot.grasp_state()
-            acc = (vel - self._grasp_velocity[arm]) * rate  # [m/s^2] backward difference (0 at the start)
+        for arm, robot in enumerate(self.robots):  # in scalars: this runs twice per step
+            pos, quat, vel, omega = robot.grasp_state_tuples()
+            (px, py, pz), (vx, vy, vz) = self._grasp_velocity[arm], vel
+            acc = ((vx - px) * rate, (vy - py) * rate, (vz - pz) * rate)  # [m/s^2] backward difference (0 at start)
             self._grasp_velocity[arm] = vel
-            self.cable.set_external_pose(arm, pos, vel, acc, omega, self.cable_direction(arm, quat))
+            self.cable.set_external_pose(arm, pos, vel, acc, omega, self._direction(arm, quat))
 
     # ----- running -------------------------------------------------------------------------------
     def run(self, duration: float) -> float:
