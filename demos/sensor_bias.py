@@ -42,6 +42,7 @@ from bullet_dlo.core.spec import CableSpec
 from bullet_dlo.robots.arm import Robot
 from bullet_dlo.robots.dual_arm import DualArmScene, DualArmSpec
 from bullet_dlo.robots.dual_arm.physics import DualArmPhysics
+from bullet_dlo.robots.sensors import WristSensor
 
 CASES = (("panda", 1 / 240), ("panda", 1e-3), ("kuka", 1 / 240), ("kuka", 1e-3))
 SETTLED_STEPS = 150
@@ -90,11 +91,7 @@ def payload_momentum(robot: str, dt: float, settle_steps: int) -> np.ndarray:
     with mock.patch.object(physics_module, "SETTLE_STEPS", settle_steps):
         ph = DualArmPhysics(spec(robot, dt))
     try:
-        r = ph.robots[0]
-        links = r.subtree_links(r.joint_index[r.spec.sensor_joint])
-        states = pb.getLinkStates(r.body, links, computeLinkVelocity=True, physicsClientId=r.client)
-        masses = [pb.getDynamicsInfo(r.body, j, physicsClientId=r.client)[0] for j in links]
-        return sum(m * np.array(s[6]) for m, s in zip(masses, states))
+        return WristSensor(ph.robots[0]).payload_momentum()
     finally:
         ph.close()
 

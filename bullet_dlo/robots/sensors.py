@@ -111,16 +111,25 @@ class WristSensor:
         this runs every physics step, where numpy's per-call cost (a few microseconds) would
         exceed the arithmetic many times over.
         """
-        px = py = pz = 0.0  # sum of m v over the payload links [kg m/s]
+        px, py, pz = self._momentum(states)
+        prev, self._momentum_prev = self._momentum_prev, (px, py, pz)
+        if prev is None:
+            return 0.0, 0.0, 0.0
+        return (px - prev[0]) / dt, (py - prev[1]) / dt, (pz - prev[2]) / dt
+
+    def payload_momentum(self) -> np.ndarray:
+        """Sum of m v over the payload (the tool side's links) [kg m/s], world frame, now, (3,)."""
+        return np.array(self._momentum(self._payload_states()))
+
+    def _momentum(self, states: tuple) -> tuple[float, float, float]:
+        """Sum of m v [kg m/s] over the payload links, from their :meth:`_payload_states`."""
+        px = py = pz = 0.0
         for m, s in zip(self._payload_mass, states):
             v = s[6]
             px += m * v[0]
             py += m * v[1]
             pz += m * v[2]
-        prev, self._momentum_prev = self._momentum_prev, (px, py, pz)
-        if prev is None:
-            return 0.0, 0.0, 0.0
-        return (px - prev[0]) / dt, (py - prev[1]) / dt, (pz - prev[2]) / dt
+        return px, py, pz
 
     def tare(self) -> None:
         """Zero the sensor in the current (reference) pose: later readings are relative to it."""
