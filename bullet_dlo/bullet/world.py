@@ -344,26 +344,15 @@ def run_scene_bullet(scene, *, gui: bool = False, record_every: int | None = Non
     """
     from dataclasses import replace
 
-    from bullet_dlo.core.engine import CONFIRM_STRAIN_BOUND, STRAIN_REASON, held_move_warnings
-    from bullet_dlo.core.kernels.forces import max_strain
+    from bullet_dlo.core.engine import STRAIN_REASON, confirm_strain, held_move_warnings
 
     model = scene.build_model()
     first = _run_bullet_once(scene, model, scene.detector, gui, record_every, max_records)
     first.warnings.extend(held_move_warnings(model, scene.dt, scene.duration))
     if first.reason != STRAIN_REASON or scene.detector.max_strain is not None:
         return model, first
-    again = _run_bullet_once(scene, model, replace(scene.detector, max_strain=CONFIRM_STRAIN_BOUND), gui,
-                             record_every, max_records)
-    if again.stable:
-        again.max_strain_seen = float(max(max_strain(model.arrays, x) for x in again.x))
-        again.warnings = first.warnings + [
-            f"segment strain reached {again.max_strain_seen:.3g} (beyond the default bound) at "
-            f"t = {first.time_to_instability:.4g} s with no energy growth and finite state: a physically large "
-            "stretch, not a numerical blow-up (detector.max_strain makes a strain bound a hard stop)"]
-        return model, again
-    first.warnings.append(f"confirmed by a re-run without the strain bound: {again.reason} at "
-                          f"t = {again.time_to_instability:.4g} s")
-    return model, first
+    return model, confirm_strain(model, first, lambda bound: _run_bullet_once(
+        scene, model, replace(scene.detector, max_strain=bound), gui, record_every, max_records))
 
 
 def _run_bullet_once(scene, model, detector, gui: bool, record_every: int | None, max_records: int):

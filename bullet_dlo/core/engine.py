@@ -23,6 +23,7 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass, field, replace
+from typing import Callable
 
 import numpy as np
 
@@ -166,7 +167,8 @@ def simulate(
     kwargs = dict(state=state, record_every=record_every, max_records=max_records, newton=newton, f_ext=f_ext)
     result = _simulate(model, integrator, dt, duration, detector=detector, **kwargs)
     if result.reason == STRAIN_REASON and detector.max_strain is None:
-        result = _confirm_strain(model, integrator, dt, duration, detector, result, kwargs)
+        result = confirm_strain(model, result, lambda bound: _simulate(
+            model, integrator, dt, duration, detector=replace(detector, max_strain=bound), **kwargs))
     result.warnings.extend(held_move_warnings(model, dt, duration))
     share = result.newton_failure_share
     if share > NEWTON_WARN_SHARE:
@@ -207,19 +209,20 @@ def fastest_held_move(model: CableModel, dt: float, duration: float) -> tuple[fl
     return float(peak[e]) * dt / float(np.min(model.arrays.rest_length)), ("first", "last")[e], float(peak[e])
 
 
-def _confirm_strain(model: CableModel, integrator: str, dt: float, duration: float, detector: DetectorOptions,
-                    first: SimulationResult, kwargs: dict) -> SimulationResult:
-    """A run stopped by the default strain bound, re-run without it: stable (with a warning) if the
-    re-run stays finite without energy growth, else the first result, its cause confirmed."""
-    again = _simulate(model, integrator, dt, duration, detector=replace(detector, max_strain=CONFIRM_STRAIN_BOUND),
-                      **kwargs)
+def confirm_strain(model: CableModel, first: SimulationResult,
+                   rerun: Callable[[float], SimulationResult]) -> SimulationResult:
+    """A run stopped by the default strain bound, re-run without it (``rerun(max_strain)`` runs it again with
+    that bound): stable (with a warning) if the re-run stays finite without energy growth, else the
+    first result, its cause confirmed. Any engine: the core one here, the Bullet one in
+    :func:`bullet_dlo.bullet.world.run_scene_bullet`."""
+    again = rerun(CONFIRM_STRAIN_BOUND)
     if again.stable:
         m = model.arrays
         again.max_strain_seen = float(max(max_strain(m, x) for x in again.x))
-        again.warnings.append(
+        again.warnings = first.warnings + again.warnings + [
             f"segment strain reached {again.max_strain_seen:.3g} (beyond {DEFAULT_STRAIN_BOUND}) at "
             f"t = {first.time_to_instability:.4g} s with no energy growth and finite state: a physically large "
-            "stretch, not a numerical blow-up (detector.max_strain makes a strain bound a hard stop)")
+            "stretch, not a numerical blow-up (detector.max_strain makes a strain bound a hard stop)"]
         return again
     first.warnings.append(f"confirmed by a re-run without the strain bound: {again.reason} at "
                           f"t = {again.time_to_instability:.4g} s")

@@ -68,13 +68,14 @@ class EpisodeRecorder:
     def __call__(self) -> None:
         world = self.scene.world
         if world.steps % self.every == 0:
-            self._row()
+            self.record_row()
         if self.fps > 0 and world.time + 1e-12 >= self._next_frame:
             self.frames.append(render_frame(world.client, self.camera, world.renderer).rgb)
             self.frame_t.append(world.time)
             self._next_frame += 1.0 / self.fps
 
-    def _row(self) -> None:
+    def record_row(self) -> None:
+        """Record one row of the columns now (the hook records every ``every`` steps; call it for the start)."""
         scene, rows = self.scene, self.rows
         rows["t"].append(scene.world.time)
         rows["cable_x"].append(scene.cable.x.copy())

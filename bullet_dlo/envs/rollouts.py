@@ -174,7 +174,7 @@ def run_rollout(env, policy: Policy, spec: RolloutSpec, index: int, out: Path) -
     every = max(1, int(round(1.0 / (spec.record_rate * physics.world.dt))))
     view = SimpleNamespace(world=physics.world, cable=physics.cable, sensors=inner.sensors, robots=physics.robots)
     recorder = EpisodeRecorder(view, every, CaptureSpec())  # CaptureSpec(): no camera frames
-    recorder._row()  # the state at reset: the settled, loaded grasp
+    recorder.record_row()  # the state at reset: the settled, loaded grasp
     physics.world.after_step.append(recorder)
     observations = {k: [v] for k, v in obs.items()}
     control_t, actions, rewards = [], [], []
