@@ -43,6 +43,7 @@ import numpy as np
 import pybullet as pb
 
 from bullet_dlo.bullet.contact import ContactSet
+from bullet_dlo.bullet.native import apply_forces
 from bullet_dlo.bullet.kernels import (
     Coupling,
     ExternalHolders,
@@ -137,13 +138,15 @@ class BulletCable:
         self._cp = Coupling(dt=float(world.dt), substeps=self.substeps,
                             gravity=np.asarray(world.gravity, dtype=float), x=st.x.copy(), v=st.v.copy(),
                             v_bullet=st.v.copy(), x_new=np.zeros((n, 3)), v_new=np.zeros((n, 3)),
-                            force=np.zeros((n, 3)), samples=empty_samples())
+                            force=np.zeros((n, 3)), samples=empty_samples(), end_force=np.zeros((2, 3)),
+                            end_torque=np.zeros((2, 3)))
         self.x, self.v = self._cp.x, self._cp.v
         self.ws = make_workspace(n)
         self._no_rows = np.zeros((0, 3))
         self._no_index = np.zeros(0, dtype=np.int64)
         self.radius = 0.5 * model.spec.diameter
         self.body_ids = self._spawn(color, self_collision)
+        self._body_array = np.array(self.body_ids, dtype=np.int32)
         self._contact_set: ContactSet | None = None
         self._bodies_seen = -1
         self.grip = make_grip()  # friction grips of the ends (grip_with_friction), shared by every contact set
@@ -272,11 +275,15 @@ class BulletCable:
         """Apply the forces planned for the coming Bullet step (nothing once unstable)."""
         if self.status != STABLE:
             return
-        cid = self.world.client
-        apply = pb.applyExternalForce
-        frame = pb.WORLD_FRAME
-        for b, f, pos in zip(self.body_ids, self._cp.force.tolist(), self.x.tolist()):
-            apply(b, -1, f, pos, frame, cid)  # positional: keyword parsing costs 50 % more per call
+        native = self.world.native_handle()
+        if native:  # one compiled call instead of n PyBullet calls
+            apply_forces(native, self._body_array, self._cp.force, self.x)
+        else:
+            cid = self.world.client
+            apply = pb.applyExternalForce
+            frame = pb.WORLD_FRAME
+            for b, f, pos in zip(self.body_ids, self._cp.force.tolist(), self.x.tolist()):
+                apply(b, -1, f, pos, frame, cid)  # positional: keyword parsing costs 50 % more per call
         if self._contact_set is not None:
             self._contact_set.apply_to_bodies()
 
@@ -428,6 +435,11 @@ class BulletCable:
             self._end_loads = bind(end_loads, *args)
         self._end_loads(*args)
         return force, torque
+
+    def planned_end_loads(self) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`end_loads` as the last step's kernel left them for the coming step, without a call:
+        views (2, 3) each, valid until the next step (the grasp coupling's per-step read)."""
+        return self._cp.end_force, self._cp.end_torque
 
     def contact_forces(self) -> dict[str, np.ndarray]:
         """The model's contacts of the step just planned, with the forces on the cable [N]: keys body,

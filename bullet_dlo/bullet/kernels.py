@@ -14,7 +14,7 @@ from numba import njit
 
 from bullet_dlo.core.kernels.contact import contact_energy, contact_step, grip_active
 from bullet_dlo.core.kernels.forces import clamp_torque
-from bullet_dlo.core.kernels.holders import HeldSamples, rotate, sample_holders
+from bullet_dlo.core.kernels.holders import HeldSamples, rotate, sample_end
 from bullet_dlo.core.kernels.monitor import STABLE, end_forces, monitor
 from bullet_dlo.core.kernels.steppers import IMPLICIT_EULER, advance
 
@@ -43,7 +43,9 @@ class Coupling(NamedTuple):
     [m/s^2], (3,); x [m], v [m/s]: the model's state, (n, 3); v_bullet: Bullet's sphere
     velocities [m/s], (n, 3); x_new [m], v_new [m/s]: the state planned for the end of the coming
     Bullet step, (n, 3); force: sphere forces [N] that make Bullet land there, (n, 3);
-    samples: held-end samples of the planned step's last substep (HeldSamples).
+    samples: held-end samples of the planned step's last substep (HeldSamples); end_force [N],
+    end_torque [N m]: what the cable exerts on its held ends at the start of the planned step
+    (:func:`end_loads`), (2, 3) each.
     """
 
     dt: float
@@ -56,6 +58,8 @@ class Coupling(NamedTuple):
     v_new: np.ndarray
     force: np.ndarray
     samples: HeldSamples
+    end_force: np.ndarray
+    end_torque: np.ndarray
 
 
 class StepInput(NamedTuple):
@@ -136,10 +140,11 @@ def coupled_targets(stepper, m, plan, ext, cp, ws, t, has_prev, contacts):
     iters = 0
     ok_all = True
     for k in range(cp.substeps):
-        sample_holders(plan, t + k * hs, hs, cp.samples)
-        for e in range(2):
+        for e in range(2):  # an end a gripper holds follows the measured pose, the others their tables
             if ext.active[e]:
                 external_samples(ext, e, k * hs, hs, cp.samples)
+            else:
+                sample_end(plan, e, t + k * hs, hs, cp.samples)
         prev = has_prev or k > 0
         if (contacts.count[0] > 0 or grip_active(contacts.grip)) and stepper.method >= IMPLICIT_EULER:
             its, ok = contact_step(stepper, m, cp.x_new, cp.v_new, cp.samples, ws, prev and contacts.impact[0] == 0,
@@ -185,7 +190,8 @@ def sync_and_advance(stepper, m, plan, ext, cp, ws, det, inp, contacts):
 
     ``contacts``: the model's contacts for the coming step (detected from the taken-over state);
     the energy check counts the energy stored in them and the work of the bodies they touch.
-    Returns (status, Newton iterations, converged); an unstable status plans nothing.
+    Also writes cp.end_force, cp.end_torque (:func:`end_loads` now). Returns (status, Newton
+    iterations, converged); an unstable status plans nothing.
     """
     status = STABLE
     if inp.sync:
@@ -193,7 +199,9 @@ def sync_and_advance(stepper, m, plan, ext, cp, ws, det, inp, contacts):
         if inp.check or inp.energy_check:
             extra = contact_energy(contacts, cp.x) - contacts.body_work[0] if inp.energy_check else 0.0
             status = monitor(m, cp.x, cp.v, cp.samples, det, inp.energy_check, extra)
-    if status != STABLE:
-        return status, 0, True
-    its, ok = coupled_targets(stepper, m, plan, ext, cp, ws, inp.t, inp.has_prev, contacts)
+    its, ok = 0, True
+    if status == STABLE:
+        its, ok = coupled_targets(stepper, m, plan, ext, cp, ws, inp.t, inp.has_prev, contacts)
+    # the loads on the holders during the coming step (the grasp coupling applies them to the grippers)
+    end_loads(m, cp.x, cp.v, cp.samples, contacts.grip, cp.end_force, cp.end_torque)
     return status, its, ok

@@ -89,6 +89,16 @@ class BulletWorld:
         self.before_step: list = []
         self.after_physics: list = []
         self.after_step: list = []
+        self._native: int | None = None  # C client handle for bullet.native kernels, made on first use
+
+    def native_handle(self) -> int:
+        """The C client handle of this world for :mod:`bullet_dlo.bullet.native` kernels (0: they are
+        unavailable or switched off, use PyBullet's Python API). Valid until :meth:`close`."""
+        if self._native is None:
+            from bullet_dlo.bullet import native
+
+            self._native = native.connect(self.client) if pb.isConnected(self.client) else 0
+        return self._native
 
     # ----- obstacles --------------------------------------------------------------------------
     def add_box(self, half_extents: Sequence[float], position: Sequence[float],
@@ -297,6 +307,7 @@ class BulletWorld:
 
     def close(self) -> None:
         """Disconnect the PyBullet client."""
+        self._native = 0  # the handle dies with the connection
         if pb.isConnected(self.client):
             pb.disconnect(self.client)
 

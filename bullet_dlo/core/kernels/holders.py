@@ -209,12 +209,17 @@ def held_pose(plan, end, t, samples, k):
 
 
 @njit(cache=True, error_model="numpy")
+def sample_end(plan, end, t, h, samples):
+    """Held end ``end`` (0 first, 1 last) at t, t + h/2 and t + h [s] into ``samples`` (a :class:`HeldSamples`)."""
+    for k in range(3):
+        held_pose(plan, end, t + 0.5 * h * k, samples, k)
+
+
+@njit(cache=True, error_model="numpy")
 def sample_holders(plan, t, h, samples):
     """Both held ends at t, t + h/2 and t + h [s] into ``samples`` (a :class:`HeldSamples`)."""
-    for k in range(3):
-        tk = t + 0.5 * h * k
-        held_pose(plan, 0, tk, samples, k)
-        held_pose(plan, 1, tk, samples, k)
+    sample_end(plan, 0, t, h, samples)
+    sample_end(plan, 1, t, h, samples)
 
 
 @njit(cache=True, error_model="numpy")

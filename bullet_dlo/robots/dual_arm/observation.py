@@ -50,7 +50,8 @@ class DualArmObservation:
         spec = physics.spec
         self.physics = physics
         self.sensors = [WristSensor(robot, spec.sensor_rate, spec.noise_std, spec.bias,
-                                    rng=np.random.default_rng(spec.seed + k)) for k, robot in enumerate(physics.robots)]
+                                    rng=np.random.default_rng(spec.seed + k), reader=physics.reader, row=k)
+                        for k, robot in enumerate(physics.robots)]
         for s in self.sensors:
             s.tare()
         self.record = DualArmRecord()

@@ -22,12 +22,16 @@ import numpy as np
 import pybullet as pb
 
 from bullet_dlo.bullet.cable import BulletCable
+from bullet_dlo.bullet.kernels import bind
+from bullet_dlo.bullet.native import StateReader, apply_wrench
 from bullet_dlo.bullet.world import BulletWorld
 from bullet_dlo.config.robot import DualArmSpec, RobotSpec, load_robot_spec
 from bullet_dlo.core.model import CableModel, CableState
 from bullet_dlo.core.statics import solve_static
 from bullet_dlo.core.validate import ParameterError, check_positive
 from bullet_dlo.robots.arm import Robot
+from bullet_dlo.robots.kernels import grasp_frames
+from bullet_dlo.robots.sensors import sensor_links
 from bullet_dlo.robots.transforms import quat_from_axes
 
 ARMS = ("left", "right")
@@ -92,7 +96,12 @@ class DualArmPhysics:
             self.close()
             raise
         self.held = [False, False]
-        self._grasp_velocity = [(0.0, 0.0, 0.0), (0.0, 0.0, 0.0)]  # [m/s] one step ago, for the acceleration
+        # one read per step of both arms (grasp frame, then the wrist sensor's links), shared with the sensors
+        self.reader = StateReader(self.world.client, self.world.native_handle(), [r.body for r in self.robots],
+                                  [[r.grasp_link] + sensor_links(r) for r in self.robots],
+                                  [r.joint_index[r.spec.sensor_joint] for r in self.robots])
+        self._grasp_velocity = np.zeros((2, 3))  # [m/s] one step ago, for the acceleration
+        self._grasp_frames = bind(grasp_frames, self.reader.link_rows, self._grasp_velocity, 0.0, self.cable.ext)
         self.world.before_step.append(self._apply_cable_wrench)
         self.world.after_physics.append(self._follow_grippers)
         self._follow_grippers(first=True)
@@ -173,15 +182,11 @@ class DualArmPhysics:
 
     @staticmethod
     def cable_direction(arm: int, quat: Sequence[float]) -> np.ndarray:
-        """Clamp tangent (first -> last mass) from arm ``arm``'s grasp frame: its x axis points into the cable."""
-        return np.array(DualArmPhysics._direction(arm, quat))
-
-    @staticmethod
-    def _direction(arm: int, quat: Sequence[float]) -> tuple[float, float, float]:
-        """:meth:`cable_direction` as a tuple: the rotation matrix's first column, signed, in scalars."""
+        """Clamp tangent (first -> last mass) from arm ``arm``'s grasp frame: its x axis points into the cable
+        (the per-step coupling computes the same in :func:`~bullet_dlo.robots.kernels.grasp_frames`)."""
         x, y, z, w = quat
         sign = 1.0 if arm == 0 else -1.0
-        return sign * (1.0 - 2.0 * (y * y + z * z)), sign * 2.0 * (x * y + z * w), sign * 2.0 * (x * z - y * w)
+        return sign * np.array([1.0 - 2.0 * (y * y + z * z), 2.0 * (x * y + z * w), 2.0 * (x * z - y * w)])
 
     def _apply_cable_wrench(self) -> None:
         """Before the Bullet step: the cable's force [N] (at the end mass) and clamp torque [N m] on each holder."""
@@ -190,23 +195,26 @@ class DualArmPhysics:
                 self.held[arm] = False
         if not any(self.held):
             return
-        forces, torques = self.cable.end_loads()  # both ends, one kernel call per step
-        cid, x = self.world.client, self.cable.x
+        forces, torques = self.cable.planned_end_loads()  # left by the cable's own step kernel
+        x, native = self.cable.x, self.world.native_handle()
         for arm, robot in enumerate(self.robots):
-            if self.held[arm]:
-                at = x[END_NODE[arm]].tolist()
-                pb.applyExternalForce(robot.body, robot.grasp_link, forces[arm].tolist(), at, pb.WORLD_FRAME, cid)
+            if not self.held[arm]:
+                continue
+            at = x[END_NODE[arm]]
+            if native:
+                apply_wrench(native, robot.body, robot.grasp_link, forces[arm], at, torques[arm])
+            else:
+                cid = self.world.client
+                pb.applyExternalForce(robot.body, robot.grasp_link, forces[arm].tolist(), at.tolist(), pb.WORLD_FRAME,
+                                      cid)
                 pb.applyExternalTorque(robot.body, robot.grasp_link, torques[arm].tolist(), pb.WORLD_FRAME, cid)
 
     def _follow_grippers(self, first: bool = False) -> None:
-        """After the Bullet step: the measured grasp frames become the holder poses of the cable's ends."""
-        rate = 0.0 if first else 1.0 / self.world.dt
-        for arm, robot in enumerate(self.robots):  # in scalars: this runs twice per step
-            pos, quat, vel, omega = robot.grasp_state_tuples()
-            (px, py, pz), (vx, vy, vz) = self._grasp_velocity[arm], vel
-            acc = ((vx - px) * rate, (vy - py) * rate, (vz - pz) * rate)  # [m/s^2] backward difference (0 at start)
-            self._grasp_velocity[arm] = vel
-            self.cable.set_external_pose(arm, pos, vel, acc, omega, self._direction(arm, quat))
+        """After the Bullet step: read both arms (for the sensors too) and make the measured grasp frames
+        the holder poses of the cable's ends (:func:`~bullet_dlo.robots.kernels.grasp_frames`)."""
+        self.reader.read()
+        self._grasp_frames(self.reader.link_rows, self._grasp_velocity, 0.0 if first else 1.0 / self.world.dt,
+                           self.cable.ext)
 
     # ----- running -------------------------------------------------------------------------------
     def run(self, duration: float) -> float:

@@ -1,0 +1,138 @@
+"""Native Bullet calls (bullet.native): the same physics as PyBullet's Python API, without its per-call Python.
+
+The speed itself is measured by ``python demos/env_speed.py`` (ratios, not timed tests); here: the
+native path is taken, it changes no result, it makes the per-step PyBullet Python calls go away,
+and it steps aside cleanly when it cannot be trusted.
+"""
+from __future__ import annotations
+
+import numpy as np
+import pybullet as pb
+import pytest
+
+from bullet_dlo.bullet import native
+from bullet_dlo.core.spec import CableSpec
+from bullet_dlo.robots.dual_arm import DualArmObservation, DualArmPhysics, DualArmSpec
+
+needs_compiler = pytest.mark.skipif(native.plugin_library() is None,
+                                    reason="no C compiler: the handle plugin cannot be built here")
+
+
+def scene(robot: str = "panda", n: int = 8) -> tuple[DualArmPhysics, DualArmObservation]:
+    physics = DualArmPhysics(DualArmSpec(robot=robot, cable=CableSpec.lv2017(n_masses=n, damping=0.02)))
+    obs = DualArmObservation(physics)
+    physics.clamp(0)
+    physics.clamp(1)
+    return physics, obs
+
+
+def drive(physics: DualArmPhysics, steps: int) -> None:
+    """Step while the right arm's joint targets swing (arms, grasp and sensors all move)."""
+    right = physics.robots[1]
+    q0 = right.joint_positions()
+    for k in range(steps):
+        q = q0.copy()
+        q[0] += 0.15 * np.sin(2 * np.pi * 2.0 * k * physics.world.dt)
+        right.set_targets(q)
+        physics.world.step()
+
+
+def run(monkeypatch, enabled: bool, steps: int = 120) -> dict[str, np.ndarray]:
+    monkeypatch.setenv("BULLET_DLO_NATIVE", "1" if enabled else "0")
+    physics, obs = scene()
+    try:
+        assert bool(physics.world.native_handle()) == enabled
+        drive(physics, steps)
+        rec = obs.record.arrays()
+        return {"x": physics.cable.x.copy(), "wrench": rec["wrench_world"], "end": rec["end_forces"],
+                "grasp": rec["grasp_pos"]}
+    finally:
+        physics.close()
+
+
+@needs_compiler
+def test_native_and_python_paths_give_identical_dual_arm_runs(monkeypatch):
+    """Forces applied and states read natively are bit for bit what PyBullet's Python API gives."""
+    a, b = run(monkeypatch, True), run(monkeypatch, False)
+    assert np.abs(a["wrench"]).max() > 0.05  # the sensors carry the cable's moving load
+    assert np.ptp(a["grasp"][:, 1, 0]) > 1e-3  # the right gripper moved
+    for key in a:
+        np.testing.assert_array_equal(a[key], b[key], err_msg=key)
+
+
+@needs_compiler
+def test_a_dual_arm_step_makes_no_per_step_pybullet_calls_but_the_step(monkeypatch):
+    """Before: 26 PyBullet Python calls per step at n = 10 (n force calls, two wrenches, three reads per
+    arm, ...); now the Bullet step, the contact query and the obstacle poses of the contact model (one
+    per body: ground and table); the arms and the cable's forces go through compiled calls."""
+    physics, _ = scene(n=10)
+    try:
+        drive(physics, 5)  # everything compiled and bound
+        counts: dict[str, int] = {}
+        for name in dir(pb):
+            fn = getattr(pb, name)
+            if callable(fn) and not name[0].isupper() and not name.startswith("_"):
+                def counted(*a, _fn=fn, _name=name, **k):
+                    counts[_name] = counts.get(_name, 0) + 1
+                    return _fn(*a, **k)
+                monkeypatch.setattr(pb, name, counted)
+        physics.world.step(10)
+        per_step = {k: v / 10 for k, v in counts.items()}
+        bodies = len(physics.world.bodies)
+        assert bodies == 2
+        assert per_step == {"stepSimulation": 1.0, "getContactPoints": 1.0,
+                            "getBasePositionAndOrientation": float(bodies)}, per_step
+    finally:
+        physics.close()
+
+
+@needs_compiler
+def test_reader_matches_pybullet_while_the_arm_moves():
+    physics, _ = scene()
+    try:
+        drive(physics, 30)
+        reader = physics.reader
+        assert reader.handle
+        reader.read()
+        for b, body in enumerate(reader.bodies.tolist()):
+            ref = pb.getLinkStates(body, reader.links[b].tolist(), computeLinkVelocity=1, computeForwardKinematics=1,
+                                   physicsClientId=physics.world.client)
+            flat = np.array([[v for part in st for v in part] for st in ref])
+            np.testing.assert_array_equal(reader.link_rows[b, :, :native.LINK_STATE_FIELDS], flat)
+            js = pb.getJointState(body, int(reader.joints[b]), physicsClientId=physics.world.client)
+            np.testing.assert_array_equal(reader.joint_rows[b, 2:8], js[2])
+        assert np.abs(reader.link_rows[:, :, 21:27]).max() > 1e-3  # velocities, not a resting arm
+    finally:
+        physics.close()
+
+
+@needs_compiler
+def test_a_reader_that_disagrees_with_pybullet_falls_back_with_a_warning(monkeypatch):
+    """A PyBullet whose structs differ from the layout assumed here is detected, not trusted."""
+    physics, _ = scene()
+    try:
+        def wrong_layout(handle, bodies, links, joints, link_out, joint_out):
+            link_out[...] = 1.0
+            return 0
+        monkeypatch.setattr(native, "read_states", wrong_layout)
+        with pytest.warns(RuntimeWarning, match="native Bullet calls disabled"):
+            reader = native.StateReader(physics.world.client, physics.world.native_handle(),
+                                        physics.reader.bodies, physics.reader.links, physics.reader.joints)
+        assert reader.handle == 0
+        reader.read()  # through PyBullet's Python API now
+        monkeypatch.undo()
+        physics.reader.read()
+        np.testing.assert_array_equal(reader.link_rows[..., :native.LINK_STATE_FIELDS],
+                                      physics.reader.link_rows[..., :native.LINK_STATE_FIELDS])
+    finally:
+        physics.close()
+
+
+def test_switched_off_or_closed_worlds_have_no_handle(monkeypatch):
+    monkeypatch.setenv("BULLET_DLO_NATIVE", "0")
+    assert native.connect(0) == 0
+    monkeypatch.setenv("BULLET_DLO_NATIVE", "1")
+    physics, _ = scene()
+    world = physics.world
+    physics.close()
+    assert world.native_handle() == 0  # never a dangling handle after close
