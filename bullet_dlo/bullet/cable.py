@@ -147,6 +147,7 @@ class BulletCable:
         self.radius = 0.5 * model.spec.diameter
         self.body_ids = self._spawn(color, self_collision)
         self._body_array = np.array(self.body_ids, dtype=np.int32)
+        self._apply_native = None  # apply_forces's machine code, bound on first use
         self._contact_set: ContactSet | None = None
         self._bodies_seen = -1
         self.grip = make_grip()  # friction grips of the ends (grip_with_friction), shared by every contact set
@@ -277,7 +278,10 @@ class BulletCable:
             return
         native = self.world.native_handle()
         if native:  # one compiled call instead of n PyBullet calls
-            apply_forces(native, self._body_array, self._cp.force, self.x)
+            args = (native, self._body_array, self._cp.force, self.x)
+            if self._apply_native is None:
+                self._apply_native = bind(apply_forces, *args)
+            self._apply_native(*args)
         else:
             cid = self.world.client
             apply = pb.applyExternalForce

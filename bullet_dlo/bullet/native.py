@@ -32,6 +32,8 @@ import numpy as np
 import pybullet as pb
 from numba import njit
 
+from bullet_dlo.bullet.kernels import bind
+
 ROW = 64
 """Doubles reserved per link state (Bullet's struct b3LinkState has 33; the rest is headroom)."""
 LINK_STATE_FIELDS = 27
@@ -153,14 +155,18 @@ def apply_forces(handle, bodies, force, point):
 
 
 @njit
-def apply_wrench(handle, body, link, force, point, torque):
-    """Force [N] (3,) at world point [m] (3,) and torque [N m] (3,) on one link for the coming step."""
-    cmd = _force_init(handle)
-    _add_force(cmd, body, link, force.ctypes.data, point.ctypes.data, WORLD_FRAME)
-    _submit(handle, cmd)
-    cmd = _force_init(handle)
-    _add_torque(cmd, body, link, torque.ctypes.data, WORLD_FRAME)
-    _submit(handle, cmd)
+def apply_wrenches(handle, bodies, links, active, force, point, torque):
+    """On link ``links[i]`` of each body ``bodies[i]`` with ``active[i]`` (k,): force [N] (k, 3) at world
+    point [m] ``point[i]`` (k, 3) and torque [N m] (k, 3), for the coming step."""
+    for i in range(bodies.shape[0]):
+        if not active[i]:
+            continue
+        cmd = _force_init(handle)
+        _add_force(cmd, bodies[i], links[i], force.ctypes.data + 24 * i, point.ctypes.data + 24 * i, WORLD_FRAME)
+        _submit(handle, cmd)
+        cmd = _force_init(handle)
+        _add_torque(cmd, bodies[i], links[i], torque.ctypes.data + 24 * i, WORLD_FRAME)
+        _submit(handle, cmd)
 
 
 @njit
@@ -198,14 +204,18 @@ class StateReader:
         self.link_rows = np.zeros((len(self.bodies), self.links.shape[1], ROW))
         self.joint_rows = np.zeros((len(self.bodies), JOINT_STATE))
         self.handle = handle
-        if handle and not self._native_matches():
-            disabled_warning("StateReader", "a native read differs from PyBullet's: unknown struct layout")
-            self.handle = 0
+        if handle:
+            sync_bodies(handle)  # bodies loaded after the handle was made
+            if not self._native_matches():
+                disabled_warning("StateReader", "a native read differs from PyBullet's: unknown struct layout")
+                self.handle = 0
+        self._args = (self.handle, self.bodies, self.links, self.joints, self.link_rows, self.joint_rows)
+        self._read_native = bind(read_states, *self._args) if self.handle else None  # no per-call dispatch
 
     def read(self) -> None:
         """Read the current states into ``link_rows`` and ``joint_rows``."""
-        if self.handle:
-            read_states(self.handle, self.bodies, self.links, self.joints, self.link_rows, self.joint_rows)
+        if self._read_native is not None:
+            self._read_native(*self._args)
         else:
             self._read_python()
 
@@ -222,7 +232,7 @@ class StateReader:
     def _native_matches(self) -> bool:
         self._read_python()
         links, joints = self.link_rows.copy(), self.joint_rows.copy()
-        if read_states(self.handle, self.bodies, self.links, self.joints, self.link_rows, self.joint_rows):
+        if read_states(self.handle, self.bodies, self.links, self.joints, self.link_rows, self.joint_rows) != 0:
             return False
         return (np.array_equal(links[..., :LINK_STATE_FIELDS], self.link_rows[..., :LINK_STATE_FIELDS])
                 and np.array_equal(joints, self.joint_rows))

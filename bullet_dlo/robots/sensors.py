@@ -19,6 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 import pybullet as pb
 
+from bullet_dlo.bullet.kernels import bind
 from bullet_dlo.bullet.native import StateReader
 from bullet_dlo.core.timing import RateGate
 from bullet_dlo.core.validate import ParameterError, check_nonnegative
@@ -87,10 +88,10 @@ class WristSensor:
         self.joint = robot.joint_index[name]
         self.gate = RateGate(rate)
         self.noise_std = np.array([check_nonnegative("noise_std", v) for v in noise_std], dtype=float)
-        self.bias = np.asarray(bias, dtype=float)
+        self.bias = np.array(bias, dtype=float)
         if self.noise_std.shape != (6,) or self.bias.shape != (6,):
             raise ParameterError("noise_std and bias must have 6 components (fx fy fz mx my mz)")
-        self.compensate_inertia = compensate_inertia
+        self.compensate_inertia = bool(compensate_inertia)
         self.rng = rng or np.random.default_rng(0)
         self.payload, self.payload_mass = payload(robot)
         links = sensor_links(robot)
@@ -108,6 +109,8 @@ class WristSensor:
         self._prev = np.zeros(4)  # payload momentum [kg m/s] one step ago, and whether it is valid
         self._scratch = np.zeros(12)
         self._last: Wrench | None = None
+        self._reading = bind(sensor_reading, self._rows, self._mass, self._reaction, 1.0, True, True, self._tare,
+                             self.bias, self._prev, self._scratch)  # no per-call type dispatch
 
     # ----- raw physics ------------------------------------------------------------------------
     def raw(self) -> np.ndarray:
@@ -123,7 +126,7 @@ class WristSensor:
 
     def tare(self) -> None:
         """Zero the sensor in the current (reference) pose: later readings are relative to it."""
-        self._tare = self.raw()
+        self._tare[:] = self.raw()
         self._prev[:] = 0.0
 
     # ----- readings ---------------------------------------------------------------------------
@@ -142,8 +145,8 @@ class WristSensor:
         if due and self._noisy:
             offset = self.bias + self.rng.normal(size=6) * self.noise_std
         out = self._scratch
-        if not sensor_reading(self._rows, self._mass, self._reaction, dt, self.compensate_inertia, due, self._tare,
-                              offset, self._prev, out):
+        if not self._reading(self._rows, self._mass, self._reaction, float(dt), self.compensate_inertia, due,
+                             self._tare, offset, self._prev, out):
             return self._last  # held between samples
         values = out.copy()  # one array, four views
         self._last = Wrench(t, values[0:3], values[3:6], values[6:9], values[9:12])

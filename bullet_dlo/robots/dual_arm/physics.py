@@ -23,7 +23,7 @@ import pybullet as pb
 
 from bullet_dlo.bullet.cable import BulletCable
 from bullet_dlo.bullet.kernels import bind
-from bullet_dlo.bullet.native import StateReader, apply_wrench
+from bullet_dlo.bullet.native import StateReader, apply_wrenches
 from bullet_dlo.bullet.world import BulletWorld
 from bullet_dlo.config.robot import DualArmSpec, RobotSpec, load_robot_spec
 from bullet_dlo.core.model import CableModel, CableState
@@ -101,6 +101,10 @@ class DualArmPhysics:
                                   [[r.grasp_link] + sensor_links(r) for r in self.robots],
                                   [r.joint_index[r.spec.sensor_joint] for r in self.robots])
         self._grasp_velocity = np.zeros((2, 3))  # [m/s] one step ago, for the acceleration
+        self._grasp_links = np.array([r.grasp_link for r in self.robots], dtype=np.int32)
+        self._held_mask = np.zeros(2, dtype=np.bool_)
+        self._end_points = np.zeros((2, 3))  # [m] where the cable's end forces act: its end masses
+        self._apply_wrenches = None  # native.apply_wrenches's machine code, bound on first use
         self._grasp_frames = bind(grasp_frames, self.reader.link_rows, self._grasp_velocity, 0.0, self.cable.ext)
         self.world.before_step.append(self._apply_cable_wrench)
         self.world.after_physics.append(self._follow_grippers)
@@ -190,23 +194,29 @@ class DualArmPhysics:
 
     def _apply_cable_wrench(self) -> None:
         """Before the Bullet step: the cable's force [N] (at the end mass) and clamp torque [N m] on each holder."""
+        held = self.held
         for arm in (0, 1):  # a friction grip that the end slid out of holds nothing any more
-            if self.held[arm] and self.spec.grip == "friction" and not self.cable.grip.active[arm]:
-                self.held[arm] = False
-        if not any(self.held):
+            if held[arm] and self.spec.grip == "friction" and not self.cable.grip.active[arm]:
+                held[arm] = False
+        if not (held[0] or held[1]):
             return
         forces, torques = self.cable.planned_end_loads()  # left by the cable's own step kernel
-        x, native = self.cable.x, self.world.native_handle()
+        x = self.cable.x
+        points = self._end_points
+        points[0], points[1] = x[END_NODE[0]], x[END_NODE[1]]
+        native = self.world.native_handle()
+        if native:
+            self._held_mask[0], self._held_mask[1] = held
+            args = (native, self.reader.bodies, self._grasp_links, self._held_mask, forces, points, torques)
+            if self._apply_wrenches is None:
+                self._apply_wrenches = bind(apply_wrenches, *args)
+            self._apply_wrenches(*args)
+            return
+        cid = self.world.client
         for arm, robot in enumerate(self.robots):
-            if not self.held[arm]:
-                continue
-            at = x[END_NODE[arm]]
-            if native:
-                apply_wrench(native, robot.body, robot.grasp_link, forces[arm], at, torques[arm])
-            else:
-                cid = self.world.client
-                pb.applyExternalForce(robot.body, robot.grasp_link, forces[arm].tolist(), at.tolist(), pb.WORLD_FRAME,
-                                      cid)
+            if held[arm]:
+                pb.applyExternalForce(robot.body, robot.grasp_link, forces[arm].tolist(), points[arm].tolist(),
+                                      pb.WORLD_FRAME, cid)
                 pb.applyExternalTorque(robot.body, robot.grasp_link, torques[arm].tolist(), pb.WORLD_FRAME, cid)
 
     def _follow_grippers(self, first: bool = False) -> None:
