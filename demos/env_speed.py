@@ -10,11 +10,12 @@
 
 Prints ratios and rates; writes nothing. ``--quick`` for a short run (smoke test).
 
-    python demos/env_speed.py [--quick] [--robots panda kuka] [--masses 10 40]
+    python demos/env_speed.py [--quick] [--robots panda kuka] [--masses 10 40] [--python-too]
 """
 from __future__ import annotations
 
 import argparse
+import os
 import statistics
 import time
 
@@ -149,23 +150,31 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--quick", action="store_true", help="short run (a smoke test, noisy numbers)")
     parser.add_argument("--robots", nargs="+", default=["panda", "kuka"])
     parser.add_argument("--masses", nargs="+", type=int, default=[10, 40])
+    parser.add_argument("--python-too", action="store_true",
+                        help="also time each case through PyBullet's Python API (the path without a C compiler)")
     args = parser.parse_args(argv)
     blocks, env_steps = (5, 10) if args.quick else (60, 150)
 
     print(f"dual-arm step vs bare stepSimulation, same world, {blocks} interleaved blocks of {BLOCK} steps, "
-          "medians of CPU time per simulated second")
-    print(f"{'robot':6} {'n':>3} {'dual-arm s/s':>13} {'bare s/s':>9} {'ratio':>6}")
+          "medians of CPU time per simulated second; native: Bullet's C API from compiled code "
+          "(bullet_dlo.bullet.native), python: PyBullet's Python API (BULLET_DLO_NATIVE=0)")
+    print(f"{'robot':6} {'n':>3} {'path':>7} {'dual-arm s/s':>13} {'bare s/s':>9} {'ratio':>6}")
     parts = None
     for robot in args.robots:
         for n in args.masses:
-            physics = build(robot, n)
-            try:
-                full, bare = step_vs_bare(physics, blocks)
-                print(f"{robot:6} {n:3d} {full:13.4f} {bare:9.4f} {full / bare:6.2f}")
-                if parts is None:
-                    parts = (robot, n, breakdown(physics, BLOCK * blocks))
-            finally:
-                physics.close()
+            for path in ("native", "python") if args.python_too else ("native",):
+                os.environ["BULLET_DLO_NATIVE"] = "1" if path == "native" else "0"
+                physics = build(robot, n)
+                try:
+                    if path == "native" and not physics.world.native_handle():
+                        path = "python"  # no C compiler here: the fallback is what runs
+                    full, bare = step_vs_bare(physics, blocks)
+                    print(f"{robot:6} {n:3d} {path:>7} {full:13.4f} {bare:9.4f} {full / bare:6.2f}")
+                    if parts is None:
+                        parts = (robot, n, breakdown(physics, BLOCK * blocks))
+                finally:
+                    physics.close()
+    os.environ.pop("BULLET_DLO_NATIVE", None)
     robot, n, times = parts
     print(f"\nwhere a dual-arm step goes ({robot}, n = {n}), us per step:")
     for name, us in sorted(times.items(), key=lambda kv: -kv[1]):

@@ -18,7 +18,8 @@ Stepping order of one Bullet step (``BulletWorld.step`` drives it; the kernels a
    their move tables or the measured gripper poses;
 2. forces: each sphere gets the external force that makes Bullet's semi-implicit update land
    on x': F = m ((x' - x)/h - v_b)/h - m g_bullet, v_b Bullet's current sphere velocity
-   (:meth:`BulletCable.apply_forces`);
+   (:meth:`BulletCable.apply_forces`: one compiled call through :mod:`bullet_dlo.bullet.native`
+   where a C compiler is available, else one PyBullet call per sphere);
 3. Bullet steps, resolving contacts with everything else;
 4. contacts: one ``getContactPoints`` call says which spheres something touched; only those
    are read back (untouched spheres are exactly where step 2 sent them);

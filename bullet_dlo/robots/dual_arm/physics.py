@@ -10,8 +10,14 @@ order, by the world's hooks:
 1. before the Bullet step: the force and clamp torque the cable exerts on each held end are
    applied to the gripper link, so they flow through the arm into its wrist joint;
 2. Bullet steps the arms;
-3. after it: each held cable end is given the measured grasp frame (position, velocity,
-   acceleration, angular velocity, tangent) to follow in the cable's own step.
+3. after it: both arms are read in one go (grasp frames, the wrist sensors' links and joints:
+   :class:`~bullet_dlo.bullet.native.StateReader`, which the sensors share) and each held cable
+   end is given the measured grasp frame (position, velocity, acceleration, angular velocity,
+   tangent) to follow in the cable's own step.
+
+Where a C compiler is available the wrenches go to Bullet and the states come back through
+Bullet's C API from compiled code (:mod:`bullet_dlo.bullet.native`), else through PyBullet's
+Python API; both give the same numbers to the last bit.
 """
 from __future__ import annotations
 
