@@ -20,7 +20,9 @@ cable, all on the table (|x| <= L/2 - 8 cm, |y| <= 25 cm) and 8 cm apart; the ro
 the clip at most 0.85 L, its last direction within 80 deg of +x; the gripper's end point (on
 the clip's axis where the route with 97 % of the cable ends) at x in [-0.1, L/2 + 0.05] m,
 |y| <= 0.22 m (inside the Panda's reach: IK reaches x >= -0.15 m, |y| <= 0.25 m at 5-10 cm
-above the table for yaws up to 90 deg, checked on a grid) and 6 cm from pegs and clip.
+above the table for yaws up to 90 deg, checked on a grid) and 6 cm from pegs and clip. The
+scene is laid out for the Panda: the KUKA cannot reach its holds (resets with ``robot: kuka`` are
+refused as unreachable poses).
 
 **Action** (4,) in [-1, 1]: the right gripper's linear velocity (xyz, world, fraction of
 ``max_speed`` [m/s]) and yaw rate about the vertical (fraction of ``max_yaw_rate`` [rad/s]);
