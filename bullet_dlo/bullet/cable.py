@@ -208,7 +208,7 @@ class BulletCable:
         self._contact_set = ContactSet(self.world.client, list(self.world.bodies), self.model.n, self.radius,
                                        spec.static_friction, spec.friction, self.contact_stiffness,
                                        self.contact_damping, self_contact=self.self_collision != "none",
-                                       grip=self.grip)
+                                       grip=self.grip, native=self.world.native_handle())
 
     def disable_bullet_collisions(self) -> None:
         """Leave the world's bodies and the cable's self-contact to the contact model: in Bullet the

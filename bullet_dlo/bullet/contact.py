@@ -40,6 +40,7 @@ import pybullet as pb
 from numba import njit
 
 from bullet_dlo.bullet.kernels import bind
+from bullet_dlo.bullet.native import BASE_STATE, disabled_warning, read_base_states
 from bullet_dlo.core.kernels.contact import STICK, Contacts, make_contacts
 
 BOX, SPHERE, CYLINDER, CAPSULE = range(4)
@@ -94,7 +95,7 @@ class ContactSet:
     """
 
     def __init__(self, client: int, bodies, n: int, radius: float, mu_s: float, mu_d: float,
-                 alpha: float, damping_ratio: float, self_contact: bool = True, grip=None):
+                 alpha: float, damping_ratio: float, self_contact: bool = True, grip=None, native: int = 0):
         self.client = client
         self.n = n
         self.alpha = float(alpha)
@@ -119,6 +120,7 @@ class ContactSet:
         self.rows = rows
         self.body_ids = np.array([r[0] for r in rows], dtype=np.int64)
         self.dynamic = np.array([r[5] for r in rows], dtype=np.bool_)
+        self._any_dynamic = bool(self.dynamic.any())
         nb = len(rows)
         mu_b = np.array([r[6] for r in rows])
         self.shapes = Shapes(kind=np.array([r[1] for r in rows], dtype=np.int64), pos=np.zeros((nb, 3)),
@@ -138,9 +140,26 @@ class ContactSet:
         for s in range(nb):
             self._read_pose(s, with_velocity=False)
         self._detect = None  # bound to the argument types on first use (skips Numba's per-call dispatch)
+        # native reads of every row's base state (bullet.native), once checked against PyBullet's
+        self._bases = np.zeros((nb, BASE_STATE))
+        self._base_args = (native, self.body_ids.astype(np.int32), self._bases, np.full((nb, 7), np.nan),
+                           np.zeros(nb, dtype=np.bool_))
+        self._read_bases = bind(read_base_states, *self._base_args) if native and nb and self._native_ok() else None
+
+    def _native_ok(self) -> bool:
+        if read_base_states(*self._base_args) != len(self.rows):
+            return False
+        cid = self.client
+        for s, body in enumerate(self.body_ids.tolist()):
+            pose = pb.getBasePositionAndOrientation(body, physicsClientId=cid)
+            vel = pb.getBaseVelocity(body, physicsClientId=cid)
+            if self._bases[s].tolist() != [*pose[0], *pose[1], *vel[0], *vel[1]]:
+                disabled_warning("ContactSet", "a native base read differs from PyBullet's: unknown layout")
+                return False
+        return True
 
     def _read_pose(self, s: int, with_velocity: bool) -> None:
-        body, _, lpos, lrot = self.rows[s][0:4]
+        body = self.rows[s][0]
         cid = self.client
         pose = pb.getBasePositionAndOrientation(body, physicsClientId=cid)
         if with_velocity:
@@ -150,17 +169,36 @@ class ContactSet:
         if pose == self._poses[s]:
             return  # not moved: keep the frame
         self._poses[s] = pose
-        com, orn = pose
+        self._set_pose(s, *pose)
+
+    def _set_pose(self, s: int, com, orn) -> None:
+        """Shape ``s``'s frame from its body's base pose: CoM position [m] (3,), quaternion (4,)."""
+        lpos, lrot = self.rows[s][2:4]
         rot = _rotation(orn)
         sh = self.shapes
         sh.com[s] = com
         sh.pos[s] = np.asarray(com) + rot @ lpos
         sh.rot[s] = rot @ lrot
 
+    def _read_poses(self) -> None:
+        """Every shape's body pose (velocity too where it moves by dynamics): static bodies too, as a
+        script may move them; one compiled call where native reads are on, else two PyBullet calls each."""
+        if self._read_bases is None:
+            for s in range(len(self.rows)):
+                self._read_pose(s, with_velocity=bool(self.dynamic[s]))
+            return
+        bases = self._bases
+        if self._read_bases(*self._base_args):  # some pose changed
+            for s in np.flatnonzero(self._base_args[4]).tolist():
+                self._set_pose(s, bases[s, 0:3], bases[s, 3:7])
+        if self._any_dynamic:
+            dyn = self.dynamic
+            self.shapes.lin_vel[dyn] = bases[dyn, 7:10]
+            self.shapes.ang_vel[dyn] = bases[dyn, 10:13]
+
     def update(self, x: np.ndarray, v: np.ndarray, mass: np.ndarray, h: float) -> int:
         """Read the moving bodies, detect the contacts of positions x [m] (n, 3) for a step of h [s]."""
-        for s in range(len(self.rows)):  # static bodies too: a script may move them (about 1 us each)
-            self._read_pose(s, with_velocity=bool(self.dynamic[s]))
+        self._read_poses()
         k_per_mass = self.alpha / (h * h)
         args = (x, v, mass, self.shapes, self.contacts, self.store, float(h), k_per_mass, self.zeta, self.self_mu)
         if self._detect is None:

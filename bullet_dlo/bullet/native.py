@@ -79,6 +79,11 @@ _state_kinematics = _c("b3RequestActualStateCommandComputeForwardKinematics", _I
 _link_state = _c("b3GetLinkState", _I, _U, _U, _I, _U)
 _joint_state = _c("b3GetJointState", _I, _U, _U, _I, _U)
 _sync_init = _c("b3InitSyncBodyInfoCommand", _U, _U)
+_actual_state = _c("b3GetStatusActualState", _I, _U, _U, _U, _U, _U, _U, _U, _U)
+_memcpy = ctypes.CDLL(None).memcpy  # reads the doubles behind the pointers the C API hands out
+_memcpy.restype, _memcpy.argtypes = _U, [_U, _U, _U]
+BASE_STATE = 13
+"""Doubles per base state: CoM position (0:3), quaternion (3:7), linear (7:10) and angular (10:13) velocity."""
 
 
 def enabled() -> bool:
@@ -184,6 +189,29 @@ def read_states(handle, bodies, links, joints, link_out, joint_out):
             failed += 1 - _link_state(handle, status, links[b, k], link_out.ctypes.data + 8 * ROW * (b * links.shape[1] + k))
         failed += 1 - _joint_state(handle, status, joints[b], joint_out.ctypes.data + 8 * JOINT_STATE * b)
     return failed
+
+
+@njit
+def read_base_states(handle, bodies, out, prev, moved):
+    """Base state of each of ``bodies`` (k,) into ``out`` (k, :data:`BASE_STATE`), as PyBullet's
+    getBasePositionAndOrientation and getBaseVelocity give it; ``moved[b]``: the pose differs from
+    ``prev[b]`` (k, 7), which becomes it. Returns how many moved (-1: a read failed)."""
+    pointers = np.zeros(2, dtype=np.uint64)  # where the status keeps q and q-dot
+    count = 0
+    for b in range(bodies.shape[0]):
+        status = _submit(handle, _state_init(handle, bodies[b]))
+        if _actual_state(status, 0, 0, 0, 0, pointers.ctypes.data, pointers.ctypes.data + 8, 0) == 0:
+            return -1
+        _memcpy(out.ctypes.data + 8 * BASE_STATE * b, pointers[0], 56)  # base position and quaternion
+        _memcpy(out.ctypes.data + 8 * (BASE_STATE * b + 7), pointers[1], 48)  # base velocities
+        same = True
+        for j in range(7):
+            if out[b, j] != prev[b, j]:  # NaN (never read) counts as moved
+                same = False
+            prev[b, j] = out[b, j]
+        moved[b] = not same
+        count += 0 if same else 1
+    return count
 
 
 class StateReader:
