@@ -443,7 +443,8 @@ class BulletCable:
 
     def planned_end_loads(self) -> tuple[np.ndarray, np.ndarray]:
         """:meth:`end_loads` as the last step's kernel left them for the coming step, without a call:
-        views (2, 3) each, valid until the next step (the grasp coupling's per-step read)."""
+        views (2, 3) each, valid until the next step while an end is held externally (the grasp
+        coupling's per-step read; the kernel skips them for cables no gripper holds)."""
         return self._cp.end_force, self._cp.end_torque
 
     def contact_forces(self) -> dict[str, np.ndarray]:

@@ -190,8 +190,8 @@ def sync_and_advance(stepper, m, plan, ext, cp, ws, det, inp, contacts):
 
     ``contacts``: the model's contacts for the coming step (detected from the taken-over state);
     the energy check counts the energy stored in them and the work of the bodies they touch.
-    Also writes cp.end_force, cp.end_torque (:func:`end_loads` now). Returns (status, Newton
-    iterations, converged); an unstable status plans nothing.
+    With an external holder, also writes cp.end_force, cp.end_torque (:func:`end_loads` now).
+    Returns (status, Newton iterations, converged); an unstable status plans nothing.
     """
     status = STABLE
     if inp.sync:
@@ -202,6 +202,6 @@ def sync_and_advance(stepper, m, plan, ext, cp, ws, det, inp, contacts):
     its, ok = 0, True
     if status == STABLE:
         its, ok = coupled_targets(stepper, m, plan, ext, cp, ws, inp.t, inp.has_prev, contacts)
-    # the loads on the holders during the coming step (the grasp coupling applies them to the grippers)
-    end_loads(m, cp.x, cp.v, cp.samples, contacts.grip, cp.end_force, cp.end_torque)
+    if ext.active[0] or ext.active[1]:  # the loads on external holders (the grasp coupling applies them)
+        end_loads(m, cp.x, cp.v, cp.samples, contacts.grip, cp.end_force, cp.end_torque)
     return status, its, ok
