@@ -38,7 +38,7 @@ from bullet_dlo.core import (  # noqa: E402
     stiffness_spectrum,
 )
 
-__version__ = "0.2.0"
+__version__ = "0.3.0"
 
 _aliases.install()
 

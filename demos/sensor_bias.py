@@ -35,7 +35,6 @@ from unittest import mock
 import numpy as np
 import pybullet as pb
 
-import bullet_dlo.robots.arm as arm_module
 import bullet_dlo.robots.dual_arm.physics as physics_module
 from bullet_dlo.bullet.world import BulletWorld
 from bullet_dlo.core.spec import CableSpec
@@ -91,7 +90,7 @@ def payload_momentum(robot: str, dt: float, settle_steps: int) -> np.ndarray:
     with mock.patch.object(physics_module, "SETTLE_STEPS", settle_steps):
         ph = DualArmPhysics(spec(robot, dt))
     try:
-        return WristSensor(ph.robots[0]).payload_momentum()
+        return WristSensor(ph.robots[0], ph.world.gravity).payload_momentum()
     finally:
         ph.close()
 
@@ -171,8 +170,6 @@ SUSPECTS: dict[str, Callable[[], ContextManager]] = {
     "solverResidualThreshold 1e-12": lambda: engine(solverResidualThreshold=1e-12),
     "erp, contactERP, frictionERP 0.8": lambda: engine(erp=0.8, contactERP=0.8, frictionERP=0.8),
     "globalCFM 1e-4": lambda: engine(globalCFM=1e-4),
-    "finger force 1000 N (locked)": lambda: mock.patch.object(arm_module, "FINGER_FORCE", 1000.0),
-    "finger force 0.1 N (loose)": lambda: mock.patch.object(arm_module, "FINGER_FORCE", 0.1),
     "arm motor forces x 10": lambda: after_load(stronger_arm),
     "link damping 0": lambda: after_load(no_link_damping),
     "arm position gain 0.5": lambda: arm_gain(0.5),

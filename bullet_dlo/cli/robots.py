@@ -75,6 +75,8 @@ def cmd_grasp(args: argparse.Namespace) -> int:
             "ground_truth_end_forces": {"left": f[0].tolist(), "right": f[1].tolist()},
             "force_balance_error": float((w[0, 2] + w[1, 2] + weight) / weight),
             "sensor_vs_model_error": float(np.max(np.abs(w[:, :3] - f)) / weight),
+            "sensor_check": sc.observation.check.summary(),
+            "sensor_compensation": sc.sensors[0].compensation,
             "wall_time_s": wall, "steps": sc.world.steps,
         }
         if recorder is not None:
@@ -90,7 +92,10 @@ def cmd_grasp(args: argparse.Namespace) -> int:
         print(f"  {arm:5s} sensor (world) " + " ".join(f"{v:+.4f}" for v in data["wrench_world"][arm][:3])
               + " N   model " + " ".join(f"{v:+.4f}" for v in data["ground_truth_end_forces"][arm]) + " N")
     print(f"  vertical balance error {100 * data['force_balance_error']:+.3f} % of the weight")
-    return 0
+    failures = data["sensor_check"]["failures"]
+    for line in failures:
+        print(f"  SENSOR CHECK FAILED: {line}")
+    return 1 if failures else 0
 
 
 def _attach_series(scene):
@@ -144,8 +149,10 @@ def add_parsers(sub, common: argparse.ArgumentParser) -> None:
                        description="Build the dual-arm scene (arms facing each other, cable between the grippers), "
                                    "grasp both ends, hold, run the motion (scene file's motion: first end = left "
                                    "arm, last end = right arm; default: the study's 5 mm lift of the right end at "
-                                   "1.5 s) and report the tared wrist wrenches in world frame, averaged over the "
-                                   "last 0.5 s, next to the model's end forces.")
+                                   "1.5 s) and report the wrist wrenches (payload weight and inertia removed) in "
+                                   "world frame, averaged over the last 0.5 s, next to the model's end forces. "
+                                   "Every sample is checked against the load the cable applied in the same step; "
+                                   "exit 1 if one differs by more than 2 % of the cable's weight + 2 mN.")
     s.add_argument("--robot", default="kuka", help="robot description in robots/: kuka (default) or panda")
     s.add_argument("--scene", metavar="SCENE.yaml", help="take cable, dt, integrator, duration and motion from a "
                    "scene file (its layout and ends are replaced by the grasp)")

@@ -16,6 +16,10 @@ from bullet_dlo.core.spec import CableSpec
 from bullet_dlo.core.validate import ParameterError, check_int, check_nonnegative, check_positive
 
 MIN_TABLE_CLEARANCE = 0.05  # [m] the held ends stay this far above the table top
+PAYLOADS = ("urdf", "calibrated")  # how the wrist sensors know their payload (robots.sensors.COMPENSATIONS)
+CALIBRATION_TILTS = ((0.0, 0.0, 0.0), (0.6, 0.0, 0.0), (-0.6, 0.0, 0.0), (0.0, 0.6, 0.0), (0.0, -0.6, 0.0),
+                     (1.2, 0.0, 0.0), (0.0, 1.2, 0.0), (0.5, 0.5, 0.0), (0.0, 0.0, 1.0))
+"""Rotation vectors [rad] (world frame) that turn the grasp orientation for a payload calibration."""
 
 
 @dataclass(frozen=True)
@@ -25,7 +29,8 @@ class RobotSpec:
     urdf: arm URDF relative to pybullet_data; gripper: optional gripper URDF in ``urdf/``
     mounted on ``mount_link`` at ``mount_xyz`` [m] through the fixed joint ``sensor_joint``;
     grasp_link: link whose frame is the grasp frame (z approach, x along the held cable);
-    home: arm joint angles [rad]; finger_joints / finger_closed [m]: finger position targets.
+    home: arm joint angles [rad]; finger_joints: the fingers, made rigid at finger_closed [m or rad]
+    (their closed position) when the robot is loaded (:func:`bullet_dlo.robots.compose.rigid_fingers`).
     """
 
     name: str
@@ -77,6 +82,10 @@ class DualArmSpec:
     fingers pinch it with ``grip_force`` [N] each; along the gripper it holds up to
     2 mu_s grip_force and then slips against 2 mu_d grip_force, ``grip_friction`` = (mu_s, mu_d);
     it lets go after slipping ``grip_reach`` [m]).
+    payload: how the wrist sensors know the tool below them, whose weight and inertia they remove:
+    ``urdf`` (every link's mass, centre of mass and inertia from the robot description) or
+    ``calibrated`` (mass and centre of mass identified from the unloaded arms at
+    :data:`CALIBRATION_TILTS`, before the cable is attached).
     """
 
     robot: str = "kuka"
@@ -97,6 +106,7 @@ class DualArmSpec:
     grip_force: float = 5.0
     grip_friction: tuple[float, float] = (0.5, 0.4)
     grip_reach: float = 0.02
+    payload: str = "urdf"
 
     def __post_init__(self) -> None:
         check_positive("dt", self.dt)
@@ -113,6 +123,8 @@ class DualArmSpec:
         check_int("substeps", self.substeps, 1)
         if self.grip not in ("clamp", "friction"):
             raise ParameterError(f"grip must be one of clamp, friction, got {self.grip!r}")
+        if self.payload not in PAYLOADS:
+            raise ParameterError(f"payload must be one of {', '.join(PAYLOADS)}, got {self.payload!r}")
         check_positive("grip_force", self.grip_force)
         check_positive("grip_reach", self.grip_reach)
         if len(self.grip_friction) != 2 or not 0.0 <= self.grip_friction[1] <= self.grip_friction[0]:

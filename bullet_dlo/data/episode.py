@@ -34,7 +34,7 @@ import pybullet as pb
 from bullet_dlo.config.capture import CaptureSpec
 from bullet_dlo.core.model import STANDARD_GRAVITY
 from bullet_dlo.data.plan import cable_spec, episode_motion, plan_episode
-from bullet_dlo.data.quality import quality_issues, quality_metrics
+from bullet_dlo.data.quality import quality_issues, quality_metrics, sensor_metrics
 from bullet_dlo.data.storage import (
     episode_result,
     failed_record,
@@ -130,15 +130,19 @@ def run_episode(spec_dict: dict, index: int, out_dir: str) -> dict:
         scene.world.after_step.append(recorder)
         scene.run(spec.duration)
         stable, t_bad, reason = scene.cable.stable, scene.cable.time_to_instability, scene.cable.reason
+        check = scene.observation.check
+        compensation = scene.sensors[0].compensation
     data = recorder.arrays()
-    metrics = quality_metrics(data["t"], data["wrench_world"][:, :, :3], data["end_forces"])
+    metrics = quality_metrics(data["t"], data["wrench_world"][:, :, :3], data["end_forces"]) | sensor_metrics(check)
     attrs = {"params": params, "decision": decision, "metrics": metrics, "seed": spec.seed, "episode": index,
-             "version": version(), "spec_digest": spec.digest(), "stable": bool(stable),
+             "version": version(), "sensor_compensation": compensation, "spec_digest": spec.digest(),
+             "stable": bool(stable),
              "time_to_instability": -1.0 if t_bad is None else float(t_bad), "columns": COLUMNS_NOTE}
     frames = np.asarray(recorder.frames, dtype=np.uint8) if recorder.frames else None
     name = write_episode(out_dir, index, data, attrs, frames, np.asarray(recorder.frame_t))
     weight = setup.cable.mass * float(np.linalg.norm(STANDARD_GRAVITY))
-    issues = quality_issues(metrics, weight, spec.max_sensor_model_rms, spec.max_hf_energy) if stable else []
+    issues = (quality_issues(metrics, weight, spec.max_sensor_model_rms, spec.max_hf_energy) + check.failures()
+              if stable else [])
     return episode_result(index, name, stable, t_bad, reason, params, decision, metrics, issues)
 
 

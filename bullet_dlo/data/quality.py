@@ -36,6 +36,13 @@ def quality_metrics(t: np.ndarray, sensor: np.ndarray, model: np.ndarray, cutoff
             "sensor_model_rms": float(np.sqrt(np.mean(np.sum((sensor - model) ** 2, axis=2))))}
 
 
+def sensor_metrics(check) -> dict:
+    """The wrist-sensor check of an episode (:class:`~bullet_dlo.robots.dual_arm.observation.SensorCheck`):
+    the worst mismatch of a sample with the cable's load in the same step, force [N] and moment [N m],
+    over both arms."""
+    return {"sensor_check_force": float(check.worst[:, 0].max()), "sensor_check_moment": float(check.worst[:, 1].max())}
+
+
 def quality_issues(metrics: dict, weight: float, max_rms_weights: float | None, max_hf: float | None) -> list[str]:
     """Why an episode's forces should not be trusted, as short reasons (empty: none).
 

@@ -16,6 +16,9 @@ from bullet_dlo.core.validate import ParameterError
 from bullet_dlo.data.quality import plot_quality
 from bullet_dlo.data.storage import JSON_ATTRS, is_capture_dir, read_manifest, read_spec_file
 
+OLD_TARE_TILT = 0.01
+"""[rad] A gripper tilt above which an episode recorded with the old sensor-frame tare is warned about."""
+
 
 def load_episode(path: str | Path) -> dict[str, Any]:
     """All arrays of an episode file plus ``params``, ``decision``, ``metrics`` and its other attributes
@@ -61,6 +64,29 @@ class Dataset:
         """The episode file of a manifest record (see :func:`load_episode`)."""
         return load_episode(self.root / record["file"])
 
+    def old_tare_episodes(self, tilt: float = OLD_TARE_TILT) -> list[int]:
+        """Episodes recorded before payload compensation (no ``sensor_compensation`` attribute: the hand's
+        weight was tared in the sensor frame) whose grippers tilted by more than ``tilt`` [rad] from
+        their first pose: their wrist forces are off by up to the hand's weight times the tilt."""
+        import h5py
+        import numpy as np
+
+        out = []
+        for r in self.records:
+            path = self.root / str(r.get("file") or "")
+            if r["status"] == "failed" or not path.is_file():
+                continue
+            with h5py.File(path, "r") as f:
+                if "sensor_compensation" in f.attrs or "ee_quat" not in f:
+                    continue
+                q = np.asarray(f["ee_quat"], dtype=float)  # (k, 2, 4) x, y, z, w
+            x, y, z, w = (q[..., i] for i in range(4))
+            approach = np.stack([2 * (x * z + y * w), 2 * (y * z - x * w), 1 - 2 * (x * x + y * y)], axis=-1)
+            cos = np.clip(np.sum(approach * approach[:1], axis=-1), -1.0, 1.0)  # against the first row
+            if len(q) and float(np.arccos(cos).max()) > tilt:
+                out.append(int(r["episode"]))
+        return out
+
     def summary(self, png: str | Path | None = None) -> dict:
         """Counts by status, flagged runs with their time of instability, the range each drawn
         parameter covered, counts of stability decisions; quality histograms into ``png`` if given."""
@@ -84,4 +110,4 @@ class Dataset:
         return {"episodes": len(self.records), "ok": statuses.count("ok"), "flagged": statuses.count("flagged"),
                 "flagged_for_quality": quality,
                 "failed": statuses.count("failed"), "flagged_runs": flagged, "coverage": coverage,
-                "decisions": decisions}
+                "decisions": decisions, "old_tare_tilted": self.old_tare_episodes()}

@@ -105,6 +105,7 @@ class DualArmEnv(gym.Env):
         self.observation_space = spaces.Dict(self._observation_boxes())
         self.physics: DualArmPhysics | None = None
         self.sensors = None
+        self.observation = None
         self.draw = None
 
     # ----- spaces ---------------------------------------------------------------------------------
@@ -153,7 +154,8 @@ class DualArmEnv(gym.Env):
         self.substeps = check_control_period(self.control_dt, setup.dt)
         self.physics = DualArmPhysics(setup)
         try:
-            self.sensors = DualArmObservation(self.physics, record=False).sensors
+            self.observation = DualArmObservation(self.physics, record=False)  # its check: every sample vs the model
+            self.sensors = self.observation.sensors
             self.physics.clamp(0)
             self.physics.clamp(1)
         except Exception:

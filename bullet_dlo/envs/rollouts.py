@@ -45,7 +45,7 @@ from bullet_dlo.core.model import STANDARD_GRAVITY
 from bullet_dlo.core.validate import ParameterError, check_int, check_in_range
 from bullet_dlo.data.capture import CaptureResult
 from bullet_dlo.data.episode import COLUMNS_NOTE, EpisodeRecorder
-from bullet_dlo.data.quality import quality_issues, quality_metrics
+from bullet_dlo.data.quality import quality_issues, quality_metrics, sensor_metrics
 from bullet_dlo.data.storage import (
     append_manifest,
     episode_result,
@@ -195,14 +195,16 @@ def run_rollout(env, policy: Policy, spec: RolloutSpec, index: int, out: Path) -
     cable = physics.cable
     stable = cable.stable and not info.get("unstable", False)
     t_bad = cable.time_to_instability
-    metrics = quality_metrics(data["t"], data["wrench_world"][:, :, :3], data["end_forces"])
+    check = inner.observation.check
+    metrics = quality_metrics(data["t"], data["wrench_world"][:, :, :3], data["end_forces"]) | sensor_metrics(check)
     randomisation = CaptureSpec.from_dict(spec.randomisation)
     weight = float(np.sum(cable.arrays.mass)) * float(np.linalg.norm(STANDARD_GRAVITY))
     issues = quality_issues(metrics, weight, randomisation.max_sensor_model_rms,
-                            randomisation.max_hf_energy) if stable else []
+                            randomisation.max_hf_energy) + check.failures() if stable else []
     params, decision = dict(inner.draw.params), dict(inner.draw.decision)
     attrs = {"params": params, "decision": decision, "metrics": metrics, "seed": spec.seed + index, "episode": index,
-             "version": version(), "spec_digest": spec.digest(), "stable": bool(stable),
+             "version": version(), "sensor_compensation": inner.sensors[0].compensation,
+             "spec_digest": spec.digest(), "stable": bool(stable),
              "time_to_instability": -1.0 if t_bad is None else float(t_bad), "columns": COLUMNS_NOTE,
              "env_id": spec.env_id, "policy": spec.policy, "return": float(np.sum(rewards)),
              "terminated": bool(terminated), "truncated": bool(truncated),

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import json
+import warnings
 from pathlib import Path
 from typing import Sequence
 
@@ -132,6 +133,10 @@ def render_scene(scene, out: str | Path, *, robot: str | None = None, fps: float
                    "video": str(writer.path), "format": writer.format, "codec": writer.codec,
                    "fps": fps, "width": cam.width, "height": cam.height, "wall_time_s": wall,
                    "stable": bool(cable.stable)}
+        if arm_scene is not None:  # every wrist sample against the cable's load in the same step
+            summary["sensor_check"] = arm_scene.observation.check.summary()
+            for line in summary["sensor_check"]["failures"]:
+                warnings.warn(f"wrist sensor check: {line}", stacklevel=2)
         if writer.format != "png":
             summary["decoded"] = probe_video(writer.path)
             summary["bytes_per_second"] = writer.path.stat().st_size / max(scene.duration, 1e-9)

@@ -7,7 +7,7 @@ and motor forces are read from the loaded body.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Sequence
 
 import numpy as np
@@ -18,16 +18,14 @@ from bullet_dlo.core.validate import ParameterError, check_vector3
 from bullet_dlo.robots.compose import robot_urdf
 from bullet_dlo.robots.transforms import angle_between
 
-FINGER_FORCE = 20.0  # [N] position-control force of each finger joint
-
 
 @dataclass
 class Robot:
     """An arm in a Bullet world, with a kinematic twin (own DIRECT client) for IK and FK.
 
-    arm_joints: indices of the arm's revolute joints (n_arm); movable: every non-fixed joint
-    (arm and fingers), the order of PyBullet's IK solution; lower, upper [rad] and max_force
-    [N m]: per movable joint.
+    arm_joints: indices of the arm's revolute joints (n_arm); movable: every non-fixed joint, the
+    order of PyBullet's IK solution; lower, upper [rad] and max_force [N m]: per movable joint. The
+    fingers are rigid, closed (:func:`~bullet_dlo.robots.compose.rigid_fingers`).
     """
 
     spec: RobotSpec
@@ -42,14 +40,13 @@ class Robot:
     max_force: np.ndarray
     link_index: dict[str, int]
     joint_index: dict[str, int]
-    finger_joints: list[int] = field(default_factory=list)
 
     def __post_init__(self) -> None:
         # where the arm joints sit among the movable ones, worked out once (IK and control run every step)
         self._arm_columns = np.array([self.movable.index(j) for j in self.arm_joints])
         self._arm_force = self.max_force[self._arm_columns].tolist()
         home = dict(zip(self.arm_joints, self.spec.home))
-        self._rest_poses = np.array([home.get(j, self.spec.finger_closed) for j in self.movable])
+        self._rest_poses = np.array([home[j] for j in self.movable])
 
     @classmethod
     def load(cls, spec: RobotSpec, client: int, base_position: Sequence[float], base_yaw: float = 0.0,
@@ -81,8 +78,7 @@ class Robot:
                 raise ParameterError(f"robot {spec.name!r} has no joint {name!r}; joints: {', '.join(joint_index)}")
         if spec.grasp_link not in link_index:
             raise ParameterError(f"robot {spec.name!r} has no link {spec.grasp_link!r}")
-        fingers = [joint_index[n] for n in spec.finger_joints]
-        arm = [j for j in movable if j not in fingers]
+        arm = movable
         if len(spec.home) != len(arm):
             raise ParameterError(f"robot {spec.name!r}: home has {len(spec.home)} angles, "
                                  f"the arm has {len(arm)} joints")
@@ -93,7 +89,7 @@ class Robot:
         twin_flags = flags | pb.URDF_IGNORE_VISUAL_SHAPES | pb.URDF_IGNORE_COLLISION_SHAPES
         kin_body = pb.loadURDF(path, pos, quat, useFixedBase=True, flags=twin_flags, physicsClientId=kin_client)
         robot = cls(spec, client, body, kin_client, kin_body, arm, movable, np.array(lower), np.array(upper),
-                    np.array(force), link_index, joint_index, fingers)
+                    np.array(force), link_index, joint_index)
         robot.reset_joints(np.array(spec.home))
         return robot
 
@@ -108,12 +104,10 @@ class Robot:
         return np.array([s[0] for s in pb.getJointStates(self.body, self.arm_joints, physicsClientId=self.client)])
 
     def reset_joints(self, q: np.ndarray) -> None:
-        """Teleport the arm (and its twin) to joint angles q [rad]; fingers to closed; hold there."""
+        """Teleport the arm (and its twin) to joint angles q [rad]; hold there."""
         for j, val in zip(self.arm_joints, q):
             pb.resetJointState(self.body, j, float(val), physicsClientId=self.client)
         self._set_twin(q)
-        for j in self.finger_joints:
-            pb.resetJointState(self.body, j, self.spec.finger_closed, physicsClientId=self.client)
         self.set_targets(q)
 
     def grasp_pose(self, kinematic: bool = False) -> tuple[np.ndarray, np.ndarray]:
@@ -191,14 +185,9 @@ class Robot:
 
     # ----- control ------------------------------------------------------------------------
     def set_targets(self, q: np.ndarray) -> None:
-        """Joint position targets [rad] for the arm (strong position control), fingers closed."""
+        """Joint position targets [rad] for the arm (strong position control)."""
         pb.setJointMotorControlArray(self.body, self.arm_joints, pb.POSITION_CONTROL, targetPositions=list(q),
                                      forces=self._arm_force, physicsClientId=self.client)
-        if self.finger_joints:
-            n = len(self.finger_joints)
-            pb.setJointMotorControlArray(self.body, self.finger_joints, pb.POSITION_CONTROL,
-                                         targetPositions=[self.spec.finger_closed] * n, forces=[FINGER_FORCE] * n,
-                                         physicsClientId=self.client)
 
     def subtree_links(self, joint: int) -> list[int]:
         """Links carried by ``joint`` (its child and everything below it)."""

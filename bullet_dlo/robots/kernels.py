@@ -9,7 +9,9 @@ native reader or PyBullet's Python API.
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
+import numpy as np
 from numba import njit
 
 COM, COM_QUAT, FRAME, FRAME_QUAT, LIN_VEL, ANG_VEL = 0, 3, 14, 17, 21, 24  # field offsets in a link-state row
@@ -73,38 +75,126 @@ def rotation_matrix(x, y, z, w, r):
     r[6], r[7], r[8] = xz - wy, yz + wx, 1.0 - (xx + yy)
 
 
+class Payload(NamedTuple):
+    """The tool side below a wrist sensor, as the sensor removes its weight and inertia.
+
+    k bodies, each attached to a row of the sensor's link states (row k; row 0 is the sensor's own
+    link, whose CoM frame is the sensor frame): mass [kg] (k,); com [m] (k, 3): the body's centre of
+    mass in its row's CoM frame (zeros for URDF links, whose rows are their own centres of mass; the
+    lumped payload of a calibration: its centre of mass in the sensor frame, on row 0); inertia
+    [kg m^2] (k, 3): principal moments about that centre of mass in the row's CoM frame (zeros where
+    unknown, e.g. a calibrated payload); gravity [m/s^2] (3,), world frame.
+    """
+
+    mass: np.ndarray
+    com: np.ndarray
+    inertia: np.ndarray
+    gravity: np.ndarray
+
+
+class SensorMemory(NamedTuple):
+    """What a wrist sensor keeps between steps: each payload body's linear momentum m v [kg m/s] and
+    spin angular momentum I omega [kg m^2/s] at the previous call, world frame, (k, 6); valid (1,): 1
+    once they hold a previous call (the accelerations are their backward differences)."""
+
+    momentum: np.ndarray
+    valid: np.ndarray
+
+
 @njit(cache=True, error_model="numpy")
-def sensor_reading(rows, mass, reaction, dt, compensate, due, tare, offset, prev, out):
+def _body_point(row, com, r, out):
+    """A payload body's centre of mass [m] and its velocity [m/s] into ``out`` (6,): the row's CoM plus
+    ``com`` (row's CoM frame) turned by ``r`` (the row's rotation, row-major (9,)), v + omega x offset."""
+    ox = r[0] * com[0] + r[1] * com[1] + r[2] * com[2]
+    oy = r[3] * com[0] + r[4] * com[1] + r[5] * com[2]
+    oz = r[6] * com[0] + r[7] * com[1] + r[8] * com[2]
+    wx, wy, wz = row[ANG_VEL], row[ANG_VEL + 1], row[ANG_VEL + 2]
+    out[0], out[1], out[2] = row[COM] + ox, row[COM + 1] + oy, row[COM + 2] + oz
+    out[3] = row[LIN_VEL] + (wy * oz - wz * oy)
+    out[4] = row[LIN_VEL + 1] + (wz * ox - wx * oz)
+    out[5] = row[LIN_VEL + 2] + (wx * oy - wy * ox)
+
+
+@njit(cache=True, error_model="numpy")
+def payload_load(rows, payload, dt, compensate, memory, out):
+    """The payload's own load to remove from a wrist reading, world frame, into ``out`` (6,):
+    [F, M] = [sum dp/dt - m g, sum (c - c0) x (dp/dt - m g) + dh/dt] [N, N m], moments about the sensor
+    frame's origin c0 (the CoM of ``rows[0]``); p = m v and h = I omega per body, their rates backward
+    differences over ``dt`` [s] against ``memory`` (updated every call; zero at the first call or with
+    ``compensate`` False, then only the weight is removed).
+
+    The load on the tool side is what the arm applies to it minus this (Newton-Euler of the tool).
+    """
+    g = payload.gravity
+    c0x, c0y, c0z = rows[0, COM], rows[0, COM + 1], rows[0, COM + 2]
+    fx = fy = fz = mx = my = mz = 0.0
+    r = np.empty(9)
+    body = np.empty(6)
+    for k in range(payload.mass.shape[0]):
+        row, m = rows[k], payload.mass[k]
+        rotation_matrix(row[COM_QUAT], row[COM_QUAT + 1], row[COM_QUAT + 2], row[COM_QUAT + 3], r)
+        _body_point(row, payload.com[k], r, body)
+        # spin angular momentum h = R diag(I) R^T omega
+        wx, wy, wz = row[ANG_VEL], row[ANG_VEL + 1], row[ANG_VEL + 2]
+        i0, i1, i2 = payload.inertia[k, 0], payload.inertia[k, 1], payload.inertia[k, 2]
+        b0 = i0 * (r[0] * wx + r[3] * wy + r[6] * wz)
+        b1 = i1 * (r[1] * wx + r[4] * wy + r[7] * wz)
+        b2 = i2 * (r[2] * wx + r[5] * wy + r[8] * wz)
+        now = (m * body[3], m * body[4], m * body[5],
+               r[0] * b0 + r[1] * b1 + r[2] * b2, r[3] * b0 + r[4] * b1 + r[5] * b2,
+               r[6] * b0 + r[7] * b1 + r[8] * b2)
+        # net force on the body that is not the arm's: its rate of momentum minus its weight
+        qx, qy, qz = -m * g[0], -m * g[1], -m * g[2]
+        hx = hy = hz = 0.0
+        if compensate:
+            if memory.valid[0] != 0.0:
+                prev = memory.momentum[k]
+                qx += (now[0] - prev[0]) / dt
+                qy += (now[1] - prev[1]) / dt
+                qz += (now[2] - prev[2]) / dt
+                hx, hy, hz = (now[3] - prev[3]) / dt, (now[4] - prev[4]) / dt, (now[5] - prev[5]) / dt
+            for j in range(6):
+                memory.momentum[k, j] = now[j]
+        dx, dy, dz = body[0] - c0x, body[1] - c0y, body[2] - c0z
+        fx, fy, fz = fx + qx, fy + qy, fz + qz
+        mx += dy * qz - dz * qy + hx
+        my += dz * qx - dx * qz + hy
+        mz += dx * qy - dy * qx + hz
+    if compensate:
+        memory.valid[0] = 1.0
+    out[0], out[1], out[2], out[3], out[4], out[5] = fx, fy, fz, mx, my, mz
+
+
+@njit(cache=True, error_model="numpy")
+def sensor_reading(rows, payload, reaction, dt, compensate, due, tare, offset, memory, out):
     """One physics step of a wrist F/T sensor.
 
     rows (k, ROW): link states of the tool side, the sensor's own link first (its CoM frame is the
-    sensor frame); mass [kg] (k,); reaction (6,): the joint's reaction wrench as Bullet reports it
-    (what the arm applies to the tool side, sensor frame); dt [s]: the physics step; compensate:
-    subtract the payload's inertial force m a, from its momentum change since the previous call
-    (``prev`` (4,): that momentum [kg m/s] and whether it is valid, updated every call); due: a sample
-    is taken now (else only the momentum is tracked); tare (6,): the reading zeroed at the tare;
-    offset (6,): bias plus this sample's noise [N, N m]. When due, writes into ``out`` (12,) the load
-    on the tool side: [f, m] in the sensor frame, then f and m in the world frame. Returns ``due``.
+    sensor frame); payload: the tool side's bodies (:class:`Payload`); reaction (6,): the joint's
+    reaction wrench as Bullet reports it (what the arm applies to the tool side, sensor frame, moments
+    about the sensor frame's origin); dt [s]: the physics step; compensate: remove the payload's
+    inertia too (:func:`payload_load`; its weight is always removed, at any orientation); memory: the
+    payload's momenta one call ago (:class:`SensorMemory`, updated every call); due: a sample is taken
+    now (else only the memory is updated); tare (6,): the sensor's own offset, subtracted (what it read
+    unloaded at the tare); offset (6,): bias plus this sample's noise [N, N m]. When due, writes into
+    ``out`` (12,) the load on the tool side: [f, m] in the sensor frame, then f and m in the world
+    frame. Returns ``due``.
     """
-    ax = ay = az = 0.0
-    if compensate:
-        p = out[9:12]  # scratch until the reading is written
-        momentum(rows, mass, p)
-        if prev[3] != 0.0:
-            ax, ay, az = (p[0] - prev[0]) / dt, (p[1] - prev[1]) / dt, (p[2] - prev[2]) / dt
-        prev[0], prev[1], prev[2], prev[3] = p[0], p[1], p[2], 1.0
+    load = out[6:12]  # scratch until the reading is written
+    payload_load(rows, payload, dt, compensate, memory, load)
     if not due:
         return False
+    lfx, lfy, lfz, lmx, lmy, lmz = load[0], load[1], load[2], load[3], load[4], load[5]
     r = out[0:9]  # scratch: the rotation, sensor frame -> world, before the reading overwrites it
     rotation_matrix(rows[0, COM_QUAT], rows[0, COM_QUAT + 1], rows[0, COM_QUAT + 2], rows[0, COM_QUAT + 3], r)
     r0, r1, r2, r3, r4, r5, r6, r7, r8 = r[0], r[1], r[2], r[3], r[4], r[5], r[6], r[7], r[8]
-    # the load on the tool side is minus what the arm applies (statics of the tool); inertia in the sensor frame
-    fx = tare[0] - reaction[0] + (r0 * ax + r3 * ay + r6 * az) + offset[0]
-    fy = tare[1] - reaction[1] + (r1 * ax + r4 * ay + r7 * az) + offset[1]
-    fz = tare[2] - reaction[2] + (r2 * ax + r5 * ay + r8 * az) + offset[2]
-    mx = tare[3] - reaction[3] + offset[3]
-    my = tare[4] - reaction[4] + offset[4]
-    mz = tare[5] - reaction[5] + offset[5]
+    # the load on the tool side: the payload's own (turned into the sensor frame) minus what the arm applies
+    fx = r0 * lfx + r3 * lfy + r6 * lfz - reaction[0] - tare[0] + offset[0]
+    fy = r1 * lfx + r4 * lfy + r7 * lfz - reaction[1] - tare[1] + offset[1]
+    fz = r2 * lfx + r5 * lfy + r8 * lfz - reaction[2] - tare[2] + offset[2]
+    mx = r0 * lmx + r3 * lmy + r6 * lmz - reaction[3] - tare[3] + offset[3]
+    my = r1 * lmx + r4 * lmy + r7 * lmz - reaction[4] - tare[4] + offset[4]
+    mz = r2 * lmx + r5 * lmy + r8 * lmz - reaction[5] - tare[5] + offset[5]
     out[0], out[1], out[2], out[3], out[4], out[5] = fx, fy, fz, mx, my, mz
     out[6] = r0 * fx + r1 * fy + r2 * fz
     out[7] = r3 * fx + r4 * fy + r5 * fz
@@ -113,3 +203,25 @@ def sensor_reading(rows, mass, reaction, dt, compensate, due, tare, offset, prev
     out[10] = r3 * mx + r4 * my + r5 * mz
     out[11] = r6 * mx + r7 * my + r8 * mz
     return True
+
+
+@njit(cache=True, error_model="numpy")
+def load_mismatch(rows, reading, offset, force, torque, point, out):
+    """How far a wrist reading is from the load the cable applied to the gripper in the same step.
+
+    rows (k, ROW): the sensor's link states (row 0: the sensor frame); reading (12,): the sensor's
+    output (:func:`sensor_reading`); offset (6,): the bias and noise in it [N, N m], sensor frame;
+    force [N], torque [N m] (3,): what the cable applied to the grasp link, world frame, the force at
+    ``point`` [m] (3,). Writes into ``out`` (6,) the reading without its offset minus that load, world
+    frame: force [N] and moment about the sensor frame's origin [N m].
+    """
+    r = np.empty(9)
+    rotation_matrix(rows[0, COM_QUAT], rows[0, COM_QUAT + 1], rows[0, COM_QUAT + 2], rows[0, COM_QUAT + 3], r)
+    dx, dy, dz = point[0] - rows[0, COM], point[1] - rows[0, COM + 1], point[2] - rows[0, COM + 2]
+    moment = (torque[0] + dy * force[2] - dz * force[1], torque[1] + dz * force[0] - dx * force[2],
+              torque[2] + dx * force[1] - dy * force[0])
+    for i in range(3):
+        f_off = r[3 * i] * offset[0] + r[3 * i + 1] * offset[1] + r[3 * i + 2] * offset[2]
+        m_off = r[3 * i] * offset[3] + r[3 * i + 1] * offset[4] + r[3 * i + 2] * offset[5]
+        out[i] = reading[6 + i] - f_off - force[i]
+        out[3 + i] = reading[9 + i] - m_off - moment[i]

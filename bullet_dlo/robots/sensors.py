@@ -3,8 +3,9 @@
 PyBullet reports, for a joint with ``enableJointForceTorqueSensor``, the wrench the parent
 link applies to the child through the joint, in the child link's centre-of-mass frame
 (moments about that centre of mass). A :class:`WristSensor` turns that into what a user of
-an ATI-style sensor sees: the load on the tool side, zeroed by a tare taken in a reference
-pose, sampled at the sensor's own rate, with optional Gaussian noise and bias, in the
+an ATI-style sensor with payload compensation sees: the load on the tool side, the payload's
+weight removed in the world frame (so at any orientation of the gripper) and its inertia
+removed too, the sensor's own offset zeroed by a tare, sampled at the sensor's own rate, with optional Gaussian noise and bias, in the
 sensor frame and in the world frame. Sampling follows :class:`~bullet_dlo.core.timing.RateGate`,
 the rule video and dataset frames follow too: samples on the grid start + k / rate, the
 reading held in between.
@@ -14,7 +15,9 @@ the held cable pulls on the gripper (a hanging cable gives a negative z force in
 """
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
+from typing import Sequence
 
 import numpy as np
 import pybullet as pb
@@ -24,7 +27,7 @@ from bullet_dlo.bullet.native import StateReader
 from bullet_dlo.core.timing import RateGate
 from bullet_dlo.core.validate import ParameterError, check_nonnegative
 from bullet_dlo.robots.arm import Robot
-from bullet_dlo.robots.kernels import momentum, sensor_reading
+from bullet_dlo.robots.kernels import Payload, SensorMemory, momentum, sensor_reading
 
 
 @dataclass(frozen=True)
@@ -57,30 +60,115 @@ def payload(robot: Robot) -> tuple[list[int], np.ndarray]:
 
 
 def sensor_links(robot: Robot) -> list[int]:
-    """Links a wrist sensor reads every step: its own (the sensor frame) and the payload links with mass."""
+    """Links a wrist sensor reads every step: its own (the sensor frame) and the payload links with mass or
+    rotational inertia (a massless link with inertia, as the Panda's grasp target with 0.1 kg m^2, still
+    takes a torque to turn)."""
     links, mass = payload(robot)
-    return [j for k, j in enumerate(links) if k == 0 or mass[k] > 0]
+    inertia = [sum(pb.getDynamicsInfo(robot.body, j, physicsClientId=robot.client)[2]) for j in links]
+    return [j for k, j in enumerate(links) if k == 0 or mass[k] > 0 or inertia[k] > 0]
+
+
+COMPENSATIONS = ("urdf", "calibrated")
+"""How a wrist sensor knows its payload: ``urdf``: every tool-side link's mass, centre of mass and
+inertia from the robot description; ``calibrated``: mass and centre of mass identified from unloaded
+readings at several orientations (:func:`identify_payload`), as users of real F/T sensors do."""
+
+
+def urdf_payload(robot: Robot, gravity: Sequence[float]) -> Payload:
+    """The tool side below ``robot``'s sensor as the robot description gives it: per link of
+    :func:`sensor_links`, mass [kg] and principal inertia [kg m^2] (Bullet's CoM frame); gravity [m/s^2]."""
+    infos = [pb.getDynamicsInfo(robot.body, j, physicsClientId=robot.client) for j in sensor_links(robot)]
+    return Payload(np.array([i[0] for i in infos], dtype=float), np.zeros((len(infos), 3)),
+                   np.array([i[2] for i in infos], dtype=float), np.array(gravity, dtype=float))
+
+
+@dataclass(frozen=True)
+class PayloadFit:
+    """A payload identified from unloaded sensor readings at rest (:func:`identify_payload`).
+
+    mass [kg]; com [m]: its centre of mass in the sensor frame; force_offset [N], moment_offset
+    [N m]: the sensor's own offset (sensor frame); rms_force [N], rms_moment [N m]: residuals of the
+    fit; orientations: how many readings it used.
+    """
+
+    mass: float
+    com: tuple[float, float, float]
+    force_offset: tuple[float, float, float]
+    moment_offset: tuple[float, float, float]
+    rms_force: float
+    rms_moment: float
+    orientations: int
+
+    def payload(self, gravity: Sequence[float]) -> Payload:
+        """As the sensor kernel takes it: one body on the sensor's own row, no rotational inertia."""
+        return Payload(np.array([self.mass]), np.array([self.com]), np.zeros((1, 3)), np.array(gravity, dtype=float))
+
+
+def identify_payload(rotations: np.ndarray, reactions: np.ndarray, gravity: Sequence[float]) -> PayloadFit:
+    """Mass and centre of mass of a sensor's payload, and the sensor's offset, by least squares.
+
+    rotations (m, 3, 3): the sensor frame's orientation (sensor -> world) at m rest poses without
+    load; reactions (m, 6): the sensor joint's reaction then (what the arm applies, sensor frame,
+    moments about the sensor frame's origin); gravity [m/s^2] (3,). At rest the arm carries the
+    payload's weight: -f = M R^T g + f0 and -m = (M c) x (R^T g) + m0, linear in M, f0 and M c, m0.
+    At least three orientations not about one axis are needed (ParameterError otherwise).
+    """
+    rot = np.asarray(rotations, dtype=float)
+    react = np.asarray(reactions, dtype=float)
+    g_sensor = np.einsum("kji,j->ki", rot, np.asarray(gravity, dtype=float))  # R^T g per pose
+    m = len(rot)
+    eye = np.tile(np.eye(3), (m, 1))
+    a_force = np.hstack([g_sensor.reshape(-1, 1), eye])
+    mass, *f0 = np.linalg.lstsq(a_force, -react[:, :3].reshape(-1), rcond=None)[0]
+    a_moment = np.hstack([np.concatenate([-skew(v) for v in g_sensor]), eye])  # (Mc) x g = -g x (Mc)
+    sol_m = np.linalg.lstsq(a_moment, -react[:, 3:].reshape(-1), rcond=None)[0]
+    if m < 3 or np.linalg.matrix_rank(a_moment[:, :3], tol=1e-3 * np.linalg.norm(gravity)) < 3 or mass <= 0:
+        raise ParameterError(f"identify_payload: {m} orientations do not determine the payload (need >= 3, "
+                             f"not all about one axis)")
+    com = sol_m[:3] / mass
+    res_f = a_force @ np.r_[mass, f0] + react[:, :3].reshape(-1)
+    res_m = a_moment @ sol_m + react[:, 3:].reshape(-1)
+    return PayloadFit(float(mass), tuple(float(v) for v in com), tuple(float(v) for v in f0),
+                      tuple(float(v) for v in sol_m[3:]), float(np.sqrt(np.mean(res_f ** 2))),
+                      float(np.sqrt(np.mean(res_m ** 2))), m)
+
+
+def skew(v: Sequence[float]) -> np.ndarray:
+    """The matrix of the cross product v x ., (3, 3)."""
+    x, y, z = v
+    return np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
 
 
 class WristSensor:
     """F/T sensor on ``robot``'s sensor joint (whose reaction reporting :meth:`Robot.load` switched on).
 
+    The reading is the load on the tool side: what the arm applies to it, minus the payload's own
+    weight (world-frame gravity, so at any orientation) and inertia, minus the sensor's own offset
+    taken by :meth:`tare`. The payload is the tool side below the sensor (hand, fingers, grasp frame).
+
     Args:
         robot: the arm.
+        gravity: the world's gravity [m/s^2] (3,).
         rate: sampling rate [Hz] (None: every physics step); readings are held between samples.
         noise_std: standard deviation of Gaussian noise per component [N, N, N, N m, N m, N m].
         bias: constant offset added to every reading (same units).
-        compensate_inertia: subtract the payload's inertial force m a (from link velocities),
-            as a calibrated sensor with a known tool would; the tare removes its weight.
+        compensate_inertia: also remove the payload's inertial load (rates of its momenta, from link
+            velocities), as a calibrated sensor with a known tool would.
+        payload: the payload's model (:class:`PayloadFit` from a calibration); None: from the robot
+            description (:func:`urdf_payload`).
         rng: random generator for the noise (seeded for reproducible data).
         reader: a :class:`~bullet_dlo.bullet.native.StateReader` that its owner reads every step
             (e.g. the dual-arm coupling, which reads both arms in one call), whose row ``row`` holds
             the robot with :func:`sensor_links` last; None: the sensor reads for itself.
     """
 
-    def __init__(self, robot: Robot, rate: float | None = None, noise_std=(0.0,) * 6, bias=(0.0,) * 6,
-                 compensate_inertia: bool = True, rng: np.random.Generator | None = None,
-                 reader: StateReader | None = None, row: int = 0):
+    TARE_WARNING = 0.01
+    """A tare that removes more than this share of the payload's weight means the payload model does
+    not fit the sensed tool (a wrong mass, centre of mass or gravity): warned."""
+
+    def __init__(self, robot: Robot, gravity: Sequence[float], rate: float | None = None, noise_std=(0.0,) * 6,
+                 bias=(0.0,) * 6, compensate_inertia: bool = True, payload: PayloadFit | None = None,
+                 rng: np.random.Generator | None = None, reader: StateReader | None = None, row: int = 0):
         name = robot.spec.sensor_joint
         if name not in robot.joint_index:
             raise ParameterError(f"robot {robot.spec.name!r} has no joint {name!r} for the F/T sensor")
@@ -93,9 +181,10 @@ class WristSensor:
             raise ParameterError("noise_std and bias must have 6 components (fx fy fz mx my mz)")
         self.compensate_inertia = bool(compensate_inertia)
         self.rng = rng or np.random.default_rng(0)
-        self.payload, self.payload_mass = payload(robot)
+        self.payload_fit = payload
+        self.compensation = "urdf" if payload is None else "calibrated"
+        self.payload = urdf_payload(robot, gravity) if payload is None else payload.payload(gravity)
         links = sensor_links(robot)
-        self._mass = np.array([self.payload_mass[self.payload.index(j)] for j in links])
         # link states of the queried links and the joint's state: a shared reader (read by its owner
         # every step, e.g. the dual-arm coupling, these links last in its row) or one of our own
         self._own_reader = reader is None
@@ -106,11 +195,13 @@ class WristSensor:
         self._reaction = self.reader.joint_rows[row, 2:8]
         self._noisy = bool(np.any(self.noise_std > 0))  # no noise: no draws (the generator is used only here)
         self._tare = np.zeros(6)
-        self._prev = np.zeros(4)  # payload momentum [kg m/s] one step ago, and whether it is valid
+        self._memory = SensorMemory(np.zeros((len(self.payload.mass), 6)), np.zeros(1))
         self._scratch = np.zeros(12)
+        self.offset = np.zeros(6)  # bias plus noise of the latest sample [N, N m], sensor frame
+        self.values = np.zeros(12)  # the latest sample: [f, m] sensor frame, [f, m] world frame
         self._last: Wrench | None = None
-        self._reading = bind(sensor_reading, self._rows, self._mass, self._reaction, 1.0, True, True, self._tare,
-                             self.bias, self._prev, self._scratch)  # no per-call type dispatch
+        self._reading = bind(sensor_reading, self._rows, self.payload, self._reaction, 1.0, True, True, self._tare,
+                             self.bias, self._memory, self._scratch)  # no per-call type dispatch
 
     # ----- raw physics ------------------------------------------------------------------------
     def raw(self) -> np.ndarray:
@@ -121,13 +212,33 @@ class WristSensor:
         """Sum of m v over the payload (the tool side's links) [kg m/s], world frame, now, (3,)."""
         self.reader.read()
         out = np.zeros(3)
-        momentum(self._rows, self._mass, out)
+        momentum(self._rows, self.payload.mass, out)
         return out
 
-    def tare(self) -> None:
-        """Zero the sensor in the current (reference) pose: later readings are relative to it."""
-        self._tare[:] = self.raw()
-        self._prev[:] = 0.0
+    @property
+    def payload_mass(self) -> float:
+        """Mass of the payload below the sensor [kg], as the sensor compensates it."""
+        return float(self.payload.mass.sum())
+
+    def tare(self) -> np.ndarray:
+        """Zero the sensor's own offset in the current pose, unloaded and at rest: later readings have
+        what it reads now (payload weight removed) subtracted. Returns that offset [N, N m] (6,), sensor frame;
+        warns when it exceeds :attr:`TARE_WARNING` of the payload's weight."""
+        if self._own_reader:
+            self.reader.read()
+        self._tare[:] = 0.0
+        self._memory.valid[0] = 0.0
+        out = np.zeros(12)
+        self._reading(self._rows, self.payload, self._reaction, 1.0, False, True, self._tare, np.zeros(6),
+                      self._memory, out)
+        self._tare[:] = out[:6]
+        weight = self.payload_mass * float(np.linalg.norm(self.payload.gravity))
+        if np.linalg.norm(self._tare[:3]) > self.TARE_WARNING * weight:
+            warnings.warn(f"wrist sensor of {self.robot.spec.name!r}: the tare removes "
+                          f"{np.linalg.norm(self._tare[:3]):.3g} N, more than {100 * self.TARE_WARNING:g} % of the "
+                          f"{self.compensation} payload's weight ({weight:.3g} N): the payload model does not fit "
+                          f"the tool (mass, centre of mass or gravity), or the arm was loaded or moving", stacklevel=2)
+        return self._tare.copy()
 
     # ----- readings ---------------------------------------------------------------------------
     def update(self, t: float, dt: float) -> Wrench:
@@ -145,12 +256,18 @@ class WristSensor:
         if due and self._noisy:
             offset = self.bias + self.rng.normal(size=6) * self.noise_std
         out = self._scratch
-        if not self._reading(self._rows, self._mass, self._reaction, float(dt), self.compensate_inertia, due,
-                             self._tare, offset, self._prev, out):
+        if not self._reading(self._rows, self.payload, self._reaction, float(dt), self.compensate_inertia, due,
+                             self._tare, offset, self._memory, out):
             return self._last  # held between samples
-        values = out.copy()  # one array, four views
+        self.offset = offset
+        values = self.values = out.copy()  # one array, four views
         self._last = Wrench(t, values[0:3], values[3:6], values[6:9], values[9:12])
         return self._last
+
+    @property
+    def rows(self) -> np.ndarray:
+        """The link states the sensor reads (row 0: its own link, whose CoM frame is the sensor frame)."""
+        return self._rows
 
     @property
     def rate(self) -> float | None:

@@ -33,7 +33,7 @@ def payload_momentum(robot: str, dt: float, settle_steps: int) -> np.ndarray:
     with mock.patch.object(physics_module, "SETTLE_STEPS", settle_steps):
         ph = DualArmPhysics(spec(robot, dt))
     try:
-        return WristSensor(ph.robots[0]).payload_momentum()
+        return WristSensor(ph.robots[0], ph.world.gravity).payload_momentum()
     finally:
         ph.close()
 
@@ -47,7 +47,7 @@ def test_unloaded_reading_is_the_payload_inertia_at_the_tare(robot):
     with mock.patch.object(physics_module, "SETTLE_STEPS", steps), DualArmScene(spec(robot, dt)) as sc:
         sc.run(0.4)  # no grasp: nothing loads the grippers; the transient is gone after ~100 steps
         reading = sc.window_mean(0.1)["wrench_world"][0, :3]
-    assert np.linalg.norm(ma) > 5e-4  # not vacuous: a bias of order a mN
+    assert np.linalg.norm(ma) > 1e-4  # not vacuous: a bias of 0.1-1 mN (smaller with rigid fingers)
     assert np.allclose(reading, ma, rtol=0.03, atol=2e-5)
 
 

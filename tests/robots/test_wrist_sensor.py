@@ -45,13 +45,13 @@ def test_sensor_errors():
     with DualArmScene(DualArmSpec(robot="kuka")) as scene:
         robot = scene.robots[0]
         with pytest.raises(ParameterError, match="rate must be a finite number > 0"):
-            WristSensor(robot, rate=-5.0)
+            WristSensor(robot, scene.world.gravity, rate=-5.0)
         with pytest.raises(ParameterError, match="6 components"):
-            WristSensor(robot, noise_std=(0.1, 0.1, 0.1))
+            WristSensor(robot, scene.world.gravity, noise_std=(0.1, 0.1, 0.1))
         spec = load_robot_spec("panda")
         robot.spec = type(spec)(**{**spec.__dict__, "sensor_joint": "wrist_ft"})
         with pytest.raises(ParameterError, match="no joint 'wrist_ft' for the F/T sensor"):
-            WristSensor(robot)
+            WristSensor(robot, scene.world.gravity)
 
 
 def test_observation_must_tare_before_the_first_step():

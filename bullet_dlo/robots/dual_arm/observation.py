@@ -12,7 +12,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from bullet_dlo.core.validate import ParameterError, check_positive
-from bullet_dlo.robots.dual_arm.physics import END_NODE, DualArmPhysics
+from bullet_dlo.robots.dual_arm.physics import ARMS, END_NODE, DualArmPhysics
+from bullet_dlo.robots.kernels import load_mismatch
 from bullet_dlo.robots.sensors import WristSensor
 
 
@@ -34,6 +35,63 @@ class DualArmRecord:
         return {k: np.array(v) for k, v in self.__dict__.items()}
 
 
+SENSOR_CHECK = (0.02, 0.002)
+"""A wrist sample may differ from the load the cable applied in the same step by this share of the
+cable's weight plus this many newtons [N] (force) or newton metres [N m] (moment about the sensor
+origin) before :class:`SensorCheck` fails it: 4x the worst mismatch measured on the demos' motions
+(Bullet's solver residual at the wrist joint, ~2 mN), far below a payload tared in the wrong frame
+(up to 34 cable weights)."""
+
+
+class SensorCheck:
+    """Every wrist sample compared with the load the cable applied to that gripper in the same step.
+
+    The sensor's reading without its bias and noise must equal that load (force, and moment about
+    the sensor origin): what the payload compensation and Bullet's wrist reaction get wrong shows up
+    here. ``worst`` [N or N m] and ``worst_t`` [s] per arm and kind (force, moment), ``samples``; :meth:`failures`
+    says which exceed ``limit`` = share of the cable weight + absolute (:data:`SENSOR_CHECK`).
+    """
+
+    def __init__(self, weight: float, limit: tuple[float, float] = SENSOR_CHECK):
+        self.weight = float(weight)
+        self.limit = limit
+        self.worst = np.zeros((2, 2))
+        self.worst_t = np.zeros((2, 2))
+        self.samples = 0
+        self._mismatch = np.zeros(6)
+
+    def check(self, arm: int, t: float, sensor: WristSensor, force, torque, point) -> None:
+        """Compare arm ``arm``'s sample at ``t`` [s] with the applied force [N] at ``point`` [m] and torque [N m]."""
+        out = self._mismatch
+        load_mismatch(sensor.rows, sensor.values, sensor.offset, force, torque, point, out)
+        for kind in (0, 1):
+            err = float(np.abs(out[3 * kind:3 * kind + 3]).max())
+            if err > self.worst[arm, kind]:
+                self.worst[arm, kind], self.worst_t[arm, kind] = err, t
+        self.samples += arm == 0
+
+    @property
+    def allowed(self) -> float:
+        """The largest mismatch allowed per component [N or N m]."""
+        return self.limit[0] * self.weight + self.limit[1]
+
+    def failures(self) -> list[str]:
+        """Why the wrist readings should not be trusted, as short reasons (empty: they agree with the model)."""
+        out = []
+        for arm in (0, 1):
+            for kind, (name, unit) in enumerate((("force", "N"), ("moment", "N m"))):
+                if self.worst[arm, kind] > self.allowed:
+                    out.append(f"{ARMS[arm]} wrist {name} differs from the cable's load by "
+                               f"{self.worst[arm, kind]:.3g} {unit} at t = {self.worst_t[arm, kind]:.3f} s "
+                               f"(allowed {self.allowed:.3g})")
+        return out
+
+    def summary(self) -> dict:
+        """JSON-ready: worst force [N] and moment [N m] mismatch per arm, the allowed value, the failures."""
+        return {"worst_force": self.worst[:, 0].tolist(), "worst_moment": self.worst[:, 1].tolist(),
+                "allowed": self.allowed, "samples": self.samples, "failures": self.failures()}
+
+
 class DualArmObservation:
     """Wrist sensors on both arms (settings from ``physics.spec``) and, optionally, the per-step record.
 
@@ -49,11 +107,14 @@ class DualArmObservation:
             raise ParameterError("build the observation before the first step: its sensors tare on the unloaded arms")
         spec = physics.spec
         self.physics = physics
-        self.sensors = [WristSensor(robot, spec.sensor_rate, spec.noise_std, spec.bias,
-                                    rng=np.random.default_rng(spec.seed + k), reader=physics.reader, row=k)
+        fits = physics.payload_fits or (None, None)
+        self.sensors = [WristSensor(robot, physics.world.gravity, spec.sensor_rate, spec.noise_std, spec.bias,
+                                    payload=fits[k], rng=np.random.default_rng(spec.seed + k),
+                                    reader=physics.reader, row=k)
                         for k, robot in enumerate(physics.robots)]
         for s in self.sensors:
             s.tare()
+        self.check = SensorCheck(spec.cable.mass * float(np.linalg.norm(physics.world.gravity)))
         self.record = DualArmRecord()
         world = physics.world
         world.after_physics.append(self._update_sensors)
@@ -61,9 +122,12 @@ class DualArmObservation:
             world.after_step.append(self._record_step)
 
     def _update_sensors(self) -> None:
-        world = self.physics.world
-        for s in self.sensors:
+        world, physics = self.physics.world, self.physics
+        forces, torques = physics.applied_loads()
+        for arm, s in enumerate(self.sensors):
             s.update(world.time, world.dt)
+            if s.last.t == world.time:  # sampled in this step: compare with what the cable applied
+                self.check.check(arm, world.time, s, forces[arm], torques[arm], physics.load_points[arm])
 
     def _record_step(self) -> None:
         r, cable = self.record, self.physics.cable

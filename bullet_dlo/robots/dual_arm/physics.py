@@ -26,18 +26,19 @@ from typing import Sequence
 
 import numpy as np
 import pybullet as pb
+from scipy.spatial.transform import Rotation
 
 from bullet_dlo.bullet.cable import BulletCable
 from bullet_dlo.bullet.kernels import bind
 from bullet_dlo.bullet.native import StateReader, apply_wrenches
 from bullet_dlo.bullet.world import BulletWorld
-from bullet_dlo.config.robot import DualArmSpec, RobotSpec, load_robot_spec
+from bullet_dlo.config.robot import CALIBRATION_TILTS, DualArmSpec, RobotSpec, load_robot_spec
 from bullet_dlo.core.model import CableModel, CableState
 from bullet_dlo.core.statics import solve_static
 from bullet_dlo.core.validate import ParameterError, check_positive
 from bullet_dlo.robots.arm import Robot
 from bullet_dlo.robots.kernels import grasp_frames
-from bullet_dlo.robots.sensors import sensor_links
+from bullet_dlo.robots.sensors import PayloadFit, identify_payload, sensor_links
 from bullet_dlo.robots.transforms import quat_from_axes
 
 ARMS = ("left", "right")
@@ -51,6 +52,8 @@ Bullet's position motors (gain 0.1) remove 10 % of the arms' sag per step, so 15
 below 1e-6 of it; with 22, the tare held the payload's m a of a still-settling arm, which every
 later (inertia-compensated) reading carried as a bias ~ 1/dt: +1.0 % of the vertical load and
 0.5 mN sideways on the Panda at 1 kHz (``python demos/sensor_bias.py``)."""
+SOLVER_RESIDUAL = 1e-9
+"""Bullet's solver residual threshold in the dual-arm world (its default: 1e-7)."""
 NO_CONTACT_NODES = 3
 """Cable masses at each end that do not collide with the gripper holding that end."""
 
@@ -90,6 +93,9 @@ class DualArmPhysics:
         self.spec = spec
         robot_spec = load_robot_spec(spec.robot)
         self.world = BulletWorld(dt=spec.dt, renderer=spec.renderer)
+        # Bullet's solver stops at a residual of 1e-7 by default, which left the KUKA's wrist reaction
+        # 1.6 mN sideways at rest (0.5 % of a 30 g cable's weight); at 1e-9 it is 0.006 mN, same cost
+        pb.setPhysicsEngineParameter(solverResidualThreshold=SOLVER_RESIDUAL, physicsClientId=self.world.client)
         try:
             self._add_table()
             self.robots: list[Robot] = []
@@ -97,6 +103,7 @@ class DualArmPhysics:
             for arm, sign in zip(ARMS, (-1.0, 1.0)):
                 self._add_arm(robot_spec, sign, 0.0 if arm == "left" else np.pi)
             self.world.step_bare(SETTLE_STEPS)
+            self.payload_fits = self.calibrate_payloads() if spec.payload == "calibrated" else None
             self.cable = self._add_cable()
         except Exception:
             self.close()
@@ -110,6 +117,7 @@ class DualArmPhysics:
         self._grasp_links = np.array([r.grasp_link for r in self.robots], dtype=np.int32)
         self._held_mask = np.zeros(2, dtype=np.bool_)
         self._end_points = np.zeros((2, 3))  # [m] where the cable's end forces act: its end masses
+        self._applied = (np.zeros((2, 3)), np.zeros((2, 3)))  # the loads of the last step (applied_loads)
         self._apply_wrenches = None  # native.apply_wrenches's machine code, bound on first use
         self._grasp_frames = bind(grasp_frames, self.reader.link_rows, self._grasp_velocity, 0.0, self.cable.ext)
         self.world.before_step.append(self._apply_cable_wrench)
@@ -173,6 +181,35 @@ class DualArmPhysics:
                                  f"{top} m; raise hold_height or use start: straight")
         return res.state()
 
+    def calibrate_payloads(self, tilts: Sequence[Sequence[float]] = CALIBRATION_TILTS) -> list[PayloadFit]:
+        """Identify each wrist sensor's payload (mass, centre of mass, offset) as on a real robot: turn each
+        unloaded gripper about its grasp point by each rotation vector of ``tilts`` [rad] (world frame),
+        settle, read the sensor joint and fit (:func:`~bullet_dlo.robots.sensors.identify_payload`);
+        then back to the grasp pose and settle. Poses the IK cannot reach exactly are used as reached
+        (the fit takes the measured orientation). Call before the cable is attached."""
+        homes = [r.joint_positions() for r in self.robots]
+        rotations: list[list[np.ndarray]] = [[], []]
+        reactions: list[list[np.ndarray]] = [[], []]
+        for tilt in tilts:
+            turn = Rotation.from_rotvec(np.asarray(tilt, dtype=float))
+            for robot, (position, quat), q in zip(self.robots, self.grasp_poses, homes):
+                target = (turn * Rotation.from_quat(quat)).as_quat()
+                try:
+                    robot.reset_joints(robot.solve_ik(position, target, seed=q))
+                except ParameterError:  # not exactly reachable: the pose the IK gets to serves as well
+                    robot.reset_joints(robot.track(position, target))
+            self.world.step_bare(SETTLE_STEPS)
+            for arm, robot in enumerate(self.robots):
+                links = sensor_links(robot)
+                state = pb.getLinkState(robot.body, links[0], physicsClientId=self.world.client)
+                rotations[arm].append(np.array(pb.getMatrixFromQuaternion(state[1])).reshape(3, 3))
+                reactions[arm].append(np.array(pb.getJointState(robot.body, robot.joint_index[robot.spec.sensor_joint],
+                                                                physicsClientId=self.world.client)[2]))
+        for robot, q in zip(self.robots, homes):
+            robot.reset_joints(q)
+        self.world.step_bare(SETTLE_STEPS)
+        return [identify_payload(np.array(rotations[a]), np.array(reactions[a]), self.world.gravity) for a in (0, 1)]
+
     # ----- the grasp coupling --------------------------------------------------------------------
     def clamp(self, arm: int) -> None:
         """Clamp cable end ``arm`` to that arm's grasp frame (from the current measured pose), rigidly or
@@ -224,6 +261,22 @@ class DualArmPhysics:
                 pb.applyExternalForce(robot.body, robot.grasp_link, forces[arm].tolist(), points[arm].tolist(),
                                       pb.WORLD_FRAME, cid)
                 pb.applyExternalTorque(robot.body, robot.grasp_link, torques[arm].tolist(), pb.WORLD_FRAME, cid)
+
+    def applied_loads(self) -> tuple[np.ndarray, np.ndarray]:
+        """The force [N] (at :attr:`load_points`) and torque [N m] the cable applied to each gripper in the
+        Bullet step just taken, (2, 3) each, world frame (zero rows for ends not held). Valid between
+        the Bullet step and the cable's step (in ``after_physics`` hooks)."""
+        forces, torques = self.cable.planned_end_loads()
+        out_f, out_t = self._applied
+        for arm in (0, 1):
+            out_f[arm] = forces[arm] if self.held[arm] else 0.0
+            out_t[arm] = torques[arm] if self.held[arm] else 0.0
+        return out_f, out_t
+
+    @property
+    def load_points(self) -> np.ndarray:
+        """Where the cable's forces were applied in the last step [m], (2, 3): its end masses then."""
+        return self._end_points
 
     def _follow_grippers(self, first: bool = False) -> None:
         """After the Bullet step: read both arms (for the sensors too) and make the measured grasp frames
