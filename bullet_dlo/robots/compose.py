@@ -17,6 +17,7 @@ import numpy as np
 import pybullet_data
 import yourdfpy
 from lxml import etree
+from scipy.spatial.transform import Rotation
 
 from bullet_dlo.assets import URDF_DIR
 from bullet_dlo.config.robot import RobotSpec
@@ -75,9 +76,8 @@ def rigid_fingers(robot: yourdfpy.Robot, names: Sequence[str], closed: float) ->
         move = np.eye(4)
         if joint.type == "prismatic":
             move[:3, 3] = closed * axis
-        else:  # Rodrigues: a turn by `closed` about the axis
-            k = np.array([[0.0, -axis[2], axis[1]], [axis[2], 0.0, -axis[0]], [-axis[1], axis[0], 0.0]])
-            move[:3, :3] = np.eye(3) + np.sin(closed) * k + (1.0 - np.cos(closed)) * k @ k
+        else:  # a turn by `closed` about the axis
+            move[:3, :3] = Rotation.from_rotvec(closed * axis).as_matrix()
         origin = np.eye(4) if joint.origin is None else np.asarray(joint.origin, dtype=float)
         joint.origin = origin @ move
         joint.type, joint.limit, joint.mimic, joint.dynamics = "fixed", None, None, None

@@ -206,22 +206,27 @@ def sensor_reading(rows, payload, reaction, dt, compensate, due, tare, offset, m
 
 
 @njit(cache=True, error_model="numpy")
-def load_mismatch(rows, reading, offset, force, torque, point, out):
+def load_mismatch(rows, reading, offset, force, torque, point, held, t, worst, worst_t):
     """How far a wrist reading is from the load the cable applied to the gripper in the same step.
 
     rows (k, ROW): the sensor's link states (row 0: the sensor frame); reading (12,): the sensor's
     output (:func:`sensor_reading`); offset (6,): the bias and noise in it [N, N m], sensor frame;
     force [N], torque [N m] (3,): what the cable applied to the grasp link, world frame, the force at
-    ``point`` [m] (3,). Writes into ``out`` (6,) the reading without its offset minus that load, world
-    frame: force [N] and moment about the sensor frame's origin [N m].
+    ``point`` [m] (3,), if ``held`` (else nothing was applied). The reading without its offset minus
+    that load, world frame, force [N] and moment about the sensor frame's origin [N m]: its largest
+    component of each raises ``worst`` (2,) (force, moment), the time ``t`` [s] going into ``worst_t`` (2,).
     """
     r = np.empty(9)
     rotation_matrix(rows[0, COM_QUAT], rows[0, COM_QUAT + 1], rows[0, COM_QUAT + 2], rows[0, COM_QUAT + 3], r)
+    s = 1.0 if held else 0.0
+    fx, fy, fz = s * force[0], s * force[1], s * force[2]
     dx, dy, dz = point[0] - rows[0, COM], point[1] - rows[0, COM + 1], point[2] - rows[0, COM + 2]
-    moment = (torque[0] + dy * force[2] - dz * force[1], torque[1] + dz * force[0] - dx * force[2],
-              torque[2] + dx * force[1] - dy * force[0])
+    applied = (fx, fy, fz, s * torque[0] + dy * fz - dz * fy, s * torque[1] + dz * fx - dx * fz,
+               s * torque[2] + dx * fy - dy * fx)
     for i in range(3):
         f_off = r[3 * i] * offset[0] + r[3 * i + 1] * offset[1] + r[3 * i + 2] * offset[2]
         m_off = r[3 * i] * offset[3] + r[3 * i + 1] * offset[4] + r[3 * i + 2] * offset[5]
-        out[i] = reading[6 + i] - f_off - force[i]
-        out[3 + i] = reading[9 + i] - m_off - moment[i]
+        for kind, off in ((0, f_off), (1, m_off)):
+            err = abs(reading[6 + 3 * kind + i] - off - applied[3 * kind + i])
+            if err > worst[kind]:
+                worst[kind], worst_t[kind] = err, t

@@ -53,19 +53,14 @@ class Wrench:
         return np.concatenate([self.force_sensor, self.torque_sensor])
 
 
-def payload(robot: Robot) -> tuple[list[int], np.ndarray]:
-    """The tool side of ``robot``'s sensor joint: its links (the sensor's own first) and their masses [kg]."""
-    links = robot.subtree_links(robot.joint_index[robot.spec.sensor_joint])
-    return links, np.array([pb.getDynamicsInfo(robot.body, j, physicsClientId=robot.client)[0] for j in links])
-
-
 def sensor_links(robot: Robot) -> list[int]:
-    """Links a wrist sensor reads every step: its own (the sensor frame) and the payload links with mass or
+    """Links a wrist sensor reads every step, of the tool side of ``robot``'s sensor joint (the links it
+    carries): its own (the sensor frame) and the links with mass or
     rotational inertia (a massless link with inertia, as the Panda's grasp target with 0.1 kg m^2, still
     takes a torque to turn)."""
-    links, mass = payload(robot)
-    inertia = [sum(pb.getDynamicsInfo(robot.body, j, physicsClientId=robot.client)[2]) for j in links]
-    return [j for k, j in enumerate(links) if k == 0 or mass[k] > 0 or inertia[k] > 0]
+    links = robot.subtree_links(robot.joint_index[robot.spec.sensor_joint])
+    infos = [pb.getDynamicsInfo(robot.body, j, physicsClientId=robot.client) for j in links]
+    return [j for k, (j, info) in enumerate(zip(links, infos)) if k == 0 or info[0] > 0 or sum(info[2]) > 0]
 
 
 COMPENSATIONS = ("urdf", "calibrated")
@@ -181,7 +176,6 @@ class WristSensor:
             raise ParameterError("noise_std and bias must have 6 components (fx fy fz mx my mz)")
         self.compensate_inertia = bool(compensate_inertia)
         self.rng = rng or np.random.default_rng(0)
-        self.payload_fit = payload
         self.compensation = "urdf" if payload is None else "calibrated"
         self.payload = urdf_payload(robot, gravity) if payload is None else payload.payload(gravity)
         links = sensor_links(robot)

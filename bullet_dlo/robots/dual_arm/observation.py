@@ -13,6 +13,7 @@ import numpy as np
 
 from bullet_dlo.core.validate import ParameterError, check_positive
 from bullet_dlo.robots.dual_arm.physics import ARMS, END_NODE, DualArmPhysics
+from bullet_dlo.bullet.kernels import bind
 from bullet_dlo.robots.kernels import load_mismatch
 from bullet_dlo.robots.sensors import WristSensor
 
@@ -58,16 +59,16 @@ class SensorCheck:
         self.worst = np.zeros((2, 2))
         self.worst_t = np.zeros((2, 2))
         self.samples = 0
-        self._mismatch = np.zeros(6)
+        self._kernel = None  # load_mismatch's machine code, bound on first use
 
-    def check(self, arm: int, t: float, sensor: WristSensor, force, torque, point) -> None:
-        """Compare arm ``arm``'s sample at ``t`` [s] with the applied force [N] at ``point`` [m] and torque [N m]."""
-        out = self._mismatch
-        load_mismatch(sensor.rows, sensor.values, sensor.offset, force, torque, point, out)
-        for kind in (0, 1):
-            err = float(np.abs(out[3 * kind:3 * kind + 3]).max())
-            if err > self.worst[arm, kind]:
-                self.worst[arm, kind], self.worst_t[arm, kind] = err, t
+    def check(self, arm: int, t: float, sensor: WristSensor, force, torque, point, held: bool) -> None:
+        """Compare arm ``arm``'s sample at ``t`` [s] with the force [N] at ``point`` [m] and torque [N m] the
+        cable applied to that gripper if it ``held`` it (else with no load)."""
+        args = (sensor.rows, sensor.values, sensor.offset, force, torque, point, bool(held), float(t),
+                self.worst[arm], self.worst_t[arm])
+        if self._kernel is None:
+            self._kernel = bind(load_mismatch, *args)
+        self._kernel(*args)
         self.samples += arm == 0
 
     @property
@@ -123,11 +124,13 @@ class DualArmObservation:
 
     def _update_sensors(self) -> None:
         world, physics = self.physics.world, self.physics
-        forces, torques = physics.applied_loads()
+        # what the cable applied in the Bullet step just taken: its step (after these hooks) replaces them
+        forces, torques = physics.cable.planned_end_loads()
         for arm, s in enumerate(self.sensors):
             s.update(world.time, world.dt)
             if s.last.t == world.time:  # sampled in this step: compare with what the cable applied
-                self.check.check(arm, world.time, s, forces[arm], torques[arm], physics.load_points[arm])
+                self.check.check(arm, world.time, s, forces[arm], torques[arm], physics.load_points[arm],
+                                 physics.held[arm])
 
     def _record_step(self) -> None:
         r, cable = self.record, self.physics.cable

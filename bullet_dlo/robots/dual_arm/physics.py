@@ -39,7 +39,7 @@ from bullet_dlo.core.validate import ParameterError, check_positive
 from bullet_dlo.robots.arm import Robot
 from bullet_dlo.robots.kernels import grasp_frames
 from bullet_dlo.robots.sensors import PayloadFit, identify_payload, sensor_links
-from bullet_dlo.robots.transforms import quat_from_axes
+from bullet_dlo.robots.transforms import quat_from_axes, rotation
 
 ARMS = ("left", "right")
 """Arm names by index; arm i holds cable end i (the cable's API numbers its ends 0 = first, 1 = last)."""
@@ -117,7 +117,6 @@ class DualArmPhysics:
         self._grasp_links = np.array([r.grasp_link for r in self.robots], dtype=np.int32)
         self._held_mask = np.zeros(2, dtype=np.bool_)
         self._end_points = np.zeros((2, 3))  # [m] where the cable's end forces act: its end masses
-        self._applied = (np.zeros((2, 3)), np.zeros((2, 3)))  # the loads of the last step (applied_loads)
         self._apply_wrenches = None  # native.apply_wrenches's machine code, bound on first use
         self._grasp_frames = bind(grasp_frames, self.reader.link_rows, self._grasp_velocity, 0.0, self.cable.ext)
         self.world.before_step.append(self._apply_cable_wrench)
@@ -188,6 +187,8 @@ class DualArmPhysics:
         then back to the grasp pose and settle. Poses the IK cannot reach exactly are used as reached
         (the fit takes the measured orientation). Call before the cable is attached."""
         homes = [r.joint_positions() for r in self.robots]
+        links = [sensor_links(r)[0] for r in self.robots]  # the sensor frame is this link's CoM frame
+        joints = [r.joint_index[r.spec.sensor_joint] for r in self.robots]
         rotations: list[list[np.ndarray]] = [[], []]
         reactions: list[list[np.ndarray]] = [[], []]
         for tilt in tilts:
@@ -199,12 +200,10 @@ class DualArmPhysics:
                 except ParameterError:  # not exactly reachable: the pose the IK gets to serves as well
                     robot.reset_joints(robot.track(position, target))
             self.world.step_bare(SETTLE_STEPS)
-            for arm, robot in enumerate(self.robots):
-                links = sensor_links(robot)
-                state = pb.getLinkState(robot.body, links[0], physicsClientId=self.world.client)
-                rotations[arm].append(np.array(pb.getMatrixFromQuaternion(state[1])).reshape(3, 3))
-                reactions[arm].append(np.array(pb.getJointState(robot.body, robot.joint_index[robot.spec.sensor_joint],
-                                                                physicsClientId=self.world.client)[2]))
+            for arm, (robot, link, joint) in enumerate(zip(self.robots, links, joints)):
+                state = pb.getLinkState(robot.body, link, physicsClientId=self.world.client)
+                rotations[arm].append(rotation(state[1]))
+                reactions[arm].append(np.array(pb.getJointState(robot.body, joint, physicsClientId=self.world.client)[2]))
         for robot, q in zip(self.robots, homes):
             robot.reset_joints(q)
         self.world.step_bare(SETTLE_STEPS)
@@ -261,17 +260,6 @@ class DualArmPhysics:
                 pb.applyExternalForce(robot.body, robot.grasp_link, forces[arm].tolist(), points[arm].tolist(),
                                       pb.WORLD_FRAME, cid)
                 pb.applyExternalTorque(robot.body, robot.grasp_link, torques[arm].tolist(), pb.WORLD_FRAME, cid)
-
-    def applied_loads(self) -> tuple[np.ndarray, np.ndarray]:
-        """The force [N] (at :attr:`load_points`) and torque [N m] the cable applied to each gripper in the
-        Bullet step just taken, (2, 3) each, world frame (zero rows for ends not held). Valid between
-        the Bullet step and the cable's step (in ``after_physics`` hooks)."""
-        forces, torques = self.cable.planned_end_loads()
-        out_f, out_t = self._applied
-        for arm in (0, 1):
-            out_f[arm] = forces[arm] if self.held[arm] else 0.0
-            out_t[arm] = torques[arm] if self.held[arm] else 0.0
-        return out_f, out_t
 
     @property
     def load_points(self) -> np.ndarray:
