@@ -39,9 +39,10 @@ class DualArmRecord:
 SENSOR_CHECK = (0.02, 0.002)
 """A wrist sample may differ from the load the cable applied in the same step by this share of the
 cable's weight plus this many newtons [N] (force) or newton metres [N m] (moment about the sensor
-origin) before :class:`SensorCheck` fails it: 4x the worst mismatch measured on the demos' motions
-(Bullet's solver residual at the wrist joint, ~2 mN), far below a payload tared in the wrong frame
-(up to 34 cable weights)."""
+origin) before :class:`SensorCheck` fails it: about 4x the worst mismatch at rest (Bullet's solver
+residual at the wrist joint, up to ~2 mN with a 30 g cable), far below a payload tared in the wrong
+frame (up to 34 cable weights). While a gripper turns, the mismatch is larger (54 mN on the Panda
+turning 90 degrees in 4 s; its cause is open) and the check says so."""
 
 
 class SensorCheck:
