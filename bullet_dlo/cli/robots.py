@@ -152,7 +152,7 @@ def add_parsers(sub, common: argparse.ArgumentParser) -> None:
                                    "1.5 s) and report the wrist wrenches (payload weight and inertia removed) in "
                                    "world frame, averaged over the last 0.5 s, next to the model's end forces. "
                                    "Every sample is checked against the load the cable applied in the same step; "
-                                   "exit 1 if one differs by more than 2 % of the cable's weight + 2 mN.")
+                                   "exit 1 if one differs by more than 10 % of the cable's weight + 5 mN.")
     s.add_argument("--robot", default="kuka", help="robot description in robots/: kuka (default) or panda")
     s.add_argument("--scene", metavar="SCENE.yaml", help="take cable, dt, integrator, duration and motion from a "
                    "scene file (its layout and ends are replaced by the grasp)")

@@ -36,13 +36,15 @@ class DualArmRecord:
         return {k: np.array(v) for k, v in self.__dict__.items()}
 
 
-SENSOR_CHECK = (0.02, 0.002)
+SENSOR_CHECK = (0.1, 0.005)
 """A wrist sample may differ from the load the cable applied in the same step by this share of the
 cable's weight plus this many newtons [N] (force) or newton metres [N m] (moment about the sensor
-origin) before :class:`SensorCheck` fails it: about 4x the worst mismatch at rest (Bullet's solver
-residual at the wrist joint, up to ~2 mN with a 30 g cable), far below a payload tared in the wrong
-frame (up to 34 cable weights). While a gripper turns, the mismatch is larger (54 mN on the Panda
-turning 90 degrees in 4 s; its cause is open) and the check says so."""
+origin) before :class:`SensorCheck` fails it. It catches gross errors (a payload tared in the wrong
+frame: up to 34 cable weights; a wrong payload model; loads on the hand the model does not hold),
+not the fine accuracy the tests hold: at rest the mismatch is Bullet's solver residual, up to ~2 mN
+with a 30 g cable; in ordinary motion it reaches 9.5 mN (3 % of the weight: a drawn sine and a yaw
+turn of the KUKA, tests/data/test_capture_motion_episodes.py); a Panda turning 90 degrees about the
+cable in 4 s reaches 54 mN (18 %, its cause open) and fails it."""
 
 
 class SensorCheck:
