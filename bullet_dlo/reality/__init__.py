@@ -1,0 +1,1 @@
+"""Real recordings: readers for public cable data sets and the validation of the model against them."""
