@@ -29,6 +29,7 @@ import numpy as np
 
 from bullet_dlo.core.integrators import NewtonOptions, get_integrator, make_stepper
 from bullet_dlo.core.kernels.forces import clamp_torque, internal_energy, max_strain, mechanical_energy
+from bullet_dlo.core.kernels.end_loads import clamp_moment_history
 from bullet_dlo.core.kernels.holders import HeldSamples, empty_samples, peak_speeds, sample_holders
 from bullet_dlo.core.kernels.loop import make_records, run_loop
 from bullet_dlo.core.kernels.monitor import REASONS, STABLE, STRETCH, Detector, end_forces
@@ -82,7 +83,9 @@ class SimulationResult:
 
     t: times [s], (k,); x, v: positions [m] / velocities [m/s], (k, n, 3);
     end_forces: force the cable exerts on each holder [N], (k, 2, 3) (first, last);
-    energy: total mechanical energy [J], (k,).
+    energy: total mechanical energy [J], (k,); end_moments: torque the cable exerts on each
+    clamp in the final state [N m], (2, 3) (zeros after an unstable run); end_moment_history:
+    the same at every recorded row [N m], (k, 2, 3) (None where an engine does not record it).
     """
 
     integrator: str
@@ -103,6 +106,7 @@ class SimulationResult:
     newton_iterations: int = 0
     warnings: list[str] = field(default_factory=list)
     max_strain_seen: float | None = None  # largest recorded |l/l0 - 1| when it passed the default bound
+    end_moment_history: np.ndarray | None = None
 
     @property
     def newton_failure_share(self) -> float:
@@ -264,6 +268,8 @@ def _simulate(model: CableModel, integrator: str, dt: float, duration: float, *,
     if status == STABLE:
         sample_holders(plan, t_final, 0.0, samples)  # clamp directions at the end
         moments = np.stack([clamp_torque(m, x, v, samples.dir[0], e) for e in (0, 1)])
+    history = np.zeros((rows, 2, 3))
+    clamp_moment_history(m, plan, rec.t[:rows], rec.x[:rows], rec.v[:rows], history)
     return SimulationResult(
         integrator=method.name, dt=stepper.h, stable=status == STABLE,
         time_to_instability=None if status == STABLE else float(t_bad), reason=REASONS[status],
@@ -271,5 +277,5 @@ def _simulate(model: CableModel, integrator: str, dt: float, duration: float, *,
         t=rec.t[:rows].copy(), x=rec.x[:rows].copy(), v=rec.v[:rows].copy(),
         end_forces=rec.end_force[:rows].copy(), energy=rec.energy[:rows].copy(),
         final_state=CableState(x, v, t_final), end_moments=moments,
-        newton_failures=int(failures), newton_iterations=int(iters),
+        newton_failures=int(failures), newton_iterations=int(iters), end_moment_history=history,
     )
