@@ -1,0 +1,400 @@
+"""The beam_handling recordings (Mamedov et al., ICRA): a Franka Panda carrying a steel strip.
+
+Reader of the libfranka CSV (:func:`read_beam_csv` -> :class:`BeamRecording`), the strip as a
+core cable clamped at the flange and driven by the recorded flange path (:func:`predict_torques`),
+and Franka's filtered external-torque estimate (:class:`EstimateFilter`, :func:`identify_filter`).
+
+The strip (:class:`Strip`): 0.52 x 0.08 x 0.001 m steel, E 190-205 GPa, density 7870-8070 kg/m^3
+(nominal: the midpoints). It is mounted on ``panda_link8`` turned by pi/4 about the flange z axis
+(``setup_descr_beam.xacro``); in that beam frame the strip runs along -x from the flange
+(its tip points along -x), its width along y, its thickness along z (the flange axis).
+
+**Two bending planes, two runs.** The core cable bends isotropically; the strip's strong axis
+is (w/t)^2 = 6400x stiffer than its weak one. A single isotropic run lets the strip swing
+sideways where the real one cannot. Until the core has an anisotropic cross-section, the strip
+is two superposed planar runs (:class:`PlaneRun`), each a cable with that plane's EI (and the
+strip's EA and mass per length) clamped at the flange:
+
+* weak plane, span(axis, normal): flange translation projected onto it, flange rotation about
+  the width axis, gravity projected onto it; it gives the clamp force along axis and normal and
+  the moment about the width axis;
+* strong plane, span(axis, width): translation along the width, rotation about the normal,
+  gravity along the width; it gives the force along the width and the moment about the normal.
+
+Neglected: twist (rotation about the strip's axis; the strip's polar inertia is 1.8e-4 kg m^2),
+the coupling of the planes, and the rotation of the projection axes during the motion (the
+recorded flange turns by < 0.5 degrees). :func:`predict_torques` takes the plane runs as a list,
+so an anisotropic cable can replace the pair with one run.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+from scipy.signal import butter, lfilter, sosfiltfilt
+from scipy.spatial.transform import Rotation
+
+from bullet_dlo.core.boundary import Waypoints
+from bullet_dlo.core.engine import simulate
+from bullet_dlo.core.kernels.forces import clamp_torque
+from bullet_dlo.core.kernels.holders import empty_samples, sample_holders
+from bullet_dlo.core.model import STANDARD_GRAVITY, CableModel
+from bullet_dlo.core.spec import CableSpec
+from bullet_dlo.core.statics import solve_static
+from bullet_dlo.core.validate import ParameterError
+from bullet_dlo.reality.panda import N_JOINTS, Panda, external_torques
+
+TICK = 1e-3  # [s] libfranka's control period: one row per tick
+GROUPS = ("q", "q_d", "dq", "dq_d", "tau_J", "tau_ext_hat_filtered")
+COLUMNS = ("duration", "success rate", *(f"{g}[{j}]" for g in GROUPS for j in range(N_JOINTS)))
+MOUNT_YAW = math.pi / 4  # [rad] beam frame = flange frame turned about its z (the xacro writes pi as 3.1415)
+
+
+# ----- the recording ---------------------------------------------------------------------------
+@dataclass(frozen=True)
+class BeamRecording:
+    """One libfranka recording at 1 kHz, k rows, 7 joints.
+
+    t: time since the first row [s], (k,) (from the 1 ms tick counter ``duration``);
+    q, q_d: measured / desired joint positions [rad], (k, 7); dq, dq_d: joint rates [rad/s];
+    tau_J: measured joint torques [N m]; tau_ext_hat_filtered: Franka's filtered external-torque
+    estimate [N m] (minus the torque of the load's wrench about the joints, low-pass filtered and
+    delayed: see :class:`EstimateFilter`); name: the file's stem.
+    """
+
+    t: np.ndarray
+    q: np.ndarray
+    q_d: np.ndarray
+    dq: np.ndarray
+    dq_d: np.ndarray
+    tau_J: np.ndarray
+    tau_ext_hat_filtered: np.ndarray
+    name: str = ""
+
+    @property
+    def rate(self) -> float:
+        """Sample rate [Hz]."""
+        return 1.0 / float(np.median(np.diff(self.t)))
+
+
+def read_beam_csv(path: str | Path) -> BeamRecording:
+    """Read a beam_handling CSV (header ``duration, success rate, q[0..6], q_d[0..6], dq[0..6],
+    dq_d[0..6], tau_J[0..6], tau_ext_hat_filtered[0..6]``). Raises ParameterError naming the file
+    and what is wrong (missing columns, no rows, non-finite values)."""
+    path = Path(path)
+    try:
+        with path.open() as fh:
+            header = [c.strip() for c in fh.readline().split(",")]
+    except OSError as err:
+        raise ParameterError(f"beam recording {path}: cannot read ({err.strerror})") from None
+    missing = [c for c in COLUMNS if c not in header]
+    if missing:
+        raise ParameterError(f"beam recording {path.name}: missing column(s) {', '.join(missing[:4])}"
+                             f"{' ...' if len(missing) > 4 else ''}; a beam_handling CSV has {', '.join(COLUMNS[:3])} "
+                             "... tau_ext_hat_filtered[6]")
+    data = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
+    if data.shape[0] < 3 or data.shape[1] != len(header) or not np.all(np.isfinite(data)):
+        raise ParameterError(f"beam recording {path.name}: needs at least 3 rows of {len(header)} finite numbers")
+    col = {c: i for i, c in enumerate(header)}
+    group = {g: data[:, [col[f"{g}[{j}]"] for j in range(N_JOINTS)]] for g in GROUPS}
+    ticks = data[:, col["duration"]]
+    t = (ticks - ticks[0]) * TICK
+    if np.any(np.diff(t) <= 0):
+        raise ParameterError(f"beam recording {path.name}: the tick counter 'duration' must increase")
+    return BeamRecording(t=t, name=path.stem, **group)
+
+
+def beam_files(folder: str | Path, what: str = "folder") -> list[Path]:
+    """The ``*.csv`` files of ``folder``, sorted; ParameterError naming ``what`` when there are none."""
+    folder = Path(folder)
+    if not folder.is_dir():
+        raise ParameterError(f"{what}: {folder} is not a folder (give a folder of beam_handling *.csv files)")
+    files = sorted(folder.glob("*.csv"))
+    if not files:
+        raise ParameterError(f"{what}: no *.csv file in {folder} (give a folder of beam_handling *.csv files)")
+    return files
+
+
+# ----- Franka's estimate filter ----------------------------------------------------------------
+@dataclass(frozen=True)
+class EstimateFilter:
+    """Franka's external-torque estimate as a first-order low-pass (cut-off ``cutoff_hz`` [Hz])
+    after a pure delay ``delay_s`` [s], unit static gain. ``source`` says where the numbers come
+    from. Default: identified on the nine beam_handling recordings (:func:`identify_filter`)."""
+
+    cutoff_hz: float = 4.7
+    delay_s: float = 0.010
+    source: str = "default (identified on the 9 beam_handling recordings)"
+
+    def apply(self, y: np.ndarray, rate: float) -> np.ndarray:
+        """y [any unit], (k, ...), sampled at ``rate`` [Hz], filtered along axis 0 (starting at rest at y[0])."""
+        a = 1.0 - math.exp(-2 * math.pi * self.cutoff_hz / rate)
+        shift = int(round(self.delay_s * rate))
+        y = np.asarray(y, dtype=float)
+        delayed = np.concatenate([np.repeat(y[:1], shift, axis=0), y[:len(y) - shift]]) if shift else y
+        zi = (1 - a) * delayed[:1]
+        return lfilter([a], [1, a - 1], delayed, axis=0, zi=zi)[0]
+
+    def response(self, f: np.ndarray) -> np.ndarray:
+        """Complex frequency response at f [Hz] (continuous-time form)."""
+        f = np.asarray(f, dtype=float)
+        return np.exp(-2j * math.pi * f * self.delay_s) / (1 + 1j * f / self.cutoff_hz)
+
+
+def identify_filter(recordings: list[BeamRecording], panda: Panda, settle: float = 1.0,
+                    band_hz: tuple[float, float] = (1.5, 8.0), min_coherence: float = 0.9) -> EstimateFilter:
+    """Identify :class:`EstimateFilter` from tau_J (the joint torque sensors) and the estimate.
+
+    After the motion (from ``settle`` s after its end) the arm rings with the strip, so the
+    estimate is filter(tau_J - arm inverse dynamics) (the arm's own inertia is what Franka's model
+    subtracts; PyBullet's URDF inertias stand in for it). Per recording and joint, the transfer
+    function estimate = cross spectrum / input spectrum (Welch, 1.024 s segments); bins in
+    ``band_hz`` with coherence above ``min_coherence`` are pooled and a low-pass + delay with unit
+    gain fitted to them in least squares.
+    """
+    from scipy.optimize import least_squares
+    from scipy.signal import coherence, csd, welch
+
+    from bullet_dlo.reality.vibration import motion_span
+
+    freqs, values = [], []
+    for rec in recordings:
+        _, end = motion_span(rec.dq_d)
+        s = slice(end + int(settle * rec.rate), None)
+        sos = butter(2, 20.0, fs=rec.rate, output="sos")
+        dq = sosfiltfilt(sos, rec.dq[s], axis=0)
+        ddq = np.gradient(dq, 1.0 / rec.rate, axis=0)
+        arm = np.array([panda.inverse_dynamics(q, v, a) for q, v, a in zip(rec.q[s], dq, ddq)])
+        for j in range(N_JOINTS):
+            u, y = rec.tau_J[s, j] - arm[:, j], rec.tau_ext_hat_filtered[s, j]
+            f, puy = csd(u, y, fs=rec.rate, nperseg=1024)
+            _, puu = welch(u, fs=rec.rate, nperseg=1024)
+            _, coh = coherence(u, y, fs=rec.rate, nperseg=1024)
+            keep = (f >= band_hz[0]) & (f <= band_hz[1]) & (coh >= min_coherence)
+            freqs.extend(f[keep])
+            values.extend(puy[keep] / puu[keep])
+    if len(freqs) < 2:
+        raise ParameterError("estimate filter: too few coherent frequency bins to identify it; use the default")
+    f, h = np.array(freqs), np.array(values)
+
+    def residual(p: np.ndarray) -> np.ndarray:
+        e = EstimateFilter(p[0], p[1]).response(f) - h
+        return np.r_[e.real, e.imag]
+
+    sol = least_squares(residual, [5.0, 0.01], bounds=([0.1, 0.0], [100.0, 0.1]))
+    return EstimateFilter(float(sol.x[0]), float(sol.x[1]),
+                          f"identified: tau_J minus arm inverse dynamics -> tau_ext_hat_filtered, {len(recordings)} "
+                          f"recording(s), {len(f)} coherent bins in {band_hz[0]}-{band_hz[1]} Hz")
+
+
+# ----- the strip ---------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Strip:
+    """A rectangular strip [SI]: length, width, thickness [m], youngs_modulus [Pa], density [kg/m^3].
+    Nominal: beam_handling's steel strip (E and density the midpoints of the stated ranges)."""
+
+    length: float = 0.52
+    width: float = 0.08
+    thickness: float = 0.001
+    youngs_modulus: float = 197.5e9
+    density: float = 7970.0
+
+    @property
+    def mass(self) -> float:
+        """[kg]"""
+        return self.density * self.length * self.width * self.thickness
+
+    def second_moment(self, plane: str) -> float:
+        """I [m^4] for bending in the ``weak`` (about the width axis) or ``strong`` plane."""
+        w, t = self.width, self.thickness
+        return w * t**3 / 12 if plane == "weak" else t * w**3 / 12
+
+    def cable_spec(self, plane: str, n_masses: int, **damping: float) -> CableSpec:
+        """The isotropic core cable with this plane's EI and the strip's EA and mass per length:
+        diameter d = 4 sqrt(I/A) (so that I/A is the strip's) and E = EA / (pi d^2 / 4)."""
+        area = self.width * self.thickness
+        d = 4.0 * math.sqrt(self.second_moment(plane) / area)
+        e_equiv = self.youngs_modulus * area / (math.pi * d**2 / 4)
+        return CableSpec(length=self.length, diameter=d, mass=self.mass, youngs_modulus=e_equiv,
+                         n_masses=n_masses, **damping)
+
+
+@dataclass(frozen=True)
+class Mounting:
+    """How the strip sits on the flange: beam frame = flange frame turned by ``yaw`` [rad] about
+    its z; the strip runs from the clamp point ``offset`` [m] (beam frame) along the beam frame's
+    -x; width along y, thickness along z."""
+
+    yaw: float = MOUNT_YAW
+    offset: tuple[float, float, float] = (0.0, 0.0, 0.0)
+
+    def axes(self, flange_rot: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Strip axis (clamp -> tip), width and thickness-normal directions in world, each (3,)."""
+        beam = flange_rot @ Rotation.from_euler("z", self.yaw).as_matrix()
+        return -beam[:, 0], beam[:, 1], beam[:, 2]
+
+    def clamp_point(self, flange_pos: np.ndarray, flange_rot: np.ndarray) -> np.ndarray:
+        """Clamp position(s) [m] for flange pose(s): (3,) or (k, 3)."""
+        beam = flange_rot @ Rotation.from_euler("z", self.yaw).as_matrix()
+        return flange_pos + beam @ np.asarray(self.offset)
+
+
+@dataclass(frozen=True)
+class PlaneRun:
+    """One planar run: its name (weak | strong), the projector P applied to flange translations and
+    gravity, the projector applied to rotation vectors, and the projectors that pick the clamp force
+    and moment it is responsible for (each (3, 3), world axes)."""
+
+    plane: str
+    translate: np.ndarray
+    rotate: np.ndarray
+    force: np.ndarray
+    moment: np.ndarray
+
+
+def plane_runs(axis: np.ndarray, width: np.ndarray, normal: np.ndarray) -> list[PlaneRun]:
+    """The two superposed planar runs of the module doc for strip axes (world, unit)."""
+    ww, nn = np.outer(width, width), np.outer(normal, normal)
+    weak = np.eye(3) - ww
+    return [PlaneRun("weak", weak, ww, weak, ww), PlaneRun("strong", ww, nn, ww, nn)]
+
+
+@dataclass(frozen=True)
+class Numerics:
+    """Integrator, point masses n, step dt [s], the flange-path knot spacing [s] and the low-pass
+    [Hz] applied to q before the kinematics (encoder noise would otherwise become huge
+    accelerations at the clamp). BDF2: see :func:`numerical_damping` for why."""
+
+    integrator: str = "bdf2"
+    n_masses: int = 20
+    dt: float = 1e-3
+    knot_step: float = 0.004
+    q_cutoff_hz: float = 40.0
+
+
+@dataclass
+class Prediction:
+    """Model output for one recording at the recording's times t [s], (k,): clamp force [N] and
+    moment about the clamp [N m] exerted by the strip on the flange (world, (k, 3) each), the flange
+    wrench [N, N m] (k, 6), external joint torques tau = -J^T w [N m] (k, 7), unfiltered and through
+    the estimate filter, both as deviations from t = 0; cpu_s: thread CPU time of the runs [s]."""
+
+    t: np.ndarray
+    force: np.ndarray
+    moment: np.ndarray
+    wrench: np.ndarray
+    torques: np.ndarray
+    torques_filtered: np.ndarray
+    cpu_s: float
+    simulated_s: float
+    warnings: list[str] = field(default_factory=list)
+
+
+def flange_motion(rec: BeamRecording, panda: Panda, numerics: Numerics, duration: float
+                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Knot times [s], (m,), flange positions [m], (m, 3), and rotations, (m, 3, 3), over
+    [0, duration] every ``knot_step`` from the low-passed measured joint positions."""
+    sos = butter(4, numerics.q_cutoff_hz, fs=rec.rate, output="sos")
+    q = sosfiltfilt(sos, rec.q, axis=0)
+    stop = min(duration, float(rec.t[-1]))
+    times = np.arange(0.0, stop + 1e-9, numerics.knot_step)
+    rows = np.clip(np.searchsorted(rec.t, times), 0, len(rec.t) - 1)
+    pos, rot = panda.flange_path(q[rows])
+    return times, pos, rot
+
+
+def run_plane(strip: Strip, run: PlaneRun, numerics: Numerics, damping: dict[str, float], clamp0: np.ndarray,
+              axis: np.ndarray, times: np.ndarray, disp: np.ndarray, rotvec: np.ndarray,
+              gravity: np.ndarray, duration: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[str]]:
+    """One planar run from the static equilibrium at the start pose: recorded times [s], clamp force
+    [N] and moment about the clamp [N m] on the holder (world, (k, 3) each) and the run's warnings.
+    ``disp`` [m] and ``rotvec`` [rad], (m, 3), are the clamp's motion relative to its start at ``times``."""
+    spec = strip.cable_spec(run.plane, numerics.n_masses, **damping)
+    path = Waypoints("first", tuple(times), tuple(map(tuple, disp @ run.translate.T)),
+                     tuple(map(tuple, rotvec @ run.rotate.T)), rest=False)
+    model = CableModel.straight(spec, start=clamp0, direction=axis, ends=("clamped", "free"), motion=[path],
+                                gravity=run.translate @ gravity)
+    state = solve_static(model).state()
+    every = max(1, int(round(TICK / numerics.dt)))
+    res = simulate(model, numerics.integrator, numerics.dt, duration, state=state, record_every=every)
+    if not res.stable:
+        raise ParameterError(f"the {run.plane}-plane run went unstable ({res.reason} at t = "
+                             f"{res.time_to_instability:.4g} s); use a smaller --dt")
+    m, plan, samples = model.arrays, model.holder_plan(), empty_samples()
+    moments = np.empty((len(res.t), 3))
+    for i, (t, x, v) in enumerate(zip(res.t, res.x, res.v)):  # the engine keeps the clamp moment of the last state only
+        sample_holders(plan, float(t), 0.0, samples)
+        moments[i] = clamp_torque(m, x, v, samples.dir[0], 0)
+    return res.t, res.end_forces[:, 0], moments, list(res.warnings)
+
+
+def predict_torques(rec: BeamRecording, panda: Panda, strip: Strip = Strip(), damping: dict[str, float] | None = None,
+                    numerics: Numerics = Numerics(), estimate: EstimateFilter = EstimateFilter(),
+                    mounting: Mounting = Mounting(), duration: float | None = None,
+                    gravity: tuple[float, float, float] = STANDARD_GRAVITY) -> Prediction:
+    """Predict Franka's external joint torques for ``rec`` from its measured joint trajectory.
+
+    The strip's clamp follows the flange path (forward kinematics of the low-passed measured q);
+    the two planar runs (module doc) give the clamp load; the wrench about the flange origin maps to
+    joint torques tau = -J(q)^T w; deviations from t = 0 (the strip at rest before the motion), then
+    ``estimate`` applied. ``duration`` [s]: simulated time (default: the whole recording).
+    """
+    import time as _time
+
+    tic = _time.thread_time()
+    duration = float(rec.t[-1]) if duration is None else min(float(duration), float(rec.t[-1]))
+    times, pos, rot = flange_motion(rec, panda, numerics, duration)
+    clamp = mounting.clamp_point(pos, rot)
+    disp = clamp - clamp[0]
+    rotvec = Rotation.from_matrix(rot @ rot[0].T).as_rotvec()
+    axis, width, normal = mounting.axes(rot[0])
+    g = np.asarray(gravity, dtype=float)
+    force = moment = None
+    warnings: list[str] = []
+    for run in plane_runs(axis, width, normal):
+        t, f, mo, w = run_plane(strip, run, numerics, damping or {}, clamp[0], axis, times, disp, rotvec, g, duration)
+        force = f @ run.force.T + (0 if force is None else force)
+        moment = mo @ run.moment.T + (0 if moment is None else moment)
+        warnings += [f"{run.plane} plane: {x}" for x in w]
+    k = min(len(t), int(np.searchsorted(rec.t, t[-1] + 1e-9)))
+    t, force, moment = t[:k], force[:k], moment[:k]
+    rows = np.clip(np.searchsorted(rec.t, t - 1e-9), 0, len(rec.t) - 1)
+    fpos, frot = panda.flange_path(rec.q[rows])
+    arm = mounting.clamp_point(fpos, frot) - fpos
+    wrench = np.hstack([force, moment + np.cross(arm, force)])
+    tau = external_torques(panda.jacobians(rec.q[rows]), wrench)
+    tau = tau - tau[0]
+    filtered = estimate.apply(tau, 1.0 / TICK)
+    return Prediction(t=t, force=force, moment=moment, wrench=wrench, torques=tau, torques_filtered=filtered,
+                      cpu_s=_time.thread_time() - tic, simulated_s=float(t[-1] - t[0]), warnings=warnings)
+
+
+def free_vibration(strip: Strip, numerics: Numerics, duration: float = 5.0, damping: dict[str, float] | None = None
+                   ) -> tuple[float, float]:
+    """First-mode frequency [Hz] and damping ratio [-] of the weak-plane cantilever as ``numerics``
+    computes it: horizontal, released at rest from its sag under 1.2 g into 1 g, the vertical clamp
+    force fitted with a damped sine over ``duration`` [s]. Without ``damping`` the ratio is the
+    integrator's numerical damping alone (the robot is not in this run)."""
+    from bullet_dlo.reality.vibration import fit_damped_sine
+
+    spec = strip.cable_spec("weak", numerics.n_masses, **(damping or {}))
+    heavy = CableModel.straight(spec, start=(0, 0, 0), direction=(1, 0, 0), ends=("clamped", "free"),
+                                gravity=(0, 0, -1.2 * 9.81))
+    model = CableModel.straight(spec, start=(0, 0, 0), direction=(1, 0, 0), ends=("clamped", "free"))
+    res = simulate(model, numerics.integrator, numerics.dt, duration, state=solve_static(heavy).state(),
+                   record_every=max(1, int(round(TICK / numerics.dt))))
+    if not res.stable:
+        return math.nan, math.nan
+    f, zeta, _, _ = fit_damped_sine(res.t, res.end_forces[:, 0, 2])
+    return f, zeta
+
+
+def with_damping(damping: dict[str, float], name: str, value: float) -> dict[str, float]:
+    """A copy of ``damping`` with ``name`` set to ``value``."""
+    return {**damping, name: float(value)}
+
+
+__all__ = ["BeamRecording", "read_beam_csv", "beam_files", "EstimateFilter", "identify_filter", "Strip",
+           "Mounting", "PlaneRun", "plane_runs", "Numerics", "Prediction", "predict_torques", "free_vibration"]

@@ -1,0 +1,277 @@
+"""``validate beam``: fit the strip's damping on some beam_handling recordings, predict others.
+
+For every recording the residual vibration of the most affected joint is measured and predicted
+(:mod:`bullet_dlo.reality.vibration`): the model is :func:`bullet_dlo.reality.beam.predict_torques`
+with nominal material constants and one fitted damping parameter.
+
+**Damping fit** (:func:`fit_damping`). The first mode (2.9-3.0 Hz) is the only one Franka's
+4.7 Hz estimate filter lets through, so one damping parameter is all the vibration can identify:
+``damping_rate`` c [1/s] (default; mass-proportional drag, the linear stand-in for the air drag
+that damps a wide thin strip, the same at any n) adds zeta = c / (2 omega_1); ``internal_damping``
+tau [s] (Kelvin-Voigt) adds zeta = omega_1 tau / 2 and damps higher modes more. Either way the
+predicted damping ratio is linear in the parameter, so per fit recording two runs (the parameter
+at 0 and at a trial value) give the value that matches that recording's measured damping ratio.
+The fitted value is the mean over the fit recordings; its interval is their spread (min-max),
+and a leave-one-out check predicts each fit recording's damping ratio from the others' mean.
+The run at 0 also shows how much damping the robot's own measured motion brings (the flange is
+driven by the measured joint angles, so the arm's compliance is in the model).
+
+The measured damping is amplitude dependent (larger at large amplitude): reported per recording
+over successive windows; a linear damping law cannot follow it, which limits the damping ratio
+and the peak-to-peak on motions whose amplitude differs from the fit set's.
+"""
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import asdict, dataclass, replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from bullet_dlo.core.validate import ParameterError
+from bullet_dlo.reality.beam import (
+    BeamRecording,
+    EstimateFilter,
+    Numerics,
+    Prediction,
+    Strip,
+    beam_files,
+    free_vibration,
+    identify_filter,
+    predict_torques,
+    read_beam_csv,
+)
+from bullet_dlo.reality.panda import Panda
+from bullet_dlo.reality.vibration import (
+    SINE_WINDOW,
+    damping_by_amplitude,
+    deviation,
+    most_affected_joint,
+    motion_span,
+    residual_vibration,
+)
+
+DAMPING_NAMES = ("damping_rate", "internal_damping")
+TRIAL = {"damping_rate": 0.4, "internal_damping": 1e-3}  # trial values [1/s], [s]: each adds zeta ~ 0.01 at 2.95 Hz
+LIMITS = [
+    "the strip's two bending planes are two superposed isotropic-cable runs (the core has no anisotropic "
+    "cross-section or twist yet): plane coupling, twist and the turning of the projection axes are left out",
+    "linear damping (one parameter) against a measured damping ratio that grows with amplitude",
+    "Franka's estimate filter modelled as a first-order low-pass + delay identified from tau_J; the arm's own "
+    "inertia is removed with PyBullet's URDF inertias, not Franka's model",
+    "nominal E and density (midpoints of 190-205 GPa, 7870-8070 kg/m^3): about +-2 % in frequency",
+    "the clamp hardware (its mass, where the strip's clamped length starts) is unknown: the clamp point is the "
+    "flange origin",
+]
+
+
+@dataclass(frozen=True)
+class Measured:
+    """A recording's measurement: motion span (start, end indices), t_end [s], the joint j, the
+    torque deviation [N m] (k, 7), its :class:`~bullet_dlo.reality.vibration.Vibration` on joint j."""
+
+    start: int
+    end: int
+    t_end: float
+    joint: int
+    dev: np.ndarray
+    vibration: Any
+
+
+def measure(rec: BeamRecording) -> Measured:
+    """The issue's measurement on the recording's external-torque estimate."""
+    try:
+        start, end = motion_span(rec.dq_d)
+    except ValueError as err:
+        raise ParameterError(f"beam recording {rec.name}: {err}") from None
+    t_end = float(rec.t[min(end, len(rec.t) - 1)])
+    if rec.t[-1] < t_end + SINE_WINDOW[1]:
+        raise ParameterError(f"beam recording {rec.name}: ends {rec.t[-1] - t_end:.2f} s after the motion; "
+                             f"the vibration metrics need {SINE_WINDOW[1]} s")
+    dev = deviation(rec.tau_ext_hat_filtered, start)
+    joint = most_affected_joint(rec.t, dev, t_end)
+    return Measured(start, end, t_end, joint, dev, residual_vibration(rec.t, dev[:, joint], t_end))
+
+
+def predicted_vibration(pred: Prediction, m: Measured):
+    """The vibration metrics of the prediction on the measured recording's joint and motion end."""
+    return residual_vibration(pred.t, pred.torques_filtered[:, m.joint], m.t_end)
+
+
+@dataclass(frozen=True)
+class DampingFit:
+    """Fitted damping: name, value (mean over fit recordings), per-recording values, interval
+    (min, max over them), the undamped model's damping ratio per recording, the leave-one-out
+    predicted/measured damping-ratio ratios, and the model runs used."""
+
+    name: str
+    value: float
+    per_file: dict[str, float]
+    interval: tuple[float, float]
+    undamped_ratio: dict[str, float]
+    loo_ratio: dict[str, float]
+    runs: int
+
+    def to_dict(self) -> dict[str, Any]:
+        d = asdict(self)
+        d["interval"] = list(self.interval)
+        d["interval_meaning"] = "min-max of the values that match each fit recording's measured damping ratio"
+        return d
+
+
+def fit_damping(recs: list[BeamRecording], measured: list[Measured], panda: Panda, name: str, strip: Strip,
+                numerics: Numerics, estimate: EstimateFilter) -> DampingFit:
+    """Per recording, the ``name`` value whose predicted damping ratio equals the measured one
+    (linear in the parameter: two runs, module doc); the mean, min-max and leave-one-out."""
+    if name not in DAMPING_NAMES:
+        raise ParameterError(f"--damping must be one of {', '.join(DAMPING_NAMES)}, got {name!r}")
+    trial = TRIAL[name]
+    per_file, zeta0, slope = {}, {}, {}
+    for rec, m in zip(recs, measured):
+        duration = m.t_end + SINE_WINDOW[1] + 0.05
+        z = [predicted_vibration(predict_torques(rec, panda, strip, {name: c}, numerics, estimate,
+                                                 duration=duration), m).damping_ratio for c in (0.0, trial)]
+        slope[rec.name] = (z[1] - z[0]) / trial
+        zeta0[rec.name] = z[0]
+        per_file[rec.name] = max(0.0, (m.vibration.damping_ratio - z[0]) / slope[rec.name])
+    values = np.array(list(per_file.values()))
+    loo = {}
+    for (key, m) in zip(per_file, measured):
+        others = np.mean([v for k, v in per_file.items() if k != key]) if len(per_file) > 1 else per_file[key]
+        loo[key] = (zeta0[key] + slope[key] * others) / m.vibration.damping_ratio
+    return DampingFit(name, float(values.mean()), per_file, (float(values.min()), float(values.max())),
+                      zeta0, loo, 2 * len(recs))
+
+
+def numerics_check(strip: Strip, numerics: Numerics, damping: dict[str, float]) -> dict[str, Any]:
+    """Numerical damping and convergence in n of the weak-plane cantilever (:func:`free_vibration`):
+    the undamped run's damping ratio with the chosen integrator (and implicit Euler for contrast),
+    and the frequency at n/2, n, 2n with the observed order and the Richardson-extrapolated limit."""
+    ns = [max(4, numerics.n_masses // 2), numerics.n_masses, 2 * numerics.n_masses]
+    freqs = [free_vibration(strip, replace(numerics, n_masses=n))[0] for n in ns]
+    _, zeta_num = free_vibration(strip, numerics)
+    _, zeta_euler = free_vibration(strip, replace(numerics, integrator="implicit_euler"))
+    f_model, zeta_model = free_vibration(strip, numerics, damping=damping)
+    d1, d2 = freqs[1] - freqs[0], freqs[2] - freqs[1]
+    order = math.log2(abs(d1 / d2)) if d2 != 0 and d1 != 0 else math.nan
+    limit = freqs[2] + d2 / (2**order - 1) if math.isfinite(order) and order > 0 else math.nan
+    return {"numerical_damping_ratio": zeta_num, "implicit_euler_damping_ratio": zeta_euler,
+            "model_damping_ratio_free_cantilever": zeta_model, "model_frequency_hz_free_cantilever": f_model,
+            "convergence_n": ns, "convergence_frequency_hz": freqs, "observed_order": order,
+            "extrapolated_frequency_hz": limit,
+            "relative_discretisation_error": abs(freqs[1] - limit) / limit if math.isfinite(limit) else math.nan,
+            "what": "weak-plane cantilever, horizontal, released from its sag under 1.2 g; damped sine fitted "
+                    "to the vertical clamp force over 5 s"}
+
+
+def file_result(rec: BeamRecording, m: Measured, pred: Prediction) -> dict[str, Any]:
+    """One recording's entry of the JSON: joint, measured, predicted, ratios, RMS errors, cost."""
+    pv = predicted_vibration(pred, m)
+    k = len(pred.t)
+    err = pred.torques_filtered - m.dev[:k]
+    meas = {**m.vibration.to_dict(), "damping_by_amplitude": damping_by_amplitude(rec.t, m.dev[:, m.joint], m.t_end),
+            "motion_end_s": m.t_end}
+    predicted = {"frequency_hz": pv.frequency_hz, "damping_ratio": pv.damping_ratio, "p2p_torque": pv.p2p_torque,
+                 "amplitude": pv.amplitude}
+    ratio = {k2: predicted[k2] / meas[k2] for k2 in ("frequency_hz", "damping_ratio", "p2p_torque")}
+    return {"joint": m.joint, "measured": meas, "predicted": predicted, "ratio": ratio,
+            "rms_torque_error": float(np.sqrt(np.mean(err[:, m.joint] ** 2))),
+            "rms_torque_error_all_joints": float(np.sqrt(np.mean(err**2))),
+            "rms_measured_deviation": float(np.sqrt(np.mean(m.dev[:k, m.joint] ** 2))),
+            "simulated_s": pred.simulated_s, "cpu_s": pred.cpu_s, "warnings": pred.warnings}
+
+
+def validate_beam(fit_dir: str | Path, predict_dir: str | Path, *, damping: str = "damping_rate",
+                  numerics: Numerics = Numerics(), strip: Strip = Strip(), estimate: EstimateFilter | None = None,
+                  duration: float | None = None, limit_files: int | None = None, check_numerics: bool = True,
+                  log=print) -> tuple[dict[str, Any], dict[str, tuple[BeamRecording, Measured, Prediction]]]:
+    """Fit ``damping`` on the recordings of ``fit_dir``, predict those of ``predict_dir``.
+
+    estimate: Franka's filter (default: identified on ``fit_dir``); duration: simulated seconds of each
+    prediction (default: the whole recording); limit_files: use only the first files of each folder.
+    Returns the JSON-ready summary and, per predicted file, (recording, measurement, prediction).
+    """
+    fit_files = beam_files(fit_dir, "FIT_DIR")[:limit_files]
+    pred_files = beam_files(predict_dir, "PREDICT_DIR")[:limit_files]
+    fit_recs = [read_beam_csv(f) for f in fit_files]
+    pred_recs = [read_beam_csv(f) for f in pred_files]
+    fit_meas = [measure(r) for r in fit_recs]
+    tic = time.thread_time()
+    with Panda() as panda:
+        if estimate is None:
+            log(f"identifying Franka's estimate filter on {len(fit_recs)} recording(s) ...")
+            estimate = identify_filter(fit_recs, panda)
+        log(f"estimate filter: {estimate.cutoff_hz:.3g} Hz low-pass + {1e3 * estimate.delay_s:.3g} ms delay; "
+            f"fitting {damping} on {len(fit_recs)} recording(s) ...")
+        fitted = fit_damping(fit_recs, fit_meas, panda, damping, strip, numerics, estimate)
+        params = {fitted.name: fitted.value}
+        files, details = {}, {}
+        for rec in pred_recs:
+            log(f"predicting {rec.name} ...")
+            m = measure(rec)
+            pred = predict_torques(rec, panda, strip, params, numerics, estimate, duration=duration)
+            files[rec.name] = file_result(rec, m, pred)
+            details[rec.name] = (rec, m, pred)
+    simulated = sum(f["simulated_s"] for f in files.values())
+    cpu = sum(f["cpu_s"] for f in files.values())
+    summary = {
+        "files": files,
+        "parameters": {**params, damping + "_fit": fitted.to_dict(), "youngs_modulus": strip.youngs_modulus,
+                       "density": strip.density, "length": strip.length, "width": strip.width,
+                       "thickness": strip.thickness, "mass": strip.mass,
+                       "material": "nominal (midpoints of the stated ranges); only the damping is fitted"},
+        "fit_files": [r.name for r in fit_recs],
+        "model": {"integrator": numerics.integrator, "n": numerics.n_masses, "dt": numerics.dt,
+                  "knot_step_s": numerics.knot_step, "q_cutoff_hz": numerics.q_cutoff_hz,
+                  "bending": "two superposed planar runs (weak EI about the width axis, strong EI about the "
+                             "normal), an approximation until the core has an anisotropic cross-section",
+                  "torque_sign": "tau = -J^T w, w the strip's wrench on the flange about its origin"},
+        "estimate_filter": {"cutoff_hz": estimate.cutoff_hz, "delay_s": estimate.delay_s, "source": estimate.source,
+                            "gain_at_2.9_hz": float(abs(estimate.response(2.9))),
+                            "phase_deg_at_2.9_hz": float(np.degrees(np.angle(estimate.response(2.9))))},
+        "cost_per_simulated_second": cpu / simulated if simulated else math.nan,
+        "total_cpu_s": time.thread_time() - tic,
+        "limits": LIMITS,
+    }
+    if check_numerics:
+        summary["numerics"] = numerics_check(strip, numerics, params)
+    return summary, details
+
+
+def table(summary: dict[str, Any]) -> str:
+    """Measured vs predicted per file (frequency, damping ratio, p2p) with ratios, and the RMS error."""
+    lines = [f"{'file':28s} {'j':>2s} {'f meas':>7s} {'f pred':>7s} {'ratio':>6s} {'z meas':>7s} {'z pred':>7s} "
+             f"{'ratio':>6s} {'p2p meas':>8s} {'p2p pred':>8s} {'ratio':>6s} {'rms err':>7s}"]
+    for name, f in summary["files"].items():
+        me, pr, ra = f["measured"], f["predicted"], f["ratio"]
+        lines.append(f"{name:28s} {f['joint']:2d} {me['frequency_hz']:7.3f} {pr['frequency_hz']:7.3f} "
+                     f"{ra['frequency_hz']:6.3f} {me['damping_ratio']:7.4f} {pr['damping_ratio']:7.4f} "
+                     f"{ra['damping_ratio']:6.2f} {me['p2p_torque']:8.3f} {pr['p2p_torque']:8.3f} "
+                     f"{ra['p2p_torque']:6.2f} {f['rms_torque_error']:7.3f}")
+    return "\n".join(lines)
+
+
+def plot_file(rec: BeamRecording, m: Measured, pred: Prediction, png: Path) -> None:
+    """Measured external-torque deviation of joint j and the prediction (filtered; unfiltered thin) [N m] vs t [s]."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    j = m.joint
+    fig, ax = plt.subplots(figsize=(9, 3.6))
+    ax.plot(rec.t, m.dev[:, j], color="k", lw=0.8, label="measured (tau_ext_hat_filtered - rest)")
+    ax.plot(pred.t, pred.torques[:, j], color="C1", lw=0.5, alpha=0.6, label="predicted, unfiltered")
+    ax.plot(pred.t, pred.torques_filtered[:, j], color="C0", lw=1.0, ls="--", label="predicted, Franka filter")
+    for a in (m.t_end, m.t_end + 1.0, m.t_end + 6.0):
+        ax.axvline(a, color="0.6", lw=0.6)
+    ax.set_xlabel("time [s]")
+    ax.set_ylabel(f"joint {j} torque deviation [N m]")
+    ax.set_title(f"{rec.name}: measured vs predicted (lines: motion end, end + 1 s, end + 6 s)", fontsize=9)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=7, loc="upper right")
+    fig.tight_layout()
+    fig.savefig(png, dpi=110)
+    plt.close(fig)

@@ -1,0 +1,142 @@
+"""Residual-vibration metrics of a joint-torque signal after a rest-to-rest motion (issue 21).
+
+All times in seconds, torques in N m, frequencies in Hz. Given a sampled signal y(t):
+
+* the motion ends at the first sample after the last one where any |dq_d| >= 1e-4 rad/s
+  (:func:`motion_span`);
+* the signal studied is the deviation of the external torque from its mean at rest before the
+  motion starts (:func:`deviation`);
+* frequency and damping ratio: a damped sine A exp(-zeta omega_n t) sin(omega_d t + phi) + c
+  least-squares fitted over [end + 1 s, end + 6 s]; ``frequency_hz`` is the damped frequency
+  omega_d / (2 pi) (it differs from omega_n / (2 pi) by a factor sqrt(1 - zeta^2), 1 - 2e-4 at
+  zeta = 0.02);
+* ``p2p_torque``: peak-to-peak of the 1.5-8 Hz band (4th-order Butterworth, zero phase, over
+  the whole signal) over [end + 1 s, end + 2 s].
+"""
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+
+import numpy as np
+from scipy.optimize import least_squares
+from scipy.signal import butter, sosfiltfilt
+
+REST_SPEED = 1e-4  # [rad/s]: |dq_d| below it on every joint is rest
+SINE_WINDOW = (1.0, 6.0)  # [s] after the motion's end
+P2P_WINDOW = (1.0, 2.0)  # [s] after the motion's end
+BAND = (1.5, 8.0)  # [Hz]
+
+
+@dataclass(frozen=True)
+class Vibration:
+    """Metrics of one signal: frequency_hz [Hz] (damped), damping_ratio [-], p2p_torque [N m],
+    amplitude [N m] (the fitted sine's amplitude at end + 1 s), fit_rms [N m] (residual of the sine fit)."""
+
+    frequency_hz: float
+    damping_ratio: float
+    p2p_torque: float
+    amplitude: float
+    fit_rms: float
+
+    def to_dict(self) -> dict[str, float]:
+        return {k: float(v) for k, v in asdict(self).items()}
+
+
+def motion_span(dq_d: np.ndarray, threshold: float = REST_SPEED) -> tuple[int, int]:
+    """Indices (start, end) of a rest-to-rest motion in desired joint rates dq_d [rad/s], (k, 7):
+    start = the first sample where any |dq_d| >= threshold, end = one past the last such sample.
+    Raises ValueError when the desired rates never leave rest."""
+    moving = np.any(np.abs(dq_d) >= threshold, axis=1)
+    if not moving.any():
+        raise ValueError(f"the desired joint rates never exceed {threshold} rad/s: no motion to end")
+    idx = np.flatnonzero(moving)
+    return int(idx[0]), int(idx[-1]) + 1
+
+
+def deviation(y: np.ndarray, start: int) -> np.ndarray:
+    """``y`` (k, ...) minus its mean over the samples before ``start`` (at least one)."""
+    return y - np.mean(y[:max(start, 1)], axis=0)
+
+
+def band(y: np.ndarray, rate: float, low: float = BAND[0], high: float = BAND[1]) -> np.ndarray:
+    """Zero-phase 4th-order Butterworth band-pass [low, high] Hz of y (k,) sampled at ``rate`` [Hz]."""
+    sos = butter(4, [low, high], btype="bandpass", fs=rate, output="sos")
+    return sosfiltfilt(sos, y)
+
+
+def window(t: np.ndarray, t0: float, t1: float) -> np.ndarray:
+    """Boolean mask of times t [s] in [t0, t1]."""
+    return (t >= t0) & (t <= t1)
+
+
+def fit_damped_sine(t: np.ndarray, y: np.ndarray) -> tuple[float, float, float, float]:
+    """Least-squares fit of A exp(-zeta omega_n (t - t0)) sin(omega_d (t - t0) + phi) + c to y(t).
+
+    Returns (damped frequency [Hz], damping ratio [-], amplitude A at t0 [units of y], residual
+    RMS); t0 = t[0]. Start values: the spectral peak (zero-padded FFT) and the ratio of the RMS in
+    the first and last quarter of the window.
+    """
+    s = t - t[0]
+    y0 = y - y.mean()
+    n_fft = 1 << int(np.ceil(np.log2(len(y) * 8)))
+    spec = np.abs(np.fft.rfft(y0 * np.hanning(len(y)), n_fft))
+    freqs = np.fft.rfftfreq(n_fft, s[1] - s[0])
+    spec[freqs < 0.5] = 0.0
+    f0 = freqs[np.argmax(spec)]
+    q = len(y) // 4
+    rms_a, rms_b = np.std(y0[:q]), np.std(y0[-q:]) + 1e-30
+    sigma0 = max(np.log(max(rms_a / rms_b, 1.0 + 1e-6)) / (s[-q // 2] - s[q // 2]), 1e-3)
+    amp0 = np.sqrt(2.0) * rms_a * np.exp(sigma0 * s[q // 2])
+
+    def model(p: np.ndarray) -> np.ndarray:
+        amp, sigma, omega, phi, c = p
+        return amp * np.exp(-sigma * s) * np.sin(omega * s + phi) + c
+
+    best = None
+    for phi0 in np.linspace(0.0, 2 * np.pi, 4, endpoint=False):  # the phase is the one multimodal unknown
+        sol = least_squares(lambda p: model(p) - y, [amp0, sigma0, 2 * np.pi * f0, phi0, y.mean()],
+                            x_scale=[amp0 + 1e-12, sigma0, 2 * np.pi * f0, 1.0, amp0 + 1e-12])
+        if best is None or sol.cost < best.cost:
+            best = sol
+    amp, sigma, omega, _, _ = best.x
+    if amp < 0:
+        amp = -amp
+    omega_n = np.hypot(omega, sigma)
+    rms = float(np.sqrt(np.mean(best.fun**2)))
+    return float(abs(omega) / (2 * np.pi)), float(sigma / omega_n), float(amp), rms
+
+
+def residual_vibration(t: np.ndarray, y: np.ndarray, t_end: float) -> Vibration:
+    """The metrics of the module doc for a torque deviation y [N m] (k,) at times t [s] (uniform),
+    the motion having ended at ``t_end`` [s]."""
+    rate = 1.0 / float(np.median(np.diff(t)))
+    w = window(t, t_end + SINE_WINDOW[0], t_end + SINE_WINDOW[1])
+    if w.sum() < 50:
+        raise ValueError(f"less than 50 samples in [end + {SINE_WINDOW[0]}, end + {SINE_WINDOW[1]}] s")
+    f, zeta, amp, rms = fit_damped_sine(t[w], y[w])
+    b = band(y, rate)
+    p2p = float(np.ptp(b[window(t, t_end + P2P_WINDOW[0], t_end + P2P_WINDOW[1])]))
+    return Vibration(frequency_hz=f, damping_ratio=zeta, p2p_torque=p2p, amplitude=amp, fit_rms=rms)
+
+
+def most_affected_joint(t: np.ndarray, dev: np.ndarray, t_end: float) -> int:
+    """The joint whose 1.5-8 Hz band of the torque deviation dev [N m], (k, 7), has the largest
+    peak-to-peak over [end + 1 s, end + 2 s]."""
+    rate = 1.0 / float(np.median(np.diff(t)))
+    w = window(t, t_end + P2P_WINDOW[0], t_end + P2P_WINDOW[1])
+    return int(np.argmax([np.ptp(band(dev[:, j], rate)[w]) for j in range(dev.shape[1])]))
+
+
+def damping_by_amplitude(t: np.ndarray, y: np.ndarray, t_end: float, spans: tuple[tuple[float, float], ...] = (
+        (1.0, 3.0), (3.0, 6.0), (6.0, 9.0))) -> list[dict[str, float]]:
+    """Damping ratio of damped sines fitted over successive windows after ``t_end`` [s] (default
+    [1, 3], [3, 6], [6, 9] s), with the fitted amplitude at each window's start [N m]: the damping's
+    amplitude dependence. Windows running past the signal, or too short, are left out."""
+    rows = []
+    for a, b in spans:
+        w = window(t, t_end + a, t_end + b)
+        if w.sum() < 200 or t[-1] < t_end + b - 0.01:
+            continue
+        f, zeta, amp, _ = fit_damped_sine(t[w], y[w])
+        rows.append({"from_s": a, "to_s": b, "frequency_hz": f, "damping_ratio": zeta, "amplitude": amp})
+    return rows
