@@ -17,6 +17,7 @@ import sys
 from typing import Sequence
 
 from bullet_dlo.cli import data, fit, resolve, robots, simulate
+from bullet_dlo.cli import validate
 from bullet_dlo.cli.quiet import quiet_output
 from bullet_dlo.config.schema import output_dir, output_file
 from bullet_dlo.core.validate import ParameterError
@@ -94,6 +95,7 @@ def build_parser() -> argparse.ArgumentParser:
     data.add_parsers(sub, common)
     resolve.add_parsers(sub, common)
     fit.add_parsers(sub, common)
+    validate.add_parsers(sub, common)
     _add_bench_parsers(sub)
     return p
 

@@ -183,6 +183,14 @@ def file_result(rec: BeamRecording, m: Measured, pred: Prediction) -> dict[str, 
             "simulated_s": pred.simulated_s, "cpu_s": pred.cpu_s, "warnings": pred.warnings}
 
 
+def read_in(path: Path, what: str) -> BeamRecording:
+    """:func:`read_beam_csv`, its errors naming the folder argument ``what``."""
+    try:
+        return read_beam_csv(path)
+    except ParameterError as err:
+        raise ParameterError(f"{what}: {err}") from None
+
+
 def validate_beam(fit_dir: str | Path, predict_dir: str | Path, *, damping: str = "damping_rate",
                   numerics: Numerics = Numerics(), strip: Strip = Strip(), estimate: EstimateFilter | None = None,
                   duration: float | None = None, limit_files: int | None = None, check_numerics: bool = True,
@@ -195,8 +203,8 @@ def validate_beam(fit_dir: str | Path, predict_dir: str | Path, *, damping: str 
     """
     fit_files = beam_files(fit_dir, "FIT_DIR")[:limit_files]
     pred_files = beam_files(predict_dir, "PREDICT_DIR")[:limit_files]
-    fit_recs = [read_beam_csv(f) for f in fit_files]
-    pred_recs = [read_beam_csv(f) for f in pred_files]
+    fit_recs = [read_in(f, "FIT_DIR") for f in fit_files]
+    pred_recs = [read_in(f, "PREDICT_DIR") for f in pred_files]
     fit_meas = [measure(r) for r in fit_recs]
     tic = time.thread_time()
     with Panda() as panda:

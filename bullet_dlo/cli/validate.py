@@ -1,0 +1,129 @@
+"""``bullet-dlo validate``: the model against real recordings (issue 21).
+
+``validate beam FIT_DIR PREDICT_DIR --json OUT``: beam_handling (a Panda carrying a steel strip),
+:mod:`bullet_dlo.reality.beam_validate`. ``validate deform DLO_DIR --json OUT``: the DEFORM
+motion-capture cables, :mod:`bullet_dlo.reality.deform` (its own options).
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import math
+from pathlib import Path
+
+from bullet_dlo.core.validate import ParameterError
+
+
+def cmd_beam(args: argparse.Namespace) -> int:
+    from bullet_dlo.reality.beam import EstimateFilter, Numerics, Strip
+    from bullet_dlo.reality.beam_validate import plot_file, table, validate_beam
+
+    for name in ("n_masses", "limit_files"):
+        value = getattr(args, name)
+        if value is not None and value < (4 if name == "n_masses" else 1):
+            raise ParameterError(f"--{name.replace('_', '-')} must be an integer >= {4 if name == 'n_masses' else 1}, "
+                                 f"got {value}")
+    for name in ("dt", "knot_step", "youngs_modulus", "density", "filter_cutoff"):
+        value = getattr(args, name)
+        if value is not None and not (math.isfinite(value) and value > 0):
+            raise ParameterError(f"--{name.replace('_', '-')} must be a finite number > 0, got {value}")
+    if args.duration is not None and not (math.isfinite(args.duration) and args.duration >= 7.0):
+        raise ParameterError(f"--duration must be >= 7 s (the metrics need end + 6 s), got {args.duration}")
+    if args.filter_delay is not None and not (math.isfinite(args.filter_delay) and 0 <= args.filter_delay <= 0.1):
+        raise ParameterError(f"--filter-delay must be in [0, 0.1] s, got {args.filter_delay}")
+    if (args.filter_cutoff is None) != (args.filter_delay is None):
+        raise ParameterError("--filter-cutoff and --filter-delay go together (give both, or neither to identify "
+                             "the filter on FIT_DIR)")
+    estimate = None if args.filter_cutoff is None else EstimateFilter(args.filter_cutoff, args.filter_delay,
+                                                                       "given on the command line")
+    numerics = Numerics(integrator=args.integrator, n_masses=args.n_masses, dt=args.dt, knot_step=args.knot_step)
+    strip = Strip(youngs_modulus=args.youngs_modulus, density=args.density)
+    log = (lambda *a: None) if args.quiet else print
+    summary, details = validate_beam(args.fit_dir, args.predict_dir, damping=args.damping, numerics=numerics,
+                                     strip=strip, estimate=estimate, duration=args.duration,
+                                     limit_files=args.limit_files, check_numerics=not args.no_numerics_check, log=log)
+    out = Path(args.json)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(json.dumps(summary, indent=2))
+    if not args.no_plots:
+        for name, (rec, m, pred) in details.items():
+            plot_file(rec, m, pred, out.with_name(f"{out.stem}.{name}.png"))
+    fit = summary["parameters"][f"{args.damping}_fit"]
+    print(table(summary))
+    print(f"{args.damping} {fit['value']:.4g} (spread over {len(fit['per_file'])} fit recordings "
+          f"{fit['interval'][0]:.4g}-{fit['interval'][1]:.4g}); estimate filter "
+          f"{summary['estimate_filter']['cutoff_hz']:.3g} Hz + {1e3 * summary['estimate_filter']['delay_s']:.3g} ms; "
+          f"{args.integrator}, n {args.n_masses}, dt {args.dt:g} s; "
+          f"{summary['cost_per_simulated_second']:.3g} CPU s per simulated s")
+    if "numerics" in summary:
+        num = summary["numerics"]
+        print(f"numerical damping ratio {num['numerical_damping_ratio']:.2g} (implicit Euler "
+              f"{num['implicit_euler_damping_ratio']:.2g}); frequency vs n {num['convergence_n']}: "
+              + ", ".join(f"{f:.4f}" for f in num["convergence_frequency_hz"])
+              + f" Hz, order {num['observed_order']:.2f}")
+    print("limits of the match: " + "; ".join(summary["limits"]))
+    print(f"written {out.resolve()}" + ("" if args.no_plots else " and its plots beside it"))
+    return 0
+
+
+def cmd_deform(args: argparse.Namespace) -> int:
+    try:
+        from bullet_dlo.reality import deform
+    except ImportError as err:
+        raise ParameterError(f"validate deform is not available yet (bullet_dlo.reality.deform: {err})") from None
+    return int(deform.main(args) or 0)
+
+
+def add_parsers(sub, common: argparse.ArgumentParser) -> None:
+    """``validate`` with ``beam`` and ``deform`` on ``sub`` (argparse subparsers); ``common``: shared options."""
+    s = sub.add_parser("validate", help="the model against real recordings (beam_handling forces, DEFORM shapes)",
+                       description="Fit on some real recordings, predict others, report measured vs predicted. "
+                                   "Data: the public beam_handling and DEFORM recordings (../shared/data).")
+    vsub = s.add_subparsers(dest="validate_command", required=True, metavar="DATASET")
+    b = vsub.add_parser("beam", parents=[common], help="a Panda carrying a steel strip: residual vibration in the "
+                        "joint torques", description=(
+                            "Fit the strip's damping on the beam_handling CSVs of FIT_DIR, predict each CSV of "
+                            "PREDICT_DIR from its measured joint trajectory (nominal material: 0.52 x 0.08 x 0.001 m "
+                            "steel; the two bending planes as two superposed planar runs). Per file: the most "
+                            "affected joint's residual vibration, measured and predicted (frequency and damping "
+                            "ratio of a damped sine over [end + 1 s, end + 6 s], peak-to-peak of the 1.5-8 Hz band "
+                            "over [end + 1 s, end + 2 s], RMS torque error). Writes the JSON, one PNG per predicted "
+                            "file beside it (OUT_STEM.<csv stem>.png), and prints a table."))
+    b.add_argument("fit_dir", metavar="FIT_DIR", help="folder of beam_handling *.csv recordings to fit the damping on")
+    b.add_argument("predict_dir", metavar="PREDICT_DIR", help="folder of beam_handling *.csv recordings to predict")
+    b.add_argument("--json", required=True, metavar="OUT", help="output JSON file (plots are written beside it)")
+    b.add_argument("--damping", default="damping_rate", choices=["damping_rate", "internal_damping"],
+                   help="the damping parameter fitted: damping_rate [1/s] (mass-proportional drag, default) or "
+                        "internal_damping [s] (Kelvin-Voigt)")
+    b.add_argument("--integrator", default="bdf2", choices=["bdf2", "implicit_euler", "implicit_midpoint"],
+                   help="core integrator (bdf2: its numerical damping is measured and reported; implicit_euler "
+                        "adds ~0.009, as much as the physical damping; implicit_midpoint rings)")
+    b.add_argument("--n-masses", type=int, default=20, help="point masses of the strip model, >= 4 (20)")
+    b.add_argument("--dt", type=float, default=1e-3, help="time step [s] (1e-3)")
+    b.add_argument("--knot-step", type=float, default=0.004,
+                   help="spacing of the flange-path waypoints taken from the recording [s] (0.004)")
+    b.add_argument("--youngs-modulus", type=float, default=197.5e9, help="strip's E [Pa] (197.5e9, nominal)")
+    b.add_argument("--density", type=float, default=7970.0, help="strip's density [kg/m^3] (7970, nominal)")
+    b.add_argument("--filter-cutoff", type=float, help="Franka estimate filter: low-pass cut-off [Hz] "
+                   "(with --filter-delay; default: identified on FIT_DIR from tau_J)")
+    b.add_argument("--filter-delay", type=float, help="Franka estimate filter: delay [s], in [0, 0.1]")
+    b.add_argument("--duration", type=float, help="simulated seconds per predicted file, >= 7 (default: the whole "
+                   "recording)")
+    b.add_argument("--limit-files", type=int, help="use only the first N files of each folder (quick checks)")
+    b.add_argument("--no-plots", action="store_true", help="do not write the PNG plots")
+    b.add_argument("--no-numerics-check", action="store_true",
+                   help="skip the numerical-damping and convergence-in-n check of the chosen integrator, n and dt")
+    b.set_defaults(func=cmd_beam)
+    d = vsub.add_parser("deform", parents=[common], help="DEFORM motion capture: fit on DLO_DIR/train, predict "
+                        "DLO_DIR/eval", description="Fit on DLO_DIR/train, predict every eval trial open-loop "
+                        "(bullet_dlo.reality.deform).")
+    try:
+        from bullet_dlo.reality import deform
+    except ImportError:
+        d.add_argument("rest", nargs=argparse.REMAINDER, help="(validate deform is not available yet)")
+    else:
+        deform.add_arguments(d)
+    d.set_defaults(func=cmd_deform)
+
+
+__all__ = ["add_parsers", "cmd_beam", "cmd_deform"]
