@@ -56,6 +56,7 @@ class Panda:
         self._cid = pybullet.connect(pybullet.DIRECT)
         path = os.path.join(pybullet_data.getDataPath(), "franka_panda", "panda.urdf")
         self._arm = pybullet.loadURDF(path, useFixedBase=True, physicsClientId=self._cid)
+        pybullet.setGravity(0.0, 0.0, -9.81, physicsClientId=self._cid)  # inverse dynamics includes the arm's weight
         self._dofs = sum(pybullet.getJointInfo(self._arm, j, physicsClientId=self._cid)[2] != pybullet.JOINT_FIXED
                          for j in range(pybullet.getNumJoints(self._arm, physicsClientId=self._cid)))
 
