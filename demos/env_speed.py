@@ -70,14 +70,15 @@ def breakdown(physics: DualArmPhysics, steps: int) -> dict[str, float]:
             return out
         return run
 
-    groups = {"_apply_cable_wrench": "grasp coupling (robots/dual_arm/physics.py)",
-              "_follow_grippers": "grasp coupling (robots/dual_arm/physics.py)",
-              "_update_sensors": "wrist sensors (robots/sensors.py)"}
-    saved = (list(world.before_step), list(world.after_physics), cable.apply_forces, cable.sync_after_step)
-    world.before_step[:] = [timed(groups.get(h.__name__, h.__name__), h) for h in world.before_step]
-    world.after_physics[:] = [timed(groups.get(h.__name__, h.__name__), h) for h in world.after_physics]
-    cable.apply_forces = timed("cable step (bullet/cable.py)", cable.apply_forces)
-    cable.sync_after_step = timed("cable step (bullet/cable.py)", cable.sync_after_step)
+    # the phases of the dual-arm step (BulletWorld.step, DualArmPhysics.load/read), each behind a timer
+    parts = [(physics, "_apply_cable_wrench", "grasp coupling (robots/dual_arm/physics.py)"),
+             (physics, "_follow_grippers", "grasp coupling (robots/dual_arm/physics.py)"),
+             (cable, "apply_forces", "cable step (bullet/cable.py)"),
+             (cable, "sync_after_step", "cable step (bullet/cable.py)")]
+    if physics.observation is not None:
+        parts.append((physics.observation, "read_sensors", "wrist sensors (robots/sensors.py)"))
+    for obj, name, label in parts:
+        setattr(obj, name, timed(label, getattr(obj, name)))
     step_simulation = pb.stepSimulation
     pb.stepSimulation = timed("Bullet stepSimulation", step_simulation)
     try:
@@ -86,8 +87,8 @@ def breakdown(physics: DualArmPhysics, steps: int) -> dict[str, float]:
         total = CLOCK() - tic
     finally:
         pb.stepSimulation = step_simulation
-        world.before_step[:], world.after_physics[:] = saved[0], saved[1]
-        del cable.apply_forces, cable.sync_after_step
+        for obj, name, _ in parts:
+            delattr(obj, name)
     out = {k: v / steps * 1e6 for k, v in spent.items()}
     out["rest (world loop, contact query, timers)"] = total / steps * 1e6 - sum(out.values())
     return out

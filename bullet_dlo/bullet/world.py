@@ -84,8 +84,9 @@ class BulletWorld:
             self.bodies[self.ground_id] = "ground"
         self.time = 0.0
         self.steps = 0
-        # hooks (callables without arguments): before Bullet's step (apply loads, set motor
-        # targets), after it but before the cables take it over (read link poses), after all
+        # couplings of cables to Bullet's bodies (objects with load() and read(), see step()), and
+        # user hooks (callables without arguments) at three points of the step
+        self.couplings: list = []
         self.before_step: list = []
         self.after_physics: list = []
         self.after_step: list = []
@@ -256,34 +257,63 @@ class BulletWorld:
 
     # ----- stepping ---------------------------------------------------------------------------
     def step(self, n: int = 1) -> None:
-        """Advance the world by ``n`` fixed steps."""
-        cables = list(self.cables.values())
+        """Advance the world by ``n`` fixed steps of ``dt``. One step, in this order:
+
+        1. :meth:`push_cables`: each cable's sphere forces go to Bullet (they meet Bullet's bodies);
+        2. each coupling's ``load()``: what couples a cable to Bullet's bodies loads them (the dual-arm
+           grasp: the cable's end force and clamp torque on each gripper, then the task's arm targets);
+        3. ``before_step`` hooks (user controllers);
+        4. Bullet's step (arms, obstacles, the spheres);
+        5. each coupling's ``read()``: it reads Bullet's bodies back (the dual-arm grasp: both arms,
+           the held ends follow the measured grasp frames, the wrist sensors sample);
+        6. ``after_physics`` hooks;
+        7. :meth:`take_cable_steps`: contacts read back, each cable's own (implicit) step;
+        8. ``after_step`` hooks (recorders, progress, user extensions).
+        """
         for _ in range(n):
-            for c in cables:
-                c.apply_forces()
+            self.push_cables()
+            for coupling in self.couplings:
+                coupling.load()
             for hook in self.before_step:
                 hook()
-            pb.stepSimulation(self.client)
-            self.time += self.dt
-            self.steps += 1
+            self.step_physics()
+            for coupling in self.couplings:
+                coupling.read()
             for hook in self.after_physics:
                 hook()
-            contacts = pb.getContactPoints(-1, -1, -2, -2, self.client) if cables else ()  # all, one call
-            if contacts:
-                touched: dict[str, set[int]] = {c.name: set() for c in cables}
-                owners = self._owners
-                for cp in contacts:
-                    for body in (cp[1], cp[2]):
-                        hit = owners.get(body)
-                        if hit is not None:
-                            touched[hit[0]].add(hit[1])
-                for c in cables:
-                    c.sync_after_step(touched[c.name])
-            else:
-                for c in cables:
-                    c.sync_after_step(())
+            self.take_cable_steps()
             for hook in self.after_step:
                 hook()
+
+    def push_cables(self) -> None:
+        """Phase 1 of :meth:`step`: every cable's sphere forces to Bullet."""
+        for c in self.cables.values():
+            c.apply_forces()
+
+    def step_physics(self) -> None:
+        """Phase 4 of :meth:`step`: Bullet's own step; the clock advances by ``dt``."""
+        pb.stepSimulation(self.client)
+        self.time += self.dt
+        self.steps += 1
+
+    def take_cable_steps(self) -> None:
+        """Phase 7 of :meth:`step`: the spheres that touched something are read back (one contact query
+        for the world) and every cable takes its own step."""
+        cables = list(self.cables.values())
+        contacts = pb.getContactPoints(-1, -1, -2, -2, self.client) if cables else ()  # all, one call
+        if not contacts:
+            for c in cables:
+                c.sync_after_step(())
+            return
+        touched: dict[str, set[int]] = {c.name: set() for c in cables}
+        owners = self._owners
+        for cp in contacts:
+            for body in (cp[1], cp[2]):
+                hit = owners.get(body)
+                if hit is not None:
+                    touched[hit[0]].add(hit[1])
+        for c in cables:
+            c.sync_after_step(touched[c.name])
 
     def run(self, duration: float) -> int:
         """Step for ``duration`` seconds (rounded to whole steps); returns the number of steps."""
@@ -318,19 +348,6 @@ class BulletWorld:
         self.close()
 
 
-def build_world(scene, gui: bool = False, renderer: str | None = None) -> BulletWorld:
-    """A world for ``scene`` (a :class:`bullet_dlo.scene.Scene`): ground and obstacles, no cable yet."""
-    opts = scene.bullet
-    world = BulletWorld(scene.dt, scene.gravity, gui=gui, ground=opts.ground, ground_height=opts.ground_height,
-                        ground_friction=opts.ground_friction, renderer=renderer)
-    try:
-        add_obstacles(world, opts.obstacles)
-    except ParameterError:
-        world.close()
-        raise
-    return world
-
-
 def add_obstacles(world: BulletWorld, obstacles) -> None:
     """Add a scene's ``bullet.obstacles`` (mappings with ``type: box | cylinder | urdf``) to ``world``."""
     for k, ob in enumerate(obstacles):
@@ -344,50 +361,3 @@ def add_obstacles(world: BulletWorld, obstacles) -> None:
                 world.add_urdf(**spec)
         except (ParameterError, TypeError) as err:
             raise ParameterError(f"bullet.obstacles[{k}]: {err}") from None
-
-
-def run_scene_bullet(scene, *, gui: bool = False, record_every: int | None = None, max_records: int = 2001):
-    """Run a scene with the Bullet-coupled engine. Returns (model, SimulationResult), like Scene.run.
-
-    As with the core engine, a run stopped by the default strain bound (50 %) is re-run without it:
-    if the re-run stays finite with no energy growth it is the result, stable, with a warning that
-    the stretch is physical; otherwise the first run stands, its cause confirmed.
-    """
-    from dataclasses import replace
-
-    from bullet_dlo.core.engine import STRAIN_REASON, confirm_strain, held_move_warnings
-
-    model = scene.build_model()
-    first = _run_bullet_once(scene, model, scene.detector, gui, record_every, max_records)
-    first.warnings.extend(held_move_warnings(model, scene.dt, scene.duration))
-    if first.reason != STRAIN_REASON or scene.detector.max_strain is not None:
-        return model, first
-    return model, confirm_strain(model, first, lambda bound: _run_bullet_once(
-        scene, model, replace(scene.detector, max_strain=bound), gui, record_every, max_records))
-
-
-def _run_bullet_once(scene, model, detector, gui: bool, record_every: int | None, max_records: int):
-    """One Bullet-coupled run of ``scene``'s ``model`` with ``detector``: a SimulationResult."""
-    import math
-
-    from bullet_dlo.core.engine import SimulationResult
-
-    n_steps = max(1, int(round(scene.duration / scene.dt)))
-    if record_every is None:
-        record_every = max(1, math.ceil(n_steps / max(1, max_records - 1)))
-    world = build_world(scene, gui)
-    try:
-        cable = world.add_cable(model, integrator=scene.integrator, state=scene.initial_state(model),
-                                substeps=scene.bullet.substeps, self_collision=scene.bullet.self_collision,
-                                sync=scene.bullet.sync, newton=scene.newton, detector=detector,
-                                record_every=record_every)
-        wall = world.run_while_stable(n_steps, cable)
-        rec = cable.record.arrays()
-        return SimulationResult(
-            integrator=cable.method.name, dt=scene.dt, stable=cable.stable,
-            time_to_instability=cable.time_to_instability, reason=cable.reason, steps=cable.steps,
-            wall_time_s=wall, t=rec["t"], x=rec["x"], v=rec["v"], end_forces=rec["end_forces"],
-            energy=rec["energy"], final_state=cable.state(), end_moments=cable.end_moments(),
-            newton_failures=cable.newton_failures, newton_iterations=cable.newton_iterations)
-    finally:
-        world.close()

@@ -10,65 +10,68 @@ from bullet_dlo.cli.quiet import bar
 from bullet_dlo.cli.simulate import write_json
 
 
-def _grasp_setup(args: argparse.Namespace):
-    """Cable, dt [s], integrator, duration [s], motion items and the dual-arm layout and start the scene
-    file sets (DualArmSpec keywords) for ``grasp``."""
+def grasp_scene(args: argparse.Namespace):
+    """The scene ``grasp`` runs: the ``--scene`` file (or the study's: lv2017 cable, 1/240 s, a 5 mm lift of
+    the right end at 1.5 s, 3 s) with the command's flags applied, validated as a capture spec bounds them."""
+    from dataclasses import replace
+
     from bullet_dlo.config.capture import PARAMETERS
-    from bullet_dlo.config.robot import robot_names
+    from bullet_dlo.config.robot import ArmsOptions, robot_names
     from bullet_dlo.config.scene import Scene
     from bullet_dlo.config.schema import one_of
     from bullet_dlo.core.boundary import Move
     from bullet_dlo.core.spec import CableSpec
     from bullet_dlo.core.validate import check_in_range, check_positive, check_steps
 
-    one_of("--robot", args.robot, robot_names())
+    if args.robot is not None:
+        one_of("--robot", args.robot, robot_names())
     # the ranges a capture spec allows for the same quantities (config.capture.PARAMETERS)
     check_in_range("--noise [N]", args.noise, *PARAMETERS["noise_std"][2])
     if args.sensor_rate is not None:
         check_in_range("--sensor-rate [Hz]", args.sensor_rate, 1e-3, PARAMETERS["sensor_rate"][2][1])
-
     if args.scene:
-        scene = Scene.from_yaml(args.scene).resolved()
-        cable, dt, integrator, duration = scene.cable, scene.dt, scene.integrator, scene.duration
-        moves = list(scene.motion)  # core motion items: first end = left arm, last = right
-        arm_options = scene.arm_options()
+        from bullet_dlo.sim import resolved
+
+        scene = resolved(Scene.from_yaml(args.scene))  # dt: auto becomes a step before it is checked
     else:
-        cable = CableSpec.lv2017(n_masses=10, damping=0.02)
-        dt, integrator, duration = 1.0 / 240.0, "implicit_euler", 3.0
-        moves = [Move("last", (0.0, 0.0, 0.005), 1.5, 0.1)]  # the study's 5 mm move
-        arm_options = {}
+        scene = Scene(cable=CableSpec.lv2017(n_masses=10, damping=0.02), dt=1.0 / 240.0, duration=3.0,
+                      motion=(Move("last", (0.0, 0.0, 0.005), 1.5, 0.1),))  # the study's 5 mm move
     dt_lo, dt_hi = PARAMETERS["dt"][2]  # a robot controller's step
     dt = check_in_range("--dt [s]" if args.dt is not None else "dt [s] (robot scenes)",
-                        dt if args.dt is None else args.dt, dt_lo, dt_hi)
-    duration = check_positive("--duration", args.duration) if args.duration is not None else duration
+                        scene.dt if args.dt is None else args.dt, dt_lo, dt_hi)
+    duration = check_positive("--duration", args.duration) if args.duration is not None else scene.duration
     check_steps(dt, duration, dt_name="--dt" if args.dt is not None else "dt",
                 duration_name="--duration" if args.duration is not None else "duration")
-    return cable, dt, integrator, duration, moves, arm_options
+    arms = scene.arms or ArmsOptions()
+    if args.sensor_rate is not None:
+        arms = replace(arms, sensor_rate=args.sensor_rate)
+    if args.noise:
+        arms = replace(arms, noise_std=(args.noise,) * 3 + (0.0,) * 3)
+    return replace(scene, dt=dt, duration=duration, arms=arms)
 
 
 def cmd_grasp(args: argparse.Namespace) -> int:
-    from bullet_dlo.robots.dual_arm import DualArmConfig, DualArmScene
+    from bullet_dlo.sim import build
 
-    cable, dt, integrator, duration, moves, arm_options = _grasp_setup(args)
-    config = DualArmConfig(robot=args.robot, cable=cable, dt=dt, integrator=integrator,
-                           sensor_rate=args.sensor_rate, noise_std=(args.noise,) * 3 + (0.0,) * 3, **arm_options)
-    with DualArmScene(config) as sc:
-        sc.grasp()
-        sc.follow_motion(moves)
+    scene = grasp_scene(args)
+    with build(scene, "arms", robot=args.robot, command="grasp") as sim:
+        sc = sim.arms
+        spec, dt, duration = sc.spec, scene.dt, scene.duration
+        robot, cable, integrator = spec.robot, spec.cable, spec.integrator
         recorder = None
         if args.series:
             from bullet_dlo.data.recording import series_format
 
             series_format(args.series)  # a bad suffix fails before the run, not after
             recorder = _attach_series(sc)
-        with bar(int(round(duration / dt)), f"grasp ({args.robot})", args.quiet, unit="step") as progress:
+        with bar(int(round(duration / dt)), f"grasp ({robot})", args.quiet, unit="step") as progress:
             sc.world.after_step.append(lambda: progress.update(1))
             wall = sc.run(duration)
         window = sc.window_mean(0.5)
         weight = cable.mass * float(np.linalg.norm(sc.world.gravity))
         w, f = window["wrench_world"], window["end_forces"]
         data = {
-            "robot": args.robot, "dt": dt, "duration": duration, "integrator": integrator,
+            "robot": robot, "dt": dt, "duration": duration, "integrator": integrator,
             "stable": bool(sc.cable.stable), "time_to_instability": sc.cable.time_to_instability,
             "cable_weight": weight,
             "wrench_world": {"left": w[0].tolist(), "right": w[1].tolist()},
@@ -86,7 +89,7 @@ def cmd_grasp(args: argparse.Namespace) -> int:
                          | {"cable": cable.to_dict()})
     if args.json:
         write_json(args.json, data)
-    print(f"{args.robot}: {'stable' if data['stable'] else 'UNSTABLE'}, {data['steps']} steps in {wall:.2f} s; "
+    print(f"{robot}: {'stable' if data['stable'] else 'UNSTABLE'}, {data['steps']} steps in {wall:.2f} s; "
           f"cable weight {weight:.4f} N")
     for arm in ("left", "right"):
         print(f"  {arm:5s} sensor (world) " + " ".join(f"{v:+.4f}" for v in data["wrench_world"][arm][:3])
@@ -119,23 +122,24 @@ def cmd_render(args: argparse.Namespace) -> int:
     check_int("--height [px]", args.height, 16, int(LIMITS["pixels"]))
     if args.robot is not None:
         one_of("--robot", args.robot, robot_names())
+    scene = Scene.from_yaml(args.scene)
+    robot = args.robot or (scene.arms.robot if scene.arms is not None else None)
     recorders = []
     if args.series:
         from bullet_dlo.core.validate import ParameterError
         from bullet_dlo.data.recording import series_format
 
-        if args.robot is None:
-            raise ParameterError("--series needs --robot (the series are the dual-arm scene's: wrist wrenches, "
-                                 "grasp poses, joint states)")
+        if robot is None:
+            raise ParameterError("--series needs --robot or the scene's arms.robot (the series are the dual-arm "
+                                 "scene's: wrist wrenches, grasp poses, joint states)")
         series_format(args.series)  # a bad suffix fails before the run, not after
-    scene = Scene.from_yaml(args.scene).resolved()
     summary = render_scene(scene, args.out, robot=args.robot, fps=args.fps, width=args.width, height=args.height,
                            renderer=args.renderer, fmt=args.format, progress=not args.quiet,
                            on_arm_scene=(lambda sc: recorders.append(_attach_series(sc))) if args.series else None)
     if recorders:
         from bullet_dlo.data.recording import write_series
 
-        write_series(args.series, recorders[0].arrays(), {"robot": args.robot, "dt": scene.dt,
+        write_series(args.series, recorders[0].arrays(), {"robot": robot, "dt": scene.dt,
                                                            "cable": scene.cable.to_dict()})
     print(f"renderer: {summary['renderer']} ({summary['renderer_note']}); {summary['frames']} frames, "
           f"{summary['format']} ({summary['codec']}) in {summary['wall_time_s']:.1f} s")
@@ -153,9 +157,11 @@ def add_parsers(sub, common: argparse.ArgumentParser) -> None:
                                    "world frame, averaged over the last 0.5 s, next to the model's end forces. "
                                    "Every sample is checked against the load the cable applied in the same step; "
                                    "exit 1 if one differs by more than 10 % of the cable's weight + 5 mN.")
-    s.add_argument("--robot", default="kuka", help="robot description in robots/: kuka (default) or panda")
-    s.add_argument("--scene", metavar="SCENE.yaml", help="take cable, dt, integrator, duration and motion from a "
-                   "scene file (its layout and ends are replaced by the grasp)")
+    s.add_argument("--robot", help="robot description in robots/: kuka or panda (default: the scene's arms.robot, "
+                   "else kuka)")
+    s.add_argument("--scene", metavar="SCENE.yaml", help="take the cable, dt, integrator, duration, motion, gravity, "
+                   "initial, newton, detector, bullet (ground, obstacles, substeps, ...) and arms sections from a scene "
+                   "file; layout and ends are refused (the grippers place and hold the cable)")
     s.add_argument("--json", metavar="OUT.json", help="write cable_weight, wrench_world, ground_truth_end_forces, "
                    "stable and more")
     s.add_argument("--dt", type=float, help="Bullet step [s] (default 1/240 or the scene's)")
@@ -175,7 +181,8 @@ def add_parsers(sub, common: argparse.ArgumentParser) -> None:
                                    "camera frames the cable's whole motion; shadows are on.")
     s.add_argument("scene", help="scene YAML file")
     s.add_argument("--out", required=True, metavar="DIR", help="output folder")
-    s.add_argument("--robot", help="hold the cable with two arms (kuka, panda); the plot shows their wrist sensors")
+    s.add_argument("--robot", help="hold the cable with two arms (kuka, panda; default: the scene's arms.robot, else "
+                   "no arms); the plot shows their wrist sensors")
     s.add_argument("--fps", type=float, default=30.0, help="video frame rate [Hz], independent of the physics (30)")
     s.add_argument("--width", type=int, default=640, help="frame width [px] (640)")
     s.add_argument("--height", type=int, default=480, help="frame height [px] (480)")

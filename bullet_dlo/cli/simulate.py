@@ -36,12 +36,11 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     substeps = scene.bullet.substeps if args.engine == "bullet" else 1
     check_steps(scene.dt, scene.duration, substeps, "--dt" if args.dt is not None else "dt",
                 "--duration" if args.duration is not None else "duration")  # the caps apply to flags too
-    if args.engine == "bullet":
-        from bullet_dlo.bullet.world import run_scene_bullet
+    from bullet_dlo.sim import build
 
-        model, result = run_scene_bullet(scene)
-    else:
-        model, result = scene.run()
+    with build(scene, args.engine, command=f"simulate --engine {args.engine}") as sim:
+        result = sim.run()
+    model = sim.model
     data = result_json(scene, model, result, engine=args.engine)
     if args.json:
         write_json(args.json, data)

@@ -11,12 +11,36 @@ from dataclasses import dataclass, field
 
 import yaml
 
+from typing import TYPE_CHECKING, Any, Mapping
+
 from bullet_dlo.assets import ROBOTS_DIR
+from bullet_dlo.config.schema import one_of, only_keys, section
+from bullet_dlo.config.world import BulletOptions
+from bullet_dlo.core.engine import DetectorOptions
+from bullet_dlo.core.integrators import NewtonOptions
+from bullet_dlo.core.model import STANDARD_GRAVITY
 from bullet_dlo.core.spec import CableSpec
-from bullet_dlo.core.validate import ParameterError, check_int, check_nonnegative, check_positive
+from bullet_dlo.core.validate import (
+    ParameterError,
+    check_finite,
+    check_in_range,
+    check_int,
+    check_nonnegative,
+    check_positive,
+    check_vector3,
+)
+
+if TYPE_CHECKING:
+    from bullet_dlo.config.scene import Scene
 
 MIN_TABLE_CLEARANCE = 0.05  # [m] the held ends stay this far above the table top
 PAYLOADS = ("urdf", "calibrated")  # how the wrist sensors know their payload (robots.sensors.COMPENSATIONS)
+GRIPS = ("clamp", "friction")  # how a gripper holds its cable end
+STARTS = ("settled", "straight")  # the cable's shape when the grippers take it
+ARMS_LENGTHS = ("hold_height", "base_distance", "table_height")
+ARMS_KEYS = ("robot",) + ARMS_LENGTHS + ("grip", "grip_force", "grip_friction", "grip_reach", "payload", "sensor_rate",
+                                        "noise_std", "bias", "seed")
+"""Keys of a scene's ``arms:`` section (:class:`ArmsOptions`)."""
 CALIBRATION_TILTS = ((0.0, 0.0, 0.0), (0.6, 0.0, 0.0), (-0.6, 0.0, 0.0), (0.0, 0.6, 0.0), (0.0, -0.6, 0.0),
                      (1.2, 0.0, 0.0), (0.0, 1.2, 0.0), (0.5, 0.5, 0.0), (0.0, 0.0, 1.0))
 """Rotation vectors [rad] (world frame) that turn the grasp orientation for a payload calibration."""
@@ -66,6 +90,77 @@ def load_robot_spec(name: str) -> RobotSpec:
 
 
 @dataclass(frozen=True)
+class ArmsOptions:
+    """The scene's ``arms:`` section: two arms facing each other across a table hold the cable's ends
+    (``grasp``, ``render --robot``, dataset captures, environments). SI units.
+
+    robot: robot description in ``robots/`` (None: the command's ``--robot``, kuka by default);
+    hold_height: height of the held ends [m]; base_distance: each arm base's distance from the
+    cable's midpoint along x [m]; table_height: top of the table [m] (0: none); grip: ``clamp``
+    (rigid) or ``friction`` (fingers pinch with ``grip_force`` [N] each, ``grip_friction`` =
+    (mu_static, mu_dynamic), letting go after slipping ``grip_reach`` [m]); payload: ``urdf`` or
+    ``calibrated`` (how the wrist sensors know the tool below them); sensor_rate: wrist sensor
+    rate [Hz] (None: every step); noise_std, bias: per wrench component (fx fy fz mx my mz)
+    [N, N m]; seed: of the sensor noise.
+    """
+
+    robot: str | None = None
+    hold_height: float = 0.35
+    base_distance: float = 0.6
+    table_height: float = 0.2
+    grip: str = "clamp"
+    grip_force: float = 5.0
+    grip_friction: tuple[float, float] = (0.5, 0.4)
+    grip_reach: float = 0.02
+    payload: str = "urdf"
+    sensor_rate: float | None = None
+    noise_std: tuple[float, ...] = (0.0,) * 6
+    bias: tuple[float, ...] = (0.0,) * 6
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        set_ = object.__setattr__
+        for key in ARMS_LENGTHS:
+            set_(self, key, check_in_range(f"arms.{key} [m]", getattr(self, key), 0.0, 10.0))
+        set_(self, "grip_force", check_in_range("arms.grip_force [N]", self.grip_force, 0.0, 1e4))
+        set_(self, "grip_reach", check_in_range("arms.grip_reach [m]", self.grip_reach, 0.0, 10.0))
+        if not isinstance(self.grip_friction, (list, tuple)) or len(self.grip_friction) != 2:
+            raise ParameterError(f"arms.grip_friction must be [mu_static, mu_dynamic], got {self.grip_friction!r}")
+        set_(self, "grip_friction", tuple(check_in_range(f"arms.grip_friction[{k}]", v, 0.0, 10.0)
+                                          for k, v in enumerate(self.grip_friction)))
+        set_(self, "grip", one_of("arms.grip", str(self.grip), GRIPS))
+        set_(self, "payload", one_of("arms.payload", str(self.payload), PAYLOADS))
+        if self.sensor_rate is not None:
+            set_(self, "sensor_rate", check_in_range("arms.sensor_rate [Hz]", self.sensor_rate, 1e-3, 1e6))
+        for key in ("noise_std", "bias"):
+            value = getattr(self, key)
+            if not isinstance(value, (list, tuple)) or len(value) != 6:
+                raise ParameterError(f"arms.{key} must be 6 numbers (fx fy fz mx my mz) [N, N m], got {value!r}")
+            set_(self, key, tuple(check_finite(f"arms.{key}[{k}]", v) for k, v in enumerate(value)))
+        if any(v < 0 for v in self.noise_std):
+            raise ParameterError(f"arms.noise_std must be >= 0, got {list(self.noise_std)}")
+        set_(self, "seed", check_int("arms.seed", self.seed, 0))
+        if self.robot is not None:
+            set_(self, "robot", one_of("arms.robot", str(self.robot), robot_names()))
+        if self.hold_height <= 0 or self.base_distance <= 0:
+            raise ParameterError(f"arms.hold_height and arms.base_distance must be > 0 [m], got "
+                                 f"{self.hold_height}, {self.base_distance}")
+        if self.table_height and self.hold_height - self.table_height < MIN_TABLE_CLEARANCE:
+            raise ParameterError(f"arms.hold_height {self.hold_height} m must be at least "
+                                 f"{MIN_TABLE_CLEARANCE * 100:.0f} cm above the table top {self.table_height} m")
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any] | None) -> "ArmsOptions":
+        """Validate a parsed ``arms:`` section; errors name the offending key."""
+        data = section(data, "arms")
+        only_keys(data, ARMS_KEYS, "arms")
+        kwargs = dict(data)
+        if kwargs.get("robot") is not None:
+            kwargs["robot"] = str(kwargs["robot"])
+        return cls(**kwargs)
+
+
+@dataclass(frozen=True)
 class DualArmSpec:
     """Two arms facing each other across a table, holding the two ends of a cable (SI units).
 
@@ -107,9 +202,14 @@ class DualArmSpec:
     grip_friction: tuple[float, float] = (0.5, 0.4)
     grip_reach: float = 0.02
     payload: str = "urdf"
+    gravity: tuple[float, float, float] = STANDARD_GRAVITY
+    bullet: BulletOptions = field(default_factory=BulletOptions)
+    newton: NewtonOptions = field(default_factory=NewtonOptions)
+    detector: DetectorOptions = field(default_factory=DetectorOptions)
 
     def __post_init__(self) -> None:
         check_positive("dt", self.dt)
+        object.__setattr__(self, "gravity", tuple(check_vector3("gravity", self.gravity).tolist()))
         if self.start not in ("settled", "straight"):
             raise ParameterError(f"start must be one of settled, straight, got {self.start!r}")
         check_positive("hold_height", self.hold_height)
@@ -121,6 +221,9 @@ class DualArmSpec:
         if self.sensor_rate is not None:
             check_positive("sensor_rate", self.sensor_rate)
         check_int("substeps", self.substeps, 1)
+        if self.bullet.substeps != 1 and self.bullet.substeps != self.substeps:
+            raise ParameterError(f"substeps ({self.substeps}) and bullet.substeps ({self.bullet.substeps}) differ; "
+                                 f"give one")
         if self.grip not in ("clamp", "friction"):
             raise ParameterError(f"grip must be one of clamp, friction, got {self.grip!r}")
         if self.payload not in PAYLOADS:
@@ -130,3 +233,19 @@ class DualArmSpec:
         if len(self.grip_friction) != 2 or not 0.0 <= self.grip_friction[1] <= self.grip_friction[0]:
             raise ParameterError(f"grip_friction must be (mu_static, mu_dynamic) with 0 <= mu_dynamic <= mu_static, "
                                  f"got {self.grip_friction!r}")
+
+    @classmethod
+    def from_scene(cls, scene: "Scene", robot: str | None = None, renderer: str | None = None,
+                   **overrides: Any) -> "DualArmSpec":
+        """The dual-arm physics of ``scene``: its cable, step, integrator, gravity, ``arms:``, ``bullet:``,
+        ``newton:`` and ``detector:`` sections (``robot``: a command's choice, before the scene's
+        ``arms.robot``; kuka when neither names one); ``overrides``: fields the caller sets (a command's flags)."""
+        arms = scene.arms or ArmsOptions()
+        fields_ = dict(robot=robot or arms.robot or "kuka", cable=scene.cable, dt=scene.dt,
+                       integrator=scene.integrator, hold_height=arms.hold_height, base_distance=arms.base_distance,
+                       table_height=arms.table_height, sensor_rate=arms.sensor_rate, noise_std=arms.noise_std,
+                       bias=arms.bias, seed=arms.seed, renderer=renderer, substeps=scene.bullet.substeps,
+                       start=scene.arm_start, grip=arms.grip, grip_force=arms.grip_force,
+                       grip_friction=arms.grip_friction, grip_reach=arms.grip_reach, payload=arms.payload,
+                       gravity=scene.gravity, bullet=scene.bullet, newton=scene.newton, detector=scene.detector)
+        return cls(**{**fields_, **overrides})

@@ -26,9 +26,11 @@ from typing import Any, Mapping
 import numpy as np
 
 from bullet_dlo.config.loader import load_mapping
-from bullet_dlo.config.schema import LIMITS, check_cable, keyed, one_of, only_keys, section
+from bullet_dlo.config.robot import ArmsOptions
+from bullet_dlo.config.schema import check_cable, keyed, one_of, only_keys, section
+from bullet_dlo.config.world import BulletOptions
 from bullet_dlo.core.boundary import END_MODES, Move, parse_motion
-from bullet_dlo.core.engine import DetectorOptions, SimulationResult, simulate
+from bullet_dlo.core.engine import DetectorOptions, SimulationResult
 from bullet_dlo.core.integrators import INTEGRATORS, NewtonOptions, get_integrator
 from bullet_dlo.core.model import STANDARD_GRAVITY, CableModel, CableState
 from bullet_dlo.core.spec import CableSpec
@@ -36,11 +38,6 @@ from bullet_dlo.core.stability import critical_dt
 from bullet_dlo.core.statics import solve_static
 from bullet_dlo.core.validate import (
     ParameterError,
-    check_bool,
-    check_finite,
-    check_in_range,
-    check_int,
-    check_nonnegative,
     check_positive,
     check_steps,
     check_vector3,
@@ -48,79 +45,8 @@ from bullet_dlo.core.validate import (
 
 TOP_KEYS = ("cable", "layout", "ends", "motion", "gravity", "integrator", "dt", "duration",
             "initial", "detector", "newton", "name", "bullet", "tolerance", "arms")
-# the dual-arm scene (grasp, render --robot): layout [m] and how the grippers hold the ends (DualArmSpec)
-ARMS_LENGTHS = ("hold_height", "base_distance", "table_height", "grip_reach")
-ARMS_KEYS = ARMS_LENGTHS + ("grip", "grip_force", "grip_friction")
-BULLET_KEYS = ("ground", "ground_height", "ground_friction", "substeps", "self_collision", "sync", "obstacles")
-OBSTACLE_KEYS = {"box": ("half_extents", "position", "orientation", "mass", "friction", "name"),
-                 "cylinder": ("radius", "height", "position", "orientation", "mass", "friction", "name"),
-                 "urdf": ("path", "position", "orientation", "fixed", "name")}
-SELF_COLLISION = ("neighbours", "none", "all")
-SYNC = ("contacts", "always")
 INITIAL = ("straight", "static")
 TOLERANCE_TARGETS = ("forces", "shape", "both")
-
-
-@dataclass(frozen=True)
-class BulletOptions:
-    """The scene's ``bullet:`` section (used by ``--engine bullet`` only), validated on construction.
-
-    ground: add a ground plane at ground_height [m]; ground_friction: its lateral friction (>= 0);
-    substeps: integrator steps per Bullet step (>= 1); self_collision: neighbours | none | all;
-    sync: contacts | always; obstacles: {type: box|cylinder|urdf, ...} entries whose keys are
-    checked here and whose values are checked when :func:`bullet_dlo.bullet.world.build_world`
-    adds them (see README).
-    """
-
-    ground: bool = True
-    ground_height: float = 0.0
-    ground_friction: float = 0.5
-    substeps: int = 1
-    self_collision: str = "neighbours"
-    sync: str = "contacts"
-    obstacles: tuple[dict, ...] = ()
-
-    def __post_init__(self) -> None:
-        # the same check_* helpers BulletWorld and BulletCable apply to these values
-        set_ = object.__setattr__
-        set_(self, "ground", check_bool("bullet.ground", self.ground))
-        set_(self, "ground_height", check_finite("bullet.ground_height", self.ground_height))
-        set_(self, "ground_friction", check_nonnegative("bullet.ground_friction", self.ground_friction))
-        set_(self, "substeps", check_int("bullet.substeps", self.substeps, 1, int(LIMITS["substeps"])))
-        set_(self, "self_collision", one_of("bullet.self_collision", self.self_collision, SELF_COLLISION))
-        set_(self, "sync", one_of("bullet.sync", self.sync, SYNC))
-
-    @classmethod
-    def from_dict(cls, data: Mapping[str, Any] | None) -> "BulletOptions":
-        """Validate a parsed ``bullet:`` section; errors name the offending key."""
-        data = section(data, "bullet")
-        only_keys(data, BULLET_KEYS, "bullet")
-        obstacles = data.get("obstacles") or []
-        if not isinstance(obstacles, list):
-            raise ParameterError("bullet.obstacles must be a list")
-        kwargs = {k: data[k] for k in BULLET_KEYS if k in data and k != "obstacles"}
-        return cls(**kwargs, obstacles=tuple(_obstacle(k, ob) for k, ob in enumerate(obstacles)))
-
-
-def _obstacle(k: int, data: Any) -> dict:
-    """One ``bullet.obstacles`` entry with its type and keys checked."""
-    ob = dict(section(data, f"bullet.obstacles[{k}]"))
-    kind = one_of(f"bullet.obstacles[{k}].type", ob.pop("type", None), OBSTACLE_KEYS)
-    only_keys(ob, OBSTACLE_KEYS[kind], f"bullet.obstacles[{k}] ({kind})")
-    return {"type": kind, **ob}
-
-
-def _arms_value(key: str, value: Any) -> Any:
-    """One ``arms:`` entry checked for its type and range (DualArmSpec checks how they go together)."""
-    if key in ARMS_LENGTHS:
-        return check_in_range(f"arms.{key} [m]", value, 0.0, 10.0)
-    if key == "grip_force":
-        return check_in_range("arms.grip_force [N]", value, 0.0, 1e4)
-    if key == "grip_friction":
-        if not isinstance(value, (list, tuple)) or len(value) != 2:
-            raise ParameterError(f"arms.grip_friction must be [mu_static, mu_dynamic], got {value!r}")
-        return tuple(check_in_range(f"arms.grip_friction[{k}]", v, 0.0, 10.0) for k, v in enumerate(value))
-    return one_of("arms.grip", str(value), ("clamp", "friction"))
 
 
 @dataclass(frozen=True)
@@ -145,7 +71,8 @@ class Scene:
     auto_dt: bool = False  # dt: auto (also picks the integrator)
     tolerance: float = 0.01
     tolerance_target: str = "both"
-    arms: tuple[tuple[str, float], ...] = ()  # dual-arm layout keys given in the file (ARMS_KEYS)
+    arms: ArmsOptions | None = None  # None: the file has no ``arms:`` section (the arm defaults apply)
+    given: frozenset[str] = frozenset()  # the top-level keys the scene file gave (an engine refuses those it cannot honour)
 
     # ----- parsing -------------------------------------------------------------------------
     @classmethod
@@ -193,16 +120,10 @@ class Scene:
         only_keys(nwt, ("max_iter", "tol", "definite"), "newton")
         bullet = BulletOptions.from_dict(data.get("bullet"))
         check_steps(dt, duration, bullet.substeps, duration_name="duration x bullet.substeps")
-        arms = section(data.get("arms"), "arms")
-        only_keys(arms, ARMS_KEYS, "arms")
-        arms = tuple((key, _arms_value(key, value)) for key, value in arms.items())
-        if arms:  # the layout's own rules (table clearance, positive heights), named as scene keys
-            from bullet_dlo.config.robot import DualArmSpec
-
-            keyed("arms", DualArmSpec, **dict(arms))
+        arms = ArmsOptions.from_dict(data["arms"]) if data.get("arms") is not None else None
         return cls(cable, start, direction, ends, motion, gravity, integrator, dt, duration, initial,
                    DetectorOptions(**det), NewtonOptions(**nwt), str(data.get("name", "scene")),
-                   bullet, auto_n, auto_dt, tol_value, tol_target, arms)
+                   bullet, auto_n, auto_dt, tol_value, tol_target, arms, frozenset(map(str, data)))
 
     @classmethod
     def from_yaml(cls, path: str | Path) -> "Scene":
@@ -235,24 +156,11 @@ class Scene:
             return solve_static(model).state()
         return model.initial_state()
 
-    def arm_options(self) -> dict[str, Any]:
-        """Keyword arguments of :class:`~bullet_dlo.config.robot.DualArmSpec` this scene sets: the
-        layout (``arms:`` section) and how the cable starts (:attr:`arm_start`)."""
-        return {"start": self.arm_start, **dict(self.arms)}
-
     @property
     def arm_start(self) -> str:
         """How the dual-arm scene attaches the cable (``DualArmSpec.start``): in its static shape
         between the grippers unless the scene file says ``initial: straight``."""
         return "straight" if self.initial == "straight" else "settled"
-
-    def run(self, **overrides: Any) -> tuple[CableModel, SimulationResult]:
-        """Run with the core engine (resolving ``auto`` first); ``overrides`` go to :func:`simulate`."""
-        scene = self.resolved()
-        model = scene.build_model()
-        kwargs: dict[str, Any] = dict(state=scene.initial_state(model), newton=scene.newton, detector=scene.detector)
-        kwargs.update(overrides)
-        return model, simulate(model, scene.integrator, scene.dt, scene.duration, **kwargs)
 
 
 def result_json(scene: Scene, model: CableModel, result: SimulationResult, engine: str = "core") -> dict[str, Any]:

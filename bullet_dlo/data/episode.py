@@ -32,6 +32,9 @@ import numpy as np
 import pybullet as pb
 
 from bullet_dlo.config.capture import CaptureSpec
+from bullet_dlo.config.robot import ArmsOptions
+from bullet_dlo.config.scene import Scene
+from bullet_dlo.config.world import BulletOptions
 from bullet_dlo.core.model import STANDARD_GRAVITY
 from bullet_dlo.data.plan import cable_spec, episode_motion, plan_episode
 from bullet_dlo.data.quality import quality_issues, quality_metrics, sensor_metrics
@@ -44,6 +47,7 @@ from bullet_dlo.data.storage import (
 from bullet_dlo.render.camera import default_camera, render_frame
 from bullet_dlo.robots.arm import Robot
 from bullet_dlo.robots.dual_arm import DualArmScene, DualArmSpec
+from bullet_dlo.sim import build_arms
 
 COLUMNS = ("t", "cable_x", "cable_v", "wrench_world", "wrench_sensor", "wrench_raw", "end_forces", "end_moments",
            "joint_q", "joint_qd", "joint_tau", "ee_pos", "ee_quat")
@@ -103,16 +107,25 @@ def joint_state(robot: Robot) -> tuple[list[float], list[float], list[float]]:
     return [s[0] for s in states], [s[1] for s in states], [s[3] for s in states]
 
 
-def dual_arm_spec(spec: CaptureSpec, params: dict[str, Any], decision: dict[str, Any]) -> DualArmSpec:
-    """The dual-arm scene of a planned episode (parameters of older episodes without the grip ones: a clamp)."""
+def episode_scene(spec: CaptureSpec, params: dict[str, Any], decision: dict[str, Any]) -> Scene:
+    """The scene of a planned episode: its cable, step, integrator and substeps (the stability decision),
+    the arms' layout, grip and wrist sensors, the motion and the spec's duration (parameters of older
+    episodes without the grip ones: a clamp)."""
     grip = {k: params[k] for k in ("grip", "grip_force", "grip_reach") if k in params}
     if "grip_mu_static" in params:
         grip["grip_friction"] = (params["grip_mu_static"], params["grip_mu_dynamic"])
-    return DualArmSpec(robot=params["robot"], cable=cable_spec(params), dt=params["dt"],
-                       integrator=params["integrator"], hold_height=params["hold_height"],
+    arms = ArmsOptions(robot=params["robot"], hold_height=params["hold_height"],
                        sensor_rate=params["sensor_rate"] or None, noise_std=(params["noise_std"],) * 3 + (0.0,) * 3,
-                       seed=params["noise_seed"], renderer="tiny" if spec.camera_fps > 0 else None,
-                       substeps=decision["substeps"], **grip)
+                       seed=params["noise_seed"], **grip)
+    return Scene(cable=cable_spec(params), motion=episode_motion(params), integrator=params["integrator"],
+                 dt=params["dt"], duration=spec.duration, name=f"episode (seed {spec.seed})",
+                 bullet=BulletOptions(substeps=decision["substeps"]), arms=arms)
+
+
+def dual_arm_spec(spec: CaptureSpec, params: dict[str, Any], decision: dict[str, Any]) -> DualArmSpec:
+    """The dual-arm physics of a planned episode (:func:`episode_scene`), with a renderer when it films."""
+    return DualArmSpec.from_scene(episode_scene(spec, params, decision),
+                                  renderer="tiny" if spec.camera_fps > 0 else None)
 
 
 def run_episode(spec_dict: dict, index: int, out_dir: str) -> dict:
@@ -122,13 +135,12 @@ def run_episode(spec_dict: dict, index: int, out_dir: str) -> dict:
     """
     spec = CaptureSpec.from_dict(spec_dict)
     params, decision = plan_episode(spec, index)
-    setup = dual_arm_spec(spec, params, decision)
-    with DualArmScene(setup) as scene:
-        scene.grasp()
-        scene.follow_motion(episode_motion(params))
-        recorder = EpisodeRecorder(scene, max(1, int(round(1.0 / (spec.record_rate * setup.dt)))), spec)
-        scene.world.after_step.append(recorder)
-        scene.run(spec.duration)
+    scene_ = episode_scene(spec, params, decision)
+    with build_arms(scene_, renderer="tiny" if spec.camera_fps > 0 else None, record=False) as sim:
+        scene = sim.arms
+        recorder = EpisodeRecorder(scene, max(1, int(round(1.0 / (spec.record_rate * scene_.dt)))), spec)
+        sim.after_step.append(recorder)
+        sim.run()
         stable, t_bad, reason = scene.cable.stable, scene.cable.time_to_instability, scene.cable.reason
         check = scene.observation.check
         compensation = scene.sensors[0].compensation
@@ -140,7 +152,7 @@ def run_episode(spec_dict: dict, index: int, out_dir: str) -> dict:
              "time_to_instability": -1.0 if t_bad is None else float(t_bad), "columns": COLUMNS_NOTE}
     frames = np.asarray(recorder.frames, dtype=np.uint8) if recorder.frames else None
     name = write_episode(out_dir, index, data, attrs, frames, np.asarray(recorder.frame_t))
-    weight = setup.cable.mass * float(np.linalg.norm(STANDARD_GRAVITY))
+    weight = scene_.cable.mass * float(np.linalg.norm(STANDARD_GRAVITY))
     issues = (quality_issues(metrics, weight, spec.max_sensor_model_rms, spec.max_hf_energy) + check.failures()
               if stable else [])
     return episode_result(index, name, stable, t_bad, reason, params, decision, metrics, issues)

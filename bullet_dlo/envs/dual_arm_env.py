@@ -49,7 +49,8 @@ from bullet_dlo.config.robot import load_robot_spec
 from bullet_dlo.core.validate import ParameterError, check_int, check_positive
 from bullet_dlo.envs.randomisation import EnvRandomisation, RandomisationLike, check_control_period
 from bullet_dlo.render.camera import default_camera, render_frame
-from bullet_dlo.robots.dual_arm import DualArmObservation, DualArmPhysics
+from bullet_dlo.robots.dual_arm import DualArmPhysics
+from bullet_dlo.sim import build_arms
 
 CAMERA_VIEW = [(-0.45, 0.0, 0.2), (0.45, 0.0, 0.2), (0.0, 0.0, 0.5)]  # points [m] the cameras frame
 CAMERAS = (None, "rgb", "depth", "rgbd")
@@ -104,6 +105,7 @@ class DualArmEnv(gym.Env):
         self.action_space = self._action_space()
         self.observation_space = spaces.Dict(self._observation_boxes())
         self.physics: DualArmPhysics | None = None
+        self._sim = None
         self.sensors = None
         self.observation = None
         self.draw = None
@@ -152,15 +154,11 @@ class DualArmEnv(gym.Env):
         self.draw = self.randomisation.draw(self.np_random, renderer)
         setup = self.draw.setup
         self.substeps = check_control_period(self.control_dt, setup.dt)
-        self.physics = DualArmPhysics(setup)
-        try:
-            self.observation = DualArmObservation(self.physics, record=False)  # its check: every sample vs the model
-            self.sensors = self.observation.sensors
-            self.physics.clamp(0)
-            self.physics.clamp(1)
-        except Exception:
-            self._close_scene()
-            raise
+        # grasped, no per-step record (the observation's check still compares every sample with the model)
+        self._sim = build_arms(self.draw.scene, renderer=renderer, record=False)
+        self.physics = self._sim.physics
+        self.observation = self._sim.observation
+        self.sensors = self.observation.sensors
         robots = self.physics.robots
         self._quat = [q for _, q in self.physics.grasp_poses]
         self._q_target = [r.joint_positions() for r in robots]
@@ -269,7 +267,7 @@ class DualArmEnv(gym.Env):
     # ----- closing --------------------------------------------------------------------------------
     def _close_scene(self) -> None:
         if self.physics is not None:
-            self.physics.close()
+            self._sim.close()
         self.physics = None
 
     def close(self) -> None:

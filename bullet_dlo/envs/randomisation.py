@@ -3,7 +3,7 @@
 The same spec format as dataset captures (:class:`~bullet_dlo.config.capture.CaptureSpec`, a
 YAML file or a dict), the same planning (:func:`~bullet_dlo.data.plan.plan_episode`: its
 stability policy may switch integrator or add substeps) and the same scene
-(:func:`~bullet_dlo.data.episode.dual_arm_spec`). An environment's reset draws one episode seed
+(:func:`~bullet_dlo.data.episode.episode_scene`, built by :func:`bullet_dlo.sim.build_arms`). An environment's reset draws one episode seed
 from its own generator (seeded by ``reset(seed=...)``), so the drawn parameters depend only on
 the reset seed. Used: the cable (length, diameter, mass, youngs_modulus, n_masses, damping,
 damping_rate, internal_damping, friction), dt, integrator, robot, hold_height, the grip (grip,
@@ -23,7 +23,8 @@ import numpy as np
 from bullet_dlo.config.capture import CaptureSpec
 from bullet_dlo.config.robot import DualArmSpec
 from bullet_dlo.core.validate import ParameterError
-from bullet_dlo.data.episode import dual_arm_spec
+from bullet_dlo.config.scene import Scene
+from bullet_dlo.data.episode import episode_scene
 from bullet_dlo.data.plan import plan_episode
 
 RandomisationLike = CaptureSpec | Mapping[str, Any] | str | Path | None
@@ -31,8 +32,10 @@ RandomisationLike = CaptureSpec | Mapping[str, Any] | str | Path | None
 
 @dataclasses.dataclass(frozen=True)
 class Draw:
-    """One reset's scene: the dual-arm spec, the drawn parameters and the stability decision (as a capture stores)."""
+    """One reset's scene (what :func:`bullet_dlo.sim.build_arms` builds), its dual-arm physics spec with the
+    renderer, the drawn parameters and the stability decision (as a capture stores them)."""
 
+    scene: Scene
     setup: DualArmSpec
     params: dict
     decision: dict
@@ -54,8 +57,8 @@ class EnvRandomisation:
         """The scene of one episode, from ``rng`` (the environment's, seeded at reset); ``renderer`` for images."""
         seeded = dataclasses.replace(self.spec, seed=int(rng.integers(2**31 - 1)), camera_fps=0.0)
         params, decision = plan_episode(seeded, 0)
-        setup = dataclasses.replace(dual_arm_spec(seeded, params, decision), renderer=renderer)
-        return Draw(setup, params, decision)
+        scene = dataclasses.replace(episode_scene(seeded, params, decision), motion=())  # the policy moves the arms
+        return Draw(scene, DualArmSpec.from_scene(scene, renderer=renderer), params, decision)
 
     def values(self, key: str) -> list:
         """Every value parameter ``key`` can take, for a ``fixed`` or ``choice`` distribution (else [])."""

@@ -3,17 +3,20 @@ from __future__ import annotations
 
 import json
 import warnings
+from dataclasses import replace
 from pathlib import Path
 from typing import Sequence
 
 import numpy as np
 from tqdm import tqdm
 
+from bullet_dlo.config.robot import ArmsOptions
 from bullet_dlo.core.boundary import motion_offset
 from bullet_dlo.render.camera import Camera, framing_camera
 from bullet_dlo.render.plots import plot_wrenches
 from bullet_dlo.render.tube import CableTube
 from bullet_dlo.render.video import Recorder, VideoWriter, probe_video, side_by_side
+from bullet_dlo.sim import build, engine_for
 
 GRIPPER_HEIGHT = 0.08  # [m] of gripper shown above a held cable end
 
@@ -66,8 +69,9 @@ def render_scene(scene, out: str | Path, *, robot: str | None = None, fps: float
     ``side_by_side.<ext>``, ``still.png`` and ``render.json`` into ``out``.
 
     robot: two arms of this kind hold the cable ends (the scene's first end is the left arm's)
-    and the plot shows their wrist sensors; arm_options: more :class:`DualArmConfig` fields
-    (e.g. ``hold_height``); camera: default frames the cable's whole motion (see
+    and the plot shows their wrist sensors (a scene whose ``arms:`` names a robot needs none);
+    arm_options: :class:`~bullet_dlo.config.robot.ArmsOptions` fields replacing the scene's (e.g.
+    ``hold_height``); the runtime comes from :func:`bullet_dlo.sim.build`; camera: default frames the cable's whole motion (see
     :func:`cable_envelope`); phases: (start [s], end [s], label) spans marked on the force plot;
     still_time: time [s] of the frame saved as ``still.png`` (default: the last frame);
     progress: a frame counter with ETA on stderr; on_arm_scene: called with the dual-arm scene once it
@@ -78,32 +82,21 @@ def render_scene(scene, out: str | Path, *, robot: str | None = None, fps: float
 
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    if robot:
-        from bullet_dlo.robots.dual_arm import DualArmConfig, DualArmScene
-
-        arm_scene = DualArmScene(DualArmConfig(robot=robot, cable=scene.cable, dt=scene.dt, integrator=scene.integrator,
-                                               renderer=renderer, **{**scene.arm_options(), **(arm_options or {})}))
-        from bullet_dlo.bullet.world import add_obstacles
-
-        add_obstacles(arm_scene.world, scene.bullet.obstacles)  # pegs, fixtures: the cable touches them
-        arm_scene.grasp()
-        arm_scene.follow_motion(scene.motion)
-        if on_arm_scene is not None:
-            on_arm_scene(arm_scene)
-        world, cable, free = arm_scene.world, arm_scene.cable, (False, False)
-    else:
-        from bullet_dlo.bullet.world import build_world
-
-        arm_scene = None
-        world = build_world(scene, renderer=renderer)
-        model = scene.build_model()
-        cable = world.add_cable(model, integrator=scene.integrator, state=scene.initial_state(model),
-                                substeps=scene.bullet.substeps, self_collision=scene.bullet.self_collision)
-        free = tuple(mode == "free" for mode in scene.ends)
+    if arm_options:
+        scene = replace(scene, arms=replace(scene.arms or ArmsOptions(), **arm_options))
+    engine = engine_for(scene, robot)
+    sim = build(scene, engine, robot=robot, renderer=renderer,
+                command="render --robot" if engine == "arms" else "render")
+    scene = sim.scene  # n_masses: auto and dt: auto resolved
+    world, cable = sim.world, sim.cable
+    arm_scene = sim.arms if engine == "arms" else None
+    free = (False, False) if arm_scene is not None else tuple(mode == "free" for mode in scene.ends)
+    if arm_scene is not None and on_arm_scene is not None:
+        on_arm_scene(arm_scene)
     try:
         ground = world.ground_height if world.ground_id is not None else -np.inf
         envelope = cable_envelope(cable.x[[0, -1]], scene.cable.length, scene.motion, free, ground)
-        if robot:  # the fingers above each held end stay in the picture too
+        if arm_scene is not None:  # the fingers above each held end stay in the picture too
             envelope = np.vstack([envelope, envelope + (0.0, 0.0, GRIPPER_HEIGHT)])
         cam = camera or framing_camera(envelope, width=width, height=height)
         tube = CableTube(cable)
@@ -145,7 +138,4 @@ def render_scene(scene, out: str | Path, *, robot: str | None = None, fps: float
         (out / "render.json").write_text(json.dumps(summary, indent=2))
         return summary
     finally:
-        if arm_scene is not None:
-            arm_scene.close()
-        else:
-            world.close()
+        sim.close()

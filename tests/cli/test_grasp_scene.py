@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 
 from bullet_dlo.cli.main import main
+from bullet_dlo.config.robot import DualArmSpec
 from bullet_dlo.config.scene import Scene
 from bullet_dlo.core.validate import ParameterError
 
@@ -35,8 +36,8 @@ def test_arms_section_is_validated_with_the_key_named():
         Scene.from_dict({**base, "arms": {"hold_height": 0.21}})
     with pytest.raises(ParameterError, match="unknown key"):
         Scene.from_dict({**base, "arms": {"span": 0.3}})
-    assert Scene.from_dict({**base, "arms": {"table_height": 0}}).arm_options() == {"start": "settled",
-                                                                                     "table_height": 0.0}
+    spec = DualArmSpec.from_scene(Scene.from_dict({**base, "arms": {"table_height": 0}}))
+    assert (spec.start, spec.table_height, spec.hold_height) == ("settled", 0.0, 0.35)  # given, and the defaults
 
 
 def test_friction_grip_from_a_scene_file_saturates_at_two_mu_fn(tmp_path):

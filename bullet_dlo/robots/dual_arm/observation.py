@@ -1,6 +1,6 @@
 """What is measured in the dual-arm scene: the two wrist F/T sensors and the per-step record.
 
-The sensors are updated after every Bullet step (each samples at its own rate, see
+The sensors are updated after every Bullet step (by the physics' read phase) (each samples at its own rate, see
 :class:`~bullet_dlo.robots.sensors.WristSensor`); the record then stores, per step, the
 sensor readings beside the model's ground truth (the cable's end forces and clamp torques,
 grasp-frame and cable-end positions), the pairs the tests and the study compare.
@@ -103,7 +103,7 @@ class DualArmObservation:
     last settle step, taken before the cable was attached (as users zero an ATI sensor in the
     grasp pose before grasping). A dataset capture or an environment with its own recording
     passes ``record=False`` and reads ``sensors[i].last`` (a :class:`~bullet_dlo.robots.sensors.Wrench`)
-    from its own ``world.after_step`` hook.
+    from its own ``world.after_step`` hook. One observation per physics.
     """
 
     def __init__(self, physics: DualArmPhysics, record: bool = True):
@@ -120,12 +120,13 @@ class DualArmObservation:
             s.tare()
         self.check = SensorCheck(spec.cable.mass * float(np.linalg.norm(physics.world.gravity)))
         self.record = DualArmRecord()
-        world = physics.world
-        world.after_physics.append(self._update_sensors)
+        physics.observation = self  # the physics samples the sensors in its read phase
         if record:
-            world.after_step.append(self._record_step)
+            physics.world.after_step.append(self._record_step)
 
-    def _update_sensors(self) -> None:
+    def read_sensors(self) -> None:
+        """Sample the wrist sensors after the Bullet step (phase 4 of the dual-arm step, see
+        :mod:`~bullet_dlo.robots.dual_arm.physics`) and check them against the loads the cable applied."""
         world, physics = self.physics.world, self.physics
         # what the cable applied in the Bullet step just taken: its step (after these hooks) replaces them
         forces, torques = physics.cable.planned_end_loads()

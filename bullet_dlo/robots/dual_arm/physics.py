@@ -4,16 +4,24 @@ Everything needed to step, and nothing about what an episode does (:mod:`.task`)
 measured (:mod:`.observation`). The left arm (index 0) holds the cable's first end, the right
 arm (index 1) its last. A held end is clamped to its gripper's grasp frame (position and
 tangent), or, with ``spec.grip = "friction"``, held by a friction grip that slips along the
-gripper at 2 mu F_n (:meth:`~bullet_dlo.bullet.cable.BulletCable.grip_with_friction`). Stepping
-order, by the world's hooks:
+gripper at 2 mu F_n (:meth:`~bullet_dlo.bullet.cable.BulletCable.grip_with_friction`).
 
-1. before the Bullet step: the force and clamp torque the cable exerts on each held end are
-   applied to the gripper link, so they flow through the arm into its wrist joint;
-2. Bullet steps the arms;
-3. after it: both arms are read in one go (grasp frames, the wrist sensors' links and joints:
-   :class:`~bullet_dlo.bullet.native.StateReader`, which the sensors share) and each held cable
-   end is given the measured grasp frame (position, velocity, acceleration, angular velocity,
-   tangent) to follow in the cable's own step.
+The physics is a coupling of its world (:meth:`bullet_dlo.bullet.world.BulletWorld.step` lists
+the phases). One step of the dual-arm scene, the wrist wrench's path in order:
+
+1. the cable's sphere forces go to Bullet (contact with the table and obstacles);
+2. :meth:`DualArmPhysics.load`: the force and clamp torque the cable's last step planned for each
+   held end are applied to the gripper link, so they flow through the arm into its wrist joint;
+   then the task (if any) sets the arms' joint targets;
+3. Bullet steps the arms: the wrist joints carry the cable's load in their reaction;
+4. :meth:`DualArmPhysics.read`: both arms are read in one go (grasp frames, the wrist sensors' links
+   and joints: :class:`~bullet_dlo.bullet.native.StateReader`), each held cable end is given the
+   measured grasp frame (position, velocity, acceleration, angular velocity, tangent) to follow;
+   then the wrist sensors (the observation, if any) sample the joint reactions, remove the payload
+   and are checked against the loads of phase 2;
+5. the cable takes its own step, held by the grasp frames of phase 4, and plans the loads of the
+   next phase 2;
+6. recorders (``world.after_step`` hooks) store the step.
 
 Where a C compiler is available the wrenches go to Bullet and the states come back through
 Bullet's C API from compiled code (:mod:`bullet_dlo.bullet.native`), else through PyBullet's
@@ -31,7 +39,7 @@ from scipy.spatial.transform import Rotation
 from bullet_dlo.bullet.cable import BulletCable
 from bullet_dlo.bullet.kernels import bind
 from bullet_dlo.bullet.native import StateReader, apply_wrenches
-from bullet_dlo.bullet.world import BulletWorld
+from bullet_dlo.bullet.world import BulletWorld, add_obstacles
 from bullet_dlo.config.robot import CALIBRATION_TILTS, DualArmSpec, RobotSpec, load_robot_spec
 from bullet_dlo.core.model import CableModel, CableState
 from bullet_dlo.core.statics import solve_static
@@ -92,12 +100,16 @@ class DualArmPhysics:
     def __init__(self, spec: DualArmSpec = DualArmSpec()):
         self.spec = spec
         robot_spec = load_robot_spec(spec.robot)
-        self.world = BulletWorld(dt=spec.dt, renderer=spec.renderer)
+        opts = spec.bullet
+        self.world = BulletWorld(dt=spec.dt, gravity=spec.gravity, ground=opts.ground,
+                                 ground_height=opts.ground_height, ground_friction=opts.ground_friction,
+                                 renderer=spec.renderer)
         # Bullet's solver stops at a residual of 1e-7 by default, which left the KUKA's wrist reaction
         # 1.6 mN sideways at rest (0.5 % of a 30 g cable's weight); at 1e-9 it is 0.006 mN, same cost
         pb.setPhysicsEngineParameter(solverResidualThreshold=SOLVER_RESIDUAL, physicsClientId=self.world.client)
         try:
             self._add_table()
+            add_obstacles(self.world, opts.obstacles)  # pegs, fixtures: the cable touches them
             self.robots: list[Robot] = []
             self.grasp_poses: list[tuple[np.ndarray, np.ndarray]] = []
             for arm, sign in zip(ARMS, (-1.0, 1.0)):
@@ -119,8 +131,9 @@ class DualArmPhysics:
         self._end_points = np.zeros((2, 3))  # [m] where the cable's end forces act: its end masses
         self._apply_wrenches = None  # native.apply_wrenches's machine code, bound on first use
         self._grasp_frames = bind(grasp_frames, self.reader.link_rows, self._grasp_velocity, 0.0, self.cable.ext)
-        self.world.before_step.append(self._apply_cable_wrench)
-        self.world.after_physics.append(self._follow_grippers)
+        self.task = None  # set by a task (DualArmTask): it drives the arms in load()
+        self.observation = None  # set by DualArmObservation: its sensors sample in read()
+        self.world.couplings.append(self)
         self._follow_grippers(first=True)
 
     # ----- building ------------------------------------------------------------------------------
@@ -147,8 +160,11 @@ class DualArmPhysics:
         start, _ = self.robots[0].grasp_pose()
         model = CableModel.straight(self.spec.cable, start, (1.0, 0.0, 0.0), ("free", "free"), (), self.world.gravity)
         state = self.settled_state(model) if self.spec.start == "settled" else None
-        cable = self.world.add_cable(model, integrator=self.spec.integrator, record_every=10**9, state=state,
-                                     overlap_ok=[r.body for r in self.robots], substeps=self.spec.substeps)
+        spec = self.spec
+        cable = self.world.add_cable(model, integrator=spec.integrator, record_every=10**9, state=state,
+                                     overlap_ok=[r.body for r in self.robots], substeps=spec.substeps,
+                                     self_collision=spec.bullet.self_collision, sync=spec.bullet.sync,
+                                     newton=spec.newton, detector=spec.detector)
         cid = self.world.client
         ends = (cable.body_ids[:NO_CONTACT_NODES], cable.body_ids[-NO_CONTACT_NODES:])
         for robot, spheres in zip(self.robots, ends):
@@ -233,6 +249,20 @@ class DualArmPhysics:
         x, y, z, w = quat
         sign = 1.0 if arm == 0 else -1.0
         return sign * np.array([1.0 - 2.0 * (y * y + z * z), 2.0 * (x * y + z * w), 2.0 * (x * z - y * w)])
+
+    def load(self) -> None:
+        """Phase 2 of the world's step (see module doc): the cable's loads on the held grippers, then the
+        task's arm targets."""
+        self._apply_cable_wrench()
+        if self.task is not None:
+            self.task.drive()
+
+    def read(self) -> None:
+        """Phase 4 of the world's step (see module doc): both arms read, the held ends given the measured
+        grasp frames, then the wrist sensors sampled."""
+        self._follow_grippers()
+        if self.observation is not None:
+            self.observation.read_sensors()
 
     def _apply_cable_wrench(self) -> None:
         """Before the Bullet step: the cable's force [N] (at the end mass) and clamp torque [N m] on each holder."""

@@ -19,16 +19,17 @@ from bullet_dlo.robots.dual_arm.task import DualArmTask
 
 class DualArmScene:
     """Two arms holding a cable across a table, built from ``spec``; use as a context manager.
+    ``record``: keep the observation's per-step record (sensors beside the model).
 
     Parts: ``physics`` (world, arms, cable, grasp coupling), ``task`` (grasp, release, moves),
     ``observation`` (wrist sensors, per-step record). Shortcuts: ``world``, ``robots``,
     ``cable``, ``sensors``, ``record``.
     """
 
-    def __init__(self, spec: DualArmSpec = DualArmSpec()):
+    def __init__(self, spec: DualArmSpec = DualArmSpec(), record: bool = True):
         self.physics = DualArmPhysics(spec)
         try:
-            self.observation = DualArmObservation(self.physics)
+            self.observation = DualArmObservation(self.physics, record=record)
             self.task = DualArmTask(self.physics)
         except Exception:
             self.physics.close()

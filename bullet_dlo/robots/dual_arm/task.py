@@ -41,14 +41,14 @@ class CartesianMove:
 
 
 class DualArmTask:
-    """Grasp, release and Cartesian moves of the two grippers, tracked by IK from a ``before_step`` hook."""
+    """Grasp, release and Cartesian moves of the two grippers, tracked by IK in the physics' load phase."""
 
     def __init__(self, physics: DualArmPhysics):
         self.physics = physics
         self.moves: list[CartesianMove] = []
         self.motion: list[Motion] = []  # core motion items (end first = left, last = right), times from t = 0
         self._offsets: list[MotionOffset | None] = [None, None]  # per arm, rebuilt when an item is added
-        physics.world.before_step.append(self._track)
+        physics.task = self  # the physics calls drive() every step, after loading the grippers
 
     def grasp(self, arm: int | str | None = None) -> None:
         """Clamp the cable end(s) to the gripper(s) (both when ``arm`` is None)."""
@@ -111,8 +111,8 @@ class DualArmTask:
             return True
         return any(m.end == END_OF_ARM[arm] and m.start <= t <= m.start + m.duration + dt for m in self.motion)
 
-    def _track(self) -> None:
-        """Before the Bullet step: joint targets for the arms that move during it."""
+    def drive(self) -> None:
+        """Before the Bullet step (phase 2 of the dual-arm step): joint targets for the arms that move during it."""
         world = self.physics.world
         t_next = world.time + world.dt
         for a, robot in enumerate(self.physics.robots):

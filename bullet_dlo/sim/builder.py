@@ -1,0 +1,122 @@
+"""One builder from a typed scene to a simulation: every entry point's runtime comes from here.
+
+``build(scene)`` reads every section of the :class:`~bullet_dlo.config.scene.Scene` or refuses
+the scene with one line naming the key and why (a key an engine cannot honour is an error, never
+silently dropped):
+
+============  ===========================================================================
+engine        what is built, and which scene keys it honours
+============  ===========================================================================
+``core``      the cable alone (core engine): cable, layout, ends, motion, gravity,
+              integrator, dt, duration, initial, detector, newton. Refuses ``bullet:``
+              (no world to put a ground or obstacles in) and ``arms:``.
+``bullet``    the cable as Bullet spheres: all of ``core`` plus ``bullet:`` (ground,
+              ground_height, ground_friction, substeps, self_collision, sync, obstacles).
+              Refuses ``arms:``.
+``arms``      two arms grasp the cable's ends: cable, motion (first end = left arm),
+              gravity, integrator, dt, duration, initial (``straight`` or the settled
+              shape), detector, newton, ``bullet:`` and ``arms:``. Refuses ``layout:`` and
+              ``ends:`` (the grippers place and hold the cable).
+============  ===========================================================================
+
+``n_masses: auto`` / ``dt: auto`` are resolved first (:func:`resolved`).
+"""
+from __future__ import annotations
+
+from bullet_dlo.bullet.world import BulletWorld, add_obstacles
+from bullet_dlo.config.robot import DualArmSpec
+from bullet_dlo.config.scene import Scene
+from bullet_dlo.config.schema import one_of
+from bullet_dlo.core.engine import DetectorOptions
+from bullet_dlo.core.validate import ParameterError
+from bullet_dlo.robots.dual_arm import DualArmScene
+from bullet_dlo.sim.simulation import ArmsSimulation, BulletSimulation, CoreSimulation, Simulation
+
+ENGINES = ("core", "bullet", "arms")
+"""What :func:`build` can make (see the module doc)."""
+
+
+def resolved(scene: Scene) -> Scene:
+    """``scene`` with ``n_masses: auto`` / ``dt: auto`` replaced by the choice of
+    :func:`bullet_dlo.analysis.resolve.resolve` (the scene itself when nothing is automatic)."""
+    return scene.resolved()
+
+
+def engine_for(scene: Scene, robot: str | None = None) -> str:
+    """The engine a scene asks for when the caller does not choose: ``arms`` when it has an ``arms:``
+    section naming a robot or ``robot`` is given, else ``bullet``."""
+    return "arms" if robot or (scene.arms is not None and scene.arms.robot) else "bullet"
+
+
+def build(scene: Scene, engine: str | None = None, *, robot: str | None = None, renderer: str | None = None,
+          gui: bool = False, command: str = "build", record_every: int | None = None,
+          max_records: int = 2001) -> Simulation:
+    """The simulation of ``scene`` (see the module doc for what each engine honours and refuses).
+
+    engine: ``core``, ``bullet`` or ``arms`` (None: :func:`engine_for`); robot: the arms' robot (before the
+    scene's ``arms.robot``; kuka when neither names one); renderer: Bullet renderer for images (``auto``,
+    ``tiny``, ``egl``; None: none); gui: PyBullet's GUI (``bullet`` only); command: named in refusals
+    (e.g. ``simulate --engine core``); record_every, max_records: the cable's record (``bullet``: steps
+    between rows, default so that about ``max_records`` rows are kept).
+    """
+    engine = one_of("engine", engine_for(scene, robot) if engine is None else engine, ENGINES)
+    refuse_unused_keys(scene, engine, command)
+    scene = resolved(scene)
+    if engine == "core":
+        return CoreSimulation(scene, scene.build_model())
+    if engine == "bullet":
+        return build_bullet(scene, scene.detector, gui=gui, renderer=renderer, record_every=record_every,
+                            max_records=max_records)
+    return build_arms(scene, robot=robot, renderer=renderer)
+
+
+def refuse_unused_keys(scene: Scene, engine: str, command: str) -> None:
+    """A ParameterError naming the first scene section that ``engine`` cannot honour (given in the file)."""
+    unused = {"core": ("bullet", "arms"), "bullet": ("arms",), "arms": ("layout", "ends")}[engine]
+    why = {"bullet": "the core engine has no world for a ground or obstacles: use --engine bullet",
+           "arms": "two arms hold the cable in grasp and render --robot (or give the scene's arms.robot)",
+           "layout": "the grippers place the cable between them",
+           "ends": "the grippers hold both ends"}
+    for key in unused:
+        if key in scene.given:
+            raise ParameterError(f"{key}: not used by {command} ({why[key]}); remove it from the scene file")
+
+
+def build_bullet(scene: Scene, detector: DetectorOptions, *, gui: bool = False, renderer: str | None = None,
+                 record_every: int | None = None, max_records: int = 2001) -> BulletSimulation:
+    """The cable of ``scene`` as Bullet spheres in a world with the scene's ground and obstacles."""
+    import math
+
+    opts = scene.bullet
+    n_steps = max(1, int(round(scene.duration / scene.dt)))
+    every = max(1, math.ceil(n_steps / max(1, max_records - 1))) if record_every is None else record_every
+    world = BulletWorld(scene.dt, scene.gravity, gui=gui, ground=opts.ground, ground_height=opts.ground_height,
+                        ground_friction=opts.ground_friction, renderer=renderer)
+    try:
+        add_obstacles(world, opts.obstacles)
+        model = scene.build_model()
+        cable = world.add_cable(model, integrator=scene.integrator, state=scene.initial_state(model),
+                                substeps=opts.substeps, self_collision=opts.self_collision, sync=opts.sync,
+                                newton=scene.newton, detector=detector, record_every=every)
+    except Exception:
+        world.close()
+        raise
+    return BulletSimulation(scene, model, world, cable, lambda det: build_bullet(
+        scene, det, gui=gui, renderer=renderer, record_every=every, max_records=max_records))
+
+
+def build_arms(scene: Scene, *, robot: str | None = None, renderer: str | None = None, grasp: bool = True,
+               record: bool = True) -> ArmsSimulation:
+    """Two arms holding the cable of ``scene``: both ends grasped (``grasp``), following the scene's motion,
+    the wrist sensors' per-step record kept (``record``)."""
+    spec = DualArmSpec.from_scene(scene, robot=robot, renderer=renderer)
+    arms = DualArmScene(spec, record=record)
+    try:
+        if grasp:
+            arms.grasp()
+        arms.follow_motion(scene.motion)
+    except Exception:
+        arms.close()
+        raise
+    return ArmsSimulation(scene, arms)
+

@@ -1,0 +1,195 @@
+"""A built scene, ready to step and run: one class per engine, one interface.
+
+:func:`bullet_dlo.sim.build` makes them from a :class:`~bullet_dlo.config.scene.Scene`; nothing
+else assembles a runtime. All three share ``scene``, ``run(duration)`` (returning a
+:class:`~bullet_dlo.core.engine.SimulationResult` for the cable), ``close()`` and the context
+manager; the two Bullet ones also ``step(n)`` and take ``after_step`` hooks (recorders, user
+extensions). The coupled step itself is written once, in
+:meth:`bullet_dlo.bullet.world.BulletWorld.step` (its phases), with the dual-arm grasp's phases in
+:mod:`bullet_dlo.robots.dual_arm.physics`.
+
+* :class:`CoreSimulation`: the cable alone in the PyBullet-free core engine (one compiled loop).
+* :class:`BulletSimulation`: the cable as Bullet spheres in a world with ground and obstacles.
+* :class:`ArmsSimulation`: two arms hold the cable's ends (grasped, following the scene's motion),
+  wrist sensors, table and obstacles: :class:`~bullet_dlo.robots.dual_arm.DualArmScene`.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import replace
+from typing import Callable
+
+import numpy as np
+
+from bullet_dlo.bullet.cable import BulletCable
+from bullet_dlo.bullet.world import BulletWorld
+from bullet_dlo.config.scene import Scene
+from bullet_dlo.core.engine import (
+    STRAIN_REASON,
+    DetectorOptions,
+    SimulationResult,
+    confirm_strain,
+    held_move_warnings,
+    simulate,
+)
+from bullet_dlo.core.model import CableModel
+from bullet_dlo.core.validate import check_positive
+from bullet_dlo.robots.dual_arm import DualArmScene
+
+Hook = Callable[[], None]
+
+
+def steps_for(duration: float, dt: float) -> int:
+    """Whole steps of ``dt`` [s] in ``duration`` [s] (at least one)."""
+    return max(1, int(round(check_positive("duration", duration) / dt)))
+
+
+class Simulation:
+    """What every built scene offers (see the module doc)."""
+
+    engine = ""
+
+    def __init__(self, scene: Scene):
+        self.scene = scene
+
+    def run(self, duration: float | None = None) -> SimulationResult:
+        """Run for ``duration`` [s] (default: the scene's); the cable's result."""
+        raise NotImplementedError
+
+    def close(self) -> None:
+        """Release the engine's resources (a PyBullet client)."""
+
+    def __enter__(self) -> "Simulation":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+
+class CoreSimulation(Simulation):
+    """The cable alone in the core engine: ``model`` (end conditions and motion from the scene)."""
+
+    engine = "core"
+
+    def __init__(self, scene: Scene, model: CableModel):
+        super().__init__(scene)
+        self.model = model
+
+    def run(self, duration: float | None = None, *, max_records: int = 2001) -> SimulationResult:
+        """One compiled run (a run stopped by the default strain bound is re-run without it, see
+        :func:`~bullet_dlo.core.engine.simulate`)."""
+        scene = self.scene
+        return simulate(self.model, scene.integrator, scene.dt, scene.duration if duration is None else duration,
+                        state=scene.initial_state(self.model), newton=scene.newton, detector=scene.detector,
+                        max_records=max_records)
+
+
+class BulletSimulation(Simulation):
+    """The cable as Bullet spheres in ``world`` (ground, obstacles): ``cable``, built from ``model``.
+
+    ``rebuild(detector)`` makes the same simulation anew with other detector settings: the strain
+    re-run of :meth:`run` needs a fresh world.
+    """
+
+    engine = "bullet"
+
+    def __init__(self, scene: Scene, model: CableModel, world: BulletWorld, cable: BulletCable,
+                 rebuild: Callable[[DetectorOptions], "BulletSimulation"]):
+        super().__init__(scene)
+        self.model, self.world, self.cable = model, world, cable
+        self._rebuild = rebuild
+
+    @property
+    def after_step(self) -> list[Hook]:
+        """Hooks called at the end of every step (recorders, user extensions)."""
+        return self.world.after_step
+
+    def step(self, n: int = 1) -> None:
+        """``n`` steps of the world (phases: :meth:`~bullet_dlo.bullet.world.BulletWorld.step`)."""
+        self.world.step(n)
+
+    def run(self, duration: float | None = None) -> SimulationResult:
+        """Step until ``duration`` [s] or instability. As with the core engine, a run stopped by the default
+        strain bound (50 %) is re-run without it in a fresh world: if the re-run stays finite with no energy
+        growth it is the result, stable, with a warning that the stretch is physical; otherwise the first
+        run stands, its cause confirmed."""
+        duration = self.scene.duration if duration is None else duration
+        first = self._run_here(duration)
+        first.warnings.extend(held_move_warnings(self.model, self.scene.dt, duration))
+        if first.reason != STRAIN_REASON or self.scene.detector.max_strain is not None:
+            return first
+
+        def rerun(bound: float) -> SimulationResult:
+            with self._rebuild(replace(self.scene.detector, max_strain=bound)) as again:
+                return again._run_here(duration)
+
+        return confirm_strain(self.model, first, rerun)
+
+    def _run_here(self, duration: float) -> SimulationResult:
+        cable = self.cable
+        wall = self.world.run_while_stable(steps_for(duration, self.scene.dt), cable)
+        rec = cable.record.arrays()
+        return SimulationResult(
+            integrator=cable.method.name, dt=self.scene.dt, stable=cable.stable,
+            time_to_instability=cable.time_to_instability, reason=cable.reason, steps=cable.steps,
+            wall_time_s=wall, t=rec["t"], x=rec["x"], v=rec["v"], end_forces=rec["end_forces"],
+            energy=rec["energy"], final_state=cable.state(), end_moments=cable.end_moments(),
+            newton_failures=cable.newton_failures, newton_iterations=cable.newton_iterations)
+
+    def close(self) -> None:
+        self.world.close()
+
+
+class ArmsSimulation(Simulation):
+    """Two arms hold the cable: ``arms`` (:class:`~bullet_dlo.robots.dual_arm.DualArmScene`: ``physics``,
+    ``task``, ``observation``), built grasped and following the scene's motion."""
+
+    engine = "arms"
+
+    def __init__(self, scene: Scene, arms: DualArmScene):
+        super().__init__(scene)
+        self.arms = arms
+
+    @property
+    def world(self) -> BulletWorld:
+        return self.arms.world
+
+    @property
+    def cable(self) -> BulletCable:
+        return self.arms.cable
+
+    @property
+    def physics(self):
+        return self.arms.physics
+
+    @property
+    def observation(self):
+        return self.arms.observation
+
+    @property
+    def after_step(self) -> list[Hook]:
+        """Hooks called at the end of every step (recorders, user extensions)."""
+        return self.world.after_step
+
+    def step(self, n: int = 1) -> None:
+        """``n`` coupled steps (phases: :meth:`~bullet_dlo.bullet.world.BulletWorld.step` and
+        :mod:`bullet_dlo.robots.dual_arm.physics`)."""
+        self.world.step(n)
+
+    def run(self, duration: float | None = None) -> SimulationResult:
+        """Step until ``duration`` [s] or instability; the cable's result (its end forces and moments are the
+        model's loads on the grippers; the wrist sensors' record is ``observation.record``)."""
+        cable = self.cable
+        tic = time.perf_counter()
+        self.arms.run(self.scene.duration if duration is None else duration)
+        wall = time.perf_counter() - tic
+        return SimulationResult(
+            integrator=cable.method.name, dt=self.scene.dt, stable=cable.stable,
+            time_to_instability=cable.time_to_instability, reason=cable.reason, steps=cable.steps,
+            wall_time_s=wall, t=np.array([self.world.time]), x=cable.x[None].copy(), v=cable.v[None].copy(),
+            end_forces=cable.end_forces()[None], energy=np.full(1, np.nan), final_state=cable.state(),
+            end_moments=cable.end_moments(), newton_failures=cable.newton_failures,
+            newton_iterations=cable.newton_iterations)
+
+    def close(self) -> None:
+        self.arms.close()
