@@ -14,9 +14,11 @@ Instability detector (cheap checks every ``check_every`` steps, energy every ``e
   energy growth the run is stable and the large strain is a *warning* (``max_strain_seen``),
   otherwise it stays unstable. An explicit ``max_strain`` is a hard stop, as before;
 * energy created from nothing: E(t) - E(0) - W_holders(t) > ``energy_factor`` * E_scale, with
-  E the kinetic + elastic + gravitational energy, W the work done by the held ends, and
-  E_scale = M |g| L + |E(0) elastic and kinetic| + sum |dW| (so a dissipative or energy-
-  conserving method never trips it, while exponential growth trips it within a few steps).
+  E the kinetic + elastic + gravitational energy, W the work done by the held ends (forces
+  and clamp moments), and E_scale = M |g| L + EI / L + |E(0) elastic and kinetic| + sum |dW|
+  (so a dissipative or energy-conserving method never trips it, while exponential growth trips
+  it within a few steps). EI / L (the energy of bending the whole cable through about a
+  radian) keeps the scale physical without gravity.
 """
 from __future__ import annotations
 
@@ -32,7 +34,7 @@ from bullet_dlo.core.kernels.forces import clamp_torque, internal_energy, max_st
 from bullet_dlo.core.kernels.end_loads import clamp_moment_history
 from bullet_dlo.core.kernels.holders import HeldSamples, empty_samples, peak_speeds, sample_holders
 from bullet_dlo.core.kernels.loop import make_records, run_loop
-from bullet_dlo.core.kernels.monitor import REASONS, STABLE, STRETCH, Detector, end_forces
+from bullet_dlo.core.kernels.monitor import REASONS, STABLE, STRETCH, Detector, clamp_moments, end_forces
 from bullet_dlo.core.kernels.steppers import make_workspace
 from bullet_dlo.core.model import CableModel, CableState, ModelArrays
 from bullet_dlo.core.validate import ParameterError, check_int, check_positive
@@ -118,7 +120,8 @@ def start_detector(options: DetectorOptions, model: CableModel, m: ModelArrays, 
                    samples: HeldSamples) -> Detector:
     """The detector at the start state (x [m], v [m/s], (n, 3)), held ends at sample 0 of ``samples``.
 
-    Its energy scale starts at M |g| L + the kinetic and elastic energy of the start state [J].
+    Its energy scale starts at M |g| L + EI / L + the kinetic and elastic energy of the start state [J]
+    (EI / L: without gravity the scale once fell to a 1e-12 J floor and stopped valid runs).
     """
     check_positive("max_strain", options.strain_bound)
     check_positive("energy_factor", options.energy_factor)
@@ -127,14 +130,15 @@ def start_detector(options: DetectorOptions, model: CableModel, m: ModelArrays, 
     dirs = samples.dir[0]
     kinetic = 0.5 * float(np.sum(m.mass[:, None] * v**2))
     scale = model.spec.mass * float(np.linalg.norm(m.gravity)) * model.spec.length + kinetic
-    scale += internal_energy(m, x, model.holder_plan().start_dir) + 1e-12
-    force = np.zeros((2, 3))
+    scale += internal_energy(m, x, model.holder_plan().start_dir) + model.spec.bending_rigidity / model.spec.length
+    force, moment = np.zeros((2, 3)), np.zeros((2, 3))
     end_forces(m, x, v, dirs, samples.acc[0], force)
+    clamp_moments(m, x, v, dirs, moment)
     return Detector(
         max_strain=options.strain_bound, energy_factor=float(options.energy_factor),
         check_every=int(options.check_every), energy_every=int(options.energy_every),
         e0=float(mechanical_energy(m, x, v, dirs)), work=np.zeros(1), scale=np.array([scale]),
-        end_force=force, hold_pos=samples.pos[0].copy(),
+        end_force=force, hold_pos=samples.pos[0].copy(), end_moment=moment, hold_dir=dirs.copy(),
     )
 
 

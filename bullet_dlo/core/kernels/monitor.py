@@ -3,9 +3,11 @@
 Cheap checks (every ``check_every`` steps): finite state, segment strain within bound.
 Energy check (every ``energy_every`` steps): E(t) - E(0) - W_holders(t) <= factor * E_scale,
 with E the mechanical energy (plus, in contact, the energy stored in the contacts minus the work
-of the touched bodies), W the work the held ends did on the cable (trapezoid rule on
-end force times held-end displacement between energy checks) and E_scale a floor plus
-sum |dW|. See :mod:`bullet_dlo.core.engine` for the thresholds and the floor.
+of the touched bodies), W the work the held ends did on the cable (trapezoid rule on end
+force times held-end displacement, and on clamp moment times the turn of the clamp direction,
+between energy checks) and E_scale a floor plus sum |dW|. A turning clamp does work through its
+moment alone: leaving that term out made a zero-gravity run whose clamp turns "create" energy
+(issue 21). See :mod:`bullet_dlo.core.engine` for the thresholds and the floor.
 """
 from __future__ import annotations
 
@@ -15,7 +17,7 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-from bullet_dlo.core.kernels.forces import max_strain, mechanical_energy, total_forces
+from bullet_dlo.core.kernels.forces import clamp_torque, max_strain, mechanical_energy, total_forces
 
 STABLE, NONFINITE, STRETCH, ENERGY = 0, 1, 2, 3
 REASONS = {STABLE: None, NONFINITE: "non-finite state", STRETCH: "segment strain beyond bound",
@@ -29,7 +31,9 @@ class Detector(NamedTuple):
     the energy scale; check_every, energy_every: steps between cheap checks / energy checks;
     e0: mechanical energy at the start [J]; work: work the holders did on the cable so far
     [J], (1,); scale: energy scale, floor + sum |dW| [J], (1,); end_force: end forces at the
-    last energy check [N], (2, 3); hold_pos: held-end positions then [m], (2, 3).
+    last energy check [N], (2, 3); hold_pos: held-end positions then [m], (2, 3);
+    end_moment: clamp moments the cable exerted then [N m], (2, 3); hold_dir: clamp directions
+    then (unit), (2, 3).
     """
 
     max_strain: float
@@ -41,6 +45,8 @@ class Detector(NamedTuple):
     scale: np.ndarray
     end_force: np.ndarray
     hold_pos: np.ndarray
+    end_moment: np.ndarray
+    hold_dir: np.ndarray
 
 
 @njit(cache=True, error_model="numpy")
@@ -62,6 +68,13 @@ def end_forces(m, x, v, dirs, acc, out):
 
 
 @njit(cache=True, error_model="numpy")
+def clamp_moments(m, x, v, dirs, out):
+    """Moment [N m] the cable exerts on each clamp, (2, 3) into ``out`` (0 where the end is not clamped)."""
+    for e in range(2):
+        out[e, :] = clamp_torque(m, x, v, dirs, e)
+
+
+@njit(cache=True, error_model="numpy")
 def check_state(m, x, v, strain_bound):
     """The cheap checks: finite state, every segment strain within ``strain_bound``."""
     for i in range(x.shape[0]):
@@ -77,8 +90,9 @@ def check_state(m, x, v, strain_bound):
 def monitor(m, x, v, samples, det, energy_check, extra=0.0):
     """Status (STABLE, ...) of the state (x, v) at the end of a step (held-end sample 2).
 
-    With ``energy_check`` also updates the energy balance in ``det``: end forces now, the
-    holders' work since the last energy check, then the check itself. ``extra`` [J] joins the
+    With ``energy_check`` also updates the energy balance in ``det``: end forces and clamp moments
+    now, the holders' work since the last energy check (force times displacement plus moment
+    times the turn d_prev x d_now of the clamp direction), then the check itself. ``extra`` [J] joins the
     cable's mechanical energy in the balance: for a cable in contact, the energy stored in the
     contact springs minus the work the touched bodies did on the cable (counting contact force
     times displacement as external work instead would hide a blow-up inside a contact).
@@ -93,8 +107,19 @@ def monitor(m, x, v, samples, det, energy_check, extra=0.0):
             dw = -0.5 * (f_now[e, j] + det.end_force[e, j]) * (samples.pos[2, e, j] - det.hold_pos[e, j])
             det.work[0] += dw
             det.scale[0] += abs(dw)
+    m_now = np.empty((2, 3))
+    clamp_moments(m, x, v, samples.dir[2], m_now)
+    for e in range(2):
+        d0, d1 = det.hold_dir[e], samples.dir[2, e]
+        turn = (d0[1] * d1[2] - d0[2] * d1[1], d0[2] * d1[0] - d0[0] * d1[2], d0[0] * d1[1] - d0[1] * d1[0])
+        for j in range(3):
+            dw = -0.5 * (m_now[e, j] + det.end_moment[e, j]) * turn[j]
+            det.work[0] += dw
+            det.scale[0] += abs(dw)
     det.hold_pos[:, :] = samples.pos[2]
     det.end_force[:, :] = f_now
+    det.hold_dir[:, :] = samples.dir[2]
+    det.end_moment[:, :] = m_now
     if status != STABLE:
         return status
     e = mechanical_energy(m, x, v, samples.dir[2]) + extra
