@@ -1,18 +1,37 @@
-"""Cable parameters from measured wrist forces: least squares on the force residual, with standard errors.
+"""Cable parameters from recorded end loads: least squares on force, moment or any linear residual, with
+intervals that mean something.
 
 The forward model is the core engine (:func:`bullet_dlo.core.engine.simulate`, no PyBullet):
 both cable ends clamped, each following its gripper's recorded grasp pose as a waypoint path
 (:class:`~bullet_dlo.core.boundary.Waypoints`, C2 through the recorded poses), started from
-the static equilibrium at the first pose (or straight). Its end forces (the force the cable
-exerts on each holder) are compared with the tared world-frame wrist forces at the recorded
-times; ``scipy.optimize.least_squares`` varies the parameters in log space.
+the static equilibrium at the first pose (or straight). Its end forces and clamp moments (the
+loads the cable exerts on each holder, every recorded state: ``SimulationResult.end_moment_history``)
+are compared with what each recording holds (:mod:`bullet_dlo.analysis.fit_recording`: wrist
+forces, moments, or a linear map of both such as joint torques), each kind divided by its noise
+level, over one recording or a set at once (shared parameters, per-recording residuals);
+``scipy.optimize.least_squares`` varies the parameters in log space.
 
-Uncertainty, from the Jacobian J of the residual (m rows) in log parameters at the optimum:
-cov = sigma^2 (J^T J)^-1 with sigma^2 = |r|^2 / (m - p); the standard error of a parameter is
-its value times the square root of its diagonal entry (delta method). A parameter is reported
-not identifiable from the motion when its relative standard error exceeds ``max_relative_se``
-or its direction in J^T J is (near-)singular; ``condition`` is the condition number of J^T J
-with columns scaled to unit norm (1: independent effects; large: parameters trade off).
+Uncertainty. The Jacobian standard error sigma^2 (J^T J)^-1 (kept as ``jacobian_standard_errors``)
+assumes independent residuals and is far too small when the residual is correlated (coloured
+noise, model discrepancy, numerical damping the model does not have). The reported interval is
+the widest of (:mod:`bullet_dlo.analysis.fit_stats`): a delete-a-window jackknife over time
+windows at least 5 residual correlation times long (and over recordings; Student's t with B - 1
+degrees of freedom), the Newey-West (HAC) sandwich, and the Jacobian one. The fit also reports
+the residual's whiteness (autocorrelation, integrated correlation time, effective samples,
+Ljung-Box), the held-out residual of each window predicted by the others' refit, the per-window
+parameter spread, and a conditional parameter profile. Verdict: when the recordings hold fewer
+than ``min_windows`` independent windows (residual correlated over a time comparable to them) or
+the held-out residual exceeds ``max_holdout_ratio`` x the in-sample one, model discrepancy
+dominates: every parameter is reported ``identifiable: false`` with no interval and the reason.
+A parameter is also not identifiable when its interval's relative half-width / 1.96 exceeds
+``max_relative_se``, when it sits at a bound, or when J^T J is blind to it.
+
+Numerical damping (:mod:`bullet_dlo.analysis.fit_numerics`). The fitted model runs with the
+integrator, n and dt stated in the result; at the fitted parameters the integrator's numerical
+damping ratio on the lowest modes must stay below ``max_numerical_damping`` x the physical one and
+its stiffest mode must not ring; else a warning (``integrator="auto"``: BDF2, dt halved and the
+fit repeated until it holds, at most 3 times). A recording that says how it was simulated
+(``Recording.source``) gets the same check for its own integrator, and ``match_source`` fits with it.
 
 Grasp frames follow the dual-arm convention (:class:`bullet_dlo.robots.dual_arm.DualArmPhysics`):
 the left arm (index 0) holds the cable's first end and its grasp x axis points along the cable;
@@ -21,19 +40,47 @@ the right arm's x axis points into the cable, i.e. along minus the cable tangent
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, fields
-from typing import Any, Sequence
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field, fields, replace
+from typing import Any
 
 import numpy as np
+from scipy import stats
 from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 
+from bullet_dlo.analysis.fit_numerics import (
+    NumericalDampingCheck,
+    numerical_damping_check,
+)
+from bullet_dlo.analysis.fit_recording import (
+    CLAMP_SIGN,
+    KINDS,
+    UNITS,
+    Recording,
+    noise_scale,
+    predicted,
+)
+from bullet_dlo.analysis.fit_stats import (WINDOW_TAUS, 
+    block_jackknife,
+    hac_variances,
+    t_quantile,
+    whiteness,
+    window_bounds,
+    windows_for,
+)
 from bullet_dlo.core.boundary import EndHolder, Motion, Waypoints, motion_offset
 from bullet_dlo.core.engine import simulate
+from bullet_dlo.core.integrators import INTEGRATORS
 from bullet_dlo.core.model import STANDARD_GRAVITY, CableModel, CableState, build_arrays
 from bullet_dlo.core.spec import CableSpec
 from bullet_dlo.core.statics import solve_static
-from bullet_dlo.core.validate import ParameterError, check_int, check_positive
+from bullet_dlo.core.validate import (
+    ParameterError,
+    check_in_range,
+    check_int,
+    check_positive,
+)
 
 BOUNDS = {  # allowed range of each fittable parameter (SI), also its log-space box
     "youngs_modulus": (1e3, 1e13),
@@ -43,8 +90,26 @@ BOUNDS = {  # allowed range of each fittable parameter (SI), also its log-space 
     "mass": (1e-6, 1e3),
 }
 GUESS = {"youngs_modulus": 1e8, "damping_rate": 1.0, "internal_damping": 1e-3, "damping": 1e-3}
-CLAMP_SIGN = (1.0, -1.0)
-"""Cable tangent = sign * grasp-frame x axis, per arm (left, right)."""
+AUTO_INTEGRATOR = "bdf2"
+AUTO_HALVINGS = 3
+__all__ = [
+    "BOUNDS",
+    "CLAMP_SIGN",
+    "KINDS",
+    "FitOptions",
+    "FitResult",
+    "Recording",
+    "default_parameters",
+    "fit_cable",
+    "held_model",
+    "holder_paths",
+    "log_variances",
+    "model_forces",
+    "model_loads",
+    "run_forces",
+    "run_loads",
+    "synthetic_recording",
+]
 
 
 def default_parameters(fit_mass: bool) -> list[str]:
@@ -55,48 +120,22 @@ def default_parameters(fit_mass: bool) -> list[str]:
 
 
 @dataclass(frozen=True)
-class Recording:
-    """What a fit needs from a measurement, arms in the order (left, right), k samples.
-
-    t: times [s], (k,), increasing; grasp_pos: grasp-frame positions [m], (k, 2, 3); grasp_quat:
-    grasp-frame orientations as quaternions (x, y, z, w), (k, 2, 4); force: tared wrist forces on
-    the tool in world frame [N], (k, 2, 3) (the force the cable exerts on each gripper).
-    """
-
-    t: np.ndarray
-    grasp_pos: np.ndarray
-    grasp_quat: np.ndarray
-    force: np.ndarray
-
-    def __post_init__(self) -> None:
-        t = np.asarray(self.t, dtype=float)
-        k = len(t)
-        if t.ndim != 1 or k < 3 or np.any(np.diff(t) <= 0):
-            raise ParameterError("recording t must hold at least 3 strictly increasing times [s]")
-        for name, width in (("grasp_pos", 3), ("grasp_quat", 4), ("force", 3)):
-            a = np.asarray(getattr(self, name), dtype=float)
-            if a.shape != (k, 2, width) or not np.all(np.isfinite(a)):
-                raise ParameterError(f"recording {name} must be finite with shape ({k}, 2, {width})")
-            object.__setattr__(self, name, a)
-        object.__setattr__(self, "t", t)
-
-    def clamp_directions(self) -> np.ndarray:
-        """Cable tangent held by each gripper (unit), (k, 2, 3)."""
-        out = np.empty_like(self.grasp_pos)
-        for arm in (0, 1):
-            out[:, arm] = CLAMP_SIGN[arm] * Rotation.from_quat(self.grasp_quat[:, arm]).as_matrix()[:, :, 0]
-        return out
-
-
-@dataclass(frozen=True)
 class FitOptions:
-    """How the forward model runs and the fit stops.
+    """How the forward model runs, the fit stops and its uncertainty is judged.
 
-    integrator, dt [s]: the core engine's; start: ``static`` (equilibrium at the first poses)
-    or ``straight`` (at rest, straight between the first poses); knot_rate: waypoints per second
-    taken from the recorded poses [Hz]; skip: seconds at the start left out of the residual;
-    max_evaluations: forward runs allowed; max_relative_se: above it a parameter is called not
-    identifiable; max_condition: above it J^T J is called near-singular.
+    integrator, dt [s]: the core engine's (``auto``: BDF2 with dt halved until its numerical damping
+    passes the check); start: ``static`` (equilibrium at the first poses) or ``straight`` (at rest,
+    straight between the first poses); knot_rate: waypoints per second taken from the recorded poses
+    [Hz]; skip: seconds at the start of each recording left out of the residual; max_evaluations:
+    forward runs allowed per fit; max_relative_se: above it (equivalent standard error / value) a
+    parameter is called not identifiable; max_condition: above it J^T J is called near-singular.
+    kinds: residual kinds to fit (None: every kind each recording has); sigma: noise level per kind
+    in its units (None or missing: estimated from the recordings' first differences); windows:
+    most time windows per recording for the jackknife; min_windows: fewer independent windows in
+    all: no confident number; level: interval coverage; max_holdout_ratio: held-out / in-sample
+    residual RMS above which discrepancy is declared; max_numerical_damping: allowed numerical /
+    physical damping ratio on the lowest modes; profile_points: points of each conditional profile
+    (0: none); match_source: run the model with the recording's own integrator and dt (``source``).
     """
 
     integrator: str = "implicit_midpoint"
@@ -107,25 +146,57 @@ class FitOptions:
     max_evaluations: int = 60
     max_relative_se: float = 0.3
     max_condition: float = 1e8
+    kinds: tuple[str, ...] | None = None
+    sigma: Mapping[str, float] | None = field(default=None, compare=False)
+    windows: int = 8
+    min_windows: int = 4
+    level: float = 0.95
+    max_holdout_ratio: float = 1.5
+    max_numerical_damping: float = 0.1
+    profile_points: int = 5
+    match_source: bool = False
 
     def __post_init__(self) -> None:
         check_positive("dt", self.dt)
         check_positive("knot_rate", self.knot_rate)
         check_int("max_evaluations", self.max_evaluations, 2)
+        if self.integrator != "auto" and self.integrator not in INTEGRATORS:
+            raise ParameterError(f"integrator must be auto or one of {', '.join(INTEGRATORS)}, got {self.integrator!r}")
         if self.start not in ("static", "straight"):
             raise ParameterError(f"start must be static or straight, got {self.start!r}")
         if not self.skip >= 0:
             raise ParameterError(f"skip must be >= 0 [s], got {self.skip!r}")
+        if self.kinds is not None:
+            object.__setattr__(self, "kinds", tuple(self.kinds))
+            if not self.kinds or any(k not in KINDS for k in self.kinds):
+                raise ParameterError(f"kinds must be a non-empty subset of {', '.join(KINDS)}, got {list(self.kinds)}")
+        for kind, value in (self.sigma or {}).items():
+            if kind not in KINDS:
+                raise ParameterError(f"sigma keys must be among {', '.join(KINDS)}, got {kind!r}")
+            check_positive(f"sigma[{kind}]", value)
+        check_int("windows", self.windows, 2, 1000)
+        check_int("min_windows", self.min_windows, 2, 1000)
+        check_in_range("level", self.level, 0.5, 1.0, open_hi=True)
+        check_in_range("max_holdout_ratio", self.max_holdout_ratio, 1.0, 1e6)
+        check_positive("max_numerical_damping", self.max_numerical_damping)
+        check_positive("max_relative_se", self.max_relative_se)
+        check_int("profile_points", self.profile_points, 0, 101)
 
 
 @dataclass
 class FitResult:
-    """Fitted parameters with standard errors, the identifiability verdict and the fitted forces.
+    """Fitted parameters with honest intervals, the identifiability verdict and the fitted loads.
 
-    values, standard_errors: by CableSpec field name (SI); relative_se: standard error / value;
-    identifiable: by name; condition: of the column-scaled J^T J; sigma: residual standard
-    deviation [N]; rms: residual RMS [N]; forces: model end forces at the recorded times [N],
-    (k, 2, 3); spec: the fitted cable.
+    values: by CableSpec field name (SI); intervals: (low, high) at ``level`` or None where not
+    identifiable; standard_errors: the interval's half-width / 1.96 (an equivalent standard error,
+    SI; inf when not identifiable by the Jacobian); relative_se: standard error / value;
+    jacobian_standard_errors: the uncorrelated-residual ones, for comparison; identifiable: by
+    name; reasons: why not, by name; condition: of the column-scaled J^T J; sigma: weighted residual
+    standard deviation [-] (1: the residual is the noise level); rms: residual RMS of the first
+    kind of the first recording [its units]; forces / moments: model end loads of the first
+    recording at its times [N] / [N m], (k, 2, 3); spec: the fitted cable; integrator, dt [s],
+    n_masses: how the fitted model runs; whiteness, holdout, per_recording, numerics, profiles,
+    verdict: see :meth:`to_dict`.
     """
 
     values: dict[str, float]
@@ -141,15 +212,42 @@ class FitResult:
     spec: CableSpec
     forces: np.ndarray
     warnings: list[str] = field(default_factory=list)
+    intervals: dict[str, tuple[float, float] | None] = field(default_factory=dict)
+    interval_method: str = ""
+    jacobian_standard_errors: dict[str, float] = field(default_factory=dict)
+    reasons: dict[str, str] = field(default_factory=dict)
+    moments: np.ndarray | None = None
+    loads: list[tuple[np.ndarray, np.ndarray]] = field(default_factory=list)
+    integrator: str = ""
+    dt: float = 0.0
+    n_masses: int = 0
+    whiteness: dict[str, Any] = field(default_factory=dict)
+    holdout: dict[str, Any] = field(default_factory=dict)
+    per_recording: list[dict[str, Any]] = field(default_factory=list)
+    numerics: dict[str, Any] = field(default_factory=dict)
+    profiles: dict[str, Any] = field(default_factory=dict)
+    verdict: dict[str, Any] = field(default_factory=dict)
+    level: float = 0.95
+    sigma_weighted: float = 0.0
 
     def to_dict(self) -> dict[str, Any]:
         """The JSON-able summary (no arrays)."""
-        finite = lambda v: float(v) if math.isfinite(v) else None  # noqa: E731 (JSON has no inf)
+        finite = lambda v: float(v) if v is not None and math.isfinite(v) else None
+        params = {}
+        for k in self.values:
+            iv = self.intervals.get(k)
+            params[k] = {"value": self.values[k], "interval": list(iv) if iv else None,
+                         "standard_error": finite(self.standard_errors[k]),
+                         "relative_standard_error": finite(self.relative_se[k]),
+                         "jacobian_standard_error": finite(self.jacobian_standard_errors.get(k)),
+                         "identifiable": self.identifiable[k], "reason": self.reasons.get(k)}
         return {
-            "parameters": {k: {"value": self.values[k], "standard_error": finite(self.standard_errors[k]),
-                               "relative_standard_error": finite(self.relative_se[k]),
-                               "identifiable": self.identifiable[k]} for k in self.values},
-            "condition": finite(self.condition), "sigma_N": self.sigma, "rms_N": self.rms,
+            "parameters": params, "interval_level": self.level, "interval_method": self.interval_method,
+            "verdict": self.verdict, "condition": finite(self.condition), "sigma": self.sigma,
+            "sigma_weighted": self.sigma_weighted, "rms": self.rms, "whiteness": self.whiteness, "holdout": self.holdout,
+            "per_recording": self.per_recording, "model_run": {"integrator": self.integrator, "dt_s": self.dt,
+                                                               "n_masses": self.n_masses},
+            "numerical_damping": self.numerics, "profiles": self.profiles,
             "evaluations": self.evaluations, "success": self.success, "message": self.message,
             "warnings": self.warnings, "cable": self.spec.to_dict(),
         }
@@ -185,96 +283,419 @@ def held_model(spec: CableSpec, first: EndHolder, last: EndHolder,
     return CableModel(spec, first, last, g, build_arrays(spec, first.mode, last.mode, g), x0)
 
 
-def model_forces(spec: CableSpec, rec: Recording, options: FitOptions = FitOptions(),
-                 gravity: Sequence[float] = STANDARD_GRAVITY) -> np.ndarray | None:
-    """End forces [N] of the core model following the recorded grasp poses, at the recorded times, (k, 2, 3);
-    None if the run went unstable."""
-    model = held_model(spec, *holder_paths(rec, options.knot_rate), gravity)
-    return run_forces(model, rec.t - rec.t[0], options)
+def start_state(model: CableModel, start: str) -> CableState:
+    """The model's start: the static equilibrium (``static``) or its initial straight state at rest."""
+    if start == "static":
+        return CableState(solve_static(model).x, np.zeros((model.n, 3)), 0.0)
+    return model.initial_state()
+
+
+def run_loads(model: CableModel, t: np.ndarray, integrator: str, dt: float,
+              start: str = "static") -> tuple[np.ndarray, np.ndarray] | None:
+    """End forces [N] and clamp moments [N m] of ``model`` at times ``t`` [s] from 0, each (k, 2, 3),
+    run with ``integrator`` at ``dt`` [s] from ``start``; None if the run went unstable."""
+    res = simulate(model, integrator, dt, float(t[-1]) + dt, state=start_state(model, start),
+                   record_every=1, max_records=10**9)
+    if not res.stable:
+        return None
+    out = np.empty((2, len(t), 2, 3))
+    for q, series in enumerate((res.end_forces, res.end_moment_history)):
+        for arm in (0, 1):
+            for j in range(3):
+                out[q, :, arm, j] = np.interp(t, res.t, series[:, arm, j])
+    return out[0], out[1]
 
 
 def run_forces(model: CableModel, t: np.ndarray, options: FitOptions) -> np.ndarray | None:
     """End forces [N] of ``model`` at times ``t`` [s] from 0, (k, 2, 3), started as ``options.start``
     says; None if the run went unstable."""
-    state = model.initial_state()
-    if options.start == "static":
-        state = CableState(solve_static(model).x, np.zeros((model.n, 3)), 0.0)
-    res = simulate(model, options.integrator, options.dt, float(t[-1]) + options.dt, state=state,
-                   record_every=1, max_records=10**9)
-    if not res.stable:
-        return None
-    out = np.empty((len(t), 2, 3))
-    for arm in (0, 1):
-        for j in range(3):
-            out[:, arm, j] = np.interp(t, res.t, res.end_forces[:, arm, j])
-    return out
+    loads = run_loads(model, t, run_integrator(options), options.dt, options.start)
+    return None if loads is None else loads[0]
+
+
+def run_integrator(options: FitOptions) -> str:
+    """The integrator name ``options`` run the model with (``auto`` is BDF2)."""
+    return AUTO_INTEGRATOR if options.integrator == "auto" else options.integrator
+
+
+def run_setup(rec: Recording, options: FitOptions) -> tuple[str, float]:
+    """(integrator, dt [s]) the model of ``rec`` runs with: the recording's own with ``match_source``."""
+    if options.match_source and rec.source and rec.source.get("integrator") and rec.source.get("dt"):
+        return str(rec.source["integrator"]), float(rec.source["dt"])
+    return run_integrator(options), options.dt
+
+
+def model_loads(spec: CableSpec, rec: Recording, options: FitOptions = FitOptions(),
+                gravity: Sequence[float] = STANDARD_GRAVITY) -> tuple[np.ndarray, np.ndarray] | None:
+    """End forces [N] and clamp moments [N m] of the core model following the recorded grasp poses, at the
+    recorded times, each (k, 2, 3); None if the run went unstable."""
+    model = held_model(spec, *holder_paths(rec, options.knot_rate), gravity)
+    integrator, dt = run_setup(rec, options)
+    return run_loads(model, rec.t - rec.t[0], integrator, dt, options.start)
+
+
+def model_forces(spec: CableSpec, rec: Recording, options: FitOptions = FitOptions(),
+                 gravity: Sequence[float] = STANDARD_GRAVITY) -> np.ndarray | None:
+    """End forces [N] of the core model following the recorded grasp poses, at the recorded times, (k, 2, 3);
+    None if the run went unstable."""
+    loads = model_loads(spec, rec, options, gravity)
+    return None if loads is None else loads[0]
+
+
+# ----- the residual ----------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Layout:
+    """Where each residual row comes from: ``recs`` fitted, ``kinds`` per recording, ``keep`` (sample
+    indices in the residual) per recording, ``sigma`` per kind [its units]; per row: recording,
+    sample (index into that recording's ``keep``), channel (global id)."""
+
+    recs: list[Recording]
+    kinds: list[list[str]]
+    keep: list[np.ndarray]
+    sigma: dict[str, float]
+    rec_of: np.ndarray
+    sample_of: np.ndarray
+    channel_of: np.ndarray
+
+    def weighted(self, loads: list[tuple[np.ndarray, np.ndarray]]) -> np.ndarray:
+        """The residual (prediction - measurement) / sigma of every kind, recording after recording (m,)."""
+        parts = []
+        for rec, kinds, keep, (f, mom) in zip(self.recs, self.kinds, self.keep, loads):
+            for kind in kinds:
+                parts.append(((predicted(rec, kind, f, mom) - rec.observed(kind))[keep] / self.sigma[kind]).ravel())
+        return np.concatenate(parts)
+
+
+def make_layout(recs: list[Recording], options: FitOptions, n_params: int) -> Layout:
+    """The residual layout of ``recs`` under ``options`` (kinds, skip, noise levels); ParameterError when a
+    recording has none of the kinds asked for or too few samples."""
+    kinds, keep = [], []
+    for i, rec in enumerate(recs):
+        have = [k for k in rec.kinds() if options.kinds is None or k in options.kinds]
+        if not have:
+            raise ParameterError(f"recording {rec.name or i} has none of the residual kinds {list(options.kinds)} "
+                                 f"(it has {', '.join(rec.kinds())})")
+        idx = np.flatnonzero((rec.t - rec.t[0]) >= options.skip)
+        if len(idx) < 3:
+            raise ParameterError(f"skip {options.skip} s leaves too few samples of recording {rec.name or i}")
+        kinds.append(have)
+        keep.append(idx)
+    if sum(len(i) for i in keep) < n_params + 2:
+        raise ParameterError(f"skip {options.skip} s leaves too few samples to fit {n_params} parameters")
+    sigma = {}
+    for kind in sorted({k for ks in kinds for k in ks}):
+        given = (options.sigma or {}).get(kind)
+        pooled = [rec.observed(kind)[kp] for rec, ks, kp in zip(recs, kinds, keep) if kind in ks]
+        sigma[kind] = float(given) if given else float(np.median([noise_scale(y) for y in pooled]))
+    rec_of, sample_of, channel_of = [], [], []
+    channel = 0
+    for i, (rec, ks, kp) in enumerate(zip(recs, kinds, keep)):
+        for kind in ks:
+            c = rec.observed(kind).shape[1]
+            rec_of.append(np.full(len(kp) * c, i))
+            sample_of.append(np.repeat(np.arange(len(kp)), c))
+            channel_of.append(np.tile(channel + np.arange(c), len(kp)))
+            channel += c
+    return Layout(recs, kinds, keep, sigma, np.concatenate(rec_of), np.concatenate(sample_of),
+                  np.concatenate(channel_of))
 
 
 # ----- the fit ---------------------------------------------------------------------------------
-def fit_cable(rec: Recording, spec: CableSpec, parameters: Sequence[str] | None = None,
+def fit_cable(rec: Recording | Sequence[Recording], spec: CableSpec, parameters: Sequence[str] | None = None,
               options: FitOptions = FitOptions(), gravity: Sequence[float] = STANDARD_GRAVITY,
               guess: dict[str, float] | None = None) -> FitResult:
     """Identify ``parameters`` (CableSpec field names; default :func:`default_parameters` with the
-    mass fitted) of a cable whose other fields (length, diameter, n_masses, ...) are those of ``spec``.
+    mass fitted) of a cable whose other fields (length, diameter, n_masses, ...) are those of ``spec``,
+    from one recording or a set of them (shared parameters).
 
     Start values: ``guess``, else the spec's value when > 0, else :data:`GUESS`. Returns a
     :class:`FitResult`; never raises for a motion that does not determine a parameter (that is
     reported, with a warning), only for bad input (ParameterError).
     """
+    recs = [rec] if isinstance(rec, Recording) else list(rec)
+    if not recs or not all(isinstance(r, Recording) for r in recs):
+        raise ParameterError("fit needs one Recording or a non-empty sequence of them")
     names = list(parameters) if parameters is not None else default_parameters(fit_mass=True)
     allowed = {f.name for f in fields(CableSpec)} & set(BOUNDS)
     bad = [k for k in names if k not in allowed]
     if bad or not names or len(set(names)) != len(names):
         raise ParameterError(f"fit parameters must be distinct names from {', '.join(sorted(allowed))}, got {names}")
+    layout = make_layout(recs, options, len(names))
     start = {k: float((guess or {}).get(k) or getattr(spec, k) or GUESS[k]) for k in names}
     lo = np.log([BOUNDS[k][0] for k in names])
     hi = np.log([BOUNDS[k][1] for k in names])
-    theta0 = np.clip(np.log([start[k] for k in names]), lo + 1e-9, hi - 1e-9)
-    keep = (rec.t - rec.t[0]) >= options.skip
-    if keep.sum() < len(names) + 2:
-        raise ParameterError(f"skip {options.skip} s leaves too few samples to fit {len(names)} parameters")
-    scale = float(np.abs(rec.force[keep]).max()) + 1e-9
+    theta = np.clip(np.log([start[k] for k in names]), lo + 1e-9, hi - 1e-9)
+    trial = lambda th: spec.with_(**{k: float(math.exp(v)) for k, v in zip(names, th)})
     runs = [0]
+    halvings = 0
+    while True:
+        cost = residual_function(layout, trial, options, gravity, runs)
+        sol = least_squares(cost, theta, bounds=(lo, hi), method="trf", diff_step=1e-3, x_scale=1.0,
+                            max_nfev=options.max_evaluations, xtol=1e-8, ftol=1e-10)
+        fitted = trial(sol.x)
+        check = numerics_for(fitted, recs[0], options, gravity)
+        if options.integrator != "auto" or check.ok or halvings >= AUTO_HALVINGS:
+            break
+        options, theta, halvings = replace(options, dt=options.dt / 2), sol.x, halvings + 1
+    return summarise(sol, names, fitted, layout, options, gravity, runs[0], cost, check, (lo, hi))
 
-    def trial(theta: np.ndarray) -> CableSpec:
-        return spec.with_(**{k: float(math.exp(v)) for k, v in zip(names, theta)})
+
+def residual_function(layout: Layout, trial: Callable[[np.ndarray], CableSpec], options: FitOptions,
+                      gravity: Sequence[float], runs: list[int]) -> Callable[[np.ndarray], np.ndarray]:
+    """theta (log parameters) -> the weighted residual of every recording; an unstable run gives a large
+    constant (10 x the largest weighted measurement) so the solver keeps away."""
+    scale = max(float(np.max(np.abs(rec.observed(k)[kp]))) / layout.sigma[k]
+                for rec, ks, kp in zip(layout.recs, layout.kinds, layout.keep) for k in ks) + 1.0
+    size = len(layout.rec_of)
 
     def residual(theta: np.ndarray) -> np.ndarray:
         runs[0] += 1
-        f = model_forces(trial(theta), rec, options, gravity)
-        if f is None:  # unstable: a large, smooth-ish penalty keeps the solver away
-            return np.full(int(keep.sum()) * 6, 10.0 * scale)
-        return (f - rec.force)[keep].reshape(-1)
+        loads = [model_loads(trial(theta), rec, options, gravity) for rec in layout.recs]
+        if any(x is None for x in loads):
+            return np.full(size, 10.0 * scale)
+        return layout.weighted(loads)
 
-    sol = least_squares(residual, theta0, bounds=(lo, hi), method="trf", diff_step=1e-3, x_scale=1.0,
-                        max_nfev=options.max_evaluations, xtol=1e-8, ftol=1e-10)
-    return summarise(sol, names, trial(sol.x), rec, options, gravity, runs[0])
+    return residual
 
 
-def summarise(sol, names: list[str], fitted: CableSpec, rec: Recording, options: FitOptions,
-              gravity: Sequence[float], evaluations: int) -> FitResult:
-    """Standard errors and identifiability from ``sol`` (a least_squares result in log parameters)."""
-    r, jac = sol.fun, np.asarray(sol.jac)
+def numerics_for(spec: CableSpec, rec: Recording, options: FitOptions, gravity: Sequence[float],
+                 integrator: str | None = None, dt: float | None = None) -> NumericalDampingCheck:
+    """The numerical-damping check of ``spec`` held as in ``rec`` at its first poses, for the model's
+    integrator and dt (or the ones given)."""
+    model = held_model(spec, *holder_paths(rec, options.knot_rate), gravity)
+    run_int, run_dt = run_setup(rec, options)
+    return numerical_damping_check(model, start_state(model, "static"), integrator or run_int, dt or run_dt,
+                                   options.max_numerical_damping)
+
+
+# ----- what the fit means ----------------------------------------------------------------------
+def summarise(sol, names: list[str], fitted: CableSpec, layout: Layout, options: FitOptions,
+              gravity: Sequence[float], evaluations: int, cost: Callable[[np.ndarray], np.ndarray],
+              check: NumericalDampingCheck, bounds: tuple[np.ndarray, np.ndarray]) -> FitResult:
+    """Intervals, whiteness, held-out residuals, profiles, the numerical check and the verdict of ``sol``
+    (a least_squares result in log parameters)."""
+    r, jac = np.asarray(sol.fun), np.asarray(sol.jac)
     m, p = len(r), len(names)
     sigma2 = float(r @ r) / max(m - p, 1)
     var_log, condition = log_variances(jac, sigma2)
     values = {k: float(getattr(fitted, k)) for k in names}
-    rel = {k: float(math.sqrt(v)) if math.isfinite(v) else math.inf for k, v in zip(names, var_log)}
-    se = {k: values[k] * rel[k] for k in names}
-    at_bound = {k: bool(abs(x - math.log(BOUNDS[k][0])) < 1e-6 or abs(x - math.log(BOUNDS[k][1])) < 1e-6)
-                for k, x in zip(names, sol.x)}
-    ident = {k: bool(rel[k] <= options.max_relative_se and not at_bound[k]) for k in names}
-    warnings = []
-    for k in names:
-        if not ident[k]:
-            why = "at its bound" if at_bound[k] else f"relative standard error {rel[k]:.3g}"
+    jac_sd = np.sqrt(var_log)
+    at_bound = {k: bool(abs(x - lo) < 1e-6 or abs(x - hi) < 1e-6)
+                for k, x, lo, hi in zip(names, sol.x, *bounds)}
+    sample_dt = float(np.median([np.median(np.diff(rec.t)) for rec in layout.recs]))
+    wh = whiteness([r[layout.channel_of == c] for c in np.unique(layout.channel_of)], sample_dt)
+    block, per_rec_windows, window_s = assign_windows(layout, wh.tau_s, sample_dt, options.windows)
+    blocks = int(block.max()) + 1
+    active = [j for j in range(p) if math.isfinite(var_log[j]) and not at_bound[names[j]] and jac_sd[j] < 10.0]
+    half, source = interval_half_widths(r, jac, active, block, layout, wh.tau_samples, jac_sd, options.level)
+    jk = block_jackknife(r, jac[:, active], block) if active and blocks >= 2 else None
+    ratio = jk.held_out_rms / jk.in_sample_rms if jk is not None and jk.in_sample_rms > 0 else math.inf
+    global_reasons = discrepancy_reasons(blocks, ratio, wh, options)
+    warnings: list[str] = []
+    if not check.ok:
+        warnings.append(f"numerical damping check failed: {check.message}")
+    sources = source_checks(fitted, layout, options, gravity, warnings)
+    z = float(stats.norm.ppf(0.5 + options.level / 2))
+    se, rel, ident, reasons, intervals = {}, {}, {}, {}, {}
+    for j, k in enumerate(names):
+        rel[k] = float(half[j] / z)
+        se[k] = values[k] * rel[k]
+        why = parameter_reason(k, j, at_bound[k], var_log[j], rel[k], global_reasons, check, options)
+        ident[k] = why is None
+        if why:
+            reasons[k] = why
             warnings.append(f"{k} is not identifiable from this motion ({why}; J^T J condition {condition:.3g})")
+        intervals[k] = (values[k] * math.exp(-half[j]), values[k] * math.exp(half[j])) if ident[k] else None
     if condition > options.max_condition:
         warnings.append(f"J^T J is near-singular (condition {condition:.3g}): parameters trade off against each other")
-    forces = model_forces(fitted, rec, options, gravity)
-    forces = np.full_like(rec.force, np.nan) if forces is None else forces
-    return FitResult(values, se, rel, ident, condition, math.sqrt(sigma2), float(np.sqrt(np.mean(r**2))),
-                     evaluations, bool(sol.success), str(sol.message), fitted, forces, warnings)
+    loads = [model_loads(fitted, rec, options, gravity) for rec in layout.recs]
+    loads = [x if x is not None else (np.full((len(rec.t), 2, 3), np.nan),) * 2 for x, rec in zip(loads, layout.recs)]
+    first_kind = layout.kinds[0][0]
+    integrator, dt = run_setup(layout.recs[0], options)
+    res = FitResult(values, se, rel, ident, condition, math.sqrt(sigma2) * layout.sigma[first_kind],
+                    rms_of(layout, loads, 0, first_kind), evaluations, bool(sol.success), str(sol.message), fitted,
+                    loads[0][0], warnings, intervals, interval_method(blocks, source, names, options.level),
+                    {k: values[k] * float(jac_sd[j]) for j, k in enumerate(names)}, reasons, loads[0][1], loads,
+                    integrator, dt, fitted.n_masses, level=options.level)
+    res.whiteness = wh.to_dict()
+    res.holdout = holdout_summary(jk, ratio, options, blocks, per_rec_windows, window_s, names, active)
+    res.per_recording = per_recording_summary(layout, loads, jk, block)
+    res.numerics = {"model": check.to_dict(), "recordings": sources,
+                    "rule": f"numerical damping ratio of the {len(check.modes)} lowest modes <= "
+                            f"{options.max_numerical_damping:g} x the physical one, no ringing of the stiffest mode; "
+                            "else the damping parameters are reported not identifiable"
+                            + (" (integrator auto: BDF2 with dt halved until it holds)" if options.integrator == "auto"
+                               else "")}
+    res.profiles = profiles(cost, sol.x, r, names, half, sigma2 * wh.tau_samples, options.profile_points, bounds)
+    res.verdict = {"discrepancy_dominates": bool(global_reasons), "reasons": global_reasons,
+                   "confident": [k for k in names if ident[k]], "not_identifiable": reasons,
+                   "windows": blocks, "windows_per_recording": per_rec_windows}
+    res.sigma_weighted = math.sqrt(sigma2)
+    return res
+
+
+def assign_windows(layout: Layout, tau_s: float, sample_dt: float, most: int) -> tuple[np.ndarray, list[int], list[float]]:
+    """Window (block) index of every residual row: each recording cut into windows at least
+    5 correlation times ``tau_s`` [s] long (at most ``most``; at least one per recording); the
+    windows per recording and their lengths [s]."""
+    block = np.zeros(len(layout.rec_of), dtype=int)
+    counts, lengths, offset = [], [], 0
+    for i, (rec, kp) in enumerate(zip(layout.recs, layout.keep)):
+        duration = float(rec.t[kp[-1]] - rec.t[kp[0]]) + sample_dt
+        w = max(1, windows_for(duration, tau_s, most))
+        edges = np.array([a for a, _ in window_bounds(len(kp), w)] + [len(kp)])
+        rows = layout.rec_of == i
+        block[rows] = offset + np.searchsorted(edges, layout.sample_of[rows], side="right") - 1
+        offset += len(edges) - 1
+        counts.append(len(edges) - 1)
+        lengths.append(duration / (len(edges) - 1))
+    return block, counts, lengths
+
+
+def interval_half_widths(r: np.ndarray, jac: np.ndarray, active: list[int], block: np.ndarray, layout: Layout,
+                         tau_samples: float, jac_sd: np.ndarray, level: float) -> tuple[np.ndarray, list[str]]:
+    """Half-width of each parameter's interval in log space (inf where J is blind) and where it came from:
+    the widest of the window jackknife (Student's t, B - 1 dof), the HAC sandwich and the Jacobian one."""
+    p = jac.shape[1]
+    z = float(stats.norm.ppf(0.5 + level / 2))
+    half = np.full(p, math.inf)
+    source = ["none"] * p
+    blocks = int(block.max()) + 1
+    if not active:
+        return half, source
+    sub = jac[:, active]
+    jk = block_jackknife(r, sub, block).var_log if blocks >= 2 else np.full(len(active), math.inf)
+    hac = hac_variances(r, sub, layout.rec_of, layout.sample_of, int(math.ceil(WINDOW_TAUS * tau_samples)))
+    tq = t_quantile(blocks, level)
+    for a, j in enumerate(active):
+        options = {"window jackknife": tq * math.sqrt(jk[a]), "HAC": z * math.sqrt(max(hac[a], 0.0)),
+                   "Jacobian": z * float(jac_sd[j])}
+        source[j] = max(options, key=options.get)
+        half[j] = options[source[j]]
+    return half, source
+
+
+def interval_method(blocks: int, source: list[str], names: list[str], level: float) -> str:
+    """One sentence on how the intervals were made."""
+    used = ", ".join(f"{k}: {s}" for k, s in zip(names, source))
+    return (f"{100 * level:g} % interval in log space, the widest of: delete-a-window jackknife over {blocks} time "
+            f"windows (each >= 5 residual correlation times; recordings are windows of their own), linearised "
+            f"refit, Student's t with {max(blocks - 1, 1)} dof; Newey-West (HAC) sandwich; Jacobian. Widest per "
+            f"parameter: {used}")
+
+
+def discrepancy_reasons(blocks: int, ratio: float, wh, options: FitOptions) -> list[str]:
+    """Why model discrepancy dominates (none: it does not)."""
+    out = []
+    if blocks < options.min_windows:
+        out.append(f"the residual is correlated over {wh.tau_s:.3g} s (integrated autocorrelation time, "
+                   f"{wh.tau_samples:.3g} samples; effective samples {wh.effective_samples:.3g} of {wh.samples}): "
+                   f"the recordings hold only {blocks} windows of >= 5 correlation times, fewer than "
+                   f"{options.min_windows}; what the model lacks dominates the residual")
+    if ratio > options.max_holdout_ratio:
+        out.append(f"windows predicted by a fit to the other windows leave {ratio:.3g}x the in-sample residual "
+                   f"(limit {options.max_holdout_ratio:g}): the fitted model does not carry over")
+    return out
+
+
+def parameter_reason(name: str, j: int, at_bound: bool, var_log: float, rel: float, global_reasons: list[str],
+                     check: NumericalDampingCheck, options: FitOptions) -> str | None:
+    """Why parameter ``name`` (column j) gets no confident number, or None."""
+    if global_reasons:
+        return "model discrepancy dominates: " + "; ".join(global_reasons)
+    if at_bound:
+        return "at its bound"
+    if not math.isfinite(var_log):
+        return "J^T J is blind to it"
+    if name in ("damping_rate", "internal_damping", "damping") and not check.ok:
+        return f"the model's integrator damps or rings as much: {check.message}"
+    if rel > options.max_relative_se:
+        return f"relative standard error {rel:.3g} (limit {options.max_relative_se:g})"
+    return None
+
+
+def source_checks(fitted: CableSpec, layout: Layout, options: FitOptions, gravity: Sequence[float],
+                  warnings: list[str]) -> list[dict[str, Any]]:
+    """The numerical-damping check of each simulated recording's own integrator at the fitted parameters
+    (a warning when it put more damping into the data than allowed and the fit did not reproduce it)."""
+    out = []
+    for i, rec in enumerate(layout.recs):
+        src = rec.source or {}
+        if not (src.get("integrator") in INTEGRATORS and src.get("dt")):
+            continue
+        chk = numerics_for(fitted, rec, options, gravity, str(src["integrator"]), float(src["dt"]))
+        out.append({"recording": rec.name or str(i), **chk.to_dict()})
+        if not chk.ok and not options.match_source:
+            warnings.append(f"recording {rec.name or i} was simulated with {chk.integrator} at dt {chk.dt:.3g} s: "
+                            f"{chk.message}; the fitted damping includes the recording's numerical damping "
+                            "(match_source / --match-source fits with the recording's integrator)")
+    return out
+
+
+def rms_of(layout: Layout, loads: list[tuple[np.ndarray, np.ndarray]], i: int, kind: str) -> float:
+    """Unweighted residual RMS of ``kind`` of recording i over its fitted samples [its units]."""
+    rec, keep = layout.recs[i], layout.keep[i]
+    d = (predicted(rec, kind, *loads[i]) - rec.observed(kind))[keep]
+    return float(np.sqrt(np.mean(d**2)))
+
+
+def holdout_summary(jk, ratio: float, options: FitOptions, blocks: int, per_rec: list[int], window_s: list[float],
+                    names: list[str], active: list[int]) -> dict[str, Any]:
+    """The held-out residual and the per-window parameter spread (log units) as JSON."""
+    out = {"method": "each window left out in turn; the others' linearised refit predicts it",
+           "windows": blocks, "windows_per_recording": per_rec, "window_length_s": window_s,
+           "limit_ratio": options.max_holdout_ratio}
+    if jk is None:
+        return {**out, "in_sample_weighted_rms": None, "held_out_weighted_rms": None, "ratio": None}
+    own = jk.per_window
+    spread = {names[j]: (float(np.nanstd(own[:, a])) if np.isfinite(own[:, a]).sum() >= 2 else None)
+              for a, j in enumerate(active)}
+    return {**out, "in_sample_weighted_rms": jk.in_sample_rms, "held_out_weighted_rms": jk.held_out_rms,
+            "ratio": ratio if math.isfinite(ratio) else None,
+            "per_window_estimate_spread_log": spread}
+
+
+def per_recording_summary(layout: Layout, loads: list[tuple[np.ndarray, np.ndarray]], jk,
+                          block: np.ndarray) -> list[dict[str, Any]]:
+    """Per recording: samples, duration, and per kind the residual RMS [its units], the noise level used and
+    the held-out weighted RMS of its windows."""
+    out = []
+    for i, (rec, ks, kp) in enumerate(zip(layout.recs, layout.kinds, layout.keep)):
+        entry: dict[str, Any] = {"name": rec.name or str(i), "samples": len(kp),
+                                 "duration_s": float(rec.t[kp[-1]] - rec.t[kp[0]])}
+        for kind in ks:
+            entry[kind] = {"rms": rms_of(layout, loads, i, kind), "unit": UNITS[kind], "sigma": layout.sigma[kind]}
+        if jk is not None:
+            mine = np.unique(block[layout.rec_of == i])
+            vals = jk.held_out_by_block[mine]
+            entry["held_out_weighted_rms"] = float(np.sqrt(np.nanmean(vals**2))) if np.isfinite(vals).any() else None
+        out.append(entry)
+    return out
+
+
+def profiles(cost: Callable[[np.ndarray], np.ndarray], theta: np.ndarray, r: np.ndarray, names: list[str],
+             half: np.ndarray, scale: float, points: int, bounds: tuple[np.ndarray, np.ndarray]) -> dict[str, Any]:
+    """Conditional profile of each parameter (the others held at their fitted values): the cost increase
+    (|r|^2 - |r_fit|^2) / (sigma^2 tau_int) at ``points`` log offsets spanning +-1.5 interval half-widths
+    (at least +-5 %; clipped to the parameter's bounds). Under the interval's own assumptions about 3.84 at its ends; a much flatter
+    profile than that says the data hardly see the parameter."""
+    if points <= 0:
+        return {}
+    base = float(r @ r)
+    out: dict[str, Any] = {"kind": "conditional (other parameters held)", "threshold_95": 3.84}
+    for j, k in enumerate(names):
+        width = 1.5 * (half[j] if math.isfinite(half[j]) else 1.0)
+        offsets = np.clip(theta[j] + np.linspace(-1.0, 1.0, points) * max(width, 0.05), bounds[0][j] + 1e-9,
+                          bounds[1][j] - 1e-9) - theta[j]
+        rise = []
+        for off in offsets:
+            th = theta.copy()
+            th[j] += off
+            rr = cost(th)
+            rise.append(float((rr @ rr - base) / scale) if scale > 0 else None)
+        out[k] = {"log_offsets": offsets.tolist(), "values": (math.exp(theta[j]) * np.exp(offsets)).tolist(),
+                  "cost_rise": rise}
+    return out
 
 
 def log_variances(jac: np.ndarray, sigma2: float) -> tuple[np.ndarray, float]:
@@ -301,12 +722,16 @@ def log_variances(jac: np.ndarray, sigma2: float) -> tuple[np.ndarray, float]:
 def synthetic_recording(spec: CableSpec, motion: Sequence[Motion], duration: float, rate: float = 200.0,
                         noise: float = 0.0, seed: int = 0, span: float | None = None,
                         hold: Sequence[float] = (0.0, 0.0, 0.35), options: FitOptions = FitOptions(),
-                        gravity: Sequence[float] = STANDARD_GRAVITY) -> Recording:
+                        gravity: Sequence[float] = STANDARD_GRAVITY, correlation_time: float = 0.0,
+                        moment_noise: float | None = None) -> Recording:
     """A recording made by the core model itself: the cable clamped between two grippers facing each
     other along x (span [m] apart, default the cable length, centred at ``hold``), moved by ``motion``
     (items with end first = left, last = right: the exact trajectories, not waypoints through
     samples), its end forces sampled at ``rate`` [Hz] with Gaussian noise of standard deviation
-    ``noise`` [N] per component (seeded)."""
+    ``noise`` [N] per component (seeded), coloured when ``correlation_time`` [s] > 0 (AR(1), each
+    component's noise correlated as exp(-lag / correlation_time), same standard deviation). With
+    ``moment_noise`` [N m] (not None) the clamp moments are recorded too, with noise of the same colour.
+    ``source`` says the integrator and dt it was made with."""
     span = spec.length if span is None else check_positive("span", span)
     centre = np.asarray(hold, dtype=float)
     t = np.arange(0.0, check_positive("duration", duration) + 1e-12, 1.0 / check_positive("rate", rate))
@@ -321,8 +746,30 @@ def synthetic_recording(spec: CableSpec, motion: Sequence[Motion], duration: flo
     tangent = np.array([1.0, 0.0, 0.0])
     ends = [EndHolder("clamped", pos[0, arm], tangent, tuple(m for m in motion if m.end == end))
             for arm, end in enumerate(("first", "last"))]
-    forces = run_forces(held_model(spec, ends[0], ends[1], gravity), t, options)
-    if forces is None:
+    model = held_model(spec, ends[0], ends[1], gravity)
+    loads = run_loads(model, t, run_integrator(options), options.dt, options.start)
+    if loads is None:
         raise ParameterError("the synthetic recording went unstable; use a smaller dt or a gentler motion")
-    forces = forces + np.random.default_rng(seed).normal(0.0, noise, forces.shape) if noise > 0 else forces
-    return Recording(t, pos, quat, forces)
+    forces, moments = loads
+    rng = np.random.default_rng(seed)
+    if noise > 0:
+        forces = forces + coloured_noise(rng, forces.shape, noise, correlation_time, 1.0 / rate)
+    if moment_noise is not None and moment_noise > 0:
+        moments = moments + coloured_noise(rng, moments.shape, moment_noise, correlation_time, 1.0 / rate)
+    return Recording(t, pos, quat, forces, moments if moment_noise is not None else None,
+                     source={"integrator": run_integrator(options), "dt": options.dt})
+
+
+def coloured_noise(rng: np.random.Generator, shape: tuple[int, ...], std: float, correlation_time: float,
+                   sample_dt: float) -> np.ndarray:
+    """Gaussian noise of standard deviation ``std`` along axis 0 (time, ``sample_dt`` [s] apart): white for
+    ``correlation_time`` 0, else AR(1) with correlation exp(-lag / correlation_time) [s]."""
+    white = rng.normal(0.0, std, shape)
+    if correlation_time <= 0:
+        return white
+    a = math.exp(-sample_dt / correlation_time)
+    out = np.empty(shape)
+    out[0] = white[0]
+    for i in range(1, shape[0]):
+        out[i] = a * out[i - 1] + math.sqrt(1.0 - a * a) * white[i]
+    return out

@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 from pathlib import Path
 
 import numpy as np
@@ -10,32 +11,97 @@ import numpy as np
 from bullet_dlo.core.validate import ParameterError
 
 
+RANGES = {  # CLI option -> (low, high, inclusive-low) checked before anything runs
+    "length": (0.0, math.inf, False), "diameter": (0.0, math.inf, False), "mass": (0.0, math.inf, False),
+    "youngs_modulus": (0.0, math.inf, False), "dt": (0.0, math.inf, False), "skip": (0.0, math.inf, True),
+    "level": (0.5, 1.0, True), "max_holdout_ratio": (1.0, math.inf, True),
+    "max_numerical_damping": (0.0, math.inf, False), "max_relative_se": (0.0, math.inf, False),
+    "sigma_force": (0.0, math.inf, False), "sigma_moment": (0.0, math.inf, False),
+    "sigma_linear": (0.0, math.inf, False),
+}
+INT_RANGES = {"n_masses": (3, 10**6), "max_evaluations": (2, 10**6), "windows": (2, 1000), "min_windows": (2, 1000),
+              "profile_points": (0, 101)}
+
+
+def check_args(args: argparse.Namespace) -> None:
+    """One-line ParameterError naming the first option outside its allowed range."""
+    for key, (lo, hi, closed) in RANGES.items():
+        v = getattr(args, key, None)
+        if v is None:
+            continue
+        ok = (v >= lo if closed else v > lo) and (v < hi if key == "level" else v <= hi) and math.isfinite(v)
+        if not ok:
+            low = f"{'>=' if closed else '>'} {lo:g}"
+            high = "" if hi == math.inf else f" and {'<' if key == 'level' else '<='} {hi:g}"
+            raise ParameterError(f"--{key.replace('_', '-')} must be {low}{high}, got {v!r}")
+    for key, (lo, hi) in INT_RANGES.items():
+        v = getattr(args, key)
+        if not lo <= v <= hi:
+            raise ParameterError(f"--{key.replace('_', '-')} must be an integer in [{lo}, {hi}], got {v!r}")
+
+
 def cmd_fit(args: argparse.Namespace) -> int:
     from bullet_dlo.analysis.fit import FitOptions, default_parameters, fit_cable
     from bullet_dlo.core.spec import CableSpec
     from bullet_dlo.data.recording import read_recording
 
-    rec = read_recording(args.recording, args.forces)
+    check_args(args)
+    kinds = tuple(k.strip() for k in args.kinds.split(",")) if args.kinds else None
+    sigma = {k: v for k, v in (("force", args.sigma_force), ("moment", args.sigma_moment),
+                               ("linear", args.sigma_linear)) if v}
+    options = FitOptions(integrator=args.integrator, dt=args.dt, start=args.start, skip=args.skip,
+                         max_evaluations=args.max_evaluations, kinds=kinds, sigma=sigma or None,
+                         windows=args.windows, min_windows=args.min_windows, level=args.level,
+                         max_holdout_ratio=args.max_holdout_ratio, max_numerical_damping=args.max_numerical_damping,
+                         max_relative_se=args.max_relative_se, profile_points=args.profile_points,
+                         match_source=args.match_source)
+    recs = [read_recording(path, args.forces) for path in args.recording]
     names = args.params.split(",") if args.params else default_parameters(fit_mass=args.mass is None)
-    weight = -float(np.mean(rec.force[:, :, 2].sum(axis=1)))  # [N]: the start value of the mass
+    first = recs[0]
+    weight = -float(np.mean(first.force[:, :, 2].sum(axis=1))) if first.force is not None else 0.0  # [N]
     spec = CableSpec(length=args.length, diameter=args.diameter, mass=args.mass or max(weight / 9.81, 1e-4),
                      youngs_modulus=args.youngs_modulus, n_masses=args.n_masses)
-    options = FitOptions(integrator=args.integrator, dt=args.dt, start=args.start, skip=args.skip,
-                         max_evaluations=args.max_evaluations)
-    res = fit_cable(rec, spec, names, options)
+    res = fit_cable(recs, spec, names, options)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    summary = {"recording": str(args.recording), "forces": args.forces, **res.to_dict()}
-    (out / "fit.json").write_text(json.dumps(summary, indent=2))
-    plot_fit(rec.t, rec.force, res.forces, out / "fit.png", title=f"{Path(args.recording).name}: measured vs fitted")
-    for name in res.values:
-        se = res.standard_errors[name]
-        print(f"{name:18s} {res.values[name]:.6g} +- {se:.3g}" + ("" if res.identifiable[name] else "  (not identifiable)"))
-    print(f"residual sigma {res.sigma:.4g} N, condition {res.condition:.3g}, {res.evaluations} model runs")
-    for w in res.warnings:
-        print(f"warning: {w}")
+    summary = {"recordings": [str(p) for p in args.recording], "recording": str(args.recording[0]),
+               "forces": args.forces, **res.to_dict()}
+    (out / "fit.json").write_text(json.dumps(summary, indent=2, default=float))
+    if first.force is not None:
+        plot_fit(first.t, first.force, res.forces, out / "fit.png",
+                 title=f"{Path(args.recording[0]).name}: measured vs fitted")
+    print_summary(res)
     print(f"outputs written to {out.resolve()}")
     return 0
+
+
+def print_summary(res) -> None:
+    """The fit's values, intervals, verdict, whiteness, per-recording residuals and model run, as text."""
+    pct = f"{100 * res.level:g} %"
+    for name in res.values:
+        iv = res.intervals.get(name)
+        span = f"[{iv[0]:.4g}, {iv[1]:.4g}] ({pct})" if iv else "no interval"
+        jac = res.jacobian_standard_errors.get(name, math.nan)
+        print(f"{name:18s} {res.values[name]:.6g}  {span}  (Jacobian-only +- {jac:.3g})"
+              + ("" if res.identifiable[name] else "  (not identifiable)"))
+    v = res.verdict
+    print("verdict: " + ("MODEL DISCREPANCY DOMINATES, no confident number: " + "; ".join(v["reasons"])
+                         if v["discrepancy_dominates"] else f"confident: {', '.join(v['confident']) or 'none'}"))
+    w, h = res.whiteness, res.holdout
+    print(f"residual: sigma {res.sigma:.4g} (first kind's units), lag-1 autocorrelation "
+          f"{w['lag1_autocorrelation']:.3g}, correlation time {w['integrated_autocorrelation_time_s']:.3g} s, "
+          f"effective samples {w['effective_samples']:.4g} of {w['samples']}, Ljung-Box p {w['p_value']:.3g}")
+    if h.get("ratio") is not None:
+        print(f"held-out: {h['windows']} windows, held-out / in-sample residual {h['ratio']:.3g} "
+              f"(limit {h['limit_ratio']:g})")
+    for entry in res.per_recording:
+        parts = [f"{k} rms {entry[k]['rms']:.4g} {entry[k]['unit']}" for k in ("force", "moment", "linear") if k in entry]
+        print(f"  recording {entry['name']}: {entry['samples']} samples, " + ", ".join(parts))
+    nd = res.numerics["model"]
+    print(f"model run: {res.integrator}, dt {res.dt:.4g} s, n {res.n_masses}; numerical damping: {nd['message']}")
+    print(f"{res.evaluations} model runs; condition {res.condition:.3g}")
+    for warning in res.warnings:
+        print(f"warning: {warning}")
 
 
 def plot_fit(t: np.ndarray, measured: np.ndarray, fitted: np.ndarray, png: Path, title: str) -> None:
@@ -62,29 +128,70 @@ def plot_fit(t: np.ndarray, measured: np.ndarray, fitted: np.ndarray, png: Path,
 
 def add_parsers(sub, common: argparse.ArgumentParser) -> None:
     """``fit`` on ``sub`` (argparse subparsers); ``common``: shared options."""
-    s = sub.add_parser("fit", parents=[common], help="identify E, damping and mass from grasp poses and wrist forces",
-                       description="Least squares on the wrist-force residual: the core model, both ends clamped "
-                                   "and following the recorded grasp poses, is run for trial parameters (in log "
-                                   "space) until its end forces match the recorded tared world-frame forces. "
-                                   "Writes fit.json (values, standard errors, identifiability, condition) and "
-                                   "fit.png (measured vs fitted) into --out. RECORDING: .csv, .npz or .h5 (a "
-                                   "grasp --series file or a dataset episode; columns in bullet_dlo.data.recording).")
-    s.add_argument("recording", help="recording file (.csv, .npz, .h5)")
-    s.add_argument("--length", type=float, required=True, help="cable length [m]")
-    s.add_argument("--diameter", type=float, required=True, help="cable diameter [m]")
-    s.add_argument("--mass", type=float, help="cable mass [kg] if known (else it is fitted)")
-    s.add_argument("--youngs-modulus", type=float, default=1e8, help="start value of E [Pa] (1e8)")
-    s.add_argument("--n-masses", type=int, default=10, help="point masses of the model (10)")
-    s.add_argument("--params", help="comma-separated CableSpec fields to fit (default: youngs_modulus, "
-                   "internal_damping, damping_rate, and mass when --mass is not given)")
+    s = sub.add_parser(
+        "fit", parents=[common], help="identify E, damping and mass from recorded end loads, with honest intervals",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        description="Least squares on the recorded end loads: the core model, both ends clamped and following "
+                    "the recorded grasp poses, is run for trial parameters (in log space) until its end forces, "
+                    "clamp moments or a linear map of them match what the recordings hold (each kind divided by "
+                    "its noise level; several recordings share one cable).\n\n"
+                    "Intervals: the widest of a delete-a-window jackknife over time windows >= 5 residual "
+                    "correlation times (recordings count as windows), the Newey-West sandwich and the Jacobian "
+                    "one. Too few independent windows or a held-out residual much larger than the in-sample one "
+                    "means the model lacks something the data have: every parameter is then reported with "
+                    "identifiable false and no interval. The model's integrator and dt must add less numerical "
+                    "damping than a share of the fitted physical damping (else the damping terms get no "
+                    "number).\n\nWrites fit.json (values, intervals and their method, whiteness, held-out "
+                    "residuals, per-recording residuals, integrator/n/dt, numerical-damping check, profiles, "
+                    "verdict) and fit.png (measured vs fitted forces of the first recording) into --out. "
+                    "RECORDING: .csv, .npz or .h5 (a grasp --series file or a dataset episode; columns in "
+                    "bullet_dlo.data.recording).")
+    s.add_argument("recording", nargs="+", help="recording file(s) (.csv, .npz, .h5); several: fitted together")
+    s.add_argument("--length", type=float, required=True, help="cable length [m], > 0")
+    s.add_argument("--diameter", type=float, required=True, help="cable diameter [m], > 0")
+    s.add_argument("--mass", type=float, help="cable mass [kg], > 0, if known (else it is fitted)")
+    s.add_argument("--youngs-modulus", type=float, default=1e8, help="start value of E [Pa], > 0 (1e8)")
+    s.add_argument("--n-masses", type=int, default=10, help="point masses of the model, >= 3 (10)")
+    s.add_argument("--params", help="comma-separated CableSpec fields to fit, among youngs_modulus, damping_rate, "
+                   "internal_damping, damping, mass (default: youngs_modulus, internal_damping, damping_rate, "
+                   "and mass when --mass is not given)")
     s.add_argument("--forces", default="wrench_world", choices=["wrench_world", "end_forces"],
-                   help="which recorded forces to fit: the wrist sensors (default) or the simulated model's")
-    s.add_argument("--integrator", default="implicit_midpoint", help="core integrator of the model (implicit_midpoint)")
-    s.add_argument("--dt", type=float, default=1e-3, help="model time step [s] (1e-3)")
+                   help="which recorded forces to fit: the wrist sensors (default) or the simulated model's "
+                        "(end_forces, then also its end_moments)")
+    s.add_argument("--kinds", help="comma-separated residual kinds among force, moment, linear (default: every "
+                   "kind the recordings hold: moment needs grasp-point moments, linear needs linear_map/linear_obs)")
+    s.add_argument("--sigma-force", type=float, help="force noise level [N], > 0 (default: estimated from the "
+                   "recordings' sample-to-sample differences)")
+    s.add_argument("--sigma-moment", type=float, help="moment noise level [N m], > 0 (default: estimated)")
+    s.add_argument("--sigma-linear", type=float, help="noise level of the linear kind [its units], > 0 "
+                   "(default: estimated)")
+    s.add_argument("--integrator", default="implicit_midpoint",
+                   choices=["auto", "implicit_midpoint", "bdf2", "implicit_euler", "symplectic_euler", "rk4",
+                            "explicit_euler"],
+                   help="core integrator of the model (implicit_midpoint); auto: bdf2 with --dt halved (up to 3 "
+                        "times) until its numerical damping passes the check")
+    s.add_argument("--dt", type=float, default=1e-3, help="model time step [s], > 0 (1e-3)")
+    s.add_argument("--match-source", action="store_true", help="run the model with the integrator and dt a "
+                   "simulated recording says it was made with (its integrator's numerical damping is then "
+                   "reproduced instead of fitted as physical damping)")
     s.add_argument("--start", default="static", choices=["static", "straight"],
                    help="model start: equilibrium at the first poses (default) or straight at rest")
-    s.add_argument("--skip", type=float, default=0.0, help="seconds at the start left out of the residual (0)")
-    s.add_argument("--max-evaluations", type=int, default=60, help="model runs allowed (60)")
+    s.add_argument("--skip", type=float, default=0.0, help="seconds at the start of each recording left out of "
+                   "the residual, >= 0 (0)")
+    s.add_argument("--max-evaluations", type=int, default=60, help="model runs allowed per fit, >= 2 (60)")
+    s.add_argument("--windows", type=int, default=8, help="most time windows per recording for the held-out "
+                   "intervals, 2-1000 (8)")
+    s.add_argument("--min-windows", type=int, default=4, help="fewer independent windows than this in all: "
+                   "discrepancy dominates, no confident number, 2-1000 (4)")
+    s.add_argument("--level", type=float, default=0.95, help="interval coverage, in [0.5, 1) (0.95)")
+    s.add_argument("--max-holdout-ratio", type=float, default=1.5, help="held-out / in-sample residual RMS above "
+                   "which discrepancy is declared, >= 1 (1.5)")
+    s.add_argument("--max-numerical-damping", type=float, default=0.1, help="allowed numerical / physical "
+                   "damping ratio on the model's lowest modes, > 0 (0.1)")
+    s.add_argument("--max-relative-se", type=float, default=0.3, help="above this relative standard error "
+                   "(interval half-width / 1.96 / value) a parameter is not identifiable, > 0 (0.3)")
+    s.add_argument("--profile-points", type=int, default=5, help="points of each parameter's conditional "
+                   "profile in fit.json, 0-101 (5; 0: none)")
     s.add_argument("--out", required=True, metavar="DIR", help="output folder for fit.json and fit.png")
     s.set_defaults(func=cmd_fit)
 

@@ -25,6 +25,13 @@ episode file is read as is), ``.csv`` (only what a fit needs, one row per sample
 ``t, left_x, left_y, left_z, left_qx, left_qy, left_qz, left_qw, left_fx, left_fy, left_fz``
 and the same with ``right_``; SI units as above). A recording from a real robot in any of these
 formats needs only ``t``, ``ee_pos``, ``ee_quat`` and ``wrench_world`` (forces; moments optional).
+
+Optional columns a fit also uses (NPZ/HDF5): ``grasp_moment`` (k, 2, 3), the measured moments
+about the grasp points [N m] (``wrench_world`` moments are about the sensor origin and are not
+used as such); ``linear_map`` (k, q, 12) with ``linear_obs`` (k, q), a measurement linear in the
+end wrenches (e.g. joint torques, see :mod:`bullet_dlo.analysis.fit_recording`). With
+``forces="end_forces"`` the model's ``end_moments`` come along as the moments. The attributes
+``integrator`` and ``dt`` [s] of a simulated file become the recording's ``source``.
 """
 from __future__ import annotations
 
@@ -148,9 +155,36 @@ def read_recording(path: str | Path, forces: str = "wrench_world") -> Recording:
             raise ParameterError(f"recording {path.name} must have {1 + 2 * len(CSV_FIELDS)} columns "
                                  f"(t, then x y z qx qy qz qw fx fy fz per arm), got {data.shape[1]}")
         per_arm = data[:, 1:].reshape(len(data), 2, len(CSV_FIELDS))
-        return Recording(data[:, 0], per_arm[:, :, :3], per_arm[:, :, 3:7], per_arm[:, :, 7:])
+        return Recording(data[:, 0], per_arm[:, :, :3], per_arm[:, :, 3:7], per_arm[:, :, 7:], name=path.stem)
     cols = read_columns(path)
     missing = [k for k in ("t", "ee_pos", "ee_quat", forces) if k not in cols]
     if missing:
         raise ParameterError(f"recording {path.name} lacks column(s) {', '.join(missing)}")
-    return Recording(cols["t"], cols["ee_pos"], cols["ee_quat"], cols[forces][:, :, :3])
+    moment_column = "end_moments" if forces == "end_forces" else "grasp_moment"
+    moment = cols[moment_column][:, :, :3] if moment_column in cols else None
+    linear = (cols["linear_map"], cols["linear_obs"]) if "linear_map" in cols and "linear_obs" in cols else (None, None)
+    return Recording(cols["t"], cols["ee_pos"], cols["ee_quat"], cols[forces][:, :, :3], moment, *linear,
+                     name=path.stem, source=read_source(path))
+
+
+def read_source(path: Path) -> dict[str, Any] | None:
+    """{"integrator", "dt"} from a simulated series file's attributes (None when it does not say)."""
+    attrs: dict[str, Any] = {}
+    if path.suffix.lower() == ".npz":
+        with np.load(path, allow_pickle=False) as z:
+            if "attrs" in z.files:
+                try:
+                    attrs = json.loads(str(z["attrs"]))
+                except ValueError:
+                    attrs = {}
+    else:
+        import h5py
+
+        with h5py.File(path, "r") as f:
+            attrs = {k: f.attrs[k] for k in ("integrator", "dt") if k in f.attrs}
+    integrator, dt = attrs.get("integrator"), attrs.get("dt")
+    if isinstance(integrator, bytes):
+        integrator = integrator.decode()
+    if not integrator or not dt:
+        return None
+    return {"integrator": str(integrator), "dt": float(dt)}

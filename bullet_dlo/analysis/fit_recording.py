@@ -1,0 +1,121 @@
+"""What a fit compares: a recording's measured quantities and the model's prediction of each (residual kinds).
+
+A :class:`Recording` holds both grippers' grasp poses over time and any of
+
+* ``force``: the tared world-frame wrist forces [N], (k, 2, 3) (kind ``force``);
+* ``moment``: the world-frame wrist moments about the grasp points [N m], (k, 2, 3) (kind ``moment``);
+* ``linear_map`` (k, q, 12) with ``linear_obs`` (k, q): any quantity linear in the two end wrenches
+  w = (f_left, m_left, f_right, m_right) [N, N m] (the load the cable exerts on each gripper,
+  world frame), observed as y_t = A_t w_t (kind ``linear``). Joint torques of an arm holding the
+  cable are tau = -J_t^T w with the per-sample grasp-point Jacobian J_t: pass A_t = -J_t^T and the
+  measured torques (less what the arm's own dynamics explain), and the analysis layer needs no PyBullet.
+
+Optional ``source``: how a simulated recording was made, {"integrator": name, "dt": seconds}, so
+a fit can say (or reproduce) the numerical damping its integrator put into the data.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from bullet_dlo.core.validate import ParameterError
+
+KINDS = ("force", "moment", "linear")
+UNITS = {"force": "N", "moment": "N m", "linear": "recording units"}
+CLAMP_SIGN = (1.0, -1.0)
+"""Cable tangent = sign * grasp-frame x axis, per arm (left, right)."""
+
+
+@dataclass(frozen=True)
+class Recording:
+    """What a fit needs from a measurement, arms in the order (left, right), k samples.
+
+    t: times [s], (k,), increasing; grasp_pos: grasp-frame positions [m], (k, 2, 3); grasp_quat:
+    grasp-frame orientations as quaternions (x, y, z, w), (k, 2, 4); force: tared wrist forces on
+    the tool in world frame [N], (k, 2, 3) (the force the cable exerts on each gripper), or None
+    when the recording has another kind; moment: the matching moments about the grasp points
+    [N m], (k, 2, 3), optional; linear_map (k, q, 12) and linear_obs (k, q): an optional generic
+    linear observation of the end wrenches (module doc); name: a label for reports; source:
+    {"integrator": str, "dt": float [s]} of a simulated recording, optional.
+    """
+
+    t: np.ndarray
+    grasp_pos: np.ndarray
+    grasp_quat: np.ndarray
+    force: np.ndarray | None
+    moment: np.ndarray | None = None
+    linear_map: np.ndarray | None = None
+    linear_obs: np.ndarray | None = None
+    name: str = ""
+    source: dict[str, Any] | None = field(default=None, compare=False)
+
+    def __post_init__(self) -> None:
+        t = np.asarray(self.t, dtype=float)
+        k = len(t)
+        if t.ndim != 1 or k < 3 or np.any(np.diff(t) <= 0):
+            raise ParameterError("recording t must hold at least 3 strictly increasing times [s]")
+        object.__setattr__(self, "t", t)
+        for name, width in (("grasp_pos", 3), ("grasp_quat", 4), ("force", 3), ("moment", 3)):
+            if getattr(self, name) is None and name in ("force", "moment"):
+                continue
+            object.__setattr__(self, name, _finite(name, getattr(self, name), (k, 2, width)))
+        if (self.linear_map is None) != (self.linear_obs is None):
+            raise ParameterError("recording linear_map and linear_obs must be given together")
+        if self.linear_obs is not None:
+            obs = np.asarray(self.linear_obs, dtype=float)
+            obs = obs[:, None] if obs.ndim == 1 else obs
+            q = obs.shape[1] if obs.ndim == 2 else 0
+            object.__setattr__(self, "linear_obs", _finite("linear_obs", obs, (k, q)))
+            object.__setattr__(self, "linear_map", _finite("linear_map", self.linear_map, (k, q, 12)))
+        if not self.kinds():
+            raise ParameterError("recording must hold force, moment or linear_map/linear_obs")
+
+    def kinds(self) -> list[str]:
+        """The residual kinds this recording can give (of :data:`KINDS`)."""
+        have = {"force": self.force is not None, "moment": self.moment is not None,
+                "linear": self.linear_obs is not None}
+        return [k for k in KINDS if have[k]]
+
+    def observed(self, kind: str) -> np.ndarray:
+        """The measured quantity of ``kind``, one row per sample: (k, channels)."""
+        if kind == "linear":
+            return self.linear_obs
+        return getattr(self, kind).reshape(len(self.t), 6)
+
+    def clamp_directions(self) -> np.ndarray:
+        """Cable tangent held by each gripper (unit), (k, 2, 3)."""
+        out = np.empty_like(self.grasp_pos)
+        for arm in (0, 1):
+            out[:, arm] = CLAMP_SIGN[arm] * Rotation.from_quat(self.grasp_quat[:, arm]).as_matrix()[:, :, 0]
+        return out
+
+
+def _finite(name: str, value: Any, shape: tuple[int, ...]) -> np.ndarray:
+    """``value`` as a float array of ``shape`` (ParameterError naming it otherwise)."""
+    a = np.asarray(value, dtype=float) if value is not None else np.zeros(0)
+    if a.shape != shape or not np.all(np.isfinite(a)):
+        raise ParameterError(f"recording {name} must be finite with shape ({', '.join(map(str, shape))})")
+    return a
+
+
+def predicted(rec: Recording, kind: str, forces: np.ndarray, moments: np.ndarray) -> np.ndarray:
+    """The model's prediction of ``kind`` from its end forces [N] and clamp moments [N m] (both (k, 2, 3))
+    at the recorded times: (k, channels)."""
+    k = len(rec.t)
+    if kind == "force":
+        return forces.reshape(k, 6)
+    if kind == "moment":
+        return moments.reshape(k, 6)
+    wrench = np.concatenate([forces[:, 0], moments[:, 0], forces[:, 1], moments[:, 1]], axis=1)  # (k, 12)
+    return np.einsum("kqj,kj->kq", rec.linear_map, wrench)
+
+
+def noise_scale(y: np.ndarray) -> float:
+    """A robust per-entry noise level of a signal (k, channels) [its units]: the median absolute first
+    difference / (0.6745 sqrt 2), floored at 1e-6 of the signal's largest magnitude (and 1e-12)."""
+    d = np.diff(y, axis=0)
+    mad = float(np.median(np.abs(d - np.median(d, axis=0)))) / (0.6745 * np.sqrt(2.0)) if len(d) else 0.0
+    return max(mad, 1e-6 * float(np.abs(y).max()), 1e-12)
