@@ -125,7 +125,7 @@ def render_scene(scene, out: str | Path, *, robot: str | None = None, fps: float
         summary = {"renderer": world.renderer.name, "renderer_note": world.renderer.note, "frames": writer.frames,
                    "video": str(writer.path), "format": writer.format, "codec": writer.codec,
                    "fps": fps, "width": cam.width, "height": cam.height, "wall_time_s": wall,
-                   "stable": bool(cable.stable)}
+                   "stable": bool(cable.stable), "final_positions": cable.x.tolist()}
         if arm_scene is not None:  # every wrist sample against the cable's load in the same step
             summary["sensor_check"] = arm_scene.observation.check.summary()
             for line in summary["sensor_check"]["failures"]:
