@@ -1,8 +1,11 @@
 """Automatic resolution: model no more than a scene needs.
 
-``resolve(scene, tol)`` picks the fewest masses, then the cheapest integrator and the largest
+``resolve(problem, tol)`` picks the fewest masses, then the cheapest integrator and the largest
 step that meet a tolerance on what the scene needs (end forces, shape, or both), by
-convergence tests on a short rollout of the scene itself (never by a lookup table):
+convergence tests on a short rollout of the scene itself (never by a lookup table). The scene
+comes as a :class:`ResolveProblem`: its cable, duration, curved obstacles and a function that runs
+it (:func:`bullet_dlo.sim.resolve_problem` makes one from a scene), so this layer knows no scene type.
+
 
 Forces are compared as a 5 Hz force sensor would see them (0.2 s block means, RMS over the
 rollout, relative to the peak force); shape as the largest distance between the final
@@ -19,7 +22,8 @@ Contact sets a floor on n before the convergence test (the rollouts have no obst
 cannot see it): a cable wrapping a cylinder or sphere of radius R follows it with a polygon,
 whose segments cut into the arc by l^2 / (8 (R + r)); keeping that sag within half the cable
 radius r needs l <= 2 sqrt((R + r) r), i.e. n >= L / l + 1 for the smallest curved obstacle of
-the scene (``bullet.obstacles`` cylinders). Boxes and the ground set no floor: segments collide
+the scene (:attr:`ResolveProblem.cylinder_radii`: its ``bullet.obstacles`` cylinders). Boxes and the
+ground set no floor: segments collide
 as capsules, so an edge is caught at any n. :attr:`Resolution.why` says which bound chose n.
 
 The predicted error is the sum of both differences. When it changes n, resolve keeps the
@@ -29,12 +33,13 @@ trials describe the same cable; the chosen n comes with the k_d that keeps gamma
 """
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, field, replace
+from dataclasses import asdict, dataclass, field
+from typing import Callable
 
 import numpy as np
 
 from bullet_dlo.analysis.measures import force_error, shape_error
-from bullet_dlo.core.engine import SimulationResult, simulate
+from bullet_dlo.core.engine import SimulationResult
 from bullet_dlo.core.spec import CableSpec
 from bullet_dlo.core.validate import ParameterError, check_positive
 
@@ -45,6 +50,22 @@ DTS = (1 / 60, 1 / 120, 1 / 240, 1 / 500, 1e-3, 5e-4, 2.5e-4)
 """Time steps tried [s], largest first."""
 INTEGRATORS = ("implicit_euler", "bdf2")
 """Integrators tried, cheapest first."""
+
+
+@dataclass(frozen=True)
+class ResolveProblem:
+    """What :func:`resolve` needs of a scene (SI units).
+
+    cable: the scene's cable (its n_masses is a start; its k_d is rescaled with n); duration: the
+    scene's run [s]; run(cable, integrator, dt, duration): one run of the scene with that cable,
+    integrator, step [s] and duration [s], its core-engine result (about 200 records are enough);
+    cylinder_radii: radii [m] of the scene's cylinder obstacles (the contact floor on n).
+    """
+
+    cable: CableSpec
+    duration: float
+    run: Callable[[CableSpec, str, float, float], SimulationResult]
+    cylinder_radii: tuple[float, ...] = ()
 
 
 @dataclass
@@ -69,19 +90,18 @@ class Resolution:
         return asdict(self)
 
 
-def _cable(scene, n: int) -> CableSpec:
+def _cable(problem: ResolveProblem, n: int) -> CableSpec:
     """The scene's cable with n masses, k_d rescaled to keep its rate k_d n / M (k_d is per mass;
     ``damping_rate`` and ``internal_damping`` mean the same at any n)."""
-    c = scene.cable
+    c = problem.cable
     return c.with_(n_masses=n, damping=c.damping * c.n_masses / n)
 
 
-def contact_floor(scene) -> tuple[int, str]:
+def contact_floor(problem: ResolveProblem) -> tuple[int, str]:
     """The fewest masses the scene's curved obstacles need (see module doc): (n, why); (2, "") if none."""
-    bullet = getattr(scene, "bullet", None)
-    c = scene.cable
+    c = problem.cable
     r = c.diameter / 2
-    radii = [float(ob["radius"]) for ob in (getattr(bullet, "obstacles", ()) or ()) if ob.get("type") == "cylinder"]
+    radii = problem.cylinder_radii
     if not radii:
         return 2, ""
     radius = min(radii)
@@ -92,12 +112,10 @@ def contact_floor(scene) -> tuple[int, str]:
     return n, why
 
 
-def _rollout(scene, n: int, integrator: str, dt: float, rollout: float) -> tuple[SimulationResult, float]:
+def _rollout(problem: ResolveProblem, n: int, integrator: str, dt: float,
+             rollout: float) -> tuple[SimulationResult, float]:
     """A ``rollout``-second run of the scene with n masses: (result, wall time per simulated second [s])."""
-    s = replace(scene, cable=_cable(scene, n), integrator=integrator, dt=dt, duration=rollout)
-    model = s.build_model()
-    res = simulate(model, integrator, dt, rollout, state=s.initial_state(model), max_records=201,
-                   newton=s.newton, detector=s.detector)
+    res = problem.run(_cable(problem, n), integrator, dt, rollout)
     return res, res.wall_time_s / max(res.steps * dt, 1e-12)
 
 
@@ -117,15 +135,15 @@ def _difference(a: SimulationResult, b: SimulationResult, target: str, length: f
     return max(errs)
 
 
-def _resolve_masses(scene, tol, target, rollout, n_masses, fine_dt, trials):
+def _resolve_masses(problem: ResolveProblem, tol, target, rollout, n_masses, fine_dt, trials):
     """Spatial part: the fewest masses whose estimated error is within half of ``tol``.
 
     Returns (n, estimated spatial error, the n-mass run at the fine step).
     """
-    length = scene.cable.length
+    length = problem.cable.length
     for n in n_masses:
-        a, _ = _rollout(scene, n, "bdf2", fine_dt, rollout)
-        b, _ = _rollout(scene, 2 * n - 1, "bdf2", fine_dt, rollout)
+        a, _ = _rollout(problem, n, "bdf2", fine_dt, rollout)
+        b, _ = _rollout(problem, 2 * n - 1, "bdf2", fine_dt, rollout)
         if not (a.stable and b.stable):
             trials.append({"n": n, "spatial": None, "note": "unstable"})
             continue
@@ -137,49 +155,53 @@ def _resolve_masses(scene, tol, target, rollout, n_masses, fine_dt, trials):
     raise ParameterError(f"no n up to {max(n_masses)} meets tol = {tol} on {target}; loosen the tolerance")
 
 
-def resolve_masses(scene, tol: float = 0.02, target: str = "forces", rollout: float | None = None) -> tuple[int, float]:
+def resolve_masses(problem: ResolveProblem, tol: float = 0.02, target: str = "forces",
+                   rollout: float | None = None) -> tuple[int, float]:
     """Only the number of masses (the step and integrator stay the scene's): (n, k_d [N s/m] for that n).
 
     k_d keeps the scene's damping rate gamma = k_d n / M (see module doc).
     """
-    rollout = min(scene.duration, 2.0) if rollout is None else rollout
-    floor, _ = contact_floor(scene)
+    rollout = min(problem.duration, 2.0) if rollout is None else rollout
+    floor, _ = contact_floor(problem)
     candidates = tuple(n for n in N_MASSES if n >= floor) or (floor,)
-    n, _, _ = _resolve_masses(scene, check_positive("tol", tol), target, rollout, candidates, 1e-3, [])
-    return n, _cable(scene, n).damping
+    n, _, _ = _resolve_masses(problem, check_positive("tol", tol), target, rollout, candidates, 1e-3, [])
+    return n, _cable(problem, n).damping
 
 
-def resolve(scene, tol: float = 0.01, target: str = "both", rollout: float | None = None,
+def resolve(problem: ResolveProblem, tol: float = 0.01, target: str = "both", rollout: float | None = None,
             n_masses=N_MASSES, dts=DTS, integrators=INTEGRATORS) -> Resolution:
     """Fewest masses, cheapest integrator and largest step meeting ``tol`` on ``target``.
 
-    scene: a :class:`bullet_dlo.config.scene.Scene` (its n_masses, dt and integrator are what is chosen);
+    problem: the scene (:func:`bullet_dlo.sim.resolve_problem`; its n_masses, dt and integrator are chosen);
     rollout: seconds simulated per trial (default: the scene's duration, at most 2 s);
     n_masses, dts [s], integrators: the candidates, tried fewest, largest and cheapest first.
     """
     tol = check_positive("tol", tol)
     if target not in TARGETS:
         raise ParameterError(f"target must be one of {', '.join(TARGETS)}, got {target!r}")
-    rollout = min(scene.duration, 2.0) if rollout is None else check_positive("rollout", rollout)
+    if not isinstance(problem, ResolveProblem):
+        raise TypeError(f"resolve takes a ResolveProblem (bullet_dlo.sim.resolve_problem(scene)), "
+                        f"got {type(problem).__name__}")
+    rollout = min(problem.duration, 2.0) if rollout is None else check_positive("rollout", rollout)
     fine_dt = min(min(dts) / 2, 1e-3)
     trials: list = []
-    floor, why_floor = contact_floor(scene)
+    floor, why_floor = contact_floor(problem)
     candidates = tuple(n for n in n_masses if n >= floor) or (floor,)
-    chosen_n, spatial, reference = _resolve_masses(scene, tol, target, rollout, candidates, fine_dt, trials)
+    chosen_n, spatial, reference = _resolve_masses(problem, tol, target, rollout, candidates, fine_dt, trials)
     why = f"n = {chosen_n}: the fewest masses whose estimated {target} error ({spatial:.2g}) is within tol/2"
     if floor > 2:
         why += f"; {why_floor}" + (" (the binding bound)" if chosen_n == candidates[0] else "")
     for dt in sorted(dts, reverse=True):
         for integ in integrators:
-            res, cost = _rollout(scene, chosen_n, integ, dt, rollout)
+            res, cost = _rollout(problem, chosen_n, integ, dt, rollout)
             if not res.stable:
                 trials.append({"n": chosen_n, "dt": dt, "integrator": integ, "temporal": None})
                 continue
-            err = _difference(res, reference, target, scene.cable.length)
+            err = _difference(res, reference, target, problem.cable.length)
             trials.append({"n": chosen_n, "dt": dt, "integrator": integ, "temporal": err})
             if err <= 0.5 * tol:
-                res, cost = _rollout(scene, chosen_n, integ, dt, rollout)  # again, compiled: a fair cost
-                return Resolution(chosen_n, dt, integ, _cable(scene, chosen_n).damping, spatial + err, spatial, err,
+                res, cost = _rollout(problem, chosen_n, integ, dt, rollout)  # again, compiled: a fair cost
+                return Resolution(chosen_n, dt, integ, _cable(problem, chosen_n).damping, spatial + err, spatial, err,
                                   cost, target, tol, rollout, trials, why)
     raise ParameterError(f"n = {chosen_n} meets the spatial part, but no step down to {min(dts)} s meets "
                          f"the temporal part of tol = {tol}")

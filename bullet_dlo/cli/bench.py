@@ -116,6 +116,7 @@ def resolve_check(args) -> int:
     """resolve() on S1, S3 and S4 as scenes, checked against their references."""
     from bullet_dlo.analysis.resolve import resolve
     from bullet_dlo.config.scene import Scene
+    from bullet_dlo.sim import resolve_problem
 
     out = _out(args)
     tol = 0.05 if args.quick else TOL
@@ -129,7 +130,7 @@ def resolve_check(args) -> int:
     results, lines = {}, []
     for name in _progress(args, "resolve", "scene")(list(cases)):
         scene, target, runner = cases[name]
-        r = resolve(scene, tol, target)
+        r = resolve(resolve_problem(scene), tol, target)
         check = runner(r.n_masses, r.integrator, r.dt)
         meets = bool(check.error <= tol)
         results[name] = dict(r.to_dict(), measured_error=check.error, meets=meets)

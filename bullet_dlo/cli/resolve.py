@@ -10,6 +10,7 @@ from bullet_dlo.cli.simulate import write_json
 def cmd_resolve(args: argparse.Namespace) -> int:
     from bullet_dlo.analysis.resolve import resolve
     from bullet_dlo.config.scene import Scene
+    from bullet_dlo.sim import resolve_problem
     from bullet_dlo.core.validate import check_in_range
 
     check_in_range("--tol", args.tol, 1e-6, 1.0, open_hi=True)
@@ -17,7 +18,7 @@ def cmd_resolve(args: argparse.Namespace) -> int:
     if args.rollout is not None:  # at most the scene's duration: a trial never outlasts the run it stands for
         check_in_range("--rollout [s]", args.rollout, scene.dt, scene.duration)
     with elapsed("resolve: convergence trials", args.quiet):
-        r = resolve(scene, args.tol, args.target, args.rollout)
+        r = resolve(resolve_problem(scene), args.tol, args.target, args.rollout)
     print(f"{scene.name}: n_masses = {r.n_masses}, integrator = {r.integrator}, dt = {r.dt:.4g} s; predicted error "
           f"{r.predicted_error:.4f} (spatial {r.spatial_error:.4f} + temporal {r.temporal_error:.4f}) <= "
           f"{r.tolerance} on {r.target}; {r.wall_time_per_sim_s:.4f} s wall per simulated second")

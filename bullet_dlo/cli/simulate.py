@@ -27,7 +27,9 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     from bullet_dlo.core.integrators import get_integrator
     from bullet_dlo.core.validate import check_positive, check_steps
 
-    scene = Scene.from_yaml(args.scene).resolved()
+    from bullet_dlo.sim import resolved
+
+    scene = resolved(Scene.from_yaml(args.scene))
     if args.integrator is not None:
         scene = replace(scene, integrator=get_integrator(args.integrator).name)
     for key in ("dt", "duration"):

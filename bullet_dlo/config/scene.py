@@ -19,7 +19,7 @@ Schema (extra keys are rejected with a message naming them)::
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Mapping
 
@@ -130,22 +130,7 @@ class Scene:
         """Load and validate a YAML scene file."""
         return cls.from_dict(load_mapping(path, "scene file"))
 
-    # ----- running -------------------------------------------------------------------------
-    def resolved(self) -> "Scene":
-        """This scene with ``n_masses: auto`` / ``dt: auto`` replaced by the choice of
-        :func:`bullet_dlo.analysis.resolve.resolve`."""
-        if not (self.auto_n or self.auto_dt):
-            return self
-        from bullet_dlo.analysis.resolve import resolve
-
-        r = resolve(self, self.tolerance, self.tolerance_target)
-        new = replace(self, auto_n=False, auto_dt=False)
-        if self.auto_n:
-            new = replace(new, cable=self.cable.with_(n_masses=r.n_masses, damping=r.damping))
-        if self.auto_dt:
-            new = replace(new, dt=r.dt, integrator=r.integrator)
-        return new
-
+    # ----- the model -----------------------------------------------------------------------
     def build_model(self) -> CableModel:
         """The discretised cable with its end conditions and motion."""
         return CableModel.straight(self.cable, self.start, self.direction, self.ends, self.motion, self.gravity)

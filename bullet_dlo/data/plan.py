@@ -16,6 +16,7 @@ import numpy as np
 from bullet_dlo.analysis.resolve import resolve_masses
 from bullet_dlo.config.capture import CaptureSpec
 from bullet_dlo.config.scene import Scene
+from bullet_dlo.sim import resolve_problem
 from bullet_dlo.core.boundary import Motion, Move, parse_motion
 from bullet_dlo.core.model import CableModel
 from bullet_dlo.core.spec import CableSpec
@@ -65,7 +66,7 @@ def auto_masses(spec: CaptureSpec, params: dict[str, Any]) -> tuple[int, float]:
     ``spec.resolve_tol``."""
     scene = Scene(cable=cable_spec({**params, "n_masses": 10}), motion=episode_motion(params),
                   duration=spec.duration, initial="static", name="episode")
-    return resolve_masses(scene, spec.resolve_tol, "forces")
+    return resolve_masses(resolve_problem(scene), spec.resolve_tol, "forces")
 
 
 def episode_motion(params: dict[str, Any]) -> tuple[Motion, ...]:

@@ -16,8 +16,8 @@ name. The coupled step's phases are written once, in
     print(result.end_forces[-1])   # force of the cable on each held end [N], (2, 3)
 """
 from bullet_dlo.config.scene import Scene
-from bullet_dlo.sim.builder import ENGINES, build, build_arms, engine_for, resolved
+from bullet_dlo.sim.builder import ENGINES, build, build_arms, engine_for, resolve_problem, resolved
 from bullet_dlo.sim.simulation import ArmsSimulation, BulletSimulation, CoreSimulation, Simulation
 
 __all__ = ["ENGINES", "ArmsSimulation", "BulletSimulation", "CoreSimulation", "Scene", "Simulation", "build",
-           "build_arms", "engine_for", "resolved"]
+           "build_arms", "engine_for", "resolve_problem", "resolved"]

@@ -23,11 +23,15 @@ engine        what is built, and which scene keys it honours
 """
 from __future__ import annotations
 
+from dataclasses import replace
+
+from bullet_dlo.analysis.resolve import ResolveProblem, resolve
 from bullet_dlo.bullet.world import BulletWorld, add_obstacles
 from bullet_dlo.config.robot import DualArmSpec
 from bullet_dlo.config.scene import Scene
 from bullet_dlo.config.schema import one_of
-from bullet_dlo.core.engine import DetectorOptions
+from bullet_dlo.core.engine import DetectorOptions, SimulationResult, simulate
+from bullet_dlo.core.spec import CableSpec
 from bullet_dlo.core.validate import ParameterError
 from bullet_dlo.robots.dual_arm import DualArmScene
 from bullet_dlo.sim.simulation import ArmsSimulation, BulletSimulation, CoreSimulation, Simulation
@@ -36,10 +40,32 @@ ENGINES = ("core", "bullet", "arms")
 """What :func:`build` can make (see the module doc)."""
 
 
+def resolve_problem(scene: Scene) -> ResolveProblem:
+    """``scene`` as :func:`bullet_dlo.analysis.resolve.resolve` takes it: its cable, duration, cylinder
+    obstacles and a rollout with the core engine (the scene's ends, motion, start, Newton and detector
+    settings; no obstacles: the contact floor stands for them)."""
+    def run(cable: CableSpec, integrator: str, dt: float, duration: float) -> SimulationResult:
+        trial = replace(scene, cable=cable, integrator=integrator, dt=dt, duration=duration)
+        model = trial.build_model()
+        return simulate(model, integrator, dt, duration, state=trial.initial_state(model), max_records=201,
+                        newton=trial.newton, detector=trial.detector)
+
+    radii = tuple(float(ob["radius"]) for ob in scene.bullet.obstacles if ob["type"] == "cylinder")
+    return ResolveProblem(scene.cable, scene.duration, run, radii)
+
+
 def resolved(scene: Scene) -> Scene:
     """``scene`` with ``n_masses: auto`` / ``dt: auto`` replaced by the choice of
     :func:`bullet_dlo.analysis.resolve.resolve` (the scene itself when nothing is automatic)."""
-    return scene.resolved()
+    if not (scene.auto_n or scene.auto_dt):
+        return scene
+    r = resolve(resolve_problem(scene), scene.tolerance, scene.tolerance_target)
+    new = replace(scene, auto_n=False, auto_dt=False)
+    if scene.auto_n:
+        new = replace(new, cable=scene.cable.with_(n_masses=r.n_masses, damping=r.damping))
+    if scene.auto_dt:
+        new = replace(new, dt=r.dt, integrator=r.integrator)
+    return new
 
 
 def engine_for(scene: Scene, robot: str | None = None) -> str:

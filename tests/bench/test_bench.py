@@ -10,6 +10,7 @@ from bullet_dlo.analysis.resolve import resolve
 from bullet_dlo.bench import scenarios as bench
 from bullet_dlo.cli.main import main
 from bullet_dlo.config.scene import Scene
+from bullet_dlo.sim import resolve_problem
 
 
 def test_work_precision_quick(tmp_path):
@@ -29,7 +30,7 @@ def test_work_precision_quick(tmp_path):
 
 
 def test_resolve_meets_its_tolerance_and_picks_few_masses():
-    scene = Scene(cable=bench.s1_spec(10), ends=("clamped", "free"), duration=1.0, name="S1")
+    scene = resolve_problem(Scene(cable=bench.s1_spec(10), ends=("clamped", "free"), duration=1.0, name="S1"))
     r = resolve(scene, 0.03, "shape")
     check = bench.s1(r.n_masses, r.integrator, r.dt)
     assert check.error <= 0.03

@@ -3,17 +3,18 @@ from __future__ import annotations
 
 import math
 
-from bullet_dlo.analysis.resolve import contact_floor, resolve_masses
+from bullet_dlo.analysis.resolve import ResolveProblem, contact_floor, resolve_masses
 from bullet_dlo.config.scene import BulletOptions, Scene
 from bullet_dlo.core.spec import CableSpec
+from bullet_dlo.sim import resolve_problem
 
 
-def _scene(radius: float | None) -> Scene:
+def _scene(radius: float | None) -> ResolveProblem:
     obstacles = () if radius is None else ({"type": "cylinder", "radius": radius, "height": 0.2,
                                             "position": [0, 0, 0.3]},
                                            {"type": "box", "half_extents": [0.1, 0.1, 0.1], "position": [0, 0, 0.1]})
-    return Scene(cable=CableSpec.lv2017(n_masses=10, damping=0.05), ends=("pinned", "free"), direction=(0, 0, -1),
-                 dt=1e-3, duration=0.1, bullet=BulletOptions(obstacles=obstacles))
+    return resolve_problem(Scene(cable=CableSpec.lv2017(n_masses=10, damping=0.05), ends=("pinned", "free"),
+                                 direction=(0, 0, -1), dt=1e-3, duration=0.1, bullet=BulletOptions(obstacles=obstacles)))
 
 
 def test_contact_floor_follows_the_chord_sag_bound():
