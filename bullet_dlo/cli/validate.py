@@ -41,7 +41,8 @@ def cmd_beam(args: argparse.Namespace) -> int:
     log = (lambda *a: None) if args.quiet else print
     summary, details = validate_beam(args.fit_dir, args.predict_dir, damping=args.damping, numerics=numerics,
                                      strip=strip, estimate=estimate, duration=args.duration,
-                                     limit_files=args.limit_files, check_numerics=not args.no_numerics_check, log=log)
+                                     limit_files=args.limit_files, check_numerics=not args.no_numerics_check,
+                                     fit_youngs_modulus=args.fit_youngs_modulus, log=log)
     out = Path(args.json)
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(json.dumps(summary, indent=2))
@@ -69,9 +70,10 @@ def cmd_beam(args: argparse.Namespace) -> int:
 def cmd_deform(args: argparse.Namespace) -> int:
     try:
         from bullet_dlo.reality import deform
-    except ImportError as err:
+        run = deform.main
+    except (ImportError, AttributeError) as err:
         raise ParameterError(f"validate deform is not available yet (bullet_dlo.reality.deform: {err})") from None
-    return int(deform.main(args) or 0)
+    return int(run(args) or 0)
 
 
 def add_parsers(sub, common: argparse.ArgumentParser) -> None:
@@ -103,6 +105,9 @@ def add_parsers(sub, common: argparse.ArgumentParser) -> None:
     b.add_argument("--knot-step", type=float, default=0.004,
                    help="spacing of the flange-path waypoints taken from the recording [s] (0.004)")
     b.add_argument("--youngs-modulus", type=float, default=197.5e9, help="strip's E [Pa] (197.5e9, nominal)")
+    b.add_argument("--fit-youngs-modulus", action="store_true",
+                   help="also fit E on FIT_DIR: scaled so that the undamped model's residual-vibration frequency "
+                        "matches the fit recordings' (median), starting from --youngs-modulus")
     b.add_argument("--density", type=float, default=7970.0, help="strip's density [kg/m^3] (7970, nominal)")
     b.add_argument("--filter-cutoff", type=float, help="Franka estimate filter: low-pass cut-off [Hz] "
                    "(with --filter-delay; default: identified on FIT_DIR from tau_J)")
@@ -119,10 +124,11 @@ def add_parsers(sub, common: argparse.ArgumentParser) -> None:
                         "(bullet_dlo.reality.deform).")
     try:
         from bullet_dlo.reality import deform
-    except ImportError:
+        add_arguments = deform.add_arguments
+    except (ImportError, AttributeError):  # until bullet_dlo.reality.deform lands with add_arguments and main
         d.add_argument("rest", nargs=argparse.REMAINDER, help="(validate deform is not available yet)")
     else:
-        deform.add_arguments(d)
+        add_arguments(d)
     d.set_defaults(func=cmd_deform)
 
 
