@@ -257,18 +257,24 @@ class FitResult:
 def holder_paths(rec: Recording, knot_rate: float) -> tuple[EndHolder, EndHolder]:
     """Both ends clamped at the first recorded poses, following the recorded poses as waypoint paths.
 
-    Knots: the recorded samples thinned to about ``knot_rate`` [Hz] (always the first and last);
-    times are taken from the recording's start (t - t[0]).
+    Knots: the recorded samples thinned to about ``knot_rate`` [Hz] (always the first and last),
+    plus one knot extrapolated linearly a knot interval past the last (so that the path's end, where
+    the held end would stop, lies after the last recorded time: without it the held end's
+    acceleration at the last sample put up to 0.9 N into the model's end force); times are taken
+    from the recording's start (t - t[0]).
     """
     step = max(1, int(round(1.0 / (knot_rate * float(np.median(np.diff(rec.t)))))))
     idx = np.unique(np.r_[np.arange(0, len(rec.t), step), len(rec.t) - 1])
     t = rec.t[idx] - rec.t[0]
+    t = np.r_[t, 2.0 * t[-1] - t[-2]]
     dirs = rec.clamp_directions()
     holders = []
     for arm, end in enumerate(("first", "last")):
         pos = rec.grasp_pos[idx, arm]
+        pos = np.vstack([pos, 2.0 * pos[-1] - pos[-2]])
         rot = Rotation.from_quat(rec.grasp_quat[idx, arm])
         rel = (rot * rot[0].inv()).as_rotvec()  # turn since the start, world axes [rad]
+        rel = np.vstack([rel, 2.0 * rel[-1] - rel[-2]])
         path = Waypoints(end, tuple(t), tuple(map(tuple, pos - pos[0])), tuple(map(tuple, rel)), rest=False)
         holders.append(EndHolder("clamped", rec.grasp_pos[0, arm].copy(), dirs[0, arm].copy(), (path,)))
     return holders[0], holders[1]
@@ -491,6 +497,7 @@ def summarise(sol, names: list[str], fitted: CableSpec, layout: Layout, options:
     jk = block_jackknife(r, jac[:, active], block) if active and blocks >= 2 else None
     ratio = jk.held_out_rms / jk.in_sample_rms if jk is not None and jk.in_sample_rms > 0 else math.inf
     global_reasons = discrepancy_reasons(blocks, ratio, wh, options)
+    kind_reasons, kind_estimates = kind_disagreement(r, jac, active, block, layout, names, values, options.level)
     warnings: list[str] = []
     if not check.ok:
         warnings.append(f"numerical damping check failed: {check.message}")
@@ -501,6 +508,7 @@ def summarise(sol, names: list[str], fitted: CableSpec, layout: Layout, options:
         rel[k] = float(half[j] / z)
         se[k] = values[k] * rel[k]
         why = parameter_reason(k, j, at_bound[k], var_log[j], rel[k], global_reasons, check, options)
+        why = why or kind_reasons.get(k)
         ident[k] = why is None
         if why:
             reasons[k] = why
@@ -527,6 +535,7 @@ def summarise(sol, names: list[str], fitted: CableSpec, layout: Layout, options:
                             + (" (integrator auto: BDF2 with dt halved until it holds)" if options.integrator == "auto"
                                else "")}
     res.profiles = profiles(cost, sol.x, r, names, half, sigma2 * wh.tau_samples, options.profile_points, bounds)
+    res.holdout["per_kind_estimates"] = kind_estimates
     res.verdict = {"discrepancy_dominates": bool(global_reasons), "reasons": global_reasons,
                    "confident": [k for k in names if ident[k]], "not_identifiable": reasons,
                    "windows": blocks, "windows_per_recording": per_rec_windows}
@@ -582,6 +591,56 @@ def interval_method(blocks: int, source: list[str], names: list[str], level: flo
             f"windows (each >= 5 residual correlation times; recordings are windows of their own), linearised "
             f"refit, Student's t with {max(blocks - 1, 1)} dof; Newey-West (HAC) sandwich; Jacobian. Widest per "
             f"parameter: {used}")
+
+
+def kind_rows(layout: Layout) -> dict[str, np.ndarray]:
+    """Boolean row mask of each residual kind present."""
+    kinds = np.empty(len(layout.rec_of), dtype=object)
+    row = 0
+    for rec, ks, kp in zip(layout.recs, layout.kinds, layout.keep):
+        for kind in ks:
+            size = len(kp) * rec.observed(kind).shape[1]
+            kinds[row: row + size] = kind
+            row += size
+    return {k: kinds == k for k in sorted(set(kinds))}
+
+
+def kind_disagreement(r: np.ndarray, jac: np.ndarray, active: list[int], block: np.ndarray, layout: Layout,
+                      names: list[str], values: dict[str, float], level: float) -> tuple[dict[str, str], dict]:
+    """Do the residual kinds (force, moment, linear) agree on each parameter? Each kind's own linearised
+    estimate theta - (J_k^T J_k)^-1 J_k^T r_k with its window-jackknife variance; two kinds whose estimates
+    differ by more than the t quantile x the combined standard error disagree: the model explains them
+    with different parameters (discrepancy), so that parameter gets no confident number. Returns the
+    reasons by parameter and the per-kind estimates (SI) for the report."""
+    masks = kind_rows(layout)
+    if len(masks) < 2 or not active or int(block.max()) < 1:
+        return {}, {}
+    est = {}
+    for kind, rows in masks.items():
+        sub = jac[rows][:, active]
+        step = np.linalg.lstsq(sub, r[rows], rcond=1e-10)
+        if step[2] < len(active):
+            continue
+        blocks_k = np.unique(block[rows], return_inverse=True)[1]
+        var = block_jackknife(r[rows], sub, blocks_k).var_log if blocks_k.max() >= 1 else np.full(len(active), np.inf)
+        est[kind] = (-step[0], var, int(blocks_k.max()) + 1)
+    reasons, report = {}, {}
+    for a, j in enumerate(active):
+        k = names[j]
+        report[k] = {kind: {"value": values[k] * math.exp(e[0][a]), "log_se": float(math.sqrt(e[1][a]))}
+                     for kind, e in est.items() if math.isfinite(e[1][a])}
+        kinds = list(est)
+        for x in range(len(kinds)):
+            for y in range(x + 1, len(kinds)):
+                ea, eb = est[kinds[x]], est[kinds[y]]
+                se = math.sqrt(ea[1][a] + eb[1][a])
+                gap = abs(ea[0][a] - eb[0][a])
+                tq = t_quantile(min(ea[2], eb[2]), level)
+                if math.isfinite(se) and gap > tq * se:
+                    reasons[k] = (f"the {kinds[x]} and {kinds[y]} residuals disagree on it ("
+                                  f"{values[k] * math.exp(ea[0][a]):.5g} vs {values[k] * math.exp(eb[0][a]):.5g}, "
+                                  f"{gap / se:.3g} combined standard errors): model discrepancy")
+    return reasons, report
 
 
 def discrepancy_reasons(blocks: int, ratio: float, wh, options: FitOptions) -> list[str]:
