@@ -78,3 +78,22 @@ def test_static_solver_reports_convergence():
     assert np.all(np.isfinite(res.x))
     assert res.x[7, 2] < 0.5  # it sags
     assert cantilever_deflection(spec) > 0
+
+
+@pytest.mark.parametrize("n", [640, 1000])
+def test_fine_cantilever_converges_to_beam_theory(n):
+    """Issue 26: at n >= ~500 a fixed force floor (k_s * eps * |x|, growing with n) exceeded the start's
+    residual (one node's weight, shrinking with n): 'converged' at iteration 0, tip error -100 %."""
+    spec = small_deflection_spec(n)
+    res = solve_static(cantilever_model(spec))
+    assert res.converged and res.iterations > 0
+    error = cantilever_convergence((n,))[0]
+    # second order: |error| ~ 9e-6 at n = 320, below 2e-6 at n = 640; round-off ~5e-7 beyond
+    assert abs(error["default"]) < 2e-6, error
+    assert 0.2e-2 < error["paper"] < 0.5e-2, error  # first order: 0.73 % at n = 320
+
+
+def test_start_is_never_taken_for_converged():
+    """No step taken, not converged: a residual below some floor proves nothing."""
+    res = solve_static(cantilever_model(small_deflection_spec(1000)), max_iter=0)
+    assert not res.converged and res.iterations == 0
