@@ -150,12 +150,14 @@ def test_without_motion_the_right_gripper_makes_the_straight_move():
 def test_auto_masses_resolves_on_the_drawn_motion(monkeypatch):
     """``n_masses: auto`` tests convergence on the episode's own (drawn) motion: the core scene gets those items."""
     seen = []
+    problem_of = plan.resolve_problem
 
-    def resolve(scene, tol, target):
+    def problem(scene):
         seen.append(scene)
-        return 12, 0.01
+        return problem_of(scene)
 
-    monkeypatch.setattr(plan, "resolve_masses", resolve)
+    monkeypatch.setattr(plan, "resolve_problem", problem)
+    monkeypatch.setattr(plan, "resolve_masses", lambda problem, tol, target: (12, 0.01))
     spec = CaptureSpec.from_dict({**SHAKE_AND_TURN, "sample": {"n_masses": "auto"}, "resolve_tol": 0.05})
     params, decision = plan_episode(spec, 1)
     assert (params["n_masses"], decision["resolved_n_masses"]) == (12, 12)
