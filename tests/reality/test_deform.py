@@ -1,0 +1,166 @@
+"""DEFORM motion capture: the restricted reader, arc lengths, the fit on synthetic recordings, and
+``validate deform`` on the real data when ../shared/data is present (issue 21)."""
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import pickle
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from bullet_dlo.core.boundary import Move, Sine
+from bullet_dlo.core.engine import simulate
+from bullet_dlo.core.model import CableModel, CableState
+from bullet_dlo.core.statics import solve_static
+from bullet_dlo.core.validate import ParameterError
+from bullet_dlo.reality import deform
+from bullet_dlo.reality.deform import Numerics, arc_lengths, cable_spec, fit, jackknife, load_trial, read_pickle
+
+pytestmark = pytest.mark.core
+DATA = Path(__file__).resolve().parents[3] / "shared" / "data" / "deform"
+HIDDEN = {"bending_per_mass": 0.05, "damping_rate": 1.5, "internal_damping": 0.004}
+NUM = Numerics(n_masses=11, dt=2e-3)
+PAIR = 0.02  # distance of the outer held marker from the clamp [m]
+
+
+class Evil:
+    def __reduce__(self):
+        return (os.system, ("echo pwned",))
+
+
+def test_reader_refuses_a_pickle_with_an_arbitrary_global(tmp_path):
+    path = tmp_path / "evil.pkl"
+    path.write_bytes(pickle.dumps(Evil()))
+    with pytest.raises(ParameterError, match="global posix.system is not allowed|global os.system is not allowed"):
+        read_pickle(path)
+
+
+def test_reader_reads_lists_and_numpy_arrays_and_refuses_a_wrong_shape(tmp_path):
+    a = np.random.default_rng(0).normal(size=(4, 3, 6))
+    for name, payload in (("lists", a.tolist()), ("array", a), ("list_of_arrays", list(a))):
+        (tmp_path / f"{name}.pkl").write_bytes(pickle.dumps(payload))
+        assert np.array_equal(read_pickle(tmp_path / f"{name}.pkl"), a)
+    (tmp_path / "flat.pkl").write_bytes(pickle.dumps(a[:, 0].tolist()))
+    with pytest.raises(ParameterError, match=r"\(T >= 3, 3, m >= 5\)"):
+        read_pickle(tmp_path / "flat.pkl")
+
+
+def test_arc_lengths_straight_and_curved():
+    """Straight: the distances; on a circle of radius R, markers 10 degrees apart: chords 2 R sin(5 deg),
+    within (l kappa)^2 / 24 of the arc (the bound the docstring states)."""
+    x = np.outer(np.array([0.0, 0.1, 0.25, 0.3, 0.7]), [0.6, 0.8, 0.0])
+    assert np.allclose(arc_lengths(x), [0.0, 0.1, 0.25, 0.3, 0.7])
+    r, phi = 0.5, np.radians(np.arange(0, 60, 10))
+    s = arc_lengths(np.stack([r * np.cos(phi), r * np.sin(phi), np.zeros_like(phi)], axis=1))
+    assert np.allclose(s, r * phi, rtol=(r * np.radians(10) / r) ** 2 / 24 * 1.01)
+    assert np.all(s < r * phi + 1e-15) and s[-1] < r * phi[-1]
+    with pytest.raises(ParameterError, match="coincide"):
+        arc_lengths(np.zeros((5, 3)))
+
+
+def synthetic_trial(path: Path, motion, duration: float = 2.0, noise: float = 0.0, seed: int = 0) -> None:
+    """A DEFORM-format pickle made by the core model with :data:`HIDDEN`: a 0.5 m cable clamped 0.3 m
+    apart, static at the start, then moved by ``motion``; markers at every node plus an outer held
+    marker 2 cm beyond each clamp, at 100 Hz, with Gaussian noise [m] on the free markers."""
+    spec = cable_spec(0.5, HIDDEN, NUM.n_masses)
+    model = CableModel.straight(spec, start=(0.0, 0.0, 1.0), motion=motion)
+    span = np.array([0.3, 0.0, 0.0])
+    first = model.first
+    last = type(model.last)("clamped", first.position + span, model.last.direction, model.last.moves)
+    model = CableModel(spec, first, last, model.gravity, model.arrays,
+                       first.position + np.outer(np.linspace(0, 1, model.n), span))
+    x0 = model.x0.copy()
+    x0[1:-1, 2] -= 0.15 * np.sin(np.pi * np.linspace(0, 1, model.n))[1:-1]  # start the solver sagging
+    x0 = solve_static(model, x0).x
+    res = simulate(model, NUM.integrator, NUM.dt, duration, state=CableState(x0, np.zeros_like(x0), 0.0),
+                   record_every=5, max_records=10**6)
+    assert res.stable
+    x = res.x[: int(round(duration * 100)) + 1]
+    rng = np.random.default_rng(seed)
+    x[:, 1:-1] += rng.normal(0.0, noise, x[:, 1:-1].shape)
+    d = np.array([1.0, 0.0, 0.0])  # both clamps hold +x throughout (the moves do not turn them)
+    markers = np.concatenate([(x[:, 0] - PAIR * d)[:, None], x, (x[:, -1] + PAIR * d)[:, None]], axis=1)
+    path.write_bytes(pickle.dumps(markers.transpose(0, 2, 1).tolist()))
+
+
+MOTIONS = [
+    (Move("last", (0.05, 0.12, 0.06), 0.1, 0.6),),
+    (Sine("first", (0.0, 0.04, 0.0), 1.3, ramp=0.3, duration=1.5),),
+    (Move("first", (0.0, -0.08, 0.05), 0.0, 0.5), Move("last", (0.0, 0.08, -0.03), 0.3, 0.7)),
+]
+
+
+@pytest.fixture(scope="module")
+def synthetic(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("dlo")
+    for split, seeds in (("train", (0, 1, 2)), ("eval", (3,))):
+        (folder / split).mkdir()
+        for k, seed in enumerate(seeds):
+            synthetic_trial(folder / split / f"{seed}.pkl", MOTIONS[seed % 3], noise=0.002, seed=seed)
+    return folder
+
+
+def test_fit_recovers_hidden_parameters_within_its_intervals(synthetic):
+    """Made by the model itself (2 mm marker noise): the fitted EI/(rho A) and damping cover the truth."""
+    recs = [load_trial(p) for p in sorted((synthetic / "train").glob("*.pkl"))]
+    f = fit(recs, NUM, max_evaluations=30)
+    params = jackknife(f)
+    b = params["bending_per_mass"]
+    assert b["identifiable"]
+    assert b["interval_95"][0] <= HIDDEN["bending_per_mass"] <= b["interval_95"][1], b
+    assert abs(math.log(b["value"] / HIDDEN["bending_per_mass"])) < 0.1
+    for k in ("damping_rate", "internal_damping"):
+        p = params[k]
+        assert p["interval_95"][0] <= HIDDEN[k] <= p["interval_95"][1] or not p["identifiable"], (k, p)
+
+
+def run_main(folder: Path, out: Path, *extra: str) -> dict:
+    parser = argparse.ArgumentParser()
+    deform.add_arguments(parser)
+    args = parser.parse_args([str(folder), "--json", str(out), *extra])
+    assert deform.main(args) == 0
+    return json.loads(out.read_text())
+
+
+def test_main_refuses_bad_input_with_one_line(tmp_path, synthetic):
+    with pytest.raises(ParameterError, match="DLO_DIR"):
+        run_main(tmp_path / "missing", tmp_path / "o.json")
+    (tmp_path / "empty" / "train").mkdir(parents=True)
+    with pytest.raises(ParameterError, match="train: no \\*.pkl"):
+        run_main(tmp_path / "empty", tmp_path / "o.json")
+    bad = tmp_path / "bad"
+    (bad / "train").mkdir(parents=True)
+    (bad / "eval").mkdir()
+    (bad / "train" / "1.pkl").write_bytes(pickle.dumps(Evil()))
+    (bad / "eval" / "2.pkl").write_bytes((synthetic / "eval" / "3.pkl").read_bytes())
+    with pytest.raises(ParameterError, match="not allowed") as err:
+        run_main(bad, tmp_path / "o.json")
+    assert "\n" not in str(err.value)
+
+
+def test_numerical_damping_of_bdf2_is_below_the_physical():
+    """First swing mode, all damping off: bdf2 at n = 11, dt = 2 ms keeps under a tenth of the damping
+    ratio the hidden parameters give; implicit Euler adds several times more than bdf2."""
+    f0, z_num = deform.swing_test(HIDDEN, 1.0, NUM, damped=False)
+    _, z_phys = deform.swing_test(HIDDEN, 1.0, NUM, damped=True)
+    _, z_ie = deform.swing_test(HIDDEN, 1.0, Numerics(integrator="implicit_euler", n_masses=11, dt=2e-3), damped=False)
+    assert 0.3 < f0 < 3.0
+    assert abs(z_num) < 0.1 * z_phys
+    assert z_ie > 3 * abs(z_num)
+
+
+@pytest.mark.skipif(not (DATA / "DLO3").is_dir(), reason=f"DEFORM data not found at {DATA} (../shared/data/deform)")
+def test_validate_deform_on_real_dlo3_beats_a_frozen_shape(tmp_path):
+    """Bounded: 2 train trials, 2 eval trials, n = 11, a short fit. The open-loop prediction must
+    be at most half a frozen shape's error (the cable swings by tens of cm)."""
+    out = run_main(DATA / "DLO3", tmp_path / "dlo3.json", "--max-train-trials", "2", "--max-eval-trials", "2",
+                   "--max-evaluations", "14", "--n-masses", "11", "--no-numerics-check", "--plots",
+                   str(tmp_path / "plots"))
+    assert math.isfinite(out["eval_l1"]) and out["eval_l1"] < 0.5 * out["frozen_eval_l1"]
+    assert set(out["trials"]["eval"]) and all(r["stable"] for r in out["trials"]["eval"].values())
+    assert out["numerics"]["n_masses"] == 11 and out["cost"]["cpu_s_per_simulated_s"] > 0
+    assert len(list((tmp_path / "plots").glob("*.png"))) == 2
