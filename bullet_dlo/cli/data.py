@@ -1,20 +1,83 @@
-"""``bullet-dlo capture | rollouts | dataset summary``: domain-randomised force datasets and policy rollouts."""
+"""``bullet-dlo capture | rollouts | dataset summary | dataset verify``: domain-randomised force datasets
+and policy rollouts.
+
+``capture`` and ``rollouts`` stop on SIGINT/SIGTERM with one line and exit status 130/143, having
+recorded what finished; a write failure (full disk, read-only folder) is one line and exit 1.
+``dataset verify`` and ``dataset summary`` name every missing, damaged, foreign or swapped
+episode and exit 1 with their count.
+"""
 from __future__ import annotations
 
 import argparse
+import signal
 import sys
+import threading
 from pathlib import Path
 
 from bullet_dlo.cli.simulate import write_json
 
 
+class _EarlyStop(threading.Event):
+    """Set by SIGINT/SIGTERM from the command's first line on (``signum``: which); duck-types
+    :class:`bullet_dlo.data.capture.StopSignal`, which is not imported yet when it is installed."""
+
+    signum: int = 0
+
+
+def _install_stop() -> tuple[_EarlyStop, dict]:
+    """SIGINT and SIGTERM set the returned event instead of raising inside an import (which may
+    swallow a KeyboardInterrupt); returns it and the previous handlers."""
+    stop = _EarlyStop()
+
+    def handler(signum: int, _frame) -> None:
+        stop.signum = signum
+        stop.set()
+
+    if threading.current_thread() is not threading.main_thread():
+        return stop, {}
+    return stop, {s: signal.signal(s, handler) for s in (signal.SIGINT, signal.SIGTERM)}
+
+
+def _restore(previous: dict) -> None:
+    for s, h in previous.items():
+        signal.signal(s, h)
+
+
+def _stopped(signum: int, what: str) -> int:
+    """One line for a command stopped by ``signum``; its exit status 128 + signum."""
+    signum = signum or signal.SIGINT
+    print(f"error: interrupted by {signal.Signals(signum).name}: {what}", file=sys.stderr)
+    return 128 + signum
+
+
 def cmd_capture(args: argparse.Namespace) -> int:
+    stop, previous = _install_stop()  # before the slow imports: a Ctrl-C during them is not lost
+    try:
+        return _capture(args, stop)
+    finally:
+        _restore(previous)
+
+
+def _capture(args: argparse.Namespace, stop) -> int:
+    """``capture`` with its stop event installed."""
     from bullet_dlo.config.capture import CaptureSpec
     from bullet_dlo.data import capture
+    from bullet_dlo.data.capture import CaptureInterrupted
+    from bullet_dlo.data.safeio import StorageError
 
+    if stop.is_set():
+        return _stopped(stop.signum, "nothing was captured")
     spec = CaptureSpec.from_yaml(args.spec)
-    res = capture(spec, args.out, args.episodes, workers=args.workers, backend=args.backend, resume=args.resume,
-                  progress=not args.quiet)
+    try:
+        res = capture(spec, args.out, args.episodes, workers=args.workers, backend=args.backend,
+                      resume=args.resume, progress=not args.quiet, stop=stop)
+    except CaptureInterrupted as err:
+        return _stopped(err.signum, str(err).split(": ", 1)[1])
+    except StorageError as err:
+        print(f"error: {err}", file=sys.stderr)
+        return 1
+    for name in res.rerun_damaged:
+        print(f"re-ran {name}")
     print(f"{res.done} episodes in {res.out} ({res.flagged} flagged: unstable or failing a quality limit, "
           f"{res.failed} failed); ran {res.ran} "
           f"in {res.wall_time_s:.1f} s = {res.episodes_per_second:.2f} episodes/s with {args.workers} worker(s)")
@@ -29,14 +92,39 @@ def cmd_capture(args: argparse.Namespace) -> int:
 
 
 def cmd_rollouts(args: argparse.Namespace) -> int:
-    from bullet_dlo.core.validate import check_int
-    from bullet_dlo.envs.rollouts import record_rollouts
+    """``rollouts``: in this process, episode by episode; SIGINT/SIGTERM raise KeyboardInterrupt once
+    the imports are done (an import may swallow it), between or inside episodes: the finished
+    ones are recorded, the one running is re-run by ``--resume``."""
+    stop, previous = _install_stop()
+    try:
+        from bullet_dlo.core.validate import check_int
+        from bullet_dlo.data.safeio import StorageError
+        from bullet_dlo.envs.rollouts import record_rollouts
 
-    kwargs = {} if args.max_steps is None else {"max_episode_steps": check_int("--max-steps", args.max_steps, 1,
-                                                                                1_000_000)}
-    res = record_rollouts(args.env, args.policy, args.out, args.episodes, seed=args.seed,
-                          record_rate=args.record_rate, env_kwargs=kwargs, resume=args.resume,
-                          progress=not args.quiet)
+        if stop.is_set():
+            return _stopped(stop.signum, "nothing was recorded")
+
+        def interrupt(signum: int, _frame) -> None:
+            stop.signum = signum
+            raise KeyboardInterrupt
+
+        if previous:
+            for s in previous:
+                signal.signal(s, interrupt)
+        kwargs = {} if args.max_steps is None else {"max_episode_steps": check_int("--max-steps", args.max_steps,
+                                                                                    1, 1_000_000)}
+        try:
+            res = record_rollouts(args.env, args.policy, args.out, args.episodes, seed=args.seed,
+                                  record_rate=args.record_rate, env_kwargs=kwargs, resume=args.resume,
+                                  progress=not args.quiet)
+        except KeyboardInterrupt:
+            return _stopped(stop.signum, f"the rollouts finished before it are recorded in {args.out}; "
+                            "bullet-dlo rollouts ... --resume continues")
+        except StorageError as err:
+            print(f"error: {err} (bullet-dlo rollouts ... --resume continues)", file=sys.stderr)
+            return 1
+    finally:
+        _restore(previous)
     print(f"{res.done} rollouts of {args.policy} in {res.out} ({res.flagged} flagged, {res.failed} failed); "
           f"ran {res.ran} in {res.wall_time_s:.1f} s")
     if res.complete:
@@ -52,11 +140,47 @@ def _first(indices: tuple[int, ...], count: int = 10) -> str:
     return "episodes " + ", ".join(map(str, indices[:count])) + more
 
 
-def cmd_dataset_summary(args: argparse.Namespace) -> int:
+def _verified(directory: str):
+    """The dataset in ``directory`` and its full verification report, printed when not clean."""
     from bullet_dlo.data import Dataset
 
+    ds = Dataset(directory, check=False)
+    report = ds.verify()
+    return ds, report
+
+
+def _verify_failed(report, directory: str) -> int:
+    """Print the problems of ``report`` and its count line; exit status 1."""
+    for line in report.lines():
+        print(line)
+    print(f"error: {len(report.problems)} of {report.checked} recorded episodes in {directory} failed "
+          "verification (missing, damaged, foreign or swapped); bullet-dlo capture ... --resume re-runs them",
+          file=sys.stderr)
+    return 1
+
+
+def cmd_dataset_verify(args: argparse.Namespace) -> int:
+    """``dataset verify DIR``: every recorded episode file against its manifest line, nothing else."""
+    _, report = _verified(args.dir)
+    if report.problems:
+        return _verify_failed(report, args.dir)
+    print(f"{report.checked} recorded episodes in {args.dir}: {report.hashed} verified by sha256, "
+          f"{report.unhashed} without a recorded hash; no problems")
+    for line in report.lines():
+        print(line)
+    return 0
+
+
+def cmd_dataset_summary(args: argparse.Namespace) -> int:
+    from bullet_dlo.data.safeio import StorageError
+
     png = Path(args.dir) / "quality.png"
-    summary = Dataset(args.dir).summary(png)
+    ds, report = _verified(args.dir)
+    try:
+        summary = ds.summary(png)
+    except StorageError as err:
+        print(f"error: {err}", file=sys.stderr)
+        return 1
     print(f"{summary['episodes']} episodes: {summary['ok']} ok, {summary['flagged']} flagged "
           f"({summary['flagged_for_quality']} for force quality), "
           f"{summary['failed']} failed; stability decisions: {summary['decisions']}")
@@ -74,7 +198,13 @@ def cmd_dataset_summary(args: argparse.Namespace) -> int:
               f"sensor (up to tens of cable weights); re-capture them")
     print(f"quality histogram: {png}")
     if args.json:
-        write_json(args.json, summary)
+        write_json(args.json, summary | {"verification": {"checked": report.checked, "hashed": report.hashed,
+                                                          "unhashed": report.unhashed,
+                                                          "problems": [str(p) for p in report.problems]}})
+    if report.problems:
+        return _verify_failed(report, args.dir)
+    for line in report.lines():
+        print(line)
     return 0
 
 
@@ -121,3 +251,10 @@ def add_parsers(sub, common: argparse.ArgumentParser) -> None:
     d.add_argument("dir", help="capture directory")
     d.add_argument("--json", metavar="OUT.json", help="write the summary as JSON")
     d.set_defaults(func=cmd_dataset_summary)
+    d = dsub.add_parser("verify", parents=[common], help="check every episode file against its manifest line",
+                        description="Check every recorded episode file of DIR against its manifest line (size, "
+                                    "sha256, episode number, spec): name each missing, damaged (truncated, "
+                                    "changed, a link, a directory, a FIFO), foreign or swapped one; exit 1 with "
+                                    "their count. Old lines without a hash are checked as far as they can be.")
+    d.add_argument("dir", help="capture directory")
+    d.set_defaults(func=cmd_dataset_verify)

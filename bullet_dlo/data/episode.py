@@ -39,11 +39,14 @@ from bullet_dlo.core.model import STANDARD_GRAVITY
 from bullet_dlo.data.plan import cable_spec, episode_motion, plan_episode
 from bullet_dlo.data.quality import quality_issues, quality_metrics, sensor_metrics
 from bullet_dlo.data.storage import (
+    episode_name,
     episode_result,
     failed_record,
+    status_attrs,
     version,
     write_episode,
 )
+from bullet_dlo.data.safeio import StorageError
 from bullet_dlo.render.camera import default_camera, render_frame
 from bullet_dlo.robots.arm import Robot
 from bullet_dlo.robots.dual_arm import DualArmScene, DualArmSpec
@@ -150,17 +153,21 @@ def run_episode(spec_dict: dict, index: int, out_dir: str) -> dict:
              "version": version(), "sensor_compensation": compensation, "spec_digest": spec.digest(),
              "stable": bool(stable),
              "time_to_instability": -1.0 if t_bad is None else float(t_bad), "columns": COLUMNS_NOTE}
-    frames = np.asarray(recorder.frames, dtype=np.uint8) if recorder.frames else None
-    name = write_episode(out_dir, index, data, attrs, frames, np.asarray(recorder.frame_t))
     weight = scene_.cable.mass * float(np.linalg.norm(STANDARD_GRAVITY))
     issues = (quality_issues(metrics, weight, spec.max_sensor_model_rms, spec.max_hf_energy) + check.failures()
               if stable else [])
-    return episode_result(index, name, stable, t_bad, reason, params, decision, metrics, issues)
+    record = episode_result(index, episode_name(index), stable, t_bad, reason, params, decision, metrics, issues)
+    attrs |= status_attrs(record)  # the file rebuilds this record, flags and all, if the manifest line is lost
+    frames = np.asarray(recorder.frames, dtype=np.uint8) if recorder.frames else None
+    write_episode(out_dir, index, data, attrs, frames, np.asarray(recorder.frame_t))
+    return record
 
 
 def run_episode_safely(spec_dict: dict, index: int, out_dir: str) -> dict:
     """:func:`run_episode` with an exception turned into a failed record (the worker survives)."""
     try:
         return run_episode(spec_dict, index, out_dir)
+    except StorageError as err:  # the directory, not the episode: the coordinator stops, nothing recorded
+        return failed_record(index, str(err), write_error=True, path=str(err.path), cause=err.cause)
     except Exception as err:  # noqa: BLE001 - recorded, not swallowed
         return failed_record(index, f"{type(err).__name__}: {err}", traceback=traceback.format_exc(limit=3))

@@ -61,8 +61,35 @@ def quality_issues(metrics: dict, weight: float, max_rms_weights: float | None, 
     return issues
 
 
+def quality_limits(spec) -> tuple[float | None, float | None]:
+    """(max_sensor_model_rms [cable weights], max_hf_energy [share]) of a capture directory's spec: a
+    :class:`~bullet_dlo.config.capture.CaptureSpec`, or a rollout spec whose ``randomisation`` is one."""
+    from bullet_dlo.config.capture import CaptureSpec
+
+    if hasattr(spec, "randomisation"):
+        spec = CaptureSpec.from_dict(spec.randomisation)
+    return spec.max_sensor_model_rms, spec.max_hf_energy
+
+
+def recomputed_issues(metrics: dict, weight: float, max_rms_weights: float | None,
+                      max_hf: float | None) -> list[str]:
+    """The quality reasons of a stored episode, recomputed from its ``metrics`` (for files that do not
+    store them): :func:`quality_issues` plus the wrist-sensor check from its worst mismatch over both
+    arms (``sensor_check_force`` [N], ``sensor_check_moment`` [N m]) against the check's limit."""
+    from bullet_dlo.robots.dual_arm.observation import SENSOR_CHECK
+
+    issues = quality_issues(metrics, weight, max_rms_weights, max_hf)
+    allowed = SENSOR_CHECK[0] * weight + SENSOR_CHECK[1]
+    for key, name, unit in (("sensor_check_force", "force", "N"), ("sensor_check_moment", "moment", "N m")):
+        worst = metrics.get(key, float("nan"))
+        if worst > allowed:
+            issues.append(f"wrist {name} differs from the cable's load by {worst:.3g} {unit} (allowed {allowed:.3g})")
+    return issues
+
+
 def plot_quality(records: Iterable[dict], png: str | Path) -> None:
-    """Histograms of the episodes' high-frequency share and sensor-model RMS, written to ``png``."""
+    """Histograms of the episodes' high-frequency share and sensor-model RMS, written to ``png``
+    atomically (a new temporary file renamed over ``png``: a link there is replaced, never written through)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -77,5 +104,9 @@ def plot_quality(records: Iterable[dict], png: str | Path) -> None:
     for ax in axes:
         ax.set_ylabel("episodes")
     fig.tight_layout()
-    fig.savefig(png, dpi=100)
-    plt.close(fig)
+    from bullet_dlo.data.safeio import atomic_write
+
+    try:
+        atomic_write(Path(png), lambda fh: fig.savefig(fh, dpi=100, format="png"))
+    finally:
+        plt.close(fig)

@@ -5,27 +5,52 @@ Typical use::
     ds = Dataset("out/capture")
     for record in ds.select(where=lambda p: p["robot"] == "panda", max_hf_energy=0.05):
         ep = ds.load(record)          # ep["wrench_world"]: (k, 2, 6), ep["cable_x"]: (k, n, 3)
+
+Nothing is trusted unchecked: opening a dataset checks that every recorded episode file is there,
+a regular file of its recorded size (:class:`DamagedDataset` names each one that is not);
+:meth:`Dataset.load` parses only bytes whose sha256 matches the manifest line; :meth:`Dataset.verify`
+hashes them all (:mod:`bullet_dlo.data.integrity`). No link is followed and no FIFO opened.
 """
 from __future__ import annotations
 
+import io
 import json
 from pathlib import Path
 from typing import Any, Callable
 
 from bullet_dlo.core.validate import ParameterError
 from bullet_dlo.data.quality import plot_quality
-from bullet_dlo.data.storage import JSON_ATTRS, is_capture_dir, read_manifest, read_spec_file
+from bullet_dlo.data.integrity import Problem, VerifyReport, check_record, verify_records
+from bullet_dlo.data.safeio import read_regular
+from bullet_dlo.data.storage import JSON_ATTRS, episode_name, is_capture_dir, read_manifest, read_spec_file
 
 OLD_TARE_TILT = 0.01
 """[rad] A gripper tilt above which an episode recorded with the old sensor-frame tare is warned about."""
 
 
+class DamagedDataset(ParameterError):
+    """Recorded episodes whose files are missing, damaged, foreign or swapped: ``problems`` names each."""
+
+    def __init__(self, root: Path, problems: list[Problem]):
+        shown = "; ".join(str(p) for p in problems[:5]) + (f"; ... (+{len(problems) - 5})" if len(problems) > 5 else "")
+        super().__init__(f"{len(problems)} episode(s) of {root} failed verification: {shown}; "
+                         "bullet-dlo capture ... --resume re-runs them")
+        self.problems = problems
+
+
 def load_episode(path: str | Path) -> dict[str, Any]:
     """All arrays of an episode file plus ``params``, ``decision``, ``metrics`` and its other attributes
-    (see :mod:`bullet_dlo.data.episode` for the columns)."""
+    (see :mod:`bullet_dlo.data.episode` for the columns). Only a regular file is read (a directory,
+    a FIFO or a device raises ParameterError; a link given here is the caller's own choice)."""
+    path = Path(path)
+    return parse_episode(read_regular(path.resolve()))
+
+
+def parse_episode(data: bytes) -> dict[str, Any]:
+    """The arrays and attributes of an episode file given as bytes (see :func:`load_episode`)."""
     import h5py
 
-    with h5py.File(path, "r") as f:
+    with h5py.File(io.BytesIO(data), "r") as f:
         out: dict[str, Any] = {k: f[k][()] for k in f.keys()}
         for k, v in f.attrs.items():
             out[k] = json.loads(v) if k in JSON_ATTRS else v
@@ -37,14 +62,27 @@ class Dataset:
 
     A damaged ``capture.json`` or manifest line raises ParameterError naming it (a torn last
     line, the trace of a killed capture, is skipped: ``bullet-dlo capture --resume`` repairs it).
+    A recorded episode file that is missing, not a regular file or not of its recorded size raises
+    :class:`DamagedDataset` naming every such episode (``check=False``: open anyway, e.g. to
+    :meth:`verify` it; :meth:`load` still checks each file it reads).
     """
 
-    def __init__(self, root: str | Path):
+    def __init__(self, root: str | Path, check: bool = True):
         self.root = Path(root)
         if not is_capture_dir(self.root):
             raise ParameterError(f"{self.root} is not a capture directory (no capture.json)")
         self.spec = read_spec_file(self.root)
-        self.records = [r for _, r in sorted(read_manifest(self.root, strict=True).items())]
+        self._by_episode = read_manifest(self.root, strict=True)
+        self.records = [r for _, r in sorted(self._by_episode.items())]
+        if check:
+            report = verify_records(self.root, self._by_episode, self.spec["digest"], full=False)
+            if report.problems:
+                raise DamagedDataset(self.root, report.problems)
+
+    def verify(self) -> VerifyReport:
+        """Every recorded episode file hashed and checked against its manifest line (see
+        :mod:`bullet_dlo.data.integrity`)."""
+        return verify_records(self.root, self._by_episode, self.spec["digest"])
 
     def select(self, status: str | None = "ok", where: Callable[[dict], bool] | None = None,
                max_hf_energy: float | None = None) -> list[dict]:
@@ -61,8 +99,32 @@ class Dataset:
         return out
 
     def load(self, record: dict) -> dict[str, Any]:
-        """The episode file of a manifest record (see :func:`load_episode`)."""
-        return load_episode(self.root / record["file"])
+        """The episode file of a manifest record (see :func:`load_episode`), read once and parsed only
+        when it is that episode's file: its recorded size and sha256 (old lines: its episode number
+        and spec). :class:`DamagedDataset` otherwise."""
+        return parse_episode(self._checked_bytes(record))
+
+    def _checked_bytes(self, record: dict) -> bytes:
+        """The bytes of a record's episode file, verified (see :meth:`load`)."""
+        from bullet_dlo.data.integrity import content_problem
+        from bullet_dlo.data.safeio import NotARegularFile, sha256
+
+        index = int(record["episode"])
+        if record.get("status") not in ("ok", "flagged"):
+            raise ParameterError(f"episode {index} of {self.root} has no file (status {record.get('status')})")
+        problem = check_record(self.root, index, record, self.spec["digest"], {}, full=False)
+        if problem is None:
+            name = episode_name(index)
+            try:
+                data = read_regular(self.root / name)
+            except NotARegularFile as err:
+                raise DamagedDataset(self.root, [Problem(index, name, "not a file", f"a {err.kind}")]) from None
+            if isinstance(record.get("sha256"), str) and sha256(data) == record["sha256"]:
+                return data
+            problem = content_problem(index, name, data, self.spec["digest"], "sha256" in record)
+            if problem is None:
+                return data
+        raise DamagedDataset(self.root, [problem])
 
     def old_tare_episodes(self, tilt: float = OLD_TARE_TILT) -> list[int]:
         """Episodes recorded before payload compensation (no ``sensor_compensation`` attribute: the hand's
@@ -73,10 +135,13 @@ class Dataset:
 
         out = []
         for r in self.records:
-            path = self.root / str(r.get("file") or "")
-            if r["status"] == "failed" or not path.is_file():
+            if r["status"] == "failed":
                 continue
-            with h5py.File(path, "r") as f:
+            try:
+                data = self._checked_bytes(r)
+            except ParameterError:
+                continue  # damaged: reported by verify, not read
+            with h5py.File(io.BytesIO(data), "r") as f:
                 if "sensor_compensation" in f.attrs or "ee_quat" not in f:
                     continue
                 q = np.asarray(f["ee_quat"], dtype=float)  # (k, 2, 4) x, y, z, w

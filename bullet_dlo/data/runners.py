@@ -8,14 +8,20 @@ kill workers on purpose); it must be importable by name in a spawned process.
 
 Local workers watch their parent: when the coordinator dies (even by SIGKILL) they exit
 within ``PARENT_POLL_S`` instead of running on as orphans that write files no manifest lists.
+
+Stopping: a runner given a ``stop`` event (set by the coordinator's SIGINT/SIGTERM handler) checks
+it every ``STOP_POLL_S``; once set it yields the records of episodes already finished, cancels the
+queued ones, terminates its workers and returns. Workers ignore SIGINT (a Ctrl-C reaches the
+whole process group): the coordinator alone decides what to stop and what to record.
 """
 from __future__ import annotations
 
 import multiprocessing as mp
 import os
+import signal
 import threading
 import time
-from concurrent.futures import ProcessPoolExecutor, as_completed
+from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
 from typing import Callable, Iterator
 
@@ -26,6 +32,7 @@ Task = Callable[[dict, int, str], dict]
 Runner = Callable[..., Iterator[tuple[int, dict]]]
 SHARED_ROUNDS = 2  # broken pool rounds before lost episodes run one per pool
 PARENT_POLL_S = 0.5  # [s] how often a local worker checks that its coordinator is alive
+STOP_POLL_S = 0.1  # [s] how often a runner checks its stop event
 
 
 def _episode_task() -> Callable[[dict, int, str], dict]:
@@ -36,7 +43,9 @@ def _episode_task() -> Callable[[dict, int, str], dict]:
 
 
 def watch_parent(parent: int) -> None:
-    """Worker initializer: exit this process as soon as ``parent`` (the coordinator's pid) is gone."""
+    """Worker initializer: exit this process as soon as ``parent`` (the coordinator's pid) is gone;
+    ignore SIGINT (the coordinator stops the workers it wants stopped)."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
 
     def watch() -> None:
         while os.getppid() == parent:
@@ -46,22 +55,28 @@ def watch_parent(parent: int) -> None:
     threading.Thread(target=watch, name="watch-parent", daemon=True).start()
 
 
-def run_local(spec_dict: dict, indices: list[int], out: str, workers: int,
-              task: Task | None = None) -> Iterator[tuple[int, dict]]:
+def run_local(spec_dict: dict, indices: list[int], out: str, workers: int, task: Task | None = None,
+              stop: threading.Event | None = None) -> Iterator[tuple[int, dict]]:
     """Process pool (spawned workers). When a worker dies the pool breaks and every episode it had
     not returned is lost: those are re-run. A broken pool cannot say whose worker died, so after
     ``SHARED_ROUNDS`` broken rounds the rest run one per pool; an episode whose worker dies twice
-    alone is recorded as failed (an innocent episode that shared a pool is never blamed)."""
+    alone is recorded as failed (an innocent episode that shared a pool is never blamed).
+    A set ``stop`` ends the run (see the module doc): unfinished episodes get no record."""
     task = task or _episode_task()
+    stop = stop or threading.Event()
     remaining = list(indices)
     deaths = {i: 0 for i in indices}
     rounds = 0
-    while remaining:
+    while remaining and not stop.is_set():
         isolated = rounds >= SHARED_ROUNDS
         groups = [[i] for i in remaining] if isolated else [remaining]
         lost: list[int] = []
         for group in groups:
-            yield from _pool_round(task, spec_dict, group, out, workers, lost)
+            if stop.is_set():
+                return
+            yield from _pool_round(task, spec_dict, group, out, workers, lost, stop)
+        if stop.is_set():
+            return
         if isolated:
             for i in lost:
                 deaths[i] += 1
@@ -71,26 +86,51 @@ def run_local(spec_dict: dict, indices: list[int], out: str, workers: int,
         rounds += 1
 
 
-def _pool_round(task: Task, spec_dict: dict, group: list[int], out: str, workers: int,
-                lost: list[int]) -> Iterator[tuple[int, dict]]:
-    """Run ``group`` on one pool, yielding records as they come; episodes without one go to ``lost``."""
-    with ProcessPoolExecutor(max_workers=min(workers, len(group)), mp_context=mp.get_context("spawn"),
-                             initializer=watch_parent, initargs=(os.getpid(),)) as pool:
+def _pool_round(task: Task, spec_dict: dict, group: list[int], out: str, workers: int, lost: list[int],
+                stop: threading.Event) -> Iterator[tuple[int, dict]]:
+    """Run ``group`` on one pool, yielding records as they come; episodes without one go to ``lost``.
+    When ``stop`` is set: the finished ones are yielded, the rest cancelled and the workers terminated."""
+    pool = ProcessPoolExecutor(max_workers=min(workers, len(group)), mp_context=mp.get_context("spawn"),
+                               initializer=watch_parent, initargs=(os.getpid(),))
+    try:
         futures = {pool.submit(task, spec_dict, i, out): i for i in group}
-        for fut in as_completed(futures):
-            i = futures[fut]
-            try:
-                record = fut.result()
-            except BrokenProcessPool:
-                lost.append(i)  # its worker died, or another one and the pool broke: re-run
-                continue
-            yield i, record  # finished only once its record is in hand: a killed episode is never lost
+        pending = set(futures)
+        while pending:
+            done, pending = wait(pending, timeout=STOP_POLL_S, return_when=FIRST_COMPLETED)
+            for fut in done:
+                i = futures[fut]
+                try:
+                    record = fut.result()
+                except BrokenProcessPool:
+                    lost.append(i)  # its worker died, or another one and the pool broke: re-run
+                    continue
+                yield i, record  # finished only once its record is in hand: a killed episode is never lost
+            if stop.is_set():
+                for fut in pending:  # finished while we looked: recorded, not re-run
+                    if fut.done() and not fut.cancelled() and fut.exception() is None:
+                        yield futures[fut], fut.result()
+                return
+    finally:
+        _stop_pool(pool)
 
 
-def run_ray(spec_dict: dict, indices: list[int], out: str, workers: int,
-            task: Task | None = None) -> Iterator[tuple[int, dict]]:
+def _stop_pool(pool: ProcessPoolExecutor) -> None:
+    """Shut ``pool`` down now: queued episodes cancelled, running workers terminated (their temporary
+    files are removed by the next resume), without waiting for anything still running."""
+    processes = list(getattr(pool, "_processes", {}).values())  # the executor has no public handle on them
+    pool.shutdown(wait=False, cancel_futures=True)
+    for proc in processes:
+        if proc.is_alive():
+            proc.terminate()
+    for proc in processes:
+        proc.join(timeout=5.0)
+
+
+def run_ray(spec_dict: dict, indices: list[int], out: str, workers: int, task: Task | None = None,
+            stop: threading.Event | None = None) -> Iterator[tuple[int, dict]]:
     """Ray tasks (``ray.init()`` joins RAY_ADDRESS if set, else starts a local instance with ``workers`` CPUs);
-    a task whose worker died is retried once by Ray, then recorded as failed."""
+    a task whose worker died is retried once by Ray, then recorded as failed. A set ``stop`` cancels
+    the tasks not yet finished."""
     try:
         import ray
     except ImportError:
@@ -101,7 +141,11 @@ def run_ray(spec_dict: dict, indices: list[int], out: str, workers: int,
     remote = ray.remote(max_retries=1)(task or _episode_task())
     refs = {remote.remote(spec_dict, i, out): i for i in indices}
     while refs:
-        done, _ = ray.wait(list(refs), num_returns=1)
+        if stop is not None and stop.is_set():
+            for ref in refs:
+                ray.cancel(ref, force=True)
+            return
+        done, _ = ray.wait(list(refs), num_returns=1, timeout=STOP_POLL_S)
         for ref in done:
             i = refs.pop(ref)
             try:

@@ -8,14 +8,25 @@ Layout of a capture directory::
     episode_000012.h5       one file per episode, written as ``*.h5.tmp-<pid>`` and renamed when complete
 
 A manifest record holds ``episode``, ``file``, ``status`` (ok | flagged | failed), ``error``,
-``time_to_instability``, ``reason``, ``params``, ``decision`` and ``metrics``. A finished
-episode file carries everything needed to rebuild its record, so a manifest line lost to a
-kill is recovered from the file.
+``time_to_instability``, ``reason``, ``params``, ``decision`` and ``metrics``; the line of a
+finished episode also holds its file's ``size`` [B] and ``sha256``, the library ``version`` and
+the ``spec_digest`` (checked by :mod:`bullet_dlo.data.integrity`). A finished episode file carries
+everything needed to rebuild its record, its status, reason and quality flags included (stored
+as attributes; recomputed from its metrics and the spec's limits for files written before), so
+a manifest line lost to a kill is recovered from the file, flags and all.
+
+Nothing is written through a link: files are created exclusively under a temporary name and
+renamed (:mod:`bullet_dlo.data.safeio`), the lock is opened with ``O_NOFOLLOW``. A write that
+fails (full disk, read-only folder) raises :class:`~bullet_dlo.data.safeio.StorageError`, one
+line; what was written before stays as it was.
 """
 from __future__ import annotations
 
+import errno
+import io
 import json
 import os
+import stat
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Any, Iterator
@@ -24,12 +35,23 @@ import numpy as np
 
 from bullet_dlo.config.capture import CaptureSpec
 from bullet_dlo.core.validate import ParameterError
+from bullet_dlo.data.safeio import (
+    NotARegularFile,
+    StorageError,
+    atomic_write_bytes,
+    entry_kind,
+    file_facts,
+    read_regular,
+    temporary_name,
+)
 
 MANIFEST = "manifest.jsonl"
 SPEC_FILE = "capture.json"
 LOCK_FILE = ".lock"
 STATUSES = ("ok", "flagged", "failed")
-JSON_ATTRS = ("params", "decision", "metrics")  # episode attributes stored as JSON text
+JSON_ATTRS = ("params", "decision", "metrics", "quality_issues")  # episode attributes stored as JSON text
+FILE_FACTS = ("size", "sha256", "version", "spec_digest")  # what a manifest line says of its episode file
+GRAVITY = 9.80665  # [m/s^2] standard gravity (a cable's weight, when its quality flags are recomputed)
 
 
 def version() -> str:
@@ -58,6 +80,15 @@ def episode_result(index: int, file: str, stable: bool, time_to_instability: flo
             "metrics": metrics}
 
 
+def status_attrs(record: dict[str, Any]) -> dict[str, Any]:
+    """The attributes an episode file stores so that its record is rebuilt with the same ``status``,
+    ``reason`` and ``quality_issues`` (the quality reasons, a list) after a lost manifest line."""
+    reason = record.get("reason")
+    issues = reason[len("quality: "):].split("; ") if record["status"] == "flagged" and str(reason).startswith(
+        "quality: ") else []
+    return {"status": record["status"], "reason": "" if reason is None else str(reason), "quality_issues": issues}
+
+
 def failed_record(index: int, error: str, **extra: Any) -> dict[str, Any]:
     """The manifest record of an episode that did not finish (``extra``: e.g. its traceback)."""
     return {"episode": index, "file": None, "status": "failed", "error": error, **extra}
@@ -77,41 +108,125 @@ def write_episode(out_dir: str | Path, index: int, arrays: dict[str, np.ndarray]
 
     name = episode_name(index)
     final = Path(out_dir) / name
-    tmp = final.with_suffix(f".h5.tmp-{os.getpid()}")
-    with h5py.File(tmp, "w", libver="latest") as f:
-        for key, arr in arrays.items():
-            f.create_dataset(key, data=arr, track_times=False)
-        if frames is not None and len(frames):
-            f.create_dataset("frames", data=frames, track_times=False, compression="gzip", compression_opts=4,
-                             chunks=(1,) + frames.shape[1:])
-            f.create_dataset("frame_t", data=frame_t, track_times=False)
-        for k, v in attrs.items():
-            f.attrs[k] = json.dumps(v, sort_keys=True) if k in JSON_ATTRS else v
-    os.replace(tmp, final)
+    tmp = temporary_name(final)
+    try:
+        if entry_kind(tmp) != "missing":
+            os.unlink(tmp)  # a stale name of a killed process with this pid (a link: only the link goes)
+        with h5py.File(tmp, "x", libver="latest") as f:  # exclusive creation: never through a link
+            for key, arr in arrays.items():
+                f.create_dataset(key, data=arr, track_times=False)
+            if frames is not None and len(frames):
+                f.create_dataset("frames", data=frames, track_times=False, compression="gzip", compression_opts=4,
+                                 chunks=(1,) + frames.shape[1:])
+                f.create_dataset("frame_t", data=frame_t, track_times=False)
+            for k, v in attrs.items():
+                f.attrs[k] = json.dumps(v, sort_keys=True) if k in JSON_ATTRS else v
+        _fsync(tmp)
+        os.replace(tmp, final)
+    except (OSError, RuntimeError) as err:  # h5py reports a full disk as either
+        if entry_kind(tmp) == "file":
+            os.unlink(tmp)
+        raise StorageError(final, err) from None
     return name
 
 
-def episode_record(path: Path, digest: str | None = None) -> dict | None:
-    """Rebuild the manifest record of a finished episode file; an unreadable file is deleted (None).
+def _fsync(path: Path) -> None:
+    """Flush a file just written to disk (before it is renamed into place)."""
+    fd = os.open(path, os.O_RDONLY | os.O_NOFOLLOW)
+    try:
+        os.fsync(fd)
+    finally:
+        os.close(fd)
 
+
+def episode_record(path: Path, digest: str | None = None,
+                   limits: tuple[float | None, float | None] = (None, None)) -> dict | None:
+    """Rebuild the manifest record of a finished episode file, its status, reason and quality flags
+    included; an unreadable file is set aside (renamed ``<name>.damaged-<k>``; None).
+
+    The flags are those the file stores (``status``, ``reason``, ``quality_issues``); a file written
+    before they were stored gets them recomputed from its metrics with ``limits`` (the spec's
+    max_sensor_model_rms [cable weights] and max_hf_energy, :func:`~bullet_dlo.data.quality.quality_limits`)
+    and the wrist-sensor check. Links, directories and FIFOs are never followed or opened.
     With ``digest``, a file written for another spec raises ParameterError (never mixed in).
     """
+    try:
+        attrs = read_attrs(path)
+    except Exception:  # noqa: BLE001 - a corrupt or planted entry is set aside and re-run
+        set_aside(path)
+        return None
+    if digest is not None and "spec_digest" in attrs and str(attrs["spec_digest"]) != digest:
+        raise ParameterError(f"{path} was captured with another spec (digest {attrs['spec_digest']} vs "
+                             f"{digest}); use another directory")
+    try:
+        return record_from_attrs(attrs, path.name, limits)
+    except (KeyError, TypeError, ValueError):
+        set_aside(path)
+        return None
+
+
+def read_attrs(path: Path) -> dict[str, Any]:
+    """The attributes of the episode file ``path`` (JSON ones parsed), read without following a link
+    or opening anything but a regular file."""
     import h5py
 
+    with h5py.File(io.BytesIO(read_regular(path)), "r") as f:
+        return {k: json.loads(v) if k in JSON_ATTRS else v for k, v in f.attrs.items()}
+
+
+def record_from_attrs(attrs: dict[str, Any], name: str,
+                      limits: tuple[float | None, float | None] = (None, None)) -> dict[str, Any]:
+    """The manifest record of an episode from its file's attributes (see :func:`episode_record`)."""
+    t_bad = float(attrs["time_to_instability"])
+    stable = bool(attrs["stable"])
+    metrics = attrs["metrics"]
+    if "status" in attrs:  # stored by the episode: exactly what the live record said
+        reason = str(attrs.get("reason", "")) or None
+        issues = list(attrs.get("quality_issues", []))
+    else:
+        reason = _final_reason(attrs) if not stable else None
+        issues = _recomputed(attrs, limits) if stable else []
+    rec = episode_result(int(attrs["episode"]), name, stable, None if t_bad < 0 else t_bad, reason,
+                         attrs["params"], attrs["decision"], metrics, issues)
+    if "status" in attrs and str(attrs["status"]) in ("ok", "flagged") and rec["status"] != attrs["status"]:
+        rec["status"] = str(attrs["status"])
+    return rec
+
+
+def _recomputed(attrs: dict[str, Any], limits: tuple[float | None, float | None]) -> list[str]:
+    """Quality reasons of a file that does not store them, from its metrics and the cable's drawn mass."""
+    from bullet_dlo.data.quality import recomputed_issues
+
+    mass = (attrs.get("params") or {}).get("mass")
+    if not isinstance(mass, (int, float)):
+        return []
+    return recomputed_issues(attrs["metrics"], float(mass) * GRAVITY, *limits)
+
+
+def _final_reason(attrs: dict[str, Any]) -> str | None:
+    """Why an unstable episode stopped, if its file says (a rollout's ``final_info``)."""
     try:
-        with h5py.File(path, "r") as f:
-            a = f.attrs
-            if digest is not None and "spec_digest" in a and str(a["spec_digest"]) != digest:
-                raise ParameterError(f"{path} was captured with another spec (digest {a['spec_digest']} vs "
-                                     f"{digest}); use another directory")
-            t_bad = float(a["time_to_instability"])
-            return episode_result(int(a["episode"]), path.name, bool(a["stable"]), None if t_bad < 0 else t_bad,
-                                  None, *(json.loads(a[k]) for k in JSON_ATTRS))
-    except ParameterError:
-        raise
-    except Exception:  # noqa: BLE001 - a corrupt file is re-run
-        path.unlink(missing_ok=True)
+        info = json.loads(attrs.get("final_info", "{}"))
+    except (TypeError, ValueError):
         return None
+    reason = info.get("reason") if isinstance(info, dict) else None
+    return str(reason) if reason else None
+
+
+def set_aside(path: Path) -> Path | None:
+    """Rename a damaged directory entry to ``<name>.damaged-<k>`` (kept for inspection, out of the way
+    of the re-run); returns the new name (None when nothing is there)."""
+    if entry_kind(path) == "missing":
+        return None
+    k = 1
+    while entry_kind(path.with_name(f"{path.name}.damaged-{k}")) != "missing":
+        k += 1
+    target = path.with_name(f"{path.name}.damaged-{k}")
+    try:
+        os.rename(path, target)
+    except OSError as err:
+        raise StorageError(path, err) from None
+    return target
 
 
 # ----- manifest and directory ------------------------------------------------------------------
@@ -124,11 +239,11 @@ def read_manifest(out: Path, strict: bool = False) -> dict[int, dict]:
     """
     records: dict[int, dict] = {}
     path = out / MANIFEST
-    if not path.is_file():
+    if entry_kind(path) == "missing":
         return records
     try:
-        text = path.read_bytes().decode("utf-8")
-    except (OSError, UnicodeDecodeError) as err:
+        text = read_regular(path).decode("utf-8")
+    except (ParameterError, OSError, UnicodeDecodeError) as err:
         raise ParameterError(f"{path} cannot be read as UTF-8 text: {err}") from None
     lines = text.splitlines()
     for number, line in enumerate(lines, 1):
@@ -158,39 +273,68 @@ def repair_manifest(out: Path) -> int:
     """Drop the lines of the manifest that are no record (a line cut by a kill), atomically; returns
     how many were dropped. Their episodes are then rebuilt from their files or re-run."""
     path = out / MANIFEST
-    if not path.is_file():
+    if entry_kind(path) == "missing":
         return 0
-    lines = path.read_bytes().decode("utf-8", errors="replace").splitlines()
+    lines = read_regular(path).decode("utf-8", errors="replace").splitlines()
     good = [line for line in lines if _record(line) is not None]
     if len(good) == len(lines):
         return 0
-    tmp = path.with_suffix(f".jsonl.tmp-{os.getpid()}")
-    with open(tmp, "w") as fh:
-        fh.write("".join(line + "\n" for line in good))
-        fh.flush()
-        os.fsync(fh.fileno())
-    os.replace(tmp, path)
+    atomic_write_bytes(path, "".join(line + "\n" for line in good).encode("utf-8"))
     return len(lines) - len(good)
 
 
-def append_manifest(out: Path, record: dict) -> None:
-    """Append one record and flush it to disk before returning."""
+def append_manifest(out: Path, record: dict) -> dict:
+    """Append one record and flush it to disk before returning; returns the record as written.
+
+    The record of a finished episode gets its file's facts (:data:`FILE_FACTS`: size [B], sha256,
+    library version, spec digest) unless it has them. The manifest is opened without following a
+    link; a failed write raises :class:`~bullet_dlo.data.safeio.StorageError` (a torn line it may
+    leave is dropped by the next resume, and the episode's record rebuilt from its file).
+    """
     path = out / MANIFEST
-    with open(path, "a") as fh:
-        if _ends_mid_line(path):
-            fh.write("\n")  # a line cut by a kill: start a fresh one, or both lines are lost
-        fh.write(json.dumps(record, sort_keys=True, default=float) + "\n")
-        fh.flush()
-        os.fsync(fh.fileno())
+    if record.get("file") and "sha256" not in record:
+        record = {**record, **file_facts(out / record["file"]), "version": version(),
+                  "spec_digest": _digest(out)}
+    line = json.dumps(record, sort_keys=True, default=float) + "\n"
+    try:
+        fd = os.open(path, os.O_RDWR | os.O_APPEND | os.O_CREAT | os.O_NOFOLLOW | os.O_NONBLOCK
+                     | getattr(os, "O_CLOEXEC", 0), 0o644)
+    except OSError as err:
+        raise StorageError(path, _link_error(path, err)) from None
+    if not stat.S_ISREG(os.fstat(fd).st_mode):
+        os.close(fd)
+        raise StorageError(path, OSError(errno.EINVAL, f"it is a {entry_kind(path)}, not a regular file"))
+    try:
+        with os.fdopen(fd, "a") as fh:
+            if _ends_mid_line(fd):
+                fh.write("\n")  # a line cut by a kill: start a fresh one, or both lines are lost
+            fh.write(line)
+            fh.flush()
+            os.fsync(fh.fileno())
+    except OSError as err:
+        raise StorageError(path, err) from None
+    return record
 
 
-def _ends_mid_line(path: Path) -> bool:
-    """True if the file is non-empty and its last byte is not a newline."""
-    with open(path, "rb") as fh:
-        if fh.seek(0, os.SEEK_END) == 0:
-            return False
-        fh.seek(-1, os.SEEK_END)
-        return fh.read(1) != b"\n"
+def _digest(out: Path) -> str | None:
+    """The spec digest of the capture directory ``out`` (None when it has no readable spec file)."""
+    try:
+        return read_spec_file(out)["digest"]
+    except ParameterError:
+        return None
+
+
+def _link_error(path: Path, err: OSError) -> OSError:
+    """``err``, or a clearer one when ``path`` is a link (O_NOFOLLOW's ELOOP)."""
+    if err.errno == errno.ELOOP:
+        return OSError(errno.ELOOP, "it is a symbolic link (not followed; remove it)")
+    return err
+
+
+def _ends_mid_line(fd: int) -> bool:
+    """True if the open file ``fd`` is non-empty and its last byte is not a newline."""
+    size = os.fstat(fd).st_size
+    return size > 0 and os.pread(fd, 1, size - 1) != b"\n"
 
 
 def is_capture_dir(root: Path) -> bool:
@@ -199,11 +343,11 @@ def is_capture_dir(root: Path) -> bool:
 
 
 def read_spec_file(out: Path) -> dict:
-    """The parsed ``capture.json`` of ``out``; ParameterError when it is damaged."""
+    """The parsed ``capture.json`` of ``out`` (never read through a link); ParameterError when it is damaged."""
     path = out / SPEC_FILE
     try:
-        meta = json.loads(path.read_bytes().decode("utf-8"))
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as err:
+        meta = json.loads(read_regular(path).decode("utf-8"))
+    except (NotARegularFile, OSError, UnicodeDecodeError, json.JSONDecodeError) as err:
         raise ParameterError(f"{path} is damaged ({type(err).__name__}); the spec of this capture directory is "
                              "unknown: capture into a new directory") from None
     if not isinstance(meta, dict) or not isinstance(meta.get("digest"), str):
@@ -220,35 +364,57 @@ def locked(out: Path) -> Iterator[None]:
     import fcntl
 
     path = out / LOCK_FILE
-    fh = open(path, "a+")
+    flags = os.O_RDWR | os.O_CREAT | os.O_NOFOLLOW | os.O_NONBLOCK | getattr(os, "O_CLOEXEC", 0)
+    try:
+        fd = os.open(path, flags, 0o644)
+    except OSError as err:
+        if err.errno == errno.ELOOP:
+            raise ParameterError(f"{path} is a symbolic link; a capture never writes through one: remove it") from None
+        raise StorageError(path, err) from None
+    info = os.fstat(fd)
+    if not stat.S_ISREG(info.st_mode) or info.st_nlink != 1:
+        os.close(fd)
+        what = "a hard link to another file" if stat.S_ISREG(info.st_mode) else f"a {entry_kind(path)}"
+        raise ParameterError(f"{path} is {what}, not the capture's own lock file: remove it")
+    fh = os.fdopen(fd, "r+")
     try:
         fcntl.flock(fh.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
     except BlockingIOError:
         fh.seek(0)
-        holder = fh.read().strip() or "another process"
+        holder = fh.read(32).strip() or "another process"
         fh.close()
         raise ParameterError(f"--out {out} is in use by another capture (pid {holder}); wait for it to finish "
                              "or capture into another directory") from None
     try:
-        fh.seek(0)
-        fh.truncate()
-        fh.write(str(os.getpid()))
-        fh.flush()
+        try:
+            fh.seek(0)
+            fh.truncate()
+            fh.write(str(os.getpid()))
+            fh.flush()
+        except OSError as err:
+            raise StorageError(path, err) from None
         yield
     finally:
         fh.close()
 
 
-def prepare(spec: CaptureSpec, out: Path, resume: bool) -> dict[int, dict]:
+def prepare(spec: CaptureSpec, out: Path, resume: bool, damaged: list | None = None) -> dict[int, dict]:
     """Claim ``out`` for ``spec`` (or check it holds this spec), clean temporaries, reconcile finished
     files whose manifest line was lost; returns the manifest records.
 
     A directory whose ``capture.json`` is missing or damaged while it holds episodes is refused:
-    its spec is unknown, and mixing two specs in one directory is never allowed.
+    its spec is unknown, and mixing two specs in one directory is never allowed. On resume every
+    recorded episode is verified (:func:`~bullet_dlo.data.integrity.verify_records`): a missing,
+    damaged, foreign or swapped one is set aside (``<name>.damaged-<k>``), left out of the returned
+    records so that it is re-run, and its :class:`~bullet_dlo.data.integrity.Problem` appended to
+    ``damaged``.
     """
-    out.mkdir(parents=True, exist_ok=True)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as err:
+        raise StorageError(out, err) from None
     meta = out / SPEC_FILE
-    if meta.exists():
+    if entry_kind(meta) != "missing":
         old = read_spec_file(out)
         if old["digest"] != spec.digest():
             raise ParameterError(f"{out} holds a capture of a different spec (digest {old['digest']} vs "
@@ -256,26 +422,36 @@ def prepare(spec: CaptureSpec, out: Path, resume: bool) -> dict[int, dict]:
         if not resume and (read_manifest(out) or any(out.glob("episode_*.h5"))):
             raise ParameterError(f"{out} already holds episodes of this spec; pass --resume to continue")
     else:
-        if (out / MANIFEST).exists() or any(out.glob("episode_*.h5")):
+        if entry_kind(out / MANIFEST) != "missing" or any(out.glob("episode_*.h5")):
             raise ParameterError(f"{out} holds episodes but no {SPEC_FILE}: their spec is unknown; capture into "
                                  "a new directory")
-        tmp = meta.with_suffix(f".json.tmp-{os.getpid()}")
-        tmp.write_text(json.dumps({"digest": spec.digest(), "spec": spec.to_dict(), "version": version()},
-                                  indent=2, default=str))
-        os.replace(tmp, meta)  # atomic: a kill leaves either no spec file or a whole one
+        text = json.dumps({"digest": spec.digest(), "spec": spec.to_dict(), "version": version()}, indent=2,
+                          default=str)
+        atomic_write_bytes(meta, text.encode("utf-8"))  # a kill leaves either no spec file or a whole one
     for tmp in out.glob("*.tmp-*"):
-        tmp.unlink()
+        if entry_kind(tmp) in ("file", "symbolic link"):
+            tmp.unlink()  # a link goes, never what it points to
     repair_manifest(out)
     records = read_manifest(out)
+    if resume:
+        from bullet_dlo.data.integrity import verify_records
+
+        for problem in verify_records(out, records, spec.digest()).problems:
+            set_aside(out / episode_name(problem.episode))
+            records.pop(problem.episode, None)
+            if damaged is not None:
+                damaged.append(problem)
+    from bullet_dlo.data.quality import quality_limits
+
+    limits = quality_limits(spec)
     for path in sorted(out.glob("episode_*.h5")):
         index = _file_index(path)
-        if index is None:
+        if index is None or path.name != episode_name(index):
             continue
         if index not in records or records[index].get("status") == "failed":
-            rec = episode_record(path, spec.digest())
+            rec = episode_record(path, spec.digest(), limits)
             if rec is not None:
-                append_manifest(out, rec)
-                records[index] = rec
+                records[index] = append_manifest(out, rec)
     return records
 
 
