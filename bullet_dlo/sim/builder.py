@@ -4,20 +4,15 @@
 the scene with one line naming the key and why (a key an engine cannot honour is an error, never
 silently dropped):
 
-============  ===========================================================================
-engine        what is built, and which scene keys it honours
-============  ===========================================================================
-``core``      the cable alone (core engine): cable, layout, ends, motion, gravity,
-              integrator, dt, duration, initial, detector, newton. Refuses ``bullet:``
-              (no world to put a ground or obstacles in) and ``arms:``.
-``bullet``    the cable as Bullet spheres: all of ``core`` plus ``bullet:`` (ground,
-              ground_height, ground_friction, substeps, self_collision, sync, obstacles).
-              Refuses ``arms:``.
-``arms``      two arms grasp the cable's ends: cable, motion (first end = left arm),
-              gravity, integrator, dt, duration, initial (``straight`` or the settled
-              shape), detector, newton, ``bullet:`` and ``arms:``. Refuses ``layout:`` and
-              ``ends:`` (the grippers place and hold the cable).
-============  ===========================================================================
+- ``core``: the cable alone (core engine). Honours cable, layout, ends, motion, gravity,
+  integrator, dt, duration, initial, detector, newton; refuses ``bullet:`` (no world to put a
+  ground or obstacles in) and ``arms:``.
+- ``bullet``: the cable as Bullet spheres. Honours all of ``core`` plus ``bullet:`` (ground,
+  ground_height, ground_friction, substeps, self_collision, sync, obstacles); refuses ``arms:``.
+- ``arms``: two arms grasp the cable's ends. Honours cable, motion (first end = left arm),
+  gravity, integrator, dt, duration, initial (``straight`` or the settled shape), detector,
+  newton, ``bullet:`` and ``arms:``; refuses ``layout:`` and ``ends:`` (the grippers place and
+  hold the cable).
 
 ``n_masses: auto`` / ``dt: auto`` are resolved first (:func:`resolved`).
 """
