@@ -344,9 +344,9 @@ def jackknife(f: Fit, f_scale: float = 0.02, level_z: float = 1.96) -> dict[str,
     """Leave-one-trial-out intervals, linearised: for each trial left out, one Gauss-Newton step
     of the soft-L1 problem (weights 1/sqrt(1 + (r/f_scale)^2)) from the optimum on the others'
     Jacobians; the jackknife variance (N-1)/N sum (theta_-i - mean)^2 in log parameters gives
-    value * exp(+-z sd). Their spread is the trial-to-trial spread, not a white-noise assumption.
-    A parameter is called identifiable when its interval spans less than a factor of 3 and the
-    data see it (its Jacobian column is at least 1 % of the largest)."""
+    value * exp(+-z sd), clipped to :data:`BOUNDS`. Their spread is the trial-to-trial spread, not a white-noise assumption.
+    A parameter is called identifiable when its interval spans less than a factor of 3, it is not
+    at a bound, and the data see it (its Jacobian column is at least 1 % of the largest)."""
     n = len(f.jac)
     w = [1.0 / np.sqrt(np.sqrt(1.0 + (r / f_scale) ** 2)) for r in f.residuals]  # sqrt of IRLS weights
     jw = [j * wi[:, None] for j, wi in zip(f.jac, w)]
@@ -362,7 +362,8 @@ def jackknife(f: Fit, f_scale: float = 0.02, level_z: float = 1.96) -> dict[str,
     seen = np.linalg.norm(np.concatenate(jw), axis=0)
     out = {}
     for j, k in enumerate(PARAMETERS):
-        lo, hi = f.values[k] * math.exp(-level_z * sd[j]), f.values[k] * math.exp(level_z * sd[j])
+        lo = max(f.values[k] * math.exp(-level_z * sd[j]), BOUNDS[k][0])  # the fit's box bounds the interval
+        hi = min(f.values[k] * math.exp(level_z * sd[j]), BOUNDS[k][1])
         at_bound = min(abs(f.theta[j] - math.log(BOUNDS[k][0])), abs(f.theta[j] - math.log(BOUNDS[k][1]))) < 0.05
         ident = bool(hi / lo < 3.0 and seen[j] >= 0.01 * seen.max() and not at_bound)
         out[k] = {"value": f.values[k], "unit": UNITS[k], "interval_95": [lo, hi], "identifiable": ident,
