@@ -508,7 +508,7 @@ def summarise(sol, names: list[str], fitted: CableSpec, layout: Layout, options:
         rel[k] = float(half[j] / z)
         se[k] = values[k] * rel[k]
         why = parameter_reason(k, j, at_bound[k], var_log[j], rel[k], global_reasons, check, options)
-        why = why or kind_reasons.get(k)
+        why = why or kind_reasons.get(k) or source_reason(k, sources, options)
         ident[k] = why is None
         if why:
             reasons[k] = why
@@ -689,6 +689,15 @@ def source_checks(fitted: CableSpec, layout: Layout, options: FitOptions, gravit
                             f"{chk.message}; the fitted damping includes the recording's numerical damping "
                             "(match_source / --match-source fits with the recording's integrator)")
     return out
+
+
+def source_reason(name: str, sources: list[dict[str, Any]], options: FitOptions) -> str | None:
+    """A damping parameter gets no number when a recording's own integrator put more numerical damping into
+    the data than allowed and the fit did not reproduce it (``match_source``)."""
+    if name not in ("damping_rate", "internal_damping", "damping") or options.match_source:
+        return None
+    bad = [f"{s['recording']} ({s['message']})" for s in sources if not s["ok"]]
+    return f"the recording's integrator damps as much as the fitted physics: {'; '.join(bad)}" if bad else None
 
 
 def rms_of(layout: Layout, loads: list[tuple[np.ndarray, np.ndarray]], i: int, kind: str) -> float:

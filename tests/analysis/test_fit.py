@@ -82,21 +82,3 @@ def test_a_linear_map_of_the_end_wrenches_is_a_residual_kind_of_its_own():
     lo, hi = res.intervals["youngs_modulus"]
     assert lo <= TRUE.youngs_modulus <= hi and hi / lo - 1 < 0.05
     assert res.to_dict()["per_recording"][0]["linear"]["rms"] == pytest.approx(NOISE, rel=0.2)
-
-
-def test_fit_cli_help_names_every_option_and_bad_values_are_one_line_errors(tmp_path, capsys):
-    from bullet_dlo.cli.main import main
-
-    with pytest.raises(SystemExit):
-        main(["fit", "--help"])
-    text = capsys.readouterr().out
-    for option in ("--kinds", "--integrator", "--match-source", "--windows", "--min-windows", "--level",
-                   "--max-holdout-ratio", "--max-numerical-damping", "--profile-points", "--sigma-force"):
-        assert option in text
-    args = ["fit", str(tmp_path / "x.csv"), "--length", "0.3", "--diameter", "0.004", "--out", str(tmp_path)]
-    for extra, message in ((["--level", "1.5"], "--level must be >= 0.5 and < 1, got 1.5"),
-                           (["--dt", "0"], "--dt must be > 0, got 0.0"),
-                           (["--windows", "1"], "--windows must be an integer in [2, 1000], got 1")):
-        assert main(args + extra) == 2
-        err = capsys.readouterr().err.strip()
-        assert err == f"error: {message}", err

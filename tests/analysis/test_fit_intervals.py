@@ -1,5 +1,5 @@
 """Intervals that mean something: coverage under coloured noise (the Jacobian standard error does not cover),
-the discrepancy verdict, the numerical-damping check, and a hidden-parameter recording through the Bullet scene."""
+the discrepancy verdict, the numerical-damping check (the Bullet-scene recording: tests/data/test_fit_scene.py)."""
 from __future__ import annotations
 
 import math
@@ -96,32 +96,3 @@ def test_several_recordings_at_once_report_per_recording_residuals_and_moments()
         assert lo <= getattr(TRUE, k) <= hi
     with pytest.raises(ParameterError, match="kinds must be a non-empty subset"):
         FitOptions(kinds=("torque",))
-
-
-@pytest.mark.bullet
-def test_hidden_parameters_through_the_bullet_dual_arm_scene_are_covered_or_refused():
-    """KUKA scene, BDF2 at 1 ms, 1.5 s of a bend-and-turn plus a 0.5 mm stretch, the cable's recorded end forces
-    and clamp moments with noise: each parameter's interval holds the truth, or it is reported not identifiable."""
-    from bullet_dlo.config.robot import DualArmSpec
-    from bullet_dlo.data.recording import SeriesRecorder
-    from bullet_dlo.robots.dual_arm import DualArmScene
-
-    hidden = CableSpec.lv2017(n_masses=8, youngs_modulus=2e8, damping_rate=0.5, internal_damping=0.005)
-    with DualArmScene(DualArmSpec(robot="kuka", dt=1e-3, integrator="bdf2", cable=hidden)) as sc:
-        sc.grasp()
-        sc.follow_motion([Sine("first", (0.0, 0.0, 0.02), 1.5, start=0.1, ramp=0.2, rotation=(0.0, 0.2, 0.0)),
-                          Sine("last", (0.0005, 0.0, 0.0), 2.0, start=0.1, ramp=0.2)])
-        recorder = SeriesRecorder(sc)
-        sc.world.after_step.append(recorder)
-        sc.run(1.5)
-        a = recorder.arrays()
-    rng = np.random.default_rng(0)
-    rec = Recording(a["t"], a["ee_pos"], a["ee_quat"], a["end_forces"] + rng.normal(0, 0.003, a["end_forces"].shape),
-                    a["end_moments"] + rng.normal(0, 1e-4, a["end_moments"].shape))
-    start = hidden.with_(youngs_modulus=1e8, damping_rate=1.0, internal_damping=1e-3)
-    res = fit_cable(rec, start, ["youngs_modulus", "damping_rate", "internal_damping"],
-                    FitOptions(max_evaluations=40, profile_points=0))
-    for k in res.values:
-        iv = res.intervals[k]
-        assert (iv is None and res.reasons[k]) or iv[0] <= getattr(hidden, k) <= iv[1], (k, res.values[k], iv)
-    assert res.identifiable["internal_damping"]  # this motion does determine it
