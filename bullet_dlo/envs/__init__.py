@@ -14,6 +14,19 @@ are imported (in either order; :mod:`bullet_dlo._gym_registration`), so::
   gripper routes the cable around 1-2 pegs on their required sides and into a clip's slot (the
   cable's own contact model against the pegs and clip boxes).
 
+**Vector environments** (Gymnasium 1.x): every id works with ``gymnasium.make_vec``::
+
+    envs = gym.make_vec("bullet_dlo/TensionTracking-v0", num_envs=4, vectorization_mode="async")
+
+``"sync"`` (the default: every sub-environment in this process, one after another) or ``"async"``
+(one worker process each). Each sub-environment is its own PyBullet world; a step's time is
+PyBullet's stepping and IK (C calls, one world at a time) and the cable kernels, so there is no
+native batched vector env: in one process it could only run the worlds one after another, as
+``"sync"`` does. Use ``"async"`` with as many sub-environments as idle cores (it scales with them;
+on a machine whose cores are busy it is no faster than ``"sync"``), ``"sync"`` otherwise or to
+debug. Both use ``AutoresetMode.NEXT_STEP``, the mode every environment declares in
+``metadata["autoreset_mode"]``; ``vector_kwargs={"autoreset_mode": AutoresetMode.SAME_STEP}`` also works.
+
 The common machinery (arms, actions, observations, randomisation, rendering) is
 :class:`~.dual_arm_env.DualArmEnv`. Importing this package does not import Gymnasium or PyBullet:
 the classes load on first use.

@@ -35,6 +35,13 @@ Every value is finite and inside its box: a non-finite reading (an unstable step
 ``info["reason"]``), or the task's own condition; the time limit is the registration's
 ``max_episode_steps`` (a truncation). **Rendering**: ``render_mode="rgb_array"`` returns the
 ``render_size`` view of :meth:`render`.
+
+**Vectorising** (Gymnasium 1.x): ``metadata["autoreset_mode"]`` is ``AutoresetMode.NEXT_STEP``, the
+mode ``gymnasium.make_vec`` (``vectorization_mode="sync"`` or ``"async"``) gives its vector env by
+default: the step after a sub-environment's episode ends ignores its action, resets it (unseeded:
+its generator continues from the seeded reset) and returns the new episode's first observation with
+reward 0 and both flags false. ``SAME_STEP`` and ``DISABLED`` (``vector_kwargs={"autoreset_mode": ...}``)
+work as well: a reset rebuilds the scene from the generator only, nothing of the ended episode stays.
 """
 from __future__ import annotations
 
@@ -44,6 +51,7 @@ import gymnasium as gym
 import numpy as np
 import pybullet as pb
 from gymnasium import spaces
+from gymnasium.vector import AutoresetMode
 
 from bullet_dlo.config.robot import load_robot_spec
 from bullet_dlo.core.validate import ParameterError, check_int, check_positive
@@ -76,7 +84,7 @@ class DualArmEnv(gym.Env):
         render_mode: None or "rgb_array"; render_size: (width, height) [px] of :meth:`render`.
     """
 
-    metadata = {"render_modes": ["rgb_array"], "render_fps": 20}
+    metadata = {"render_modes": ["rgb_array"], "render_fps": 20, "autoreset_mode": AutoresetMode.NEXT_STEP}
     task_dim = 0
     default_randomisation: Mapping[str, Any] = {}
 
