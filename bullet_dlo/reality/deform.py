@@ -27,9 +27,10 @@ import json
 import math
 import pickle
 import time
+from collections.abc import Sequence
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Any
 
 import numpy as np
 from scipy.interpolate import CubicSpline
@@ -63,11 +64,11 @@ class RestrictedUnpickler(pickle.Unpickler):
     here only numpy's array and dtype reconstruction may be named.
     """
 
-    ALLOWED = {
+    ALLOWED: frozenset[tuple[str, str]] = frozenset({
         ("numpy.core.multiarray", "_reconstruct"), ("numpy._core.multiarray", "_reconstruct"),
         ("numpy", "ndarray"), ("numpy", "dtype"), ("numpy.core.multiarray", "scalar"),
-        ("numpy._core.multiarray", "scalar"), ("copyreg", "_reconstructor"),
-    }
+        ("numpy._core.multiarray", "scalar"),
+    })
 
     def find_class(self, module: str, name: str) -> Any:
         if (module, name) in self.ALLOWED:
@@ -181,7 +182,7 @@ def clamp_holder(rec: MarkerRecording, end: str, num: Numerics) -> EndHolder:
         clean.markers[:, i] = smoothed(despiked(rec.markers[:, i]), num.smooth)
     pos, d = clean.clamp(end)
     d /= np.linalg.norm(d, axis=1, keepdims=True)
-    step = max(1, int(round(1.0 / (num.knot_rate * float(np.median(np.diff(rec.t)))))))
+    step = max(1, round(1.0 / (num.knot_rate * float(np.median(np.diff(rec.t))))))
     idx = np.unique(np.r_[np.arange(0, len(rec.t), step), len(rec.t) - 1])
     turn = [Rotation.identity()]
     for a, b in zip(d[idx[:-1]], d[idx[1:]]):  # smallest rotation from one knot's direction to the next
@@ -230,7 +231,7 @@ def predict(rec: MarkerRecording, values: dict[str, float], num: Numerics,
     as recorded), and the thread CPU time of the run [s]; None if the run went unstable."""
     model, state, s = build_model(rec, values, num, gravity)
     duration = float(rec.t[-1] - rec.t[0])
-    every = max(1, int(round(float(rec.t[1] - rec.t[0]) / num.dt)))
+    every = max(1, round(float(rec.t[1] - rec.t[0]) / num.dt))
     tic = time.thread_time()
     res = simulate(model, num.integrator, num.dt, duration, state=state, record_every=every, max_records=10**7)
     cpu = time.thread_time() - tic
@@ -319,7 +320,7 @@ def fit(recs: Sequence[MarkerRecording], num: Numerics, max_evaluations: int = 6
     is flat far from the optimum). At the optimum, per-trial Jacobians by forward differences (5 % steps)."""
     res = Residual(recs, num, every)
     if guess is None:
-        soft = lambda r: float(np.sum(np.sqrt(1.0 + (r / f_scale) ** 2)))  # noqa: E731 (the fit's cost, up to constants)
+        soft = lambda r: float(np.sum(np.sqrt(1.0 + (r / f_scale) ** 2)))
         costs = [soft(res(np.log([b, GUESS["damping_rate"], GUESS["internal_damping"]]))) for b in STIFFNESS_GRID]
         guess = {"bending_per_mass": STIFFNESS_GRID[int(np.argmin(costs))]}
     start = {**GUESS, **guess}
@@ -393,7 +394,7 @@ def swing_test(values: dict[str, float], length: float, num: Numerics, damped: b
     from bullet_dlo.core.statics import solve_static
     x = solve_static(model, x0, f_ext=push).x
     res = simulate(model, num.integrator, num.dt, duration, state=CableState(x, np.zeros_like(x), 0.0),
-                   record_every=max(1, int(round(0.005 / num.dt))), max_records=10**6)
+                   record_every=max(1, round(0.005 / num.dt)), max_records=10**6)
     y = res.x[:, model.n // 2, 1]
     return decay(res.t, y - np.mean(y[len(y) // 2:]) if not damped else y)
 
@@ -429,7 +430,7 @@ def numerics_report(recs: Sequence[MarkerRecording], values: dict[str, float], n
     chosen integrator, n and dt; implicit Euler's beside it; and convergence in n on ``recs``."""
     length = float(np.median([r.s[r.last_pair[0] % r.n_markers] - r.s[r.first_pair[1]] for r in recs]))
     f0, z_num = swing_test(values, length, num, damped=False)
-    f1, z_phys = swing_test(values, length, num, damped=True)
+    _, z_phys = swing_test(values, length, num, damped=True)
     _, z_ie = swing_test(values, length, replace(num, integrator="implicit_euler"), damped=False)
     out = {"first_swing_mode_hz": f0, "numerical_damping_ratio": z_num, "damped_ratio_with_fit": z_phys,
            "implicit_euler_numerical_damping_ratio": z_ie,
@@ -441,14 +442,14 @@ def numerics_report(recs: Sequence[MarkerRecording], values: dict[str, float], n
 
 
 LIMITS = [
-    "no twist and an isotropic straight rest shape in the core model: the real cables are curved at rest "
+    ("no twist and an isotropic straight rest shape in the core model: the real cables are curved at rest "
     "(the authors learn a curved rest shape) and their grippers' roll is unknown (a marker pair fixes only "
-    "a direction)",
-    "out-of-plane error dominates: the model's cable swings in the plane the held ends drive; real cables "
-    "roll sideways and sometimes swing over the top (e.g. DLO1 eval 67)",
+    "a direction)"),
+    ("out-of-plane error dominates: the model's cable swings in the plane the held ends drive; real cables "
+    "roll sideways and sometimes swing over the top (e.g. DLO1 eval 67)"),
     "damping law: linear drag + Kelvin-Voigt; damping_rate and internal_damping trade off",
-    "mass and diameter are guessed: shapes see only EI/(rho A); held markers are given (counted as 0 "
-    "error, as in the authors' metric)",
+    ("mass and diameter are guessed: shapes see only EI/(rho A); held markers are given (counted as 0 "
+    "error, as in the authors' metric)"),
 ]
 
 
@@ -500,7 +501,7 @@ def main(args: argparse.Namespace) -> int:
             preds[(split, rec.name)] = pred
             rows[split][rec.name] = {"l1_m": l1(pred, rec) if pred is not None else None,
                                      "frozen_l1_m": l1(frozen(rec), rec), "stable": pred is not None}
-    mean = lambda split, key: float(np.mean([r[key] if r[key] is not None else np.nan  # noqa: E731
+    mean = lambda split, key: float(np.mean([r[key] if r[key] is not None else np.nan
                                              for r in rows[split].values()]))
     summary = {
         "dataset": str(root), "cable": root.name,

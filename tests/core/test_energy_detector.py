@@ -13,8 +13,8 @@ import pytest
 from bullet_dlo.core.boundary import Move
 from bullet_dlo.core.engine import DetectorOptions, simulate, start_detector
 from bullet_dlo.core.integrators import NewtonOptions, get_integrator, make_stepper
-from bullet_dlo.core.kernels.holders import empty_samples, sample_holders
 from bullet_dlo.core.kernels.forces import mechanical_energy
+from bullet_dlo.core.kernels.holders import empty_samples, sample_holders
 from bullet_dlo.core.kernels.loop import make_records, run_loop
 from bullet_dlo.core.kernels.steppers import make_workspace
 from bullet_dlo.core.model import CableModel

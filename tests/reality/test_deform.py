@@ -18,7 +18,15 @@ from bullet_dlo.core.model import CableModel, CableState
 from bullet_dlo.core.statics import solve_static
 from bullet_dlo.core.validate import ParameterError
 from bullet_dlo.reality import deform
-from bullet_dlo.reality.deform import Numerics, arc_lengths, cable_spec, fit, jackknife, load_trial, read_pickle
+from bullet_dlo.reality.deform import (
+    Numerics,
+    arc_lengths,
+    cable_spec,
+    fit,
+    jackknife,
+    load_trial,
+    read_pickle,
+)
 
 pytestmark = pytest.mark.core
 DATA = Path(__file__).resolve().parents[3] / "shared" / "data" / "deform"
@@ -79,7 +87,7 @@ def synthetic_trial(path: Path, motion, duration: float = 1.5, noise: float = 0.
     res = simulate(model, NUM.integrator, NUM.dt, duration, state=CableState(x0, np.zeros_like(x0), 0.0),
                    record_every=5, max_records=10**6)
     assert res.stable
-    x = res.x[: int(round(duration * 100)) + 1]
+    x = res.x[: round(duration * 100) + 1]
     rng = np.random.default_rng(seed)
     x[:, 1:-1] += rng.normal(0.0, noise, x[:, 1:-1].shape)
     d = np.array([1.0, 0.0, 0.0])  # both clamps hold +x throughout (the moves do not turn them)
