@@ -341,26 +341,43 @@ def fit(recs: Sequence[MarkerRecording], num: Numerics, max_evaluations: int = 6
                str(sol.message))
 
 
-def jackknife(f: Fit, f_scale: float = 0.02, level_z: float = 1.96) -> dict[str, dict[str, Any]]:
-    """Leave-one-trial-out intervals, linearised: for each trial left out, one Gauss-Newton step
-    of the soft-L1 problem (weights 1/sqrt(1 + (r/f_scale)^2)) from the optimum on the others'
-    Jacobians; the jackknife variance (N-1)/N sum (theta_-i - mean)^2 in log parameters gives
-    value * exp(+-z sd), clipped to :data:`BOUNDS`. Their spread is the trial-to-trial spread, not a white-noise assumption.
-    A parameter is called identifiable when its interval spans less than a factor of 3, it is not
-    at a bound, and the data see it (its Jacobian column is at least 1 % of the largest)."""
-    n = len(f.jac)
-    w = [1.0 / np.sqrt(np.sqrt(1.0 + (r / f_scale) ** 2)) for r in f.residuals]  # sqrt of IRLS weights
+def linearised_loo(f: Fit, f_scale: float = 0.02) -> np.ndarray:
+    """Log parameters with each trial left out, linearised: one Gauss-Newton step of the soft-L1
+    problem (IRLS weights 1/sqrt(1 + (r/f_scale)^2)) from the optimum on the other trials'
+    Jacobians, (N, 3). Cheap (no runs), good while the optimum moves little."""
+    w = [1.0 / np.sqrt(np.sqrt(1.0 + (r / f_scale) ** 2)) for r in f.residuals]  # sqrt of the IRLS weights
     jw = [j * wi[:, None] for j, wi in zip(f.jac, w)]
     rw = [r * wi for r, wi in zip(f.residuals, w)]
     thetas = []
-    for out in range(n):
-        J = np.concatenate([jw[i] for i in range(n) if i != out])
-        r = np.concatenate([rw[i] for i in range(n) if i != out])
+    for out in range(len(jw)):
+        J = np.concatenate([x for i, x in enumerate(jw) if i != out])
+        r = np.concatenate([x for i, x in enumerate(rw) if i != out])
         step, *_ = np.linalg.lstsq(J, -r, rcond=1e-10)
         thetas.append(f.theta + step)
-    thetas = np.array(thetas)
+    return np.array(thetas)
+
+
+def refit_loo(recs: Sequence[MarkerRecording], f: Fit, num: Numerics, max_evaluations: int = 20) -> np.ndarray:
+    """Log parameters with each trial left out, refitted from the full fit's optimum, (N, 3)."""
+    thetas = []
+    for out in range(len(recs)):
+        g = fit([r for i, r in enumerate(recs) if i != out], num, max_evaluations, guess=f.values)
+        f.cpu_s, f.simulated_s = f.cpu_s + g.cpu_s, f.simulated_s + g.simulated_s
+        thetas.append(g.theta)
+    return np.array(thetas)
+
+
+def jackknife(f: Fit, thetas: np.ndarray | None = None, level_z: float = 1.96) -> dict[str, dict[str, Any]]:
+    """95 % intervals from leave-one-trial-out fits ``thetas`` (N, 3) in log parameters (default:
+    :func:`linearised_loo`): the jackknife variance (N-1)/N sum (theta_-i - mean)^2 gives value *
+    exp(+-z sd), clipped to :data:`BOUNDS`. Their spread is the trial-to-trial spread of the
+    parameters, not a white-residual assumption (motion-capture residuals are strongly correlated
+    in time). A parameter is called identifiable when its interval spans less than a factor of 3,
+    it is not at a bound, and the data see it (Jacobian column at least 1 % of the largest)."""
+    thetas = linearised_loo(f) if thetas is None else np.asarray(thetas)
+    n = len(thetas)
     sd = np.sqrt((n - 1) / n * np.sum((thetas - thetas.mean(axis=0)) ** 2, axis=0)) if n > 1 else np.full(3, np.inf)
-    seen = np.linalg.norm(np.concatenate(jw), axis=0)
+    seen = np.linalg.norm(np.concatenate(f.jac), axis=0)
     out = {}
     for j, k in enumerate(PARAMETERS):
         lo = max(f.values[k] * math.exp(-level_z * sd[j]), BOUNDS[k][0])  # the fit's box bounds the interval
@@ -379,9 +396,9 @@ def swing_test(values: dict[str, float], length: float, num: Numerics, damped: b
     between two clamps 0.6 L apart: released from the static shape under a sideways push of 20 % of its
     weight, the mid node's sideways motion fitted by log decrement of its peaks. ``damped``: with
     the fitted damping (else none: what is left is the integrator's numerical damping)."""
-    vals = values if damped else {**values, "damping_rate": 0.0, "internal_damping": 0.0}
-    spec = cable_spec(length, {**vals, "damping_rate": max(vals["damping_rate"], 0.0)}, num.n_masses)
-    spec = spec.with_(damping_rate=vals["damping_rate"], internal_damping=vals["internal_damping"])
+    spec = cable_spec(length, values, num.n_masses)
+    if not damped:
+        spec = spec.with_(damping_rate=0.0, internal_damping=0.0)
     span = 0.6 * length
     first = EndHolder("clamped", np.array([0.0, 0.0, 1.0]), np.array([1.0, 0.0, 0.0]))
     last = EndHolder("clamped", np.array([span, 0.0, 1.0]), np.array([1.0, 0.0, 0.0]))
@@ -404,14 +421,18 @@ def decay(t: np.ndarray, y: np.ndarray) -> tuple[float, float]:
     i = np.flatnonzero((y[1:-1] > y[:-2]) & (y[1:-1] >= y[2:]) & (y[1:-1] > 0)) + 1
     if len(i) < 3:
         return math.nan, math.nan
-    period = float(np.mean(np.diff(t[i])))
-    slope = np.polyfit(t[i], np.log(y[i]), 1)[0]  # amplitude ~ exp(-zeta omega t)
+    a, b, c = y[i - 1], y[i], y[i + 1]
+    shift = 0.5 * (a - c) / (a - 2 * b + c)  # parabola through three samples: the peak between them
+    tp = t[i] + shift * (t[i + 1] - t[i])
+    yp = b - 0.25 * (a - c) * shift
+    period = float((tp[-1] - tp[0]) / (len(tp) - 1))
+    slope = np.polyfit(tp, np.log(yp), 1)[0]  # amplitude ~ exp(-zeta omega t)
     omega = 2 * math.pi / period
     return 1.0 / period, float(-slope / omega)
 
 
 def convergence(recs: Sequence[MarkerRecording], values: dict[str, float], num: Numerics,
-                ns: Sequence[int] = (11, 21, 41)) -> list[dict[str, float]]:
+                ns: Sequence[int] = (11, 21, 41, 81)) -> list[dict[str, float]]:
     """Mean L1 [m] of ``recs`` and the first swing mode's frequency [Hz] at each n (same dt, integrator)."""
     rows = []
     length = float(np.median([r.s[r.last_pair[0] % r.n_markers] - r.s[r.first_pair[1]] for r in recs]))
@@ -469,6 +490,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--max-eval-trials", type=int, help="eval trials predicted (default: all)")
     parser.add_argument("--max-evaluations", type=int, default=60,
                         help="forward runs of the train set allowed, about (60)")
+    parser.add_argument("--intervals", default="linearised", choices=["linearised", "refit"],
+                        help="leave-one-trial-out intervals: linearised (one Gauss-Newton step per trial left "
+                             "out, no runs) or refit (each left-out fit rerun from the optimum; N x the fit's cost)")
     parser.add_argument("--no-numerics-check", action="store_true",
                         help="skip the numerical-damping and convergence-in-n checks")
 
@@ -492,7 +516,7 @@ def main(args: argparse.Namespace) -> int:
     train = [load_trial(p) for p in pick(trial_files(root / "train", "train"), most_train)]
     evals = [load_trial(p) for p in pick(trial_files(root / "eval", "eval"), most_eval)]
     f = fit(train, num, max_evaluations=max_eval)
-    params = jackknife(f)
+    params = jackknife(f, refit_loo(train, f, num) if args.intervals == "refit" else None)
     rows = {"train": {}, "eval": {}}
     preds = {}
     for split, recs in (("train", train), ("eval", evals)):
@@ -514,7 +538,7 @@ def main(args: argparse.Namespace) -> int:
                     "youngs_modulus_Pa": cable_spec(1.0, f.values, num.n_masses).youngs_modulus},
         "fit": {"evaluations": f.evaluations, "message": f.message, "train_trials": [r.name for r in train],
                 "loss": "soft_l1, scale 0.02 m, free markers every 5th frame",
-                "intervals": "leave-one-trial-out, linearised (one Gauss-Newton step per left-out trial), 95 %"},
+                "intervals": f"leave-one-trial-out jackknife, 95 %, {args.intervals}"},
         "numerics": {**asdict(num)},
         "cost": {"cpu_s_per_simulated_s": f.cpu_s / f.simulated_s, "clock": "time.thread_time",
                  "fit_cpu_s": f.cpu_s},
