@@ -1,23 +1,36 @@
-"""The benchmark's rod in MuJoCo (>= 4.0): a 1-D flexcomp, MuJoCo's discrete elastic rod.
+"""The benchmark's rod in MuJoCo (>= 4.0): a 1-D flexcomp, MuJoCo's discrete elastic rod, truly clamped.
 
-MuJoCo 4.0 removed the ``elasticity.cable`` plugin; its replacement is ``<flexcomp dim="1">``
-with ``<elasticity young=...>`` (bending and torsion, no stretching). Mapping:
+MuJoCo 4.0 removed the ``elasticity.cable`` plugin (``<plugin plugin="mujoco.elasticity.cable">``
+fails with "plugin not found"); its replacement is ``<flexcomp dim="1">`` with
+``<elasticity young=...>`` (bending and torsion, no stretching). This is MuJoCo's best public
+set-up for the cantilever, as a user would write it:
 
-* n points at i L / (n - 1) along +x (``type="direct"``), one capsule element per segment,
-  radius d / 2 (so I = pi d^4 / 64, J = 2 I); young = E, poisson = 0.3 (G = E / 2.6);
-  the vertex bending stiffness E I / (l0 + l1) is MuJoCo's own;
+* **clamp**: a stub point at x = -s (s = :data:`STUB` x the segment length) before the n rod
+  points at i L / (n - 1) along +x, and ``<pin id="0 1"/>``: the held edge is the stub behind
+  x = 0, so the rod is clamped at x = 0 with its tangent along +x. The vertex at x = 0 gets
+  MuJoCo's bending stiffness E I / (s + l), i.e. the half Voronoi length of a clamped end (as a
+  mirror ghost node in finite differences); the tip deflection then converges at second order in
+  n (+0.29 % at n = 20). Pinning the first *rod* edge instead (the old adapter) clamps the beam one
+  element in: -2/n of the deflection, -10 % at n = 20;
+* one capsule element per segment, radius d / 2 (so I = pi d^4 / 64, J = 2 I); young = E,
+  poisson = 0.3 (G = E / 2.6);
 * stretching is not part of MuJoCo's rod elasticity: edges are held at their length by
   ``<edge equality="true"/>`` soft constraints with solref = "2 dt 1", the stiffest time
   constant MuJoCo accepts (the default 0.02 s lets a hanging soft rod stretch by > 10 %);
-* mass lumped as M / (n - 1) per vertex body and half of that at the tip (flexcomp would
-  give M / n to every point, pinned ones included);
-* clamp: ``<pin id="0 1"/>`` (the first edge and its material frame);
-* damping: ``dof_damping = c m`` on each vertex slide joint (rate c [1/s]); no twist damping;
+* mass lumped as M / (n - 1) per free vertex and half of that at the tip, the same lumping as
+  ours (flexcomp would give M / npoint to every point, pinned ones included);
+* damping: ``dof_damping = c m`` on each vertex slide joint (rate c [1/s]), the same velocity
+  damping as ours, integrated implicitly by ``discrete``; no twist damping;
 * contacts off; gravity set at run time.
 
-Integrators: ``discrete`` (implicit velocity stepping, MuJoCo's choice for rods), ``RK4`` or
-``Euler`` (explicit in the rod elasticity); ``implicit``/``implicitfast`` do not support 1-D
-rod elasticity in MuJoCo 4.0.
+Integrators: ``discrete`` (implicit velocity stepping; MuJoCo's recommended integrator for flex
+elasticity: MuJoCo 4.0 refuses ``implicit`` and ``implicitfast`` with "flex elasticity is no
+longer integrated implicitly under integrator='implicit' and 'implicitfast': set
+integrator='discrete', or 'Euler' with a small timestep"), and ``RK4`` / ``Euler`` (explicit in
+the rod elasticity, small steps only).
+
+Stepping: :meth:`MujocoRod.advance` calls ``mj_step(model, data, nstep=k)`` (no Python per
+step) when nothing is recorded; the free mode reads one ``qpos`` entry (the tip's z slide) per step.
 
 MuJoCo reports trouble (e.g. "Nan, Inf or huge value in QACC") through a global warning hook
 that by default prints to the terminal and appends to ``MUJOCO_LOG.TXT`` in the working
@@ -34,18 +47,25 @@ from bullet_dlo.core.spec import CableSpec
 
 _BAD_STATE = ("mjWARN_BADQPOS", "mjWARN_BADQVEL", "mjWARN_BADQACC")
 
+STUB = 1e-3
+"""Length of the held stub behind x = 0, as a fraction of the segment length [-]."""
+
+INTEGRATORS = ("discrete", "RK4", "Euler")
+"""The integrators MuJoCo 4.0 accepts with flex elasticity."""
+
 
 def _xml(spec: CableSpec, dt: float, integrator: str) -> str:
     n, seg = spec.n_masses, spec.rest_length
-    points = " ".join(f"{i * seg:.17g} 0 0" for i in range(n))
-    elements = " ".join(f"{i} {i + 1}" for i in range(n - 1))
-    # flexcomp gives every point mass/npoint: ask for M/(n-1) per point (an interior node's share)
+    xs = [-STUB * seg] + [i * seg for i in range(n)]
+    points = " ".join(f"{x:.17g} 0 0" for x in xs)
+    elements = " ".join(f"{i} {i + 1}" for i in range(n))
+    # flexcomp gives every one of its n + 1 points mass/npoint: ask for M/(n-1) per point
     return f"""
 <mujoco model="cantilever">
   <option timestep="{dt:.17g}" integrator="{integrator}" gravity="0 0 0"/>
   <worldbody>
     <flexcomp name="rod" type="direct" dim="1" point="{points}" element="{elements}"
-              radius="{spec.diameter / 2:.17g}" mass="{spec.mass * n / (n - 1):.17g}">
+              radius="{spec.diameter / 2:.17g}" mass="{spec.mass * (n + 1) / (n - 1):.17g}">
       <edge equality="true" solref="{2.0 * dt:.17g} 1"/>
       <elasticity young="{spec.youngs_modulus:.17g}" poisson="{POISSON}"/>
       <contact contype="0" conaffinity="0"/>
@@ -61,23 +81,31 @@ class MujocoRod:
     name = "mujoco"
 
     def __init__(self, spec: CableSpec, dt: float, integrator: str = "discrete") -> None:
+        if integrator not in INTEGRATORS:
+            raise ValueError(f"MuJoCo integrator for flex elasticity must be one of {INTEGRATORS}, got {integrator!r}")
         n = spec.n_masses
+        self.integrator = integrator
         self.model = mujoco.MjModel.from_xml_string(_xml(spec, dt, integrator))
-        self._tip = mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_BODY, f"rod_{n - 1}")
+        self._tip = mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_BODY, f"rod_{n}")  # point 0 is the stub
         self.model.body_mass[self._tip] = spec.mass / (2.0 * (n - 1))  # the tip node carries half a segment
         self.data = mujoco.MjData(self.model)
         mujoco.mj_setConst(self.model, self.data)
         slide = mujoco.mjtJoint.mjJNT_SLIDE
-        self._dofs = np.array([self.model.jnt_dofadr[j] for j in range(self.model.njnt)
-                               if self.model.jnt_type[j] == slide], dtype=int)
+        joints = [j for j in range(self.model.njnt) if self.model.jnt_type[j] == slide]
+        self._dofs = np.array([self.model.jnt_dofadr[j] for j in joints], dtype=int)
         self._dof_mass = np.array([self.model.body_mass[self.model.dof_bodyid[k]] for k in self._dofs])
+        tip_z = [j for j in joints if self.model.jnt_bodyid[j] == self._tip and abs(self.model.jnt_axis[j, 2]) == 1.0]
+        self._tip_qpos = int(self.model.jnt_qposadr[tip_z[0]])
+        self._tip_z0 = float(self.model.body_pos[self._tip, 2])
+        self._tip_sign = float(self.model.jnt_axis[tip_z[0], 2])
         self._bad = [int(getattr(mujoco.mjtWarning, w)) for w in _BAD_STATE]
         self.warnings: list[str] = []
         self._previous_hook = None
         solref = self.model.eq_solref[0]
-        self.note = (f"integrator={integrator}; flexcomp dim=1 direct, {n} points, radius=d/2, young=E, "
-                     f"poisson={POISSON}, edge equality (soft, solref {solref[0]:.3g} {solref[1]:.3g}), lumped mass "
-                     "M/(n-1) per free vertex and half at the tip, pin id='0 1'")
+        self.note = (f"integrator={integrator}; flexcomp dim=1 direct, stub point at x = -{STUB:g} l + {n} points, "
+                     f"pin id='0 1' (the stub: clamp at x = 0), radius=d/2, young=E, poisson={POISSON}, edge equality "
+                     f"(soft, solref {solref[0]:.3g} {solref[1]:.3g}), lumped mass M/(n-1) per free vertex and half at "
+                     "the tip")
 
     def __enter__(self) -> "MujocoRod":
         self._previous_hook = mujoco.get_mju_user_warning()
@@ -93,8 +121,16 @@ class MujocoRod:
     def set_damping(self, rate: float) -> None:
         self.model.dof_damping[self._dofs] = rate * self._dof_mass
 
-    def step(self) -> None:
-        mujoco.mj_step(self.model, self.data)
+    def advance(self, k: int, trace: np.ndarray | None = None) -> None:
+        """k steps; with ``trace`` (k,), the tip height [m] after each step (one qpos read per step)."""
+        m, d = self.model, self.data
+        if trace is None:
+            mujoco.mj_step(m, d, nstep=k)
+            return
+        qpos, adr, z0, sign = d.qpos, self._tip_qpos, self._tip_z0, self._tip_sign
+        for i in range(k):
+            mujoco.mj_step(m, d)
+            trace[i] = z0 + sign * qpos[adr]
 
     def refresh(self) -> None:
         mujoco.mj_forward(self.model, self.data)  # body positions of the current state
@@ -103,10 +139,11 @@ class MujocoRod:
         self.data.qvel[:] = 0.0
 
     def positions(self) -> np.ndarray:
-        return self.data.flexvert_xpos.T
+        """The n rod points (3, n) [m], the stub left out."""
+        return self.data.flexvert_xpos.T[:, 1:]
 
     def tip_z(self) -> float:
-        return float(self.data.xpos[self._tip, 2])
+        return self._tip_z0 + self._tip_sign * float(self.data.qpos[self._tip_qpos])
 
     def diverged(self) -> bool:
         """MuJoCo's bad-state warnings (it then silently resets the state) or non-finite velocities."""
