@@ -10,7 +10,6 @@ import os
 from dataclasses import asdict
 from pathlib import Path
 
-from bullet_dlo.analysis.closed_forms import cantilever_deflection, cantilever_frequency
 from bullet_dlo.bench import peers as peer_mod
 from bullet_dlo.bench import plots, sweeps
 from bullet_dlo.bench.scenarios import s1, s1_spec, s3, s3_model, s4, s4_model
@@ -142,54 +141,11 @@ def resolve_check(args) -> int:
 
 
 def peers(args) -> int:
-    """PyElastica and MuJoCo on S1 and S2 next to our cheapest run at 1 %; MuJoCo's warnings go to
+    """PyElastica and MuJoCo on S1 and S2 next to our cheapest run at 1 %, timed in thread CPU time,
+    interleaved (:func:`bullet_dlo.bench.peers.bench_peers`); MuJoCo's warnings go to
     ``peers_warnings.log`` in the output folder and are counted per point in ``peers.json``."""
-    out = _out(args)
-    available = peer_mod.available()
-    print("peers available:", available)
     _warm_up()
-    spec = s1_spec(10)  # the stiff cantilever of S1/S2: tip deflects 1e-3 L, f1 = 36 Hz
-    # both peers clamp the whole first segment (-2/n of the tip deflection), so 1 % needs n ~ 200
-    n_masses = {"pyelastica": (10,), "mujoco": (10, 20)} if args.quick else \
-        {"pyelastica": (10, 40, 120, 250), "mujoco": (10, 40, 120, 250)}
-    points, log = [], []
-    for case in _progress(args, "peers")(peer_mod.peer_cases(n_masses, available)):
-        point, warnings = case.run(spec)
-        points.append(point)
-        log += [f"{case.peer} {case.integrator} {case.scenario} n={case.n} dt={case.dt:g}: {w}" for w in warnings]
-    (out / "peers_warnings.log").write_text("".join(line + "\n" for line in log))
-    for p in points:
-        err = "-" if p["error"] is None else f"{p['error']:.4f}"
-        kept = "-" if p["amplitude_kept"] is None else f"{p['amplitude_kept']:.3f}"
-        print(f"  {p['peer']:10s} {p['integrator']:14s} {p['scenario']} n={p['n']:3d} dt={p['dt']:.0e} "
-              f"stable={p['stable']!s:5s} error={err:7s} amplitude kept={kept:6s} cost={p['wall_per_sim_s']:.4g} s/s"
-              + (f" (MuJoCo warnings: {p['warnings']})" if p["warnings"] else ""))
-    if log:
-        print(f"{len(log)} peer warnings -> {out / 'peers_warnings.log'}")
-
-    ours_cases = [sweeps.Case(sc, "core", name, n, dt) for sc in ("S1", "S2") for n in (10, 20, 40)
-                  for name in ("implicit_euler", "bdf2", "implicit_midpoint") for dt in (1 / 60, 1 / 240, 1e-3)]
-    rows = sweeps.work_precision(ours_cases, _progress(args, "ours"))
-    ours = {sc: sweeps.fastest(rows, sc, TOL) for sc in ("S1", "S2")}
-    for sc, best in ours.items():
-        if best:
-            print(f"ours {sc}: {best.integrator} n={best.n} dt={best.dt:.3g}: error {best.error:.4f}, "
-                  f"{best.wall_per_sim_s:.4g} s/s")
-    ratios = peer_mod.equal_accuracy_ratios(points, {sc: b.wall_per_sim_s if b else None for sc, b in ours.items()},
-                                            TOL)
-    for peer in dict.fromkeys(p["peer"] for p in points):
-        for sc in ours:
-            if f"{peer}/{sc}" in ratios:
-                print(f"equal accuracy ({TOL:.0%}) on {sc}: {peer} needs {ratios[f'{peer}/{sc}']:.0f}x our wall time")
-            else:
-                errors = [p["error"] for p in points if p["peer"] == peer and p["scenario"] == sc and p["error"]]
-                best = f"{min(errors):.3f}" if errors else "none stable"
-                print(f"equal accuracy ({TOL:.0%}) on {sc}: {peer} did not reach it in this sweep (best {best})")
-    closed = {"tip_deflection_m": cantilever_deflection(spec), "frequency_hz": cantilever_frequency(spec)}
-    (out / "peers.json").write_text(json.dumps({"points": points, "ratios": ratios, "closed_forms": closed,
-                                                "warnings": len(log),
-                                                "ours": {k: (asdict(v) if v else None) for k, v in ours.items()}},
-                                               indent=2, default=float))
+    peer_mod.bench_peers(_out(args), args.quick, lambda desc: _progress(args, desc))
     return 0
 
 
