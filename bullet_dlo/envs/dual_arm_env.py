@@ -51,7 +51,12 @@ import gymnasium as gym
 import numpy as np
 import pybullet as pb
 from gymnasium import spaces
-from gymnasium.vector import AutoresetMode
+
+try:  # Gymnasium >= 1.1 names the vector autoreset modes; 1.0 vectorises in next-step order without a name
+    from gymnasium.vector import AutoresetMode
+    AUTORESET = {"autoreset_mode": AutoresetMode.NEXT_STEP}
+except ImportError:  # pragma: no cover - Gymnasium 1.0
+    AUTORESET = {}
 
 from bullet_dlo.config.robot import load_robot_spec
 from bullet_dlo.core.validate import ParameterError, check_int, check_positive
@@ -84,7 +89,7 @@ class DualArmEnv(gym.Env):
         render_mode: None or "rgb_array"; render_size: (width, height) [px] of :meth:`render`.
     """
 
-    metadata = {"render_modes": ["rgb_array"], "render_fps": 20, "autoreset_mode": AutoresetMode.NEXT_STEP}
+    metadata = {"render_modes": ["rgb_array"], "render_fps": 20, **AUTORESET}
     task_dim = 0
     default_randomisation: Mapping[str, Any] = {}
 
