@@ -19,9 +19,12 @@ from bullet_dlo.cli.simulate import write_json
 
 class _EarlyStop(threading.Event):
     """Set by SIGINT/SIGTERM from the command's first line on (``signum``: which); duck-types
-    :class:`bullet_dlo.data.capture.StopSignal`, which is not imported yet when it is installed."""
+    :class:`bullet_dlo.data.capture.StopSignal`, which is not imported yet when it is installed.
+    With ``raising`` True (around calls that may block, such as reading the spec) the signal also
+    raises KeyboardInterrupt; a second signal always does (a stop that is not obeyed is forced)."""
 
     signum: int = 0
+    raising: bool = False
 
 
 def _install_stop() -> tuple[_EarlyStop, dict]:
@@ -30,8 +33,11 @@ def _install_stop() -> tuple[_EarlyStop, dict]:
     stop = _EarlyStop()
 
     def handler(signum: int, _frame) -> None:
+        again = stop.is_set()
         stop.signum = signum
         stop.set()
+        if stop.raising or again:
+            raise KeyboardInterrupt
 
     if threading.current_thread() is not threading.main_thread():
         return stop, {}
@@ -67,12 +73,17 @@ def _capture(args: argparse.Namespace, stop) -> int:
 
     if stop.is_set():
         return _stopped(stop.signum, "nothing was captured")
-    spec = CaptureSpec.from_yaml(args.spec)
     try:
+        stop.raising = True  # reading the spec may block (a FIFO): a signal interrupts it
+        spec = CaptureSpec.from_yaml(args.spec)
+        stop.raising = False  # from here the coordinator stops at its own pace, recording what finished
         res = capture(spec, args.out, args.episodes, workers=args.workers, backend=args.backend,
                       resume=args.resume, progress=not args.quiet, stop=stop)
     except CaptureInterrupted as err:
         return _stopped(err.signum, str(err).split(": ", 1)[1])
+    except KeyboardInterrupt:
+        return _stopped(stop.signum, f"stopped at once; episodes finished before are recorded in {args.out}; "
+                        "bullet-dlo capture ... --resume continues")
     except StorageError as err:
         print(f"error: {err}", file=sys.stderr)
         return 1

@@ -69,7 +69,11 @@ class Dataset:
 
     def __init__(self, root: str | Path, check: bool = True):
         self.root = Path(root)
-        if not is_capture_dir(self.root):
+        try:
+            is_dir = is_capture_dir(self.root)
+        except OSError as err:  # e.g. a name too long
+            raise ParameterError(f"dataset directory {str(root)[:80]!r}: {err.strerror}") from None
+        if not is_dir:
             raise ParameterError(f"{self.root} is not a capture directory (no capture.json)")
         self.spec = read_spec_file(self.root)
         self._by_episode = read_manifest(self.root, strict=True)

@@ -26,6 +26,7 @@ from concurrent.futures.process import BrokenProcessPool
 from typing import Callable, Iterator
 
 from bullet_dlo.core.validate import ParameterError
+from bullet_dlo.data.safeio import StorageError
 from bullet_dlo.data.storage import failed_record
 
 Task = Callable[[dict, int, str], dict]
@@ -104,6 +105,8 @@ def _pool_round(task: Task, spec_dict: dict, group: list[int], out: str, workers
                 except BrokenProcessPool:
                     lost.append(i)  # its worker died, or another one and the pool broke: re-run
                     continue
+                except StorageError as err:  # a task without run_episode_safely's net
+                    record = failed_record(i, str(err), write_error=True, path=str(err.path), cause=err.cause)
                 yield i, record  # finished only once its record is in hand: a killed episode is never lost
             if stop.is_set():
                 for fut in pending:  # finished while we looked: recorded, not re-run

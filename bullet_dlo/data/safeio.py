@@ -35,6 +35,10 @@ class StorageError(OSError):
                          f"cannot write {path}: {cause}" + (f" ({note})" if note else ""))
         self.path = Path(path)
         self.cause = cause
+        self.note = note
+
+    def __reduce__(self):  # crosses process boundaries whole (OSError's own pickling loses path and cause)
+        return type(self), (str(self.path), self.cause, self.note)
 
     def __str__(self) -> str:
         return self.strerror

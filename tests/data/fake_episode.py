@@ -3,7 +3,7 @@
 ``fake_episode(spec_dict, index, out)`` writes a small but real episode file (so a lost manifest
 line can be rebuilt from it) and returns its record. Marker files in ``out`` make it misbehave:
 ``kill-once-<i>`` (removed, then the worker SIGKILLs itself), ``kill-always-<i>``, ``slow``
-(sleep that many seconds first). It writes ``pid-<i>`` with its worker's pid before anything else.
+(sleep that many seconds first), ``full-<i>`` (writing episode i fails as on a full disk). It writes ``pid-<i>`` with its worker's pid before anything else.
 Importable by name in spawned workers (they get the coordinator's sys.path).
 """
 from __future__ import annotations
@@ -31,6 +31,12 @@ def fake_episode(spec_dict: dict, index: int, out_dir: str) -> dict:
         os.kill(os.getpid(), signal.SIGKILL)
     if (out / f"kill-always-{index}").exists():
         os.kill(os.getpid(), signal.SIGKILL)
+    if (out / f"full-{index}").exists():
+        import errno
+
+        from bullet_dlo.data.safeio import StorageError
+
+        raise StorageError(out / f"episode_{index:06d}.h5", OSError(errno.ENOSPC, os.strerror(errno.ENOSPC)))
     spec = CaptureSpec.from_dict(spec_dict)
     params = {"episode_value": float(index)}
     decision = {"action": "none", "substeps": 1}
