@@ -1,0 +1,211 @@
+"""``export lerobot``: a capture (with video) and a rollout directory written as LeRobot v3.0 datasets
+and read back frame by frame against their HDF5 episodes.
+
+The read-back follows LeRobot's own v3.0 reader (lerobot 0.4, ``lerobot/datasets/lerobot_dataset.py``
+and ``utils.py``): ``meta/info.json`` (codebase_version, fps, features, ``data_path``/``video_path``
+templates), the episodes from ``meta/episodes/*/*.parquet`` (``dataset_from_index``/``dataset_to_index``
+into the concatenated ``data/*/*.parquet`` frames, ``videos/<key>/chunk_index``, ``file_index`` and
+``from_timestamp``), video frames decoded at ``from_timestamp + timestamp`` within LeRobot's default
+tolerance (1e-4 s), tasks by ``task_index`` from ``meta/tasks.parquet``. The ``lerobot`` package itself
+is not installed here: it needs torch, torchvision, torchcodec, datasets, diffusers and wandb and pins
+``av<16`` (this project runs PyAV 18), so its ``LeRobotDataset`` test runs only where it is installed.
+"""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+pa = pytest.importorskip("pyarrow")
+pq = pytest.importorskip("pyarrow.parquet")
+
+from bullet_dlo.cli.main import main  # noqa: E402
+from bullet_dlo.config.capture import CaptureSpec  # noqa: E402
+from bullet_dlo.core.validate import ParameterError  # noqa: E402
+from bullet_dlo.data.capture import capture  # noqa: E402
+from bullet_dlo.data.lerobot import CAMERA, export_lerobot  # noqa: E402
+from bullet_dlo.data.reader import Dataset  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[2]
+TOLERANCE_S = 1e-4  # LeRobotDataset's default tolerance_s between a query and a decoded frame's time
+
+
+@pytest.fixture(scope="module")
+def captured(tmp_path_factory) -> Path:
+    """Two short episodes of the small randomised spec (two node counts), filmed at 30 fps."""
+    data = yaml.safe_load((ROOT / "demos" / "specs" / "dr_small.yaml").read_text())
+    data["episode"]["duration"] = 0.3
+    data["camera"] = {"fps": 30, "width": 64, "height": 48}
+    out = tmp_path_factory.mktemp("capture") / "cap"
+    res = capture(CaptureSpec.from_dict(data), out, 2, progress=False)
+    assert res.failed == 0
+    return out
+
+
+@pytest.fixture(scope="module")
+def rolled(tmp_path_factory) -> Path:
+    from bullet_dlo.envs.rollouts import record_rollouts
+
+    out = tmp_path_factory.mktemp("rollouts") / "roll"
+    record_rollouts("bullet_dlo/TensionTracking-v0", "scripted", out, 2, record_rate=60.0,
+                    env_kwargs={"settle_time": 0.05, "max_episode_steps": 8}, progress=False)
+    return out
+
+
+# ----- a v3.0 reader after LeRobot's ------------------------------------------------------------
+def read_v3(root: Path) -> dict:
+    """info, tasks, episodes (list of dicts) and frames (column -> array) as LeRobotDataset finds them."""
+    info = json.loads((root / "meta" / "info.json").read_text())
+    assert info["codebase_version"] == "v3.0"
+    episodes = pa.concat_tables([pq.read_table(p) for p in sorted((root / "meta" / "episodes").glob("*/*.parquet"))])
+    data = pa.concat_tables([pq.read_table(p) for p in sorted((root / "data").glob("*/*.parquet"))])
+    tasks = pq.read_table(root / "meta" / "tasks.parquet")
+    task_of = dict(zip(tasks.column("task_index").to_pylist(), tasks.column("__index_level_0__").to_pylist()))
+    frames = {}
+    for key in data.column_names:
+        column = data.column(key).combine_chunks()
+        frames[key] = (np.asarray(column.flatten()).reshape(len(column), -1) if pa.types.is_fixed_size_list(column.type)
+                       else np.asarray(column))
+    return {"info": info, "episodes": episodes.to_pylist(), "frames": frames, "tasks": task_of,
+            "stats": json.loads((root / "meta" / "stats.json").read_text())}
+
+
+def decode_at(path: Path, timestamps: np.ndarray) -> np.ndarray:
+    """Frames of the video at ``timestamps`` [s]: the decoded frame nearest each, within LeRobot's tolerance."""
+    import av
+
+    with av.open(str(path)) as container:
+        stream = container.streams.video[0]
+        decoded = [(float(f.pts * stream.time_base), f.to_ndarray(format="rgb24")) for f in container.decode(video=0)]
+    times = np.array([t for t, _ in decoded])
+    out = []
+    for ts in timestamps:
+        i = int(np.argmin(np.abs(times - ts)))
+        assert abs(times[i] - ts) < TOLERANCE_S, f"no frame within {TOLERANCE_S} s of {ts}"
+        out.append(decoded[i][1])
+    return np.array(out)
+
+
+def check_against_hdf5(root: Path, source: Path, cable_points: int | None = None) -> dict:
+    """Every frame's values equal the HDF5 episode's row at its ``sim.time`` (as float32)."""
+    v3 = read_v3(root)
+    info, frames = v3["info"], v3["frames"]
+    ds = Dataset(source)
+    records = {int(r["episode"]): r for r in ds.records}
+    fps = info["fps"]
+    assert info["total_episodes"] == len(v3["episodes"]) and info["total_frames"] == len(frames["index"])
+    for key, ft in info["features"].items():  # every non-video feature is a column of its shape
+        if ft["dtype"] == "video":
+            continue
+        assert frames[key].shape[1:] in ((), tuple(ft["shape"])) and key in v3["stats"]
+    np.testing.assert_array_equal(frames["index"], np.arange(len(frames["index"])))
+    for e, meta in enumerate(v3["episodes"]):
+        assert meta["episode_index"] == e and meta["tasks"] == [v3["tasks"][0]]
+        lo, hi = meta["dataset_from_index"], meta["dataset_to_index"]
+        assert hi - lo == meta["length"]
+        ep = ds.load(records[meta["source_episode"]])
+        assert meta["params/youngs_modulus"] == ep["params"]["youngs_modulus"]
+        assert meta["params/integrator"] == ep["params"]["integrator"]
+        assert json.loads(meta["bullet_dlo/params"]) == json.loads(json.dumps(ep["params"]))
+        np.testing.assert_array_equal(frames["episode_index"][lo:hi], e)
+        np.testing.assert_array_equal(frames["frame_index"][lo:hi], np.arange(hi - lo))
+        np.testing.assert_array_equal(frames["timestamp"][lo:hi], (np.arange(hi - lo) / fps).astype(np.float32))
+        rows = [int(np.flatnonzero(ep["t"] == t)[0]) for t in frames["sim.time"][lo:hi].ravel()]
+        q, pos, quat = ep["joint_q"][rows], ep["ee_pos"][rows], ep["ee_quat"][rows]
+        state = np.concatenate([np.concatenate([q[:, a], pos[:, a], quat[:, a]], axis=1) for a in range(2)], axis=1)
+        np.testing.assert_array_equal(frames["observation.state"][lo:hi], state.astype(np.float32))
+        for a, arm in enumerate(("left", "right")):
+            np.testing.assert_array_equal(frames[f"observation.wrench.{arm}"][lo:hi],
+                                          ep["wrench_sensor"][rows, a].astype(np.float32))
+        x = ep["cable_x"][rows]
+        if cable_points is None:
+            expected = x.reshape(len(rows), -1)
+        else:
+            s = np.linspace(0, x.shape[1] - 1, cable_points)
+            expected = np.stack([np.stack([np.interp(s, np.arange(x.shape[1]), xi[:, c]) for c in range(3)], axis=1)
+                                 for xi in x]).reshape(len(rows), -1)
+        np.testing.assert_allclose(frames["observation.environment_state"][lo:hi], expected.astype(np.float32),
+                                   rtol=0, atol=1e-7)
+        if "action" in frames:
+            np.testing.assert_array_equal(frames["action"][lo:hi], ep["action"].astype(np.float32))
+            np.testing.assert_array_equal(frames["next.reward"][lo:hi].ravel(), ep["reward"].astype(np.float32))
+        if CAMERA in info["features"]:
+            video = root / info["video_path"].format(video_key=CAMERA, chunk_index=meta[f"videos/{CAMERA}/chunk_index"],
+                                                     file_index=meta[f"videos/{CAMERA}/file_index"])
+            decoded = decode_at(video, meta[f"videos/{CAMERA}/from_timestamp"] + frames["timestamp"][lo:hi])
+            t_frames = ep["frame_t"]
+            nearest = [int(np.argmin(np.abs(t_frames - t))) for t in frames["sim.time"][lo:hi].ravel()]
+            diff = np.abs(decoded.astype(float) - ep["frames"][nearest].astype(float))
+            assert diff.mean() < 10.0, diff.mean()  # H.264 yuv420p at crf 23 on 64 x 48 px: about 5-7 of 255
+    return v3
+
+
+# ----- tests -------------------------------------------------------------------------------------
+def test_capture_with_video_exports_and_reads_back_frame_by_frame(captured, tmp_path):
+    with pytest.raises(ParameterError, match="--cable-points"):  # two node counts in one column
+        export_lerobot(captured, tmp_path / "nodes")
+    assert not (tmp_path / "nodes").exists()  # nothing left behind
+    res = export_lerobot(captured, tmp_path / "lr", cable_points=10)
+    assert res.episodes == 2 and res.video and res.fps == 30
+    for rel in ("meta/info.json", "meta/stats.json", "meta/tasks.parquet", "meta/episodes/chunk-000/file-000.parquet",
+                "data/chunk-000/file-000.parquet", f"videos/{CAMERA}/chunk-000/file-000.mp4"):
+        assert (tmp_path / "lr" / rel).is_file(), rel
+    v3 = check_against_hdf5(tmp_path / "lr", captured, cable_points=10)
+    info = v3["info"]
+    assert info["robot_type"].startswith("dual_") and info["data_path"] == \
+        "data/chunk-{chunk_index:03d}/file-{file_index:03d}.parquet"
+    feats = info["features"]
+    assert feats["observation.wrench.left"]["names"] == ["fx", "fy", "fz", "mx", "my", "mz"]
+    assert feats["observation.state"]["shape"] == [28] and feats["observation.environment_state"]["shape"] == [30]
+    assert feats[CAMERA]["info"]["video.fps"] == 30 and feats[CAMERA]["shape"] == [48, 64, 3]
+    assert np.array(v3["stats"][CAMERA]["mean"]).shape == (3, 1, 1)
+    assert len({e["params/n_masses"] for e in v3["episodes"]}) == 2  # the per-episode parameters
+    assert all(e["decision/substeps"] >= 1 for e in v3["episodes"])
+    ends = [(e[f"videos/{CAMERA}/from_timestamp"], e[f"videos/{CAMERA}/to_timestamp"]) for e in v3["episodes"]]
+    assert ends[0][0] == 0.0 and ends[1][0] == pytest.approx(ends[0][1])  # one file, episodes back to back
+
+
+def test_rollouts_export_actions_at_the_control_rate(rolled, tmp_path):
+    res = export_lerobot(rolled, tmp_path / "lr")
+    assert res.fps == 20 and res.frames == 16 and not res.video
+    v3 = check_against_hdf5(tmp_path / "lr", rolled)
+    assert v3["info"]["features"]["action"]["shape"] == [6] and v3["info"]["video_path"] is None
+    assert v3["frames"]["next.done"].ravel().tolist() == ([False] * 7 + [True]) * 2
+    assert v3["episodes"][0]["bullet_dlo/truncated"] is True
+
+
+def test_tasks_parquet_reads_as_lerobot_reads_it(rolled, tmp_path):
+    pd = pytest.importorskip("pandas")
+    export_lerobot(rolled, tmp_path / "lr")
+    tasks = pd.read_parquet(tmp_path / "lr" / "meta" / "tasks.parquet")  # LeRobot's load_tasks
+    assert tasks.iloc[0].name.startswith("follow a tension profile") and int(tasks.loc[tasks.index[0]].task_index) == 0
+
+
+def test_lerobot_dataset_reads_the_export(rolled, tmp_path):
+    """LeRobot's own reader, where the lerobot package is installed (see the module doc for why not here)."""
+    pytest.importorskip("lerobot.datasets.lerobot_dataset",
+                        reason="lerobot not installed (torch, torchcodec, datasets; pins av<16)")
+    from lerobot.datasets.lerobot_dataset import LeRobotDataset
+
+    export_lerobot(rolled, tmp_path / "lr")
+    lr = LeRobotDataset("local/bullet_dlo", root=tmp_path / "lr")
+    v3 = read_v3(tmp_path / "lr")
+    assert len(lr) == len(v3["frames"]["index"]) and lr.num_episodes == 2
+    for i in range(len(lr)):
+        item = lr[i]
+        for key in ("observation.state", "observation.wrench.left", "action"):
+            np.testing.assert_array_equal(item[key].numpy(), v3["frames"][key][i])
+
+
+def test_bad_input_is_one_line_and_exit_2(rolled, tmp_path, capsys):
+    (tmp_path / "full").mkdir()
+    (tmp_path / "full" / "x").write_text("x")
+    assert main(["export", "lerobot", str(tmp_path), str(tmp_path / "o")]) == 2  # not a dataset
+    assert main(["export", "lerobot", str(rolled), str(tmp_path / "full")]) == 2  # OUT not empty
+    err = capsys.readouterr().err.strip().splitlines()
+    assert [line.split(":")[0] for line in err] == ["error", "error"]
+    assert "not a capture directory" in err[0] and "not empty" in err[1]
+    assert not (tmp_path / "o").exists()
