@@ -24,22 +24,23 @@ not a frame (LeRobot's convention). Episodes of status ``ok`` are exported (``in
 flagged ones too); LeRobot's ``episode_index`` counts them from 0, ``source_episode`` is the
 episode number in the capture.
 
-**Features** (float32 unless said; arms left, right as in the capture; j arm joints):
+**Features** (float32 unless said; arms left, right as in the capture; j arm joints, n cable nodes):
 
-================================ ===================================================== ===================
-``observation.state``            per arm: joint angles (j) [rad], grasp-frame position  (2 j + 14,)
-                                 (3) [m] and quaternion x y z w (4) [1]
-``observation.wrench.left/right`` wrist F/T in the sensor frame (the capture's           (6,)
-                                 ``wrench_sensor``): fx fy fz [N], mx my mz [N m]
-``observation.environment_state`` cable node positions [m], node-major (x0 y0 z0 x1 ...) (3 n,)
-                                 (``cable_points=K``: K points evenly spaced by node
-                                 index, linearly interpolated, when episodes differ in n)
-``observation.images.overview``  video (captures with frames)                          (h, w, 3)
-``action``                       rollouts: the policy's action as given                (a,)
-``next.reward``, ``next.done``   rollouts: reward of that step; episode ends after it   (1,) float32, bool
-``sim.time``                     simulation time of the row the frame took [s], float64 (1,)
-``timestamp``, ``frame_index``, ``episode_index``, ``index``, ``task_index``            LeRobot's defaults
-================================ ===================================================== ===================
+* ``observation.state`` (2 j + 14,): per arm the joint angles (j) [rad], the grasp-frame position
+  (3) [m] and quaternion x y z w (4).
+* ``observation.wrench.left`` / ``observation.wrench.right`` (6,): wrist F/T in the sensor frame
+  (the capture's ``wrench_sensor``), names fx fy fz [N], mx my mz [N m].
+* ``observation.environment_state`` (3 n,): cable node positions [m], world frame, node-major
+  (x0 y0 z0 x1 ...); with ``cable_points=K`` (3 K,): K points evenly spaced by node index, linearly
+  interpolated (needed when episodes differ in n).
+* ``observation.images.overview`` (h, w, 3): video, captures that rendered frames.
+* ``action`` (a,): rollouts, the policy's action as given; ``next.reward`` (1,) the reward of that
+  step; ``next.done`` (1,) bool, true on an episode's last frame if it terminated or was truncated.
+* ``sim.time`` (1,) float64: simulation time [s] of the recorded row the frame took.
+* ``timestamp`` [s] (= frame_index / fps), ``frame_index``, ``episode_index``, ``index``,
+  ``task_index``: LeRobot's default features.
+
+Every feature in ``info.json`` has ``dtype``, ``shape`` and ``names``; the physical ones also ``units``.
 
 **Per episode** (``meta/episodes``): beside LeRobot's columns, ``params/<name>`` for every scalar
 randomised parameter (``params/youngs_modulus`` [Pa], ``params/damping``, ``params/friction``,
