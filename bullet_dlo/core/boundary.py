@@ -260,17 +260,29 @@ class EndHolder:
         direction: start tangent held by a clamp, pointing along the cable from first to last
             node (unit vector), shape (3,).
         moves: prescribed motion items of this end (Move, Waypoints, Sine).
+        normal: start orientation of the section held by a clamp: its first axis d1 (unit, normal to
+            ``direction``), shape (3,); None: :func:`default_normal` of the direction. Only a cable with a
+            material frame (``CableSpec.twist_enabled``) feels it; the motion's rotations turn it with the clamp.
     """
 
     mode: str
     position: np.ndarray
     direction: np.ndarray
     moves: tuple[Motion, ...] = field(default_factory=tuple)
+    normal: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "mode", check_end_mode(self.mode))
         if self.moves and self.mode == "free":
             raise ParameterError("a free end cannot follow prescribed motion; make it pinned or clamped")
+        d = np.asarray(self.direction, dtype=float)
+        if self.normal is None:
+            object.__setattr__(self, "normal", default_normal(d))
+        else:
+            nrm = check_vector3("end normal", self.normal, unit=True)
+            if abs(float(nrm @ d)) > 1e-9 * max(float(np.linalg.norm(d)), 1.0):
+                raise ParameterError("end normal (the section axis d1) must be normal to the end's direction")
+            object.__setattr__(self, "normal", nrm)
 
     @property
     def held(self) -> bool:
@@ -295,14 +307,31 @@ class EndHolder:
         return np.stack(rows) if rows else np.zeros((0, SINE_COLUMNS))
 
 
-def holder_plan(first: EndHolder, last: EndHolder) -> HolderPlan:
-    """Start poses and motion tables of both ends, as the kernels take them."""
+def default_normal(direction: np.ndarray) -> np.ndarray:
+    """The section axis d1 a clamp holds unless told: horizontal, z x direction normalised (so a strip laid
+    along x has its width along y and its thickness vertical), or x projected normal to a vertical direction."""
+    d = np.asarray(direction, dtype=float)
+    d = d / max(float(np.linalg.norm(d)), 1e-300)
+    n = np.cross((0.0, 0.0, 1.0), d)
+    if np.linalg.norm(n) < 1e-6:
+        n = np.array([1.0, 0.0, 0.0]) - d[0] * d
+    return n / np.linalg.norm(n)
+
+
+def holder_plan(first: EndHolder, last: EndHolder, normal: np.ndarray | None = None) -> HolderPlan:
+    """Start poses and motion tables of both ends, as the kernels take them.
+
+    normal: the buffer (3, 2, 3) the samplers write the clamps' section axis into (a twisting model's
+    ``ModelArrays.tw.normal``); None: the roll is not tracked.
+    """
     return HolderPlan(
         start_pos=np.stack([first.position, last.position]).astype(float),
         start_dir=np.stack([first.direction, last.direction]).astype(float),
         moves_first=first.move_table(), moves_last=last.move_table(),
         path_first=first.path_table(), path_last=last.path_table(),
         sines_first=first.sine_table(), sines_last=last.sine_table(),
+        start_normal=np.stack([first.normal, last.normal]).astype(float),
+        normal=np.zeros((0, 2, 3)) if normal is None else normal,
     )
 
 

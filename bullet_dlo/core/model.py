@@ -6,17 +6,20 @@ does (positions, velocities, time). Integrators read the model and advance the s
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import NamedTuple, Sequence
 
 import numpy as np
 
-from bullet_dlo.core.boundary import EndHolder, Motion, holder_plan
+from bullet_dlo.core.boundary import EndHolder, Motion, default_normal, holder_plan
 from bullet_dlo.core.kernels.holders import HolderPlan
+from bullet_dlo.core.kernels.twist import TwistArrays, make_twist, no_twist, twist_fields, twist_view
 from bullet_dlo.core.spec import CableSpec
 from bullet_dlo.core.validate import ParameterError, check_vector3
 
 STANDARD_GRAVITY = (0.0, 0.0, -9.81)
+_NO_TWIST = no_twist()  # the empty frame of every cable without twist (never written: no kernel touches it)
 
 
 class ModelArrays(NamedTuple):
@@ -29,6 +32,10 @@ class ModelArrays(NamedTuple):
     f_ext: constant external forces [N], (n, 3); held: which nodes are kinematic, (n,) bool;
     c_stretch: Kelvin-Voigt segment dampers k_s tau [N s/m], (n-1,);
     c_bend: Kelvin-Voigt bending dampers k_b tau [N m s/rad^2], (n,) (clamp dampers as k_bend).
+    tw_*: the material frame (the fields of :class:`~bullet_dlo.core.kernels.twist.TwistArrays`,
+    flat so that every field is an array): twist and anisotropic bending constants and the twist
+    state; empty arrays (and untouched kernels) for a cable without twist. With a section that is not
+    round ``k_bend`` holds the mean (k1 + k2)/2.
     """
 
     mass: np.ndarray
@@ -41,6 +48,24 @@ class ModelArrays(NamedTuple):
     held: np.ndarray
     c_stretch: np.ndarray
     c_bend: np.ndarray
+    tw_k_twist: np.ndarray = _NO_TWIST.k_twist
+    tw_c_twist: np.ndarray = _NO_TWIST.c_twist
+    tw_k_aniso: np.ndarray = _NO_TWIST.k_aniso
+    tw_inertia: np.ndarray = _NO_TWIST.inertia
+    tw_drag: np.ndarray = _NO_TWIST.drag
+    tw_theta: np.ndarray = _NO_TWIST.theta
+    tw_omega: np.ndarray = _NO_TWIST.omega
+    tw_ref: np.ndarray = _NO_TWIST.ref
+    tw_tan: np.ndarray = _NO_TWIST.tan
+    tw_mref: np.ndarray = _NO_TWIST.mref
+    tw_normal: np.ndarray = _NO_TWIST.normal
+    tw_clamp: np.ndarray = _NO_TWIST.clamp
+    tw_flag: np.ndarray = _NO_TWIST.flag
+
+    @property
+    def tw(self) -> TwistArrays:
+        """The material frame's arrays (the ``tw_*`` fields, same objects)."""
+        return twist_view(self)
 
 
 @dataclass(frozen=True)
@@ -57,6 +82,12 @@ class CableModel:
     arrays: ModelArrays
     x0: np.ndarray  # initial node positions [m], (n, 3)
 
+    def __post_init__(self) -> None:
+        tw = self.arrays.tw
+        if tw.normal.shape[0]:  # the held ends' section axes before the first sample
+            tw.normal[:] = np.stack([self.first.normal, self.last.normal])
+            tw.clamp[:] = tw.normal[0]
+
     @property
     def n(self) -> int:
         return self.spec.n_masses
@@ -70,6 +101,7 @@ class CableModel:
         ends: tuple[str, str] = ("clamped", "clamped"),
         motion: Sequence[Motion] = (),
         gravity: Sequence[float] = STANDARD_GRAVITY,
+        roll: Sequence[float] = (0.0, 0.0),
     ) -> "CableModel":
         """A cable laid straight at rest length from ``start`` along ``direction``.
 
@@ -81,6 +113,9 @@ class CableModel:
                 end holds the initial tangent ``direction``.
             motion: prescribed moves of held ends.
             gravity: gravitational acceleration [m/s^2].
+            roll: angles [rad] by which the first and last clamp hold the section turned about
+                ``direction`` from :func:`~bullet_dlo.core.boundary.default_normal` (a cable with a
+                material frame only: different rolls start it twisted, in twist equilibrium).
         """
         start_v = check_vector3("layout start", start)
         dir_v = check_vector3("layout direction", direction, unit=True)
@@ -90,18 +125,38 @@ class CableModel:
         n = spec.n_masses
         x0 = start_v + np.outer(np.arange(n) * spec.rest_length, dir_v)
         moves = tuple(motion)
-        first = EndHolder(ends[0], x0[0].copy(), dir_v.copy(), tuple(m for m in moves if m.end == "first"))
-        last = EndHolder(ends[1], x0[-1].copy(), dir_v.copy(), tuple(m for m in moves if m.end == "last"))
+        if len(roll) != 2:
+            raise ParameterError("roll must give two angles [rad]: (first, last)")
+        d1 = default_normal(dir_v)
+        d2 = np.cross(dir_v, d1)
+        normals = [math.cos(float(r)) * d1 + math.sin(float(r)) * d2 for r in roll]
+        first = EndHolder(ends[0], x0[0].copy(), dir_v.copy(), tuple(m for m in moves if m.end == "first"), normals[0])
+        last = EndHolder(ends[1], x0[-1].copy(), dir_v.copy(), tuple(m for m in moves if m.end == "last"), normals[1])
         return cls(spec, first, last, grav, build_arrays(spec, first.mode, last.mode, grav), x0)
 
     # ----- helpers used by the engines ---------------------------------------------------
     def initial_state(self) -> "CableState":
-        """State at rest in the initial layout, t = 0."""
+        """State at rest in the initial layout, t = 0 (a twisting cable's frame is rebuilt from it at first use)."""
+        self.reset_twist()
         return CableState(self.x0.copy(), np.zeros_like(self.x0), 0.0)
 
+    def reset_twist(self) -> None:
+        """Have the kernels rebuild the twist state (frames, twist angles in equilibrium, zero spin) from
+        the positions they next see. A run started from an explicit state keeps the twist state the
+        model's last run left (so a run continued from its final state continues its twist) unless
+        this is called first."""
+        self.arrays.tw.flag[:] = 0
+
+    @property
+    def twist(self) -> TwistArrays:
+        """The material frame's parameters and state (empty without twist)."""
+        return self.arrays.tw
+
     def holder_plan(self) -> HolderPlan:
-        """Start poses and motion tables of both ends, as the kernels take them."""
-        return holder_plan(self.first, self.last)
+        """Start poses and motion tables of both ends, as the kernels take them (with a material frame,
+        the samplers also turn the section axes, into ``arrays.tw.normal``)."""
+        tw = self.arrays.tw
+        return holder_plan(self.first, self.last, tw.normal if tw.normal.shape[0] else None)
 
 
 def build_arrays(spec: CableSpec, first_mode: str, last_mode: str, gravity: np.ndarray) -> ModelArrays:
@@ -113,6 +168,7 @@ def build_arrays(spec: CableSpec, first_mode: str, last_mode: str, gravity: np.n
     held = np.zeros(n, dtype=np.bool_)
     held[0] = first_mode != "free"
     held[-1] = held[-1] or last_mode != "free"
+    tw = twist_arrays(spec, first_mode, last_mode) if spec.twist_enabled else _NO_TWIST
     return ModelArrays(
         mass=spec.point_masses(),
         damp=spec.damping_coefficients(),
@@ -124,7 +180,25 @@ def build_arrays(spec: CableSpec, first_mode: str, last_mode: str, gravity: np.n
         held=held,
         c_stretch=np.full(n - 1, spec.stretch_damping),
         c_bend=k_bend * spec.internal_damping,
+        **twist_fields(tw),
     )
+
+
+def twist_arrays(spec: CableSpec, first_mode: str, last_mode: str) -> TwistArrays:
+    """The material frame of ``spec`` (see :mod:`bullet_dlo.core.kernels.twist`): twist springs G J / l0
+    (a clamp node, half a Voronoi length, twice that with the default discretisation, as its bending
+    spring), anisotropic bending (E I1 - E I2) / (2 l0) at every bending node, segment inertia
+    rho J_p l0 with drag rate ``mass_damping_rate``, Kelvin-Voigt twist dampers k_t tau."""
+    n = spec.n_masses
+    clamp = spec.k_bend_clamp / spec.k_bend
+    ei1, ei2 = spec.bending_rigidities
+    k_twist = np.full(n, spec.k_twist)
+    k_aniso = np.full(n, 0.5 * (ei1 - ei2) / spec.rest_length)
+    for i, mode in ((0, first_mode), (n - 1, last_mode)):
+        k_twist[i] *= clamp if mode == "clamped" else 0.0
+        k_aniso[i] *= clamp if mode == "clamped" else 0.0
+    inertia = np.full(n - 1, spec.segment_inertia)
+    return make_twist(k_twist, k_twist * spec.internal_damping, k_aniso, inertia, spec.mass_damping_rate * inertia)
 
 
 @dataclass

@@ -18,6 +18,7 @@ import numpy as np
 from bullet_dlo.core.validate import ParameterError, check_in_range, check_int, check_nonnegative, check_positive
 
 DISCRETISATIONS = ("default", "paper")
+SECTIONS = ("round", "tube", "rectangle")
 
 
 @dataclass(frozen=True)
@@ -47,6 +48,17 @@ class CableSpec:
         discretisation: ``"default"`` (ends lumped with half a segment of mass, clamp nodes
             with the half-segment bending stiffness 2EI/l0: second-order static convergence)
             or ``"paper"`` (Lv et al. 2017: m_i = M/n, k_b = EI/l0 at every bending node).
+        section: cross-section shape: ``"round"`` (solid, diameter ``diameter``; the default),
+            ``"tube"`` (outer diameter ``diameter``, inner diameter ``inner_diameter``) or
+            ``"rectangle"`` (``width`` along the section's first axis d1, ``thickness`` along d2).
+            For a rectangle ``diameter`` is only the envelope the contact layers use (give the thickness).
+        inner_diameter: inner diameter of a tube [m], in [0, diameter); 0 for other sections.
+        width: rectangle width b [m] (along d1), > 0 for a rectangle; 0 for other sections.
+        thickness: rectangle thickness h [m] (along d2), > 0 for a rectangle; 0 for other sections.
+        twist: give the cable a material frame (a twist angle per segment, twist springs G J / l0,
+            the held ends' roll as a boundary condition; see :mod:`bullet_dlo.core.kernels.twist`).
+            Off by default: a round cable without it is today's model, result for result. A
+            non-round section always has it (:attr:`twist_enabled`).
     """
 
     length: float
@@ -61,6 +73,11 @@ class CableSpec:
     static_friction: float = 0.3
     poisson_ratio: float = 0.3
     discretisation: str = "default"
+    section: str = "round"
+    inner_diameter: float = 0.0
+    width: float = 0.0
+    thickness: float = 0.0
+    twist: bool = False
 
     def __post_init__(self) -> None:
         set_ = lambda k, v: object.__setattr__(self, k, v)  # noqa: E731 (frozen dataclass)
@@ -79,17 +96,108 @@ class CableSpec:
             raise ParameterError(
                 f"discretisation must be one of {', '.join(DISCRETISATIONS)}, got {self.discretisation!r}"
             )
+        self._check_section(set_)
+
+    def _check_section(self, set_: Any) -> None:
+        """Validate the section fields: each shape takes its own dimensions and no others."""
+        section = str(self.section).lower()
+        if section not in SECTIONS:
+            raise ParameterError(f"section must be one of {', '.join(SECTIONS)}, got {self.section!r}")
+        set_("section", section)
+        if not isinstance(self.twist, (bool, np.bool_)):
+            raise ParameterError(f"twist must be true or false, got {self.twist!r}")
+        set_("twist", bool(self.twist))
+        inner = check_nonnegative("inner_diameter", self.inner_diameter)
+        width = check_nonnegative("width", self.width)
+        thick = check_nonnegative("thickness", self.thickness)
+        if section == "tube":
+            if not inner < self.diameter:
+                raise ParameterError(f"inner_diameter must be in [0, diameter = {self.diameter}) [m], got {inner}")
+        elif inner != 0.0:
+            raise ParameterError(f"inner_diameter is for section: tube only (section is {section})")
+        if section == "rectangle":
+            check_positive("width", width)
+            check_positive("thickness", thick)
+        elif width != 0.0 or thick != 0.0:
+            raise ParameterError(f"width and thickness are for section: rectangle only (section is {section})")
+        set_("inner_diameter", inner)
+        set_("width", width)
+        set_("thickness", thick)
 
     # ----- derived continuum quantities -------------------------------------------------
     @property
     def area(self) -> float:
-        """Cross-section area A = pi d^2 / 4 [m^2]."""
+        """Cross-section area A [m^2]: pi d^2 / 4 (round), pi (d^2 - d_i^2) / 4 (tube), b h (rectangle)."""
+        if self.section == "tube":
+            return math.pi * (self.diameter**2 - self.inner_diameter**2) / 4.0
+        if self.section == "rectangle":
+            return self.width * self.thickness
         return math.pi * self.diameter**2 / 4.0
 
     @property
+    def second_moments(self) -> tuple[float, float]:
+        """Second moments of area (I1, I2) [m^4] about the section's axes d1 and d2.
+
+        round: pi d^4 / 64 each; tube: pi (d^4 - d_i^4) / 64 each; rectangle (width b along d1,
+        thickness h along d2): I1 = b h^3 / 12 (bending through the thickness), I2 = h b^3 / 12.
+        """
+        if self.section == "rectangle":
+            b, h = self.width, self.thickness
+            return b * h**3 / 12.0, h * b**3 / 12.0
+        if self.section == "tube":
+            i = math.pi * (self.diameter**4 - self.inner_diameter**4) / 64.0
+            return i, i
+        i = math.pi * self.diameter**4 / 64.0
+        return i, i
+
+    @property
     def second_moment(self) -> float:
-        """Second moment of area I = pi d^4 / 64 [m^4]."""
-        return math.pi * self.diameter**4 / 64.0
+        """Mean second moment of area I = (I1 + I2) / 2 [m^4]; pi d^4 / 64 for a round section."""
+        if self.section == "round":
+            return math.pi * self.diameter**4 / 64.0
+        i1, i2 = self.second_moments
+        return 0.5 * (i1 + i2)
+
+    @property
+    def polar_moment(self) -> float:
+        """Polar moment of area J_p = I1 + I2 [m^4] (the section's rotational inertia per length is rho J_p)."""
+        i1, i2 = self.second_moments
+        return i1 + i2
+
+    @property
+    def torsion_constant(self) -> float:
+        """Saint-Venant torsion constant J [m^4] (torque = G J dtheta/ds).
+
+        round: pi d^4 / 32; tube: pi (d^4 - d_i^4) / 32; rectangle with long side a and short side c:
+        a c^3 / 3 (1 - 0.63 c/a + 0.052 (c/a)^5) (Roark; within 0.5 % of the series solution for every
+        aspect ratio; thin strips: a c^3 / 3 (1 - 0.63 c/a)).
+        """
+        if self.section == "rectangle":
+            a, c = max(self.width, self.thickness), min(self.width, self.thickness)
+            r = c / a
+            return a * c**3 / 3.0 * (1.0 - 0.63 * r + 0.052 * r**5)
+        return self.polar_moment
+
+    @property
+    def shear_modulus(self) -> float:
+        """G = E / (2 (1 + nu)) [Pa]."""
+        return self.youngs_modulus / (2.0 * (1.0 + self.poisson_ratio))
+
+    @property
+    def torsional_rigidity(self) -> float:
+        """G J [N m^2]."""
+        return self.shear_modulus * self.torsion_constant
+
+    @property
+    def bending_rigidities(self) -> tuple[float, float]:
+        """(E I1, E I2) [N m^2] about the section's axes d1, d2."""
+        i1, i2 = self.second_moments
+        return self.youngs_modulus * i1, self.youngs_modulus * i2
+
+    @property
+    def twist_enabled(self) -> bool:
+        """Whether the model carries a material frame: ``twist`` asked for it or the section is not round."""
+        return self.twist or self.section != "round"
 
     @property
     def linear_density(self) -> float:
@@ -164,6 +272,16 @@ class CableSpec:
         return self.damping_rate + self.damping * self.n_masses / self.mass
 
     @property
+    def k_twist(self) -> float:
+        """Twist spring constant k_t = G J / l0 at interior nodes [N m/rad] (2 G J / l0 at a clamp)."""
+        return self.torsional_rigidity / self.rest_length
+
+    @property
+    def segment_inertia(self) -> float:
+        """Rotational inertia of one segment about its axis, rho J_p l0 [kg m^2]."""
+        return self.density * self.polar_moment * self.rest_length
+
+    @property
     def stretch_damping(self) -> float:
         """Kelvin-Voigt segment damper c_s = k_s tau = E A tau / l0 [N s/m]."""
         return self.k_stretch * self.internal_damping
@@ -174,8 +292,16 @@ class CableSpec:
         return replace(self, **changes)
 
     def to_dict(self) -> dict[str, Any]:
-        """Plain dict of the fields (for JSON/YAML/HDF5 attributes)."""
-        return asdict(self)
+        """Plain dict of the fields (for JSON/YAML/HDF5 attributes).
+
+        The section fields and ``twist`` appear only when they differ from a plain round cable, so an
+        old spec's dict (and every digest of it) is unchanged.
+        """
+        data = asdict(self)
+        for key, default in _SECTION_DEFAULTS.items():
+            if data[key] == default:
+                del data[key]
+        return data
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any]) -> "CableSpec":
@@ -205,6 +331,9 @@ class CableSpec:
         return preset("lv2017").with_(**overrides) if overrides else preset("lv2017")
 
 
+_SECTION_DEFAULTS: dict[str, Any] = {"section": "round", "inner_diameter": 0.0, "width": 0.0, "thickness": 0.0,
+                                      "twist": False}
+
 _PRESETS: dict[str, dict[str, Any]] = {
     "lv2017": dict(
         length=0.3, diameter=0.004, mass=0.03, youngs_modulus=126.0e6, n_masses=10,
@@ -226,4 +355,4 @@ def preset_names() -> list[str]:
     return sorted(_PRESETS)
 
 
-__all__ = ["CableSpec", "ParameterError", "preset", "preset_names", "DISCRETISATIONS"]
+__all__ = ["CableSpec", "ParameterError", "preset", "preset_names", "DISCRETISATIONS", "SECTIONS"]

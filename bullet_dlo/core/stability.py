@@ -19,6 +19,17 @@ A fixed-step method is stable when every mode is:
 * RK4:              |1 + z + z^2/2 + z^3/6 + z^4/24| <= 1 along the ray z = h lambda
                     (2 sqrt(2) / omega_max without damping)
 * implicit Euler, BDF2, implicit midpoint: A-stable, no limit for the linear problem.
+
+A cable with a material frame (issue 22) has two more kinds of modes. Anisotropic bending: the stiff
+axis's bending modes (E I2 > E I1 for a strip) are in :func:`stiffness_spectrum`, since the force
+Jacobian carries the anisotropic bending (exact about a straight cable), so :func:`critical_dt` covers
+them. Twist: n - 1 torsional modes, a chain of segment inertias I = rho J_p l0 and springs G J / l0, up to
+omega_t = (2 / l0) sqrt(G J / (rho J_p)) (:func:`twist_frequency`; for a round section the torsion
+wave speed sqrt(G / rho) over half a segment, typically 10-100x the highest bending frequency). Every
+method advances the twist by an implicit Euler sub-step (see :mod:`bullet_dlo.core.kernels.steppers`),
+unconditionally stable, so the twist modes set no critical step; they are damped by drag at c like the
+other modes and by Kelvin-Voigt twist dampers at tau omega^2 (at steps h >> 1/omega_t the sub-step
+leaves the twist quasi-static, which is what a rod with a material frame does at those time scales).
 """
 from __future__ import annotations
 
@@ -31,6 +42,7 @@ from scipy.linalg import eigvals_banded
 from bullet_dlo.core.integrators import get_integrator
 from bullet_dlo.core.kernels.forces import force_jacobian
 from bullet_dlo.core.model import CableModel, CableState
+from bullet_dlo.core.spec import CableSpec
 
 
 def stiffness_spectrum(model: CableModel, state: CableState | None = None) -> np.ndarray:
@@ -67,6 +79,12 @@ def stiffness_spectrum(model: CableModel, state: CableState | None = None) -> np
                     if col >= row:
                         ab[half + row - col, col] = block[r, c]
     return np.sort(eigvals_banded(ab, lower=False))
+
+
+def twist_frequency(spec: CableSpec) -> float:
+    """Highest twist-mode angular frequency [rad/s] of a cable with a material frame:
+    (2 / l0) sqrt(G J / (rho J_p)) (the twist chain's top mode: segment inertia rho J_p l0, springs G J / l0)."""
+    return 2.0 / spec.rest_length * math.sqrt(spec.torsional_rigidity / (spec.density * spec.polar_moment))
 
 
 def _rk4_limit_on_ray(direction: complex) -> float:

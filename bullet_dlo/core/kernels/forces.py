@@ -20,6 +20,10 @@ Damping: drag -c_i v_i per node and Kelvin-Voigt dampers on stretch and bending
 (:func:`internal_damping_forces`), all from the Rayleigh function :func:`dissipation`; their
 velocity Jacobian is :func:`add_damping_jacobian` (KV) plus -diag(c) (drag).
 
+Material frame (issue 22, opt-in: ``ModelArrays.tw`` non-empty): twist springs and the anisotropic
+part of the bending energy of :mod:`bullet_dlo.core.kernels.twist` join the energy, the forces, the
+Jacobian and the clamp moments; ``k_bend`` then holds the mean of the two bending constants.
+
 Jacobian storage: block-banded, ``jac[i, o] = dF_i / dx_{i+o-2}`` with shape (n, 5, 3, 3)
 (bending couples nodes up to two apart). ``definite=True`` drops the compressive part of the
 stretch Hessian (the usual filter that keeps M + h^2 K positive definite for implicit steps);
@@ -31,6 +35,15 @@ import math
 
 import numpy as np
 from numba import njit
+
+from bullet_dlo.core.kernels.twist import (
+    add_twist_forces,
+    add_twist_jacobian,
+    has_twist,
+    twist_clamp_torque,
+    twist_energy,
+    twist_kinetic,
+)
 
 BAND = 2  # block half-bandwidth of the force Jacobian
 
@@ -96,6 +109,8 @@ def internal_energy(m, x, dirs):
         a0, a1, a2, b0, b1, b2 = _node_edges(x, i, dirs)
         theta = _angle_terms(a0, a1, a2, b0, b1, b2)[0]
         e += 0.5 * k * theta * theta
+    if has_twist(m):
+        e += twist_energy(m, x, dirs)
     return e
 
 
@@ -106,6 +121,8 @@ def mechanical_energy(m, x, v, dirs):
     for i in range(x.shape[0]):
         for j in range(3):
             e += 0.5 * m.mass[i] * v[i, j] * v[i, j] - m.mass[i] * m.gravity[j] * x[i, j]
+    if has_twist(m):
+        e += twist_kinetic(m)
     return e
 
 
@@ -152,6 +169,8 @@ def internal_forces(m, x, dirs, out):
             out[i + 1, 0] -= gbx
             out[i + 1, 1] -= gby
             out[i + 1, 2] -= gbz
+    if has_twist(m):
+        add_twist_forces(m, x, dirs, out)
 
 
 @njit(cache=True, error_model="numpy")
@@ -181,6 +200,8 @@ def clamp_torque(m, x, v, dirs, end):
     out[2] = k * ratio * (ux * wy - uy * wx)
     if _has_internal_damping(m):
         out += clamp_damping_torque(m, x, v, dirs, end)
+    if has_twist(m):
+        out += twist_clamp_torque(m, x, dirs, end)
     return out
 
 
@@ -285,6 +306,8 @@ def force_jacobian(m, x, dirs, definite, jac):
                     jac[i + 1, 0, r, col] += hba
                     jac[i + 1, 1, r, col] -= hba - hbb
                     jac[i + 1, 2, r, col] -= hbb
+    if has_twist(m):
+        add_twist_jacobian(m, x, dirs, jac)
 
 
 @njit(cache=True, error_model="numpy")

@@ -40,6 +40,11 @@ class HolderPlan(NamedTuple):
     [m] (3 per coefficient) and then for the rotation vector [rad]], (k, 38);
     sines_first, sines_last: rows [start s, duration s (inf: forever), ramp s, frequency Hz,
     phase rad, amplitude m (3), rotation amplitude rad (3)], (k, 11). k = 0: none of that kind.
+    start_normal: the clamps' start section axis d1 (unit, normal to start_dir), (2, 3);
+    normal: where :func:`sample_holders` writes d1 turned with the clamp at the three sample times,
+    (3, 2, 3) = [sample, end, xyz]; shape (0, 2, 3) when the cable has no material frame (then the
+    roll about the cable axis is not tracked and nothing extra is computed). A twisting model's
+    arrays share this buffer (``ModelArrays.tw.normal``): it is how the roll reaches the step kernels.
     """
 
     start_pos: np.ndarray
@@ -50,6 +55,8 @@ class HolderPlan(NamedTuple):
     path_last: np.ndarray
     sines_first: np.ndarray
     sines_last: np.ndarray
+    start_normal: np.ndarray = np.zeros((2, 3))
+    normal: np.ndarray = np.zeros((0, 2, 3))
 
 
 class HeldSamples(NamedTuple):
@@ -104,8 +111,9 @@ def rotate(vec, rx, ry, rz):
 
 
 @njit(cache=True, error_model="numpy")
-def add_moves(moves, t, pos, vel, acc, direction):
-    """Add the minimum-jerk moves of a move table at time t [s] to pos/vel/acc, turning ``direction``."""
+def add_moves(moves, t, pos, vel, acc, direction, normal):
+    """Add the minimum-jerk moves of a move table at time t [s] to pos/vel/acc, turning ``direction``
+    (and ``normal``, the section axis, unless it is empty)."""
     for row in range(moves.shape[0]):
         start, dur = moves[row, 0], moves[row, 1]
         s, ds, dds = min_jerk((t - start) / dur)
@@ -115,6 +123,8 @@ def add_moves(moves, t, pos, vel, acc, direction):
             acc[j] += moves[row, 2 + j] * dds / (dur * dur)
         if s > 0.0:
             rotate(direction, moves[row, 5] * s, moves[row, 6] * s, moves[row, 7] * s)
+            if normal.shape[0] == 3:
+                rotate(normal, moves[row, 5] * s, moves[row, 6] * s, moves[row, 7] * s)
 
 
 @njit(cache=True, error_model="numpy")
@@ -129,7 +139,7 @@ def quintic(path, row, col, u):
 
 
 @njit(cache=True, error_model="numpy")
-def add_path(path, t, pos, vel, acc, direction):
+def add_path(path, t, pos, vel, acc, direction, normal):
     """Add the waypoint path (segment table) at time t [s]; before its first and after its last
     waypoint the end rests there."""
     k = path.shape[0]
@@ -152,6 +162,8 @@ def add_path(path, t, pos, vel, acc, direction):
             vel[j] += dp / dur
             acc[j] += ddp / (dur * dur)
     rotate(direction, quintic(path, lo, 20, u)[0], quintic(path, lo, 21, u)[0], quintic(path, lo, 22, u)[0])
+    if normal.shape[0] == 3:
+        rotate(normal, quintic(path, lo, 20, u)[0], quintic(path, lo, 21, u)[0], quintic(path, lo, 22, u)[0])
 
 
 @njit(cache=True, error_model="numpy")
@@ -171,8 +183,8 @@ def envelope(t, start, duration, ramp):
 
 
 @njit(cache=True, error_model="numpy")
-def add_sines(sines, t, pos, vel, acc, direction):
-    """Add the sines of a sine table at time t [s] to pos/vel/acc, turning ``direction``."""
+def add_sines(sines, t, pos, vel, acc, direction, normal):
+    """Add the sines of a sine table at time t [s] to pos/vel/acc, turning ``direction`` (and ``normal``)."""
     for row in range(sines.shape[0]):
         e, de, dde = envelope(t, sines[row, 0], sines[row, 1], sines[row, 2])
         if e == 0.0 and de == 0.0:
@@ -188,6 +200,8 @@ def add_sines(sines, t, pos, vel, acc, direction):
             vel[j] += sines[row, 5 + j] * df
             acc[j] += sines[row, 5 + j] * ddf
         rotate(direction, sines[row, 8] * f, sines[row, 9] * f, sines[row, 10] * f)
+        if normal.shape[0] == 3:
+            rotate(normal, sines[row, 8] * f, sines[row, 9] * f, sines[row, 10] * f)
 
 
 @njit(cache=True, error_model="numpy")
@@ -198,14 +212,19 @@ def held_pose(plan, end, t, samples, k):
     vel[:] = 0.0
     acc[:] = 0.0
     direction[:] = plan.start_dir[end]
-    if end == 0:
-        add_moves(plan.moves_first, t, pos, vel, acc, direction)
-        add_path(plan.path_first, t, pos, vel, acc, direction)
-        add_sines(plan.sines_first, t, pos, vel, acc, direction)
+    if plan.normal.shape[0] > 0:  # a material frame: turn the section axis d1 with the clamp
+        normal = plan.normal[k, end]
+        normal[:] = plan.start_normal[end]
     else:
-        add_moves(plan.moves_last, t, pos, vel, acc, direction)
-        add_path(plan.path_last, t, pos, vel, acc, direction)
-        add_sines(plan.sines_last, t, pos, vel, acc, direction)
+        normal = plan.start_normal[end, 0:0]
+    if end == 0:
+        add_moves(plan.moves_first, t, pos, vel, acc, direction, normal)
+        add_path(plan.path_first, t, pos, vel, acc, direction, normal)
+        add_sines(plan.sines_first, t, pos, vel, acc, direction, normal)
+    else:
+        add_moves(plan.moves_last, t, pos, vel, acc, direction, normal)
+        add_path(plan.path_last, t, pos, vel, acc, direction, normal)
+        add_sines(plan.sines_last, t, pos, vel, acc, direction, normal)
 
 
 @njit(cache=True, error_model="numpy")

@@ -6,6 +6,13 @@ t + h/2 and t + h (:class:`~bullet_dlo.core.kernels.holders.HeldSamples`). Scrat
 a :class:`Workspace` allocated once by :func:`make_workspace`, so no step allocates. Held
 nodes are kinematic: after every step they sit exactly at the prescribed pose. The method
 table (names, orders, defaults) is :mod:`bullet_dlo.core.integrators`.
+
+A cable with a material frame (``ModelArrays.tw``, :mod:`bullet_dlo.core.kernels.twist`) is advanced
+in two stages per step (staggered, Gauss-Seidel): the positions by the chosen method with the twist
+angles held (the twist springs and the anisotropic bending act on them through their exact gradients;
+the clamps' section axes at the method's evaluation time), then the twist angles by an implicit Euler
+sub-step with the new positions held (:func:`~bullet_dlo.core.kernels.twist.twist_step`). The coupling
+is first order in h whatever the method; the twist sub-step is unconditionally stable.
 """
 from __future__ import annotations
 
@@ -22,6 +29,7 @@ from bullet_dlo.core.kernels.forces import (
     internal_energy,
     total_forces,
 )
+from bullet_dlo.core.kernels.twist import has_twist, set_clamp, twist_ready, twist_step
 
 EXPLICIT_EULER, SYMPLECTIC_EULER, RK4, IMPLICIT_EULER, BDF2, IMPLICIT_MIDPOINT = range(6)
 
@@ -127,6 +135,7 @@ def _rk4_stage(m, x, v, h, samples, ws, stage, c):
     """
     prev = max(stage - 1, 0)
     k = (stage + 1) // 2
+    set_clamp(m, k)
     xs, vs = ws.x_stage, ws.v_stage
     for i in range(x.shape[0]):
         for j in range(3):
@@ -370,6 +379,11 @@ def advance(stepper, m, x, v, samples, ws, has_prev):
     return (0, True).
     """
     method, h = stepper.method, stepper.h
+    twisting = has_twist(m)
+    if twisting:
+        twist_ready(m, x, samples.dir[0])
+        set_clamp(m, 2 if method in (IMPLICIT_EULER, BDF2) else (1 if method == IMPLICIT_MIDPOINT else 0))
+    its, converged = 0, True
     if method == EXPLICIT_EULER:
         _explicit_euler(m, x, v, h, samples, ws)
     elif method == SYMPLECTIC_EULER:
@@ -377,5 +391,7 @@ def advance(stepper, m, x, v, samples, ws, has_prev):
     elif method == RK4:
         _rk4(m, x, v, h, samples, ws)
     else:
-        return _implicit(stepper, m, x, v, samples, ws, has_prev)
-    return 0, True
+        its, converged = _implicit(stepper, m, x, v, samples, ws, has_prev)
+    if twisting:
+        twist_step(m, x, samples.dir[2], h)
+    return its, converged

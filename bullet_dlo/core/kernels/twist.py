@@ -1,0 +1,633 @@
+"""Numba kernels of the material frame: twist angles, twist springs and anisotropic bending (issue 22).
+
+Design (after Bergou et al. 2008, "Discrete Elastic Rods", and Bergou et al. 2010, "Discrete
+Viscous Threads"). The centreline stays the chain of point masses x_i; each segment k (edge
+e_k = x_{k+1} - x_k, unit tangent t_k) carries an orthonormal *material frame* (t_k, m1_k, m2_k),
+m1_k along the section's first axis d1. It is stored, as in DER, as one scalar per segment on top
+of a *reference frame*:
+
+* the reference director r_k (unit, normal to t_k) is transported in **time** by parallel transport:
+  when t_k turns during a step, r_k turns with it by the minimal rotation taking the old tangent to
+  the new one (Bergou 2010; the space-parallel Bishop frame of Bergou 2008 would make every frame
+  depend on all edges before it and the Jacobian dense). The frames therefore cost O(n) and stay
+  local; they are state (``tan``, ``ref``), carried from step to step.
+* the twist angle theta_k [rad] turns the material frame about t_k away from the reference:
+  m1_k = cos theta_k r_k + sin theta_k (t_k x r_k), m2_k = t_k x m1_k. theta_k is a degree of
+  freedom with the rotational inertia of the segment about its axis, I_k = rho J_p l0 [kg m^2]
+  (J_p = I1 + I2, the section's polar moment), and an angular velocity omega_k [rad/s].
+* at node i between edges a (incoming) and b (outgoing) the *reference twist* psi_i is the signed
+  angle about t_b from the space-parallel transport of r_a onto edge b to r_b; it is kept
+  continuous in time (unwrapped against its last value, ``mref``), so a clamp may roll through any
+  number of turns. The discrete twist is m_i = theta_b - theta_a + psi_i (Bergou 2008, sec. 4.2).
+* a clamp is a virtual edge: tangent the clamp direction d, director the clamp's section axis
+  (the held end's ``normal``, turned with the gripper), twist angle 0. So a clamp holds the twist
+  (the twist spring at the clamp node, stiffness 2 G J / l0 for its half Voronoi length, like the
+  bending clamp spring 2 E I / l0), a pin or a free end does not (no spring: theta of the end segment
+  is free).
+
+Energies (k_t = G J / l0 at interior nodes, the bending constant k_b = E I / l0 as today):
+
+* twist: E_t = sum_i 1/2 k_t,i m_i^2;
+* bending: the turning-angle vector phi_i = beta_i (t_a x t_b)/|t_a x t_b| (|phi| = beta, the
+  variable of today's isotropic energy 1/2 k_b beta^2) resolved in the material frames of both
+  edges (DER averages the two, Bergou 2008 eq. 3): kappa_1 = phi . m1, kappa_2 = phi . m2 and
+  E_b = sum_i 1/4 sum_{k in (a, b)} (k1 kappa_1,k^2 + k2 kappa_2,k^2), k1 = E I1 / l0, k2 = E I2 / l0.
+  Since phi is normal to both tangents, kappa_1^2 + kappa_2^2 = beta^2 for either frame, so
+  E_b = 1/2 kbar beta^2 + Delta/4 sum_k (kappa_1,k^2 - kappa_2,k^2) with kbar = (k1 + k2)/2 and
+  Delta = (k1 - k2)/2: the isotropic part is today's bending spring (``k_bend`` holds kbar), this
+  module adds the anisotropic part, which vanishes for round and tube sections.
+
+Derivatives. With the reference frames transported in time, a variation of the edges turns each
+frame without spin about its tangent, so (Bergou 2008/2010) d psi_i / d e_a = kb_i / (2 |e_a|),
+d psi_i / d e_b = kb_i / (2 |e_b|) with the curvature binormal kb_i = 2 t_a x t_b / (1 + t_a . t_b),
+and d(phi . m)/dx = m^T dphi/dx (the frame's own turn contributes phi . dm = -(m . dt)(phi . t) = 0).
+These are exact at the state where the frames were last transported (the start of the step) and
+the usual DER reduction within a step. Forces on the nodes and the clamp moments (twist moment
+about the clamp axis included) are these gradients. The position Jacobian adds to today's exact
+isotropic bending Hessian the Gauss-Newton part of the anisotropic bending,
+Delta/2 sum_k (J1_k^T J1_k - J2_k^T J2_k) with J_j = m_j^T dphi/dx (exact about a straight cable,
+where together with the isotropic part it is 1/2 sum_k (k1 J1^T J1 + k2 J2^T J2), positive
+semi-definite); the terms proportional to the bending and twist stresses (and the twist-bending
+coupling of the positions) are left to Newton's iterations (see :mod:`~bullet_dlo.core.kernels.steppers`).
+
+Time integration: the twist angles are advanced after the positions in each step by an implicit
+Euler sub-step with the new positions held (a staggered, Gauss-Seidel coupling), solved by Newton on a
+tridiagonal system (:func:`twist_step`). The twist modes are stiff (omega ~ (1/l0) sqrt(G J / (rho J_p)),
+the torsion wave speed over a segment), so the sub-step is implicit for every method; it is
+unconditionally stable and damps twist waves the step cannot resolve (quasi-static twist at large
+steps, the regime of Bergou 2008 sec. 7). Damping acts on twist with the meaning it has on the other
+modes: drag -c I_k omega_k (a spinning segment decays as exp(-c t)) and Kelvin-Voigt twist dampers
+G J tau / l0 on dm/dt.
+
+State: the twist state lives in :class:`TwistArrays` (the model arrays' ``tw_*`` fields), the one mutable
+part of the model: built from the positions at the first use after ``flag[0]`` is set to 0
+(:meth:`bullet_dlo.core.model.CableModel.initial_state` does it): reference frames by space-parallel
+transport from the first clamp's section axis, twist angles in static equilibrium with the held ends.
+"""
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+import numpy as np
+from numba import njit
+
+
+class TwistArrays(NamedTuple):
+    """Material-frame parameters and state of a twisting cable (SI); empty arrays without twist.
+
+    The model arrays carry these as flat fields ``tw_<name>`` (every field of ``ModelArrays`` is an
+    array, which the Bullet coupling relies on when it copies them); :func:`twist_fields` makes them.
+
+    k_twist: twist spring constants [N m/rad], (n,) (index 0 / n-1: the clamp springs, 0 unless that
+    end is clamped); c_twist: Kelvin-Voigt twist dampers k_twist tau [N m s/rad], (n,);
+    k_aniso: anisotropic bending constant Delta = (k1 - k2)/2 [N m/rad^2] per bending node, (n,);
+    inertia: rotational inertia of each segment about its axis [kg m^2], (n-1,);
+    drag: twist drag c I_k [N m s/rad], (n-1,);
+    theta: twist angles [rad], (n-1,); omega: their rates [rad/s], (n-1,);
+    ref: reference directors (unit), (n-1, 3); tan: the tangents they were last transported to, (n-1, 3);
+    mref: reference twist at each node at the last transport (unwrapped) [rad], (n,);
+    normal: the clamps' section axis d1 at the three held-end sample times, (3, 2, 3) (shared with the
+    holder plan, which writes it); clamp: the clamps' section axis the force kernels use now, (2, 3);
+    flag: (1,) int, 0 = the state is to be built from the positions at its next use.
+    """
+
+    k_twist: np.ndarray
+    c_twist: np.ndarray
+    k_aniso: np.ndarray
+    inertia: np.ndarray
+    drag: np.ndarray
+    theta: np.ndarray
+    omega: np.ndarray
+    ref: np.ndarray
+    tan: np.ndarray
+    mref: np.ndarray
+    normal: np.ndarray
+    clamp: np.ndarray
+    flag: np.ndarray
+
+
+def no_twist() -> TwistArrays:
+    """The empty :class:`TwistArrays` of a cable without a material frame."""
+    e1, e2 = np.zeros(0), np.zeros((0, 3))
+    return TwistArrays(e1, e1, e1, e1, e1, e1, e1, e2, e2, e1, np.zeros((0, 2, 3)), np.zeros((2, 3)),
+                       np.zeros(1, dtype=np.int64))
+
+
+def make_twist(k_twist: np.ndarray, c_twist: np.ndarray, k_aniso: np.ndarray, inertia: np.ndarray,
+               drag: np.ndarray) -> TwistArrays:
+    """:class:`TwistArrays` with the given parameters and a zeroed state to be built at first use."""
+    n = k_twist.shape[0]
+    return TwistArrays(k_twist, c_twist, k_aniso, inertia, drag, np.zeros(n - 1), np.zeros(n - 1),
+                       np.zeros((n - 1, 3)), np.zeros((n - 1, 3)), np.zeros(n), np.zeros((3, 2, 3)),
+                       np.zeros((2, 3)), np.zeros(1, dtype=np.int64))
+
+
+def twist_fields(tw: TwistArrays) -> dict[str, np.ndarray]:
+    """The ``tw_<name>`` fields of the model arrays for ``tw``."""
+    return {f"tw_{k}": v for k, v in tw._asdict().items()}
+
+
+def twist_view(m: NamedTuple) -> TwistArrays:
+    """The :class:`TwistArrays` of model arrays ``m`` (the same array objects)."""
+    return TwistArrays(*(getattr(m, f"tw_{k}") for k in TwistArrays._fields))
+
+
+# ----- small vector helpers ---------------------------------------------------------------------
+@njit(cache=True, error_model="numpy", inline="always")
+def has_twist(m):
+    """Whether the model arrays ``m`` carry a material frame."""
+    return m.tw_k_twist.shape[0] > 0
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _wrap(a):
+    """Angle a [rad] wrapped into (-pi, pi]."""
+    return a - 2.0 * math.pi * math.floor((a + math.pi) / (2.0 * math.pi))
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _cross(a, b, out):
+    out[0] = a[1] * b[2] - a[2] * b[1]
+    out[1] = a[2] * b[0] - a[0] * b[2]
+    out[2] = a[0] * b[1] - a[1] * b[0]
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _dot(a, b):
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+
+
+@njit(cache=True, error_model="numpy")
+def _transport(u, t1, t2, out):
+    """out <- u parallel-transported from unit tangent t1 to unit tangent t2 (minimal rotation), then
+    made unit and normal to t2 (guards round-off drift). u must be normal to t1."""
+    c = _dot(t1, t2)
+    bx = t1[1] * t2[2] - t1[2] * t2[1]
+    by = t1[2] * t2[0] - t1[0] * t2[2]
+    bz = t1[0] * t2[1] - t1[1] * t2[0]
+    bu = bx * u[0] + by * u[1] + bz * u[2]
+    f = bu / (1.0 + c) if c > -1.0 + 1e-12 else 0.0
+    o0 = c * u[0] + (by * u[2] - bz * u[1]) + f * bx
+    o1 = c * u[1] + (bz * u[0] - bx * u[2]) + f * by
+    o2 = c * u[2] + (bx * u[1] - by * u[0]) + f * bz
+    d = o0 * t2[0] + o1 * t2[1] + o2 * t2[2]
+    o0 -= d * t2[0]
+    o1 -= d * t2[1]
+    o2 -= d * t2[2]
+    norm = math.sqrt(o0 * o0 + o1 * o1 + o2 * o2)
+    out[0], out[1], out[2] = o0 / norm, o1 / norm, o2 / norm
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _unit_edge(x, k, out):
+    """out <- unit tangent of edge k; returns its length [m]."""
+    dx, dy, dz = x[k + 1, 0] - x[k, 0], x[k + 1, 1] - x[k, 1], x[k + 1, 2] - x[k, 2]
+    length = math.sqrt(dx * dx + dy * dy + dz * dz)
+    out[0], out[1], out[2] = dx / length, dy / length, dz / length
+    return length
+
+
+# ----- node geometry ------------------------------------------------------------------------------
+# Scratch rows of g (12, 3): 0 t_a, 1 r_a, 2 t_b, 3 r_b, 4 m1_a, 5 m2_a, 6 m1_b, 7 m2_b, 8 phi,
+# 9 kb (curvature binormal), 10 transported r_a, 11 spare.
+@njit(cache=True, error_model="numpy")
+def node_geometry(m, x, dirs, theta, i, g):
+    """Frames, twist and curvature at node i into scratch ``g`` (see the row map above).
+
+    theta: twist angles to use [rad], (n-1,). Returns (m_i twist [rad], |e_a| [m], |e_b| [m],
+    ratio = beta/sin(beta), alpha = (sin - beta cos)/sin^3, c = cos(beta)); a clamp's virtual edge has
+    length 1 (its direction is a unit vector, as in the bending kernels) and twist angle 0.
+    """
+    n = x.shape[0]
+    ta, ra, tb, rb = g[0], g[1], g[2], g[3]
+    if i == 0:
+        la = 1.0
+        ta[:] = dirs[0]
+        _transport(m.tw_clamp[0], ta, ta, ra)  # (re-orthonormalised clamp axis)
+        th_a = 0.0
+    else:
+        la = _unit_edge(x, i - 1, ta)
+        _transport(m.tw_ref[i - 1], m.tw_tan[i - 1], ta, ra)
+        th_a = theta[i - 1]
+    if i == n - 1:
+        lb = 1.0
+        tb[:] = dirs[1]
+        _transport(m.tw_clamp[1], tb, tb, rb)
+        th_b = 0.0
+    else:
+        lb = _unit_edge(x, i, tb)
+        _transport(m.tw_ref[i], m.tw_tan[i], tb, rb)
+        th_b = theta[i]
+    # reference twist: ra carried onto edge b, signed angle to rb about tb, unwrapped against mref
+    pa = g[10]
+    _transport(ra, ta, tb, pa)
+    tmp = g[11]
+    _cross(pa, rb, tmp)
+    psi = math.atan2(_dot(tmp, tb), _dot(pa, rb))
+    mref = m.tw_mref[i] + _wrap(psi - m.tw_mref[i])
+    twist = th_b - th_a + mref
+    # material frames
+    ca, sa = math.cos(th_a), math.sin(th_a)
+    _cross(ta, ra, tmp)
+    for j in range(3):
+        g[4, j] = ca * ra[j] + sa * tmp[j]
+    _cross(ta, g[4], g[5])
+    cb, sb = math.cos(th_b), math.sin(th_b)
+    _cross(tb, rb, tmp)
+    for j in range(3):
+        g[6, j] = cb * rb[j] + sb * tmp[j]
+    _cross(tb, g[6], g[7])
+    # turning-angle vector phi = beta (ta x tb)/sin(beta) and curvature binormal 2 ta x tb/(1 + ta.tb)
+    c = _dot(ta, tb)
+    _cross(ta, tb, tmp)
+    s = math.sqrt(_dot(tmp, tmp))
+    beta = math.atan2(s, c)
+    if beta < 1e-3:
+        b2 = beta * beta
+        ratio = 1.0 + b2 / 6.0
+        alpha = 1.0 / 3.0 + 2.0 * b2 / 15.0
+    else:
+        ratio = beta / s
+        alpha = (s - beta * c) / (s * s * s)
+    for j in range(3):
+        g[8, j] = ratio * tmp[j]
+        g[9, j] = 2.0 * tmp[j] / (1.0 + c)
+    return twist, la, lb, ratio, alpha, c
+
+
+@njit(cache=True, error_model="numpy")
+def phi_jacobians(g, la, lb, ratio, alpha, c, pa, pb):
+    """Plain derivatives dphi/da, dphi/db (3, 3) of the turning-angle vector into pa, pb (from
+    :func:`node_geometry`'s scratch g): dphi/da = -alpha chi ga^T - (r/la)([w]x + chi u^T),
+    dphi/db = -alpha chi gb^T + (r/lb)([u]x - chi w^T), u = t_a, w = t_b, chi = u x w,
+    ga = (w - c u)/la, gb = (u - c w)/lb, r = beta/sin(beta)."""
+    u, w = g[0], g[2]
+    chi = np.empty(3)
+    _cross(u, w, chi)
+    for r in range(3):
+        for col in range(3):
+            ga = (w[col] - c * u[col]) / la
+            gb = (u[col] - c * w[col]) / lb
+            pa[r, col] = -alpha * chi[r] * ga - (ratio / la) * chi[r] * u[col]
+            pb[r, col] = -alpha * chi[r] * gb - (ratio / lb) * chi[r] * w[col]
+    fa, fb = -ratio / la, ratio / lb  # fa [w]x, fb [u]x
+    pa[0, 1] -= fa * w[2]
+    pa[0, 2] += fa * w[1]
+    pa[1, 0] += fa * w[2]
+    pa[1, 2] -= fa * w[0]
+    pa[2, 0] -= fa * w[1]
+    pa[2, 1] += fa * w[0]
+    pb[0, 1] -= fb * u[2]
+    pb[0, 2] += fb * u[1]
+    pb[1, 0] += fb * u[2]
+    pb[1, 2] -= fb * u[0]
+    pb[2, 0] -= fb * u[1]
+    pb[2, 1] += fb * u[0]
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _curvatures(g):
+    """Material curvatures (phi . m1, phi . m2) in the frames of edge a and edge b."""
+    phi = g[8]
+    return _dot(phi, g[4]), _dot(phi, g[5]), _dot(phi, g[6]), _dot(phi, g[7])
+
+
+# ----- state --------------------------------------------------------------------------------------
+@njit(cache=True, error_model="numpy")
+def twist_ready(m, x, dirs):
+    """Build the twist state from the positions x [m] if ``flag`` asks for it (else nothing).
+
+    Reference frames: space-parallel transport along the chain from the first clamp's section axis
+    (the first end's ``normal``; turned into the first edge), so every reference twist starts at 0
+    except at a second clamp; twist angles: static equilibrium with the clamps (:func:`twist_solve`),
+    zero rates.
+    """
+    if m.tw_flag[0] != 0:
+        return
+    m.tw_flag[0] = 1
+    n = x.shape[0]
+    m.tw_clamp[:, :] = m.tw_normal[0]
+    t = np.empty(3)
+    d0 = np.empty(3)
+    d0[:] = dirs[0]
+    prev_t = d0
+    prev_r = np.empty(3)
+    _transport(m.tw_clamp[0], d0, d0, prev_r)
+    for k in range(n - 1):
+        _unit_edge(x, k, t)
+        _transport(prev_r, prev_t, t, m.tw_ref[k])
+        m.tw_tan[k, :] = t
+        prev_t = m.tw_tan[k]
+        prev_r = m.tw_ref[k]
+    m.tw_theta[:] = 0.0
+    m.tw_omega[:] = 0.0
+    m.tw_mref[:] = 0.0
+    g = np.empty((12, 3))
+    for i in range(n):  # reference twists of the built frames (0 but at a second clamp)
+        m.tw_mref[i] = node_geometry(m, x, dirs, m.tw_theta, i, g)[0]
+    if m.tw_k_twist[0] != 0.0 or m.tw_k_twist[n - 1] != 0.0:
+        twist_solve(m, x, dirs, 1.0, False, m.tw_mref)
+
+
+@njit(cache=True, error_model="numpy")
+def set_clamp(m, k):
+    """Make the clamps' section axis of held-end sample k (0: t, 1: t + h/2, 2: t + h) the current one."""
+    if has_twist(m):
+        m.tw_clamp[:, :] = m.tw_normal[k]
+
+
+@njit(cache=True, error_model="numpy")
+def update_frames(m, x, dirs):
+    """Transport the reference frames to the tangents of x (time-parallel) and store the new
+    (unwrapped) reference twists; returns nothing. Call once per step, after the positions moved."""
+    n = x.shape[0]
+    t = np.empty(3)
+    r = np.empty(3)
+    for k in range(n - 1):
+        _unit_edge(x, k, t)
+        _transport(m.tw_ref[k], m.tw_tan[k], t, r)
+        m.tw_ref[k, :] = r
+        m.tw_tan[k, :] = t
+    g = np.empty((12, 3))
+    for i in range(n):
+        psi = node_geometry(m, x, dirs, m.tw_theta, i, g)[0] - _theta_diff(m, i, n)
+        m.tw_mref[i] = psi
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _theta_diff(m, i, n):
+    """theta_b - theta_a at node i (clamp edges have theta 0)."""
+    th_b = m.tw_theta[i] if i < n - 1 else 0.0
+    th_a = m.tw_theta[i - 1] if i > 0 else 0.0
+    return th_b - th_a
+
+
+# ----- energy, forces, Jacobian, clamp moments ------------------------------------------------------
+@njit(cache=True, error_model="numpy")
+def twist_energy(m, x, dirs):
+    """Twist energy plus the anisotropic part of the bending energy [J] at the current twist angles."""
+    twist_ready(m, x, dirs)
+    n = x.shape[0]
+    g = np.empty((12, 3))
+    e = 0.0
+    for i in range(n):
+        kt, dl = m.tw_k_twist[i], m.tw_k_aniso[i]
+        if kt == 0.0 and dl == 0.0:
+            continue
+        twist = node_geometry(m, x, dirs, m.tw_theta, i, g)[0]
+        e += 0.5 * kt * twist * twist
+        if dl != 0.0:
+            p1a, p2a, p1b, p2b = _curvatures(g)
+            e += 0.25 * dl * (p1a * p1a - p2a * p2a + p1b * p1b - p2b * p2b)
+    return e
+
+
+@njit(cache=True, error_model="numpy")
+def twist_kinetic(m):
+    """Kinetic energy of the segments' spin [J]."""
+    e = 0.0
+    for k in range(m.tw_omega.shape[0]):
+        e += 0.5 * m.tw_inertia[k] * m.tw_omega[k] * m.tw_omega[k]
+    return e
+
+
+@njit(cache=True, error_model="numpy")
+def _node_edge_gradients(g, twist, la, lb, ratio, alpha, c, dl, kt, ga, gb, pa, pb):
+    """dE/de_a, dE/de_b [N] of node i's twist and anisotropic bending energies into ga, gb (3,)."""
+    ft = kt * twist
+    for j in range(3):
+        ga[j] = ft * g[9, j] / (2.0 * la)
+        gb[j] = ft * g[9, j] / (2.0 * lb)
+    if dl != 0.0:
+        p1a, p2a, p1b, p2b = _curvatures(g)
+        q = np.empty(3)
+        for j in range(3):
+            q[j] = 0.5 * dl * (p1a * g[4, j] - p2a * g[5, j] + p1b * g[6, j] - p2b * g[7, j])
+        phi_jacobians(g, la, lb, ratio, alpha, c, pa, pb)
+        for j in range(3):
+            ga[j] += pa[0, j] * q[0] + pa[1, j] * q[1] + pa[2, j] * q[2]
+            gb[j] += pb[0, j] * q[0] + pb[1, j] * q[1] + pb[2, j] * q[2]
+
+
+@njit(cache=True, error_model="numpy")
+def add_twist_forces(m, x, dirs, out):
+    """out += -dE/dx [N] of the twist and anisotropic bending energies (twist angles held), (n, 3)."""
+    twist_ready(m, x, dirs)
+    n = x.shape[0]
+    g = np.empty((12, 3))
+    ga, gb = np.empty(3), np.empty(3)
+    pa, pb = np.empty((3, 3)), np.empty((3, 3))
+    for i in range(n):
+        kt, dl = m.tw_k_twist[i], m.tw_k_aniso[i]
+        if kt == 0.0 and dl == 0.0:
+            continue
+        twist, la, lb, ratio, alpha, c = node_geometry(m, x, dirs, m.tw_theta, i, g)
+        _node_edge_gradients(g, twist, la, lb, ratio, alpha, c, dl, kt, ga, gb, pa, pb)
+        if i > 0:  # e_a = x_i - x_{i-1}
+            for j in range(3):
+                out[i - 1, j] += ga[j]
+                out[i, j] -= ga[j]
+        if i < n - 1:  # e_b = x_{i+1} - x_i
+            for j in range(3):
+                out[i, j] += gb[j]
+                out[i + 1, j] -= gb[j]
+
+
+@njit(cache=True, error_model="numpy")
+def add_twist_jacobian(m, x, dirs, jac):
+    """jac += the Gauss-Newton part of -d2E/dx2 of the anisotropic bending [N/m] (block-banded
+    (n, 5, 3, 3), as :func:`~bullet_dlo.core.kernels.forces.force_jacobian`): -Delta/2 sum_k
+    (J1_k^T J1_k - J2_k^T J2_k), J_j = m_j^T dphi/d(a, b). No-op for round and tube sections."""
+    twist_ready(m, x, dirs)
+    n = x.shape[0]
+    g = np.empty((12, 3))
+    pa, pb = np.empty((3, 3)), np.empty((3, 3))
+    jrow = np.empty((4, 6))
+    hb = np.empty((6, 6))
+    for i in range(n):
+        dl = m.tw_k_aniso[i]
+        if dl == 0.0:
+            continue
+        twist, la, lb, ratio, alpha, c = node_geometry(m, x, dirs, m.tw_theta, i, g)
+        phi_jacobians(g, la, lb, ratio, alpha, c, pa, pb)
+        for r in range(4):  # rows: m1_a, m2_a, m1_b, m2_b
+            d = g[4 + r]
+            for col in range(3):
+                jrow[r, col] = d[0] * pa[0, col] + d[1] * pa[1, col] + d[2] * pa[2, col]
+                jrow[r, 3 + col] = d[0] * pb[0, col] + d[1] * pb[1, col] + d[2] * pb[2, col]
+        for r in range(6):
+            for col in range(6):
+                hb[r, col] = 0.5 * dl * (jrow[0, r] * jrow[0, col] - jrow[1, r] * jrow[1, col]
+                                         + jrow[2, r] * jrow[2, col] - jrow[3, r] * jrow[3, col])
+        _scatter_node_hessian(jac, i, n, hb)
+
+
+@njit(cache=True, error_model="numpy")
+def _scatter_node_hessian(jac, i, n, hb):
+    """jac -= the node Hessian hb (6, 6) over (e_a, e_b) mapped onto nodes i-1, i, i+1 (clamp edges fixed)."""
+    for r in range(3):
+        for col in range(3):
+            haa, hab = hb[r, col], hb[r, 3 + col]
+            hba, hbb = hb[3 + r, col], hb[3 + r, 3 + col]
+            if i == 0:
+                jac[0, 2, r, col] -= hbb
+                jac[0, 3, r, col] += hbb
+                jac[1, 1, r, col] += hbb
+                jac[1, 2, r, col] -= hbb
+            elif i == n - 1:
+                jac[n - 2, 2, r, col] -= haa
+                jac[n - 2, 3, r, col] += haa
+                jac[n - 1, 1, r, col] += haa
+                jac[n - 1, 2, r, col] -= haa
+            else:
+                jac[i - 1, 2, r, col] -= haa
+                jac[i - 1, 3, r, col] -= hab - haa
+                jac[i - 1, 4, r, col] += hab
+                jac[i, 1, r, col] -= hba - haa
+                jac[i, 2, r, col] -= haa - hab - hba + hbb
+                jac[i, 3, r, col] -= hab - hbb
+                jac[i + 1, 0, r, col] += hba
+                jac[i + 1, 1, r, col] -= hba - hbb
+                jac[i + 1, 2, r, col] -= hbb
+
+
+@njit(cache=True, error_model="numpy")
+def twist_clamp_torque(m, x, dirs, end):
+    """Moment [N m] the twist springs and the anisotropic bending exert on the clamp at ``end`` (0 first,
+    1 last), world frame: the part today's :func:`~bullet_dlo.core.kernels.forces.clamp_torque` (isotropic
+    bending) does not hold. About the clamp axis d: +k_t m_0 (first) or -k_t m_{n-1} (last), the
+    torsion torque, minus Delta kappa_1 kappa_2 of the clamp's own frame; normal to d: -d x dE/dd."""
+    out = np.zeros(3)
+    n = x.shape[0]
+    i = 0 if end == 0 else n - 1
+    kt, dl = m.tw_k_twist[i], m.tw_k_aniso[i]
+    if kt == 0.0 and dl == 0.0:
+        return out
+    twist_ready(m, x, dirs)
+    g = np.empty((12, 3))
+    ga, gb = np.empty(3), np.empty(3)
+    pa, pb = np.empty((3, 3)), np.empty((3, 3))
+    twist, la, lb, ratio, alpha, c = node_geometry(m, x, dirs, m.tw_theta, i, g)
+    _node_edge_gradients(g, twist, la, lb, ratio, alpha, c, dl, kt, ga, gb, pa, pb)
+    d = g[0] if end == 0 else g[2]
+    gd = ga if end == 0 else gb  # dE/dd (the clamp direction plays edge a at the first end, b at the last)
+    spin = kt * twist if end == 0 else -kt * twist
+    if dl != 0.0:
+        p1a, p2a, p1b, p2b = _curvatures(g)
+        spin -= dl * (p1a * p2a if end == 0 else p1b * p2b)
+    out[0] = -(d[1] * gd[2] - d[2] * gd[1]) + spin * d[0]
+    out[1] = -(d[2] * gd[0] - d[0] * gd[2]) + spin * d[1]
+    out[2] = -(d[0] * gd[1] - d[1] * gd[0]) + spin * d[2]
+    return out
+
+
+# ----- the twist sub-step ---------------------------------------------------------------------------
+@njit(cache=True, error_model="numpy")
+def _theta_gradient(m, x, dirs, theta, grad, hdiag):
+    """grad <- dE/dtheta [N m] at twist angles ``theta`` (positions x held); hdiag <- the anisotropic
+    part of d2E/dtheta2 (diagonal), filtered to >= 0 (keeps the Newton matrix positive definite)."""
+    n = x.shape[0]
+    g = np.empty((12, 3))
+    grad[:] = 0.0
+    hdiag[:] = 0.0
+    for i in range(n):
+        kt, dl = m.tw_k_twist[i], m.tw_k_aniso[i]
+        if kt == 0.0 and dl == 0.0:
+            continue
+        twist = node_geometry(m, x, dirs, theta, i, g)[0]
+        if i > 0:  # dm_i/dtheta_{i-1} = -1
+            grad[i - 1] -= kt * twist
+        if i < n - 1:
+            grad[i] += kt * twist
+        if dl != 0.0:
+            p1a, p2a, p1b, p2b = _curvatures(g)
+            if i > 0:  # d/dtheta (k1 p1^2 + k2 p2^2)/4 -> Delta p1 p2; second derivative Delta (p2^2 - p1^2)
+                grad[i - 1] += dl * p1a * p2a
+                hdiag[i - 1] += max(dl * (p2a * p2a - p1a * p1a), 0.0)
+            if i < n - 1:
+                grad[i] += dl * p1b * p2b
+                hdiag[i] += max(dl * (p2b * p2b - p1b * p1b), 0.0)
+
+
+@njit(cache=True, error_model="numpy")
+def twist_solve(m, x, dirs, h, dynamic, dref):
+    """Advance the twist angles by one implicit Euler step h [s] with the positions x held
+    (``dynamic``), or put them in static equilibrium (not ``dynamic``; h unused). Newton on the
+    tridiagonal system; linear (one iteration) for round and tube sections. Returns Newton iterations.
+
+    Dynamic: I (w' - w) + h (dE/dtheta(theta + h w') + c_d w' + dR/dw') = 0 with the Kelvin-Voigt rate
+    dm_i/dt = w'_b - w'_a + dref_i, dref [rad/s] (n,) the rate of the reference twist over the step
+    (the positions' and the clamps' share of the twist rate).
+    """
+    n = x.shape[0]
+    ns = n - 1
+    w_new = m.tw_omega.copy()
+    theta_try = np.empty(ns)
+    grad = np.empty(ns)
+    hd = np.empty(ns)
+    diag = np.empty(ns)
+    off = np.empty(ns)
+    rhs = np.empty(ns)
+    aniso = np.max(np.abs(m.tw_k_aniso)) > 0.0
+    its = 0
+    scale = 0.0
+    for it in range(30):
+        its = it + 1
+        for k in range(ns):
+            theta_try[k] = m.tw_theta[k] + (h * w_new[k] if dynamic else w_new[k])
+        _theta_gradient(m, x, dirs, theta_try, grad, hd)
+        for k in range(ns):
+            kt_a, kt_b = m.tw_k_twist[k], m.tw_k_twist[k + 1]
+            if dynamic:
+                ct_a, ct_b = m.tw_c_twist[k], m.tw_c_twist[k + 1]
+                # Kelvin-Voigt: rates of the twists at node k (edges k-1, k) and k+1 (edges k, k+1)
+                wa = w_new[k - 1] if k > 0 else 0.0
+                wb = w_new[k + 1] if k < ns - 1 else 0.0
+                rate_a = w_new[k] - wa + dref[k]
+                rate_b = wb - w_new[k] + dref[k + 1]
+                kv = ct_a * rate_a - ct_b * rate_b
+                rhs[k] = -(m.tw_inertia[k] * (w_new[k] - m.tw_omega[k]) + h * (grad[k] + m.tw_drag[k] * w_new[k] + kv))
+                diag[k] = m.tw_inertia[k] + h * m.tw_drag[k] + h * (ct_a + ct_b) + h * h * (kt_a + kt_b + hd[k])
+                off[k] = -(h * ct_b + h * h * kt_b) if k < ns - 1 else 0.0
+            else:
+                rhs[k] = -grad[k]
+                diag[k] = kt_a + kt_b + hd[k]
+                off[k] = -kt_b if k < ns - 1 else 0.0
+        res = np.max(np.abs(rhs))
+        if it == 0:
+            scale = res
+        if res <= 1e-12 * scale or res == 0.0 or (it > 0 and not aniso):
+            its = it
+            break
+        # Thomas algorithm (symmetric positive definite tridiagonal: no pivoting)
+        for k in range(1, ns):
+            f = off[k - 1] / diag[k - 1]
+            diag[k] -= f * off[k - 1]
+            rhs[k] -= f * rhs[k - 1]
+        rhs[ns - 1] /= diag[ns - 1]
+        for k in range(ns - 2, -1, -1):
+            rhs[k] = (rhs[k] - off[k] * rhs[k + 1]) / diag[k]
+        for k in range(ns):
+            w_new[k] += rhs[k]
+    for k in range(ns):
+        if dynamic:
+            m.tw_theta[k] += h * w_new[k]
+            m.tw_omega[k] = w_new[k]
+        else:
+            m.tw_theta[k] += w_new[k]
+    return its
+
+
+@njit(cache=True, error_model="numpy")
+def twist_step(m, x, dirs, h):
+    """The twist part of a step of length h [s], after the positions x [m] reached the end of the step
+    (clamp directions ``dirs`` and section axes ``m.tw_normal[2]`` at t + h): transport the frames, then
+    the implicit twist sub-step (:func:`twist_solve`). The Kelvin-Voigt twist rate counts the change of the
+    reference twist over the step, (new - old)/h, as a known part of dm/dt."""
+    dref = m.tw_mref.copy()
+    m.tw_clamp[:, :] = m.tw_normal[2]
+    update_frames(m, x, dirs)
+    for i in range(dref.shape[0]):
+        dref[i] = (m.tw_mref[i] - dref[i]) / h
+    return twist_solve(m, x, dirs, h, True, dref)

@@ -1,0 +1,203 @@
+"""The material frame (issue 22) against closed forms: sections, gradients, pure torsion, the anisotropic
+cantilever strip, twist damping, and the opt-in (a round cable without twist has no frame at all)."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from bullet_dlo.core.boundary import Move
+from bullet_dlo.core.engine import simulate
+from bullet_dlo.core.kernels.forces import clamp_torque, internal_energy, internal_forces
+from bullet_dlo.core.kernels.twist import update_frames
+from bullet_dlo.core.model import CableModel
+from bullet_dlo.core.spec import CableSpec, ParameterError
+from bullet_dlo.core.stability import twist_frequency
+from bullet_dlo.core.statics import solve_static
+
+STRIP = CableSpec(length=0.3, diameter=0.001, mass=0.024, youngs_modulus=2e11, section="rectangle", width=0.01,
+                  thickness=0.001)
+
+
+# ----- sections and the spec ---------------------------------------------------------------------
+def test_section_constants():
+    d = 0.004
+    round_ = CableSpec.lv2017()
+    assert round_.second_moments == (math.pi * d**4 / 64,) * 2
+    assert round_.torsion_constant == pytest.approx(math.pi * d**4 / 32, rel=1e-15)
+    assert round_.shear_modulus == pytest.approx(126e6 / 2.6)
+    tube = round_.with_(section="tube", inner_diameter=0.003)
+    assert tube.area == pytest.approx(math.pi * (d**2 - 0.003**2) / 4)
+    assert tube.torsion_constant == pytest.approx(math.pi * (d**4 - 0.003**4) / 32)
+    b, h = 0.01, 0.001
+    assert STRIP.second_moments == pytest.approx((b * h**3 / 12, h * b**3 / 12))
+    # thin strip: J = b h^3 / 3 (1 - 0.63 h/b) to within the (h/b)^5 term
+    assert STRIP.torsion_constant == pytest.approx(b * h**3 / 3 * (1 - 0.63 * h / b), rel=1e-5)
+    square = STRIP.with_(width=h)
+    assert square.torsion_constant == pytest.approx(0.1406 * h**4, rel=2e-3)  # the series solution
+    assert STRIP.area == b * h and STRIP.twist_enabled and not round_.twist_enabled
+
+
+def test_section_validation_and_round_trip():
+    with pytest.raises(ParameterError, match="section"):
+        CableSpec.lv2017(section="hexagon")
+    with pytest.raises(ParameterError, match="inner_diameter"):
+        CableSpec.lv2017(section="tube", inner_diameter=0.004)
+    with pytest.raises(ParameterError, match="width"):
+        CableSpec.lv2017(section="rectangle", thickness=0.001)
+    with pytest.raises(ParameterError, match="rectangle only"):
+        CableSpec.lv2017(width=0.01)
+    with pytest.raises(ParameterError, match="twist"):
+        CableSpec.lv2017(twist="yes")
+    old = CableSpec.lv2017()
+    assert set(old.to_dict()) == {"length", "diameter", "mass", "youngs_modulus", "n_masses", "damping",
+                                  "damping_rate", "internal_damping", "friction", "static_friction",
+                                  "poisson_ratio", "discretisation"}  # old specs' dicts (and digests) unchanged
+    for spec in (old, old.with_(twist=True), old.with_(section="tube", inner_diameter=0.001), STRIP):
+        assert CableSpec.from_dict(spec.to_dict()) == spec
+
+
+def test_round_cable_without_twist_has_no_frame():
+    model = CableModel.straight(CableSpec.lv2017())
+    assert model.arrays.tw.k_twist.size == 0 and model.holder_plan().normal.shape[0] == 0
+
+
+# ----- gradients --------------------------------------------------------------------------------
+@pytest.mark.parametrize("spec", [CableSpec.lv2017(n_masses=7, twist=True), STRIP.with_(n_masses=7)],
+                         ids=["round", "strip"])
+def test_forces_and_clamp_moments_are_energy_gradients(spec):
+    """Forces -dE/dx and the clamp moment -dE/d(rotation) by central differences, at a bent, twisted state
+    (frames transported to it: the state where the DER gradients are exact)."""
+    model = CableModel.straight(spec, ends=("clamped", "clamped"), roll=(0.3, 1.1), gravity=(0, 0, 0))
+    m, x0 = model.arrays, model.initial_state().x
+    dirs = model.holder_plan().start_dir
+    internal_energy(m, x0, dirs)
+    rng = np.random.default_rng(1)
+    m.tw.theta[:] += 0.2 * rng.standard_normal(m.tw.theta.shape)
+    x = x0 + 0.01 * rng.standard_normal(x0.shape)
+    update_frames(m, x, dirs)
+    f = np.zeros_like(x)
+    internal_forces(m, x, dirs, f)
+    fd = np.zeros_like(x)
+    eps = 1e-7
+    for i in range(x.shape[0]):
+        for j in range(3):
+            xp, xm = x.copy(), x.copy()
+            xp[i, j] += eps
+            xm[i, j] -= eps
+            fd[i, j] = -(internal_energy(m, xp, dirs) - internal_energy(m, xm, dirs)) / (2 * eps)
+    assert np.abs(f - fd).max() <= 1e-6 * np.abs(fd).max()
+    for end in (0, 1):
+        tau = clamp_torque(m, x, np.zeros_like(x), dirs, end)
+        tau_fd = np.zeros(3)
+        for j in range(3):
+            e = []
+            for sign in (1, -1):
+                turn = Rotation.from_rotvec(sign * 1e-7 * np.eye(3)[j])
+                d2, c_old = dirs.copy(), m.tw.clamp[end].copy()
+                d2[end] = turn.apply(dirs[end])
+                m.tw.clamp[end] = turn.apply(c_old)
+                e.append(internal_energy(m, x, d2))
+                m.tw.clamp[end] = c_old
+            tau_fd[j] = -(e[0] - e[1]) / 2e-7
+        assert np.abs(tau - tau_fd).max() <= 1e-5 * np.abs(tau_fd).max()
+
+
+# ----- pure torsion -------------------------------------------------------------------------------
+@pytest.mark.parametrize("n", [3, 5, 10, 40])
+def test_pure_torsion_static_is_exact_at_every_n(n):
+    """Clamped-clamped straight cable, the last clamp turned by theta about the axis: torque G J theta / L
+    at both ends. The twist springs in series (two half-Voronoi clamp springs 2 G J / l0, n - 2 interior
+    G J / l0) are exact for any n: the discrete error is round-off (no order to measure)."""
+    spec = CableSpec.lv2017(n_masses=n, twist=True)
+    theta = 0.7
+    model = CableModel.straight(spec, ends=("clamped", "clamped"), roll=(0.0, theta), gravity=(0, 0, 0))
+    st = model.initial_state()
+    dirs = model.holder_plan().start_dir
+    expected = spec.torsional_rigidity * theta / spec.length
+    axis = dirs[0]
+    t0 = clamp_torque(model.arrays, st.x, st.v, dirs, 0)
+    t1 = clamp_torque(model.arrays, st.x, st.v, dirs, 1)
+    assert t0 @ axis == pytest.approx(expected, rel=1e-12)
+    assert t1 @ axis == pytest.approx(-expected, rel=1e-12)
+    assert np.linalg.norm(np.cross(t0, axis)) < 1e-12 * expected
+    assert internal_energy(model.arrays, st.x, dirs) == pytest.approx(0.5 * expected * theta, rel=1e-12)
+
+
+@pytest.mark.parametrize("integrator", ["implicit_euler", "bdf2", "implicit_midpoint"])
+def test_gripper_turned_about_the_cable_axis_feels_torsion(integrator):
+    """A clamp turned by 90 degrees about the cable axis in a run: the engine's end moments read
+    G J (pi/2) / L about the axis at both ends (within 1 %; the cable stays straight)."""
+    spec = CableSpec.lv2017(n_masses=11, twist=True, damping_rate=5.0, internal_damping=1e-3)
+    model = CableModel.straight(spec, ends=("clamped", "clamped"), gravity=(0, 0, 0),
+                                motion=[Move("last", rotation=(math.pi / 2, 0, 0), duration=0.4)])
+    res = simulate(model, integrator, 1e-3, 0.8)
+    assert res.stable
+    expected = spec.torsional_rigidity * (math.pi / 2) / spec.length
+    assert res.end_moments[0, 0] == pytest.approx(expected, rel=0.01)
+    assert res.end_moments[1, 0] == pytest.approx(-expected, rel=0.01)
+    assert np.allclose(res.x[-1], model.x0, atol=1e-9)
+
+
+# ----- anisotropic bending: the cantilever strip ---------------------------------------------------
+def _strip_tip_error(n: int, axis: int) -> float:
+    """Relative error of the tip deflection of a clamped strip under a tip load along ``axis`` (1: y, in
+    the width direction, stiff E I2; 2: z, through the thickness, weak E I1) against P L^3 / (3 E I)."""
+    spec = STRIP.with_(n_masses=n)
+    ei = spec.bending_rigidities[0 if axis == 2 else 1]
+    model = CableModel.straight(spec, ends=("clamped", "free"), start=(0, 0, 0), gravity=(0, 0, 0))
+    load = 1e-3 * 3 * ei / spec.length**2  # deflection 1e-3 L: geometric nonlinearity ~1e-6
+    f = np.zeros((n, 3))
+    f[-1, axis] = load
+    res = solve_static(model, f_ext=f)
+    assert res.converged
+    return res.x[-1, axis] / (load * spec.length**3 / (3 * ei)) - 1.0
+
+
+def test_cantilever_strip_bends_with_each_axis_stiffness_at_second_order():
+    errors = {n: (_strip_tip_error(n, 2), _strip_tip_error(n, 1)) for n in (5, 9, 17, 33)}
+    for n, (weak, stiff) in errors.items():
+        assert weak == pytest.approx(stiff, abs=1e-6)  # deflections in the ratio E I2 / E I1 = 100
+    assert abs(errors[9][0]) < 0.01 and abs(errors[17][0]) < 0.0025
+    for coarse, fine in ((5, 9), (9, 17), (17, 33)):
+        order = math.log(errors[coarse][0] / errors[fine][0]) / math.log((fine - 1) / (coarse - 1))
+        assert 1.95 < order < 2.05, order
+
+
+def test_strip_rolled_edge_on_in_a_run_sags_with_the_stiff_axis():
+    """A strip under gravity whose clamp rolls 90 degrees about the cable axis ends edge-on: the tip sag of
+    the stiff axis, w L^4 / (8 E I2) (about 100x less than flat), and the frame follows the clamp."""
+    spec = STRIP.with_(n_masses=17, damping_rate=20.0, internal_damping=1e-4)
+    model = CableModel.straight(spec, ends=("clamped", "free"), start=(0, 0, 0),
+                                motion=[Move("first", rotation=(math.pi / 2, 0, 0), start=0.05, duration=0.3)])
+    res = simulate(model, "implicit_euler", 1e-3, 0.8)
+    assert res.stable and res.newton_failures == 0
+    w = spec.mass * 9.81 / spec.length
+    sag = w * spec.length**4 / (8 * spec.bending_rigidities[1])
+    assert -res.x[-1, -1, 2] == pytest.approx(sag, rel=0.03)
+    assert model.twist.theta[-1] == pytest.approx(math.pi / 2, abs=2e-3)
+
+
+# ----- damping and stability ------------------------------------------------------------------------
+@pytest.mark.parametrize("n", [5, 20])
+def test_twist_drag_has_the_meaning_of_damping_rate(n):
+    """A free spinning cable (no clamps): every segment's spin decays as exp(-c t) at any n (implicit
+    Euler's (1 + c h)^-k, within 1 %)."""
+    c = 3.0
+    spec = CableSpec.lv2017(n_masses=n, twist=True, damping_rate=c)
+    model = CableModel.straight(spec, ends=("free", "free"), gravity=(0, 0, 0))
+    state = model.initial_state()
+    internal_energy(model.arrays, state.x, model.holder_plan().start_dir)  # build the frame, then spin it
+    model.twist.omega[:] = 10.0
+    res = simulate(model, "implicit_euler", 1e-3, 0.5, state=state)
+    assert res.stable
+    assert np.allclose(model.twist.omega, 10.0 * math.exp(-c * 0.5), rtol=0.01)
+
+
+def test_twist_mode_frequency():
+    spec = CableSpec.lv2017(n_masses=11, twist=True)
+    g, rho = spec.shear_modulus, spec.density
+    # round section: J = J_p, the torsion wave speed sqrt(G / rho); highest mode 2 c / l0
+    assert twist_frequency(spec) == pytest.approx(2.0 * math.sqrt(g / rho) / spec.rest_length, rel=1e-12)
