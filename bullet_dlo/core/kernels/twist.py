@@ -597,7 +597,7 @@ def twist_solve(m, x, dirs, h, dynamic, dref):
         res = np.max(np.abs(rhs))
         if it == 0:
             scale = res
-        if res <= 1e-12 * scale or res == 0.0 or (it > 0 and not aniso):
+        if res <= 1e-12 * scale or res == 0.0:
             its = it
             break
         # Thomas algorithm (symmetric positive definite tridiagonal: no pivoting)
@@ -610,6 +610,8 @@ def twist_solve(m, x, dirs, h, dynamic, dref):
             rhs[k] = (rhs[k] - off[k] * rhs[k + 1]) / diag[k]
         for k in range(ns):
             w_new[k] += rhs[k]
+        if not aniso:  # linear in theta: one Newton step is the solution
+            break
     for k in range(ns):
         if dynamic:
             m.tw_theta[k] += h * w_new[k]
