@@ -100,10 +100,19 @@ def _existing_ancestor(path: Path) -> Path:
     return p
 
 
+def _path_fits(name: str, p: Path) -> None:
+    """Refuse a path the file system cannot hold (a component over 255 bytes, the whole over 4096)."""
+    longest = max((len(part.encode()) for part in p.parts), default=0)
+    if longest > 255 or len(str(p.absolute()).encode()) > 4096:
+        raise ParameterError(f"{name} is too long for the file system (a name of at most 255 bytes, a path of at "
+                             f"most 4096)")
+
+
 def output_dir(name: str, path: str | os.PathLike) -> Path:
     """``path`` as a folder this process can create or write into, checked before any work starts;
     ParameterError naming the option ``name`` otherwise (a file, a folder under a file, read-only)."""
     p = Path(path)
+    _path_fits(name, p)
     if p.exists() and not p.is_dir():
         raise ParameterError(f"{name} {str(p)!r} is a file; give a folder")
     base = _existing_ancestor(p.absolute())
@@ -129,6 +138,7 @@ def output_file(name: str, path: str | os.PathLike) -> Path:
     """``path`` as a file this process can create or replace, checked before any work starts;
     ParameterError naming the option ``name`` otherwise (a folder, under a file, read-only)."""
     p = Path(path)
+    _path_fits(name, p)
     if p.is_dir():
         raise ParameterError(f"{name} {str(p)!r} is a folder; give a file name")
     if p.exists() and not os.access(p, os.W_OK):

@@ -4,7 +4,7 @@ from __future__ import annotations
 import pytest
 
 from bullet_dlo.config.capture import CaptureSpec
-from bullet_dlo.config.loader import load_yaml
+from bullet_dlo.config.loader import load_mapping, load_yaml
 from bullet_dlo.config.scene import Scene
 from bullet_dlo.core.validate import ParameterError
 
@@ -62,3 +62,31 @@ def test_unknown_local_tags_are_refused(tmp_path):
     path = tmp_path / "tag.yaml"
     path.write_text("seed: !seed 3\n")
     assert "only standard YAML tags are allowed" in one_line_error(CaptureSpec.from_yaml, path)
+
+
+def test_a_fifo_is_refused_without_blocking(tmp_path):
+    import os
+
+    fifo = tmp_path / "scene.yaml"
+    os.mkfifo(fifo)  # reading it would block until a writer comes
+    with pytest.raises(ParameterError, match="not a regular file"):
+        load_mapping(fifo, "scene file")
+
+
+def test_an_alias_bomb_is_refused_before_anything_walks_it(tmp_path):
+    """Seven levels of nine aliases: 600 bytes that expand to 9^7 = 4.8 million values."""
+    lines = ['a0: &a0 ["x","x","x","x","x","x","x","x","x"]']
+    lines += [f"a{k}: &a{k} [" + ",".join([f"*a{k - 1}"] * 9) + "]" for k in range(1, 7)]
+    bomb = tmp_path / "bomb.yaml"
+    bomb.write_text("\n".join(lines + ["cable: {length: *a6}"]))
+    with pytest.raises(ParameterError, match="expands to more than"):
+        load_mapping(bomb, "scene file")
+
+
+def test_an_output_name_too_long_for_the_file_system_is_one_line():
+    from bullet_dlo.config.schema import output_dir, output_file
+
+    with pytest.raises(ParameterError, match="--json is too long"):
+        output_file("--json", "x" * 300 + ".json")
+    with pytest.raises(ParameterError, match="--out is too long"):
+        output_dir("--out", "/tmp/" + "d/" * 2100)
