@@ -332,7 +332,8 @@ class PeerConfig:
 
 PEER_CONFIGS = (
     # MuJoCo's recommended (implicit) integrator for flex elasticity, at our own time steps and below
-    PeerConfig("mujoco", "discrete", (1 / 60, 1 / 240, 1e-3, 1e-4), (10, 20, 40, 80), (1 / 60, 1e-3), (10, 20)),
+    PeerConfig("mujoco", "discrete", (1 / 60, 1 / 240, 1e-3, 5e-4, 2e-4, 1e-4), (10, 20, 40, 80), (1 / 60, 1e-3),
+               (10, 20)),
     # explicit RK4: near and below its stability limit for this stiff rod
     PeerConfig("mujoco", "RK4", (1e-4, 1e-5), (10, 20), (1e-4,), (10, 20)),
     # PositionVerlet: stable up to ~5e-7 s for this stiff rod whatever n; 7e-7 s shows the limit
@@ -398,10 +399,11 @@ class PeerCase:
 
 
 def peer_cases(available_peers: dict[str, bool], quick: bool = False,
-               configs: Sequence[PeerConfig] = PEER_CONFIGS) -> list[PeerCase]:
-    """Every configuration of ``configs`` whose peer is available, on S1 and S2 (--quick: fewer)."""
+               configs: Sequence[PeerConfig] | None = None) -> list[PeerCase]:
+    """Every configuration of ``configs`` (default :data:`PEER_CONFIGS`) whose peer is available, on S1
+    and S2 (--quick: fewer)."""
     cases = []
-    for c in configs:
+    for c in PEER_CONFIGS if configs is None else configs:
         if not available_peers.get(c.peer):
             continue
         dts, ns = (c.quick_dts, c.quick_n_masses) if quick else (c.dts, c.n_masses)
