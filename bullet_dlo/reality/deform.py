@@ -140,13 +140,16 @@ def trial_files(folder: Path, what: str) -> list[Path]:
 class Numerics:
     """How the model runs: integrator, n point masses, step dt [s], waypoint knots per second
     taken from the recorded held pairs [Hz], and the held poses' smoothing window [frames]
-    (odd; 1: none; motion capture jitter turns into large accelerations otherwise)."""
+    (odd; 1: none; motion capture jitter turns into large accelerations otherwise); twist: give
+    the cable the core's material frame (twist springs with Poisson's ratio 0.3; the clamps' roll
+    follows the pairs by parallel transport, i.e. no roll is invented)."""
 
     integrator: str = "bdf2"
     n_masses: int = 21
     dt: float = 2e-3
     knot_rate: float = 50.0
     smooth: int = 5
+    twist: bool = False
 
     def __post_init__(self) -> None:
         check_int("n_masses", self.n_masses, 4, 2000)
@@ -157,13 +160,13 @@ class Numerics:
         check_int("smooth", self.smooth, 1, 51)
 
 
-def cable_spec(length: float, values: dict[str, float], n_masses: int) -> CableSpec:
+def cable_spec(length: float, values: dict[str, float], n_masses: int, twist: bool = False) -> CableSpec:
     """The core cable for ``values`` (bending_per_mass EI/(rho A) [m^4/s^2], damping_rate [1/s],
-    internal_damping [s]) with the guessed mass and diameter."""
+    internal_damping [s]) with the guessed mass and diameter, with a material frame if ``twist``."""
     probe = CableSpec(length=length, diameter=DIAMETER, mass=LINEAR_DENSITY * length, youngs_modulus=1.0)
     e = values["bending_per_mass"] * LINEAR_DENSITY / probe.second_moment
     return probe.with_(youngs_modulus=e, n_masses=n_masses, damping_rate=values["damping_rate"],
-                       internal_damping=values["internal_damping"])
+                       internal_damping=values["internal_damping"], twist=bool(twist))
 
 
 def smoothed(x: np.ndarray, window: int) -> np.ndarray:
@@ -228,7 +231,7 @@ def build_model(rec: MarkerRecording, values: dict[str, float], num: Numerics,
     markers' arc lengths along it [m] (negative / beyond the length for the outer held markers)."""
     s0 = rec.s[rec.first_pair[1] % rec.n_markers]
     s1 = rec.s[rec.last_pair[0] % rec.n_markers]
-    spec = cable_spec(float(s1 - s0), values, num.n_masses)
+    spec = cable_spec(float(s1 - s0), values, num.n_masses, num.twist)
     first, last = clamp_holder(rec, "first", num), clamp_holder(rec, "last", num)
     s_nodes = s0 + np.linspace(0.0, spec.length, spec.n_masses)
     x0, v0 = first_frames(rec, s_nodes, num)
@@ -409,7 +412,7 @@ def swing_test(values: dict[str, float], length: float, num: Numerics, damped: b
     between two clamps 0.6 L apart: released from the static shape under a sideways push of 20 % of its
     weight, the mid node's sideways motion fitted by log decrement of its peaks. ``damped``: with
     the fitted damping (else none: what is left is the integrator's numerical damping)."""
-    spec = cable_spec(length, values, num.n_masses)
+    spec = cable_spec(length, values, num.n_masses, num.twist)
     if not damped:
         spec = spec.with_(damping_rate=0.0, internal_damping=0.0)
     span = 0.6 * length
@@ -498,6 +501,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--integrator", default=Numerics.integrator,
                         choices=["bdf2", "implicit_midpoint", "implicit_euler"],
                         help="core integrator (bdf2: numerical damping ~1 %% of the fitted; implicit_euler ~10 %%)")
+    parser.add_argument("--twist", action="store_true",
+                        help="give the cable the core's material frame (twist springs; the clamps' roll by "
+                             "parallel transport of the held pairs: a marker pair does not fix it)")
     parser.add_argument("--max-train-trials", type=int, default=8,
                         help="train trials the fit uses, evenly spread over the folder (8)")
     parser.add_argument("--max-eval-trials", type=int, help="eval trials predicted (default: all)")
@@ -522,7 +528,7 @@ def main(args: argparse.Namespace) -> int:
     root = Path(args.dlo_dir)
     if not root.is_dir():
         raise ParameterError(f"DLO_DIR: {root} is not a folder (it must hold train/ and eval/ with *.pkl trials)")
-    num = Numerics(integrator=args.integrator, n_masses=args.n_masses, dt=args.dt)
+    num = Numerics(integrator=args.integrator, n_masses=args.n_masses, dt=args.dt, twist=bool(args.twist))
     most_train = check_int("max_train_trials", args.max_train_trials, 1)
     most_eval = None if args.max_eval_trials is None else check_int("max_eval_trials", args.max_eval_trials, 1)
     max_eval = check_int("max_evaluations", args.max_evaluations, 2)

@@ -172,3 +172,11 @@ def test_validate_deform_on_real_dlo3_beats_a_frozen_shape(tmp_path):
     assert set(out["trials"]["eval"]) and all(r["stable"] for r in out["trials"]["eval"].values())
     assert out["numerics"]["n_masses"] == 11 and out["cost"]["cpu_s_per_simulated_s"] > 0
     assert len(list((tmp_path / "plots").glob("*.png"))) == 2
+
+
+def test_twist_option_gives_the_cable_a_material_frame_and_keeps_eibyrhoa():
+    """--twist: the same EI/(rho A) and damping, with the core's material frame switched on."""
+    plain, twisted = cable_spec(0.8, HIDDEN, 11), cable_spec(0.8, HIDDEN, 11, twist=True)
+    assert twisted.twist_enabled and not plain.twist_enabled
+    assert math.isclose(twisted.bending_rigidity / twisted.linear_density, HIDDEN["bending_per_mass"], rel_tol=1e-12)
+    assert twisted.damping_rate == plain.damping_rate and twisted.internal_damping == plain.internal_damping
