@@ -30,6 +30,8 @@ Measured (``bullet-dlo validate deform ../shared/data/deform/DLOk --json OUT --i
 frozen shape: DLO1 12.2 mm (11.1-14.0; frozen 56.6), DLO2 7.7 mm (10.2; frozen 52.9), DLO3
 7.9 mm (9.9; frozen 48.4); train L1 11.6 / 7.5 / 7.9 mm (no overfit). DLO1's mean is carried by
 trial 67 (44 mm: the real cable swings over the top, the model's does not) and 61 (20 mm).
+With ``--twist`` (linearised intervals): 12.3 / 7.5 / 7.7 mm, within 0.2 mm of the above at 1.5x
+the cost: with the grippers' roll unknown and no rest curvature, twist hardly changes the shape.
 What limits the match: :data:`LIMITS`.
 """
 from __future__ import annotations
