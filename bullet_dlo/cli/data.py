@@ -204,7 +204,7 @@ def cmd_dataset_summary(args: argparse.Namespace) -> int:
         print(f"  {key:16s} {lo:.4g} .. {hi:.4g}")
     old = summary["old_tare_tilted"]
     if old:
-        print(f"WARNING: {len(old)} episodes ({_first(tuple(old))}) were recorded before payload compensation (bullet_dlo "
+        print(f"WARNING: {len(old)} of them ({_first(tuple(old))}) were recorded before payload compensation (bullet_dlo "
               f"< 0.3) and their grippers tilted: their wrist forces hold the hand's weight seen from the turned "
               f"sensor (up to tens of cable weights); re-capture them")
     print(f"quality histogram: {png}")
