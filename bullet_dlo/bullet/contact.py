@@ -80,6 +80,17 @@ class Store(NamedTuple):
     body: np.ndarray
 
 
+def _warn_child_links(client: int, body: int) -> None:
+    """Warn (never silently drop) when ``body`` has collision shapes on child links: only the base link's
+    primitives enter the contact model, and the cable's spheres are out of Bullet's collisions."""
+    links = [j for j in range(pb.getNumJoints(body, physicsClientId=client))
+             if pb.getCollisionShapeData(body, j, physicsClientId=client)]
+    if links:
+        warnings.warn(f"body {body}: collision shapes on {len(links)} child link(s) {links[:5]} are not handled by "
+                      f"the cable's contact model (only the base link's boxes, spheres, cylinders and capsules are); "
+                      f"the cable passes through them", stacklevel=4)
+
+
 def _rotation(quat) -> np.ndarray:
     return np.array(pb.getMatrixFromQuaternion(quat)).reshape(3, 3)
 
@@ -102,6 +113,7 @@ class ContactSet:
         self.zeta = float(damping_ratio)
         rows = []  # (body id, kind, local pos, local rot, size, dynamic, mu_b)
         for body in bodies:
+            _warn_child_links(client, body)
             mass, mu_b = pb.getDynamicsInfo(body, -1, physicsClientId=client)[0:2]
             for shape in pb.getCollisionShapeData(body, -1, physicsClientId=client):
                 geom, dims, lpos, lorn = shape[2], shape[3], shape[5], shape[6]

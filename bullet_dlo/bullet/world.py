@@ -127,12 +127,14 @@ class BulletWorld:
 
     def add_urdf(self, path: str | os.PathLike, position: Sequence[float] = (0, 0, 0),
                  orientation: Sequence[float] = (0, 0, 0, 1), *, fixed: bool = True, name: str | None = None) -> int:
-        """Load a URDF (absolute, relative, from the project's ``urdf/`` or ``pybullet_data``)."""
+        """Load a URDF (absolute, relative, from the project's ``urdf/`` or ``pybullet_data``). Its
+        ``<cylinder>`` collisions load as cylinders (not meshes), so the cable's contact model sees them;
+        shapes on child links are not in that model (a warning says so when the cable is added)."""
         file = resolve_asset(path)
         pos = check_vector3("position", position)
         try:
             body = pb.loadURDF(str(file), pos.tolist(), list(orientation), useFixedBase=fixed,
-                               physicsClientId=self.client)
+                               flags=pb.URDF_USE_IMPLICIT_CYLINDER, physicsClientId=self.client)
         except pb.error as err:
             raise ParameterError(f"could not load URDF {str(file)!r}: {err}") from None
         self.bodies[body] = name or file.stem
