@@ -317,9 +317,13 @@ class BulletWorld:
         for c in cables:
             c.sync_after_step(touched[c.name])
 
+    def steps_in(self, duration: float) -> int:
+        """Whole steps of ``dt`` in ``duration`` [s] (> 0), at least one."""
+        return max(1, int(round(check_positive("duration", duration) / self.dt)))
+
     def run(self, duration: float) -> int:
         """Step for ``duration`` seconds (rounded to whole steps); returns the number of steps."""
-        n = max(1, int(round(check_positive("duration", duration) / self.dt)))
+        n = self.steps_in(duration)
         self.step(n)
         return n
 

@@ -49,7 +49,7 @@ from bullet_dlo.data.storage import (
 from bullet_dlo.data.safeio import StorageError
 from bullet_dlo.render.camera import default_camera, render_frame
 from bullet_dlo.robots.arm import Robot
-from bullet_dlo.robots.dual_arm import DualArmScene, DualArmSpec
+from bullet_dlo.robots.dual_arm import DualArmScene
 from bullet_dlo.sim import build_arms
 
 COLUMNS = ("t", "cable_x", "cable_v", "wrench_world", "wrench_sensor", "wrench_raw", "end_forces", "end_moments",
@@ -123,12 +123,6 @@ def episode_scene(spec: CaptureSpec, params: dict[str, Any], decision: dict[str,
     return Scene(cable=cable_spec(params), motion=episode_motion(params), integrator=params["integrator"],
                  dt=params["dt"], duration=spec.duration, name=f"episode (seed {spec.seed})",
                  bullet=BulletOptions(substeps=decision["substeps"]), arms=arms)
-
-
-def dual_arm_spec(spec: CaptureSpec, params: dict[str, Any], decision: dict[str, Any]) -> DualArmSpec:
-    """The dual-arm physics of a planned episode (:func:`episode_scene`), with a renderer when it films."""
-    return DualArmSpec.from_scene(episode_scene(spec, params, decision),
-                                  renderer="tiny" if spec.camera_fps > 0 else None)
 
 
 def run_episode(spec_dict: dict, index: int, out_dir: str) -> dict:

@@ -115,7 +115,7 @@ def render_scene(scene, out: str | Path, *, robot: str | None = None, fps: float
 
         world.after_step.append(after_step)
         rec.on_step()  # frame at t = 0
-        wall = world.run_while_stable(max(1, int(round(scene.duration / scene.dt))), cable)
+        wall = world.run_while_stable(world.steps_in(scene.duration), cable)
         bar.close()
         writer.close()
         cv2.imwrite(str(out / "still.png"), (still[0] if still else rec.last.rgb)[:, :, ::-1])

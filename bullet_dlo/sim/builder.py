@@ -18,6 +18,7 @@ silently dropped):
 """
 from __future__ import annotations
 
+import math
 from dataclasses import replace
 
 from bullet_dlo.analysis.resolve import ResolveProblem, resolve
@@ -106,13 +107,11 @@ def refuse_unused_keys(scene: Scene, engine: str, command: str) -> None:
 def build_bullet(scene: Scene, detector: DetectorOptions, *, gui: bool = False, renderer: str | None = None,
                  record_every: int | None = None, max_records: int = 2001) -> BulletSimulation:
     """The cable of ``scene`` as Bullet spheres in a world with the scene's ground and obstacles."""
-    import math
-
     opts = scene.bullet
-    n_steps = max(1, int(round(scene.duration / scene.dt)))
-    every = max(1, math.ceil(n_steps / max(1, max_records - 1))) if record_every is None else record_every
     world = BulletWorld(scene.dt, scene.gravity, gui=gui, ground=opts.ground, ground_height=opts.ground_height,
                         ground_friction=opts.ground_friction, renderer=renderer)
+    every = (max(1, math.ceil(world.steps_in(scene.duration) / max(1, max_records - 1)))
+             if record_every is None else record_every)
     try:
         add_obstacles(world, opts.obstacles)
         model = scene.build_model()

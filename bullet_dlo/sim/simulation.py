@@ -15,7 +15,6 @@ extensions). The coupled step itself is written once, in
 """
 from __future__ import annotations
 
-import time
 from dataclasses import replace
 from typing import Callable
 
@@ -33,15 +32,21 @@ from bullet_dlo.core.engine import (
     simulate,
 )
 from bullet_dlo.core.model import CableModel
-from bullet_dlo.core.validate import check_positive
 from bullet_dlo.robots.dual_arm import DualArmScene
 
 Hook = Callable[[], None]
 
 
-def steps_for(duration: float, dt: float) -> int:
-    """Whole steps of ``dt`` [s] in ``duration`` [s] (at least one)."""
-    return max(1, int(round(check_positive("duration", duration) / dt)))
+def cable_result(cable: BulletCable, dt: float, wall: float, t: np.ndarray, x: np.ndarray, v: np.ndarray,
+                 end_forces: np.ndarray, energy: np.ndarray) -> SimulationResult:
+    """A Bullet cable's run as a SimulationResult: its status, counters, final state and end moments, with
+    the recorded rows given (t [s] (k,), x [m] and v [m/s] (k, n, 3), end_forces [N] (k, 2, 3), energy [J] (k,));
+    ``dt`` [s] the Bullet step, ``wall`` [s] the run's wall time."""
+    return SimulationResult(
+        integrator=cable.method.name, dt=dt, stable=cable.stable, time_to_instability=cable.time_to_instability,
+        reason=cable.reason, steps=cable.steps, wall_time_s=wall, t=t, x=x, v=v, end_forces=end_forces,
+        energy=energy, final_state=cable.state(), end_moments=cable.end_moments(),
+        newton_failures=cable.newton_failures, newton_iterations=cable.newton_iterations)
 
 
 class Simulation:
@@ -127,14 +132,10 @@ class BulletSimulation(Simulation):
 
     def _run_here(self, duration: float) -> SimulationResult:
         cable = self.cable
-        wall = self.world.run_while_stable(steps_for(duration, self.scene.dt), cable)
+        wall = self.world.run_while_stable(self.world.steps_in(duration), cable)
         rec = cable.record.arrays()
-        return SimulationResult(
-            integrator=cable.method.name, dt=self.scene.dt, stable=cable.stable,
-            time_to_instability=cable.time_to_instability, reason=cable.reason, steps=cable.steps,
-            wall_time_s=wall, t=rec["t"], x=rec["x"], v=rec["v"], end_forces=rec["end_forces"],
-            energy=rec["energy"], final_state=cable.state(), end_moments=cable.end_moments(),
-            newton_failures=cable.newton_failures, newton_iterations=cable.newton_iterations)
+        return cable_result(cable, self.scene.dt, wall, rec["t"], rec["x"], rec["v"], rec["end_forces"],
+                            rec["energy"])
 
     def close(self) -> None:
         self.world.close()
@@ -180,16 +181,9 @@ class ArmsSimulation(Simulation):
         """Step until ``duration`` [s] or instability; the cable's result (its end forces and moments are the
         model's loads on the grippers; the wrist sensors' record is ``observation.record``)."""
         cable = self.cable
-        tic = time.perf_counter()
-        self.arms.run(self.scene.duration if duration is None else duration)
-        wall = time.perf_counter() - tic
-        return SimulationResult(
-            integrator=cable.method.name, dt=self.scene.dt, stable=cable.stable,
-            time_to_instability=cable.time_to_instability, reason=cable.reason, steps=cable.steps,
-            wall_time_s=wall, t=np.array([self.world.time]), x=cable.x[None].copy(), v=cable.v[None].copy(),
-            end_forces=cable.end_forces()[None], energy=np.full(1, np.nan), final_state=cable.state(),
-            end_moments=cable.end_moments(), newton_failures=cable.newton_failures,
-            newton_iterations=cable.newton_iterations)
+        wall = self.arms.run(self.scene.duration if duration is None else duration)
+        return cable_result(cable, self.scene.dt, wall, np.array([self.world.time]), cable.x[None].copy(),
+                            cable.v[None].copy(), cable.end_forces()[None], np.full(1, np.nan))
 
     def close(self) -> None:
         self.arms.close()

@@ -25,7 +25,8 @@ from scipy.spatial.transform import Rotation
 from bullet_dlo.config.capture import CaptureSpec
 from bullet_dlo.core.boundary import Move, parse_motion
 from bullet_dlo.data import plan
-from bullet_dlo.data.episode import dual_arm_spec, run_episode
+from bullet_dlo.config.robot import DualArmSpec
+from bullet_dlo.data.episode import episode_scene, run_episode
 from bullet_dlo.data.plan import episode_motion, gripper_move, plan_episode
 from bullet_dlo.data.reader import load_episode
 
@@ -128,12 +129,12 @@ def test_a_friction_grip_saturates_at_two_mu_d_grip_force(pulled):
 def test_the_grip_parameters_reach_the_dual_arm_scene():
     spec = CaptureSpec.from_dict(PULL_APART)
     params, decision = plan_episode(spec, 3)
-    setup = dual_arm_spec(spec, params, decision)
+    setup = DualArmSpec.from_scene(episode_scene(spec, params, decision))
     assert (setup.grip, setup.grip_force, setup.grip_reach) == ("friction", params["grip_force"], 0.05)
     assert setup.grip_friction == (params["grip_mu_static"], params["grip_mu_dynamic"])
     # parameters stored by older versions (no grip keys) give today's clamp
     old = {k: v for k, v in params.items() if not k.startswith("grip")}
-    assert dual_arm_spec(spec, old, decision).grip == "clamp"
+    assert DualArmSpec.from_scene(episode_scene(spec, old, decision)).grip == "clamp"
 
 
 def test_without_motion_the_right_gripper_makes_the_straight_move():

@@ -37,6 +37,7 @@ import numpy as np
 from numba import njit
 
 from bullet_dlo.core.kernels.twist import (
+    add_cross_matrix,
     add_twist_forces,
     add_twist_jacobian,
     has_twist,
@@ -384,19 +385,8 @@ def _bend_rate_blocks(a0, a1, a2, b0, b1, b2, ka, kb):
             ka[r, col] = -alpha * chi[r] * ga - (ratio / la) * chi[r] * u[col] + (0.5 * ratio / la) * u[r] * chi[col]
             kb[r, col] = -alpha * chi[r] * gb - (ratio / lb) * chi[r] * w[col] + (0.5 * ratio / lb) * w[r] * chi[col]
     # cross-product matrices: -(ratio/la) [w]x and +(ratio/lb) [u]x
-    fa, fb = -ratio / la, ratio / lb
-    ka[0, 1] -= fa * w[2]
-    ka[0, 2] += fa * w[1]
-    ka[1, 0] += fa * w[2]
-    ka[1, 2] -= fa * w[0]
-    ka[2, 0] -= fa * w[1]
-    ka[2, 1] += fa * w[0]
-    kb[0, 1] -= fb * u[2]
-    kb[0, 2] += fb * u[1]
-    kb[1, 0] += fb * u[2]
-    kb[1, 2] -= fb * u[0]
-    kb[2, 0] -= fb * u[1]
-    kb[2, 1] += fb * u[0]
+    add_cross_matrix(ka, -ratio / la, w)
+    add_cross_matrix(kb, ratio / lb, u)
 
 
 @njit(cache=True, error_model="numpy", inline="always")

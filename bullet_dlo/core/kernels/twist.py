@@ -154,6 +154,17 @@ def _cross(a, b, out):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
+def add_cross_matrix(mat, scale, v):
+    """mat (3, 3) += scale [v]x, the cross-product matrix of v (3,): [v]x y = v x y."""
+    mat[0, 1] -= scale * v[2]
+    mat[0, 2] += scale * v[1]
+    mat[1, 0] += scale * v[2]
+    mat[1, 2] -= scale * v[0]
+    mat[2, 0] -= scale * v[1]
+    mat[2, 1] += scale * v[0]
+
+
+@njit(cache=True, error_model="numpy", inline="always")
 def _dot(a, b):
     return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 
@@ -271,19 +282,8 @@ def phi_jacobians(g, la, lb, ratio, alpha, c, pa, pb):
             gb = (u[col] - c * w[col]) / lb
             pa[r, col] = -alpha * chi[r] * ga - (ratio / la) * chi[r] * u[col]
             pb[r, col] = -alpha * chi[r] * gb - (ratio / lb) * chi[r] * w[col]
-    fa, fb = -ratio / la, ratio / lb  # fa [w]x, fb [u]x
-    pa[0, 1] -= fa * w[2]
-    pa[0, 2] += fa * w[1]
-    pa[1, 0] += fa * w[2]
-    pa[1, 2] -= fa * w[0]
-    pa[2, 0] -= fa * w[1]
-    pa[2, 1] += fa * w[0]
-    pb[0, 1] -= fb * u[2]
-    pb[0, 2] += fb * u[1]
-    pb[1, 0] += fb * u[2]
-    pb[1, 2] -= fb * u[0]
-    pb[2, 0] -= fb * u[1]
-    pb[2, 1] += fb * u[0]
+    add_cross_matrix(pa, -ratio / la, w)
+    add_cross_matrix(pb, ratio / lb, u)
 
 
 @njit(cache=True, error_model="numpy", inline="always")

@@ -43,7 +43,7 @@ from bullet_dlo.bullet.world import BulletWorld, add_obstacles
 from bullet_dlo.config.robot import CALIBRATION_TILTS, DualArmSpec, RobotSpec, load_robot_spec
 from bullet_dlo.core.model import CableModel, CableState
 from bullet_dlo.core.statics import solve_static
-from bullet_dlo.core.validate import ParameterError, check_positive
+from bullet_dlo.core.validate import ParameterError
 from bullet_dlo.robots.arm import Robot
 from bullet_dlo.robots.kernels import grasp_frames
 from bullet_dlo.robots.sensors import PayloadFit, identify_payload, sensor_links
@@ -306,8 +306,7 @@ class DualArmPhysics:
     # ----- running -------------------------------------------------------------------------------
     def run(self, duration: float) -> float:
         """Step for ``duration`` [s] (whole steps), stopping if the cable goes unstable; returns the wall time [s]."""
-        n = max(1, int(round(check_positive("duration", duration) / self.world.dt)))
-        return self.world.run_while_stable(n, self.cable)
+        return self.world.run_while_stable(self.world.steps_in(duration), self.cable)
 
     def close(self) -> None:
         """Disconnect the arms' kinematic twins and the world."""
