@@ -50,6 +50,7 @@ from bullet_dlo.data.safeio import StorageError
 from bullet_dlo.render.camera import default_camera, render_frame
 from bullet_dlo.robots.arm import Robot
 from bullet_dlo.robots.dual_arm import DualArmScene
+from bullet_dlo.robots.sensors import WristSensor
 from bullet_dlo.sim import build_arms
 
 COLUMNS = ("t", "cable_x", "cable_v", "wrench_world", "wrench_sensor", "wrench_raw", "end_forces", "end_moments",
@@ -144,7 +145,8 @@ def run_episode(spec_dict: dict, index: int, out_dir: str) -> dict:
     data = recorder.arrays()
     metrics = quality_metrics(data["t"], data["wrench_world"][:, :, :3], data["end_forces"]) | sensor_metrics(check)
     attrs = {"params": params, "decision": decision, "metrics": metrics, "seed": spec.seed, "episode": index,
-             "version": version(), "sensor_compensation": compensation, "spec_digest": spec.digest(),
+             "version": version(), "sensor_compensation": compensation,
+             "sensor_transmitted": WristSensor.TRANSMITTED, "spec_digest": spec.digest(),
              "stable": bool(stable),
              "time_to_instability": -1.0 if t_bad is None else float(t_bad), "columns": COLUMNS_NOTE}
     weight = scene_.cable.mass * float(np.linalg.norm(STANDARD_GRAVITY))

@@ -39,8 +39,10 @@ def quality_metrics(t: np.ndarray, sensor: np.ndarray, model: np.ndarray, cutoff
 def sensor_metrics(check) -> dict:
     """The wrist-sensor check of an episode (:class:`~bullet_dlo.robots.dual_arm.observation.SensorCheck`):
     the worst mismatch of a sample with the cable's load in the same step, force [N] and moment [N m],
-    over both arms."""
-    return {"sensor_check_force": float(check.worst[:, 0].max()), "sensor_check_moment": float(check.worst[:, 1].max())}
+    over both arms, and ``sensor_model_rms`` [N], the RMS force mismatch over every step; it replaces
+    :func:`quality_metrics`' from recorded rows, whose model force is one step ahead of the sensors'."""
+    return {"sensor_check_force": float(check.worst[:, 0].max()), "sensor_check_moment": float(check.worst[:, 1].max()),
+            "sensor_model_rms": float(check.rms[0])}
 
 
 def quality_issues(metrics: dict, weight: float, max_rms_weights: float | None, max_hf: float | None) -> list[str]:

@@ -204,6 +204,7 @@ def run_rollout(env, policy: Policy, spec: RolloutSpec, index: int, out: Path) -
     params, decision = dict(inner.draw.params), dict(inner.draw.decision)
     attrs = {"params": params, "decision": decision, "metrics": metrics, "seed": spec.seed + index, "episode": index,
              "version": version(), "sensor_compensation": inner.sensors[0].compensation,
+             "sensor_transmitted": inner.sensors[0].TRANSMITTED,
              "spec_digest": spec.digest(), "stable": bool(stable),
              "time_to_instability": -1.0 if t_bad is None else float(t_bad), "columns": COLUMNS_NOTE,
              "env_id": spec.env_id, "policy": spec.policy, "return": float(np.sum(rewards)),

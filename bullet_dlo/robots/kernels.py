@@ -166,6 +166,32 @@ def payload_load(rows, payload, dt, compensate, memory, out):
 
 
 @njit(cache=True, error_model="numpy")
+def tool_reaction(rows, payload, dt, memory, applied, out):
+    """What the arm applies to the tool side in the step just taken, by Newton-Euler of the tool.
+
+    rows (k, ROW): the tool side's link states, the sensor's own link first; payload: its bodies as
+    the robot description gives them (:class:`Payload`); dt [s]: the physics step; memory: their
+    momenta one call ago (:class:`SensorMemory`, updated); applied (6,): every other load on the
+    tool side in that step (force [N], moment about the world origin [N m], world frame: the held
+    cable's, contacts). The reaction is the tool's rates of momentum minus its weight minus
+    ``applied``; written into ``out`` (6,) in the sensor frame, moments about its origin (the CoM of
+    ``rows[0]``), as Bullet's joint reaction is reported.
+    """
+    load = np.empty(6)
+    payload_load(rows, payload, dt, True, memory, load)
+    c0x, c0y, c0z = rows[0, COM], rows[0, COM + 1], rows[0, COM + 2]
+    fx, fy, fz = applied[0], applied[1], applied[2]
+    w = (load[0] - fx, load[1] - fy, load[2] - fz,  # moments of ``applied`` moved to the sensor origin
+         load[3] - (applied[3] - (c0y * fz - c0z * fy)), load[4] - (applied[4] - (c0z * fx - c0x * fz)),
+         load[5] - (applied[5] - (c0x * fy - c0y * fx)))
+    r = np.empty(9)
+    rotation_matrix(rows[0, COM_QUAT], rows[0, COM_QUAT + 1], rows[0, COM_QUAT + 2], rows[0, COM_QUAT + 3], r)
+    for i in range(3):  # world -> sensor frame: R^T
+        out[i] = r[i] * w[0] + r[3 + i] * w[1] + r[6 + i] * w[2]
+        out[3 + i] = r[i] * w[3] + r[3 + i] * w[4] + r[6 + i] * w[5]
+
+
+@njit(cache=True, error_model="numpy")
 def sensor_reading(rows, payload, reaction, dt, compensate, due, tare, offset, memory, out):
     """One physics step of a wrist F/T sensor.
 
@@ -206,7 +232,7 @@ def sensor_reading(rows, payload, reaction, dt, compensate, due, tare, offset, m
 
 
 @njit(cache=True, error_model="numpy")
-def load_mismatch(rows, reading, offset, force, torque, point, held, t, worst, worst_t):
+def load_mismatch(rows, reading, offset, force, torque, point, held, t, worst, worst_t, sumsq):
     """How far a wrist reading is from the load the cable applied to the gripper in the same step.
 
     rows (k, ROW): the sensor's link states (row 0: the sensor frame); reading (12,): the sensor's
@@ -214,7 +240,8 @@ def load_mismatch(rows, reading, offset, force, torque, point, held, t, worst, w
     force [N], torque [N m] (3,): what the cable applied to the grasp link, world frame, the force at
     ``point`` [m] (3,), if ``held`` (else nothing was applied). The reading without its offset minus
     that load, world frame, force [N] and moment about the sensor frame's origin [N m]: its largest
-    component of each raises ``worst`` (2,) (force, moment), the time ``t`` [s] going into ``worst_t`` (2,).
+    component of each raises ``worst`` (2,) (force, moment), the time ``t`` [s] going into ``worst_t`` (2,);
+    the squared length of each mismatch is added to ``sumsq`` (2,).
     """
     r = np.empty(9)
     rotation_matrix(rows[0, COM_QUAT], rows[0, COM_QUAT + 1], rows[0, COM_QUAT + 2], rows[0, COM_QUAT + 3], r)
@@ -228,5 +255,6 @@ def load_mismatch(rows, reading, offset, force, torque, point, held, t, worst, w
         m_off = r[3 * i] * offset[3] + r[3 * i + 1] * offset[4] + r[3 * i + 2] * offset[5]
         for kind, off in ((0, f_off), (1, m_off)):
             err = abs(reading[6 + 3 * kind + i] - off - applied[3 * kind + i])
+            sumsq[kind] += err * err
             if err > worst[kind]:
                 worst[kind], worst_t[kind] = err, t

@@ -1,14 +1,25 @@
 """Wrist force/torque sensors that behave like real ones (tare, rate, noise, bias).
 
-PyBullet reports, for a joint with ``enableJointForceTorqueSensor``, the wrench the parent
-link applies to the child through the joint, in the child link's centre-of-mass frame
-(moments about that centre of mass). A :class:`WristSensor` turns that into what a user of
-an ATI-style sensor with payload compensation sees: the load on the tool side, the payload's
-weight removed in the world frame (so at any orientation of the gripper) and its inertia
-removed too, the sensor's own offset zeroed by a tare, sampled at the sensor's own rate, with optional Gaussian noise and bias, in the
-sensor frame and in the world frame. Sampling follows :class:`~bullet_dlo.core.timing.RateGate`,
-the rule video and dataset frames follow too: samples on the grid start + k / rate, the
-reading held in between.
+A real F/T sensor measures the wrench the arm transmits to the tool side through the sensor
+joint; users remove the payload (hand, fingers) below it as a world-frame weight plus its
+inertial load, and tare the sensor's own offset. A :class:`WristSensor` does the same, in this
+order: the transmitted wrench (:func:`~bullet_dlo.robots.kernels.tool_reaction`), the payload's
+weight and inertia removed (from the robot description, or a calibration,
+:func:`identify_payload`), the tare, sampled at the sensor's own rate with optional Gaussian
+noise and bias, in the sensor frame and in the world frame. Sampling follows
+:class:`~bullet_dlo.core.timing.RateGate`, the rule video and dataset frames follow too: samples on
+the grid start + k / rate, the reading held in between.
+
+The transmitted wrench is computed by Newton-Euler of the tool side (its links' rates of momentum,
+minus their weights, minus every other load on them: the held cable's, Bullet's contacts), not
+taken from Bullet's joint reaction (:meth:`WristSensor.raw`). Bullet computes that reaction in
+two articulated-body passes per step, and its second (constraint) pass adds the links'
+velocity-product terms (Coriolis, gyroscopic) a second time (``btMultiBody::
+computeAccelerationsArticulatedBodyAlgorithmMultiDof`` with ``isConstraintPass``): right at rest,
+wrong by a load growing as the square of the turn rate and independent of the step (a Panda hand
+turned 90 degrees in 0.7 s read 1.7 N off, six times a 30 g cable's weight). The cost: loads applied
+to the tool side outside this library (your own ``applyExternalForce`` on a hand link, a constraint
+you attach to it) are not seen; contacts are.
 
 Sign convention of the forces in a :class:`Wrench`: the load applied to the tool side, e.g. the force
 the held cable pulls on the gripper (a hanging cable gives a negative z force in world).
@@ -27,7 +38,7 @@ from bullet_dlo.bullet.native import StateReader
 from bullet_dlo.core.timing import RateGate
 from bullet_dlo.core.validate import ParameterError, check_nonnegative
 from bullet_dlo.robots.arm import Robot
-from bullet_dlo.robots.kernels import Payload, SensorMemory, momentum, sensor_reading
+from bullet_dlo.robots.kernels import Payload, SensorMemory, momentum, sensor_reading, tool_reaction
 
 
 @dataclass(frozen=True)
@@ -157,6 +168,10 @@ class WristSensor:
             the robot with :func:`sensor_links` last; None: the sensor reads for itself.
     """
 
+    TRANSMITTED = "newton_euler"
+    """How the transmitted wrench is computed (recorded with episodes and rollouts as ``sensor_transmitted``;
+    files without it took Bullet's joint reaction, off while a hand turned: see the module doc)."""
+
     TARE_WARNING = 0.01
     """A tare that removes more than this share of the payload's weight means the payload model does
     not fit the sensed tool (a wrong mass, centre of mass or gravity): warned."""
@@ -186,7 +201,14 @@ class WristSensor:
         if self.reader.bodies[row] != robot.body or list(self.reader.links[row, -len(links):]) != links:
             raise ParameterError("the shared state reader must hold the sensor's links last in the arm's row")
         self._rows = self.reader.link_rows[row, -len(links):]
-        self._reaction = self.reader.joint_rows[row, 2:8]
+        # the transmitted wrench, by Newton-Euler of the tool side as the robot description gives it
+        self._tool = urdf_payload(robot, gravity)
+        self._tool_memory = SensorMemory(np.zeros((len(links), 6)), np.zeros(1))
+        self._tool_links = frozenset(robot.subtree_links(self.joint))  # contacts on these load the tool
+        self._applied = np.zeros(6)  # loads on the tool side in the last step, world frame [N, N m about 0]
+        self._reaction = np.zeros(6)  # what the arm applied to the tool side, sensor frame
+        self._transmit = bind(tool_reaction, self._rows, self._tool, 1.0, self._tool_memory, self._applied,
+                              self._reaction)
         self._noisy = bool(np.any(self.noise_std > 0))  # no noise: no draws (the generator is used only here)
         self._tare = np.zeros(6)
         self._memory = SensorMemory(np.zeros((len(self.payload.mass), 6)), np.zeros(1))
@@ -199,7 +221,8 @@ class WristSensor:
 
     # ----- raw physics ------------------------------------------------------------------------
     def raw(self) -> np.ndarray:
-        """Wrench the arm applies to the tool side, sensor frame, as PyBullet reports it, shape (6,)."""
+        """Wrench the arm applies to the tool side, sensor frame, as Bullet's joint reaction reports it
+        (right at rest; off while the tool turns, see the module doc), shape (6,)."""
         return np.array(pb.getJointState(self.robot.body, self.joint, physicsClientId=self.robot.client)[2])
 
     def payload_momentum(self) -> np.ndarray:
@@ -222,6 +245,11 @@ class WristSensor:
             self.reader.read()
         self._tare[:] = 0.0
         self._memory.valid[0] = 0.0
+        self._tool_memory.valid[0] = 0.0
+        self._applied[:] = 0.0
+        self._add_contacts()
+        self._transmit(self._rows, self._tool, 1.0, self._tool_memory, self._applied, self._reaction)
+        self._tool_memory.valid[0] = 0.0  # the first step's rates start from it, as the payload's do
         out = np.zeros(12)
         self._reading(self._rows, self.payload, self._reaction, 1.0, False, True, self._tare, np.zeros(6),
                       self._memory, out)
@@ -235,17 +263,27 @@ class WristSensor:
         return self._tare.copy()
 
     # ----- readings ---------------------------------------------------------------------------
-    def update(self, t: float, dt: float) -> Wrench:
+    def update(self, t: float, dt: float, applied: np.ndarray | None = None) -> Wrench:
         """Sample (if due at the sensor's rate) and return the current reading at time t [s].
 
-        dt: physics step [s] (for the payload acceleration of the inertia compensation,
-        tracked at every step, sampled or not). The arithmetic is one compiled call
-        (:func:`~bullet_dlo.robots.kernels.sensor_reading`); a shared reader is read by its owner
+        dt: physics step [s] (for the accelerations of the tool side, tracked at every step, sampled
+        or not); applied (6,): the loads this library applied to the tool side in the step just taken
+        (the held cable's), force [N] and moment about the world origin [N m], world frame (None:
+        none); Bullet's contacts on the tool side's links are added here. The arithmetic is two
+        compiled calls (:func:`~bullet_dlo.robots.kernels.tool_reaction`,
+        :func:`~bullet_dlo.robots.kernels.sensor_reading`); a shared reader is read by its owner
         before this runs.
         """
         if self._own_reader:
             self.reader.read()
         due = self.gate.due(t)
+        if applied is None:
+            self._applied[:] = 0.0
+        else:
+            self._applied[:] = applied
+        if due:  # between samples only the momenta are tracked, and they need no loads
+            self._add_contacts()
+        self._transmit(self._rows, self._tool, float(dt), self._tool_memory, self._applied, self._reaction)
         offset = self.bias
         if due and self._noisy:
             offset = self.bias + self.rng.normal(size=6) * self.noise_std
@@ -257,6 +295,17 @@ class WristSensor:
         values = self.values = out.copy()  # one array, four views
         self._last = Wrench(t, values[0:3], values[3:6], values[6:9], values[9:12])
         return self._last
+
+    def _add_contacts(self) -> None:
+        """Add the contact forces Bullet applied to the tool side's links in the last step to the applied
+        loads (force [N], moment about the world origin [N m], world frame)."""
+        for c in pb.getContactPoints(bodyA=self.robot.body, physicsClientId=self.robot.client):
+            if c[3] not in self._tool_links:
+                continue
+            # on body A: the normal force along the normal on B (pointing from B to A), the friction along its directions
+            force = c[9] * np.asarray(c[7]) + c[10] * np.asarray(c[11]) + c[12] * np.asarray(c[13])
+            self._applied[:3] += force
+            self._applied[3:] += np.cross(c[5], force)
 
     @property
     def rows(self) -> np.ndarray:

@@ -55,7 +55,7 @@ def test_record_rebuilt_from_a_real_episode_keeps_its_stored_flags(tmp_path):
 
     from bullet_dlo.data.episode import run_episode
 
-    strict = short_spec(max_sensor_model_rms=1e-6)
+    strict = short_spec(max_hf_energy=1e-9)
     prepare(strict, tmp_path, resume=False)
     live = run_episode(strict.to_dict(), 0, str(tmp_path))
     assert live["status"] == "flagged"

@@ -59,18 +59,19 @@ def test_spec_quality_section():
 
 
 def test_an_episode_failing_the_limit_is_flagged_and_not_selected(tmp_path):
-    """The same episode: ok under the default limit (one cable weight), flagged under a 1e-6 weight limit."""
+    """The same episode: ok under the default limits, flagged under a high-frequency share limit of 1e-9 (its
+    sensor-model RMS, exact since issue 27, no longer fails even a 1e-6 weight limit)."""
     from bullet_dlo.data.reader import Dataset
     from bullet_dlo.data.storage import append_manifest, prepare
 
-    strict = short_spec(max_sensor_model_rms=1e-6)
+    strict = short_spec(max_hf_energy=1e-9)
     (tmp_path / "a").mkdir()
     out = tmp_path / "b"
     prepare(strict, out, resume=False)  # a capture directory of the strict spec
     rec_ok = run_episode(short_spec().to_dict(), 0, str(tmp_path / "a"))
     rec = run_episode(strict.to_dict(), 0, str(out))
     assert rec_ok["status"] == "ok" and rec_ok["metrics"] == rec["metrics"]
-    assert rec["status"] == "flagged" and rec["reason"].startswith("quality: sensor-model RMS")
+    assert rec["status"] == "flagged" and rec["reason"].startswith("quality: high-frequency share")
     assert rec["time_to_instability"] is None
     append_manifest(out, rec)
     ds = Dataset(out)

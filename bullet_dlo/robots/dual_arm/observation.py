@@ -39,12 +39,13 @@ class DualArmRecord:
 SENSOR_CHECK = (0.1, 0.005)
 """A wrist sample may differ from the load the cable applied in the same step by this share of the
 cable's weight plus this many newtons [N] (force) or newton metres [N m] (moment about the sensor
-origin) before :class:`SensorCheck` fails it. It catches gross errors (a payload tared in the wrong
-frame: up to 34 cable weights; a wrong payload model; loads on the hand the model does not hold),
-not the fine accuracy the tests hold: at rest the mismatch is Bullet's solver residual, up to ~2 mN
-with a 30 g cable; in ordinary motion it reaches 9.5 mN (3 % of the weight: a drawn sine and a yaw
-turn of the KUKA, tests/data/test_capture_motion_episodes.py); a Panda turning 90 degrees about the
-cable in 4 s reaches 54 mN (18 %, its cause open) and fails it."""
+origin) before :class:`SensorCheck` fails it. It catches gross errors: loads on the hand the model does
+not hold (a gripper pressed into the table: hundreds of newtons), a payload model that does not fit
+the tool (a calibration gone wrong), inertia compensation switched off, a payload tared in the wrong
+frame (the bug of issue 27: up to 34 cable weights). With the robot description's payload the
+transmitted wrench and its compensation use the same momenta (:mod:`bullet_dlo.robots.sensors`), so
+an unloaded hand reads zero in any motion and the mismatch is rounding (below 1e-12 N); it was 54 mN
+for a Panda turning 90 degrees in 4 s and 1.7 N in 0.7 s with Bullet's joint reaction."""
 
 
 class SensorCheck:
@@ -52,8 +53,12 @@ class SensorCheck:
 
     The sensor's reading without its bias and noise must equal that load (force, and moment about
     the sensor origin): what the payload compensation and Bullet's wrist reaction get wrong shows up
-    here. ``worst`` [N or N m] and ``worst_t`` [s] per arm and kind (force, moment), ``samples``; :meth:`failures`
-    says which exceed ``limit`` = share of the cable weight + absolute (:data:`SENSOR_CHECK`).
+    here. ``worst`` [N or N m] and ``worst_t`` [s] per arm and kind (force, moment), ``samples``, :attr:`rms`;
+    :meth:`failures` says which exceed ``limit`` = share of the cable weight + absolute (:data:`SENSOR_CHECK`).
+
+    This is the sensor-model comparison of record: recorded rows hold ``cable.end_forces()`` after the
+    cable's step, the load of the *next* step (the coupling is explicit), so rows compared with each
+    other differ by a step's change of the load, which a fast motion makes newtons.
     """
 
     def __init__(self, weight: float, limit: tuple[float, float] = SENSOR_CHECK):
@@ -62,17 +67,25 @@ class SensorCheck:
         self.worst = np.zeros((2, 2))
         self.worst_t = np.zeros((2, 2))
         self.samples = 0
+        self._sumsq = np.zeros((2, 2))  # per arm: squared mismatch lengths summed, force [N^2], moment [N^2 m^2]
         self._kernel = None  # load_mismatch's machine code, bound on first use
 
     def check(self, arm: int, t: float, sensor: WristSensor, force, torque, point, held: bool) -> None:
         """Compare arm ``arm``'s sample at ``t`` [s] with the force [N] at ``point`` [m] and torque [N m] the
         cable applied to that gripper if it ``held`` it (else with no load)."""
         args = (sensor.rows, sensor.values, sensor.offset, force, torque, point, bool(held), float(t),
-                self.worst[arm], self.worst_t[arm])
+                self.worst[arm], self.worst_t[arm], self._sumsq[arm])
         if self._kernel is None:
             self._kernel = bind(load_mismatch, *args)
         self._kernel(*args)
         self.samples += arm == 0
+
+    @property
+    def rms(self) -> np.ndarray:
+        """RMS length of the mismatch over both arms' samples, force [N] and moment [N m], (2,) (NaN before any)."""
+        if not self.samples:
+            return np.full(2, np.nan)
+        return np.sqrt(self._sumsq.sum(axis=0) / (2 * self.samples))
 
     @property
     def allowed(self) -> float:
@@ -118,6 +131,7 @@ class DualArmObservation:
                         for k, robot in enumerate(physics.robots)]
         for s in self.sensors:
             s.tare()
+        self._applied = np.zeros(6)  # the cable's load on one gripper in the last step [N, N m about 0]
         self.check = SensorCheck(spec.cable.mass * float(np.linalg.norm(physics.world.gravity)))
         self.record = DualArmRecord()
         physics.observation = self  # the physics samples the sensors in its read phase
@@ -130,8 +144,14 @@ class DualArmObservation:
         world, physics = self.physics.world, self.physics
         # what the cable applied in the Bullet step just taken: its step (after these hooks) replaces them
         forces, torques = physics.cable.planned_end_loads()
+        applied = self._applied
         for arm, s in enumerate(self.sensors):
-            s.update(world.time, world.dt)
+            if physics.held[arm]:  # the cable's force at its end mass and its clamp torque, as a moment about 0
+                applied[:3] = forces[arm]
+                applied[3:] = torques[arm] + np.cross(physics.load_points[arm], forces[arm])
+            else:
+                applied[:] = 0.0
+            s.update(world.time, world.dt, applied)
             if s.last.t == world.time:  # sampled in this step: compare with what the cable applied
                 self.check.check(arm, world.time, s, forces[arm], torques[arm], physics.load_points[arm],
                                  physics.held[arm])
