@@ -84,6 +84,8 @@ class BulletWorld:
             self.bodies[self.ground_id] = "ground"
         self.time = 0.0
         self.steps = 0
+        self._contacts: tuple = ()  # every contact point of the step ``_contacts_step``, queried once
+        self._contacts_step = -1
         # couplings of cables to Bullet's bodies (objects with load() and read(), see step()), and
         # user hooks (callables without arguments) at three points of the step
         self.couplings: list = []
@@ -302,7 +304,7 @@ class BulletWorld:
         """Phase 7 of :meth:`step`: the spheres that touched something are read back (one contact query
         for the world) and every cable takes its own step."""
         cables = list(self.cables.values())
-        contacts = pb.getContactPoints(-1, -1, -2, -2, self.client) if cables else ()  # all, one call
+        contacts = self.contacts() if cables else ()
         if not contacts:
             for c in cables:
                 c.sync_after_step(())
@@ -316,6 +318,14 @@ class BulletWorld:
                     touched[hit[0]].add(hit[1])
         for c in cables:
             c.sync_after_step(touched[c.name])
+
+    def contacts(self) -> tuple:
+        """Every contact point of the step just taken, as ``pybullet.getContactPoints`` gives them: one
+        query per step, shared by the cables' sync and the wrist sensors."""
+        if self._contacts_step != self.steps:
+            self._contacts = pb.getContactPoints(-1, -1, -2, -2, self.client)  # all, one call
+            self._contacts_step = self.steps
+        return self._contacts
 
     def steps_in(self, duration: float) -> int:
         """Whole steps of ``dt`` in ``duration`` [s] (> 0), at least one."""

@@ -28,7 +28,7 @@ from __future__ import annotations
 
 import warnings
 from dataclasses import dataclass
-from typing import Sequence
+from typing import Callable, Sequence
 
 import numpy as np
 import pybullet as pb
@@ -163,6 +163,9 @@ class WristSensor:
         payload: the payload's model (:class:`PayloadFit` from a calibration); None: from the robot
             description (:func:`urdf_payload`).
         rng: random generator for the noise (seeded for reproducible data).
+        contacts: returns the contact points of the step just taken as an unfiltered
+            ``pybullet.getContactPoints()`` gives them (e.g. :meth:`~bullet_dlo.bullet.world.BulletWorld.contacts`,
+            one query per step for the world); None: the sensor makes that query itself.
         reader: a :class:`~bullet_dlo.bullet.native.StateReader` that its owner reads every step
             (e.g. the dual-arm coupling, which reads both arms in one call), whose row ``row`` holds
             the robot with :func:`sensor_links` last; None: the sensor reads for itself.
@@ -178,7 +181,8 @@ class WristSensor:
 
     def __init__(self, robot: Robot, gravity: Sequence[float], rate: float | None = None, noise_std=(0.0,) * 6,
                  bias=(0.0,) * 6, compensate_inertia: bool = True, payload: PayloadFit | None = None,
-                 rng: np.random.Generator | None = None, reader: StateReader | None = None, row: int = 0):
+                 rng: np.random.Generator | None = None, contacts: Callable[[], Sequence] | None = None,
+                 reader: StateReader | None = None, row: int = 0):
         name = robot.spec.sensor_joint
         if name not in robot.joint_index:
             raise ParameterError(f"robot {robot.spec.name!r} has no joint {name!r} for the F/T sensor")
@@ -205,6 +209,9 @@ class WristSensor:
         self._tool = urdf_payload(robot, gravity)
         self._tool_memory = SensorMemory(np.zeros((len(links), 6)), np.zeros(1))
         self._tool_links = frozenset(robot.subtree_links(self.joint))  # contacts on these load the tool
+        # unfiltered: a query filtered by body swaps A and B where Bullet's pair has the body second, and
+        # then turns the normal but not the friction directions (PyBullet's processRequestContactpoint)
+        self._contacts = contacts or (lambda: pb.getContactPoints(physicsClientId=robot.client))
         self._applied = np.zeros(6)  # loads on the tool side in the last step, world frame [N, N m about 0]
         self._reaction = np.zeros(6)  # what the arm applied to the tool side, sensor frame
         self._transmit = bind(tool_reaction, self._rows, self._tool, 1.0, self._tool_memory, self._applied,
@@ -299,13 +306,18 @@ class WristSensor:
     def _add_contacts(self) -> None:
         """Add the contact forces Bullet applied to the tool side's links in the last step to the applied
         loads (force [N], moment about the world origin [N m], world frame)."""
-        for c in pb.getContactPoints(bodyA=self.robot.body, physicsClientId=self.robot.client):
-            if c[3] not in self._tool_links:
+        body, tool = self.robot.body, self._tool_links
+        for c in self._contacts():
+            if c[1] == body and c[3] in tool:
+                sign, point = 1.0, c[5]
+            elif c[2] == body and c[4] in tool:
+                sign, point = -1.0, c[6]  # the tool is body B: the opposite force, at its own point
+            else:
                 continue
             # on body A: the normal force along the normal on B (pointing from B to A), the friction along its directions
-            force = c[9] * np.asarray(c[7]) + c[10] * np.asarray(c[11]) + c[12] * np.asarray(c[13])
+            force = sign * (c[9] * np.asarray(c[7]) + c[10] * np.asarray(c[11]) + c[12] * np.asarray(c[13]))
             self._applied[:3] += force
-            self._applied[3:] += np.cross(c[5], force)
+            self._applied[3:] += np.cross(point, force)
 
     @property
     def rows(self) -> np.ndarray:

@@ -127,7 +127,7 @@ class DualArmObservation:
         fits = physics.payload_fits or (None, None)
         self.sensors = [WristSensor(robot, physics.world.gravity, spec.sensor_rate, spec.noise_std, spec.bias,
                                     payload=fits[k], rng=np.random.default_rng(spec.seed + k),
-                                    reader=physics.reader, row=k)
+                                    contacts=physics.world.contacts, reader=physics.reader, row=k)
                         for k, robot in enumerate(physics.robots)]
         for s in self.sensors:
             s.tare()
