@@ -59,14 +59,14 @@ except ImportError:  # pragma: no cover - Gymnasium 1.0
     AUTORESET = {}
 
 from bullet_dlo.config.robot import load_robot_spec
-from bullet_dlo.core.validate import ParameterError, check_int, check_positive
+from bullet_dlo.core.validate import ParameterError
+from bullet_dlo.envs import params
 from bullet_dlo.envs.randomisation import EnvRandomisation, RandomisationLike, check_control_period
 from bullet_dlo.render.camera import default_camera, render_frame
 from bullet_dlo.robots.dual_arm import DualArmPhysics
 from bullet_dlo.sim import build_arms
 
 CAMERA_VIEW = [(-0.45, 0.0, 0.2), (0.45, 0.0, 0.2), (0.0, 0.0, 0.5)]  # points [m] the cameras frame
-CAMERAS = (None, "rgb", "depth", "rgbd")
 BOUNDS = {"joint_q": 2 * np.pi, "joint_qd": 50.0, "gripper_pos": 3.0, "gripper_quat": 1.0, "wrench": 500.0,
           "cable": 3.0, "depth": 10.0}
 """Half-width of each observation box (values are clipped into it)."""
@@ -76,17 +76,24 @@ class DualArmEnv(gym.Env):
     """Two arms holding a cable; subclasses set the task (:meth:`_task_reset`, :meth:`_task_observation`,
     :meth:`_task_reward`, ``task_dim``, ``default_randomisation``).
 
-    Args:
+    Args (every one checked at construction, before anything is built, by :mod:`~.params`: a bad value raises
+    ParameterError naming it and its range; numbers must be real numbers, flags real bools):
         randomisation: a capture spec (CaptureSpec, dict or YAML path) whose distributions are
-            re-drawn at every reset; None: the task's ``default_randomisation``.
-        control_dt: control period [s], a whole multiple of the physics step.
-        max_speed: gripper speed [m/s] of a full action.
-        workspace: half-width [m] of the box the gripper targets stay in, around the reset grasp poses.
-        settle_time: time [s] the clamped cable settles (actions held at zero) before the episode starts.
-        privileged: add the cable's shape (``cable``) to the observation.
-        shape_points: points along the cable in ``cable`` (and in shape targets).
-        camera: None, "rgb", "depth" or "rgbd": camera images in the observation, ``image_size`` (width, height).
-        render_mode: None or "rgb_array"; render_size: (width, height) [px] of :meth:`render`.
+            re-drawn at every reset; None: the task's ``default_randomisation``. Its errors are
+            prefixed ``randomisation:``.
+        control_dt: control period [s] in (0, 1], a whole multiple of the physics step and at most
+            10 000 of them (checked for every dt the randomisation can draw, and at reset).
+        max_speed: gripper speed [m/s] of a full action, in (0, 2].
+        workspace: half-width [m] of the box the gripper targets stay in, around the reset grasp poses, in (0, 2].
+        settle_time: time [s] the clamped cable settles (actions held at zero) before the episode starts,
+            in [0, 10] and at most 100 000 physics steps (0: one step).
+        privileged: (bool) add the cable's shape (``cable``) to the observation.
+        shape_points: points along the cable in ``cable`` (and in shape targets), an integer in [2, 1000].
+        camera: None, "rgb", "depth" or "rgbd": camera images in the observation, ``image_size`` (width, height)
+            [px], integers in [16, 4096].
+        render_mode: None or "rgb_array"; render_size: (width, height) [px] of :meth:`render`, integers in [16, 4096].
+
+    ``reset(seed=..., options=...)``: seed None or an integer >= 0; options None or {} (no reset options).
     """
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": 20, **AUTORESET}
@@ -97,23 +104,20 @@ class DualArmEnv(gym.Env):
                  workspace: float = 0.1, settle_time: float = 0.25, privileged: bool = False, shape_points: int = 10,
                  camera: str | None = None, image_size: tuple[int, int] = (64, 64), render_mode: str | None = None,
                  render_size: tuple[int, int] = (320, 240)):
-        if render_mode not in (None, "rgb_array"):
-            raise ParameterError(f"render_mode must be None or 'rgb_array', got {render_mode!r}")
-        if camera not in CAMERAS:
-            raise ParameterError(f"camera must be one of None, rgb, depth, rgbd, got {camera!r}")
+        self.control_dt = params.number("control_dt", control_dt)
+        self.max_speed = params.number("max_speed", max_speed)
+        self.workspace = params.number("workspace", workspace)
+        self.settle_time = params.number("settle_time", settle_time)
+        self.privileged = params.flag("privileged", privileged)
+        self.shape_points = params.shape_points(shape_points)
+        self.camera = params.choice("camera", camera, params.CAMERAS)
+        self.image_size = params.size("image_size", image_size)
+        self.render_mode = params.choice("render_mode", render_mode, params.RENDER_MODES)
+        self.render_size = params.size("render_size", render_size)
         self.randomisation = EnvRandomisation(randomisation, self.default_randomisation)
-        self.control_dt = check_positive("control_dt", control_dt)
-        self.max_speed = check_positive("max_speed", max_speed)
-        self.workspace = check_positive("workspace", workspace)
-        self.settle_time = float(settle_time)
-        self.privileged = bool(privileged)
-        self.shape_points = check_int("shape_points", shape_points, 2)
-        self.camera = camera
-        self.image_size = (check_int("image width", image_size[0], 16), check_int("image height", image_size[1], 16))
-        self.render_mode = render_mode
-        self.render_size = tuple(render_size)
         for dt in self.randomisation.values("dt"):  # refuse a control period the physics cannot hit, now
             check_control_period(self.control_dt, float(dt))
+            params.check_work(self.control_dt, self.settle_time, float(dt))
         self.n_joints = self._joint_count()
         self.action_space = self._action_space()
         self.observation_space = spaces.Dict(self._observation_boxes())
@@ -161,12 +165,14 @@ class DualArmEnv(gym.Env):
 
     # ----- episode --------------------------------------------------------------------------------
     def reset(self, *, seed: int | None = None, options: dict | None = None):
+        seed = params.check_reset(seed, options)
         super().reset(seed=seed)
         self._close_scene()
         renderer = "tiny" if (self.camera or self.render_mode) else None
         self.draw = self.randomisation.draw(self.np_random, renderer)
         setup = self.draw.setup
         self.substeps = check_control_period(self.control_dt, setup.dt)
+        settle_steps = params.check_work(self.control_dt, self.settle_time, setup.dt)[1]  # before building anything
         # grasped, no per-step record (the observation's check still compares every sample with the model)
         self._sim = build_arms(self.draw.scene, renderer=renderer, record=False)
         self.physics = self._sim.physics
@@ -175,7 +181,7 @@ class DualArmEnv(gym.Env):
         robots = self.physics.robots
         self._quat = [q for _, q in self.physics.grasp_poses]
         self._q_target = [r.joint_positions() for r in robots]
-        self.physics.world.step(max(1, int(round(self.settle_time / setup.dt))))
+        self.physics.world.step(settle_steps)
         self.home = np.array([r.grasp_pose()[0] for r in robots])  # (2, 3) [m] after settling
         self.target = self.home.copy()
         self.unstable = not self.physics.cable.stable

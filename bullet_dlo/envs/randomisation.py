@@ -47,10 +47,16 @@ class EnvRandomisation:
     def __init__(self, spec: RandomisationLike, default: Mapping[str, Any] | None = None):
         if spec is None:
             spec = default or {}
-        if isinstance(spec, (str, Path)):
-            spec = CaptureSpec.from_yaml(spec)
-        elif not isinstance(spec, CaptureSpec):
-            spec = CaptureSpec.from_dict(spec)
+        if not isinstance(spec, (CaptureSpec, Mapping, str, Path)):
+            raise ParameterError("randomisation must be None, a CaptureSpec, a dict or a YAML path, "
+                                 f"got {type(spec).__name__}")
+        try:
+            if isinstance(spec, (str, Path)):
+                spec = CaptureSpec.from_yaml(spec)
+            elif not isinstance(spec, CaptureSpec):
+                spec = CaptureSpec.from_dict(spec)
+        except ParameterError as err:  # the spec's own checks name the key; say it is this keyword's
+            raise ParameterError("randomisation: " + " ".join(str(err).split())) from None
         self.spec = spec
 
     def draw(self, rng: np.random.Generator, renderer: str | None) -> Draw:

@@ -70,7 +70,8 @@ import numpy as np
 from gymnasium import spaces
 
 from bullet_dlo.bullet.world import add_obstacles
-from bullet_dlo.core.validate import ParameterError, check_positive
+from bullet_dlo.core.validate import ParameterError
+from bullet_dlo.envs import params
 from bullet_dlo.envs.dual_arm_env import DualArmEnv
 from bullet_dlo.robots.transforms import quat_from_axes, rotation
 
@@ -251,9 +252,10 @@ def _route_ok(route: Route, half: float, reach: tuple[float, float, float]) -> b
 class RoutingEnv(DualArmEnv):
     """Cable routing around pegs into a clip (see the module doc); arguments of :class:`DualArmEnv` plus:
 
-    max_yaw_rate [rad/s] of a full yaw action; force_soft [N]: end force above which the reward is cut;
-    overload [N]: end force that ends the episode. ``max_speed`` defaults to 0.1 m/s here; ``workspace``
-    is not used (the right gripper's box is absolute, see the module doc).
+    max_yaw_rate [rad/s] of a full yaw action, in (0, 10]; force_soft [N]: end force above which the
+    reward is cut, in (0, 1000]; overload [N]: end force that ends the episode, in (0, 1000]. All checked
+    at construction, before the base's (:mod:`~.params`: ParameterError). ``max_speed`` defaults to
+    0.1 m/s here; ``workspace`` is checked but not used (the right gripper's box is absolute, see the module doc).
     """
 
     task_dim = TASK_DIM
@@ -273,10 +275,10 @@ class RoutingEnv(DualArmEnv):
 
     def __init__(self, *args, max_speed: float = 0.1, max_yaw_rate: float = 1.0, force_soft: float = 5.0,
                  overload: float = 30.0, **kwargs):
+        self.max_yaw_rate = params.number("max_yaw_rate", max_yaw_rate)
+        self.force_soft = params.number("force_soft", force_soft)
+        self.overload = params.number("overload", overload)
         super().__init__(*args, max_speed=max_speed, **kwargs)
-        self.max_yaw_rate = check_positive("max_yaw_rate", max_yaw_rate)
-        self.force_soft = check_positive("force_soft", force_soft)
-        self.overload = check_positive("overload", overload)
 
     # ----- action -----------------------------------------------------------------------------------
     def _action_space(self) -> spaces.Box:

@@ -24,6 +24,7 @@ from bullet_dlo.core.boundary import Move
 from bullet_dlo.core.engine import simulate
 from bullet_dlo.core.model import CableModel
 from bullet_dlo.core.validate import ParameterError
+from bullet_dlo.envs import params
 from bullet_dlo.envs.dual_arm_env import DualArmEnv
 
 SHAPE_SCALE = 0.01  # [m] reward scale of the mean shape error
@@ -33,7 +34,9 @@ MAX_DRAWS = 10
 
 class ShapingEnv(DualArmEnv):
     """Shape matching (see the module doc); arguments of :class:`DualArmEnv` (``privileged`` on by default) plus
-    inward, lateral, vertical: the largest gripper displacements [m] of a target; success_error [m]."""
+    inward, lateral, vertical: the largest gripper displacements [m] of a target, each in [0, 0.5];
+    success_error [m]: mean shape error of a success, in (0, 0.5]. All checked at construction, before
+    the base's (:mod:`~.params`: ParameterError)."""
 
     default_randomisation = {
         "sample": {
@@ -46,10 +49,11 @@ class ShapingEnv(DualArmEnv):
 
     def __init__(self, *args, privileged: bool = True, inward: float = 0.06, lateral: float = 0.05,
                  vertical: float = 0.04, success_error: float = 0.005, **kwargs):
-        self.task_dim = 3 * kwargs.get("shape_points", 10)
+        self.inward, self.lateral, self.vertical = (params.number(k, v) for k, v in
+                                                    (("inward", inward), ("lateral", lateral), ("vertical", vertical)))
+        self.success_error = params.number("success_error", success_error)
+        self.task_dim = 3 * params.shape_points(kwargs.get("shape_points", 10))
         super().__init__(*args, privileged=privileged, **kwargs)
-        self.inward, self.lateral, self.vertical = float(inward), float(lateral), float(vertical)
-        self.success_error = float(success_error)
 
     # ----- the target -----------------------------------------------------------------------------
     def _task_reset(self, rng: np.random.Generator) -> None:

@@ -24,6 +24,7 @@ from typing import Any
 
 import numpy as np
 
+from bullet_dlo.envs import params
 from bullet_dlo.envs.dual_arm_env import DualArmEnv
 
 PREVIEW = 0.5  # [s] how far ahead the observation shows the profile
@@ -41,8 +42,10 @@ def axial_tension(forces: np.ndarray, grippers: np.ndarray) -> float:
 class TensionTrackingEnv(DualArmEnv):
     """Tension tracking and midpoint carrying (see the module doc); arguments of :class:`DualArmEnv` plus:
 
-    tension_range: (low, high) [N] of the profile's mean; max_amplitude: largest amplitude as a
-    fraction of the mean; target_offset: largest midpoint target offset per axis [m]; overload [N].
+    tension_range: (low, high) [N] of the profile's mean, each in [0, 100] with low <= high;
+    max_amplitude: largest amplitude as a fraction of the mean, in [0, 1]; target_offset: largest
+    midpoint target offset per axis [m], in [0, 0.5]; overload [N]: axial tension that ends the episode,
+    in (0, 1000]. All checked at construction, before the base's (:mod:`~.params`: ParameterError).
     """
 
     task_dim = 6
@@ -58,11 +61,11 @@ class TensionTrackingEnv(DualArmEnv):
 
     def __init__(self, *args, tension_range: tuple[float, float] = (1.0, 4.0), max_amplitude: float = 0.5,
                  target_offset: float = 0.04, overload: float = 30.0, **kwargs):
+        self.tension_range = params.number_pair("tension_range", tension_range)
+        self.max_amplitude = params.number("max_amplitude", max_amplitude)
+        self.target_offset = params.number("target_offset", target_offset)
+        self.overload = params.number("overload", overload)
         super().__init__(*args, **kwargs)
-        self.tension_range = (float(tension_range[0]), float(tension_range[1]))
-        self.max_amplitude = float(max_amplitude)
-        self.target_offset = float(target_offset)
-        self.overload = float(overload)
 
     # ----- targets --------------------------------------------------------------------------------
     def _task_reset(self, rng: np.random.Generator) -> None:
