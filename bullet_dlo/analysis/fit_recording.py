@@ -53,7 +53,7 @@ class Recording:
     source: dict[str, Any] | None = field(default=None, compare=False)
 
     def __post_init__(self) -> None:
-        t = np.asarray(self.t, dtype=float)
+        t = _finite("t", self.t, np.shape(self.t)) if np.ndim(self.t) == 1 else np.zeros((0, 0))
         k = len(t)
         if t.ndim != 1 or k < 3 or np.any(np.diff(t) <= 0):
             raise ParameterError("recording t must hold at least 3 strictly increasing times [s]")
@@ -62,6 +62,9 @@ class Recording:
             if getattr(self, name) is None and name in ("force", "moment"):
                 continue
             object.__setattr__(self, name, _finite(name, getattr(self, name), (k, 2, width)))
+        if np.any(np.linalg.norm(self.grasp_quat, axis=2) < 1e-9):
+            raise ParameterError("recording grasp_quat holds a zero quaternion; grasp orientations must be unit "
+                                 "quaternions (x, y, z, w)")
         if (self.linear_map is None) != (self.linear_obs is None):
             raise ParameterError("recording linear_map and linear_obs must be given together")
         if self.linear_obs is not None:
@@ -95,7 +98,11 @@ class Recording:
 
 def _finite(name: str, value: Any, shape: tuple[int, ...]) -> np.ndarray:
     """``value`` as a float array of ``shape`` (ParameterError naming it otherwise)."""
-    a = np.asarray(value, dtype=float) if value is not None else np.zeros(0)
+    a = np.asarray(value) if value is not None else np.zeros(0)
+    if a.dtype.kind not in "fiu":
+        what = "complex numbers" if a.dtype.kind == "c" else f"{a.dtype} values"
+        raise ParameterError(f"recording {name} holds {what}; it must hold real numbers")
+    a = a.astype(float)
     if a.shape != shape or not np.all(np.isfinite(a)):
         raise ParameterError(f"recording {name} must be finite with shape ({', '.join(map(str, shape))})")
     return a

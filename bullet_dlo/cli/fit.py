@@ -19,7 +19,13 @@ RANGES = {  # CLI option -> (low, high, inclusive-low) checked before anything r
     "sigma_force": (0.0, math.inf, False), "sigma_moment": (0.0, math.inf, False),
     "sigma_linear": (0.0, math.inf, False),
 }
-INT_RANGES = {"n_masses": (3, 10**6), "max_evaluations": (2, 10**6), "windows": (2, 1000), "min_windows": (2, 1000),
+MAX_N_MASSES = 200
+"""Most point masses of the fit's model: a fit runs it 100-300 times over the recording, and n = 200 over
+a 10 s recording already takes minutes on a 2-core machine (cost grows faster than n)."""
+MAX_MODEL_STEPS = 10**6
+"""Most model steps per run (all recordings' last times / --dt)."""
+INT_RANGES = {"n_masses": (3, MAX_N_MASSES), "max_evaluations": (2, 10**6), "windows": (2, 1000),
+              "min_windows": (2, 1000),
               "profile_points": (0, 101)}
 
 
@@ -55,7 +61,14 @@ def cmd_fit(args: argparse.Namespace) -> int:
                          max_holdout_ratio=args.max_holdout_ratio, max_numerical_damping=args.max_numerical_damping,
                          max_relative_se=args.max_relative_se, profile_points=args.profile_points,
                          match_source=args.match_source)
-    recs = [read_recording(path, args.forces) for path in args.recording]
+    cable = argparse.Namespace(length=args.length, diameter=args.diameter, mass=args.mass)
+    recs = [read_recording(path, args.forces, units=args.units, window=args.time_window, cable=cable)
+            for path in args.recording]
+    steps = sum(float(r.t[-1]) for r in recs) / args.dt
+    if steps > MAX_MODEL_STEPS:
+        raise ParameterError(f"the model would run {steps:.3g} steps per evaluation (recordings' duration / --dt "
+                             f"{args.dt:g} s), more than {MAX_MODEL_STEPS:.0e}: use a larger --dt, fewer or "
+                             f"shorter recordings (--time-window T0 T1)")
     names = args.params.split(",") if args.params else default_parameters(fit_mass=args.mass is None)
     first = recs[0]
     weight = -float(np.mean(first.force[:, :, 2].sum(axis=1))) if first.force is not None else 0.0  # [N]
@@ -145,13 +158,23 @@ def add_parsers(sub, common: argparse.ArgumentParser) -> None:
                     "residuals, per-recording residuals, integrator/n/dt, numerical-damping check, profiles, "
                     "verdict) and fit.png (measured vs fitted forces of the first recording) into --out. "
                     "RECORDING: .csv, .npz or .h5 (a grasp --series file or a dataset episode; columns in "
-                    "bullet_dlo.data.recording).")
+                    "bullet_dlo.data.recording): CSV columns by header name t, left_x..left_z, left_qx..left_qw, "
+                    "left_fx..left_fz, the same for right_; units SI (s, m, N, N m) unless the file states them "
+                    "(header brackets such as 'left_x [mm]', HDF5 'units' attributes, NPZ attrs units) or --units "
+                    "does. Refused before anything runs: damaged files, links, pickles, non-increasing times, "
+                    "implausible SI values (time step outside 1e-5..1 s, positions > 100 m, forces > 1 kN), "
+                    "recordings over 120 s or 250000 samples (cut them with --time-window).")
     s.add_argument("recording", nargs="+", help="recording file(s) (.csv, .npz, .h5); several: fitted together")
     s.add_argument("--length", type=float, required=True, help="cable length [m], > 0")
     s.add_argument("--diameter", type=float, required=True, help="cable diameter [m], > 0")
     s.add_argument("--mass", type=float, help="cable mass [kg], > 0, if known (else it is fitted)")
     s.add_argument("--youngs-modulus", type=float, default=1e8, help="start value of E [Pa], > 0 (1e8)")
-    s.add_argument("--n-masses", type=int, default=10, help="point masses of the model, >= 3 (10)")
+    s.add_argument("--n-masses", type=int, default=10, help=f"point masses of the model, 3-{MAX_N_MASSES} (10)")
+    s.add_argument("--units", metavar="Q=U,...", help="units of the recording's columns that the file does not "
+                   "state: time=s|ms|us, length=m|cm|mm, force=N|mN, moment='N m'|'N mm'|'mN m' (default SI)")
+    s.add_argument("--time-window", nargs=2, type=float, metavar=("T0", "T1"), help="fit only the samples with "
+                   "T0 <= t <= T1 [s, the file's times] (their times then start at 0); cuts a recording longer "
+                   "than 120 s")
     s.add_argument("--params", help="comma-separated CableSpec fields to fit, among youngs_modulus, damping_rate, "
                    "internal_damping, damping, mass (default: youngs_modulus, internal_damping, damping_rate, "
                    "and mass when --mass is not given)")
