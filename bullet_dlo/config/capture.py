@@ -72,7 +72,7 @@ from typing import Any, Mapping
 import numpy as np
 
 from bullet_dlo.config.loader import load_mapping
-from bullet_dlo.config.robot import robot_names
+from bullet_dlo.config.robot import GRIPS, robot_names
 from bullet_dlo.config.schema import keyed, one_of, only_keys, section
 from bullet_dlo.core.boundary import MOTION_TYPES, parse_motion
 from bullet_dlo.core.integrators import INTEGRATORS
@@ -113,7 +113,6 @@ PARAMETERS: dict[str, tuple[str, dict, tuple]] = {
     "grip_reach": ("float", {"dist": "fixed", "value": 0.02}, (1e-4, 0.5)),
 }
 DRAWN_LAST = ("grip", "grip_force", "grip_mu_static", "grip_mu_dynamic", "grip_reach")
-GRIPS = ("clamp", "friction")
 
 
 @dataclass(frozen=True)

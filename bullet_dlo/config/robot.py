@@ -224,10 +224,9 @@ class DualArmSpec:
         if self.bullet.substeps != 1 and self.bullet.substeps != self.substeps:
             raise ParameterError(f"substeps ({self.substeps}) and bullet.substeps ({self.bullet.substeps}) differ; "
                                  f"give one")
-        if self.grip not in ("clamp", "friction"):
-            raise ParameterError(f"grip must be one of clamp, friction, got {self.grip!r}")
-        if self.payload not in PAYLOADS:
-            raise ParameterError(f"payload must be one of {', '.join(PAYLOADS)}, got {self.payload!r}")
+        for name, choices in (("grip", GRIPS), ("payload", PAYLOADS)):
+            if getattr(self, name) not in choices:
+                raise ParameterError(f"{name} must be one of {', '.join(choices)}, got {getattr(self, name)!r}")
         check_positive("grip_force", self.grip_force)
         check_positive("grip_reach", self.grip_reach)
         if len(self.grip_friction) != 2 or not 0.0 <= self.grip_friction[1] <= self.grip_friction[0]:

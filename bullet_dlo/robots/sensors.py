@@ -35,6 +35,7 @@ import pybullet as pb
 
 from bullet_dlo.bullet.kernels import bind
 from bullet_dlo.bullet.native import StateReader
+from bullet_dlo.config.robot import PAYLOADS
 from bullet_dlo.core.timing import RateGate
 from bullet_dlo.core.validate import ParameterError, check_nonnegative
 from bullet_dlo.robots.arm import Robot
@@ -74,8 +75,8 @@ def sensor_links(robot: Robot) -> list[int]:
     return [j for k, (j, info) in enumerate(zip(links, infos)) if k == 0 or info[0] > 0 or sum(info[2]) > 0]
 
 
-COMPENSATIONS = ("urdf", "calibrated")
-"""How a wrist sensor knows its payload: ``urdf``: every tool-side link's mass, centre of mass and
+COMPENSATIONS = PAYLOADS
+"""How a wrist sensor knows its payload (the scene's ``arms.payload``): ``urdf``: every tool-side link's mass, centre of mass and
 inertia from the robot description; ``calibrated``: mass and centre of mass identified from unloaded
 readings at several orientations (:func:`identify_payload`), as users of real F/T sensors do."""
 
