@@ -80,6 +80,8 @@ from bullet_dlo.core.validate import ParameterError, check_in_range, check_int, 
 
 DISTS = ("uniform", "log_uniform", "normal", "choice", "fixed")
 POLICIES = ("reject", "implicit", "substeps")
+MAX_SEED = 2**62
+"""Largest ``seed``: the seed (and the episode's ``seed + index`` of a rollout) is stored as a 64-bit integer."""
 SPEC_KEYS = ("seed", "episode", "policy", "max_resamples", "camera", "sample", "resolve_tol", "quality", "motion")
 QUALITY_DEFAULTS = {"max_sensor_model_rms": 1.0, "max_hf_energy": None}  # [cable weights], [share]
 
@@ -423,12 +425,13 @@ class CaptureSpec:
             if key in sample:
                 _check_names(key, sample[key])
         _check_friction_order(sample)
+        _check_grip_integrator(sample)
         motion = parse_motion_section(data.get("motion"))
         for key in MOVE_KEYS:
             if motion and key in sample:
                 raise ParameterError(f"sample.{key} sets the default straight move of the right gripper, which "
                                      f"the motion: section replaces; with motion:, leave out {', '.join(MOVE_KEYS)}")
-        return cls(seed=check_int("seed", data.get("seed", 0), 0),
+        return cls(seed=check_int("seed", data.get("seed", 0), 0, MAX_SEED),
                    duration=check_in_range("episode.duration", episode.get("duration", 2.0), 1e-3, 3600.0),
                    record_rate=check_in_range("episode.record_rate", episode.get("record_rate", 120.0), 0.01, 1e5),
                    policy=one_of("policy", str(data.get("policy", "substeps")), POLICIES),
@@ -502,6 +505,21 @@ def _check_names(key: str, dist: Distribution) -> None:
     for v in values:
         if v not in known:
             raise ParameterError(f"sample.{key}: unknown {key} {v!r}; known: {', '.join(known)}")
+
+
+def _values(sample: dict[str, Distribution], key: str) -> tuple:
+    """Every value a choice or fixed parameter ``key`` can be drawn as (its default where not sampled)."""
+    dist = sample.get(key) or parse_distribution(key, PARAMETERS[key][1])
+    return tuple(dist.values) if dist.dist == "choice" else (dist.value,)
+
+
+def _check_grip_integrator(sample: dict[str, Distribution]) -> None:
+    """Refuse a spec that can draw a friction grip with an explicit integrator: every such episode would
+    fail after building (the grip is part of an implicit step)."""
+    explicit = [v for v in _values(sample, "integrator") if v in INTEGRATORS and INTEGRATORS[v].explicit]
+    if "friction" in _values(sample, "grip") and explicit:
+        raise ParameterError(f"sample.grip can be drawn as friction with sample.integrator {', '.join(explicit)}: "
+                             f"a friction grip needs an implicit integrator; draw only implicit ones or no friction grip")
 
 
 def _check_friction_order(sample: dict[str, Distribution]) -> None:

@@ -97,9 +97,10 @@ SPEC_VALUES = {
     "episode": [5, 0, "x"],
     "episode.duration": [1e12, 0, NAN],
     "episode.record_rate": [0, INF, 1e12],
-    "sample": [[1, 2], "x"],
+    "sample": [[1, 2], "x", {"grip": {"dist": "fixed", "value": "friction"},  # every draw of this fails after building
+                             "integrator": {"dist": "choice", "values": ["symplectic_euler", "bdf2"]}}],
     "max_resamples": [NAN, -1, 0, 1e12, True],
-    "seed": [True, -1, 1.5, "x", NAN],
+    "seed": [True, -1, 1.5, "x", NAN, 2**70],
     "policy": ["maybe"],
     "resolve_tol": [0, NAN],
     "sample.n_masses": [{"dist": "choice", "values": [8.4, 10.6]}, {"dist": "fixed", "value": True}],

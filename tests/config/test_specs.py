@@ -69,8 +69,9 @@ def test_scene_errors_name_the_key(edit, needle):
 @pytest.mark.parametrize(
     "data,needle",
     [
-        ({"seed": -1}, "seed must be an integer >= 0, got -1"),
-        ({"seed": True}, "seed must be an integer >= 0"),
+        ({"seed": -1}, "seed must be an integer in [0, 4611686018427387904], got -1"),
+        ({"seed": 2**70}, "seed must be an integer in [0, 4611686018427387904]"),
+        ({"seed": True}, "seed must be an integer in [0,"),
         ({"policy": "retry"}, "policy must be one of reject, implicit, substeps, got 'retry'"),
         ({"episode": [2.0]}, "episode must be a mapping, got list"),
         ({"episode": {"length": 2.0}}, "unknown key(s) length in episode; allowed: duration, record_rate"),
