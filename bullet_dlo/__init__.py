@@ -10,7 +10,12 @@ Typical use::
 """
 import importlib
 
-from bullet_dlo._numba_cache import ensure_fresh_cache
+from bullet_dlo import _interrupt
+
+if _interrupt.is_command_line():  # before the heavy imports: a Ctrl-C while they load is one line
+    _interrupt.quiet_interrupt()
+
+from bullet_dlo._numba_cache import ensure_fresh_cache  # noqa: E402
 
 ensure_fresh_cache()  # before any kernel loads from the on-disk cache
 

@@ -112,6 +112,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         except ParameterError as err:
             print(f"error: {err}", file=sys.stderr)
             return 2
+        except KeyboardInterrupt:  # capture and rollouts report what they kept themselves; others stop here
+            print("interrupted (Ctrl-C): stopped; files already completed are kept", file=sys.stderr)
+            return 130
 
 
 if __name__ == "__main__":
