@@ -79,7 +79,8 @@ SCENE_VALUES = {
                          [{"type": "box", "half_extents": "abc", "position": [0, 0, 0]}],
                          [{"type": "box", "half_extents": [0.1, NAN, 0.1], "position": [0, 0, 0]}],
                          [{"type": "box", "half_extents": [0.1, 0.1, 0.1], "position": [0, 0, 0], "mass": -1}],
-                         [{"type": "cylinder", "radius": 0, "height": 0.1, "position": [0, 0, 0]}]],
+                         [{"type": "cylinder", "radius": 0, "height": 0.1, "position": [0, 0, 0]}],
+                         [{"type": "box", "half_extents": [0.01] * 3, "position": [0, 0, -1]}] * 1001],  # over the cap
     "gravity": [[0, 0], [0, 0, INF], "down"],
     "layout.start": ["x", [1, 2]],
     "layout.direction": [[0, 0, 0]],
