@@ -127,9 +127,10 @@ def record_rollouts(env_id: str, policy: str | Policy, out: str | Path, episodes
     seed = check_int("--seed", seed, 0, 2**31 - 1)
     record_rate = check_in_range("--record-rate [Hz]", record_rate, 0.01, 1e5)
     env_kwargs = dict(env_kwargs or {})
-    if env_id not in gym.registry:
+    if env_id not in gym.registry or not env_id.startswith("bullet_dlo/"):  # others lack the cable and sensors
         known = ", ".join(k for k in gym.registry if k.startswith("bullet_dlo/"))
-        raise ParameterError(f"unknown environment {env_id!r}; known: {known}")
+        what = "not one of bullet_dlo's environments" if env_id in gym.registry else "unknown environment"
+        raise ParameterError(f"{what} {env_id!r}: rollouts record the cable and the wrist sensors; known: {known}")
     env = gym.make(env_id, **env_kwargs)
     try:
         fn, name = resolve_policy(policy, env)

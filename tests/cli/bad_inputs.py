@@ -223,6 +223,8 @@ def build_cases() -> list[Case]:
         (["dataset", "summary", "{d}/c.yaml"], "capture directory"),
         (["dataset", "summary", "{d}/nothing"], "capture directory"),
         (["bench", "stability", "--out", "{d}/c.yaml"], "--out"),
+        (["rollouts", "CartPole-v1", "--out", "{d}/ro", "--episodes", "1"], "CartPole-v1"),  # no cable, no sensors
+        (["rollouts", "bullet_dlo/Nope-v0", "--out", "{d}/ro", "--episodes", "1"], "Nope-v0"),
     ]
     for argv, names in flag_cases:
         cases.append(Case(" ".join(argv[:1] + argv[2:] if argv[0] != "dataset" else argv), argv, names,
