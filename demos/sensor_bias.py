@@ -8,10 +8,13 @@ Three tables:
    under the load and the error that tilt alone would explain;
 2. the cause (with the tare of wave 1, after 22 settle steps; now ``SETTLE_STEPS`` = 150):
    the arms are still settling when the sensors tare (the position motors remove
-   10 % of the arm's sag per step, Bullet's default position gain 0.1), so the tare holds the
-   payload's inertial force m a of that step, and every later reading carries it. Shown
-   without any load: the reading of an unloaded arm after the hold against m a at the tare
-   step (from the payload momentum one step before and at the tare: (p_T - p_{T-1}) / dt);
+   10 % of the arm's sag per step, Bullet's default position gain 0.1), so a tare of Bullet's
+   joint reaction held the payload's inertial force m a of that step, and every later reading
+   carried it (Panda 1 kHz: 0.78, -0.47, 1.52 mN, equal to m a). Since issue 27 the transmitted
+   wrench is computed from the same momenta the compensation removes, so even that early tare
+   leaves nothing. Shown without any load: the reading of an unloaded arm after the hold (now
+   below 1 uN) beside m a at the tare step (from the payload momentum one step before and at
+   the tare: (p_T - p_{T-1}) / dt), the bias the joint-reaction tare held;
 3. suspects, one varied at a time from the 22-step tare of wave 1 (a module constant, an engine parameter or the arms'
    control patched for that run only): the bias at each robot and rate, and the vertical
    balance (both sensors' vertical forces plus the cable weight W, in % of W).
@@ -206,8 +209,8 @@ def main() -> None:
     (out / "sensor_bias.json").write_text(json.dumps(rows, indent=2))
 
     cause = [tare_inertia(robot, dt, seconds) for robot, dt in CASES]
-    print(f"\nCause: unloaded arm (no grasp) tared after {OLD_SETTLE_STEPS} settle steps, reading after the hold vs "
-          "the payload's m a at the tare step [mN, world]\n")
+    print(f"\nCause: unloaded arm (no grasp) tared after {OLD_SETTLE_STEPS} settle steps, reading after the hold (a "
+          "joint-reaction tare read m a; the Newton-Euler one reads 0) and the payload's m a at the tare step [mN, world]\n")
     print("| robot | rate | unloaded reading x, y, z | m a at the tare x, y, z |")
     print("|---|---|---|---|")
     for c in cause:
