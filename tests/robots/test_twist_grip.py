@@ -21,12 +21,12 @@ TURN = math.pi / 2  # [rad] about the cable axis (world x)
 START, DURATION, HOLD = 0.2, 1.0, 0.4  # [s]; a faster quarter turn loses the Panda's per-step IK tracking
 
 
-def held_turn(robot: str, twist: bool):
+def held_turn(robot: str, twist: bool, grip: str = "clamp"):
     """Grasp, turn the right gripper by :data:`TURN` about the cable, hold; the last 0.3 s averaged. Returns the
     sensors' moments [N m] (2, 3) about the held end masses (the reading is about the sensor frame's origin:
     the cable's end force has a lever arm there once the wrist is rolled) and the model's clamp moments (2, 3)."""
     cable = CABLE.with_(twist=twist)
-    with DualArmScene(DualArmConfig(robot=robot, cable=cable, dt=1e-3, integrator="bdf2")) as scene:
+    with DualArmScene(DualArmConfig(robot=robot, cable=cable, dt=1e-3, integrator="bdf2", grip=grip)) as scene:
         scene.grasp()
         scene.follow_motion([Move("last", (0.0, 0.0, 0.0), START, DURATION, rotation=(TURN, 0.0, 0.0))])
         scene.run(START + DURATION + HOLD)
@@ -37,11 +37,12 @@ def held_turn(robot: str, twist: bool):
         return moments, scene.cable.end_moments()
 
 
-@pytest.mark.parametrize("robot", ["panda", "kuka"])
-def test_wrist_sensors_read_the_torsion_of_a_turned_gripper(robot):
+@pytest.mark.parametrize("robot, grip", [("panda", "clamp"), ("kuka", "clamp"), ("kuka", "friction")])
+def test_wrist_sensors_read_the_torsion_of_a_turned_gripper(robot, grip):
     """Measured (python -m pytest tests/robots/test_twist_grip.py): both robots read 0.99986 G J theta / L about
-    the cable axis, left +, right - (the cable resists the turn); the model's clamp moments the same."""
-    moments, model = held_turn(robot, twist=True)
+    the cable axis, left +, right - (the cable resists the turn); the model's clamp moments the same. A friction
+    grip holds the roll as a clamp does (its fingers pinch the cable)."""
+    moments, model = held_turn(robot, twist=True, grip=grip)
     torque = CABLE.torsional_rigidity * TURN / CABLE.length
     assert moments[0, 0] == pytest.approx(torque, rel=0.01)
     assert moments[1, 0] == pytest.approx(-torque, rel=0.01)
