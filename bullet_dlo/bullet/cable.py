@@ -65,7 +65,9 @@ from bullet_dlo.core.kernels.forces import mechanical_energy
 from bullet_dlo.core.kernels.holders import empty_samples, sample_holders
 from bullet_dlo.core.kernels.monitor import REASONS, STABLE
 from bullet_dlo.core.kernels.steppers import make_workspace
-from bullet_dlo.core.model import CableModel, CableState
+from bullet_dlo.core.boundary import holder_plan
+from bullet_dlo.core.kernels.twist import grip_section, transport
+from bullet_dlo.core.model import CableModel, CableState, end_twist_constants
 from bullet_dlo.core.validate import (
     ParameterError,
     check_int,
@@ -131,11 +133,14 @@ class BulletCable:
         self.t = float(st.t)
         self.steps = 0
         self.arrays = type(model.arrays)(*[np.array(a, copy=True) for a in model.arrays])
-        self.plan = model.holder_plan()
+        # the samplers write a twisting cable's clamp axes into this cable's own arrays (not the model's)
+        tw_normal = self.arrays.tw_normal
+        self.plan = holder_plan(model.first, model.last, tw_normal if tw_normal.shape[0] else None)
         zeros = np.zeros((2, 3))
         self.ext = ExternalHolders(active=np.zeros(2, dtype=np.bool_), pos=zeros.copy(), vel=zeros.copy(),
                                    acc=zeros.copy(), omega=zeros.copy(),
-                                   dir=self.plan.start_dir.copy())  # clamp directions until a gripper takes over
+                                   dir=self.plan.start_dir.copy(),  # clamp directions until a gripper takes over
+                                   normal=self.plan.start_normal.copy())
         self._cp = Coupling(dt=float(world.dt), substeps=self.substeps,
                             gravity=np.asarray(world.gravity, dtype=float), x=st.x.copy(), v=st.v.copy(),
                             v_bullet=st.v.copy(), x_new=np.zeros((n, 3)), v_new=np.zeros((n, 3)),
@@ -335,6 +340,7 @@ class BulletCable:
         a.held[node] = True
         a.k_bend[node] = spec.k_bend_clamp if mode == "clamped" else 0.0
         a.c_bend[node] = a.k_bend[node] * spec.internal_damping  # the clamp's Kelvin-Voigt damper
+        self._hold_twist(end, mode)
         self.ext.active[end] = True
         self.grip.active[end] = False
         self._replan()
@@ -366,6 +372,7 @@ class BulletCable:
         a.held[node] = False
         a.k_bend[node] = self.model.spec.k_bend_clamp
         a.c_bend[node] = a.k_bend[node] * self.model.spec.internal_damping
+        self._hold_twist(end, "clamped")  # the pinching fingers hold the roll as they hold the tangent
         self.ext.active[end] = True
         g.k_ax[end] = g.k_lat[end] = self.contact_stiffness * a.mass[node] / self.stepper.h ** 2
         g.cap_s[end], g.cap_d[end] = 2.0 * mu_s * f_n, 2.0 * mu_d * f_n
@@ -387,19 +394,45 @@ class BulletCable:
         node = 0 if end == 0 else n - 1
         a.held[node] = False
         a.k_bend[node] = a.c_bend[node] = 0.0
+        self._hold_twist(end, "free")
         self.ext.active[end] = False
         self.grip.active[end] = False
+
+    def _hold_twist(self, end: int, mode: str) -> None:
+        """A cable with a material frame: end ``end``'s twist spring for ``mode`` (a clamp holds the twist,
+        a pin or a free end does not: :func:`~bullet_dlo.core.model.end_twist_constants`); a clamp takes the
+        section as it is now (no twist added, :func:`~bullet_dlo.core.kernels.twist.grip_section`) and its
+        axis becomes the holder's ``ext.normal``, which the holder then turns (the gripper's roll)."""
+        a = self.arrays
+        if not a.tw_k_twist.shape[0]:
+            return
+        spec = self.model.spec
+        node = 0 if end == 0 else self.model.n - 1
+        a.tw_k_twist[node], a.tw_k_aniso[node] = end_twist_constants(spec, mode)
+        a.tw_c_twist[node] = a.tw_k_twist[node] * spec.internal_damping
+        if mode == "clamped":
+            self.ext.normal[end] = grip_section(a, self.x, self.ext.dir, end)
 
     def release(self, end: int) -> None:
         """Let end ``end`` go: it becomes free and no longer follows any holder."""
         self._let_go(end)
         self._replan()
 
-    def set_external_pose(self, end: int, position, velocity, acceleration, omega, direction) -> None:
+    def set_external_pose(self, end: int, position, velocity, acceleration, omega, direction, normal=None) -> None:
         """Measured pose of the holder of ``end`` now, world frame: position [m], velocity [m/s],
         acceleration [m/s^2], angular velocity omega [rad/s], each (3,); direction: clamp tangent
-        pointing along the cable from its first to its last mass (normalised here)."""
+        pointing along the cable from its first to its last mass (normalised here); normal: the holder's
+        section axis d1 (3,), normal to direction, that a clamp of a cable with a material frame holds
+        (its roll about the cable); None: it is carried from the last pose onto the new direction without
+        roll (parallel transport). Only a cable with a material frame reads it."""
         e = self.ext
+        if self.arrays.tw_k_twist.shape[0]:
+            if normal is None:
+                d_old = e.dir[end].copy()
+                d_new = np.asarray(direction, dtype=float) / np.linalg.norm(direction)
+                transport(e.normal[end].copy(), d_old, d_new, e.normal[end])
+            else:
+                e.normal[end] = normal
         e.pos[end], e.vel[end], e.acc[end], e.omega[end] = position, velocity, acceleration, omega
         dx, dy, dz = direction  # normalised in scalars: this runs twice per coupled step
         scale = 1.0 / math.sqrt(dx * dx + dy * dy + dz * dz)

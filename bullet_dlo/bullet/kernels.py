@@ -17,6 +17,7 @@ from bullet_dlo.core.kernels.forces import clamp_torque
 from bullet_dlo.core.kernels.holders import HeldSamples, rotate, sample_end
 from bullet_dlo.core.kernels.monitor import STABLE, end_forces, monitor
 from bullet_dlo.core.kernels.steppers import IMPLICIT_EULER, advance
+from bullet_dlo.core.kernels.twist import set_clamp
 
 
 class ExternalHolders(NamedTuple):
@@ -25,7 +26,9 @@ class ExternalHolders(NamedTuple):
     active: which ends follow them, (2,) bool; pos [m], vel [m/s], acc [m/s^2], omega
     (angular velocity) [rad/s], dir (clamp direction, unit, along the cable from its first to
     its last node): world frame, (2, 3) each, measured now and extrapolated over a step at
-    constant velocity and angular velocity.
+    constant velocity and angular velocity; normal: the holder's section axis d1 (unit, normal to
+    dir), world frame, (2, 3), turned with dir over the step: the roll about the cable axis that a
+    clamp of a cable with a material frame holds (read only by such cables).
     """
 
     active: np.ndarray
@@ -34,6 +37,7 @@ class ExternalHolders(NamedTuple):
     acc: np.ndarray
     omega: np.ndarray
     dir: np.ndarray
+    normal: np.ndarray
 
 
 class Coupling(NamedTuple):
@@ -102,16 +106,20 @@ def end_loads(m, x, v, samples, grip, out_force, out_torque):
     ``out_torque`` (2, 3) (zero rows for free ends). One call per coupled step: the grasp coupling
     applies both to the grippers."""
     end_forces(m, x, v, samples.dir[0], samples.acc[0], out_force)
+    set_clamp(m, 0)  # a twisting cable's clamp axes at the time of dirs (no-op without a material frame)
     for e in range(2):
         if grip.active[e]:
             for j in range(3):
                 out_force[e, j] = -grip.force[e, j]
         out_torque[e, :] = clamp_torque(m, x, v, samples.dir[0], e)
+    set_clamp(m, 2)  # back to where the step left them (the energy check's)
 
 
 @njit(cache=True, error_model="numpy")
-def external_samples(ext, e, tau0, hs, samples):
-    """Held-end samples of end ``e`` at tau0 + (0, hs/2, hs) [s] after the measurement in ``ext``."""
+def external_samples(ext, e, tau0, hs, samples, normal):
+    """Held-end samples of end ``e`` at tau0 + (0, hs/2, hs) [s] after the measurement in ``ext``;
+    ``normal``: the buffer (3, 2, 3) of the clamps' section axes (a twisting cable's ``tw_normal``,
+    written like dir) or (0, 2, 3) (no material frame: nothing written)."""
     for k in range(3):
         tau = tau0 + 0.5 * hs * k
         for j in range(3):
@@ -120,6 +128,9 @@ def external_samples(ext, e, tau0, hs, samples):
             samples.acc[k, e, j] = ext.acc[e, j]
             samples.dir[k, e, j] = ext.dir[e, j]
         rotate(samples.dir[k, e], tau * ext.omega[e, 0], tau * ext.omega[e, 1], tau * ext.omega[e, 2])
+        if normal.shape[0] > 0:
+            normal[k, e, :] = ext.normal[e]
+            rotate(normal[k, e], tau * ext.omega[e, 0], tau * ext.omega[e, 1], tau * ext.omega[e, 2])
 
 
 @njit(cache=True, error_model="numpy")
@@ -142,7 +153,7 @@ def coupled_targets(stepper, m, plan, ext, cp, ws, t, has_prev, contacts):
     for k in range(cp.substeps):
         for e in range(2):  # an end a gripper holds follows the measured pose, the others their tables
             if ext.active[e]:
-                external_samples(ext, e, k * hs, hs, cp.samples)
+                external_samples(ext, e, k * hs, hs, cp.samples, plan.normal)
             else:
                 sample_end(plan, e, t + k * hs, hs, cp.samples)
         prev = has_prev or k > 0

@@ -59,6 +59,15 @@ in every draw, so a spec whose ``grip_mu_dynamic`` range reaches above the lowes
 ``grip_mu_static`` is refused at load (no clipping: every draw is what the spec says; a normal
 spans the whole [0, 2] range, so use uniform or choice). They are drawn after every older
 parameter and after ``noise_seed``: specs written before them keep their draws and digests.
+
+**Section and twist** (issue 22; see :class:`~bullet_dlo.core.spec.CableSpec`): ``poisson_ratio``,
+``section`` (choice or fixed of ``round`` | ``tube`` | ``rectangle``), ``inner_diameter`` [m] (a tube's),
+``width`` and ``thickness`` [m] (a rectangle's) and ``twist`` (choice or fixed of true | false: a material
+frame, so the grippers' roll twists the cable and the wrists feel the torsion). Each dimension is used only
+by its own section, so a spec may choose among sections; a spec whose tube bore can reach the lowest
+diameter, or whose rectangle can be drawn 0 m wide or thick, is refused at load. Drawn after the grips,
+and in an episode's parameters only when ``sample:`` gives them (older specs keep their draws and their
+episodes' parameters).
 """
 from __future__ import annotations
 
@@ -76,6 +85,7 @@ from bullet_dlo.config.robot import GRIPS, robot_names
 from bullet_dlo.config.schema import keyed, one_of, only_keys, section
 from bullet_dlo.core.boundary import MOTION_TYPES, parse_motion
 from bullet_dlo.core.integrators import INTEGRATORS
+from bullet_dlo.core.spec import SECTIONS
 from bullet_dlo.core.validate import ParameterError, check_in_range, check_int, check_positive
 
 DISTS = ("uniform", "log_uniform", "normal", "choice", "fixed")
@@ -113,8 +123,17 @@ PARAMETERS: dict[str, tuple[str, dict, tuple]] = {
     "grip_mu_static": ("float", {"dist": "fixed", "value": 0.5}, (0.0, 2.0)),
     "grip_mu_dynamic": ("float", {"dist": "fixed", "value": 0.4}, (0.0, 2.0)),
     "grip_reach": ("float", {"dist": "fixed", "value": 0.02}, (1e-4, 0.5)),
+    # the section and the material frame (issue 22), drawn after the grips; in an episode's parameters only
+    # when the spec samples them (older specs keep their draws and their episodes' parameters)
+    "poisson_ratio": ("float", {"dist": "fixed", "value": 0.3}, (0.0, 0.49)),
+    "section": ("str", {"dist": "fixed", "value": "round"}, ()),
+    "inner_diameter": ("float", {"dist": "fixed", "value": 0.0}, (0.0, 0.05)),
+    "width": ("float", {"dist": "fixed", "value": 0.0}, (0.0, 0.05)),
+    "thickness": ("float", {"dist": "fixed", "value": 0.0}, (0.0, 0.05)),
+    "twist": ("bool", {"dist": "fixed", "value": False}, ()),
 }
-DRAWN_LAST = ("grip", "grip_force", "grip_mu_static", "grip_mu_dynamic", "grip_reach")
+SECTION_KEYS = ("poisson_ratio", "section", "inner_diameter", "width", "thickness", "twist")
+DRAWN_LAST = ("grip", "grip_force", "grip_mu_static", "grip_mu_dynamic", "grip_reach") + SECTION_KEYS
 
 
 @dataclass(frozen=True)
@@ -147,6 +166,8 @@ class Distribution:
             return out if out == "auto" else int(round(out))
         if kind == "float":
             return float(out)
+        if kind == "bool":
+            return bool(out)
         return str(out)
 
 
@@ -182,6 +203,8 @@ def _distribution(name: str, data: Mapping[str, Any], kind: str, bounds: tuple) 
     of ``kind`` (float | int | str) whose every value must lie in ``bounds`` (() for names)."""
     data = dict(data)
     dist = one_of(f"{name}.dist", data.pop("dist", None), DISTS)
+    if kind == "bool" and dist not in ("choice", "fixed"):
+        raise ParameterError(f"{name} must be a choice or fixed (of true, false), got {dist}")
     allowed = {"uniform": {"low", "high"}, "log_uniform": {"low", "high"}, "normal": {"mean", "std"},
                "choice": {"values"}, "fixed": {"value"}}[dist]
     if set(data) != allowed:
@@ -189,6 +212,8 @@ def _distribution(name: str, data: Mapping[str, Any], kind: str, bounds: tuple) 
                              f"{', '.join(sorted(data)) or 'nothing'}")
 
     def in_range(field_name: str, v: Any) -> None:
+        if kind == "bool" and not isinstance(v, bool):
+            raise ParameterError(f"{name}.{field_name} must be true or false, got {v!r}")
         if kind in ("float", "int") and bounds:
             num = _number(name, field_name, v, bounds)
             if not bounds[0] <= num <= bounds[1]:
@@ -421,11 +446,12 @@ class CaptureSpec:
         only_keys(quality, tuple(QUALITY_DEFAULTS), "quality")
         rms_limit, hf_limit = quality["max_sensor_model_rms"], quality["max_hf_energy"]
         sample = {k: parse_distribution(k, v) for k, v in section(data.get("sample"), "sample").items()}
-        for key in ("integrator", "robot", "grip"):
+        for key in ("integrator", "robot", "grip", "section"):
             if key in sample:
                 _check_names(key, sample[key])
         _check_friction_order(sample)
         _check_grip_integrator(sample)
+        _check_sections(sample)
         motion = parse_motion_section(data.get("motion"))
         for key in MOVE_KEYS:
             if motion and key in sample:
@@ -478,6 +504,8 @@ class CaptureSpec:
             out[key] = self._sample(key, rng)
         out["noise_seed"] = int(rng.integers(2**31 - 1))
         for key in DRAWN_LAST:
+            if key in SECTION_KEYS and key not in self.sample:
+                continue  # its default (the plain round cable), drawn without a number from rng
             out[key] = self._sample(key, rng)
         if self.motion:
             for key in MOVE_KEYS:
@@ -498,7 +526,7 @@ class CaptureSpec:
 
 def _check_names(key: str, dist: Distribution) -> None:
     """A choice or fixed value of ``integrator``, ``robot`` or ``grip`` naming only known ones."""
-    known = {"integrator": list(INTEGRATORS), "grip": list(GRIPS)}.get(key) or robot_names()
+    known = {"integrator": list(INTEGRATORS), "grip": list(GRIPS), "section": list(SECTIONS)}.get(key) or robot_names()
     values = list(dist.values or ()) + ([dist.value] if dist.value is not None else [])
     if dist.dist not in ("choice", "fixed"):
         raise ParameterError(f"sample.{key} must be a choice or fixed, got {dist.dist}")
@@ -533,3 +561,23 @@ def _check_friction_order(sample: dict[str, Distribution]) -> None:
         raise ParameterError(f"sample.grip_mu_dynamic can be drawn above sample.grip_mu_static (up to "
                              f"{highest_dynamic} > {lowest_static}); every draw needs 0 <= mu_dynamic <= mu_static: make the whole "
                              "grip_mu_dynamic range lie at or below the grip_mu_static range")
+
+
+def _check_sections(sample: dict[str, Distribution]) -> None:
+    """Refuse section dimensions that some draw could make invalid: a tube's inner diameter must stay below the
+    lowest drawn diameter, a rectangle's width and thickness above 0. Each dimension is used only by its own
+    section (an episode that draws another section ignores it), so one spec may choose among sections."""
+    def span(key: str) -> tuple[float, float]:
+        return support(sample.get(key) or parse_distribution(key, PARAMETERS[key][1]), PARAMETERS[key][2])
+
+    dist = sample.get("section") or parse_distribution("section", PARAMETERS["section"][1])
+    sections = set(dist.values or ()) | ({dist.value} if dist.value is not None else set())
+    if "tube" in sections and span("inner_diameter")[1] >= span("diameter")[0]:
+        raise ParameterError(f"sample.inner_diameter can be drawn at or above sample.diameter (up to "
+                             f"{span('inner_diameter')[1]} m, diameter from {span('diameter')[0]} m): a tube's bore "
+                             "must be smaller than its diameter in every draw")
+    if "rectangle" in sections:
+        for key in ("width", "thickness"):
+            if span(key)[0] <= 0.0:
+                raise ParameterError(f"sample.{key} can be drawn at 0 m (from {span(key)[0]}): a rectangle needs "
+                                     f"width and thickness > 0 in every draw")

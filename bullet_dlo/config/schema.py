@@ -12,6 +12,7 @@ import os
 from pathlib import Path
 from typing import Any, Callable, Iterable, Mapping, TypeVar
 
+from bullet_dlo.core.spec import DISCRETISATIONS, SECTIONS
 from bullet_dlo.core.validate import ParameterError
 
 T = TypeVar("T")
@@ -62,7 +63,13 @@ CABLE_BOUNDS: dict[str, tuple[float, float]] = {
     "damping": (0.0, 1e4),  # [N s/m]
     "friction": (0.0, 10.0),
     "static_friction": (0.0, 10.0),
+    "poisson_ratio": (0.0, 0.4999),  # G = E / (2 (1 + nu)): the twist springs G J / l0
+    "inner_diameter": (0.0, 1.0),  # [m] tube bore, below the diameter
+    "width": (0.0, 1.0),  # [m] rectangle width (along the section axis d1)
+    "thickness": (0.0, 1.0),  # [m] rectangle thickness (along d2)
 }
+CABLE_NAMES: dict[str, tuple[str, ...]] = {"section": SECTIONS, "discretisation": DISCRETISATIONS}
+CABLE_FLAGS = ("twist",)  # true or false (a material frame: twist springs, the grippers' roll)
 DIAMETER_PER_LENGTH = 0.5  # a cable is slender: its diameter is at most half its length
 
 # Caps on work, applied to values from files and from command-line flags alike.
@@ -86,6 +93,12 @@ def check_cable(data: Mapping[str, Any], where: str = "cable") -> None:
                 check_int(f"{where}.{key}", data[key], int(lo), int(hi))
             else:
                 check_in_range(f"{where}.{key}", data[key], lo, hi)
+    for key, names in CABLE_NAMES.items():
+        if key in data:
+            one_of(f"{where}.{key}", str(data[key]).lower() if key == "section" else data[key], names)
+    for key in CABLE_FLAGS:
+        if key in data and not isinstance(data[key], bool):
+            raise ParameterError(f"{where}.{key} must be true or false, got {data[key]!r}")
     if "diameter" in data and "length" in data and float(data["diameter"]) > DIAMETER_PER_LENGTH * float(data["length"]):
         raise ParameterError(f"{where}.diameter = {data['diameter']} m must be at most {DIAMETER_PER_LENGTH} x "
                              f"{where}.length ({data['length']} m)")

@@ -190,15 +190,28 @@ def twist_arrays(spec: CableSpec, first_mode: str, last_mode: str) -> TwistArray
     spring), anisotropic bending (E I1 - E I2) / (2 l0) at every bending node, segment inertia
     rho J_p l0 with drag rate ``mass_damping_rate``, Kelvin-Voigt twist dampers k_t tau."""
     n = spec.n_masses
-    clamp = spec.k_bend_clamp / spec.k_bend
-    ei1, ei2 = spec.bending_rigidities
     k_twist = np.full(n, spec.k_twist)
-    k_aniso = np.full(n, 0.5 * (ei1 - ei2) / spec.rest_length)
+    k_aniso = np.full(n, aniso_constant(spec))
     for i, mode in ((0, first_mode), (n - 1, last_mode)):
-        k_twist[i] *= clamp if mode == "clamped" else 0.0
-        k_aniso[i] *= clamp if mode == "clamped" else 0.0
+        k_twist[i], k_aniso[i] = end_twist_constants(spec, mode)
     inertia = np.full(n - 1, spec.segment_inertia)
     return make_twist(k_twist, k_twist * spec.internal_damping, k_aniso, inertia, spec.mass_damping_rate * inertia)
+
+
+def aniso_constant(spec: CableSpec) -> float:
+    """Anisotropic bending constant Delta = (E I1 - E I2) / (2 l0) [N m/rad^2] of an interior node."""
+    ei1, ei2 = spec.bending_rigidities
+    return 0.5 * (ei1 - ei2) / spec.rest_length
+
+
+def end_twist_constants(spec: CableSpec, mode: str) -> tuple[float, float]:
+    """Twist spring [N m/rad] and anisotropic bending constant [N m/rad^2] of an end node held in ``mode``:
+    a clamp holds the twist with its half Voronoi length (the interior values times k_bend_clamp / k_bend,
+    as its bending spring); a pinned or free end holds none (0, 0)."""
+    if mode != "clamped":
+        return 0.0, 0.0
+    clamp = spec.k_bend_clamp / spec.k_bend
+    return spec.k_twist * clamp, aniso_constant(spec) * clamp
 
 
 @dataclass

@@ -88,8 +88,13 @@ def gripper_move(params: dict[str, Any]) -> tuple[np.ndarray, float]:
 
 
 def cable_spec(params: dict[str, Any]) -> CableSpec:
-    """The drawn cable."""
+    """The drawn cable; the section's dimensions only where the drawn section uses them (a tube's
+    ``inner_diameter``, a rectangle's ``width`` and ``thickness``), so a spec may choose among sections."""
+    section = params.get("section", "round")
+    shape = {"tube": ("inner_diameter",), "rectangle": ("width", "thickness")}.get(section, ())
     return CableSpec(length=params["length"], diameter=params["diameter"], mass=params["mass"],
                      youngs_modulus=params["youngs_modulus"], n_masses=params["n_masses"],
                      damping=params["damping"], damping_rate=params.get("damping_rate", 0.0),
-                     internal_damping=params.get("internal_damping", 0.0), friction=params["friction"])
+                     internal_damping=params.get("internal_damping", 0.0), friction=params["friction"],
+                     poisson_ratio=params.get("poisson_ratio", 0.3), section=section,
+                     twist=params.get("twist", False), **{k: params[k] for k in shape if k in params})

@@ -18,15 +18,18 @@ COM, COM_QUAT, FRAME, FRAME_QUAT, LIN_VEL, ANG_VEL = 0, 3, 14, 17, 21, 24  # fie
 
 
 @njit(cache=True, error_model="numpy")
-def grasp_frames(rows, prev_vel, rate, ext):
+def grasp_frames(rows, prev_vel, rate, section, ext):
     """Both grasp frames (the first link of ``rows[arm]``, (2, k, ROW)) into the cable's external holders.
 
     Writes, per arm, into ``ext`` (ExternalHolders): pos [m] = link frame origin, vel [m/s] = the
     frame origin's velocity v_com + omega x (frame - com), acc [m/s^2] = its backward difference
     against ``prev_vel`` (2, 3) over 1/``rate`` [1/s] (0 at the first call: rate 0), omega [rad/s],
     dir = the frame's x axis (arm 0) or its opposite (arm 1), unit: the cable runs from the left
-    gripper's x axis to the right one's. ``prev_vel`` becomes the velocities now.
+    gripper's x axis to the right one's, normal = the grasp frame's rotation times ``section[arm]`` (2, 3),
+    the held section's axis d1 in the grasp frame (fixed at the grasp: the gripper's roll about the cable
+    turns it; read only by a cable with a material frame). ``prev_vel`` becomes the velocities now.
     """
+    rot = np.empty(9)
     for arm in range(2):
         r = rows[arm, 0]
         wx, wy, wz = r[ANG_VEL], r[ANG_VEL + 1], r[ANG_VEL + 2]
@@ -49,6 +52,12 @@ def grasp_frames(rows, prev_vel, rate, ext):
             ext.omega[arm, j] = r[ANG_VEL + j]
         ext.vel[arm, 0], ext.vel[arm, 1], ext.vel[arm, 2] = vx, vy, vz
         ext.dir[arm, 0], ext.dir[arm, 1], ext.dir[arm, 2] = ax * scale, ay * scale, az * scale
+        sx, sy, sz = section[arm, 0], section[arm, 1], section[arm, 2]
+        if sx != 0.0 or sy != 0.0 or sz != 0.0:  # (zero: no section held, nothing to turn)
+            rotation_matrix(x, y, z, w, rot)
+            ext.normal[arm, 0] = rot[0] * sx + rot[1] * sy + rot[2] * sz
+            ext.normal[arm, 1] = rot[3] * sx + rot[4] * sy + rot[5] * sz
+            ext.normal[arm, 2] = rot[6] * sx + rot[7] * sy + rot[8] * sz
 
 
 @njit(cache=True, error_model="numpy")

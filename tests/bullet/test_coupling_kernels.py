@@ -12,10 +12,11 @@ def test_external_samples_extrapolate_at_constant_velocity_and_spin(rng):
     direction = rng.normal(size=(2, 3))
     direction /= np.linalg.norm(direction, axis=1, keepdims=True)
     ext = ExternalHolders(active=np.array([False, True]), pos=rng.normal(size=(2, 3)), vel=rng.normal(size=(2, 3)),
-                          acc=rng.normal(size=(2, 3)), omega=rng.normal(size=(2, 3)), dir=direction)
+                          acc=rng.normal(size=(2, 3)), omega=rng.normal(size=(2, 3)), dir=direction,
+                          normal=np.zeros((2, 3)))
     samples = empty_samples()
     tau0, hs = 2e-3, 1e-3
-    external_samples(ext, 1, tau0, hs, samples)
+    external_samples(ext, 1, tau0, hs, samples, np.zeros((0, 2, 3)))
     for k, tau in enumerate((tau0, tau0 + hs / 2, tau0 + hs)):
         assert np.allclose(samples.pos[k, 1], ext.pos[1] + tau * ext.vel[1], atol=1e-15)
         assert np.allclose(samples.vel[k, 1], ext.vel[1]) and np.allclose(samples.acc[k, 1], ext.acc[1])

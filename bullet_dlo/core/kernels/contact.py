@@ -43,6 +43,7 @@ from numba import njit
 
 from bullet_dlo.core.kernels.banded import HALF, assemble_system, band_solve
 from bullet_dlo.core.kernels.forces import add_damping_jacobian, force_jacobian
+from bullet_dlo.core.kernels.twist import has_twist, set_clamp, twist_ready, twist_step
 from bullet_dlo.core.kernels.steppers import (
     BDF2,
     IMPLICIT_EULER,
@@ -549,6 +550,10 @@ def contact_step(stepper, m, x, v, samples, ws, has_prev, c):
     if method == IMPLICIT_MIDPOINT:
         method = IMPLICIT_EULER
     use_prev = has_prev and method == BDF2
+    twisting = has_twist(m)
+    if twisting:  # as advance does: the positions with the twist held, then the twist sub-step
+        twist_ready(m, x, samples.dir[0])
+        set_clamp(m, 2)  # (implicit Euler and BDF2 evaluate at t + h)
     imp = _start_implicit(method, m, x, v, h, samples, ws, use_prev)
     vn = ws.v_new
     gr = c.grip
@@ -585,4 +590,6 @@ def contact_step(stepper, m, x, v, samples, ws, has_prev, c):
     _set_held(m.held, x, v, samples.pos[2], samples.vel[2])
     _update_friction(c, x)  # contact points stay at the end of the step: the next step's start
     _update_grips(gr, x)
+    if twisting:
+        twist_step(m, x, samples.dir[2], h)
     return its, converged

@@ -190,6 +190,9 @@ def _transport(u, t1, t2, out):
     out[0], out[1], out[2] = o0 / norm, o1 / norm, o2 / norm
 
 
+transport = _transport  # the public name (callers outside the kernels)
+
+
 @njit(cache=True, error_model="numpy", inline="always")
 def _unit_edge(x, k, out):
     """out <- unit tangent of edge k; returns its length [m]."""
@@ -328,6 +331,35 @@ def twist_ready(m, x, dirs):
         m.tw_mref[i] = node_geometry(m, x, dirs, m.tw_theta, i, g)[0]
     if m.tw_k_twist[0] != 0.0 or m.tw_k_twist[n - 1] != 0.0:
         twist_solve(m, x, dirs, 1.0, False, m.tw_mref)
+
+
+@njit(cache=True, error_model="numpy")
+def grip_section(m, x, dirs, end):
+    """Make the clamp of ``end`` (0 first, 1 last) hold the section as it is now, for a clamp closing on
+    the cable (a gripper's grasp): its section axis d1 becomes the end segment's material axis m1 carried
+    by parallel transport onto the clamp direction ``dirs[end]`` (unit), and the clamp node's reference
+    twist is set so that its twist is 0 (closing a gripper does not twist the cable). Writes the axis into
+    ``tw_clamp`` and every sample of ``tw_normal`` of that end and returns it (3,), world frame; the
+    caller sets the clamp's twist springs (``tw_k_twist`` etc. at the end node)."""
+    twist_ready(m, x, dirs)
+    n = x.shape[0]
+    k = 0 if end == 0 else n - 2
+    t, r, b, m1, out = np.empty(3), np.empty(3), np.empty(3), np.empty(3), np.empty(3)
+    _unit_edge(x, k, t)
+    _transport(m.tw_ref[k], m.tw_tan[k], t, r)
+    _cross(t, r, b)
+    c, s = math.cos(m.tw_theta[k]), math.sin(m.tw_theta[k])
+    for j in range(3):
+        m1[j] = c * r[j] + s * b[j]
+    d = np.empty(3)
+    d[:] = dirs[end]
+    _transport(m1, t, d, out)
+    m.tw_clamp[end, :] = out
+    for sample in range(m.tw_normal.shape[0]):
+        m.tw_normal[sample, end, :] = out
+    # twist m_i = theta_b - theta_a + mref_i is 0 with the clamp edge's theta 0 (see node_geometry)
+    m.tw_mref[0 if end == 0 else n - 1] = -m.tw_theta[0] if end == 0 else m.tw_theta[n - 2]
+    return out
 
 
 @njit(cache=True, error_model="numpy")

@@ -45,7 +45,7 @@ from bullet_dlo.core.model import CableModel, CableState
 from bullet_dlo.core.statics import solve_static
 from bullet_dlo.core.validate import ParameterError
 from bullet_dlo.robots.arm import Robot
-from bullet_dlo.robots.kernels import grasp_frames
+from bullet_dlo.robots.kernels import FRAME_QUAT, grasp_frames
 from bullet_dlo.robots.sensors import PayloadFit, identify_payload, sensor_links
 from bullet_dlo.robots.transforms import quat_from_axes, rotation
 
@@ -130,7 +130,9 @@ class DualArmPhysics:
         self._held_mask = np.zeros(2, dtype=np.bool_)
         self._end_points = np.zeros((2, 3))  # [m] where the cable's end forces act: its end masses
         self._apply_wrenches = None  # native.apply_wrenches's machine code, bound on first use
-        self._grasp_frames = bind(grasp_frames, self.reader.link_rows, self._grasp_velocity, 0.0, self.cable.ext)
+        self._section = np.zeros((2, 3))  # held section axis d1 in each grasp frame (a twisting cable's roll)
+        self._grasp_frames = bind(grasp_frames, self.reader.link_rows, self._grasp_velocity, 0.0, self._section,
+                                  self.cable.ext)
         self.task = None  # set by a task (DualArmTask): it drives the arms in load()
         self.observation = None  # set by DualArmObservation: its sensors sample in read()
         self.world.couplings.append(self)
@@ -234,6 +236,11 @@ class DualArmPhysics:
             self.cable.grip_with_friction(arm, spec.grip_force, *spec.grip_friction, reach=spec.grip_reach)
         else:
             self.cable.hold_externally(arm, "clamped")
+        if self.cable.arrays.tw_k_twist.shape[0]:
+            # a cable with a material frame: the clamp holds the section axis it closed on, fixed in the grasp
+            # frame from now on, so the gripper's roll about the cable twists the cable
+            quat = self.reader.link_rows[arm, 0, FRAME_QUAT:FRAME_QUAT + 4]
+            self._section[arm] = rotation(quat).T @ self.cable.ext.normal[arm]
         self.held[arm] = True
         self._follow_grippers()
 
@@ -301,7 +308,7 @@ class DualArmPhysics:
         the holder poses of the cable's ends (:func:`~bullet_dlo.robots.kernels.grasp_frames`)."""
         self.reader.read()
         self._grasp_frames(self.reader.link_rows, self._grasp_velocity, 0.0 if first else 1.0 / self.world.dt,
-                           self.cable.ext)
+                           self._section, self.cable.ext)
 
     # ----- running -------------------------------------------------------------------------------
     def run(self, duration: float) -> float:
