@@ -224,4 +224,4 @@ def test_page_renders_cable_and_arms_in_headless_chromium(runs):
     assert arms.sum() >= 500, "the arms' blue links are not on screen"
     ys, xs = np.nonzero(arms)
     assert xs.min() < w / 2 < xs.max(), "both arms: blue pixels on either side of the middle"
-    assert differs.mean() > 0.05
+    assert differs.mean() > 0.02, "the scene is (nearly) blank"
