@@ -19,6 +19,7 @@ from typing import Sequence
 from bullet_dlo.cli import data, fit, resolve, robots, simulate
 from bullet_dlo.cli import validate
 from bullet_dlo.cli import export
+from bullet_dlo.cli import view
 from bullet_dlo.cli.quiet import quiet_output
 from bullet_dlo.config.schema import output_dir, output_file
 from bullet_dlo.core.validate import ParameterError
@@ -98,6 +99,7 @@ def build_parser() -> argparse.ArgumentParser:
     fit.add_parsers(sub, common)
     validate.add_parsers(sub, common)
     export.add_parsers(sub, common)
+    view.add_parsers(sub, common)
     _add_bench_parsers(sub)
     return p
 

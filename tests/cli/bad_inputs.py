@@ -241,6 +241,14 @@ def build_cases() -> list[Case]:
                           {"cap/capture.json": good_json, "cap/manifest.jsonl": text}))
     cases.append(Case("dataset summary, capture.json not JSON", ["dataset", "summary", "{d}/cap"], "capture.json",
                       {"cap/capture.json": "{\"digest\": ", "cap/manifest.jsonl": ""}))
+    # view: runs that are not there or not runs, pages that are not .html
+    cases += [Case("view, missing run", ["view", "{d}/none.npz", "--out", "{d}/v.html"], "none.npz"),
+              Case("view, not an npz", ["view", "{d}/r.npz", "--out", "{d}/v.html"], "r.npz", {"r.npz": "text"}),
+              Case("view, page not .html", ["view", "{d}/r.npz", "--out", "{d}/v.png"], "--out", {"r.npz": "text"}),
+              Case("view, no output", ["view", "{d}/r.npz"], "--serve", {"r.npz": "text"}),
+              Case("view, folder of nothing", ["view", "{d}/f", "--out", "{d}/v.html"], "capture", {"f": DIR}),
+              Case("view, negative --max-frames", ["view", "{d}/r.npz", "--out", "{d}/v.html", "--max-frames", "-1"],
+                   "--max-frames", {"r.npz": "text"})]
     return cases
 
 
