@@ -111,19 +111,18 @@ class ContactSet:
     Two-way contact with a dynamic body: the cable's implicit step sees the body's surface move
     at the body's velocity, but Bullet then moves the body under the contact force too. With the
     penalty stiffness k_n = alpha m_k / h^2 (alpha = 1e4) and a body of mass M, that force, explicit
-    for the body, has k_n h^2 / M = alpha m_k / M: 150 for a 30 g box on 0.45 g of cable, far past
+    for the body, has k_n h^2 / M = alpha m_k / M per contact: 500 for a 30 g box on one 1.6 g node, far past
     the explicit limit (about 1), so a box resting on a cable was thrown off at tens of m/s. The
-    detector therefore condenses the body's own inertia into each of its contacts: with C [1/kg]
-    the body's compliance summed over its contacts, C = sum_k (1/M + |r_k|^2 / I_min) (r_k the arm
-    from the centre of mass, I_min [kg m^2] the smallest principal inertia), the contact's
-    stiffness and damping become k_n / (1 + (k_n h^2 + c_n h) C) and c_n / (1 + ...) (the normal
-    and friction springs alike), with h the Bullet step. That is a penalty spring in series with
-    the body's inertial "spring" 1/(h^2 C): the force is the one that leaves the spring and the
-    body consistent at the end of the step, and the stiffness the body meets over all its
-    contacts stays within k h^2 C <= 1 (stable; the largest eigenvalue of a positive block matrix
-    is at most the sum of its blocks'). At rest the extra sag is f h^2 C per contact (the body's
-    fall in one step, ~g h^2: 0.17 mm at 240 Hz, 0.01 mm at 1 kHz); static bodies (C = 0) keep
-    the full stiffness. The inertia is read at set-up (a later changeDynamics of mass is not seen).
+    detector therefore condenses the body's own inertia into its contacts (:func:`_condense_bodies`):
+    lambda [1/s^2], the body's fastest contact mode squared (largest eigenvalue of the 6 x 6
+    stiffness of its loaded contacts scaled by 1/M and 1/I_min, both upper bounds), scales every
+    contact on the body, stiffness, damping and friction cap, by 1 / (1 + h^2 lambda), h [s] the
+    Bullet step. For a body resting on N equal contacts that is the penalty in series with the
+    body's inertial "spring" M / (N h^2): the force leaves spring and body consistent at the end of
+    the step, and the body meets at most lambda h^2 / (1 + lambda h^2) < 1 per step (stable). At
+    rest the body sinks by about g h^2 more (its fall in one step: 0.2-0.4 mm at 240 Hz, 0.02 mm at
+    1 kHz); static bodies keep the full stiffness. The inertia is read at set-up (a later
+    changeDynamics of mass is not seen).
 
     The energy check counts the work the bodies did on the cable with their velocity after
     Bullet's step (what they actually did), so energy a body gains from contact shows up as
