@@ -155,6 +155,8 @@ class BulletCable:
         self._body_array = np.array(self.body_ids, dtype=np.int32)
         self._apply_native = None  # apply_forces's machine code, bound on first use
         self._contact_set: ContactSet | None = None
+        self._bullet_collisions_off = False  # disable_bullet_collisions was called
+        self._excluded: set[int] = set()  # dynamic bodies whose Bullet contacts with the spheres are off
         self._bodies_seen = -1
         self.grip = make_grip()  # friction grips of the ends (grip_with_friction), shared by every contact set
         self._no_contacts = make_contacts(n, 1, self.radius, self.grip)
@@ -214,6 +216,23 @@ class BulletCable:
                                        spec.static_friction, spec.friction, self.contact_stiffness,
                                        self.contact_damping, self_contact=self.self_collision != "none",
                                        grip=self.grip, native=self.world.native_handle())
+        if self._bullet_collisions_off:
+            self._exclude_model_bodies()
+
+    def _exclude_model_bodies(self) -> None:
+        """Keep Bullet from also colliding the spheres with the dynamic bodies the contact model handles.
+
+        The collision-group masks of :meth:`disable_bullet_collisions` keep static bodies away from the
+        spheres, but not dynamic ones (measured: a dynamic box, created before or after the cable, had
+        Bullet contacts with the spheres under it): such a body was then pushed by the model's reaction
+        and by Bullet's sphere contacts at once, and the spheres it pressed were read back pushed into
+        the ground. One pair filter per sphere and body, once per body.
+        """
+        cs, cid = self._contact_set, self.world.client
+        for body in sorted(set(cs.body_ids[cs.dynamic].tolist()) - self._excluded):
+            for b in self.body_ids:
+                pb.setCollisionFilterPair(b, body, -1, -1, 0, physicsClientId=cid)
+            self._excluded.add(body)
 
     def disable_bullet_collisions(self) -> None:
         """Leave the world's bodies and the cable's self-contact to the contact model: in Bullet the
@@ -222,6 +241,9 @@ class BulletCable:
         own = self._group or self.world.next_cable_group()
         for b in self.body_ids:
             pb.setCollisionFilterGroupMask(b, -1, own, CABLE_GROUPS & ~own, physicsClientId=self.world.client)
+        self._bullet_collisions_off = True
+        if self._contact_set is not None:
+            self._exclude_model_bodies()
 
     @property
     def contacts(self):
@@ -251,7 +273,8 @@ class BulletCable:
             self._refresh_contact_set()
             cp = self._cp
             x0, v0 = (cp.x_new, cp.v_new) if do_sync else (cp.x, cp.v)  # the state this step starts from
-            self.contacts_last_step = self._contact_set.update(x0, v0, self.arrays.mass, self.stepper.h)
+            self.contacts_last_step = self._contact_set.update(x0, v0, self.arrays.mass, self.stepper.h,
+                                                               self.world.dt, do_sync)
         inp = self._step_input(do_sync, idx_arr, pos, vel)
         active = self.grip.active
         gripped = (bool(active[0]), bool(active[1]))

@@ -55,7 +55,10 @@ class Shapes(NamedTuple):
     kind (B,) int: BOX/SPHERE/CYLINDER/CAPSULE; pos [m] (B, 3) and rot (B, 3, 3) (world from
     shape frame) of each shape; size (B, 3) [m]: box half extents, or (radius, half length, 0);
     com (B, 3) [m]: the body's centre of mass; lin_vel [m/s], ang_vel [rad/s] (B, 3): the body's
-    velocity; mu_s, mu_d (B,): combined friction coefficients with the cable.
+    velocity; mu_s, mu_d (B,): combined friction coefficients with the cable; inv_mass (B,) [1/kg]
+    and inv_inertia (B,) [1/(kg m^2)]: the body's inverse mass and the largest eigenvalue of its
+    inverse inertia (both 0 for a static body); owner (B,) int: the first shape of the same body
+    (the shapes of one body share its inertia).
     """
 
     kind: np.ndarray
@@ -67,6 +70,9 @@ class Shapes(NamedTuple):
     ang_vel: np.ndarray
     mu_s: np.ndarray
     mu_d: np.ndarray
+    inv_mass: np.ndarray
+    inv_inertia: np.ndarray
+    owner: np.ndarray
 
 
 class Store(NamedTuple):
@@ -100,9 +106,27 @@ class ContactSet:
 
     ``bodies``: the body ids to collide with (the world's ground and obstacles). Poses are read
     every step; dynamic bodies (mass > 0) also their velocities, and they receive the contact
-    forces (:meth:`apply_to_bodies`). The reactions are explicit in the body (applied during the
-    next Bullet step), which is stable while the body is heavier than the cable mass resting on
-    it (a 35 g box under a 30 g cable is; a 20 g one oscillates: added-mass instability).
+    forces (:meth:`apply_to_bodies`) during the coming Bullet step.
+
+    Two-way contact with a dynamic body: the cable's implicit step sees the body's surface move
+    at the body's velocity, but Bullet then moves the body under the contact force too. With the
+    penalty stiffness k_n = alpha m_k / h^2 (alpha = 1e4) and a body of mass M, that force, explicit
+    for the body, has k_n h^2 / M = alpha m_k / M per contact: 500 for a 30 g box on one 1.6 g node, far past
+    the explicit limit (about 1), so a box resting on a cable was thrown off at tens of m/s. The
+    detector therefore condenses the body's own inertia into its contacts (:func:`_condense_bodies`):
+    lambda [1/s^2], the body's fastest contact mode squared (largest eigenvalue of the 6 x 6
+    stiffness of its loaded contacts scaled by 1/M and 1/I_min, both upper bounds), scales every
+    contact on the body, stiffness, damping and friction cap, by 1 / (1 + h^2 lambda), h [s] the
+    Bullet step. For a body resting on N equal contacts that is the penalty in series with the
+    body's inertial "spring" M / (N h^2): the force leaves spring and body consistent at the end of
+    the step, and the body meets at most lambda h^2 / (1 + lambda h^2) < 1 per step (stable). At
+    rest the body sinks by about g h^2 more (its fall in one step: 0.2-0.4 mm at 240 Hz, 0.02 mm at
+    1 kHz); static bodies keep the full stiffness. The inertia is read at set-up (a later
+    changeDynamics of mass is not seen).
+
+    The energy check counts the work the bodies did on the cable with their velocity after
+    Bullet's step (what they actually did), so energy a body gains from contact shows up as
+    energy growth (the cable reports it as unstable) instead of passing unseen.
     """
 
     def __init__(self, client: int, bodies, n: int, radius: float, mu_s: float, mu_d: float,
@@ -111,10 +135,14 @@ class ContactSet:
         self.n = n
         self.alpha = float(alpha)
         self.zeta = float(damping_ratio)
-        rows = []  # (body id, kind, local pos, local rot, size, dynamic, mu_b)
+        rows = []  # (body id, kind, local pos, local rot, size, dynamic, mu_b, 1/mass, 1/I_min)
         for body in bodies:
             _warn_child_links(client, body)
-            mass, mu_b = pb.getDynamicsInfo(body, -1, physicsClientId=client)[0:2]
+            info = pb.getDynamicsInfo(body, -1, physicsClientId=client)
+            mass, mu_b = info[0:2]
+            i_min = min(info[2]) if mass > 0.0 else 0.0
+            inv_m = 1.0 / mass if mass > 0.0 else 0.0
+            inv_i = 1.0 / i_min if i_min > 0.0 else 0.0
             for shape in pb.getCollisionShapeData(body, -1, physicsClientId=client):
                 geom, dims, lpos, lorn = shape[2], shape[3], shape[5], shape[6]
                 if geom not in _GEOMS:
@@ -128,7 +156,8 @@ class ContactSet:
                     size = np.array([dims[0], 0.0, 0.0])
                 else:  # cylinder, capsule: (length, radius)
                     size = np.array([dims[1], 0.5 * dims[0], 0.0])
-                rows.append((body, kind, np.asarray(lpos, float), _rotation(lorn), size, mass > 0.0, float(mu_b)))
+                rows.append((body, kind, np.asarray(lpos, float), _rotation(lorn), size, mass > 0.0, float(mu_b),
+                             inv_m, inv_i))
         self.rows = rows
         self.body_ids = np.array([r[0] for r in rows], dtype=np.int64)
         self.dynamic = np.array([r[5] for r in rows], dtype=np.bool_)
@@ -138,7 +167,9 @@ class ContactSet:
         self.shapes = Shapes(kind=np.array([r[1] for r in rows], dtype=np.int64), pos=np.zeros((nb, 3)),
                              rot=np.zeros((nb, 3, 3)), size=np.array([r[4] for r in rows]).reshape(nb, 3),
                              com=np.zeros((nb, 3)), lin_vel=np.zeros((nb, 3)), ang_vel=np.zeros((nb, 3)),
-                             mu_s=np.sqrt(mu_s * mu_b), mu_d=np.sqrt(mu_d * mu_b))
+                             mu_s=np.sqrt(mu_s * mu_b), mu_d=np.sqrt(mu_d * mu_b),
+                             inv_mass=np.array([r[7] for r in rows]), inv_inertia=np.array([r[8] for r in rows]),
+                             owner=np.array([[r[0] for r in rows].index(r[0]) for r in rows], dtype=np.int64))
         self.keys_per_shape = n + (N_EDGES + 1) * (n - 1)
         nkeys = max(1, nb * self.keys_per_shape + 2 * (n - 1) ** 2)
         capacity = max(1, nb * (n + 2 * (n - 1)) + 4 * n)
@@ -208,11 +239,14 @@ class ContactSet:
             self.shapes.lin_vel[dyn] = bases[dyn, 7:10]
             self.shapes.ang_vel[dyn] = bases[dyn, 10:13]
 
-    def update(self, x: np.ndarray, v: np.ndarray, mass: np.ndarray, h: float) -> int:
-        """Read the moving bodies, detect the contacts of positions x [m] (n, 3) for a step of h [s]."""
+    def update(self, x: np.ndarray, v: np.ndarray, mass: np.ndarray, h: float, dt: float, stepped: bool) -> int:
+        """Read the moving bodies, detect the contacts of positions x [m] (n, 3) for a cable step of h [s]
+        within a Bullet step of dt [s]; ``stepped``: Bullet has taken the step the last contacts were
+        planned for (their work is then counted with the bodies' velocities read now)."""
         self._read_poses()
         k_per_mass = self.alpha / (h * h)
-        args = (x, v, mass, self.shapes, self.contacts, self.store, float(h), k_per_mass, self.zeta, self.self_mu)
+        args = (x, v, mass, self.shapes, self.contacts, self.store, float(h), k_per_mass, self.zeta, self.self_mu,
+                float(dt), float(dt) if stepped else 0.0)
         if self._detect is None:
             self._detect = bind(detect, *args)
         return self._detect(*args)
@@ -429,11 +463,16 @@ def _fill(c, st, key, shape, ia, ib, wa, wb, mu_s, mu_d, k_n, zeta, mk, x):
 
 
 @njit(cache=True, error_model="numpy")
-def detect(x, v, mass, sh, c, st, h, k_per_mass, zeta, self_mu):
+def detect(x, v, mass, sh, c, st, h, k_per_mass, zeta, self_mu, h_body, h_done):
     """Store the friction state of the last step's contacts by key, then fill ``c`` with the contacts
     of positions x [m] (n, 3) (velocities v [m/s]) whose gap is below the margin (cable radius + twice
     the distance the fastest node moves in a step of h [s] + 1 mm); self-contacts too unless
-    self_mu[0] < 0 (self_mu: static and dynamic friction cable on cable). Returns the count."""
+    self_mu[0] < 0 (self_mu: static and dynamic friction cable on cable). Returns the count.
+
+    Dynamic bodies: the last step's work of each one on the cable, counted by the contact step with
+    its velocity before the step, is corrected to its velocity now (after Bullet's step of h_done [s];
+    0: no step was taken); the new contacts' stiffness and damping carry the body's inertia over a
+    Bullet step of h_body [s] (:func:`_condense_bodies`)."""
     vmax = 0.0
     for i in range(v.shape[0]):
         for j in range(3):
@@ -444,6 +483,19 @@ def detect(x, v, mass, sh, c, st, h, k_per_mass, zeta, self_mu):
         key = previous[k]
         st.anchor[key] = c.anchor[k]
         st.state[key] = c.state[k]
+        s = st.body[k]
+        if h_done > 0.0 and s >= 0 and sh.inv_mass[s] > 0.0:
+            # Bullet moved the body by h v' (semi-implicit Euler), v' its velocity now, not by the h u
+            # the cable's step assumed: energy a body took from a too stiff contact counts as made
+            w = sh.ang_vel[s]
+            a0, a1, a2 = c.point[k, 0] - sh.com[s, 0], c.point[k, 1] - sh.com[s, 1], c.point[k, 2] - sh.com[s, 2]
+            d0 = sh.lin_vel[s, 0] + w[1] * a2 - w[2] * a1 - c.body_vel[k, 0]
+            d1 = sh.lin_vel[s, 1] + w[2] * a0 - w[0] * a2 - c.body_vel[k, 1]
+            d2 = sh.lin_vel[s, 2] + w[0] * a1 - w[1] * a0 - c.body_vel[k, 2]
+            fn = c.f_n[k]
+            c.body_work[0] += h_done * ((fn * c.normal[k, 0] + c.f_t[k, 0]) * d0
+                                        + (fn * c.normal[k, 1] + c.f_t[k, 1]) * d1
+                                        + (fn * c.normal[k, 2] + c.f_t[k, 2]) * d2)
     n = x.shape[0]
     per_shape = n + (N_EDGES + 1) * (n - 1)
     radius = c.radius[0]
@@ -521,11 +573,116 @@ def detect(x, v, mass, sh, c, st, h, k_per_mass, zeta, self_mu):
                     _add(c, st, key, s, i, i + 1, 1.0 - sp, sp, cl, nl, sh, k_per_mass, zeta, mass, x)
     if self_mu[0] >= 0.0:
         _self_contacts(x, mass, c, st, sh.kind.shape[0] * per_shape, self_mu, margin, k_per_mass, zeta)
+    _condense_bodies(c, st, sh, x, v, h_body)
     for k in range(previous.shape[0]):  # active: in contact this step (what the next step continues)
         st.active[previous[k]] = False
     for k in range(c.count[0]):
         st.active[st.keys[k]] = True
     return c.count[0]
+
+
+@njit(cache=True, error_model="numpy")
+def _condense_bodies(c, st, sh, x, v, h):
+    """Put each dynamic body's inertia into its contacts (see :class:`ContactSet`).
+
+    K [N/m, N, N m] (6, 6): the stiffness the body meets through its contacts that may carry load in
+    the step (predicted gap g + h n.(v_p - u_b) below a quarter of the cable radius), each as k I
+    on its point's motion v + w x r (k = k_n + c_n / h: k_t = k_n, and the damper over one step;
+    isotropic, an upper bound); lambda [1/s^2]: the largest eigenvalue of K scaled by the body's
+    inertia (1/M on translation, 1/I_min on rotation: again an upper bound), its fastest
+    contact mode squared. Every contact on the body gets k_n, k_t, c_n and its friction cap scaled
+    by 1 / (1 + h^2 lambda), h [s] the Bullet step in which the body answers: the body then meets at
+    most lambda h^2 / (1 + lambda h^2) < 1 per step, inside the explicit limit, and for a body
+    resting on N equal contacts this is the penalty in series with the body's inertia, k / (1 +
+    N k h^2 / M). Static bodies are left alone.
+    """
+    count = c.count[0]
+    nb = sh.kind.shape[0]
+    any_dynamic = False
+    for k in range(count):
+        s = st.body[k]
+        if s >= 0 and sh.inv_mass[s] > 0.0:
+            any_dynamic = True
+            break
+    if not any_dynamic:
+        return
+    K = np.zeros((nb, 6, 6))
+    used = np.zeros(nb, np.bool_)
+    r = np.empty(3)
+    for k in range(count):
+        s = st.body[k]
+        if s < 0 or sh.inv_mass[s] <= 0.0:
+            continue
+        a, b = c.node[k, 0], c.node[k, 1]
+        wa, wb = c.weight[k, 0], c.weight[k, 1]
+        g = -c.radius[0]
+        q = 0.0
+        for j in range(3):
+            g += c.normal[k, j] * (wa * x[a, j] + wb * x[b, j] - c.point[k, j])
+            q += c.normal[k, j] * (wa * v[a, j] + wb * v[b, j] - c.body_vel[k, j])
+        if g + h * q > 0.25 * c.radius[0]:
+            continue  # stays open through the step: carries nothing
+        o = sh.owner[s]
+        used[o] = True
+        kk = c.k_n[k] + c.c_n[k] / h
+        r2 = 0.0
+        for j in range(3):
+            r[j] = c.point[k, j] - sh.com[s, j]
+            r2 += r[j] * r[j]
+        # J = [I, -[r]x]: J^T J = [[I, -[r]x], [[r]x, |r|^2 I - r r^T]]
+        Kb = K[o]
+        for j in range(3):
+            Kb[j, j] += kk
+            for q2 in range(3):
+                Kb[3 + j, 3 + q2] += kk * ((r2 if j == q2 else 0.0) - r[j] * r[q2])
+        for (j, q2, sg) in ((1, 2, 1.0), (2, 1, -1.0), (2, 0, 1.0), (0, 2, -1.0), (0, 1, 1.0), (1, 0, -1.0)):
+            # [r]x[j, q2]: [[0, -r2, r1], [r2, 0, -r0], [-r1, r0, 0]]; the entry is sg r[3 - j - q2]
+            e = -sg * r[3 - j - q2]  # ([r]x)[j, q2]
+            Kb[j, 3 + q2] -= kk * e
+            Kb[3 + j, q2] += kk * e
+    lam = np.zeros(nb)
+    w = np.empty(6)
+    y = np.empty(6)
+    for o in range(nb):
+        if not used[o]:
+            continue
+        sm = math.sqrt(sh.inv_mass[o])
+        si = math.sqrt(sh.inv_inertia[o])
+        scl = (sm, sm, sm, si, si, si)
+        A = K[o]
+        for j in range(6):
+            for q2 in range(6):
+                A[j, q2] *= scl[j] * scl[q2]
+        # power iteration on the 6 x 6 positive semi-definite A; start off every axis
+        for j in range(6):
+            w[j] = 1.0 + 0.1 * j
+        est = 0.0
+        for _ in range(60):
+            nrm = 0.0
+            for j in range(6):
+                acc = 0.0
+                for q2 in range(6):
+                    acc += A[j, q2] * w[q2]
+                y[j] = acc
+                nrm += acc * acc
+            nrm = math.sqrt(nrm)
+            if nrm == 0.0:
+                break
+            wn = 0.0
+            for j in range(6):
+                wn += w[j] * w[j]
+            est = nrm / math.sqrt(wn)
+            for j in range(6):
+                w[j] = y[j] / nrm
+        lam[o] = est
+    for k in range(count):
+        s = st.body[k]
+        if s >= 0 and sh.inv_mass[s] > 0.0:
+            scale = 1.0 / (1.0 + h * h * lam[sh.owner[s]])
+            c.k_n[k] *= scale
+            c.k_t[k] *= scale
+            c.c_n[k] *= scale
+            c.cap[k] *= scale
 
 
 @njit(cache=True, error_model="numpy")

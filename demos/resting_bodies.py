@@ -1,0 +1,78 @@
+"""Issue 23 item 2: a dynamic box dropped / placed on a cable lying on the ground.
+
+For each box mass and step: peak reaction on the box [N] (and in units of its weight), peak box
+speed [m/s], time to rest (box speed below 1e-4 m/s for good) [s], support balance at the end
+(ground on cable + ground on box) / ((m_cable + m_box) g), cable status, penetration of the box
+into the cable. Usage: python demos/resting_bodies.py [--drop 0.01] [--seconds 2] [--hz 240 1000]
+"""
+from __future__ import annotations
+
+import argparse
+import time
+
+import numpy as np
+import pybullet as pb
+
+from bullet_dlo.bullet.world import BulletWorld
+from bullet_dlo.core.spec import CableSpec
+
+G = 9.81
+HALF = (0.02, 0.02, 0.01)  # [m] box half extents: 4 cm square across the cable, 2 cm tall
+
+
+def run(mass: float, hz: float, drop: float, seconds: float) -> dict:
+    spec = CableSpec.lv2017(n_masses=20, damping=0.02)
+    r = spec.diameter / 2
+    with BulletWorld(dt=1.0 / hz) as world:
+        cable = world.add_cable(spec, start=(-0.15, 0.0, r), direction=(1, 0, 0))
+        world.run(0.2)  # the cable lies still on the ground
+        box = world.add_box(HALF, (0.0, 0.0, 2 * r + HALF[2] + drop), mass=mass, friction=0.5)
+        cid = world.client
+        peak_f, peak_v, last_moving, worst_gap = 0.0, 0.0, 0.0, 0.0
+        t_contact = tic = 0.0
+        steps = int(round(seconds * hz))
+        tic = time.perf_counter()
+        for k in range(steps):
+            world.step()
+            f = cable.body_forces().get(box, np.zeros(3))
+            peak_f = max(peak_f, float(np.linalg.norm(f)))
+            v = np.linalg.norm(pb.getBaseVelocity(box, physicsClientId=cid)[0])
+            peak_v = max(peak_v, float(v))
+            if v > 1e-4:
+                last_moving = (k + 1) / hz
+            pc = cable.contact_forces()
+            on_box = pc["body"] == box
+            if on_box.any():
+                worst_gap = min(worst_gap, float(pc["gap"][on_box].min()))
+            if not cable.stable:
+                break
+        wall = time.perf_counter() - tic
+        pc = cable.contact_forces()
+        ground_on_cable = float(pc["force"][pc["body"] == world.ground_id][:, 2].sum())
+        ground_on_box = sum(cp[9] for cp in pb.getContactPoints(box, world.ground_id, physicsClientId=cid))
+        balance = (ground_on_cable + ground_on_box) / ((spec.mass + mass) * G)
+        return dict(mass=mass, hz=hz, peak_f=peak_f, peak_w=peak_f / (mass * G), peak_v=peak_v,
+                    rest=last_moving, balance=balance, status=cable.reason or "stable", gap=worst_gap,
+                    ms_per_step=1e3 * wall / max(k + 1, 1), z=pb.getBasePositionAndOrientation(box, physicsClientId=cid)[0][2])
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--drop", type=float, nargs="+", default=[1e-4, 0.01])
+    ap.add_argument("--seconds", type=float, default=2.0)
+    ap.add_argument("--hz", type=float, nargs="+", default=[240, 1000])
+    ap.add_argument("--mass", type=float, nargs="+", default=[0.001, 0.005, 0.03, 0.3, 3.0])
+    a = ap.parse_args()
+    print(f"{'drop':>7} {'hz':>5} {'mass':>6} {'peak F':>9} {'xW':>8} {'peak v':>8} {'rest':>6} {'balance':>8} "
+          f"{'gap mm':>7} {'box z':>7} {'ms/st':>6} status")
+    for drop in a.drop:
+        for hz in a.hz:
+            for m in a.mass:
+                o = run(m, hz, drop, a.seconds)
+                print(f"{drop:7.4f} {hz:5.0f} {m:6.3f} {o['peak_f']:9.3f} {o['peak_w']:8.1f} {o['peak_v']:8.4f} "
+                      f"{o['rest']:6.3f} {o['balance']:8.4f} {1e3 * o['gap']:7.3f} {o['z']:7.4f} "
+                      f"{o['ms_per_step']:6.3f} {o['status']}", flush=True)
+
+
+if __name__ == "__main__":
+    main()
