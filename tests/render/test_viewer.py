@@ -152,8 +152,10 @@ def test_contacts_on_the_ground_carry_the_weight():
 
 
 # ----- the browser ------------------------------------------------------------------------------------
-def screenshot(url: str, png: Path, wait: float = 6.0, size=(1024, 768)) -> str:
-    """Load ``url`` in headless Chromium (software WebGL), wait, save a screenshot; returns the page title."""
+def screenshot(url: str, png: Path, ready=None, timeout: float = 90.0, size=(1024, 768)) -> str:
+    """Load ``url`` in headless Chromium (software WebGL) and save a screenshot once ``ready(png)`` holds (every
+    2 s; software WebGL on a busy machine takes from 3 s to tens of seconds to draw the page) or ``timeout`` [s]
+    has passed; returns the page title."""
     from websockets.sync.client import connect
 
     profile = tempfile.mkdtemp()
@@ -184,9 +186,13 @@ def screenshot(url: str, png: Path, wait: float = 6.0, size=(1024, 768)) -> str:
 
             call("Page.enable")
             call("Page.navigate", url=url)
-            time.sleep(wait)
+            end = time.monotonic() + timeout
+            while True:
+                time.sleep(2.0)
+                png.write_bytes(base64.b64decode(call("Page.captureScreenshot", format="png")["data"]))
+                if ready is None or ready(png) or time.monotonic() > end:
+                    break
             title = call("Runtime.evaluate", expression="document.title")["result"]["value"]
-            png.write_bytes(base64.b64decode(call("Page.captureScreenshot", format="png")["data"]))
         return title
     finally:
         proc.terminate()
@@ -209,7 +215,8 @@ def near(img: np.ndarray, rgb, tol: int = 40) -> np.ndarray:
 def test_page_renders_cable_and_arms_in_headless_chromium(runs):
     tmp, pages = runs
     png = tmp / "grasp.png"
-    title = screenshot(pages["grasp"].resolve().as_uri(), png)
+    drawn = lambda path: near(read_png(path), CABLE_RGB, 45).sum() >= 50  # noqa: E731  (the last thing drawn)
+    title = screenshot(pages["grasp"].resolve().as_uri(), png, ready=drawn)
     assert "Viser" in title
     img = read_png(png)
     h, w = img.shape[:2]
