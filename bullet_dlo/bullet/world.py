@@ -75,6 +75,8 @@ class BulletWorld:
         self._owners: dict[int, tuple[str, int]] = {}  # sphere body id -> (cable name, mass index)
         self.bodies: dict[int, str] = {}  # non-cable bodies and their names (for messages)
         self._groups_used = 0
+        self._model_cable_groups = 0  # collision groups of the cables whose mutual contacts the model handles
+        self._pending: set[str] = set()  # cables still to take their step in phase 7 (see take_cable_steps)
         self.ground_id: int | None = None
         if ground:
             plane = str(Path(pybullet_data.getDataPath()) / "plane.urdf")
@@ -305,9 +307,19 @@ class BulletWorld:
         for the world) and every cable takes its own step."""
         cables = list(self.cables.values())
         contacts = self.contacts() if cables else ()
+        # cables touching each other through the model read the ones still pending as held where they
+        # are, the ones done as moving over their planned step (see ContactSet._read_others)
+        self._pending = {c.name for c in cables}
+        try:
+            self._take_cable_steps(cables, contacts)
+        finally:
+            self._pending = set()
+
+    def _take_cable_steps(self, cables, contacts) -> None:
         if not contacts:
             for c in cables:
                 c.sync_after_step(())
+                self._pending.discard(c.name)
             return
         touched: dict[str, set[int]] = {c.name: set() for c in cables}
         owners = self._owners
@@ -318,6 +330,7 @@ class BulletWorld:
                     touched[hit[0]].add(hit[1])
         for c in cables:
             c.sync_after_step(touched[c.name])
+            self._pending.discard(c.name)
 
     def contacts(self) -> tuple:
         """Every contact point of the step just taken, as ``pybullet.getContactPoints`` gives them: one
