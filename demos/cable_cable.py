@@ -5,7 +5,7 @@ distance between the two cables at the end (the clearance; r1 + r2 = 4 mm at res
 how far the upper cable's middle sank below the lower one's top, and the ground's support of both
 cables against their weight (model contact only).
 
-    PYTHONPATH=. python demos/cable_cable.py [--drop 0.03] [--duration 1.5] [--n 10 20 40] [--shift 0.5] [--rates 60 240 1000]
+    PYTHONPATH=. python demos/cable_cable.py [--drop 0.03] [--duration 1.5] [--n 10 20 40] [--shift 0.5] [--rates 60 240 1000] [--cost]
 """
 from __future__ import annotations
 
@@ -80,6 +80,26 @@ def crossing(n: int, dt: float, drop: float = 0.03, duration: float = 1.5, shift
     return out
 
 
+def step_cost(n: int, mode: str, rate: float = 240, steps: int = 480) -> float:
+    """Wall time per world step [us] (best of 3 x ``steps``, after 0.3 s settling): ``single`` one cable on the
+    ground, ``apart`` two cables 0.5 m apart, ``crossing`` the second one resting across the first."""
+    spec = CableSpec.lv2017(n_masses=n, damping=0.02)
+    r, L = spec.diameter / 2, spec.length
+    with BulletWorld(dt=1 / rate) as w:
+        w.add_cable(spec, start=(-L / 2, 0, r), name="low")
+        if mode == "crossing":
+            w.add_cable(spec, start=(0, -L / 2, 3 * r + 1e-4), direction=(0, 1, 0), name="up")
+        elif mode == "apart":
+            w.add_cable(spec, start=(-L / 2, 0.5, r), name="far")
+        w.run(0.3)
+        best = np.inf
+        for _ in range(3):
+            tic = time.perf_counter()
+            w.step(steps)
+            best = min(best, (time.perf_counter() - tic) / steps)
+    return 1e6 * best
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--drop", type=float, default=0.03)
@@ -87,7 +107,14 @@ def main() -> None:
     ap.add_argument("--n", type=int, nargs="+", default=[10, 20, 40])
     ap.add_argument("--shift", type=float, default=0.0)
     ap.add_argument("--rates", type=float, nargs="+", default=[60, 240, 1000])
+    ap.add_argument("--cost", action="store_true", help="time a world step instead (240 Hz, n from --n)")
     a = ap.parse_args()
+    if a.cost:
+        for n in a.n:
+            one, apart, cross = (step_cost(n, m) for m in ("single", "apart", "crossing"))
+            print(f"n = {n}: one cable {one:.0f} us/step; two apart {apart:.0f} ({apart / one:.2f}x); "
+                  f"two crossing {cross:.0f} ({cross / one:.2f}x one, {cross / apart:.2f}x two apart)", flush=True)
+        return
     print(f"{'rate':>5} {'n':>3} {'clear mm':>9} {'closest mm':>10} {'up z at x mm':>12} {'through':>7} "
           f"{'|v| max':>8} {'ground/W':>8} {'us/step':>8}  unstable")
     for rate in a.rates:

@@ -6,6 +6,11 @@ contacts are found analytically from the bodies' primitive shapes (box, sphere, 
 the ground plane is a box) at their current Bullet poses, and written into the core's
 :class:`~bullet_dlo.core.kernels.contact.Contacts`:
 
+- segments of the cable against the segments of other cables that model contact (:class:`Others`):
+  each cable's step holds the other's capsule moving over its planned step (it stepped before this
+  one) or held where it is (it steps after), with the pair's mean-mass stiffness and the geometric
+  mean of the two cables' friction; the other cable does the same, so at rest the normal forces are
+  equal and opposite (docs/concepts/contact.md, "Cable on cable");
 - segments of the cable against each other when they are not close along it (a cable lying across
   itself): each side's contact treats the other segment's capsule as a body held at its start-of-step
   place (lagged, so the Newton matrix stays banded), with the cable's own friction;

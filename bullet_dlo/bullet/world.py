@@ -198,7 +198,9 @@ class BulletWorld:
             state: start state (default: the layout at rest).
             substeps: integrator steps per Bullet step (for explicit methods at small steps).
             self_collision: ``neighbours`` (spheres closer than a diameter at rest never collide,
-                the others do), ``none`` (no cable-cable contacts: fastest), ``all``.
+                the others do), ``none`` (no self-contact; other cables meet it only through Bullet's
+                spheres: fastest), ``all``. With model contact (and not ``none``) contacts with the
+                other such cables are the model's (segment capsules, see :mod:`bullet_dlo.bullet.contact`).
             sync: ``contacts`` (read back only spheres that touched something) or ``always``.
             detector: instability thresholds (DetectorOptions).
             record_every: Bullet steps between recorded rows.
