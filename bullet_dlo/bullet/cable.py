@@ -158,6 +158,7 @@ class BulletCable:
         self._bullet_collisions_off = False  # disable_bullet_collisions was called
         self._excluded: set[int] = set()  # dynamic bodies whose Bullet contacts with the spheres are off
         self._bodies_seen = -1
+        self._partners_seen: tuple = ()  # names of the other cables in the contact set
         self.grip = make_grip()  # friction grips of the ends (grip_with_friction), shared by every contact set
         self._no_contacts = make_contacts(n, 1, self.radius, self.grip)
         self._refresh_contact_set()
@@ -206,16 +207,34 @@ class BulletCable:
                     pb.setCollisionFilterPair(body[i], body[j], -1, -1, 0, physicsClientId=cid)
         return body
 
+    @property
+    def handles_cable_contact(self) -> bool:
+        """Contacts with other cables are the model's (both cables model contact, neither has
+        ``self_collision="none"``); else they stay Bullet's sphere contacts."""
+        return self.model_contact and self.self_collision != "none"
+
+    def _partners(self) -> list:
+        """The other cables whose contacts with this one the model handles (stable ones)."""
+        if not self.handles_cable_contact:
+            return []
+        return [c for c in self.world.cables.values() if c is not self and c.handles_cable_contact and c.stable]
+
     def _refresh_contact_set(self) -> None:
-        """(Re)read the world's bodies for the contact model when they changed (new obstacles)."""
-        if not self.model_contact or self._bodies_seen == len(self.world.bodies):
+        """(Re)read the world's bodies for the contact model when they changed (new obstacles), and the
+        other cables it handles contact with."""
+        if not self.model_contact:
+            return
+        partners = self._partners()
+        names = tuple(c.name for c in partners)
+        if self._bodies_seen == len(self.world.bodies) and names == self._partners_seen:
             return
         spec = self.model.spec
         self._bodies_seen = len(self.world.bodies)
+        self._partners_seen = names
         self._contact_set = ContactSet(self.world.client, list(self.world.bodies), self.model.n, self.radius,
                                        spec.static_friction, spec.friction, self.contact_stiffness,
                                        self.contact_damping, self_contact=self.self_collision != "none",
-                                       grip=self.grip, native=self.world.native_handle())
+                                       grip=self.grip, native=self.world.native_handle(), others=partners)
         if self._bullet_collisions_off:
             self._exclude_model_bodies()
 
@@ -235,12 +254,17 @@ class BulletCable:
             self._excluded.add(body)
 
     def disable_bullet_collisions(self) -> None:
-        """Leave the world's bodies and the cable's self-contact to the contact model: in Bullet the
-        spheres collide only with other cables' spheres (cable-cable contact stays Bullet's, as with
-        ``contact="bullet"``)."""
+        """Leave the world's bodies, the cable's self-contact and its contacts with the other cables the
+        model handles (:attr:`handles_cable_contact`) to the contact model: in Bullet the spheres collide
+        only with the spheres of cables whose contacts stay Bullet's (``contact="bullet"`` or
+        ``self_collision="none"``)."""
         own = self._group or self.world.next_cable_group()
+        mask = CABLE_GROUPS & ~own
+        if self.handles_cable_contact:
+            mask &= ~self.world._model_cable_groups  # (a pair collides only if each one's mask has the other)
+            self.world._model_cable_groups |= own
         for b in self.body_ids:
-            pb.setCollisionFilterGroupMask(b, -1, own, CABLE_GROUPS & ~own, physicsClientId=self.world.client)
+            pb.setCollisionFilterGroupMask(b, -1, own, mask, physicsClientId=self.world.client)
         self._bullet_collisions_off = True
         if self._contact_set is not None:
             self._exclude_model_bodies()

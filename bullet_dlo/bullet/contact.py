@@ -6,6 +6,11 @@ contacts are found analytically from the bodies' primitive shapes (box, sphere, 
 the ground plane is a box) at their current Bullet poses, and written into the core's
 :class:`~bullet_dlo.core.kernels.contact.Contacts`:
 
+- segments of the cable against the segments of other cables that model contact (:class:`Others`):
+  each cable's step holds the other's capsule moving over its planned step (it stepped before this
+  one) or held where it is (it steps after), with the pair's mean-mass stiffness and the geometric
+  mean of the two cables' friction; the other cable does the same, so at rest the normal forces are
+  equal and opposite (docs/concepts/contact.md, "Cable on cable");
 - segments of the cable against each other when they are not close along it (a cable lying across
   itself): each side's contact treats the other segment's capsule as a body held at its start-of-step
   place (lagged, so the Newton matrix stays banded), with the cable's own friction;
@@ -86,6 +91,33 @@ class Store(NamedTuple):
     body: np.ndarray
 
 
+class Others(NamedTuple):
+    """Other cables this cable touches through the model (packed one after another, N nodes in all).
+
+    x (N, 3) [m]: their centre lines at the start of the step; u (N, 3) [m/s]: the velocity their
+    surface moves at over the step (their planned step when they have planned it already this world
+    step, else 0: held where they are); mass (N,) [kg], radius (N,) [m]; mu_s, mu_d (N,): friction
+    combined with this cable's (geometric mean); first (C + 1,) int: where each cable starts;
+    vmax (1,) [m/s]: their fastest node. Per contact row (M): row_node (M, 2), row_w (M, 2): the
+    other cable's nodes and weights at the contact; row_p0 (M, 3) [m]: that point at detection.
+    """
+
+    x: np.ndarray
+    u: np.ndarray
+    mass: np.ndarray
+    radius: np.ndarray
+    mu_s: np.ndarray
+    mu_d: np.ndarray
+    first: np.ndarray
+    vmax: np.ndarray
+    row_node: np.ndarray
+    row_w: np.ndarray
+    row_p0: np.ndarray
+
+
+CABLE = -2  # Store.body of a contact with another cable (-1: the cable itself)
+
+
 def _warn_child_links(client: int, body: int) -> None:
     """Warn (never silently drop) when ``body`` has collision shapes on child links: only the base link's
     primitives enter the contact model, and the cable's spheres are out of Bullet's collisions."""
@@ -130,7 +162,9 @@ class ContactSet:
     """
 
     def __init__(self, client: int, bodies, n: int, radius: float, mu_s: float, mu_d: float,
-                 alpha: float, damping_ratio: float, self_contact: bool = True, grip=None, native: int = 0):
+                 alpha: float, damping_ratio: float, self_contact: bool = True, grip=None, native: int = 0,
+                 others=()):
+        """``others``: the other cables (BulletCable) whose contacts with this one the model handles."""
         self.client = client
         self.n = n
         self.alpha = float(alpha)
@@ -171,14 +205,27 @@ class ContactSet:
                              inv_mass=np.array([r[7] for r in rows]), inv_inertia=np.array([r[8] for r in rows]),
                              owner=np.array([[r[0] for r in rows].index(r[0]) for r in rows], dtype=np.int64))
         self.keys_per_shape = n + (N_EDGES + 1) * (n - 1)
-        nkeys = max(1, nb * self.keys_per_shape + 2 * (n - 1) ** 2)
-        capacity = max(1, nb * (n + 2 * (n - 1)) + 4 * n)
+        self.other_cables = list(others)
+        n_other = sum(o.model.n for o in self.other_cables)
+        nkeys = max(1, nb * self.keys_per_shape + 2 * (n - 1) ** 2 + (n - 1) * n_other)
+        capacity = max(1, nb * (n + 2 * (n - 1)) + 4 * n + 2 * n * len(self.other_cables))
         # self-contact friction: the cable's own coefficients (negative: no self-contact)
         self.self_mu = np.array([mu_s, mu_d]) if self_contact else np.array([-1.0, -1.0])
         self.contacts: Contacts = make_contacts(n, capacity, radius, grip)  # grip: the cable's, kept across sets
         self.store = Store(anchor=np.zeros((nkeys, 4)), state=np.zeros(nkeys, np.int64),
                            active=np.zeros(nkeys, np.bool_), keys=np.zeros(capacity, np.int64),
                            body=np.zeros(capacity, np.int64))
+        first = np.cumsum([0] + [o.model.n for o in self.other_cables]).astype(np.int64)
+        mu_o = [(o.model.spec.static_friction, o.model.spec.friction) for o in self.other_cables]
+        reps = [o.model.n for o in self.other_cables]
+        self.others = Others(
+            x=np.zeros((n_other, 3)), u=np.zeros((n_other, 3)),
+            mass=np.concatenate([o.arrays.mass for o in self.other_cables]) if reps else np.zeros(0),
+            radius=np.repeat([o.radius for o in self.other_cables], reps).astype(float),
+            mu_s=np.repeat([math.sqrt(mu_s * m[0]) for m in mu_o], reps).astype(float),
+            mu_d=np.repeat([math.sqrt(mu_d * m[1]) for m in mu_o], reps).astype(float),
+            first=first, vmax=np.zeros(1), row_node=np.zeros((capacity, 2), np.int64),
+            row_w=np.zeros((capacity, 2)), row_p0=np.zeros((capacity, 3)))
         self._poses: list = [None] * nb
         for s in range(nb):
             self._read_pose(s, with_velocity=False)
@@ -244,12 +291,35 @@ class ContactSet:
         within a Bullet step of dt [s]; ``stepped``: Bullet has taken the step the last contacts were
         planned for (their work is then counted with the bodies' velocities read now)."""
         self._read_poses()
+        if self.other_cables:
+            self._read_others(dt)
         k_per_mass = self.alpha / (h * h)
         args = (x, v, mass, self.shapes, self.contacts, self.store, float(h), k_per_mass, self.zeta, self.self_mu,
-                float(dt), float(dt) if stepped else 0.0)
+                float(dt), float(dt) if stepped else 0.0, self.others)
         if self._detect is None:
             self._detect = bind(detect, *args)
         return self._detect(*args)
+
+    def _read_others(self, dt: float) -> None:
+        """The other cables now: a cable that has planned its coming step already (it stepped before this
+        one in the world's phase 7, or outside it) moves over the step as planned (u = (x' - x)/dt);
+        one still to step is held where it is (u = 0). See :class:`BulletCable` and docs/concepts/contact.md."""
+        o = self.others
+        pending = getattr(self.other_cables[0].world, "_pending", ())
+        vmax = 0.0
+        for idx, cab in enumerate(self.other_cables):
+            a0, a1 = o.first[idx], o.first[idx + 1]
+            cp = cab._cp
+            if cab.name in pending:
+                o.x[a0:a1] = cp.x_new
+                o.u[a0:a1] = 0.0
+                vmax = max(vmax, float(np.abs(cp.v_new).max()))
+            else:
+                o.x[a0:a1] = cp.x
+                np.subtract(cp.x_new, cp.x, out=o.u[a0:a1])
+                o.u[a0:a1] /= dt
+                vmax = max(vmax, float(np.abs(cp.v).max()), float(np.abs(o.u[a0:a1]).max()))
+        o.vmax[0] = vmax
 
     def per_contact(self, x: np.ndarray) -> dict[str, np.ndarray]:
         """The current contacts (forces of the last step, on the cable [N]): body, node (k, 2),
@@ -263,7 +333,8 @@ class ContactSet:
         p = w[:, :1] * x[idx[:, 0]] + w[:, 1:] * x[idx[:, 1]]
         gap = np.einsum("kj,kj->k", c.normal[:k], p - c.point[:k]) - c.radius[0]
         shape = self.store.body[:k]
-        body = np.where(shape >= 0, self.body_ids[np.maximum(shape, 0)] if len(self.body_ids) else -1, -1)
+        body = np.where(shape >= 0, self.body_ids[np.maximum(shape, 0)] if len(self.body_ids) else -1,
+                        np.where(shape == CABLE, CABLE, -1))
         return {"body": body, "node": c.node[:k].copy(), "gap": gap,
                 "weight": c.weight[:k].copy(), "point": c.point[:k].copy(), "normal": c.normal[:k].copy(),
                 "normal_force": fn, "friction": c.f_t[:k].copy(),
@@ -463,7 +534,7 @@ def _fill(c, st, key, shape, ia, ib, wa, wb, mu_s, mu_d, k_n, zeta, mk, x):
 
 
 @njit(cache=True, error_model="numpy")
-def detect(x, v, mass, sh, c, st, h, k_per_mass, zeta, self_mu, h_body, h_done):
+def detect(x, v, mass, sh, c, st, h, k_per_mass, zeta, self_mu, h_body, h_done, oc):
     """Store the friction state of the last step's contacts by key, then fill ``c`` with the contacts
     of positions x [m] (n, 3) (velocities v [m/s]) whose gap is below the margin (cable radius + twice
     the distance the fastest node moves in a step of h [s] + 1 mm); self-contacts too unless
@@ -472,7 +543,10 @@ def detect(x, v, mass, sh, c, st, h, k_per_mass, zeta, self_mu, h_body, h_done):
     Dynamic bodies: the last step's work of each one on the cable, counted by the contact step with
     its velocity before the step, is corrected to its velocity now (after Bullet's step of h_done [s];
     0: no step was taken); the new contacts' stiffness and damping carry the body's inertia over a
-    Bullet step of h_body [s] (:func:`_condense_bodies`)."""
+    Bullet step of h_body [s] (:func:`_condense_bodies`).
+
+    Other cables (``oc``, :class:`Others`): their segments against this cable's (:func:`_cable_contacts`);
+    the last step's contacts with them are corrected for where the other cable actually went."""
     vmax = 0.0
     for i in range(v.shape[0]):
         for j in range(3):
@@ -496,6 +570,8 @@ def detect(x, v, mass, sh, c, st, h, k_per_mass, zeta, self_mu, h_body, h_done):
             c.body_work[0] += h_done * ((fn * c.normal[k, 0] + c.f_t[k, 0]) * d0
                                         + (fn * c.normal[k, 1] + c.f_t[k, 1]) * d1
                                         + (fn * c.normal[k, 2] + c.f_t[k, 2]) * d2)
+    if h_done > 0.0:
+        _cable_moved(c, st, oc, previous.shape[0], h_done)
     n = x.shape[0]
     per_shape = n + (N_EDGES + 1) * (n - 1)
     radius = c.radius[0]
@@ -573,6 +649,9 @@ def detect(x, v, mass, sh, c, st, h, k_per_mass, zeta, self_mu, h_body, h_done):
                     _add(c, st, key, s, i, i + 1, 1.0 - sp, sp, cl, nl, sh, k_per_mass, zeta, mass, x)
     if self_mu[0] >= 0.0:
         _self_contacts(x, mass, c, st, sh.kind.shape[0] * per_shape, self_mu, margin, k_per_mass, zeta)
+    if oc.x.shape[0] > 0:
+        _cable_contacts(x, mass, c, st, oc, sh.kind.shape[0] * per_shape + 2 * (n - 1) ** 2,
+                        margin + 2.0 * oc.vmax[0] * h_body, k_per_mass, zeta)
     _condense_bodies(c, st, sh, x, v, h_body)
     for k in range(previous.shape[0]):  # active: in contact this step (what the next step continues)
         st.active[previous[k]] = False
@@ -795,3 +874,103 @@ def _self_contacts(x, mass, c, st, key0, self_mu, margin, k_per_mass, zeta):
                 key = key0 + 2 * (i * (n - 1) + j) + side
                 _fill(c, st, key, -1, a, a + 1, 1.0 - u, u, self_mu[0], self_mu[1], k_per_mass * m_pair, zeta,
                       m_pair, x)
+
+
+@njit(cache=True, error_model="numpy")
+def _cable_moved(c, st, oc, count, h_done):
+    """The last step's contacts with other cables (rows < count, their friction state persisted by key):
+    the other cable's point moved by d = (where it is now) - (where it was + h_done u), u what this
+    cable's step assumed (0: held). Its work on this cable, f . d, is counted, and the friction anchor
+    moves with it (it is tied to the other cable's surface)."""
+    for k in range(count):
+        if st.body[k] != CABLE:
+            continue
+        i0, i1 = oc.row_node[k, 0], oc.row_node[k, 1]
+        w0, w1 = oc.row_w[k, 0], oc.row_w[k, 1]
+        key = st.keys[k]
+        fn = max(c.f_n[k], 0.0)
+        for j in range(3):
+            d = w0 * oc.x[i0, j] + w1 * oc.x[i1, j] - oc.row_p0[k, j] - h_done * c.body_vel[k, j]
+            c.body_work[0] += (fn * c.normal[k, j] + c.f_t[k, j]) * d
+            st.anchor[key, j] += d
+
+
+@njit(cache=True, error_model="numpy")
+def _cable_contacts(x, mass, c, st, oc, key0, margin, k_per_mass, zeta):
+    """Contacts of this cable's segments with the other cables' segments (capsules of each cable's radius).
+
+    Closest points of segment pairs as in :func:`_self_contacts` (a node belongs to the segment that
+    starts at it, on both cables); the other cable's capsule is a body whose surface moves at oc.u over
+    the step (the other cable's planned step, or held), with the stiffness and damping of the pair's
+    mean mass and the combined friction: the other cable does the same with this one, so at rest the
+    two forces are equal and opposite. Broad phase: each other cable's bounding box, then node
+    distances (segments whose first nodes are farther apart than both segments' lengths plus the
+    reach cannot touch)."""
+    n = x.shape[0]
+    radius = c.radius[0]
+    N = oc.x.shape[0]
+    lo = np.empty(3)
+    hi = np.empty(3)
+    for j in range(3):
+        lo[j] = x[0, j]
+        hi[j] = x[0, j]
+    l_own = 0.0
+    for i in range(n):
+        for j in range(3):
+            lo[j] = min(lo[j], x[i, j])
+            hi[j] = max(hi[j], x[i, j])
+        if i < n - 1:
+            l_own = max(l_own, math.sqrt((x[i + 1, 0] - x[i, 0]) ** 2 + (x[i + 1, 1] - x[i, 1]) ** 2
+                                         + (x[i + 1, 2] - x[i, 2]) ** 2))
+    nl = np.empty(3)
+    for cc in range(oc.first.shape[0] - 1):
+        a0, a1 = oc.first[cc], oc.first[cc + 1]
+        rb = oc.radius[a0]
+        reach = radius + rb + margin
+        out = False
+        for j in range(3):
+            olo, ohi = oc.x[a0, j], oc.x[a0, j]
+            for q in range(a0 + 1, a1):
+                olo = min(olo, oc.x[q, j])
+                ohi = max(ohi, oc.x[q, j])
+            if olo - reach > hi[j] or ohi + reach < lo[j]:
+                out = True
+        if out:
+            continue  # the bounding boxes are farther apart than the reach
+        l_oth = 0.0
+        for q in range(a0, a1 - 1):
+            l_oth = max(l_oth, math.sqrt((oc.x[q + 1, 0] - oc.x[q, 0]) ** 2 + (oc.x[q + 1, 1] - oc.x[q, 1]) ** 2
+                                         + (oc.x[q + 1, 2] - oc.x[q, 2]) ** 2))
+        pair_reach = l_own + l_oth + reach
+        pair_reach2 = pair_reach * pair_reach
+        for i in range(n - 1):
+            for q in range(a0, a1 - 1):
+                d2 = (x[i, 0] - oc.x[q, 0]) ** 2 + (x[i, 1] - oc.x[q, 1]) ** 2 + (x[i, 2] - oc.x[q, 2]) ** 2
+                if d2 > pair_reach2:
+                    continue
+                s, t = _segments_closest(x[i], x[i + 1], oc.x[q], oc.x[q + 1])
+                if (s >= 1.0 and i < n - 2) or (t >= 1.0 and q < a1 - 2):
+                    continue  # the next segment owns this node
+                d2 = 0.0
+                for j in range(3):
+                    nl[j] = ((1.0 - s) * x[i, j] + s * x[i + 1, j]) - ((1.0 - t) * oc.x[q, j] + t * oc.x[q + 1, j])
+                    d2 += nl[j] ** 2
+                d = math.sqrt(d2)
+                if d == 0.0 or d - radius - rb >= margin:
+                    continue
+                k = c.count[0]
+                if k >= c.node.shape[0]:
+                    return
+                for j in range(3):
+                    nl[j] /= d
+                    p0 = (1.0 - t) * oc.x[q, j] + t * oc.x[q + 1, j]
+                    oc.row_p0[k, j] = p0
+                    c.normal[k, j] = nl[j]
+                    c.point[k, j] = p0 + rb * nl[j]
+                    c.body_vel[k, j] = (1.0 - t) * oc.u[q, j] + t * oc.u[q + 1, j]
+                oc.row_node[k, 0], oc.row_node[k, 1] = q, q + 1
+                oc.row_w[k, 0], oc.row_w[k, 1] = 1.0 - t, t
+                c.internal[k] = False
+                m_pair = 0.5 * ((1.0 - s) * mass[i] + s * mass[i + 1] + (1.0 - t) * oc.mass[q] + t * oc.mass[q + 1])
+                _fill(c, st, key0 + i * N + q, CABLE, i, i + 1, 1.0 - s, s, oc.mu_s[q], oc.mu_d[q],
+                      k_per_mass * m_pair, zeta, m_pair, x)

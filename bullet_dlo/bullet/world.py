@@ -75,6 +75,8 @@ class BulletWorld:
         self._owners: dict[int, tuple[str, int]] = {}  # sphere body id -> (cable name, mass index)
         self.bodies: dict[int, str] = {}  # non-cable bodies and their names (for messages)
         self._groups_used = 0
+        self._model_cable_groups = 0  # collision groups of the cables whose mutual contacts the model handles
+        self._pending: set[str] = set()  # cables still to take their step in phase 7 (see take_cable_steps)
         self.ground_id: int | None = None
         if ground:
             plane = str(Path(pybullet_data.getDataPath()) / "plane.urdf")
@@ -196,7 +198,9 @@ class BulletWorld:
             state: start state (default: the layout at rest).
             substeps: integrator steps per Bullet step (for explicit methods at small steps).
             self_collision: ``neighbours`` (spheres closer than a diameter at rest never collide,
-                the others do), ``none`` (no cable-cable contacts: fastest), ``all``.
+                the others do), ``none`` (no self-contact; other cables meet it only through Bullet's
+                spheres: fastest), ``all``. With model contact (and not ``none``) contacts with the
+                other such cables are the model's (segment capsules, see :mod:`bullet_dlo.bullet.contact`).
             sync: ``contacts`` (read back only spheres that touched something) or ``always``.
             detector: instability thresholds (DetectorOptions).
             record_every: Bullet steps between recorded rows.
@@ -305,9 +309,19 @@ class BulletWorld:
         for the world) and every cable takes its own step."""
         cables = list(self.cables.values())
         contacts = self.contacts() if cables else ()
+        # cables touching each other through the model read the ones still pending as held where they
+        # are, the ones done as moving over their planned step (see ContactSet._read_others)
+        self._pending = {c.name for c in cables}
+        try:
+            self._take_cable_steps(cables, contacts)
+        finally:
+            self._pending = set()
+
+    def _take_cable_steps(self, cables, contacts) -> None:
         if not contacts:
             for c in cables:
                 c.sync_after_step(())
+                self._pending.discard(c.name)
             return
         touched: dict[str, set[int]] = {c.name: set() for c in cables}
         owners = self._owners
@@ -318,6 +332,7 @@ class BulletWorld:
                     touched[hit[0]].add(hit[1])
         for c in cables:
             c.sync_after_step(touched[c.name])
+            self._pending.discard(c.name)
 
     def contacts(self) -> tuple:
         """Every contact point of the step just taken, as ``pybullet.getContactPoints`` gives them: one

@@ -1,0 +1,129 @@
+"""Two cables crossing: a Lv cable lying on the ground along x, a second one dropped across it along y.
+
+Prints, per rate and n: whether either cable was called unstable (and why), the smallest centre-line
+distance between the two cables at the end (the clearance; r1 + r2 = 4 mm at rest) and over the run,
+how far the upper cable's middle sank below the lower one's top, and the ground's support of both
+cables against their weight (model contact only).
+
+    PYTHONPATH=. python demos/cable_cable.py [--drop 0.03] [--duration 1.5] [--n 10 20 40] [--shift 0.5] [--rates 60 240 1000] [--cost]
+"""
+from __future__ import annotations
+
+import argparse
+import time
+
+import numpy as np
+
+from bullet_dlo.bullet.world import BulletWorld
+from bullet_dlo.core.model import CableState
+from bullet_dlo.core.spec import CableSpec
+
+
+def segment_distance(xa: np.ndarray, xb: np.ndarray) -> float:
+    """Smallest distance [m] between the polylines xa (n, 3) and xb (m, 3) (segment-segment closest points)."""
+    best = np.inf
+    for i in range(len(xa) - 1):
+        p0, d1 = xa[i], xa[i + 1] - xa[i]
+        for j in range(len(xb) - 1):
+            q0, d2 = xb[j], xb[j + 1] - xb[j]
+            r = p0 - q0
+            a, e, f = d1 @ d1, d2 @ d2, d2 @ r
+            c, b = d1 @ r, d1 @ d2
+            den = a * e - b * b
+            s = np.clip((b * f - c * e) / den, 0, 1) if den > 1e-14 * a * e else 0.0
+            t = (b * s + f) / e
+            if t < 0:
+                t, s = 0.0, np.clip(-c / a, 0, 1)
+            elif t > 1:
+                t, s = 1.0, np.clip((b - c) / a, 0, 1)
+            best = min(best, float(np.linalg.norm(p0 + s * d1 - q0 - t * d2)))
+    return best
+
+
+def crossing(n: int, dt: float, drop: float = 0.03, duration: float = 1.5, shift: float = 0.0, **kw) -> dict:
+    """Cable 'low' on the ground along x (centred at the origin), cable 'up' along y, ``drop`` [m] above it;
+    ``shift``: the upper cable moved along its axis by this fraction of a segment (0.5 at even n: a node
+    right above the lower cable)."""
+    spec = CableSpec.lv2017(n_masses=n, damping=0.02)
+    r = spec.diameter / 2
+    L = spec.length
+    out = {"n": n, "rate": round(1 / dt)}
+    with BulletWorld(dt=dt) as world:
+        low = world.add_cable(spec, start=(-L / 2, 0, r), direction=(1, 0, 0), name="low", **kw)
+        # the upper cable's nodes straddle x = 0 (no node right above the lower cable's axis for even n)
+        up = world.add_cable(spec, start=(0.0, -L / 2 + shift * spec.rest_length, 3 * r + drop), direction=(0, 1, 0), name="up", **kw)
+        steps = world.steps_in(duration)
+        closest = np.inf
+        tic = time.perf_counter()
+        for k in range(steps):
+            world.step()
+            if k % 2 == 0:
+                closest = min(closest, segment_distance(low.x, up.x))
+            if not (low.stable and up.stable):
+                break
+        out["wall_per_step_us"] = 1e6 * (time.perf_counter() - tic) / (k + 1)
+        out["unstable"] = [f"{c.name}: {c.reason} at {c.time_to_instability:.3f} s" for c in (low, up) if not c.stable]
+        out["clearance_mm"] = 1e3 * segment_distance(low.x, up.x)
+        out["closest_mm"] = 1e3 * closest
+        # the upper cable's centre line above the lower one's (y = 0): 3 r = 6 mm resting on it, r through it
+        order = np.argsort(up.x[:, 1])
+        out["up_mid_z_mm"] = 1e3 * float(np.interp(0.0, up.x[order, 1], up.x[order, 2]))
+        out["through"] = bool(out["clearance_mm"] < 1e3 * r)  # both on the ground, one inside the other
+        out["speed"] = float(max(np.abs(low.v).max(), np.abs(up.v).max()))
+        weight = 2 * spec.mass * 9.81
+        support = 0.0
+        for c in (low, up):
+            cf = c.contact_forces()
+            on_ground = cf["body"] == world.ground_id
+            support += float(cf["force"][on_ground, 2].sum())
+        out["ground_support"] = support / weight if low.model_contact else float("nan")
+    return out
+
+
+def step_cost(n: int, mode: str, rate: float = 240, steps: int = 480) -> float:
+    """Wall time per world step [us] (best of 3 x ``steps``, after 0.3 s settling): ``single`` one cable on the
+    ground, ``apart`` two cables 0.5 m apart, ``crossing`` the second one resting across the first."""
+    spec = CableSpec.lv2017(n_masses=n, damping=0.02)
+    r, L = spec.diameter / 2, spec.length
+    with BulletWorld(dt=1 / rate) as w:
+        w.add_cable(spec, start=(-L / 2, 0, r), name="low")
+        if mode == "crossing":
+            w.add_cable(spec, start=(0, -L / 2, 3 * r + 1e-4), direction=(0, 1, 0), name="up")
+        elif mode == "apart":
+            w.add_cable(spec, start=(-L / 2, 0.5, r), name="far")
+        w.run(0.3)
+        best = np.inf
+        for _ in range(3):
+            tic = time.perf_counter()
+            w.step(steps)
+            best = min(best, (time.perf_counter() - tic) / steps)
+    return 1e6 * best
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--drop", type=float, default=0.03)
+    ap.add_argument("--duration", type=float, default=1.5)
+    ap.add_argument("--n", type=int, nargs="+", default=[10, 20, 40])
+    ap.add_argument("--shift", type=float, default=0.0)
+    ap.add_argument("--rates", type=float, nargs="+", default=[60, 240, 1000])
+    ap.add_argument("--cost", action="store_true", help="time a world step instead (240 Hz, n from --n)")
+    a = ap.parse_args()
+    if a.cost:
+        for n in a.n:
+            one, apart, cross = (step_cost(n, m) for m in ("single", "apart", "crossing"))
+            print(f"n = {n}: one cable {one:.0f} us/step; two apart {apart:.0f} ({apart / one:.2f}x); "
+                  f"two crossing {cross:.0f} ({cross / one:.2f}x one, {cross / apart:.2f}x two apart)", flush=True)
+        return
+    print(f"{'rate':>5} {'n':>3} {'clear mm':>9} {'closest mm':>10} {'up z at x mm':>12} {'through':>7} "
+          f"{'|v| max':>8} {'ground/W':>8} {'us/step':>8}  unstable")
+    for rate in a.rates:
+        for n in a.n:
+            o = crossing(n, 1 / rate, a.drop, a.duration, a.shift)
+            print(f"{o['rate']:>5} {n:>3} {o['clearance_mm']:>9.3f} {o['closest_mm']:>10.3f} {o['up_mid_z_mm']:>12.3f} "
+                  f"{str(o['through']):>7} {o['speed']:>8.2e} {o['ground_support']:>8.4f} {o['wall_per_step_us']:>8.0f}  "
+                  f"{'; '.join(o['unstable']) or '-'}", flush=True)
+
+
+if __name__ == "__main__":
+    main()
