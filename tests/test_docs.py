@@ -143,7 +143,9 @@ def test_every_skip_has_a_reason():
 def test_readme_keeps_the_setup_commands():
     text = (ROOT / "README.md").read_text()
     assert "pip install -e . && python demos/main_demo.py" in text
-    assert 'pip install -e ".[test]" && python -m pytest -q' in text
+    assert 'pip install -e ".[test]" && python -m pytest -q -n 2' in text
+    ci = (ROOT / ".ci" / "run").read_text()
+    assert 'pip install -e ".[test]" && python -m pytest -q -n 2' in ci  # exactly the README's command
     assert "from bullet_dlo.sim import Scene, build" in text
 
 
