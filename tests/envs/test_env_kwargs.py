@@ -175,8 +175,7 @@ def test_every_bad_value_gives_a_clear_error_through_make_and_direct_constructio
           f"({time.perf_counter() - start:.2f} s, slowest {1e3 * slowest:.0f} ms; {len(CORPUS)} corpus rows, "
           f"{len(CORPUS) - len(MAKE_CORPUS)} of them by direct construction only)")
     assert not failures, failures[:10]
-    assert share == 1.0
-    assert slowest < 1.0  # no simulation behind a refusal
+    assert share == 1.0  # (no simulation behind a refusal: asserted by physics None above, not by a clock)
 
 
 VALID = [

@@ -3,7 +3,6 @@ from __future__ import annotations
 
 import json
 import math
-import time
 from pathlib import Path
 
 import numpy as np
@@ -148,12 +147,10 @@ def test_validate_beam_on_the_recordings(tmp_path):
         folders[role].mkdir()
         (folders[role] / f"{stem}.csv").symlink_to(DATA / f"{stem}.csv")  # read in place, never copied
     out = tmp_path / "out" / "beam.json"
-    tic = time.perf_counter()
     code = main(["validate", "beam", str(folders["fit"]), str(folders["predict"]), "--json", str(out), "-q",
                  "--n-masses", "10", "--duration", "7.5", "--filter-cutoff", "4.7", "--filter-delay", "0.0106",
                  "--no-numerics-check"])
-    assert code == 0
-    assert time.perf_counter() - tic < 35.0
+    assert code == 0  # (no wall-clock bound here: a cold Numba cache or a second test process can triple it)
     summary = json.loads(out.read_text())
     entry = summary["files"]["ocp_Z_35cm_0.61s_1"]
     assert set(entry["predicted"]) >= {"frequency_hz", "damping_ratio", "p2p_torque"}
