@@ -12,6 +12,7 @@ Scenes: ``table``: the Lv cable lying on the ground (every node in contact); ``p
 cable (0.6 m, E 2 MPa) over a fixed 20 mm cylinder, both sides hanging with 50 g weights.
 
 Usage: ``python demos/contact_cost.py [--out DIR] [--masses 20 80] [--repeats 5] [--block 200] [--quick]``
+(``--out`` defaults to ``out/contact_cost``; ``--out demos/gallery`` renews the committed pictures)
 (``--quick``: n = 20, one block of 20 steps, no pictures; for smoke tests).
 """
 from __future__ import annotations
@@ -136,7 +137,8 @@ def chart(rows: list[dict], path: Path) -> None:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--out", default="demos/gallery", help="output folder")
+    ap.add_argument("--out", default="out/contact_cost",
+                    help="output folder (default out/contact_cost; --out demos/gallery renews the committed pictures)")
     ap.add_argument("--masses", type=int, nargs="+", default=[20, 80])
     ap.add_argument("--repeats", type=int, default=5)
     ap.add_argument("--block", type=int, default=200, help="steps per timed block")
@@ -144,6 +146,7 @@ def main() -> None:
     args = ap.parse_args()
     if args.quick:
         args.masses, args.repeats, args.block = [20], 1, 20
+        print("--quick: one block of 20 steps, a smoke test; its ratios are not measurements")
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     rows = []

@@ -135,7 +135,8 @@ def drop_grid() -> list[dict]:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--out", default="demos/gallery")
+    ap.add_argument("--out", default="out/contact_demo",
+                    help="output folder (default out/contact_demo; --out demos/gallery renews the committed pictures)")
     ap.add_argument("--video", action="store_true", help="also write contact_demo.mp4")
     ap.add_argument("--capstan", action="store_true", help="capstan table at 60, 240, 1000 Hz")
     ap.add_argument("--drops", action="store_true", help="the full drop grid (108 runs)")

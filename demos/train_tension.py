@@ -127,8 +127,12 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--quick", action="store_true", help="a smoke test: 20-step episodes, one round of 60 steps")
     args = parser.parse_args(argv)
-    import torch
-    from stable_baselines3 import SAC
+    try:
+        import torch
+        from stable_baselines3 import SAC
+    except ImportError as err:  # one line, not a traceback: the RL stack is an optional extra
+        raise SystemExit(f"error: training needs PyTorch and Stable-Baselines3 ({err.name} is missing): "
+                         'pip install -e ".[rl]"') from None
 
     torch.set_num_threads(1)  # the environment steps in this process too: one thread each, no oversubscription
 

@@ -175,3 +175,14 @@ def test_contact_demo_quick(tmp_path):
     pull = json.loads((tmp_path / "contact_demo.json").read_text())["pull"]
     assert pull["stable"] and pull["max_sliding_contacts"] > 0
     assert (tmp_path / "contact_demo.png").stat().st_size > 10_000
+
+
+def test_train_tension_without_torch_says_what_to_install():
+    """Issue 25: without PyTorch the training demo printed an ImportError traceback; now one line naming the extra
+    (torch is made unimportable here, whether or not it is installed)."""
+    code = ("import runpy, sys; sys.modules['torch'] = None; sys.argv = ['train_tension.py', '--quick']; "
+            f"runpy.run_path({str(ROOT / 'demos' / 'train_tension.py')!r}, run_name='__main__')")
+    res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
+    lines = [ln for ln in res.stderr.strip().splitlines() if not ln.startswith("pybullet build time")]
+    assert res.returncode == 1 and "Traceback" not in res.stderr, res.stderr
+    assert lines == ['error: training needs PyTorch and Stable-Baselines3 (torch is missing): pip install -e ".[rl]"']
