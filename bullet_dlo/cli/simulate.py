@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -103,6 +104,12 @@ def cmd_paper_table(args: argparse.Namespace) -> int:
 
     tables = ("base", "rates") if args.rates else args.tables
     check_paper_table(args)
+    if args.quick:  # a subset in seconds, to see the command work: not the study's table
+        args.moduli = args.moduli or QUICK_TABLE["moduli"]
+        args.masses = args.masses or QUICK_TABLE["masses"]
+        args.steps = args.steps or QUICK_TABLE["steps"]
+        args.duration, args.rate_duration = QUICK_TABLE["duration"], QUICK_TABLE["rate_duration"]
+        print("--quick: a subset with short runs, to see the command work; not the study's table", flush=True)
     moduli = [float(e) * 1e6 for e in args.moduli] if args.moduli else study.PAPER_E
     masses = args.masses or study.PAPER_N
     plans = []  # (heading, steps, integrators, duration)
@@ -120,7 +127,10 @@ def cmd_paper_table(args: argparse.Namespace) -> int:
     total = sum(len(moduli) * len(masses) * len(steps) * len(integ) for _, steps, integ, _ in plans)
     progress = bar(total, "paper-table", args.quiet)
 
+    finished = []  # every run as it ends: what an interrupted table still writes
+
     def report(run) -> None:
+        finished.append(run)
         progress.update(1)
         progress.set_postfix_str(f"E={run.youngs_modulus / 1e6:g} MPa n={run.n_masses} dt={run.dt:g} {run.integrator}")
         if args.verbose:
@@ -128,21 +138,40 @@ def cmd_paper_table(args: argparse.Namespace) -> int:
             progress.write(f"  E={run.youngs_modulus / 1e6:g} MPa n={run.n_masses} dt={run.dt:g} {run.integrator}: "
                            f"{state} ({run.wall_time_s:.1f} s)")
 
-    all_runs, text = [], ""
-    with progress:
-        for heading, steps, integrators, duration in plans:
-            runs = study.paper_table(moduli, masses, steps, integrators, damping=args.damping, duration=duration,
-                                     progress=report)
-            table = study.format_table(runs)
-            progress.write(f"\n{heading}, {duration:g} s per run:\n{table}")
-            text += f"## {heading}\n\n{table}\n\n"
-            all_runs += runs
+    text = ""
+    try:
+        with progress:
+            for heading, steps, integrators, duration in plans:
+                start = len(finished)
+                study.paper_table(moduli, masses, steps, integrators, damping=args.damping, duration=duration,
+                                  progress=report)
+                table = study.format_table(finished[start:])
+                progress.write(f"\n{heading}, {duration:g} s per run:\n{table}")
+                text += f"## {heading}\n\n{table}\n\n"
+    except KeyboardInterrupt:  # keep what finished: the table so far, marked partial
+        if finished:
+            text += f"## Interrupted: the {len(finished)} runs that finished\n\n{study.format_table(finished)}\n\n"
+        write_paper_table(args, text, finished, partial=True)
+        print(f"interrupted (Ctrl-C): {len(finished)} of {total} runs finished"
+              + (f"; written to {', '.join(p for p in (args.markdown, args.json) if p)}" if args.markdown or args.json
+                 else ""), file=sys.stderr)
+        return 130
+    write_paper_table(args, text, finished, partial=False)
+    return 0
+
+
+QUICK_TABLE = {"moduli": [12.6, 1002.6], "masses": [6], "steps": [5e-6], "duration": 0.02, "rate_duration": 0.2}
+"""``paper-table --quick``: two moduli, six masses, the study's larger step, short runs (seconds in all)."""
+
+
+def write_paper_table(args: argparse.Namespace, text: str, runs: list, partial: bool) -> None:
+    """The table as Markdown and every run as JSON where asked; ``partial``: an interrupted table (said in both)."""
     if args.markdown:
         Path(args.markdown).parent.mkdir(parents=True, exist_ok=True)
-        Path(args.markdown).write_text(text)
+        Path(args.markdown).write_text(("**Partial: interrupted.**\n\n" if partial else "") + text)
     if args.json:
-        write_json(args.json, [r.__dict__ for r in all_runs])
-    return 0
+        write_json(args.json, {"partial": partial, "runs": [r.__dict__ for r in runs]} if partial
+                   else [r.__dict__ for r in runs])
 
 
 def check_paper_table(args: argparse.Namespace) -> None:
@@ -236,6 +265,10 @@ def add_parsers(sub, common: argparse.ArgumentParser) -> None:
     s.add_argument("--markdown", metavar="OUT.md", help="write the table(s) as Markdown")
     s.add_argument("--json", metavar="OUT.json", help="write every run as JSON")
     s.add_argument("-v", "--verbose", action="store_true", help="print each run as it finishes")
+    s.add_argument("--quick", action="store_true",
+                   help="a subset in seconds (E 12.6 and 1002.6 MPa, n 6, dt 5e-6 s, 0.02 s runs; rates 0.2 s) to see "
+                        "the command work; not the study's table. A Ctrl-C at any time writes the runs that finished "
+                        "(marked partial) and exits 130")
     s.set_defaults(func=cmd_paper_table)
 
     s = sub.add_parser("convergence", parents=[common], help="cantilever static convergence of both discretisations",

@@ -35,3 +35,38 @@ def test_an_interrupt_during_a_command_is_one_line_and_exit_130(monkeypatch, cap
     assert main(["simulate", str(scene)]) == 130
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("interrupted (Ctrl-C)"), err
+
+
+def test_an_interrupted_paper_table_writes_the_runs_that_finished(monkeypatch, tmp_path, capsys):
+    """Issue 25: paper-table (13 min in full) lost everything to a Ctrl-C; now the finished runs are written,
+    marked partial, with one line and exit 130. The interrupt comes after two real runs of the quick table."""
+    import json
+
+    from bullet_dlo.analysis import study
+
+    real = study.paper_table
+
+    def two_then_interrupt(*args, progress=None, **kwargs):
+        def count(run):
+            progress(run)
+            if count.n == 1:
+                raise KeyboardInterrupt
+            count.n += 1
+        count.n = 0
+        return real(*args, progress=count, **kwargs)
+
+    monkeypatch.setattr(study, "paper_table", two_then_interrupt)
+    out, md = tmp_path / "t.json", tmp_path / "t.md"
+    assert main(["paper-table", "--quick", "-q", "--json", str(out), "--markdown", str(md)]) == 130
+    data = json.loads(out.read_text())
+    assert data["partial"] is True and len(data["runs"]) == 2
+    assert md.read_text().startswith("**Partial: interrupted.**")
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err[-1].startswith("interrupted (Ctrl-C): 2 of ") and len([e for e in err if "Traceback" in e]) == 0
+
+
+def test_paper_table_quick_runs_the_subset(tmp_path):
+    out = tmp_path / "t.json"
+    assert main(["paper-table", "--quick", "-q", "--json", str(out)]) == 0
+    runs = __import__("json").loads(out.read_text())
+    assert {r["n_masses"] for r in runs} == {6} and {r["dt"] for r in runs} == {5e-6} and len(runs) == 2 * 4
