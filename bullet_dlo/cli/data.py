@@ -183,6 +183,7 @@ def cmd_dataset_verify(args: argparse.Namespace) -> int:
 
 
 def cmd_dataset_summary(args: argparse.Namespace) -> int:
+    from bullet_dlo.data.reader import JOINT_REACTION_RATE
     from bullet_dlo.data.safeio import StorageError
 
     png = Path(args.dir) / "quality.png"
@@ -207,6 +208,12 @@ def cmd_dataset_summary(args: argparse.Namespace) -> int:
         print(f"WARNING: {len(old)} of them ({_first(tuple(old))}) were recorded before payload compensation (bullet_dlo "
               f"< 0.3) and their grippers tilted: their wrist forces hold the hand's weight seen from the turned "
               f"sensor (up to tens of cable weights); re-capture them")
+    turned = summary["joint_reaction_turned"]
+    if turned:
+        print(f"WARNING: {len(turned)} of them ({_first(tuple(turned))}) took their wrist forces from Bullet's joint "
+              f"reaction (recorded before sensor_transmitted) while a gripper turned faster than "
+              f"{JOINT_REACTION_RATE} rad/s: the reaction is off by a load growing as the turn rate squared; "
+              f"re-capture them")
     print(f"quality histogram: {png}")
     if args.json:
         write_json(args.json, summary | {"verification": {"checked": report.checked, "hashed": report.hashed,

@@ -26,6 +26,10 @@ from bullet_dlo.data.storage import JSON_ATTRS, episode_name, is_capture_dir, re
 
 OLD_TARE_TILT = 0.01
 """[rad] A gripper tilt above which an episode recorded with the old sensor-frame tare is warned about."""
+JOINT_REACTION_RATE = 0.1
+"""[rad/s] A gripper turn rate above which an episode whose wrist forces came from Bullet's joint reaction is
+warned about (its error, about 0.15 N s^2 times the rate squared on the Panda, reaches ~1.5 mN, 0.5 % of a
+30 g cable's weight, near 0.1 rad/s)."""
 
 
 class DamagedDataset(ParameterError):
@@ -134,6 +138,36 @@ class Dataset:
         """Episodes recorded before payload compensation (no ``sensor_compensation`` attribute: the hand's
         weight was tared in the sensor frame) whose grippers tilted by more than ``tilt`` [rad] from
         their first pose: their wrist forces are off by up to the hand's weight times the tilt."""
+        import numpy as np
+
+        def tilted(t, q) -> bool:
+            x, y, z, w = (q[..., i] for i in range(4))
+            approach = np.stack([2 * (x * z + y * w), 2 * (y * z - x * w), 1 - 2 * (x * x + y * y)], axis=-1)
+            cos = np.clip(np.sum(approach * approach[:1], axis=-1), -1.0, 1.0)  # against the first row
+            return float(np.arccos(cos).max()) > tilt
+
+        return self._episodes_without("sensor_compensation", tilted)
+
+    def joint_reaction_episodes(self, rate: float = JOINT_REACTION_RATE) -> list[int]:
+        """Episodes whose wrist forces came from Bullet's joint reaction (no ``sensor_transmitted``
+        attribute) and whose grippers turned faster than ``rate`` [rad/s] between recorded rows: the
+        reaction counts the hand's velocity-product terms twice, a load growing as the turn rate squared
+        (a Panda hand turned 90 degrees in 0.7 s read 1.7 N off)."""
+        import numpy as np
+
+        def fast(t, q) -> bool:
+            if len(q) < 2:
+                return False
+            dots = np.abs(np.sum(q[1:] * q[:-1], axis=-1)).clip(0.0, 1.0)  # (k-1, 2): |<q_i, q_i+1>|
+            turn = 2.0 * np.arccos(dots)  # [rad] between rows, per arm
+            dt = np.diff(np.asarray(t, dtype=float))[:, None]
+            return bool(np.any(turn > rate * np.where(dt > 0, dt, np.inf)))
+
+        return self._episodes_without("sensor_transmitted", fast)
+
+    def _episodes_without(self, attribute: str, test) -> list[int]:
+        """Episodes (not failed, not damaged) whose file lacks ``attribute`` and for which ``test(t, ee_quat)``
+        holds (t [s] (k,), grasp-frame quaternions x, y, z, w (k, 2, 4))."""
         import h5py
         import numpy as np
 
@@ -146,13 +180,11 @@ class Dataset:
             except ParameterError:
                 continue  # damaged: reported by verify, not read
             with h5py.File(io.BytesIO(data), "r") as f:
-                if "sensor_compensation" in f.attrs or "ee_quat" not in f:
+                if attribute in f.attrs or "ee_quat" not in f or "t" not in f:
                     continue
-                q = np.asarray(f["ee_quat"], dtype=float)  # (k, 2, 4) x, y, z, w
-            x, y, z, w = (q[..., i] for i in range(4))
-            approach = np.stack([2 * (x * z + y * w), 2 * (y * z - x * w), 1 - 2 * (x * x + y * y)], axis=-1)
-            cos = np.clip(np.sum(approach * approach[:1], axis=-1), -1.0, 1.0)  # against the first row
-            if len(q) and float(np.arccos(cos).max()) > tilt:
+                q = np.asarray(f["ee_quat"], dtype=float)
+                t = np.asarray(f["t"], dtype=float)
+            if len(q) and test(t, q):
                 out.append(int(r["episode"]))
         return out
 
@@ -179,4 +211,5 @@ class Dataset:
         return {"episodes": len(self.records), "ok": statuses.count("ok"), "flagged": statuses.count("flagged"),
                 "flagged_for_quality": quality,
                 "failed": statuses.count("failed"), "flagged_runs": flagged, "coverage": coverage,
-                "decisions": decisions, "old_tare_tilted": self.old_tare_episodes()}
+                "decisions": decisions, "old_tare_tilted": self.old_tare_episodes(),
+                "joint_reaction_turned": self.joint_reaction_episodes()}

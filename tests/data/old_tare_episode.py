@@ -2,7 +2,8 @@
 
 Episode 0: recorded with payload compensation, gripper turned 0.5 rad; 1: old tare, no turn;
 2: old tare, turned 0.5 rad about the cable (x) axis; 3: old tare, turned 0.005 rad (below the
-warning's threshold). Importable by name in spawned workers (they get the coordinator's sys.path).
+warning's threshold); 4: compensated and with the Newton-Euler transmitted wrench, turned 0.5 rad.
+Rows are 0.1 s apart: 0.5 rad is 1.25 rad/s, 0.005 rad 0.0125 rad/s. Importable by name in spawned workers (they get the coordinator's sys.path).
 """
 from __future__ import annotations
 
@@ -12,8 +13,9 @@ from scipy.spatial.transform import Rotation
 from bullet_dlo.config.capture import CaptureSpec
 from bullet_dlo.data.storage import episode_result, write_episode
 
-TURNS = {0: 0.5, 1: 0.0, 2: 0.5, 3: 0.005}  # [rad] about world x, by episode
-COMPENSATED = {0}
+TURNS = {0: 0.5, 1: 0.0, 2: 0.5, 3: 0.005, 4: 0.5}  # [rad] about world x, by episode
+COMPENSATED = {0, 4}
+TRANSMITTED = {4}  # recorded with sensor_transmitted (since issue 27's Newton-Euler wrench)
 
 
 def old_tare_episode(spec_dict: dict, index: int, out_dir: str) -> dict:
@@ -29,5 +31,7 @@ def old_tare_episode(spec_dict: dict, index: int, out_dir: str) -> dict:
              "time_to_instability": -1.0, "spec_digest": spec.digest()}
     if index in COMPENSATED:
         attrs["sensor_compensation"] = "urdf"
+    if index in TRANSMITTED:
+        attrs["sensor_transmitted"] = "newton_euler"
     name = write_episode(out_dir, index, {"t": np.arange(5) * 0.1, "ee_quat": ee_quat}, attrs)
     return episode_result(index, name, True, None, None, params, decision, metrics)

@@ -22,3 +22,17 @@ def test_summary_names_old_tare_episodes_whose_grippers_tilted(tmp_path, capsys)
     printed = capsys.readouterr().out
     assert "WARNING: 1 of them (episodes 2) were recorded before payload compensation" in printed
     assert json.loads(summary.read_text())["old_tare_tilted"] == [2]
+
+
+def test_summary_names_joint_reaction_episodes_whose_grippers_turned_fast(tmp_path, capsys):
+    """Issue 27, the turning error: episodes whose wrist forces came from Bullet's joint reaction (no
+    ``sensor_transmitted``) and whose grippers turned faster than 0.1 rad/s are named (0 and 2: 1.25 rad/s);
+    a slow one (3: 0.0125 rad/s), an unturned one (1) and one with the Newton-Euler wrench (4) are not."""
+    out = tmp_path / "ds"
+    capture(CaptureSpec(seed=1), out, 5, progress=False, task=old_tare_episode)
+    assert Dataset(out).joint_reaction_episodes() == [0, 2]
+    summary = tmp_path / "summary.json"
+    main(["dataset", "summary", str(out), "--json", str(summary)])
+    printed = capsys.readouterr().out
+    assert "WARNING: 2 of them (episodes 0, 2) took their wrist forces from Bullet's joint reaction" in printed
+    assert json.loads(summary.read_text())["joint_reaction_turned"] == [0, 2]
