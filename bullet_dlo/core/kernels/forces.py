@@ -41,6 +41,7 @@ from bullet_dlo.core.kernels.twist import (
     add_twist_forces,
     add_twist_jacobian,
     has_twist,
+    scatter_node_hessian,
     twist_clamp_torque,
     twist_energy,
     twist_kinetic,
@@ -282,31 +283,7 @@ def force_jacobian(m, x, dirs, definite, jac):
             continue
         a0, a1, a2, b0, b1, b2 = _node_edges(x, i, dirs)
         _bend_hessian(a0, a1, a2, b0, b1, b2, k, g, hb)
-        # a = x_i - x_{i-1}, b = x_{i+1} - x_i: chain rule onto the nodes (jac[p, q-p+2] -= H_pq)
-        for r in range(3):
-            for col in range(3):
-                haa, hab = hb[r, col], hb[r, 3 + col]
-                hba, hbb = hb[3 + r, col], hb[3 + r, 3 + col]
-                if i == 0:  # clamp at the first end: only b moves (nodes 0, 1)
-                    jac[0, 2, r, col] -= hbb
-                    jac[0, 3, r, col] += hbb
-                    jac[1, 1, r, col] += hbb
-                    jac[1, 2, r, col] -= hbb
-                elif i == n - 1:  # clamp at the last end: only a moves (nodes n-2, n-1)
-                    jac[n - 2, 2, r, col] -= haa
-                    jac[n - 2, 3, r, col] += haa
-                    jac[n - 1, 1, r, col] += haa
-                    jac[n - 1, 2, r, col] -= haa
-                else:
-                    jac[i - 1, 2, r, col] -= haa
-                    jac[i - 1, 3, r, col] -= hab - haa
-                    jac[i - 1, 4, r, col] += hab
-                    jac[i, 1, r, col] -= hba - haa
-                    jac[i, 2, r, col] -= haa - hab - hba + hbb
-                    jac[i, 3, r, col] -= hab - hbb
-                    jac[i + 1, 0, r, col] += hba
-                    jac[i + 1, 1, r, col] -= hba - hbb
-                    jac[i + 1, 2, r, col] -= hbb
+        scatter_node_hessian(jac, i, n, hb)
     if has_twist(m):
         add_twist_jacobian(m, x, dirs, jac)
 

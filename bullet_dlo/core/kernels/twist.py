@@ -492,12 +492,14 @@ def add_twist_jacobian(m, x, dirs, jac):
             for col in range(6):
                 hb[r, col] = 0.5 * dl * (jrow[0, r] * jrow[0, col] - jrow[1, r] * jrow[1, col]
                                          + jrow[2, r] * jrow[2, col] - jrow[3, r] * jrow[3, col])
-        _scatter_node_hessian(jac, i, n, hb)
+        scatter_node_hessian(jac, i, n, hb)
 
 
 @njit(cache=True, error_model="numpy")
-def _scatter_node_hessian(jac, i, n, hb):
-    """jac -= the node Hessian hb (6, 6) over (e_a, e_b) mapped onto nodes i-1, i, i+1 (clamp edges fixed)."""
+def scatter_node_hessian(jac, i, n, hb):
+    """jac -= the node Hessian hb (6, 6) over (e_a, e_b) mapped onto nodes i-1, i, i+1 (clamp edges fixed):
+    a = x_i - x_{i-1}, b = x_{i+1} - x_i, by the chain rule jac[p, q-p+2] -= H_pq; at a clamp (i = 0 or
+    n - 1) only the free edge's nodes move. Used by the bending and the twist Jacobians."""
     for r in range(3):
         for col in range(3):
             haa, hab = hb[r, col], hb[r, 3 + col]
