@@ -46,6 +46,7 @@ from typing import Any
 
 import numpy as np
 from scipy import stats
+from scipy.interpolate import CubicSpline
 from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 
@@ -57,7 +58,9 @@ from bullet_dlo.analysis.fit_recording import (
     CLAMP_SIGN,
     KINDS,
     UNITS,
+    ModelRun,
     Recording,
+    markers_on,
     noise_scale,
     predicted,
 )
@@ -90,13 +93,19 @@ BOUNDS = {  # allowed range of each fittable parameter (SI), also its log-space 
     "mass": (1e-6, 1e3),
 }
 GUESS = {"youngs_modulus": 1e8, "damping_rate": 1.0, "internal_damping": 1e-3, "damping": 1e-3}
+START = ("auto", "static", "straight", "recorded")
+"""How the model starts: ``static`` (equilibrium at the first poses), ``straight`` (at rest, straight),
+``recorded`` (the recording's ``initial`` shape and velocity), ``auto`` (recorded when the recording has
+an initial shape, else static)."""
 AUTO_INTEGRATOR = "bdf2"
 AUTO_HALVINGS = 3
 __all__ = [
     "BOUNDS",
     "CLAMP_SIGN",
     "KINDS",
+    "START",
     "FitOptions",
+    "ModelRun",
     "FitResult",
     "Recording",
     "default_parameters",
@@ -124,8 +133,7 @@ class FitOptions:
     """How the forward model runs, the fit stops and its uncertainty is judged.
 
     integrator, dt [s]: the core engine's (``auto``: BDF2 with dt halved until its numerical damping
-    passes the check); start: ``static`` (equilibrium at the first poses) or ``straight`` (at rest,
-    straight between the first poses); knot_rate: waypoints per second taken from the recorded poses
+    passes the check); start: one of :data:`START`; knot_rate: waypoints per second taken from the recorded poses
     [Hz]; skip: seconds at the start of each recording left out of the residual; max_evaluations:
     forward runs allowed per fit; max_relative_se: above it (equivalent standard error / value) a
     parameter is called not identifiable; max_condition: above it J^T J is called near-singular.
@@ -135,12 +143,17 @@ class FitOptions:
     all: no confident number; level: interval coverage; max_holdout_ratio: held-out / in-sample
     residual RMS above which discrepancy is declared; max_numerical_damping: allowed numerical /
     physical damping ratio on the lowest modes; profile_points: points of each conditional profile
-    (0: none); match_source: run the model with the recording's own integrator and dt (``source``).
+    (0: none); match_source: run the model with the recording's own integrator and dt (``source``);
+    stiffness_grid: Young's moduli tried before the descent, log-spaced over a decade either side of
+    the start (the start among them), the best one starting it (0 or 1: none). An oscillating record
+    has a residual with a minimum at every frequency that puts the ringing in phase somewhere; a local
+    descent from a start a factor 2 off lands in one of those (a cantilever recording fitted at
+    0.16x its E, confidently, before the grid).
     """
 
     integrator: str = "implicit_midpoint"
     dt: float = 1e-3
-    start: str = "static"
+    start: str = "auto"
     knot_rate: float = 1000.0
     skip: float = 0.0
     max_evaluations: int = 60
@@ -155,6 +168,7 @@ class FitOptions:
     max_numerical_damping: float = 0.1
     profile_points: int = 5
     match_source: bool = False
+    stiffness_grid: int = 9
 
     def __post_init__(self) -> None:
         check_positive("dt", self.dt)
@@ -162,8 +176,8 @@ class FitOptions:
         check_int("max_evaluations", self.max_evaluations, 2)
         if self.integrator != "auto" and self.integrator not in INTEGRATORS:
             raise ParameterError(f"integrator must be auto or one of {', '.join(INTEGRATORS)}, got {self.integrator!r}")
-        if self.start not in ("static", "straight"):
-            raise ParameterError(f"start must be static or straight, got {self.start!r}")
+        if self.start not in START:
+            raise ParameterError(f"start must be one of {', '.join(START)}, got {self.start!r}")
         if not self.skip >= 0:
             raise ParameterError(f"skip must be >= 0 [s], got {self.skip!r}")
         if self.kinds is not None:
@@ -181,6 +195,7 @@ class FitOptions:
         check_positive("max_numerical_damping", self.max_numerical_damping)
         check_positive("max_relative_se", self.max_relative_se)
         check_int("profile_points", self.profile_points, 0, 101)
+        check_int("stiffness_grid", self.stiffness_grid, 0, 101)
 
 
 @dataclass
@@ -217,7 +232,7 @@ class FitResult:
     jacobian_standard_errors: dict[str, float] = field(default_factory=dict)
     reasons: dict[str, str] = field(default_factory=dict)
     moments: np.ndarray | None = None
-    loads: list[tuple[np.ndarray, np.ndarray]] = field(default_factory=list)
+    loads: list[ModelRun] = field(default_factory=list)
     integrator: str = ""
     dt: float = 0.0
     n_masses: int = 0
@@ -270,6 +285,9 @@ def holder_paths(rec: Recording, knot_rate: float) -> tuple[EndHolder, EndHolder
     dirs = rec.clamp_directions()
     holders = []
     for arm, end in enumerate(("first", "last")):
+        if rec.held[arm] == "free":  # nobody holds it: its recorded pose is only where it starts
+            holders.append(EndHolder("free", rec.grasp_pos[0, arm].copy(), dirs[0, arm].copy()))
+            continue
         pos = rec.grasp_pos[idx, arm]
         pos = np.vstack([pos, 2.0 * pos[-1] - pos[-2]])
         rot = Rotation.from_quat(rec.grasp_quat[idx, arm])
@@ -282,41 +300,74 @@ def holder_paths(rec: Recording, knot_rate: float) -> tuple[EndHolder, EndHolder
 
 def held_model(spec: CableSpec, first: EndHolder, last: EndHolder,
                gravity: Sequence[float] = STANDARD_GRAVITY) -> CableModel:
-    """A cable between two held ends, laid on the straight line between their start positions."""
+    """A cable between two held ends, laid on the straight line between their start positions; with one
+    end free, laid straight from the held end along its clamp direction over the cable's length."""
     n = spec.n_masses
-    x0 = first.position + np.outer(np.linspace(0.0, 1.0, n), last.position - first.position)
+    s = np.linspace(0.0, 1.0, n)
+    if first.mode == "free":
+        x0 = last.position - np.outer(s[::-1], spec.length * last.direction)
+    elif last.mode == "free":
+        x0 = first.position + np.outer(s, spec.length * first.direction)
+    else:
+        x0 = first.position + np.outer(s, last.position - first.position)
     g = np.asarray(gravity, dtype=float)
     return CableModel(spec, first, last, g, build_arrays(spec, first.mode, last.mode, g), x0)
 
 
-def start_state(model: CableModel, start: str) -> CableState:
-    """The model's start: the static equilibrium (``static``) or its initial straight state at rest."""
+def start_state(model: CableModel, start: str, rec: Recording | None = None) -> CableState:
+    """The model's start (one of :data:`START`; ``auto`` and ``recorded`` need ``rec``)."""
+    if start == "auto":
+        start = "recorded" if rec is not None and rec.initial is not None else "static"
+    if start == "recorded":
+        if rec is None or rec.initial is None:
+            raise ParameterError("start recorded needs a recording with an initial shape (Recording.initial)")
+        return recorded_state(model, rec)
     if start == "static":
         return CableState(solve_static(model).x, np.zeros((model.n, 3)), 0.0)
     return model.initial_state()
+
+
+def recorded_state(model: CableModel, rec: Recording) -> CableState:
+    """The recording's initial shape and velocity at the model's nodes: cubic splines in arc length through
+    the recorded points, the held nodes where their holders are."""
+    s, x, v = rec.initial
+    s_nodes = np.linspace(0.0, model.spec.length, model.n)
+    x0 = CubicSpline(s, x, axis=0)(s_nodes)
+    v0 = CubicSpline(s, v, axis=0)(s_nodes)
+    for i, holder in ((0, model.first), (-1, model.last)):
+        if holder.held:
+            x0[i] = holder.position
+    return CableState(x0, v0, 0.0)
+
+
+def run_model(model: CableModel, t: np.ndarray, integrator: str, dt: float, state: CableState,
+              positions: bool = False) -> ModelRun | None:
+    """End forces [N] and clamp moments [N m] of ``model`` at times ``t`` [s] from 0, each (k, 2, 3), and
+    with ``positions`` the node positions [m], (k, n, 3), run with ``integrator`` at ``dt`` [s] from
+    ``state``; None if the run went unstable."""
+    res = simulate(model, integrator, dt, float(t[-1]) + dt, state=state, record_every=1, max_records=10**9)
+    if not res.stable:
+        return None
+    x = at_times(res.t, res.x, t) if positions else None
+    return ModelRun(at_times(res.t, res.end_forces, t), at_times(res.t, res.end_moment_history, t), x,
+                    np.linspace(0.0, model.spec.length, model.n))
 
 
 def run_loads(model: CableModel, t: np.ndarray, integrator: str, dt: float,
               start: str = "static") -> tuple[np.ndarray, np.ndarray] | None:
     """End forces [N] and clamp moments [N m] of ``model`` at times ``t`` [s] from 0, each (k, 2, 3),
     run with ``integrator`` at ``dt`` [s] from ``start``; None if the run went unstable."""
-    res = simulate(model, integrator, dt, float(t[-1]) + dt, state=start_state(model, start),
-                   record_every=1, max_records=10**9)
-    if not res.stable:
-        return None
-    out = np.empty((2, len(t), 2, 3))
-    for q, series in enumerate((res.end_forces, res.end_moment_history)):
-        for arm in (0, 1):
-            for j in range(3):
-                out[q, :, arm, j] = np.interp(t, res.t, series[:, arm, j])
-    return out[0], out[1]
+    run = run_model(model, t, integrator, dt, start_state(model, start))
+    return None if run is None else (run.forces, run.moments)
 
 
-def run_forces(model: CableModel, t: np.ndarray, options: FitOptions) -> np.ndarray | None:
-    """End forces [N] of ``model`` at times ``t`` [s] from 0, (k, 2, 3), started as ``options.start``
-    says; None if the run went unstable."""
-    loads = run_loads(model, t, run_integrator(options), options.dt, options.start)
-    return None if loads is None else loads[0]
+def at_times(t_run: np.ndarray, series: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """``series`` (len(t_run), ...) recorded at increasing times ``t_run`` [s], linearly interpolated at
+    ``t`` [s] (held at the ends)."""
+    j = np.clip(np.searchsorted(t_run, t, side="right") - 1, 0, len(t_run) - 2)
+    w = np.clip((t - t_run[j]) / (t_run[j + 1] - t_run[j]), 0.0, 1.0)
+    w = w.reshape((-1,) + (1,) * (series.ndim - 1))
+    return (1.0 - w) * series[j] + w * series[j + 1]
 
 
 def run_integrator(options: FitOptions) -> str:
@@ -331,13 +382,31 @@ def run_setup(rec: Recording, options: FitOptions) -> tuple[str, float]:
     return run_integrator(options), options.dt
 
 
+def model_run(spec: CableSpec, rec: Recording, options: FitOptions = FitOptions(),
+              gravity: Sequence[float] = STANDARD_GRAVITY) -> ModelRun | None:
+    """The core model held as the recording says (its ends following the recorded grasp poses), at the
+    recorded times: end loads, and node positions when the recording has markers; None if unstable.
+    A recording that states its cable's length gets that length (same mass per length)."""
+    spec = for_recording(spec, rec)
+    model = held_model(spec, *holder_paths(rec, options.knot_rate), gravity)
+    integrator, dt = run_setup(rec, options)
+    return run_model(model, rec.t - rec.t[0], integrator, dt, start_state(model, options.start, rec),
+                     positions=rec.markers is not None)
+
+
+def for_recording(spec: CableSpec, rec: Recording) -> CableSpec:
+    """``spec`` with the recording's cable length when it states one (mass per length kept)."""
+    if rec.length is None or rec.length == spec.length:
+        return spec
+    return spec.with_(length=rec.length, mass=spec.mass * rec.length / spec.length)
+
+
 def model_loads(spec: CableSpec, rec: Recording, options: FitOptions = FitOptions(),
                 gravity: Sequence[float] = STANDARD_GRAVITY) -> tuple[np.ndarray, np.ndarray] | None:
     """End forces [N] and clamp moments [N m] of the core model following the recorded grasp poses, at the
     recorded times, each (k, 2, 3); None if the run went unstable."""
-    model = held_model(spec, *holder_paths(rec, options.knot_rate), gravity)
-    integrator, dt = run_setup(rec, options)
-    return run_loads(model, rec.t - rec.t[0], integrator, dt, options.start)
+    run = model_run(spec, rec, options, gravity)
+    return None if run is None else (run.forces, run.moments)
 
 
 def model_forces(spec: CableSpec, rec: Recording, options: FitOptions = FitOptions(),
@@ -363,12 +432,12 @@ class Layout:
     sample_of: np.ndarray
     channel_of: np.ndarray
 
-    def weighted(self, loads: list[tuple[np.ndarray, np.ndarray]]) -> np.ndarray:
+    def weighted(self, runs: list[ModelRun]) -> np.ndarray:
         """The residual (prediction - measurement) / sigma of every kind, recording after recording (m,)."""
         parts = []
-        for rec, kinds, keep, (f, mom) in zip(self.recs, self.kinds, self.keep, loads):
+        for rec, kinds, keep, run in zip(self.recs, self.kinds, self.keep, runs):
             for kind in kinds:
-                parts.append(((predicted(rec, kind, f, mom) - rec.observed(kind))[keep] / self.sigma[kind]).ravel())
+                parts.append(((predicted(rec, kind, run) - rec.observed(kind))[keep] / self.sigma[kind]).ravel())
         return np.concatenate(parts)
 
 
@@ -426,6 +495,9 @@ def fit_cable(rec: Recording | Sequence[Recording], spec: CableSpec, parameters:
     bad = [k for k in names if k not in allowed]
     if bad or not names or len(set(names)) != len(names):
         raise ParameterError(f"fit parameters must be distinct names from {', '.join(sorted(allowed))}, got {names}")
+    if "mass" in names and all(k == "marker" for ks in make_layout(recs, options, len(names)).kinds for k in ks):
+        raise ParameterError("mass cannot be fitted from marker positions alone (shapes under gravity see E I / "
+                             "(rho A) only): give the mass and fit youngs_modulus")
     layout = make_layout(recs, options, len(names))
     start = {k: float((guess or {}).get(k) or getattr(spec, k) or GUESS[k]) for k in names}
     lo = np.log([BOUNDS[k][0] for k in names])
@@ -436,6 +508,8 @@ def fit_cable(rec: Recording | Sequence[Recording], spec: CableSpec, parameters:
     halvings = 0
     while True:
         cost = residual_function(layout, trial, options, gravity, runs)
+        if halvings == 0:
+            theta = best_stiffness_start(cost, theta, names, options.stiffness_grid, (lo, hi))
         sol = least_squares(cost, theta, bounds=(lo, hi), method="trf", diff_step=1e-3, x_scale=1.0,
                             max_nfev=options.max_evaluations, xtol=1e-8, ftol=1e-10)
         fitted = trial(sol.x)
@@ -444,6 +518,25 @@ def fit_cable(rec: Recording | Sequence[Recording], spec: CableSpec, parameters:
             break
         options, theta, halvings = replace(options, dt=options.dt / 2), sol.x, halvings + 1
     return summarise(sol, names, fitted, layout, options, gravity, runs[0], cost, check, (lo, hi))
+
+
+def best_stiffness_start(cost: Callable[[np.ndarray], np.ndarray], theta: np.ndarray, names: list[str],
+                         points: int, bounds: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
+    """``theta`` with log E replaced by the best of ``points`` values log-spaced over a decade either side
+    of it (itself among them; clipped to the bounds); unchanged when E is not fitted or points < 2."""
+    if "youngs_modulus" not in names or points < 2:
+        return theta
+    j = names.index("youngs_modulus")
+    offsets = np.log(10.0) * np.linspace(-1.0, 1.0, points | 1)  # odd: the start is the middle point
+    best, best_cost = theta, math.inf
+    for off in offsets:
+        th = theta.copy()
+        th[j] = float(np.clip(theta[j] + off, bounds[0][j] + 1e-9, bounds[1][j] - 1e-9))
+        r = cost(th)
+        c = float(r @ r)
+        if c < best_cost:
+            best, best_cost = th, c
+    return best
 
 
 def residual_function(layout: Layout, trial: Callable[[np.ndarray], CableSpec], options: FitOptions,
@@ -456,10 +549,10 @@ def residual_function(layout: Layout, trial: Callable[[np.ndarray], CableSpec], 
 
     def residual(theta: np.ndarray) -> np.ndarray:
         runs[0] += 1
-        loads = [model_loads(trial(theta), rec, options, gravity) for rec in layout.recs]
-        if any(x is None for x in loads):
+        runs_ = [model_run(trial(theta), rec, options, gravity) for rec in layout.recs]
+        if any(x is None for x in runs_):
             return np.full(size, 10.0 * scale)
-        return layout.weighted(loads)
+        return layout.weighted(runs_)
 
     return residual
 
@@ -468,7 +561,7 @@ def numerics_for(spec: CableSpec, rec: Recording, options: FitOptions, gravity: 
                  integrator: str | None = None, dt: float | None = None) -> NumericalDampingCheck:
     """The numerical-damping check of ``spec`` held as in ``rec`` at its first poses, for the model's
     integrator and dt (or the ones given)."""
-    model = held_model(spec, *holder_paths(rec, options.knot_rate), gravity)
+    model = held_model(for_recording(spec, rec), *holder_paths(rec, options.knot_rate), gravity)
     run_int, run_dt = run_setup(rec, options)
     return numerical_damping_check(model, start_state(model, "static"), integrator or run_int, dt or run_dt,
                                    options.max_numerical_damping)
@@ -490,7 +583,7 @@ def summarise(sol, names: list[str], fitted: CableSpec, layout: Layout, options:
                 for k, x, lo, hi in zip(names, sol.x, *bounds)}
     sample_dt = float(np.median([np.median(np.diff(rec.t)) for rec in layout.recs]))
     wh = whiteness([r[layout.channel_of == c] for c in np.unique(layout.channel_of)], sample_dt)
-    block, per_rec_windows, window_s = assign_windows(layout, wh.tau_s, sample_dt, options.windows)
+    block, per_rec_windows, window_s = assign_windows(layout, wh.window_tau_s, sample_dt, options.windows)
     blocks = int(block.max()) + 1
     active = [j for j in range(p) if math.isfinite(var_log[j]) and not at_bound[names[j]] and jac_sd[j] < 10.0]
     half, source = interval_half_widths(r, jac, active, block, layout, wh.tau_samples, jac_sd, options.level)
@@ -516,14 +609,14 @@ def summarise(sol, names: list[str], fitted: CableSpec, layout: Layout, options:
         intervals[k] = (values[k] * math.exp(-half[j]), values[k] * math.exp(half[j])) if ident[k] else None
     if condition > options.max_condition:
         warnings.append(f"J^T J is near-singular (condition {condition:.3g}): parameters trade off against each other")
-    loads = [model_loads(fitted, rec, options, gravity) for rec in layout.recs]
-    loads = [x if x is not None else (np.full((len(rec.t), 2, 3), np.nan),) * 2 for x, rec in zip(loads, layout.recs)]
+    loads = [model_run(fitted, rec, options, gravity) for rec in layout.recs]
+    loads = [x if x is not None else nan_run(rec, fitted) for x, rec in zip(loads, layout.recs)]
     first_kind = layout.kinds[0][0]
     integrator, dt = run_setup(layout.recs[0], options)
     res = FitResult(values, se, rel, ident, condition, math.sqrt(sigma2) * layout.sigma[first_kind],
                     rms_of(layout, loads, 0, first_kind), evaluations, bool(sol.success), str(sol.message), fitted,
-                    loads[0][0], warnings, intervals, interval_method(blocks, source, names, options.level),
-                    {k: values[k] * float(jac_sd[j]) for j, k in enumerate(names)}, reasons, loads[0][1], loads,
+                    loads[0].forces, warnings, intervals, interval_method(blocks, source, names, options.level),
+                    {k: values[k] * float(jac_sd[j]) for j, k in enumerate(names)}, reasons, loads[0].moments, loads,
                     integrator, dt, fitted.n_masses, level=options.level)
     res.whiteness = wh.to_dict()
     res.holdout = holdout_summary(jk, ratio, options, blocks, per_rec_windows, window_s, names, active)
@@ -647,8 +740,9 @@ def discrepancy_reasons(blocks: int, ratio: float, wh, options: FitOptions) -> l
     """Why model discrepancy dominates (none: it does not)."""
     out = []
     if blocks < options.min_windows:
-        out.append(f"the residual is correlated over {wh.tau_s:.3g} s (integrated autocorrelation time, "
-                   f"{wh.tau_samples:.3g} samples; effective samples {wh.effective_samples:.3g} of {wh.samples}): "
+        out.append(f"the residual is correlated over {wh.window_tau_s:.3g} s (integrated autocorrelation time "
+                   f"{wh.tau_s:.3g} s, envelope {wh.envelope_samples:.4g} samples; effective samples "
+                   f"{wh.effective_samples:.3g} of {wh.samples}): "
                    f"the recordings hold only {blocks} windows of >= 5 correlation times, fewer than "
                    f"{options.min_windows}; what the model lacks dominates the residual")
     if ratio > options.max_holdout_ratio:
@@ -700,10 +794,17 @@ def source_reason(name: str, sources: list[dict[str, Any]], options: FitOptions)
     return f"the recording's integrator damps as much as the fitted physics: {'; '.join(bad)}" if bad else None
 
 
-def rms_of(layout: Layout, loads: list[tuple[np.ndarray, np.ndarray]], i: int, kind: str) -> float:
+def nan_run(rec: Recording, spec: CableSpec) -> ModelRun:
+    """A run of NaNs in the shape of ``rec`` (the fitted model went unstable on it)."""
+    k, n = len(rec.t), spec.n_masses
+    return ModelRun(np.full((k, 2, 3), np.nan), np.full((k, 2, 3), np.nan), np.full((k, n, 3), np.nan),
+                    np.linspace(0.0, spec.length, n))
+
+
+def rms_of(layout: Layout, loads: list[ModelRun], i: int, kind: str) -> float:
     """Unweighted residual RMS of ``kind`` of recording i over its fitted samples [its units]."""
     rec, keep = layout.recs[i], layout.keep[i]
-    d = (predicted(rec, kind, *loads[i]) - rec.observed(kind))[keep]
+    d = (predicted(rec, kind, loads[i]) - rec.observed(kind))[keep]
     return float(np.sqrt(np.mean(d**2)))
 
 
@@ -723,7 +824,7 @@ def holdout_summary(jk, ratio: float, options: FitOptions, blocks: int, per_rec:
             "per_window_estimate_spread_log": spread}
 
 
-def per_recording_summary(layout: Layout, loads: list[tuple[np.ndarray, np.ndarray]], jk,
+def per_recording_summary(layout: Layout, loads: list[ModelRun], jk,
                           block: np.ndarray) -> list[dict[str, Any]]:
     """Per recording: samples, duration, and per kind the residual RMS [its units], the noise level used and
     the held-out weighted RMS of its windows."""
@@ -791,7 +892,8 @@ def synthetic_recording(spec: CableSpec, motion: Sequence[Motion], duration: flo
                         noise: float = 0.0, seed: int = 0, span: float | None = None,
                         hold: Sequence[float] = (0.0, 0.0, 0.35), options: FitOptions = FitOptions(),
                         gravity: Sequence[float] = STANDARD_GRAVITY, correlation_time: float = 0.0,
-                        moment_noise: float | None = None) -> Recording:
+                        moment_noise: float | None = None, markers: Sequence[float] | None = None,
+                        marker_noise: float = 0.0) -> Recording:
     """A recording made by the core model itself: the cable clamped between two grippers facing each
     other along x (span [m] apart, default the cable length, centred at ``hold``), moved by ``motion``
     (items with end first = left, last = right: the exact trajectories, not waypoints through
@@ -799,6 +901,8 @@ def synthetic_recording(spec: CableSpec, motion: Sequence[Motion], duration: flo
     ``noise`` [N] per component (seeded), coloured when ``correlation_time`` [s] > 0 (AR(1), each
     component's noise correlated as exp(-lag / correlation_time), same standard deviation). With
     ``moment_noise`` [N m] (not None) the clamp moments are recorded too, with noise of the same colour.
+    With ``markers`` (arc lengths from the first end [m]) the positions of marks there are recorded too
+    (kind ``marker``), with Gaussian noise of ``marker_noise`` [m] per coordinate.
     ``source`` says the integrator and dt it was made with."""
     span = spec.length if span is None else check_positive("span", span)
     centre = np.asarray(hold, dtype=float)
@@ -815,17 +919,23 @@ def synthetic_recording(spec: CableSpec, motion: Sequence[Motion], duration: flo
     ends = [EndHolder("clamped", pos[0, arm], tangent, tuple(m for m in motion if m.end == end))
             for arm, end in enumerate(("first", "last"))]
     model = held_model(spec, ends[0], ends[1], gravity)
-    loads = run_loads(model, t, run_integrator(options), options.dt, options.start)
-    if loads is None:
+    run = run_model(model, t, run_integrator(options), options.dt, start_state(model, options.start),
+                    positions=markers is not None)
+    if run is None:
         raise ParameterError("the synthetic recording went unstable; use a smaller dt or a gentler motion")
-    forces, moments = loads
+    forces, moments = run.forces, run.moments
     rng = np.random.default_rng(seed)
+    marks = None
+    if markers is not None:
+        s_marks = np.asarray(markers, dtype=float)
+        marks = markers_on(run.x, run.s, s_marks) + rng.normal(0.0, marker_noise, (len(t), len(s_marks), 3))
     if noise > 0:
         forces = forces + coloured_noise(rng, forces.shape, noise, correlation_time, 1.0 / rate)
     if moment_noise is not None and moment_noise > 0:
         moments = moments + coloured_noise(rng, moments.shape, moment_noise, correlation_time, 1.0 / rate)
     return Recording(t, pos, quat, forces, moments if moment_noise is not None else None,
-                     source={"integrator": run_integrator(options), "dt": options.dt})
+                     source={"integrator": run_integrator(options), "dt": options.dt}, markers=marks,
+                     marker_s=None if markers is None else np.asarray(markers, dtype=float), length=spec.length)
 
 
 def coloured_noise(rng: np.random.Generator, shape: tuple[int, ...], std: float, correlation_time: float,

@@ -8,23 +8,35 @@ A :class:`Recording` holds both grippers' grasp poses over time and any of
   w = (f_left, m_left, f_right, m_right) [N, N m] (the load the cable exerts on each gripper,
   world frame), observed as y_t = A_t w_t (kind ``linear``). Joint torques of an arm holding the
   cable are tau = -J_t^T w with the per-sample grasp-point Jacobian J_t: pass A_t = -J_t^T and the
-  measured torques (less what the arm's own dynamics explain), and the analysis layer needs no PyBullet.
+  measured torques (less what the arm's own dynamics explain), and the analysis layer needs no PyBullet;
+* ``markers`` (k, m, 3) with ``marker_s`` (m,): positions of marks on the cable [m] at arc lengths
+  from the first held end [m] (kind ``marker``: motion capture).
+
+How the ends are held: ``held`` per end, ``clamped`` (the grasp pose is followed, orientation
+included) or ``free`` (an end nobody holds, e.g. a strip's tip: its grasp pose is only where it
+starts). ``length``: the cable's length between the held points when the recording knows it [m].
+``initial``: the cable's shape and velocity at the first sample when the recording has them
+(arc lengths [m], positions [m], velocities [m/s]), for a model started mid-motion.
+``relative``: kinds compared as changes since the first sample (both measured and predicted),
+e.g. joint torques whose absolute level carries a sensor bias.
 
 Optional ``source``: how a simulated recording was made, {"integrator": name, "dt": seconds}, so
 a fit can say (or reproduce) the numerical damping its integrator put into the data.
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 from scipy.spatial.transform import Rotation
 
 from bullet_dlo.core.validate import ParameterError
 
-KINDS = ("force", "moment", "linear")
-UNITS = {"force": "N", "moment": "N m", "linear": "recording units"}
+KINDS = ("force", "moment", "linear", "marker")
+UNITS = {"force": "N", "moment": "N m", "linear": "recording units", "marker": "m"}
+HELD = ("clamped", "free")
 CLAMP_SIGN = (1.0, -1.0)
 """Cable tangent = sign * grasp-frame x axis, per arm (left, right)."""
 
@@ -39,7 +51,8 @@ class Recording:
     when the recording has another kind; moment: the matching moments about the grasp points
     [N m], (k, 2, 3), optional; linear_map (k, q, 12) and linear_obs (k, q): an optional generic
     linear observation of the end wrenches (module doc); name: a label for reports; source:
-    {"integrator": str, "dt": float [s]} of a simulated recording, optional.
+    {"integrator": str, "dt": float [s]} of a simulated recording, optional; markers (k, m, 3) [m]
+    with marker_s (m,) [m]; held, length [m], initial, relative: see the module doc.
     """
 
     t: np.ndarray
@@ -51,6 +64,12 @@ class Recording:
     linear_obs: np.ndarray | None = None
     name: str = ""
     source: dict[str, Any] | None = field(default=None, compare=False)
+    markers: np.ndarray | None = None
+    marker_s: np.ndarray | None = None
+    held: tuple[str, str] = ("clamped", "clamped")
+    length: float | None = None
+    initial: tuple[np.ndarray, np.ndarray, np.ndarray] | None = field(default=None, compare=False)
+    relative: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
         t = _finite("t", self.t, np.shape(self.t)) if np.ndim(self.t) == 1 else np.zeros((0, 0))
@@ -73,19 +92,58 @@ class Recording:
             q = obs.shape[1] if obs.ndim == 2 else 0
             object.__setattr__(self, "linear_obs", _finite("linear_obs", obs, (k, q)))
             object.__setattr__(self, "linear_map", _finite("linear_map", self.linear_map, (k, q, 12)))
+        self._check_markers(k)
+        self._check_holding()
         if not self.kinds():
-            raise ParameterError("recording must hold force, moment or linear_map/linear_obs")
+            raise ParameterError("recording must hold force, moment, linear_map/linear_obs or markers/marker_s")
+
+    def _check_markers(self, k: int) -> None:
+        if (self.markers is None) != (self.marker_s is None):
+            raise ParameterError("recording markers and marker_s must be given together")
+        if self.markers is None:
+            return
+        s = np.asarray(self.marker_s, dtype=float)
+        if s.ndim != 1 or len(s) < 1 or not np.all(np.isfinite(s)):
+            raise ParameterError("recording marker_s must be a finite 1-D array of arc lengths [m]")
+        object.__setattr__(self, "marker_s", s)
+        object.__setattr__(self, "markers", _finite("markers", self.markers, (k, len(s), 3)))
+
+    def _check_holding(self) -> None:
+        held = tuple(self.held)
+        if len(held) != 2 or any(h not in HELD for h in held) or held == ("free", "free"):
+            raise ParameterError(f"recording held must name each end's hold among {', '.join(HELD)} (at least one "
+                                 f"clamped), got {self.held!r}")
+        object.__setattr__(self, "held", held)
+        if self.length is not None and not (math.isfinite(self.length) and self.length > 0):
+            raise ParameterError(f"recording length must be > 0 [m], got {self.length!r}")
+        bad = [k for k in self.relative if k not in KINDS]
+        if bad:
+            raise ParameterError(f"recording relative kinds must be among {', '.join(KINDS)}, got {bad}")
+        object.__setattr__(self, "relative", tuple(self.relative))
+        if self.initial is not None:
+            s, x, v = (np.asarray(a, dtype=float) for a in self.initial)
+            if s.ndim != 1 or len(s) < 2 or np.any(np.diff(s) <= 0) or x.shape != (len(s), 3) or v.shape != x.shape \
+                    or not (np.all(np.isfinite(x)) and np.all(np.isfinite(v))):
+                raise ParameterError("recording initial must be (arc lengths (p >= 2,) increasing [m], positions "
+                                     "(p, 3) [m], velocities (p, 3) [m/s]), finite")
+            object.__setattr__(self, "initial", (s, x, v))
 
     def kinds(self) -> list[str]:
         """The residual kinds this recording can give (of :data:`KINDS`)."""
         have = {"force": self.force is not None, "moment": self.moment is not None,
-                "linear": self.linear_obs is not None}
+                "linear": self.linear_obs is not None, "marker": self.markers is not None}
         return [k for k in KINDS if have[k]]
 
     def observed(self, kind: str) -> np.ndarray:
         """The measured quantity of ``kind``, one row per sample: (k, channels)."""
+        y = self._raw(kind)
+        return y - y[0] if kind in self.relative else y
+
+    def _raw(self, kind: str) -> np.ndarray:
         if kind == "linear":
             return self.linear_obs
+        if kind == "marker":
+            return self.markers.reshape(len(self.t), -1)
         return getattr(self, kind).reshape(len(self.t), 6)
 
     def clamp_directions(self) -> np.ndarray:
@@ -108,16 +166,43 @@ def _finite(name: str, value: Any, shape: tuple[int, ...]) -> np.ndarray:
     return a
 
 
-def predicted(rec: Recording, kind: str, forces: np.ndarray, moments: np.ndarray) -> np.ndarray:
-    """The model's prediction of ``kind`` from its end forces [N] and clamp moments [N m] (both (k, 2, 3))
-    at the recorded times: (k, channels)."""
+class ModelRun(NamedTuple):
+    """What the model did at the recorded times: end forces [N] and clamp moments [N m] (the loads the
+    cable exerts on each holder), each (k, 2, 3); node positions [m], (k, n, 3), and the nodes' arc
+    lengths from the first end [m], (n,), when a kind needs them (else None)."""
+
+    forces: np.ndarray
+    moments: np.ndarray
+    x: np.ndarray | None = None
+    s: np.ndarray | None = None
+
+
+def predicted(rec: Recording, kind: str, run: ModelRun) -> np.ndarray:
+    """The model's prediction of ``kind`` from its run at the recorded times: (k, channels)."""
+    y = _predicted_raw(rec, kind, run)
+    return y - y[0] if kind in rec.relative else y
+
+
+def _predicted_raw(rec: Recording, kind: str, run: ModelRun) -> np.ndarray:
     k = len(rec.t)
     if kind == "force":
-        return forces.reshape(k, 6)
+        return run.forces.reshape(k, 6)
     if kind == "moment":
-        return moments.reshape(k, 6)
-    wrench = np.concatenate([forces[:, 0], moments[:, 0], forces[:, 1], moments[:, 1]], axis=1)  # (k, 12)
+        return run.moments.reshape(k, 6)
+    if kind == "marker":
+        return markers_on(run.x, run.s, rec.marker_s).reshape(k, -1)
+    f, m = run.forces, run.moments
+    wrench = np.concatenate([f[:, 0], m[:, 0], f[:, 1], m[:, 1]], axis=1)  # (k, 12)
     return np.einsum("kqj,kj->kq", rec.linear_map, wrench)
+
+
+def markers_on(x: np.ndarray, s_nodes: np.ndarray, s: np.ndarray) -> np.ndarray:
+    """Positions [m] of marks at arc lengths ``s`` [m] on the mass chain ``x`` (k, n, 3) whose nodes sit
+    at ``s_nodes`` [m]: linear between neighbouring nodes (the chain's own shape), extrapolated along
+    the end segment beyond the ends; (k, len(s), 3)."""
+    j = np.clip(np.searchsorted(s_nodes, s) - 1, 0, len(s_nodes) - 2)
+    w = (s - s_nodes[j]) / (s_nodes[j + 1] - s_nodes[j])
+    return (1.0 - w)[None, :, None] * x[:, j] + w[None, :, None] * x[:, j + 1]
 
 
 def noise_scale(y: np.ndarray) -> float:

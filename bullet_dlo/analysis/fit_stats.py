@@ -9,7 +9,10 @@ whose rows are grouped into channels of consecutive samples):
 
 * :func:`whiteness`: the residual's normalised autocorrelation (pooled over channels), the
   integrated autocorrelation time tau_int = 1 + 2 sum rho_l (Geyer's initial positive sequence)
-  in samples and seconds, the effective sample size m / tau_int, and a Ljung-Box test;
+  in samples and seconds, the effective sample size m / tau_int, and a Ljung-Box test; and the
+  *envelope* time, the lag after which |rho| stays below 1/e: an oscillating residual (a mode the
+  model puts at the wrong frequency) has a short tau_int, its lobes cancelling, but a long envelope,
+  and windows must be long against that;
 * :func:`block_jackknife`: the recordings cut into time windows at least
   ``WINDOW_TAUS`` tau_int long; each window left out in turn, the other windows' linearised
   refit (theta_-b = theta - (J_-b^T J_-b)^-1 J_-b^T r_-b) gives the parameter spread
@@ -37,7 +40,9 @@ class Whiteness:
     rho: pooled normalised autocorrelation at lags 0..len-1 [-]; tau_samples: integrated
     autocorrelation time [samples] (1 for white noise); tau_s: the same [s]; samples: residual
     entries m; effective_samples: m / tau_samples; ljung_box: Q statistic over ``lags`` lags;
-    p_value: its chi^2 tail probability (small: not white); white: p_value >= 0.01.
+    p_value: its chi^2 tail probability (small: not white); white: p_value >= 0.01;
+    envelope_samples: lags after which |rho| stays below 1/e [samples] (the whole computed range when
+    it never does); window_tau_s: the correlation time windows are cut by, max(tau, envelope) [s].
     """
 
     rho: np.ndarray
@@ -49,6 +54,8 @@ class Whiteness:
     lags: int
     p_value: float
     white: bool
+    envelope_samples: float = 1.0
+    window_tau_s: float = 0.0
 
     def to_dict(self) -> dict:
         """The JSON-able summary (the first 10 autocorrelations)."""
@@ -57,7 +64,8 @@ class Whiteness:
                 "integrated_autocorrelation_time_samples": self.tau_samples,
                 "integrated_autocorrelation_time_s": self.tau_s, "samples": self.samples,
                 "effective_samples": self.effective_samples, "ljung_box_q": self.ljung_box,
-                "ljung_box_lags": self.lags, "p_value": self.p_value, "white": self.white}
+                "ljung_box_lags": self.lags, "p_value": self.p_value, "white": self.white,
+                "envelope_time_samples": self.envelope_samples, "window_correlation_time_s": self.window_tau_s}
 
 
 def pooled_autocorrelation(channels: list[np.ndarray], max_lag: int) -> np.ndarray:
@@ -89,6 +97,12 @@ def integrated_time(rho: np.ndarray) -> float:
     return max(1.0, tau)
 
 
+def envelope_time(rho: np.ndarray) -> float:
+    """Lags [samples] after which |rho| stays below 1/e (len(rho) when it never settles there); at least 1."""
+    above = np.flatnonzero(np.abs(rho) >= math.exp(-1.0))
+    return float(max(1, above[-1] + 1 if len(above) else 1))
+
+
 def whiteness(channels: list[np.ndarray], sample_dt: float, lags: int = 20) -> Whiteness:
     """Whiteness of residual ``channels`` (1-D arrays of consecutive samples ``sample_dt`` [s] apart)."""
     length = min(len(c) for c in channels)
@@ -100,7 +114,8 @@ def whiteness(channels: list[np.ndarray], sample_dt: float, lags: int = 20) -> W
     n_per = m / len(channels)
     q = float(n_per * (n_per + 2) * np.sum(rho[1: h + 1] ** 2 / (n_per - np.arange(1, h + 1))))
     p = float(stats.chi2.sf(q * len(channels), h * len(channels)))  # channels pooled as independent series
-    return Whiteness(rho, tau, tau * sample_dt, m, m / tau, q, h, p, p >= 0.01)
+    env = envelope_time(rho)
+    return Whiteness(rho, tau, tau * sample_dt, m, m / tau, q, h, p, p >= 0.01, env, max(tau, env) * sample_dt)
 
 
 def window_bounds(k: int, windows: int) -> list[tuple[int, int]]:

@@ -25,7 +25,7 @@ a 10 s recording already takes minutes on a 2-core machine (cost grows faster th
 MAX_MODEL_STEPS = 10**6
 """Most model steps per run (all recordings' last times / --dt)."""
 INT_RANGES = {"n_masses": (3, MAX_N_MASSES), "max_evaluations": (2, 10**6), "windows": (2, 1000),
-              "min_windows": (2, 1000),
+              "min_windows": (2, 1000), "stiffness_grid": (0, 101),
               "profile_points": (0, 101)}
 
 
@@ -49,7 +49,6 @@ def check_args(args: argparse.Namespace) -> None:
 def cmd_fit(args: argparse.Namespace) -> int:
     from bullet_dlo.analysis.fit import FitOptions, default_parameters, fit_cable
     from bullet_dlo.core.spec import CableSpec
-    from bullet_dlo.data.recording import read_recording
 
     check_args(args)
     kinds = tuple(k.strip() for k in args.kinds.split(",")) if args.kinds else None
@@ -60,10 +59,15 @@ def cmd_fit(args: argparse.Namespace) -> int:
                          windows=args.windows, min_windows=args.min_windows, level=args.level,
                          max_holdout_ratio=args.max_holdout_ratio, max_numerical_damping=args.max_numerical_damping,
                          max_relative_se=args.max_relative_se, profile_points=args.profile_points,
-                         match_source=args.match_source)
+                         match_source=args.match_source, stiffness_grid=args.stiffness_grid)
     cable = argparse.Namespace(length=args.length, diameter=args.diameter, mass=args.mass)
-    recs = [read_recording(path, args.forces, units=args.units, window=args.time_window, cable=cable)
-            for path in args.recording]
+    recs = [read_any(path, args, cable) for path in args.recording]
+    length = args.length or recs[0].length
+    if length is None:
+        raise ParameterError("--length is required: the recording does not state its cable's length [m]")
+    if args.mass is None and not any(r.force is not None or r.linear_obs is not None for r in recs):
+        raise ParameterError("--mass is required for recordings without forces or torques (marker positions see "
+                             "E I / (rho A) only): give the cable's mass [kg]")
     steps = sum(float(r.t[-1]) for r in recs) / args.dt
     if steps > MAX_MODEL_STEPS:
         raise ParameterError(f"the model would run {steps:.3g} steps per evaluation (recordings' duration / --dt "
@@ -72,7 +76,7 @@ def cmd_fit(args: argparse.Namespace) -> int:
     names = args.params.split(",") if args.params else default_parameters(fit_mass=args.mass is None)
     first = recs[0]
     weight = -float(np.mean(first.force[:, :, 2].sum(axis=1))) if first.force is not None else 0.0  # [N]
-    spec = CableSpec(length=args.length, diameter=args.diameter, mass=args.mass or max(weight / 9.81, 1e-4),
+    spec = CableSpec(length=length, diameter=args.diameter, mass=args.mass or max(weight / 9.81, 1e-4),
                      youngs_modulus=args.youngs_modulus, n_masses=args.n_masses)
     res = fit_cable(recs, spec, names, options)
     out = Path(args.out)
@@ -83,13 +87,34 @@ def cmd_fit(args: argparse.Namespace) -> int:
     if first.force is not None:
         plot_fit(first.t, first.force, res.forces, out / "fit.png",
                  title=f"{Path(args.recording[0]).name}: measured vs fitted")
+    elif first.markers is not None and np.all(np.isfinite(res.loads[0].x)):
+        from bullet_dlo.analysis.fit_recording import markers_on
+
+        plot_markers(first.t, first.markers, markers_on(res.loads[0].x, res.loads[0].s, first.marker_s),
+                     out / "fit.png", title=f"{Path(args.recording[0]).name}: measured vs fitted markers")
     print_summary(res)
     print(f"outputs written to {out.resolve()}")
     return 0
 
 
+def read_any(path: str, args: argparse.Namespace, cable: argparse.Namespace):
+    """One recording in any format ``fit`` reads: a DEFORM trial (``.pkl``, restricted unpickling: plain
+    lists, numbers and numpy arrays only) or the project's own (.csv, .npz, .h5)."""
+    if Path(path).suffix.lower() == ".pkl":
+        from bullet_dlo.reality.deform import read_recording as read_deform
+
+        if args.time_window or args.units:
+            raise ParameterError("--time-window and --units do not apply to a DEFORM .pkl trial (100 Hz, metres)")
+        return read_deform(path)
+    from bullet_dlo.data.recording import read_recording
+
+    return read_recording(path, args.forces, units=args.units, window=args.time_window, cable=cable)
+
+
 def print_summary(res) -> None:
     """The fit's values, intervals, verdict, whiteness, per-recording residuals and model run, as text."""
+    from bullet_dlo.analysis.fit_recording import KINDS
+
     pct = f"{100 * res.level:g} %"
     for name in res.values:
         iv = res.intervals.get(name)
@@ -108,7 +133,7 @@ def print_summary(res) -> None:
         print(f"held-out: {h['windows']} windows, held-out / in-sample residual {h['ratio']:.3g} "
               f"(limit {h['limit_ratio']:g})")
     for entry in res.per_recording:
-        parts = [f"{k} rms {entry[k]['rms']:.4g} {entry[k]['unit']}" for k in ("force", "moment", "linear") if k in entry]
+        parts = [f"{k} rms {entry[k]['rms']:.4g} {entry[k]['unit']}" for k in KINDS if k in entry]
         print(f"  recording {entry['name']}: {entry['samples']} samples, " + ", ".join(parts))
     nd = res.numerics["model"]
     print(f"model run: {res.integrator}, dt {res.dt:.4g} s, n {res.n_masses}; numerical damping: {nd['message']}")
@@ -134,6 +159,28 @@ def plot_fit(t: np.ndarray, measured: np.ndarray, fitted: np.ndarray, png: Path,
     axes[-1].set_xlabel("time [s]")
     axes[0].legend(ncol=3, fontsize=8, loc="upper center", bbox_to_anchor=(0.5, 1.35))
     fig.suptitle(title, y=0.99)
+    fig.tight_layout()
+    fig.savefig(png, dpi=110)
+    plt.close(fig)
+
+
+def plot_markers(t: np.ndarray, measured: np.ndarray, fitted: np.ndarray, png: Path, title: str) -> None:
+    """Measured (thin) and fitted (dashed) marker coordinates [m] against time [s], one panel per axis."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(3, 1, sharex=True, figsize=(8, 7))
+    for j, ax in enumerate(axes):
+        for i in range(measured.shape[1]):
+            color = f"C{i % 10}"
+            ax.plot(t, measured[:, i, j], color=color, lw=0.7, alpha=0.7)
+            ax.plot(t, fitted[:, i, j], color=color, lw=1.3, ls="--")
+        ax.set_ylabel(f"{'xyz'[j]} [m]")
+        ax.grid(alpha=0.3)
+    axes[-1].set_xlabel("time [s]  (thin: measured, dashed: fitted model, one colour per marker)")
+    fig.suptitle(title)
     fig.tight_layout()
     fig.savefig(png, dpi=110)
     plt.close(fig)
@@ -165,7 +212,8 @@ def add_parsers(sub, common: argparse.ArgumentParser) -> None:
                     "implausible SI values (time step outside 1e-5..1 s, positions > 100 m, forces > 1 kN), "
                     "recordings over 120 s or 250000 samples (cut them with --time-window).")
     s.add_argument("recording", nargs="+", help="recording file(s) (.csv, .npz, .h5); several: fitted together")
-    s.add_argument("--length", type=float, required=True, help="cable length [m], > 0")
+    s.add_argument("--length", type=float, help="cable length [m], > 0 (required unless the recording states it: "
+                   "a DEFORM trial's length between the held markers)")
     s.add_argument("--diameter", type=float, required=True, help="cable diameter [m], > 0")
     s.add_argument("--mass", type=float, help="cable mass [kg], > 0, if known (else it is fitted)")
     s.add_argument("--youngs-modulus", type=float, default=1e8, help="start value of E [Pa], > 0 (1e8)")
@@ -197,8 +245,14 @@ def add_parsers(sub, common: argparse.ArgumentParser) -> None:
     s.add_argument("--match-source", action="store_true", help="run the model with the integrator and dt a "
                    "simulated recording says it was made with (its integrator's numerical damping is then "
                    "reproduced instead of fitted as physical damping)")
-    s.add_argument("--start", default="static", choices=["static", "straight"],
-                   help="model start: equilibrium at the first poses (default) or straight at rest")
+    s.add_argument("--start", default="auto", choices=["auto", "static", "straight", "recorded"],
+                   help="model start: equilibrium at the first poses (static), straight at rest, the "
+                        "recording's own first shape and velocity (recorded: motion capture); auto (default): "
+                        "recorded when the recording has a shape, else static")
+    s.add_argument("--stiffness-grid", type=int, default=9, help="Young's moduli tried before the descent, "
+                   "log-spaced over a decade either side of --youngs-modulus, the best one starting it (an "
+                   "oscillating recording has a local minimum wherever the ringing falls in phase), 0-101 (9; "
+                   "0 or 1: none)")
     s.add_argument("--skip", type=float, default=0.0, help="seconds at the start of each recording left out of "
                    "the residual, >= 0 (0)")
     s.add_argument("--max-evaluations", type=int, default=60, help="model runs allowed per fit, >= 2 (60)")

@@ -52,7 +52,8 @@ from scipy.interpolate import CubicSpline
 from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 
-from bullet_dlo.core.boundary import EndHolder, Waypoints
+from bullet_dlo.analysis.fit_recording import Recording
+from bullet_dlo.core.boundary import EndHolder, Waypoints, default_normal
 from bullet_dlo.core.engine import simulate
 from bullet_dlo.core.model import STANDARD_GRAVITY, CableModel, CableState, build_arrays
 from bullet_dlo.core.spec import CableSpec
@@ -125,6 +126,48 @@ def load_trial(path: str | Path) -> MarkerRecording:
     a = read_pickle(path)
     x = np.ascontiguousarray(a.transpose(0, 2, 1))
     return MarkerRecording(Path(path).stem, np.arange(len(x)) / RATE, x, arc_lengths(x[0]))
+
+
+def read_recording(path: str | Path, smooth: int = 5) -> Recording:
+    """A DEFORM trial as a :class:`~bullet_dlo.analysis.fit_recording.Recording` for ``bullet-dlo fit``:
+    both ends clamped at the inner held markers, each following its held pair (despiked, smoothed over
+    ``smooth`` frames; the grasp frame's roll carried by parallel transport, since a pair fixes no roll);
+    the free markers as the ``marker`` kind at their arc lengths from the first clamp; the cable's
+    length between the clamps; the first frame's shape and velocity as the start (the trials begin
+    mid-motion). The same model as :func:`build_model`, through the fit's own machinery."""
+    rec = load_trial(path)
+    clean = replace(rec, markers=rec.markers.copy())
+    for i in (*rec.first_pair, *rec.last_pair):
+        clean.markers[:, i] = smoothed(despiked(rec.markers[:, i]), smooth)
+    s0 = rec.s[rec.first_pair[1] % rec.n_markers]
+    pos, quat = np.empty((len(rec.t), 2, 3)), np.empty((len(rec.t), 2, 4))
+    for arm, end in enumerate(("first", "last")):
+        pos[:, arm], d = clean.clamp(end)
+        frames = transported_frames(d) * (Rotation.identity() if arm == 0 else FLIP)
+        quat[:, arm] = frames.as_quat()
+    free = rec.free
+    h = float(rec.t[1] - rec.t[0])
+    from scipy.signal import savgol_filter
+    v0 = savgol_filter(rec.markers[:11], max(5, smooth | 1), 3, deriv=1, delta=h, axis=0, mode="interp")[0]
+    return Recording(rec.t, pos, quat, None, name=rec.name, markers=rec.markers[:, free],
+                     marker_s=rec.s[free] - s0, length=float(rec.s[rec.last_pair[0] % rec.n_markers] - s0),
+                     initial=(rec.s - s0, rec.markers[0], v0))
+
+
+FLIP = Rotation.from_rotvec([0.0, 0.0, math.pi])
+"""The right gripper's frame from the left's: its x axis points into the cable (the fit's convention)."""
+
+
+def transported_frames(d: np.ndarray) -> Rotation:
+    """Frames whose x axis follows the unit directions ``d`` (k, 3), each turned from the previous by the
+    smallest rotation (parallel transport: no roll about the axis is invented)."""
+    first = np.column_stack([d[0], default_normal(d[0]), np.cross(d[0], default_normal(d[0]))])
+    rots = [Rotation.from_matrix(first)]
+    for a, b in zip(d[:-1], d[1:]):
+        axis = np.cross(a, b)
+        angle = math.atan2(float(np.linalg.norm(axis)), float(a @ b))
+        rots.append(Rotation.from_rotvec(axis / (np.linalg.norm(axis) + 1e-300) * angle) * rots[-1])
+    return Rotation.concatenate(rots)
 
 
 def trial_files(folder: Path, what: str) -> list[Path]:

@@ -65,7 +65,7 @@ def test_bad_recordings_and_parameter_names_are_refused():
                     np.zeros((5, 2, 3)))
     with pytest.raises(ParameterError, match="fit parameters must be distinct names"):
         fit_cable(rec, TRUE, ["youngs_modulus", "length"])
-    with pytest.raises(ParameterError, match="start must be static or straight"):
+    with pytest.raises(ParameterError, match="start must be one of auto, static, straight, recorded"):
         FitOptions(start="settled")
 
 
