@@ -294,7 +294,8 @@ def holder_paths(rec: Recording, knot_rate: float) -> tuple[EndHolder, EndHolder
         rel = (rot * rot[0].inv()).as_rotvec()  # turn since the start, world axes [rad]
         rel = np.vstack([rel, 2.0 * rel[-1] - rel[-2]])
         path = Waypoints(end, tuple(t), tuple(map(tuple, pos - pos[0])), tuple(map(tuple, rel)), rest=False)
-        holders.append(EndHolder("clamped", rec.grasp_pos[0, arm].copy(), dirs[0, arm].copy(), (path,)))
+        normal = rot[0].as_matrix()[:, 1] if rec.section_frame else None  # the grasp frame's y is d1
+        holders.append(EndHolder("clamped", rec.grasp_pos[0, arm].copy(), dirs[0, arm].copy(), (path,), normal))
     return holders[0], holders[1]
 
 

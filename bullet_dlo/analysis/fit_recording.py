@@ -18,7 +18,11 @@ starts). ``length``: the cable's length between the held points when the recordi
 ``initial``: the cable's shape and velocity at the first sample when the recording has them
 (arc lengths [m], positions [m], velocities [m/s]), for a model started mid-motion.
 ``relative``: kinds compared as changes since the first sample (both measured and predicted),
-e.g. joint torques whose absolute level carries a sensor bias.
+e.g. joint torques whose absolute level carries a sensor bias. ``linear_filter``: (cut-off [Hz],
+delay [s]) of a first-order low-pass after a pure delay that the measured linear kind went through
+(Franka's external-torque estimate), applied to the prediction too. ``section_frame``: the grasp
+frame's y axis is the held section's first axis d1 (a strip's width), for a cable with a material
+frame; otherwise the section's start orientation is the core's default.
 
 Optional ``source``: how a simulated recording was made, {"integrator": name, "dt": seconds}, so
 a fit can say (or reproduce) the numerical damping its integrator put into the data.
@@ -70,6 +74,8 @@ class Recording:
     length: float | None = None
     initial: tuple[np.ndarray, np.ndarray, np.ndarray] | None = field(default=None, compare=False)
     relative: tuple[str, ...] = ()
+    linear_filter: tuple[float, float] | None = None
+    section_frame: bool = False
 
     def __post_init__(self) -> None:
         t = _finite("t", self.t, np.shape(self.t)) if np.ndim(self.t) == 1 else np.zeros((0, 0))
@@ -120,6 +126,12 @@ class Recording:
         if bad:
             raise ParameterError(f"recording relative kinds must be among {', '.join(KINDS)}, got {bad}")
         object.__setattr__(self, "relative", tuple(self.relative))
+        if self.linear_filter is not None:
+            cut, delay = (float(v) for v in self.linear_filter)
+            if not (math.isfinite(cut) and cut > 0 and math.isfinite(delay) and delay >= 0):
+                raise ParameterError(f"recording linear_filter must be (cut-off > 0 [Hz], delay >= 0 [s]), got "
+                                     f"{self.linear_filter!r}")
+            object.__setattr__(self, "linear_filter", (cut, delay))
         if self.initial is not None:
             s, x, v = (np.asarray(a, dtype=float) for a in self.initial)
             if s.ndim != 1 or len(s) < 2 or np.any(np.diff(s) <= 0) or x.shape != (len(s), 3) or v.shape != x.shape \
@@ -193,7 +205,21 @@ def _predicted_raw(rec: Recording, kind: str, run: ModelRun) -> np.ndarray:
         return markers_on(run.x, run.s, rec.marker_s).reshape(k, -1)
     f, m = run.forces, run.moments
     wrench = np.concatenate([f[:, 0], m[:, 0], f[:, 1], m[:, 1]], axis=1)  # (k, 12)
-    return np.einsum("kqj,kj->kq", rec.linear_map, wrench)
+    y = np.einsum("kqj,kj->kq", rec.linear_map, wrench)
+    return y if rec.linear_filter is None else low_pass_delayed(y, rec.t, *rec.linear_filter)
+
+
+def low_pass_delayed(y: np.ndarray, t: np.ndarray, cutoff: float, delay: float) -> np.ndarray:
+    """``y`` (k, ...) at times ``t`` [s] (uniform) delayed by ``delay`` [s] (whole samples) and then through a
+    first-order low-pass of cut-off ``cutoff`` [Hz] (discretised exactly for a held input), starting at rest
+    at y[0]: a sensor's filtered estimate of y."""
+    from scipy.signal import lfilter
+
+    dt = float(np.median(np.diff(t)))
+    a = 1.0 - math.exp(-2.0 * math.pi * cutoff * dt)
+    shift = int(round(delay / dt))
+    delayed = np.concatenate([np.repeat(y[:1], shift, axis=0), y[:len(y) - shift]]) if shift else y
+    return lfilter([a], [1.0, a - 1.0], delayed, axis=0, zi=(1.0 - a) * delayed[:1])[0]
 
 
 def markers_on(x: np.ndarray, s_nodes: np.ndarray, s: np.ndarray) -> np.ndarray:

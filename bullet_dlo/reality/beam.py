@@ -33,9 +33,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-from scipy.signal import butter, lfilter, sosfiltfilt
+from scipy.signal import butter, sosfiltfilt
 from scipy.spatial.transform import Rotation
 
+from bullet_dlo.analysis.fit_recording import Recording, low_pass_delayed
 from bullet_dlo.core.boundary import Waypoints
 from bullet_dlo.core.engine import simulate
 from bullet_dlo.core.kernels.forces import clamp_torque
@@ -130,12 +131,8 @@ class EstimateFilter:
 
     def apply(self, y: np.ndarray, rate: float) -> np.ndarray:
         """y [any unit], (k, ...), sampled at ``rate`` [Hz], filtered along axis 0 (starting at rest at y[0])."""
-        a = 1.0 - math.exp(-2 * math.pi * self.cutoff_hz / rate)
-        shift = int(round(self.delay_s * rate))
         y = np.asarray(y, dtype=float)
-        delayed = np.concatenate([np.repeat(y[:1], shift, axis=0), y[:len(y) - shift]]) if shift else y
-        zi = (1 - a) * delayed[:1]
-        return lfilter([a], [1, a - 1], delayed, axis=0, zi=zi)[0]
+        return low_pass_delayed(y, np.arange(len(y)) / rate, self.cutoff_hz, self.delay_s)
 
     def response(self, f: np.ndarray) -> np.ndarray:
         """Complex frequency response at f [Hz] (continuous-time form)."""
@@ -389,6 +386,45 @@ def free_vibration(strip: Strip, numerics: Numerics, duration: float = 5.0, damp
         return math.nan, math.nan
     f, zeta, _, _ = fit_damped_sine(res.t, res.end_forces[:, 0, 2])
     return f, zeta
+
+
+def fit_recording(rec: BeamRecording, panda: Panda, strip: Strip = Strip(), mounting: Mounting = Mounting(),
+                  estimate: EstimateFilter = EstimateFilter(), numerics: Numerics = Numerics(), step: int = 1) -> Recording:
+    """``rec`` as a :class:`~bullet_dlo.analysis.fit_recording.Recording` for ``bullet-dlo fit``: the strip
+    clamped at the mounting's clamp point and following the flange (forward kinematics of the low-passed
+    measured q), its tip free; the residual is Franka's filtered external-torque estimate, as changes since
+    the first sample (its absolute level carries the arm model's bias), predicted as -J(q)^T of the clamp
+    load moved to the flange origin and passed through ``estimate``. The grasp frame: x along the strip
+    (clamp to tip), y along its width (the section's d1), so a rectangle-section cable with a material
+    frame is held the right way up. ``step``: keep every step-th sample (1 kHz / step)."""
+    rows = np.arange(0, len(rec.t), max(1, int(step)))
+    sos = butter(4, numerics.q_cutoff_hz, fs=rec.rate, output="sos")
+    q = sosfiltfilt(sos, rec.q, axis=0)[rows]
+    fpos, frot = panda.flange_path(q)
+    clamp = mounting.clamp_point(fpos, frot)
+    frames = np.empty((len(rows), 3, 3))
+    for i, r in enumerate(frot):
+        axis, width, _ = mounting.axes(r)
+        frames[i] = np.column_stack([axis, width, np.cross(axis, width)])  # right-handed: z = -(thickness normal)
+    quat = np.stack([Rotation.from_matrix(frames).as_quat(),
+                     (Rotation.from_matrix(frames) * Rotation.from_rotvec([0.0, 0.0, math.pi])).as_quat()], axis=1)
+    pos = np.stack([clamp, clamp + strip.length * frames[:, :, 0]], axis=1)  # the free tip's entry: where it starts
+    shift = np.zeros((len(rows), 6, 12))  # the clamp's (f, m about the clamp) -> the flange's (f, m about its origin)
+    shift[:, :3, :3] = shift[:, 3:, 3:6] = np.eye(3)
+    arm = clamp - fpos
+    shift[:, 3:, :3] = np.array([[[0, -a[2], a[1]], [a[2], 0, -a[0]], [-a[1], a[0], 0]] for a in arm])
+    linear = -np.einsum("kij,kil->kjl", panda.jacobians(q), shift)  # tau = -J^T w_flange, (k, 7, 12)
+    return Recording(rec.t[rows], pos, quat, None, name=rec.name, linear_map=linear,
+                     linear_obs=rec.tau_ext_hat_filtered[rows], held=("clamped", "free"), length=strip.length,
+                     relative=("linear",), linear_filter=(estimate.cutoff_hz, estimate.delay_s), section_frame=True)
+
+
+def strip_spec(strip: Strip, n_masses: int, **damping: float) -> CableSpec:
+    """The strip as one core cable with a rectangle section (width along d1) and a material frame: both
+    bending planes and twist in one run (Poisson's ratio 0.3)."""
+    return CableSpec(length=strip.length, diameter=strip.thickness, mass=strip.mass, youngs_modulus=strip.youngs_modulus,
+                     n_masses=n_masses, section="rectangle", width=strip.width, thickness=strip.thickness,
+                     twist=True, **damping)
 
 
 def with_damping(damping: dict[str, float], name: str, value: float) -> dict[str, float]:
