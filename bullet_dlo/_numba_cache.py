@@ -25,6 +25,13 @@ def kernel_sources(pkg: Path = PACKAGE) -> list[Path]:
     return sources
 
 
+def kernels_cold(pkg: Path = PACKAGE) -> bool:
+    """Whether the core time loop has no cached build (a fresh install, an upgrade or an edited kernel
+    emptied the cache): the first run then compiles for about a minute. A cache filled by other commands
+    may still lack some kernels; those compile on their first call."""
+    return not any(pkg.glob("core/kernels/__pycache__/loop.run_loop-*.nbi"))
+
+
 def ensure_fresh_cache() -> None:
     """Delete stale ``*.nbi``/``*.nbc`` files of this package if any source changed."""
     pkg = PACKAGE

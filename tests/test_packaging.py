@@ -72,7 +72,7 @@ def link_tree(src: Path, dst: Path) -> None:
 def sources(tmp_path_factory) -> Path:
     """What a clean checkout holds for the build: the package, the asset folders, pyproject.toml, README.md."""
     src = tmp_path_factory.mktemp("src")
-    for name in ("bullet_dlo", "robots", "urdf"):
+    for name in ("bullet_dlo", "robots", "urdf", "demos/scenes", "demos/specs"):
         shutil.copytree(ROOT / name, src / name, ignore=shutil.ignore_patterns("__pycache__", ".*", "*.egg-info"))
     for name in ("pyproject.toml", "README.md"):
         shutil.copy2(ROOT / name, src / name)
@@ -111,7 +111,8 @@ def test_every_package_folder_is_listed_for_the_wheel():
     missing = package_dirs(ROOT) - listed
     assert missing == set(), f"add {sorted(missing)} to [tool.setuptools] packages in pyproject.toml"
     mapped = PROJECT["tool"]["setuptools"]["package-dir"]
-    assert mapped == {"bullet_dlo._assets.robots": "robots", "bullet_dlo._assets.urdf": "urdf"}
+    assert mapped == {"bullet_dlo._assets.robots": "robots", "bullet_dlo._assets.urdf": "urdf",
+                      "bullet_dlo._assets.scenes": "demos/scenes", "bullet_dlo._assets.specs": "demos/specs"}
     assert set(mapped) <= listed
 
 
@@ -128,9 +129,12 @@ def test_wheel_holds_every_module_and_the_robot_assets(wheel, sources):
     assert modules - names == set()
     assert {f"{pkg.replace('.', '/')}/__init__.py" for pkg in package_dirs(sources)} <= names
     assets = ({f"bullet_dlo/_assets/robots/{p.name}" for p in (sources / "robots").glob("*.yaml")}
-              | {f"bullet_dlo/_assets/urdf/{p.name}" for p in (sources / "urdf").glob("*.urdf")})
+              | {f"bullet_dlo/_assets/urdf/{p.name}" for p in (sources / "urdf").glob("*.urdf")}
+              | {f"bullet_dlo/_assets/{k}/{p.name}" for k in ("scenes", "specs")
+                 for p in (sources / "demos" / k).glob("*.yaml")})
     assert {"bullet_dlo/_assets/robots/kuka_iiwa.yaml", "bullet_dlo/_assets/robots/panda.yaml",
-            "bullet_dlo/_assets/urdf/ft_gripper.urdf"} <= assets <= names
+            "bullet_dlo/_assets/urdf/ft_gripper.urdf", "bullet_dlo/_assets/scenes/lv_study.yaml",
+            "bullet_dlo/_assets/specs/dr_small.yaml"} <= assets <= names
     dist_info = f"bullet_dlo-{VERSION}.dist-info"
     assert {n.split("/")[0] for n in names} == {"bullet_dlo", dist_info}  # nothing else at the top level
     entry_points = zipfile.ZipFile(wheel).read(f"{dist_info}/entry_points.txt").decode()
@@ -162,6 +166,13 @@ print(json.dumps({"file": bullet_dlo.__file__, "robots": str(ROBOTS_DIR), "urdf"
     assert Path(found["kuka_urdf"]).parent == tmp_path / "tmp" / f"bullet_dlo_urdf_{os.getuid()}"
     composed = Path(found["kuka_urdf"]).read_text()
     assert "ft_sensor_joint" in composed and "lbr_iiwa_link_7" in composed
+
+
+def test_examples_copy_from_the_installed_wheel_and_the_documented_paths_then_exist(venv, tmp_path):
+    """A pip user has no demos/ folder: ``bullet-dlo examples DIR`` puts the README's scene and spec paths there."""
+    run([venv / "bin" / "bullet-dlo", "examples", "ex"], cwd=tmp_path, env=clean_env())
+    for rel in ("demos/scenes/lv_study.yaml", "demos/specs/dr_small.yaml"):
+        assert (tmp_path / "ex" / rel).read_bytes() == (ROOT / rel).read_bytes()
 
 
 @pytest.mark.parametrize("robot", ROBOTS)

@@ -20,7 +20,10 @@ starts). ``length``: the cable's length between the held points when the recordi
 ``relative``: kinds compared as changes since the first sample (both measured and predicted),
 e.g. joint torques whose absolute level carries a sensor bias. ``linear_filter``: (cut-off [Hz],
 delay [s]) of a first-order low-pass after a pure delay that the measured linear kind went through
-(Franka's external-torque estimate), applied to the prediction too. ``section_frame``: the grasp
+(Franka's external-torque estimate), applied to the prediction too. ``linear_band``: (low, high)
+[Hz], a zero-phase band-pass applied to both the measured and the predicted linear kind (keeps a
+ringing, drops what is slow: a sensor's pose-dependent bias, an arm model's errors during a motion).
+``section_frame``: the grasp
 frame's y axis is the held section's first axis d1 (a strip's width), for a cable with a material
 frame; otherwise the section's start orientation is the core's default.
 
@@ -75,6 +78,7 @@ class Recording:
     initial: tuple[np.ndarray, np.ndarray, np.ndarray] | None = field(default=None, compare=False)
     relative: tuple[str, ...] = ()
     linear_filter: tuple[float, float] | None = None
+    linear_band: tuple[float, float] | None = None
     section_frame: bool = False
 
     def __post_init__(self) -> None:
@@ -132,6 +136,13 @@ class Recording:
                 raise ParameterError(f"recording linear_filter must be (cut-off > 0 [Hz], delay >= 0 [s]), got "
                                      f"{self.linear_filter!r}")
             object.__setattr__(self, "linear_filter", (cut, delay))
+        if self.linear_band is not None:
+            low, high = (float(v) for v in self.linear_band)
+            nyquist = 0.5 / float(np.median(np.diff(self.t)))
+            if not 0 < low < high < nyquist:
+                raise ParameterError(f"recording linear_band must be 0 < low < high < {nyquist:g} Hz (the Nyquist "
+                                     f"frequency), got {self.linear_band!r}")
+            object.__setattr__(self, "linear_band", (low, high))
         if self.initial is not None:
             s, x, v = (np.asarray(a, dtype=float) for a in self.initial)
             if s.ndim != 1 or len(s) < 2 or np.any(np.diff(s) <= 0) or x.shape != (len(s), 3) or v.shape != x.shape \
@@ -149,6 +160,8 @@ class Recording:
     def observed(self, kind: str) -> np.ndarray:
         """The measured quantity of ``kind``, one row per sample: (k, channels)."""
         y = self._raw(kind)
+        if kind == "linear" and self.linear_band is not None:
+            y = band_passed(y, self.t, *self.linear_band)
         return y - y[0] if kind in self.relative else y
 
     def _raw(self, kind: str) -> np.ndarray:
@@ -192,6 +205,8 @@ class ModelRun(NamedTuple):
 def predicted(rec: Recording, kind: str, run: ModelRun) -> np.ndarray:
     """The model's prediction of ``kind`` from its run at the recorded times: (k, channels)."""
     y = _predicted_raw(rec, kind, run)
+    if kind == "linear" and rec.linear_band is not None:
+        y = band_passed(y, rec.t, *rec.linear_band)
     return y - y[0] if kind in rec.relative else y
 
 
@@ -207,6 +222,15 @@ def _predicted_raw(rec: Recording, kind: str, run: ModelRun) -> np.ndarray:
     wrench = np.concatenate([f[:, 0], m[:, 0], f[:, 1], m[:, 1]], axis=1)  # (k, 12)
     y = np.einsum("kqj,kj->kq", rec.linear_map, wrench)
     return y if rec.linear_filter is None else low_pass_delayed(y, rec.t, *rec.linear_filter)
+
+
+def band_passed(y: np.ndarray, t: np.ndarray, low: float, high: float) -> np.ndarray:
+    """``y`` (k, ...) at uniform times ``t`` [s] through a zero-phase 2nd-order Butterworth band-pass
+    [low, high] [Hz] along axis 0 (forward and backward: no delay, gain 1 in the band)."""
+    from scipy.signal import butter, sosfiltfilt
+
+    sos = butter(2, (low, high), btype="bandpass", fs=1.0 / float(np.median(np.diff(t))), output="sos")
+    return sosfiltfilt(sos, y, axis=0)
 
 
 def low_pass_delayed(y: np.ndarray, t: np.ndarray, cutoff: float, delay: float) -> np.ndarray:

@@ -24,7 +24,7 @@ MAX_N_MASSES = 200
 a 10 s recording already takes minutes on a 2-core machine (cost grows faster than n)."""
 MAX_MODEL_STEPS = 10**6
 """Most model steps per run (all recordings' last times / --dt)."""
-INT_RANGES = {"n_masses": (3, MAX_N_MASSES), "max_evaluations": (2, 10**6), "windows": (2, 1000),
+INT_RANGES = {"n_masses": (3, MAX_N_MASSES), "beam_step": (1, 100), "max_evaluations": (2, 10**6), "windows": (2, 1000),
               "min_windows": (2, 1000), "stiffness_grid": (0, 101),
               "profile_points": (0, 101)}
 
@@ -40,6 +40,9 @@ def check_args(args: argparse.Namespace) -> None:
             low = f"{'>=' if closed else '>'} {lo:g}"
             high = "" if hi == math.inf else f" and {'<' if key == 'level' else '<='} {hi:g}"
             raise ParameterError(f"--{key.replace('_', '-')} must be {low}{high}, got {v!r}")
+    band = getattr(args, "band", None)
+    if band is not None and not (math.isfinite(band[0]) and math.isfinite(band[1]) and 0 < band[0] < band[1]):
+        raise ParameterError(f"--band LOW HIGH must satisfy 0 < LOW < HIGH [Hz], got {band[0]!r} {band[1]!r}")
     for key, (lo, hi) in INT_RANGES.items():
         v = getattr(args, key)
         if not lo <= v <= hi:
@@ -62,9 +65,15 @@ def cmd_fit(args: argparse.Namespace) -> int:
                          match_source=args.match_source, stiffness_grid=args.stiffness_grid)
     cable = argparse.Namespace(length=args.length, diameter=args.diameter, mass=args.mass)
     recs = [read_any(path, args, cable) for path in args.recording]
+    strips = [r.section_frame for r in recs]
+    if any(strips) and not all(strips):
+        raise ParameterError("beam_handling recordings (a strip on a Panda) cannot be fitted together with cable "
+                             "recordings: fit them separately")
     length = args.length or recs[0].length
     if length is None:
         raise ParameterError("--length is required: the recording does not state its cable's length [m]")
+    if args.diameter is None and not all(strips):
+        raise ParameterError("--diameter is required: the cable's diameter [m], > 0")
     if args.mass is None and not any(r.force is not None or r.linear_obs is not None for r in recs):
         raise ParameterError("--mass is required for recordings without forces or torques (marker positions see "
                              "E I / (rho A) only): give the cable's mass [kg]")
@@ -76,8 +85,14 @@ def cmd_fit(args: argparse.Namespace) -> int:
     names = args.params.split(",") if args.params else default_parameters(fit_mass=args.mass is None)
     first = recs[0]
     weight = -float(np.mean(first.force[:, :, 2].sum(axis=1))) if first.force is not None else 0.0  # [N]
-    spec = CableSpec(length=length, diameter=args.diameter, mass=args.mass or max(weight / 9.81, 1e-4),
-                     youngs_modulus=args.youngs_modulus, n_masses=args.n_masses)
+    if all(strips):  # beam_handling: the nominal strip as one rectangle-section cable, E and mass as given
+        from bullet_dlo.reality.beam import Strip, strip_spec
+
+        spec = strip_spec(Strip(), args.n_masses)
+        spec = spec.with_(youngs_modulus=args.youngs_modulus or spec.youngs_modulus, mass=args.mass or spec.mass)
+    else:
+        spec = CableSpec(length=length, diameter=args.diameter, mass=args.mass or max(weight / 9.81, 1e-4),
+                         youngs_modulus=args.youngs_modulus or 1e8, n_masses=args.n_masses)
     res = fit_cable(recs, spec, names, options)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
@@ -97,6 +112,22 @@ def cmd_fit(args: argparse.Namespace) -> int:
     return 0
 
 
+BEAM_BAND = (1.5, 8.0)
+"""Band [Hz] a beam_handling torque residual is compared in by default: the strip's ringing (2.9 Hz)
+without the estimate's slow, pose-dependent bias (the validation's band)."""
+
+
+def is_beam_csv(path: str) -> bool:
+    """Whether ``path`` is a CSV whose header names Franka's estimate columns (a beam_handling recording)."""
+    if Path(path).suffix.lower() != ".csv":
+        return False
+    try:
+        with open(path, encoding="utf-8", errors="replace") as fh:
+            return "tau_ext_hat_filtered[0]" in fh.readline()
+    except OSError:
+        return False
+
+
 def read_any(path: str, args: argparse.Namespace, cable: argparse.Namespace):
     """One recording in any format ``fit`` reads: a DEFORM trial (``.pkl``, restricted unpickling: plain
     lists, numbers and numpy arrays only) or the project's own (.csv, .npz, .h5)."""
@@ -106,9 +137,23 @@ def read_any(path: str, args: argparse.Namespace, cable: argparse.Namespace):
         if args.time_window or args.units:
             raise ParameterError("--time-window and --units do not apply to a DEFORM .pkl trial (100 Hz, metres)")
         return read_deform(path)
+    if is_beam_csv(path):
+        import dataclasses
+
+        from bullet_dlo.reality.beam import fit_recording, read_beam_csv
+        from bullet_dlo.reality.panda import Panda
+
+        if args.time_window or args.units:
+            raise ParameterError("--time-window and --units do not apply to a beam_handling CSV (1 kHz, SI)")
+        with Panda() as panda:
+            rec = fit_recording(read_beam_csv(path), panda, step=args.beam_step)
+        return dataclasses.replace(rec, linear_band=tuple(args.band) if args.band else BEAM_BAND)
+    import dataclasses
+
     from bullet_dlo.data.recording import read_recording
 
-    return read_recording(path, args.forces, units=args.units, window=args.time_window, cable=cable)
+    rec = read_recording(path, args.forces, units=args.units, window=args.time_window, cable=cable)
+    return dataclasses.replace(rec, linear_band=tuple(args.band)) if args.band else rec
 
 
 def print_summary(res) -> None:
@@ -204,6 +249,11 @@ def add_parsers(sub, common: argparse.ArgumentParser) -> None:
                     "number).\n\nWrites fit.json (values, intervals and their method, whiteness, held-out "
                     "residuals, per-recording residuals, integrator/n/dt, numerical-damping check, profiles, "
                     "verdict) and fit.png (measured vs fitted forces of the first recording) into --out. "
+                    "Also read: DEFORM motion-capture trials (.pkl; markers as the residual, both ends clamped to "
+                    "the held marker pairs, started from the first frame; --mass required) and beam_handling "
+                    "CSVs (a Panda carrying a steel strip: Franka's filtered external-torque estimate as the "
+                    "residual, band-passed, the strip clamped at the flange and free at its tip, one "
+                    "rectangle-section cable with a material frame).\n\n"
                     "RECORDING: .csv, .npz or .h5 (a grasp --series file or a dataset episode; columns in "
                     "bullet_dlo.data.recording): CSV columns by header name t, left_x..left_z, left_qx..left_qw, "
                     "left_fx..left_fz, the same for right_; units SI (s, m, N, N m) unless the file states them "
@@ -211,12 +261,20 @@ def add_parsers(sub, common: argparse.ArgumentParser) -> None:
                     "does. Refused before anything runs: damaged files, links, pickles, non-increasing times, "
                     "implausible SI values (time step outside 1e-5..1 s, positions > 100 m, forces > 1 kN), "
                     "recordings over 120 s or 250000 samples (cut them with --time-window).")
-    s.add_argument("recording", nargs="+", help="recording file(s) (.csv, .npz, .h5); several: fitted together")
+    s.add_argument("recording", nargs="+", help="recording file(s) (.csv, .npz, .h5, DEFORM .pkl, beam_handling "
+                   ".csv); several: fitted together")
     s.add_argument("--length", type=float, help="cable length [m], > 0 (required unless the recording states it: "
                    "a DEFORM trial's length between the held markers)")
-    s.add_argument("--diameter", type=float, required=True, help="cable diameter [m], > 0")
+    s.add_argument("--diameter", type=float, help="cable diameter [m], > 0 (required but for beam_handling "
+                   "recordings, whose strip is known: 0.52 x 0.08 x 0.001 m steel)")
     s.add_argument("--mass", type=float, help="cable mass [kg], > 0, if known (else it is fitted)")
-    s.add_argument("--youngs-modulus", type=float, default=1e8, help="start value of E [Pa], > 0 (1e8)")
+    s.add_argument("--youngs-modulus", type=float, help="start value of E [Pa], > 0 (1e8; a beam_handling "
+                   "strip: 197.5e9)")
+    s.add_argument("--band", nargs=2, type=float, metavar=("LOW", "HIGH"), help="compare the linear kind (joint "
+                   "torques) band-passed to [LOW, HIGH] Hz, zero-phase, measured and predicted alike (default for "
+                   "beam_handling recordings: 1.5 8; else none)")
+    s.add_argument("--beam-step", type=int, default=4, help="keep every N-th sample of a beam_handling "
+                   "recording (1 kHz / N), 1-100 (4)")
     s.add_argument("--n-masses", type=int, default=10, help=f"point masses of the model, 3-{MAX_N_MASSES} (10)")
     s.add_argument("--units", metavar="Q=U,...", help="units of the recording's columns that the file does not "
                    "state: time=s|ms|us, length=m|cm|mm, force=N|mN, moment='N m'|'N mm'|'mN m' (default SI)")

@@ -20,6 +20,7 @@ from bullet_dlo.cli import data, fit, resolve, robots, simulate
 from bullet_dlo.cli import validate
 from bullet_dlo.cli import export
 from bullet_dlo.cli import view
+from bullet_dlo.cli import examples, warmup
 from bullet_dlo.cli.quiet import quiet_output
 from bullet_dlo.config.schema import output_dir, output_file
 from bullet_dlo.core.validate import ParameterError
@@ -100,8 +101,24 @@ def build_parser() -> argparse.ArgumentParser:
     validate.add_parsers(sub, common)
     export.add_parsers(sub, common)
     view.add_parsers(sub, common)
+    examples.add_parsers(sub, common)
+    warmup.add_parsers(sub, common)
     _add_bench_parsers(sub)
     return p
+
+
+RUNS_KERNELS = {"simulate", "stability", "paper-table", "convergence", "grasp", "render", "capture", "rollouts",
+                "resolve", "fit", "validate", "bench"}
+"""Commands whose first run after an install compiles the Numba kernels."""
+
+
+def compile_notice(args: argparse.Namespace) -> None:
+    """One line on stderr before a command that will compile the kernels (an empty cache), unless quiet."""
+    from bullet_dlo._numba_cache import kernels_cold
+
+    if not args.quiet and args.command in RUNS_KERNELS and kernels_cold():
+        print("compiling the numerical kernels once (about a minute after an install or upgrade; cached "
+              "afterwards, never counted in run times; `bullet-dlo warmup` does it ahead)", file=sys.stderr)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -110,6 +127,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     with quiet_output(args.quiet):
         try:
             check_outputs(args)
+            compile_notice(args)
             return int(args.func(args) or 0)
         except ParameterError as err:
             print(f"error: {err}", file=sys.stderr)

@@ -87,7 +87,9 @@ class SimulationResult:
     end_forces: force the cable exerts on each holder [N], (k, 2, 3) (first, last);
     energy: total mechanical energy [J], (k,); end_moments: torque the cable exerts on each
     clamp in the final state [N m], (2, 3) (zeros after an unstable run); end_moment_history:
-    the same at every recorded row [N m], (k, 2, 3) (None where an engine does not record it).
+    the same at every recorded row [N m], (k, 2, 3) (None where an engine does not record it);
+    wall_time_s: the time loop's wall-clock time [s], without compile_time_s: loading or compiling the
+    loop's kernels before it (a minute on a fresh install, milliseconds from the cache) [s].
     """
 
     integrator: str
@@ -109,6 +111,7 @@ class SimulationResult:
     warnings: list[str] = field(default_factory=list)
     max_strain_seen: float | None = None  # largest recorded |l/l0 - 1| when it passed the default bound
     end_moment_history: np.ndarray | None = None
+    compile_time_s: float = 0.0
 
     @property
     def newton_failure_share(self) -> float:
@@ -266,8 +269,12 @@ def _simulate(model: CableModel, integrator: str, dt: float, duration: float, *,
     det = start_detector(detector, model, m, st.x, st.v, samples)
     rec = make_records(n_steps // record_every + 3, n, record_every)
     x, v = st.x, st.v
+    ws = make_workspace(n)
     tic = time.perf_counter()
-    steps, status, t_bad, rows, failures, iters = run_loop(stepper, m, plan, x, v, st.t, n_steps, det, make_workspace(n), rec)
+    run_loop(stepper, m, plan, x, v, st.t, 0, det, ws, rec)  # zero steps: compiles or loads, changes nothing
+    compile_s = time.perf_counter() - tic
+    tic = time.perf_counter()
+    steps, status, t_bad, rows, failures, iters = run_loop(stepper, m, plan, x, v, st.t, n_steps, det, ws, rec)
     wall = time.perf_counter() - tic
     t_final = st.t + steps * dt
     moments = np.zeros((2, 3))
@@ -284,4 +291,5 @@ def _simulate(model: CableModel, integrator: str, dt: float, duration: float, *,
         end_forces=rec.end_force[:rows].copy(), energy=rec.energy[:rows].copy(),
         final_state=CableState(x, v, t_final), end_moments=moments,
         newton_failures=int(failures), newton_iterations=int(iters), end_moment_history=history,
+        compile_time_s=compile_s,
     )

@@ -249,6 +249,16 @@ def build_cases() -> list[Case]:
               Case("view, folder of nothing", ["view", "{d}/f", "--out", "{d}/v.html"], "capture", {"f": DIR}),
               Case("view, negative --max-frames", ["view", "{d}/r.npz", "--out", "{d}/v.html", "--max-frames", "-1"],
                    "--max-frames", {"r.npz": "text"})]
+    cases += [Case("examples, under a file", ["examples", "{d}/f/sub"], "DIR", {"f": "text"}),
+              Case("fit, band reversed", ["fit", "{d}/r.csv", "--length", "0.3", "--diameter", "0.004", "--band", "8",
+                                          "1.5", "--out", "{d}/o"], "--band", {"r.csv": "t\n0\n"}),
+              Case("fit, beam step 0", ["fit", "{d}/r.csv", "--length", "0.3", "--diameter", "0.004", "--beam-step",
+                                        "0", "--out", "{d}/o"], "--beam-step", {"r.csv": "t\n0\n"}),
+              Case("fit, stiffness grid over 101", ["fit", "{d}/r.csv", "--length", "0.3", "--diameter", "0.004",
+                                                    "--stiffness-grid", "500", "--out", "{d}/o"], "--stiffness-grid",
+                   {"r.csv": "t\n0\n"}),
+              Case("fit, pickle that is not a trial", ["fit", "{d}/t.pkl", "--diameter", "0.01", "--mass", "0.05",
+                                                       "--out", "{d}/o"], "t.pkl", {"t.pkl": "not a pickle"})]
     return cases
 
 
