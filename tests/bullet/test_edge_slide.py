@@ -12,12 +12,14 @@ so it slips when T_out > exp(mu theta) T_in, i.e. when
 (0.325 for mu = 0.3). The issue's phi > mu / (1 + mu) (0.231) treats the edge as a frictionless pulley;
 a single frictional point turning the cable by pi/2 would give (1 + mu) / (1 - mu) instead of e
 (phi* = 0.358); an elastica touching the edge at one point (bending length sqrt(EI/T) much larger
-than r) gives T_out / T_in = 1.52 at mu = 0.3 (phi* = 0.313), 5 % below the capstan.
+than r) gives T_out / T_in = 1.52 at mu = 0.3 (phi* = 0.314), 5 % below the capstan.
 
-The contact model reaches the capstan threshold within 10 % (holds at 0.9 phi*, slides at 1.1 phi*)
-when the segments resolve the cable's bend at the edge, l < sqrt(EI / T) (T the tension there); with
-longer segments the segment across the edge stays straight, bends at a node beyond it, and can hook
-(docs/concepts/contact.md, "Edges"; `python demos/edge_slide.py` prints the table).
+The contact model reaches this threshold within 10 % (holds at 0.9 phi*, slides at 1.1 phi*) when its
+segments are short against the cable's bend at the edge: n = 40 (15 mm segments; sqrt(EI/T) = 30 mm),
+checked here at 60, 240 and 1000 Hz at three placements. Coarser cables (n = 10, 20) still hook above
+phi*: the segment across the edge stays straight and bends at a node beyond it, a lever that a chain of
+straight segments holds (docs/concepts/contact.md, "Edges"; `python demos/edge_slide.py` prints the
+table). These threshold tests pin the resolved case; they do not test a change of the contact law.
 
 Also here: a segment whose axis has passed through the box's corner is pushed back out (the edge
 contact's normal stays in the edge's normal cone); before, its normal pointed into the box and the
@@ -25,6 +27,7 @@ cable hung on the corner through its own segment.
 """
 from __future__ import annotations
 
+import itertools
 import math
 
 import numpy as np
@@ -60,7 +63,7 @@ def layout(spec: CableSpec, phi: float, place: float, through: bool = False) -> 
     corner cuts through the box's edge (a state a tunnelling step can leave)."""
     n, L, l, r = spec.n_masses, spec.length, spec.rest_length, spec.diameter / 2
     a = place * l
-    i = int(round(((1.0 - phi) * L - a) / l))  # the last node on the table
+    i = round(((1.0 - phi) * L - a) / l)  # the last node on the table
     x = np.zeros((n, 3))
     for j in range(n):
         if through:
@@ -73,28 +76,31 @@ def layout(spec: CableSpec, phi: float, place: float, through: bool = False) -> 
     return x, 1.0 - (i * l + a) / L
 
 
-def hang(spec: CableSpec, phi: float, place: float, hz: float = 240.0, seconds: float = 1.5,
+def hang(spec: CableSpec, phi: float, place: float, hz: float = 240.0, settle: float = 0.5, seconds: float = 1.0,
          through: bool = False, drag: float = 5.0):
-    """Release the cable at rest (:func:`layout`) and let it go for ``seconds``.
-
-    A drag of ``drag`` [1/s] times each mass settles the swing of the hanging part (no force at rest).
-    Returns (the table end's travel towards the edge [m], the actual phi, the cable; stable or not)."""
+    """Release the cable at rest (:func:`layout`), let it drape over the edge for ``settle`` [s], then watch it
+    for ``seconds`` [s]. A drag of ``drag`` [1/s] times each mass damps the swing of the hanging part (no
+    force at rest). Returns (the table end's travel towards the edge while watched [m], the actual phi,
+    the cable; stable or not)."""
     x0, phi_true = layout(spec, phi, place, through)
     with BulletWorld(dt=1.0 / hz, ground=False) as world:
         world.add_box(TABLE, (-TABLE[0], 0.0, -TABLE[2]), friction=spec.static_friction)  # combined: mu
         cable = world.add_cable(spec, state=CableState(x0, np.zeros_like(x0)))
         cable.arrays.damp[:] = drag * cable.arrays.mass
-        for _ in range(int(round(seconds * hz))):
+        start = cable.x[0, 0]
+        for k in range(round((settle + seconds) * hz)):
             world.step()
-            if not cable.stable:
-                break
-        return float(cable.x[0, 0] - x0[0, 0]), phi_true, cable
+            if k + 1 == round(settle * hz):
+                start = cable.x[0, 0]
+            if not cable.stable or cable.x[0, 0] > 0.0:
+                break  # unstable, or slid off the table
+        return float(cable.x[0, 0] - start), phi_true, cable
 
 
-HOLD, SLIDE = 0.02, 0.10  # [m] travel of the table end in 1.5 s: settling only / sliding off
+HOLD, SLIDE = 0.002, 0.05  # [m] travel of the table end in the second after settling: held / sliding
 
 
-@pytest.mark.parametrize("hz, place", [(240.0, 0.25), (240.0, 0.75), (60.0, 0.5), (1000.0, 0.05)])
+@pytest.mark.parametrize("hz, place", [(60.0, 0.05), (240.0, 0.25), (1000.0, 0.75)])
 def test_slides_over_the_edge_at_the_capstan_threshold(hz, place):
     spec = soft_cable(40)  # l = 15 mm, shorter than the bend sqrt(EI / T) = 30 mm at the edge
     star = threshold(MU)
@@ -124,11 +130,11 @@ def test_a_segment_through_the_corner_is_pushed_back_out():
         assert len(normals) >= 1, "the segment through the corner has no contact with the edge"
         assert (normals[:, 0] >= 0.0).all() and (normals[:, 2] >= 0.0).all(), normals  # within the edge's cone
         assert (gaps > -spec.diameter / 2).all()  # one step put the axis back outside the edge
-        world.run(1.0)
+        world.run(1.5)
         assert cable.stable, cable.reason
         x = cable.x
         # no segment's axis passes on the box side of the edge: the corner is outside every segment
-        for a, b in zip(x[:-1], x[1:]):
+        for a, b in itertools.pairwise(x):
             if a[0] < 0.0 < b[0] or b[0] < 0.0 < a[0]:
                 z_at_edge = a[2] + (b[2] - a[2]) * (0.0 - a[0]) / (b[0] - a[0])
                 assert z_at_edge > 0.0
