@@ -30,7 +30,7 @@ def main() -> None:
     ap.add_argument("--mu", type=float, default=0.3)
     args = ap.parse_args()
     sys.path.insert(0, str(TESTS))
-    from test_edge_slide import HOLD, SLIDE, hang, soft_cable, threshold
+    from test_edge_slide import HOLD, SLIDE, bracket, hang, soft_cable, threshold
 
     star = threshold(args.mu)
     print(f"mu {args.mu}: phi* = {star:.3f} (capstan over the edge); frictionless edge {args.mu / (1 + args.mu):.3f}")
@@ -42,10 +42,7 @@ def main() -> None:
         w = spec.mass / spec.length * 9.81
         ei = E * math.pi * (spec.diameter / 2) ** 4 / 4
         bend = math.sqrt(ei / (star * w * spec.length))
-        # the layouts allow phi = 1 - (k + place) / (n - 1), k whole: those nearest 0.9 and 1.1 phi*, either side
-        phis = [1.0 - (k + place) / (n - 1) for k in range(n - 1)]
-        phi_lo = min((p for p in phis if p < star), key=lambda p: abs(p - 0.9 * star))
-        phi_hi = min((p for p in phis if p > star), key=lambda p: abs(p - 1.1 * star))
+        phi_lo, phi_hi = bracket(n, place, star)
         lo, phi_lo, c_lo = hang(spec, phi_lo, place, hz)
         hi, phi_hi, c_hi = hang(spec, phi_hi, place, hz)
         if not (c_lo.stable and c_hi.stable):

@@ -76,6 +76,14 @@ def layout(spec: CableSpec, phi: float, place: float, through: bool = False) -> 
     return x, 1.0 - (i * l + a) / L
 
 
+def bracket(n: int, place: float, star: float) -> tuple[float, float]:
+    """The hanging fractions a layout allows, 1 - (k + place) / (n - 1) for whole k, nearest 0.9 and 1.1
+    times ``star``, one below it and one above."""
+    phis = [1.0 - (k + place) / (n - 1) for k in range(n - 1)]
+    return (min((p for p in phis if p < star), key=lambda p: abs(p - 0.9 * star)),
+            min((p for p in phis if p > star), key=lambda p: abs(p - 1.1 * star)))
+
+
 def hang(spec: CableSpec, phi: float, place: float, hz: float = 240.0, settle: float = 0.5, seconds: float = 1.0,
          through: bool = False, drag: float = 5.0):
     """Release the cable at rest (:func:`layout`), let it drape over the edge for ``settle`` [s], then watch it
@@ -104,10 +112,12 @@ HOLD, SLIDE = 0.002, 0.05  # [m] travel of the table end in the second after set
 def test_slides_over_the_edge_at_the_capstan_threshold(hz, place):
     spec = soft_cable(40)  # l = 15 mm, shorter than the bend sqrt(EI / T) = 30 mm at the edge
     star = threshold(MU)
-    below, phi_lo, c_lo = hang(spec, 0.9 * star, place, hz)
-    above, phi_hi, c_hi = hang(spec, 1.1 * star, place, hz)
+    lo, hi = bracket(spec.n_masses, place, star)
+    assert 0.85 * star < lo < star < hi < 1.15 * star  # the layout's phi steps by 1/39: near 0.9 and 1.1 phi*
+    below, phi_lo, c_lo = hang(spec, lo, place, hz)
+    above, phi_hi, c_hi = hang(spec, hi, place, hz)
     assert c_lo.stable and c_hi.stable, (c_lo.reason, c_hi.reason)
-    assert phi_lo < star < phi_hi and phi_hi / phi_lo < 1.25  # the layout's phi stays near +-10 %
+    assert phi_lo == pytest.approx(lo) and phi_hi == pytest.approx(hi)
     assert below < HOLD, f"phi {phi_lo:.3f} < phi* {star:.3f} slid {below * 1e3:.1f} mm"
     assert above > SLIDE, f"phi {phi_hi:.3f} > phi* {star:.3f} held ({above * 1e3:.1f} mm)"
 
