@@ -1,0 +1,69 @@
+"""Issue 23 item 3: a cable on a table with a fraction phi hanging over the sharp edge, released at rest.
+
+For each rate, n, Young's modulus and edge placement (the last node on the table ``place`` segment
+lengths before the edge) the cable is released at the hanging fractions its layout allows (steps of
+1 / (n - 1)) nearest 0.9 and 1.1 times the capstan threshold phi* = mu e / (1 + mu e),
+e = exp(mu pi / 2) (tests/bullet/test_edge_slide.py derives it), one either side, allowed 0.5 s to
+drape, then watched for 1 s: "held" when its table end moved less than 2 mm, "slid" above 50 mm
+("ok": held below and slid above). Also printed: the segment length l and the bend length
+sqrt(EI / T) of the cable at the edge (T = phi* w L), which the segments have to resolve.
+
+    PYTHONPATH=. python demos/edge_slide.py [--rates 60 240 1000] [--n 10 20 40] [--E 2e6 8e6] [--places 0.05 0.25 0.5 0.75]
+"""
+from __future__ import annotations
+
+import argparse
+import itertools
+import math
+import sys
+from pathlib import Path
+
+TESTS = Path(__file__).resolve().parents[1] / "tests" / "bullet"
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--rates", type=float, nargs="+", default=[60.0, 240.0, 1000.0])
+    ap.add_argument("--n", type=int, nargs="+", default=[10, 20, 40])
+    ap.add_argument("--E", type=float, nargs="+", default=[2e6])
+    ap.add_argument("--places", type=float, nargs="+", default=[0.05, 0.25, 0.5, 0.75])
+    ap.add_argument("--mu", type=float, default=0.3)
+    args = ap.parse_args()
+    sys.path.insert(0, str(TESTS))
+    from test_edge_slide import HOLD, SLIDE, bracket, hang, soft_cable, threshold
+
+    star = threshold(args.mu)
+    print(f"mu {args.mu}: phi* = {star:.3f} (capstan over the edge); frictionless edge {args.mu / (1 + args.mu):.3f}")
+    print("| Hz | n | E [MPa] | l [mm] | bend [mm] | place | phi/phi* | travel [mm] | phi/phi* | travel [mm] | verdict |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|")
+    rows = {}
+    for hz, n, E, place in itertools.product(args.rates, args.n, args.E, args.places):
+        spec = soft_cable(n, args.mu, E)
+        w = spec.mass / spec.length * 9.81
+        ei = E * math.pi * (spec.diameter / 2) ** 4 / 4
+        bend = math.sqrt(ei / (star * w * spec.length))
+        phi_lo, phi_hi = bracket(n, place, star)
+        lo, phi_lo, c_lo = hang(spec, phi_lo, place, hz)
+        hi, phi_hi, c_hi = hang(spec, phi_hi, place, hz)
+        if not (c_lo.stable and c_hi.stable):
+            verdict = f"unstable: {c_lo.reason or c_hi.reason}"
+        elif hi < HOLD:
+            verdict = "hooked"
+        elif lo >= HOLD:
+            verdict = "slid below"
+        else:
+            verdict = "ok" if hi > SLIDE else "slow"
+        rows.setdefault((hz, n, E, spec.rest_length, bend), []).append((place, verdict))
+        print(f"| {hz:.0f} | {n} | {E / 1e6:g} | {spec.rest_length * 1e3:.1f} | {bend * 1e3:.0f} | {place} | "
+              f"{phi_lo / star:.2f} | {lo * 1e3:.1f} | {phi_hi / star:.2f} | {hi * 1e3:.1f} | {verdict} |", flush=True)
+    print()
+    print("| Hz | n | E [MPa] | l [mm] | bend sqrt(EI/T) [mm] | held below phi*, slid above | otherwise |")
+    print("|---|---|---|---|---|---|---|")
+    for (hz, n, E, l, bend), res in rows.items():
+        other = ", ".join(f"{v} at place {p}" for p, v in res if v != "ok") or "-"
+        print(f"| {hz:.0f} | {n} | {E / 1e6:g} | {l * 1e3:.1f} | {bend * 1e3:.0f} | "
+              f"{sum(v == 'ok' for _, v in res)} of {len(res)} | {other} |")
+
+
+if __name__ == "__main__":
+    main()
