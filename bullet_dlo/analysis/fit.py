@@ -91,6 +91,7 @@ BOUNDS = {  # allowed range of each fittable parameter (SI), also its log-space 
     "internal_damping": (1e-9, 1.0),
     "damping": (1e-9, 1e3),
     "mass": (1e-6, 1e3),
+    "shear_modulus": (1e2, 1e13),
 }
 GUESS = {"youngs_modulus": 1e8, "damping_rate": 1.0, "internal_damping": 1e-3, "damping": 1e-3}
 START = ("auto", "static", "straight", "recorded")
@@ -500,7 +501,10 @@ def fit_cable(rec: Recording | Sequence[Recording], spec: CableSpec, parameters:
         raise ParameterError("mass cannot be fitted from marker positions alone (shapes under gravity see E I / "
                              "(rho A) only): give the mass and fit youngs_modulus")
     layout = make_layout(recs, options, len(names))
-    start = {k: float((guess or {}).get(k) or getattr(spec, k) or GUESS[k]) for k in names}
+    if "shear_modulus" in names and not spec.twist_enabled:
+        raise ParameterError("shear_modulus needs a cable with a material frame (twist: true, or a non-round "
+                             "section): without it the model has no twist for G to act on")
+    start = {k: float((guess or {}).get(k) or getattr(spec, k) or start_value(spec, k)) for k in names}
     lo = np.log([BOUNDS[k][0] for k in names])
     hi = np.log([BOUNDS[k][1] for k in names])
     theta = np.clip(np.log([start[k] for k in names]), lo + 1e-9, hi - 1e-9)
@@ -519,6 +523,11 @@ def fit_cable(rec: Recording | Sequence[Recording], spec: CableSpec, parameters:
             break
         options, theta, halvings = replace(options, dt=options.dt / 2), sol.x, halvings + 1
     return summarise(sol, names, fitted, layout, options, gravity, runs[0], cost, check, (lo, hi))
+
+
+def start_value(spec: CableSpec, name: str) -> float:
+    """A parameter's start when neither the guess nor the spec gives one: G from E and nu, else :data:`GUESS`."""
+    return spec.effective_shear_modulus if name == "shear_modulus" else GUESS[name]
 
 
 def best_stiffness_start(cost: Callable[[np.ndarray], np.ndarray], theta: np.ndarray, names: list[str],

@@ -92,7 +92,7 @@ def cmd_fit(args: argparse.Namespace) -> int:
         spec = spec.with_(youngs_modulus=args.youngs_modulus or spec.youngs_modulus, mass=args.mass or spec.mass)
     else:
         spec = CableSpec(length=length, diameter=args.diameter, mass=args.mass or max(weight / 9.81, 1e-4),
-                         youngs_modulus=args.youngs_modulus or 1e8, n_masses=args.n_masses)
+                         youngs_modulus=args.youngs_modulus or 1e8, n_masses=args.n_masses, twist=args.twist)
     res = fit_cable(recs, spec, names, options)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
@@ -281,8 +281,10 @@ def add_parsers(sub, common: argparse.ArgumentParser) -> None:
     s.add_argument("--time-window", nargs=2, type=float, metavar=("T0", "T1"), help="fit only the samples with "
                    "T0 <= t <= T1 [s, the file's times] (their times then start at 0); cuts a recording longer "
                    "than 120 s")
+    s.add_argument("--twist", action="store_true", help="give the cable a material frame (twist springs; the "
+                   "grippers' roll twists it), so that shear_modulus can be fitted from the moments about the cable")
     s.add_argument("--params", help="comma-separated CableSpec fields to fit, among youngs_modulus, damping_rate, "
-                   "internal_damping, damping, mass (default: youngs_modulus, internal_damping, damping_rate, "
+                   "internal_damping, damping, mass, shear_modulus (needs --twist) (default: youngs_modulus, internal_damping, damping_rate, "
                    "and mass when --mass is not given)")
     s.add_argument("--forces", default="wrench_world", choices=["wrench_world", "end_forces"],
                    help="which recorded forces to fit: the wrist sensors (default) or the simulated model's "

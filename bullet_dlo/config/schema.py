@@ -64,6 +64,7 @@ CABLE_BOUNDS: dict[str, tuple[float, float]] = {
     "friction": (0.0, 10.0),
     "static_friction": (0.0, 10.0),
     "poisson_ratio": (0.0, 0.4999),  # G = E / (2 (1 + nu)): the twist springs G J / l0
+    "shear_modulus": (0.0, 1e13),  # [Pa] G itself (0: from E and nu); a stranded cable's is far below E / 3
     "inner_diameter": (0.0, 1.0),  # [m] tube bore, below the diameter
     "width": (0.0, 1.0),  # [m] rectangle width (along the section axis d1)
     "thickness": (0.0, 1.0),  # [m] rectangle thickness (along d2)

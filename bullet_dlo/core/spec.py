@@ -45,6 +45,9 @@ class CableSpec:
         friction: dynamic (sliding) friction coefficient against the environment, >= 0.
         static_friction: static friction coefficient, >= 0.
         poisson_ratio: Poisson's ratio nu, in [0, 0.5) (used by contact and shear-aware layers).
+        shear_modulus: G [Pa] of the twist springs G J / l0, > 0; 0 (default): E / (2 (1 + nu)), the
+            isotropic solid's. A stranded cable, a rope or a sheathed bundle twists far more easily than
+            its E says: give (or fit) G itself.
         discretisation: ``"default"`` (ends lumped with half a segment of mass, clamp nodes
             with the half-segment bending stiffness 2EI/l0: second-order static convergence)
             or ``"paper"`` (Lv et al. 2017: m_i = M/n, k_b = EI/l0 at every bending node).
@@ -78,6 +81,7 @@ class CableSpec:
     width: float = 0.0
     thickness: float = 0.0
     twist: bool = False
+    shear_modulus: float = 0.0
 
     def __post_init__(self) -> None:
         set_ = lambda k, v: object.__setattr__(self, k, v)  # noqa: E731 (frozen dataclass)
@@ -92,6 +96,7 @@ class CableSpec:
         set_("friction", check_nonnegative("friction", self.friction))
         set_("static_friction", check_nonnegative("static_friction", self.static_friction))
         set_("poisson_ratio", check_in_range("poisson_ratio", self.poisson_ratio, 0.0, 0.5, open_hi=True))
+        set_("shear_modulus", check_nonnegative("shear_modulus", self.shear_modulus))
         if self.discretisation not in DISCRETISATIONS:
             raise ParameterError(
                 f"discretisation must be one of {', '.join(DISCRETISATIONS)}, got {self.discretisation!r}"
@@ -179,14 +184,14 @@ class CableSpec:
         return self.polar_moment
 
     @property
-    def shear_modulus(self) -> float:
-        """G = E / (2 (1 + nu)) [Pa]."""
-        return self.youngs_modulus / (2.0 * (1.0 + self.poisson_ratio))
+    def effective_shear_modulus(self) -> float:
+        """G [Pa]: ``shear_modulus`` when given, else E / (2 (1 + nu))."""
+        return self.shear_modulus or self.youngs_modulus / (2.0 * (1.0 + self.poisson_ratio))
 
     @property
     def torsional_rigidity(self) -> float:
         """G J [N m^2]."""
-        return self.shear_modulus * self.torsion_constant
+        return self.effective_shear_modulus * self.torsion_constant
 
     @property
     def bending_rigidities(self) -> tuple[float, float]:
@@ -332,7 +337,7 @@ class CableSpec:
 
 
 _SECTION_DEFAULTS: dict[str, Any] = {"section": "round", "inner_diameter": 0.0, "width": 0.0, "thickness": 0.0,
-                                      "twist": False}
+                                      "twist": False, "shear_modulus": 0.0}
 
 _PRESETS: dict[str, dict[str, Any]] = {
     "lv2017": dict(

@@ -158,3 +158,22 @@ def test_band_pass_keeps_a_ringing_and_drops_a_bias_and_a_drift():
     with pytest.raises(ParameterError, match="linear_band must be 0 < low < high < 125 Hz"):
         Recording(t, np.zeros((len(t), 2, 3)), np.tile([0, 0, 0, 1.0], (len(t), 2, 1)), None,
                   linear_map=np.zeros((len(t), 1, 12)), linear_obs=np.zeros(len(t)), linear_band=(8.0, 1.5))
+
+
+def test_the_shear_modulus_is_fitted_from_a_rolled_gripper_and_not_from_a_cable_without_twist():
+    """A stranded cable twists far more easily than E / (2 (1 + nu)) says: G is a parameter of its own. Both
+    grippers roll about the cable (+-0.6 rad, out of phase) while one end moves; the clamp moments carry
+    G J theta / L; fitting E and G together returns both with intervals that hold the truth (G = E / 20)."""
+    true = CableSpec.lv2017(n_masses=8, damping_rate=2.0, twist=True, shear_modulus=126e6 / 20)
+    roll = [Sine("first", (0.0, 0.0, 0.01), 1.0, rotation=(0.6, 0.0, 0.0), ramp=0.2),
+            Sine("last", (0.0, 0.0, 0.0), 1.0, phase=np.pi / 2, rotation=(0.6, 0.0, 0.0), ramp=0.2)]
+    rec = synthetic_recording(true, roll, 1.2, rate=200.0, noise=0.002, moment_noise=2e-5, seed=5)
+    names = ["youngs_modulus", "shear_modulus"]
+    res = fit_cable(rec, true.with_(youngs_modulus=6e7, shear_modulus=0.0), names,
+                    FitOptions(max_evaluations=30, profile_points=0))
+    for k in names:
+        iv = res.intervals[k]
+        assert res.identifiable[k] and iv[0] <= getattr(true, k) <= iv[1], (k, res.values[k], iv)
+    assert res.values["shear_modulus"] < 0.1 * res.values["youngs_modulus"]  # far from the solid's E / 2.6
+    with pytest.raises(ParameterError, match="shear_modulus needs a cable with a material frame"):
+        fit_cable(rec, true.with_(twist=False), names)
