@@ -227,6 +227,9 @@ class BulletCable:
         other cables it handles contact with."""
         if not self.model_contact:
             return
+        alone = len(self.world.cables) <= 1  # (this cable is in it once added): no partners can appear
+        if alone and not self._partners_seen and self._bodies_seen == len(self.world.bodies):
+            return  # the common case, checked without building the partner list every step
         partners = self._partners()
         names = tuple(c.name for c in partners)
         if self._bodies_seen == len(self.world.bodies) and names == self._partners_seen:
