@@ -1,4 +1,5 @@
-"""Sweeps over the scenarios: work-precision, stability map, cost of the implicit solve.
+"""Sweeps over the scenarios: work-precision, stability map, cost of the implicit solve, cost vs n
+of a cable in Bullet with contact on.
 
 Each sweep first lists its cases, then runs them through ``progress`` (any wrapper of a
 sequence that yields its items, e.g. ``tqdm``), so that a caller can show progress and ETA.
