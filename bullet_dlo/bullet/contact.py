@@ -50,6 +50,7 @@ from bullet_dlo.core.kernels.contact import STICK, Contacts, make_contacts
 
 BOX, SPHERE, CYLINDER, CAPSULE = range(4)
 N_EDGES = 12  # a box's edges, each a segment feature of its own
+SMALL_N = 64  # self-contact candidates of cables up to this many nodes: every pair tried (faster there)
 S_MIN = 1e-3  # segment interior: 0 < s < 1 away from the nodes by this much (nodes are contacts of their own)
 _GEOMS = {pb.GEOM_BOX: BOX, pb.GEOM_SPHERE: SPHERE, pb.GEOM_CYLINDER: CYLINDER, pb.GEOM_CAPSULE: CAPSULE}
 
@@ -843,9 +844,19 @@ def _self_pairs_brute(x, skip, reach):
 
 @njit(cache=True, error_model="numpy")
 def _self_pairs(x, skip, reach):
+    """The pairs of :func:`_self_pairs_brute` (same set, same order): from the grid (:func:`_grid_pairs`)
+    above SMALL_N nodes, by trying every pair below (faster there)."""
+    if x.shape[0] <= SMALL_N:
+        return _self_pairs_brute(x, skip, reach)
+    return _grid_pairs(x, skip, reach)
+
+
+@njit(cache=True, error_model="numpy")
+def _grid_pairs(x, skip, reach):
     """The pairs of :func:`_self_pairs_brute` (same set, same order) from a uniform grid of cells of side
     >= ``reach`` [m] over the first nodes of the segments: a pair within reach lies in neighbouring cells,
-    so each node looks at its 27 cells only, O(n log n) (one sort). Non-finite positions: the brute search."""
+    so each node looks at the 27 cells around its own, O(n log n) (one sort of the cells).
+    Non-finite positions: the brute search."""
     n = x.shape[0]
     m = n - 1  # segments, each placed at its first node
     if m < 1:
@@ -879,7 +890,9 @@ def _self_pairs(x, skip, reach):
     reach2 = reach * reach
     out = np.empty(16, np.int64)
     k = 0
+    row = np.empty(16, np.int64)  # the partners j of segment i, sorted before they are appended (no global sort)
     for i in range(m):
+        c_i = 0
         for a in range(max(cell[i, 0] - 1, 0), min(cell[i, 0] + 2, dims[0])):
             for b in range(max(cell[i, 1] - 1, 0), min(cell[i, 1] + 2, dims[1])):
                 for c in range(max(cell[i, 2] - 1, 0), min(cell[i, 2] + 2, dims[2])):
@@ -894,11 +907,20 @@ def _self_pairs(x, skip, reach):
                         d2 = (x[i, 0] - x[j, 0]) ** 2 + (x[i, 1] - x[j, 1]) ** 2 + (x[i, 2] - x[j, 2]) ** 2
                         if d2 > reach2:
                             continue
-                        if k == out.shape[0]:
-                            out = np.concatenate((out, np.empty(k, np.int64)))
-                        out[k] = i * n + j
-                        k += 1
-    return np.sort(out[:k])
+                        if c_i == row.shape[0]:
+                            row = np.concatenate((row, np.empty(c_i, np.int64)))
+                        p = c_i  # insertion sort: the rows are short
+                        while p > 0 and row[p - 1] > j:
+                            row[p] = row[p - 1]
+                            p -= 1
+                        row[p] = j
+                        c_i += 1
+        while k + c_i > out.shape[0]:
+            out = np.concatenate((out, np.empty(out.shape[0], np.int64)))
+        for p in range(c_i):
+            out[k + p] = i * n + row[p]
+        k += c_i
+    return out[:k]
 
 
 @njit(cache=True, error_model="numpy")

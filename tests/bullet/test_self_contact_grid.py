@@ -1,6 +1,7 @@
 """The grid search of self-contact candidates finds exactly the pairs of the O(n^2) search, in its order.
 
-:func:`bullet_dlo.bullet.contact._self_pairs` (a uniform grid, O(n log n)) against
+:func:`bullet_dlo.bullet.contact._grid_pairs` (a uniform grid, O(n log n)) and ``_self_pairs`` (the grid
+above 64 nodes, every pair below) against
 :func:`~bullet_dlo.bullet.contact._self_pairs_brute` (every pair tried, the search it replaced) on random
 cable configurations: random walks (3-D, flat on a table, straight along an axis), tight coils, nodes on top
 of each other, a stretched cable and non-finite positions; and the candidates cover every pair of segments
@@ -11,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from bullet_dlo.bullet.contact import _segments_closest, _self_pairs, _self_pairs_brute
+from bullet_dlo.bullet.contact import _grid_pairs, _segments_closest, _self_pairs, _self_pairs_brute
 
 
 def random_walk(rng, n: int, step: float, flat: bool = False, persistence: float = 0.8) -> np.ndarray:
@@ -55,8 +56,9 @@ def configurations():
 def test_grid_pairs_equal_the_brute_force_pairs(skip, reach_factor):
     for name, x in configurations():
         reach = reach_factor * (2.5 * np.linalg.norm(x[1] - x[0]) + 0.004 + 0.003)
-        grid, brute = _self_pairs(x, skip, reach), _self_pairs_brute(x, skip, reach)
+        grid, brute = _grid_pairs(x, skip, reach), _self_pairs_brute(x, skip, reach)
         assert np.array_equal(grid, brute), name  # same pairs, same order (so the same contact rows)
+        assert np.array_equal(_self_pairs(x, skip, reach), brute), name
         n = len(x)
         i, j = grid // n, grid % n
         assert np.all(j > i + skip) and np.all(j <= n - 2), name  # neighbours along the cable left out
@@ -65,7 +67,7 @@ def test_grid_pairs_equal_the_brute_force_pairs(skip, reach_factor):
 def test_non_finite_positions_fall_back_to_the_brute_force_search():
     x = random_walk(np.random.default_rng(1), 30, 0.01)
     x[7, 1] = np.nan
-    assert np.array_equal(_self_pairs(x, 2, 0.05), _self_pairs_brute(x, 2, 0.05))
+    assert np.array_equal(_grid_pairs(x, 2, 0.05), _self_pairs_brute(x, 2, 0.05))
 
 
 def test_candidates_cover_every_close_pair_of_segments():
@@ -79,7 +81,7 @@ def test_candidates_cover_every_close_pair_of_segments():
         l0 = float(np.linalg.norm(x[1] - x[0]))
         skip = 1 + int(np.ceil(max(np.pi * radius, 2 * radius + margin) / max(l0, 1e-12)))
         reach = 2.5 * l0 + 2.0 * radius + margin
-        found = set(_self_pairs(x, skip, reach).tolist())
+        found = set(_grid_pairs(x, skip, reach).tolist())
         lengths = np.linalg.norm(np.diff(x, axis=0), axis=1)
         for i in range(n - 1):
             for j in range(i + 1 + skip, n - 1):
