@@ -162,3 +162,41 @@ def stability_figure(rows: Sequence[dict]):
     ax.grid(True, which="major", alpha=0.3)
     fig.legend(handles=ax.get_legend_handles_labels()[0], loc="outside right upper", fontsize=8, frameon=False)
     return fig
+
+
+def plot_scaling(core_rows: Sequence[dict], core_exponent: float, coupled_rows: Sequence[dict],
+                 coupled_exponents: dict, path: str | Path) -> Path:
+    """:func:`scaling_figure` saved as a PNG at ``path``."""
+    return _save(scaling_figure(core_rows, core_exponent, coupled_rows, coupled_exponents), path)
+
+
+def scaling_figure(core_rows: Sequence[dict], core_exponent: float, coupled_rows: Sequence[dict],
+                   coupled_exponents: dict):
+    """CPU time per simulated second vs n: the cable on a table in Bullet with contact on (total, with its
+    range over the repeats, Bullet's step and the cable's side) and the core's implicit solve at 1 kHz."""
+    plt = _pyplot()
+    fig, ax = plt.subplots(figsize=(8.0, 4.6), layout="constrained")
+    n = [r["n_masses"] for r in coupled_rows]
+    cost = [r["cost"] for r in coupled_rows]
+    err = [[c - r["cost_min"] for c, r in zip(cost, coupled_rows)], [r["cost_max"] - c for c, r in zip(cost, coupled_rows)]]
+    ax.errorbar(n, cost, yerr=err, fmt="o-", color="tab:blue", capsize=3,
+                label=f"in Bullet, on a table (contact on): ~ n^{coupled_exponents['cost']:.2f}")
+    ax.loglog(n, [r["bullet"] for r in coupled_rows], "s--", color="tab:red",
+              label=f"  of which Bullet's stepSimulation: ~ n^{coupled_exponents['bullet']:.2f}")
+    ax.loglog(n, [r["model"] for r in coupled_rows], "^--", color="tab:green",
+              label=f"  of which the cable's side: ~ n^{coupled_exponents['model']:.2f}")
+    if core_rows:
+        ax.loglog([r["n_masses"] for r in core_rows], [1e3 * r["seconds_per_step"] for r in core_rows], "d:",
+                  color="tab:gray", label=f"core engine, implicit Euler at 1 kHz: ~ n^{core_exponent:.2f}")
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_xlabel("number of masses n")
+    ax.set_ylabel("CPU time per simulated second [s]")
+    ax.set_title("Cost vs n: a cable lying on a table, 240 Hz\n(thread CPU time, medians and ranges of interleaved "
+                 "repeats)", fontsize=10)
+    ax.grid(True, which="major", alpha=0.3)
+    handles, labels = ax.get_legend_handles_labels()
+    order = sorted(range(len(labels)), key=lambda k: not labels[k].startswith("in Bullet"))  # the total first
+    fig.legend([handles[k] for k in order], [labels[k] for k in order], loc="outside right upper", fontsize=8,
+               frameon=False)
+    return fig

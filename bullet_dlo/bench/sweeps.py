@@ -1,4 +1,5 @@
-"""Sweeps over the scenarios: work-precision, stability map, cost of the implicit solve.
+"""Sweeps over the scenarios: work-precision, stability map, cost of the implicit solve, cost vs n
+of a cable in Bullet with contact on.
 
 Each sweep first lists its cases, then runs them through ``progress`` (any wrapper of a
 sequence that yields its items, e.g. ``tqdm``), so that a caller can show progress and ETA.
@@ -137,3 +138,71 @@ def implicit_scaling(n_masses: Sequence[int] = (50, 100, 200, 500, 1000), n_step
         rows.append({"n_masses": n, "seconds_per_step": res.wall_time_s / res.steps})
     exponent = np.polyfit(np.log([r["n_masses"] for r in rows]), np.log([r["seconds_per_step"] for r in rows]), 1)[0]
     return rows, float(exponent)
+
+
+# ----- cost of a coupled cable with contact on ---------------------------------------------------
+COUPLED_PHASES = ("bullet", "model")
+
+
+def _cable_on_table(n: int, dt: float):
+    """A Lv cable of n masses lying straight on the ground at one radius, model contact, implicit Euler."""
+    from bullet_dlo.bullet.world import BulletWorld
+
+    spec = CableSpec.lv2017(n_masses=n, damping=0.01)
+    world = BulletWorld(dt=dt)
+    cable = world.add_cable(spec, start=(0.0, 0.0, 0.5 * spec.diameter), record_every=10**9)
+    return world, cable
+
+
+def _timed_steps(world, steps: int) -> tuple[float, float]:
+    """Thread CPU time [s] of ``steps`` coupled steps (the phases of BulletWorld.step; nothing is hooked on
+    these worlds): Bullet's own step and everything else (the cable's side: contacts, model step, I/O)."""
+    import time
+
+    bullet = total = 0.0
+    for _ in range(steps):
+        t0 = time.thread_time()
+        world.push_cables()
+        t1 = time.thread_time()
+        world.step_physics()
+        t2 = time.thread_time()
+        world.take_cable_steps()
+        t3 = time.thread_time()
+        bullet += t2 - t1
+        total += t3 - t0
+    return total, bullet
+
+
+def coupled_scaling(n_masses: Sequence[int] = (100, 200, 500, 1000), dt: float = 1.0 / 240.0, sim_time: float = 0.1,
+                    repeats: int = 5, progress: Progress = _no_progress) -> tuple[list[dict], dict]:
+    """CPU time per simulated second [s] of a cable lying on the ground (contact on: the model's) vs n.
+
+    One world per n, warmed up (kernels, contacts settled) first; then ``repeats`` rounds, each timing
+    ``sim_time`` [s] of steps of every n in turn (interleaved: load changes hit every n alike), with
+    ``time.thread_time``. Rows: n_masses, cost (median), cost_min, cost_max, bullet (median CPU s per
+    simulated second of Bullet's stepSimulation alone), model (the rest), all [s per s]. Also returns the
+    fitted exponents p of cost ~ n^p over the whole range (total, bullet, model)."""
+    worlds = {}
+    for n in progress(list(n_masses)):
+        world, cable = _cable_on_table(n, dt)
+        world.step(max(5, int(round(0.05 / dt))))
+        worlds[n] = (world, cable)
+    steps = max(1, int(round(sim_time / dt)))
+    sim = steps * dt
+    times = {n: [] for n in n_masses}
+    for _ in range(repeats):
+        for n in n_masses:
+            times[n].append(_timed_steps(worlds[n][0], steps))
+    rows = []
+    for n in n_masses:
+        world, cable = worlds[n]
+        total = np.array([t for t, _ in times[n]]) / sim
+        bullet = np.array([b for _, b in times[n]]) / sim
+        rows.append({"n_masses": n, "cost": float(np.median(total)), "cost_min": float(total.min()),
+                     "cost_max": float(total.max()), "bullet": float(np.median(bullet)),
+                     "model": float(np.median(total - bullet)), "stable": cable.stable,
+                     "lowest_node_over_radius": float(cable.x[:, 2].min() / cable.radius)})
+        world.close()
+    logn = np.log([r["n_masses"] for r in rows])
+    exponents = {key: float(np.polyfit(logn, np.log([r[key] for r in rows]), 1)[0]) for key in ("cost", "bullet", "model")}
+    return rows, exponents

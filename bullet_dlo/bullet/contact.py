@@ -50,6 +50,7 @@ from bullet_dlo.core.kernels.contact import STICK, Contacts, make_contacts
 
 BOX, SPHERE, CYLINDER, CAPSULE = range(4)
 N_EDGES = 12  # a box's edges, each a segment feature of its own
+SMALL_N = 64  # self-contact candidates of cables up to this many nodes: every pair tried (faster there)
 S_MIN = 1e-3  # segment interior: 0 < s < 1 away from the nodes by this much (nodes are contacts of their own)
 _GEOMS = {pb.GEOM_BOX: BOX, pb.GEOM_SPHERE: SPHERE, pb.GEOM_CYLINDER: CYLINDER, pb.GEOM_CAPSULE: CAPSULE}
 
@@ -837,6 +838,107 @@ def _segments_closest(a0, a1, b0, b1):
 
 
 @njit(cache=True, error_model="numpy")
+def _self_pairs_brute(x, skip, reach):
+    """Segment pairs (i, j), j > i + skip, whose first nodes are within ``reach`` [m], as codes i n + j in
+    increasing order: every pair tried, O(n^2) (the reference of :func:`_self_pairs`)."""
+    n = x.shape[0]
+    reach2 = reach * reach
+    out = np.empty(16, np.int64)
+    k = 0
+    for i in range(n - 1):
+        for j in range(i + 1 + skip, n - 1):
+            d2 = (x[i, 0] - x[j, 0]) ** 2 + (x[i, 1] - x[j, 1]) ** 2 + (x[i, 2] - x[j, 2]) ** 2
+            if d2 > reach2:
+                continue
+            if k == out.shape[0]:
+                out = np.concatenate((out, np.empty(k, np.int64)))
+            out[k] = i * n + j
+            k += 1
+    return out[:k]
+
+
+@njit(cache=True, error_model="numpy")
+def _self_pairs(x, skip, reach):
+    """The pairs of :func:`_self_pairs_brute` (same set, same order): from the grid (:func:`_grid_pairs`)
+    above SMALL_N nodes, by trying every pair below (faster there)."""
+    if x.shape[0] <= SMALL_N:
+        return _self_pairs_brute(x, skip, reach)
+    return _grid_pairs(x, skip, reach)
+
+
+@njit(cache=True, error_model="numpy")
+def _grid_pairs(x, skip, reach):
+    """The pairs of :func:`_self_pairs_brute` (same set, same order) from a uniform grid of cells of side
+    >= ``reach`` [m] over the first nodes of the segments: a pair within reach lies in neighbouring cells,
+    so each node looks at the 27 cells around its own, O(n log n) (one sort of the cells).
+    Non-finite positions: the brute search."""
+    n = x.shape[0]
+    m = n - 1  # segments, each placed at its first node
+    if m < 1:
+        return np.empty(0, np.int64)
+    lo = np.empty(3)
+    hi = np.empty(3)
+    for j in range(3):
+        lo[j] = x[0, j]
+        hi[j] = x[0, j]
+    for i in range(m):
+        for j in range(3):
+            if not math.isfinite(x[i, j]):
+                return _self_pairs_brute(x, skip, reach)
+            lo[j] = min(lo[j], x[i, j])
+            hi[j] = max(hi[j], x[i, j])
+    # cells of side >= reach, at most 2^20 per axis (bigger cells only add candidates, never lose one)
+    side = max(reach, 1e-12)
+    for j in range(3):
+        side = max(side, (hi[j] - lo[j]) / 1048575.0)
+    dims = np.empty(3, np.int64)
+    for j in range(3):
+        dims[j] = int((hi[j] - lo[j]) / side) + 1
+    cell = np.empty((m, 3), np.int64)
+    key = np.empty(m, np.int64)
+    for i in range(m):
+        for j in range(3):
+            cell[i, j] = min(int((x[i, j] - lo[j]) / side), dims[j] - 1)
+        key[i] = (cell[i, 0] * dims[1] + cell[i, 1]) * dims[2] + cell[i, 2]
+    order = np.argsort(key, kind="mergesort")
+    sorted_key = key[order]
+    reach2 = reach * reach
+    out = np.empty(16, np.int64)
+    k = 0
+    row = np.empty(16, np.int64)  # the partners j of segment i, sorted before they are appended (no global sort)
+    for i in range(m):
+        c_i = 0
+        for a in range(max(cell[i, 0] - 1, 0), min(cell[i, 0] + 2, dims[0])):
+            for b in range(max(cell[i, 1] - 1, 0), min(cell[i, 1] + 2, dims[1])):
+                for c in range(max(cell[i, 2] - 1, 0), min(cell[i, 2] + 2, dims[2])):
+                    kc = (a * dims[1] + b) * dims[2] + c
+                    first = np.searchsorted(sorted_key, kc)
+                    for q in range(first, m):
+                        if sorted_key[q] != kc:
+                            break
+                        j = order[q]
+                        if j <= i + skip:
+                            continue  # close along the cable, or found from j's side
+                        d2 = (x[i, 0] - x[j, 0]) ** 2 + (x[i, 1] - x[j, 1]) ** 2 + (x[i, 2] - x[j, 2]) ** 2
+                        if d2 > reach2:
+                            continue
+                        if c_i == row.shape[0]:
+                            row = np.concatenate((row, np.empty(c_i, np.int64)))
+                        p = c_i  # insertion sort: the rows are short
+                        while p > 0 and row[p - 1] > j:
+                            row[p] = row[p - 1]
+                            p -= 1
+                        row[p] = j
+                        c_i += 1
+        while k + c_i > out.shape[0]:
+            out = np.concatenate((out, np.empty(out.shape[0], np.int64)))
+        for p in range(c_i):
+            out[k + p] = i * n + row[p]
+        k += c_i
+    return out[:k]
+
+
+@njit(cache=True, error_model="numpy")
 def _self_contacts(x, mass, c, st, key0, self_mu, margin, k_per_mass, zeta):
     """Contacts between segments of the cable that are not close along it (a cable lying across itself).
 
@@ -845,6 +947,7 @@ def _self_contacts(x, mass, c, st, key0, self_mu, margin, k_per_mass, zeta):
     at its velocity pushed a falling segment through the one it lands on), both with the stiffness of
     the pair's mean mass.
     A node's closest point belongs to the segment that starts at it (no double contacts).
+    Candidate pairs come from a grid (:func:`_self_pairs`), in the order of a loop over i then j.
     """
     n = x.shape[0]
     radius = c.radius[0]
@@ -856,39 +959,35 @@ def _self_contacts(x, mass, c, st, key0, self_mu, margin, k_per_mass, zeta):
     skip = 1 + int(math.ceil(max(math.pi * radius, 2.0 * radius + margin) / max(math.sqrt(l0), 1e-12)))
     nl = np.empty(3)
     reach = 2.5 * math.sqrt(l0) + 2.0 * radius + margin  # first nodes farther apart: the segments cannot touch
-    reach2 = reach * reach
-    for i in range(n - 1):
-        for j in range(i + 1 + skip, n - 1):
-            d2 = (x[i, 0] - x[j, 0]) ** 2 + (x[i, 1] - x[j, 1]) ** 2 + (x[i, 2] - x[j, 2]) ** 2
-            if d2 > reach2:
-                continue
-            s, t = _segments_closest(x[i], x[i + 1], x[j], x[j + 1])
-            if (s >= 1.0 and i < n - 2) or (t >= 1.0 and j < n - 2):
-                continue  # the next segment owns this node
-            d2 = 0.0
+    for code in _self_pairs(x, skip, reach):
+        i, j = code // n, code % n
+        s, t = _segments_closest(x[i], x[i + 1], x[j], x[j + 1])
+        if (s >= 1.0 and i < n - 2) or (t >= 1.0 and j < n - 2):
+            continue  # the next segment owns this node
+        d2 = 0.0
+        for q in range(3):
+            nl[q] = (1.0 - s) * x[i, q] + s * x[i + 1, q] - (1.0 - t) * x[j, q] - t * x[j + 1, q]
+            d2 += nl[q] ** 2
+        d = math.sqrt(d2)
+        if d == 0.0 or d - 2.0 * radius >= margin:
+            continue
+        for q in range(3):
+            nl[q] /= d
+        m_pair = 0.5 * ((1.0 - s) * mass[i] + s * mass[i + 1] + (1.0 - t) * mass[j] + t * mass[j + 1])
+        for side in range(2):  # the same stiffness on both sides: equal and opposite forces at rest
+            k = c.count[0]
+            if k >= c.node.shape[0]:
+                return
+            a, u, b, w = (i, s, j, t) if side == 0 else (j, t, i, s)
+            sg = 1.0 if side == 0 else -1.0
             for q in range(3):
-                nl[q] = (1.0 - s) * x[i, q] + s * x[i + 1, q] - (1.0 - t) * x[j, q] - t * x[j + 1, q]
-                d2 += nl[q] ** 2
-            d = math.sqrt(d2)
-            if d == 0.0 or d - 2.0 * radius >= margin:
-                continue
-            for q in range(3):
-                nl[q] /= d
-            m_pair = 0.5 * ((1.0 - s) * mass[i] + s * mass[i + 1] + (1.0 - t) * mass[j] + t * mass[j + 1])
-            for side in range(2):  # the same stiffness on both sides: equal and opposite forces at rest
-                k = c.count[0]
-                if k >= c.node.shape[0]:
-                    return
-                a, u, b, w = (i, s, j, t) if side == 0 else (j, t, i, s)
-                sg = 1.0 if side == 0 else -1.0
-                for q in range(3):
-                    c.normal[k, q] = sg * nl[q]
-                    c.point[k, q] = (1.0 - w) * x[b, q] + w * x[b + 1, q] + radius * c.normal[k, q]
-                    c.body_vel[k, q] = 0.0  # the other side held where it is (extrapolating it pushes through)
-                c.internal[k] = True
-                key = key0 + 2 * (i * (n - 1) + j) + side
-                _fill(c, st, key, -1, a, a + 1, 1.0 - u, u, self_mu[0], self_mu[1], k_per_mass * m_pair, zeta,
-                      m_pair, x)
+                c.normal[k, q] = sg * nl[q]
+                c.point[k, q] = (1.0 - w) * x[b, q] + w * x[b + 1, q] + radius * c.normal[k, q]
+                c.body_vel[k, q] = 0.0  # the other side held where it is (extrapolating it pushes through)
+            c.internal[k] = True
+            key = key0 + 2 * (i * (n - 1) + j) + side
+            _fill(c, st, key, -1, a, a + 1, 1.0 - u, u, self_mu[0], self_mu[1], k_per_mass * m_pair, zeta,
+                  m_pair, x)
 
 
 @njit(cache=True, error_model="numpy")

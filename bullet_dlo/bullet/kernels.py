@@ -13,7 +13,7 @@ import numpy as np
 from numba import njit
 
 from bullet_dlo.core.kernels.contact import contact_energy, contact_step, grip_active
-from bullet_dlo.core.kernels.forces import clamp_torque
+from bullet_dlo.core.kernels.forces import clamp_torque, mechanical_energy
 from bullet_dlo.core.kernels.holders import HeldSamples, rotate, sample_end
 from bullet_dlo.core.kernels.monitor import STABLE, end_forces, monitor
 from bullet_dlo.core.kernels.steppers import IMPLICIT_EULER, advance
@@ -49,7 +49,8 @@ class Coupling(NamedTuple):
     Bullet step, (n, 3); force: sphere forces [N] that make Bullet land there, (n, 3);
     samples: held-end samples of the planned step's last substep (HeldSamples); end_force [N],
     end_torque [N m]: what the cable exerts on its held ends at the start of the planned step
-    (:func:`end_loads`), (2, 3) each.
+    (:func:`end_loads`), (2, 3) each; energy [J] (1,): its mechanical energy then (written on
+    recorded steps).
     """
 
     dt: float
@@ -64,6 +65,7 @@ class Coupling(NamedTuple):
     samples: HeldSamples
     end_force: np.ndarray
     end_torque: np.ndarray
+    energy: np.ndarray
 
 
 class StepInput(NamedTuple):
@@ -71,7 +73,8 @@ class StepInput(NamedTuple):
 
     t: time of the state the next step is planned from [s]; has_prev: the integrator's history
     (BDF2) is valid; sync: take over the step Bullet just made; check, energy_check: run the
-    cheap / energy checks of the detector; touched_index: spheres that had contacts, (k,) int;
+    cheap / energy checks of the detector; record: this step is recorded (end loads and energy
+    into the Coupling); touched_index: spheres that had contacts, (k,) int;
     touched_pos [m], touched_vel [m/s]: their state read back from Bullet, (k, 3).
     """
 
@@ -80,6 +83,7 @@ class StepInput(NamedTuple):
     sync: bool
     check: bool
     energy_check: bool
+    record: bool
     touched_index: np.ndarray
     touched_pos: np.ndarray
     touched_vel: np.ndarray
@@ -201,8 +205,9 @@ def sync_and_advance(stepper, m, plan, ext, cp, ws, det, inp, contacts):
 
     ``contacts``: the model's contacts for the coming step (detected from the taken-over state);
     the energy check counts the energy stored in them and the work of the bodies they touch.
-    With an external holder, also writes cp.end_force, cp.end_torque (:func:`end_loads` now).
-    Returns (status, Newton iterations, converged); an unstable status plans nothing.
+    With an external holder or on a recorded step (``inp.record``), also writes cp.end_force,
+    cp.end_torque (:func:`end_loads` now), and on a recorded step cp.energy (the recorder's row without
+    calls of its own: they cost about a third of a step at n = 10). Returns (status, Newton iterations, converged); an unstable status plans nothing.
     """
     status = STABLE
     if inp.sync:
@@ -213,6 +218,8 @@ def sync_and_advance(stepper, m, plan, ext, cp, ws, det, inp, contacts):
     its, ok = 0, True
     if status == STABLE:
         its, ok = coupled_targets(stepper, m, plan, ext, cp, ws, inp.t, inp.has_prev, contacts)
-    if ext.active[0] or ext.active[1]:  # the loads on external holders (the grasp coupling applies them)
-        end_loads(m, cp.x, cp.v, cp.samples, contacts.grip, cp.end_force, cp.end_torque)
+    if ext.active[0] or ext.active[1] or inp.record:  # the loads on external holders (the grasp coupling
+        end_loads(m, cp.x, cp.v, cp.samples, contacts.grip, cp.end_force, cp.end_torque)  # applies them)
+    if inp.record:
+        cp.energy[0] = mechanical_energy(m, cp.x, cp.v, cp.samples.dir[0])
     return status, its, ok

@@ -250,18 +250,21 @@ class BulletWorld:
                 f"cable {cable.name!r} overlaps the ground at spawn: its lowest sphere reaches z = {low:.4f} m, "
                 f"below the ground at {self.ground_height:.4f} m; raise the layout start")
         pb.performCollisionDetection(physicsClientId=self.client)
-        own = set(cable.body_ids)
-        for b in cable.body_ids:
-            for cp in pb.getContactPoints(bodyA=b, physicsClientId=self.client):
-                other = cp[2]
-                if other in own or other in overlap_ok or cp[8] > -SPAWN_TOLERANCE:
-                    continue
-                what = self.bodies.get(other, f"body {other}")
-                for cname, c in self.cables.items():
-                    if other in c.body_ids:
-                        what = f"cable {cname!r}"
-                raise ParameterError(f"cable {cable.name!r} overlaps {what} at spawn (sphere {cable.body_ids.index(b)} "
-                                     f"penetrates by {-cp[8] * 1000:.2f} mm); move the layout")
+        index = {b: i for i, b in enumerate(cable.body_ids)}
+        # one query for the world: a query per sphere scans every contact pair each time (n = 1000: 13 s)
+        overlaps = []  # (sphere index, other body, distance [m])
+        for cp in pb.getContactPoints(-1, -1, -2, -2, self.client):
+            for mine, other in ((cp[1], cp[2]), (cp[2], cp[1])):
+                if mine in index and other not in index and other not in overlap_ok and cp[8] <= -SPAWN_TOLERANCE:
+                    overlaps.append((index[mine], other, cp[8]))
+        if overlaps:
+            sphere, other, dist = min(overlaps, key=lambda o: o[0])  # the first sphere, as the spheres are laid out
+            what = self.bodies.get(other, f"body {other}")
+            for cname, c in self.cables.items():
+                if other in c.body_ids:
+                    what = f"cable {cname!r}"
+            raise ParameterError(f"cable {cable.name!r} overlaps {what} at spawn (sphere {sphere} "
+                                 f"penetrates by {-dist * 1000:.2f} mm); move the layout")
 
     # ----- stepping ---------------------------------------------------------------------------
     def step(self, n: int = 1) -> None:

@@ -101,13 +101,33 @@ def stability(args) -> int:
 
 
 def scaling(args) -> int:
+    """Cost vs n: the core's implicit solve, then a cable lying on a table in Bullet with contact on (the
+    model's), CPU time per simulated second, interleaved repeats; the machine's load is printed beside."""
     out = _out(args)
     n_masses = (50, 100, 200) if args.quick else (50, 100, 200, 500, 1000)
     rows, exponent = sweeps.implicit_scaling(n_masses, progress=_progress(args, "scaling", "cable"))
     for r in rows:
         print(f"  n={r['n_masses']:5d}: {1e6 * r['seconds_per_step']:.1f} us per implicit Euler step")
     print(f"cost ~ n^{exponent:.2f}")
-    (out / "scaling.json").write_text(json.dumps({"rows": rows, "exponent": exponent}, indent=2))
+    coupled_n = (50, 100, 200) if args.quick else (100, 200, 500, 1000)
+    load = os.getloadavg()
+    coupled, exps = sweeps.coupled_scaling(coupled_n, repeats=2 if args.quick else 5,
+                                           sim_time=0.05 if args.quick else 0.1,
+                                           progress=_progress(args, "scaling in Bullet", "cable"))
+    load_end = os.getloadavg()
+    print(f"\ncable lying on a table in Bullet, contact on (model), implicit Euler at 240 Hz: thread CPU time per "
+          f"simulated second, median (range) of interleaved repeats; load {load[0]:.2f} / {load[1]:.2f} / "
+          f"{load[2]:.2f} at the start, {load_end[0]:.2f} / {load_end[1]:.2f} / {load_end[2]:.2f} at the end")
+    for r in coupled:
+        print(f"  n={r['n_masses']:5d}: {r['cost']:.4g} s ({r['cost_min']:.4g}-{r['cost_max']:.4g}); Bullet's step "
+              f"{r['bullet']:.4g} s, the cable's side {r['model']:.4g} s")
+    print(f"cost ~ n^{exps['cost']:.2f} from n = {coupled_n[0]} to {coupled_n[-1]} (Bullet's step ~ n^{exps['bullet']:.2f}, "
+          f"the cable's side ~ n^{exps['model']:.2f})")
+    png = plots.plot_scaling(rows, exponent, coupled, exps, out / "scaling.png")
+    print(f"-> {png}")
+    (out / "scaling.json").write_text(json.dumps({"rows": rows, "exponent": exponent, "coupled": coupled,
+                                                  "coupled_exponents": exps, "load_start": load,
+                                                  "load_end": load_end}, indent=2))
     return 0
 
 

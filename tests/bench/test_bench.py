@@ -78,8 +78,12 @@ def test_scaling_quick_with_progress_on_stderr_and_quiet(tmp_path, capsys):
     captured = capsys.readouterr()
     assert "scaling" in captured.err and "cable" in captured.err  # the bar, on stderr
     assert "cost ~ n^" in captured.out
-    exponent = json.loads((tmp_path / "scaling.json").read_text())["exponent"]
-    assert 0.5 < exponent < 1.5  # linear-ish: the banded solve is O(n)
+    result = json.loads((tmp_path / "scaling.json").read_text())
+    assert 0.5 < result["exponent"] < 1.5  # linear-ish: the banded solve is O(n)
+    assert "cable lying on a table in Bullet, contact on" in captured.out and (tmp_path / "scaling.png").is_file()
+    for row in result["coupled"]:  # the timed cables lay still on the ground at one radius (the model's contact)
+        assert row["stable"] and row["lowest_node_over_radius"] == pytest.approx(1.0, abs=0.01)
+        assert row["cost_min"] <= row["cost"] <= row["cost_max"] and 0.0 < row["bullet"] < row["cost"]
     assert main(args + ["--quiet"]) == 0
     captured = capsys.readouterr()
     assert captured.err == "" and "cost ~ n^" in captured.out

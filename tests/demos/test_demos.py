@@ -61,6 +61,16 @@ def test_core_speed_demo_prints_the_readme_table(tmp_path):
     assert crit["rk4"] / crit["symplectic_euler"] == pytest.approx(2.8284 / 2.0, rel=0.02)  # RK4: 2.83/w, SE: 2/w
 
 
+def test_step_breakdown_demo_quick(tmp_path):
+    """demos/step_breakdown.py: every part of the coupled step timed, the parts below the whole."""
+    res = subprocess.run([sys.executable, str(ROOT / "demos" / "step_breakdown.py"), "--quick", "--out", str(tmp_path)],
+                         capture_output=True, text=True, timeout=600)
+    assert res.returncode == 0, res.stderr
+    med = json.loads((tmp_path / "step_breakdown.json").read_text())["median_us"]
+    assert "coupled / bare" in res.stdout and 0 < med["    of which unboxing its arguments"] < med[
+        "  model kernel (sync, checks, plan)"]
+
+
 def test_critical_steps_demo_quick(tmp_path):
     run_demo("critical_steps.py", tmp_path)
     rows = json.loads((tmp_path / "critical_steps.json").read_text())

@@ -1,0 +1,137 @@
+"""Fixed cost of one coupled step at small n, part by part, against a bare ``stepSimulation``.
+
+The study's cable (clamped, 5 mm move, implicit Euler, 1 kHz, ground plane; n = 10 by default) is
+stepped by :meth:`BulletWorld.step` (recording every step, as ``simulate`` does, and without a
+recorder), and each part of the step is timed on its own on the same warmed world: Bullet's step,
+the forces to Bullet (one compiled call), the contact query, the contact model's update (poses of
+the bodies, detection), the model's kernel (sync, checks, plan; and the share of it that is only
+Numba unboxing its ~110 arrays, timed as an empty kernel over the same arguments), and the recorder's
+row. The Python glue is the whole step minus its parts. Parts are timed in interleaved rounds with
+``time.thread_time``; medians and ranges, the machine's load beside them. The bare step is a twin
+world with the same spheres, filters and ground, its spheres falling freely (moving, as in the coupled
+world).
+
+Writes ``step_breakdown.json`` (every round of every part, the load) into ``--out``.
+
+Usage: ``python demos/step_breakdown.py [--n 10] [--rounds 9] [--block 400] [--out DIR] [--quick]``
+(``--quick``: one round of 20 calls; for smoke tests).
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import statistics
+import time
+from pathlib import Path
+
+import pybullet as pb
+from numba import njit
+
+from bullet_dlo.bullet.kernels import bind
+from bullet_dlo.bullet.world import BulletWorld
+from bullet_dlo.core.boundary import Move
+from bullet_dlo.core.model import CableModel
+from bullet_dlo.core.spec import CableSpec
+
+
+@njit
+def _unbox_only(stepper, m, plan, ext, cp, ws, det, inp, contacts):
+    return 0
+
+
+def study(n: int) -> CableModel:
+    spec = CableSpec.lv2017(n_masses=n, youngs_modulus=126e6, damping=0.01)
+    return CableModel.straight(spec, ends=("clamped", "clamped"), motion=[Move("last", (0, 0, 0.005), 0.1, 0.1)])
+
+
+def per_call(fn, block: int) -> float:
+    """Thread CPU time of one call [us], over ``block`` calls."""
+    t0 = time.thread_time()
+    for _ in range(block):
+        fn()
+    return 1e6 * (time.thread_time() - t0) / block
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--n", type=int, default=10, help="masses of the cable")
+    parser.add_argument("--rounds", type=int, default=9, help="interleaved rounds (median and range)")
+    parser.add_argument("--block", type=int, default=400, help="calls per round and part")
+    parser.add_argument("--out", default=os.path.join("out", "step_breakdown"), help="output folder")
+    parser.add_argument("--quick", action="store_true", help="one round of 20 calls (smoke test)")
+    args = parser.parse_args()
+    if args.quick:
+        args.rounds, args.block = 1, 20
+    model = study(args.n)
+    rec_world = BulletWorld(dt=1e-3)
+    rec_world.add_cable(model, record_every=1)
+    world = BulletWorld(dt=1e-3)
+    cable = world.add_cable(model, record_every=10**9)
+    bare = BulletWorld(dt=1e-3)
+    twin = bare.add_cable(model, record_every=10**9)
+    kernel_world = BulletWorld(dt=1e-3)  # its cable is stepped by the kernel alone (no Bullet step between)
+    kcable = kernel_world.add_cable(model, record_every=10**9)
+    for w in (rec_world, world, kernel_world):
+        w.step(50)  # compile and warm up
+    # the kernel's inputs of a step: take over, cheap checks (every step by default), plan; with the recorder's
+    # end loads and energy or without (the energy balance, every 10th step, is left out)
+    kargs = kcable._kernel_args(kcable._step_input(True, False, kcable._no_index, kcable._no_rows, kcable._no_rows))
+    kargs_rec = kcable._kernel_args(kcable._step_input(True, True, kcable._no_index, kcable._no_rows, kcable._no_rows))
+    kargs = kargs[:7] + (kargs[7]._replace(check=True),) + kargs[8:]
+    kargs_rec = kargs_rec[:7] + (kargs_rec[7]._replace(check=True),) + kargs_rec[8:]
+    unbox = bind(_unbox_only, *kargs)
+    cs = cable._contact_set
+    cp = cable._cp
+
+    def reset_twin() -> None:
+        for b, pos in zip(twin.body_ids, model.x0.tolist()):
+            pb.resetBasePositionAndOrientation(b, pos, [0, 0, 0, 1], physicsClientId=bare.client)
+            pb.resetBaseVelocity(b, [0, 0, 0], [0, 0, 0], physicsClientId=bare.client)
+
+    parts = {
+        "coupled step, recording every step": lambda: rec_world.step(),
+        "coupled step, no recorder": lambda: world.step(),
+        "bare stepSimulation (twin world)": lambda: pb.stepSimulation(bare.client),
+        "  Bullet's step in the coupled world": lambda: pb.stepSimulation(world.client),
+        "  forces to Bullet (apply_forces)": cable.apply_forces,
+        "  contact query (getContactPoints)": lambda: pb.getContactPoints(-1, -1, -2, -2, world.client),
+        "  contact model update (poses, detect)": lambda: cs.update(cp.x_new, cp.v_new, cable.arrays.mass,
+                                                                     cable.stepper.h, world.dt, True),
+        "  model kernel (sync, checks, plan)": lambda: kcable._sync_and_advance(*kargs),
+        "    of which unboxing its arguments": lambda: unbox(*kargs),
+        "  model kernel, recorded step": lambda: kcable._sync_and_advance(*kargs_rec),
+        "  recorder row (copies, appends)": lambda: cable._record_row(from_kernel=True),
+    }
+    times = {k: [] for k in parts}
+    load = os.getloadavg()
+    for _ in range(args.rounds):
+        reset_twin()
+        for name, fn in parts.items():
+            times[name].append(per_call(fn, args.block))
+    load_end = os.getloadavg()
+    med = {k: statistics.median(v) for k, v in times.items()}
+    print(f"n = {args.n}, 1 kHz, implicit Euler; thread CPU time per call [us], median (range) of {args.rounds} "
+          f"interleaved rounds of {args.block}; load {load[0]:.2f} / {load[1]:.2f} / {load[2]:.2f} at the start, "
+          f"{load_end[0]:.2f} / {load_end[1]:.2f} / {load_end[2]:.2f} at the end")
+    for name, v in times.items():
+        print(f"  {name:44s} {med[name]:7.1f} ({min(v):.1f}-{max(v):.1f})")
+    top = ("  Bullet's step in the coupled world", "  forces to Bullet (apply_forces)", "  contact query (getContactPoints)",
+           "  contact model update (poses, detect)", "  model kernel (sync, checks, plan)")
+    glue = med["coupled step, no recorder"] - sum(med[k] for k in top)
+    bare_us = med["bare stepSimulation (twin world)"]
+    print(f"  {'  Python glue (the step minus its parts)':44s} {glue:7.1f}")
+    print(f"coupled / bare: {med['coupled step, no recorder'] / bare_us:.2f}x without the recorder, "
+          f"{med['coupled step, recording every step'] / bare_us:.2f}x recording every step")
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "step_breakdown.json").write_text(json.dumps(
+        {"n": args.n, "rounds_us": times, "median_us": med, "glue_us": glue, "load_start": load,
+         "load_end": load_end}, indent=2))
+    print(f"outputs written to {out.resolve()}")
+    for w in (rec_world, world, kernel_world, bare):
+        w.close()
+
+
+if __name__ == "__main__":
+    main()
