@@ -149,7 +149,10 @@ class FitOptions:
     the start (the start among them), the best one starting it (0 or 1: none). An oscillating record
     has a residual with a minimum at every frequency that puts the ringing in phase somewhere; a local
     descent from a start a factor 2 off lands in one of those (a cantilever recording fitted at
-    0.16x its E, confidently, before the grid).
+    0.16x its E, confidently, before the grid); min_explained: below this share of the measured
+    variation explained by the fitted model (1 - |r|^2 / |y - mean|^2, per channel, weighted), the model
+    does not reproduce the signal and no number is confident (a fit that predicts nothing where the data
+    ring can have a small, white-looking residual relative to its own noise estimate).
     """
 
     integrator: str = "implicit_midpoint"
@@ -170,6 +173,7 @@ class FitOptions:
     profile_points: int = 5
     match_source: bool = False
     stiffness_grid: int = 9
+    min_explained: float = 0.5
 
     def __post_init__(self) -> None:
         check_positive("dt", self.dt)
@@ -197,6 +201,7 @@ class FitOptions:
         check_positive("max_relative_se", self.max_relative_se)
         check_int("profile_points", self.profile_points, 0, 101)
         check_int("stiffness_grid", self.stiffness_grid, 0, 101)
+        check_in_range("min_explained", self.min_explained, 0.0, 1.0)
 
 
 @dataclass
@@ -452,7 +457,7 @@ def make_layout(recs: list[Recording], options: FitOptions, n_params: int) -> La
         if not have:
             raise ParameterError(f"recording {rec.name or i} has none of the residual kinds {list(options.kinds)} "
                                  f"(it has {', '.join(rec.kinds())})")
-        idx = np.flatnonzero((rec.t - rec.t[0]) >= options.skip)
+        idx = np.flatnonzero(((rec.t - rec.t[0]) >= options.skip) & (True if rec.use is None else rec.use))
         if len(idx) < 3:
             raise ParameterError(f"skip {options.skip} s leaves too few samples of recording {rec.name or i}")
         kinds.append(have)
@@ -599,7 +604,11 @@ def summarise(sol, names: list[str], fitted: CableSpec, layout: Layout, options:
     half, source = interval_half_widths(r, jac, active, block, layout, wh.tau_samples, jac_sd, options.level)
     jk = block_jackknife(r, jac[:, active], block) if active and blocks >= 2 else None
     ratio = jk.held_out_rms / jk.in_sample_rms if jk is not None and jk.in_sample_rms > 0 else math.inf
+    explained = explained_share(r, layout)
     global_reasons = discrepancy_reasons(blocks, ratio, wh, options)
+    if explained < options.min_explained:
+        global_reasons.append(f"the fitted model explains {100 * max(explained, 0.0):.3g} % of the measured variation "
+                              f"(limit {100 * options.min_explained:g} %): it does not reproduce the signal")
     kind_reasons, kind_estimates = kind_disagreement(r, jac, active, block, layout, names, values, options.level)
     warnings: list[str] = []
     if not check.ok:
@@ -643,7 +652,21 @@ def summarise(sol, names: list[str], fitted: CableSpec, layout: Layout, options:
                    "confident": [k for k in names if ident[k]], "not_identifiable": reasons,
                    "windows": blocks, "windows_per_recording": per_rec_windows}
     res.sigma_weighted = math.sqrt(sigma2)
+    res.verdict["explained_share"] = explained
     return res
+
+
+def explained_share(r: np.ndarray, layout: Layout) -> float:
+    """Share of the measured variation the fitted model explains: 1 - |r|^2 / sum over channels of
+    |y_c - mean(y_c)|^2, both weighted (divided by each kind's noise level)."""
+    parts = [((rec.observed(kind)[keep] / layout.sigma[kind])).ravel()
+             for rec, kinds, keep in zip(layout.recs, layout.kinds, layout.keep) for kind in kinds]
+    y = np.concatenate(parts)
+    spread = 0.0
+    for c in np.unique(layout.channel_of):
+        yc = y[layout.channel_of == c]
+        spread += float(np.sum((yc - yc.mean()) ** 2))
+    return 1.0 - float(r @ r) / spread if spread > 0 else 0.0
 
 
 def assign_windows(layout: Layout, tau_s: float, sample_dt: float, most: int) -> tuple[np.ndarray, list[int], list[float]]:

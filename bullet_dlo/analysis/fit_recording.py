@@ -23,7 +23,8 @@ delay [s]) of a first-order low-pass after a pure delay that the measured linear
 (Franka's external-torque estimate), applied to the prediction too. ``linear_band``: (low, high)
 [Hz], a zero-phase band-pass applied to both the measured and the predicted linear kind (keeps a
 ringing, drops what is slow: a sensor's pose-dependent bias, an arm model's errors during a motion).
-``section_frame``: the grasp
+``use``: which samples the residual compares (bool, (k,); None: all), e.g. not while an arm moves and
+its own dynamics model's error swamps the cable's load. ``section_frame``: the grasp
 frame's y axis is the held section's first axis d1 (a strip's width), for a cable with a material
 frame; otherwise the section's start orientation is the core's default.
 
@@ -80,6 +81,7 @@ class Recording:
     linear_filter: tuple[float, float] | None = None
     linear_band: tuple[float, float] | None = None
     section_frame: bool = False
+    use: np.ndarray | None = field(default=None, compare=False)
 
     def __post_init__(self) -> None:
         t = _finite("t", self.t, np.shape(self.t)) if np.ndim(self.t) == 1 else np.zeros((0, 0))
@@ -102,6 +104,11 @@ class Recording:
             q = obs.shape[1] if obs.ndim == 2 else 0
             object.__setattr__(self, "linear_obs", _finite("linear_obs", obs, (k, q)))
             object.__setattr__(self, "linear_map", _finite("linear_map", self.linear_map, (k, q, 12)))
+        if self.use is not None:
+            use = np.asarray(self.use)
+            if use.shape != (k,) or use.dtype != bool or use.sum() < 3:
+                raise ParameterError(f"recording use must be a boolean mask of shape ({k},) selecting >= 3 samples")
+            object.__setattr__(self, "use", use)
         self._check_markers(k)
         self._check_holding()
         if not self.kinds():

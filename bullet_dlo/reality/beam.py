@@ -389,14 +389,24 @@ def free_vibration(strip: Strip, numerics: Numerics, duration: float = 5.0, damp
 
 
 def fit_recording(rec: BeamRecording, panda: Panda, strip: Strip = Strip(), mounting: Mounting = Mounting(),
-                  estimate: EstimateFilter = EstimateFilter(), numerics: Numerics = Numerics(), step: int = 1) -> Recording:
+                  estimate: EstimateFilter = EstimateFilter(), numerics: Numerics = Numerics(), step: int = 1,
+                  settle: float = 0.5) -> Recording:
     """``rec`` as a :class:`~bullet_dlo.analysis.fit_recording.Recording` for ``bullet-dlo fit``: the strip
     clamped at the mounting's clamp point and following the flange (forward kinematics of the low-passed
     measured q), its tip free; the residual is Franka's filtered external-torque estimate, as changes since
     the first sample (its absolute level carries the arm model's bias), predicted as -J(q)^T of the clamp
     load moved to the flange origin and passed through ``estimate``. The grasp frame: x along the strip
     (clamp to tip), y along its width (the section's d1), so a rectangle-section cable with a material
-    frame is held the right way up. ``step``: keep every step-th sample (1 kHz / step)."""
+    frame is held the right way up. ``step``: keep every step-th sample (1 kHz / step). The residual uses
+    the samples from ``settle`` [s] after the motion ends (every commanded joint rate below 1e-4 rad/s):
+    while the arm moves, the estimate's error from the arm's own dynamics model (0.5-4 N m RMS on some
+    joints) is larger than the strip's load."""
+    from bullet_dlo.reality.vibration import motion_span
+
+    try:
+        _, end = motion_span(rec.dq_d)
+    except ValueError as err:
+        raise ParameterError(f"beam recording {rec.name}: {err}") from None
     rows = np.arange(0, len(rec.t), max(1, int(step)))
     sos = butter(4, numerics.q_cutoff_hz, fs=rec.rate, output="sos")
     q = sosfiltfilt(sos, rec.q, axis=0)[rows]
@@ -416,7 +426,8 @@ def fit_recording(rec: BeamRecording, panda: Panda, strip: Strip = Strip(), moun
     linear = -np.einsum("kij,kil->kjl", panda.jacobians(q), shift)  # tau = -J^T w_flange, (k, 7, 12)
     return Recording(rec.t[rows], pos, quat, None, name=rec.name, linear_map=linear,
                      linear_obs=rec.tau_ext_hat_filtered[rows], held=("clamped", "free"), length=strip.length,
-                     relative=("linear",), linear_filter=(estimate.cutoff_hz, estimate.delay_s), section_frame=True)
+                     relative=("linear",), linear_filter=(estimate.cutoff_hz, estimate.delay_s), section_frame=True,
+                     use=rec.t[rows] >= rec.t[min(end, len(rec.t) - 1)] + settle)
 
 
 def strip_spec(strip: Strip, n_masses: int, **damping: float) -> CableSpec:
