@@ -87,8 +87,8 @@ def add_parsers(sub, common: argparse.ArgumentParser) -> None:
                         "joint torques", description=(
                             "Fit the strip's damping on the beam_handling CSVs of FIT_DIR, predict each CSV of "
                             "PREDICT_DIR from its measured joint trajectory (nominal material: 0.52 x 0.08 x 0.001 m "
-                            "steel; one rectangle-section twisting cable, or two superposed planar runs). Per file: the most "
-                            "affected joint's residual vibration, measured and predicted (frequency and damping "
+                            "steel; one rectangle-section twisting cable, or two superposed planar runs). Per file: "
+                            "the most affected joint's residual vibration, measured and predicted (frequency and damping "
                             "ratio of a damped sine over [end + 1 s, end + 6 s], peak-to-peak of the 1.5-8 Hz band "
                             "over [end + 1 s, end + 2 s], RMS torque error). Writes the JSON, one PNG per predicted "
                             "file beside it (OUT_STEM.<csv stem>.png), and prints a table."))

@@ -35,6 +35,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import NamedTuple
 from pathlib import Path
 
 import numpy as np
@@ -319,6 +320,7 @@ class Prediction:
     cpu_s: float
     simulated_s: float
     warnings: list[str] = field(default_factory=list)
+    tip: np.ndarray | None = None  # the strip's free tip [m], (k, 3), world (planes: the weak-plane run's)
 
 
 def flange_motion(rec: BeamRecording, panda: Panda, numerics: Numerics, duration: float
@@ -336,7 +338,7 @@ def flange_motion(rec: BeamRecording, panda: Panda, numerics: Numerics, duration
 
 def run_plane(strip: Strip, run: PlaneRun, numerics: Numerics, damping: dict[str, float], clamp0: np.ndarray,
               axis: np.ndarray, times: np.ndarray, disp: np.ndarray, rotvec: np.ndarray,
-              gravity: np.ndarray, duration: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[str]]:
+              gravity: np.ndarray, duration: float) -> ClampLoads:
     """One planar run from the static equilibrium at the start pose: recorded times [s], clamp force
     [N] and moment about the clamp [N m] on the holder (world, (k, 3) each) and the run's warnings.
     ``disp`` [m] and ``rotvec`` [rad], (m, 3), are the clamp's motion relative to its start at ``times``."""
@@ -349,17 +351,26 @@ def run_plane(strip: Strip, run: PlaneRun, numerics: Numerics, damping: dict[str
     return clamp_loads(model, state, numerics, duration, f"the {run.plane}-plane run")
 
 
-def clamp_loads(model: CableModel, state, numerics: Numerics, duration: float, what: str
-                ) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[str]]:
-    """Run ``model`` from ``state`` for ``duration`` [s], recording every tick: times [s], the clamp
-    force [N] and moment [N m] the strip exerts on its first (clamped) end (world, (k, 3) each), warnings."""
+class ClampLoads(NamedTuple):
+    """One strip run recorded every tick: times t [s], (k,); the force [N] and moment [N m] the strip
+    exerts on its clamp (world, (k, 3) each); the run's warnings; the free tip's position [m], (k, 3)."""
+
+    t: np.ndarray
+    force: np.ndarray
+    moment: np.ndarray
+    warnings: list[str]
+    tip: np.ndarray
+
+
+def clamp_loads(model: CableModel, state, numerics: Numerics, duration: float, what: str) -> ClampLoads:
+    """Run ``model`` from ``state`` for ``duration`` [s], recording every tick (:class:`ClampLoads`)."""
     every = max(1, int(round(TICK / numerics.dt)))
     res = simulate(model, numerics.integrator, numerics.dt, duration, state=state, record_every=every,
                    max_records=10**7)
     if not res.stable:
         raise ParameterError(f"{what} went unstable ({res.reason} at t = {res.time_to_instability:.4g} s); "
                              "use a smaller --dt")
-    return res.t, res.end_forces[:, 0], res.end_moment_history[:, 0], list(res.warnings)
+    return ClampLoads(res.t, res.end_forces[:, 0], res.end_moment_history[:, 0], list(res.warnings), res.x[:, -1])
 
 
 def clamp_roll(axis: np.ndarray, width: np.ndarray) -> float:
@@ -372,8 +383,7 @@ def clamp_roll(axis: np.ndarray, width: np.ndarray) -> float:
 
 def run_rectangle(strip: Strip, numerics: Numerics, damping: dict[str, float], clamp0: np.ndarray,
                   axes: tuple[np.ndarray, np.ndarray, np.ndarray], times: np.ndarray, disp: np.ndarray,
-                  rotvec: np.ndarray, gravity: np.ndarray, duration: float
-                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[str]]:
+                  rotvec: np.ndarray, gravity: np.ndarray, duration: float) -> ClampLoads:
     """The strip as one rectangle-section cable clamped with the flange's orientation (``axes``: strip
     axis, width, normal at the start), from its static equilibrium there, driven by the clamp's
     displacement [m] and rotation vector [rad], (m, 3), at ``times`` [s]: as :func:`run_plane`."""
@@ -394,9 +404,9 @@ def predict_torques(rec: BeamRecording, panda: Panda, strip: Strip = Strip(), da
     """Predict Franka's external joint torques for ``rec`` from its measured joint trajectory.
 
     The strip's clamp follows the flange path (forward kinematics of the low-passed measured q);
-    the strip model (``numerics.strip_model``, module doc) gives the clamp load; the wrench about the flange origin maps to
-    joint torques tau = -J(q)^T w; deviations from t = 0 (the strip at rest before the motion), then
-    ``estimate`` applied. ``duration`` [s]: simulated time (default: the whole recording).
+    the strip model (``numerics.strip_model``, module doc) gives the clamp load; the wrench about the
+    flange origin maps to joint torques tau = -J(q)^T w; deviations from t = 0 (the strip at rest
+    before the motion), then ``estimate`` applied. ``duration`` [s]: simulated time (default: the whole recording).
     """
     import time as _time
 
@@ -410,19 +420,20 @@ def predict_torques(rec: BeamRecording, panda: Panda, strip: Strip = Strip(), da
     g = np.asarray(gravity, dtype=float)
     check_strip_model(numerics.strip_model)
     if numerics.strip_model == "rectangle":
-        t, force, moment, warnings = run_rectangle(strip, numerics, damping or {}, clamp[0], (axis, width, normal),
-                                                   times, disp, rotvec, g, duration)
+        t, force, moment, warnings, tip = run_rectangle(strip, numerics, damping or {}, clamp[0],
+                                                        (axis, width, normal), times, disp, rotvec, g, duration)
     else:
         force = moment = None
         warnings = []
         for run in plane_runs(axis, width, normal):
-            t, f, mo, w = run_plane(strip, run, numerics, damping or {}, clamp[0], axis, times, disp, rotvec, g,
-                                    duration)
+            t, f, mo, w, run_tip = run_plane(strip, run, numerics, damping or {}, clamp[0], axis, times, disp,
+                                             rotvec, g, duration)
+            tip = run_tip if run.plane == "weak" else tip
             force = f @ run.force.T + (0 if force is None else force)
             moment = mo @ run.moment.T + (0 if moment is None else moment)
             warnings += [f"{run.plane} plane: {x}" for x in w]
     k = min(len(t), int(np.searchsorted(rec.t, t[-1] + 1e-9)))
-    t, force, moment = t[:k], force[:k], moment[:k]
+    t, force, moment, tip = t[:k], force[:k], moment[:k], tip[:k]
     rows = np.clip(np.searchsorted(rec.t, t - 1e-9), 0, len(rec.t) - 1)
     fpos, frot = panda.flange_path(rec.q[rows])
     arm = mounting.clamp_point(fpos, frot) - fpos
@@ -431,7 +442,8 @@ def predict_torques(rec: BeamRecording, panda: Panda, strip: Strip = Strip(), da
     tau = tau - tau[0]
     filtered = estimate.apply(tau, 1.0 / TICK)
     return Prediction(t=t, force=force, moment=moment, wrench=wrench, torques=tau, torques_filtered=filtered,
-                      cpu_s=_time.thread_time() - tic, simulated_s=float(t[-1] - t[0]), warnings=warnings)
+                      cpu_s=_time.thread_time() - tic, simulated_s=float(t[-1] - t[0]), warnings=warnings,
+                      tip=tip)
 
 
 def strip_spec(strip: Strip, numerics: Numerics, damping: dict[str, float] | None = None) -> CableSpec:
@@ -470,4 +482,5 @@ def with_damping(damping: dict[str, float], name: str, value: float) -> dict[str
 
 
 __all__ = ["BeamRecording", "read_beam_csv", "beam_files", "EstimateFilter", "identify_filter", "Strip",
-           "Mounting", "PlaneRun", "plane_runs", "STRIP_MODELS", "run_rectangle", "Numerics", "Prediction", "predict_torques", "free_vibration"]
+           "Mounting", "PlaneRun", "plane_runs", "STRIP_MODELS", "run_rectangle", "Numerics", "Prediction",
+           "predict_torques", "free_vibration"]

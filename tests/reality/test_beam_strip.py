@@ -65,7 +65,7 @@ def test_a_sideways_flange_move_excites_far_less_vibration_than_the_same_move_in
     loads = {}
     for name, direction in (("weak", NORMAL), ("strong", WIDTH)):
         times, disp, rot = min_jerk_path(direction, 0.05)
-        t, force, _, _ = run_rectangle(s, num, damping, np.zeros(3), (AXIS, WIDTH, NORMAL), times, disp, rot,
+        t, force, *_ = run_rectangle(s, num, damping, np.zeros(3), (AXIS, WIDTH, NORMAL), times, disp, rot,
                                        GRAVITY, 2.0)
         loads[name] = float(np.linalg.norm(residual_p2p(t, force)))
     assert loads["weak"] > 0.5  # N: the strip rings
@@ -77,11 +77,11 @@ def test_planar_pair_and_rectangle_agree_on_an_in_plane_motion():
     its clamp force and moment follow the planar pair's (each within 1 % of its peak-to-peak)."""
     s, damping = Strip(), {"damping_rate": 0.24}
     times, disp, rot = min_jerk_path(NORMAL, 0.1)
-    t, f_rect, m_rect, _ = run_rectangle(s, Numerics(strip_model="rectangle", n_masses=12, dt=1e-3), damping,
+    t, f_rect, m_rect, *_ = run_rectangle(s, Numerics(strip_model="rectangle", n_masses=12, dt=1e-3), damping,
                                          np.zeros(3), (AXIS, WIDTH, NORMAL), times, disp, rot, GRAVITY, 1.5)
     f_pair = m_pair = 0.0
     for run in plane_runs(AXIS, WIDTH, NORMAL):
-        t2, f, m, _ = run_plane(s, run, Numerics(strip_model="planes", n_masses=12, dt=1e-3), damping, np.zeros(3),
+        t2, f, m, *_ = run_plane(s, run, Numerics(strip_model="planes", n_masses=12, dt=1e-3), damping, np.zeros(3),
                                 AXIS, times, disp, rot, GRAVITY, 1.5)
         f_pair = f_pair + f @ run.force.T
         m_pair = m_pair + m @ run.moment.T
