@@ -69,7 +69,7 @@ def test_estimate_filter_gain_and_phase():
 
 def test_bdf2_numerical_damping_far_below_physical():
     """The strip's damping ratio is 0.006-0.022; BDF2's must be negligible, implicit Euler's is not."""
-    numerics = Numerics(n_masses=10, dt=1e-3)  # the rectangle strip (default model) at the planes' step
+    numerics = Numerics(n_masses=10, dt=1e-3)
     f, zeta = free_vibration(Strip(), numerics, duration=3.0)
     assert abs(zeta) < 6e-4
     assert 2.9 < f < 3.05  # first cantilever mode: 3.516 sqrt(EI / (rho A L^4)) / (2 pi) = 2.97 Hz (+ sag)
@@ -136,8 +136,7 @@ def test_external_torques_balance_a_static_load():
 @pytest.mark.bullet
 def test_validate_beam_on_the_recordings(tmp_path):
     """Fit on ocp_Z_15cm, predict ocp_Z_35cm (held out): frequency within 2 %, damping ratio within 30 %
-    of the measured; the rectangle strip at n 10 and dt 0.2 ms, 7.5 s simulated, the filter given (not
-    identified) to stay within CI time."""
+    of the measured; n 10, 7.5 s simulated, the filter given (not identified) to stay within CI time."""
     if not DATA.is_dir():
         pytest.skip(f"beam_handling recordings not found at {DATA} (see ../shared/data/README.md)")
     from bullet_dlo.cli.main import main
@@ -149,8 +148,7 @@ def test_validate_beam_on_the_recordings(tmp_path):
         (folders[role] / f"{stem}.csv").symlink_to(DATA / f"{stem}.csv")  # read in place, never copied
     out = tmp_path / "out" / "beam.json"
     code = main(["validate", "beam", str(folders["fit"]), str(folders["predict"]), "--json", str(out), "-q",
-                 "--n-masses", "10", "--dt", "2e-4", "--duration", "7.5", "--filter-cutoff", "4.7",
-                 "--filter-delay", "0.0106",
+                 "--n-masses", "10", "--duration", "7.5", "--filter-cutoff", "4.7", "--filter-delay", "0.0106",
                  "--no-numerics-check"])
     assert code == 0  # (no wall-clock bound here: a cold Numba cache or a second test process can triple it)
     summary = json.loads(out.read_text())
