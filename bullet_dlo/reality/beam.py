@@ -31,7 +31,7 @@ It neglects twist (the strip's polar inertia is 1.8e-4 kg m^2), the coupling of 
 rotation of the projection axes during the motion (the recorded flange turns by < 0.5 degrees).
 On a motion within the weak plane the two models agree (``tests/reality/test_beam_strip.py``); on the
 nine recordings their predictions differ by at most 3 % (the rectangle's first-order dt error at
-0.1 ms is about that much), at 19x the cost (2.9 against 0.15 CPU s per simulated second): the
+0.1 ms is about that much), at 17-19x the cost (2.6-2.9 against 0.15 CPU s per simulated second): the
 coupling and twist the rectangle adds change nothing measurable here, so the pair stays the default.
 """
 from __future__ import annotations
