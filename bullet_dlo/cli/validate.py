@@ -87,9 +87,9 @@ def add_parsers(sub, common: argparse.ArgumentParser) -> None:
                         "joint torques", description=(
                             "Fit the strip's damping on the beam_handling CSVs of FIT_DIR, predict each CSV of "
                             "PREDICT_DIR from its measured joint trajectory (nominal material: 0.52 x 0.08 x 0.001 m "
-                            "steel; one rectangle-section twisting cable, or two superposed planar runs). Per file: "
-                            "the most affected joint's residual vibration, measured and predicted (frequency and damping "
-                            "ratio of a damped sine over [end + 1 s, end + 6 s], peak-to-peak of the 1.5-8 Hz band "
+                            "steel; two superposed planar runs, or one rectangle-section twisting cable). Per "
+                            "file: the most affected joint's residual vibration, measured and predicted (frequency and "
+                            "damping ratio of a damped sine over [end + 1 s, end + 6 s], peak-to-peak of the 1.5-8 Hz band "
                             "over [end + 1 s, end + 2 s], RMS torque error). Writes the JSON, one PNG per predicted "
                             "file beside it (OUT_STEM.<csv stem>.png), and prints a table."))
     b.add_argument("fit_dir", metavar="FIT_DIR", help="folder of beam_handling *.csv recordings to fit the damping on")
@@ -101,7 +101,7 @@ def add_parsers(sub, common: argparse.ArgumentParser) -> None:
     b.add_argument("--strip-model", default="planes", choices=["planes", "rectangle"],
                    help="planes: two superposed planar runs of an isotropic cable, one per bending plane (default); "
                         "rectangle: one 3-D run of a rectangle-section cable with twist, clamped with the flange's "
-                        "orientation (within 3 %% of planes on the recordings, 19x the cost)")
+                        "orientation (within 3 %% of planes on the recordings, 17-19x the cost)")
     b.add_argument("--integrator", default="bdf2", choices=["bdf2", "implicit_euler", "implicit_midpoint"],
                    help="core integrator (bdf2: its numerical damping is measured and reported; implicit_euler "
                         "adds ~0.009, as much as the physical damping; implicit_midpoint rings)")

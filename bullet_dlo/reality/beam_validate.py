@@ -64,12 +64,15 @@ BENDING = {
 STRIP_LIMITS = {
     "rectangle": "the core advances the twist in a staggered sub-step, first order in dt: when the flange rolls while "
                  "the strip bends it makes a spurious strong-plane load (on ocp_Z_15cm the band-passed torque p2p "
-                 "+24 % at dt 1 ms, +2 % at 0.1 ms against its dt -> 0 limit), hence dt 1e-4 s",
+                 "+24 % at dt 1 ms, +2 % at 0.1 ms against the planes), hence dt 1e-4 s",
     "planes": "the strip's two bending planes are two superposed isotropic-cable runs: plane coupling, twist and the "
-              "turning of the projection axes are left out",
+              "turning of the projection axes are left out (--strip-model rectangle has them: within 3 % on these "
+              "recordings)",
 }
 LIMITS = [
-    "linear damping (one parameter) against a measured damping ratio that grows with amplitude",
+    "linear damping (one parameter) against a measured damping ratio that grows with amplitude (zeta = 0.0056 + "
+    "0.28 A_tip [m] over the 9 recordings: the form of quadratic air drag on the strip's face, with C_d 12; not in "
+    "the model: demos/beam_damping.py)",
     "Franka's estimate filter modelled as a first-order low-pass + delay identified from tau_J; the arm's own "
     "inertia is removed with PyBullet's URDF inertias, not Franka's model",
     "nominal E and density (midpoints of 190-205 GPa, 7870-8070 kg/m^3): about +-2 % in frequency",
