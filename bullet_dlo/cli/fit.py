@@ -86,9 +86,9 @@ def cmd_fit(args: argparse.Namespace) -> int:
     first = recs[0]
     weight = -float(np.mean(first.force[:, :, 2].sum(axis=1))) if first.force is not None else 0.0  # [N]
     if all(strips):  # beam_handling: the nominal strip as one rectangle-section cable, E and mass as given
-        from bullet_dlo.reality.beam import Strip, strip_spec
+        from bullet_dlo.reality.beam import Strip
 
-        spec = strip_spec(Strip(), args.n_masses)
+        spec = Strip().rectangle_spec(args.n_masses)
         spec = spec.with_(youngs_modulus=args.youngs_modulus or spec.youngs_modulus, mass=args.mass or spec.mass)
     else:
         spec = CableSpec(length=length, diameter=args.diameter, mass=args.mass or max(weight / 9.81, 1e-4),

@@ -36,7 +36,8 @@ def cmd_beam(args: argparse.Namespace) -> int:
                              "the filter on FIT_DIR)")
     estimate = None if args.filter_cutoff is None else EstimateFilter(args.filter_cutoff, args.filter_delay,
                                                                        "given on the command line")
-    numerics = Numerics(integrator=args.integrator, n_masses=args.n_masses, dt=args.dt, knot_step=args.knot_step)
+    numerics = Numerics(strip_model=args.strip_model, integrator=args.integrator, n_masses=args.n_masses, dt=args.dt,
+                        knot_step=args.knot_step)
     strip = Strip(youngs_modulus=args.youngs_modulus, density=args.density)
     log = (lambda *a: None) if args.quiet else print
     summary, details = validate_beam(args.fit_dir, args.predict_dir, damping=args.damping, numerics=numerics,
@@ -54,7 +55,7 @@ def cmd_beam(args: argparse.Namespace) -> int:
     print(f"{args.damping} {fit['value']:.4g} (spread over {len(fit['per_file'])} fit recordings "
           f"{fit['interval'][0]:.4g}-{fit['interval'][1]:.4g}); estimate filter "
           f"{summary['estimate_filter']['cutoff_hz']:.3g} Hz + {1e3 * summary['estimate_filter']['delay_s']:.3g} ms; "
-          f"{args.integrator}, n {args.n_masses}, dt {args.dt:g} s; "
+          f"{args.strip_model} strip, {args.integrator}, n {args.n_masses}, dt {numerics.dt:g} s; "
           f"{summary['cost_per_simulated_second']:.3g} CPU s per simulated s")
     if "numerics" in summary:
         num = summary["numerics"]
@@ -86,9 +87,9 @@ def add_parsers(sub, common: argparse.ArgumentParser) -> None:
                         "joint torques", description=(
                             "Fit the strip's damping on the beam_handling CSVs of FIT_DIR, predict each CSV of "
                             "PREDICT_DIR from its measured joint trajectory (nominal material: 0.52 x 0.08 x 0.001 m "
-                            "steel; the two bending planes as two superposed planar runs). Per file: the most "
-                            "affected joint's residual vibration, measured and predicted (frequency and damping "
-                            "ratio of a damped sine over [end + 1 s, end + 6 s], peak-to-peak of the 1.5-8 Hz band "
+                            "steel; two superposed planar runs, or one rectangle-section twisting cable). Per "
+                            "file: the most affected joint's residual vibration, measured and predicted (frequency and "
+                            "damping ratio of a damped sine over [end + 1 s, end + 6 s], peak-to-peak of the 1.5-8 Hz band "
                             "over [end + 1 s, end + 2 s], RMS torque error). Writes the JSON, one PNG per predicted "
                             "file beside it (OUT_STEM.<csv stem>.png), and prints a table."))
     b.add_argument("fit_dir", metavar="FIT_DIR", help="folder of beam_handling *.csv recordings to fit the damping on")
@@ -97,11 +98,16 @@ def add_parsers(sub, common: argparse.ArgumentParser) -> None:
     b.add_argument("--damping", default="damping_rate", choices=["damping_rate", "internal_damping"],
                    help="the damping parameter fitted: damping_rate [1/s] (mass-proportional drag, default) or "
                         "internal_damping [s] (Kelvin-Voigt)")
+    b.add_argument("--strip-model", default="planes", choices=["planes", "rectangle"],
+                   help="planes: two superposed planar runs of an isotropic cable, one per bending plane (default); "
+                        "rectangle: one 3-D run of a rectangle-section cable with twist, clamped with the flange's "
+                        "orientation (within 3 %% of planes on the recordings, 17-19x the cost)")
     b.add_argument("--integrator", default="bdf2", choices=["bdf2", "implicit_euler", "implicit_midpoint"],
                    help="core integrator (bdf2: its numerical damping is measured and reported; implicit_euler "
                         "adds ~0.009, as much as the physical damping; implicit_midpoint rings)")
     b.add_argument("--n-masses", type=int, default=20, help="point masses of the strip model, >= 4 (20)")
-    b.add_argument("--dt", type=float, default=1e-3, help="time step [s] (1e-3)")
+    b.add_argument("--dt", type=float, help="time step [s] (default 1e-4 for the rectangle strip, whose staggered "
+                   "twist step is first order in dt; 1e-3 for the planes)")
     b.add_argument("--knot-step", type=float, default=0.004,
                    help="spacing of the flange-path waypoints taken from the recording [s] (0.004)")
     b.add_argument("--youngs-modulus", type=float, default=197.5e9, help="strip's E [Pa] (197.5e9, nominal)")

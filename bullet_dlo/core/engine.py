@@ -31,7 +31,6 @@ import numpy as np
 
 from bullet_dlo.core.integrators import NewtonOptions, get_integrator, make_stepper
 from bullet_dlo.core.kernels.forces import clamp_torque, internal_energy, max_strain, mechanical_energy
-from bullet_dlo.core.kernels.end_loads import clamp_moment_history
 from bullet_dlo.core.kernels.holders import HeldSamples, empty_samples, peak_speeds, sample_holders
 from bullet_dlo.core.kernels.loop import make_records, run_loop
 from bullet_dlo.core.kernels.monitor import REASONS, STABLE, STRETCH, Detector, clamp_moments, end_forces
@@ -281,8 +280,6 @@ def _simulate(model: CableModel, integrator: str, dt: float, duration: float, *,
     if status == STABLE:
         sample_holders(plan, t_final, 0.0, samples)  # clamp directions at the end
         moments = np.stack([clamp_torque(m, x, v, samples.dir[0], e) for e in (0, 1)])
-    history = np.zeros((rows, 2, 3))
-    clamp_moment_history(m, plan, rec.t[:rows], rec.x[:rows], rec.v[:rows], history)
     return SimulationResult(
         integrator=method.name, dt=stepper.h, stable=status == STABLE,
         time_to_instability=None if status == STABLE else float(t_bad), reason=REASONS[status],
@@ -290,6 +287,6 @@ def _simulate(model: CableModel, integrator: str, dt: float, duration: float, *,
         t=rec.t[:rows].copy(), x=rec.x[:rows].copy(), v=rec.v[:rows].copy(),
         end_forces=rec.end_force[:rows].copy(), energy=rec.energy[:rows].copy(),
         final_state=CableState(x, v, t_final), end_moments=moments,
-        newton_failures=int(failures), newton_iterations=int(iters), end_moment_history=history,
-        compile_time_s=compile_s,
+        newton_failures=int(failures), newton_iterations=int(iters),
+        end_moment_history=rec.end_moment[:rows].copy(), compile_time_s=compile_s,
     )

@@ -9,11 +9,17 @@ The strip (:class:`Strip`): 0.52 x 0.08 x 0.001 m steel, E 190-205 GPa, density 
 (``setup_descr_beam.xacro``); in that beam frame the strip runs along -x from the flange
 (its tip points along -x), its width along y, its thickness along z (the flange axis).
 
-**Two bending planes, two runs.** The core cable bends isotropically; the strip's strong axis
-is (w/t)^2 = 6400x stiffer than its weak one. A single isotropic run lets the strip swing
-sideways where the real one cannot. Until the core has an anisotropic cross-section, the strip
-is two superposed planar runs (:class:`PlaneRun`), each a cable with that plane's EI (and the
-strip's EA and mass per length) clamped at the flange:
+**One 3-D run (``strip_model="rectangle"``).** The strip is one core cable with a
+rectangle section (width along the section axis d1, thickness along d2) and a material frame
+(twist springs G J / l0, G = E / (2 (1 + nu)), nu = 0.3): two bending stiffnesses E I_weak and
+E I_strong = (w/t)^2 E I_weak = 6400 E I_weak, twist, and their coupling. It is clamped at the flange
+with the flange's full orientation: tangent the strip axis, section axis d1 the width (both from
+:class:`Mounting`), and follows the flange's translation and rotation, under the full gravity;
+its clamp force and moment (twist moment included) are the load on the flange.
+
+**Two planar runs (``strip_model="planes"``, the default).** The model from before the core had sections: two
+superposed planar runs (:class:`PlaneRun`) of an isotropic cable, each with that plane's EI (and
+the strip's EA and mass per length) clamped at the flange:
 
 * weak plane, span(axis, normal): flange translation projected onto it, flange rotation about
   the width axis, gravity projected onto it; it gives the clamp force along axis and normal and
@@ -21,15 +27,18 @@ strip's EA and mass per length) clamped at the flange:
 * strong plane, span(axis, width): translation along the width, rotation about the normal,
   gravity along the width; it gives the force along the width and the moment about the normal.
 
-Neglected: twist (rotation about the strip's axis; the strip's polar inertia is 1.8e-4 kg m^2),
-the coupling of the planes, and the rotation of the projection axes during the motion (the
-recorded flange turns by < 0.5 degrees). :func:`predict_torques` takes the plane runs as a list,
-so an anisotropic cable can replace the pair with one run.
+It neglects twist (the strip's polar inertia is 1.8e-4 kg m^2), the coupling of the planes and the
+rotation of the projection axes during the motion (the recorded flange turns by < 0.5 degrees).
+On a motion within the weak plane the two models agree (``tests/reality/test_beam_strip.py``); on the
+nine recordings their predictions differ by at most 3 % (the rectangle's first-order dt error at
+0.1 ms is about that much), at 17-19x the cost (2.6-2.9 against 0.15 CPU s per simulated second): the
+coupling and twist the rectangle adds change nothing measurable here, so the pair stays the default.
 """
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import NamedTuple
 from pathlib import Path
 
 import numpy as np
@@ -37,10 +46,8 @@ from scipy.signal import butter, sosfiltfilt
 from scipy.spatial.transform import Rotation
 
 from bullet_dlo.analysis.fit_recording import Recording, low_pass_delayed
-from bullet_dlo.core.boundary import Waypoints
+from bullet_dlo.core.boundary import Waypoints, default_normal
 from bullet_dlo.core.engine import simulate
-from bullet_dlo.core.kernels.forces import clamp_torque
-from bullet_dlo.core.kernels.holders import empty_samples, sample_holders
 from bullet_dlo.core.model import STANDARD_GRAVITY, CableModel
 from bullet_dlo.core.spec import CableSpec
 from bullet_dlo.core.statics import solve_static
@@ -51,6 +58,17 @@ TICK = 1e-3  # [s] libfranka's control period: one row per tick
 GROUPS = ("q", "q_d", "dq", "dq_d", "tau_J", "tau_ext_hat_filtered")
 COLUMNS = ("duration", "success rate", *(f"{g}[{j}]" for g in GROUPS for j in range(N_JOINTS)))
 MOUNT_YAW = math.pi / 4  # [rad] beam frame = flange frame turned about its z (the xacro writes pi as 3.1415)
+STRIP_MODELS = ("rectangle", "planes")  # one 3-D run of a rectangle-section cable | two planar isotropic runs
+# [s] default steps: the rectangle's twist is advanced in a staggered sub-step (first order in dt), which
+# makes a spurious strong-plane load when the flange rolls while the strip bends (module doc)
+DEFAULT_DT = {"rectangle": 1e-4, "planes": 1e-3}
+
+
+def check_strip_model(name: str) -> str:
+    """``name`` if it is one of :data:`STRIP_MODELS`, else ParameterError."""
+    if name not in STRIP_MODELS:
+        raise ParameterError(f"strip model must be one of {', '.join(STRIP_MODELS)}, got {name!r}")
+    return name
 
 
 # ----- the recording ---------------------------------------------------------------------------
@@ -197,6 +215,7 @@ class Strip:
     thickness: float = 0.001
     youngs_modulus: float = 197.5e9
     density: float = 7970.0
+    poisson_ratio: float = 0.3
 
     @property
     def mass(self) -> float:
@@ -216,6 +235,13 @@ class Strip:
         e_equiv = self.youngs_modulus * area / (math.pi * d**2 / 4)
         return CableSpec(length=self.length, diameter=d, mass=self.mass, youngs_modulus=e_equiv,
                          n_masses=n_masses, **damping)
+
+    def rectangle_spec(self, n_masses: int, **damping: float) -> CableSpec:
+        """The core cable with the strip's rectangle section: width along d1, thickness along d2
+        (E I1 = E w t^3 / 12 the weak stiffness), twist springs with G = E / (2 (1 + poisson_ratio))."""
+        return CableSpec(length=self.length, diameter=self.thickness, mass=self.mass,
+                         youngs_modulus=self.youngs_modulus, poisson_ratio=self.poisson_ratio, n_masses=n_masses,
+                         section="rectangle", width=self.width, thickness=self.thickness, **damping)
 
 
 @dataclass(frozen=True)
@@ -260,13 +286,20 @@ def plane_runs(axis: np.ndarray, width: np.ndarray, normal: np.ndarray) -> list[
 
 @dataclass(frozen=True)
 class Numerics:
-    """Integrator, point masses n, step dt [s], the flange-path knot spacing [s] and the low-pass
-    [Hz] applied to q before the kinematics (encoder noise would otherwise become huge
-    accelerations at the clamp). BDF2: see :func:`numerical_damping` for why."""
+    """Strip model (``rectangle`` | ``planes``, module doc), integrator, point masses n, step dt [s],
+    the flange-path knot spacing [s] and the low-pass [Hz] applied to q before the kinematics
+    (encoder noise would otherwise become huge accelerations at the clamp). BDF2: its numerical
+    damping is 100x below the strip's (:func:`free_vibration`)."""
 
+    strip_model: str = "planes"
     integrator: str = "bdf2"
     n_masses: int = 20
-    dt: float = 1e-3
+    dt: float | None = None  # None: DEFAULT_DT of the strip model
+
+    def __post_init__(self) -> None:
+        check_strip_model(self.strip_model)
+        if self.dt is None:
+            object.__setattr__(self, "dt", DEFAULT_DT[self.strip_model])
     knot_step: float = 0.004
     q_cutoff_hz: float = 40.0
 
@@ -287,6 +320,7 @@ class Prediction:
     cpu_s: float
     simulated_s: float
     warnings: list[str] = field(default_factory=list)
+    tip: np.ndarray | None = None  # the strip's free tip [m], (k, 3), world (planes: the weak-plane run's)
 
 
 def flange_motion(rec: BeamRecording, panda: Panda, numerics: Numerics, duration: float
@@ -304,7 +338,7 @@ def flange_motion(rec: BeamRecording, panda: Panda, numerics: Numerics, duration
 
 def run_plane(strip: Strip, run: PlaneRun, numerics: Numerics, damping: dict[str, float], clamp0: np.ndarray,
               axis: np.ndarray, times: np.ndarray, disp: np.ndarray, rotvec: np.ndarray,
-              gravity: np.ndarray, duration: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[str]]:
+              gravity: np.ndarray, duration: float) -> ClampLoads:
     """One planar run from the static equilibrium at the start pose: recorded times [s], clamp force
     [N] and moment about the clamp [N m] on the holder (world, (k, 3) each) and the run's warnings.
     ``disp`` [m] and ``rotvec`` [rad], (m, 3), are the clamp's motion relative to its start at ``times``."""
@@ -314,17 +348,53 @@ def run_plane(strip: Strip, run: PlaneRun, numerics: Numerics, damping: dict[str
     model = CableModel.straight(spec, start=clamp0, direction=axis, ends=("clamped", "free"), motion=[path],
                                 gravity=run.translate @ gravity)
     state = solve_static(model).state()
+    return clamp_loads(model, state, numerics, duration, f"the {run.plane}-plane run")
+
+
+class ClampLoads(NamedTuple):
+    """One strip run recorded every tick: times t [s], (k,); the force [N] and moment [N m] the strip
+    exerts on its clamp (world, (k, 3) each); the run's warnings; the free tip's position [m], (k, 3)."""
+
+    t: np.ndarray
+    force: np.ndarray
+    moment: np.ndarray
+    warnings: list[str]
+    tip: np.ndarray
+
+
+def clamp_loads(model: CableModel, state, numerics: Numerics, duration: float, what: str) -> ClampLoads:
+    """Run ``model`` from ``state`` for ``duration`` [s], recording every tick (:class:`ClampLoads`)."""
     every = max(1, int(round(TICK / numerics.dt)))
-    res = simulate(model, numerics.integrator, numerics.dt, duration, state=state, record_every=every)
+    res = simulate(model, numerics.integrator, numerics.dt, duration, state=state, record_every=every,
+                   max_records=10**7)
     if not res.stable:
-        raise ParameterError(f"the {run.plane}-plane run went unstable ({res.reason} at t = "
-                             f"{res.time_to_instability:.4g} s); use a smaller --dt")
-    m, plan, samples = model.arrays, model.holder_plan(), empty_samples()
-    moments = np.empty((len(res.t), 3))
-    for i, (t, x, v) in enumerate(zip(res.t, res.x, res.v)):  # the engine keeps the clamp moment of the last state only
-        sample_holders(plan, float(t), 0.0, samples)
-        moments[i] = clamp_torque(m, x, v, samples.dir[0], 0)
-    return res.t, res.end_forces[:, 0], moments, list(res.warnings)
+        raise ParameterError(f"{what} went unstable ({res.reason} at t = {res.time_to_instability:.4g} s); "
+                             "use a smaller --dt")
+    return ClampLoads(res.t, res.end_forces[:, 0], res.end_moment_history[:, 0], list(res.warnings), res.x[:, -1])
+
+
+def clamp_roll(axis: np.ndarray, width: np.ndarray) -> float:
+    """Roll [rad] about ``axis`` that turns the clamp's default section axis
+    (:func:`~bullet_dlo.core.boundary.default_normal`) onto ``width`` (unit, normal to axis)."""
+    d1 = default_normal(axis)
+    d2 = np.cross(axis, d1)
+    return math.atan2(float(width @ d2), float(width @ d1))
+
+
+def run_rectangle(strip: Strip, numerics: Numerics, damping: dict[str, float], clamp0: np.ndarray,
+                  axes: tuple[np.ndarray, np.ndarray, np.ndarray], times: np.ndarray, disp: np.ndarray,
+                  rotvec: np.ndarray, gravity: np.ndarray, duration: float) -> ClampLoads:
+    """The strip as one rectangle-section cable clamped with the flange's orientation (``axes``: strip
+    axis, width, normal at the start), from its static equilibrium there, driven by the clamp's
+    displacement [m] and rotation vector [rad], (m, 3), at ``times`` [s]: as :func:`run_plane`."""
+    axis, width, _ = axes
+    spec = strip.rectangle_spec(numerics.n_masses, **damping)
+    path = Waypoints("first", tuple(times), tuple(map(tuple, disp)), tuple(map(tuple, rotvec)), rest=False)
+    model = CableModel.straight(spec, start=clamp0, direction=axis, ends=("clamped", "free"), motion=[path],
+                                gravity=gravity, roll=(clamp_roll(axis, width), 0.0))
+    state = solve_static(model).state()
+    model.reset_twist()  # twist state rebuilt from the sagged shape
+    return clamp_loads(model, state, numerics, duration, "the rectangle-strip run")
 
 
 def predict_torques(rec: BeamRecording, panda: Panda, strip: Strip = Strip(), damping: dict[str, float] | None = None,
@@ -334,9 +404,9 @@ def predict_torques(rec: BeamRecording, panda: Panda, strip: Strip = Strip(), da
     """Predict Franka's external joint torques for ``rec`` from its measured joint trajectory.
 
     The strip's clamp follows the flange path (forward kinematics of the low-passed measured q);
-    the two planar runs (module doc) give the clamp load; the wrench about the flange origin maps to
-    joint torques tau = -J(q)^T w; deviations from t = 0 (the strip at rest before the motion), then
-    ``estimate`` applied. ``duration`` [s]: simulated time (default: the whole recording).
+    the strip model (``numerics.strip_model``, module doc) gives the clamp load; the wrench about the
+    flange origin maps to joint torques tau = -J(q)^T w; deviations from t = 0 (the strip at rest
+    before the motion), then ``estimate`` applied. ``duration`` [s]: simulated time (default: the whole recording).
     """
     import time as _time
 
@@ -348,15 +418,22 @@ def predict_torques(rec: BeamRecording, panda: Panda, strip: Strip = Strip(), da
     rotvec = Rotation.from_matrix(rot @ rot[0].T).as_rotvec()
     axis, width, normal = mounting.axes(rot[0])
     g = np.asarray(gravity, dtype=float)
-    force = moment = None
-    warnings: list[str] = []
-    for run in plane_runs(axis, width, normal):
-        t, f, mo, w = run_plane(strip, run, numerics, damping or {}, clamp[0], axis, times, disp, rotvec, g, duration)
-        force = f @ run.force.T + (0 if force is None else force)
-        moment = mo @ run.moment.T + (0 if moment is None else moment)
-        warnings += [f"{run.plane} plane: {x}" for x in w]
+    check_strip_model(numerics.strip_model)
+    if numerics.strip_model == "rectangle":
+        t, force, moment, warnings, tip = run_rectangle(strip, numerics, damping or {}, clamp[0],
+                                                        (axis, width, normal), times, disp, rotvec, g, duration)
+    else:
+        force = moment = None
+        warnings = []
+        for run in plane_runs(axis, width, normal):
+            t, f, mo, w, run_tip = run_plane(strip, run, numerics, damping or {}, clamp[0], axis, times, disp,
+                                             rotvec, g, duration)
+            tip = run_tip if run.plane == "weak" else tip
+            force = f @ run.force.T + (0 if force is None else force)
+            moment = mo @ run.moment.T + (0 if moment is None else moment)
+            warnings += [f"{run.plane} plane: {x}" for x in w]
     k = min(len(t), int(np.searchsorted(rec.t, t[-1] + 1e-9)))
-    t, force, moment = t[:k], force[:k], moment[:k]
+    t, force, moment, tip = t[:k], force[:k], moment[:k], tip[:k]
     rows = np.clip(np.searchsorted(rec.t, t - 1e-9), 0, len(rec.t) - 1)
     fpos, frot = panda.flange_path(rec.q[rows])
     arm = mounting.clamp_point(fpos, frot) - fpos
@@ -365,22 +442,33 @@ def predict_torques(rec: BeamRecording, panda: Panda, strip: Strip = Strip(), da
     tau = tau - tau[0]
     filtered = estimate.apply(tau, 1.0 / TICK)
     return Prediction(t=t, force=force, moment=moment, wrench=wrench, torques=tau, torques_filtered=filtered,
-                      cpu_s=_time.thread_time() - tic, simulated_s=float(t[-1] - t[0]), warnings=warnings)
+                      cpu_s=_time.thread_time() - tic, simulated_s=float(t[-1] - t[0]), warnings=warnings,
+                      tip=tip)
+
+
+def strip_spec(strip: Strip, numerics: Numerics, damping: dict[str, float] | None = None) -> CableSpec:
+    """The cable ``numerics.strip_model`` vibrates in the weak plane: the rectangle-section cable, or the
+    planar pair's weak-plane run."""
+    if check_strip_model(numerics.strip_model) == "rectangle":
+        return strip.rectangle_spec(numerics.n_masses, **(damping or {}))
+    return strip.cable_spec("weak", numerics.n_masses, **(damping or {}))
 
 
 def free_vibration(strip: Strip, numerics: Numerics, duration: float = 5.0, damping: dict[str, float] | None = None
                    ) -> tuple[float, float]:
     """First-mode frequency [Hz] and damping ratio [-] of the weak-plane cantilever as ``numerics``
-    computes it: horizontal, released at rest from its sag under 1.2 g into 1 g, the vertical clamp
-    force fitted with a damped sine over ``duration`` [s]. Without ``damping`` the ratio is the
-    integrator's numerical damping alone (the robot is not in this run)."""
+    computes it: horizontal (width horizontal, thickness vertical), released at rest from its sag
+    under 1.2 g into 1 g, the vertical clamp force fitted with a damped sine over ``duration`` [s].
+    Without ``damping`` the ratio is the integrator's numerical damping alone (the robot is not in this run)."""
     from bullet_dlo.reality.vibration import fit_damped_sine
 
-    spec = strip.cable_spec("weak", numerics.n_masses, **(damping or {}))
+    spec = strip_spec(strip, numerics, damping)
     heavy = CableModel.straight(spec, start=(0, 0, 0), direction=(1, 0, 0), ends=("clamped", "free"),
                                 gravity=(0, 0, -1.2 * 9.81))
     model = CableModel.straight(spec, start=(0, 0, 0), direction=(1, 0, 0), ends=("clamped", "free"))
-    res = simulate(model, numerics.integrator, numerics.dt, duration, state=solve_static(heavy).state(),
+    state = solve_static(heavy).state()
+    model.reset_twist()
+    res = simulate(model, numerics.integrator, numerics.dt, duration, state=state,
                    record_every=max(1, int(round(TICK / numerics.dt))))
     if not res.stable:
         return math.nan, math.nan
@@ -430,18 +518,11 @@ def fit_recording(rec: BeamRecording, panda: Panda, strip: Strip = Strip(), moun
                      use=rec.t[rows] >= rec.t[min(end, len(rec.t) - 1)] + settle)
 
 
-def strip_spec(strip: Strip, n_masses: int, **damping: float) -> CableSpec:
-    """The strip as one core cable with a rectangle section (width along d1) and a material frame: both
-    bending planes and twist in one run (Poisson's ratio 0.3)."""
-    return CableSpec(length=strip.length, diameter=strip.thickness, mass=strip.mass, youngs_modulus=strip.youngs_modulus,
-                     n_masses=n_masses, section="rectangle", width=strip.width, thickness=strip.thickness,
-                     twist=True, **damping)
-
-
 def with_damping(damping: dict[str, float], name: str, value: float) -> dict[str, float]:
     """A copy of ``damping`` with ``name`` set to ``value``."""
     return {**damping, name: float(value)}
 
 
 __all__ = ["BeamRecording", "read_beam_csv", "beam_files", "EstimateFilter", "identify_filter", "Strip",
-           "Mounting", "PlaneRun", "plane_runs", "Numerics", "Prediction", "predict_torques", "free_vibration"]
+           "Mounting", "PlaneRun", "plane_runs", "STRIP_MODELS", "run_rectangle", "Numerics", "Prediction",
+           "predict_torques", "free_vibration", "fit_recording"]

@@ -41,3 +41,23 @@ def test_history_is_the_clamp_torque_of_each_recorded_moving_state():
             want = clamp_torque(model.arrays, res.x[r], res.v[r], samples.dir[0], e)
             assert res.end_moment_history[r, e] == pytest.approx(want, rel=1e-12, abs=1e-15)
     assert np.ptp(res.end_moment_history[:, 0, 1]) > 1e-3  # the moment really changes over the motion
+
+
+def test_twisting_cable_history_follows_the_torsion_of_each_recorded_state():
+    """A clamp turned about the cable's axis by a minimum-jerk angle theta(t) over 1 s: each row's moment about
+    the axis is G J theta(t) / L (slow twist: quasi-static). The moment depends on the twist angles, which are
+    state but not recorded: taken after the run from the final twist it read G J (pi/2) / L from t = 0 on."""
+    import math
+
+    from bullet_dlo.core.boundary import Move
+
+    spec = CableSpec(length=0.5, diameter=0.01, mass=0.1, youngs_modulus=1e7, n_masses=11, twist=True,
+                     internal_damping=0.01)
+    model = CableModel.straight(spec, start=(0, 0, 0), direction=(1, 0, 0), ends=("clamped", "clamped"),
+                                motion=[Move("last", rotation=(math.pi / 2, 0, 0), duration=1.0)], gravity=(0, 0, 0))
+    res = simulate(model, "bdf2", 1e-3, 1.5, record_every=100)
+    s = np.clip(res.t, 0.0, 1.0)
+    theta = (math.pi / 2) * (10 * s**3 - 15 * s**4 + 6 * s**5)
+    torsion = spec.shear_modulus * math.pi * spec.diameter**4 / 32 / spec.length * theta
+    np.testing.assert_allclose(res.end_moment_history[:, 0, 0], torsion, rtol=0.01, atol=1e-3 * torsion.max())
+    np.testing.assert_allclose(res.end_moment_history[:, 1, 0], -torsion, rtol=0.01, atol=1e-3 * torsion.max())

@@ -53,7 +53,7 @@ def test_the_recordings_linear_map_is_minus_jt_of_the_flange_wrench_and_the_stri
     expect = external_torques(jac, np.r_[f, m + np.cross(arm, f)])
     assert np.allclose(r.linear_map[i] @ np.r_[f, m, np.zeros(6)], expect, atol=1e-9)
     assert r.held == ("clamped", "free") and r.section_frame and r.length == beam.Strip().length
-    spec = beam.strip_spec(beam.Strip(), 10, damping_rate=0.24)
+    spec = beam.Strip().rectangle_spec(10, damping_rate=0.24)
     run = model_run(spec, r, FitOptions(integrator="bdf2", dt=1e-3, start="static", knot_rate=250.0))
     assert isinstance(run, ModelRun)
     meas = measure(rec)

@@ -8,7 +8,7 @@ from numba import njit
 
 from bullet_dlo.core.kernels.forces import mechanical_energy
 from bullet_dlo.core.kernels.holders import HeldSamples, sample_holders
-from bullet_dlo.core.kernels.monitor import STABLE, end_forces, monitor
+from bullet_dlo.core.kernels.monitor import STABLE, clamp_moments, end_forces, monitor
 from bullet_dlo.core.kernels.steppers import advance
 
 
@@ -16,8 +16,9 @@ class Records(NamedTuple):
     """Rows recorded every ``every`` steps (first row: the start; also the last and an unstable step).
 
     t: times [s], (rows,); x: positions [m], (rows, n, 3); v: velocities [m/s], (rows, n, 3);
-    end_force: force the cable exerts on each holder [N], (rows, 2, 3); energy: mechanical
-    energy [J], (rows,).
+    end_force: force the cable exerts on each holder [N], (rows, 2, 3); end_moment: moment it exerts
+    on each clamp [N m], (rows, 2, 3) (taken in the loop: a twisting cable's clamp moment depends on
+    its twist state, which is not recorded); energy: mechanical energy [J], (rows,).
     """
 
     every: int
@@ -25,13 +26,14 @@ class Records(NamedTuple):
     x: np.ndarray
     v: np.ndarray
     end_force: np.ndarray
+    end_moment: np.ndarray
     energy: np.ndarray
 
 
 def make_records(rows: int, n: int, every: int) -> Records:
     """Zeroed records with room for ``rows`` rows of an n-node cable."""
     return Records(int(every), np.zeros(rows), np.zeros((rows, n, 3)), np.zeros((rows, n, 3)),
-                   np.zeros((rows, 2, 3)), np.zeros(rows))
+                   np.zeros((rows, 2, 3)), np.zeros((rows, 2, 3)), np.zeros(rows))
 
 
 @njit(cache=True, error_model="numpy")
@@ -49,6 +51,7 @@ def run_loop(stepper, m, plan, x, v, t0, n_steps, det, ws, rec):
     rec.x[0] = x
     rec.v[0] = v
     rec.end_force[0] = ef
+    rec.end_moment[0] = det.end_moment
     rec.energy[0] = det.e0
     rows = 1
     status = STABLE
@@ -77,6 +80,7 @@ def run_loop(stepper, m, plan, x, v, t0, n_steps, det, ws, rec):
             rec.x[rows] = x
             rec.v[rows] = v
             rec.end_force[rows] = ef
+            clamp_moments(m, x, v, samples.dir[2], rec.end_moment[rows])
             rec.energy[rows] = mechanical_energy(m, x, v, samples.dir[2])
             rows += 1
         if status != STABLE:
