@@ -35,8 +35,8 @@ coefficient on a body given the same value).
 
 Everything else a body can carry (triangle meshes, convex hulls, planes, compound shapes, the shapes of
 a URDF's child links, the robot arms' links and fingers) is measured by Bullet's own narrow phase
-(:meth:`ContactSet._probe`): each such link is a PROBE row, and before the step every node (a sphere of
-the cable radius) and every segment (a capsule of the cable radius) within reach of the link's
+(:meth:`ContactSet._probe`): each such link is a PROBE row, and before the step every node (a point
+capsule of the cable radius) and every segment (a capsule of the cable radius) within reach of the link's
 bounding box asks ``getClosestPoints`` for the link's closest point within the margin. The answer
 (point on the link, normal from Bullet, distance) becomes a contact of the same kind and law as the
 primitives' (a segment contact only where the link comes closer between the nodes than at them), on
@@ -243,7 +243,11 @@ class ContactSet:
                              normal=np.zeros((cap_p, 3)))
         self._radius = float(radius)
         if probed:
-            self._sphere = pb.createCollisionShape(pb.GEOM_SPHERE, radius=radius, physicsClientId=client)
+            # a node is a capsule of (almost) no length, not a sphere: Bullet answers a sphere against a
+            # triangle mesh without the mesh's collision margin (1 mm) but a capsule with it, and the two
+            # probes must see the same surface (measured; the 5e-9 m of length shift it by less than that)
+            self._sphere = pb.createCollisionShape(pb.GEOM_CAPSULE, radius=radius, height=1e-8,
+                                                   physicsClientId=client)
             self._capsule = (pb.createCollisionShape(pb.GEOM_CAPSULE, radius=radius, height=rest_length,
                                                      physicsClientId=client) if rest_length > 0.0 else -1)
             self._cand = (np.zeros(n, np.int64), np.zeros(n, np.int64), np.zeros((n, 3)), np.zeros((n, 4)),
@@ -367,7 +371,7 @@ class ContactSet:
 
         Broad phase: one ``getOverlappingObjects`` with the cable's box grown by the reach (nothing else
         while no probed link is near), then each hit link's box against each node's and segment's. Narrow
-        phase: ``getClosestPoints`` of a sphere of the cable radius at each node, and of a capsule of the
+        phase: ``getClosestPoints`` of a point capsule of the cable radius at each node, and of a capsule of the
         cable radius and rest length along each segment, against the link, within the margin (the same
         as :func:`detect`'s). A node keeps the link's closest point; a segment only where it comes closer
         to the link between its nodes than at them (by SEGMENT_DIP) at an interior point (S_MIN < s <

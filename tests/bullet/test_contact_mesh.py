@@ -1,0 +1,109 @@
+"""Contact with what the exact geometry does not cover (issue 23): convex hulls, concave triangle meshes,
+mesh pegs and the shapes of URDF child links, all through Bullet's narrow phase with the same contact law.
+
+Closed forms as in test_contact_rest (the supports carry the weight, the segments the strain of the
+contact-free static solution, |strain| < 1e-4) and test_contact_friction (the capstan law at the slip
+onset). Before, these shapes were ignored with a warning and the cable fell through them.
+
+A mesh in Bullet carries a collision margin: its surface is the mesh grown by 1 mm (measured:
+getClosestPoints answers from 1 mm above a hull's or a triangle mesh's face), and the cable rests on that
+surface, as Bullet's own bodies do.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pybullet as pb
+import pytest
+from test_contact_friction import capstan_onset
+from test_contact_rest import settle, strain
+
+from bullet_dlo.bullet.world import BulletWorld
+from bullet_dlo.core.spec import CableSpec
+
+G = 9.81
+HULL_MARGIN = 1e-3  # [m] Bullet's collision margin of a mesh made by createCollisionShape or a URDF
+BOX = (0.1, 0.1, 0.1)  # [m] half extents of the support: the 0.3 m cable hangs 0.05 m over each edge
+TWO_LINKS = """<?xml version="1.0"?>
+<robot name="stand">
+  <link name="foot">
+    <inertial><mass value="0"/><inertia ixx="0" ixy="0" ixz="0" iyy="0" iyz="0" izz="0"/></inertial>
+    <collision><origin xyz="0.5 0 0"/><geometry><box size="0.05 0.05 0.05"/></geometry></collision>
+  </link>
+  <link name="top">
+    <inertial><mass value="0"/><inertia ixx="0" ixy="0" ixz="0" iyy="0" iyz="0" izz="0"/></inertial>
+    <collision><geometry><box size="0.2 0.2 0.2"/></geometry></collision>
+  </link>
+  <joint name="fix" type="{joint}"><parent link="foot"/><child link="top"/><origin xyz="0 0 0.1"/>
+    <axis xyz="0 0 1"/><limit lower="-1" upper="1" effort="0" velocity="1"/></joint>
+</robot>
+"""
+
+
+def box_corners(he) -> list[list[float]]:
+    return [[sx * he[0], sy * he[1], sz * he[2]] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)]
+
+
+def box_triangles() -> list[int]:
+    """The 12 triangles of box_corners (index = 4 ix + 2 iy + iz), outward."""
+    quads = [(0, 1, 3, 2), (4, 6, 7, 5), (0, 4, 5, 1), (2, 3, 7, 6), (0, 2, 6, 4), (1, 5, 7, 3)]
+    return [i for a, b, c, d in quads for i in (a, b, c, a, c, d)]
+
+
+def add_support(world: BulletWorld, kind: str, tmp_path) -> tuple[int, int, float]:
+    """A 0.2 m cube on the ground, as ``kind``: (body, link, top z [m] of the surface the cable meets)."""
+    cid = world.client
+    if kind in ("hull", "trimesh"):
+        # vertices only: a convex hull; with triangles: a triangle mesh (concave, static)
+        mesh = {"indices": box_triangles(), "flags": pb.GEOM_FORCE_CONCAVE_TRIMESH} if kind == "trimesh" else {}
+        col = pb.createCollisionShape(pb.GEOM_MESH, vertices=box_corners(BOX), physicsClientId=cid, **mesh)
+        body = pb.createMultiBody(0, col, -1, [0, 0, BOX[2]], physicsClientId=cid)
+        return body, -1, 2 * BOX[2] + HULL_MARGIN
+    urdf = tmp_path / "stand.urdf"
+    urdf.write_text(TWO_LINKS.format(joint="fixed" if kind == "child_link" else "revolute"))
+    body = world.add_urdf(urdf, (0.0, 0.0, 0.0))
+    return body, 0, 2 * BOX[2]
+
+
+@pytest.mark.parametrize("kind", ["hull", "trimesh", "child_link", "revolute_child"])
+@pytest.mark.parametrize("integrator,hz,n", [("implicit_euler", 240, 20), ("bdf2", 60, 10)])
+def test_cable_rests_on_a_mesh_or_child_link(kind, integrator, hz, n, tmp_path):
+    """An Lv cable laid across the cube's top (over two edges): the body carries its weight, no strain."""
+    with BulletWorld(dt=1.0 / hz) as world:
+        body, link, top = add_support(world, kind, tmp_path)
+        spec = CableSpec.lv2017(n_masses=n, damping=0.02)
+        r = spec.diameter / 2
+        cable = world.add_cable(spec, start=(-0.15, 0.0, top + r), direction=(1, 0, 0), integrator=integrator)
+        settle(world, cable, 1.5)
+        weight = spec.mass * G
+        assert cable.body_forces()[body][2] == pytest.approx(-weight, rel=0.01)  # the reaction, on the body
+        pc = cable.contact_forces()
+        assert set(pc["link"].tolist()) == {link}
+        assert np.max(np.abs(strain(cable))) < 1e-4
+        on_top = np.abs(cable.x[:, 0]) < BOX[0]
+        assert np.all(cable.x[on_top, 2] > top + r - 1e-4)  # not through the top
+        assert np.all(cable.x[:, 2] > 2 * BOX[2] - 0.06)  # hanging over the edges, not fallen down
+
+
+def hull_peg(world: BulletWorld, radius: float, friction: float, sides: int = 48) -> int:
+    """A cylinder of ``radius`` [m] as a convex hull of a ``sides``-gon prism, axis along y: its faces
+    (grown by the hull margin) at ``radius``, its rounded corners 0.2 % beyond."""
+    rv = (radius - HULL_MARGIN) / math.cos(math.pi / sides)
+    a = 2 * math.pi * (np.arange(sides) + 0.5) / sides
+    ring = [[rv * math.cos(t), y, rv * math.sin(t)] for t in a for y in (-0.1, 0.1)]
+    col = pb.createCollisionShape(pb.GEOM_MESH, vertices=ring, physicsClientId=world.client)
+    body = pb.createMultiBody(0, col, -1, [0, 0, 0], physicsClientId=world.client)
+    pb.changeDynamics(body, -1, lateralFriction=friction, physicsClientId=world.client)
+    return body
+
+
+@pytest.mark.parametrize("hz", [240.0, 60.0])
+def test_capstan_on_a_hull_peg(hz):
+    """Slip onset of a light cable wrapped half round a 48-gon hull peg: T_long/T_short = exp(mu pi) within 10 %
+    (the 50 g end weights dwarf the wrapped part's weight, 0.1 g)."""
+    mu = 0.3
+    onset, cable = capstan_onset(math.pi, mu, hz=hz, peg=hull_peg)
+    assert onset is not None, "never slipped"
+    assert onset == pytest.approx(math.exp(mu * math.pi), rel=0.10)
+    assert cable.newton_failures == 0
