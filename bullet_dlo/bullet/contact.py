@@ -144,6 +144,11 @@ class Others(NamedTuple):
 CABLE = -2  # Store.body of a contact with another cable (-1: the cable itself)
 
 
+def _distance(point) -> float:
+    """The distance [m] of a getClosestPoints answer."""
+    return point[8]
+
+
 def _rotation(quat) -> np.ndarray:
     return np.array(pb.getMatrixFromQuaternion(quat)).reshape(3, 3)
 
@@ -252,6 +257,9 @@ class ContactSet:
                                                      physicsClientId=client) if rest_length > 0.0 else -1)
             self._cand = (np.zeros(n, np.int64), np.zeros(n, np.int64), np.zeros((n, 3)), np.zeros((n, 4)),
                           np.full(n, np.inf))
+            self._box = np.zeros((2, 3))
+            self._candidates = None  # _probe_candidates bound on first use
+            self._prev_rows: set = set()
         self.keys_per_shape = n + (N_EDGES + 1) * (n - 1)
         self.other_cables = list(others)
         n_other = sum(o.model.n for o in self.other_cables)
@@ -389,23 +397,29 @@ class ContactSet:
         rows = {self._probe_rows[hit] for hit in hits if hit in self._probe_rows}
         k_prev = int(self.contacts.count[0])
         prev = self.store.body[:k_prev]
-        rows.update(int(r) for r in np.unique(prev[prev >= self.n_exact]))  # their velocity now: work check
+        self._prev_rows = {int(r) for r in np.unique(prev[prev >= self.n_exact])} if k_prev else set()
+        rows |= self._prev_rows  # the links touched last step: their velocity now, for the work check
         if not rows:
             return
         nodes, segs, mid, quat, dist = self._cand
         closest = pb.getClosestPoints
         sphere, capsule = self._sphere, self._capsule
+        box = self._box
         for s in sorted(rows):
-            self._read_link(s)
             body, link = self.rows[s][0:2]
-            blo, bhi = pb.getAABB(body, link, physicsClientId=cid)
-            nn, ns = _probe_candidates(x, np.array(blo), np.array(bhi), reach, self._probe_out[s], capsule >= 0,
-                                       nodes, segs, mid, quat)
+            box[0], box[1] = pb.getAABB(body, link, physicsClientId=cid)
+            args = (x, box, reach, self._probe_out[s], capsule >= 0, nodes, segs, mid, quat)
+            if self._candidates is None:
+                self._candidates = bind(_probe_candidates, *args)
+            nn, ns = self._candidates(*args)
+            if nn == 0 and ns == 0 and s not in self._prev_rows:
+                continue  # only its box was near (a gripper around an excluded end)
+            self._read_link(s)
             dist[:] = margin
             for i in nodes[:nn].tolist():
                 res = closest(-1, body, margin, -1, link, sphere, -1, x[i].tolist(), physicsClientId=cid)
                 if res:
-                    best = min(res, key=lambda r: r[8])
+                    best = min(res, key=_distance) if len(res) > 1 else res[0]
                     dist[i] = best[8]
                     self._put(s, i, i, 0.0, best[6], best[7])
             for k in range(ns):
@@ -414,11 +428,11 @@ class ContactSet:
                               quat[k].tolist(), physicsClientId=cid)
                 if not res:
                     continue
-                best = min(res, key=lambda r: r[8])
+                best = min(res, key=_distance) if len(res) > 1 else res[0]
                 if best[8] > min(dist[i], dist[i + 1]) - SEGMENT_DIP:
                     continue  # no closer between the nodes than at them: the nodes carry it
                 e = x[i + 1] - x[i]
-                axis = np.asarray(best[5]) + self._radius * np.asarray(best[7])  # the capsule's axis point
+                axis = np.add(best[5], np.multiply(self._radius, best[7]))  # the capsule's axis point
                 sp = float((axis - x[i]) @ e / (e @ e))
                 if S_MIN < sp < 1.0 - S_MIN:
                     self._put(s, i, i + 1, sp, best[6], best[7])
@@ -677,12 +691,13 @@ def _fill(c, st, key, shape, ia, ib, wa, wb, mu_s, mu_d, k_n, zeta, mk, x):
 
 
 @njit(cache=True, error_model="numpy")
-def _probe_candidates(x, lo, hi, reach, out, segments, nodes, segs, mid, quat):
-    """The nodes and segments of x (n, 3) [m] whose boxes come within ``reach`` [m] of the box lo-hi (a
-    link's), skipping the ``out`` nodes (and their segments): node indices into ``nodes``, segment starts
+def _probe_candidates(x, box, reach, out, segments, nodes, segs, mid, quat):
+    """The nodes and segments of x (n, 3) [m] whose boxes come within ``reach`` [m] of ``box`` (2, 3) (a
+    link's lower and upper corners), skipping the ``out`` nodes (and their segments): node indices into ``nodes``, segment starts
     into ``segs`` with each segment's midpoint ``mid`` and the quaternion [x, y, z, w] turning z onto it
     (a capsule's axis) into ``quat`` (only if ``segments``). Returns (node count, segment count)."""
     n = x.shape[0]
+    lo, hi = box[0], box[1]
     nn = 0
     ns = 0
     for i in range(n):

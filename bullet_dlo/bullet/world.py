@@ -132,8 +132,9 @@ class BulletWorld:
     def add_urdf(self, path: str | os.PathLike, position: Sequence[float] = (0, 0, 0),
                  orientation: Sequence[float] = (0, 0, 0, 1), *, fixed: bool = True, name: str | None = None) -> int:
         """Load a URDF (absolute, relative, from the project's ``urdf/`` or ``pybullet_data``). Its
-        ``<cylinder>`` collisions load as cylinders (not meshes), so the cable's contact model sees them;
-        shapes on child links are not in that model (a warning says so when the cable is added)."""
+        ``<cylinder>`` collisions load as cylinders (not meshes), so the cable's contact model meets its base
+        link's primitives on their exact geometry; meshes and the shapes of child links it meets through
+        Bullet's narrow phase (:mod:`bullet_dlo.bullet.contact`)."""
         file = resolve_asset(path)
         pos = check_vector3("position", position)
         try:
