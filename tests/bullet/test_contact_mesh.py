@@ -147,3 +147,20 @@ def test_a_cable_swung_against_a_panda_stays_outside_it(hz):
             worst = min(worst, deepest(world, arm, cable.x, spec.diameter / 2, probe))
         assert touched, "never touched the arm"
         assert worst > -(spec.diameter / 2 + HULL_MARGIN), worst  # the centre line outside the links' meshes
+
+
+def test_a_mesh_out_of_reach_changes_nothing(tmp_path):
+    """A falling cable with a hull and a child link far below it: bit for bit the run without them (the
+    broad phase finds nothing, no closest-point query is made)."""
+    runs = []
+    for with_meshes in (False, True):
+        with BulletWorld(dt=1 / 240, ground=False) as world:
+            if with_meshes:
+                for kind in ("hull", "child_link"):
+                    body, _, _ = add_support(world, kind, tmp_path)
+                    pb.resetBasePositionAndOrientation(body, [0, 0, -5.0], [0, 0, 0, 1], physicsClientId=world.client)
+            cable = world.add_cable(CableSpec.lv2017(n_masses=10), start=(-0.15, 0, 1.0), direction=(1, 0, 0.2))
+            world.run(0.3)
+            assert cable.contacts_last_step == 0
+            runs.append(cable.x.copy())
+    np.testing.assert_array_equal(runs[0], runs[1])
