@@ -144,6 +144,9 @@ class Others(NamedTuple):
 CABLE = -2  # Store.body of a contact with another cable (-1: the cable itself)
 
 
+_ORIGIN = [0.0, 0.0, 0.0]
+
+
 def _distance(point) -> float:
     """The distance [m] of a getClosestPoints answer."""
     return point[8]
@@ -258,6 +261,8 @@ class ContactSet:
             self._cand = (np.zeros(n, np.int64), np.zeros(n, np.int64), np.zeros((n, 3)), np.zeros((n, 4)),
                           np.full(n, np.inf))
             self._box = np.zeros((2, 3))
+            self._cable_box = np.zeros((2, 3))
+            self._reach = None  # _reach_box bound on first use
             self._candidates = None  # _probe_candidates bound on first use
             self._prev_rows: set = set()
         self.keys_per_shape = n + (N_EDGES + 1) * (n - 1)
@@ -388,12 +393,14 @@ class ContactSet:
         of its faces per step."""
         pr = self.probes
         pr.count[0] = 0
-        vmax = float(np.abs(v).max()) if v.size else 0.0
-        margin = self._radius + 2.0 * vmax * h + 1e-3  # as in detect
+        cable_box = self._cable_box
+        args = (x, v, self._radius, h, cable_box)
+        if self._reach is None:
+            self._reach = bind(_reach_box, *args)
+        margin = self._reach(*args)
         reach = self._radius + margin
         cid = self.client
-        lo, hi = x.min(axis=0) - reach, x.max(axis=0) + reach
-        hits = pb.getOverlappingObjects(lo.tolist(), hi.tolist(), physicsClientId=cid) or ()
+        hits = pb.getOverlappingObjects(cable_box[0].tolist(), cable_box[1].tolist(), physicsClientId=cid) or ()
         rows = {self._probe_rows[hit] for hit in hits if hit in self._probe_rows}
         k_prev = int(self.contacts.count[0])
         prev = self.store.body[:k_prev]
@@ -405,6 +412,8 @@ class ContactSet:
         closest = pb.getClosestPoints
         sphere, capsule = self._sphere, self._capsule
         box = self._box
+        found = []  # (row, node a, node b, weight of b, point, normal)
+        xl = None
         for s in sorted(rows):
             body, link = self.rows[s][0:2]
             box[0], box[1] = pb.getAABB(body, link, physicsClientId=cid)
@@ -415,39 +424,37 @@ class ContactSet:
             if nn == 0 and ns == 0 and s not in self._prev_rows:
                 continue  # only its box was near (a gripper around an excluded end)
             self._read_link(s)
+            xl = x.tolist() if xl is None else xl
             dist[:] = margin
             for i in nodes[:nn].tolist():
-                res = closest(-1, body, margin, -1, link, sphere, -1, x[i].tolist(), physicsClientId=cid)
+                res = closest(-1, body, margin, -1, link, sphere, -1, xl[i], physicsClientId=cid)
                 if res:
                     best = min(res, key=_distance) if len(res) > 1 else res[0]
                     dist[i] = best[8]
-                    self._put(s, i, i, 0.0, best[6], best[7])
-            for k in range(ns):
-                i = int(segs[k])
-                res = closest(-1, body, margin, -1, link, capsule, -1, mid[k].tolist(), [0.0, 0.0, 0.0],
-                              quat[k].tolist(), physicsClientId=cid)
+                    found.append((s, i, i, 0.0, best[6], best[7]))
+            for i, m, q in zip(segs[:ns].tolist(), mid[:ns].tolist(), quat[:ns].tolist()):
+                res = closest(-1, body, margin, -1, link, capsule, -1, m, _ORIGIN, q, physicsClientId=cid)
                 if not res:
                     continue
                 best = min(res, key=_distance) if len(res) > 1 else res[0]
                 if best[8] > min(dist[i], dist[i + 1]) - SEGMENT_DIP:
                     continue  # no closer between the nodes than at them: the nodes carry it
-                e = x[i + 1] - x[i]
-                axis = np.add(best[5], np.multiply(self._radius, best[7]))  # the capsule's axis point
-                sp = float((axis - x[i]) @ e / (e @ e))
+                xa, xb = xl[i], xl[i + 1]
+                pa, nb, r = best[5], best[7], self._radius
+                num = den = 0.0
+                for j in range(3):  # the capsule's axis point pa + r n, projected on the segment
+                    e = xb[j] - xa[j]
+                    num += (pa[j] + r * nb[j] - xa[j]) * e
+                    den += e * e
+                sp = num / den
                 if S_MIN < sp < 1.0 - S_MIN:
-                    self._put(s, i, i + 1, sp, best[6], best[7])
-
-    def _put(self, s: int, ia: int, ib: int, wb: float, point, normal) -> None:
-        pr = self.probes
-        k = int(pr.count[0])
-        if k >= pr.shape.shape[0]:
-            return
-        pr.shape[k] = s
-        pr.node[k, 0], pr.node[k, 1] = ia, ib
-        pr.weight[k] = wb
-        pr.point[k] = point
-        pr.normal[k] = normal
-        pr.count[0] = k + 1
+                    found.append((s, i, i + 1, sp, best[6], nb))
+        k = min(len(found), pr.shape.shape[0])
+        if k:
+            row, a, b, w, point, normal = zip(*found[:k])
+            pr.shape[:k], pr.node[:k, 0], pr.node[:k, 1], pr.weight[:k] = row, a, b, w
+            pr.point[:k], pr.normal[:k] = point, normal
+        pr.count[0] = k
 
     def _read_others(self, dt: float) -> None:
         """The other cables now: a cable that has planned its coming step already (it stepped before this
@@ -688,6 +695,25 @@ def _fill(c, st, key, shape, ia, ib, wa, wb, mu_s, mu_d, k_n, zeta, mk, x):
     st.keys[k] = key
     st.body[k] = shape
     c.count[0] = k + 1
+
+
+@njit(cache=True, error_model="numpy")
+def _reach_box(x, v, radius, h, out):
+    """The contact margin [m] of positions x (n, 3) [m] moving at v [m/s] over a step of h [s], as in
+    :func:`detect`, and the nodes' bounding box grown by the reach (radius + margin) into ``out`` (2, 3)."""
+    vmax = 0.0
+    for i in range(v.shape[0]):
+        for j in range(3):
+            vmax = max(vmax, abs(v[i, j]))
+    margin = radius + 2.0 * vmax * h + 1e-3
+    for j in range(3):
+        lo, hi = x[0, j], x[0, j]
+        for i in range(1, x.shape[0]):
+            lo = min(lo, x[i, j])
+            hi = max(hi, x[i, j])
+        out[0, j] = lo - radius - margin
+        out[1, j] = hi + radius + margin
+    return margin
 
 
 @njit(cache=True, error_model="numpy")
