@@ -241,7 +241,9 @@ class BulletCable:
                                        spec.static_friction, spec.friction, self.contact_stiffness,
                                        self.contact_damping, self_contact=self.self_collision != "none",
                                        grip=self.grip, native=self.world.native_handle(), others=partners,
-                                       exclude=self._contact_exclusions, rest_length=float(spec.rest_length))
+                                       exclude={**{(b, None): None for b in self.world.no_cable_contact},
+                                                **self._contact_exclusions},
+                                       rest_length=float(spec.rest_length))
         if self._bullet_collisions_off:
             self._exclude_model_bodies()
 
@@ -249,7 +251,8 @@ class BulletCable:
         """Leave ``body`` (its link ``link``; None: every link) out of the cable's contact model: entirely
         (``nodes`` None) or only for the given node indices and the segments next to them (a gripper holding
         an end: its fingers do not push the held end, the rest of the cable still meets them). Bullet's own
-        collisions of the spheres are not changed. Only for ``contact="model"``."""
+        collisions of those spheres with it are switched off too: the cable passes through. Only for
+        ``contact="model"``."""
         cid = self.world.client
         n = self.model.n
         try:
@@ -265,6 +268,10 @@ class BulletCable:
                 raise ParameterError(f"exclude_contact: nodes must be in [{-n}, {n - 1}], got {idx}")
             nodes = {i % n for i in idx}
         self._contact_exclusions[(int(body), link)] = nodes
+        spheres = [self.body_ids[i] for i in sorted(nodes)] if nodes is not None else self.body_ids
+        for lk in ([link] if link is not None else range(-1, pb.getNumJoints(body, physicsClientId=cid))):
+            for b in spheres:
+                pb.setCollisionFilterPair(b, int(body), -1, lk, 0, physicsClientId=cid)
         self._bodies_seen = -1  # rebuild the contact set
         self._refresh_contact_set()
 
@@ -278,7 +285,9 @@ class BulletCable:
         the ground. One pair filter per sphere and body, once per body.
         """
         cs, cid = self._contact_set, self.world.client
-        for body, link in sorted(set(zip(cs.body_ids[cs.dynamic].tolist(), cs.links[cs.dynamic].tolist()))
+        # a URDF's child links too, static ones included: Bullet collided the spheres with them (measured)
+        bullet_sees = cs.dynamic | (cs.links >= 0)
+        for body, link in sorted(set(zip(cs.body_ids[bullet_sees].tolist(), cs.links[bullet_sees].tolist()))
                                  - self._excluded):
             for b in self.body_ids:
                 pb.setCollisionFilterPair(b, body, -1, link, 0, physicsClientId=cid)

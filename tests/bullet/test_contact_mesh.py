@@ -164,3 +164,25 @@ def test_a_mesh_out_of_reach_changes_nothing(tmp_path):
             assert cable.contacts_last_step == 0
             runs.append(cable.x.copy())
     np.testing.assert_array_equal(runs[0], runs[1])
+
+
+def test_excluded_bodies_are_passed_through(tmp_path):
+    """``contact: false`` on a scene obstacle, and BulletCable.exclude_contact on one link, leave them out of the
+    contact model: the cable falls through onto the ground; the other link still holds it."""
+    from bullet_dlo.bullet.world import add_obstacles
+
+    spec = CableSpec.lv2017(n_masses=10, damping=0.02)
+    r = spec.diameter / 2
+    with BulletWorld(dt=1 / 240) as world:
+        add_obstacles(world, [{"type": "box", "half_extents": list(BOX), "position": [0, 0, BOX[2]], "contact": False}])
+        cable = world.add_cable(spec, start=(-0.15, 0.0, 2 * BOX[2] + r + 0.01), direction=(1, 0, 0))
+        world.run(0.5)
+        assert cable.x[:, 2].max() < 0.01  # on the ground
+    with BulletWorld(dt=1 / 240) as world:
+        body, link, top = add_support(world, "child_link", tmp_path)
+        cable = world.add_cable(spec, start=(-0.15, 0.0, top + r + 0.001), direction=(1, 0, 0))
+        world.run(0.2)
+        assert cable.x[:, 2].min() > top  # held by the child link
+        cable.exclude_contact(body, link)
+        world.run(0.5)
+        assert cable.x[:, 2].max() < 0.01
