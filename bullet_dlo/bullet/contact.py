@@ -159,9 +159,12 @@ def _rotation(quat) -> np.ndarray:
 class ContactSet:
     """Shapes of the bodies in a world, the cable's Contacts and their persistence.
 
-    ``bodies``: the body ids to collide with (the world's ground and obstacles). Poses are read
-    every step; dynamic bodies (mass > 0) also their velocities, and they receive the contact
-    forces (:meth:`apply_to_bodies`) during the coming Bullet step.
+    ``bodies``: the body ids to collide with (every body of the world but the cables' spheres). Each
+    link with collision shapes is a row: its base-link primitives one row per shape on their exact
+    geometry, any other link (a child link, a mesh, a hull, a compound with a mesh) one PROBE row that
+    Bullet's narrow phase measures (:meth:`_probe`). The exact rows' poses are read every step, a PROBE
+    row's when the cable is near it; dynamic links (mass > 0) also their velocities, and they receive
+    the contact forces (:meth:`apply_to_bodies`, on their link) during the coming Bullet step.
 
     Two-way contact with a dynamic body: the cable's implicit step sees the body's surface move
     at the body's velocity, but Bullet then moves the body under the contact force too. With the
