@@ -185,3 +185,15 @@ def test_excluded_bodies_are_passed_through(tmp_path):
         cable.exclude_contact(body, link)
         world.run(0.5)
         assert cable.x[:, 2].max() < 0.01
+
+
+def test_a_mesh_added_after_the_cable_holds_it(tmp_path):
+    """A hull created (by PyBullet directly, not through the world) after the cable: the cable lands on it."""
+    spec = CableSpec.lv2017(n_masses=10, damping=0.02)
+    with BulletWorld(dt=1 / 240) as world:
+        cable = world.add_cable(spec, start=(-0.15, 0.0, 2 * BOX[2] + 0.02), direction=(1, 0, 0))
+        world.step()
+        body, _, top = add_support(world, "hull", tmp_path)
+        world.run(0.5)
+        assert cable.x[:, 2].min() > top
+        assert cable.body_forces().get(body, np.zeros(3))[2] == pytest.approx(-spec.mass * G, rel=0.01)
