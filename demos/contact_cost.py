@@ -9,9 +9,14 @@ and a picture of each scene (``contact_table.png``, ``contact_peg.png``) rendere
 ``bullet_dlo.render``.
 
 Scenes: ``table``: the Lv cable lying on the ground (every node in contact); ``peg``: a soft
-cable (0.6 m, E 2 MPa) over a fixed 20 mm cylinder, both sides hanging with 50 g weights.
+cable (0.6 m, E 2 MPa) over a fixed 20 mm cylinder, both sides hanging with 50 g weights; ``box``
+and ``hull``: the Lv cable lying on a 0.4 x 0.2 x 0.1 m block, a Bullet box (exact geometry) or the
+same block as a convex hull mesh (Bullet's narrow phase, ``getClosestPoints`` per node and segment);
+their contact-free twins have the block in the world too, far from the cable. Step times are thread
+times (``time.thread_time``).
 
-Usage: ``python demos/contact_cost.py [--out DIR] [--masses 20 80] [--repeats 5] [--block 200] [--quick]``
+Usage: ``python demos/contact_cost.py [--out DIR] [--masses 20 80] [--scenes table peg box hull]
+[--repeats 5] [--block 200] [--quick]``
 (``--out`` defaults to ``out/contact_cost``; ``--out demos/gallery`` renews the committed pictures)
 (``--quick``: n = 20, one block of 20 steps, no pictures; for smoke tests).
 """
@@ -29,6 +34,7 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
+import pybullet as pb  # noqa: E402
 
 from bullet_dlo.bullet.world import BulletWorld  # noqa: E402
 from bullet_dlo.core.model import CableState  # noqa: E402
@@ -37,6 +43,7 @@ from bullet_dlo.core.spec import CableSpec  # noqa: E402
 HZ = 240.0
 Q_AXIS_Y = (math.sin(math.pi / 4), 0.0, 0.0, math.cos(math.pi / 4))
 R_PEG = 0.02
+COLORS = {"table": "#c46a2b", "peg": "#3b6ea5", "box": "#6a9a3b", "hull": "#8a4fa0"}
 
 
 def _soft(n: int) -> CableSpec:
@@ -55,8 +62,29 @@ def _wrapped(spec: CableSpec) -> np.ndarray:
     return np.stack([np.interp(t, s, path[:, j]) for j in range(3)], axis=1)
 
 
+def _block(world: BulletWorld, hull: bool) -> None:
+    """The 0.4 x 0.2 x 0.1 m block on the ground: a Bullet box or a convex hull of its corners."""
+    he = (0.2, 0.1, 0.05)
+    if not hull:
+        world.add_box(he, (0, 0, he[2]))
+        return
+    corners = [[sx * he[0], sy * he[1], sz * he[2]] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)]
+    col = pb.createCollisionShape(pb.GEOM_MESH, vertices=corners, physicsClientId=world.client)
+    pb.createMultiBody(0, col, -1, [0, 0, he[2]], physicsClientId=world.client)
+
+
 def scene(kind: str, n: int, contact: bool, renderer: str | None = None):
-    """(world, cable) of ``kind`` (table/peg); contact=False: the same cable clamped in the air."""
+    """(world, cable) of ``kind`` (table/peg/box/hull); contact=False: the same cable clamped in the air."""
+    if kind in ("box", "hull"):
+        spec = CableSpec.lv2017(n_masses=n, damping=0.02)
+        world = BulletWorld(dt=1 / HZ, renderer=renderer)
+        _block(world, kind == "hull")
+        top = 0.1 + (0.001 if kind == "hull" else 0.0) + spec.diameter / 2  # a hull's surface: + Bullet's 1 mm margin
+        if contact:
+            cable = world.add_cable(spec, start=(-0.15, 0, top), direction=(1, 0, 0))
+        else:
+            cable = world.add_cable(spec, start=(-0.15, 0, 0.5), direction=(1, 0, 0), ends=("clamped", "clamped"))
+        return world, cable
     if kind == "table":
         spec = CableSpec.lv2017(n_masses=n, damping=0.02)
         world = BulletWorld(dt=1 / HZ, renderer=renderer)
@@ -80,9 +108,9 @@ def scene(kind: str, n: int, contact: bool, renderer: str | None = None):
 
 
 def per_step(world: BulletWorld, steps: int) -> float:
-    tic = time.perf_counter()
+    tic = time.thread_time()
     world.step(steps)
-    return (time.perf_counter() - tic) / steps
+    return (time.thread_time() - tic) / steps
 
 
 def measure(kind: str, n: int, repeats: int, block: int) -> dict:
@@ -123,8 +151,7 @@ def picture(kind: str, n: int, path: Path) -> None:
 def chart(rows: list[dict], path: Path) -> None:
     fig, ax = plt.subplots(figsize=(6, 3.5))
     labels = [f"{r['scene']}\nn={r['n']} ({r['contacts']} contacts)" for r in rows]
-    ax.bar(range(len(rows)), [r["ratio"] for r in rows], color=["#c46a2b" if r["scene"] == "table" else "#3b6ea5"
-                                                               for r in rows])
+    ax.bar(range(len(rows)), [r["ratio"] for r in rows], color=[COLORS[r["scene"]] for r in rows])
     ax.axhline(2.0, color="k", ls="--", lw=1, label="goal: 2x")
     ax.set_xticks(range(len(rows)), labels)
     ax.set_ylabel("step time / contact-free step time")
@@ -140,6 +167,8 @@ def main() -> None:
     ap.add_argument("--out", default="out/contact_cost",
                     help="output folder (default out/contact_cost; --out demos/gallery renews the committed pictures)")
     ap.add_argument("--masses", type=int, nargs="+", default=[20, 80])
+    ap.add_argument("--scenes", nargs="+", default=["table", "peg", "box", "hull"],
+                    choices=["table", "peg", "box", "hull"])
     ap.add_argument("--repeats", type=int, default=5)
     ap.add_argument("--block", type=int, default=200, help="steps per timed block")
     ap.add_argument("--quick", action="store_true", help="n = 20, one block of 20 steps, no pictures")
@@ -150,7 +179,7 @@ def main() -> None:
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     rows = []
-    for kind in ("table", "peg"):
+    for kind in args.scenes:
         for n in args.masses:
             row = measure(kind, n, args.repeats, args.block)
             rows.append(row)

@@ -156,8 +156,9 @@ class BulletCable:
         self._apply_native = None  # apply_forces's machine code, bound on first use
         self._contact_set: ContactSet | None = None
         self._bullet_collisions_off = False  # disable_bullet_collisions was called
-        self._excluded: set[int] = set()  # dynamic bodies whose Bullet contacts with the spheres are off
-        self._bodies_seen = -1
+        self._excluded: set[tuple[int, int]] = set()  # dynamic (body, link)s whose Bullet contacts with the spheres are off
+        self._bodies_seen = -1  # bodies in the world when the contact set was built
+        self._contact_exclusions: dict = {}  # (body, link or None) -> None (all) or node indices: exclude_contact
         self._partners_seen: tuple = ()  # names of the other cables in the contact set
         self.grip = make_grip()  # friction grips of the ends (grip_with_friction), shared by every contact set
         self._no_contacts = make_contacts(n, 1, self.radius, self.grip)
@@ -232,17 +233,53 @@ class BulletCable:
             return  # the common case, checked without building the partner list every step
         partners = self._partners()
         names = tuple(c.name for c in partners)
-        if self._bodies_seen == len(self.world.bodies) and names == self._partners_seen:
+        cid = self.world.client
+        count = pb.getNumBodies(physicsClientId=cid)
+        if self._bodies_seen == count and names == self._partners_seen:
             return
         spec = self.model.spec
-        self._bodies_seen = len(self.world.bodies)
+        self._bodies_seen = count
         self._partners_seen = names
-        self._contact_set = ContactSet(self.world.client, list(self.world.bodies), self.model.n, self.radius,
+        # every body of the world but the cables' spheres (the robot arms too, whoever loaded them)
+        spheres = set(self.world._owners) | set(self.body_ids)
+        bodies = [b for b in (pb.getBodyUniqueId(i, physicsClientId=cid) for i in range(count)) if b not in spheres]
+        self._contact_set = ContactSet(cid, bodies, self.model.n, self.radius,
                                        spec.static_friction, spec.friction, self.contact_stiffness,
                                        self.contact_damping, self_contact=self.self_collision != "none",
-                                       grip=self.grip, native=self.world.native_handle(), others=partners)
+                                       grip=self.grip, native=self.world.native_handle(), others=partners,
+                                       exclude={**{(b, None): None for b in self.world.no_cable_contact},
+                                                **self._contact_exclusions},
+                                       rest_length=float(spec.rest_length))
         if self._bullet_collisions_off:
             self._exclude_model_bodies()
+
+    def exclude_contact(self, body: int, link: int | None = None, nodes=None) -> None:
+        """Leave ``body`` (its link ``link``; None: every link) out of the cable's contact model: entirely
+        (``nodes`` None) or only for the given node indices and the segments next to them (a gripper holding
+        an end: its fingers do not push the held end, the rest of the cable still meets them). Bullet's own
+        collisions of those spheres with it are switched off too: the cable passes through. Only for
+        ``contact="model"``."""
+        cid = self.world.client
+        n = self.model.n
+        try:
+            pb.getBodyInfo(int(body), physicsClientId=cid)
+        except pb.error:
+            raise ParameterError(f"exclude_contact: no body {body} in this world") from None
+        if link is not None and not -1 <= link < pb.getNumJoints(body, physicsClientId=cid):
+            raise ParameterError(f"exclude_contact: link must be in [-1, {pb.getNumJoints(body, physicsClientId=cid) - 1}]"
+                                 f" or None, got {link}")
+        if nodes is not None:
+            idx = [int(i) for i in nodes]
+            if any(not -n <= i < n for i in idx):
+                raise ParameterError(f"exclude_contact: nodes must be in [{-n}, {n - 1}], got {idx}")
+            nodes = {i % n for i in idx}
+        self._contact_exclusions[(int(body), link)] = nodes
+        spheres = [self.body_ids[i] for i in sorted(nodes)] if nodes is not None else self.body_ids
+        for lk in ([link] if link is not None else range(-1, pb.getNumJoints(body, physicsClientId=cid))):
+            for b in spheres:
+                pb.setCollisionFilterPair(b, int(body), -1, lk, 0, physicsClientId=cid)
+        self._bodies_seen = -1  # rebuild the contact set
+        self._refresh_contact_set()
 
     def _exclude_model_bodies(self) -> None:
         """Keep Bullet from also colliding the spheres with the dynamic bodies the contact model handles.
@@ -254,10 +291,13 @@ class BulletCable:
         the ground. One pair filter per sphere and body, once per body.
         """
         cs, cid = self._contact_set, self.world.client
-        for body in sorted(set(cs.body_ids[cs.dynamic].tolist()) - self._excluded):
+        # a URDF's child links too, static ones included: Bullet collided the spheres with them (measured)
+        bullet_sees = cs.dynamic | (cs.links >= 0)
+        for body, link in sorted(set(zip(cs.body_ids[bullet_sees].tolist(), cs.links[bullet_sees].tolist()))
+                                 - self._excluded):
             for b in self.body_ids:
-                pb.setCollisionFilterPair(b, body, -1, -1, 0, physicsClientId=cid)
-            self._excluded.add(body)
+                pb.setCollisionFilterPair(b, body, -1, link, 0, physicsClientId=cid)
+            self._excluded.add((body, link))
 
     def disable_bullet_collisions(self) -> None:
         """Leave the world's bodies, the cable's self-contact and its contacts with the other cables the

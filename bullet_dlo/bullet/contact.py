@@ -31,13 +31,21 @@ Friction: the spec's ``static_friction`` and ``friction`` (dynamic) are the cabl
 Bullet ``lateralFriction`` mu_b combines with them by the geometric mean, mu = sqrt(mu_cable mu_b)
 (Bullet multiplies the two, so a cable of 0.3 on a body of 0.5 slides at 0.15, below both; the
 geometric mean is symmetric like Bullet's rule, lies between the two, and equals the cable's own
-coefficient on a body given the same value). Meshes and convex hulls are not handled (ignored,
-with a warning at set-up).
+coefficient on a body given the same value).
+
+Everything else a body can carry (triangle meshes, convex hulls, planes, compound shapes, the shapes of
+a URDF's child links, the robot arms' links and fingers) is measured by Bullet's own narrow phase
+(:meth:`ContactSet._probe`): each such link is a PROBE row, and before the step every node (a point
+capsule of the cable radius) and every segment (a capsule of the cable radius) within reach of the link's
+bounding box asks ``getClosestPoints`` for the link's closest point within the margin. The answer
+(point on the link, normal from Bullet, distance) becomes a contact of the same kind and law as the
+primitives' (a segment contact only where the link comes closer between the nodes than at them), on
+the link's current pose and velocity; the reaction goes to that link. No query is made while no
+such link's broad-phase box overlaps the cable's (``getOverlappingObjects``, one call per step).
 """
 from __future__ import annotations
 
 import math
-import warnings
 from typing import NamedTuple
 
 import numpy as np
@@ -48,23 +56,27 @@ from bullet_dlo.bullet.kernels import bind
 from bullet_dlo.bullet.native import BASE_STATE, disabled_warning, read_base_states
 from bullet_dlo.core.kernels.contact import STICK, Contacts, make_contacts
 
-BOX, SPHERE, CYLINDER, CAPSULE = range(4)
+BOX, SPHERE, CYLINDER, CAPSULE, PROBE = range(5)  # PROBE: a link measured by Bullet's narrow phase
 N_EDGES = 12  # a box's edges, each a segment feature of its own
 SMALL_N = 64  # self-contact candidates of cables up to this many nodes: every pair tried (faster there)
 S_MIN = 1e-3  # segment interior: 0 < s < 1 away from the nodes by this much (nodes are contacts of their own)
+# a probed segment contact must come closer than both its nodes by this much [m] (above the narrow phase's
+# noise, 1e-9 m measured): on a flat face a capsule's closest point is anywhere along it, and the nodes carry it
+SEGMENT_DIP = 1e-7
 _GEOMS = {pb.GEOM_BOX: BOX, pb.GEOM_SPHERE: SPHERE, pb.GEOM_CYLINDER: CYLINDER, pb.GEOM_CAPSULE: CAPSULE}
 
 
 class Shapes(NamedTuple):
     """The bodies a cable touches, as the detection kernel takes them (B shapes).
 
-    kind (B,) int: BOX/SPHERE/CYLINDER/CAPSULE; pos [m] (B, 3) and rot (B, 3, 3) (world from
+    kind (B,) int: BOX/SPHERE/CYLINDER/CAPSULE, or PROBE (a link Bullet's narrow phase measures:
+    pos and rot are its centre-of-mass frame, size unused); pos [m] (B, 3) and rot (B, 3, 3) (world from
     shape frame) of each shape; size (B, 3) [m]: box half extents, or (radius, half length, 0);
     com (B, 3) [m]: the body's centre of mass; lin_vel [m/s], ang_vel [rad/s] (B, 3): the body's
     velocity; mu_s, mu_d (B,): combined friction coefficients with the cable; inv_mass (B,) [1/kg]
     and inv_inertia (B,) [1/(kg m^2)]: the body's inverse mass and the largest eigenvalue of its
-    inverse inertia (both 0 for a static body); owner (B,) int: the first shape of the same body
-    (the shapes of one body share its inertia).
+    inverse inertia (both 0 for a static body); owner (B,) int: the first shape of the same body and
+    link (the shapes of one link share its inertia).
     """
 
     kind: np.ndarray
@@ -90,6 +102,20 @@ class Store(NamedTuple):
     active: np.ndarray
     keys: np.ndarray
     body: np.ndarray
+
+
+class Probes(NamedTuple):
+    """Bullet's closest points of the coming step (:meth:`ContactSet._probe`), P rows, count[0] used: shape
+    (P,) int: the PROBE row; node (P, 2) int and weight (P,): the nodes (i, i) of a node contact or (i, i + 1)
+    of a segment contact and the weight s of node i + 1; point [m] (P, 3) on the link; normal (P, 3) unit,
+    from the link to the cable."""
+
+    count: np.ndarray
+    shape: np.ndarray
+    node: np.ndarray
+    weight: np.ndarray
+    point: np.ndarray
+    normal: np.ndarray
 
 
 class Others(NamedTuple):
@@ -119,15 +145,12 @@ class Others(NamedTuple):
 CABLE = -2  # Store.body of a contact with another cable (-1: the cable itself)
 
 
-def _warn_child_links(client: int, body: int) -> None:
-    """Warn (never silently drop) when ``body`` has collision shapes on child links: only the base link's
-    primitives enter the contact model, and the cable's spheres are out of Bullet's collisions."""
-    links = [j for j in range(pb.getNumJoints(body, physicsClientId=client))
-             if pb.getCollisionShapeData(body, j, physicsClientId=client)]
-    if links:
-        warnings.warn(f"body {body}: collision shapes on {len(links)} child link(s) {links[:5]} are not handled by "
-                      f"the cable's contact model (only the base link's boxes, spheres, cylinders and capsules are); "
-                      f"the cable passes through them", stacklevel=4)
+_ORIGIN = [0.0, 0.0, 0.0]
+
+
+def _distance(point) -> float:
+    """The distance [m] of a getClosestPoints answer."""
+    return point[8]
 
 
 def _rotation(quat) -> np.ndarray:
@@ -137,9 +160,12 @@ def _rotation(quat) -> np.ndarray:
 class ContactSet:
     """Shapes of the bodies in a world, the cable's Contacts and their persistence.
 
-    ``bodies``: the body ids to collide with (the world's ground and obstacles). Poses are read
-    every step; dynamic bodies (mass > 0) also their velocities, and they receive the contact
-    forces (:meth:`apply_to_bodies`) during the coming Bullet step.
+    ``bodies``: the body ids to collide with (every body of the world but the cables' spheres). Each
+    link with collision shapes is a row: its base-link primitives one row per shape on their exact
+    geometry, any other link (a child link, a mesh, a hull, a compound with a mesh) one PROBE row that
+    Bullet's narrow phase measures (:meth:`_probe`). The exact rows' poses are read every step, a PROBE
+    row's when the cable is near it; dynamic links (mass > 0) also their velocities, and they receive
+    the contact forces (:meth:`apply_to_bodies`, on their link) during the coming Bullet step.
 
     Two-way contact with a dynamic body: the cable's implicit step sees the body's surface move
     at the body's velocity, but Bullet then moves the body under the contact force too. With the
@@ -164,47 +190,85 @@ class ContactSet:
 
     def __init__(self, client: int, bodies, n: int, radius: float, mu_s: float, mu_d: float,
                  alpha: float, damping_ratio: float, self_contact: bool = True, grip=None, native: int = 0,
-                 others=()):
-        """``others``: the other cables (BulletCable) whose contacts with this one the model handles."""
+                 others=(), exclude=None, rest_length: float = 0.0):
+        """``others``: the other cables (BulletCable) whose contacts with this one the model handles;
+        ``exclude``: {(body, link): None (no contact) or a set of node indices that do not touch it (nor do the
+        segments next to them)}, link None meaning every link of the body; ``rest_length`` [m]: the length of
+        the capsule that probes a segment (the cable's rest segment length; 0: nodes only)."""
         self.client = client
         self.n = n
         self.alpha = float(alpha)
         self.zeta = float(damping_ratio)
-        rows = []  # (body id, kind, local pos, local rot, size, dynamic, mu_b, 1/mass, 1/I_min)
+        exclude = exclude or {}
+        exact, probed = [], []  # (body id, link, kind, local pos, local rot, size, dynamic, mu_b, 1/mass, 1/I_min, nodes out)
         for body in bodies:
-            _warn_child_links(client, body)
-            info = pb.getDynamicsInfo(body, -1, physicsClientId=client)
-            mass, mu_b = info[0:2]
-            i_min = min(info[2]) if mass > 0.0 else 0.0
-            inv_m = 1.0 / mass if mass > 0.0 else 0.0
-            inv_i = 1.0 / i_min if i_min > 0.0 else 0.0
-            for shape in pb.getCollisionShapeData(body, -1, physicsClientId=client):
-                geom, dims, lpos, lorn = shape[2], shape[3], shape[5], shape[6]
-                if geom not in _GEOMS:
-                    warnings.warn(f"body {body}: collision geometry {geom} (mesh/hull/plane) is not handled by the "
-                                  f"cable's contact model; the cable passes through it", stacklevel=3)
+            for link in range(-1, pb.getNumJoints(body, physicsClientId=client)):
+                data = pb.getCollisionShapeData(body, link, physicsClientId=client)
+                if not data:
                     continue
-                kind = _GEOMS[geom]
-                if kind == BOX:
-                    size = 0.5 * np.asarray(dims[:3], float)
-                elif kind == SPHERE:
-                    size = np.array([dims[0], 0.0, 0.0])
-                else:  # cylinder, capsule: (length, radius)
-                    size = np.array([dims[1], 0.5 * dims[0], 0.0])
-                rows.append((body, kind, np.asarray(lpos, float), _rotation(lorn), size, mass > 0.0, float(mu_b),
-                             inv_m, inv_i))
+                out = exclude.get((body, link), exclude.get((body, None), ()))
+                if out is None:
+                    continue  # excluded: no contact with this link
+                info = pb.getDynamicsInfo(body, link, physicsClientId=client)
+                mass, mu_b = info[0:2]
+                i_min = min(info[2]) if mass > 0.0 else 0.0
+                common = (mass > 0.0, float(mu_b), 1.0 / mass if mass > 0.0 else 0.0,
+                          1.0 / i_min if i_min > 0.0 else 0.0, frozenset(out))
+                if link >= 0 or out or any(d[2] not in _GEOMS for d in data):
+                    # a child link (its pose is the link's), a node exclusion or a shape the exact geometry does
+                    # not cover: the whole link goes to Bullet's narrow phase (one query answers for all its shapes)
+                    probed.append((body, link, PROBE, np.zeros(3), np.eye(3), np.zeros(3)) + common)
+                    continue
+                for shape in data:
+                    geom, dims, lpos, lorn = shape[2], shape[3], shape[5], shape[6]
+                    kind = _GEOMS[geom]
+                    if kind == BOX:
+                        size = 0.5 * np.asarray(dims[:3], float)
+                    elif kind == SPHERE:
+                        size = np.array([dims[0], 0.0, 0.0])
+                    else:  # cylinder, capsule: (length, radius)
+                        size = np.array([dims[1], 0.5 * dims[0], 0.0])
+                    exact.append((body, -1, kind, np.asarray(lpos, float), _rotation(lorn), size) + common)
+        rows = exact + probed  # the exact shapes first: their poses are read every step
         self.rows = rows
+        self.n_exact = len(exact)
         self.body_ids = np.array([r[0] for r in rows], dtype=np.int64)
-        self.dynamic = np.array([r[5] for r in rows], dtype=np.bool_)
-        self._any_dynamic = bool(self.dynamic.any())
+        self.links = np.array([r[1] for r in rows], dtype=np.int64)
+        self.dynamic = np.array([r[6] for r in rows], dtype=np.bool_)
+        self._any_dynamic = bool(self.dynamic[:self.n_exact].any())
         nb = len(rows)
-        mu_b = np.array([r[6] for r in rows])
-        self.shapes = Shapes(kind=np.array([r[1] for r in rows], dtype=np.int64), pos=np.zeros((nb, 3)),
-                             rot=np.zeros((nb, 3, 3)), size=np.array([r[4] for r in rows]).reshape(nb, 3),
+        mu_b = np.array([r[7] for r in rows])
+        pairs = [(r[0], r[1]) for r in rows]
+        self.shapes = Shapes(kind=np.array([r[2] for r in rows], dtype=np.int64), pos=np.zeros((nb, 3)),
+                             rot=np.zeros((nb, 3, 3)), size=np.array([r[5] for r in rows]).reshape(nb, 3),
                              com=np.zeros((nb, 3)), lin_vel=np.zeros((nb, 3)), ang_vel=np.zeros((nb, 3)),
                              mu_s=np.sqrt(mu_s * mu_b), mu_d=np.sqrt(mu_d * mu_b),
-                             inv_mass=np.array([r[7] for r in rows]), inv_inertia=np.array([r[8] for r in rows]),
-                             owner=np.array([[r[0] for r in rows].index(r[0]) for r in rows], dtype=np.int64))
+                             inv_mass=np.array([r[8] for r in rows]), inv_inertia=np.array([r[9] for r in rows]),
+                             owner=np.array([pairs.index(pr) for pr in pairs], dtype=np.int64))
+        self._probe_rows = {pairs[s]: s for s in range(self.n_exact, nb)}
+        self._probe_out = np.zeros((nb, n), np.bool_)  # nodes that do not touch a probed link
+        for s in range(self.n_exact, nb):
+            self._probe_out[s, sorted(rows[s][10])] = True
+        cap_p = 2 * n * max(1, len(probed))
+        self.probes = Probes(count=np.zeros(1, np.int64), shape=np.zeros(cap_p, np.int64),
+                             node=np.zeros((cap_p, 2), np.int64), weight=np.zeros(cap_p), point=np.zeros((cap_p, 3)),
+                             normal=np.zeros((cap_p, 3)))
+        self._radius = float(radius)
+        if probed:
+            # a node is a capsule of (almost) no length, not a sphere: Bullet answers a sphere against a
+            # triangle mesh without the mesh's collision margin (1 mm) but a capsule with it, and the two
+            # probes must see the same surface (measured; the 5e-9 m of length shift it by less than that)
+            self._sphere = pb.createCollisionShape(pb.GEOM_CAPSULE, radius=radius, height=1e-8,
+                                                   physicsClientId=client)
+            self._capsule = (pb.createCollisionShape(pb.GEOM_CAPSULE, radius=radius, height=rest_length,
+                                                     physicsClientId=client) if rest_length > 0.0 else -1)
+            self._cand = (np.zeros(n, np.int64), np.zeros(n, np.int64), np.zeros((n, 3)), np.zeros((n, 4)),
+                          np.full(n, np.inf))
+            self._box = np.zeros((2, 3))
+            self._cable_box = np.zeros((2, 3))
+            self._reach = None  # _reach_box bound on first use
+            self._candidates = None  # _probe_candidates bound on first use
+            self._prev_rows: set = set()
         self.keys_per_shape = n + (N_EDGES + 1) * (n - 1)
         self.other_cables = list(others)
         n_other = sum(o.model.n for o in self.other_cables)
@@ -228,20 +292,21 @@ class ContactSet:
             first=first, vmax=np.zeros(1), row_node=np.zeros((capacity, 2), np.int64),
             row_w=np.zeros((capacity, 2)), row_p0=np.zeros((capacity, 3)))
         self._poses: list = [None] * nb
-        for s in range(nb):
+        for s in range(self.n_exact):
             self._read_pose(s, with_velocity=False)
         self._detect = None  # bound to the argument types on first use (skips Numba's per-call dispatch)
         # native reads of every row's base state (bullet.native), once checked against PyBullet's
-        self._bases = np.zeros((nb, BASE_STATE))
-        self._base_args = (native, self.body_ids.astype(np.int32), self._bases, np.full((nb, 7), np.nan),
-                           np.zeros(nb, dtype=np.bool_))
-        self._read_bases = bind(read_base_states, *self._base_args) if native and nb and self._native_ok() else None
+        ne = self.n_exact
+        self._bases = np.zeros((ne, BASE_STATE))
+        self._base_args = (native, self.body_ids[:ne].astype(np.int32), self._bases, np.full((ne, 7), np.nan),
+                           np.zeros(ne, dtype=np.bool_))
+        self._read_bases = bind(read_base_states, *self._base_args) if native and ne and self._native_ok() else None
 
     def _native_ok(self) -> bool:
-        if read_base_states(*self._base_args) != len(self.rows):
+        if read_base_states(*self._base_args) != self.n_exact:
             return False
         cid = self.client
-        for s, body in enumerate(self.body_ids.tolist()):
+        for s, body in enumerate(self.body_ids[:self.n_exact].tolist()):
             pose = pb.getBasePositionAndOrientation(body, physicsClientId=cid)
             vel = pb.getBaseVelocity(body, physicsClientId=cid)
             if self._bases[s].tolist() != [*pose[0], *pose[1], *vel[0], *vel[1]]:
@@ -264,7 +329,7 @@ class ContactSet:
 
     def _set_pose(self, s: int, com, orn) -> None:
         """Shape ``s``'s frame from its body's base pose: CoM position [m] (3,), quaternion (4,)."""
-        lpos, lrot = self.rows[s][2:4]
+        lpos, lrot = self.rows[s][3:5]
         rot = _rotation(orn)
         sh = self.shapes
         sh.com[s] = com
@@ -275,7 +340,7 @@ class ContactSet:
         """Every shape's body pose (velocity too where it moves by dynamics): static bodies too, as a
         script may move them; one compiled call where native reads are on, else two PyBullet calls each."""
         if self._read_bases is None:
-            for s in range(len(self.rows)):
+            for s in range(self.n_exact):
                 self._read_pose(s, with_velocity=bool(self.dynamic[s]))
             return
         bases = self._bases
@@ -283,9 +348,9 @@ class ContactSet:
             for s in np.flatnonzero(self._base_args[4]).tolist():
                 self._set_pose(s, bases[s, 0:3], bases[s, 3:7])
         if self._any_dynamic:
-            dyn = self.dynamic
-            self.shapes.lin_vel[dyn] = bases[dyn, 7:10]
-            self.shapes.ang_vel[dyn] = bases[dyn, 10:13]
+            dyn = self.dynamic[:self.n_exact]
+            self.shapes.lin_vel[:self.n_exact][dyn] = bases[dyn, 7:10]
+            self.shapes.ang_vel[:self.n_exact][dyn] = bases[dyn, 10:13]
 
     def update(self, x: np.ndarray, v: np.ndarray, mass: np.ndarray, h: float, dt: float, stepped: bool) -> int:
         """Read the moving bodies, detect the contacts of positions x [m] (n, 3) for a cable step of h [s]
@@ -294,12 +359,106 @@ class ContactSet:
         self._read_poses()
         if self.other_cables:
             self._read_others(dt)
+        if self._probe_rows:
+            self._probe(x, v, h)
         k_per_mass = self.alpha / (h * h)
         args = (x, v, mass, self.shapes, self.contacts, self.store, float(h), k_per_mass, self.zeta, self.self_mu,
-                float(dt), float(dt) if stepped else 0.0, self.others)
+                float(dt), float(dt) if stepped else 0.0, self.others, self.probes)
         if self._detect is None:
             self._detect = bind(detect, *args)
         return self._detect(*args)
+
+    def _read_link(self, s: int) -> None:
+        """PROBE row ``s``: its link's centre-of-mass frame and velocity now (the arms move every step)."""
+        body, link = self.rows[s][0:2]
+        cid, sh = self.client, self.shapes
+        if link < 0:
+            com, orn = pb.getBasePositionAndOrientation(body, physicsClientId=cid)
+            lin, ang = pb.getBaseVelocity(body, physicsClientId=cid)
+        else:
+            st = pb.getLinkState(body, link, 1, 1, physicsClientId=cid)
+            com, orn, lin, ang = st[0], st[1], st[6], st[7]
+        sh.com[s] = sh.pos[s] = com
+        sh.rot[s] = _rotation(orn)
+        sh.lin_vel[s] = lin
+        sh.ang_vel[s] = ang
+
+    def _probe(self, x: np.ndarray, v: np.ndarray, h: float) -> None:
+        """Bullet's closest points between the cable and the PROBE links within reach, into ``self.probes``.
+
+        Broad phase: one ``getOverlappingObjects`` with the cable's box grown by the reach (nothing else
+        while no probed link is near), then each hit link's box against each node's and segment's. Narrow
+        phase: ``getClosestPoints`` of a point capsule of the cable radius at each node, and of a capsule of the
+        cable radius and rest length along each segment, against the link, within the margin (the same
+        as :func:`detect`'s). A node keeps the link's closest point; a segment only where it comes closer
+        to the link between its nodes than at them (by SEGMENT_DIP) at an interior point (S_MIN < s <
+        1 - S_MIN): elsewhere the nodes carry the contact, as on the primitives' faces. Only the closest
+        point per node (segment) and link is kept: a node in a concave corner of a triangle mesh meets one
+        of its faces per step."""
+        pr = self.probes
+        pr.count[0] = 0
+        cable_box = self._cable_box
+        args = (x, v, self._radius, h, cable_box)
+        if self._reach is None:
+            self._reach = bind(_reach_box, *args)
+        margin = self._reach(*args)
+        reach = self._radius + margin
+        cid = self.client
+        hits = pb.getOverlappingObjects(cable_box[0].tolist(), cable_box[1].tolist(), physicsClientId=cid) or ()
+        rows = {self._probe_rows[hit] for hit in hits if hit in self._probe_rows}
+        k_prev = int(self.contacts.count[0])
+        prev = self.store.body[:k_prev]
+        self._prev_rows = {int(r) for r in np.unique(prev[prev >= self.n_exact])} if k_prev else set()
+        rows |= self._prev_rows  # the links touched last step: their velocity now, for the work check
+        if not rows:
+            return
+        nodes, segs, mid, quat, dist = self._cand
+        closest = pb.getClosestPoints
+        sphere, capsule = self._sphere, self._capsule
+        box = self._box
+        found = []  # (row, node a, node b, weight of b, point, normal)
+        xl = None
+        for s in sorted(rows):
+            body, link = self.rows[s][0:2]
+            box[0], box[1] = pb.getAABB(body, link, physicsClientId=cid)
+            args = (x, box, reach, self._probe_out[s], capsule >= 0, nodes, segs, mid, quat)
+            if self._candidates is None:
+                self._candidates = bind(_probe_candidates, *args)
+            nn, ns = self._candidates(*args)
+            if nn == 0 and ns == 0 and s not in self._prev_rows:
+                continue  # only its box was near (a gripper around an excluded end)
+            self._read_link(s)
+            xl = x.tolist() if xl is None else xl
+            dist[:] = margin
+            for i in nodes[:nn].tolist():
+                res = closest(-1, body, margin, -1, link, sphere, -1, xl[i], physicsClientId=cid)
+                if res:
+                    best = min(res, key=_distance) if len(res) > 1 else res[0]
+                    dist[i] = best[8]
+                    found.append((s, i, i, 0.0, best[6], best[7]))
+            for i, m, q in zip(segs[:ns].tolist(), mid[:ns].tolist(), quat[:ns].tolist()):
+                res = closest(-1, body, margin, -1, link, capsule, -1, m, _ORIGIN, q, physicsClientId=cid)
+                if not res:
+                    continue
+                best = min(res, key=_distance) if len(res) > 1 else res[0]
+                if best[8] > min(dist[i], dist[i + 1]) - SEGMENT_DIP:
+                    continue  # no closer between the nodes than at them: the nodes carry it
+                xa, xb = xl[i], xl[i + 1]
+                pa, nb, r = best[5], best[7], self._radius
+                num = den = 0.0
+                for j in range(3):  # the capsule's axis point pa + r n, projected on the segment
+                    e = xb[j] - xa[j]
+                    num += (pa[j] + r * nb[j] - xa[j]) * e
+                    den += e * e
+                sp = num / den
+                if S_MIN < sp < 1.0 - S_MIN:
+                    found.append((s, i, i + 1, sp, best[6], nb))
+        k = min(len(found), pr.shape.shape[0])
+        if k:
+            row, a, b, w, point, normal = zip(*found[:k])
+            pr.shape[:k], pr.node[:k, 0], pr.node[:k, 1], pr.weight[:k] = row, a, b, w
+            pr.point[:k], pr.normal[:k] = point, normal
+        pr.count[0] = k
 
     def _read_others(self, dt: float) -> None:
         """The other cables now: a cable that has planned its coming step already (it stepped before this
@@ -323,7 +482,7 @@ class ContactSet:
         o.vmax[0] = vmax
 
     def per_contact(self, x: np.ndarray) -> dict[str, np.ndarray]:
-        """The current contacts (forces of the last step, on the cable [N]): body, node (k, 2),
+        """The current contacts (forces of the last step, on the cable [N]): body, link (-1: the base), node (k, 2),
         weight (k, 2), point [m] (k, 3), normal (k, 3), gap [m] (k,) at positions x (negative:
         penetration), normal_force (k,), friction (k, 3), force (k, 3) = normal_force normal +
         friction, sliding (k,) bool."""
@@ -336,7 +495,8 @@ class ContactSet:
         shape = self.store.body[:k]
         body = np.where(shape >= 0, self.body_ids[np.maximum(shape, 0)] if len(self.body_ids) else -1,
                         np.where(shape == CABLE, CABLE, -1))
-        return {"body": body, "node": c.node[:k].copy(), "gap": gap,
+        link = np.where(shape >= 0, self.links[np.maximum(shape, 0)] if len(self.links) else -1, -1)
+        return {"body": body, "link": link, "node": c.node[:k].copy(), "gap": gap,
                 "weight": c.weight[:k].copy(), "point": c.point[:k].copy(), "normal": c.normal[:k].copy(),
                 "normal_force": fn, "friction": c.f_t[:k].copy(),
                 "force": fn[:, None] * c.normal[:k] + c.f_t[:k], "sliding": c.state[:k] != STICK}
@@ -367,9 +527,9 @@ class ContactSet:
             arm = c.point[:k][sel] - self.shapes.com[s]
             f_tot = force[sel].sum(axis=0)
             tau = np.cross(arm, force[sel]).sum(axis=0)
-            body = int(self.body_ids[s])
-            pb.applyExternalForce(body, -1, f_tot.tolist(), self.shapes.com[s].tolist(), pb.WORLD_FRAME, cid)
-            pb.applyExternalTorque(body, -1, tau.tolist(), pb.WORLD_FRAME, cid)
+            body, link = int(self.body_ids[s]), int(self.links[s])
+            pb.applyExternalForce(body, link, f_tot.tolist(), self.shapes.com[s].tolist(), pb.WORLD_FRAME, cid)
+            pb.applyExternalTorque(body, link, tau.tolist(), pb.WORLD_FRAME, cid)
 
 
 # ----- detection kernel --------------------------------------------------------------------------
@@ -505,6 +665,13 @@ def _add(c, st, key, shape, ia, ib, wa, wb, cl, nl, sh, k_per_mass, zeta, mass, 
     for j in range(3):
         c.point[k, j] = pos[j] + rot[j, 0] * cl[0] + rot[j, 1] * cl[1] + rot[j, 2] * cl[2]
         c.normal[k, j] = rot[j, 0] * nl[0] + rot[j, 1] * nl[1] + rot[j, 2] * nl[2]
+    _add_row(c, st, key, shape, ia, ib, wa, wb, sh, k_per_mass, zeta, mass, x)
+
+
+@njit(cache=True, error_model="numpy")
+def _add_row(c, st, key, shape, ia, ib, wa, wb, sh, k_per_mass, zeta, mass, x):
+    """The rest of row count[0] once its world point and normal are set: the body's velocity there, the law."""
+    k = c.count[0]
     arm = c.point[k] - sh.com[shape]
     w = sh.ang_vel[shape]
     c.body_vel[k, 0] = sh.lin_vel[shape, 0] + w[1] * arm[2] - w[2] * arm[1]
@@ -548,7 +715,69 @@ def _fill(c, st, key, shape, ia, ib, wa, wb, mu_s, mu_d, k_n, zeta, mk, x):
 
 
 @njit(cache=True, error_model="numpy")
-def detect(x, v, mass, sh, c, st, h, k_per_mass, zeta, self_mu, h_body, h_done, oc):
+def _reach_box(x, v, radius, h, out):
+    """The contact margin [m] of positions x (n, 3) [m] moving at v [m/s] over a step of h [s], as in
+    :func:`detect`, and the nodes' bounding box grown by the reach (radius + margin) into ``out`` (2, 3)."""
+    vmax = 0.0
+    for i in range(v.shape[0]):
+        for j in range(3):
+            vmax = max(vmax, abs(v[i, j]))
+    margin = radius + 2.0 * vmax * h + 1e-3
+    for j in range(3):
+        lo, hi = x[0, j], x[0, j]
+        for i in range(1, x.shape[0]):
+            lo = min(lo, x[i, j])
+            hi = max(hi, x[i, j])
+        out[0, j] = lo - radius - margin
+        out[1, j] = hi + radius + margin
+    return margin
+
+
+@njit(cache=True, error_model="numpy")
+def _probe_candidates(x, box, reach, out, segments, nodes, segs, mid, quat):
+    """The nodes and segments of x (n, 3) [m] whose boxes come within ``reach`` [m] of ``box`` (2, 3) (a
+    link's lower and upper corners), skipping the ``out`` nodes (and their segments): node indices into ``nodes``, segment starts
+    into ``segs`` with each segment's midpoint ``mid`` and the quaternion [x, y, z, w] turning z onto it
+    (a capsule's axis) into ``quat`` (only if ``segments``). Returns (node count, segment count)."""
+    n = x.shape[0]
+    lo, hi = box[0], box[1]
+    nn = 0
+    ns = 0
+    for i in range(n):
+        near = True
+        for j in range(3):
+            if x[i, j] < lo[j] - reach or x[i, j] > hi[j] + reach:
+                near = False
+        if near and not out[i]:
+            nodes[nn] = i
+            nn += 1
+        if not segments or i == n - 1 or out[i] or out[i + 1]:
+            continue
+        near = True
+        for j in range(3):
+            if min(x[i, j], x[i + 1, j]) > hi[j] + reach or max(x[i, j], x[i + 1, j]) < lo[j] - reach:
+                near = False
+        if not near:
+            continue
+        e0, e1, e2 = x[i + 1, 0] - x[i, 0], x[i + 1, 1] - x[i, 1], x[i + 1, 2] - x[i, 2]
+        el = math.sqrt(e0 * e0 + e1 * e1 + e2 * e2)
+        if el == 0.0:
+            continue
+        e0, e1, e2 = e0 / el, e1 / el, e2 / el
+        segs[ns] = i
+        for j in range(3):
+            mid[ns, j] = 0.5 * (x[i, j] + x[i + 1, j])
+        if e2 < -1.0 + 1e-12:  # pointing down z: half a turn about x
+            quat[ns, 0], quat[ns, 1], quat[ns, 2], quat[ns, 3] = 1.0, 0.0, 0.0, 0.0
+        else:  # half-way between z and e: (z x e, 1 + z.e), normalised
+            ql = math.sqrt(e1 * e1 + e0 * e0 + (1.0 + e2) ** 2)
+            quat[ns, 0], quat[ns, 1], quat[ns, 2], quat[ns, 3] = -e1 / ql, e0 / ql, 0.0, (1.0 + e2) / ql
+        ns += 1
+    return nn, ns
+
+
+@njit(cache=True, error_model="numpy")
+def detect(x, v, mass, sh, c, st, h, k_per_mass, zeta, self_mu, h_body, h_done, oc, pr):
     """Store the friction state of the last step's contacts by key, then fill ``c`` with the contacts
     of positions x [m] (n, 3) (velocities v [m/s]) whose gap is below the margin (cable radius + twice
     the distance the fastest node moves in a step of h [s] + 1 mm); self-contacts too unless
@@ -560,7 +789,9 @@ def detect(x, v, mass, sh, c, st, h, k_per_mass, zeta, self_mu, h_body, h_done, 
     Bullet step of h_body [s] (:func:`_condense_bodies`).
 
     Other cables (``oc``, :class:`Others`): their segments against this cable's (:func:`_cable_contacts`);
-    the last step's contacts with them are corrected for where the other cable actually went."""
+    the last step's contacts with them are corrected for where the other cable actually went.
+
+    Probed links (``pr``, :class:`Probes`): Bullet's closest points become contacts of the same law."""
     vmax = 0.0
     for i in range(v.shape[0]):
         for j in range(3):
@@ -595,8 +826,21 @@ def detect(x, v, mass, sh, c, st, h, k_per_mass, zeta, self_mu, h_body, h_done, 
     nl = np.empty(3)
     P = np.empty(3)
     A = np.empty(3)
+    for k in range(pr.count[0]):  # Bullet's closest points on the probed links (world frame already)
+        s = pr.shape[k]
+        ia, ib = pr.node[k, 0], pr.node[k, 1]
+        m = c.count[0]
+        if m >= c.node.shape[0]:
+            break
+        for j in range(3):
+            c.point[m, j] = pr.point[k, j]
+            c.normal[m, j] = pr.normal[k, j]
+        key = s * per_shape + (ia if ia == ib else n + ia)
+        _add_row(c, st, key, s, ia, ib, 1.0 - pr.weight[k], pr.weight[k], sh, k_per_mass, zeta, mass, x)
     for s in range(sh.kind.shape[0]):
         kind = sh.kind[s]
+        if kind == PROBE:
+            continue
         size = sh.size[s]
         rot, pos = sh.rot[s], sh.pos[s]
         for i in range(n):  # nodes in the shape frame

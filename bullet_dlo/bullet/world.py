@@ -74,6 +74,9 @@ class BulletWorld:
         self.cables: dict[str, BulletCable] = {}
         self._owners: dict[int, tuple[str, int]] = {}  # sphere body id -> (cable name, mass index)
         self.bodies: dict[int, str] = {}  # non-cable bodies and their names (for messages)
+        # bodies left out of every cable's contact model (a scene obstacle's ``contact: false``); a cable's
+        # own exclusions: BulletCable.exclude_contact. Read when a cable (re)builds its contact set.
+        self.no_cable_contact: set[int] = set()
         self._groups_used = 0
         self._model_cable_groups = 0  # collision groups of the cables whose mutual contacts the model handles
         self._pending: set[str] = set()  # cables still to take their step in phase 7 (see take_cable_steps)
@@ -132,8 +135,9 @@ class BulletWorld:
     def add_urdf(self, path: str | os.PathLike, position: Sequence[float] = (0, 0, 0),
                  orientation: Sequence[float] = (0, 0, 0, 1), *, fixed: bool = True, name: str | None = None) -> int:
         """Load a URDF (absolute, relative, from the project's ``urdf/`` or ``pybullet_data``). Its
-        ``<cylinder>`` collisions load as cylinders (not meshes), so the cable's contact model sees them;
-        shapes on child links are not in that model (a warning says so when the cable is added)."""
+        ``<cylinder>`` collisions load as cylinders (not meshes), so the cable's contact model meets its base
+        link's primitives on their exact geometry; meshes and the shapes of child links it meets through
+        Bullet's narrow phase (:mod:`bullet_dlo.bullet.contact`)."""
         file = resolve_asset(path)
         pos = check_vector3("position", position)
         try:
@@ -383,15 +387,21 @@ class BulletWorld:
 
 
 def add_obstacles(world: BulletWorld, obstacles) -> None:
-    """Add a scene's ``bullet.obstacles`` (mappings with ``type: box | cylinder | urdf``) to ``world``."""
+    """Add a scene's ``bullet.obstacles`` (mappings with ``type: box | cylinder | urdf``) to ``world``;
+    ``contact: false`` leaves one out of the cables' contact model (:attr:`BulletWorld.no_cable_contact`)."""
     for k, ob in enumerate(obstacles):
-        spec = {key: val for key, val in ob.items() if key != "type"}
+        spec = {key: val for key, val in ob.items() if key not in ("type", "contact")}
+        contact = ob.get("contact", True)
         try:
+            if not isinstance(contact, bool):
+                raise ParameterError(f"contact must be true or false, got {contact!r}")
             if ob["type"] == "box":
-                world.add_box(**spec)
+                body = world.add_box(**spec)
             elif ob["type"] == "cylinder":
-                world.add_cylinder(**spec)
+                body = world.add_cylinder(**spec)
             else:
-                world.add_urdf(**spec)
+                body = world.add_urdf(**spec)
         except (ParameterError, TypeError) as err:
             raise ParameterError(f"bullet.obstacles[{k}]: {err}") from None
+        if not contact:
+            world.no_cable_contact.add(body)

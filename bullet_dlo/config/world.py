@@ -14,9 +14,9 @@ from bullet_dlo.core.validate import ParameterError, check_bool, check_finite, c
 MAX_OBSTACLES = 1000
 """Most ``bullet.obstacles`` entries in one scene: 5000 took 26 s to build on a 2-core machine before a step."""
 BULLET_KEYS = ("ground", "ground_height", "ground_friction", "substeps", "self_collision", "sync", "obstacles")
-OBSTACLE_KEYS = {"box": ("half_extents", "position", "orientation", "mass", "friction", "name"),
-                 "cylinder": ("radius", "height", "position", "orientation", "mass", "friction", "name"),
-                 "urdf": ("path", "position", "orientation", "fixed", "name")}
+OBSTACLE_KEYS = {"box": ("half_extents", "position", "orientation", "mass", "friction", "name", "contact"),
+                 "cylinder": ("radius", "height", "position", "orientation", "mass", "friction", "name", "contact"),
+                 "urdf": ("path", "position", "orientation", "fixed", "name", "contact")}
 SELF_COLLISION = ("neighbours", "none", "all")
 SYNC = ("contacts", "always")
 

@@ -31,18 +31,22 @@ def _arc(cx, cz, radius, a0, a1, k=300):
     return np.stack([cx + radius * np.cos(a), 0 * a, cz + radius * np.sin(a)], axis=1)
 
 
-def capstan_onset(theta: float, mu: float, hz: float = 240.0, integrator: str = "implicit_euler"):
+def capstan_onset(theta: float, mu: float, hz: float = 240.0, integrator: str = "implicit_euler", peg=None):
     """Soft cable over a fixed cylinder, wrap ``theta`` (pi, or pi/2 with a frictionless guide turning the
     short side down), 50 g on the short end; the long end's load ramps the static tension ratio
     T_long/T_short from 1 to 2 exp(mu theta) over 4 s. Returns (ratio at slip onset, the cable):
-    onset is the short end rising 2 mm."""
+    onset is the short end rising 2 mm. ``peg(world, radius, friction)``: makes the cylinder (axis along
+    y through the origin; default: a Bullet cylinder)."""
     n = 60
     spec = CableSpec(length=0.6, diameter=0.004, mass=0.009, youngs_modulus=2e6, n_masses=n,
                      friction=mu, static_friction=mu)
     lam, r = spec.mass / spec.length, spec.diameter / 2
     rr = R_CAPSTAN + r
     world = BulletWorld(dt=1.0 / hz, ground=False)
-    world.add_cylinder(R_CAPSTAN, 0.2, (0, 0, 0), Q_AXIS_Y, friction=mu)  # same mu: the combined value is mu
+    if peg is None:
+        world.add_cylinder(R_CAPSTAN, 0.2, (0, 0, 0), Q_AXIS_Y, friction=mu)  # same mu: the combined value is mu
+    else:
+        peg(world, R_CAPSTAN, mu)
     hang = (spec.length - theta * rr) / 2  # long side
     if theta == math.pi:
         short = hang

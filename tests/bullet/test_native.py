@@ -64,7 +64,8 @@ def test_native_and_python_paths_give_identical_dual_arm_runs(monkeypatch):
 def test_a_dual_arm_step_makes_no_per_step_pybullet_calls_but_the_step(monkeypatch):
     """Before: 26 PyBullet Python calls per step at n = 10 (n force calls, two wrenches, three reads per
     arm, two obstacle poses, ...); now the Bullet step and the contact query: the arms, the cable's
-    forces and the contact model's obstacle poses go through compiled calls."""
+    forces and the contact model's obstacle poses go through compiled calls; only the contact model's
+    broad phase against the arms' links stays in Python."""
     physics, _ = scene(n=10)
     try:
         drive(physics, 5)  # everything compiled and bound
@@ -78,7 +79,13 @@ def test_a_dual_arm_step_makes_no_per_step_pybullet_calls_but_the_step(monkeypat
                 monkeypatch.setattr(pb, name, counted)
         physics.world.step(10)
         per_step = {k: v / 10 for k, v in counts.items()}
+        # the cable's contact model meets the arms (issue 23): its broad phase is one overlap query and a body
+        # count per step, and the box of each arm link near the cable (the grippers round the held ends, whose
+        # end nodes are excluded, so no closest-point query follows)
+        broad = {k: per_step.pop(k) for k in ("getNumBodies", "getOverlappingObjects", "getAABB") if k in per_step}
         assert per_step == {"stepSimulation": 1.0, "getContactPoints": 1.0}, per_step
+        assert broad.get("getNumBodies") == 1.0 and broad.get("getOverlappingObjects") == 1.0, broad
+        assert broad.get("getAABB", 0.0) <= 8.0, broad
     finally:
         physics.close()
 

@@ -63,7 +63,8 @@ later (inertia-compensated) reading carried as a bias ~ 1/dt: +1.0 % of the vert
 SOLVER_RESIDUAL = 1e-9
 """Bullet's solver residual threshold in the dual-arm world (its default: 1e-7)."""
 NO_CONTACT_NODES = 3
-"""Cable masses at each end that do not collide with the gripper holding that end."""
+"""Cable masses at each end that do not collide with the arm holding that end (nor, in the contact model,
+the segments next to them); the rest of the cable meets both arms."""
 
 
 def arm_index(arm: int | str) -> int:
@@ -173,6 +174,10 @@ class DualArmPhysics:
             for sphere in spheres:
                 for link in range(-1, pb.getNumJoints(robot.body, physicsClientId=cid)):
                     pb.setCollisionFilterPair(robot.body, sphere, link, -1, 0, physicsClientId=cid)
+        if cable.model_contact:  # the same ends out of the contact model's contact with their arm (the grasp)
+            n = cable.model.n
+            for robot, nodes in zip(self.robots, (range(NO_CONTACT_NODES), range(n - NO_CONTACT_NODES, n))):
+                cable.exclude_contact(robot.body, nodes=nodes)
         return cable
 
     def settled_state(self, model: CableModel) -> CableState:
