@@ -642,19 +642,6 @@ def _segment_axis(qa, qb, P, A, hl, R, out_c, out_n):
     return s
 
 
-@njit(cache=True, error_model="numpy", inline="always")
-def _edge_cone(nl, cl, o1, pos1, o2, pos2):
-    """Keep an edge contact's normal nl in the edge's normal cone (between the outward normals of its two
-    faces, which face the + side of axes o1, o2 when pos1, pos2): a segment axis found on the inner side of
-    both faces has passed through the corner, so nl flips and the distance cl[3] becomes negative (the
-    penalty pushes the segment back out instead of further in). The signed distance is continuous where
-    the axis crosses the edge line (the normal keeps its direction)."""
-    if (nl[o1] > 0.0) != pos1 and (nl[o2] > 0.0) != pos2 and nl[o1] != 0.0 and nl[o2] != 0.0:
-        for j in range(3):
-            nl[j] = -nl[j]
-        cl[3] = -cl[3]
-
-
 @njit(cache=True, error_model="numpy")
 def _add(c, st, key, shape, ia, ib, wa, wb, cl, nl, sh, k_per_mass, zeta, mass, x):
     """Append a contact (surface point cl, normal nl in the shape frame) unless the arrays are full."""
@@ -869,8 +856,6 @@ def detect(x, v, mass, sh, c, st, h, k_per_mass, zeta, self_mu, h_body, h_done, 
                         if not _may_reach_edge(q[i], q[i + 1], P, ax, size[ax], radius + margin):
                             continue
                         sp = _segment_axis(q[i], q[i + 1], P, A, size[ax], 0.0, cl, nl)
-                        if sp > 0.0:
-                            _edge_cone(nl, cl, o1, P[o1] > 0.0, o2, P[o2] > 0.0)
                         if sp > 0.0 and cl[3] - radius < margin:
                             key = base + n + (n - 1) * feat + i
                             _add(c, st, key, s, i, i + 1, 1.0 - sp, sp, cl, nl, sh, k_per_mass, zeta, mass, x)

@@ -21,9 +21,6 @@ phi*: the segment across the edge stays straight and bends at a node beyond it, 
 straight segments holds (docs/concepts/contact.md, "Edges"; `python demos/edge_slide.py` prints the
 table). These threshold tests pin the resolved case; they do not test a change of the contact law.
 
-Also here: a segment whose axis has passed through the box's corner is pushed back out (the edge
-contact's normal stays in the edge's normal cone); before, its normal pointed into the box and the
-cable hung on the corner through its own segment.
 """
 from __future__ import annotations
 
@@ -120,32 +117,3 @@ def test_slides_over_the_edge_at_the_capstan_threshold(hz, place):
     assert phi_lo == pytest.approx(lo) and phi_hi == pytest.approx(hi)
     assert below < HOLD, f"phi {phi_lo:.3f} < phi* {star:.3f} slid {below * 1e3:.1f} mm"
     assert above > SLIDE, f"phi {phi_hi:.3f} > phi* {star:.3f} held ({above * 1e3:.1f} mm)"
-
-
-def _edge_contacts(cable):
-    """The contacts at the box's edge (point at x = z = 0): normals and gaps."""
-    pc = cable.contact_forces()
-    at_edge = (np.abs(pc["point"][:, 0]) < 1e-9) & (np.abs(pc["point"][:, 2]) < 1e-9)
-    return pc["normal"][at_edge], pc["gap"][at_edge]
-
-
-def test_a_segment_through_the_corner_is_pushed_back_out():
-    spec = soft_cable(20)
-    with BulletWorld(dt=1.0 / 240.0, ground=False) as world:
-        world.add_box(TABLE, (-TABLE[0], 0.0, -TABLE[2]), friction=MU)
-        x0, _ = layout(spec, 0.6, 0.5, through=True)  # the corner segment's axis 8 mm inside the edge
-        cable = world.add_cable(spec, state=CableState(x0, np.zeros_like(x0)))
-        world.step()
-        normals, gaps = _edge_contacts(cable)
-        assert len(normals) >= 1, "the segment through the corner has no contact with the edge"
-        assert (normals[:, 0] >= 0.0).all() and (normals[:, 2] >= 0.0).all(), normals  # within the edge's cone
-        assert (gaps > -spec.diameter / 2).all()  # one step put the axis back outside the edge
-        world.run(1.5)
-        assert cable.stable, cable.reason
-        x = cable.x
-        # no segment's axis passes on the box side of the edge: the corner is outside every segment
-        for a, b in itertools.pairwise(x):
-            if a[0] < 0.0 < b[0] or b[0] < 0.0 < a[0]:
-                z_at_edge = a[2] + (b[2] - a[2]) * (0.0 - a[0]) / (b[0] - a[0])
-                assert z_at_edge > 0.0
-        assert x[0, 0] - x0[0, 0] > SLIDE  # phi = 0.6 > phi*: it slides off (before: hung on the corner)

@@ -58,6 +58,6 @@ def test_twisting_cable_history_follows_the_torsion_of_each_recorded_state():
     res = simulate(model, "bdf2", 1e-3, 1.5, record_every=100)
     s = np.clip(res.t, 0.0, 1.0)
     theta = (math.pi / 2) * (10 * s**3 - 15 * s**4 + 6 * s**5)
-    torsion = spec.shear_modulus * math.pi * spec.diameter**4 / 32 / spec.length * theta
+    torsion = spec.effective_shear_modulus * math.pi * spec.diameter**4 / 32 / spec.length * theta
     np.testing.assert_allclose(res.end_moment_history[:, 0, 0], torsion, rtol=0.01, atol=1e-3 * torsion.max())
     np.testing.assert_allclose(res.end_moment_history[:, 1, 0], -torsion, rtol=0.01, atol=1e-3 * torsion.max())
