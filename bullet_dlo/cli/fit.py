@@ -65,7 +65,7 @@ def cmd_fit(args: argparse.Namespace) -> int:
                          match_source=args.match_source, stiffness_grid=args.stiffness_grid)
     cable = argparse.Namespace(length=args.length, diameter=args.diameter, mass=args.mass)
     recs = [read_any(path, args, cable) for path in args.recording]
-    strips = [r.section_frame for r in recs]
+    strips = [is_beam_csv(path) for path in args.recording]  # the strip on a Panda: its cable is known
     if any(strips) and not all(strips):
         raise ParameterError("beam_handling recordings (a strip on a Panda) cannot be fitted together with cable "
                              "recordings: fit them separately")
