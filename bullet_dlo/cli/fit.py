@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import math
 from pathlib import Path
@@ -130,7 +131,8 @@ def is_beam_csv(path: str) -> bool:
 
 def read_any(path: str, args: argparse.Namespace, cable: argparse.Namespace):
     """One recording in any format ``fit`` reads: a DEFORM trial (``.pkl``, restricted unpickling: plain
-    lists, numbers and numpy arrays only) or the project's own (.csv, .npz, .h5)."""
+    lists, numbers and numpy arrays only), a beam_handling CSV (recognised by its header) or the
+    project's own (.csv, .npz, .h5); ``--band`` sets the linear kind's band (a beam's default: 1.5-8 Hz)."""
     if Path(path).suffix.lower() == ".pkl":
         from bullet_dlo.reality.deform import read_recording as read_deform
 
@@ -138,8 +140,6 @@ def read_any(path: str, args: argparse.Namespace, cable: argparse.Namespace):
             raise ParameterError("--time-window and --units do not apply to a DEFORM .pkl trial (100 Hz, metres)")
         return read_deform(path)
     if is_beam_csv(path):
-        import dataclasses
-
         from bullet_dlo.reality.beam import fit_recording, read_beam_csv
         from bullet_dlo.reality.panda import Panda
 
@@ -148,8 +148,6 @@ def read_any(path: str, args: argparse.Namespace, cable: argparse.Namespace):
         with Panda() as panda:
             rec = fit_recording(read_beam_csv(path), panda, step=args.beam_step)
         return dataclasses.replace(rec, linear_band=tuple(args.band) if args.band else BEAM_BAND)
-    import dataclasses
-
     from bullet_dlo.data.recording import read_recording
 
     rec = read_recording(path, args.forces, units=args.units, window=args.time_window, cable=cable)
