@@ -106,8 +106,8 @@ __all__ = [
     "KINDS",
     "START",
     "FitOptions",
-    "ModelRun",
     "FitResult",
+    "ModelRun",
     "Recording",
     "default_parameters",
     "fit_cable",
@@ -116,8 +116,9 @@ __all__ = [
     "log_variances",
     "model_forces",
     "model_loads",
-    "run_forces",
+    "model_run",
     "run_loads",
+    "run_model",
     "synthetic_recording",
 ]
 
@@ -502,10 +503,10 @@ def fit_cable(rec: Recording | Sequence[Recording], spec: CableSpec, parameters:
     bad = [k for k in names if k not in allowed]
     if bad or not names or len(set(names)) != len(names):
         raise ParameterError(f"fit parameters must be distinct names from {', '.join(sorted(allowed))}, got {names}")
-    if "mass" in names and all(k == "marker" for ks in make_layout(recs, options, len(names)).kinds for k in ks):
+    layout = make_layout(recs, options, len(names))
+    if "mass" in names and all(k == "marker" for ks in layout.kinds for k in ks):
         raise ParameterError("mass cannot be fitted from marker positions alone (shapes under gravity see E I / "
                              "(rho A) only): give the mass and fit youngs_modulus")
-    layout = make_layout(recs, options, len(names))
     if "shear_modulus" in names and not spec.twist_enabled:
         raise ParameterError("shear_modulus needs a cable with a material frame (twist: true, or a non-round "
                              "section): without it the model has no twist for G to act on")
