@@ -166,10 +166,7 @@ class Recording:
 
     def observed(self, kind: str) -> np.ndarray:
         """The measured quantity of ``kind``, one row per sample: (k, channels)."""
-        y = self._raw(kind)
-        if kind == "linear" and self.linear_band is not None:
-            y = band_passed(y, self.t, *self.linear_band)
-        return y - y[0] if kind in self.relative else y
+        return compared(self, kind, self._raw(kind))
 
     def _raw(self, kind: str) -> np.ndarray:
         if kind == "linear":
@@ -211,7 +208,12 @@ class ModelRun(NamedTuple):
 
 def predicted(rec: Recording, kind: str, run: ModelRun) -> np.ndarray:
     """The model's prediction of ``kind`` from its run at the recorded times: (k, channels)."""
-    y = _predicted_raw(rec, kind, run)
+    return compared(rec, kind, _predicted_raw(rec, kind, run))
+
+
+def compared(rec: Recording, kind: str, y: np.ndarray) -> np.ndarray:
+    """A measured or predicted ``kind`` (k, channels) as the residual compares it: band-passed (the linear
+    kind, when ``rec.linear_band``) and as changes since the first sample (kinds in ``rec.relative``)."""
     if kind == "linear" and rec.linear_band is not None:
         y = band_passed(y, rec.t, *rec.linear_band)
     return y - y[0] if kind in rec.relative else y

@@ -136,9 +136,7 @@ def read_recording(path: str | Path, smooth: int = 5) -> Recording:
     length between the clamps; the first frame's shape and velocity as the start (the trials begin
     mid-motion). The same model as :func:`build_model`, through the fit's own machinery."""
     rec = load_trial(path)
-    clean = replace(rec, markers=rec.markers.copy())
-    for i in (*rec.first_pair, *rec.last_pair):
-        clean.markers[:, i] = smoothed(despiked(rec.markers[:, i]), smooth)
+    clean = cleaned(rec, (*rec.first_pair, *rec.last_pair), smooth)
     s0 = rec.s[rec.first_pair[1] % rec.n_markers]
     pos, quat = np.empty((len(rec.t), 2, 3)), np.empty((len(rec.t), 2, 4))
     for arm, end in enumerate(("first", "last")):
@@ -146,12 +144,9 @@ def read_recording(path: str | Path, smooth: int = 5) -> Recording:
         frames = transported_frames(d) * (Rotation.identity() if arm == 0 else FLIP)
         quat[:, arm] = frames.as_quat()
     free = rec.free
-    h = float(rec.t[1] - rec.t[0])
-    from scipy.signal import savgol_filter
-    v0 = savgol_filter(rec.markers[:11], max(5, smooth | 1), 3, deriv=1, delta=h, axis=0, mode="interp")[0]
     return Recording(rec.t, pos, quat, None, name=rec.name, markers=rec.markers[:, free],
                      marker_s=rec.s[free] - s0, length=float(rec.s[rec.last_pair[0] % rec.n_markers] - s0),
-                     initial=(rec.s - s0, rec.markers[0], v0))
+                     initial=(rec.s - s0, rec.markers[0], first_velocity(rec, smooth)))
 
 
 FLIP = Rotation.from_rotvec([0.0, 0.0, math.pi])
@@ -162,12 +157,35 @@ def transported_frames(d: np.ndarray) -> Rotation:
     """Frames whose x axis follows the unit directions ``d`` (k, 3), each turned from the previous by the
     smallest rotation (parallel transport: no roll about the axis is invented)."""
     first = np.column_stack([d[0], default_normal(d[0]), np.cross(d[0], default_normal(d[0]))])
-    rots = [Rotation.from_matrix(first)]
+    return transport(d) * Rotation.from_matrix(first)
+
+
+def transport(d: np.ndarray) -> Rotation:
+    """The turns from direction d[0] to each d[k] (unit, (k, 3)), each the previous one followed by the
+    smallest rotation from d[k - 1] to d[k]: (k,) rotations, the first the identity."""
+    turn = [Rotation.identity()]
     for a, b in zip(d[:-1], d[1:]):
         axis = np.cross(a, b)
         angle = math.atan2(float(np.linalg.norm(axis)), float(a @ b))
-        rots.append(Rotation.from_rotvec(axis / (np.linalg.norm(axis) + 1e-300) * angle) * rots[-1])
-    return Rotation.concatenate(rots)
+        turn.append(Rotation.from_rotvec(axis / (np.linalg.norm(axis) + 1e-300) * angle) * turn[-1])
+    return Rotation.concatenate(turn)
+
+
+def cleaned(rec: MarkerRecording, markers: Sequence[int], smooth: int) -> MarkerRecording:
+    """``rec`` with the given markers despiked and smoothed over ``smooth`` frames (the held pairs: motion
+    capture jitter would become large accelerations of the clamps)."""
+    clean = replace(rec, markers=rec.markers.copy())
+    for i in markers:
+        clean.markers[:, i] = smoothed(despiked(rec.markers[:, i]), smooth)
+    return clean
+
+
+def first_velocity(rec: MarkerRecording, smooth: int) -> np.ndarray:
+    """Marker velocities [m/s] at frame 0, (m, 3): a cubic Savitzky-Golay derivative over the first frames."""
+    from scipy.signal import savgol_filter
+
+    h = float(rec.t[1] - rec.t[0])
+    return savgol_filter(rec.markers[:11], max(5, smooth | 1), 3, deriv=1, delta=h, axis=0, mode="interp")[0]
 
 
 def trial_files(folder: Path, what: str) -> list[Path]:
@@ -238,20 +256,11 @@ def clamp_holder(rec: MarkerRecording, end: str, num: Numerics) -> EndHolder:
     direction of the pair (turned by parallel transport, so that no roll is invented), as a C2
     waypoint path through knots every 1/knot_rate s. The pair's markers are despiked and smoothed first."""
     pair = rec.first_pair if end == "first" else rec.last_pair
-    clean = replace(rec, markers=rec.markers.copy())
-    for i in pair:
-        clean.markers[:, i] = smoothed(despiked(rec.markers[:, i]), num.smooth)
-    pos, d = clean.clamp(end)
+    pos, d = cleaned(rec, pair, num.smooth).clamp(end)
     d /= np.linalg.norm(d, axis=1, keepdims=True)
     step = max(1, round(1.0 / (num.knot_rate * float(np.median(np.diff(rec.t))))))
     idx = np.unique(np.r_[np.arange(0, len(rec.t), step), len(rec.t) - 1])
-    turn = [Rotation.identity()]
-    for a, b in zip(d[idx[:-1]], d[idx[1:]]):  # smallest rotation from one knot's direction to the next
-        axis = np.cross(a, b)
-        angle = math.atan2(float(np.linalg.norm(axis)), float(a @ b))
-        step_rot = Rotation.from_rotvec(axis / (np.linalg.norm(axis) + 1e-300) * angle)
-        turn.append(step_rot * turn[-1])
-    rot = np.array([r.as_rotvec() for r in turn])
+    rot = transport(d[idx]).as_rotvec()  # smallest rotation from one knot's direction to the next
     path = Waypoints(end, tuple(rec.t[idx] - rec.t[0]), tuple(map(tuple, pos[idx] - pos[idx[0]])),
                      tuple(map(tuple, rot)), rest=False)
     return EndHolder("clamped", pos[0].copy(), d[0].copy(), (path,))
@@ -261,12 +270,8 @@ def first_frames(rec: MarkerRecording, s_nodes: np.ndarray, num: Numerics) -> tu
     """Node positions [m] and velocities [m/s], (n, 3), at arc lengths ``s_nodes`` [m] from the
     first frames: a cubic spline in arc length through the markers of frame 0, and through the
     markers' velocities (a cubic Savitzky-Golay derivative over the first frames)."""
-    from scipy.signal import savgol_filter
-    head = rec.markers[:11]
-    h = float(rec.t[1] - rec.t[0])
-    v0 = savgol_filter(head, max(5, num.smooth | 1), 3, deriv=1, delta=h, axis=0, mode="interp")[0]
     pos = CubicSpline(rec.s, rec.markers[0], axis=0)(s_nodes)
-    vel = CubicSpline(rec.s, v0, axis=0)(s_nodes)
+    vel = CubicSpline(rec.s, first_velocity(rec, num.smooth), axis=0)(s_nodes)
     return pos, vel
 
 
