@@ -47,6 +47,9 @@ UNITS = {"force": "N", "moment": "N m", "linear": "recording units", "marker": "
 HELD = ("clamped", "free")
 CLAMP_SIGN = (1.0, -1.0)
 """Cable tangent = sign * grasp-frame x axis, per arm (left, right)."""
+RIGHT_FROM_LEFT = Rotation.from_rotvec([0.0, 0.0, math.pi])
+"""A right grasp frame from the left one at the same place: turned by pi about z, so that its x axis
+points into the cable (:data:`CLAMP_SIGN`)."""
 
 
 @dataclass(frozen=True)

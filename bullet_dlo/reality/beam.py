@@ -45,7 +45,7 @@ import numpy as np
 from scipy.signal import butter, sosfiltfilt
 from scipy.spatial.transform import Rotation
 
-from bullet_dlo.analysis.fit_recording import Recording, low_pass_delayed
+from bullet_dlo.analysis.fit_recording import RIGHT_FROM_LEFT, Recording, low_pass_delayed
 from bullet_dlo.core.boundary import Waypoints, default_normal
 from bullet_dlo.core.engine import simulate
 from bullet_dlo.core.model import STANDARD_GRAVITY, CableModel
@@ -504,8 +504,8 @@ def fit_recording(rec: BeamRecording, panda: Panda, strip: Strip = Strip(), moun
     for i, r in enumerate(frot):
         axis, width, _ = mounting.axes(r)
         frames[i] = np.column_stack([axis, width, np.cross(axis, width)])  # right-handed: z = -(thickness normal)
-    quat = np.stack([Rotation.from_matrix(frames).as_quat(),
-                     (Rotation.from_matrix(frames) * Rotation.from_rotvec([0.0, 0.0, math.pi])).as_quat()], axis=1)
+    grasp = Rotation.from_matrix(frames)
+    quat = np.stack([grasp.as_quat(), (grasp * RIGHT_FROM_LEFT).as_quat()], axis=1)
     pos = np.stack([clamp, clamp + strip.length * frames[:, :, 0]], axis=1)  # the free tip's entry: where it starts
     shift = np.zeros((len(rows), 6, 12))  # the clamp's (f, m about the clamp) -> the flange's (f, m about its origin)
     shift[:, :3, :3] = shift[:, 3:, 3:6] = np.eye(3)

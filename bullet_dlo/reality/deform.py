@@ -52,7 +52,7 @@ from scipy.interpolate import CubicSpline
 from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 
-from bullet_dlo.analysis.fit_recording import Recording
+from bullet_dlo.analysis.fit_recording import RIGHT_FROM_LEFT, Recording
 from bullet_dlo.core.boundary import EndHolder, Waypoints, default_normal
 from bullet_dlo.core.engine import simulate
 from bullet_dlo.core.model import STANDARD_GRAVITY, CableModel, CableState, build_arrays
@@ -141,16 +141,12 @@ def read_recording(path: str | Path, smooth: int = 5) -> Recording:
     pos, quat = np.empty((len(rec.t), 2, 3)), np.empty((len(rec.t), 2, 4))
     for arm, end in enumerate(("first", "last")):
         pos[:, arm], d = clean.clamp(end)
-        frames = transported_frames(d) * (Rotation.identity() if arm == 0 else FLIP)
+        frames = transported_frames(d) * (Rotation.identity() if arm == 0 else RIGHT_FROM_LEFT)
         quat[:, arm] = frames.as_quat()
     free = rec.free
     return Recording(rec.t, pos, quat, None, name=rec.name, markers=rec.markers[:, free],
                      marker_s=rec.s[free] - s0, length=float(rec.s[rec.last_pair[0] % rec.n_markers] - s0),
                      initial=(rec.s - s0, rec.markers[0], first_velocity(rec, smooth)))
-
-
-FLIP = Rotation.from_rotvec([0.0, 0.0, math.pi])
-"""The right gripper's frame from the left's: its x axis points into the cable (the fit's convention)."""
 
 
 def transported_frames(d: np.ndarray) -> Rotation:
