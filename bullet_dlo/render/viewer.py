@@ -6,12 +6,14 @@ the files it reads) into a single ``.html`` file that opens in a browser from di
 with no Python process, no server and no network. :func:`serve` shows the same scene live at
 ``http://127.0.0.1:PORT`` with a frame slider. What it draws, per recorded row:
 
-* the cable as a line strip through its masses and the masses as discs of the cable's diameter;
+* the cable as a tube of its diameter (a cylinder per segment) with a thin centre line that keeps it
+  visible from afar, and the masses as discs of the cable's diameter;
 * both arms from their URDFs (the composed arm + gripper PyBullet loads,
   :func:`bullet_dlo.robots.compose.robot_urdf`) at the recorded joint angles; PyBullet's forward
   kinematics in a DIRECT client gives every link's pose and its visual meshes. Each base is placed
   where the recorded grasp pose says it is (base = grasp pose x FK(q)^-1 at the first row);
-* the ground, the table of a dual-arm scene and the scene's box and cylinder obstacles;
+* the ground, the table of a dual-arm scene and the scene's obstacles: boxes, cylinders and URDF
+  bodies (every link's visual shapes, joints at zero; :func:`urdf_geometry`);
 * each wrist's force (tared, world frame) as an arrow at its grasp point, and a time plot of both
   wrists (sensor solid, model dashed, :func:`bullet_dlo.render.plots.plot_wrenches`) standing
   behind the scene with a cursor at the shown time;
@@ -53,6 +55,8 @@ NODE_RGB = (250, 200, 0)
 ARM_RGB = (70, 110, 190)
 """Colour of a link whose URDF gives none (or plain white): the arms' blue in the page."""
 CONTACT_RGB = (20, 200, 60)
+OBSTACLE_RGB = (150, 150, 160)
+TUBE_SIDES = 12  # facets around the cable's tube
 FORCE_RGB = ((255, 140, 0), (160, 0, 200))
 CONTACT_MARGIN = 1e-3  # [m] gap below which a mass counts as touching
 
@@ -126,7 +130,7 @@ def require_viser():
 @dataclasses.dataclass
 class ArmGeometry:
     """One arm's visual shapes and their world poses per row: meshes[i] = (link, trimesh, rgb,
-    local position, local wxyz); poses (k, links, 7): each link's inertial frame (x y z, w x y z)."""
+    local position, local wxyz); poses (k, links, 7): each link's URDF frame (x y z, w x y z)."""
 
     meshes: list
     link_ids: list[int]
@@ -137,10 +141,90 @@ def _wxyz(q_xyzw: Sequence[float]) -> tuple[float, float, float, float]:
     return (float(q_xyzw[3]), float(q_xyzw[0]), float(q_xyzw[1]), float(q_xyzw[2]))
 
 
+def visual_meshes(client: int, body: int, default_rgb: tuple[int, int, int]) -> list:
+    """A loaded body's visual shapes as (link, trimesh, rgb, local position, local wxyz), local to each
+    link's URDF frame (:func:`_link_pose`); ``default_rgb`` where the URDF gives no colour
+    (or plain white)."""
+    import pybullet as pb
+    import trimesh
+
+    cache: dict[str, Any] = {}
+    meshes = []
+    for shape in pb.getVisualShapeData(body, physicsClientId=client):
+        link, geom, dims, fname, lpos, lorn, rgba = shape[1], shape[2], shape[3], shape[4], shape[5], shape[6], shape[7]
+        if geom == pb.GEOM_MESH:
+            fname = fname.decode() if isinstance(fname, bytes) else fname
+            if fname not in cache:
+                cache[fname] = trimesh.load(fname, force="mesh", process=False)
+            mesh = cache[fname].copy()
+            mesh.apply_scale(np.asarray(dims, dtype=float))
+        elif geom == pb.GEOM_BOX:
+            mesh = trimesh.creation.box(extents=np.asarray(dims, dtype=float))
+        elif geom == pb.GEOM_CYLINDER:
+            mesh = trimesh.creation.cylinder(radius=dims[1], height=dims[0])
+        elif geom == pb.GEOM_SPHERE:
+            mesh = trimesh.creation.icosphere(radius=dims[0], subdivisions=2)
+        elif geom == pb.GEOM_CAPSULE:
+            mesh = trimesh.creation.capsule(radius=dims[1], height=dims[0])
+        else:
+            continue
+        rgb = tuple(int(255 * c) for c in rgba[:3])
+        if min(rgb) >= 250 or rgba[3] == 0:
+            rgb = default_rgb
+        meshes.append((link, mesh, rgb, tuple(lpos), _wxyz(lorn)))
+    return meshes
+
+
+def _link_pose(client: int, body: int, link: int) -> tuple:
+    """World pose (position, quaternion x y z w) of a link's URDF frame, the frame its visual shapes are
+    given in (measured: ``getVisualShapeData``'s local frames are the URDF's ``<visual><origin>``); the
+    link's centre of mass, which ``getBasePositionAndOrientation`` and ``getLinkState``'s first pair
+    return, sits at its ``<inertial><origin>`` from it."""
+    import pybullet as pb
+
+    if link == -1:
+        com = pb.getBasePositionAndOrientation(body, physicsClientId=client)
+        inertial = pb.getDynamicsInfo(body, -1, physicsClientId=client)[3:5]
+        return pb.multiplyTransforms(com[0], com[1], *pb.invertTransform(*inertial))
+    st = pb.getLinkState(body, link, computeForwardKinematics=True, physicsClientId=client)
+    return st[4], st[5]
+
+
+def urdf_geometry(obstacles: Sequence[dict]) -> list[tuple[list, np.ndarray]]:
+    """The scene's ``urdf`` obstacles as drawn: per obstacle, its visual meshes (see
+    :func:`visual_meshes`) and each mesh's link pose (m, 7) (x y z, w x y z) at the obstacle's pose
+    with its joints at zero. A file that does not load is skipped (the run was made with it)."""
+    import pybullet as pb
+
+    from bullet_dlo.bullet.world import resolve_asset
+
+    out = []
+    urdfs = [ob for ob in obstacles if ob.get("type") == "urdf"]
+    if not urdfs:
+        return out
+    client = pb.connect(pb.DIRECT)
+    try:
+        for ob in urdfs:
+            try:
+                body = pb.loadURDF(str(resolve_asset(ob["path"])), list(ob.get("position", (0, 0, 0))),
+                                   list(ob.get("orientation", (0, 0, 0, 1))), useFixedBase=True,
+                                   flags=pb.URDF_USE_IMPLICIT_CYLINDER, physicsClientId=client)
+            except (pb.error, ParameterError):
+                continue
+            meshes = visual_meshes(client, body, OBSTACLE_RGB)
+            poses = np.zeros((len(meshes), 7))
+            for i, (link, *_rest) in enumerate(meshes):
+                p, o = _link_pose(client, body, link)
+                poses[i, :3], poses[i, 3:] = p, _wxyz(o)
+            out.append((meshes, poses))
+    finally:
+        pb.disconnect(client)
+    return out
+
+
 def arm_geometry(robot: str, joint_q: np.ndarray, ee_pos: np.ndarray, ee_quat: np.ndarray) -> list[ArmGeometry]:
     """Both arms' visual meshes and link poses at the recorded joint angles (k, 2, j)."""
     import pybullet as pb
-    import trimesh
 
     from bullet_dlo.config.robot import load_robot_spec
     from bullet_dlo.robots.compose import robot_urdf
@@ -156,31 +240,8 @@ def arm_geometry(robot: str, joint_q: np.ndarray, ee_pos: np.ndarray, ee_quat: n
             raise ParameterError(f"robot {robot!r} has {len(movable)} joints, the run recorded {joint_q.shape[2]}")
         grasp = next(j for j in range(pb.getNumJoints(body, physicsClientId=client))
                      if pb.getJointInfo(body, j, physicsClientId=client)[12].decode() == spec.grasp_link)
-        cache: dict[str, Any] = {}
-        meshes, links = [], set()
-        for shape in pb.getVisualShapeData(body, physicsClientId=client):
-            link, geom, dims, fname, lpos, lorn, rgba = shape[1], shape[2], shape[3], shape[4], shape[5], shape[6], shape[7]
-            if geom == pb.GEOM_MESH:
-                fname = fname.decode() if isinstance(fname, bytes) else fname
-                if fname not in cache:
-                    cache[fname] = trimesh.load(fname, force="mesh", process=False)
-                mesh = cache[fname].copy()
-                mesh.apply_scale(np.asarray(dims, dtype=float))
-            elif geom == pb.GEOM_BOX:
-                mesh = trimesh.creation.box(extents=np.asarray(dims, dtype=float))
-            elif geom == pb.GEOM_CYLINDER:
-                mesh = trimesh.creation.cylinder(radius=dims[1], height=dims[0])
-            elif geom == pb.GEOM_SPHERE:
-                mesh = trimesh.creation.icosphere(radius=dims[0], subdivisions=2)
-            elif geom == pb.GEOM_CAPSULE:
-                mesh = trimesh.creation.capsule(radius=dims[1], height=dims[0])
-            else:
-                continue
-            rgb = tuple(int(255 * c) for c in rgba[:3])
-            if min(rgb) >= 250 or rgba[3] == 0:
-                rgb = ARM_RGB
-            meshes.append((link, mesh, rgb, tuple(lpos), _wxyz(lorn)))
-            links.add(link)
+        meshes = visual_meshes(client, body, ARM_RGB)
+        links = {m[0] for m in meshes}
         link_ids = sorted(links)
         out = []
         for arm in range(2):
@@ -194,11 +255,7 @@ def arm_geometry(robot: str, joint_q: np.ndarray, ee_pos: np.ndarray, ee_quat: n
                     inv = pb.invertTransform(gs[4], gs[5])
                     base = pb.multiplyTransforms(ee_pos[r, arm].tolist(), ee_quat[r, arm].tolist(), *inv)
                 for c, link in enumerate(link_ids):
-                    if link == -1:
-                        p, o = pb.getBasePositionAndOrientation(body, physicsClientId=client)
-                    else:
-                        st = pb.getLinkState(body, link, computeForwardKinematics=True, physicsClientId=client)
-                        p, o = st[0], st[1]  # the inertial frame: PyBullet's visual frames are relative to it
+                    p, o = _link_pose(client, body, link)
                     wp, wo = pb.multiplyTransforms(base[0], base[1], p, o)
                     poses[r, c, :3] = wp
                     poses[r, c, 3:] = _wxyz(wo)
@@ -331,6 +388,37 @@ def _plot_image(run: Run) -> tuple[np.ndarray, Any] | None:
     return image, info
 
 
+def _unit_cylinder(sides: int) -> tuple[np.ndarray, np.ndarray]:
+    """A closed cylinder of radius 1 and length 1 along z, centred at the origin: vertices (2 sides + 2, 3),
+    faces (4 sides, 3) wound outward."""
+    a = 2 * np.pi * np.arange(sides) / sides
+    ring = np.column_stack([np.cos(a), np.sin(a)])
+    v = np.vstack([np.column_stack([ring, np.full(sides, -0.5)]), np.column_stack([ring, np.full(sides, 0.5)]),
+                   [[0.0, 0.0, -0.5], [0.0, 0.0, 0.5]]]).astype(np.float32)
+    i = np.arange(sides)
+    j = (i + 1) % sides
+    bottom, top = 2 * sides, 2 * sides + 1
+    faces = np.vstack([np.column_stack([i, j, sides + j]), np.column_stack([i, sides + j, sides + i]),
+                       np.column_stack([np.full(sides, bottom), j, i]),
+                       np.column_stack([np.full(sides, top), sides + i, sides + j])]).astype(np.uint32)
+    return v, faces
+
+
+def tube_transforms(x: np.ndarray, radius: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per segment of a cable at nodes x (n, 3) [m]: the unit cylinder's position (midpoint) [m], rotation
+    (w x y z, its z axis onto the segment) and scale (radius, radius, length) [m], (n-1, 3/4/3)."""
+    d = np.diff(x, axis=0)
+    length = np.linalg.norm(d, axis=1)
+    u = d / np.maximum(length, 1e-12)[:, None]
+    # the shortest rotation from +z to u: q = (1 + u_z, -u_y, u_x, 0) normalised; u = -z turns about x
+    q = np.column_stack([1.0 + u[:, 2], -u[:, 1], u[:, 0], np.zeros(len(u))])
+    flip = q[:, 0] < 1e-9
+    q[flip] = (0.0, 1.0, 0.0, 0.0)
+    q /= np.linalg.norm(q, axis=1, keepdims=True)
+    scale = np.column_stack([np.full(len(u), radius), np.full(len(u), radius), length])
+    return (0.5 * (x[:-1] + x[1:])).astype(np.float32), q.astype(np.float32), scale.astype(np.float32)
+
+
 class ViewerScene:
     """The run's scene on a viser server: static parts once, :meth:`show` for a row."""
 
@@ -349,6 +437,7 @@ class ViewerScene:
         if run.robot is not None:
             span = max(span, 1.4)  # both arms, bases 0.6 m from the middle
         self.centre, self.span = centre, span
+        self.urdf_obstacles = 0
         if run.ground_height is not None:
             g = run.ground_height
             scene.add_box("/world/ground", dimensions=(2.5 * span, 2.5 * span, 0.002),
@@ -365,10 +454,25 @@ class ViewerScene:
             elif ob.get("type") == "cylinder":
                 scene.add_cylinder(f"/world/obstacles/{k}", radius=float(ob["radius"]), height=float(ob["height"]),
                                    position=pos, wxyz=wxyz, color=rgb)
-        # the cable
+        for k, (meshes, poses) in enumerate(urdf_geometry(run.obstacles)):
+            for s, ((_link, mesh, rgb, lpos, lwxyz), pose) in enumerate(zip(meshes, poses)):
+                frame = f"/world/urdf/{k}/visual{s}"
+                scene.add_frame(frame, show_axes=False, position=tuple(pose[:3]), wxyz=tuple(pose[3:]))
+                scene.add_mesh_simple(f"{frame}/mesh", vertices=np.asarray(mesh.vertices, np.float32),
+                                      faces=np.asarray(mesh.faces, np.uint32), color=rgb, position=lpos, wxyz=lwxyz)
+            self.urdf_obstacles = k + 1
+        # the cable: a tube of the cable's diameter (one cylinder per segment) and a 5 px centre line
+        # that keeps it visible from afar (a 4 mm tube is a pixel wide in a 1.5 m view)
         n = run.cable_x.shape[1]
-        seg = self._segments(run.cable_x[self.rows[0]])
-        self.cable = scene.add_line_segments("/cable/line", points=seg, colors=CABLE_RGB, line_width=6.0)
+        x0 = run.cable_x[self.rows[0]]
+        seg = self._segments(x0)
+        self.cable = scene.add_line_segments("/cable/line", points=seg, colors=CABLE_RGB, thickness=5.0,
+                                             thickness_units="screen")
+        pos, wxyz, scale = tube_transforms(x0, run.radius)
+        vertices, faces = _unit_cylinder(TUBE_SIDES)
+        self.tube = scene.add_batched_meshes_simple("/cable/tube", vertices, faces, batched_wxyzs=wxyz,
+                                                    batched_positions=pos, batched_scales=scale,
+                                                    batched_colors=CABLE_RGB, lod="off")
         self.nodes = scene.add_point_cloud("/cable/nodes", points=run.cable_x[self.rows[0]].astype(np.float32),
                                            colors=np.tile(np.array(NODE_RGB, np.uint8), (n, 1)),
                                            point_size=max(2 * run.radius, 0.004), point_shape="circle")
@@ -420,7 +524,7 @@ class ViewerScene:
                             cast_shadow=False, receive_shadow=False)
             self._px = (width / w_px, height / h_px, w_px, h_px)
             self.cursor = scene.add_line_segments("/plot/cursor", points=self._cursor(self.rows[0]),
-                                                  colors=(0, 0, 0), line_width=2.0)
+                                                  colors=(0, 0, 0), thickness=2.0, thickness_units="screen")
             del plot
         cam = centre + np.array([0.0, -1.3 * span, 0.55 * span])
         server.initial_camera.position = tuple(cam)
@@ -450,6 +554,8 @@ class ViewerScene:
         run = self.run
         x = run.cable_x[r]
         self.cable.points = self._segments(x)
+        pos, wxyz, scale = tube_transforms(x, run.radius)
+        self.tube.batched_positions, self.tube.batched_wxyzs, self.tube.batched_scales = pos, wxyz, scale
         self.nodes.points = x.astype(np.float32)
         i = int(np.searchsorted(self.rows, r))
         for geom, frames in zip(self.arms, self.arm_frames):
@@ -544,6 +650,8 @@ def entities(view: ViewerScene) -> tuple[str, ...]:
         names.append("table")
     if view.run.obstacles:
         names.append(f"obstacles({len(view.run.obstacles)})")
+    if view.urdf_obstacles:
+        names.append(f"urdf meshes({view.urdf_obstacles})")
     if view.wrench is not None:
         names.append("wrenches")
     if view.plot is not None:
