@@ -347,10 +347,12 @@ def test_live_page_renders_the_cable_in_headless_chromium(runs, tmp_path):
     # by hue, not by exact colour: the live client fades the scene in for a few seconds after connecting
     red = lambda im: (im[..., 0] - im[..., 1] > 30) & (im[..., 0] - im[..., 2] > 30) & (np.abs(im[..., 1] - im[..., 2]) < 40)  # noqa: E731
     blue = lambda im: (im[..., 2] - im[..., 0] > 40) & (im[..., 2] - im[..., 1] > 20)  # noqa: E731
-    crop = lambda im: im[: int(0.9 * im.shape[0])]  # noqa: E731  (above the axes gizmo, red too)
-    screenshot(urls[0], png, ready=lambda path: red(crop(read_png(path))).sum() >= 50)
+    # below the panels (the slider and play box are blue) and above the axes gizmo (red)
+    crop = lambda im: im[int(0.32 * im.shape[0]): int(0.9 * im.shape[0])]  # noqa: E731
+    drawn = lambda im: red(im).sum() >= 50 and blue(im).sum() >= 300  # noqa: E731
+    screenshot(urls[0], png, ready=lambda path: drawn(crop(read_png(path))))
     img = read_png(png)
-    scene = img[: int(0.9 * img.shape[0])]
+    scene = crop(img)
     print(f"\nlive page: red pixels {red(scene).sum()}, blue pixels {blue(scene).sum()}")
     assert red(scene).sum() >= 50, "the cable's red is not on screen"
     assert blue(scene).sum() >= 300, "the arms' blue links are not on screen"
