@@ -7,12 +7,15 @@ templates), the episodes from ``meta/episodes/*/*.parquet`` (``dataset_from_inde
 into the concatenated ``data/*/*.parquet`` frames, ``videos/<key>/chunk_index``, ``file_index`` and
 ``from_timestamp``), video frames decoded at ``from_timestamp + timestamp`` within LeRobot's default
 tolerance (1e-4 s), tasks by ``task_index`` from ``meta/tasks.parquet``. The ``lerobot`` package itself
-is not installed here: it needs torch, torchvision, torchcodec, datasets, diffusers and wandb and pins
-``av<16`` (this project runs PyAV 18), so its ``LeRobotDataset`` test runs only where it is installed.
+cannot be installed beside this project (it needs torch<2.11, torchcodec, datasets, diffusers and wandb
+and pins ``av<16``; this project runs PyAV 18): in a venv of its own, named by the environment variable
+``BULLET_DLO_LEROBOT_PYTHON``, its ``LeRobotDataset`` reads the exports frame by frame
+(``test_lerobot_dataset_in_its_own_environment_reads_every_frame``; skipped, saying so, without it).
 """
 from __future__ import annotations
 
 import json
+import os
 from pathlib import Path
 
 import numpy as np
@@ -198,6 +201,63 @@ def test_lerobot_dataset_reads_the_export(rolled, tmp_path):
         item = lr[i]
         for key in ("observation.state", "observation.wrench.left", "action"):
             np.testing.assert_array_equal(item[key].numpy(), v3["frames"][key][i])
+
+
+LEROBOT_PYTHON = os.environ.get("BULLET_DLO_LEROBOT_PYTHON")
+READ_WITH_LEROBOT = """
+import sys, numpy as np
+from lerobot.datasets.lerobot_dataset import LeRobotDataset
+import lerobot
+ds = LeRobotDataset("local/bullet_dlo", root=sys.argv[1], video_backend="pyav")  # torchcodec needs system FFmpeg
+items = [ds[i] for i in range(len(ds))]
+out = {"len": np.array(len(ds)), "episodes": np.array(ds.num_episodes), "fps": np.array(ds.fps),
+       "version": np.array(lerobot.__version__)}
+for key, value in items[0].items():
+    if hasattr(value, "numpy"):
+        out["f/" + key] = np.stack([it[key].numpy() for it in items])
+    else:
+        out["s/" + key] = np.array([str(it[key]) for it in items])
+np.savez(sys.argv[2], **out)
+"""
+
+
+@pytest.mark.skipif(not LEROBOT_PYTHON, reason="set BULLET_DLO_LEROBOT_PYTHON to a Python with lerobot installed (it "
+                    "pins torch<2.11 and av<16, so it lives in its own venv; docs/guides/datasets.md says how)")
+@pytest.mark.parametrize("source", ["captured", "rolled"])
+def test_lerobot_dataset_in_its_own_environment_reads_every_frame(source, request, tmp_path):
+    """LeRobot's own ``LeRobotDataset`` (in the interpreter ``BULLET_DLO_LEROBOT_PYTHON`` names) reads the export
+    of a capture with video and of rollouts: every frame of every feature equals the export's columns (and
+    through them the HDF5 episodes, :func:`check_against_hdf5`), the video frames decoded by LeRobot equal the
+    rendered frames within the codec's error, and the task string is the dataset's."""
+    import subprocess
+
+    src = request.getfixturevalue(source)
+    kw = {"cable_points": 10} if source == "captured" else {}
+    export_lerobot(src, tmp_path / "lr", **kw)
+    v3 = check_against_hdf5(tmp_path / "lr", src, **kw)
+    script = tmp_path / "read.py"
+    script.write_text(READ_WITH_LEROBOT)
+    run = subprocess.run([LEROBOT_PYTHON, str(script), str(tmp_path / "lr"), str(tmp_path / "lr.npz")],
+                         capture_output=True, text=True, timeout=600)
+    assert run.returncode == 0, run.stderr[-2000:]
+    got = dict(np.load(tmp_path / "lr.npz"))
+    frames, info = v3["frames"], v3["info"]
+    assert int(got["len"]) == len(frames["index"]) and int(got["episodes"]) == len(v3["episodes"])
+    assert int(got["fps"]) == info["fps"]
+    for key, ft in info["features"].items():
+        if ft["dtype"] == "video":
+            # LeRobot returns channel-first floats in [0, 1]; compare with the rendered frames, via our decoder
+            decoded = np.moveaxis(got["f/" + key], 1, -1) * 255.0
+            ours = np.concatenate([decode_at(tmp_path / "lr" / info["video_path"].format(
+                video_key=key, chunk_index=e[f"videos/{key}/chunk_index"], file_index=e[f"videos/{key}/file_index"]),
+                e[f"videos/{key}/from_timestamp"] + frames["timestamp"][e["dataset_from_index"]:e["dataset_to_index"]])
+                for e in v3["episodes"]]).astype(float)
+            assert decoded.shape == ours.shape and np.abs(decoded - ours).mean() < 1.0, np.abs(decoded - ours).mean()
+            continue
+        mine = frames[key].reshape(got["f/" + key].shape)
+        np.testing.assert_array_equal(got["f/" + key], mine.astype(got["f/" + key].dtype), err_msg=key)
+    tasks = set(got["s/task"].tolist())
+    assert tasks == set(v3["tasks"].values())
 
 
 def test_bad_input_is_one_line_and_exit_2(rolled, tmp_path, capsys):
