@@ -121,20 +121,38 @@ def compile_notice(args: argparse.Namespace) -> None:
               "afterwards, never counted in run times; `bullet-dlo warmup` does it ahead)", file=sys.stderr)
 
 
+def _reader_left() -> int:
+    """stdout's reader closed the pipe (``bullet-dlo ... | head``): stop writing, as a shell tool does, with
+    the exit status of SIGPIPE and no traceback."""
+    import os
+
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())  # Python's final flush of stdout then goes nowhere
+    except (OSError, ValueError):
+        pass
+    return 141
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     args.quiet = bool(args.quiet_all or getattr(args, "quiet", False))
-    with quiet_output(args.quiet):
-        try:
-            check_outputs(args)
-            compile_notice(args)
-            return int(args.func(args) or 0)
-        except ParameterError as err:
-            print(f"error: {err}", file=sys.stderr)
-            return 2
-        except KeyboardInterrupt:  # capture and rollouts report what they kept themselves; others stop here
-            print("interrupted (Ctrl-C): stopped; files already completed are kept", file=sys.stderr)
-            return 130
+    try:
+        with quiet_output(args.quiet):
+            try:
+                check_outputs(args)
+                compile_notice(args)
+                return int(args.func(args) or 0)
+            except ParameterError as err:
+                print(f"error: {err}", file=sys.stderr)
+                return 2
+            except KeyboardInterrupt:  # capture and rollouts report what they kept themselves; others stop here
+                print("interrupted (Ctrl-C): stopped; files already completed are kept", file=sys.stderr)
+                return 130
+            except BrokenPipeError:
+                return _reader_left()
+    except BrokenPipeError:
+        return _reader_left()
 
 
 if __name__ == "__main__":

@@ -45,7 +45,10 @@ def _python_stream_on(name: str, fd: int) -> Iterator[None]:
     try:
         yield
     finally:
-        duplicate.flush()
+        try:
+            duplicate.flush()
+        except BrokenPipeError:  # the reader left (`| head`): what is left to say goes nowhere
+            pass
         setattr(sys, name, stream)
 
 

@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import argparse
 
+from bullet_dlo.cli.outputs import add_plot_options, plot_path, print_outputs
 from bullet_dlo.cli.quiet import elapsed
 from bullet_dlo.cli.simulate import write_json
 
@@ -26,6 +27,12 @@ def cmd_resolve(args: argparse.Namespace) -> int:
         print(f"why n = {r.n_masses}: {r.why}")
     if args.json:
         write_json(args.json, r.to_dict())
+    png = plot_path(args, args.json)
+    if png is not None:
+        from bullet_dlo.render.plots import plot_resolve
+
+        plot_resolve(r.trials, r.tolerance, png, title=f"{scene.name}: resolve on {r.target}")
+    print_outputs(args.json, png)
     return 0
 
 
@@ -43,4 +50,5 @@ def add_parsers(sub, common: argparse.ArgumentParser) -> None:
                    "duration, at most 2)")
     s.add_argument("--json", metavar="OUT.json", help="write n_masses, dt, integrator, predicted_error, "
                    "wall_time_per_sim_s and the trials")
+    add_plot_options(s, "the trials' spatial error against n and temporal error against dt")
     s.set_defaults(func=cmd_resolve)

@@ -6,6 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
+from bullet_dlo.cli.outputs import add_plot_options, plot_path, print_outputs
 from bullet_dlo.cli.quiet import bar
 from bullet_dlo.cli.simulate import write_json
 
@@ -59,14 +60,16 @@ def cmd_grasp(args: argparse.Namespace) -> int:
         spec, dt, duration = sc.spec, scene.dt, scene.duration
         robot, cable, integrator = spec.robot, spec.cable, spec.integrator
         recorder = None
+        png = plot_path(args, args.json, args.series)
         if args.series:
             from bullet_dlo.data.recording import series_format
 
             series_format(args.series)  # a bad suffix fails before the run, not after
+        if args.series or png is not None:
             recorder = _attach_series(sc)
-        with bar(int(round(duration / dt)), f"grasp ({robot})", args.quiet, unit="step") as progress:
+        with bar(sc.world.steps_in(duration), f"grasp ({robot})", args.quiet, unit="step") as progress:
             sc.world.after_step.append(lambda: progress.update(1))
-            wall = sc.run(duration)
+            first_step, wall = sc.run_timed(duration)
         window = sc.window_mean(0.5)
         weight = cable.mass * float(np.linalg.norm(sc.world.gravity))
         w, f = window["wrench_world"], window["end_forces"]
@@ -80,17 +83,23 @@ def cmd_grasp(args: argparse.Namespace) -> int:
             "sensor_vs_model_error": float(np.max(np.abs(w[:, :3] - f)) / weight),
             "sensor_check": sc.observation.check.summary(),
             "sensor_compensation": sc.sensors[0].compensation,
-            "wall_time_s": wall, "steps": sc.world.steps,
+            "wall_time_s": wall, "first_step_s": first_step, "steps": sc.world.steps,
         }
-        if recorder is not None:
+        if args.series:
             from bullet_dlo.data.recording import write_series
 
             write_series(args.series, recorder.arrays(), {k: v for k, v in data.items() if not isinstance(v, dict)}
                          | {"cable": cable.to_dict()})
+        if png is not None:
+            from bullet_dlo.render.plots import plot_wrenches
+
+            rows = recorder.arrays()
+            plot_wrenches(rows["t"], rows["wrench_world"], rows["end_forces"], png,
+                          title=f"grasp: {robot}, dt = {dt:g} s, {integrator}")
     if args.json:
         write_json(args.json, data)
-    print(f"{robot}: {'stable' if data['stable'] else 'UNSTABLE'}, {data['steps']} steps in {wall:.2f} s; "
-          f"cable weight {weight:.4f} N")
+    print(f"{robot}: {'stable' if data['stable'] else 'UNSTABLE'}, {data['steps'] - 1} steps in {wall:.2f} s "
+          f"after a first step of {first_step:.2f} s (loading or compiling kernels); cable weight {weight:.4f} N")
     for arm in ("left", "right"):
         print(f"  {arm:5s} sensor (world) " + " ".join(f"{v:+.4f}" for v in data["wrench_world"][arm][:3])
               + " N   model " + " ".join(f"{v:+.4f}" for v in data["ground_truth_end_forces"][arm]) + " N")
@@ -98,6 +107,7 @@ def cmd_grasp(args: argparse.Namespace) -> int:
     failures = data["sensor_check"]["failures"]
     for line in failures:
         print(f"  SENSOR CHECK FAILED: {line}")
+    print_outputs(args.json, args.series, png)
     return 1 if failures else 0
 
 
@@ -172,6 +182,7 @@ def add_parsers(sub, common: argparse.ArgumentParser) -> None:
                    "wrenches in world and sensor frame, model end forces and moments, grasp poses, joint states, "
                    "cable positions; names as in dataset episodes, see bullet_dlo.data.recording); .csv holds what "
                    "bullet-dlo fit needs")
+    add_plot_options(s, "both wrists' forces over time beside the model's end forces")
     s.set_defaults(func=cmd_grasp)
 
     s = sub.add_parser("render", parents=[common], help="headless video and force plots of a scene",

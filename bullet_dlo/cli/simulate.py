@@ -8,7 +8,8 @@ from pathlib import Path
 
 import numpy as np
 
-from bullet_dlo.cli.quiet import bar
+from bullet_dlo.cli.outputs import add_plot_options, plot_path, print_outputs
+from bullet_dlo.cli.quiet import bar, elapsed
 
 TABLES = ("base", "rates")
 RATE_INTEGRATORS = ("symplectic_euler", "implicit_euler", "bdf2", "implicit_midpoint")
@@ -41,8 +42,15 @@ def cmd_simulate(args: argparse.Namespace) -> int:
                 "--duration" if args.duration is not None else "duration")  # the caps apply to flags too
     from bullet_dlo.sim import build
 
+    png = plot_path(args, args.json, args.npz)
     with build(scene, args.engine, command=f"simulate --engine {args.engine}") as sim:
-        result = sim.run()
+        if args.engine == "bullet":  # Bullet steps one at a time: a bar with an ETA
+            with bar(sim.world.steps_in(scene.duration), f"simulate ({scene.name})", args.quiet, unit="step") as pb:
+                sim.after_step.append(lambda: pb.update(1))
+                result = sim.run()
+        else:  # one compiled time loop: an elapsed-time counter
+            with elapsed(f"simulate ({scene.name})", args.quiet):
+                result = sim.run()
     model = sim.model
     data = result_json(scene, model, result, engine=args.engine)
     if args.json:
@@ -51,6 +59,12 @@ def cmd_simulate(args: argparse.Namespace) -> int:
         Path(args.npz).parent.mkdir(parents=True, exist_ok=True)
         np.savez_compressed(args.npz, t=result.t, x=result.x, v=result.v, end_forces=result.end_forces,
                             energy=result.energy)
+    if png is not None and len(result.t):
+        from bullet_dlo.render.plots import plot_run
+
+        held = tuple(bool(model.arrays.held[i]) for i in (0, -1))
+        plot_run(result.t, result.x, result.end_forces, result.energy, png,
+                 title=f"{scene.name}: {data['integrator']}, dt = {scene.dt:g} s, {args.engine} engine", held=held)
     status = "stable" if data["stable"] else f"UNSTABLE at t = {data['time_to_instability']:.6g} s ({data['reason']})"
     print(f"{scene.name}: {data['integrator']} dt={scene.dt:g} s, {data['steps']} steps in "
           f"{data['wall_time_s']:.3f} s: {status}")
@@ -60,6 +74,7 @@ def cmd_simulate(args: argparse.Namespace) -> int:
         for end in ("first", "last"):
             if data["end_forces"][end] is not None:
                 print(f"  end force {end}: " + " ".join(f"{v:+.5f}" for v in data["end_forces"][end]) + " N")
+    print_outputs(args.json, args.npz, png)
     return 0
 
 
@@ -86,6 +101,12 @@ def cmd_stability(args: argparse.Namespace) -> int:
           f"{b.k_d_max_explicit:.4g} N s/m at this dt")
     if args.json:
         write_json(args.json, report)
+    png = plot_path(args, args.json)
+    if png is not None:
+        from bullet_dlo.render.plots import plot_critical_dt
+
+        plot_critical_dt(report["critical_dt"], scene.dt, png, title=scene.name)
+    print_outputs(args.json, png)
     return 0
 
 
@@ -172,6 +193,12 @@ def write_paper_table(args: argparse.Namespace, text: str, runs: list, partial: 
     if args.json:
         write_json(args.json, {"partial": partial, "runs": [r.__dict__ for r in runs]} if partial
                    else [r.__dict__ for r in runs])
+    png = plot_path(args, args.json, args.markdown)
+    if png is not None and runs:
+        from bullet_dlo.render.plots import plot_paper_table
+
+        plot_paper_table(runs, png, title="the study's stability table" + (" (partial: interrupted)" if partial else ""))
+    print_outputs(args.markdown, args.json, png)
 
 
 def check_paper_table(args: argparse.Namespace) -> None:
@@ -213,6 +240,12 @@ def cmd_convergence(args: argparse.Namespace) -> int:
         print(f"| {r['n_masses']} | {100 * r['default']:+.3f} % | {100 * r['paper']:+.2f} % |")
     if args.json:
         write_json(args.json, rows)
+    png = plot_path(args, args.json)
+    if png is not None and rows:
+        from bullet_dlo.render.plots import plot_convergence
+
+        plot_convergence(rows, png, title="clamped cantilever under its own weight vs w L^4 / (8 E I)")
+    print_outputs(args.json, png)
     return 0
 
 
@@ -233,6 +266,7 @@ def add_parsers(sub, common: argparse.ArgumentParser) -> None:
                    "implicit_euler, bdf2, implicit_midpoint)")
     s.add_argument("--dt", type=float, help="override the scene's time step [s]")
     s.add_argument("--duration", type=float, help="override the scene's duration [s]")
+    add_plot_options(s, "the end forces and energy over time and the first and last shapes")
     s.set_defaults(func=cmd_simulate)
 
     s = sub.add_parser("stability", parents=[common], help="predicted critical time step of every integrator",
@@ -240,6 +274,7 @@ def add_parsers(sub, common: argparse.ArgumentParser) -> None:
                                    "and damping bounds.")
     s.add_argument("scene", help="scene YAML file")
     s.add_argument("--json", metavar="OUT.json", help="write the report as JSON")
+    add_plot_options(s, "each integrator's critical step against the scene's dt (log scale)")
     s.set_defaults(func=cmd_stability)
 
     s = sub.add_parser("paper-table", parents=[common], help="re-run the study's stability table with every integrator",
@@ -265,6 +300,7 @@ def add_parsers(sub, common: argparse.ArgumentParser) -> None:
     s.add_argument("--markdown", metavar="OUT.md", help="write the table(s) as Markdown")
     s.add_argument("--json", metavar="OUT.json", help="write every run as JSON")
     s.add_argument("-v", "--verbose", action="store_true", help="print each run as it finishes")
+    add_plot_options(s, "the table as a stable/unstable grid per modulus")
     s.add_argument("--quick", action="store_true",
                    help="a subset in seconds (E 12.6 and 1002.6 MPa, n 6, dt 5e-6 s, 0.02 s runs; rates 0.2 s) to see "
                         "the command work; not the study's table. A Ctrl-C at any time writes the runs that finished "
@@ -277,4 +313,5 @@ def add_parsers(sub, common: argparse.ArgumentParser) -> None:
     s.add_argument("--masses", nargs="+", type=int, default=[5, 10, 20, 40], metavar="N",
                    help="numbers of masses (default: 5 10 20 40)")
     s.add_argument("--json", metavar="OUT.json", help="write the table as JSON")
+    add_plot_options(s, "the error of both discretisations against n (log-log)")
     s.set_defaults(func=cmd_convergence)

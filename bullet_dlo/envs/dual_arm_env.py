@@ -34,7 +34,9 @@ Every value is finite and inside its box: a non-finite reading (an unstable step
 0 and ends the episode. **Termination**: the cable went unstable (``info["unstable"]``, with
 ``info["reason"]``), or the task's own condition; the time limit is the registration's
 ``max_episode_steps`` (a truncation). **Rendering**: ``render_mode="rgb_array"`` returns the
-``render_size`` view of :meth:`render`.
+``render_size`` view of :meth:`render`; ``render_mode="human"`` opens a live browser view on the
+loopback (its URL printed once; the cable, the arms, obstacles and wrist-force arrows as Bullet has
+them after every reset and step; needs viser, ``pip install 'bullet-dlo[view]'``).
 
 **Vectorising** (Gymnasium 1.x): ``metadata["autoreset_mode"]`` is ``AutoresetMode.NEXT_STEP``, the
 mode ``gymnasium.make_vec`` (``vectorization_mode="sync"`` or ``"async"``) gives its vector env by
@@ -91,12 +93,12 @@ class DualArmEnv(gym.Env):
         shape_points: points along the cable in ``cable`` (and in shape targets), an integer in [2, 1000].
         camera: None, "rgb", "depth" or "rgbd": camera images in the observation, ``image_size`` (width, height)
             [px], integers in [16, 4096].
-        render_mode: None or "rgb_array"; render_size: (width, height) [px] of :meth:`render`, integers in [16, 4096].
+        render_mode: None, "rgb_array" or "human" (a live browser view; needs viser); render_size: (width, height) [px] of :meth:`render`, integers in [16, 4096].
 
     ``reset(seed=..., options=...)``: seed None or an integer >= 0; options None or {} (no reset options).
     """
 
-    metadata = {"render_modes": ["rgb_array"], "render_fps": 20, **AUTORESET}
+    metadata = {"render_modes": ["rgb_array", "human"], "render_fps": 20, **AUTORESET}
     task_dim = 0
     default_randomisation: Mapping[str, Any] = {}
 
@@ -168,7 +170,7 @@ class DualArmEnv(gym.Env):
         seed = params.check_reset(seed, options)
         super().reset(seed=seed)
         self._close_scene()
-        renderer = "tiny" if (self.camera or self.render_mode) else None
+        renderer = "tiny" if (self.camera or self.render_mode == "rgb_array") else None
         self.draw = self.randomisation.draw(self.np_random, renderer)
         setup = self.draw.setup
         self.substeps = check_control_period(self.control_dt, setup.dt)
@@ -187,7 +189,10 @@ class DualArmEnv(gym.Env):
         self.unstable = not self.physics.cable.stable
         self._task_reset(self.np_random)
         self._cameras = None
-        return self._observation(), self._info()
+        obs, info = self._observation(), self._info()
+        if self.render_mode == "human":
+            self._render_human()
+        return obs, info
 
     def step(self, action):
         if self.physics is None:
@@ -204,6 +209,8 @@ class DualArmEnv(gym.Env):
         self.unstable = not cable.stable
         obs = self._observation()
         reward, done = (0.0, True) if self.unstable else self._task_reward()
+        if self.render_mode == "human":
+            self._render_human()
         return obs, float(reward), bool(done or self.unstable), False, self._info()
 
     def _info(self) -> dict[str, Any]:
@@ -256,13 +263,36 @@ class DualArmEnv(gym.Env):
         return out
 
     def render(self) -> np.ndarray | None:
-        """The scene as RGB (H, W, 3) uint8 at ``render_size`` (``render_mode="rgb_array"``), else None."""
+        """The scene as RGB (H, W, 3) uint8 at ``render_size`` (``render_mode="rgb_array"``); with
+        ``render_mode="human"`` the live browser view is brought up to date (it also is after every reset and
+        step) and None is returned; else None."""
+        if self.render_mode == "human":
+            self._render_human()
+            return None
         if self.render_mode != "rgb_array" or self.physics is None:
             return None
         world = self.physics.world
         if getattr(self, "_render_camera", None) is None:
             self._render_camera = default_camera(CAMERA_VIEW, *self.render_size)
         return render_frame(world.client, self._render_camera, world.renderer).rgb
+
+    def _render_human(self) -> None:
+        """The live browser view (:class:`~bullet_dlo.render.viewer.LiveView`; its URL is printed once): the
+        cable, the arms and every obstacle as Bullet has them, and the wrist forces as arrows (0.05 m/N)."""
+        if self.physics is None:
+            return
+        from bullet_dlo.render.viewer import LiveView
+
+        world, cable = self.physics.world, self.physics.cable
+        if getattr(self, "_live", None) is None:
+            self._live = LiveView()
+        if getattr(self, "_live_world", None) is not world:  # a new episode's world
+            skip = list(cable.body_ids) + ([world.ground_id] if getattr(world, "ground_id", None) is not None else [])
+            self._live.attach(world.client, skip, cable.radius, cable.model.n)
+            self._live_world = world
+        ends = np.array([r.grasp_pose()[0] for r in self.physics.robots])
+        forces = np.array([s.last.world()[:3] for s in self.sensors])
+        self._live.update(cable.x, np.stack([ends, ends + 0.05 * forces], axis=1))
 
     # ----- the task (subclasses) ------------------------------------------------------------------
     def _task_reset(self, rng: np.random.Generator) -> None:
@@ -291,3 +321,6 @@ class DualArmEnv(gym.Env):
 
     def close(self) -> None:
         self._close_scene()
+        if getattr(self, "_live", None) is not None:
+            self._live.close()
+            self._live = None

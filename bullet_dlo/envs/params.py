@@ -46,7 +46,7 @@ NUMBERS: dict[str, tuple[float, float, str, bool]] = {
 SHAPE_POINTS = (2, 1000)  # points along the cable in the ``cable`` observation and shape targets
 IMAGE_SIDE = (16, 4096)  # [px] each side of ``image_size`` and ``render_size`` (4096^2 RGB-D: 112 MB a frame)
 CAMERAS = (None, "rgb", "depth", "rgbd")
-RENDER_MODES = (None, "rgb_array")
+RENDER_MODES = (None, "rgb_array", "human")
 MAX_SUBSTEPS = 10_000  # physics steps per control step (control_dt / dt) at most
 MAX_SETTLE_STEPS = 100_000  # physics steps of the settling (settle_time / dt) at most
 

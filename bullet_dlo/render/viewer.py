@@ -695,3 +695,80 @@ def serve(run: Run, port: int | None = None, max_frames: int = MAX_FRAMES, secon
     finally:
         with _quiet_stdout():
             server.stop()
+
+
+# ----- a live view of a running world (the environments' render_mode="human") ----------------------
+class LiveView:
+    """A PyBullet world drawn live in the browser at http://127.0.0.1:PORT: the cable (tube, centre line and
+    masses) and every other body's visual shapes (the arms, obstacles, pegs), posed from Bullet's own link
+    frames at each :meth:`update`; with ``wrench_points`` (2, 2, 3) [m] the wrist-force arrows. The page keeps
+    its port across :meth:`attach` (a new episode's world): a browser left open shows the next episode.
+
+    client: the PyBullet client; skip: body ids not drawn (the cable's spheres, the ground plane); radius: the
+    cable's [m]. The URL is printed once on stderr (``announce``)."""
+
+    def __init__(self, port: int | None = None, announce: bool = True):
+        self.server = _server(port)
+        self.url = f"http://127.0.0.1:{self.server.get_port()}"
+        if announce:
+            import sys
+
+            print(f"bullet_dlo viewer: {self.url}", file=sys.stderr, flush=True)
+        self.client: int | None = None
+        self.frames: dict[tuple[int, int], Any] = {}
+
+    def attach(self, client: int, skip: Sequence[int], radius: float, n_masses: int) -> None:
+        """Draw a (new) world: every body of ``client`` not in ``skip``, and a cable of ``n_masses`` masses."""
+        import pybullet as pb
+
+        scene = self.server.scene
+        scene.reset()
+        scene.set_up_direction("+z")
+        scene.add_box("/world/ground", dimensions=(4.0, 4.0, 0.002), position=(0.0, 0.0, -0.001), color=(215, 215, 220))
+        self.client, self.radius, self.frames = client, radius, {}
+        skipped = set(int(b) for b in skip)
+        for b in (pb.getBodyUniqueId(i, physicsClientId=client) for i in range(pb.getNumBodies(physicsClientId=client))):
+            if b in skipped:
+                continue
+            for s, (link, mesh, rgb, lpos, lwxyz) in enumerate(visual_meshes(client, b, ARM_RGB)):
+                key = (b, link)
+                if key not in self.frames:
+                    self.frames[key] = scene.add_frame(f"/bodies/{b}/link{link}", show_axes=False)
+                scene.add_mesh_simple(f"/bodies/{b}/link{link}/visual{s}", vertices=np.asarray(mesh.vertices, np.float32),
+                                      faces=np.asarray(mesh.faces, np.uint32), color=rgb, position=lpos, wxyz=lwxyz)
+        x = np.zeros((n_masses, 3))
+        x[:, 0] = np.arange(n_masses) * 1e-3
+        self.line = scene.add_line_segments("/cable/line", points=ViewerScene._segments(x), colors=CABLE_RGB,
+                                            thickness=5.0, thickness_units="screen")
+        pos, wxyz, scale = tube_transforms(x, radius)
+        vertices, faces = _unit_cylinder(TUBE_SIDES)
+        self.tube = scene.add_batched_meshes_simple("/cable/tube", vertices, faces, batched_wxyzs=wxyz,
+                                                    batched_positions=pos, batched_scales=scale,
+                                                    batched_colors=CABLE_RGB, lod="off")
+        self.nodes = scene.add_point_cloud("/cable/nodes", points=x.astype(np.float32),
+                                           colors=np.tile(np.array(NODE_RGB, np.uint8), (n_masses, 1)),
+                                           point_size=max(2 * radius, 0.004), point_shape="circle")
+        self.arrows = None
+        self.server.initial_camera.position = (0.0, -1.6, 1.0)
+        self.server.initial_camera.look_at = (0.0, 0.0, 0.3)
+
+    def update(self, cable_x: np.ndarray, wrench_points: np.ndarray | None = None) -> None:
+        """Show the world now: the cable at ``cable_x`` (n, 3) [m], every drawn link at Bullet's pose."""
+        x = np.asarray(cable_x, dtype=float)
+        self.line.points = ViewerScene._segments(x)
+        self.tube.batched_positions, self.tube.batched_wxyzs, self.tube.batched_scales = tube_transforms(x, self.radius)
+        self.nodes.points = x.astype(np.float32)
+        for (body, link), frame in self.frames.items():
+            p, o = _link_pose(self.client, body, link)
+            frame.position, frame.wxyz = tuple(p), _wxyz(o)
+        if wrench_points is not None:
+            pts = np.asarray(wrench_points, np.float32)
+            if self.arrows is None:
+                self.arrows = self.server.scene.add_arrows("/wrench", points=pts, colors=np.array(FORCE_RGB, np.uint8),
+                                                           shaft_radius=0.004, head_radius=0.01, head_length=0.02)
+            else:
+                self.arrows.points = pts
+
+    def close(self) -> None:
+        with _quiet_stdout():
+            self.server.stop()

@@ -89,6 +89,10 @@ class DualArmScene:
         """Step for ``duration`` [s] (stopping early if the cable goes unstable); returns the wall time [s]."""
         return self.physics.run(duration)
 
+    def run_timed(self, duration: float) -> tuple[float, float]:
+        """:meth:`run` with the first step (kernel loading or compiling) timed apart: (first step, rest) [s]."""
+        return self.physics.run_timed(duration)
+
     def window_mean(self, seconds: float = 0.5) -> dict[str, np.ndarray]:
         """Averages over the last ``seconds`` [s]: sensor wrench in world (2, 6), model end forces (2, 3)."""
         return self.observation.window_mean(seconds)
