@@ -94,7 +94,10 @@ def cmd_fit(args: argparse.Namespace) -> int:
     else:
         spec = CableSpec(length=length, diameter=args.diameter, mass=args.mass or max(weight / 9.81, 1e-4),
                          youngs_modulus=args.youngs_modulus or 1e8, n_masses=args.n_masses, twist=args.twist)
-    res = fit_cable(recs, spec, names, options)
+    from bullet_dlo.cli.quiet import elapsed
+
+    with elapsed(f"fit: at most {args.max_evaluations} model runs", args.quiet):
+        res = fit_cable(recs, spec, names, options)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     summary = {"recordings": [str(p) for p in args.recording], "recording": str(args.recording[0]),
