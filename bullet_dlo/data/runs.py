@@ -153,6 +153,12 @@ def run_from_arrays(data: dict[str, Any], source: str, scene=None) -> Run:
         opts = scene.bullet
         ground = opts.ground_height if opts.ground else None
         obstacles = tuple(opts.obstacles)
+    elif data.get("obstacles"):  # a rollout records its episode's obstacles (Routing's pegs and clip)
+        try:
+            recorded = json.loads(str(data["obstacles"]))
+        except ValueError:
+            raise ParameterError(f"{source}: its obstacles attribute is not JSON") from None
+        obstacles = tuple(ob for ob in recorded if isinstance(ob, dict))
     if robot is not None:
         th = scene.arms.table_height if scene is not None and scene.arms is not None else ARMS_TABLE_HEIGHT
         length = cable.length if cable is not None else float(np.linalg.norm(

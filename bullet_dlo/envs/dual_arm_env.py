@@ -308,6 +308,12 @@ class DualArmEnv(gym.Env):
     def _task_info(self) -> dict[str, Any]:
         return {}
 
+    def obstacles(self) -> list[dict]:
+        """The episode's obstacles as scene ``bullet.obstacles`` entries (SI units): the drawn scene's and those
+        the task adds (Routing's pegs and clip); recorded with every rollout so a viewer can draw them."""
+        scene_obstacles = list(self.draw.scene.bullet.obstacles) if self.draw is not None else []
+        return scene_obstacles + list(getattr(self, "task_obstacles", []))
+
     def scripted_policy(self):
         """The task's scripted baseline: a callable ``policy(obs) -> action``, optionally with a
         ``reset(obs)`` called at the first observation of every episode (subclasses)."""

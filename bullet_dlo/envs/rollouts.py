@@ -210,7 +210,8 @@ def run_rollout(env, policy: Policy, spec: RolloutSpec, index: int, out: Path) -
              "time_to_instability": -1.0 if t_bad is None else float(t_bad), "columns": COLUMNS_NOTE,
              "env_id": spec.env_id, "policy": spec.policy, "return": float(np.sum(rewards)),
              "terminated": bool(terminated), "truncated": bool(truncated),
-             "final_info": json.dumps(_jsonable(info), sort_keys=True)}
+             "final_info": json.dumps(_jsonable(info), sort_keys=True),
+             "obstacles": json.dumps(_jsonable(inner.obstacles()) if hasattr(inner, "obstacles") else [])}
     name = write_episode(out, index, data, attrs)
     reason = info.get("reason") if not stable else None
     return episode_result(index, name, stable, t_bad, reason, params, decision, metrics, issues)

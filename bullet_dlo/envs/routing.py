@@ -311,7 +311,8 @@ class RoutingEnv(DualArmEnv):
         pegs = [{"type": "cylinder", "radius": PEG_RADIUS, "height": PEG_HEIGHT,
                  "position": [*p, table + 0.5 * PEG_HEIGHT], "friction": FRICTION, "name": f"peg_{k}"}
                 for k, p in enumerate(self.route.pegs)]
-        add_obstacles(self.physics.world, pegs + self.route.clip.obstacles())
+        self.task_obstacles = pegs + self.route.clip.obstacles()
+        add_obstacles(self.physics.world, self.task_obstacles)
         self._measures = None
 
     # ----- measures ---------------------------------------------------------------------------------

@@ -358,3 +358,26 @@ def test_live_page_renders_the_cable_in_headless_chromium(runs, tmp_path):
     assert blue(scene).sum() >= 300, "the arms' blue links are not on screen"
     ys, xs = np.nonzero(blue(scene))
     assert xs.min() < img.shape[1] / 2 < xs.max(), "both arms: blue pixels on either side of the middle"
+
+
+def test_routing_rollout_page_draws_the_pegs_and_the_clip(tmp_path):
+    """A Routing-v0 rollout records its episode's obstacles (pegs and clip, drawn per episode); the page draws
+    each where the environment put it."""
+    import h5py
+
+    from bullet_dlo.data.runs import load_run
+    from bullet_dlo.envs.rollouts import record_rollouts
+
+    record_rollouts("bullet_dlo/Routing-v0", "zero", tmp_path / "roll", 1, record_rate=20.0,
+                    env_kwargs={"settle_time": 0.05, "max_episode_steps": 2}, progress=False)
+    episode = next((tmp_path / "roll").rglob("*.h5"))
+    with h5py.File(episode) as f:
+        recorded = json.loads(f.attrs["obstacles"])
+    pegs = [ob for ob in recorded if ob["name"].startswith("peg_")]
+    clip = [ob for ob in recorded if ob["name"].startswith("clip_")]
+    assert 1 <= len(pegs) <= 2 and len(clip) == 2 and all(ob["type"] == "cylinder" for ob in pegs)
+    run = load_run(tmp_path / "roll")
+    assert [ob["position"] for ob in run.obstacles] == [ob["position"] for ob in recorded]
+    assert main(["view", str(tmp_path / "roll"), "--out", str(tmp_path / "r.html"), "-q"]) == 0
+    got = names(embedded(tmp_path / "r.html"))
+    assert {f"/world/obstacles/{k}" for k in range(len(recorded))} <= got
