@@ -19,8 +19,8 @@ def add_plot_options(parser: argparse.ArgumentParser, what: str) -> None:
 
 
 def plot_path(args: argparse.Namespace, *outputs: str | None) -> Path | None:
-    """The PNG the command writes: ``--plot``, else the first of ``outputs`` given with its suffix set to .png
-    (a directory output: ``<dir>/<default>``), else None; None with ``--no-plot``."""
+    """The PNG the command writes: ``--plot``, else the first of ``outputs`` given with its suffix set to .png,
+    else None; None with ``--no-plot``."""
     from bullet_dlo.core.validate import ParameterError
 
     if getattr(args, "no_plot", False):

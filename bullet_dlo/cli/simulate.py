@@ -45,8 +45,9 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     png = plot_path(args, args.json, args.npz)
     with build(scene, args.engine, command=f"simulate --engine {args.engine}") as sim:
         if args.engine == "bullet":  # Bullet steps one at a time: a bar with an ETA
-            with bar(sim.world.steps_in(scene.duration), f"simulate ({scene.name})", args.quiet, unit="step") as pb:
-                sim.after_step.append(lambda: pb.update(1))
+            with bar(sim.world.steps_in(scene.duration), f"simulate ({scene.name})", args.quiet,
+                     unit="step") as progress:
+                sim.after_step.append(lambda: progress.update(1))
                 result = sim.run()
         else:  # one compiled time loop: an elapsed-time counter
             with elapsed(f"simulate ({scene.name})", args.quiet):
