@@ -94,3 +94,24 @@ def test_lerobot_make_env_builds_and_steps_the_environment(task, tmp_path):
     assert out["features"]["action"] == list(gym.make(f"bullet_dlo/{task}").action_space.shape)
     assert out["policy"] == {k: [2, *v] for k, v in declared.items()}
     assert out["state_equal"] and out["truncated"][-1] == [True, True] and out["truncated"][0] == [False, False]
+
+
+def test_gymnasium_checks_and_vectorises_the_lerobot_id():
+    """Gymnasium's own checker passes, and make_vec builds it (sync) with the base environment's autoreset mode."""
+    from gymnasium.utils.env_checker import check_env
+
+    env = gym.make(LEROBOT_ID, task="TensionTracking-v0", max_episode_steps=3, **KW)
+    try:
+        check_env(env.unwrapped, skip_render_check=True)
+    finally:
+        env.close()
+    vec = gym.make_vec(LEROBOT_ID, num_envs=2, vectorization_mode="sync",
+                       vector_kwargs={"autoreset_mode": gym.vector.AutoresetMode.NEXT_STEP},
+                       task="TensionTracking-v0", max_episode_steps=3, **KW)
+    try:
+        obs, _ = vec.reset(seed=[1, 2])
+        assert obs["agent_pos"].shape[0] == 2 and np.all(np.isfinite(obs["agent_pos"]))
+        obs, reward, terminated, truncated, _ = vec.step(np.zeros((2, 6), np.float32))
+        assert reward.shape == (2,) and np.all(np.isfinite(obs["wrench"]))
+    finally:
+        vec.close()
