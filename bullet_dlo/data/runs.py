@@ -51,7 +51,9 @@ def load_run(path: str | Path, episode: int | None = None, scene=None) -> Run:
     if path.is_dir():
         if (path / "capture.json").is_file():
             arrays, source = _dataset_episode(path, episode)
-        elif (path / "render.json").is_file():
+        elif (path / "render.json").is_file() and (path / "run.npz").is_file():  # the whole run, at the video's rate
+            arrays, source = _npz(path / "run.npz"), f"{path} (render)"
+        elif (path / "render.json").is_file():  # an older render: its last shape only
             arrays, source = _render_dir(path), f"{path} (render: final shape)"
         else:
             raise ParameterError(f"{path} is neither a capture/rollout directory (capture.json) nor a render output "

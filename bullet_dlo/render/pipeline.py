@@ -61,6 +61,38 @@ def cable_envelope(ends: np.ndarray, length: float, motion: Sequence, free: Sequ
     return pts
 
 
+RUN_FILE = "run.npz"
+"""The run a render writes beside its video, at the video's rate (``bullet-dlo view OUT`` shows it)."""
+
+
+class _CableSeries:
+    """An ``after_step`` hook: the cable's time [s], nodes [m] and end forces [N] every ``every`` steps."""
+
+    def __init__(self, world, cable, every: int):
+        self.world, self.cable, self.every = world, cable, every
+        self.rows: dict[str, list] = {"t": [], "cable_x": [], "end_forces": []}
+
+    def __call__(self) -> None:
+        if self.world.steps % self.every:
+            return
+        self.rows["t"].append(self.world.time)
+        self.rows["cable_x"].append(self.cable.x.copy())
+        self.rows["end_forces"].append(self.cable.end_forces())
+
+    def arrays(self) -> dict[str, np.ndarray]:
+        return {k: np.array(v) for k, v in self.rows.items()}
+
+
+def _write_run(path: Path, series, scene, robot: str | None) -> None:
+    """The recorded rows as one .npz (the series format of :mod:`bullet_dlo.data.recording`)."""
+    from bullet_dlo.data.recording import write_series
+
+    attrs = {"cable": scene.cable.to_dict(), "dt": scene.dt, "name": scene.name}
+    if robot is not None:
+        attrs["robot"] = robot
+    write_series(str(path), series.arrays(), attrs)
+
+
 def render_scene(scene, out: str | Path, *, robot: str | None = None, fps: float = 30.0, width: int = 640,
                  height: int = 480, renderer: str = "auto", fmt: str = "auto", camera: Camera | None = None,
                  arm_options: dict | None = None, phases: Sequence[tuple[float, float, str]] = (),
@@ -114,6 +146,16 @@ def render_scene(scene, out: str | Path, *, robot: str | None = None, fps: float
                 still.append(rec.last.rgb)
 
         world.after_step.append(after_step)
+        # the run at the video's rate, for `bullet-dlo view OUT` (the whole run, not only its last shape)
+        every = max(1, int(round(1.0 / (fps * world.dt))))
+        if arm_scene is not None:
+            from bullet_dlo.data.recording import SeriesRecorder
+
+            series = SeriesRecorder(arm_scene, every)
+        else:
+            series = _CableSeries(world, cable, every)
+            series()  # the row at t = 0 (the wrist sensors have no reading before the first step)
+        world.after_step.append(series)
         rec.on_step()  # frame at t = 0
         wall = world.run_while_stable(world.steps_in(scene.duration), cable)
         bar.close()
@@ -135,6 +177,8 @@ def render_scene(scene, out: str | Path, *, robot: str | None = None, fps: float
             summary["bytes_per_second"] = writer.path.stat().st_size / max(scene.duration, 1e-9)
             sbs = side_by_side(writer.path, plot, np.array(rec.times), out / "side_by_side", fps)
             summary["side_by_side"] = str(sbs.path)
+        _write_run(out / RUN_FILE, series, scene, robot if arm_scene is not None else None)
+        summary["run"] = str(out / RUN_FILE)
         (out / "render.json").write_text(json.dumps(summary, indent=2))
         return summary
     finally:

@@ -381,3 +381,39 @@ def test_routing_rollout_page_draws_the_pegs_and_the_clip(tmp_path):
     assert main(["view", str(tmp_path / "roll"), "--out", str(tmp_path / "r.html"), "-q"]) == 0
     got = names(embedded(tmp_path / "r.html"))
     assert {f"/world/obstacles/{k}" for k in range(len(recorded))} <= got
+
+
+def test_render_output_directory_is_viewed_as_its_whole_run(tmp_path):
+    """``render`` writes its run at the video's rate (run.npz) beside the video; ``view OUT`` shows every row
+    of it (not only the last shape), with the cable's model for the contact forces."""
+    scene = yaml.safe_load((ROOT / "demos" / "scenes" / "hanging.yaml").read_text())
+    scene["duration"] = 0.3
+    path = tmp_path / "hanging.yaml"
+    path.write_text(yaml.safe_dump(scene))
+    assert main(["render", str(path), "--out", str(tmp_path / "r"), "--fps", "20", "--width", "64", "--height", "48",
+                 "-q"]) == 0
+    with np.load(tmp_path / "r" / "run.npz") as f:
+        t, x = f["t"], f["cable_x"]
+    assert np.allclose(np.diff(t), 0.05, atol=1e-9) and len(t) == 7 and x.shape == (7, 20, 3)
+    summary = json.loads((tmp_path / "r" / "render.json").read_text())
+    np.testing.assert_allclose(x[-1], summary["final_positions"], atol=1e-12)  # the last row is the final shape
+    from bullet_dlo.data.runs import load_run
+
+    run = load_run(tmp_path / "r")
+    assert run.frames == 7 and run.cable is not None and run.cable.n_masses == 20
+    assert main(["view", str(tmp_path / "r"), "--out", str(tmp_path / "r.html"), "-q"]) == 0
+    assert embedded(tmp_path / "r.html")["durationSeconds"] == pytest.approx(0.3 + 0.5, abs=1e-6)  # every row
+
+
+def test_render_with_arms_records_the_arms_for_the_viewer(tmp_path):
+    scene = yaml.safe_load(PEG.read_text())
+    scene["duration"] = 0.15
+    path = tmp_path / "peg.yaml"
+    path.write_text(yaml.safe_dump(scene))
+    assert main(["render", str(path), "--robot", "panda", "--out", str(tmp_path / "r"), "--fps", "20",
+                 "--width", "64", "--height", "48", "-q"]) == 0
+    with np.load(tmp_path / "r" / "run.npz") as f:
+        assert f["joint_q"].shape == (3, 2, 7) and f["wrench_world"].shape == (3, 2, 6)
+    assert main(["view", str(tmp_path / "r"), "--scene", str(path), "--out", str(tmp_path / "r.html"), "-q"]) == 0
+    got = names(embedded(tmp_path / "r.html"))
+    assert any(n.startswith("/arms/left/link") for n in got) and "/world/obstacles/0" in got and "/wrench" in got
