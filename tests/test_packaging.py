@@ -184,7 +184,8 @@ def test_grasp_runs_from_the_installed_wheel(venv, tmp_path, robot):
     cwd.mkdir(), tmp.mkdir()
     run([script, "grasp", "--robot", robot, "--duration", duration, "--json", "grasp.json"], cwd=cwd,
         env=clean_env(NUMBA_DISABLE_JIT="1", TMPDIR=str(tmp)), timeout=120)
-    assert sorted(os.listdir(cwd)) == ["grasp.json"]  # nothing else left in the working directory
+    # the numbers and their picture (cli.outputs), nothing else left in the working directory
+    assert sorted(os.listdir(cwd)) == ["grasp.json", "grasp.png"]
     result = json.loads((cwd / "grasp.json").read_text())
     assert result["robot"] == robot and result["stable"]
     assert result["steps"] == round(duration / dt)
