@@ -241,14 +241,14 @@ def fit_damping_drag(recs: list[BeamRecording], measured: list[Measured], panda:
     zero = np.zeros(2)
     mat, rhs = system(zero, [p[4] for p in per])
     sol = lsq_linear(mat, rhs, bounds=(0.0, np.inf)).x
-    linear_only = lsq_linear(mat[:, :1], rhs, bounds=(0.0, np.inf))
-    lin_rms = float(np.sqrt(np.mean((mat[:, :1] @ linear_only.x - rhs) ** 2)))
     at_sol = [ratios(p[0], p[1], sol) for p in per]  # refine once about the first solution
     for p, z in zip(per, at_sol):
         p[3][:] = [k for k in p[3] if k in z]
     mat, rhs = system(sol, at_sol)
     sol = lsq_linear(mat, rhs, bounds=(0.0, np.inf)).x
     resid = mat @ sol - rhs
+    linear_only = lsq_linear(mat[:, :1], rhs, bounds=(0.0, np.inf))  # C_d = 0, same linearisation
+    lin_rms = float(np.sqrt(np.mean((mat[:, :1] @ linear_only.x - rhs) ** 2)))
     windows, i = {}, 0
     for (rec, m, meas, keep, base, *_), z in zip(per, at_sol):
         rows = []
