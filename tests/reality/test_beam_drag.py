@@ -78,3 +78,15 @@ def test_validate_beam_with_fitted_drag(tmp_path):
     assert entry["ratio"]["frequency_hz"] == pytest.approx(1.0, abs=0.02)
     assert entry["ratio"]["damping_ratio"] == pytest.approx(1.0, abs=0.3)
     assert entry["measured"]["p2p_at_end"] > 0 and entry["predicted"]["p2p_at_end"] > 0
+
+
+@pytest.mark.bullet
+@pytest.mark.parametrize("args, word", [(["--drag-coefficient", "foo"], "--drag-coefficient"),
+                                        (["--drag-coefficient", "2000"], "--drag-coefficient"),
+                                        (["--drag-coefficient", "fit", "--damping", "internal_damping"], "damping_rate")])
+def test_validate_beam_bad_drag_is_one_line_exit_2(tmp_path, capsys, args, word):
+    from bullet_dlo.cli.main import main
+
+    code = main(["validate", "beam", str(tmp_path), str(tmp_path), "--json", str(tmp_path / "o.json"), *args])
+    err = capsys.readouterr().err.strip()
+    assert code == 2 and len(err.splitlines()) == 1 and word in err
