@@ -43,7 +43,8 @@ def cmd_beam(args: argparse.Namespace) -> int:
     summary, details = validate_beam(args.fit_dir, args.predict_dir, damping=args.damping, numerics=numerics,
                                      strip=strip, estimate=estimate, duration=args.duration,
                                      limit_files=args.limit_files, check_numerics=not args.no_numerics_check,
-                                     fit_youngs_modulus=args.fit_youngs_modulus, log=log)
+                                     fit_youngs_modulus=args.fit_youngs_modulus, drag=args.drag_coefficient,
+                                     log=log)
     out = Path(args.json)
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(json.dumps(summary, indent=2))
@@ -52,8 +53,18 @@ def cmd_beam(args: argparse.Namespace) -> int:
             plot_file(rec, m, pred, out.with_name(f"{out.stem}.{name}.png"))
     fit = summary["parameters"][f"{args.damping}_fit"]
     print(table(summary))
-    print(f"{args.damping} {fit['value']:.4g} (spread over {len(fit['per_file'])} fit recordings "
-          f"{fit['interval'][0]:.4g}-{fit['interval'][1]:.4g}); estimate filter "
+    params = summary["parameters"]
+    if "drag_fit" in params:
+        dfit = params["drag_fit"]
+        damping_note = (f"damping_rate {params['damping_rate']:.4g} 1/s and drag_coefficient "
+                        f"{params['drag_coefficient']:.4g} fitted together (window damping ratios: rms residual "
+                        f"{dfit['residual_rms']:.2g}, {dfit['linear_only_residual_rms']:.2g} with damping_rate alone)")
+    else:
+        damping_note = (f"{args.damping} {fit['value']:.4g} (spread over {len(fit['per_file'])} fit recordings "
+                        f"{fit['interval'][0]:.4g}-{fit['interval'][1]:.4g})"
+                        + (f", drag_coefficient {params['drag_coefficient']:.4g} held" if "drag_coefficient" in params
+                           else ""))
+    print(f"{damping_note}; estimate filter "
           f"{summary['estimate_filter']['cutoff_hz']:.3g} Hz + {1e3 * summary['estimate_filter']['delay_s']:.3g} ms; "
           f"{args.strip_model} strip, {args.integrator}, n {args.n_masses}, dt {numerics.dt:g} s; "
           f"{summary['cost_per_simulated_second']:.3g} CPU s per simulated s")
@@ -98,6 +109,11 @@ def add_parsers(sub, common: argparse.ArgumentParser) -> None:
     b.add_argument("--damping", default="damping_rate", choices=["damping_rate", "internal_damping"],
                    help="the damping parameter fitted: damping_rate [1/s] (mass-proportional drag, default) or "
                         "internal_damping [s] (Kelvin-Voigt)")
+    b.add_argument("--drag-coefficient", default="off", metavar="{off,fit,C_D}",
+                   help="quadratic air drag on the strip's face, 1/2 rho_air C_d w |v_n| v_n per length (rho_air "
+                        "1.204 kg/m^3): off (default), fit (C_d fitted on FIT_DIR together with damping_rate, from "
+                        "the damping's amplitude dependence over windows of each decay) or a value C_d [-] in "
+                        "[0, 1000] held while the damping is fitted")
     b.add_argument("--strip-model", default="planes", choices=["planes", "rectangle"],
                    help="planes: two superposed planar runs of an isotropic cable, one per bending plane (default); "
                         "rectangle: one 3-D run of a rectangle-section cable with twist, clamped with the flange's "

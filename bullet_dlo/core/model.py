@@ -20,6 +20,8 @@ from bullet_dlo.core.validate import ParameterError, check_vector3
 
 STANDARD_GRAVITY = (0.0, 0.0, -9.81)
 _NO_TWIST = no_twist()  # the empty frame of every cable without twist (never written: no kernel touches it)
+_NO_DRAG = np.zeros(0)  # the empty drag law of every cable without quadratic drag (no kernel touches it)
+_CROSS_FLOW = np.zeros(1, dtype=np.int64)
 
 
 class ModelArrays(NamedTuple):
@@ -36,6 +38,9 @@ class ModelArrays(NamedTuple):
     flat so that every field is an array): twist and anisotropic bending constants and the twist
     state; empty arrays (and untouched kernels) for a cable without twist. With a section that is not
     round ``k_bend`` holds the mean (k1 + k2)/2.
+    drag_k: quadratic fluid drag constants 1/2 rho_f C_d w l0 [kg/m] per segment, (n-1,), empty without
+    the law; drag_face: (1,) int, 1 = the drag acts along the material frame's face normal d2
+    (rectangle), 0 = on the cross-flow component (see :mod:`bullet_dlo.core.kernels.drag`).
     """
 
     mass: np.ndarray
@@ -61,6 +66,8 @@ class ModelArrays(NamedTuple):
     tw_normal: np.ndarray = _NO_TWIST.normal
     tw_clamp: np.ndarray = _NO_TWIST.clamp
     tw_flag: np.ndarray = _NO_TWIST.flag
+    drag_k: np.ndarray = _NO_DRAG
+    drag_face: np.ndarray = _CROSS_FLOW
 
     @property
     def tw(self) -> TwistArrays:
@@ -181,7 +188,17 @@ def build_arrays(spec: CableSpec, first_mode: str, last_mode: str, gravity: np.n
         c_stretch=np.full(n - 1, spec.stretch_damping),
         c_bend=k_bend * spec.internal_damping,
         **twist_fields(tw),
+        **drag_fields(spec),
     )
+
+
+def drag_fields(spec: CableSpec) -> dict[str, np.ndarray]:
+    """The ``drag_*`` fields of the model arrays: none (the defaults) unless ``spec`` has a drag law."""
+    if spec.drag_constant <= 0.0:
+        return {}
+    face = spec.section == "rectangle"  # the face normal needs the material frame a rectangle always has
+    return {"drag_k": np.full(spec.n_masses - 1, spec.drag_constant),
+            "drag_face": np.full(1, 1 if face else 0, dtype=np.int64)}
 
 
 def twist_arrays(spec: CableSpec, first_mode: str, last_mode: str) -> TwistArrays:

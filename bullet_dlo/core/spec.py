@@ -62,6 +62,16 @@ class CableSpec:
             the held ends' roll as a boundary condition; see :mod:`bullet_dlo.core.kernels.twist`).
             Off by default: a round cable without it is today's model, result for result. A
             non-round section always has it (:attr:`twist_enabled`).
+        drag_coefficient: quadratic (Morison-type) fluid drag coefficient C_d [-], in [0, 1000]; 0 (the
+            default) switches the law off, result for result. Per segment of length l0 the surrounding
+            fluid pushes with f = -1/2 rho_f C_d w l0 |v_n| v_n, v_n the segment's velocity normal to it
+            (round and tube: the cross-flow component; rectangle: the component along the face normal
+            d2), shared equally by its two nodes (:mod:`bullet_dlo.core.kernels.drag`).
+        fluid_density: density rho_f of the surrounding fluid [kg/m^3], in [0, 1e4]; default air at
+            20 degC, 1.204 (water: 998).
+        drag_width: projected width w [m] of the drag law, >= 0; 0 (default): the section's own (the
+            diameter of a round or tube section, the width of a rectangle). A strip modelled as a round
+            cable moving in its weak plane (face first) gives its width here.
     """
 
     length: float
@@ -82,6 +92,9 @@ class CableSpec:
     thickness: float = 0.0
     twist: bool = False
     shear_modulus: float = 0.0
+    drag_coefficient: float = 0.0
+    fluid_density: float = 1.204
+    drag_width: float = 0.0
 
     def __post_init__(self) -> None:
         set_ = lambda k, v: object.__setattr__(self, k, v)  # noqa: E731 (frozen dataclass)
@@ -97,6 +110,9 @@ class CableSpec:
         set_("static_friction", check_nonnegative("static_friction", self.static_friction))
         set_("poisson_ratio", check_in_range("poisson_ratio", self.poisson_ratio, 0.0, 0.5, open_hi=True))
         set_("shear_modulus", check_nonnegative("shear_modulus", self.shear_modulus))
+        set_("drag_coefficient", check_in_range("drag_coefficient", self.drag_coefficient, 0.0, 1e3))
+        set_("fluid_density", check_in_range("fluid_density", self.fluid_density, 0.0, 1e4))
+        set_("drag_width", check_in_range("drag_width", self.drag_width, 0.0, 1e3))
         if self.discretisation not in DISCRETISATIONS:
             raise ParameterError(
                 f"discretisation must be one of {', '.join(DISCRETISATIONS)}, got {self.discretisation!r}"
@@ -291,6 +307,18 @@ class CableSpec:
         """Kelvin-Voigt segment damper c_s = k_s tau = E A tau / l0 [N s/m]."""
         return self.k_stretch * self.internal_damping
 
+    @property
+    def projected_width(self) -> float:
+        """Width w [m] the drag law sees: ``drag_width``, else the diameter (round, tube) or width (rectangle)."""
+        if self.drag_width > 0.0:
+            return self.drag_width
+        return self.width if self.section == "rectangle" else self.diameter
+
+    @property
+    def drag_constant(self) -> float:
+        """Quadratic drag constant of one segment, k = 1/2 rho_f C_d w l0 [kg/m] (|f| = k |v_n|^2)."""
+        return 0.5 * self.fluid_density * self.drag_coefficient * self.projected_width * self.rest_length
+
     # ----- convenience --------------------------------------------------------------------
     def with_(self, **changes: Any) -> "CableSpec":
         """Return a copy with some fields changed (validated again)."""
@@ -299,8 +327,8 @@ class CableSpec:
     def to_dict(self) -> dict[str, Any]:
         """Plain dict of the fields (for JSON/YAML/HDF5 attributes).
 
-        The section fields and ``twist`` appear only when they differ from a plain round cable, so an
-        old spec's dict (and every digest of it) is unchanged.
+        The section fields, ``twist`` and the drag law's fields appear only when they differ from their
+        defaults, so an old spec's dict (and every digest of it) is unchanged.
         """
         data = asdict(self)
         for key, default in _SECTION_DEFAULTS.items():
@@ -337,7 +365,8 @@ class CableSpec:
 
 
 _SECTION_DEFAULTS: dict[str, Any] = {"section": "round", "inner_diameter": 0.0, "width": 0.0, "thickness": 0.0,
-                                      "twist": False, "shear_modulus": 0.0}
+                                      "twist": False, "shear_modulus": 0.0,
+                                      "drag_coefficient": 0.0, "fluid_density": 1.204, "drag_width": 0.0}
 
 _PRESETS: dict[str, dict[str, Any]] = {
     "lv2017": dict(

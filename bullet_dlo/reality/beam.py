@@ -229,7 +229,18 @@ class Strip:
 
     def cable_spec(self, plane: str, n_masses: int, **damping: float) -> CableSpec:
         """The isotropic core cable with this plane's EI and the strip's EA and mass per length:
-        diameter d = 4 sqrt(I/A) (so that I/A is the strip's) and E = EA / (pi d^2 / 4)."""
+        diameter d = 4 sqrt(I/A) (so that I/A is the strip's) and E = EA / (pi d^2 / 4).
+
+        Quadratic air drag (``drag_coefficient`` in ``damping``): the weak-plane run moves the strip face
+        first, and its cross-flow velocity (in the plane, normal to the axis) is the face-normal velocity,
+        so it gets the law with the strip's width as ``drag_width``; the strong-plane run moves it edge
+        first, where a thin plate has no face-normal velocity: no drag (the 1 mm edge's form drag is left
+        out)."""
+        if damping.get("drag_coefficient", 0.0):
+            if plane == "weak":
+                damping = {**damping, "drag_width": self.width}
+            else:
+                damping = {k: v for k, v in damping.items() if k not in ("drag_coefficient", "drag_width")}
         area = self.width * self.thickness
         d = 4.0 * math.sqrt(self.second_moment(plane) / area)
         e_equiv = self.youngs_modulus * area / (math.pi * d**2 / 4)

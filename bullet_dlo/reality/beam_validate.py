@@ -19,6 +19,12 @@ driven by the measured joint angles, so the arm's compliance is in the model).
 The measured damping is amplitude dependent (larger at large amplitude): reported per recording
 over successive windows; a linear damping law cannot follow it, which limits the damping ratio
 and the peak-to-peak on motions whose amplitude differs from the fit set's.
+
+**Quadratic air drag** (``drag``, :func:`fit_damping_drag`): the core's face drag law
+(``drag_coefficient`` C_d, air) on the strip, either held at a given C_d (``damping`` fitted with it) or
+fitted with ``damping_rate`` on the fit recordings' damping ratios over successive windows of each decay
+(the amplitude dependence separates C_d A from c). Per predicted file ``p2p_at_end`` (the band's
+peak-to-peak over the first 0.5 s after the motion) tells an excitation miss from a damping miss.
 """
 from __future__ import annotations
 
@@ -46,6 +52,7 @@ from bullet_dlo.reality.beam import (
 from bullet_dlo.reality.panda import Panda
 from bullet_dlo.reality.vibration import (
     SINE_WINDOW,
+    band,
     damping_by_amplitude,
     deviation,
     most_affected_joint,
@@ -70,9 +77,10 @@ STRIP_LIMITS = {
               "recordings)",
 }
 LIMITS = [
-    "linear damping (one parameter) against a measured damping ratio that grows with amplitude (zeta = 0.0056 + "
-    "0.28 A_tip [m] over the 9 recordings: the form of quadratic air drag on the strip's face, with C_d 12; not in "
-    "the model: demos/beam_damping.py)",
+    "the decay in the first second after the motion is faster in the recordings than in the model with any damping "
+    "fitted over 1-9 s after it (linear, or with quadratic face drag, --drag-coefficient: fitted on the decay "
+    "windows C_d comes out 0-1.9, the measured flange motion already gives the model's damping its amplitude "
+    "dependence; docs/guides/validate.md); p2p_at_end compares the vibration the motion leaves",
     "Franka's estimate filter modelled as a first-order low-pass + delay identified from tau_J; the arm's own "
     "inertia is removed with PyBullet's URDF inertias, not Franka's model",
     "nominal E and density (midpoints of 190-205 GPa, 7870-8070 kg/m^3): about +-2 % in frequency",
@@ -140,16 +148,18 @@ class DampingFit:
 
 
 def fit_damping(recs: list[BeamRecording], measured: list[Measured], panda: Panda, name: str, strip: Strip,
-                numerics: Numerics, estimate: EstimateFilter) -> DampingFit:
+                numerics: Numerics, estimate: EstimateFilter, fixed: dict[str, float] | None = None) -> DampingFit:
     """Per recording, the ``name`` value whose predicted damping ratio equals the measured one
-    (linear in the parameter: two runs, module doc); the mean, min-max and leave-one-out."""
+    (linear in the parameter: two runs, module doc); the mean, min-max and leave-one-out.
+    ``fixed``: other model parameters held in every run (e.g. ``{"drag_coefficient": 8.0}``)."""
     if name not in DAMPING_NAMES:
         raise ParameterError(f"--damping must be one of {', '.join(DAMPING_NAMES)}, got {name!r}")
     trial = TRIAL[name]
+    fixed = dict(fixed or {})
     per_file, zeta0, slope, freq = {}, {}, {}, {}
     for rec, m in zip(recs, measured):
         duration = m.t_end + SINE_WINDOW[1] + 0.05
-        runs = [predicted_vibration(predict_torques(rec, panda, strip, {name: c}, numerics, estimate,
+        runs = [predicted_vibration(predict_torques(rec, panda, strip, {**fixed, name: c}, numerics, estimate,
                                                     duration=duration), m) for c in (0.0, trial)]
         z = [r.damping_ratio for r in runs]
         freq[rec.name] = m.vibration.frequency_hz / runs[0].frequency_hz
@@ -163,6 +173,99 @@ def fit_damping(recs: list[BeamRecording], measured: list[Measured], panda: Pand
         loo[key] = (zeta0[key] + slope[key] * others) / m.vibration.damping_ratio
     return DampingFit(name, float(values.mean()), per_file, (float(values.min()), float(values.max())),
                       zeta0, loo, 2 * len(recs), freq)
+
+
+AMPLITUDE_SPANS = ((1.0, 2.5), (2.5, 4.0), (4.0, 5.5), (5.5, 7.0), (7.0, 9.0))  # [s] after the motion's end
+DRAG_TRIAL = 8.0  # trial C_d [-]: about the low-KC plate value (validate.md), adds zeta ~ 0.002-0.005
+TRANSIENT_ZETA = 0.05  # a window whose measured damping ratio is above it still carries the motion's transient
+
+
+@dataclass(frozen=True)
+class DragFit:
+    """``damping_rate`` [1/s] and ``drag_coefficient`` C_d [-] fitted together on the fit recordings'
+    damping ratios over successive windows (:data:`AMPLITUDE_SPANS`): windows, measured and predicted (at
+    the solution, linearised) damping ratios and torque amplitudes [N m] per recording; residual RMS [-];
+    the model runs used."""
+
+    damping_rate: float
+    drag_coefficient: float
+    windows: dict[str, list[dict[str, float]]]
+    residual_rms: float
+    linear_only_residual_rms: float
+    runs: int
+
+    def to_dict(self) -> dict[str, Any]:
+        d = asdict(self)
+        d["method"] = ("bounded linear least squares (both >= 0) of the predicted damping ratio per window, linearised "
+                       "by runs at (0, 0), (0.4 1/s, 0), (0, C_d 8) and refined once about the solution, against "
+                       f"the measured ones; windows {AMPLITUDE_SPANS} s after the motion's end, those with a measured "
+                       f"damping ratio above {TRANSIENT_ZETA} (the motion's transient) left out")
+        return d
+
+
+def _window_ratios(t: np.ndarray, y: np.ndarray, t_end: float) -> dict[float, dict[str, float]]:
+    """Damping ratio and amplitude per :data:`AMPLITUDE_SPANS` window of y [N m], keyed by the window's start [s]."""
+    return {w["from_s"]: w for w in damping_by_amplitude(t, y, t_end, AMPLITUDE_SPANS)}
+
+
+def fit_damping_drag(recs: list[BeamRecording], measured: list[Measured], panda: Panda, strip: Strip,
+                     numerics: Numerics, estimate: EstimateFilter) -> DragFit:
+    """Fit ``damping_rate`` c and ``drag_coefficient`` C_d on the fit recordings: the amplitude dependence of
+    the measured damping (windows of each decay) is what separates the quadratic law (zeta ~ C_d A) from the
+    linear one (zeta ~ c). Per recording the predicted window damping ratios are linearised in (c, C_d) by
+    finite differences; a bounded least-squares solve, then one refinement about the solution."""
+    from scipy.optimize import lsq_linear
+
+    trial = np.array([TRIAL["damping_rate"], DRAG_TRIAL])
+    per, runs = [], 0
+
+    def ratios(rec: BeamRecording, m: Measured, p: np.ndarray) -> dict[float, dict[str, float]]:
+        nonlocal runs
+        runs += 1
+        pred = predict_torques(rec, panda, strip, {"damping_rate": float(p[0]), "drag_coefficient": float(p[1])},
+                               numerics, estimate, duration=m.t_end + AMPLITUDE_SPANS[-1][1] + 0.05)
+        return _window_ratios(pred.t, pred.torques_filtered[:, m.joint], m.t_end)
+
+    for rec, m in zip(recs, measured):
+        meas = _window_ratios(rec.t, m.dev[:, m.joint], m.t_end)
+        keep = [k for k, w in meas.items() if w["damping_ratio"] < TRANSIENT_ZETA]
+        base = ratios(rec, m, np.zeros(2))
+        with_c = ratios(rec, m, np.array([trial[0], 0.0]))
+        with_cd = ratios(rec, m, np.array([0.0, trial[1]]))
+        keep = [k for k in keep if k in base and k in with_c and k in with_cd]
+        per.append((rec, m, meas, keep, base, with_c, with_cd))
+
+    def system(at: np.ndarray, zeta_at: list[dict[float, dict[str, float]]]) -> tuple[np.ndarray, np.ndarray]:
+        rows, rhs = [], []
+        for (rec, m, meas, keep, base, with_c, with_cd), z_at in zip(per, zeta_at):
+            for k in keep:
+                a = (with_c[k]["damping_ratio"] - base[k]["damping_ratio"]) / trial[0]
+                b = (with_cd[k]["damping_ratio"] - base[k]["damping_ratio"]) / trial[1]
+                rows.append([a, b])
+                rhs.append(meas[k]["damping_ratio"] - z_at[k]["damping_ratio"] + a * at[0] + b * at[1])
+        return np.array(rows), np.array(rhs)
+
+    zero = np.zeros(2)
+    mat, rhs = system(zero, [p[4] for p in per])
+    sol = lsq_linear(mat, rhs, bounds=(0.0, np.inf)).x
+    at_sol = [ratios(p[0], p[1], sol) for p in per]  # refine once about the first solution
+    for p, z in zip(per, at_sol):
+        p[3][:] = [k for k in p[3] if k in z]
+    mat, rhs = system(sol, at_sol)
+    sol = lsq_linear(mat, rhs, bounds=(0.0, np.inf)).x
+    resid = mat @ sol - rhs
+    linear_only = lsq_linear(mat[:, :1], rhs, bounds=(0.0, np.inf))  # C_d = 0, same linearisation
+    lin_rms = float(np.sqrt(np.mean((mat[:, :1] @ linear_only.x - rhs) ** 2)))
+    windows, i = {}, 0
+    for (rec, m, meas, keep, base, *_), z in zip(per, at_sol):
+        rows = []
+        for k in keep:
+            rows.append({"from_s": k, "measured_damping_ratio": meas[k]["damping_ratio"],
+                         "predicted_damping_ratio": meas[k]["damping_ratio"] + float(resid[i]),
+                         "measured_amplitude": meas[k]["amplitude"], "predicted_amplitude": z[k]["amplitude"]})
+            i += 1
+        windows[rec.name] = rows
+    return DragFit(float(sol[0]), float(sol[1]), windows, float(np.sqrt(np.mean(resid**2))), lin_rms, runs)
 
 
 def numerics_check(strip: Strip, numerics: Numerics, damping: dict[str, float]) -> dict[str, Any]:
@@ -187,16 +290,32 @@ def numerics_check(strip: Strip, numerics: Numerics, damping: dict[str, float]) 
                     "to the vertical clamp force over 5 s"}
 
 
+END_WINDOW = (0.0, 0.5)  # [s] after the motion's end: the vibration the motion leaves, before it decays
+
+
+def p2p_at_end(t: np.ndarray, y: np.ndarray, t_end: float) -> float:
+    """Peak-to-peak [N m] of the 1.5-8 Hz band of y over :data:`END_WINDOW` after the motion's end (about
+    1.5 cycles: what the excitation left; the damping takes 4-10 % of it by the window's end)."""
+    rate = 1.0 / float(np.median(np.diff(t)))
+    w = (t >= t_end + END_WINDOW[0]) & (t <= t_end + END_WINDOW[1])
+    return float(np.ptp(band(y, rate)[w]))
+
+
 def file_result(rec: BeamRecording, m: Measured, pred: Prediction) -> dict[str, Any]:
-    """One recording's entry of the JSON: joint, measured, predicted, ratios, RMS errors, cost."""
+    """One recording's entry of the JSON: joint, measured, predicted, ratios, RMS errors, cost.
+
+    ``p2p_at_end`` (measured, predicted, ratio): the band's peak-to-peak over the first 0.5 s after the
+    motion (:func:`p2p_at_end`): if its ratio is as far off as ``p2p_torque``'s (end + 1-2 s), the miss
+    comes from the excitation (arm model, Franka filter, tracking), not from the damping."""
     pv = predicted_vibration(pred, m)
     k = len(pred.t)
     err = pred.torques_filtered - m.dev[:k]
     meas = {**m.vibration.to_dict(), "damping_by_amplitude": damping_by_amplitude(rec.t, m.dev[:, m.joint], m.t_end),
-            "motion_end_s": m.t_end}
+            "motion_end_s": m.t_end, "p2p_at_end": p2p_at_end(rec.t, m.dev[:, m.joint], m.t_end)}
     predicted = {"frequency_hz": pv.frequency_hz, "damping_ratio": pv.damping_ratio, "p2p_torque": pv.p2p_torque,
-                 "amplitude": pv.amplitude}
-    ratio = {k2: predicted[k2] / meas[k2] for k2 in ("frequency_hz", "damping_ratio", "p2p_torque")}
+                 "amplitude": pv.amplitude,
+                 "p2p_at_end": p2p_at_end(pred.t, pred.torques_filtered[:, m.joint], m.t_end)}
+    ratio = {k2: predicted[k2] / meas[k2] for k2 in ("frequency_hz", "damping_ratio", "p2p_torque", "p2p_at_end")}
     return {"joint": m.joint, "measured": meas, "predicted": predicted, "ratio": ratio,
             "rms_torque_error": float(np.sqrt(np.mean(err[:, m.joint] ** 2))),
             "rms_torque_error_all_joints": float(np.sqrt(np.mean(err**2))),
@@ -215,14 +334,27 @@ def read_in(path: Path, what: str) -> BeamRecording:
 def validate_beam(fit_dir: str | Path, predict_dir: str | Path, *, damping: str = "damping_rate",
                   numerics: Numerics = Numerics(), strip: Strip = Strip(), estimate: EstimateFilter | None = None,
                   duration: float | None = None, limit_files: int | None = None, check_numerics: bool = True,
-                  fit_youngs_modulus: bool = False,
+                  fit_youngs_modulus: bool = False, drag: str | float = "off",
                   log=print) -> tuple[dict[str, Any], dict[str, tuple[BeamRecording, Measured, Prediction]]]:
     """Fit ``damping`` on the recordings of ``fit_dir``, predict those of ``predict_dir``.
 
     estimate: Franka's filter (default: identified on ``fit_dir``); duration: simulated seconds of each
     prediction (default: the whole recording); limit_files: use only the first files of each folder.
+    drag: the strip's quadratic air drag (``drag_coefficient`` C_d of :class:`~bullet_dlo.core.spec.CableSpec`,
+    air 1.204 kg/m^3 on the face): ``"off"`` (default), ``"fit"`` (C_d and ``damping_rate`` fitted together on
+    ``fit_dir`` from the damping's amplitude dependence, :func:`fit_damping_drag`; needs ``damping`` =
+    ``damping_rate``) or a number (C_d held, ``damping`` fitted with it).
     Returns the JSON-ready summary and, per predicted file, (recording, measurement, prediction).
     """
+    if drag == "fit" and damping != "damping_rate":
+        raise ParameterError("--drag-coefficient fit fits C_d together with damping_rate: use --damping damping_rate")
+    if drag not in ("off", "fit"):
+        try:
+            drag = float(drag)
+        except (TypeError, ValueError):
+            raise ParameterError(f"--drag-coefficient must be off, fit or a number in [0, 1000], got {drag!r}") from None
+        if not 0.0 <= drag <= 1e3:
+            raise ParameterError(f"--drag-coefficient must be off, fit or a number in [0, 1000], got {drag}")
     fit_files = beam_files(fit_dir, "FIT_DIR")[:limit_files]
     pred_files = beam_files(predict_dir, "PREDICT_DIR")[:limit_files]
     fit_recs = [read_in(f, "FIT_DIR") for f in fit_files]
@@ -235,15 +367,22 @@ def validate_beam(fit_dir: str | Path, predict_dir: str | Path, *, damping: str 
             estimate = identify_filter(fit_recs, panda)
         log(f"estimate filter: {estimate.cutoff_hz:.3g} Hz low-pass + {1e3 * estimate.delay_s:.3g} ms delay; "
             f"fitting {damping} on {len(fit_recs)} recording(s) ...")
-        fitted = fit_damping(fit_recs, fit_meas, panda, damping, strip, numerics, estimate)
+        fixed = {} if drag in ("off", "fit") else {"drag_coefficient": float(drag)}
+        fitted = fit_damping(fit_recs, fit_meas, panda, damping, strip, numerics, estimate, fixed)
         e_note = "nominal (midpoint of 190-205 GPa)"
         if fit_youngs_modulus:  # f ~ sqrt(E) for the bending part (gravity's share does not scale): one update
             scale = float(np.median(list(fitted.frequency_ratio.values()))) ** 2
             strip = replace(strip, youngs_modulus=strip.youngs_modulus * scale)
             e_note = (f"fitted: nominal x {scale:.4f}, the median (f measured / f predicted)^2 over the fit recordings")
             log(f"E {strip.youngs_modulus / 1e9:.4g} GPa; refitting {damping} ...")
-            fitted = fit_damping(fit_recs, fit_meas, panda, damping, strip, numerics, estimate)
-        params = {fitted.name: fitted.value}
+            fitted = fit_damping(fit_recs, fit_meas, panda, damping, strip, numerics, estimate, fixed)
+        params = {**fixed, fitted.name: fitted.value}
+        drag_fit = None
+        if drag == "fit":
+            log(f"fitting damping_rate and drag_coefficient on {len(fit_recs)} recording(s) (amplitude windows) ...")
+            drag_fit = fit_damping_drag(fit_recs, fit_meas, panda, strip, numerics, estimate)
+            params = {"damping_rate": drag_fit.damping_rate, "drag_coefficient": drag_fit.drag_coefficient}
+            log(f"damping_rate {drag_fit.damping_rate:.4g} 1/s, drag_coefficient {drag_fit.drag_coefficient:.4g}")
         files, details = {}, {}
         for rec in pred_recs:
             log(f"predicting {rec.name} ...")
@@ -255,7 +394,13 @@ def validate_beam(fit_dir: str | Path, predict_dir: str | Path, *, damping: str 
     cpu = sum(f["cpu_s"] for f in files.values())
     summary = {
         "files": files,
-        "parameters": {**params, damping + "_fit": fitted.to_dict(), "youngs_modulus": strip.youngs_modulus,
+        "parameters": {**params, damping + "_fit": fitted.to_dict(),
+                       **({"drag_fit": drag_fit.to_dict()} if drag_fit is not None else {}),
+                       "drag": ("off" if drag == "off" else
+                                "quadratic air drag on the strip's face, 1/2 rho_air C_d w |v_n| v_n per length, "
+                                "rho_air 1.204 kg/m^3, C_d " + ("fitted on FIT_DIR with damping_rate" if drag == "fit"
+                                                                 else "given")),
+                       "youngs_modulus": strip.youngs_modulus,
                        "density": strip.density, "length": strip.length, "width": strip.width,
                        "thickness": strip.thickness, "mass": strip.mass,
                        "youngs_modulus_source": e_note,
@@ -278,15 +423,16 @@ def validate_beam(fit_dir: str | Path, predict_dir: str | Path, *, damping: str 
 
 
 def table(summary: dict[str, Any]) -> str:
-    """Measured vs predicted per file (frequency, damping ratio, p2p) with ratios, and the RMS error."""
+    """Measured vs predicted per file (frequency, damping ratio, p2p) with ratios, the p2p ratio over the first
+    0.5 s after the motion (``end ratio``: the excitation) and the RMS error."""
     lines = [f"{'file':28s} {'j':>2s} {'f meas':>7s} {'f pred':>7s} {'ratio':>6s} {'z meas':>7s} {'z pred':>7s} "
-             f"{'ratio':>6s} {'p2p meas':>8s} {'p2p pred':>8s} {'ratio':>6s} {'rms err':>7s}"]
+             f"{'ratio':>6s} {'p2p meas':>8s} {'p2p pred':>8s} {'ratio':>6s} {'end ratio':>9s} {'rms err':>7s}"]
     for name, f in summary["files"].items():
         me, pr, ra = f["measured"], f["predicted"], f["ratio"]
         lines.append(f"{name:28s} {f['joint']:2d} {me['frequency_hz']:7.3f} {pr['frequency_hz']:7.3f} "
                      f"{ra['frequency_hz']:6.3f} {me['damping_ratio']:7.4f} {pr['damping_ratio']:7.4f} "
                      f"{ra['damping_ratio']:6.2f} {me['p2p_torque']:8.3f} {pr['p2p_torque']:8.3f} "
-                     f"{ra['p2p_torque']:6.2f} {f['rms_torque_error']:7.3f}")
+                     f"{ra['p2p_torque']:6.2f} {ra['p2p_at_end']:9.2f} {f['rms_torque_error']:7.3f}")
     return "\n".join(lines)
 
 

@@ -42,7 +42,7 @@ import numpy as np
 from numba import njit
 
 from bullet_dlo.core.kernels.banded import HALF, assemble_system, band_solve
-from bullet_dlo.core.kernels.forces import add_damping_jacobian, force_jacobian
+from bullet_dlo.core.kernels.forces import add_damping_jacobian, add_drag_jacobian, force_jacobian
 from bullet_dlo.core.kernels.twist import has_twist, set_clamp, twist_ready, twist_step
 from bullet_dlo.core.kernels.steppers import (
     BDF2,
@@ -493,6 +493,7 @@ def _newton_c(stepper, m, x, imp, ws, c, cap_tol, max_passes):
         it += 1
         force_jacobian(m, ws.x_stage, imp.dirs, stepper.definite, ws.jacobian)
         add_damping_jacobian(m, ws.x_stage, imp.dirs, imp.cv / imp.cx, ws.jacobian)
+        add_drag_jacobian(m, ws.x_stage, ws.v_stage, imp.cv / imp.cx, ws.jacobian)  # quadratic drag (no-op when off)
         assemble_system(m, ws.jacobian, 1.0, imp.hf * imp.cx, imp.hf * imp.cv, ws.band)
         add_contact_jacobian(c, m.held, ws.x_stage, imp.hf * imp.cx, imp.hf * imp.cv, ws.band)
         phi0 = _merit_c(m, imp, ws, vn, c)

@@ -20,6 +20,11 @@ Damping: drag -c_i v_i per node and Kelvin-Voigt dampers on stretch and bending
 (:func:`internal_damping_forces`), all from the Rayleigh function :func:`dissipation`; their
 velocity Jacobian is :func:`add_damping_jacobian` (KV) plus -diag(c) (drag).
 
+Quadratic fluid drag (opt-in: ``ModelArrays.drag_k`` non-empty): :mod:`bullet_dlo.core.kernels.drag`
+adds -c |v_n| v_n per segment to :func:`total_forces` and its cubic dissipation function to
+:func:`dissipation`; its velocity Jacobian (:func:`~bullet_dlo.core.kernels.drag.add_drag_jacobian`,
+which needs v) is added by the implicit steps next to :func:`add_damping_jacobian`.
+
 Material frame (issue 22, opt-in: ``ModelArrays.tw`` non-empty): twist springs and the anisotropic
 part of the bending energy of :mod:`bullet_dlo.core.kernels.twist` join the energy, the forces, the
 Jacobian and the clamp moments; ``k_bend`` then holds the mean of the two bending constants.
@@ -36,6 +41,7 @@ import math
 import numpy as np
 from numba import njit
 
+from bullet_dlo.core.kernels.drag import add_drag_forces, add_drag_jacobian, drag_dissipation  # noqa: F401
 from bullet_dlo.core.kernels.twist import (
     add_cross_matrix,
     add_twist_forces,
@@ -329,6 +335,7 @@ def total_forces(m, x, v, dirs, out):
             out[i, j] += m.mass[i] * m.gravity[j] - m.damp[i] * v[i, j] + m.f_ext[i, j]
     if _has_internal_damping(m):
         internal_damping_forces(m, x, v, dirs, out)
+    add_drag_forces(m, x, v, out)  # no-op without the quadratic drag law
 
 
 # ----- Kelvin-Voigt internal damping ------------------------------------------------------------
@@ -448,10 +455,11 @@ def internal_damping_forces(m, x, v, dirs, out):
 def dissipation(m, x, v, dirs):
     """Rayleigh dissipation function R [W] of all damping terms: F_damping = -dR/dv.
 
-    R = 1/2 sum c_i |v_i|^2 (drag) + the Kelvin-Voigt terms; the power dissipated is 2 R.
+    R = 1/2 sum c_i |v_i|^2 (drag) + the Kelvin-Voigt terms (the power they dissipate is 2 R) + the
+    quadratic drag law's sum c_k |v_n|^3 / 3 (power 3 times that; :mod:`bullet_dlo.core.kernels.drag`).
     """
     n = x.shape[0]
-    r_sum = 0.0
+    r_sum = drag_dissipation(m, x, v)
     for i in range(n):
         for j in range(3):
             r_sum += 0.5 * m.damp[i] * v[i, j] * v[i, j]

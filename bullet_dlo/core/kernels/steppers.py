@@ -24,6 +24,7 @@ from numba import njit
 from bullet_dlo.core.kernels.banded import HALF, assemble_system, band_solve
 from bullet_dlo.core.kernels.forces import (
     add_damping_jacobian,
+    add_drag_jacobian,
     dissipation,
     force_jacobian,
     internal_energy,
@@ -294,6 +295,7 @@ def _newton(stepper, m, x, imp, ws):
         it += 1
         force_jacobian(m, ws.x_stage, imp.dirs, stepper.definite, ws.jacobian)
         add_damping_jacobian(m, ws.x_stage, imp.dirs, imp.cv / imp.cx, ws.jacobian)  # dF/dx + (cv/cx) dF/dv
+        add_drag_jacobian(m, ws.x_stage, ws.v_stage, imp.cv / imp.cx, ws.jacobian)  # quadratic drag (no-op when off)
         assemble_system(m, ws.jacobian, 1.0, imp.hf * imp.cx, imp.hf * imp.cv, ws.band)
         band_solve(ws.band, r)  # r becomes the Newton direction dv
         phi0 = np.nan
