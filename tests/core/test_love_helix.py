@@ -14,10 +14,9 @@ shape and end wrench together, no free amplitude or width. The rod stretches und
 the end shortening are taken on the stretched rod.
 
 The run: the last clamp pulls the rod 6 mm (T ~ 480 N, so that the twist does not buckle it), rolls 10 turns,
-then comes in by 86 mm over 2 s and holds; damping settles the loop. The engine's energy check is off:
-it counts the work a clamp does by turning its direction but not by rolling about it (see the report of
-issue 22's twist-tests branch), so it reports the 10 turns' twist energy as created from nothing; the run's
-stability is asserted here directly (finite, settled: every node's speed below 1e-5 m/s).
+then comes in by 86 mm over 2 s and holds; damping settles the loop (Newton does not converge in 1572 of
+the 6000 steps at n = 81, reported by the engine as a warning; the energy check, which counts the clamps' roll work since
+this test found it missing, passes).
 """
 from __future__ import annotations
 
@@ -28,7 +27,7 @@ import pytest
 from scipy.optimize import minimize_scalar
 
 from bullet_dlo.core.boundary import Move
-from bullet_dlo.core.engine import DetectorOptions, simulate
+from bullet_dlo.core.engine import simulate
 from bullet_dlo.core.model import CableModel
 from bullet_dlo.core.spec import CableSpec
 
@@ -46,10 +45,9 @@ def localized_helix(n: int) -> dict:
     model = CableModel.straight(spec, (0, 0, 0), (1, 0, 0), ("clamped", "clamped"), motion, (0, 0, 0))
     state = model.initial_state()
     state.x[n // 2, 1:] += 1e-4  # the imperfection that picks the buckle's plane
-    res = simulate(model, "implicit_euler", 1e-3, 6.0, state=state, max_records=61,
-                   detector=DetectorOptions(energy_every=10**9))
+    res = simulate(model, "implicit_euler", 1e-3, 6.0, state=state, max_records=61)
+    assert res.stable, res.reason
     x, v = res.final_state.x, res.final_state.v
-    assert np.isfinite(x).all(), "the run blew up"
     b = spec.bending_rigidity
     tension = float(res.end_forces[-1, 0, 0])  # the rod pulls the first clamp along +x
     moment = float(res.end_moment_history[-1, 0, 0])
