@@ -30,15 +30,24 @@ The predicted error is the sum of both differences. When it changes n, resolve k
 damping rate gamma = k_d n / M fixed (k_d is the paper's per-mass coefficient), so that all
 trials describe the same cable; the chosen n comes with the k_d that keeps gamma.
 ``damping_rate`` and ``internal_damping`` need no rescaling: they mean the same at any n.
+
+Twist by need (issue 22): before any trial, :func:`twist_need` reads the scene's held ends
+(:attr:`ResolveProblem.holders`). A clamp whose motion rolls it about the cable's axis (the roll of
+its orientation about the tangent, relative to the minimal rotation that carries the start tangent
+to the current one, non-zero at some time of the run) or a non-round section needs the material
+frame: every trial then runs with ``twist`` on, and :attr:`Resolution.twist` / :attr:`Resolution.why`
+say so and why. A round cable whose ends never roll keeps the model (and cost) without a frame.
+A pinned end does not hold the roll, so its rotations never ask for the frame.
 """
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from typing import Callable
 
 import numpy as np
 
 from bullet_dlo.analysis.measures import force_error, shape_error
+from bullet_dlo.core.boundary import EndHolder, MotionOffset
 from bullet_dlo.core.engine import SimulationResult
 from bullet_dlo.core.spec import CableSpec
 from bullet_dlo.core.validate import ParameterError, check_positive
@@ -50,6 +59,10 @@ DTS = (1 / 60, 1 / 120, 1 / 240, 1 / 500, 1e-3, 5e-4, 2.5e-4)
 """Time steps tried [s], largest first."""
 INTEGRATORS = ("implicit_euler", "bdf2")
 """Integrators tried, cheapest first."""
+ROLL_TOL = 1e-6
+"""A clamp's roll about the cable axis [rad] above which the scene twists the cable."""
+ROLL_SAMPLES = 2001
+"""Instants over the scene's duration at which the clamps' roll is read."""
 
 
 @dataclass(frozen=True)
@@ -59,13 +72,16 @@ class ResolveProblem:
     cable: the scene's cable (its n_masses is a start; its k_d is rescaled with n); duration: the
     scene's run [s]; run(cable, integrator, dt, duration): one run of the scene with that cable,
     integrator, step [s] and duration [s], its core-engine result (about 200 records are enough);
-    cylinder_radii: radii [m] of the scene's cylinder obstacles (the contact floor on n).
+    cylinder_radii: radii [m] of the scene's cylinder obstacles (the contact floor on n);
+    holders: the scene's two held ends (first, last) with their motion, for :func:`twist_need`
+    (empty: the scene is taken not to roll its ends).
     """
 
     cable: CableSpec
     duration: float
     run: Callable[[CableSpec, str, float, float], SimulationResult]
     cylinder_radii: tuple[float, ...] = ()
+    holders: tuple[EndHolder, ...] = ()
 
 
 @dataclass
@@ -85,9 +101,68 @@ class Resolution:
     rollout_s: float
     trials: list = field(default_factory=list)
     why: str = ""
+    twist: bool = False
+    """Whether the chosen model has the material frame (see :func:`twist_need`)."""
 
     def to_dict(self) -> dict:
         return asdict(self)
+
+
+def end_roll(holder: EndHolder, times: np.ndarray) -> np.ndarray:
+    """The roll [rad] of a held end about the cable's axis at ``times`` [s]: the angle by which its motion
+    turns the held section axis d1 beyond the minimal rotation that carries the start tangent d0 to the
+    current one R d0 (the twist part of R's swing-twist decomposition about d0). Zeros without motion."""
+    times = np.asarray(times, dtype=float)
+    if not holder.moves:
+        return np.zeros(times.shape)
+    end = holder.moves[0].end
+    offset = MotionOffset(holder.moves, end)
+    d0 = np.asarray(holder.direction, dtype=float) / np.linalg.norm(holder.direction)
+    n0 = np.asarray(holder.normal, dtype=float)
+    out = np.empty(times.shape)
+    for k, t in enumerate(times):
+        rot = offset(float(t))[3]
+        d1, n1 = rot @ d0, rot @ n0
+        c = float(d0 @ d1)
+        if c < -1.0 + 1e-9:  # the tangent turned right round: the swing is ambiguous, count it as a roll
+            out[k] = np.pi
+            continue
+        moved = n0 - float(n0 @ d1) / (1.0 + c) * (d0 + d1)  # n0 carried by the minimal rotation d0 -> d1
+        out[k] = np.arctan2(float(np.cross(moved, n1) @ d1), float(moved @ n1))
+    return out
+
+
+def twist_need(problem: ResolveProblem) -> str:
+    """Why the scene needs the material frame (issue 22), or "" when a round cable's ends never roll.
+
+    A non-round section always has it; otherwise the largest roll about the cable axis of a clamped end
+    over the scene's duration (:func:`end_roll` at :data:`ROLL_SAMPLES` instants) must exceed
+    :data:`ROLL_TOL`. A pinned end does not hold the roll.
+    """
+    c = problem.cable
+    if c.section != "round":
+        return f"material frame on: the {c.section} section bends unequally about its two axes and twists"
+    if c.twist:
+        return "material frame on: the cable asks for it (twist: true)"
+    times = np.linspace(0.0, problem.duration, ROLL_SAMPLES)
+    rolls = []
+    for name, holder in zip(("first", "last"), problem.holders):
+        if holder.mode != "clamped" or not holder.moves:
+            continue
+        roll = float(np.max(np.abs(end_roll(holder, times))))
+        if roll > ROLL_TOL:
+            rolls.append(f"the {name} clamp rolls {np.degrees(roll):.3g} deg about the cable axis")
+    if rolls:
+        return "material frame on: " + " and ".join(rolls) + " (a clamp holds the twist)"
+    return ""
+
+
+def with_twist(problem: ResolveProblem) -> tuple[ResolveProblem, str]:
+    """``problem`` with the material frame switched on when :func:`twist_need` says so: (problem, why)."""
+    why = twist_need(problem)
+    if why and not problem.cable.twist_enabled:
+        problem = replace(problem, cable=problem.cable.with_(twist=True))
+    return problem, why
 
 
 def _cable(problem: ResolveProblem, n: int) -> CableSpec:
@@ -162,6 +237,7 @@ def resolve_masses(problem: ResolveProblem, tol: float = 0.02, target: str = "fo
     k_d keeps the scene's damping rate gamma = k_d n / M (see module doc).
     """
     rollout = min(problem.duration, 2.0) if rollout is None else rollout
+    problem, _ = with_twist(problem)  # the trials run the model the scene needs (twist_need)
     floor, _ = contact_floor(problem)
     candidates = tuple(n for n in N_MASSES if n >= floor) or (floor,)
     n, _, _ = _resolve_masses(problem, check_positive("tol", tol), target, rollout, candidates, 1e-3, [])
@@ -183,6 +259,7 @@ def resolve(problem: ResolveProblem, tol: float = 0.01, target: str = "both", ro
         raise TypeError(f"resolve takes a ResolveProblem (bullet_dlo.sim.resolve_problem(scene)), "
                         f"got {type(problem).__name__}")
     rollout = min(problem.duration, 2.0) if rollout is None else check_positive("rollout", rollout)
+    problem, why_twist = with_twist(problem)
     fine_dt = min(min(dts) / 2, 1e-3)
     trials: list = []
     floor, why_floor = contact_floor(problem)
@@ -191,6 +268,7 @@ def resolve(problem: ResolveProblem, tol: float = 0.01, target: str = "both", ro
     why = f"n = {chosen_n}: the fewest masses whose estimated {target} error ({spatial:.2g}) is within tol/2"
     if floor > 2:
         why += f"; {why_floor}" + (" (the binding bound)" if chosen_n == candidates[0] else "")
+    why += f"; {why_twist}" if why_twist else "; no material frame: a round cable whose clamps never roll"
     for dt in sorted(dts, reverse=True):
         for integ in integrators:
             res, cost = _rollout(problem, chosen_n, integ, dt, rollout)
@@ -202,6 +280,6 @@ def resolve(problem: ResolveProblem, tol: float = 0.01, target: str = "both", ro
             if err <= 0.5 * tol:
                 res, cost = _rollout(problem, chosen_n, integ, dt, rollout)  # again, compiled: a fair cost
                 return Resolution(chosen_n, dt, integ, _cable(problem, chosen_n).damping, spatial + err, spatial, err,
-                                  cost, target, tol, rollout, trials, why)
+                                  cost, target, tol, rollout, trials, why, problem.cable.twist_enabled)
     raise ParameterError(f"n = {chosen_n} meets the spatial part, but no step down to {min(dts)} s meets "
                          f"the temporal part of tol = {tol}")

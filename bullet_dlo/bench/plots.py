@@ -15,7 +15,8 @@ COLORS = {"symplectic_euler": "tab:red", "rk4": "tab:olive", "implicit_euler": "
           "implicit_midpoint": "tab:purple", "explicit_euler": "tab:gray"}
 PEER_STYLE = {"pyelastica": ("*", "tab:green"), "mujoco": ("P", "tab:cyan")}
 SCENARIO_TITLES = {"S1": "S1: cantilever, static tip deflection", "S2": "S2: cantilever, first frequency",
-                   "S3": "S3: study's lift, end forces (0.2 s means)", "S4": "S4: catenary, sag and end forces"}
+                   "S3": "S3: study's lift, end forces (0.2 s means)", "S4": "S4: catenary, sag and end forces",
+                   "T1": "T1: pure torsion, end moments G J theta / L", "T2": "T2: strip rolled edge-on, tip sag"}
 TARGET_ERROR = 0.01
 
 

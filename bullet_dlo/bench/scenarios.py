@@ -12,6 +12,14 @@ answer and the wall time per simulated second of the run that produced it.
   (:func:`bullet_dlo.analysis.measures.force_error`).
 * S4: a slack, thin cable hanging between two pinned ends 0.25 m apart: sag and end forces
   against the catenary.
+* T1 (twist, issue 22): pure torsion: the Lv cable with a material frame, clamped at both ends, no
+  gravity, the last clamp rolled by pi/2 about the cable axis; the moments about the axis at both
+  ends vs G J (pi/2) / L.
+* T2 (twist): a steel strip cantilever (10 mm x 1 mm) under gravity whose clamp rolls it edge-on
+  (90 degrees about the axis) in a run: the tip sag vs w L^4 / (8 E I_strong).
+
+The twisting scenarios run the implicit methods only (:data:`TWIST_SCENARIOS`): the twist is an
+implicit sub-step in every method, and the steel strip's explicit limit is a few microseconds.
 
 Every run goes through :func:`run_model`, with the core engine or coupled to Bullet.
 """
@@ -43,7 +51,9 @@ from bullet_dlo.core.model import CableModel, CableState
 from bullet_dlo.core.spec import CableSpec
 from bullet_dlo.core.statics import solve_static
 
-SCENARIOS = ("S1", "S2", "S3", "S4")
+SCENARIOS = ("S1", "S2", "S3", "S4", "T1", "T2")
+TWIST_SCENARIOS = ("T1", "T2")
+"""Scenarios whose cable has a material frame (run with the implicit methods only)."""
 ENGINES = ("core", "bullet")
 
 
@@ -177,7 +187,59 @@ def s4(n: int, integrator: str, dt: float, engine: str = "core", duration: float
     return BenchPoint("S4", engine, integrator, n, dt, True, err, run.wall_per_sim_s)
 
 
-RUNNERS = {"S1": s1, "S2": s2, "S3": s3, "S4": s4}
+# ----- T1, T2: twist (issue 22) ------------------------------------------------------------------
+T1_ROLL = 0.5 * np.pi
+"""Roll of the last clamp of T1 about the cable axis [rad]."""
+
+
+def t1_model(n: int, twist: bool = True) -> CableModel:
+    """T1: the Lv cable (with a material frame unless ``twist`` is False: the same cable's model of before)
+    clamped at both ends without gravity; the last clamp rolls by pi/2 about the axis from 0.05 s over
+    0.3 s; twist damping rate 5 1/s and internal damping 1 ms settle it."""
+    spec = CableSpec.lv2017(n_masses=n, twist=twist, damping_rate=5.0, internal_damping=1e-3)
+    return CableModel.straight(spec, (0, 0, CLAMP_HEIGHT), (1, 0, 0), ("clamped", "clamped"),
+                               [Move("last", rotation=(T1_ROLL, 0.0, 0.0), start=0.05, duration=0.3)], (0, 0, 0))
+
+
+def t1(n: int, integrator: str, dt: float, engine: str = "core", duration: float = 1.0) -> BenchPoint:
+    """T1: the end moments about the axis after ``duration`` [s] vs G J (pi/2) / L (the larger error of
+    the two ends). Core engine only (the clamp moments are the core's ``end_moments``)."""
+    if engine != "core":
+        raise ValueError("T1 runs on the core engine only")
+    model = t1_model(n)
+    res = simulate(model, integrator, dt, duration, max_records=401)
+    if not res.stable:
+        return BenchPoint("T1", engine, integrator, n, dt, False, float("nan"), res.wall_time_s / max(res.steps * dt, 1e-12))
+    spec = model.spec
+    expected = spec.torsional_rigidity * T1_ROLL / spec.length
+    err = max(relative_error(res.end_moments[0, 0], expected), relative_error(-res.end_moments[1, 0], expected))
+    return BenchPoint("T1", engine, integrator, n, dt, True, err, res.wall_time_s / max(res.steps * dt, 1e-12))
+
+
+def t2_model(n: int) -> CableModel:
+    """T2: a steel strip 0.3 m x 10 mm x 1 mm clamped flat (thickness vertical) at one end, free at the
+    other, under gravity; the clamp rolls it 90 degrees about the axis from 0.05 s over 0.3 s (edge-on);
+    damping rate 20 1/s and internal damping 0.1 ms settle it."""
+    spec = CableSpec(length=0.3, diameter=0.001, mass=0.024, youngs_modulus=2e11, section="rectangle", width=0.01,
+                     thickness=0.001, n_masses=n, damping_rate=20.0, internal_damping=1e-4)
+    return CableModel.straight(spec, (0, 0, CLAMP_HEIGHT), (1, 0, 0), ("clamped", "free"),
+                               [Move("first", rotation=(0.5 * np.pi, 0.0, 0.0), start=0.05, duration=0.3)])
+
+
+def t2(n: int, integrator: str, dt: float, engine: str = "core", duration: float = 0.8) -> BenchPoint:
+    """T2: the tip sag after ``duration`` [s] vs w L^4 / (8 E I_strong) (the strip edge-on)."""
+    model = t2_model(n)
+    run = run_model(model, integrator, dt, duration, engine)
+    if not run.stable:
+        return _unstable("T2", engine, integrator, n, dt, run)
+    spec = model.spec
+    w = spec.mass * GRAVITY / spec.length
+    sag = w * spec.length**4 / (8 * max(spec.bending_rigidities))
+    err = relative_error(CLAMP_HEIGHT - run.x[-1, -1, 2], sag)
+    return BenchPoint("T2", engine, integrator, n, dt, True, err, run.wall_per_sim_s)
+
+
+RUNNERS = {"S1": s1, "S2": s2, "S3": s3, "S4": s4, "T1": t1, "T2": t2}
 
 
 def scenario_model(scenario: str, n: int) -> CableModel:
@@ -186,4 +248,8 @@ def scenario_model(scenario: str, n: int) -> CableModel:
         return cantilever_model(s1_spec(n))
     if scenario == "S2":
         return cantilever_release(s1_spec(n).with_(damping=0.0, damping_rate=0.0))[0]
+    if scenario == "T1":
+        return t1_model(n)
+    if scenario == "T2":
+        return t2_model(n)
     return s3_model(n) if scenario == "S3" else s4_model(n)

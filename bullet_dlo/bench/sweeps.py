@@ -14,7 +14,7 @@ from typing import Callable, Iterable, Sequence, TypeVar
 import numpy as np
 
 from bullet_dlo.analysis.study import study_model
-from bullet_dlo.bench.scenarios import RUNNERS, SCENARIOS, BenchPoint, scenario_model
+from bullet_dlo.bench.scenarios import RUNNERS, SCENARIOS, TWIST_SCENARIOS, BenchPoint, scenario_model, t1_model
 from bullet_dlo.core.engine import DetectorOptions, simulate
 from bullet_dlo.core.integrators import INTEGRATORS
 from bullet_dlo.core.model import CableModel
@@ -60,14 +60,19 @@ def work_precision_cases(scenarios: Sequence[str] = SCENARIOS, integrators: Iter
                          n_masses: Sequence[int] = (10, 20, 40), engines: Sequence[str] = ("core",),
                          quick: bool = False) -> list[Case]:
     """Every scenario x engine x integrator x n x dt (explicit Euler is left out: it needs heavy
-    damping to be stable at all, which would change the scenarios)."""
+    damping to be stable at all, which would change the scenarios). The twisting scenarios
+    (:data:`~bullet_dlo.bench.scenarios.TWIST_SCENARIOS`) run the implicit methods on the core engine."""
     names = list(integrators or [i for i in INTEGRATORS if i != "explicit_euler"])
     cases = []
     for sc in scenarios:
+        twisting = sc in TWIST_SCENARIOS
         for name in names:
+            if twisting and INTEGRATORS[name].explicit:
+                continue
             for n in n_masses:
                 dts = default_dts(name, quick, critical_dt(scenario_model(sc, n), name))
-                cases += [Case(sc, engine, name, n, dt) for engine in engines for dt in dts]
+                cases += [Case(sc, engine, name, n, dt) for engine in engines for dt in dts
+                          if not (twisting and engine != "core")]
     return cases
 
 
@@ -206,3 +211,58 @@ def coupled_scaling(n_masses: Sequence[int] = (100, 200, 500, 1000), dt: float =
     logn = np.log([r["n_masses"] for r in rows])
     exponents = {key: float(np.polyfit(logn, np.log([r[key] for r in rows]), 1)[0]) for key in ("cost", "bullet", "model")}
     return rows, exponents
+
+
+# ----- cost of the material frame (issue 22) -----------------------------------------------------
+def twist_cost_model(n: int, twist: bool) -> CableModel:
+    """The cost benchmark's scene: the Lv cable clamped at both ends under gravity, the last clamp lifted
+    5 mm and rolled by pi/2 about the cable axis from 0.05 s over 0.3 s; with the material frame
+    (``twist``) or the same round cable's model of before (the roll then does nothing)."""
+    from bullet_dlo.core.boundary import Move
+
+    spec = CableSpec.lv2017(n_masses=n, twist=twist, damping_rate=5.0, internal_damping=1e-3)
+    return CableModel.straight(spec, (0, 0, 0.5), (1, 0, 0), ("clamped", "clamped"),
+                               [Move("last", (0.0, 0.0, 0.005), 0.05, 0.3, (0.5 * np.pi, 0.0, 0.0))])
+
+
+def twist_cost(n_masses: Sequence[int] = (10, 20, 40), integrators: Sequence[str] = ("implicit_euler", "bdf2"),
+               dt: float = 1e-3, sim_time: float = 0.4, repeats: int = 7,
+               progress: Progress = _no_progress) -> list[dict]:
+    """Thread CPU time per step [s] of the twist-enabled step against today's round step at the same n.
+
+    For each n and integrator, the same scene (:func:`twist_cost_model`) with and without the material
+    frame, from the same settled start, ``sim_time`` [s] at ``dt`` [s], timed with ``time.thread_time``
+    ``repeats`` times, the two interleaved (load changes hit both alike), after a warm-up run of each.
+    Rows: n_masses, integrator, round and twist (median CPU s per step), their min and max, ratio (of the
+    medians), ratio_min and ratio_max (over the interleaved pairs), newton_round and newton_twist (Newton
+    iterations per step of the last run), load (the 1-minute load average at the end)."""
+    import os
+    import time
+
+    rows = []
+    steps = max(1, int(round(sim_time / dt)))
+    for n, name in progress([(n, name) for n in n_masses for name in integrators]):
+        models = {key: twist_cost_model(n, key == "twist") for key in ("round", "twist")}
+        starts = {key: solve_static(m).state() for key, m in models.items()}
+        det = DetectorOptions(energy_every=10**6)
+        times: dict[str, list[float]] = {"round": [], "twist": []}
+        iters = {}
+        for rep in range(repeats + 1):
+            for key in ("round", "twist") if rep % 2 == 0 else ("twist", "round"):
+                model = twist_cost_model(n, key == "twist")  # fresh twist state: every run starts alike
+                t0 = time.thread_time()
+                res = simulate(model, name, dt, steps * dt, state=starts[key], max_records=3, detector=det)
+                cpu = time.thread_time() - t0
+                if rep > 0:  # the first round warms the caches
+                    times[key].append(cpu / res.steps)
+                iters[key] = res.newton_iterations / max(res.steps, 1)
+                assert res.stable, f"twist cost run unstable (n = {n}, {name}, {key})"
+        a, b = np.array(times["round"]), np.array(times["twist"])
+        pair = b / a
+        rows.append({"n_masses": n, "integrator": name, "round": float(np.median(a)), "round_min": float(a.min()),
+                     "round_max": float(a.max()), "twist": float(np.median(b)), "twist_min": float(b.min()),
+                     "twist_max": float(b.max()), "ratio": float(np.median(b) / np.median(a)),
+                     "ratio_min": float(pair.min()), "ratio_max": float(pair.max()),
+                     "newton_round": iters["round"], "newton_twist": iters["twist"],
+                     "load": float(os.getloadavg()[0])})
+    return rows

@@ -47,7 +47,8 @@ def resolve_problem(scene: Scene) -> ResolveProblem:
                         newton=trial.newton, detector=trial.detector)
 
     radii = tuple(float(ob["radius"]) for ob in scene.bullet.obstacles if ob["type"] == "cylinder")
-    return ResolveProblem(scene.cable, scene.duration, run, radii)
+    model = scene.build_model()  # its held ends and motion: whether the scene rolls a clamp (twist_need)
+    return ResolveProblem(scene.cable, scene.duration, run, radii, (model.first, model.last))
 
 
 def resolved(scene: Scene) -> Scene:
@@ -57,8 +58,10 @@ def resolved(scene: Scene) -> Scene:
         return scene
     r = resolve(resolve_problem(scene), scene.tolerance, scene.tolerance_target)
     new = replace(scene, auto_n=False, auto_dt=False)
+    if r.twist and not scene.cable.twist_enabled:  # the scene rolls a clamp: the material frame (issue 22)
+        new = replace(new, cable=new.cable.with_(twist=True))
     if scene.auto_n:
-        new = replace(new, cable=scene.cable.with_(n_masses=r.n_masses, damping=r.damping))
+        new = replace(new, cable=new.cable.with_(n_masses=r.n_masses, damping=r.damping))
     if scene.auto_dt:
         new = replace(new, dt=r.dt, integrator=r.integrator)
     return new

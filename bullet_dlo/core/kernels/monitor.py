@@ -7,7 +7,10 @@ of the touched bodies), W the work the held ends did on the cable (trapezoid rul
 force times held-end displacement, and on clamp moment times the turn of the clamp direction,
 between energy checks) and E_scale a floor plus sum |dW|. A turning clamp does work through its
 moment alone: leaving that term out made a zero-gravity run whose clamp turns "create" energy
-(issue 21). See :mod:`bullet_dlo.core.engine` for the thresholds and the floor.
+(issue 21). A clamp that rolls about its own axis does work on a twisting cable (material frame,
+issue 22) through the torsion moment about that axis, which the turn of the direction does not
+see: that work is summed at every step (:func:`roll_work`), so that a gripper rolled by half a turn
+is not reported as energy created from nothing. See :mod:`bullet_dlo.core.engine` for the thresholds and the floor.
 """
 from __future__ import annotations
 
@@ -18,6 +21,7 @@ import numpy as np
 from numba import njit
 
 from bullet_dlo.core.kernels.forces import clamp_torque, max_strain, mechanical_energy, total_forces
+from bullet_dlo.core.kernels.twist import has_twist, transport, twist_clamp_torque
 
 STABLE, NONFINITE, STRETCH, ENERGY = 0, 1, 2, 3
 REASONS = {STABLE: None, NONFINITE: "non-finite state", STRETCH: "segment strain beyond bound",
@@ -87,6 +91,27 @@ def check_state(m, x, v, strain_bound):
 
 
 @njit(cache=True, error_model="numpy")
+def roll_work(m, x, samples, det):
+    """Add to ``det``'s balance the work [J] the clamps did on a twisting cable by rolling about their axis
+    during the step: the roll (angle about the new direction d from the section axis at t, carried by the
+    minimal rotation onto d, to the one at t + h) times the torsion moment about d at t + h."""
+    carried = np.empty(3)
+    for e in range(2):
+        d = samples.dir[2, e]
+        transport(m.tw_normal[0, e], samples.dir[0, e], d, carried)
+        n1 = m.tw_normal[2, e]
+        cross_d = ((carried[1] * n1[2] - carried[2] * n1[1]) * d[0] + (carried[2] * n1[0] - carried[0] * n1[2]) * d[1]
+                   + (carried[0] * n1[1] - carried[1] * n1[0]) * d[2])
+        roll = math.atan2(cross_d, carried[0] * n1[0] + carried[1] * n1[1] + carried[2] * n1[2])
+        if roll == 0.0:
+            continue
+        tq = twist_clamp_torque(m, x, samples.dir[2], e)
+        dw = -(tq[0] * d[0] + tq[1] * d[1] + tq[2] * d[2]) * roll
+        det.work[0] += dw
+        det.scale[0] += abs(dw)
+
+
+@njit(cache=True, error_model="numpy")
 def monitor(m, x, v, samples, det, energy_check, extra=0.0):
     """Status (STABLE, ...) of the state (x, v) at the end of a step (held-end sample 2).
 
@@ -98,6 +123,8 @@ def monitor(m, x, v, samples, det, energy_check, extra=0.0):
     times displacement as external work instead would hide a blow-up inside a contact).
     """
     status = check_state(m, x, v, det.max_strain)
+    if has_twist(m):
+        roll_work(m, x, samples, det)
     if not energy_check:
         return status
     f_now = np.empty((2, 3))

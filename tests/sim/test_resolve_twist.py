@@ -1,0 +1,89 @@
+"""Twist by need (issue 22, deliverable 3): ``resolve`` and ``n_masses: auto`` switch the material frame on
+when a scene rolls a clamp about the cable's axis or holds a non-round section, say why, and leave a round
+cable whose clamps never roll with the model (and cost) it had."""
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from bullet_dlo.analysis.resolve import end_roll, resolve, twist_need
+from bullet_dlo.config.scene import Scene
+from bullet_dlo.core.boundary import EndHolder, Move, Sine
+from bullet_dlo.core.spec import CableSpec
+from bullet_dlo.sim import resolve_problem, resolved
+
+ROUND = CableSpec.lv2017(n_masses=7, damping_rate=5.0, internal_damping=1e-3)
+STRIP = CableSpec(length=0.3, diameter=0.001, mass=0.024, youngs_modulus=2e11, section="rectangle", width=0.01,
+                  thickness=0.001, n_masses=7, damping_rate=5.0)
+ROLL = Move("last", rotation=(math.pi / 2, 0.0, 0.0), start=0.02, duration=0.1)  # about the axis (cable along x)
+SWING = Move("last", displacement=(0.0, 0.0, 0.01), rotation=(0.0, 0.3, 0.2), start=0.02, duration=0.1)
+
+
+def _quick(problem, seen: list):
+    """resolve on one candidate each (the choice is not what is tested here), recording each trial's cable."""
+    run = problem.run
+
+    def spy(cable, integrator, dt, duration):
+        seen.append(cable.twist_enabled)
+        return run(cable, integrator, dt, duration)
+
+    return resolve(replace(problem, run=spy), tol=1.0, target="forces", rollout=0.15, n_masses=(5,),
+                   dts=(1e-3,), integrators=("implicit_euler",))
+
+
+def test_roll_about_the_tangent_is_read_exactly():
+    """The swing-twist roll: a turn about the held tangent is all roll; a turn about a normal axis is none,
+    even combined with a displacement; a sine about the tangent rolls by its amplitude."""
+    d = np.array([1.0, 0.0, 0.0])
+    t = np.linspace(0.0, 0.2, 201)
+    rolled = end_roll(EndHolder("clamped", np.zeros(3), d, (ROLL,)), t)
+    assert rolled[-1] == pytest.approx(math.pi / 2, abs=1e-9) and rolled[0] == 0.0
+    assert np.abs(end_roll(EndHolder("clamped", np.zeros(3), d, (SWING,)), t)).max() < 1e-9
+    # a roll about the tangent after a swing: the swing-twist decomposition recovers it whatever the swing
+    tilted = EndHolder("clamped", np.zeros(3), np.array([0.0, 0.6, 0.8]), (Sine("last", frequency=5.0,
+                       rotation=(0.0, 0.3, 0.4), duration=0.2, ramp=0.0),))
+    assert np.abs(end_roll(tilted, t)).max() == pytest.approx(0.5, rel=1e-6)
+
+
+def test_a_rolled_clamp_turns_the_frame_on_and_says_why():
+    scene = Scene(cable=ROUND, motion=(ROLL,), gravity=(0, 0, 0), duration=0.15)
+    seen: list = []
+    r = _quick(resolve_problem(scene), seen)
+    assert r.twist and all(seen) and "last clamp rolls 90 deg about the cable axis" in r.why
+    # what the frame buys: the rolled clamp's moment is the torsion G J (pi/2) / L (1 % at the end of the run)
+    spec = ROUND.with_(n_masses=r.n_masses, twist=True)
+    res = resolve_problem(scene).run(spec, r.integrator, r.dt, 0.15)
+    assert res.end_moments[1, 0] == pytest.approx(-spec.torsional_rigidity * (math.pi / 2) / spec.length, rel=0.01)
+
+
+def test_a_strip_is_resolved_with_its_frame_and_the_reason():
+    scene = Scene(cable=STRIP, motion=(SWING,), duration=0.15, ends=("clamped", "pinned"))
+    seen: list = []
+    r = _quick(resolve_problem(scene), seen)
+    assert r.twist and all(seen) and "rectangle section" in r.why
+
+
+def test_a_round_cable_that_never_rolls_keeps_the_model_without_frame():
+    """A swinging, moving clamp (no roll), and a pinned end that rotates about the axis (a pin does not hold
+    the roll): no frame, and the trials' results are those of the cable without twist."""
+    for scene in (Scene(cable=ROUND, motion=(SWING,), duration=0.15),
+                  Scene(cable=ROUND, motion=(ROLL,), duration=0.15, ends=("clamped", "pinned"))):
+        problem = resolve_problem(scene)
+        assert twist_need(problem) == ""
+        seen: list = []
+        r = _quick(problem, seen)
+        assert not r.twist and not any(seen) and "no material frame" in r.why
+        spec = ROUND.with_(n_masses=r.n_masses, damping=r.damping)
+        a = problem.run(spec, r.integrator, r.dt, 0.05)
+        assert spec.twist_enabled is False and a.stable
+
+
+def test_n_masses_auto_scene_gets_the_frame():
+    """``n_masses: auto`` (sim.resolved): the rolled scene comes back with twist on, the still one without."""
+    base = Scene(cable=ROUND, gravity=(0, 0, 0), duration=0.12, auto_n=True, tolerance=0.5,
+                 tolerance_target="forces")
+    assert resolved(replace(base, motion=(ROLL,))).cable.twist_enabled
+    assert not resolved(replace(base, motion=(SWING,))).cable.twist_enabled
