@@ -85,12 +85,12 @@ class _CableSeries:
 
 def _write_run(path: Path, series, scene, robot: str | None) -> None:
     """The recorded rows as one .npz (the series format of :mod:`bullet_dlo.data.recording`)."""
-    from bullet_dlo.data.recording import write_series
+    from bullet_dlo.robots.dual_arm.series import save_npz
 
     attrs = {"cable": scene.cable.to_dict(), "dt": scene.dt, "name": scene.name}
     if robot is not None:
         attrs["robot"] = robot
-    write_series(str(path), series.arrays(), attrs)
+    save_npz(path, series.arrays(), attrs)
 
 
 def render_scene(scene, out: str | Path, *, robot: str | None = None, fps: float = 30.0, width: int = 640,
@@ -149,7 +149,7 @@ def render_scene(scene, out: str | Path, *, robot: str | None = None, fps: float
         # the run at the video's rate, for `bullet-dlo view OUT` (the whole run, not only its last shape)
         every = max(1, int(round(1.0 / (fps * world.dt))))
         if arm_scene is not None:
-            from bullet_dlo.data.recording import SeriesRecorder
+            from bullet_dlo.robots.dual_arm.series import SeriesRecorder
 
             series = SeriesRecorder(arm_scene, every)
         else:
