@@ -114,7 +114,7 @@ SPEC_VALUES = {
                [{"type": "waypoints", "end": "first", "times": [0, 1], "displacements": [[0.01, 0, 0], [0, 0, 0]]}],
                [{"type": "wiggle", "end": "last"}], [], "x"],
     "sample.grip": [{"dist": "fixed", "value": "glue"}],
-    "sample.grip_mu_dynamic": [{"dist": "uniform", "low": 0.3, "high": 0.9}],
+    "sample.grip_dynamic_friction": [{"dist": "uniform", "low": 0.3, "high": 0.9}],
     "sample.grip_force": [{"dist": "fixed", "value": -2}],
 }
 

@@ -60,7 +60,7 @@ def test_damping_gives_uniform_decay_rate():
         ("n_masses", 1, "n_masses must be an integer in [2,"),
         ("n_masses", 2.5, "n_masses"),
         ("damping", -0.1, "damping must be a finite number >= 0"),
-        ("friction", float("nan"), "friction"),
+        ("dynamic_friction", float("nan"), "dynamic_friction"),
         ("poisson_ratio", 0.5, "poisson_ratio must be in [0.0, 0.5)"),
         ("discretisation", "fancy", "discretisation must be one of default, paper"),
         ("length", "abc", "length must be a number"),

@@ -20,7 +20,7 @@ PULL = 0.03  # [m] each gripper moves outwards
 
 @pytest.mark.parametrize("robot", ["kuka", "panda"])
 def test_wrist_force_saturates_at_two_mu_d_fn_while_the_ends_slip(robot):
-    spec = DualArmSpec(robot=robot, grip="friction", grip_force=F_N, grip_friction=(MU_S, MU_D), grip_reach=0.05)
+    spec = DualArmSpec(robot=robot, grip="friction", grip_force=F_N, grip_static_friction=MU_S, grip_dynamic_friction=MU_D, grip_reach=0.05)
     cap_s, cap_d = 2 * MU_S * F_N, 2 * MU_D * F_N
     with DualArmScene(spec) as scene:
         scene.grasp()
