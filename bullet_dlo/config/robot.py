@@ -51,7 +51,8 @@ def check_table_clearance(hold_height: float, table_height: float, hold_key: str
                           table_key: str = "table top") -> None:
     """The held ends stay :data:`MIN_TABLE_CLEARANCE` above the table top (no table: ``table_height`` 0);
     ParameterError naming ``hold_key`` (``arms.hold_height`` for a scene file, ``hold_height`` for the API)."""
-    if table_height and hold_height - table_height < MIN_TABLE_CLEARANCE:
+    # a rounding margin: 0.25 - 0.2 is 0.04999... in floating point, and exactly 5 cm is allowed
+    if table_height and hold_height - table_height < MIN_TABLE_CLEARANCE - 1e-12:
         raise ParameterError(f"{hold_key} {hold_height} m must be at least {MIN_TABLE_CLEARANCE * 100:.0f} cm above "
                              f"the {table_key} {table_height} m")
 
