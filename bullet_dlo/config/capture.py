@@ -150,7 +150,19 @@ DRAWN_LAST = ("grip", "grip_force", "grip_static_friction", "grip_dynamic_fricti
 @dataclass(frozen=True)
 class Distribution:
     """One parameter's distribution: uniform(low, high), log_uniform(low, high),
-    normal(mean, std, clipped to the parameter's range), choice(values) or fixed(value)."""
+    normal(mean, std, clipped to the parameter's range), choice(values) or fixed(value).
+
+    Every number is in the parameter's own unit [as in :data:`PARAMETERS`: m, kg, Pa, s, N, -], and a
+    field the distribution does not use is None.
+
+    dist: :class:`~bullet_dlo.core.enums.Dist`.
+    low: lower end of a uniform or log-uniform range [the parameter's unit].
+    high: upper end of a uniform or log-uniform range [the parameter's unit].
+    mean: of a normal [the parameter's unit].
+    std: standard deviation of a normal [the parameter's unit].
+    values: the choices of a choice.
+    value: the value of a fixed.
+    """
 
     dist: str
     low: float | None = None
@@ -428,7 +440,17 @@ def _motion_yaml(entry: dict) -> dict:
 
 @dataclass(frozen=True)
 class CaptureSpec:
-    """A validated randomisation spec (see module doc)."""
+    """A validated randomisation spec (see module doc; :meth:`from_dict` is its boundary).
+
+    seed: of every episode's generator [-]; duration: of an episode [s] (``episode.duration``);
+    record_rate: samples stored per second [Hz] (``episode.record_rate``); policy: what an unstable draw
+    gets, :class:`~bullet_dlo.core.enums.UnstablePolicy`; max_resamples: draws tried per episode [-];
+    camera_fps: stored frames per second [Hz] (0: none); camera_width, camera_height: frame size [px];
+    resolve_tol: relative tolerance [-] of ``n_masses: auto``; sample: the distribution of each parameter
+    (:data:`PARAMETERS`); max_sensor_model_rms: RMS |sensor - model| above which an episode is flagged
+    [cable weights] (None: never); max_hf_energy: share of the F/T variance above 10 Hz that flags an
+    episode [-] (None: never); motion: the ``motion:`` entries, numbers as floats or Distributions.
+    """
 
     seed: int = 0
     duration: float = 2.0

@@ -111,7 +111,10 @@ class RobotSpec:
     mounted on ``mount_link`` at ``mount_xyz`` [m] through the fixed joint ``sensor_joint``;
     grasp_link: link whose frame is the grasp frame (z approach, x along the held cable);
     home: arm joint angles [rad]; finger_joints: the fingers, made rigid at finger_closed [m or rad]
-    (their closed position) when the robot is loaded (:func:`bullet_dlo.robots.compose.rigid_fingers`).
+    (their closed position) when the robot is loaded (:func:`bullet_dlo.robots.compose.rigid_fingers`);
+    name: the robot's name; sensor_joint: the joint whose reaction the wrist sensor reads; mount_link: the
+    arm link the gripper is mounted on; max_force_scale: factor [-] on the arm's joint force limits;
+    source: the YAML file it was read from.
     """
 
     name: str

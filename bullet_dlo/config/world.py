@@ -27,7 +27,8 @@ class BulletOptions:
     """The scene's ``bullet:`` section, validated on construction; every Bullet path honours it
     (``simulate --engine bullet``, ``grasp``, ``render``, captures, environments).
 
-    ground: add a ground plane at ground_height [m]; ground_friction: its lateral friction (>= 0);
+    ground: add a ground plane at ground_height [m]; ground_friction: its Coulomb coefficient [-] (>= 0; a
+    Bullet body's single coefficient, combined with the cable's static_friction and dynamic_friction);
     substeps: integrator steps per Bullet step (>= 1); self_collision: neighbours | none | all;
     sync: contacts | always; obstacles: {type: box|cylinder|urdf, ...} entries whose keys are
     checked here and whose values are checked when :func:`bullet_dlo.bullet.world.add_obstacles`

@@ -32,8 +32,15 @@ RandomisationLike = CaptureSpec | Mapping[str, Any] | str | Path | None
 
 @dataclasses.dataclass(frozen=True)
 class Draw:
-    """One reset's scene (what :func:`bullet_dlo.sim.build_arms` builds), its dual-arm physics spec with the
-    renderer, the drawn parameters and the stability decision (as a capture stores them)."""
+    """One reset's draw, as a capture stores it.
+
+    Attributes:
+        scene: the reset's scene (what :func:`bullet_dlo.sim.build_arms` builds).
+        setup: its dual-arm physics spec, with the renderer.
+        params: the drawn parameters (:meth:`~bullet_dlo.config.capture.CaptureSpec.draw`; SI units, names of
+            :data:`~bullet_dlo.config.capture.PARAMETERS`).
+        decision: the stability decision (integrator, substeps, critical step).
+    """
 
     scene: Scene
     setup: DualArmSpec
