@@ -56,7 +56,7 @@ def test_clamp_stays_the_default():
 
 
 @pytest.mark.parametrize("kwargs, word", [({"grip": "glue"}, "grip"), ({"grip_force": 0.0}, "grip_force"),
-                                          ({"grip_friction": (0.3, 0.5)}, "grip_friction"),
+                                          ({"grip_static_friction": 0.3, "grip_dynamic_friction": 0.5}, "grip_dynamic_friction"),
                                           ({"grip_reach": -1.0}, "grip_reach")])
 def test_bad_grip_settings_are_refused(kwargs, word):
     with pytest.raises(ParameterError, match=word):
