@@ -13,7 +13,7 @@ from bullet_dlo.core.validate import ParameterError
 def test_lv2017_preset_matches_table_2():
     spec = preset("lv2017")
     assert (spec.length, spec.diameter, spec.mass, spec.youngs_modulus) == (0.3, 0.004, 0.03, 126e6)
-    assert spec.poisson_ratio == 0.3 and spec.friction == 0.2 and spec.static_friction == 0.3
+    assert spec.poisson_ratio == 0.3 and spec.dynamic_friction == 0.2 and spec.static_friction == 0.3
 
 
 def test_derived_quantities():

@@ -131,7 +131,7 @@ def test_the_grip_parameters_reach_the_dual_arm_scene():
     params, decision = plan_episode(spec, 3)
     setup = DualArmSpec.from_scene(episode_scene(spec, params, decision))
     assert (setup.grip, setup.grip_force, setup.grip_reach) == ("friction", params["grip_force"], 0.05)
-    assert setup.grip_friction == (params["grip_static_friction"], params["grip_dynamic_friction"])
+    assert (setup.grip_static_friction, setup.grip_dynamic_friction) == (params["grip_static_friction"], params["grip_dynamic_friction"])
     # parameters stored by older versions (no grip keys) give today's clamp
     old = {k: v for k, v in params.items() if not k.startswith("grip")}
     assert DualArmSpec.from_scene(episode_scene(spec, old, decision)).grip == "clamp"
