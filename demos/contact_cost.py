@@ -47,7 +47,7 @@ COLORS = {"table": "#c46a2b", "peg": "#3b6ea5", "box": "#6a9a3b", "hull": "#8a4f
 
 
 def _soft(n: int) -> CableSpec:
-    return CableSpec(length=0.6, diameter=0.004, mass=0.009, youngs_modulus=2e6, n_masses=n, friction=0.4,
+    return CableSpec(length=0.6, diameter=0.004, mass=0.009, youngs_modulus=2e6, n_masses=n, dynamic_friction=0.4,
                      static_friction=0.4)
 
 

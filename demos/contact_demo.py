@@ -45,7 +45,7 @@ Q_AXIS_Y = (math.sin(math.pi / 4), 0.0, 0.0, math.cos(math.pi / 4))
 
 def pull_over_peg(out: Path, duration: float, video: bool) -> dict:
     """The pull demo; returns its summary (and writes the picture / video)."""
-    spec = CableSpec.lv2017(n_masses=40, damping=0.02, static_friction=0.6, friction=0.5)
+    spec = CableSpec.lv2017(n_masses=40, damping=0.02, static_friction=0.6, dynamic_friction=0.5)
     r = spec.diameter / 2
     world = BulletWorld(dt=1 / 240, renderer="auto")
     try:

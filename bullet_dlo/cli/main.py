@@ -12,9 +12,11 @@ progress bars, no warnings, nothing from PyBullet's C code (see :mod:`bullet_dlo
 from __future__ import annotations
 
 import argparse
+import contextlib
 import re
 import sys
-from typing import Sequence
+import warnings
+from typing import Any, Iterator, Sequence
 
 from bullet_dlo.cli import data, fit, resolve, robots, simulate
 from bullet_dlo.cli import validate
@@ -134,11 +136,33 @@ def _reader_left() -> int:
     return 141
 
 
+@contextlib.contextmanager
+def renamed_key_lines(enabled: bool) -> Iterator[None]:
+    """Show each deprecated name a user's file or flag used (``cable.friction is deprecated; use
+    cable.dynamic_friction ...``) as one ``warning:`` line on stderr, once; Python hides DeprecationWarnings
+    outside ``__main__``, and these name a key the user wrote. A no-op when quiet."""
+    if not enabled:
+        yield
+        return
+    with warnings.catch_warnings():
+        warnings.filterwarnings("default", message=r".* is deprecated; use ", category=DeprecationWarning)
+        shown = warnings.showwarning
+
+        def show(message: Any, category: type, *rest: Any, **kw: Any) -> None:
+            if issubclass(category, DeprecationWarning) and " is deprecated; use " in str(message):
+                print(f"warning: {message}", file=sys.stderr)
+            else:
+                shown(message, category, *rest, **kw)
+
+        warnings.showwarning = show
+        yield
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     args.quiet = bool(args.quiet_all or getattr(args, "quiet", False))
     try:
-        with quiet_output(args.quiet):
+        with quiet_output(args.quiet), renamed_key_lines(not args.quiet):
             try:
                 check_outputs(args)
                 compile_notice(args)

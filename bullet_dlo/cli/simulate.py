@@ -10,6 +10,7 @@ import numpy as np
 
 from bullet_dlo.cli.outputs import add_plot_options, plot_path, print_outputs
 from bullet_dlo.cli.quiet import bar, elapsed
+from bullet_dlo.core.enums import Engine
 
 TABLES = ("base", "rates")
 RATE_INTEGRATORS = ("symplectic_euler", "implicit_euler", "bdf2", "implicit_midpoint")
@@ -259,7 +260,7 @@ def add_parsers(sub, common: argparse.ArgumentParser) -> None:
     s.add_argument("--json", metavar="OUT.json", help="write stable, time_to_instability, critical_dt, "
                    "final_positions, end_forces, steps, wall_time_s (and more) to this file")
     s.add_argument("--npz", metavar="OUT.npz", help="also save the recorded trajectory (t, x, v, end_forces, energy)")
-    s.add_argument("--engine", default="core", choices=["core", "bullet"],
+    s.add_argument("--engine", default="core", choices=[Engine.CORE.value, Engine.BULLET.value],
                    help="core: the NumPy/Numba engine (default, no contacts); bullet: the cable as PyBullet spheres "
                         "driven by the same integrator, with contacts against the ground and the scene's "
                         "bullet.obstacles (same JSON keys)")

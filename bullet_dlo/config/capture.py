@@ -51,14 +51,20 @@ the drawn entries as ``motion`` instead. The motion's draws come from a generato
 [seed, index, attempt, MOTION_STREAM], so they never change ``sample:``'s draws.
 
 **Grip.** ``grip`` (choice or fixed of ``clamp`` | ``friction``), ``grip_force`` [N] per finger,
-``grip_mu_static``, ``grip_mu_dynamic`` and ``grip_reach`` [m] are passed to
-:class:`~bullet_dlo.config.robot.DualArmSpec` (a friction grip holds up to 2 mu_s grip_force along
-the gripper, then slips at 2 mu_d grip_force and lets go after slipping ``grip_reach``). Defaults:
-a clamp (force 5 N, mu 0.5 / 0.4, reach 0.02 m). Coulomb friction needs mu_dynamic <= mu_static
-in every draw, so a spec whose ``grip_mu_dynamic`` range reaches above the lowest
-``grip_mu_static`` is refused at load (no clipping: every draw is what the spec says; a normal
-spans the whole [0, 2] range, so use uniform or choice). They are drawn after every older
-parameter and after ``noise_seed``: specs written before them keep their draws and digests.
+``grip_static_friction``, ``grip_dynamic_friction`` [-] and ``grip_reach`` [m] are passed to
+:class:`~bullet_dlo.config.robot.DualArmSpec` (a friction grip holds up to 2 grip_static_friction
+grip_force along the gripper, then slips at 2 grip_dynamic_friction grip_force and lets go after
+slipping ``grip_reach``). Defaults: a clamp (force 5 N, friction 0.5 / 0.4, reach 0.02 m). Coulomb
+friction needs dynamic <= static in every draw, so a spec whose ``grip_dynamic_friction`` range
+reaches above the lowest ``grip_static_friction`` is refused at load (no clipping: every draw is what
+the spec says; a normal spans the whole [0, 2] range, so use uniform or choice). They are drawn after
+every older parameter and after ``noise_seed``: specs written before them keep their draws and digests.
+
+**Renamed keys** (:data:`RENAMED`, one vocabulary with scene files and the API): ``friction`` is
+``dynamic_friction``, ``grip_mu_static`` / ``grip_mu_dynamic`` are ``grip_static_friction`` /
+``grip_dynamic_friction``. The old names are accepted for one release with a DeprecationWarning; a
+spec's digest is computed under the old names, so a directory captured before the rename still
+takes episodes of the renamed spec, and draws are unchanged (same order, same generator).
 
 **Section and twist** (issue 22; see :class:`~bullet_dlo.core.spec.CableSpec`): ``poisson_ratio``,
 ``section`` (choice or fixed of ``round`` | ``tube`` | ``rectangle``), ``inner_diameter`` [m] (a tube's),
@@ -81,15 +87,20 @@ from typing import Any, Mapping
 import numpy as np
 
 from bullet_dlo.config.loader import load_mapping
-from bullet_dlo.config.robot import GRIPS, robot_names
+from bullet_dlo.config.robot import robot_names
 from bullet_dlo.config.schema import keyed, one_of, only_keys, section
 from bullet_dlo.core.boundary import MOTION_TYPES, parse_motion
+from bullet_dlo.core.enums import Dist, GripKind, IntegratorName, NamedSet, Section, UnstablePolicy
 from bullet_dlo.core.integrators import INTEGRATORS
-from bullet_dlo.core.spec import SECTIONS
-from bullet_dlo.core.validate import ParameterError, check_in_range, check_int, check_positive
+from bullet_dlo.core.validate import ParameterError, check_in_range, check_int, check_positive, renamed_keys
 
-DISTS = ("uniform", "log_uniform", "normal", "choice", "fixed")
-POLICIES = ("reject", "implicit", "substeps")
+DISTS = Dist.names()
+POLICIES = UnstablePolicy.names()
+RENAMED: dict[str, str] = {"friction": "dynamic_friction", "grip_mu_static": "grip_static_friction",
+                           "grip_mu_dynamic": "grip_dynamic_friction"}
+"""Deprecated ``sample:`` keys (and drawn parameter names) -> their names now (one release)."""
+NAMED: dict[str, type[NamedSet]] = {"integrator": IntegratorName, "grip": GripKind, "section": Section}
+"""``sample:`` keys whose values are a closed set (``robot`` is the open set of ``robots/``)."""
 MAX_SEED = 2**62
 """Largest ``seed``: the seed (and the episode's ``seed + index`` of a rollout) is stored as a 64-bit integer."""
 SPEC_KEYS = ("seed", "episode", "policy", "max_resamples", "camera", "sample", "resolve_tol", "quality", "motion")
@@ -105,7 +116,7 @@ PARAMETERS: dict[str, tuple[str, dict, tuple]] = {
     "damping": ("float", {"dist": "fixed", "value": 0.02}, (0.0, 10.0)),
     "damping_rate": ("float", {"dist": "fixed", "value": 0.0}, (0.0, 1e3)),
     "internal_damping": ("float", {"dist": "fixed", "value": 0.0}, (0.0, 0.1)),
-    "friction": ("float", {"dist": "fixed", "value": 0.2}, (0.0, 2.0)),
+    "dynamic_friction": ("float", {"dist": "fixed", "value": 0.2}, (0.0, 2.0)),
     "dt": ("float", {"dist": "fixed", "value": 1.0 / 240.0}, (1e-5, 0.05)),
     "integrator": ("str", {"dist": "fixed", "value": "implicit_euler"}, ()),
     "robot": ("str", {"dist": "fixed", "value": "kuka"}, ()),
@@ -120,8 +131,8 @@ PARAMETERS: dict[str, tuple[str, dict, tuple]] = {
     # drawn after everything above (and after noise_seed): older specs keep their draws
     "grip": ("str", {"dist": "fixed", "value": "clamp"}, ()),
     "grip_force": ("float", {"dist": "fixed", "value": 5.0}, (1e-3, 1e3)),
-    "grip_mu_static": ("float", {"dist": "fixed", "value": 0.5}, (0.0, 2.0)),
-    "grip_mu_dynamic": ("float", {"dist": "fixed", "value": 0.4}, (0.0, 2.0)),
+    "grip_static_friction": ("float", {"dist": "fixed", "value": 0.5}, (0.0, 2.0)),
+    "grip_dynamic_friction": ("float", {"dist": "fixed", "value": 0.4}, (0.0, 2.0)),
     "grip_reach": ("float", {"dist": "fixed", "value": 0.02}, (1e-4, 0.5)),
     # the section and the material frame (issue 22), drawn after the grips; in an episode's parameters only
     # when the spec samples them (older specs keep their draws and their episodes' parameters)
@@ -133,13 +144,25 @@ PARAMETERS: dict[str, tuple[str, dict, tuple]] = {
     "twist": ("bool", {"dist": "fixed", "value": False}, ()),
 }
 SECTION_KEYS = ("poisson_ratio", "section", "inner_diameter", "width", "thickness", "twist")
-DRAWN_LAST = ("grip", "grip_force", "grip_mu_static", "grip_mu_dynamic", "grip_reach") + SECTION_KEYS
+DRAWN_LAST = ("grip", "grip_force", "grip_static_friction", "grip_dynamic_friction", "grip_reach") + SECTION_KEYS
 
 
 @dataclass(frozen=True)
 class Distribution:
     """One parameter's distribution: uniform(low, high), log_uniform(low, high),
-    normal(mean, std, clipped to the parameter's range), choice(values) or fixed(value)."""
+    normal(mean, std, clipped to the parameter's range), choice(values) or fixed(value).
+
+    Every number is in the parameter's own unit [as in :data:`PARAMETERS`: m, kg, Pa, s, N, -], and a
+    field the distribution does not use is None.
+
+    dist: :class:`~bullet_dlo.core.enums.Dist`.
+    low: lower end of a uniform or log-uniform range [the parameter's unit].
+    high: upper end of a uniform or log-uniform range [the parameter's unit].
+    mean: of a normal [the parameter's unit].
+    std: standard deviation of a normal [the parameter's unit].
+    values: the choices of a choice.
+    value: the value of a fixed.
+    """
 
     dist: str
     low: float | None = None
@@ -202,7 +225,7 @@ def _distribution(name: str, data: Mapping[str, Any], kind: str, bounds: tuple) 
     """Validate a distribution mapping of the value called ``name`` (``sample.length``, ``motion[0].frequency``)
     of ``kind`` (float | int | str) whose every value must lie in ``bounds`` (() for names)."""
     data = dict(data)
-    dist = one_of(f"{name}.dist", data.pop("dist", None), DISTS)
+    dist = one_of(f"{name}.dist", data.pop("dist", None), Dist)
     if kind == "bool" and dist not in ("choice", "fixed"):
         raise ParameterError(f"{name} must be a choice or fixed (of true, false), got {dist}")
     allowed = {"uniform": {"low", "high"}, "log_uniform": {"low", "high"}, "normal": {"mean", "std"},
@@ -417,7 +440,17 @@ def _motion_yaml(entry: dict) -> dict:
 
 @dataclass(frozen=True)
 class CaptureSpec:
-    """A validated randomisation spec (see module doc)."""
+    """A validated randomisation spec (see module doc; :meth:`from_dict` is its boundary).
+
+    seed: of every episode's generator [-]; duration: of an episode [s] (``episode.duration``);
+    record_rate: samples stored per second [Hz] (``episode.record_rate``); policy: what an unstable draw
+    gets, :class:`~bullet_dlo.core.enums.UnstablePolicy`; max_resamples: draws tried per episode [-];
+    camera_fps: stored frames per second [Hz] (0: none); camera_width, camera_height: frame size [px];
+    resolve_tol: relative tolerance [-] of ``n_masses: auto``; sample: the distribution of each parameter
+    (:data:`PARAMETERS`); max_sensor_model_rms: RMS |sensor - model| above which an episode is flagged
+    [cable weights] (None: never); max_hf_energy: share of the F/T variance above 10 Hz that flags an
+    episode [-] (None: never); motion: the ``motion:`` entries, numbers as floats or Distributions.
+    """
 
     seed: int = 0
     duration: float = 2.0
@@ -445,7 +478,8 @@ class CaptureSpec:
         quality = {**QUALITY_DEFAULTS, **section(data.get("quality"), "quality")}
         only_keys(quality, tuple(QUALITY_DEFAULTS), "quality")
         rms_limit, hf_limit = quality["max_sensor_model_rms"], quality["max_hf_energy"]
-        sample = {k: parse_distribution(k, v) for k, v in section(data.get("sample"), "sample").items()}
+        raw = renamed_keys(section(data.get("sample"), "sample"), RENAMED, "sample.", stacklevel=3)
+        sample = {k: parse_distribution(k, v) for k, v in raw.items()}
         for key in ("integrator", "robot", "grip", "section"):
             if key in sample:
                 _check_names(key, sample[key])
@@ -460,7 +494,7 @@ class CaptureSpec:
         return cls(seed=check_int("seed", data.get("seed", 0), 0, MAX_SEED),
                    duration=check_in_range("episode.duration", episode.get("duration", 2.0), 1e-3, 3600.0),
                    record_rate=check_in_range("episode.record_rate", episode.get("record_rate", 120.0), 0.01, 1e5),
-                   policy=one_of("policy", str(data.get("policy", "substeps")), POLICIES),
+                   policy=one_of("policy", data.get("policy", "substeps"), UnstablePolicy),
                    max_resamples=check_int("max_resamples", data.get("max_resamples", 20), 1, 10_000),
                    camera_fps=check_in_range("camera.fps", camera.get("fps", 0.0), 0.0, 1000.0),
                    camera_width=check_int("camera.width", camera.get("width", 160), 1, 8192),
@@ -491,8 +525,12 @@ class CaptureSpec:
         return out
 
     def digest(self) -> str:
-        """Hash of the spec: a capture directory holds episodes of one spec only."""
-        return hashlib.sha256(json.dumps(self.to_dict(), sort_keys=True, default=str).encode()).hexdigest()[:16]
+        """Hash of the spec: a capture directory holds episodes of one spec only. Computed with the sample
+        keys under their names before :data:`RENAMED`, so a spec's digest did not change with the rename."""
+        out = self.to_dict()
+        old = {new: old for old, new in RENAMED.items()}
+        out["sample"] = {old.get(k, k): v for k, v in out["sample"].items()}
+        return hashlib.sha256(json.dumps(out, sort_keys=True, default=str).encode()).hexdigest()[:16]
 
     def draw(self, index: int, attempt: int = 0) -> dict[str, Any]:
         """Parameters of episode ``index`` (attempt > 0: a resample), from the generator [seed, index, attempt];
@@ -525,8 +563,8 @@ class CaptureSpec:
 
 
 def _check_names(key: str, dist: Distribution) -> None:
-    """A choice or fixed value of ``integrator``, ``robot`` or ``grip`` naming only known ones."""
-    known = {"integrator": list(INTEGRATORS), "grip": list(GRIPS), "section": list(SECTIONS)}.get(key) or robot_names()
+    """A choice or fixed value of ``integrator``, ``robot``, ``grip`` or ``section`` naming only known ones."""
+    known = list(NAMED[key].names()) if key in NAMED else robot_names()
     values = list(dist.values or ()) + ([dist.value] if dist.value is not None else [])
     if dist.dist not in ("choice", "fixed"):
         raise ParameterError(f"sample.{key} must be a choice or fixed, got {dist.dist}")
@@ -551,16 +589,16 @@ def _check_grip_integrator(sample: dict[str, Distribution]) -> None:
 
 
 def _check_friction_order(sample: dict[str, Distribution]) -> None:
-    """Refuse grip friction ranges that allow a draw with mu_dynamic > mu_static (Coulomb friction needs
-    mu_dynamic <= mu_static; refusing at load rather than clipping keeps every draw what the spec says)."""
-    keys = ("grip_mu_static", "grip_mu_dynamic")
+    """Refuse grip friction ranges that allow a draw with dynamic > static friction (Coulomb friction needs
+    dynamic <= static; refusing at load rather than clipping keeps every draw what the spec says)."""
+    keys = ("grip_static_friction", "grip_dynamic_friction")
     dists = {k: sample.get(k) or parse_distribution(k, PARAMETERS[k][1]) for k in keys}
-    lowest_static = support(dists["grip_mu_static"], PARAMETERS["grip_mu_static"][2])[0]
-    highest_dynamic = support(dists["grip_mu_dynamic"], PARAMETERS["grip_mu_dynamic"][2])[1]
+    lowest_static = support(dists["grip_static_friction"], PARAMETERS["grip_static_friction"][2])[0]
+    highest_dynamic = support(dists["grip_dynamic_friction"], PARAMETERS["grip_dynamic_friction"][2])[1]
     if highest_dynamic > lowest_static:
-        raise ParameterError(f"sample.grip_mu_dynamic can be drawn above sample.grip_mu_static (up to "
-                             f"{highest_dynamic} > {lowest_static}); every draw needs 0 <= mu_dynamic <= mu_static: make the whole "
-                             "grip_mu_dynamic range lie at or below the grip_mu_static range")
+        raise ParameterError(f"sample.grip_dynamic_friction can be drawn above sample.grip_static_friction (up to "
+                             f"{highest_dynamic} > {lowest_static}); every draw needs 0 <= dynamic <= static friction: "
+                             "make the whole grip_dynamic_friction range lie at or below the grip_static_friction range")
 
 
 def _check_sections(sample: dict[str, Distribution]) -> None:

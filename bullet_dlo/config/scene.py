@@ -29,10 +29,12 @@ from bullet_dlo.config.loader import load_mapping
 from bullet_dlo.config.robot import ArmsOptions
 from bullet_dlo.config.schema import check_cable, keyed, one_of, only_keys, section
 from bullet_dlo.config.world import BulletOptions
-from bullet_dlo.core.boundary import END_MODES, Move, parse_motion
+from bullet_dlo.core.boundary import Move, parse_motion
 from bullet_dlo.core.engine import DetectorOptions, SimulationResult
-from bullet_dlo.core.integrators import INTEGRATORS, NewtonOptions, get_integrator
+from bullet_dlo.core.enums import EndMode, InitialShape, IntegratorName, ToleranceTarget, name_of
+from bullet_dlo.core.integrators import NewtonOptions, get_integrator
 from bullet_dlo.core.model import STANDARD_GRAVITY, CableModel, CableState
+from bullet_dlo.core.spec import RENAMED as CABLE_RENAMED
 from bullet_dlo.core.spec import CableSpec
 from bullet_dlo.core.stability import critical_dt
 from bullet_dlo.core.statics import solve_static
@@ -41,17 +43,43 @@ from bullet_dlo.core.validate import (
     check_positive,
     check_steps,
     check_vector3,
+    renamed_keys,
 )
 
 TOP_KEYS = ("cable", "layout", "ends", "motion", "gravity", "integrator", "dt", "duration",
             "initial", "detector", "newton", "name", "bullet", "tolerance", "arms")
-INITIAL = ("straight", "static")
-TOLERANCE_TARGETS = ("forces", "shape", "both")
+INITIAL = InitialShape.names()
+TOLERANCE_TARGETS = ToleranceTarget.names()
 
 
 @dataclass(frozen=True)
 class Scene:
-    """A validated scene: cable, layout, end conditions, motion, integration settings."""
+    """A validated scene: cable, layout, end conditions, motion, integration settings (a scene file's
+    keys; see docs/guides/scene-files.md). Validated once, in :meth:`from_dict`.
+
+    Attributes:
+        cable: the cable (``cable:``).
+        start: position of mass 0 [m] (``layout.start``).
+        direction: unit direction of the straight cable from mass 0 [-] (``layout.direction``).
+        ends: (first, last) end modes, :class:`~bullet_dlo.core.enums.EndMode` (``ends:``).
+        motion: prescribed end motions (``motion:``).
+        gravity: [m/s^2].
+        integrator: :class:`~bullet_dlo.core.enums.IntegratorName`.
+        dt: time step [s].
+        duration: simulated time [s].
+        initial: :class:`~bullet_dlo.core.enums.InitialShape`, or None when not given (straight for
+            ``simulate``, settled for the dual-arm scene).
+        detector: instability detector settings (``detector:``).
+        newton: Newton solver settings of the implicit integrators (``newton:``).
+        name: the scene's name [-].
+        bullet: the ``bullet:`` section.
+        auto_n: ``n_masses: auto`` was given [-].
+        auto_dt: ``dt: auto`` was given (also picks the integrator) [-].
+        tolerance: relative tolerance of ``auto`` resolution [-] (``tolerance.value``).
+        tolerance_target: :class:`~bullet_dlo.core.enums.ToleranceTarget` (``tolerance.target``).
+        arms: the ``arms:`` section, None when the file has none (the arm defaults apply).
+        given: the top-level keys the file gave (an engine refuses those it cannot honour).
+    """
 
     cable: CableSpec
     start: tuple[float, float, float] = (0.0, 0.0, 0.5)
@@ -82,7 +110,7 @@ class Scene:
         only_keys(data, TOP_KEYS, "scene")
         if "cable" not in data:
             raise ParameterError("cable: missing (give cable parameters or {preset: lv2017})")
-        cable_map = dict(section(data["cable"], "cable"))
+        cable_map = renamed_keys(section(data["cable"], "cable"), CABLE_RENAMED, "cable.", stacklevel=3)
         auto_n = cable_map.get("n_masses") == "auto"
         if auto_n:
             cable_map["n_masses"] = 10  # placeholder until resolve() picks it
@@ -94,7 +122,7 @@ class Scene:
         tol = section(data.get("tolerance"), "tolerance")
         only_keys(tol, ("value", "target"), "tolerance")
         tol_value = keyed("tolerance.value", check_positive, "tolerance", tol.get("value", 0.01))
-        tol_target = one_of("tolerance.target", str(tol.get("target", "both")), TOLERANCE_TARGETS)
+        tol_target = one_of("tolerance.target", tol.get("target", "both"), ToleranceTarget)
         layout = section(data.get("layout"), "layout")
         only_keys(layout, ("start", "direction"), "layout")
         start = tuple(keyed("layout.start", check_vector3, "start", layout.get("start", (0.0, 0.0, 0.5))))
@@ -102,18 +130,18 @@ class Scene:
                                 layout.get("direction", (1.0, 0.0, 0.0)), unit=True))
         ends_map = section(data.get("ends"), "ends")
         only_keys(ends_map, ("first", "last"), "ends")
-        ends = tuple(one_of(f"ends.{key}", str(ends_map.get(key, "clamped")).lower(), END_MODES)
+        ends = tuple(name_of(f"ends.{key}", ends_map.get(key, "clamped"), EndMode, lower=True)
                      for key in ("first", "last"))
         motion = keyed("motion", parse_motion, data.get("motion"))
         for mv in motion:
             if ends[0 if mv.end == "first" else 1] == "free":
                 raise ParameterError(f"motion: end '{mv.end}' is free; only pinned or clamped ends can be moved")
         gravity = tuple(keyed("gravity", check_vector3, "gravity", data.get("gravity", STANDARD_GRAVITY)))
-        integrator = one_of("integrator", str(data.get("integrator", "implicit_euler")), INTEGRATORS)
+        integrator = one_of("integrator", data.get("integrator", "implicit_euler"), IntegratorName)
         dt = keyed("dt", check_positive, "dt", data.get("dt", 1e-3))
         duration = keyed("duration", check_positive, "duration", data.get("duration", 1.0))
         check_steps(dt, duration)
-        initial = one_of("initial", str(data["initial"]), INITIAL) if "initial" in data else None
+        initial = one_of("initial", data["initial"], InitialShape) if "initial" in data else None
         det = section(data.get("detector"), "detector")
         only_keys(det, ("max_strain", "energy_factor", "check_every", "energy_every"), "detector")
         nwt = section(data.get("newton"), "newton")

@@ -10,9 +10,10 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
+from enum import Enum
 from typing import Any, Callable, Iterable, Mapping, TypeVar
 
-from bullet_dlo.core.spec import DISCRETISATIONS, SECTIONS
+from bullet_dlo.core.enums import Discretisation, NamedSet, Section, name_of
 from bullet_dlo.core.validate import ParameterError
 
 T = TypeVar("T")
@@ -35,8 +36,11 @@ def only_keys(data: Mapping[str, Any], allowed: Iterable[str], where: str) -> No
         raise ParameterError(f"unknown key(s) {', '.join(map(str, unknown))} in {where}; allowed: {', '.join(allowed)}")
 
 
-def one_of(key: str, value: Any, allowed: Iterable[str]) -> str:
-    """``value`` as one of the names in ``allowed``; ParameterError naming ``key`` and the names otherwise."""
+def one_of(key: str, value: Any, allowed: Iterable[str] | type[NamedSet]) -> str:
+    """``value`` as one of the names in ``allowed`` (an enum of :mod:`bullet_dlo.core.enums`, or an open set
+    such as the robot names); ParameterError naming ``key`` and listing the names otherwise."""
+    if isinstance(allowed, type) and issubclass(allowed, Enum):
+        return name_of(key, value, allowed)
     allowed = tuple(allowed)
     if value not in allowed:
         raise ParameterError(f"{key} must be one of {', '.join(allowed)}, got {value!r}")
@@ -61,15 +65,15 @@ CABLE_BOUNDS: dict[str, tuple[float, float]] = {
     "youngs_modulus": (1e3, 1e13),  # [Pa] soft rubber 1e6, steel 2e11; 1e13 is stiffer than diamond
     "n_masses": (2, 100_000),
     "damping": (0.0, 1e4),  # [N s/m]
-    "friction": (0.0, 10.0),
-    "static_friction": (0.0, 10.0),
+    "dynamic_friction": (0.0, 10.0),  # [-] Coulomb coefficients
+    "static_friction": (0.0, 10.0),  # [-]
     "poisson_ratio": (0.0, 0.4999),  # G = E / (2 (1 + nu)): the twist springs G J / l0
     "shear_modulus": (0.0, 1e13),  # [Pa] G itself (0: from E and nu); a stranded cable's is far below E / 3
     "inner_diameter": (0.0, 1.0),  # [m] tube bore, below the diameter
     "width": (0.0, 1.0),  # [m] rectangle width (along the section axis d1)
     "thickness": (0.0, 1.0),  # [m] rectangle thickness (along d2)
 }
-CABLE_NAMES: dict[str, tuple[str, ...]] = {"section": SECTIONS, "discretisation": DISCRETISATIONS}
+CABLE_NAMES: dict[str, type[NamedSet]] = {"section": Section, "discretisation": Discretisation}
 CABLE_FLAGS = ("twist",)  # true or false (a material frame: twist springs, the grippers' roll)
 DIAMETER_PER_LENGTH = 0.5  # a cable is slender: its diameter is at most half its length
 

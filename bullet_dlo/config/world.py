@@ -9,6 +9,7 @@ from dataclasses import dataclass
 from typing import Any, Mapping
 
 from bullet_dlo.config.schema import LIMITS, one_of, only_keys, section
+from bullet_dlo.core.enums import ObstacleType, SelfCollision, Sync
 from bullet_dlo.core.validate import ParameterError, check_bool, check_finite, check_int, check_nonnegative
 
 MAX_OBSTACLES = 1000
@@ -17,8 +18,8 @@ BULLET_KEYS = ("ground", "ground_height", "ground_friction", "substeps", "self_c
 OBSTACLE_KEYS = {"box": ("half_extents", "position", "orientation", "mass", "friction", "name", "contact"),
                  "cylinder": ("radius", "height", "position", "orientation", "mass", "friction", "name", "contact"),
                  "urdf": ("path", "position", "orientation", "fixed", "name", "contact")}
-SELF_COLLISION = ("neighbours", "none", "all")
-SYNC = ("contacts", "always")
+SELF_COLLISION = SelfCollision.names()
+SYNC = Sync.names()
 
 
 @dataclass(frozen=True)
@@ -26,7 +27,8 @@ class BulletOptions:
     """The scene's ``bullet:`` section, validated on construction; every Bullet path honours it
     (``simulate --engine bullet``, ``grasp``, ``render``, captures, environments).
 
-    ground: add a ground plane at ground_height [m]; ground_friction: its lateral friction (>= 0);
+    ground: add a ground plane at ground_height [m]; ground_friction: its Coulomb coefficient [-] (>= 0; a
+    Bullet body's single coefficient, combined with the cable's static_friction and dynamic_friction);
     substeps: integrator steps per Bullet step (>= 1); self_collision: neighbours | none | all;
     sync: contacts | always; obstacles: {type: box|cylinder|urdf, ...} entries whose keys are
     checked here and whose values are checked when :func:`bullet_dlo.bullet.world.add_obstacles`
@@ -48,8 +50,8 @@ class BulletOptions:
         set_(self, "ground_height", check_finite("bullet.ground_height", self.ground_height))
         set_(self, "ground_friction", check_nonnegative("bullet.ground_friction", self.ground_friction))
         set_(self, "substeps", check_int("bullet.substeps", self.substeps, 1, int(LIMITS["substeps"])))
-        set_(self, "self_collision", one_of("bullet.self_collision", self.self_collision, SELF_COLLISION))
-        set_(self, "sync", one_of("bullet.sync", self.sync, SYNC))
+        set_(self, "self_collision", one_of("bullet.self_collision", self.self_collision, SelfCollision))
+        set_(self, "sync", one_of("bullet.sync", self.sync, Sync))
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any] | None) -> "BulletOptions":
@@ -69,6 +71,6 @@ class BulletOptions:
 def _obstacle(k: int, data: Any) -> dict:
     """One ``bullet.obstacles`` entry with its type and keys checked."""
     ob = dict(section(data, f"bullet.obstacles[{k}]"))
-    kind = one_of(f"bullet.obstacles[{k}].type", ob.pop("type", None), OBSTACLE_KEYS)
+    kind = one_of(f"bullet.obstacles[{k}].type", ob.pop("type", None), ObstacleType)
     only_keys(ob, OBSTACLE_KEYS[kind], f"bullet.obstacles[{k}] ({kind})")
     return {"type": kind, **ob}

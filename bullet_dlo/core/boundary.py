@@ -33,9 +33,10 @@ from bullet_dlo.core.kernels.holders import (
     min_jerk,  # noqa: F401 (min_jerk: robots.dual_arm)
     sample_holders,
 )
+from bullet_dlo.core.enums import EndMode
 from bullet_dlo.core.validate import ParameterError, check_nonnegative, check_positive, check_vector3
 
-END_MODES = ("free", "pinned", "clamped")
+END_MODES = EndMode.names()  # free | pinned | clamped (bullet_dlo.core.enums.EndMode)
 END_NAMES = ("first", "last")
 
 

@@ -15,10 +15,20 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from bullet_dlo.core.validate import ParameterError, check_in_range, check_int, check_nonnegative, check_positive
+from bullet_dlo.core.enums import Discretisation, Section, name_of
+from bullet_dlo.core.validate import (
+    ParameterError,
+    check_in_range,
+    check_int,
+    check_nonnegative,
+    check_positive,
+    renamed_keys,
+)
 
-DISCRETISATIONS = ("default", "paper")
-SECTIONS = ("round", "tube", "rectangle")
+DISCRETISATIONS = Discretisation.names()
+SECTIONS = Section.names()
+RENAMED: dict[str, str] = {"friction": "dynamic_friction"}
+"""Deprecated cable parameter names -> their names now (accepted with a DeprecationWarning for one release)."""
 
 
 @dataclass(frozen=True)
@@ -42,9 +52,10 @@ class CableSpec:
             stresses get E tau d(strain)/dt and E I tau d(curvature)/dt. Mode k (angular frequency
             omega_k) decays as exp(-tau omega_k^2 t / 2) (damping ratio omega_k tau / 2: high
             modes are damped more); rigid translation and rotation are not damped.
-        friction: dynamic (sliding) friction coefficient against the environment, >= 0.
-        static_friction: static friction coefficient, >= 0.
-        poisson_ratio: Poisson's ratio nu, in [0, 0.5) (used by contact and shear-aware layers).
+        dynamic_friction: dynamic (sliding) Coulomb friction coefficient mu_d [-] against the
+            environment and other cables, >= 0 (``friction`` before 0.4: still accepted, deprecated).
+        static_friction: static Coulomb friction coefficient mu_s [-], >= 0.
+        poisson_ratio: Poisson's ratio nu [-], in [0, 0.5) (used by contact and shear-aware layers).
         shear_modulus: G [Pa] of the twist springs G J / l0, > 0; 0 (default): E / (2 (1 + nu)), the
             isotropic solid's. A stranded cable, a rope or a sheathed bundle twists far more easily than
             its E says: give (or fit) G itself.
@@ -82,7 +93,7 @@ class CableSpec:
     damping: float = 0.0
     damping_rate: float = 0.0
     internal_damping: float = 0.0
-    friction: float = 0.2
+    dynamic_friction: float = 0.2
     static_friction: float = 0.3
     poisson_ratio: float = 0.3
     discretisation: str = "default"
@@ -106,24 +117,19 @@ class CableSpec:
         set_("damping", check_nonnegative("damping", self.damping))
         set_("damping_rate", check_in_range("damping_rate", self.damping_rate, 0.0, 1e4))
         set_("internal_damping", check_in_range("internal_damping", self.internal_damping, 0.0, 1.0))
-        set_("friction", check_nonnegative("friction", self.friction))
+        set_("dynamic_friction", check_nonnegative("dynamic_friction", self.dynamic_friction))
         set_("static_friction", check_nonnegative("static_friction", self.static_friction))
         set_("poisson_ratio", check_in_range("poisson_ratio", self.poisson_ratio, 0.0, 0.5, open_hi=True))
         set_("shear_modulus", check_nonnegative("shear_modulus", self.shear_modulus))
         set_("drag_coefficient", check_in_range("drag_coefficient", self.drag_coefficient, 0.0, 1e3))
         set_("fluid_density", check_in_range("fluid_density", self.fluid_density, 0.0, 1e4))
         set_("drag_width", check_in_range("drag_width", self.drag_width, 0.0, 1e3))
-        if self.discretisation not in DISCRETISATIONS:
-            raise ParameterError(
-                f"discretisation must be one of {', '.join(DISCRETISATIONS)}, got {self.discretisation!r}"
-            )
+        set_("discretisation", name_of("discretisation", self.discretisation, Discretisation))
         self._check_section(set_)
 
     def _check_section(self, set_: Any) -> None:
         """Validate the section fields: each shape takes its own dimensions and no others."""
-        section = str(self.section).lower()
-        if section not in SECTIONS:
-            raise ParameterError(f"section must be one of {', '.join(SECTIONS)}, got {self.section!r}")
+        section = name_of("section", self.section, Section, lower=True)
         set_("section", section)
         if not isinstance(self.twist, (bool, np.bool_)):
             raise ParameterError(f"twist must be true or false, got {self.twist!r}")
@@ -144,6 +150,11 @@ class CableSpec:
         set_("inner_diameter", inner)
         set_("width", width)
         set_("thickness", thick)
+
+    @property
+    def friction(self) -> float:
+        """Deprecated name of :attr:`dynamic_friction` [-] (read-only alias, kept for one release)."""
+        return self.dynamic_friction
 
     # ----- derived continuum quantities -------------------------------------------------
     @property
@@ -321,8 +332,8 @@ class CableSpec:
 
     # ----- convenience --------------------------------------------------------------------
     def with_(self, **changes: Any) -> "CableSpec":
-        """Return a copy with some fields changed (validated again)."""
-        return replace(self, **changes)
+        """Return a copy with some fields changed (validated again; deprecated names are taken with a warning)."""
+        return replace(self, **renamed_keys(changes, RENAMED, stacklevel=3))
 
     def to_dict(self) -> dict[str, Any]:
         """Plain dict of the fields (for JSON/YAML/HDF5 attributes).
@@ -340,9 +351,10 @@ class CableSpec:
     def from_dict(cls, data: Mapping[str, Any]) -> "CableSpec":
         """Build from a mapping; unknown keys raise ParameterError naming them.
 
-        A ``preset`` key starts from a named preset and the other keys override it.
+        A ``preset`` key starts from a named preset and the other keys override it. Deprecated names
+        (:data:`RENAMED`: ``friction``) are taken with a DeprecationWarning naming the new one.
         """
-        data = dict(data)
+        data = renamed_keys(data, RENAMED)
         names = {f.name for f in fields(cls)}
         base: dict[str, Any] = {}
         if "preset" in data:
@@ -371,7 +383,7 @@ _SECTION_DEFAULTS: dict[str, Any] = {"section": "round", "inner_diameter": 0.0, 
 _PRESETS: dict[str, dict[str, Any]] = {
     "lv2017": dict(
         length=0.3, diameter=0.004, mass=0.03, youngs_modulus=126.0e6, n_masses=10,
-        damping=0.0, damping_rate=0.0, internal_damping=0.0, friction=0.2, static_friction=0.3, poisson_ratio=0.3,
+        damping=0.0, damping_rate=0.0, internal_damping=0.0, dynamic_friction=0.2, static_friction=0.3, poisson_ratio=0.3,
     ),
 }
 
@@ -389,4 +401,18 @@ def preset_names() -> list[str]:
     return sorted(_PRESETS)
 
 
-__all__ = ["CableSpec", "ParameterError", "preset", "preset_names", "DISCRETISATIONS", "SECTIONS"]
+_dataclass_init = CableSpec.__init__
+
+
+def _init(self: CableSpec, *args: Any, friction: Any = None, **kwargs: Any) -> None:
+    """The dataclass constructor, also taking the deprecated keyword ``friction`` (now ``dynamic_friction``)."""
+    if friction is not None:
+        kwargs = renamed_keys({**kwargs, "friction": friction}, RENAMED, stacklevel=3)
+    _dataclass_init(self, *args, **kwargs)
+
+
+_init.__doc__ = _dataclass_init.__doc__
+_init.__signature__ = __import__("inspect").signature(_dataclass_init)  # type: ignore[attr-defined]
+CableSpec.__init__ = _init  # type: ignore[method-assign]
+
+__all__ = ["CableSpec", "ParameterError", "preset", "preset_names", "DISCRETISATIONS", "SECTIONS", "RENAMED"]

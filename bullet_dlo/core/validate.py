@@ -6,7 +6,8 @@ Every check returns the value converted (float, int or array) or raises
 from __future__ import annotations
 
 import math
-from typing import Any
+import warnings
+from typing import Any, Mapping
 
 import numpy as np
 
@@ -111,3 +112,24 @@ def check_vector3(name: str, value: Any, *, unit: bool = False) -> np.ndarray:
             raise ParameterError(f"{name} must be a non-zero direction, got {value!r}")
         v = v / norm
     return v
+
+
+def renamed_keys(data: Mapping[str, Any], renames: Mapping[str, str], where: str = "",
+                 stacklevel: int = 3) -> dict[str, Any]:
+    """``data`` with each deprecated key of ``renames`` (old name -> new name) replaced by its new name.
+
+    Each old key found gives one DeprecationWarning naming the new key (``where``: a prefix such as
+    ``cable.`` or ``sample.``); both names at once raise ParameterError. Old names are accepted for one
+    release after their rename.
+    """
+    out = dict(data)
+    for old, new in renames.items():
+        if old not in out:
+            continue
+        if new in out:
+            raise ParameterError(f"{where}{old} and {where}{new} are the same parameter ({old} is its old name); "
+                                 f"give only {where}{new}")
+        warnings.warn(f"{where}{old} is deprecated; use {where}{new} (the old name goes in the next release)",
+                      DeprecationWarning, stacklevel=stacklevel)
+        out[new] = out.pop(old)
+    return out

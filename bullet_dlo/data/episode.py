@@ -36,7 +36,7 @@ from bullet_dlo.config.robot import ArmsOptions
 from bullet_dlo.config.scene import Scene
 from bullet_dlo.config.world import BulletOptions
 from bullet_dlo.core.model import STANDARD_GRAVITY
-from bullet_dlo.data.plan import cable_spec, episode_motion, plan_episode
+from bullet_dlo.data.plan import cable_spec, current_names, episode_motion, plan_episode
 from bullet_dlo.data.quality import quality_issues, quality_metrics, sensor_metrics
 from bullet_dlo.data.storage import (
     episode_name,
@@ -115,9 +115,9 @@ def episode_scene(spec: CaptureSpec, params: dict[str, Any], decision: dict[str,
     """The scene of a planned episode: its cable, step, integrator and substeps (the stability decision),
     the arms' layout, grip and wrist sensors, the motion and the spec's duration (parameters of older
     episodes without the grip ones: a clamp)."""
-    grip = {k: params[k] for k in ("grip", "grip_force", "grip_reach") if k in params}
-    if "grip_mu_static" in params:
-        grip["grip_friction"] = (params["grip_mu_static"], params["grip_mu_dynamic"])
+    params = current_names(params)
+    grip = {k: params[k] for k in ("grip", "grip_force", "grip_static_friction", "grip_dynamic_friction",
+                                   "grip_reach") if k in params}
     arms = ArmsOptions(robot=params["robot"], hold_height=params["hold_height"],
                        sensor_rate=params["sensor_rate"] or None, noise_std=(params["noise_std"],) * 3 + (0.0,) * 3,
                        seed=params["noise_seed"], **grip)

@@ -43,7 +43,7 @@ episode number in the capture.
 Every feature in ``info.json`` has ``dtype``, ``shape`` and ``names``; the physical ones also ``units``.
 
 **Per episode** (``meta/episodes``): beside LeRobot's columns, ``params/<name>`` for every scalar
-randomised parameter (``params/youngs_modulus`` [Pa], ``params/damping``, ``params/friction``,
+randomised parameter (``params/youngs_modulus`` [Pa], ``params/damping``, ``params/dynamic_friction``,
 ``params/n_masses``, ``params/integrator``, ``params/dt`` [s], ...), ``decision/<name>`` (the stability
 policy's choice, ``decision/substeps``), ``bullet_dlo/params`` and ``bullet_dlo/decision`` (the whole
 dicts as JSON), ``bullet_dlo/status``, ``source_episode`` and, for rollouts, ``bullet_dlo/return``,

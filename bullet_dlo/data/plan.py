@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 
 from bullet_dlo.analysis.resolve import resolve_masses
-from bullet_dlo.config.capture import CaptureSpec
+from bullet_dlo.config.capture import RENAMED, CaptureSpec
 from bullet_dlo.config.scene import Scene
 from bullet_dlo.sim import resolve_problem
 from bullet_dlo.core.boundary import Motion, Move, parse_motion
@@ -87,14 +87,22 @@ def gripper_move(params: dict[str, Any]) -> tuple[np.ndarray, float]:
     return displacement, distance / params["speed"]
 
 
+def current_names(params: dict[str, Any]) -> dict[str, Any]:
+    """An episode's parameters under today's names: episodes stored before the rename
+    (:data:`bullet_dlo.config.capture.RENAMED`: ``friction``, ``grip_mu_static``, ``grip_mu_dynamic``)
+    read the same. Stored data, not user input: no warning."""
+    return {RENAMED.get(k, k): v for k, v in params.items()}
+
+
 def cable_spec(params: dict[str, Any]) -> CableSpec:
     """The drawn cable; the section's dimensions only where the drawn section uses them (a tube's
     ``inner_diameter``, a rectangle's ``width`` and ``thickness``), so a spec may choose among sections."""
+    params = current_names(params)
     section = params.get("section", "round")
     shape = {"tube": ("inner_diameter",), "rectangle": ("width", "thickness")}.get(section, ())
     return CableSpec(length=params["length"], diameter=params["diameter"], mass=params["mass"],
                      youngs_modulus=params["youngs_modulus"], n_masses=params["n_masses"],
                      damping=params["damping"], damping_rate=params.get("damping_rate", 0.0),
-                     internal_damping=params.get("internal_damping", 0.0), friction=params["friction"],
+                     internal_damping=params.get("internal_damping", 0.0), dynamic_friction=params["dynamic_friction"],
                      poisson_ratio=params.get("poisson_ratio", 0.3), section=section,
                      twist=params.get("twist", False), **{k: params[k] for k in shape if k in params})

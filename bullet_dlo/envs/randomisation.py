@@ -7,7 +7,7 @@ stability policy may switch integrator or add substeps) and the same scene
 from its own generator (seeded by ``reset(seed=...)``), so the drawn parameters depend only on
 the reset seed. Used: the cable (length, diameter, mass, youngs_modulus, n_masses, damping,
 damping_rate, internal_damping, friction), dt, integrator, robot, hold_height, the grip (grip,
-grip_force, grip_mu_static, grip_mu_dynamic, grip_reach) and the wrist sensors (noise_std,
+grip_force, grip_static_friction, grip_dynamic_friction, grip_reach) and the wrist sensors (noise_std,
 sensor_rate); the capture's gripper motion (displacement_*, speed, move_start or a ``motion:``
 section) and its episode/camera sections are not: the policy moves the arms, the environment
 sets its own length and camera.
@@ -32,8 +32,15 @@ RandomisationLike = CaptureSpec | Mapping[str, Any] | str | Path | None
 
 @dataclasses.dataclass(frozen=True)
 class Draw:
-    """One reset's scene (what :func:`bullet_dlo.sim.build_arms` builds), its dual-arm physics spec with the
-    renderer, the drawn parameters and the stability decision (as a capture stores them)."""
+    """One reset's draw, as a capture stores it.
+
+    Attributes:
+        scene: the reset's scene (what :func:`bullet_dlo.sim.build_arms` builds).
+        setup: its dual-arm physics spec, with the renderer.
+        params: the drawn parameters (:meth:`~bullet_dlo.config.capture.CaptureSpec.draw`; SI units, names of
+            :data:`~bullet_dlo.config.capture.PARAMETERS`).
+        decision: the stability decision (integrator, substeps, critical step).
+    """
 
     scene: Scene
     setup: DualArmSpec

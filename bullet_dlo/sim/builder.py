@@ -26,13 +26,14 @@ from bullet_dlo.bullet.world import BulletWorld, add_obstacles
 from bullet_dlo.config.robot import DualArmSpec
 from bullet_dlo.config.scene import Scene
 from bullet_dlo.config.schema import one_of
+from bullet_dlo.core.enums import Engine
 from bullet_dlo.core.engine import DetectorOptions, SimulationResult, simulate
 from bullet_dlo.core.spec import CableSpec
 from bullet_dlo.core.validate import ParameterError
 from bullet_dlo.robots.dual_arm import DualArmScene
 from bullet_dlo.sim.simulation import ArmsSimulation, BulletSimulation, CoreSimulation, Simulation
 
-ENGINES = ("core", "bullet", "arms")
+ENGINES = Engine.names()  # core | bullet | arms (bullet_dlo.core.enums.Engine)
 """What :func:`build` can make (see the module doc)."""
 
 
@@ -84,7 +85,7 @@ def build(scene: Scene, engine: str | None = None, *, robot: str | None = None, 
     (e.g. ``simulate --engine core``); record_every, max_records: the cable's record (``bullet``: steps
     between rows, default so that about ``max_records`` rows are kept).
     """
-    engine = one_of("engine", engine_for(scene, robot) if engine is None else engine, ENGINES)
+    engine = one_of("engine", engine_for(scene, robot) if engine is None else engine, Engine)
     refuse_unused_keys(scene, engine, command)
     scene = resolved(scene)
     if engine == "core":

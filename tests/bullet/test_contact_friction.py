@@ -39,7 +39,7 @@ def capstan_onset(theta: float, mu: float, hz: float = 240.0, integrator: str = 
     y through the origin; default: a Bullet cylinder)."""
     n = 60
     spec = CableSpec(length=0.6, diameter=0.004, mass=0.009, youngs_modulus=2e6, n_masses=n,
-                     friction=mu, static_friction=mu)
+                     dynamic_friction=mu, static_friction=mu)
     lam, r = spec.mass / spec.length, spec.diameter / 2
     rr = R_CAPSTAN + r
     world = BulletWorld(dt=1.0 / hz, ground=False)
@@ -104,7 +104,7 @@ def incline(angle: float, *, hz: float = 240.0, integrator: str = "implicit_eule
     Cable friction mu_s 0.5 / mu_d 0.4, slope 0.45: combined sqrt(0.5 * 0.45), sqrt(0.4 * 0.45).
     Returns (times [s], distance travelled down the slope by the centre of mass [m], the cable).
     """
-    spec = CableSpec.lv2017(n_masses=20, static_friction=0.5, friction=0.4)
+    spec = CableSpec.lv2017(n_masses=20, static_friction=0.5, dynamic_friction=0.4)
     r = spec.diameter / 2
     down = np.array([math.cos(angle), 0.0, -math.sin(angle)])
     normal = np.array([math.sin(angle), 0.0, math.cos(angle)])

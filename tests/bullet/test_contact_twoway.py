@@ -17,7 +17,7 @@ G = 9.81
 
 
 def test_box_carries_the_cable_and_is_dragged_by_it():
-    spec = CableSpec.lv2017(n_masses=20, static_friction=0.8, friction=0.6)
+    spec = CableSpec.lv2017(n_masses=20, static_friction=0.8, dynamic_friction=0.6)
     r, hz, m_box, pull = spec.diameter / 2, 240, 0.05, 0.05
     with BulletWorld(dt=1 / hz, ground_friction=0.0) as world:
         half = (0.2, 0.05, 0.02)

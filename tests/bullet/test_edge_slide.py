@@ -47,7 +47,7 @@ def threshold(mu: float) -> float:
 def soft_cable(n: int, mu: float = MU, youngs_modulus: float = 2e6) -> CableSpec:
     """0.6 m, 4 mm, 9 g (the capstan tests' cable), friction mu_s = mu_d = mu."""
     return CableSpec(length=0.6, diameter=0.004, mass=0.009, youngs_modulus=youngs_modulus, n_masses=n,
-                     friction=mu, static_friction=mu)
+                     dynamic_friction=mu, static_friction=mu)
 
 
 def layout(spec: CableSpec, phi: float, place: float, through: bool = False) -> tuple[np.ndarray, float]:

@@ -46,7 +46,7 @@ def test_friction_grip_from_a_scene_file_saturates_at_two_mu_fn(tmp_path):
     scene = tmp_path / "grip.yaml"
     scene.write_text("""
 cable: {preset: lv2017, n_masses: 10}
-arms: {grip: friction, grip_force: 2.0, grip_friction: [0.5, 0.4], grip_reach: 0.05}
+arms: {grip: friction, grip_force: 2.0, grip_static_friction: 0.5, grip_dynamic_friction: 0.4, grip_reach: 0.05}
 motion:
   - {end: first, displacement: [-0.015, 0, 0], start: 0.5, duration: 1.0}
   - {end: last, displacement: [0.015, 0, 0], start: 0.5, duration: 1.0}

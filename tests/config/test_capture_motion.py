@@ -10,15 +10,16 @@ import numpy as np
 import pytest
 import yaml
 
-from bullet_dlo.config.capture import MOVE_KEYS, PARAMETERS, CaptureSpec, parse_distribution
+from bullet_dlo.config.capture import MOVE_KEYS, PARAMETERS, RENAMED, CaptureSpec, parse_distribution
 from bullet_dlo.core.boundary import Move, Sine, Waypoints, parse_motion
 from bullet_dlo.core.validate import ParameterError
 
 ROOT = Path(__file__).resolve().parents[2]
 SPECS = ROOT / "demos" / "specs"
 # the parameters and their order before the grip ones existed: their draws must never change
+# ("friction" is named dynamic_friction since the one-vocabulary rename; same place, same draws)
 OLD_KEYS = ("length", "diameter", "mass", "youngs_modulus", "n_masses", "damping", "damping_rate", "internal_damping",
-            "friction", "dt", "integrator", "robot", "hold_height", "displacement_x", "displacement_y",
+            "dynamic_friction", "dt", "integrator", "robot", "hold_height", "displacement_x", "displacement_y",
             "displacement_z", "speed", "move_start", "noise_std", "sensor_rate")
 
 
@@ -99,7 +100,7 @@ def test_an_old_spec_keeps_its_draws_and_digest():
     for index in range(6):
         drawn = spec.draw(index)
         assert {k: drawn[k] for k in (*OLD_KEYS, "noise_seed")} == old_draw(spec, index)
-        assert (drawn["grip"], drawn["grip_force"], drawn["grip_mu_static"], drawn["grip_mu_dynamic"],
+        assert (drawn["grip"], drawn["grip_force"], drawn["grip_static_friction"], drawn["grip_dynamic_friction"],
                 drawn["grip_reach"]) == ("clamp", 5.0, 0.5, 0.4, 0.02)  # DualArmSpec's defaults: a clamp
         assert "motion" not in drawn
     # the digest hashes the spec in the form it had before (no motion, no grip keys), built here from the file
@@ -111,14 +112,18 @@ def test_an_old_spec_keeps_its_draws_and_digest():
         for key in ("low", "high"):
             if key in dist:
                 dist[key] = float(dist[key])
-    digest = hashlib.sha256(json.dumps(old_form, sort_keys=True, default=str).encode()).hexdigest()[:16]
+    # ... and under the sample keys' names before the one-vocabulary rename (friction, not dynamic_friction)
+    legacy = {**old_form, "sample": {{v: k for k, v in RENAMED.items()}.get(k, k): v
+                                     for k, v in old_form["sample"].items()}}
+    assert "friction" in legacy["sample"] and "dynamic_friction" in old_form["sample"]
+    digest = hashlib.sha256(json.dumps(legacy, sort_keys=True, default=str).encode()).hexdigest()[:16]
     assert spec.to_dict() == json.loads(json.dumps(old_form)) and spec.digest() == digest
     assert spec_with([SINE]).digest() != spec_with(None).digest()
 
 
 def test_grip_parameters_are_drawn_after_the_old_ones():
     grip = {"grip": {"dist": "choice", "values": ["clamp", "friction"]}, "grip_force": U(1.0, 8.0),
-            "grip_mu_static": U(0.5, 0.8), "grip_mu_dynamic": U(0.2, 0.5), "grip_reach": U(0.01, 0.05)}
+            "grip_static_friction": U(0.5, 0.8), "grip_dynamic_friction": U(0.2, 0.5), "grip_reach": U(0.01, 0.05)}
     plain, gripping = spec_with(None, n_masses={"dist": "choice", "values": [8, 10]}), \
         spec_with(None, n_masses={"dist": "choice", "values": [8, 10]}, **grip)
     grips = set()
@@ -126,11 +131,11 @@ def test_grip_parameters_are_drawn_after_the_old_ones():
         a, b = plain.draw(index), gripping.draw(index)
         assert {k: a[k] for k in (*OLD_KEYS, "noise_seed")} == {k: b[k] for k in (*OLD_KEYS, "noise_seed")}
         assert 1.0 <= b["grip_force"] <= 8.0 and 0.01 <= b["grip_reach"] <= 0.05
-        assert 0.2 <= b["grip_mu_dynamic"] <= 0.5 <= b["grip_mu_static"] <= 0.8  # mu_d <= mu_s in every draw
+        assert 0.2 <= b["grip_dynamic_friction"] <= 0.5 <= b["grip_static_friction"] <= 0.8  # mu_d <= mu_s in every draw
         grips.add(b["grip"])
     assert grips == {"clamp", "friction"}
     # touching ranges are allowed (every draw still has mu_d <= mu_s)
-    spec_with(None, grip_mu_static=U(0.4, 0.6), grip_mu_dynamic=U(0.1, 0.4))
+    spec_with(None, grip_static_friction=U(0.4, 0.6), grip_dynamic_friction=U(0.1, 0.4))
 
 
 @pytest.mark.parametrize("motion, sample, needle", [
@@ -169,10 +174,10 @@ def test_grip_parameters_are_drawn_after_the_old_ones():
     (None, {"grip": U(0, 1)}, "sample.grip must be a choice or fixed"),
     (None, {"grip_force": 0.0}, "sample.grip_force.value = 0.0 is outside the allowed range [0.001, 1000.0]"),
     (None, {"grip_reach": U(0.0, 0.1)}, "sample.grip_reach.low = 0.0 is outside the allowed range"),
-    (None, {"grip_mu_static": U(0.3, 0.6)}, "sample.grip_mu_dynamic can be drawn above sample.grip_mu_static (up to "
+    (None, {"grip_static_friction": U(0.3, 0.6)}, "sample.grip_dynamic_friction can be drawn above sample.grip_static_friction (up to "
                                              "0.4 > 0.3)"),
-    (None, {"grip_mu_dynamic": {"dist": "normal", "mean": 0.2, "std": 0.05}},
-     "sample.grip_mu_dynamic can be drawn above sample.grip_mu_static"),
+    (None, {"grip_dynamic_friction": {"dist": "normal", "mean": 0.2, "std": 0.05}},
+     "sample.grip_dynamic_friction can be drawn above sample.grip_static_friction"),
 ])
 def test_bad_motion_and_grip_entries_are_refused_naming_the_key(motion, sample, needle):
     with pytest.raises(ParameterError) as info:

@@ -13,7 +13,7 @@ from bullet_dlo.core.validate import ParameterError
 def test_lv2017_preset_matches_table_2():
     spec = preset("lv2017")
     assert (spec.length, spec.diameter, spec.mass, spec.youngs_modulus) == (0.3, 0.004, 0.03, 126e6)
-    assert spec.poisson_ratio == 0.3 and spec.friction == 0.2 and spec.static_friction == 0.3
+    assert spec.poisson_ratio == 0.3 and spec.dynamic_friction == 0.2 and spec.static_friction == 0.3
 
 
 def test_derived_quantities():
@@ -60,7 +60,7 @@ def test_damping_gives_uniform_decay_rate():
         ("n_masses", 1, "n_masses must be an integer in [2,"),
         ("n_masses", 2.5, "n_masses"),
         ("damping", -0.1, "damping must be a finite number >= 0"),
-        ("friction", float("nan"), "friction"),
+        ("dynamic_friction", float("nan"), "dynamic_friction"),
         ("poisson_ratio", 0.5, "poisson_ratio must be in [0.0, 0.5)"),
         ("discretisation", "fancy", "discretisation must be one of default, paper"),
         ("length", "abc", "length must be a number"),

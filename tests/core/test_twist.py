@@ -53,8 +53,8 @@ def test_section_validation_and_round_trip():
         CableSpec.lv2017(twist="yes")
     old = CableSpec.lv2017()
     assert set(old.to_dict()) == {"length", "diameter", "mass", "youngs_modulus", "n_masses", "damping",
-                                  "damping_rate", "internal_damping", "friction", "static_friction",
-                                  "poisson_ratio", "discretisation"}  # old specs' dicts (and digests) unchanged
+                                  "damping_rate", "internal_damping", "dynamic_friction", "static_friction",
+                                  "poisson_ratio", "discretisation"}  # old specs' dicts unchanged but for the rename friction -> dynamic_friction
     for spec in (old, old.with_(twist=True), old.with_(section="tube", inner_diameter=0.001), STRIP):
         assert CableSpec.from_dict(spec.to_dict()) == spec
 

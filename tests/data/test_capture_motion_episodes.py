@@ -44,8 +44,8 @@ SHAKE_AND_TURN = {"seed": 5, "episode": {"duration": 1.5, "record_rate": 240},
                              {"type": "move", "end": "first", "rotation": [0, 0, U(0.2, 0.4)], "start": 0.2,
                               "duration": 0.8}]}
 PULL_APART = {"seed": 2, "episode": {"duration": 1.3, "record_rate": 240},
-              "sample": {"n_masses": 8, "grip": "friction", "grip_force": U(2.5, 3.5), "grip_mu_static": U(0.5, 0.6),
-                         "grip_mu_dynamic": U(0.35, 0.45), "grip_reach": 0.05},
+              "sample": {"n_masses": 8, "grip": "friction", "grip_force": U(2.5, 3.5), "grip_static_friction": U(0.5, 0.6),
+                         "grip_dynamic_friction": U(0.35, 0.45), "grip_reach": 0.05},
               "motion": [{"end": "first", "displacement": [-PULL, 0, 0], "start": 0.3, "duration": 0.8},
                          {"end": "last", "displacement": [PULL, 0, 0], "start": 0.3, "duration": 0.8}]}
 
@@ -110,7 +110,7 @@ def test_a_drawn_rotation_turns_the_gripper_by_the_drawn_angle(shaken):
 def test_a_friction_grip_saturates_at_two_mu_d_grip_force(pulled):
     _, ep, _ = pulled
     p = ep["params"]
-    cap_s, cap_d = 2 * p["grip_mu_static"] * p["grip_force"], 2 * p["grip_mu_dynamic"] * p["grip_force"]
+    cap_s, cap_d = 2 * p["grip_static_friction"] * p["grip_force"], 2 * p["grip_dynamic_friction"] * p["grip_force"]
     t = ep["t"]
     axial = np.abs(ep["wrench_world"][:, :, 0])  # (k, 2): both sensors' pull along the cable [N]
     model = np.abs(ep["end_forces"][:, :, 0])
@@ -131,7 +131,7 @@ def test_the_grip_parameters_reach_the_dual_arm_scene():
     params, decision = plan_episode(spec, 3)
     setup = DualArmSpec.from_scene(episode_scene(spec, params, decision))
     assert (setup.grip, setup.grip_force, setup.grip_reach) == ("friction", params["grip_force"], 0.05)
-    assert setup.grip_friction == (params["grip_mu_static"], params["grip_mu_dynamic"])
+    assert (setup.grip_static_friction, setup.grip_dynamic_friction) == (params["grip_static_friction"], params["grip_dynamic_friction"])
     # parameters stored by older versions (no grip keys) give today's clamp
     old = {k: v for k, v in params.items() if not k.startswith("grip")}
     assert DualArmSpec.from_scene(episode_scene(spec, old, decision)).grip == "clamp"

@@ -20,7 +20,7 @@ PULL = 0.03  # [m] each gripper moves outwards
 
 @pytest.mark.parametrize("robot", ["kuka", "panda"])
 def test_wrist_force_saturates_at_two_mu_d_fn_while_the_ends_slip(robot):
-    spec = DualArmSpec(robot=robot, grip="friction", grip_force=F_N, grip_friction=(MU_S, MU_D), grip_reach=0.05)
+    spec = DualArmSpec(robot=robot, grip="friction", grip_force=F_N, grip_static_friction=MU_S, grip_dynamic_friction=MU_D, grip_reach=0.05)
     cap_s, cap_d = 2 * MU_S * F_N, 2 * MU_D * F_N
     with DualArmScene(spec) as scene:
         scene.grasp()
@@ -56,7 +56,7 @@ def test_clamp_stays_the_default():
 
 
 @pytest.mark.parametrize("kwargs, word", [({"grip": "glue"}, "grip"), ({"grip_force": 0.0}, "grip_force"),
-                                          ({"grip_friction": (0.3, 0.5)}, "grip_friction"),
+                                          ({"grip_static_friction": 0.3, "grip_dynamic_friction": 0.5}, "grip_dynamic_friction"),
                                           ({"grip_reach": -1.0}, "grip_reach")])
 def test_bad_grip_settings_are_refused(kwargs, word):
     with pytest.raises(ParameterError, match=word):
