@@ -193,7 +193,7 @@ class BulletCable:
                 for mass, pos in zip(self.model.arrays.mass, self.x.tolist())]
         for i, b in enumerate(body):
             pb.resetBaseVelocity(b, self.v[i].tolist(), [0, 0, 0], physicsClientId=cid)
-            pb.changeDynamics(b, -1, linearDamping=0.0, angularDamping=0.0, lateralFriction=spec.friction,
+            pb.changeDynamics(b, -1, linearDamping=0.0, angularDamping=0.0, lateralFriction=spec.dynamic_friction,
                               activationState=pb.ACTIVATION_STATE_DISABLE_SLEEPING, physicsClientId=cid)
         self._group = None
         if self_collision == "none":
@@ -244,7 +244,7 @@ class BulletCable:
         spheres = set(self.world._owners) | set(self.body_ids)
         bodies = [b for b in (pb.getBodyUniqueId(i, physicsClientId=cid) for i in range(count)) if b not in spheres]
         self._contact_set = ContactSet(cid, bodies, self.model.n, self.radius,
-                                       spec.static_friction, spec.friction, self.contact_stiffness,
+                                       spec.static_friction, spec.dynamic_friction, self.contact_stiffness,
                                        self.contact_damping, self_contact=self.self_collision != "none",
                                        grip=self.grip, native=self.world.native_handle(), others=partners,
                                        exclude={**{(b, None): None for b in self.world.no_cable_contact},
@@ -448,13 +448,13 @@ class BulletCable:
         self.grip.active[end] = False
         self._replan()
 
-    def grip_with_friction(self, end: int, normal_force: float, mu_static: float, mu_dynamic: float,
+    def grip_with_friction(self, end: int, normal_force: float, static_friction: float, dynamic_friction: float,
                            reach: float = 0.02) -> None:
         """Hold end ``end`` (0 first, 1 last) by a friction grip on the pose given by :meth:`set_external_pose`.
 
         Two fingers pinch the end node with ``normal_force`` F_n [N] (> 0) each: along the
-        gripper's axis (the clamp direction) the grip holds up to 2 mu_static F_n, then the end
-        slips along the gripper against 2 mu_dynamic F_n (0 <= mu_dynamic <= mu_static); across
+        gripper's axis (the clamp direction) the grip holds up to 2 static_friction F_n, then the end
+        slips along the gripper against 2 dynamic_friction F_n (0 <= dynamic_friction <= static_friction); across
         it a stiff spring keeps the end on the axis, and the clamp's bending spring holds the
         tangent. The end leaves the gripper (the grip is lost) after slipping ``reach`` [m] (> 0).
         Needs an implicit integrator (the grip is part of its step). Call it with the gripper's
@@ -466,10 +466,10 @@ class BulletCable:
         if end not in (0, 1):
             raise ParameterError(f"end must be 0 or 1, got {end!r}")
         f_n = check_positive("grip normal force", normal_force)
-        mu_s = check_nonnegative("grip static friction", mu_static)
-        mu_d = check_nonnegative("grip dynamic friction", mu_dynamic)
+        mu_s = check_nonnegative("grip_static_friction", static_friction)
+        mu_d = check_nonnegative("grip_dynamic_friction", dynamic_friction)
         if mu_d > mu_s:
-            raise ParameterError(f"grip dynamic friction must be in [0, static friction {mu_s}], got {mu_d}")
+            raise ParameterError(f"grip_dynamic_friction must be in [0, grip_static_friction {mu_s}], got {mu_d}")
         a, n, g = self.arrays, self.model.n, self.grip
         node = 0 if end == 0 else n - 1
         a.held[node] = False

@@ -281,7 +281,7 @@ class ContactSet:
                            active=np.zeros(nkeys, np.bool_), keys=np.zeros(capacity, np.int64),
                            body=np.zeros(capacity, np.int64))
         first = np.cumsum([0] + [o.model.n for o in self.other_cables]).astype(np.int64)
-        mu_o = [(o.model.spec.static_friction, o.model.spec.friction) for o in self.other_cables]
+        mu_o = [(o.model.spec.static_friction, o.model.spec.dynamic_friction) for o in self.other_cables]
         reps = [o.model.n for o in self.other_cables]
         self.others = Others(
             x=np.zeros((n_other, 3)), u=np.zeros((n_other, 3)),

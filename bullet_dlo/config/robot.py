@@ -186,6 +186,8 @@ class ArmsOptions:
     @property
     def grip_friction(self) -> tuple[float, float]:
         """(grip_static_friction, grip_dynamic_friction) [-]: the deprecated pair, read-only."""
+        warnings.warn(f"{type(self).__name__}.grip_friction is deprecated; use grip_static_friction and "
+                      "grip_dynamic_friction", DeprecationWarning, stacklevel=2)
         return self.grip_static_friction, self.grip_dynamic_friction
 
     def __post_init__(self) -> None:
@@ -282,6 +284,8 @@ class DualArmSpec:
     @property
     def grip_friction(self) -> tuple[float, float]:
         """(grip_static_friction, grip_dynamic_friction) [-]: the deprecated pair, read-only."""
+        warnings.warn(f"{type(self).__name__}.grip_friction is deprecated; use grip_static_friction and "
+                      "grip_dynamic_friction", DeprecationWarning, stacklevel=2)
         return self.grip_static_friction, self.grip_dynamic_friction
 
     def __post_init__(self) -> None:

@@ -154,6 +154,10 @@ class CableSpec:
     @property
     def friction(self) -> float:
         """Deprecated name of :attr:`dynamic_friction` [-] (read-only alias, kept for one release)."""
+        import warnings
+
+        warnings.warn("CableSpec.friction is deprecated; use CableSpec.dynamic_friction", DeprecationWarning,
+                      stacklevel=2)
         return self.dynamic_friction
 
     # ----- derived continuum quantities -------------------------------------------------

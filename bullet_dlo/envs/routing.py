@@ -268,7 +268,7 @@ class RoutingEnv(DualArmEnv):
             "youngs_modulus": {"dist": "log_uniform", "low": 1.0e7, "high": 3.0e7},
             "n_masses": {"dist": "fixed", "value": 20},
             "damping": {"dist": "uniform", "low": 0.01, "high": 0.03},
-            "friction": {"dist": "fixed", "value": 0.5},
+            "dynamic_friction": {"dist": "fixed", "value": 0.5},
             "hold_height": {"dist": "uniform", "low": 0.27, "high": 0.30},
         }
     }

@@ -86,8 +86,8 @@ def test_end_leaves_the_gripper_after_its_reach():
     assert cable.x[0, 2] < 1.0 - 0.05  # falling free
 
 
-@pytest.mark.parametrize("args, word", [((0.0, 0.5, 0.3), "normal force"), ((1.0, 0.3, 0.5), "dynamic friction"),
-                                        ((1.0, -0.1, 0.0), "static friction"), ((1.0, 0.5, 0.3, 0.0), "reach")])
+@pytest.mark.parametrize("args, word", [((0.0, 0.5, 0.3), "normal force"), ((1.0, 0.3, 0.5), "grip_dynamic_friction"),
+                                        ((1.0, -0.1, 0.0), "grip_static_friction"), ((1.0, 0.5, 0.3, 0.0), "reach")])
 def test_bad_grip_parameters_are_refused(args, word):
     with BulletWorld(dt=DT) as world:
         cable = world.add_cable(CableSpec.lv2017(n_masses=6), record_every=10**9)

@@ -238,7 +238,8 @@ class DualArmPhysics:
         by a friction grip (``spec.grip``)."""
         spec = self.spec
         if spec.grip == "friction":
-            self.cable.grip_with_friction(arm, spec.grip_force, *spec.grip_friction, reach=spec.grip_reach)
+            self.cable.grip_with_friction(arm, spec.grip_force, spec.grip_static_friction, spec.grip_dynamic_friction,
+                                         reach=spec.grip_reach)
         else:
             self.cable.hold_externally(arm, "clamped")
         if self.cable.arrays.tw_k_twist.shape[0]:
