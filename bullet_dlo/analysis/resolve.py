@@ -49,10 +49,11 @@ import numpy as np
 from bullet_dlo.analysis.measures import force_error, shape_error
 from bullet_dlo.core.boundary import EndHolder, MotionOffset
 from bullet_dlo.core.engine import SimulationResult
+from bullet_dlo.core.enums import ToleranceTarget, name_of
 from bullet_dlo.core.spec import CableSpec
 from bullet_dlo.core.validate import ParameterError, check_positive
 
-TARGETS = ("forces", "shape", "both")
+TARGETS = ToleranceTarget.names()
 N_MASSES = (5, 7, 10, 14, 20, 28, 40, 56, 80)
 """Numbers of masses tried, fewest first."""
 DTS = (1 / 60, 1 / 120, 1 / 240, 1 / 500, 1e-3, 5e-4, 2.5e-4)
@@ -253,8 +254,7 @@ def resolve(problem: ResolveProblem, tol: float = 0.01, target: str = "both", ro
     n_masses, dts [s], integrators: the candidates, tried fewest, largest and cheapest first.
     """
     tol = check_positive("tol", tol)
-    if target not in TARGETS:
-        raise ParameterError(f"target must be one of {', '.join(TARGETS)}, got {target!r}")
+    target = name_of("target", target, ToleranceTarget)
     if not isinstance(problem, ResolveProblem):
         raise TypeError(f"resolve takes a ResolveProblem (bullet_dlo.sim.resolve_problem(scene)), "
                         f"got {type(problem).__name__}")

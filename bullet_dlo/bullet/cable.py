@@ -54,6 +54,7 @@ from bullet_dlo.bullet.kernels import (
     sync_and_advance,
 )
 from bullet_dlo.core.engine import DetectorOptions, start_detector
+from bullet_dlo.core.enums import Contact, EndMode, SelfCollision, Sync, name_of
 from bullet_dlo.core.integrators import NewtonOptions, get_integrator, make_stepper
 from bullet_dlo.core.kernels.contact import (
     DEFAULT_ALPHA,
@@ -75,8 +76,8 @@ from bullet_dlo.core.validate import (
     check_positive,
 )
 
-SELF_COLLISION = ("neighbours", "none", "all")
-CONTACT = ("auto", "model", "bullet")
+SELF_COLLISION = SelfCollision.names()
+CONTACT = Contact.names()
 CABLE_GROUPS = 0x7FFE  # the collision-group bits of cables (bit 0 is the world's default group)
 
 
@@ -111,14 +112,10 @@ class BulletCable:
         self.model = model
         self.method = get_integrator(integrator)
         self.substeps = check_int("substeps", substeps, 1)
-        if self_collision not in SELF_COLLISION:
-            raise ParameterError(f"self_collision must be one of {', '.join(SELF_COLLISION)}, got {self_collision!r}")
-        if sync not in ("contacts", "always"):
-            raise ParameterError(f"sync must be 'contacts' or 'always', got {sync!r}")
-        self.sync = sync
+        self_collision = name_of("self_collision", self_collision, SelfCollision)
+        self.sync = name_of("sync", sync, Sync)
         self.self_collision = self_collision
-        if contact not in CONTACT:
-            raise ParameterError(f"contact must be one of {', '.join(CONTACT)}, got {contact!r}")
+        contact = name_of("contact", contact, Contact)
         implicit = not self.method.explicit
         if contact == "model" and not implicit:
             raise ParameterError(f"contact='model' needs an implicit integrator (implicit_euler, bdf2, "
@@ -436,8 +433,9 @@ class BulletCable:
         mode: ``clamped`` (position and tangent held, like a gripper) or ``pinned``.
         The clamp's bending stiffness is the spec's half-segment value (see CableSpec).
         """
-        if mode not in ("clamped", "pinned"):
-            raise ParameterError(f"grasp mode must be clamped or pinned, got {mode!r}")
+        if mode not in (EndMode.CLAMPED, EndMode.PINNED):
+            raise ParameterError(f"grasp mode must be one of clamped, pinned, got {mode!r}")
+        mode = str(EndMode(mode))
         a, spec, n = self.arrays, self.model.spec, self.model.n
         node = 0 if end == 0 else n - 1
         a.held[node] = True

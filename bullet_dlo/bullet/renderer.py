@@ -11,9 +11,10 @@ import pkgutil
 import numpy as np
 import pybullet as pb
 
-from bullet_dlo.core.validate import ParameterError
+from bullet_dlo.core.enums import Renderer as RendererName, name_of
 
-RENDERERS = ("auto", "tiny", "egl")
+
+RENDERERS = RendererName.names()
 
 
 class RenderError(RuntimeError):
@@ -28,8 +29,7 @@ class Renderer:
     """
 
     def __init__(self, client: int, renderer: str = "auto"):
-        if renderer not in RENDERERS:
-            raise ParameterError(f"renderer must be one of {', '.join(RENDERERS)}, got {renderer!r}")
+        renderer = name_of("renderer", renderer, RendererName)
         self.client = client
         self.plugin = -1
         self.name = "tiny"

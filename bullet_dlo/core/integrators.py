@@ -24,6 +24,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from bullet_dlo.core.enums import IntegratorName, name_of
 from bullet_dlo.core.kernels.steppers import (
     BDF2,
     EXPLICIT_EULER,
@@ -33,7 +34,7 @@ from bullet_dlo.core.kernels.steppers import (
     SYMPLECTIC_EULER,
     Stepper,
 )
-from bullet_dlo.core.validate import ParameterError, check_bool, check_in_range, check_int, check_positive
+from bullet_dlo.core.validate import check_bool, check_in_range, check_int, check_positive
 
 MAX_NEWTON_ITER = 1000
 
@@ -65,10 +66,7 @@ def get_integrator(name: str) -> Integrator:
     """Look up an integrator by name; unknown names raise ParameterError listing the choices."""
     if isinstance(name, Integrator):
         return name
-    key = str(name).lower()
-    if key not in INTEGRATORS:
-        raise ParameterError(f"integrator must be one of {', '.join(INTEGRATORS)}, got {name!r}")
-    return INTEGRATORS[key]
+    return INTEGRATORS[name_of("integrator", name, IntegratorName, lower=True)]
 
 
 @dataclass(frozen=True)

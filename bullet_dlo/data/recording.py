@@ -71,7 +71,7 @@ from typing import Any
 import numpy as np
 
 from bullet_dlo.analysis.fit import Recording
-from bullet_dlo.robots.dual_arm.series import SERIES_COLUMNS, SERIES_UNITS, SeriesRecorder, save_npz
+from bullet_dlo.robots.dual_arm.series import SERIES_COLUMNS, SERIES_UNITS, SeriesRecorder, save_npz  # noqa: F401  (re-exported)
 from bullet_dlo.core.validate import ParameterError
 
 CSV_FIELDS = ("x", "y", "z", "qx", "qy", "qz", "qw", "fx", "fy", "fz")
