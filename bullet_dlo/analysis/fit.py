@@ -136,21 +136,21 @@ class FitOptions:
 
     integrator, dt [s]: the core engine's (``auto``: BDF2 with dt halved until its numerical damping
     passes the check); start: one of :data:`START`; knot_rate: waypoints per second taken from the recorded poses
-    [Hz]; skip: seconds at the start of each recording left out of the residual; max_evaluations:
-    forward runs allowed per fit; max_relative_se: above it (equivalent standard error / value) a
-    parameter is called not identifiable; max_condition: above it J^T J is called near-singular.
+    [Hz]; skip: time at the start of each recording left out of the residual [s]; max_evaluations:
+    forward runs allowed per fit; max_relative_se: above it (equivalent standard error / value) [-] a
+    parameter is called not identifiable; max_condition: above it J^T J is called near-singular [-].
     kinds: residual kinds to fit (None: every kind each recording has); sigma: noise level per kind
-    in its units (None or missing: estimated from the recordings' first differences); windows:
+    [the kind's unit: N, N m, m] (None or missing: estimated from the recordings' first differences); windows:
     most time windows per recording for the jackknife; min_windows: fewer independent windows in
-    all: no confident number; level: interval coverage; max_holdout_ratio: held-out / in-sample
-    residual RMS above which discrepancy is declared; max_numerical_damping: allowed numerical /
-    physical damping ratio on the lowest modes; profile_points: points of each conditional profile
+    all: no confident number; level: interval coverage [-]; max_holdout_ratio: held-out / in-sample
+    residual RMS above which discrepancy is declared [-]; max_numerical_damping: allowed numerical /
+    physical damping ratio on the lowest modes [-]; profile_points: points of each conditional profile
     (0: none); match_source: run the model with the recording's own integrator and dt (``source``);
     stiffness_grid: Young's moduli tried before the descent, log-spaced over a decade either side of
     the start (the start among them), the best one starting it (0 or 1: none). An oscillating record
     has a residual with a minimum at every frequency that puts the ringing in phase somewhere; a local
     descent from a start a factor 2 off lands in one of those (a cantilever recording fitted at
-    0.16x its E, confidently, before the grid); min_explained: below this share of the measured signal
+    0.16x its E, confidently, before the grid); min_explained: below this share [-] of the measured signal
     explained by the fitted model (1 - |r|^2 / |y|^2, weighted: what predicting nothing would leave), the
     model does not reproduce the signal and no number is confident (a strip fit at a tenth of its E
     predicted no ringing in the band the torques were compared in, and was called confident).
@@ -209,16 +209,21 @@ class FitOptions:
 class FitResult:
     """Fitted parameters with honest intervals, the identifiability verdict and the fitted loads.
 
-    values: by CableSpec field name (SI); intervals: (low, high) at ``level`` or None where not
-    identifiable; standard_errors: the interval's half-width / 1.96 (an equivalent standard error,
-    SI; inf when not identifiable by the Jacobian); relative_se: standard error / value;
-    jacobian_standard_errors: the uncorrelated-residual ones, for comparison; identifiable: by
-    name; reasons: why not, by name; condition: of the column-scaled J^T J; sigma: weighted residual
-    standard deviation [-] (1: the residual is the noise level); rms: residual RMS of the first
-    kind of the first recording [its units]; forces / moments: model end loads of the first
-    recording at its times [N] / [N m], (k, 2, 3); spec: the fitted cable; integrator, dt [s],
-    n_masses: how the fitted model runs; whiteness, holdout, per_recording, numerics, profiles,
-    verdict: see :meth:`to_dict`.
+    values: by CableSpec field name [SI: each field's unit]; intervals: (low, high) at ``level``
+    [each field's unit] or None where not identifiable; standard_errors: the interval's half-width /
+    1.96 (an equivalent standard error [each field's unit]; inf when not identifiable by the
+    Jacobian); relative_se: standard error / value [-]; jacobian_standard_errors: the
+    uncorrelated-residual ones, for comparison [each field's unit]; identifiable: by name; reasons:
+    why not, by name; condition: of the column-scaled J^T J [-]; sigma: weighted residual standard
+    deviation [-] (1: the residual is the noise level); rms: residual RMS of the first kind of the
+    first recording [its units]; evaluations: forward model runs made; success, message: the
+    optimiser's own report; warnings: what the fit noticed (numerics, windows, bounds); forces /
+    moments: model end loads of the first recording at its times [N] / [N m], (k, 2, 3); loads: the
+    model's run per recording (:class:`~bullet_dlo.analysis.fit_recording.ModelRun`); spec: the fitted
+    cable; interval_method: how the intervals were made (window jackknife, HAC or Jacobian, the widest);
+    integrator, dt [s], n_masses: how the fitted model runs; level: the intervals' coverage [-];
+    sigma_weighted: the residual's weighted RMS [-]; whiteness, holdout, per_recording, numerics,
+    profiles, verdict: see :meth:`to_dict`.
     """
 
     values: dict[str, float]

@@ -63,7 +63,11 @@ class Recording:
     [N m], (k, 2, 3), optional; linear_map (k, q, 12) and linear_obs (k, q): an optional generic
     linear observation of the end wrenches (module doc); name: a label for reports; source:
     {"integrator": str, "dt": float [s]} of a simulated recording, optional; markers (k, m, 3) [m]
-    with marker_s (m,) [m]; held, length [m], initial, relative: see the module doc.
+    with marker_s (m,) [m]; held, length [m], initial, relative: see the module doc; linear_filter:
+    (cut-off [Hz], delay [s]) of a first-order filter the linear kind went through, or None;
+    linear_band: (low, high) [Hz] of a zero-phase band both sides are compared in, or None;
+    section_frame: the grasp frame's axis that is a flat section's width (module doc); use: which
+    samples the residual compares (bool, (k,); None: all).
     """
 
     t: np.ndarray
@@ -200,7 +204,7 @@ def _finite(name: str, value: Any, shape: tuple[int, ...]) -> np.ndarray:
 
 class ModelRun(NamedTuple):
     """What the model did at the recorded times: end forces [N] and clamp moments [N m] (the loads the
-    cable exerts on each holder), each (k, 2, 3); node positions [m], (k, n, 3), and the nodes' arc
+    cable exerts on each holder), each (k, 2, 3); x: node positions [m], (k, n, 3), and s: the nodes' arc
     lengths from the first end [m], (n,), when a kind needs them (else None)."""
 
     forces: np.ndarray
