@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from bullet_dlo.analysis.resolve import resolve_masses
+from bullet_dlo.analysis.resolve import resolve_masses, twist_need
 from bullet_dlo.config.capture import RENAMED, CaptureSpec
 from bullet_dlo.config.scene import Scene
 from bullet_dlo.sim import resolve_problem
@@ -63,10 +63,16 @@ def plan_episode(spec: CaptureSpec, index: int) -> tuple[dict[str, Any], dict[st
 def auto_masses(spec: CaptureSpec, params: dict[str, Any]) -> tuple[int, float]:
     """Number of masses and its k_d [N s/m] for ``n_masses: auto``: a convergence test on the
     episode's own motion (both ends clamped, moving as :func:`episode_motion`), end forces within
-    ``spec.resolve_tol``."""
+    ``spec.resolve_tol``. An episode whose grippers roll the cable (or whose section is not round) gets
+    the material frame, as ``resolve`` gives it (:func:`~bullet_dlo.analysis.resolve.twist_need`):
+    ``params["twist"]`` becomes True and ``params["twist_reason"]`` says why."""
     scene = Scene(cable=cable_spec({**params, "n_masses": 10}), motion=episode_motion(params),
                   duration=spec.duration, initial="static", name="episode")
-    return resolve_masses(resolve_problem(scene), spec.resolve_tol, "forces")
+    problem = resolve_problem(scene)
+    why = twist_need(problem)
+    if why and not params.get("twist", False):
+        params["twist"], params["twist_reason"] = True, why
+    return resolve_masses(problem, spec.resolve_tol, "forces")
 
 
 def episode_motion(params: dict[str, Any]) -> tuple[Motion, ...]:
