@@ -5,7 +5,9 @@
    ``stepSimulation`` of the same world, in interleaved blocks (Bullet's state saved before each
    bare block and restored after it, so both always step the same world), medians, at n = 10
    and 40 masses for both robots; then where the rest of the time goes (per-step hooks timed).
-2. ``bullet_dlo/TensionTracking-v0`` steps per second on one core (random actions).
+2. Each environment's step against its physical floor (Bullet's bare step of the same world times the
+   physics steps per control step), interleaved in CPU time of the thread, and where the env step goes;
+   ``bullet_dlo/TensionTracking-v0`` steps per second on one core (random actions).
 3. An AsyncVectorEnv over 2 worker processes against one environment in this process.
 
 Prints ratios and rates; writes nothing. ``--quick`` for a short run (smoke test).
@@ -124,6 +126,89 @@ def env_rate(steps: int) -> tuple[float, float]:
     return steps / wall, steps * env.control_dt / wall
 
 
+ENVS = ("bullet_dlo/TensionTracking-v0", "bullet_dlo/Routing-v0")
+
+
+def env_vs_floor(env_id: str, steps: int) -> dict[str, float]:
+    """One env step against its physical floor, interleaved, in CPU time of this thread [s].
+
+    The floor is Bullet's bare ``stepSimulation`` of the same world times the physics steps per control
+    step (Bullet's state saved before each bare block and restored after it). Also the split of the env
+    step (per-part CPU time [s], hooks wrapped with timers): Bullet, cable, sensors, IK, observation.
+    Returns medians, the 10/90 % range of the ratio and env steps per CPU-second.
+    """
+    import gymnasium as gym
+
+    import bullet_dlo  # noqa: F401  (registers the ids)
+
+    env = gym.make(env_id)
+    env.reset(seed=0)
+    env.action_space.seed(0)
+    u = env.unwrapped
+    world, cid = u.physics.world, u.physics.world.client
+    full, bare = [], []
+    for _ in range(steps):
+        action = env.action_space.sample()
+        tic = CLOCK()
+        _, _, term, trunc, _ = env.step(action)
+        full.append(CLOCK() - tic)
+        state = pb.saveState(physicsClientId=cid)
+        tic = CLOCK()
+        world.step_bare(u.substeps)
+        bare.append(CLOCK() - tic)
+        pb.restoreState(stateId=state, physicsClientId=cid)
+        pb.removeState(state, physicsClientId=cid)
+        if term or trunc:
+            env.reset()
+    ratios = np.array(full) / np.array(bare)
+    split = env_split(u, max(10, steps // 3))
+    env.close()
+    return {"env": statistics.median(full), "floor": statistics.median(bare), "ratio": float(np.median(ratios)),
+            "lo": float(np.percentile(ratios, 10)), "hi": float(np.percentile(ratios, 90)), **split}
+
+
+def env_split(u, steps: int) -> dict[str, float]:
+    """CPU time [s] per env step of its parts (hooks wrapped with timers; the rest is the env's own Python)."""
+    physics = u.physics
+    spent: dict[str, float] = {}
+
+    def timed(name, fn):
+        def run(*args, **kwargs):
+            tic = CLOCK()
+            out = fn(*args, **kwargs)
+            spent[name] = spent.get(name, 0.0) + CLOCK() - tic
+            return out
+        return run
+
+    parts = [(physics.cable, "apply_forces", "cable step"), (physics.cable, "sync_after_step", "cable step"),
+             (physics, "_apply_cable_wrench", "grasp coupling"), (physics, "_follow_grippers", "grasp coupling"),
+             (u, "_observation", "observation")]
+    if physics.observation is not None:
+        parts.append((physics.observation, "read_sensors", "wrist sensors"))
+    parts += [(robot, "track", "IK (track)") for robot in physics.robots]
+    for obj, name, label in parts:
+        setattr(obj, name, timed(label, getattr(obj, name)))
+    step_simulation = pb.stepSimulation
+    pb.stepSimulation = timed("Bullet stepSimulation", step_simulation)
+    total = 0.0
+    try:
+        for _ in range(steps):
+            action = u.action_space.sample()
+            tic = CLOCK()
+            _, _, term, trunc, _ = u.step(action)
+            total += CLOCK() - tic
+            if term or trunc:
+                u.reset()
+    finally:
+        pb.stepSimulation = step_simulation
+        for obj, name, _ in parts:
+            delattr(obj, name)
+    out = {f"part: {k}": v / steps for k, v in spent.items()}
+    out["part: rest (env Python, reward, world loop)"] = total / steps - sum(out.values())
+    out["total"] = total / steps
+    return out
+
+
 def make_env():
     from bullet_dlo.envs.tension import TensionTrackingEnv
 
@@ -180,6 +265,15 @@ def main(argv: list[str] | None = None) -> None:
     print(f"\nwhere a dual-arm step goes ({robot}, n = {n}), us per step:")
     for name, us in sorted(times.items(), key=lambda kv: -kv[1]):
         print(f"  {us:7.1f}  {name}")
+
+    print(f"\nenv step vs its physical floor (Bullet's bare step x physics steps per control step), interleaved, "
+          f"CPU time of this thread, {env_steps} steps, load average {os.getloadavg()[0]:.2f}")
+    for env_id in ENVS:
+        r = env_vs_floor(env_id, env_steps)
+        print(f"{env_id}: env step {r['env'] * 1e6:.0f} us, floor {r['floor'] * 1e6:.0f} us, ratio {r['ratio']:.2f} "
+              f"(10-90 %: {r['lo']:.2f}-{r['hi']:.2f}), {1 / r['env']:.0f} env steps per CPU-second; split:")
+        for k in sorted((k for k in r if k.startswith("part: ")), key=lambda k: -r[k]):
+            print(f"  {r[k] * 1e6:8.1f} us  {100 * r[k] / r['total']:5.1f} %  {k[6:]}")
 
     rate, sim_rate = env_rate(env_steps)
     print(f"\nTensionTracking-v0 on one core: {rate:.0f} env steps/s ({sim_rate:.1f} simulated s per wall s); "

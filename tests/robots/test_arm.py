@@ -72,6 +72,22 @@ def test_track_follows_a_nearby_target(arm):
         assert err_p < 1e-4 and err_r < 1e-3
 
 
+def test_twin_set_in_one_call_is_the_state_set_joint_by_joint(arm):
+    """The twin's joints set in one Bullet call (the IK seed every control step) hold the same angles,
+    zero velocities and grasp pose as seven resetJointState calls, whatever the twin's state was."""
+    q = arm.joint_positions() + np.linspace(-0.05, 0.05, len(arm.arm_joints))
+    for j, val in zip(arm.arm_joints, q):
+        pb.resetJointState(arm.kin_body, j, float(val), physicsClientId=arm.kin_client)
+    ref_states = pb.getJointStates(arm.kin_body, arm.arm_joints, physicsClientId=arm.kin_client)
+    ref_pose = arm.grasp_pose(kinematic=True)
+    pb.resetJointState(arm.kin_body, arm.arm_joints[0], 0.3, targetVelocity=1.0, physicsClientId=arm.kin_client)
+    arm._set_twin(q)
+    states = pb.getJointStates(arm.kin_body, arm.arm_joints, physicsClientId=arm.kin_client)
+    assert [s[:2] for s in states] == [s[:2] for s in ref_states]
+    pose = arm.grasp_pose(kinematic=True)
+    assert np.array_equal(pose[0], ref_pose[0]) and np.array_equal(pose[1], ref_pose[1])
+
+
 def test_unreachable_pose_is_refused(arm):
     with pytest.raises(ParameterError, match=f"pose unreachable for robot '{arm.spec.name}'"):
         arm.solve_ik((0.0, 0.0, 3.0), (0.0, 0.0, 0.0, 1.0))

@@ -16,6 +16,7 @@ from bullet_dlo.robots.dual_arm.physics import ARMS, END_NODE, DualArmPhysics
 from bullet_dlo.bullet.kernels import bind
 from bullet_dlo.robots.kernels import load_mismatch
 from bullet_dlo.robots.sensors import WristSensor
+from bullet_dlo.robots.transforms import cross3
 
 
 @dataclass
@@ -148,7 +149,7 @@ class DualArmObservation:
         for arm, s in enumerate(self.sensors):
             if physics.held[arm]:  # the cable's force at its end mass and its clamp torque, as a moment about 0
                 applied[:3] = forces[arm]
-                applied[3:] = torques[arm] + np.cross(physics.load_points[arm], forces[arm])
+                applied[3:] = torques[arm] + cross3(physics.load_points[arm], forces[arm])  # np.cross's bits, 1/10 its cost
             else:
                 applied[:] = 0.0
             s.update(world.time, world.dt, applied)
