@@ -32,9 +32,7 @@ NOT_YET: set[str] = {
     "bullet_dlo.core.engine.SimulationResult",  # house-model
     "bullet_dlo.core.integrators.NewtonOptions",  # house-model (core/integrators.py): tol [m]
     "bullet_dlo.core.model.CableModel",  # house-model (core/model.py)
-    "bullet_dlo.envs.rollouts.RolloutSpec",  # env-speed (envs/rollouts.py)
     "bullet_dlo.robots.dual_arm.observation.DualArmRecord",  # house-model (robots/dual_arm)
-    "bullet_dlo.robots.sensors.Wrench",  # env-speed (robots/sensors.py)
 }
 
 

@@ -63,8 +63,12 @@ POLICY_NAMES = ("random", "scripted", "zero")
 
 @dataclasses.dataclass(frozen=True)
 class RolloutSpec:
-    """What a rollout directory holds: environment id and keyword arguments, its randomisation (a
-    capture spec's dict form), the policy's name, the first reset seed and the record rate [Hz]."""
+    """What a rollout directory holds.
+
+    env_id: the Gymnasium id; env_kwargs: its keyword arguments; randomisation: a capture spec's dict
+    form; policy: the policy's name; seed: the first reset seed; record_rate: the rate the physics
+    columns are recorded at [Hz].
+    """
 
     env_id: str
     env_kwargs: dict

@@ -46,8 +46,9 @@ from bullet_dlo.robots.kernels import Payload, SensorMemory, momentum, sensor_re
 class Wrench:
     """One F/T reading.
 
-    t: time [s]; force [N] and torque [N m] (about the sensor frame origin) of the load on the
-    tool side, in the sensor frame (``*_sensor``) and in the world frame (``*_world``).
+    t: time [s]; force_sensor [N], torque_sensor [N m]: the load on the tool side, torque about the
+    sensor frame origin, in the sensor frame; force_world [N], torque_world [N m]: the same in the world
+    frame; each (3,).
     """
 
     t: float
