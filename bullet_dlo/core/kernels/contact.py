@@ -41,17 +41,15 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-from bullet_dlo.core.kernels.banded import HALF, assemble_system, band_solve
-from bullet_dlo.core.kernels.forces import add_damping_jacobian, add_drag_jacobian, force_jacobian
+from bullet_dlo.core.kernels.banded import HALF
 from bullet_dlo.core.kernels.twist import has_twist, set_clamp, twist_ready, twist_step
 from bullet_dlo.core.kernels.steppers import (
     BDF2,
     IMPLICIT_EULER,
     IMPLICIT_MIDPOINT,
-    _merit,
-    _residual,
     _set_held,
     _start_implicit,
+    newton,
 )
 
 STICK, SLIDE = 0, 1
@@ -421,102 +419,6 @@ def elastic_caps(c, x, out):
 
 # ----- the implicit step with contacts ------------------------------------------------------
 @njit(cache=True, error_model="numpy")
-def _residual_c(m, imp, ws, vn, r, c):
-    """Momentum residual with contact forces (at the evaluation point X, V); returns max |r|."""
-    _residual(m, imp, ws, vn, r)
-    fc = c.node_force
-    contact_forces(c, ws.x_stage, ws.v_stage, fc)
-    worst = 0.0
-    for i in range(vn.shape[0]):
-        for j in range(3):
-            if not m.held[i]:
-                r[3 * i + j] += imp.hf * fc[i, j]
-            if not abs(r[3 * i + j]) <= worst:
-                worst = abs(r[3 * i + j])
-    return worst
-
-
-@njit(cache=True, error_model="numpy")
-def _merit_c(m, imp, ws, vn, c):
-    """Incremental potential with the contact terms (at X, V left by the last residual call)."""
-    return _merit(m, imp, ws, vn) + contact_potential(c, ws.x_stage, ws.v_stage, imp.cx / imp.cv)
-
-
-@njit(cache=True, error_model="numpy")
-def _newton_c(stepper, m, x, imp, ws, c, cap_tol, max_passes):
-    """Newton on v' with contacts; merit-decrease line search; caps as an outer fixed point.
-
-    Only a merit decrease (with a round-off allowance) accepts a trial step: accepting residual
-    decrease lets Newton cycle between stick and slide. Returns (iterations, converged).
-    """
-    n = x.shape[0]
-    vn, v_try, r = ws.v_new, ws.v_try, ws.residual
-    g_norm = np.sqrt(np.sum(m.gravity ** 2))
-    xscale = 0.0
-    phi_scale = 0.0
-    for i in range(n):
-        for j in range(3):
-            xscale = max(xscale, abs(x[i, j]))
-        phi_scale += m.mass[i] * g_norm * (abs(x[i, 0]) + abs(x[i, 1]) + abs(x[i, 2]) + 1.0)
-    r_scale = imp.hf * (np.max(m.mass) * g_norm + np.max(np.abs(m.f_ext))) + 1e-300
-    r_floor = 10.0 * 2.2e-16 * imp.hf * (np.max(m.k_stretch) * (xscale + np.max(m.rest_length)))
-    nc = c.count[0]
-    max_iter = max(stepper.max_iter, MIN_CONTACT_ITER)
-    caps_new = np.empty(max(nc, 1))
-    _residual(m, imp, ws, vn, r)  # X at the predictor: caps from its penetration
-    elastic_caps(c, ws.x_stage, c.cap)
-    it = 0
-    passes = 0
-    converged = False
-    while True:
-        rnorm = _residual_c(m, imp, ws, vn, r, c)
-        dmom = 0.0
-        for i in range(n):
-            if not m.held[i]:
-                for j in range(3):
-                    dmom = max(dmom, m.mass[i] * abs(vn[i, j] - ws.v_avg[i, j]))
-        if it > 0 and rnorm <= stepper.tol * (r_scale + dmom) + r_floor:
-            elastic_caps(c, ws.x_stage, caps_new)
-            cmax = 0.0
-            dcap = 0.0
-            for k in range(nc):
-                cmax = max(cmax, caps_new[k])
-                dcap = max(dcap, abs(caps_new[k] - c.cap[k]))
-            if dcap <= cap_tol * cmax or passes >= max_passes or it >= max_iter:
-                converged = True
-                break
-            passes += 1
-            c.cap[:nc] = caps_new[:nc]
-            continue
-        if it >= max_iter:
-            break
-        it += 1
-        force_jacobian(m, ws.x_stage, imp.dirs, stepper.definite, ws.jacobian)
-        add_damping_jacobian(m, ws.x_stage, imp.dirs, imp.cv / imp.cx, ws.jacobian)
-        add_drag_jacobian(m, ws.x_stage, ws.v_stage, imp.cv / imp.cx, ws.jacobian)  # quadratic drag (no-op when off)
-        assemble_system(m, ws.jacobian, 1.0, imp.hf * imp.cx, imp.hf * imp.cv, ws.band)
-        add_contact_jacobian(c, m.held, ws.x_stage, imp.hf * imp.cx, imp.hf * imp.cv, ws.band)
-        phi0 = _merit_c(m, imp, ws, vn, c)
-        band_solve(ws.band, r)  # r becomes the Newton direction
-        alpha = 1.0
-        accepted = False
-        for _ in range(30):
-            for i in range(n):
-                for j in range(3):
-                    v_try[i, j] = vn[i, j] + alpha * r[3 * i + j]
-            _residual_c(m, imp, ws, v_try, ws.residual_try, c)
-            if _merit_c(m, imp, ws, v_try, c) <= phi0 + 1e-13 * (abs(phi0) + phi_scale):
-                accepted = True
-                break
-            alpha *= 0.5
-        if not accepted:
-            break
-        vn[:, :] = v_try
-    _residual_c(m, imp, ws, vn, r, c)  # forces and c.f_n, c.f_t at the accepted iterate
-    return it, converged
-
-
-@njit(cache=True, error_model="numpy")
 def _update_friction(c, x_end):
     """After the step: stick or slide by the final normal force; the anchors of sliding contacts follow."""
     u = np.empty(3)
@@ -568,7 +470,7 @@ def contact_step(stepper, m, x, v, samples, ws, has_prev, c):
         for j in range(3):
             c.point[k, j] += h * c.body_vel[k, j]
             c.anchor[k, j] += h * c.body_vel[k, j]
-    its, converged = _newton_c(stepper, m, x, imp, ws, c, 1e-3, 10)
+    its, converged = newton(stepper, m, x, imp, ws, c, 1e-3, 10)
     g_h = math.sqrt(m.gravity[0] ** 2 + m.gravity[1] ** 2 + m.gravity[2] ** 2) * h
     c.impact[0] = 0
     for k in range(c.count[0]):
