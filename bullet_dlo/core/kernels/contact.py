@@ -61,7 +61,8 @@ class Grip(NamedTuple):
     """Friction grips of the two cable ends (index 0 first, 1 last), see the module docstring.
 
     active (2,) bool; k_ax, k_lat (2,) [N/m] axial friction spring and lateral spring; cap_s,
-    cap_d (2,) [N] axial capacity stuck / slipping (2 mu F_n); reach (2,) [m] how far the anchor
+    cap_d (2,) [N] axial capacity stuck / slipping (derived force caps 2 mu F_n, from the grip's
+    static_friction / dynamic_friction coefficients and its normal force); reach (2,) [m] how far the anchor
     may slide along the gripper before the end leaves it; offset (2,) [m] anchor offset xi along
     the axis; state (2,) int STICK / SLIDE; center (2, 3) [m], axis (2, 3) unit, vel (2, 3)
     [m/s]: the gripper at the end of the step; force (2, 3) [N]: the grip's force on the cable.
@@ -95,7 +96,8 @@ class Contacts(NamedTuple):
     Geometry (filled by the detector): node (M, 2) int, weight (M, 2): the contact point
     p = w0 x[node0] + w1 x[node1]; normal (M, 3) unit, from the body to the cable; point (M, 3)
     [m]: surface point at the start of the step; body_vel (M, 3) [m/s]: the body's velocity at it.
-    Parameters: k_n, k_t [N/m], c_n [N s/m], mu_s, mu_d [-], each (M,).
+    Parameters: k_n, k_t [N/m], c_n [N s/m], static_friction, dynamic_friction [-] (the friction
+    coefficients mu_s, mu_d), each (M,).
     Friction state (persisted by the detector between steps): anchor (M, 4): anchor position
     [m] and material parameter s_a on the segment; state (M,) int: STICK or SLIDE.
     Results of the step: f_n (M,) [N] normal force (>= 0), f_t (M, 3) [N] friction force, both on
@@ -117,8 +119,8 @@ class Contacts(NamedTuple):
     k_n: np.ndarray
     k_t: np.ndarray
     c_n: np.ndarray
-    mu_s: np.ndarray
-    mu_d: np.ndarray
+    static_friction: np.ndarray
+    dynamic_friction: np.ndarray
     anchor: np.ndarray
     state: np.ndarray
     f_n: np.ndarray
@@ -138,7 +140,7 @@ def make_contacts(n: int, capacity: int, radius: float, grip: Grip | None = None
     f = np.zeros
     return Contacts(count=np.zeros(1, np.int64), radius=np.full(1, float(radius)), node=np.zeros((m, 2), np.int64),
                     weight=f((m, 2)), normal=f((m, 3)), point=f((m, 3)), body_vel=f((m, 3)), k_n=f(m), k_t=f(m),
-                    c_n=f(m), mu_s=f(m), mu_d=f(m), anchor=f((m, 4)), state=np.zeros(m, np.int64), f_n=f(m),
+                    c_n=f(m), static_friction=f(m), dynamic_friction=f(m), anchor=f((m, 4)), state=np.zeros(m, np.int64), f_n=f(m),
                     f_t=f((m, 3)), cap=f(m), body_work=f(1), impact=np.zeros(1, np.int64),
                     internal=np.zeros(m, np.bool_), node_force=f((n, 3)),
                     grip=grip if grip is not None else make_grip())
@@ -413,7 +415,7 @@ def elastic_caps(c, x, out):
     """out <- friction limits mu f_n [N] from the penalty force at x (mu_s if stuck, mu_d if sliding)."""
     for k in range(c.count[0]):
         g = _gap(c, k, x)
-        mu = c.mu_s[k] if c.state[k] == STICK else c.mu_d[k]
+        mu = c.static_friction[k] if c.state[k] == STICK else c.dynamic_friction[k]
         out[k] = mu * c.k_n[k] * (-g) if g < 0.0 else 0.0
 
 
@@ -426,13 +428,13 @@ def _update_friction(c, x_end):
         a, b = c.node[k, 0], c.node[k, 1]
         ul = _slip(c, k, x_end, u)
         kt = c.k_t[k]
-        mu_now = c.mu_s[k] if c.state[k] == STICK else c.mu_d[k]
+        mu_now = c.static_friction[k] if c.state[k] == STICK else c.dynamic_friction[k]
         cap_final = max(c.cap[k], mu_now * max(c.f_n[k], 0.0))
         if kt * ul <= cap_final * (1.0 + 1e-6):
             c.state[k] = STICK
         else:
             c.state[k] = SLIDE
-            capd = c.mu_d[k] * max(c.f_n[k], 0.0)
+            capd = c.dynamic_friction[k] * max(c.f_n[k], 0.0)
             wb = c.weight[k, 1]
             c.anchor[k, 3] = wb if a != b else 0.0
             for j in range(3):
