@@ -73,7 +73,7 @@ class Shapes(NamedTuple):
     pos and rot are its centre-of-mass frame, size unused); pos [m] (B, 3) and rot (B, 3, 3) (world from
     shape frame) of each shape; size (B, 3) [m]: box half extents, or (radius, half length, 0);
     com (B, 3) [m]: the body's centre of mass; lin_vel [m/s], ang_vel [rad/s] (B, 3): the body's
-    velocity; mu_s, mu_d (B,): combined friction coefficients with the cable; inv_mass (B,) [1/kg]
+    velocity; static_friction, dynamic_friction (B,): combined friction coefficients with the cable; inv_mass (B,) [1/kg]
     and inv_inertia (B,) [1/(kg m^2)]: the body's inverse mass and the largest eigenvalue of its
     inverse inertia (both 0 for a static body); owner (B,) int: the first shape of the same body and
     link (the shapes of one link share its inertia).
@@ -86,8 +86,8 @@ class Shapes(NamedTuple):
     com: np.ndarray
     lin_vel: np.ndarray
     ang_vel: np.ndarray
-    mu_s: np.ndarray
-    mu_d: np.ndarray
+    static_friction: np.ndarray
+    dynamic_friction: np.ndarray
     inv_mass: np.ndarray
     inv_inertia: np.ndarray
     owner: np.ndarray
@@ -123,7 +123,7 @@ class Others(NamedTuple):
 
     x (N, 3) [m]: their centre lines at the start of the step; u (N, 3) [m/s]: the velocity their
     surface moves at over the step (their planned step when they have planned it already this world
-    step, else 0: held where they are); mass (N,) [kg], radius (N,) [m]; mu_s, mu_d (N,): friction
+    step, else 0: held where they are); mass (N,) [kg], radius (N,) [m]; static_friction, dynamic_friction (N,): friction
     combined with this cable's (geometric mean); first (C + 1,) int: where each cable starts;
     vmax (1,) [m/s]: their fastest node. Per contact row (M): row_node (M, 2), row_w (M, 2): the
     other cable's nodes and weights at the contact; row_p0 (M, 3) [m]: that point at detection.
@@ -133,8 +133,8 @@ class Others(NamedTuple):
     u: np.ndarray
     mass: np.ndarray
     radius: np.ndarray
-    mu_s: np.ndarray
-    mu_d: np.ndarray
+    static_friction: np.ndarray
+    dynamic_friction: np.ndarray
     first: np.ndarray
     vmax: np.ndarray
     row_node: np.ndarray
@@ -242,7 +242,7 @@ class ContactSet:
         self.shapes = Shapes(kind=np.array([r[2] for r in rows], dtype=np.int64), pos=np.zeros((nb, 3)),
                              rot=np.zeros((nb, 3, 3)), size=np.array([r[5] for r in rows]).reshape(nb, 3),
                              com=np.zeros((nb, 3)), lin_vel=np.zeros((nb, 3)), ang_vel=np.zeros((nb, 3)),
-                             mu_s=np.sqrt(mu_s * mu_b), mu_d=np.sqrt(mu_d * mu_b),
+                             static_friction=np.sqrt(mu_s * mu_b), dynamic_friction=np.sqrt(mu_d * mu_b),
                              inv_mass=np.array([r[8] for r in rows]), inv_inertia=np.array([r[9] for r in rows]),
                              owner=np.array([pairs.index(pr) for pr in pairs], dtype=np.int64))
         self._probe_rows = {pairs[s]: s for s in range(self.n_exact, nb)}
@@ -287,8 +287,8 @@ class ContactSet:
             x=np.zeros((n_other, 3)), u=np.zeros((n_other, 3)),
             mass=np.concatenate([o.arrays.mass for o in self.other_cables]) if reps else np.zeros(0),
             radius=np.repeat([o.radius for o in self.other_cables], reps).astype(float),
-            mu_s=np.repeat([math.sqrt(mu_s * m[0]) for m in mu_o], reps).astype(float),
-            mu_d=np.repeat([math.sqrt(mu_d * m[1]) for m in mu_o], reps).astype(float),
+            static_friction=np.repeat([math.sqrt(mu_s * m[0]) for m in mu_o], reps).astype(float),
+            dynamic_friction=np.repeat([math.sqrt(mu_d * m[1]) for m in mu_o], reps).astype(float),
             first=first, vmax=np.zeros(1), row_node=np.zeros((capacity, 2), np.int64),
             row_w=np.zeros((capacity, 2)), row_p0=np.zeros((capacity, 3)))
         self._poses: list = [None] * nb
@@ -666,7 +666,7 @@ def _add_row(c, st, key, shape, ia, ib, wa, wb, sh, k_per_mass, zeta, mass, x):
     c.body_vel[k, 2] = sh.lin_vel[shape, 2] + w[0] * arm[1] - w[1] * arm[0]
     c.internal[k] = False
     mk = wa * mass[ia] + wb * mass[ib]  # stiffness by the mass at the contact point
-    _fill(c, st, key, shape, ia, ib, wa, wb, sh.mu_s[shape], sh.mu_d[shape], k_per_mass * mk, zeta, mk, x)
+    _fill(c, st, key, shape, ia, ib, wa, wb, sh.static_friction[shape], sh.dynamic_friction[shape], k_per_mass * mk, zeta, mk, x)
 
 
 @njit(cache=True, error_model="numpy")
@@ -679,8 +679,8 @@ def _fill(c, st, key, shape, ia, ib, wa, wb, mu_s, mu_d, k_n, zeta, mk, x):
     c.k_n[k] = k_n
     c.k_t[k] = k_n
     c.c_n[k] = 2.0 * zeta * math.sqrt(c.k_n[k] * mk)
-    c.mu_s[k] = mu_s
-    c.mu_d[k] = mu_d
+    c.static_friction[k] = mu_s
+    c.dynamic_friction[k] = mu_d
     if st.active[key]:
         c.anchor[k] = st.anchor[key]
         c.state[k] = st.state[key]
@@ -693,7 +693,7 @@ def _fill(c, st, key, shape, ia, ib, wa, wb, mu_s, mu_d, k_n, zeta, mk, x):
     for j in range(3):
         g += c.normal[k, j] * (wa * x[ia, j] + wb * x[ib, j] - c.point[k, j])
     g -= c.radius[0]
-    c.cap[k] = c.mu_s[k] * c.k_n[k] * (-g) if g < 0.0 else 0.0
+    c.cap[k] = c.static_friction[k] * c.k_n[k] * (-g) if g < 0.0 else 0.0
     c.f_n[k] = 0.0
     c.f_t[k, :] = 0.0
     st.keys[k] = key
@@ -1315,5 +1315,5 @@ def _cable_contacts(x, mass, c, st, oc, key0, margin, k_per_mass, zeta):
                 oc.row_w[k, 0], oc.row_w[k, 1] = 1.0 - t, t
                 c.internal[k] = False
                 m_pair = 0.5 * ((1.0 - s) * mass[i] + s * mass[i + 1] + (1.0 - t) * oc.mass[q] + t * oc.mass[q + 1])
-                _fill(c, st, key0 + i * N + q, CABLE, i, i + 1, 1.0 - s, s, oc.mu_s[q], oc.mu_d[q],
+                _fill(c, st, key0 + i * N + q, CABLE, i, i + 1, 1.0 - s, s, oc.static_friction[q], oc.dynamic_friction[q],
                       k_per_mass * m_pair, zeta, m_pair, x)

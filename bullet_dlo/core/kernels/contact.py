@@ -41,17 +41,15 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-from bullet_dlo.core.kernels.banded import HALF, assemble_system, band_solve
-from bullet_dlo.core.kernels.forces import add_damping_jacobian, add_drag_jacobian, force_jacobian
+from bullet_dlo.core.kernels.banded import HALF
 from bullet_dlo.core.kernels.twist import has_twist, set_clamp, twist_ready, twist_step
 from bullet_dlo.core.kernels.steppers import (
     BDF2,
     IMPLICIT_EULER,
     IMPLICIT_MIDPOINT,
-    _merit,
-    _residual,
     _set_held,
     _start_implicit,
+    newton,
 )
 
 STICK, SLIDE = 0, 1
@@ -63,7 +61,8 @@ class Grip(NamedTuple):
     """Friction grips of the two cable ends (index 0 first, 1 last), see the module docstring.
 
     active (2,) bool; k_ax, k_lat (2,) [N/m] axial friction spring and lateral spring; cap_s,
-    cap_d (2,) [N] axial capacity stuck / slipping (2 mu F_n); reach (2,) [m] how far the anchor
+    cap_d (2,) [N] axial capacity stuck / slipping (derived force caps 2 mu F_n, from the grip's
+    static_friction / dynamic_friction coefficients and its normal force); reach (2,) [m] how far the anchor
     may slide along the gripper before the end leaves it; offset (2,) [m] anchor offset xi along
     the axis; state (2,) int STICK / SLIDE; center (2, 3) [m], axis (2, 3) unit, vel (2, 3)
     [m/s]: the gripper at the end of the step; force (2, 3) [N]: the grip's force on the cable.
@@ -97,7 +96,8 @@ class Contacts(NamedTuple):
     Geometry (filled by the detector): node (M, 2) int, weight (M, 2): the contact point
     p = w0 x[node0] + w1 x[node1]; normal (M, 3) unit, from the body to the cable; point (M, 3)
     [m]: surface point at the start of the step; body_vel (M, 3) [m/s]: the body's velocity at it.
-    Parameters: k_n, k_t [N/m], c_n [N s/m], mu_s, mu_d [-], each (M,).
+    Parameters: k_n, k_t [N/m], c_n [N s/m], static_friction, dynamic_friction [-] (the friction
+    coefficients mu_s, mu_d), each (M,).
     Friction state (persisted by the detector between steps): anchor (M, 4): anchor position
     [m] and material parameter s_a on the segment; state (M,) int: STICK or SLIDE.
     Results of the step: f_n (M,) [N] normal force (>= 0), f_t (M, 3) [N] friction force, both on
@@ -119,8 +119,8 @@ class Contacts(NamedTuple):
     k_n: np.ndarray
     k_t: np.ndarray
     c_n: np.ndarray
-    mu_s: np.ndarray
-    mu_d: np.ndarray
+    static_friction: np.ndarray
+    dynamic_friction: np.ndarray
     anchor: np.ndarray
     state: np.ndarray
     f_n: np.ndarray
@@ -140,7 +140,7 @@ def make_contacts(n: int, capacity: int, radius: float, grip: Grip | None = None
     f = np.zeros
     return Contacts(count=np.zeros(1, np.int64), radius=np.full(1, float(radius)), node=np.zeros((m, 2), np.int64),
                     weight=f((m, 2)), normal=f((m, 3)), point=f((m, 3)), body_vel=f((m, 3)), k_n=f(m), k_t=f(m),
-                    c_n=f(m), mu_s=f(m), mu_d=f(m), anchor=f((m, 4)), state=np.zeros(m, np.int64), f_n=f(m),
+                    c_n=f(m), static_friction=f(m), dynamic_friction=f(m), anchor=f((m, 4)), state=np.zeros(m, np.int64), f_n=f(m),
                     f_t=f((m, 3)), cap=f(m), body_work=f(1), impact=np.zeros(1, np.int64),
                     internal=np.zeros(m, np.bool_), node_force=f((n, 3)),
                     grip=grip if grip is not None else make_grip())
@@ -415,107 +415,11 @@ def elastic_caps(c, x, out):
     """out <- friction limits mu f_n [N] from the penalty force at x (mu_s if stuck, mu_d if sliding)."""
     for k in range(c.count[0]):
         g = _gap(c, k, x)
-        mu = c.mu_s[k] if c.state[k] == STICK else c.mu_d[k]
+        mu = c.static_friction[k] if c.state[k] == STICK else c.dynamic_friction[k]
         out[k] = mu * c.k_n[k] * (-g) if g < 0.0 else 0.0
 
 
 # ----- the implicit step with contacts ------------------------------------------------------
-@njit(cache=True, error_model="numpy")
-def _residual_c(m, imp, ws, vn, r, c):
-    """Momentum residual with contact forces (at the evaluation point X, V); returns max |r|."""
-    _residual(m, imp, ws, vn, r)
-    fc = c.node_force
-    contact_forces(c, ws.x_stage, ws.v_stage, fc)
-    worst = 0.0
-    for i in range(vn.shape[0]):
-        for j in range(3):
-            if not m.held[i]:
-                r[3 * i + j] += imp.hf * fc[i, j]
-            if not abs(r[3 * i + j]) <= worst:
-                worst = abs(r[3 * i + j])
-    return worst
-
-
-@njit(cache=True, error_model="numpy")
-def _merit_c(m, imp, ws, vn, c):
-    """Incremental potential with the contact terms (at X, V left by the last residual call)."""
-    return _merit(m, imp, ws, vn) + contact_potential(c, ws.x_stage, ws.v_stage, imp.cx / imp.cv)
-
-
-@njit(cache=True, error_model="numpy")
-def _newton_c(stepper, m, x, imp, ws, c, cap_tol, max_passes):
-    """Newton on v' with contacts; merit-decrease line search; caps as an outer fixed point.
-
-    Only a merit decrease (with a round-off allowance) accepts a trial step: accepting residual
-    decrease lets Newton cycle between stick and slide. Returns (iterations, converged).
-    """
-    n = x.shape[0]
-    vn, v_try, r = ws.v_new, ws.v_try, ws.residual
-    g_norm = np.sqrt(np.sum(m.gravity ** 2))
-    xscale = 0.0
-    phi_scale = 0.0
-    for i in range(n):
-        for j in range(3):
-            xscale = max(xscale, abs(x[i, j]))
-        phi_scale += m.mass[i] * g_norm * (abs(x[i, 0]) + abs(x[i, 1]) + abs(x[i, 2]) + 1.0)
-    r_scale = imp.hf * (np.max(m.mass) * g_norm + np.max(np.abs(m.f_ext))) + 1e-300
-    r_floor = 10.0 * 2.2e-16 * imp.hf * (np.max(m.k_stretch) * (xscale + np.max(m.rest_length)))
-    nc = c.count[0]
-    max_iter = max(stepper.max_iter, MIN_CONTACT_ITER)
-    caps_new = np.empty(max(nc, 1))
-    _residual(m, imp, ws, vn, r)  # X at the predictor: caps from its penetration
-    elastic_caps(c, ws.x_stage, c.cap)
-    it = 0
-    passes = 0
-    converged = False
-    while True:
-        rnorm = _residual_c(m, imp, ws, vn, r, c)
-        dmom = 0.0
-        for i in range(n):
-            if not m.held[i]:
-                for j in range(3):
-                    dmom = max(dmom, m.mass[i] * abs(vn[i, j] - ws.v_avg[i, j]))
-        if it > 0 and rnorm <= stepper.tol * (r_scale + dmom) + r_floor:
-            elastic_caps(c, ws.x_stage, caps_new)
-            cmax = 0.0
-            dcap = 0.0
-            for k in range(nc):
-                cmax = max(cmax, caps_new[k])
-                dcap = max(dcap, abs(caps_new[k] - c.cap[k]))
-            if dcap <= cap_tol * cmax or passes >= max_passes or it >= max_iter:
-                converged = True
-                break
-            passes += 1
-            c.cap[:nc] = caps_new[:nc]
-            continue
-        if it >= max_iter:
-            break
-        it += 1
-        force_jacobian(m, ws.x_stage, imp.dirs, stepper.definite, ws.jacobian)
-        add_damping_jacobian(m, ws.x_stage, imp.dirs, imp.cv / imp.cx, ws.jacobian)
-        add_drag_jacobian(m, ws.x_stage, ws.v_stage, imp.cv / imp.cx, ws.jacobian)  # quadratic drag (no-op when off)
-        assemble_system(m, ws.jacobian, 1.0, imp.hf * imp.cx, imp.hf * imp.cv, ws.band)
-        add_contact_jacobian(c, m.held, ws.x_stage, imp.hf * imp.cx, imp.hf * imp.cv, ws.band)
-        phi0 = _merit_c(m, imp, ws, vn, c)
-        band_solve(ws.band, r)  # r becomes the Newton direction
-        alpha = 1.0
-        accepted = False
-        for _ in range(30):
-            for i in range(n):
-                for j in range(3):
-                    v_try[i, j] = vn[i, j] + alpha * r[3 * i + j]
-            _residual_c(m, imp, ws, v_try, ws.residual_try, c)
-            if _merit_c(m, imp, ws, v_try, c) <= phi0 + 1e-13 * (abs(phi0) + phi_scale):
-                accepted = True
-                break
-            alpha *= 0.5
-        if not accepted:
-            break
-        vn[:, :] = v_try
-    _residual_c(m, imp, ws, vn, r, c)  # forces and c.f_n, c.f_t at the accepted iterate
-    return it, converged
-
-
 @njit(cache=True, error_model="numpy")
 def _update_friction(c, x_end):
     """After the step: stick or slide by the final normal force; the anchors of sliding contacts follow."""
@@ -524,13 +428,13 @@ def _update_friction(c, x_end):
         a, b = c.node[k, 0], c.node[k, 1]
         ul = _slip(c, k, x_end, u)
         kt = c.k_t[k]
-        mu_now = c.mu_s[k] if c.state[k] == STICK else c.mu_d[k]
+        mu_now = c.static_friction[k] if c.state[k] == STICK else c.dynamic_friction[k]
         cap_final = max(c.cap[k], mu_now * max(c.f_n[k], 0.0))
         if kt * ul <= cap_final * (1.0 + 1e-6):
             c.state[k] = STICK
         else:
             c.state[k] = SLIDE
-            capd = c.mu_d[k] * max(c.f_n[k], 0.0)
+            capd = c.dynamic_friction[k] * max(c.f_n[k], 0.0)
             wb = c.weight[k, 1]
             c.anchor[k, 3] = wb if a != b else 0.0
             for j in range(3):
@@ -568,7 +472,7 @@ def contact_step(stepper, m, x, v, samples, ws, has_prev, c):
         for j in range(3):
             c.point[k, j] += h * c.body_vel[k, j]
             c.anchor[k, j] += h * c.body_vel[k, j]
-    its, converged = _newton_c(stepper, m, x, imp, ws, c, 1e-3, 10)
+    its, converged = newton(stepper, m, x, imp, ws, c, 1e-3, 10)
     g_h = math.sqrt(m.gravity[0] ** 2 + m.gravity[1] ** 2 + m.gravity[2] ** 2) * h
     c.impact[0] = 0
     for k in range(c.count[0]):

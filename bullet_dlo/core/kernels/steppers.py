@@ -220,10 +220,12 @@ def _implicit_map(method, x, v, h, samples, ws, has_prev):
 
 
 @njit(cache=True, error_model="numpy")
-def _residual(m, imp, ws, vn, r):
+def _residual(m, imp, ws, vn, r, c=None):
     """r <- hf F(X, V) - M (v' - v_avg) [N s] on free nodes (0 on held), v' = vn; returns max |r|.
 
-    Leaves X, V in ws.x_stage, ws.v_stage (read by :func:`_merit`).
+    With a contact set ``c`` (:class:`~bullet_dlo.core.kernels.contact.Contacts`) its forces at X, V
+    (in c.node_force, and c.f_n, c.f_t) are added on the free nodes. Leaves X, V in ws.x_stage,
+    ws.v_stage (read by :func:`_merit`).
     """
     n = vn.shape[0]
     xe, ve, f = ws.x_stage, ws.v_stage, ws.force
@@ -240,17 +242,28 @@ def _residual(m, imp, ws, vn, r):
             r[3 * i + j] = val
             if not abs(val) <= worst:  # also catches NaN
                 worst = abs(val)
+    if c is None:
+        return worst
+    fc = c.node_force
+    _contact.contact_forces(c, xe, ve, fc)
+    worst = 0.0
+    for i in range(n):
+        for j in range(3):
+            if not m.held[i]:
+                r[3 * i + j] += imp.hf * fc[i, j]
+            if not abs(r[3 * i + j]) <= worst:
+                worst = abs(r[3 * i + j])
     return worst
 
 
 @njit(cache=True, error_model="numpy")
-def _merit(m, imp, ws, vn):
+def _merit(m, imp, ws, vn, c=None):
     """Incremental potential whose gradient in v' is (cx/hf) * residual [J].
 
     Phi = (cx/hf) 1/2 |v' - v_avg|_M^2 + E_el(X) - (M g + f_ext) . X + (cx/cv) R(X, V), with R
     the Rayleigh dissipation of all damping terms (drag 1/2 |V|_C^2 and Kelvin-Voigt, quadratic in V;
-    its X-dependence is not differentiated), at the X, V left in ws.x_stage, ws.v_stage by the
-    last residual call.
+    its X-dependence is not differentiated), plus the contact set ``c``'s potential when given, at
+    the X, V left in ws.x_stage, ws.v_stage by the last residual call.
     """
     xe, ve = ws.x_stage, ws.v_stage
     cx, cv, hf = imp.cx, imp.cv, imp.hf
@@ -260,78 +273,146 @@ def _merit(m, imp, ws, vn):
             dv = vn[i, j] - ws.v_avg[i, j]
             phi += 0.5 * (cx / hf) * m.mass[i] * dv * dv
             phi -= (m.mass[i] * m.gravity[j] + m.f_ext[i, j]) * xe[i, j]
-    return phi
+    if c is None:
+        return phi
+    return phi + _contact.contact_potential(c, xe, ve, cx / cv)
 
 
 @njit(cache=True, error_model="numpy")
-def _newton(stepper, m, x, imp, ws):
-    """Newton with line search on v' (in ws.v_new, started from the current velocity).
+def _momentum_change(m, ws, vn):
+    """max over free nodes of m |v' - v_avg| [N s]: the scale of the residual tolerance."""
+    dmom = 0.0
+    for i in range(vn.shape[0]):
+        if m.held[i]:
+            continue
+        for j in range(3):
+            dmom = max(dmom, m.mass[i] * abs(vn[i, j] - ws.v_avg[i, j]))
+    return dmom
 
-    The system M (v' - v_avg) = hf F(X, V) is the stationarity condition of an incremental
-    potential (see :func:`_merit`), so a step that lowers the residual or the potential is
-    accepted and otherwise halved: no blow-up from a poor linearisation. The Newton matrix
-    M - hf cx dF/dx - hf cv dF/dv is block-banded (O(n) solve). The first iteration of implicit
-    Euler is the classical linearly implicit (Baraff-Witkin) step; later iterations run only
-    when its residual is above tolerance (large held-end jumps, strong nonlinearity).
-    Returns (iterations, converged).
+
+@njit(cache=True, error_model="numpy")
+def _newton_matrix(stepper, m, imp, ws, c=None):
+    """ws.band <- the Newton matrix M - hf cx dF/dx - hf cv dF/dv (+ the contact set c's terms), block-banded."""
+    force_jacobian(m, ws.x_stage, imp.dirs, stepper.definite, ws.jacobian)
+    add_damping_jacobian(m, ws.x_stage, imp.dirs, imp.cv / imp.cx, ws.jacobian)  # dF/dx + (cv/cx) dF/dv
+    add_drag_jacobian(m, ws.x_stage, ws.v_stage, imp.cv / imp.cx, ws.jacobian)  # quadratic drag (no-op when off)
+    assemble_system(m, ws.jacobian, 1.0, imp.hf * imp.cx, imp.hf * imp.cv, ws.band)
+    if c is not None:
+        _contact.add_contact_jacobian(c, m.held, ws.x_stage, imp.hf * imp.cx, imp.hf * imp.cv, ws.band)
+
+
+@njit(cache=True, error_model="numpy")
+def newton(stepper, m, x, imp, ws, c=None, cap_tol=1e-3, max_passes=10):
+    """Newton with line search on v' (in ws.v_new, started from the current velocity): the one
+    solve of every implicit step, with the optional contact and grip terms of a contact set ``c``.
+
+    The system M (v' - v_avg) = hf F(X, V) (+ contact forces) is the stationarity condition of an
+    incremental potential (see :func:`_merit`), so a line search on it cannot blow up from a poor
+    linearisation. The Newton matrix M - hf cx dF/dx - hf cv dF/dv is block-banded (O(n) solve).
+
+    Without contacts (``c`` None; Numba compiles that case without the contact code) a trial step
+    is accepted when it lowers the residual or the potential, else halved (12 times at most); the
+    first iteration of implicit Euler is the classical linearly implicit (Baraff-Witkin) step and
+    later ones run only when its residual is above tolerance. With contacts only a potential
+    decrease (with a round-off allowance) accepts a step (accepting residual decrease lets Newton
+    cycle between stick and slide; 30 halvings at most), and the friction caps are an outer fixed
+    point: re-taken from the converged X until they change by less than ``cap_tol`` (relative) or
+    after ``max_passes`` passes. Returns (iterations, converged).
     """
     n = x.shape[0]
-    held = m.held
     vn, v_try, r, r_try = ws.v_new, ws.v_try, ws.residual, ws.residual_try
     tol = stepper.tol
     # Residual scale: momentum gravity and external forces give in one step, and round-off
     # floor of stiff spring forces (k eps |x|) below which no iteration can go.
     g_norm = np.sqrt(np.sum(m.gravity ** 2))
     xscale = 0.0
+    phi_scale = 0.0  # the potential's scale (round-off allowance of the contact line search)
     for i in range(n):
         for j in range(3):
             xscale = max(xscale, abs(x[i, j]))
+        if c is not None:
+            phi_scale += m.mass[i] * g_norm * (abs(x[i, 0]) + abs(x[i, 1]) + abs(x[i, 2]) + 1.0)
     r_scale = imp.hf * (np.max(m.mass) * g_norm + np.max(np.abs(m.f_ext))) + 1e-300
     r_floor = 10.0 * 2.2e-16 * imp.hf * (np.max(m.k_stretch) * (xscale + np.max(m.rest_length)))
-    rnorm = _residual(m, imp, ws, vn, r)
     it = 0
     converged = False
-    while it < stepper.max_iter:
+    if c is None:
+        rnorm = _residual(m, imp, ws, vn, r)
+        while it < stepper.max_iter:
+            it += 1
+            _newton_matrix(stepper, m, imp, ws)
+            band_solve(ws.band, r)  # r becomes the Newton direction dv
+            phi0 = np.nan
+            alpha = 1.0
+            accepted = False
+            for _ in range(12):
+                for i in range(n):
+                    for j in range(3):
+                        v_try[i, j] = vn[i, j] + alpha * r[3 * i + j]
+                rn_try = _residual(m, imp, ws, v_try, r_try)
+                if rn_try < rnorm or rn_try <= tol * r_scale + r_floor:
+                    accepted = True
+                    break
+                if phi0 != phi0:  # merit at the current iterate, computed once when first needed
+                    _residual(m, imp, ws, vn, r_try)
+                    phi0 = _merit(m, imp, ws, vn)
+                    _residual(m, imp, ws, v_try, r_try)
+                if _merit(m, imp, ws, v_try) <= phi0:
+                    accepted = True
+                    break
+                alpha *= 0.5
+            if not accepted:
+                break  # stagnated: keep the current iterate (reported as not converged)
+            vn[:, :] = v_try
+            r[:] = r_try
+            rnorm = rn_try
+            # residual tolerance relative to the momentum change of this step
+            if rnorm <= tol * (r_scale + _momentum_change(m, ws, vn)) + r_floor:
+                converged = True
+                break
+        return it, converged
+    nc = c.count[0]
+    max_iter = max(stepper.max_iter, _contact.MIN_CONTACT_ITER)
+    caps_new = np.empty(max(nc, 1))
+    _residual(m, imp, ws, vn, r)  # X at the predictor: caps from its penetration
+    _contact.elastic_caps(c, ws.x_stage, c.cap)
+    passes = 0
+    while True:
+        rnorm = _residual(m, imp, ws, vn, r, c)
+        if it > 0 and rnorm <= tol * (r_scale + _momentum_change(m, ws, vn)) + r_floor:
+            _contact.elastic_caps(c, ws.x_stage, caps_new)
+            cmax = 0.0
+            dcap = 0.0
+            for k in range(nc):
+                cmax = max(cmax, caps_new[k])
+                dcap = max(dcap, abs(caps_new[k] - c.cap[k]))
+            if dcap <= cap_tol * cmax or passes >= max_passes or it >= max_iter:
+                converged = True
+                break
+            passes += 1
+            c.cap[:nc] = caps_new[:nc]
+            continue
+        if it >= max_iter:
+            break
         it += 1
-        force_jacobian(m, ws.x_stage, imp.dirs, stepper.definite, ws.jacobian)
-        add_damping_jacobian(m, ws.x_stage, imp.dirs, imp.cv / imp.cx, ws.jacobian)  # dF/dx + (cv/cx) dF/dv
-        add_drag_jacobian(m, ws.x_stage, ws.v_stage, imp.cv / imp.cx, ws.jacobian)  # quadratic drag (no-op when off)
-        assemble_system(m, ws.jacobian, 1.0, imp.hf * imp.cx, imp.hf * imp.cv, ws.band)
-        band_solve(ws.band, r)  # r becomes the Newton direction dv
-        phi0 = np.nan
+        _newton_matrix(stepper, m, imp, ws, c)
+        phi0 = _merit(m, imp, ws, vn, c)
+        band_solve(ws.band, r)  # r becomes the Newton direction
         alpha = 1.0
         accepted = False
-        for _ in range(12):
+        for _ in range(30):
             for i in range(n):
                 for j in range(3):
                     v_try[i, j] = vn[i, j] + alpha * r[3 * i + j]
-            rn_try = _residual(m, imp, ws, v_try, r_try)
-            if rn_try < rnorm or rn_try <= tol * r_scale + r_floor:
-                accepted = True
-                break
-            if phi0 != phi0:  # merit at the current iterate, computed once when first needed
-                _residual(m, imp, ws, vn, r_try)
-                phi0 = _merit(m, imp, ws, vn)
-                _residual(m, imp, ws, v_try, r_try)
-            if _merit(m, imp, ws, v_try) <= phi0:
+            _residual(m, imp, ws, v_try, r_try, c)
+            if _merit(m, imp, ws, v_try, c) <= phi0 + 1e-13 * (abs(phi0) + phi_scale):
                 accepted = True
                 break
             alpha *= 0.5
         if not accepted:
-            break  # stagnated: keep the current iterate (reported as not converged)
-        vn[:, :] = v_try
-        r[:] = r_try
-        rnorm = rn_try
-        # residual tolerance relative to the momentum change of this step
-        dmom = 0.0
-        for i in range(n):
-            if held[i]:
-                continue
-            for j in range(3):
-                dmom = max(dmom, m.mass[i] * abs(vn[i, j] - ws.v_avg[i, j]))
-        if rnorm <= tol * (r_scale + dmom) + r_floor:
-            converged = True
             break
+        vn[:, :] = v_try
+    _residual(m, imp, ws, vn, r, c)  # forces and c.f_n, c.f_t at the accepted iterate
     return it, converged
 
 
@@ -357,7 +438,7 @@ def _implicit(stepper, m, x, v, samples, ws, has_prev):
     n = x.shape[0]
     imp = _start_implicit(method, m, x, v, h, samples, ws, has_prev)
     vn = ws.v_new
-    its, converged = _newton(stepper, m, x, imp, ws)
+    its, converged = newton(stepper, m, x, imp, ws)
     for i in range(n):
         for j in range(3):
             if method == IMPLICIT_MIDPOINT:
@@ -397,3 +478,9 @@ def advance(stepper, m, x, v, samples, ws, has_prev):
     if twisting:
         twist_step(m, x, samples.dir[2], h)
     return its, converged
+
+
+# The contact and grip terms of :func:`newton` (contact.py imports this module, so the module object
+# is bound here, after every name contact.py takes from it is defined; Numba resolves
+# ``_contact.<name>`` when it compiles).
+from bullet_dlo.core.kernels import contact as _contact  # noqa: E402
