@@ -74,15 +74,34 @@ def plot_wrenches(t: np.ndarray, sensor: np.ndarray | None, model: np.ndarray, p
     return PlotInfo(path, (float(t[0]), float(t[-1])), boxes)
 
 
+def _pyplot():
+    """matplotlib's pyplot on the file backend (no display needed)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def _save(fig, path: str | Path) -> Path:
+    """Lay out, write ``fig`` as a PNG at ``path`` (its folder made), close it; returns the path."""
+    import matplotlib.pyplot as plt
+
+    fig.tight_layout()
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+    return path
+
+
 def plot_run(t: np.ndarray, x: np.ndarray, end_forces: np.ndarray, energy: np.ndarray, path: str | Path,
              title: str = "run", held: Sequence[bool] = (True, True)) -> Path:
     """PNG of a cable run: the force of the cable on each held end [N] and its mechanical energy [J] over time
     [s], and its shape seen from the side (x-z) and from above (x-y) [m] at the first and the last recorded
     row. t (k,), x (k, n, 3), end_forces (k, 2, 3), energy (k,); ``held``: which ends' forces to draw."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = _pyplot()
 
     fig, axes = plt.subplots(2, 2, figsize=(10.0, 6.4), dpi=100)
     (f_ax, e_ax), (side, top) = axes
@@ -114,22 +133,14 @@ def plot_run(t: np.ndarray, x: np.ndarray, end_forces: np.ndarray, energy: np.nd
     side.set_title("shape, side view", fontsize=10, loc="left")
     top.set_title("shape, from above", fontsize=10, loc="left")
     fig.suptitle(title, fontsize=12)
-    fig.tight_layout()
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
-    return path
+    return _save(fig, path)
 
 
 def plot_critical_dt(critical: dict[str, float | None], dt: float, path: str | Path, title: str = "stability") -> Path:
     """PNG of each integrator's critical time step [s] (log scale) against the scene's step ``dt`` [s]: bars
     below the line are unstable at ``dt``; ``None`` (unconditionally stable, linear analysis) drawn as an
     arrow above the axis."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = _pyplot()
 
     names = list(critical)
     finite = [v for v in critical.values() if v is not None and v > 0.0]
@@ -152,21 +163,13 @@ def plot_critical_dt(critical: dict[str, float | None], dt: float, path: str | P
     ax.set_title(f"{title}: green stable at dt, red unstable (linear analysis)", fontsize=10)
     ax.legend(fontsize=8, loc="lower right")
     ax.grid(alpha=0.3, axis="y")
-    fig.tight_layout()
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
-    return path
+    return _save(fig, path)
 
 
 def plot_convergence(rows: Sequence[dict], path: str | Path, title: str = "cantilever convergence") -> Path:
     """PNG of the relative error of each discretisation against n (log-log) with a second-order slope.
     rows: dicts with ``n_masses`` and one relative error [-] per discretisation (other keys)."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = _pyplot()
 
     n = np.array([r["n_masses"] for r in rows], dtype=float)
     fig, ax = plt.subplots(figsize=(6.4, 4.4), dpi=100)
@@ -181,21 +184,13 @@ def plot_convergence(rows: Sequence[dict], path: str | Path, title: str = "canti
     ax.set_title(title, fontsize=10)
     ax.grid(alpha=0.3, which="both")
     ax.legend(fontsize=8)
-    fig.tight_layout()
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
-    return path
+    return _save(fig, path)
 
 
 def plot_resolve(trials: Sequence[dict], tolerance: float, path: str | Path, title: str = "resolve") -> Path:
     """PNG of ``resolve``'s trials: the spatial error against n, and the temporal error against dt per
     integrator (log-log), with the tolerance [-]; unstable trials are marked on the axis."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = _pyplot()
 
     fig, (sp, tm) = plt.subplots(1, 2, figsize=(10.0, 4.2), dpi=100)
     spatial = [t for t in trials if "spatial" in t]
@@ -226,21 +221,15 @@ def plot_resolve(trials: Sequence[dict], tolerance: float, path: str | Path, tit
         if ax.get_legend_handles_labels()[0]:
             ax.legend(fontsize=8)
     fig.suptitle(title, fontsize=12)
-    fig.tight_layout()
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
-    return path
+    return _save(fig, path)
 
 
 def plot_paper_table(runs: Sequence, path: str | Path, title: str = "the study's stability table") -> Path:
     """PNG of ``paper-table``: one panel per Young's modulus, integrators (rows) against (n, dt) (columns),
     green stable, red unstable (with the time it went unstable [s])."""
-    import matplotlib
+    from matplotlib.colors import ListedColormap
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = _pyplot()
 
     moduli = sorted({r.youngs_modulus for r in runs})
     fig, axes = plt.subplots(len(moduli), 1, figsize=(10.0, 1.2 + 2.2 * len(moduli)), dpi=100, squeeze=False)
@@ -254,16 +243,11 @@ def plot_paper_table(runs: Sequence, path: str | Path, title: str = "the study's
             grid[i, j] = 1.0 if r.stable else 0.0
             if not r.stable and r.time_to_instability is not None:
                 ax.text(j, i, f"{r.time_to_instability:.2g} s", ha="center", va="center", fontsize=6, color="white")
-        ax.imshow(grid, cmap=matplotlib.colors.ListedColormap(["tab:red", "tab:green"]), vmin=0, vmax=1,
+        ax.imshow(grid, cmap=ListedColormap(["tab:red", "tab:green"]), vmin=0, vmax=1,
                   aspect="auto")
         ax.set_yticks(range(len(integrators)), integrators, fontsize=8)
         ax.set_xticks(range(len(cols)), [f"n={n}\ndt={dt:.2g} s" for n, dt in cols], fontsize=6)
         ax.set_title(f"E = {e / 1e6:g} MPa: green stable, red unstable (time it went unstable)", fontsize=9,
                      loc="left")
     fig.suptitle(title, fontsize=11)
-    fig.tight_layout()
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
-    return path
+    return _save(fig, path)
