@@ -5,9 +5,8 @@ The public types are the dataclasses and NamedTuples of the modules the API refe
 non-underscore classes it defines). A field is documented when its name appears as an entry of the
 class docstring (``name:`` / ``name,`` at the start of an entry, or the first mention) or when an
 attribute docstring follows it in the class body; a float field's entry must carry a unit in brackets
-(``[m]``, ``[N]``, ``[-]`` for dimensionless). Classes of other helpers' files that do not pass yet are
-listed in :data:`NOT_YET` (the lead shrinks it); a listed class that passes fails the test, so the list
-can only shrink.
+(``[m]``, ``[N]``, ``[-]`` for dimensionless). :data:`NOT_YET` may list classes that do not pass yet (it
+is empty); a listed class that passes fails the test, so the list can only shrink.
 """
 from __future__ import annotations
 
@@ -25,15 +24,9 @@ import pytest
 ROOT = Path(__file__).resolve().parents[1]
 REFERENCE = ROOT / "docs" / "reference"
 
-# Classes whose docs are owned by other helpers' files (see docs/development.md's owners), not yet complete.
-# Each entry: "module.Class". Remove an entry when its class passes (the test then insists on it).
-NOT_YET: set[str] = {
-    "bullet_dlo.core.engine.DetectorOptions",  # house-model (core/engine.py): max_strain [-], energy_factor [-]
-    "bullet_dlo.core.engine.SimulationResult",  # house-model
-    "bullet_dlo.core.integrators.NewtonOptions",  # house-model (core/integrators.py): tol [m]
-    "bullet_dlo.core.model.CableModel",  # house-model (core/model.py)
-    "bullet_dlo.robots.dual_arm.observation.DualArmRecord",  # house-model (robots/dual_arm)
-}
+# Classes not yet complete, "module.Class" each (empty: every public type passes). A listed class that passes
+# fails the test, so the list can only shrink.
+NOT_YET: set[str] = set()
 
 
 def reference_modules() -> list[str]:

@@ -43,9 +43,9 @@ from bullet_dlo.core.validate import ParameterError, check_int, check_positive
 class DetectorOptions:
     """Instability detector thresholds.
 
-    max_strain: largest allowed |l/l0 - 1| of any segment; None (default): 0.5, and a run stopped
+    max_strain: largest allowed |l/l0 - 1| of any segment [-]; None (default): 0.5, and a run stopped
     by it is confirmed by a re-run without it (see module doc); energy_factor: allowed energy
-    created, as a multiple of the energy scale (see module doc); check_every: steps between
+    created, as a multiple of the energy scale [-] (see module doc); check_every: steps between
     the cheap checks (finite, strain); energy_every: steps between energy-balance checks
     (an energy evaluation costs about a force evaluation).
     """
@@ -82,6 +82,12 @@ STRAIN_REASON = REASONS[STRETCH]
 class SimulationResult:
     """Outcome of a run. Arrays are recorded every ``record_every`` steps (plus the final state).
 
+    integrator: the method's name; dt: the step [s]; stable: False if the detector stopped the run;
+    time_to_instability: when it did [s] (None: stable); reason: why (None: stable); steps: steps taken;
+    final_state: the last state (a :class:`~bullet_dlo.core.model.CableState`); newton_failures,
+    newton_iterations: implicit methods' unconverged solves and iterations in all; warnings: what the
+    run noticed (large held-end moves, many unconverged solves, a physical stretch); max_strain_seen:
+    the largest recorded |l/l0 - 1| [-] when it passed the default bound (else None);
     t: times [s], (k,); x, v: positions [m] / velocities [m/s], (k, n, 3);
     end_forces: force the cable exerts on each holder [N], (k, 2, 3) (first, last);
     energy: total mechanical energy [J], (k,); end_moments: torque the cable exerts on each

@@ -75,7 +75,7 @@ class NewtonOptions:
 
     max_iter: Newton iterations per step at most (``max_iter=1`` makes ``implicit_euler`` the
     pure linearly implicit method); tol: convergence when the momentum residual is below
-    tol * (momentum change of the step + gravity impulse) plus the round-off floor. None picks
+    tol [-] * (momentum change of the step + gravity impulse) plus the round-off floor. None picks
     the method's default: 1e-3 for ``implicit_euler`` (its first-order error dwarfs a finer
     solve, so a second iteration runs only when the linearisation visibly failed) and 1e-6
     for the second-order methods; definite: filter the compressive stretch Hessian so the

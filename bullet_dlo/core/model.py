@@ -79,6 +79,9 @@ class ModelArrays(NamedTuple):
 class CableModel:
     """A discretised cable with its end conditions.
 
+    spec: the cable (:class:`~bullet_dlo.core.spec.CableSpec`); first, last: how its ends are held
+    (:class:`~bullet_dlo.core.boundary.EndHolder`); gravity: gravitational acceleration [m/s^2], (3,);
+    arrays: what the kernels take (:class:`ModelArrays`); x0: initial node positions [m], (n, 3).
     Build with :meth:`straight`; use :attr:`arrays` in kernels.
     """
 

@@ -21,9 +21,9 @@ from bullet_dlo.robots.transforms import cross3
 
 @dataclass
 class DualArmRecord:
-    """Per-step data, arms in the order (left, right): t [s] (n,); sensor wrenches in world
-    [fx fy fz mx my mz] [N, N m] (n, 2, 6); the model's end forces [N] and clamp torques [N m]
-    (n, 2, 3); grasp-frame and cable-end positions [m] (n, 2, 3)."""
+    """Per-step data, arms in the order (left, right): t [s] (n,); wrench_world: sensor wrenches in world
+    [fx fy fz mx my mz] [N, N m] (n, 2, 6); end_forces, end_moments: the model's end forces [N] and clamp
+    torques [N m] (n, 2, 3); grasp_pos, cable_end_pos: grasp-frame and cable-end positions [m] (n, 2, 3)."""
 
     t: list = field(default_factory=list)
     wrench_world: list = field(default_factory=list)
