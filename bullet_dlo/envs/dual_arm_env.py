@@ -128,6 +128,8 @@ class DualArmEnv(gym.Env):
         self.sensors = None
         self.observation = None
         self.draw = None
+        self._live = None  # render_mode="human": the browser view, and the world it draws
+        self._live_world = None
 
     # ----- spaces ---------------------------------------------------------------------------------
     def _action_space(self) -> spaces.Box:
@@ -284,9 +286,9 @@ class DualArmEnv(gym.Env):
         from bullet_dlo.render.viewer import LiveView
 
         world, cable = self.physics.world, self.physics.cable
-        if getattr(self, "_live", None) is None:
+        if self._live is None:
             self._live = LiveView()
-        if getattr(self, "_live_world", None) is not world:  # a new episode's world
+        if self._live_world is not world:  # a new episode's world
             skip = list(cable.body_ids) + ([world.ground_id] if getattr(world, "ground_id", None) is not None else [])
             self._live.attach(world.client, skip, cable.radius, cable.model.n)
             self._live_world = world
@@ -327,6 +329,6 @@ class DualArmEnv(gym.Env):
 
     def close(self) -> None:
         self._close_scene()
-        if getattr(self, "_live", None) is not None:
+        if self._live is not None:
             self._live.close()
             self._live = None

@@ -419,6 +419,30 @@ def tube_transforms(x: np.ndarray, radius: float) -> tuple[np.ndarray, np.ndarra
     return (0.5 * (x[:-1] + x[1:])).astype(np.float32), q.astype(np.float32), scale.astype(np.float32)
 
 
+class CableDrawing:
+    """The cable on a viser scene: a tube of its diameter (one cylinder per segment), a 5 px centre line that
+    keeps it visible from afar (a 4 mm tube is a pixel wide in a 1.5 m view) and its masses as discs;
+    :meth:`show` moves all three to nodes ``x`` (n, 3) [m]."""
+
+    def __init__(self, scene, x: np.ndarray, radius: float):
+        self.radius = radius
+        self.line = scene.add_line_segments("/cable/line", points=ViewerScene._segments(x), colors=CABLE_RGB,
+                                            thickness=5.0, thickness_units="screen")
+        pos, wxyz, scale = tube_transforms(x, radius)
+        vertices, faces = _unit_cylinder(TUBE_SIDES)
+        self.tube = scene.add_batched_meshes_simple("/cable/tube", vertices, faces, batched_wxyzs=wxyz,
+                                                    batched_positions=pos, batched_scales=scale,
+                                                    batched_colors=CABLE_RGB, lod="off")
+        self.nodes = scene.add_point_cloud("/cable/nodes", points=np.asarray(x, np.float32),
+                                           colors=np.tile(np.array(NODE_RGB, np.uint8), (len(x), 1)),
+                                           point_size=max(2 * radius, 0.004), point_shape="circle")
+
+    def show(self, x: np.ndarray) -> None:
+        self.line.points = ViewerScene._segments(x)
+        self.tube.batched_positions, self.tube.batched_wxyzs, self.tube.batched_scales = tube_transforms(x, self.radius)
+        self.nodes.points = np.asarray(x, np.float32)
+
+
 class ViewerScene:
     """The run's scene on a viser server: static parts once, :meth:`show` for a row."""
 
@@ -461,21 +485,7 @@ class ViewerScene:
                 scene.add_mesh_simple(f"{frame}/mesh", vertices=np.asarray(mesh.vertices, np.float32),
                                       faces=np.asarray(mesh.faces, np.uint32), color=rgb, position=lpos, wxyz=lwxyz)
             self.urdf_obstacles = k + 1
-        # the cable: a tube of the cable's diameter (one cylinder per segment) and a 5 px centre line
-        # that keeps it visible from afar (a 4 mm tube is a pixel wide in a 1.5 m view)
-        n = run.cable_x.shape[1]
-        x0 = run.cable_x[self.rows[0]]
-        seg = self._segments(x0)
-        self.cable = scene.add_line_segments("/cable/line", points=seg, colors=CABLE_RGB, thickness=5.0,
-                                             thickness_units="screen")
-        pos, wxyz, scale = tube_transforms(x0, run.radius)
-        vertices, faces = _unit_cylinder(TUBE_SIDES)
-        self.tube = scene.add_batched_meshes_simple("/cable/tube", vertices, faces, batched_wxyzs=wxyz,
-                                                    batched_positions=pos, batched_scales=scale,
-                                                    batched_colors=CABLE_RGB, lod="off")
-        self.nodes = scene.add_point_cloud("/cable/nodes", points=run.cable_x[self.rows[0]].astype(np.float32),
-                                           colors=np.tile(np.array(NODE_RGB, np.uint8), (n, 1)),
-                                           point_size=max(2 * run.radius, 0.004), point_shape="circle")
+        self.cable = CableDrawing(scene, run.cable_x[self.rows[0]], run.radius)
         # arms
         self.arm_frames: list[list] = []
         self.arms = arm_geometry(run.robot, run.joint_q[self.rows], run.ee_pos[self.rows],
@@ -552,11 +562,7 @@ class ViewerScene:
     def show(self, r: int) -> None:
         """Show row ``r`` of the run (an index into its rows)."""
         run = self.run
-        x = run.cable_x[r]
-        self.cable.points = self._segments(x)
-        pos, wxyz, scale = tube_transforms(x, run.radius)
-        self.tube.batched_positions, self.tube.batched_wxyzs, self.tube.batched_scales = pos, wxyz, scale
-        self.nodes.points = x.astype(np.float32)
+        self.cable.show(run.cable_x[r])
         i = int(np.searchsorted(self.rows, r))
         for geom, frames in zip(self.arms, self.arm_frames):
             if i < len(self.rows) and self.rows[i] == r:
@@ -725,7 +731,7 @@ class LiveView:
         scene.reset()
         scene.set_up_direction("+z")
         scene.add_box("/world/ground", dimensions=(4.0, 4.0, 0.002), position=(0.0, 0.0, -0.001), color=(215, 215, 220))
-        self.client, self.radius, self.frames = client, radius, {}
+        self.client, self.frames = client, {}
         skipped = set(int(b) for b in skip)
         for b in (pb.getBodyUniqueId(i, physicsClientId=client) for i in range(pb.getNumBodies(physicsClientId=client))):
             if b in skipped:
@@ -737,27 +743,15 @@ class LiveView:
                 scene.add_mesh_simple(f"/bodies/{b}/link{link}/visual{s}", vertices=np.asarray(mesh.vertices, np.float32),
                                       faces=np.asarray(mesh.faces, np.uint32), color=rgb, position=lpos, wxyz=lwxyz)
         x = np.zeros((n_masses, 3))
-        x[:, 0] = np.arange(n_masses) * 1e-3
-        self.line = scene.add_line_segments("/cable/line", points=ViewerScene._segments(x), colors=CABLE_RGB,
-                                            thickness=5.0, thickness_units="screen")
-        pos, wxyz, scale = tube_transforms(x, radius)
-        vertices, faces = _unit_cylinder(TUBE_SIDES)
-        self.tube = scene.add_batched_meshes_simple("/cable/tube", vertices, faces, batched_wxyzs=wxyz,
-                                                    batched_positions=pos, batched_scales=scale,
-                                                    batched_colors=CABLE_RGB, lod="off")
-        self.nodes = scene.add_point_cloud("/cable/nodes", points=x.astype(np.float32),
-                                           colors=np.tile(np.array(NODE_RGB, np.uint8), (n_masses, 1)),
-                                           point_size=max(2 * radius, 0.004), point_shape="circle")
+        x[:, 0] = np.arange(n_masses) * 1e-3  # a placeholder until the first update
+        self.cable = CableDrawing(scene, x, radius)
         self.arrows = None
         self.server.initial_camera.position = (0.0, -1.6, 1.0)
         self.server.initial_camera.look_at = (0.0, 0.0, 0.3)
 
     def update(self, cable_x: np.ndarray, wrench_points: np.ndarray | None = None) -> None:
         """Show the world now: the cable at ``cable_x`` (n, 3) [m], every drawn link at Bullet's pose."""
-        x = np.asarray(cable_x, dtype=float)
-        self.line.points = ViewerScene._segments(x)
-        self.tube.batched_positions, self.tube.batched_wxyzs, self.tube.batched_scales = tube_transforms(x, self.radius)
-        self.nodes.points = x.astype(np.float32)
+        self.cable.show(np.asarray(cable_x, dtype=float))
         for (body, link), frame in self.frames.items():
             p, o = _link_pose(self.client, body, link)
             frame.position, frame.wxyz = tuple(p), _wxyz(o)

@@ -50,9 +50,9 @@ def test_live_view_follows_bullet_after_each_step(env):
         assert np.linalg.norm(base.physics.cable.x[end] - grasp) < 5e-3
         hand = min(np.linalg.norm(np.array(f.position) - grasp) for (b, _), f in live.frames.items() if b == robot.body)
         assert hand < 0.15
-    before = np.array(live.nodes.points)
+    before = np.array(live.cable.nodes.points)
     env.step(np.array([1.0, 0, 0, 1.0, 0, 0], np.float32))
-    after = np.array(live.nodes.points)
+    after = np.array(live.cable.nodes.points)
     # (viser sends point clouds as float16: 2.4e-4 m resolution at 0.5 m)
     assert np.allclose(after, base.physics.cable.x, atol=5e-4) and np.abs(after - before).max() > 1e-3
     assert env.render() is None
