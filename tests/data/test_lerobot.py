@@ -48,16 +48,6 @@ def captured(tmp_path_factory) -> Path:
     return out
 
 
-@pytest.fixture(scope="module")
-def rolled(tmp_path_factory) -> Path:
-    from bullet_dlo.envs.rollouts import record_rollouts
-
-    out = tmp_path_factory.mktemp("rollouts") / "roll"
-    record_rollouts("bullet_dlo/TensionTracking-v0", "scripted", out, 2, record_rate=60.0,
-                    env_kwargs={"settle_time": 0.05, "max_episode_steps": 8}, progress=False)
-    return out
-
-
 # ----- a v3.0 reader after LeRobot's ------------------------------------------------------------
 def read_v3(root: Path) -> dict:
     """info, tasks, episodes (list of dicts) and frames (column -> array) as LeRobotDataset finds them."""

@@ -6,7 +6,6 @@ from __future__ import annotations
 import json
 import os
 import subprocess
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -20,22 +19,12 @@ from bullet_dlo.data.robomimic import export_robomimic  # noqa: E402
 pytestmark = pytest.mark.bullet
 
 
-@pytest.fixture(scope="module")
-def rolled(tmp_path_factory) -> Path:
-    from bullet_dlo.envs.rollouts import record_rollouts
-
-    out = tmp_path_factory.mktemp("rollouts") / "roll"
-    record_rollouts("bullet_dlo/TensionTracking-v0", "scripted", out, 2, record_rate=60.0,
-                    env_kwargs={"settle_time": 0.05, "max_episode_steps": 6}, progress=False)
-    return out
-
-
 def test_every_demo_equals_its_episode(rolled, tmp_path):
     res = export_robomimic(rolled, tmp_path / "r.hdf5")
-    assert res.demos == 2 and res.samples == 12 and "wrench" in res.obs_keys
+    assert res.demos == 2 and res.samples == 16 and "wrench" in res.obs_keys
     ds = Dataset(rolled)
     with h5py.File(tmp_path / "r.hdf5") as f:
-        assert f["data"].attrs["total"] == 12
+        assert f["data"].attrs["total"] == 16
         args = json.loads(f["data"].attrs["env_args"])
         assert args["env_name"] == "bullet_dlo/TensionTracking-v0" and args["type"] == 2
         assert [n.decode() for n in f["mask/train"][()]] == ["demo_0", "demo_1"]

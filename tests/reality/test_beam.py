@@ -12,8 +12,6 @@ from bullet_dlo.core.validate import ParameterError
 from bullet_dlo.reality.beam import COLUMNS, EstimateFilter, Numerics, Strip, free_vibration, read_beam_csv
 from bullet_dlo.reality.vibration import fit_damped_sine, motion_span, residual_vibration
 
-DATA = Path(__file__).resolve().parents[3] / "shared" / "data" / "beam_handling"
-
 
 def write_csv(path: Path, rows: np.ndarray, header: tuple[str, ...] = COLUMNS) -> Path:
     path.write_text(", ".join(header) + "\n" + "\n".join(",".join(f"{v:.9g}" for v in r) for r in rows) + "\n")
@@ -134,18 +132,12 @@ def test_external_torques_balance_a_static_load():
 
 
 @pytest.mark.bullet
-def test_validate_beam_on_the_recordings(tmp_path):
+def test_validate_beam_on_the_recordings(tmp_path, z_split):
     """Fit on ocp_Z_15cm, predict ocp_Z_35cm (held out): frequency within 2 %, damping ratio within 30 %
     of the measured; n 10, 7.5 s simulated, the filter given (not identified) to stay within CI time."""
-    if not DATA.is_dir():
-        pytest.skip(f"beam_handling recordings not found at {DATA} (see ../shared/data/README.md)")
     from bullet_dlo.cli.main import main
 
-    folders = {}
-    for role, stem in (("fit", "ocp_Z_15cm_0.42s_1"), ("predict", "ocp_Z_35cm_0.61s_1")):
-        folders[role] = tmp_path / role
-        folders[role].mkdir()
-        (folders[role] / f"{stem}.csv").symlink_to(DATA / f"{stem}.csv")  # read in place, never copied
+    folders = z_split
     out = tmp_path / "out" / "beam.json"
     code = main(["validate", "beam", str(folders["fit"]), str(folders["predict"]), "--json", str(out), "-q",
                  "--n-masses", "10", "--duration", "7.5", "--filter-cutoff", "4.7", "--filter-delay", "0.0106",
