@@ -70,6 +70,8 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     status = "stable" if data["stable"] else f"UNSTABLE at t = {data['time_to_instability']:.6g} s ({data['reason']})"
     print(f"{scene.name}: {data['integrator']} dt={scene.dt:g} s, {data['steps']} steps in "
           f"{data['wall_time_s']:.3f} s: {status}")
+    if scene.twist_reason:
+        print(f"  {scene.twist_reason}")
     for warning in data.get("warnings", []):
         print(f"  warning: {warning}")
     if data["stable"]:

@@ -79,6 +79,8 @@ class Scene:
         tolerance_target: :class:`~bullet_dlo.core.enums.ToleranceTarget` (``tolerance.target``).
         arms: the ``arms:`` section, None when the file has none (the arm defaults apply).
         given: the top-level keys the file gave (an engine refuses those it cannot honour).
+        twist_reason: why the material frame is on although the file did not ask for it (a clamp rolls
+            about the cable's axis; set by :func:`bullet_dlo.sim.resolved`), "" otherwise [-].
     """
 
     cable: CableSpec
@@ -101,6 +103,7 @@ class Scene:
     tolerance_target: str = "both"
     arms: ArmsOptions | None = None  # None: the file has no ``arms:`` section (the arm defaults apply)
     given: frozenset[str] = frozenset()  # the top-level keys the scene file gave (an engine refuses those it cannot honour)
+    twist_reason: str = ""  # why the frame was switched on by need (sim.resolved), "" when not
 
     # ----- parsing -------------------------------------------------------------------------
     @classmethod
@@ -210,5 +213,7 @@ def result_json(scene: Scene, model: CableModel, result: SimulationResult, engin
         "newton_failure_share": result.newton_failure_share,
         "max_strain_seen": result.max_strain_seen,
         "warnings": list(result.warnings),
+        "twist": scene.cable.twist_enabled,
+        "twist_reason": scene.twist_reason,
         "engine": engine,
     }

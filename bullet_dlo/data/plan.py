@@ -37,6 +37,7 @@ def plan_episode(spec: CaptureSpec, index: int) -> tuple[dict[str, Any], dict[st
     while True:
         params = spec.draw(index, attempt)
         resolved_n = None
+        add_needed_twist(spec, params)
         if params["n_masses"] == "auto":
             params["n_masses"], params["damping"] = auto_masses(spec, params)
             resolved_n = params["n_masses"]
@@ -60,19 +61,30 @@ def plan_episode(spec: CaptureSpec, index: int) -> tuple[dict[str, Any], dict[st
         return params, decision
 
 
+def episode_scene(spec: CaptureSpec, params: dict[str, Any]) -> Scene:
+    """The episode's cable (10 masses where ``n_masses`` is ``auto``) between two clamps moving as
+    :func:`episode_motion`, as ``resolve`` takes a scene."""
+    n = 10 if params["n_masses"] == "auto" else params["n_masses"]
+    return Scene(cable=cable_spec({**params, "n_masses": n}), motion=episode_motion(params),
+                 duration=spec.duration, initial="static", name="episode")
+
+
+def add_needed_twist(spec: CaptureSpec, params: dict[str, Any]) -> None:
+    """An episode whose grippers roll the cable about its axis (or whose section is not round) gets the
+    material frame, whatever ``n_masses`` is (:func:`~bullet_dlo.analysis.resolve.twist_need`; without it
+    the wrists would read no torsion): ``params["twist"]`` becomes True and ``params["twist_reason"]`` says why."""
+    if params.get("twist", False):
+        return
+    why = twist_need(resolve_problem(episode_scene(spec, params)))
+    if why:
+        params["twist"], params["twist_reason"] = True, why
+
+
 def auto_masses(spec: CaptureSpec, params: dict[str, Any]) -> tuple[int, float]:
     """Number of masses and its k_d [N s/m] for ``n_masses: auto``: a convergence test on the
     episode's own motion (both ends clamped, moving as :func:`episode_motion`), end forces within
-    ``spec.resolve_tol``. An episode whose grippers roll the cable (or whose section is not round) gets
-    the material frame, as ``resolve`` gives it (:func:`~bullet_dlo.analysis.resolve.twist_need`):
-    ``params["twist"]`` becomes True and ``params["twist_reason"]`` says why."""
-    scene = Scene(cable=cable_spec({**params, "n_masses": 10}), motion=episode_motion(params),
-                  duration=spec.duration, initial="static", name="episode")
-    problem = resolve_problem(scene)
-    why = twist_need(problem)
-    if why and not params.get("twist", False):
-        params["twist"], params["twist_reason"] = True, why
-    return resolve_masses(problem, spec.resolve_tol, "forces")
+    ``spec.resolve_tol``, with the model :func:`add_needed_twist` chose."""
+    return resolve_masses(resolve_problem(episode_scene(spec, params)), spec.resolve_tol, "forces")
 
 
 def episode_motion(params: dict[str, Any]) -> tuple[Motion, ...]:

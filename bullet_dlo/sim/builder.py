@@ -21,7 +21,7 @@ from __future__ import annotations
 import math
 from dataclasses import replace
 
-from bullet_dlo.analysis.resolve import ResolveProblem, resolve
+from bullet_dlo.analysis.resolve import ResolveProblem, resolve, twist_need
 from bullet_dlo.bullet.world import BulletWorld, add_obstacles
 from bullet_dlo.config.robot import DualArmSpec
 from bullet_dlo.config.scene import Scene
@@ -52,15 +52,30 @@ def resolve_problem(scene: Scene) -> ResolveProblem:
     return ResolveProblem(scene.cable, scene.duration, run, radii, (model.first, model.last))
 
 
+def with_needed_twist(scene: Scene) -> Scene:
+    """``scene`` with the material frame switched on when it rolls a clamp about the cable's axis
+    (:func:`~bullet_dlo.analysis.resolve.twist_need`) and ``twist_reason`` saying why; the scene itself
+    when its cable has the frame already or never needs it. Every path does this, whether or not
+    anything is ``auto``: a cable without the frame would feel nothing of the roll (zero torsion at the
+    wrist), which is silently wrong, not a cheaper model."""
+    if scene.cable.twist_enabled:
+        return scene
+    why = twist_need(resolve_problem(scene))
+    if not why:
+        return scene
+    return replace(scene, cable=scene.cable.with_(twist=True), twist_reason=why)
+
+
 def resolved(scene: Scene) -> Scene:
-    """``scene`` with ``n_masses: auto`` / ``dt: auto`` replaced by the choice of
-    :func:`bullet_dlo.analysis.resolve.resolve` (the scene itself when nothing is automatic)."""
+    """``scene`` with the material frame where it is needed (:func:`with_needed_twist`) and ``n_masses: auto``
+    / ``dt: auto`` replaced by the choice of :func:`bullet_dlo.analysis.resolve.resolve`."""
+    scene = with_needed_twist(scene)
     if not (scene.auto_n or scene.auto_dt):
         return scene
     r = resolve(resolve_problem(scene), scene.tolerance, scene.tolerance_target)
     new = replace(scene, auto_n=False, auto_dt=False)
-    if r.twist and not scene.cable.twist_enabled:  # the scene rolls a clamp: the material frame (issue 22)
-        new = replace(new, cable=new.cable.with_(twist=True))
+    if r.twist and not scene.cable.twist_enabled:  # resolve's own reason (e.g. a non-round section)
+        new = replace(new, cable=new.cable.with_(twist=True), twist_reason=r.why)
     if scene.auto_n:
         new = replace(new, cable=new.cable.with_(n_masses=r.n_masses, damping=r.damping))
     if scene.auto_dt:

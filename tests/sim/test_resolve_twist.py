@@ -13,7 +13,7 @@ from bullet_dlo.analysis.resolve import end_roll, resolve, twist_need
 from bullet_dlo.config.scene import Scene
 from bullet_dlo.core.boundary import EndHolder, Move, Sine
 from bullet_dlo.core.spec import CableSpec
-from bullet_dlo.sim import resolve_problem, resolved
+from bullet_dlo.sim import build, resolve_problem, resolved
 
 ROUND = CableSpec.lv2017(n_masses=7, damping_rate=5.0, internal_damping=1e-3)
 STRIP = CableSpec(length=0.3, diameter=0.001, mass=0.024, youngs_modulus=2e11, section="rectangle", width=0.01,
@@ -87,3 +87,19 @@ def test_n_masses_auto_scene_gets_the_frame():
                  tolerance_target="forces")
     assert resolved(replace(base, motion=(ROLL,))).cable.twist_enabled
     assert not resolved(replace(base, motion=(SWING,))).cable.twist_enabled
+
+
+def test_a_given_number_of_masses_gets_the_frame_too():
+    """Twist by need on every path, not only ``auto``: a scene with n given that rolls a clamp by 90 deg comes
+    back from ``resolved`` with the frame and its reason, and the built simulation's rolled clamp reads the
+    torsion G J (pi/2) / L (before: zero, silently). A swinging clamp leaves the scene as it was."""
+    scene = Scene(cable=ROUND, motion=(ROLL,), gravity=(0, 0, 0), duration=0.15)
+    new = resolved(scene)
+    assert new.cable.twist_enabled and new.cable.n_masses == ROUND.n_masses
+    assert "last clamp rolls 90 deg about the cable axis" in new.twist_reason
+    with build(scene, "core") as sim:
+        res = sim.run()
+    spec = new.cable
+    assert res.end_moments[1, 0] == pytest.approx(-spec.torsional_rigidity * (math.pi / 2) / spec.length, rel=0.01)
+    still = Scene(cable=ROUND, motion=(SWING,), duration=0.15)
+    assert resolved(still) is still
