@@ -74,6 +74,7 @@ from bullet_dlo.analysis.fit_stats import (WINDOW_TAUS,
 )
 from bullet_dlo.core.boundary import EndHolder, Motion, Waypoints, motion_offset
 from bullet_dlo.core.engine import simulate
+from bullet_dlo.core.enums import FitStart, ResidualKind, name_of
 from bullet_dlo.core.integrators import INTEGRATORS
 from bullet_dlo.core.model import STANDARD_GRAVITY, CableModel, CableState, build_arrays
 from bullet_dlo.core.spec import CableSpec
@@ -94,7 +95,7 @@ BOUNDS = {  # allowed range of each fittable parameter (SI), also its log-space 
     "shear_modulus": (1e2, 1e13),
 }
 GUESS = {"youngs_modulus": 1e8, "damping_rate": 1.0, "internal_damping": 1e-3, "damping": 1e-3}
-START = ("auto", "static", "straight", "recorded")
+START = FitStart.names()  # where the model starts (bullet_dlo.core.enums.FitStart)
 """How the model starts: ``static`` (equilibrium at the first poses), ``straight`` (at rest, straight),
 ``recorded`` (the recording's ``initial`` shape and velocity), ``auto`` (recorded when the recording has
 an initial shape, else static)."""
@@ -182,17 +183,16 @@ class FitOptions:
         check_int("max_evaluations", self.max_evaluations, 2)
         if self.integrator != "auto" and self.integrator not in INTEGRATORS:
             raise ParameterError(f"integrator must be auto or one of {', '.join(INTEGRATORS)}, got {self.integrator!r}")
-        if self.start not in START:
-            raise ParameterError(f"start must be one of {', '.join(START)}, got {self.start!r}")
+        object.__setattr__(self, "start", name_of("start", self.start, FitStart))
         if not self.skip >= 0:
             raise ParameterError(f"skip must be >= 0 [s], got {self.skip!r}")
         if self.kinds is not None:
             object.__setattr__(self, "kinds", tuple(self.kinds))
-            if not self.kinds or any(k not in KINDS for k in self.kinds):
-                raise ParameterError(f"kinds must be a non-empty subset of {', '.join(KINDS)}, got {list(self.kinds)}")
+            if not self.kinds:
+                raise ParameterError(f"kinds must be a non-empty subset of {', '.join(KINDS)}, got []")
+            object.__setattr__(self, "kinds", tuple(name_of("kinds", k, ResidualKind) for k in self.kinds))
         for kind, value in (self.sigma or {}).items():
-            if kind not in KINDS:
-                raise ParameterError(f"sigma keys must be among {', '.join(KINDS)}, got {kind!r}")
+            name_of("sigma key", kind, ResidualKind)
             check_positive(f"sigma[{kind}]", value)
         check_int("windows", self.windows, 2, 1000)
         check_int("min_windows", self.min_windows, 2, 1000)

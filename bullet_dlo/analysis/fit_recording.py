@@ -40,11 +40,12 @@ from typing import Any, NamedTuple
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from bullet_dlo.core.enums import RecordingHold, ResidualKind, name_of
 from bullet_dlo.core.validate import ParameterError
 
-KINDS = ("force", "moment", "linear", "marker")
+KINDS = ResidualKind.names()  # what a recording can be compared on (bullet_dlo.core.enums.ResidualKind)
 UNITS = {"force": "N", "moment": "N m", "linear": "recording units", "marker": "m"}
-HELD = ("clamped", "free")
+HELD = RecordingHold.names()  # how each end is held (bullet_dlo.core.enums.RecordingHold)
 CLAMP_SIGN = (1.0, -1.0)
 """Cable tangent = sign * grasp-frame x axis, per arm (left, right)."""
 RIGHT_FROM_LEFT = Rotation.from_rotvec([0.0, 0.0, math.pi])
@@ -140,10 +141,8 @@ class Recording:
         object.__setattr__(self, "held", held)
         if self.length is not None and not (math.isfinite(self.length) and self.length > 0):
             raise ParameterError(f"recording length must be > 0 [m], got {self.length!r}")
-        bad = [k for k in self.relative if k not in KINDS]
-        if bad:
-            raise ParameterError(f"recording relative kinds must be among {', '.join(KINDS)}, got {bad}")
-        object.__setattr__(self, "relative", tuple(self.relative))
+        object.__setattr__(self, "relative", tuple(name_of("recording relative kind", k, ResidualKind)
+                                                   for k in self.relative))
         if self.linear_filter is not None:
             cut, delay = (float(v) for v in self.linear_filter)
             if not (math.isfinite(cut) and cut > 0 and math.isfinite(delay) and delay >= 0):

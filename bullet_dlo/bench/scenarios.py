@@ -47,6 +47,7 @@ from bullet_dlo.analysis.measures import amplitude_kept, force_error, relative_e
 from bullet_dlo.analysis.study import study_model
 from bullet_dlo.core.boundary import Move
 from bullet_dlo.core.engine import simulate
+from bullet_dlo.core.enums import Engine
 from bullet_dlo.core.model import CableModel, CableState
 from bullet_dlo.core.spec import CableSpec
 from bullet_dlo.core.statics import solve_static
@@ -54,7 +55,7 @@ from bullet_dlo.core.statics import solve_static
 SCENARIOS = ("S1", "S2", "S3", "S4", "T1", "T2")
 TWIST_SCENARIOS = ("T1", "T2")
 """Scenarios whose cable has a material frame (run with the implicit methods only)."""
-ENGINES = ("core", "bullet")
+ENGINES = (Engine.CORE.value, Engine.BULLET.value)  # the engines a scenario runs on (of bullet_dlo.core.enums.Engine)
 
 
 @dataclass

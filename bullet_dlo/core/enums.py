@@ -174,6 +174,48 @@ class Renderer(NamedSet):
     EGL = "egl"
 
 
+class FitStart(NamedSet):
+    """Where ``fit``'s model starts: ``auto`` (the recording's first shape when it has one, else static),
+    the ``static`` equilibrium, ``straight``, or the ``recorded`` first shape."""
+
+    AUTO = "auto"
+    STATIC = "static"
+    STRAIGHT = "straight"
+    RECORDED = "recorded"
+
+
+class ResidualKind(NamedSet):
+    """What a recording holds that ``fit`` can compare: end ``force`` [N], end ``moment`` [N m], ``linear``
+    (joint torques or any signal linear in the end loads), ``marker`` positions [m]."""
+
+    FORCE = "force"
+    MOMENT = "moment"
+    LINEAR = "linear"
+    MARKER = "marker"
+
+
+class RecordingHold(NamedSet):
+    """How a recording's cable end is held: ``clamped`` (pose recorded) or ``free``."""
+
+    CLAMPED = "clamped"
+    FREE = "free"
+
+
+class StripModel(NamedSet):
+    """The beam_handling strip in ``validate beam``: one 3-D ``rectangle`` run, or two planar isotropic ``planes``."""
+
+    RECTANGLE = "rectangle"
+    PLANES = "planes"
+
+
+class RolloutPolicy(NamedSet):
+    """The built-in policies of ``rollouts`` (a ``package.module:function`` names a user's own)."""
+
+    RANDOM = "random"
+    SCRIPTED = "scripted"
+    ZERO = "zero"
+
+
 def choice(key: str, value: Any, enum: type[E], *, lower: bool = False) -> E:
     """``value`` as a member of ``enum`` (``lower``: the name in any case); ParameterError naming ``key`` and
     listing the allowed names otherwise. The one membership check of every closed set."""
@@ -194,7 +236,8 @@ def name_of(key: str, value: Any, enum: type[NamedSet], *, lower: bool = False) 
 
 ENUMS: tuple[type[NamedSet], ...] = (IntegratorName, EndMode, Section, Discretisation, MotionType, InitialShape,
                                     ToleranceTarget, SelfCollision, Sync, Contact, ObstacleType, GripKind, Payload,
-                                    ArmStart, Engine, Dist, UnstablePolicy, Renderer)
+                                    ArmStart, Engine, Dist, UnstablePolicy, Renderer, FitStart, ResidualKind,
+                                    RecordingHold, StripModel, RolloutPolicy)
 """Every closed set of this module."""
 
 __all__ = ["NamedSet", "choice", "name_of", "ENUMS", *(e.__name__ for e in ENUMS)]

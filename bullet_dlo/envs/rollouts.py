@@ -41,6 +41,7 @@ from typing import Any, Callable
 import numpy as np
 
 from bullet_dlo.config.capture import CaptureSpec
+from bullet_dlo.core.enums import RolloutPolicy
 from bullet_dlo.core.model import STANDARD_GRAVITY
 from bullet_dlo.core.validate import ParameterError, check_int, check_in_range
 from bullet_dlo.data.capture import CaptureResult
@@ -58,7 +59,7 @@ from bullet_dlo.data.storage import (
 )
 
 Policy = Callable[[Any], np.ndarray]
-POLICY_NAMES = ("random", "scripted", "zero")
+POLICY_NAMES = RolloutPolicy.names()  # the built-in policies (bullet_dlo.core.enums.RolloutPolicy)
 
 
 @dataclasses.dataclass(frozen=True)

@@ -133,6 +133,21 @@ def test_enums_are_the_runtime_sets_and_equal_their_strings():
     assert all(issubclass(e, str) for e in enums.ENUMS)
 
 
+def test_fit_sets_are_enums_checked_in_one_line():
+    """The module-local sets of fit and recordings are the enums' names, refused in one line."""
+    from bullet_dlo.analysis.fit import START, FitOptions
+    from bullet_dlo.analysis.fit_recording import HELD, KINDS
+
+    assert (START, KINDS, HELD) == (enums.FitStart.names(), enums.ResidualKind.names(),
+                                    enums.RecordingHold.names())
+    for kwargs, key in (({"start": "bogus"}, "start"), ({"kinds": ("force", "bogus")}, "kinds"),
+                        ({"sigma": {"bogus": 1.0}}, "sigma key")):
+        with pytest.raises(ParameterError) as info:
+            FitOptions(**kwargs)
+        assert str(info.value).startswith(f"{key} must be one of ") and "got 'bogus'" in str(info.value)
+    assert FitOptions(kinds=["force", enums.ResidualKind.MOMENT]).kinds == ("force", "moment")
+
+
 SCENE_ENUM_KEYS = [
     ("integrator", IntegratorName, lambda v: scene(integrator=v)),
     ("ends.first", EndMode, lambda v: scene(ends={"first": v})),
