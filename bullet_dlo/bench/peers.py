@@ -1,4 +1,4 @@
-"""Peer simulators (PyElastica, MuJoCo) on the cantilever benchmark (S1 and S2), timed fairly.
+"""Peer simulators (PyElastica, MuJoCo, Newton) on the cantilever benchmark (S1 and S2), timed fairly.
 
 The benchmark: a straight horizontal rod (a :class:`CableSpec`: length L, diameter d, mass M,
 Young's modulus E, Poisson ratio 0.3, ``n_masses`` nodes), first end clamped at the origin
@@ -14,13 +14,14 @@ with its tangent along +x, last end free, gravity along -z. Each peer runs it in
     is the first frequency from the tip's upward zero crossings, against f1, and the amplitude
     kept over the last full period.
 
-Each peer gets its best public set-up (see :mod:`~bullet_dlo.bench.peer_mujoco` and
-:mod:`~bullet_dlo.bench.peer_pyelastica`): a true clamp at x = 0 (a held stub element behind
-the origin: MuJoCo's ``pin`` of the stub's two points, PyElastica's ``FixedConstraint`` of the
-stub's nodes and directors), its recommended integrator (MuJoCo ``discrete``, PyElastica
-``PositionVerlet``), the same lumped masses and the same velocity damping as ours, and no Python
-per step that the measure does not need. Both then converge at second order in n on S1
-(+0.29 % / +0.30 % at n = 20). Holding the whole first rod element instead (these adapters
+Each peer gets its best public set-up (see :mod:`~bullet_dlo.bench.peer_mujoco`,
+:mod:`~bullet_dlo.bench.peer_pyelastica` and :mod:`~bullet_dlo.bench.peer_newton`): a true clamp
+at x = 0 (a held stub element behind the origin: MuJoCo's ``pin`` of the stub's two points,
+PyElastica's ``FixedConstraint`` of the stub's nodes and directors, Newton's kinematic stub body),
+its recommended integrator (MuJoCo ``discrete``, PyElastica ``PositionVerlet``, Newton
+``SolverVBD``), the same masses and the same velocity damping as ours, and no Python per step that
+the measure does not need. All three then converge at second order on S1 (+0.29 % / +0.30 % /
++0.25 % at n = 20; Newton in its n - 1 segments, at 2e-5 s). Holding the whole first rod element instead (these adapters
 before issue 24) clamps the beam one element in: an S1 error of about -2/n.
 
 Damping is a uniform velocity damping *rate* c [1/s] (a force -c m v): c = 2 omega1 critically
@@ -96,7 +97,7 @@ class PeerResult:
     """One benchmark run of a peer simulator.
 
     Attributes:
-        peer: ``"pyelastica"`` or ``"mujoco"``; mode: ``"static"`` or ``"free"``.
+        peer: ``"pyelastica"``, ``"mujoco"`` or ``"newton"``; mode: ``"static"`` or ``"free"``.
         n: number of nodes; dt: time step [s].
         stable: False if the run diverged: non-finite state, a segment strain above
             :data:`MAX_STRAIN`, a peer's own divergence signal (MuJoCo's bad qpos/qvel/qacc
