@@ -1,4 +1,4 @@
-"""Peer simulators (PyElastica, MuJoCo) on the cantilever benchmark (S1 and S2), timed fairly.
+"""Peer simulators (PyElastica, MuJoCo, Newton) on the cantilever benchmark (S1 and S2), timed fairly.
 
 The benchmark: a straight horizontal rod (a :class:`CableSpec`: length L, diameter d, mass M,
 Young's modulus E, Poisson ratio 0.3, ``n_masses`` nodes), first end clamped at the origin
@@ -14,13 +14,14 @@ with its tangent along +x, last end free, gravity along -z. Each peer runs it in
     is the first frequency from the tip's upward zero crossings, against f1, and the amplitude
     kept over the last full period.
 
-Each peer gets its best public set-up (see :mod:`~bullet_dlo.bench.peer_mujoco` and
-:mod:`~bullet_dlo.bench.peer_pyelastica`): a true clamp at x = 0 (a held stub element behind
-the origin: MuJoCo's ``pin`` of the stub's two points, PyElastica's ``FixedConstraint`` of the
-stub's nodes and directors), its recommended integrator (MuJoCo ``discrete``, PyElastica
-``PositionVerlet``), the same lumped masses and the same velocity damping as ours, and no Python
-per step that the measure does not need. Both then converge at second order in n on S1
-(+0.29 % / +0.30 % at n = 20). Holding the whole first rod element instead (these adapters
+Each peer gets its best public set-up (see :mod:`~bullet_dlo.bench.peer_mujoco`,
+:mod:`~bullet_dlo.bench.peer_pyelastica` and :mod:`~bullet_dlo.bench.peer_newton`): a true clamp
+at x = 0 (a held stub element behind the origin: MuJoCo's ``pin`` of the stub's two points,
+PyElastica's ``FixedConstraint`` of the stub's nodes and directors, Newton's kinematic stub body),
+its recommended integrator (MuJoCo ``discrete``, PyElastica ``PositionVerlet``, Newton
+``SolverVBD``), the same masses and the same velocity damping as ours, and no Python per step that
+the measure does not need. All three then converge at second order on S1 (+0.29 % / +0.30 % /
++0.25 % at n = 20; Newton in its n - 1 segments, at 2e-5 s). Holding the whole first rod element instead (these adapters
 before issue 24) clamps the beam one element in: an S1 error of about -2/n.
 
 Damping is a uniform velocity damping *rate* c [1/s] (a force -c m v): c = 2 omega1 critically
@@ -65,7 +66,7 @@ from bullet_dlo.analysis.measures import amplitude_kept, period_amplitude, relat
 from bullet_dlo.core.spec import CableSpec
 
 __all__ = ["PeerResult", "PeerRod", "PeerCase", "PeerConfig", "available", "versions", "run_peer", "run_pyelastica",
-           "run_mujoco", "peer_cases", "convergence_order", "bench_peers", "POISSON", "GRAVITY"]
+           "run_mujoco", "run_newton", "newton_options", "peer_cases", "convergence_order", "bench_peers", "POISSON", "GRAVITY"]
 
 POISSON = 0.3
 """Poisson ratio of the benchmark [-]."""
@@ -96,7 +97,7 @@ class PeerResult:
     """One benchmark run of a peer simulator.
 
     Attributes:
-        peer: ``"pyelastica"`` or ``"mujoco"``; mode: ``"static"`` or ``"free"``.
+        peer: ``"pyelastica"``, ``"mujoco"`` or ``"newton"``; mode: ``"static"`` or ``"free"``.
         n: number of nodes; dt: time step [s].
         stable: False if the run diverged: non-finite state, a segment strain above
             :data:`MAX_STRAIN`, a peer's own divergence signal (MuJoCo's bad qpos/qvel/qacc
@@ -160,11 +161,11 @@ class PeerRod(Protocol):
         """The peer's own divergence signal (besides non-finite values and strain)."""
 
 
-PEER_MODULES = {"pyelastica": "elastica", "mujoco": "mujoco"}
+PEER_MODULES = {"pyelastica": "elastica", "mujoco": "mujoco", "newton": "newton"}
 
 
 def available() -> dict[str, bool]:
-    """Which peer simulators can be imported: ``{"pyelastica": bool, "mujoco": bool}``."""
+    """Which peer simulators can be imported: ``{"pyelastica": bool, "mujoco": bool, "newton": bool}``."""
     out = {}
     for peer, module in PEER_MODULES.items():
         try:
@@ -176,7 +177,7 @@ def available() -> dict[str, bool]:
 
 
 def versions() -> dict[str, str | None]:
-    """Installed versions of the peers (and of Newton / Warp, not benchmarked here); None: not installed."""
+    """Installed versions of the peers (and of Warp, Newton's kernel language); None: not installed."""
     from importlib.metadata import PackageNotFoundError, version
 
     out: dict[str, str | None] = {}
@@ -310,6 +311,24 @@ def run_mujoco(spec: CableSpec, dt: float, mode: str, duration: float, damping: 
         return run_peer(rod, spec, dt, mode, duration, damping, settle)
 
 
+def newton_options(integrator: str) -> tuple[int, float]:
+    """(VBD iterations, stretch and shear scale) from a Newton integrator label: ``"VBD10"`` or
+    ``"VBD10 shear x0.03"`` (see :mod:`bullet_dlo.bench.peer_newton`)."""
+    head, _, scale = integrator.partition(" shear x")
+    if not head.startswith("VBD"):
+        raise ValueError(f"Newton integrator must read 'VBD<iterations>[ shear x<scale>]', got {integrator!r}")
+    return int(head[3:]), (float(scale) if scale else 1.0)
+
+
+def run_newton(spec: CableSpec, dt: float, mode: str, duration: float, damping: float | None = None, *,
+               integrator: str = "VBD10", settle: float | None = None) -> PeerResult:
+    """The benchmark with Newton's rod (``add_rod``, ``SolverVBD`` on the CPU); see :mod:`bullet_dlo.bench.peer_newton`."""
+    from bullet_dlo.bench.peer_newton import NewtonRod
+
+    iterations, shear_scale = newton_options(integrator)
+    return run_peer(NewtonRod(spec, dt, iterations, shear_scale), spec, dt, mode, duration, damping, settle)
+
+
 def convergence_order(errors: Sequence[float], n_masses: Sequence[int]) -> list[float]:
     """Observed orders p of error ~ n^-p between successive node counts (error ratios of |errors|)."""
     return [math.log(abs(errors[i]) / abs(errors[i + 1])) / math.log(n_masses[i + 1] / n_masses[i])
@@ -328,6 +347,8 @@ class PeerConfig:
     quick_dts: tuple[float, ...] = ()
     quick_n_masses: tuple[int, ...] = ()
     quick_scenarios: tuple[str, ...] = ("S1", "S2")
+    scenarios: dict[str, tuple[tuple[float, ...], tuple[int, ...]]] = field(default_factory=dict)
+    """Per scenario, (time steps, node counts) that replace the full sweep's (an empty one: not run)."""
 
 
 PEER_CONFIGS = (
@@ -338,20 +359,32 @@ PEER_CONFIGS = (
     PeerConfig("mujoco", "RK4", (1e-4, 1e-5), (10, 20), (1e-4,), (10, 20)),
     # PositionVerlet: stable up to ~5e-7 s for this stiff rod whatever n; 7e-7 s shows the limit
     PeerConfig("pyelastica", "PositionVerlet", (7e-7, 5e-7), (10, 20, 40), (5e-7,), (10,), ("S1",)),
+    # Newton's VBD (10 sweeps, its default) with stretch and shear at 0.03 of the material's: the bias of
+    # its fixed sweep count shrinks like dt^2, so it needs 1e-5-2e-5 s (see peer_newton)
+    PeerConfig("newton", "VBD10 shear x0.03", (1e-4, 2e-5, 1e-5), (5, 10, 20), (4e-5,), (4, 8), ("S1",),
+               scenarios={"S2": ((1e-4, 2e-5), (10, 20))}),
+    # the material's stretch and shear, as add_rod derives them: the bias of a stiff rod (S1 only)
+    PeerConfig("newton", "VBD10", (1e-4, 2e-5), (10,), scenarios={"S2": ((), ())}),
 )
 """What :func:`bench_peers` sweeps, per peer and integrator."""
 
 SCENARIO_MODES = {"S1": "static", "S2": "free"}
 
-DURATIONS = {("mujoco", "S1"): 1.0, ("pyelastica", "S1"): 0.06, ("mujoco", "S2"): 0.15, ("pyelastica", "S2"): 0.15}
+DURATIONS = {("mujoco", "S1"): 1.0, ("pyelastica", "S1"): 0.06, ("newton", "S1"): 0.066,
+             ("mujoco", "S2"): 0.15, ("pyelastica", "S2"): 0.15, ("newton", "S2"): 0.15}
 """Simulated time [s] of a sweep run: S1 settles as long as ours (1 s; PyElastica 0.06 s, 13.6 / omega1,
-which leaves < 1e-4 of the transient at 2 million steps per second); S2's free phase is about 5 periods."""
+which leaves < 1e-4 of the transient at 2 million steps per second; Newton 0.066 s, 15 / omega1);
+S2's free phase is about 5 periods."""
 
 TIMING_DURATION = {"S1": 10.0, "S2": 1.0}
 """Simulated time [s] of a timing run (ours and the peer); a peer's timing run is cut to
 :data:`TIMING_MAX_STEPS` steps (the cost per simulated second is what is compared)."""
 
 TIMING_MAX_STEPS = 20_000
+
+TIMING_MAX_STEPS_PEER = {"newton": 2_000}
+"""A lower cap for a peer whose steps cost milliseconds (Newton's VBD on the CPU: a fixed sweep count, so
+the cost per step does not depend on the state or the run's length)."""
 
 EXPLICIT = {"RK4", "Euler", "PositionVerlet"}
 """Integrators whose work per step does not depend on the state: their S2 timing runs settle only briefly."""
@@ -374,6 +407,8 @@ class PeerCase:
         duration = DURATIONS[self.peer, self.scenario] if duration is None else duration
         if self.peer == "mujoco":
             return run_mujoco(spec, self.dt, mode, duration, integrator=self.integrator, settle=settle)
+        if self.peer == "newton":
+            return run_newton(spec, self.dt, mode, duration, integrator=self.integrator, settle=settle)
         return run_pyelastica(spec, self.dt, mode, duration, settle=settle)
 
     def run(self, spec: CableSpec) -> tuple[dict, list[str]]:
@@ -406,9 +441,9 @@ def peer_cases(available_peers: dict[str, bool], quick: bool = False,
     for c in PEER_CONFIGS if configs is None else configs:
         if not available_peers.get(c.peer):
             continue
-        dts, ns = (c.quick_dts, c.quick_n_masses) if quick else (c.dts, c.n_masses)
-        scenarios = c.quick_scenarios if quick else tuple(SCENARIO_MODES)
-        cases += [PeerCase(c.peer, c.integrator, dt, n, sc) for dt in dts for n in ns for sc in scenarios]
+        for sc in (c.quick_scenarios if quick else tuple(SCENARIO_MODES)):
+            dts, ns = (c.quick_dts, c.quick_n_masses) if quick else c.scenarios.get(sc, (c.dts, c.n_masses))
+            cases += [PeerCase(c.peer, c.integrator, dt, n, sc) for dt in dts for n in ns]
     return cases
 
 
@@ -436,8 +471,9 @@ def _ours_cpu_per_sim_s(scenario: str, integrator: str, n: int, dt: float, durat
 def _peer_cpu_per_sim_s(case: PeerCase, spec: CableSpec) -> float:
     """Thread CPU time per simulated second [s] of the peer's timed phase (model building and
     settling not counted)."""
-    duration = min(TIMING_DURATION[case.scenario], TIMING_MAX_STEPS * case.dt)
-    settle = 2000 * case.dt if (case.scenario == "S2" and case.integrator in EXPLICIT) else None
+    duration = min(TIMING_DURATION[case.scenario], TIMING_MAX_STEPS_PEER.get(case.peer, TIMING_MAX_STEPS) * case.dt)
+    fixed_work = case.integrator in EXPLICIT or case.peer == "newton"  # VBD: a fixed sweep count per step
+    settle = 2000 * case.dt if (case.scenario == "S2" and fixed_work) else None
     res = case.result(spec, duration, settle)
     if not (res.stable or settle is not None) or res.cpu_time_s <= 0.0:
         raise RuntimeError(f"the peer's timing run went unstable: {case}")
@@ -485,8 +521,10 @@ def bench_peers(out: Path, quick: bool = False, progress: Progress = _no_progres
     peers_ok = available()
     vers = versions()
     print("peers available:", peers_ok, "versions:", vers)
-    if not vers["newton"]:
-        print("Newton (warp) is not installed: not benchmarked")
+    if not peers_ok["newton"]:
+        print("Newton is not installed (pip install newton warp-lang): not benchmarked")
+    else:
+        print("Newton runs on Warp's CPU device (SolverVBD; no GPU is used here, even when one is present)")
     spec = s1_spec(10)  # the stiff cantilever of S1/S2: tip deflects 1e-3 L, f1 = 36 Hz
     points, log = [], []
     cases = peer_cases(peers_ok, quick)
@@ -508,8 +546,10 @@ def bench_peers(out: Path, quick: bool = False, progress: Progress = _no_progres
             s1 = [p for p in points if p["peer"] == c.peer and p["integrator"] == c.integrator and p["dt"] == dt
                   and p["scenario"] == "S1" and p["stable"] and p["signed_error"]]
             if len(s1) >= 2:
-                orders = convergence_order([p["signed_error"] for p in s1], [p["n"] for p in s1])
-                print(f"  S1 order in n, {c.peer} {c.integrator} dt={dt:.3g}: "
+                # Newton's rod has n - 1 segment bodies: its error goes as (n - 1)^-2
+                shift, unit = (1, "n - 1 segments") if c.peer == "newton" else (0, "n")
+                orders = convergence_order([p["signed_error"] for p in s1], [p["n"] - shift for p in s1])
+                print(f"  S1 order in {unit}, {c.peer} {c.integrator} dt={dt:.3g}: "
                       + ", ".join(f"{p:.2f}" for p in orders))
 
     ours_n, ours_dts = ((20,), (1 / 60, 1e-3)) if quick else ((10, 20, 40), (1 / 60, 1 / 240, 1e-3))

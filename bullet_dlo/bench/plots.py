@@ -13,7 +13,7 @@ from bullet_dlo.bench.scenarios import BenchPoint
 
 COLORS = {"symplectic_euler": "tab:red", "rk4": "tab:olive", "implicit_euler": "tab:blue", "bdf2": "tab:orange",
           "implicit_midpoint": "tab:purple", "explicit_euler": "tab:gray"}
-PEER_STYLE = {"pyelastica": ("*", "tab:green"), "mujoco": ("P", "tab:cyan")}
+PEER_STYLE = {"pyelastica": ("*", "tab:green"), "mujoco": ("P", "tab:cyan"), "newton": ("X", "tab:olive")}
 SCENARIO_TITLES = {"S1": "S1: cantilever, static tip deflection", "S2": "S2: cantilever, first frequency",
                    "S3": "S3: study's lift, end forces (0.2 s means)", "S4": "S4: catenary, sag and end forces",
                    "T1": "T1: pure torsion, end moments G J theta / L", "T2": "T2: strip rolled edge-on, tip sag"}

@@ -161,8 +161,8 @@ def resolve_check(args) -> int:
 
 
 def peers(args) -> int:
-    """PyElastica and MuJoCo on S1 and S2 next to our cheapest run at 1 %, timed in thread CPU time,
-    interleaved (:func:`bullet_dlo.bench.peers.bench_peers`); MuJoCo's warnings go to
+    """PyElastica, MuJoCo and Newton (CPU) on S1 and S2 next to our cheapest run at 1 %, timed in thread
+    CPU time, interleaved (:func:`bullet_dlo.bench.peers.bench_peers`); MuJoCo's warnings go to
     ``peers_warnings.log`` in the output folder and are counted per point in ``peers.json``."""
     _warm_up()
     peer_mod.bench_peers(_out(args), args.quick, lambda desc: _progress(args, desc))

@@ -57,7 +57,7 @@ BENCH_COMMANDS = {
     "work-precision": "error vs wall time per simulated second for every integrator, dt, n, scenario S1-S4 and "
                       "engine; PNG + CSV",
     "stability": "largest stable dt vs E and n per method, measured by bisection, with the predicted limit",
-    "peers": "PyElastica and MuJoCo on S1 and S2 next to ours (pip install '.[peers]')",
+    "peers": "PyElastica, MuJoCo and Newton on S1 and S2 next to ours (pip install '.[peers]')",
     "scaling": "cost of the implicit solve vs n up to 1000 and its fitted exponent",
     "resolve": "resolve's choices on S1-S4 checked against their references",
 }

@@ -1,4 +1,4 @@
-"""Peers (PyElastica, MuJoCo) on the cantilever: a true clamp (each converges at its own order in n
+"""Peers (PyElastica, MuJoCo, Newton) on the cantilever: a true clamp (each converges at its own order in n
 on S1, so the old whole-first-element clamp, an error of about -2/n, cannot come back), MuJoCo's
 warnings captured, and nothing left behind. No timings are asserted."""
 from __future__ import annotations
@@ -9,7 +9,8 @@ import os
 import pytest
 
 from bullet_dlo.analysis.closed_forms import cantilever_deflection
-from bullet_dlo.bench.peers import available, convergence_order, run_mujoco, run_pyelastica
+from bullet_dlo.bench.peers import (available, convergence_order, newton_options, peer_cases, run_mujoco, run_newton,
+                                    run_pyelastica)
 from bullet_dlo.bench.scenarios import s1_spec
 from bullet_dlo.cli.main import main
 
@@ -17,6 +18,8 @@ HAVE = available()
 needs_mujoco = pytest.mark.skipif(not HAVE["mujoco"], reason="MuJoCo is not installed (pip install '.[test]')")
 needs_pyelastica = pytest.mark.skipif(not HAVE["pyelastica"],
                                       reason="PyElastica is not installed (pip install '.[test]')")
+needs_newton = pytest.mark.skipif(not HAVE["newton"],
+                                  reason="Newton is not installed (pip install '.[peers]'; the test extra leaves it out)")
 
 SECOND_ORDER = (3.2, 5.0)
 """Band of error(n) / error(2n) accepted as second order (4 exactly; order 1.7-2.3)."""
@@ -59,6 +62,68 @@ def test_pyelastica_converges_at_second_order_on_s1():
     _assert_second_order(errors, n_masses)
 
 
+def _newton_chain_error(n: int) -> float:
+    """Relative S1 error of Newton's discrete rod, solved exactly: n - 1 rigid segments of length l with
+    their weight at their centres, rotational springs EI / l at the inner nodes and 2 EI / l at the
+    clamp (half the dual length): the tip deflection is (1 + 1/(n-1)^2) w L^4 / (8 EI)."""
+    segments = n - 1
+    l = 1.0 / segments  # L = 1, w = 1, EI = 1
+    angle = tip = 0.0
+    for j in range(1, segments + 1):
+        moment = l * l * sum(k - j + 0.5 for k in range(j, segments + 1))
+        angle += moment * l / (2.0 if j == 1 else 1.0)
+        tip += l * angle
+    return tip / 0.125 - 1.0
+
+
+def test_newton_chain_closed_form():
+    """The exact discrete-chain error used below is 1 / (n - 1)^2 (second order in the segment count)."""
+    for n in (4, 8, 16):
+        assert _newton_chain_error(n) == pytest.approx(1.0 / (n - 1) ** 2, rel=1e-9)
+
+
+def test_newton_options_parse_and_refuse():
+    assert newton_options("VBD10") == (10, 1.0)
+    assert newton_options("VBD20 shear x0.03") == (20, 0.03)
+    with pytest.raises(ValueError, match="VBD"):
+        newton_options("XPBD10")
+
+
+@needs_newton
+def test_newton_converges_at_its_own_order_on_s1():
+    """Newton (add_rod + SolverVBD, 10 sweeps, stretch and shear at 0.03 of the material's, 40 us),
+    clamped by its kinematic stub behind x = 0: S1 error ~ (n - 1)^-2, as its discrete chain solved
+    exactly (n = 4, 8: +11.1 %, +2.0 %) plus the shear compliance (+0.43 %); a whole kinematic first
+    segment (Newton's examples' root) would clamp it one element in: about -2/n."""
+    n_masses = (4, 8)
+    errors = _s1_errors(lambda spec: run_newton(spec, 4e-5, "static", 0.044, integrator="VBD10 shear x0.03"),
+                        n_masses)
+    assert all(e > 0 for e in errors), errors
+    orders = convergence_order(errors, [n - 1 for n in n_masses])
+    assert all(1.7 < p < 2.3 for p in orders), (errors, orders)
+    shear = 1.3e-4 / 0.03
+    for n, e in zip(n_masses, errors):
+        assert abs(e - (_newton_chain_error(n) + shear)) < 0.006, (n, e)
+
+
+@needs_newton
+def test_newton_refuses_bad_settings():
+    from bullet_dlo.bench.peer_newton import NewtonRod
+
+    with pytest.raises(ValueError, match="iterations"):
+        NewtonRod(s1_spec(5), 1e-4, iterations=0)
+    with pytest.raises(ValueError, match="shear_scale"):
+        NewtonRod(s1_spec(5), 1e-4, shear_scale=2.0)
+
+
+def test_newton_sweep_is_as_wide_as_the_others():
+    """Newton's sweep covers S1 and S2, n up to 20 and dt down to 1e-5 s; absent, it has no cases."""
+    cases = peer_cases({"newton": True})
+    assert {c.scenario for c in cases} == {"S1", "S2"}
+    assert max(c.n for c in cases) >= 20 and min(c.dt for c in cases) <= 1e-5
+    assert peer_cases({"newton": False}) == []
+
+
 @needs_mujoco
 def test_mujoco_warnings_are_captured_not_printed_nor_logged(tmp_path, monkeypatch, capfd):
     """RK4 at 0.1 ms blows up the stiff n = 20 rod: MuJoCo warns; the warning lands in the result only."""
@@ -95,10 +160,14 @@ def test_peers_quick(tmp_path, monkeypatch):
     assert os.listdir(cwd) == []
     data = json.loads((out / "peers.json").read_text())
     points = data["points"]
-    assert {p["peer"] for p in points} == {"pyelastica", "mujoco"}
+    assert {p["peer"] for p in points} == {"pyelastica", "mujoco"} | ({"newton"} if HAVE["newton"] else set())
     assert {p["scenario"] for p in points} == {"S1", "S2"}
-    s1 = [p for p in points if p["scenario"] == "S1" and p["stable"] and p["integrator"] != "RK4"]
+    s1 = [p for p in points if p["scenario"] == "S1" and p["stable"] and p["integrator"] != "RK4"
+          and p["peer"] != "newton"]
     assert s1 and all(0.0 < p["signed_error"] < 0.02 for p in s1)  # a true clamp: +1.3 % at n = 10, not -21 %
+    newton = [p["signed_error"] for p in points if p["peer"] == "newton"]
+    if HAVE["newton"]:  # n = 4, 8: second order in the segment count, (7 / 3)^2 = 5.4
+        assert len(newton) == 2 and all(e > 0 for e in newton) and 4.3 < newton[0] / newton[1] < 6.5
     timing = data["timing"]["mujoco/S1"]
     assert timing["ratio_min"] <= timing["ratio_median"] <= timing["ratio_max"] and timing["reps"] >= 3
     assert len(data["load_start"]) == 3 and data["versions"]["mujoco"]

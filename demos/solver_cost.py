@@ -1,0 +1,179 @@
+"""Where our cheapest 1 % run of the peer benchmark spends its time, part by part (issue 24, item 2).
+
+S1's cheapest run within 1 % is implicit Euler at n = 20 and 1/60 s (one Newton iteration per
+step); S2's is the implicit midpoint at n = 20 and 1 ms. Each part of one step is timed in a
+compiled loop of ``--block`` calls on the benchmark's own model, in interleaved rounds, in
+``time.thread_time``; medians and ranges, the machine's load beside them:
+
+* the whole step (``sample_holders`` + ``advance``, as ``run_loop`` calls them, without the monitor);
+* ``sample_holders``: the held ends' poses at t, t + h/2, t + h (6 poses, also for a fixed clamp);
+* ``_start_implicit``: the method's affine map and Newton's first iterate;
+* ``_residual``: forces at the Newton iterate (called twice per step: before the solve and at the trial);
+* ``_newton_matrix``: force Jacobian, damping Jacobian, banded assembly;
+* ``band_solve``: the block-banded LU solve;
+* the rest (Newton's per-step set-up and line-search bookkeeping) is the step minus its parts.
+
+Then the cost per step against n (the fixed part and the part per node, from ``simulate`` runs of
+100 s and 10 s, their difference per step), which says how much of the step does not grow with n.
+
+Writes ``solver_cost.json`` into ``--out``. Usage:
+``python demos/solver_cost.py [--n 20] [--rounds 5] [--block 20000] [--out DIR] [--quick]``
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import statistics
+import time
+from pathlib import Path
+
+from numba import njit
+
+from bullet_dlo.analysis.closed_forms import cantilever_model
+from bullet_dlo.bench.scenarios import s1_spec
+from bullet_dlo.core.engine import DetectorOptions, simulate
+from bullet_dlo.core.integrators import NewtonOptions, get_integrator, make_stepper
+from bullet_dlo.core.kernels.banded import band_solve
+from bullet_dlo.core.kernels.holders import empty_samples, sample_holders
+# private step kernels, timed one by one (names as in core/kernels/steppers.py when this was written)
+from bullet_dlo.core.kernels.steppers import _newton_matrix, _residual, _start_implicit, advance, make_workspace
+
+
+@njit
+def _steps(stepper, m, plan, x, v, samples, ws, k):
+    total = 0
+    for i in range(k):
+        sample_holders(plan, i * stepper.h, stepper.h, samples)
+        its, _ = advance(stepper, m, x, v, samples, ws, i > 0)
+        total += its
+    return total
+
+
+@njit
+def _sample(stepper, m, plan, x, v, samples, ws, k):
+    for i in range(k):
+        sample_holders(plan, i * stepper.h, stepper.h, samples)
+
+
+@njit
+def _start(stepper, m, plan, x, v, samples, ws, k):
+    for _ in range(k):
+        _start_implicit(stepper.method, m, x, v, stepper.h, samples, ws, True)
+
+
+@njit
+def _residuals(stepper, m, plan, x, v, samples, ws, k):
+    imp = _start_implicit(stepper.method, m, x, v, stepper.h, samples, ws, True)
+    for _ in range(k):
+        _residual(m, imp, ws, ws.v_new, ws.residual)
+
+
+@njit
+def _matrix(stepper, m, plan, x, v, samples, ws, k):
+    imp = _start_implicit(stepper.method, m, x, v, stepper.h, samples, ws, True)
+    _residual(m, imp, ws, ws.v_new, ws.residual)
+    for _ in range(k):
+        _newton_matrix(stepper, m, imp, ws)
+
+
+@njit
+def _solve(stepper, m, plan, x, v, samples, ws, k):
+    imp = _start_implicit(stepper.method, m, x, v, stepper.h, samples, ws, True)
+    _residual(m, imp, ws, ws.v_new, ws.residual)
+    _newton_matrix(stepper, m, imp, ws)
+    band, rhs = ws.band.copy(), ws.residual.copy()
+    for _ in range(k):
+        ws.band[:] = band  # the copies cost < 10 % of the solve (n = 20: 0.17 of 1.6 us)
+        ws.residual[:] = rhs
+        band_solve(ws.band, ws.residual)
+
+
+PARTS = {"whole step": _steps, "sample_holders": _sample, "_start_implicit": _start, "_residual": _residuals,
+         "_newton_matrix": _matrix, "band_solve": _solve}
+
+
+def part_costs(integrator: str, n: int, dt: float, rounds: int, block: int) -> tuple[dict[str, list[float]], float]:
+    """Per part, the cost of one call [us] in each of ``rounds`` interleaved rounds of ``block`` calls, and
+    the Newton iterations per step of the timed steps (from rest under gravity, as S1 starts)."""
+    model = cantilever_model(s1_spec(n))
+    m, plan = model.arrays, model.holder_plan()
+    stepper = make_stepper(get_integrator(integrator), dt, NewtonOptions())
+    samples = empty_samples()
+    sample_holders(plan, 0.0, dt, samples)
+    out: dict[str, list[float]] = {name: [] for name in PARTS}
+    its = 0
+    for r in range(rounds + 1):
+        for name, f in PARTS.items():
+            st = model.initial_state().copy()  # every part starts from the same state
+            args = (stepper, m, plan, st.x, st.v, samples, make_workspace(n))
+            c0 = time.thread_time()
+            total = f(*args, block if r else 2)  # round 0 compiles
+            if r:
+                out[name].append((time.thread_time() - c0) / block * 1e6)
+                if name == "whole step":
+                    its = total / block
+    return out, its
+
+
+def per_step_vs_n(n_masses, rounds: int, long: float = 100.0) -> dict[int, list[float]]:
+    """Cost per step [us] of ``simulate`` (S1, implicit Euler, 1/60 s, monitor as default) at each n:
+    the difference of a ``long`` and a ``long / 10`` run per extra step, in interleaved rounds."""
+    out: dict[int, list[float]] = {n: [] for n in n_masses}
+    models = {n: cantilever_model(s1_spec(n)) for n in n_masses}
+    for n in n_masses:
+        simulate(models[n], "implicit_euler", 1 / 60, 1.0, max_records=3)  # compile / load
+    for _ in range(rounds):
+        for n in n_masses:
+            c0 = time.thread_time()
+            a = simulate(models[n], "implicit_euler", 1 / 60, long, max_records=3, detector=DetectorOptions())
+            c1 = time.thread_time()
+            b = simulate(models[n], "implicit_euler", 1 / 60, long / 10, max_records=3)
+            c2 = time.thread_time()
+            out[n].append(((c1 - c0) - (c2 - c1)) / (a.steps - b.steps) * 1e6)
+    return out
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--n", type=int, default=20)
+    p.add_argument("--rounds", type=int, default=5)
+    p.add_argument("--block", type=int, default=20000)
+    p.add_argument("--out", default="out/bench")
+    p.add_argument("--quick", action="store_true", help="one round of 200 calls, n = 5 and 10 only (smoke test)")
+    a = p.parse_args(argv)
+    rounds, block = (1, 200) if a.quick else (a.rounds, a.block)
+    load0 = os.getloadavg()
+    report: dict = {"load_start": load0, "n": a.n, "rounds": rounds, "block": block, "parts": {}}
+    for integrator, dt in (("implicit_euler", 1 / 60), ("implicit_midpoint", 1e-3)):
+        costs, its = part_costs(integrator, a.n, dt, rounds, block)
+        med = {k: statistics.median(v) for k, v in costs.items()}
+        rest = med["whole step"] - med["sample_holders"] - med["_start_implicit"] \
+            - its * (med["_newton_matrix"] + med["band_solve"] + med["_residual"]) - med["_residual"]
+        print(f"{integrator}, n = {a.n}, dt = {dt:.3g} s ({its:.2f} Newton iterations per timed step): "
+              f"us per call, median (range of {rounds})")
+        for k, v in costs.items():
+            times = {"_residual": f" x {its + 1:.2f} per step", "_newton_matrix": f" x {its:.2f}",
+                     "band_solve": f" x {its:.2f}"}.get(k, "")
+            print(f"  {k:16s} {med[k]:7.2f} ({min(v):.2f}-{max(v):.2f}){times}")
+        print(f"  {'rest (Newton set-up, line search)':16s} {rest:7.2f}  (whole step minus its parts)")
+        report["parts"][integrator] = dict(dt=dt, rounds=costs, median=med, rest=rest, newton_iterations=its)
+    ns = (5, 10) if a.quick else (5, 10, 20, 40, 80)
+    per_n = per_step_vs_n(ns, 1 if a.quick else 3, 10.0 if a.quick else 100.0)
+    meds = {n: statistics.median(v) for n, v in per_n.items()}
+    slope = (meds[ns[-1]] - meds[ns[0]]) / (ns[-1] - ns[0])
+    print("simulate, S1, implicit Euler at 1/60 s: us per step " +
+          ", ".join(f"n = {n}: {meds[n]:.1f}" for n in ns) +
+          f"; fixed {meds[ns[0]] - slope * ns[0]:.1f} us + {slope:.2f} us per node")
+    report["per_step_vs_n"] = {str(n): v for n, v in per_n.items()}
+    report["load_end"] = os.getloadavg()
+    print(f"load average at start {', '.join(f'{x:.2f}' for x in load0)}, at end "
+          f"{', '.join(f'{x:.2f}' for x in report['load_end'])}; {os.cpu_count()} CPUs")
+    out = Path(a.out)
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "solver_cost.json").write_text(json.dumps(report, indent=2))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
