@@ -47,7 +47,6 @@ from bullet_dlo.bullet.contact import ContactSet
 from bullet_dlo.bullet.native import apply_forces
 from bullet_dlo.bullet.kernels import (
     Coupling,
-    ExternalHolders,
     StepInput,
     bind,
     end_loads,
@@ -56,19 +55,13 @@ from bullet_dlo.bullet.kernels import (
 from bullet_dlo.core.engine import DetectorOptions, start_detector
 from bullet_dlo.core.enums import Contact, EndMode, SelfCollision, Sync, name_of
 from bullet_dlo.core.integrators import NewtonOptions, get_integrator, make_stepper
-from bullet_dlo.core.kernels.contact import (
-    DEFAULT_ALPHA,
-    SLIDE,
-    make_contacts,
-    make_grip,
-)
+from bullet_dlo.core.kernels.contact import DEFAULT_ALPHA, SLIDE, make_contacts
 from bullet_dlo.core.kernels.forces import mechanical_energy
 from bullet_dlo.core.kernels.holders import empty_samples, sample_holders
 from bullet_dlo.core.kernels.monitor import REASONS, STABLE
 from bullet_dlo.core.kernels.steppers import make_workspace
-from bullet_dlo.core.boundary import holder_plan
 from bullet_dlo.core.kernels.twist import grip_section, transport
-from bullet_dlo.core.model import CableModel, CableState, end_twist_constants
+from bullet_dlo.core.model import CableControl, CableModel, CableState, end_twist_constants, kernel_arrays, with_arrays
 from bullet_dlo.core.validate import (
     ParameterError,
     check_int,
@@ -99,8 +92,11 @@ class BulletCable:
     """A cable's spheres in a Bullet world and the state the MSD model keeps for them.
 
     Create with :meth:`bullet_dlo.bullet.world.BulletWorld.add_cable`. ``x`` [m], ``v`` [m/s]
-    (n, 3) are the model's state, ``t`` [s] its time; ``arrays`` its own copy of the model
-    arrays (grasp and release change the end conditions in place).
+    (n, 3) are the model's state, ``t`` [s] its time, ``twist`` its material frame's state
+    (:class:`~bullet_dlo.core.kernels.twist.TwistState`); ``model`` the cable's model (read only);
+    ``control`` (:class:`~bullet_dlo.core.model.CableControl`) what holds it: grasp, release, grips and
+    holder poses write it, and so may the user (``control.f_ext`` [N], or :meth:`set_external_force`);
+    ``arrays`` the kernels' view of the three (:class:`~bullet_dlo.core.model.KernelArrays`).
     """
 
     def __init__(self, world, name: str, model: CableModel, integrator: str, *, state: CableState | None,
@@ -129,15 +125,12 @@ class BulletCable:
         n = model.n
         self.t = float(st.t)
         self.steps = 0
-        self.arrays = type(model.arrays)(*[np.array(a, copy=True) for a in model.arrays])
-        # the samplers write a twisting cable's clamp axes into this cable's own arrays (not the model's)
-        tw_normal = self.arrays.tw_normal
-        self.plan = holder_plan(model.first, model.last, tw_normal if tw_normal.shape[0] else None)
-        zeros = np.zeros((2, 3))
-        self.ext = ExternalHolders(active=np.zeros(2, dtype=np.bool_), pos=zeros.copy(), vel=zeros.copy(),
-                                   acc=zeros.copy(), omega=zeros.copy(),
-                                   dir=self.plan.start_dir.copy(),  # clamp directions until a gripper takes over
-                                   normal=self.plan.start_normal.copy())
+        self.control: CableControl = model.control()  # end holds, clamp springs, holder poses, grips, f_ext
+        self.twist = st.twist if st.twist is not None else model.twist_state()
+        self.arrays = kernel_arrays(model.arrays, self.control, self.twist)
+        # the samplers write a twisting cable's clamp axes into this cable's control (not the model)
+        self.plan = model.holder_plan(self.control)
+        self.ext = self.control.holders  # measured holder poses (set_external_pose)
         self._cp = Coupling(dt=float(world.dt), substeps=self.substeps,
                             gravity=np.asarray(world.gravity, dtype=float), x=st.x.copy(), v=st.v.copy(),
                             v_bullet=st.v.copy(), x_new=np.zeros((n, 3)), v_new=np.zeros((n, 3)),
@@ -157,7 +150,7 @@ class BulletCable:
         self._bodies_seen = -1  # bodies in the world when the contact set was built
         self._contact_exclusions: dict = {}  # (body, link or None) -> None (all) or node indices: exclude_contact
         self._partners_seen: tuple = ()  # names of the other cables in the contact set
-        self.grip = make_grip()  # friction grips of the ends (grip_with_friction), shared by every contact set
+        self.grip = self.control.grip  # friction grips of the ends (grip_with_friction), shared by every contact set
         self._no_contacts = make_contacts(n, 1, self.radius, self.grip)
         self._refresh_contact_set()
         samples = self._cp.samples
@@ -419,12 +412,21 @@ class BulletCable:
         if not -n <= node < n:
             raise ParameterError(f"node must be in [0, {n - 1}], got {node}")
         node = node % n
-        self.arrays.mass[node] += check_positive("point mass", mass)
-        pb.changeDynamics(self.body_ids[node], -1, mass=float(self.arrays.mass[node]),
-                          physicsClientId=self.world.client)
+        masses = self.model.arrays.mass.copy()
+        masses[node] += check_positive("point mass", mass)
+        self.set_parameters(mass=masses)
+        pb.changeDynamics(self.body_ids[node], -1, mass=float(masses[node]), physicsClientId=self.world.client)
         self.detector = start_detector(self._detector_options, self.model, self.arrays, self.x, self.v,
                                        self._cp.samples)
         self._replan()
+
+    def set_parameters(self, **arrays: np.ndarray) -> None:
+        """Replace model parameter arrays of this cable (``ModelArrays`` names, e.g. ``damp`` [N s/m] (n,)): it
+        gets a new model (:func:`~bullet_dlo.core.model.with_arrays`), the one it was built from stays as it
+        was. Meant for set-up; from the next planned step on (the coming Bullet step is planned already).
+        Masses: use :meth:`add_point_mass` (the spheres and the detector follow)."""
+        self.model = with_arrays(self.model, **arrays)
+        self.arrays = kernel_arrays(self.model.arrays, self.control, self.twist)
 
     # ----- grasping -----------------------------------------------------------------------
     def hold_externally(self, end: int, mode: str = "clamped") -> None:
@@ -436,11 +438,11 @@ class BulletCable:
         if mode not in (EndMode.CLAMPED, EndMode.PINNED):
             raise ParameterError(f"grasp mode must be one of clamped, pinned, got {mode!r}")
         mode = str(EndMode(mode))
-        a, spec, n = self.arrays, self.model.spec, self.model.n
+        c, spec, n = self.control, self.model.spec, self.model.n
         node = 0 if end == 0 else n - 1
-        a.held[node] = True
-        a.k_bend[node] = spec.k_bend_clamp if mode == "clamped" else 0.0
-        a.c_bend[node] = a.k_bend[node] * spec.internal_damping  # the clamp's Kelvin-Voigt damper
+        c.held[node] = True
+        c.k_bend[node] = spec.k_bend_clamp if mode == "clamped" else 0.0
+        c.c_bend[node] = c.k_bend[node] * spec.internal_damping  # the clamp's Kelvin-Voigt damper
         self._hold_twist(end, mode)
         self.ext.active[end] = True
         self.grip.active[end] = False
@@ -468,14 +470,14 @@ class BulletCable:
         mu_d = check_nonnegative("grip_dynamic_friction", dynamic_friction)
         if mu_d > mu_s:
             raise ParameterError(f"grip_dynamic_friction must be in [0, grip_static_friction {mu_s}], got {mu_d}")
-        a, n, g = self.arrays, self.model.n, self.grip
+        c, n, g = self.control, self.model.n, self.grip
         node = 0 if end == 0 else n - 1
-        a.held[node] = False
-        a.k_bend[node] = self.model.spec.k_bend_clamp
-        a.c_bend[node] = a.k_bend[node] * self.model.spec.internal_damping
+        c.held[node] = False
+        c.k_bend[node] = self.model.spec.k_bend_clamp
+        c.c_bend[node] = c.k_bend[node] * self.model.spec.internal_damping
         self._hold_twist(end, "clamped")  # the pinching fingers hold the roll as they hold the tangent
         self.ext.active[end] = True
-        g.k_ax[end] = g.k_lat[end] = self.contact_stiffness * a.mass[node] / self.stepper.h ** 2
+        g.k_ax[end] = g.k_lat[end] = self.contact_stiffness * self.model.arrays.mass[node] / self.stepper.h ** 2
         g.cap_s[end], g.cap_d[end] = 2.0 * mu_s * f_n, 2.0 * mu_d * f_n
         g.reach[end] = check_positive("grip reach", reach)
         g.offset[end] = float(np.dot(self.x[node] - self.ext.pos[end], self.ext.dir[end]))
@@ -491,10 +493,10 @@ class BulletCable:
                 "force": g.force.copy()}
 
     def _let_go(self, end: int) -> None:
-        a, n = self.arrays, self.model.n
+        c, n = self.control, self.model.n
         node = 0 if end == 0 else n - 1
-        a.held[node] = False
-        a.k_bend[node] = a.c_bend[node] = 0.0
+        c.held[node] = False
+        c.k_bend[node] = c.c_bend[node] = 0.0
         self._hold_twist(end, "free")
         self.ext.active[end] = False
         self.grip.active[end] = False
@@ -504,15 +506,15 @@ class BulletCable:
         a pin or a free end does not: :func:`~bullet_dlo.core.model.end_twist_constants`); a clamp takes the
         section as it is now (no twist added, :func:`~bullet_dlo.core.kernels.twist.grip_section`) and its
         axis becomes the holder's ``ext.normal``, which the holder then turns (the gripper's roll)."""
-        a = self.arrays
-        if not a.tw_k_twist.shape[0]:
+        c = self.control
+        if not c.k_twist.shape[0]:
             return
         spec = self.model.spec
         node = 0 if end == 0 else self.model.n - 1
-        a.tw_k_twist[node], a.tw_k_aniso[node] = end_twist_constants(spec, mode)
-        a.tw_c_twist[node] = a.tw_k_twist[node] * spec.internal_damping
+        c.k_twist[node], c.k_aniso[node] = end_twist_constants(spec, mode)
+        c.c_twist[node] = c.k_twist[node] * spec.internal_damping
         if mode == "clamped":
-            self.ext.normal[end] = grip_section(a, self.x, self.ext.dir, end)
+            self.ext.normal[end] = grip_section(self.arrays, self.x, self.ext.dir, end)
 
     def release(self, end: int) -> None:
         """Let end ``end`` go: it becomes free and no longer follows any holder."""
@@ -527,7 +529,7 @@ class BulletCable:
         (its roll about the cable); None: it is carried from the last pose onto the new direction without
         roll (parallel transport). Only a cable with a material frame reads it."""
         e = self.ext
-        if self.arrays.tw_k_twist.shape[0]:
+        if self.control.k_twist.shape[0]:
             if normal is None:
                 d_old = e.dir[end].copy()
                 d_new = np.asarray(direction, dtype=float) / np.linalg.norm(direction)
@@ -538,6 +540,18 @@ class BulletCable:
         dx, dy, dz = direction  # normalised in scalars: this runs twice per coupled step
         scale = 1.0 / math.sqrt(dx * dx + dy * dy + dz * dz)
         e.dir[end] = (dx * scale, dy * scale, dz * scale)
+
+    def set_external_force(self, node: int, force) -> None:
+        """Apply the external force ``force`` [N] (3,), world frame, to node ``node`` from now on (it stays until
+        set again; ``control.f_ext`` holds all of them, (n, 3)). It acts from the next planned step: the coming
+        Bullet step was planned at the end of the last one."""
+        n = self.model.n
+        if not -n <= node < n:
+            raise ParameterError(f"node must be in [{-n}, {n - 1}], got {node}")
+        f = np.asarray(force, dtype=float)
+        if f.shape != (3,) or not np.all(np.isfinite(f)):
+            raise ParameterError(f"force must be a finite 3-vector [N], got {force!r}")
+        self.control.f_ext[node] = f
 
     def holder_positions(self) -> np.ndarray:
         """Positions [m] of the external holders (e.g. grasp frames) as last measured, (2, 3)."""
@@ -558,8 +572,8 @@ class BulletCable:
         return REASONS[self.status]
 
     def state(self) -> CableState:
-        """The cable's current state as the model sees it."""
-        return CableState(self.x.copy(), self.v.copy(), self.t)
+        """The cable's current state as the model sees it (a copy, its twist state included)."""
+        return CableState(self.x.copy(), self.v.copy(), self.t, self.twist.copy())
 
     def end_forces(self) -> np.ndarray:
         """Force [N] the cable exerts on each held or gripped end now, (2, 3) (first, last)."""

@@ -72,6 +72,26 @@ class HeldSamples(NamedTuple):
     dir: np.ndarray
 
 
+class ExternalHolders(NamedTuple):
+    """Measured holder poses (e.g. gripper links) that ends follow instead of their move tables.
+
+    active: which ends follow them, (2,) bool; pos [m], vel [m/s], acc [m/s^2], omega
+    (angular velocity) [rad/s], dir (clamp direction, unit, along the cable from its first to
+    its last node): world frame, (2, 3) each, measured now and extrapolated over a step at
+    constant velocity and angular velocity; normal: the holder's section axis d1 (unit, normal to
+    dir), world frame, (2, 3), turned with dir over the step: the roll about the cable axis that a
+    clamp of a cable with a material frame holds (read only by such cables).
+    """
+
+    active: np.ndarray
+    pos: np.ndarray
+    vel: np.ndarray
+    acc: np.ndarray
+    omega: np.ndarray
+    dir: np.ndarray
+    normal: np.ndarray
+
+
 def empty_samples() -> HeldSamples:
     """Zeroed held-end samples (filled by :func:`sample_holders`)."""
     return HeldSamples(*(np.zeros((3, 2, 3)) for _ in HeldSamples._fields))
