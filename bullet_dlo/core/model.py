@@ -33,9 +33,21 @@ from bullet_dlo.core.spec import CableSpec
 from bullet_dlo.core.validate import ParameterError, check_vector3
 
 STANDARD_GRAVITY = (0.0, 0.0, -9.81)
-_NO_TWIST = no_twist()  # the empty parameters of every cable without twist (read only: no kernel writes them)
-_NO_DRAG = np.zeros(0)  # the empty drag law of every cable without quadratic drag (no kernel touches it)
-_CROSS_FLOW = np.zeros(1, dtype=np.int64)
+
+
+def read_only(a: np.ndarray) -> np.ndarray:
+    """``a`` write-protected: itself if it is a read-only array owning its data, else a read-only copy (so
+    that nobody holding the original can change it either)."""
+    if not a.flags.writeable and a.base is None:
+        return a
+    out = np.array(a, copy=True)
+    out.flags.writeable = False
+    return out
+
+
+_NO_TWIST = no_twist()._replace(**{k: read_only(getattr(no_twist(), k)) for k in TWIST_PARAMETERS})
+_NO_DRAG = read_only(np.zeros(0))  # the empty drag law of every cable without quadratic drag
+_CROSS_FLOW = read_only(np.zeros(1, dtype=np.int64))
 
 
 class TwistParameters(NamedTuple):
@@ -241,6 +253,13 @@ class CableModel:
     arrays: ModelArrays
     x0: np.ndarray  # initial node positions [m], (n, 3)
 
+    def __post_init__(self) -> None:
+        # read only: a model is shared by runs and cables (each takes its own control and state)
+        set_ = object.__setattr__
+        set_(self, "arrays", type(self.arrays)(*(read_only(a) for a in self.arrays)))
+        set_(self, "gravity", read_only(np.asarray(self.gravity, dtype=float)))
+        set_(self, "x0", read_only(np.asarray(self.x0, dtype=float)))
+
     @property
     def n(self) -> int:
         return self.spec.n_masses
@@ -341,7 +360,7 @@ def with_arrays(model: CableModel, **arrays: np.ndarray) -> CableModel:
 
 
 def build_arrays(spec: CableSpec, first_mode: str, last_mode: str, gravity: np.ndarray) -> ModelArrays:
-    """The model's parameters for ``spec`` with end modes ``free``/``pinned``/``clamped``."""
+    """The model's parameters for ``spec`` with end modes ``free``/``pinned``/``clamped`` (read-only arrays)."""
     n = spec.n_masses
     k_bend = np.full(n, spec.k_bend)
     k_bend[0] = spec.k_bend_clamp if first_mode == "clamped" else 0.0
@@ -351,7 +370,7 @@ def build_arrays(spec: CableSpec, first_mode: str, last_mode: str, gravity: np.n
     held[-1] = held[-1] or last_mode != "free"
     tw = twist_arrays(spec, first_mode, last_mode) if spec.twist_enabled else _NO_TWIST
     twist = {f"tw_{k}": getattr(tw, k) for k in TWIST_PARAMETERS}
-    return ModelArrays(
+    arrays = ModelArrays(
         mass=spec.point_masses(),
         damp=spec.damping_coefficients(),
         k_stretch=np.full(n - 1, spec.k_stretch),
@@ -364,6 +383,7 @@ def build_arrays(spec: CableSpec, first_mode: str, last_mode: str, gravity: np.n
         **twist,
         **drag_fields(spec),
     )
+    return ModelArrays(*(read_only(a) for a in arrays))  # write-protected: a model never changes
 
 
 def drag_fields(spec: CableSpec) -> dict[str, np.ndarray]:

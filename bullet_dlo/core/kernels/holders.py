@@ -44,7 +44,7 @@ class HolderPlan(NamedTuple):
     normal: where :func:`sample_holders` writes d1 turned with the clamp at the three sample times,
     (3, 2, 3) = [sample, end, xyz]; shape (0, 2, 3) when the cable has no material frame (then the
     roll about the cable axis is not tracked and nothing extra is computed). A twisting model's
-    arrays share this buffer (``ModelArrays.tw.normal``): it is how the roll reaches the step kernels.
+    control shares this buffer (``CableControl.normal``, the kernels' ``tw_normal``): it is how the roll reaches the step kernels.
     """
 
     start_pos: np.ndarray
