@@ -170,11 +170,12 @@ def simulate(
         integrator: name from :data:`bullet_dlo.core.integrators.INTEGRATORS`.
         dt: time step [s], > 0.
         duration: simulated time [s], > 0 (rounded to a whole number of steps).
-        state: start state (default: the model's initial state at rest).
+        state: start state (default: the model's initial state at rest); its ``twist`` (a cable with a
+            material frame) continues a run's ``final_state``, None builds it from the positions.
         record_every: steps between recorded rows (default: so that about ``max_records`` rows are kept).
         newton: Newton options for implicit methods.
         detector: instability thresholds.
-        f_ext: constant external forces [N], (n, 3).
+        f_ext: constant external forces [N], (n, 3) (the run's control; the model is read only).
 
     The result's ``warnings`` say what a user should know although the run is stable (Newton
     failing in more than ``NEWTON_WARN_SHARE`` of the steps; a large but physical strain; a held
