@@ -120,7 +120,7 @@ def bullet_grip_slips() -> str:
         c.grip_with_friction(0, 0.3, 0.5, 0.3, reach=0.5)
         slips = []
         for k in range(150):
-            c.arrays.f_ext[-1] = (0.0, 0.0, -4.0 * k * dt)  # a pull ramp past 2 mu_s F_n
+            c.set_external_force(-1, (0.0, 0.0, -4.0 * k * dt))  # a pull ramp past 2 mu_s F_n
             world.step()
             slips.append(c.grip_state()["slip"].copy())
         c.release(0)
@@ -147,7 +147,7 @@ def bullet_rectangle_rolled() -> str:
         c.release(1)
         c.hold_externally(1, "pinned")
         world.run(0.03)
-        return _digest(*_cable_arrays(c), c.arrays.tw_theta, c.arrays.tw_omega)
+        return _digest(*_cable_arrays(c), c.twist.theta, c.twist.omega)
 
 
 def grasp(robot: str, grip: str = "clamp") -> Callable[[], str]:

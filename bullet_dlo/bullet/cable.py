@@ -30,7 +30,15 @@ Stepping order of one Bullet step (``BulletWorld.step`` drives it; the kernels a
    stops here and receives no more forces;
 7. record (every ``record_every`` steps) and plan the next step (1).
 
-Steps 5, 6 and 1 are one Numba call (:func:`~bullet_dlo.bullet.kernels.sync_and_advance`).
+Steps 5, 6 and 1 are one Numba call (:func:`~bullet_dlo.bullet.kernels.sync_and_advance`), made by the
+cable's :class:`~bullet_dlo.bullet.solver.CableSolver`.
+
+Parts: :class:`BulletCable` is the facade; it holds the cable's model (read only), its control
+(:class:`~bullet_dlo.core.model.CableControl`: end holds, clamp springs, holder poses, grips, external forces)
+and its state (``x``, ``v``, ``t``, ``twist``), the Bullet spheres, the solver
+(:class:`~bullet_dlo.bullet.solver.CableSolver`: stepper, scratch, held ends' plan, detector, the coupled
+step's buffers), the contact set (:class:`~bullet_dlo.bullet.cable_contacts.CableContacts`) and the record
+(:class:`~bullet_dlo.bullet.recorder.CableRecord`).
 Without contacts the Bullet trajectory therefore equals the core trajectory of every
 integrator (x' is reproduced exactly; v' is kept on our side when the method's x' is not
 x + h v'). Bullet clamps body speeds at 100 m/s: only an unstable run gets there.
@@ -38,37 +46,23 @@ x + h v'). Bullet clamps body speeds at 100 m/s: only an unstable run gets there
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
-
 import numpy as np
 import pybullet as pb
 
+from bullet_dlo.bullet.cable_contacts import CABLE_GROUPS, CableContacts  # noqa: F401 (CABLE_GROUPS: its old home)
 from bullet_dlo.bullet.contact import ContactSet
 from bullet_dlo.bullet.native import apply_forces
-from bullet_dlo.bullet.kernels import (
-    Coupling,
-    ExternalHolders,
-    StepInput,
-    bind,
-    end_loads,
-    sync_and_advance,
-)
-from bullet_dlo.core.engine import DetectorOptions, start_detector
+from bullet_dlo.bullet.kernels import StepInput, bind, end_loads
+from bullet_dlo.bullet.recorder import CableRecord  # noqa: F401 (its home before the split)
+from bullet_dlo.bullet.solver import CableSolver
+from bullet_dlo.core.engine import DetectorOptions
 from bullet_dlo.core.enums import Contact, EndMode, SelfCollision, Sync, name_of
-from bullet_dlo.core.integrators import NewtonOptions, get_integrator, make_stepper
-from bullet_dlo.core.kernels.contact import (
-    DEFAULT_ALPHA,
-    SLIDE,
-    make_contacts,
-    make_grip,
-)
+from bullet_dlo.core.integrators import NewtonOptions, get_integrator
+from bullet_dlo.core.kernels.contact import DEFAULT_ALPHA, SLIDE
 from bullet_dlo.core.kernels.forces import mechanical_energy
-from bullet_dlo.core.kernels.holders import empty_samples, sample_holders
 from bullet_dlo.core.kernels.monitor import REASONS, STABLE
-from bullet_dlo.core.kernels.steppers import make_workspace
-from bullet_dlo.core.boundary import holder_plan
 from bullet_dlo.core.kernels.twist import grip_section, transport
-from bullet_dlo.core.model import CableModel, CableState, end_twist_constants
+from bullet_dlo.core.model import CableControl, CableModel, CableState, end_twist_constants, kernel_arrays, with_arrays
 from bullet_dlo.core.validate import (
     ParameterError,
     check_int,
@@ -78,29 +72,17 @@ from bullet_dlo.core.validate import (
 
 SELF_COLLISION = SelfCollision.names()
 CONTACT = Contact.names()
-CABLE_GROUPS = 0x7FFE  # the collision-group bits of cables (bit 0 is the world's default group)
-
-
-@dataclass
-class CableRecord:
-    """Rows recorded every ``record_every`` steps: t [s], x [m], v [m/s], end forces [N], energy [J]."""
-
-    t: list = field(default_factory=list)
-    x: list = field(default_factory=list)
-    v: list = field(default_factory=list)
-    end_forces: list = field(default_factory=list)
-    energy: list = field(default_factory=list)
-
-    def arrays(self) -> dict[str, np.ndarray]:
-        return {k: np.array(getattr(self, k)) for k in ("t", "x", "v", "end_forces", "energy")}
 
 
 class BulletCable:
     """A cable's spheres in a Bullet world and the state the MSD model keeps for them.
 
     Create with :meth:`bullet_dlo.bullet.world.BulletWorld.add_cable`. ``x`` [m], ``v`` [m/s]
-    (n, 3) are the model's state, ``t`` [s] its time; ``arrays`` its own copy of the model
-    arrays (grasp and release change the end conditions in place).
+    (n, 3) are the model's state, ``t`` [s] its time, ``twist`` its material frame's state
+    (:class:`~bullet_dlo.core.kernels.twist.TwistState`); ``model`` the cable's model (read only);
+    ``control`` (:class:`~bullet_dlo.core.model.CableControl`) what holds it: grasp, release, grips and
+    holder poses write it, and so may the user (``control.f_ext`` [N], or :meth:`set_external_force`);
+    ``arrays`` the kernels' view of the three (:class:`~bullet_dlo.core.model.KernelArrays`).
     """
 
     def __init__(self, world, name: str, model: CableModel, integrator: str, *, state: CableState | None,
@@ -123,58 +105,76 @@ class BulletCable:
         self.model_contact = contact == "model" or (contact == "auto" and implicit)
         self.contact_stiffness = check_positive("contact_stiffness", contact_stiffness)
         self.contact_damping = check_nonnegative("contact_damping", contact_damping)
-        self.stepper = make_stepper(self.method, world.dt / self.substeps, newton)
         self.record_every = check_int("record_every", record_every, 1)
         st = (state or model.initial_state()).copy()
-        n = model.n
         self.t = float(st.t)
         self.steps = 0
-        self.arrays = type(model.arrays)(*[np.array(a, copy=True) for a in model.arrays])
-        # the samplers write a twisting cable's clamp axes into this cable's own arrays (not the model's)
-        tw_normal = self.arrays.tw_normal
-        self.plan = holder_plan(model.first, model.last, tw_normal if tw_normal.shape[0] else None)
-        zeros = np.zeros((2, 3))
-        self.ext = ExternalHolders(active=np.zeros(2, dtype=np.bool_), pos=zeros.copy(), vel=zeros.copy(),
-                                   acc=zeros.copy(), omega=zeros.copy(),
-                                   dir=self.plan.start_dir.copy(),  # clamp directions until a gripper takes over
-                                   normal=self.plan.start_normal.copy())
-        self._cp = Coupling(dt=float(world.dt), substeps=self.substeps,
-                            gravity=np.asarray(world.gravity, dtype=float), x=st.x.copy(), v=st.v.copy(),
-                            v_bullet=st.v.copy(), x_new=np.zeros((n, 3)), v_new=np.zeros((n, 3)),
-                            force=np.zeros((n, 3)), samples=empty_samples(), end_force=np.zeros((2, 3)),
-                            end_torque=np.zeros((2, 3)), energy=np.zeros(1))
-        self.x, self.v = self._cp.x, self._cp.v
-        self.ws = make_workspace(n)
+        self.control: CableControl = model.control()  # end holds, clamp springs, holder poses, grips, f_ext
+        self.twist = st.twist if st.twist is not None else model.twist_state()
+        self.arrays = kernel_arrays(model.arrays, self.control, self.twist)
+        self.ext = self.control.holders  # measured holder poses (set_external_pose)
+        # the stepper, its scratch, the held ends' plan, the detector and the Bullet step's buffers
+        self.solver = CableSolver(model, self.arrays, self.control, st, method=self.method, newton=newton,
+                                  detector=detector, dt=world.dt, substeps=self.substeps, gravity=world.gravity)
+        self.x, self.v = self._cp.x, self._cp.v  # the state (views: the solver advances them in place)
         self._no_rows = np.zeros((0, 3))
         self._no_index = np.zeros(0, dtype=np.int64)
         self.radius = 0.5 * model.spec.diameter
         self.body_ids = self._spawn(color, self_collision)
         self._body_array = np.array(self.body_ids, dtype=np.int32)
         self._apply_native = None  # apply_forces's machine code, bound on first use
-        self._contact_set: ContactSet | None = None
-        self._bullet_collisions_off = False  # disable_bullet_collisions was called
-        self._excluded: set[tuple[int, int]] = set()  # dynamic (body, link)s whose Bullet contacts with the spheres are off
-        self._bodies_seen = -1  # bodies in the world when the contact set was built
-        self._contact_exclusions: dict = {}  # (body, link or None) -> None (all) or node indices: exclude_contact
-        self._partners_seen: tuple = ()  # names of the other cables in the contact set
-        self.grip = make_grip()  # friction grips of the ends (grip_with_friction), shared by every contact set
-        self._no_contacts = make_contacts(n, 1, self.radius, self.grip)
-        self._refresh_contact_set()
-        samples = self._cp.samples
-        sample_holders(self.plan, self.t, world.dt, samples)
-        self._detector_options = detector
-        self.detector = start_detector(detector, model, self.arrays, self.x, self.v, samples)
-        self.status = STABLE
-        self.time_to_instability: float | None = None
-        self.newton_iterations = 0
-        self.newton_failures = 0
+        self.grip = self.control.grip  # friction grips of the ends (grip_with_friction), shared by every contact set
+        self.contact = CableContacts(self)  # the contact set, its exclusions, Bullet's filters
         self.contacts_last_step = 0
         self.record = CableRecord()
         self._end_loads = None  # end_loads's machine code, bound on first use
         self._record_row()
-        spawn = self._step_input(False, False, self._no_index, self._no_rows, self._no_rows)
-        self._sync_and_advance = bind(sync_and_advance, *self._kernel_args(spawn))
         self._advance(None)  # plan the first step
+
+    # ----- the solver's parts, by their names of before the split ----------------------------
+    @property
+    def stepper(self):
+        """The integrator's step (:class:`~bullet_dlo.core.kernels.steppers.Stepper`; h = dt / substeps [s])."""
+        return self.solver.stepper
+
+    @property
+    def ws(self):
+        """The step kernels' scratch (:class:`~bullet_dlo.core.kernels.steppers.Workspace`)."""
+        return self.solver.workspace
+
+    @property
+    def plan(self):
+        """The held ends' move tables (:class:`~bullet_dlo.core.kernels.holders.HolderPlan`)."""
+        return self.solver.plan
+
+    @property
+    def _cp(self):
+        return self.solver.coupling
+
+    @property
+    def detector(self):
+        """The instability detector (:class:`~bullet_dlo.core.kernels.monitor.Detector`)."""
+        return self.solver.detector
+
+    @property
+    def status(self) -> int:
+        """STABLE, or the code of why the detector stopped the cable (:data:`~bullet_dlo.core.kernels.monitor.REASONS`)."""
+        return self.solver.status
+
+    @property
+    def time_to_instability(self) -> float | None:
+        """When the detector stopped the cable [s] (None: stable)."""
+        return self.solver.time_to_instability
+
+    @property
+    def newton_iterations(self) -> int:
+        """Newton iterations of all steps so far."""
+        return self.solver.newton_iterations
+
+    @property
+    def newton_failures(self) -> int:
+        """Steps whose Newton solve did not converge."""
+        return self.solver.newton_failures
 
     # ----- set-up -------------------------------------------------------------------------
     def _spawn(self, color, self_collision: str) -> list[int]:
@@ -216,39 +216,11 @@ class BulletCable:
 
     def _partners(self) -> list:
         """The other cables whose contacts with this one the model handles (stable ones)."""
-        if not self.handles_cable_contact:
-            return []
-        return [c for c in self.world.cables.values() if c is not self and c.handles_cable_contact and c.stable]
+        return self.contact.partners()
 
     def _refresh_contact_set(self) -> None:
-        """(Re)read the world's bodies for the contact model when they changed (new obstacles), and the
-        other cables it handles contact with."""
-        if not self.model_contact:
-            return
-        alone = len(self.world.cables) <= 1  # (this cable is in it once added): no partners can appear
-        if alone and not self._partners_seen and self._bodies_seen == len(self.world.bodies):
-            return  # the common case, checked without building the partner list every step
-        partners = self._partners()
-        names = tuple(c.name for c in partners)
-        cid = self.world.client
-        count = pb.getNumBodies(physicsClientId=cid)
-        if self._bodies_seen == count and names == self._partners_seen:
-            return
-        spec = self.model.spec
-        self._bodies_seen = count
-        self._partners_seen = names
-        # every body of the world but the cables' spheres (the robot arms too, whoever loaded them)
-        spheres = set(self.world._owners) | set(self.body_ids)
-        bodies = [b for b in (pb.getBodyUniqueId(i, physicsClientId=cid) for i in range(count)) if b not in spheres]
-        self._contact_set = ContactSet(cid, bodies, self.model.n, self.radius,
-                                       spec.static_friction, spec.dynamic_friction, self.contact_stiffness,
-                                       self.contact_damping, self_contact=self.self_collision != "none",
-                                       grip=self.grip, native=self.world.native_handle(), others=partners,
-                                       exclude={**{(b, None): None for b in self.world.no_cable_contact},
-                                                **self._contact_exclusions},
-                                       rest_length=float(spec.rest_length))
-        if self._bullet_collisions_off:
-            self._exclude_model_bodies()
+        """(Re)read the world's bodies for the contact model when they changed (:meth:`CableContacts.refresh`)."""
+        self.contact.refresh()
 
     def exclude_contact(self, body: int, link: int | None = None, nodes=None) -> None:
         """Leave ``body`` (its link ``link``; None: every link) out of the cable's contact model: entirely
@@ -256,66 +228,23 @@ class BulletCable:
         an end: its fingers do not push the held end, the rest of the cable still meets them). Bullet's own
         collisions of those spheres with it are switched off too: the cable passes through. Only for
         ``contact="model"``."""
-        cid = self.world.client
-        n = self.model.n
-        try:
-            pb.getBodyInfo(int(body), physicsClientId=cid)
-        except pb.error:
-            raise ParameterError(f"exclude_contact: no body {body} in this world") from None
-        if link is not None and not -1 <= link < pb.getNumJoints(body, physicsClientId=cid):
-            raise ParameterError(f"exclude_contact: link must be in [-1, {pb.getNumJoints(body, physicsClientId=cid) - 1}]"
-                                 f" or None, got {link}")
-        if nodes is not None:
-            idx = [int(i) for i in nodes]
-            if any(not -n <= i < n for i in idx):
-                raise ParameterError(f"exclude_contact: nodes must be in [{-n}, {n - 1}], got {idx}")
-            nodes = {i % n for i in idx}
-        self._contact_exclusions[(int(body), link)] = nodes
-        spheres = [self.body_ids[i] for i in sorted(nodes)] if nodes is not None else self.body_ids
-        for lk in ([link] if link is not None else range(-1, pb.getNumJoints(body, physicsClientId=cid))):
-            for b in spheres:
-                pb.setCollisionFilterPair(b, int(body), -1, lk, 0, physicsClientId=cid)
-        self._bodies_seen = -1  # rebuild the contact set
-        self._refresh_contact_set()
-
-    def _exclude_model_bodies(self) -> None:
-        """Keep Bullet from also colliding the spheres with the dynamic bodies the contact model handles.
-
-        The collision-group masks of :meth:`disable_bullet_collisions` keep static bodies away from the
-        spheres, but not dynamic ones (measured: a dynamic box, created before or after the cable, had
-        Bullet contacts with the spheres under it): such a body was then pushed by the model's reaction
-        and by Bullet's sphere contacts at once, and the spheres it pressed were read back pushed into
-        the ground. One pair filter per sphere and body, once per body.
-        """
-        cs, cid = self._contact_set, self.world.client
-        # a URDF's child links too, static ones included: Bullet collided the spheres with them (measured)
-        bullet_sees = cs.dynamic | (cs.links >= 0)
-        for body, link in sorted(set(zip(cs.body_ids[bullet_sees].tolist(), cs.links[bullet_sees].tolist()))
-                                 - self._excluded):
-            for b in self.body_ids:
-                pb.setCollisionFilterPair(b, body, -1, link, 0, physicsClientId=cid)
-            self._excluded.add((body, link))
+        self.contact.exclude(body, link, nodes)
 
     def disable_bullet_collisions(self) -> None:
         """Leave the world's bodies, the cable's self-contact and its contacts with the other cables the
         model handles (:attr:`handles_cable_contact`) to the contact model: in Bullet the spheres collide
         only with the spheres of cables whose contacts stay Bullet's (``contact="bullet"`` or
         ``self_collision="none"``)."""
-        own = self._group or self.world.next_cable_group()
-        mask = CABLE_GROUPS & ~own
-        if self.handles_cable_contact:
-            mask &= ~self.world._model_cable_groups  # (a pair collides only if each one's mask has the other)
-            self.world._model_cable_groups |= own
-        for b in self.body_ids:
-            pb.setCollisionFilterGroupMask(b, -1, own, mask, physicsClientId=self.world.client)
-        self._bullet_collisions_off = True
-        if self._contact_set is not None:
-            self._exclude_model_bodies()
+        self.contact.disable_bullet_collisions()
+
+    @property
+    def _contact_set(self) -> ContactSet | None:
+        return self.contact.set
 
     @property
     def contacts(self):
         """The core Contacts of the coming step (empty arrays when Bullet handles contact)."""
-        return self._contact_set.contacts if self._contact_set is not None else self._no_contacts
+        return self.contact.contacts
 
     # ----- stepping -----------------------------------------------------------------------
     def _advance(self, touched: list[int] | None) -> None:
@@ -346,15 +275,10 @@ class BulletCable:
         inp = self._step_input(do_sync, record, idx_arr, pos, vel)
         active = self.grip.active
         gripped = (bool(active[0]), bool(active[1]))
-        status, its, ok = self._sync_and_advance(*self._kernel_args(inp))
+        status = self.solver.step(self.arrays, self.control, self.contacts, inp)
         for end in (0, 1):
             if gripped[end] and not active[end]:  # the end slid out of the gripper
                 self._let_go(end)
-        self.newton_iterations += its
-        self.newton_failures += 0 if ok else 1
-        if status != STABLE:
-            self.status = status
-            self.time_to_instability = self.t
         if record:
             self._record_row(from_kernel=True)
         elif do_sync and status != STABLE:
@@ -363,22 +287,20 @@ class BulletCable:
     def _step_input(self, do_sync: bool, record: bool, index: np.ndarray, pos: np.ndarray,
                     vel: np.ndarray) -> StepInput:
         """What the kernel needs from this step: time, flags, the touched spheres' read-back state."""
-        det = self.detector
-        has_prev = self.steps > 0 and self.contacts.impact[0] == 0  # BDF2 restarts after an impact
-        return StepInput(self.t, has_prev, do_sync, do_sync and self.steps % det.check_every == 0,
-                         do_sync and self.steps % det.energy_every == 0, record, index, pos, vel)
+        return self.solver.step_input(self.t, self.steps, do_sync, record, self.contacts, index, pos, vel)
 
     def _kernel_args(self, inp: StepInput) -> tuple:
         """Arguments of :func:`~bullet_dlo.bullet.kernels.sync_and_advance` (the same objects every step)."""
-        return self.stepper, self.arrays, self.plan, self.ext, self._cp, self.ws, self.detector, inp, self.contacts
+        return self.solver.kernel_args(self.arrays, self.control, self.contacts, inp)
 
     def apply_forces(self) -> None:
         """Apply the forces planned for the coming Bullet step (nothing once unstable)."""
-        if self.status != STABLE:
+        solver = self.solver
+        if solver.status != STABLE:
             return
         native = self.world.native_handle()
         if native:  # one compiled call instead of n PyBullet calls
-            args = (native, self._body_array, self._cp.force, self.x)
+            args = (native, self._body_array, solver.coupling.force, self.x)
             if self._apply_native is None:
                 self._apply_native = bind(apply_forces, *args)
             self._apply_native(*args)
@@ -386,29 +308,26 @@ class BulletCable:
             cid = self.world.client
             apply = pb.applyExternalForce
             frame = pb.WORLD_FRAME
-            for b, f, pos in zip(self.body_ids, self._cp.force.tolist(), self.x.tolist()):
+            for b, f, pos in zip(self.body_ids, solver.coupling.force.tolist(), self.x.tolist()):
                 apply(b, -1, f, pos, frame, cid)  # positional: keyword parsing costs 50 % more per call
-        if self._contact_set is not None:
-            self._contact_set.apply_to_bodies()
+        cs = self.contact.set
+        if cs is not None:
+            cs.apply_to_bodies()
 
     def sync_after_step(self, touched) -> None:
         """Take over Bullet's step: ``touched`` holds the spheres that had contacts (read back)."""
-        if self.status == STABLE:
+        if self.solver.status == STABLE:
             self._advance(sorted(touched) if touched else [])
 
     def _record_row(self, from_kernel: bool = False) -> None:
         """Append a row; ``from_kernel``: the step's kernel wrote its end loads and energy (``inp.record``)."""
         # sample 0 of the held-end samples is the current time (they are planned for the coming step)
-        rec, cp = self.record, self._cp
-        rec.t.append(self.t)
-        rec.x.append(self.x.copy())
-        rec.v.append(self.v.copy())
+        cp = self._cp
         if from_kernel:
-            rec.end_forces.append(cp.end_force.copy())
-            rec.energy.append(float(cp.energy[0]))
+            self.record.append(self.t, self.x, self.v, cp.end_force, float(cp.energy[0]))
         else:
-            rec.end_forces.append(self.end_forces())
-            rec.energy.append(mechanical_energy(self.arrays, self.x, self.v, cp.samples.dir[0]))
+            self.record.append(self.t, self.x, self.v, self.end_forces(),
+                               mechanical_energy(self.arrays, self.x, self.v, cp.samples.dir[0]))
 
     def add_point_mass(self, node: int, mass: float) -> None:
         """Hang a weight of ``mass`` [kg] (> 0) on node ``node`` (its sphere gets heavier too).
@@ -419,12 +338,20 @@ class BulletCable:
         if not -n <= node < n:
             raise ParameterError(f"node must be in [0, {n - 1}], got {node}")
         node = node % n
-        self.arrays.mass[node] += check_positive("point mass", mass)
-        pb.changeDynamics(self.body_ids[node], -1, mass=float(self.arrays.mass[node]),
-                          physicsClientId=self.world.client)
-        self.detector = start_detector(self._detector_options, self.model, self.arrays, self.x, self.v,
-                                       self._cp.samples)
+        masses = self.model.arrays.mass.copy()
+        masses[node] += check_positive("point mass", mass)
+        self.set_parameters(mass=masses)
+        pb.changeDynamics(self.body_ids[node], -1, mass=float(masses[node]), physicsClientId=self.world.client)
+        self.solver.restart_detector(self.model, self.arrays)
         self._replan()
+
+    def set_parameters(self, **arrays: np.ndarray) -> None:
+        """Replace model parameter arrays of this cable (``ModelArrays`` names, e.g. ``damp`` [N s/m] (n,)): it
+        gets a new model (:func:`~bullet_dlo.core.model.with_arrays`), the one it was built from stays as it
+        was. Meant for set-up; from the next planned step on (the coming Bullet step is planned already).
+        Masses: use :meth:`add_point_mass` (the spheres and the detector follow)."""
+        self.model = with_arrays(self.model, **arrays)
+        self.arrays = kernel_arrays(self.model.arrays, self.control, self.twist)
 
     # ----- grasping -----------------------------------------------------------------------
     def hold_externally(self, end: int, mode: str = "clamped") -> None:
@@ -436,11 +363,11 @@ class BulletCable:
         if mode not in (EndMode.CLAMPED, EndMode.PINNED):
             raise ParameterError(f"grasp mode must be one of clamped, pinned, got {mode!r}")
         mode = str(EndMode(mode))
-        a, spec, n = self.arrays, self.model.spec, self.model.n
+        c, spec, n = self.control, self.model.spec, self.model.n
         node = 0 if end == 0 else n - 1
-        a.held[node] = True
-        a.k_bend[node] = spec.k_bend_clamp if mode == "clamped" else 0.0
-        a.c_bend[node] = a.k_bend[node] * spec.internal_damping  # the clamp's Kelvin-Voigt damper
+        c.held[node] = True
+        c.k_bend[node] = spec.k_bend_clamp if mode == "clamped" else 0.0
+        c.c_bend[node] = c.k_bend[node] * spec.internal_damping  # the clamp's Kelvin-Voigt damper
         self._hold_twist(end, mode)
         self.ext.active[end] = True
         self.grip.active[end] = False
@@ -468,14 +395,14 @@ class BulletCable:
         mu_d = check_nonnegative("grip_dynamic_friction", dynamic_friction)
         if mu_d > mu_s:
             raise ParameterError(f"grip_dynamic_friction must be in [0, grip_static_friction {mu_s}], got {mu_d}")
-        a, n, g = self.arrays, self.model.n, self.grip
+        c, n, g = self.control, self.model.n, self.grip
         node = 0 if end == 0 else n - 1
-        a.held[node] = False
-        a.k_bend[node] = self.model.spec.k_bend_clamp
-        a.c_bend[node] = a.k_bend[node] * self.model.spec.internal_damping
+        c.held[node] = False
+        c.k_bend[node] = self.model.spec.k_bend_clamp
+        c.c_bend[node] = c.k_bend[node] * self.model.spec.internal_damping
         self._hold_twist(end, "clamped")  # the pinching fingers hold the roll as they hold the tangent
         self.ext.active[end] = True
-        g.k_ax[end] = g.k_lat[end] = self.contact_stiffness * a.mass[node] / self.stepper.h ** 2
+        g.k_ax[end] = g.k_lat[end] = self.contact_stiffness * self.model.arrays.mass[node] / self.stepper.h ** 2
         g.cap_s[end], g.cap_d[end] = 2.0 * mu_s * f_n, 2.0 * mu_d * f_n
         g.reach[end] = check_positive("grip reach", reach)
         g.offset[end] = float(np.dot(self.x[node] - self.ext.pos[end], self.ext.dir[end]))
@@ -491,10 +418,10 @@ class BulletCable:
                 "force": g.force.copy()}
 
     def _let_go(self, end: int) -> None:
-        a, n = self.arrays, self.model.n
+        c, n = self.control, self.model.n
         node = 0 if end == 0 else n - 1
-        a.held[node] = False
-        a.k_bend[node] = a.c_bend[node] = 0.0
+        c.held[node] = False
+        c.k_bend[node] = c.c_bend[node] = 0.0
         self._hold_twist(end, "free")
         self.ext.active[end] = False
         self.grip.active[end] = False
@@ -504,15 +431,15 @@ class BulletCable:
         a pin or a free end does not: :func:`~bullet_dlo.core.model.end_twist_constants`); a clamp takes the
         section as it is now (no twist added, :func:`~bullet_dlo.core.kernels.twist.grip_section`) and its
         axis becomes the holder's ``ext.normal``, which the holder then turns (the gripper's roll)."""
-        a = self.arrays
-        if not a.tw_k_twist.shape[0]:
+        c = self.control
+        if not c.k_twist.shape[0]:
             return
         spec = self.model.spec
         node = 0 if end == 0 else self.model.n - 1
-        a.tw_k_twist[node], a.tw_k_aniso[node] = end_twist_constants(spec, mode)
-        a.tw_c_twist[node] = a.tw_k_twist[node] * spec.internal_damping
+        c.k_twist[node], c.k_aniso[node] = end_twist_constants(spec, mode)
+        c.c_twist[node] = c.k_twist[node] * spec.internal_damping
         if mode == "clamped":
-            self.ext.normal[end] = grip_section(a, self.x, self.ext.dir, end)
+            self.ext.normal[end] = grip_section(self.arrays, self.x, self.ext.dir, end)
 
     def release(self, end: int) -> None:
         """Let end ``end`` go: it becomes free and no longer follows any holder."""
@@ -527,7 +454,7 @@ class BulletCable:
         (its roll about the cable); None: it is carried from the last pose onto the new direction without
         roll (parallel transport). Only a cable with a material frame reads it."""
         e = self.ext
-        if self.arrays.tw_k_twist.shape[0]:
+        if self.control.k_twist.shape[0]:
             if normal is None:
                 d_old = e.dir[end].copy()
                 d_new = np.asarray(direction, dtype=float) / np.linalg.norm(direction)
@@ -538,6 +465,18 @@ class BulletCable:
         dx, dy, dz = direction  # normalised in scalars: this runs twice per coupled step
         scale = 1.0 / math.sqrt(dx * dx + dy * dy + dz * dz)
         e.dir[end] = (dx * scale, dy * scale, dz * scale)
+
+    def set_external_force(self, node: int, force) -> None:
+        """Apply the external force ``force`` [N] (3,), world frame, to node ``node`` from now on (it stays until
+        set again; ``control.f_ext`` holds all of them, (n, 3)). It acts from the next planned step: the coming
+        Bullet step was planned at the end of the last one."""
+        n = self.model.n
+        if not -n <= node < n:
+            raise ParameterError(f"node must be in [{-n}, {n - 1}], got {node}")
+        f = np.asarray(force, dtype=float)
+        if f.shape != (3,) or not np.all(np.isfinite(f)):
+            raise ParameterError(f"force must be a finite 3-vector [N], got {force!r}")
+        self.control.f_ext[node] = f
 
     def holder_positions(self) -> np.ndarray:
         """Positions [m] of the external holders (e.g. grasp frames) as last measured, (2, 3)."""
@@ -558,8 +497,8 @@ class BulletCable:
         return REASONS[self.status]
 
     def state(self) -> CableState:
-        """The cable's current state as the model sees it."""
-        return CableState(self.x.copy(), self.v.copy(), self.t)
+        """The cable's current state as the model sees it (a copy, its twist state included)."""
+        return CableState(self.x.copy(), self.v.copy(), self.t, self.twist.copy())
 
     def end_forces(self) -> np.ndarray:
         """Force [N] the cable exerts on each held or gripped end now, (2, 3) (first, last)."""

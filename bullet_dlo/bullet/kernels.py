@@ -14,30 +14,10 @@ from numba import njit
 
 from bullet_dlo.core.kernels.contact import contact_energy, contact_step, grip_active
 from bullet_dlo.core.kernels.forces import clamp_torque, mechanical_energy
-from bullet_dlo.core.kernels.holders import HeldSamples, rotate, sample_end
+from bullet_dlo.core.kernels.holders import ExternalHolders, HeldSamples, rotate, sample_end  # noqa: F401 (re-exported)
 from bullet_dlo.core.kernels.monitor import STABLE, end_forces, monitor
 from bullet_dlo.core.kernels.steppers import IMPLICIT_EULER, advance
 from bullet_dlo.core.kernels.twist import set_clamp
-
-
-class ExternalHolders(NamedTuple):
-    """Measured holder poses (e.g. gripper links) that ends follow instead of their move tables.
-
-    active: which ends follow them, (2,) bool; pos [m], vel [m/s], acc [m/s^2], omega
-    (angular velocity) [rad/s], dir (clamp direction, unit, along the cable from its first to
-    its last node): world frame, (2, 3) each, measured now and extrapolated over a step at
-    constant velocity and angular velocity; normal: the holder's section axis d1 (unit, normal to
-    dir), world frame, (2, 3), turned with dir over the step: the roll about the cable axis that a
-    clamp of a cable with a material frame holds (read only by such cables).
-    """
-
-    active: np.ndarray
-    pos: np.ndarray
-    vel: np.ndarray
-    acc: np.ndarray
-    omega: np.ndarray
-    dir: np.ndarray
-    normal: np.ndarray
 
 
 class Coupling(NamedTuple):

@@ -323,7 +323,7 @@ def holder_plan(first: EndHolder, last: EndHolder, normal: np.ndarray | None = N
     """Start poses and motion tables of both ends, as the kernels take them.
 
     normal: the buffer (3, 2, 3) the samplers write the clamps' section axis into (a twisting model's
-    ``ModelArrays.tw.normal``); None: the roll is not tracked.
+    ``CableControl.normal``); None: the roll is not tracked.
     """
     return HolderPlan(
         start_pos=np.stack([first.position, last.position]).astype(float),

@@ -35,7 +35,7 @@ from bullet_dlo.core.kernels.holders import HeldSamples, empty_samples, peak_spe
 from bullet_dlo.core.kernels.loop import make_records, run_loop
 from bullet_dlo.core.kernels.monitor import REASONS, STABLE, STRETCH, Detector, clamp_moments, end_forces
 from bullet_dlo.core.kernels.steppers import make_workspace
-from bullet_dlo.core.model import CableModel, CableState, ModelArrays
+from bullet_dlo.core.model import CableModel, CableState, KernelArrays
 from bullet_dlo.core.validate import ParameterError, check_int, check_positive
 
 
@@ -124,7 +124,7 @@ class SimulationResult:
         return self.newton_failures / self.steps if self.steps else 0.0
 
 
-def start_detector(options: DetectorOptions, model: CableModel, m: ModelArrays, x: np.ndarray, v: np.ndarray,
+def start_detector(options: DetectorOptions, model: CableModel, m: KernelArrays, x: np.ndarray, v: np.ndarray,
                    samples: HeldSamples) -> Detector:
     """The detector at the start state (x [m], v [m/s], (n, 3)), held ends at sample 0 of ``samples``.
 
@@ -170,11 +170,12 @@ def simulate(
         integrator: name from :data:`bullet_dlo.core.integrators.INTEGRATORS`.
         dt: time step [s], > 0.
         duration: simulated time [s], > 0 (rounded to a whole number of steps).
-        state: start state (default: the model's initial state at rest).
+        state: start state (default: the model's initial state at rest); its ``twist`` (a cable with a
+            material frame) continues a run's ``final_state``, None builds it from the positions.
         record_every: steps between recorded rows (default: so that about ``max_records`` rows are kept).
         newton: Newton options for implicit methods.
         detector: instability thresholds.
-        f_ext: constant external forces [N], (n, 3).
+        f_ext: constant external forces [N], (n, 3) (the run's control; the model is read only).
 
     The result's ``warnings`` say what a user should know although the run is stable (Newton
     failing in more than ``NEWTON_WARN_SHARE`` of the steps; a large but physical strain; a held
@@ -235,7 +236,7 @@ def confirm_strain(model: CableModel, first: SimulationResult,
     :func:`bullet_dlo.bullet.world.run_scene_bullet`."""
     again = rerun(CONFIRM_STRAIN_BOUND)
     if again.stable:
-        m = model.arrays
+        m = model.kernel_arrays()
         again.max_strain_seen = float(max(max_strain(m, x) for x in again.x))
         again.warnings = first.warnings + again.warnings + [
             f"segment strain reached {again.max_strain_seen:.3g} (beyond {DEFAULT_STRAIN_BOUND}) at "
@@ -262,13 +263,10 @@ def _simulate(model: CableModel, integrator: str, dt: float, duration: float, *,
     n = model.n
     if st.x.shape != (n, 3) or st.v.shape != (n, 3):
         raise ParameterError(f"state arrays must have shape ({n}, 3)")
-    m = model.arrays
-    if f_ext is not None:
-        f_ext = np.ascontiguousarray(f_ext, dtype=float)
-        if f_ext.shape != (n, 3) or not np.all(np.isfinite(f_ext)):
-            raise ParameterError(f"f_ext must be a finite array of shape ({n}, 3)")
-        m = m._replace(f_ext=f_ext)
-    plan = model.holder_plan()
+    control = model.control(f_ext)  # the model's end conditions, the constant external forces
+    twist = st.twist if st.twist is not None else model.twist_state()
+    m = model.kernel_arrays(control, twist)
+    plan = model.holder_plan(control)
     samples = empty_samples()
     sample_holders(plan, st.t, dt, samples)
     det = start_detector(detector, model, m, st.x, st.v, samples)
@@ -292,7 +290,7 @@ def _simulate(model: CableModel, integrator: str, dt: float, duration: float, *,
         steps=int(steps), wall_time_s=wall,
         t=rec.t[:rows].copy(), x=rec.x[:rows].copy(), v=rec.v[:rows].copy(),
         end_forces=rec.end_force[:rows].copy(), energy=rec.energy[:rows].copy(),
-        final_state=CableState(x, v, t_final), end_moments=moments,
+        final_state=CableState(x, v, t_final, twist), end_moments=moments,
         newton_failures=int(failures), newton_iterations=int(iters),
         end_moment_history=rec.end_moment[:rows].copy(), compile_time_s=compile_s,
     )

@@ -51,7 +51,7 @@ def stiffness_spectrum(model: CableModel, state: CableState | None = None) -> np
     K = -dF/dx (exact, undamped) evaluated at ``state`` (default: the model's initial state).
     """
     st = state or model.initial_state()
-    a = model.arrays
+    a = model.kernel_arrays()
     n = model.n
     jac = np.zeros((n, 5, 3, 3))
     force_jacobian(a, st.x, model.holder_plan().start_dir, False, jac)

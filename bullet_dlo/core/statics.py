@@ -54,7 +54,7 @@ def solve_static(
     """
     n = model.n
     fe = np.zeros((n, 3)) if f_ext is None else np.asarray(f_ext, dtype=float)
-    a = model.arrays._replace(f_ext=fe)
+    a = model.kernel_arrays(model.control(fe))
     x = (model.x0 if x_start is None else np.asarray(x_start, dtype=float)).copy()
     x[0] = model.first.position if a.held[0] else x[0]
     x[-1] = model.last.position if a.held[-1] else x[-1]

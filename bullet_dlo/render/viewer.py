@@ -344,9 +344,9 @@ def _model_forces(run: Run) -> np.ndarray | None:
     if run.cable is None or run.frames < 3 or run.cable.n_masses != run.cable_x.shape[1]:
         return None
     from bullet_dlo.core.kernels.forces import total_forces
-    from bullet_dlo.core.model import STANDARD_GRAVITY, build_arrays
+    from bullet_dlo.core.model import STANDARD_GRAVITY, build_arrays, kernel_arrays
 
-    m = build_arrays(run.cable, "free", "free", np.asarray(STANDARD_GRAVITY, dtype=float))
+    m = kernel_arrays(build_arrays(run.cable, "free", "free", np.asarray(STANDARD_GRAVITY, dtype=float)))
     if run.cable.twist_enabled:
         return None  # the twist terms need the material frame, which is not recorded
     t, x = run.t, run.cable_x

@@ -64,14 +64,14 @@ def capstan_onset(theta: float, mu: float, hz: float = 240.0, integrator: str = 
     t_short = (0.05 + lam * short) * G  # tension where the short side leaves the cylinder
     cable.add_point_mass(-1, 0.05)
     cable.add_point_mass(0, t_short / G - lam * hang)  # ratio 1
-    cable.arrays.damp[:] = 5.0 * cable.arrays.mass  # drag 5 1/s settles the weights' bounce (no effect at rest)
+    cable.set_parameters(damp=5.0 * cable.model.arrays.mass)  # drag 5 1/s settles the weights' bounce (no effect at rest)
     ratio_max, ramp, settle = 2.0 * math.exp(mu * theta), 4.0, 0.5
     z_settled = None
     try:
         for k in range(int((ramp + settle) * hz)):
             t = (k + 1) / hz
             ratio = 1.0 + (ratio_max - 1.0) * max(0.0, t - settle) / ramp
-            cable.arrays.f_ext[0, 2] = -(ratio - 1.0) * t_short
+            cable.control.f_ext[0, 2] = -(ratio - 1.0) * t_short
             world.step()
             assert cable.stable, cable.reason
             if t <= settle:

@@ -32,7 +32,7 @@ def test_box_carries_the_cable_and_is_dragged_by_it():
         assert np.mean(normal) == pytest.approx((m_box + spec.mass) * G, rel=0.01)
         on_box = cable.body_forces()[box]
         assert on_box == pytest.approx([0, 0, -spec.mass * G], abs=1e-3 * spec.mass * G)
-        cable.arrays.f_ext[0, 0] = -pull  # pull the first node along -x
+        cable.set_external_force(0, (-pull, 0.0, 0.0))  # pull the first node along -x
         t, v_box = [], []
         for k in range(int(0.6 * hz)):
             world.step()

@@ -91,7 +91,7 @@ def hang(spec: CableSpec, phi: float, place: float, hz: float = 240.0, settle: f
     with BulletWorld(dt=1.0 / hz, ground=False) as world:
         world.add_box(TABLE, (-TABLE[0], 0.0, -TABLE[2]), friction=spec.static_friction)  # combined: mu
         cable = world.add_cable(spec, state=CableState(x0, np.zeros_like(x0)))
-        cable.arrays.damp[:] = drag * cable.arrays.mass
+        cable.set_parameters(damp=drag * cable.model.arrays.mass)
         start = cable.x[0, 0]
         for k in range(round((settle + seconds) * hz)):
             world.step()

@@ -36,7 +36,7 @@ def _pull(world, cable, duration, settle=0.2):
     for k in range(int(round(duration / DT))):
         t = k * DT
         pull = max(0.0, RAMP * (t - settle))
-        cable.arrays.f_ext[-1] = (0.0, 0.0, -pull)
+        cable.set_external_force(-1, (0.0, 0.0, -pull))
         world.step()
         g = cable.grip_state()
         rows.append((t, pull, g["force"][0, 2], g["slip"][0], g["sliding"][0], -cable.end_forces()[0, 2]))

@@ -38,7 +38,7 @@ def test_history_is_the_clamp_torque_of_each_recorded_moving_state():
     for r in range(0, len(res.t), 7):
         sample_holders(model.holder_plan(), res.t[r], 0.0, samples)
         for e in (0, 1):
-            want = clamp_torque(model.arrays, res.x[r], res.v[r], samples.dir[0], e)
+            want = clamp_torque(model.kernel_arrays(), res.x[r], res.v[r], samples.dir[0], e)
             assert res.end_moment_history[r, e] == pytest.approx(want, rel=1e-12, abs=1e-15)
     assert np.ptp(res.end_moment_history[:, 0, 1]) > 1e-3  # the moment really changes over the motion
 

@@ -43,7 +43,7 @@ def _bent(n=7, ends=("free", "free"), tau=0.01, seed=0):
 @pytest.mark.parametrize("ends", [("free", "free"), ("clamped", "clamped"), ("clamped", "free")])
 def test_damping_forces_derive_from_the_dissipation_function_with_exact_jacobian(ends):
     model, x, rng = _bent(ends=ends)
-    m, dirs = model.arrays, model.holder_plan().start_dir
+    m, dirs = model.kernel_arrays(), model.holder_plan().start_dir
     v = rng.standard_normal(x.shape)
     f = np.zeros_like(x)
     internal_damping_forces(m, x, v, dirs, f)
@@ -70,15 +70,15 @@ def test_internal_damping_is_tau_times_stiffness_about_a_straight_cable():
     dirs = model.holder_plan().start_dir
     c = np.zeros((8, 5, 3, 3))
     k = np.zeros((8, 5, 3, 3))
-    add_damping_jacobian(model.arrays, model.x0, dirs, 1.0, c)
-    force_jacobian(model.arrays, model.x0, dirs, False, k)
+    add_damping_jacobian(model.kernel_arrays(), model.x0, dirs, 1.0, c)
+    force_jacobian(model.kernel_arrays(), model.x0, dirs, False, k)
     assert np.allclose(c, 0.01 * k, atol=1e-12 * np.abs(k).max())
 
 
 def test_translation_and_in_plane_rotation_feel_no_internal_damping():
     model, x, rng = _bent()
     x[:, 2] = 0.5  # bent in the horizontal plane
-    m, dirs = model.arrays, model.holder_plan().start_dir
+    m, dirs = model.kernel_arrays(), model.holder_plan().start_dir
     for omega in ([0.0, 0.0, 2.0], [0.0, 0.0, -0.7]):
         v = np.array([0.3, -0.1, 0.2]) + np.cross(np.array(omega), x)
         f = np.zeros_like(x)
@@ -119,8 +119,8 @@ def test_damped_linear_eigenvalues_match_closed_form(n):
     dirs = model.holder_plan().start_dir
     kj = np.zeros((n, 5, 3, 3))
     cj = np.zeros((n, 5, 3, 3))
-    force_jacobian(model.arrays, model.x0, dirs, False, kj)
-    add_damping_jacobian(model.arrays, model.x0, dirs, 1.0, cj)
+    force_jacobian(model.kernel_arrays(), model.x0, dirs, False, kj)
+    add_damping_jacobian(model.kernel_arrays(), model.x0, dirs, 1.0, cj)
     free = slice(3, 3 * n)
     k = -jacobian_blocks_to_dense(kj)[free, free]
     cm = -jacobian_blocks_to_dense(cj)[free, free] + np.diag(np.repeat(spec.damping_coefficients()[1:], 3))
@@ -218,7 +218,7 @@ def test_drag_and_the_implicit_step_agree_with_the_free_mass_closed_form():
     res = simulate(model, "implicit_midpoint", 1e-3, 0.5, state=CableState(model.x0.copy(), v0), max_records=3)
     assert np.allclose(res.final_state.v, v0 * math.exp(-2.0 * 0.5), rtol=1e-6)
     f = np.zeros((5, 3))
-    total_forces(model.arrays, model.x0, v0, model.holder_plan().start_dir, f)
+    total_forces(model.kernel_arrays(), model.x0, v0, model.holder_plan().start_dir, f)
     assert np.allclose(f, -2.0 * spec.point_masses()[:, None] * v0)  # internal damping: nothing on translation
 
 

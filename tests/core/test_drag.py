@@ -157,9 +157,10 @@ def test_cantilever_decay_quadratic_drag():
     assert all(1.7 < rate < 2.3 for rate in rates), (errs, rates)
 
 
-def _forces(model: CableModel, x: np.ndarray, v: np.ndarray) -> np.ndarray:
+def _forces(model: CableModel, x: np.ndarray, v: np.ndarray, m=None) -> np.ndarray:
+    """The drag forces [N] at (x, v); ``m``: the kernels' arrays to use (default: the model's, a new twist state)."""
     out = np.zeros_like(x)
-    add_drag_forces(model.arrays, x, v, out)
+    add_drag_forces(model.kernel_arrays() if m is None else m, x, v, out)
     return out
 
 
@@ -183,14 +184,15 @@ def test_rectangle_face_normal():
                      width=0.08, thickness=0.001, drag_coefficient=2.0)
     model = CableModel.straight(spec, direction=(1, 0, 0), ends=("clamped", "free"))
     x = model.x0.copy()
-    twist_ready(model.arrays, x, np.array([[1.0, 0, 0], [1.0, 0, 0]]))
+    m = model.kernel_arrays()
+    twist_ready(m, x, np.array([[1.0, 0, 0], [1.0, 0, 0]]))
     d1 = model.first.normal  # width axis; the face normal is d2 = t x d1
     d2 = np.cross([1.0, 0, 0], d1)
     v = np.zeros_like(x)
     v[:] = 1.5 * d1
-    assert np.abs(_forces(model, x, v)).max() < 1e-14
+    assert np.abs(_forces(model, x, v, m)).max() < 1e-14
     v[:] = 1.5 * d2 + 0.7 * d1 + 0.3 * np.array([1.0, 0, 0])
-    f = _forces(model, x, v).sum(axis=0)
+    f = _forces(model, x, v, m).sum(axis=0)
     assert f == pytest.approx(-(spec.n_masses - 1) * spec.drag_constant * 1.5**2 * d2, rel=1e-12, abs=1e-14)
 
 
@@ -205,11 +207,11 @@ def test_velocity_jacobian_and_dissipation(face):
         spec = FALLER.with_(n_masses=7)
     model = CableModel.straight(spec, ends=("free", "free"))
     x = model.x0 + 0.02 * rng.standard_normal(model.x0.shape)
+    m = model.kernel_arrays()
     if face:
-        twist_ready(model.arrays, x, np.array([[1.0, 0, 0], [1.0, 0, 0]]))
-        model.arrays.tw_theta[:] = 0.3 * rng.standard_normal(spec.n_masses - 1)
+        twist_ready(m, x, np.array([[1.0, 0, 0], [1.0, 0, 0]]))
+        m.tw_theta[:] = 0.3 * rng.standard_normal(spec.n_masses - 1)
     v = rng.standard_normal(x.shape)
-    m = model.arrays
     n = spec.n_masses
     jac = np.zeros((n, 5, 3, 3))
     add_drag_jacobian(m, x, v, 1.0, jac)
@@ -221,12 +223,12 @@ def test_velocity_jacobian_and_dissipation(face):
         vp, vm = v.copy(), v.copy()
         vp.flat[col] += eps
         vm.flat[col] -= eps
-        fd[:, col] = (_forces(model, x, vp) - _forces(model, x, vm)).ravel() / (2 * eps)
+        fd[:, col] = (_forces(model, x, vp, m) - _forces(model, x, vm, m)).ravel() / (2 * eps)
         grad_r[col] = (drag_dissipation(m, x, vp) - drag_dissipation(m, x, vm)) / (2 * eps)
     scale = np.abs(dense).max()
     assert np.abs(dense - fd).max() < 1e-7 * scale
     assert np.allclose(dense, dense.T, atol=1e-14 * scale)
     assert np.linalg.eigvalsh(dense).max() < 1e-12 * scale  # dissipative: negative semi-definite
-    f = _forces(model, x, v)
+    f = _forces(model, x, v, m)
     assert np.abs(-grad_r - f.ravel()).max() < 1e-7 * np.abs(f).max()
     assert drag_power(m, x, v) == pytest.approx(-np.sum(f * v), rel=1e-12)

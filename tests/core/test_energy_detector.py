@@ -41,7 +41,7 @@ def test_energy_balance_closes_with_the_clamp_moment_work():
     """Undamped, energy-conserving midpoint: E(T) - E(0) - W within 2 % of sum |dW|, W counting the moment's
     work (without it W is ~0 here: the turning clamp's only work is through its moment)."""
     model = _model()
-    m, plan, dt, steps = model.arrays, model.holder_plan(), 2e-4, 5000
+    m, plan, dt, steps = model.kernel_arrays(), model.holder_plan(), 2e-4, 5000
     st = model.initial_state()
     samples = empty_samples()
     sample_holders(plan, 0.0, dt, samples)
@@ -68,7 +68,7 @@ def test_zero_gravity_scale_is_physical_and_independent_of_n():
         st = model.initial_state()
         samples = empty_samples()
         sample_holders(model.holder_plan(), 0.0, 1e-3, samples)
-        scales.append(start_detector(DetectorOptions(), model, model.arrays, st.x, st.v, samples).scale[0])
+        scales.append(start_detector(DetectorOptions(), model, model.kernel_arrays(), st.x, st.v, samples).scale[0])
     assert np.allclose(scales, SPEC.bending_rigidity / SPEC.length, rtol=1e-12)
 
 

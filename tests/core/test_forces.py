@@ -33,7 +33,7 @@ def _setup(n=7, ends=("clamped", "clamped"), noise=0.006, seed=0):
     x = model.x0 + rng.normal(scale=noise, size=model.x0.shape)
     d1 = np.array([1.0, 0.3, -0.2]); d1 /= np.linalg.norm(d1)
     d2 = np.array([0.8, -0.4, 0.3]); d2 /= np.linalg.norm(d2)
-    return spec, model.arrays, x, d1, d2
+    return spec, model.kernel_arrays(), x, d1, d2
 
 
 def dirs(d1, d2):
@@ -138,7 +138,7 @@ def test_clamp_moment_includes_its_kelvin_voigt_damper(end):
     """
     spec = CableSpec.lv2017(n_masses=7, internal_damping=0.01)
     model = CableModel.straight(spec, ends=("clamped", "clamped"))
-    a = model.arrays
+    a = model.kernel_arrays()
     rng = np.random.default_rng(3)
     x = model.x0.copy()
     x[:, 2] += 0.01 * np.sin(np.linspace(0.0, 3.0, len(x)))  # bent in the x-z plane

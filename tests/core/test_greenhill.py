@@ -21,7 +21,7 @@ def lowest_stiffness(spec: CableSpec, roll: float) -> tuple[float, float]:
     """Lowest eigenvalue [N/m] of the straight rod's stiffness with its last clamp rolled by ``roll`` [rad]
     (twist angles in equilibrium for every position: the static condensation), and the torque [N m] on it."""
     model = CableModel.straight(spec, ends=("clamped", "clamped"), gravity=(0, 0, 0))
-    m, x0 = model.arrays, model.initial_state().x
+    m, x0 = model.kernel_arrays(), model.initial_state().x
     dirs = model.holder_plan().start_dir
     internal_energy(m, x0, dirs)  # builds the material frame
     d1 = m.tw_normal[0, 1].copy()

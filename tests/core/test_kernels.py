@@ -82,7 +82,7 @@ def test_every_stepper_drops_a_free_cable_like_a_point_mass(name):
 def test_mechanical_energy_is_kinetic_plus_elastic_plus_gravitational(rng):
     spec = CableSpec.lv2017(n_masses=8)
     model = CableModel.straight(spec, ends=("clamped", "pinned"))
-    a, dirs = model.arrays, model.holder_plan().start_dir
+    a, dirs = model.kernel_arrays(), model.holder_plan().start_dir
     state = CableState(model.x0 + rng.normal(scale=3e-3, size=model.x0.shape), rng.normal(size=model.x0.shape))
     kinetic = 0.5 * np.sum(a.mass[:, None] * state.v**2)
     gravitational = -np.sum(a.mass[:, None] * a.gravity[None, :] * state.x)

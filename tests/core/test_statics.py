@@ -53,7 +53,7 @@ def test_cantilever_clamp_moment_balances_weight():
     from bullet_dlo.core.kernels.forces import clamp_torque
 
     res = solve_static(model)
-    tau = clamp_torque(model.arrays, res.x, np.zeros_like(res.x), model.holder_plan().start_dir, 0)
+    tau = clamp_torque(model.kernel_arrays(), res.x, np.zeros_like(res.x), model.holder_plan().start_dir, 0)
     weight = spec.mass * 9.81
     # moment of the weight about the clamp: (L/2) M g about +y (arm shortened by the tiny sag only)
     assert tau[1] == pytest.approx(weight * spec.length / 2, rel=1e-3)

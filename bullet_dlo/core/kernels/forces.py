@@ -9,12 +9,13 @@ The chain has n nodes x_i (shape (n, 3), m) and n-1 segments e_i = x_{i+1} - x_i
   (held by the gripper) and the first (last) segment, stiffness ``k_bend[0]`` (``k_bend[-1]``);
   a stiffness of 0 means the end is not clamped.
 
-Kernels take the model as :class:`bullet_dlo.core.model.ModelArrays` (``m``), positions x
+Kernels take the model as :class:`bullet_dlo.core.model.KernelArrays` (``m``: the model's parameters with the
+control's end conditions and the twist state), positions x
 [m] (n, 3), velocities v [m/s] (n, 3) and the clamp directions ``dirs`` (unit, (2, 3): first,
 last end; used only where ``k_bend`` of that end is nonzero). They write into preallocated
 outputs and never allocate per node, so the same code serves the core time loop, the static
 solver and the per-step PyBullet coupling. A new force term goes into :func:`total_forces`
-(and, if it depends on x, :func:`force_jacobian`), its parameters into ``ModelArrays``.
+(and, if it depends on x, :func:`force_jacobian`), its parameters into ``ModelArrays`` (and ``KernelArrays``).
 
 Damping: drag -c_i v_i per node and Kelvin-Voigt dampers on stretch and bending
 (:func:`internal_damping_forces`), all from the Rayleigh function :func:`dissipation`; their

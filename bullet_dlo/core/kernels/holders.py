@@ -44,7 +44,7 @@ class HolderPlan(NamedTuple):
     normal: where :func:`sample_holders` writes d1 turned with the clamp at the three sample times,
     (3, 2, 3) = [sample, end, xyz]; shape (0, 2, 3) when the cable has no material frame (then the
     roll about the cable axis is not tracked and nothing extra is computed). A twisting model's
-    arrays share this buffer (``ModelArrays.tw.normal``): it is how the roll reaches the step kernels.
+    control shares this buffer (``CableControl.normal``, the kernels' ``tw_normal``): it is how the roll reaches the step kernels.
     """
 
     start_pos: np.ndarray
@@ -70,6 +70,26 @@ class HeldSamples(NamedTuple):
     vel: np.ndarray
     acc: np.ndarray
     dir: np.ndarray
+
+
+class ExternalHolders(NamedTuple):
+    """Measured holder poses (e.g. gripper links) that ends follow instead of their move tables.
+
+    active: which ends follow them, (2,) bool; pos [m], vel [m/s], acc [m/s^2], omega
+    (angular velocity) [rad/s], dir (clamp direction, unit, along the cable from its first to
+    its last node): world frame, (2, 3) each, measured now and extrapolated over a step at
+    constant velocity and angular velocity; normal: the holder's section axis d1 (unit, normal to
+    dir), world frame, (2, 3), turned with dir over the step: the roll about the cable axis that a
+    clamp of a cable with a material frame holds (read only by such cables).
+    """
+
+    active: np.ndarray
+    pos: np.ndarray
+    vel: np.ndarray
+    acc: np.ndarray
+    omega: np.ndarray
+    dir: np.ndarray
+    normal: np.ndarray
 
 
 def empty_samples() -> HeldSamples:

@@ -40,7 +40,7 @@ def make_records(rows: int, n: int, every: int) -> Records:
 def run_loop(stepper, m, plan, x, v, t0, n_steps, det, ws, rec):
     """``n_steps`` steps of ``stepper`` from (x, v) at t0 [s], in place, watched by ``det``.
 
-    m: ModelArrays; plan: HolderPlan; det: Detector started at (x, v); ws: Workspace;
+    m: KernelArrays (the model under its control, with the twist state); plan: HolderPlan; det: Detector started at (x, v); ws: Workspace;
     rec: Records. Stops at the first unstable check. Returns (steps done, status, time of
     instability [s] or -1, rows recorded, Newton failures, Newton iterations).
     """

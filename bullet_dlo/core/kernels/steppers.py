@@ -1,13 +1,14 @@
 """Numba step kernels: one fixed step of each time integrator, in place.
 
 Every method advances positions x [m] and velocities v [m/s], both (n, 3), by one step h
-given the model (:class:`~bullet_dlo.core.model.ModelArrays`) and the held-end samples at t,
+given the model (:class:`~bullet_dlo.core.model.KernelArrays`: parameters, control, twist state) and the
+held-end samples at t,
 t + h/2 and t + h (:class:`~bullet_dlo.core.kernels.holders.HeldSamples`). Scratch memory is
 a :class:`Workspace` allocated once by :func:`make_workspace`, so no step allocates. Held
 nodes are kinematic: after every step they sit exactly at the prescribed pose. The method
 table (names, orders, defaults) is :mod:`bullet_dlo.core.integrators`.
 
-A cable with a material frame (``ModelArrays.tw``, :mod:`bullet_dlo.core.kernels.twist`) is advanced
+A cable with a material frame (``KernelArrays.tw``, :mod:`bullet_dlo.core.kernels.twist`) is advanced
 in two stages per step (staggered, Gauss-Seidel): the positions by the chosen method with the twist
 angles held (the twist springs and the anisotropic bending act on them through their exact gradients;
 the clamps' section axes at the method's evaluation time), then the twist angles by an implicit Euler

@@ -59,10 +59,14 @@ steps, the regime of Bergou 2008 sec. 7). Damping acts on twist with the meaning
 modes: drag -c I_k omega_k (a spinning segment decays as exp(-c t)) and Kelvin-Voigt twist dampers
 G J tau / l0 on dm/dt.
 
-State: the twist state lives in :class:`TwistArrays` (the model arrays' ``tw_*`` fields), the one mutable
-part of the model: built from the positions at the first use after ``flag[0]`` is set to 0
-(:meth:`bullet_dlo.core.model.CableModel.initial_state` does it): reference frames by space-parallel
-transport from the first clamp's section axis, twist angles in static equilibrium with the held ends.
+State: the twist state is a :class:`TwistState` (theta, omega, the reference frames, the reference twists and
+a built flag), carried by :class:`~bullet_dlo.core.model.CableState` and advanced by the steppers with the
+positions; the parameters are the model's (:class:`~bullet_dlo.core.model.ModelArrays`, read only) and the
+held ends' section axes and clamp springs are control (:class:`~bullet_dlo.core.model.CableControl`). The
+kernels see the three through one flat argument, :class:`~bullet_dlo.core.model.KernelArrays` (fields
+``tw_<name>``, the same array objects). A state whose ``flag[0]`` is 0 (a new one) is built from the positions
+at its first use: reference frames by space-parallel transport from the first clamp's section axis, twist
+angles in static equilibrium with the held ends.
 """
 from __future__ import annotations
 
@@ -74,10 +78,12 @@ from numba import njit
 
 
 class TwistArrays(NamedTuple):
-    """Material-frame parameters and state of a twisting cable (SI); empty arrays without twist.
+    """Material-frame parameters, control and state of a twisting cable as the kernels see them (SI); empty
+    arrays without twist.
 
-    The model arrays carry these as flat fields ``tw_<name>`` (every field of ``ModelArrays`` is an
-    array, which the Bullet coupling relies on when it copies them); :func:`twist_fields` makes them.
+    The kernels' arrays carry these as flat fields ``tw_<name>`` (:class:`~bullet_dlo.core.model.KernelArrays`):
+    k_twist .. drag from the model and the control (the clamp springs in force), theta .. mref and flag from
+    the :class:`TwistState`, normal and clamp from the control.
 
     k_twist: twist spring constants [N m/rad], (n,) (index 0 / n-1: the clamp springs, 0 unless that
     end is clamped); c_twist: Kelvin-Voigt twist dampers k_twist tau [N m s/rad], (n,);
@@ -105,6 +111,39 @@ class TwistArrays(NamedTuple):
     normal: np.ndarray
     clamp: np.ndarray
     flag: np.ndarray
+
+
+class TwistState(NamedTuple):
+    """The material frame's state, advanced with the positions (SI); empty arrays without twist.
+
+    theta: twist angles [rad], (n-1,); omega: their rates [rad/s], (n-1,); ref: reference directors (unit),
+    (n-1, 3); tan: the tangents they were last transported to (unit), (n-1, 3); mref: reference twist at each
+    node at the last transport (unwrapped) [rad], (n,); flag: (1,) int, 0 = to be built from the positions at
+    its next use (a new state), 1 = built.
+    """
+
+    theta: np.ndarray
+    omega: np.ndarray
+    ref: np.ndarray
+    tan: np.ndarray
+    mref: np.ndarray
+    flag: np.ndarray
+
+    def copy(self) -> "TwistState":
+        """An independent copy (same values)."""
+        return TwistState(*(a.copy() for a in self))
+
+
+def make_twist_state(n: int, enabled: bool = True) -> TwistState:
+    """A new twist state of an n-node cable, built at first use (``enabled`` False: the empty state of a
+    cable without a material frame)."""
+    s = n - 1 if enabled else 0
+    return TwistState(np.zeros(s), np.zeros(s), np.zeros((s, 3)), np.zeros((s, 3)), np.zeros(n if enabled else 0),
+                      np.zeros(1, dtype=np.int64))
+
+
+TWIST_PARAMETERS = ("k_twist", "c_twist", "k_aniso", "inertia", "drag")  # the model's fields of TwistArrays
+TWIST_AXES = ("normal", "clamp")  # the control's (held ends' section axes)
 
 
 def no_twist() -> TwistArrays:

@@ -242,7 +242,7 @@ class DualArmPhysics:
                                          reach=spec.grip_reach)
         else:
             self.cable.hold_externally(arm, "clamped")
-        if self.cable.arrays.tw_k_twist.shape[0]:
+        if self.cable.control.k_twist.shape[0]:
             # a cable with a material frame: the clamp holds the section axis it closed on, fixed in the grasp
             # frame from now on, so the gripper's roll about the cable twists the cable
             quat = self.reader.link_rows[arm, 0, FRAME_QUAT:FRAME_QUAT + 4]

@@ -1,0 +1,149 @@
+"""The contact model's side of one Bullet cable: which bodies and cables it meets, and Bullet's filters.
+
+:class:`CableContacts` keeps the cable's :class:`~bullet_dlo.bullet.contact.ContactSet` (rebuilt when the world's
+bodies or the cables the model handles contact with change), the bodies and nodes left out of it
+(:meth:`CableContacts.exclude`), and the collision filters that leave those contacts to the model instead of
+Bullet (:meth:`CableContacts.disable_bullet_collisions`). The cable's :class:`~bullet_dlo.bullet.cable.BulletCable`
+holds one and delegates to it; the contacts it detects enter the cable's step through
+:meth:`~bullet_dlo.bullet.solver.CableSolver.step`.
+"""
+from __future__ import annotations
+
+import pybullet as pb
+
+from bullet_dlo.bullet.contact import ContactSet
+from bullet_dlo.core.kernels.contact import Contacts, make_contacts
+from bullet_dlo.core.validate import ParameterError
+
+CABLE_GROUPS = 0x7FFE  # the collision-group bits of cables (bit 0 is the world's default group)
+
+
+class CableContacts:
+    """The contact set of one cable and what it leaves out (see the module doc).
+
+    cable: the :class:`~bullet_dlo.bullet.cable.BulletCable`; set: its contact set (None until built; always None
+    when Bullet handles contact); bullet_off: :meth:`disable_bullet_collisions` was called; excluded: the
+    (body, link)s whose Bullet contacts with the spheres are off; bodies_seen: bodies in the world when the set
+    was built; exclusions: (body, link or None) -> None (all nodes) or node indices (:meth:`exclude`);
+    partners_seen: names of the other cables in the set; none: the empty contacts of a cable without them.
+    """
+
+    def __init__(self, cable):
+        self.cable = cable
+        self.set: ContactSet | None = None
+        self.bullet_off = False
+        self.excluded: set[tuple[int, int]] = set()
+        self.bodies_seen = -1
+        self.exclusions: dict = {}
+        self.partners_seen: tuple = ()
+        self.none = make_contacts(cable.model.n, 1, cable.radius, cable.grip)
+        self.refresh()
+
+    @property
+    def contacts(self) -> Contacts:
+        """The core Contacts of the coming step (empty arrays when Bullet handles contact)."""
+        return self.set.contacts if self.set is not None else self.none
+
+    def partners(self) -> list:
+        """The other cables whose contacts with this one the model handles (stable ones)."""
+        cable = self.cable
+        if not cable.handles_cable_contact:
+            return []
+        return [c for c in cable.world.cables.values() if c is not cable and c.handles_cable_contact and c.stable]
+
+    def refresh(self) -> None:
+        """(Re)read the world's bodies for the contact model when they changed (new obstacles), and the
+        other cables it handles contact with."""
+        cable = self.cable
+        if not cable.model_contact:
+            return
+        alone = len(cable.world.cables) <= 1  # (this cable is in it once added): no partners can appear
+        if alone and not self.partners_seen and self.bodies_seen == len(cable.world.bodies):
+            return  # the common case, checked without building the partner list every step
+        partners = self.partners()
+        names = tuple(c.name for c in partners)
+        cid = cable.world.client
+        count = pb.getNumBodies(physicsClientId=cid)
+        if self.bodies_seen == count and names == self.partners_seen:
+            return
+        spec = cable.model.spec
+        self.bodies_seen = count
+        self.partners_seen = names
+        # every body of the world but the cables' spheres (the robot arms too, whoever loaded them)
+        spheres = set(cable.world._owners) | set(cable.body_ids)
+        bodies = [b for b in (pb.getBodyUniqueId(i, physicsClientId=cid) for i in range(count)) if b not in spheres]
+        self.set = ContactSet(cid, bodies, cable.model.n, cable.radius,
+                              spec.static_friction, spec.dynamic_friction, cable.contact_stiffness,
+                              cable.contact_damping, self_contact=cable.self_collision != "none",
+                              grip=cable.grip, native=cable.world.native_handle(), others=partners,
+                              exclude={**{(b, None): None for b in cable.world.no_cable_contact}, **self.exclusions},
+                              rest_length=float(spec.rest_length))
+        if self.bullet_off:
+            self.exclude_model_bodies()
+
+    def exclude(self, body: int, link: int | None = None, nodes=None) -> None:
+        """Leave ``body`` (its link ``link``; None: every link) out of the cable's contact model: entirely
+        (``nodes`` None) or only for the given node indices and the segments next to them (a gripper holding
+        an end: its fingers do not push the held end, the rest of the cable still meets them). Bullet's own
+        collisions of those spheres with it are switched off too: the cable passes through. Only for
+        ``contact="model"``."""
+        cable = self.cable
+        cid = cable.world.client
+        n = cable.model.n
+        try:
+            pb.getBodyInfo(int(body), physicsClientId=cid)
+        except pb.error:
+            raise ParameterError(f"exclude_contact: no body {body} in this world") from None
+        if link is not None and not -1 <= link < pb.getNumJoints(body, physicsClientId=cid):
+            raise ParameterError(f"exclude_contact: link must be in [-1, {pb.getNumJoints(body, physicsClientId=cid) - 1}]"
+                                 f" or None, got {link}")
+        if nodes is not None:
+            idx = [int(i) for i in nodes]
+            if any(not -n <= i < n for i in idx):
+                raise ParameterError(f"exclude_contact: nodes must be in [{-n}, {n - 1}], got {idx}")
+            nodes = {i % n for i in idx}
+        self.exclusions[(int(body), link)] = nodes
+        spheres = [cable.body_ids[i] for i in sorted(nodes)] if nodes is not None else cable.body_ids
+        for lk in ([link] if link is not None else range(-1, pb.getNumJoints(body, physicsClientId=cid))):
+            for b in spheres:
+                pb.setCollisionFilterPair(b, int(body), -1, lk, 0, physicsClientId=cid)
+        self.bodies_seen = -1  # rebuild the contact set
+        self.refresh()
+
+    def exclude_model_bodies(self) -> None:
+        """Keep Bullet from also colliding the spheres with the dynamic bodies the contact model handles.
+
+        The collision-group masks of :meth:`disable_bullet_collisions` keep static bodies away from the
+        spheres, but not dynamic ones (measured: a dynamic box, created before or after the cable, had
+        Bullet contacts with the spheres under it): such a body was then pushed by the model's reaction
+        and by Bullet's sphere contacts at once, and the spheres it pressed were read back pushed into
+        the ground. One pair filter per sphere and body, once per body.
+        """
+        cable = self.cable
+        cs, cid = self.set, cable.world.client
+        # a URDF's child links too, static ones included: Bullet collided the spheres with them (measured)
+        bullet_sees = cs.dynamic | (cs.links >= 0)
+        for body, link in sorted(set(zip(cs.body_ids[bullet_sees].tolist(), cs.links[bullet_sees].tolist()))
+                                 - self.excluded):
+            for b in cable.body_ids:
+                pb.setCollisionFilterPair(b, body, -1, link, 0, physicsClientId=cid)
+            self.excluded.add((body, link))
+
+    def disable_bullet_collisions(self) -> None:
+        """Leave the world's bodies, the cable's self-contact and its contacts with the other cables the
+        model handles (:attr:`BulletCable.handles_cable_contact <bullet_dlo.bullet.cable.BulletCable.handles_cable_contact>`)
+        to the contact model: in Bullet the spheres collide
+        only with the spheres of cables whose contacts stay Bullet's (``contact="bullet"`` or
+        ``self_collision="none"``)."""
+        cable = self.cable
+        own = cable._group or cable.world.next_cable_group()
+        mask = CABLE_GROUPS & ~own
+        if cable.handles_cable_contact:
+            mask &= ~cable.world._model_cable_groups  # (a pair collides only if each one's mask has the other)
+            cable.world._model_cable_groups |= own
+        for b in cable.body_ids:
+            pb.setCollisionFilterGroupMask(b, -1, own, mask, physicsClientId=cable.world.client)
+        self.bullet_off = True
+        if self.set is not None:
+            self.exclude_model_bodies()
+
