@@ -97,7 +97,7 @@ def part_costs(integrator: str, n: int, dt: float, rounds: int, block: int) -> t
     """Per part, the cost of one call [us] in each of ``rounds`` interleaved rounds of ``block`` calls, and
     the Newton iterations per step of the timed steps (from rest under gravity, as S1 starts)."""
     model = cantilever_model(s1_spec(n))
-    m, plan = model.arrays, model.holder_plan()
+    m, plan = model.kernel_arrays(), model.holder_plan()
     stepper = make_stepper(get_integrator(integrator), dt, NewtonOptions())
     samples = empty_samples()
     sample_holders(plan, 0.0, dt, samples)
