@@ -22,6 +22,7 @@ STANDARD_GRAVITY = (0.0, 0.0, -9.81)
 _NO_TWIST = no_twist()  # the empty frame of every cable without twist (never written: no kernel touches it)
 _NO_DRAG = np.zeros(0)  # the empty drag law of every cable without quadratic drag (no kernel touches it)
 _CROSS_FLOW = np.zeros(1, dtype=np.int64)
+_NO_REST_SHAPE = np.zeros(0)  # no rest angles: a straight rest shape (no kernel touches it)
 
 
 class ModelArrays(NamedTuple):
@@ -41,6 +42,8 @@ class ModelArrays(NamedTuple):
     drag_k: quadratic fluid drag constants 1/2 rho_f C_d w l0 [kg/m] per segment, (n-1,), empty without
     the law; drag_face: (1,) int, 1 = the drag acts along the material frame's face normal d2
     (rectangle), 0 = on the cross-flow component (see :mod:`bullet_dlo.core.kernels.drag`).
+    rest_angle: rest turning angle per bending node [rad], (n,) (interior nodes; a curved rest shape,
+    see :mod:`bullet_dlo.core.kernels.rest_shape`), empty for a straight rest shape.
     """
 
     mass: np.ndarray
@@ -68,6 +71,7 @@ class ModelArrays(NamedTuple):
     tw_flag: np.ndarray = _NO_TWIST.flag
     drag_k: np.ndarray = _NO_DRAG
     drag_face: np.ndarray = _CROSS_FLOW
+    rest_angle: np.ndarray = _NO_REST_SHAPE
 
     @property
     def tw(self) -> TwistArrays:
