@@ -32,7 +32,21 @@ frozen shape: DLO1 12.2 mm (11.1-14.0; frozen 56.6), DLO2 7.7 mm (10.2; frozen 5
 trial 67 (44 mm: the real cable swings over the top, the model's does not) and 61 (20 mm).
 With ``--twist`` (linearised intervals): 12.3 / 7.5 / 7.7 mm, within 0.2 mm of the above at 1.5x
 the cost: with the grippers' roll unknown and no rest curvature, twist hardly changes the shape.
-What limits the match: :data:`LIMITS`.
+Curved rest shape (``--rest-shape``, :class:`RestShape`, :func:`fit_rest_shape`): the real cables keep a
+set (the mean turning between marker chords at DLO1's third free marker exceeds the straight model's by
+14.5 +- 2.0 degrees in every eval trial, ``demos/deform_diagnose.py``). A rest curvature at the free
+markers' places (:mod:`bullet_dlo.core.kernels.rest_shape`: its magnitude, the plane free) fitted on train
+lowers the eval L1 of DLO3 from 8.0 to 6.6 mm, DLO1's from 12.2 to 11.9 and DLO2's from 7.7 to 7.6 mm
+(``demos/deform_rest_shape.py``, docs/guides/validate.md).
+
+Where the rest of the error is (``demos/deform_diagnose.py``, DLO2, 4 eval trials): sideways (horizontal,
+normal to the chord between the clamps) about twice the vertical and along-chord parts; flat over the
+5 s (no drift); the start matches (0.4 mm at t = 0), and the model started from the measured state at
+any frame has most of its open-loop error within 0.2 s: the model answers the held ends' motion with a
+smaller sideways swing in some trials (half the measured, 60-70 ms late, in trial 41), which neither the
+damping (less of it: worse), the grip's direction (the cable's tangent at the grip is within 4 degrees
+of the held pair's) nor any roll convention for the grippers (kept level: 13.7 mm instead of 7.5)
+explains. What limits the match: :data:`LIMITS`.
 """
 from __future__ import annotations
 
@@ -643,14 +657,17 @@ def numerics_report(recs: Sequence[MarkerRecording], values: dict[str, float], n
 
 
 LIMITS = [
-    ("no twist and an isotropic straight rest shape in the core model: the real cables are curved at rest "
-    "(the authors learn a curved rest shape) and their grippers' roll is unknown (a marker pair fixes only "
-    "a direction)"),
-    ("out-of-plane error dominates: the model's cable swings in the plane the held ends drive; real cables "
-    "roll sideways and sometimes swing over the top (e.g. DLO1 eval 67)"),
+    ("the grippers' roll is unknown (a marker pair fixes only a direction): the sideways (out-of-plane) error "
+     "dominates, is there within 0.2 s of a restart from the measured state, and no roll convention removes it "
+     "(--twist with the roll by parallel transport: within 0.5 mm; with the grippers kept level: twice the error)"),
+    ("a curved rest shape: real cables keep a set (DLO1: 14.5 deg more turning than the straight model at its "
+     "third free marker in every trial); --rest-shape fits its magnitude (the plane free), which needs the "
+     "material frame and the grippers' roll to be fixed to the cable"),
+    ("real cables sometimes swing over the top where the model's does not (e.g. DLO1 eval 67, 44 mm) and in "
+     "some trials swing sideways twice as far as the model's"),
     "damping law: linear drag + Kelvin-Voigt; damping_rate and internal_damping trade off",
     ("mass and diameter are guessed: shapes see only EI/(rho A); held markers are given (counted as 0 "
-    "error, as in the authors' metric)"),
+     "error, as in the authors' metric)"),
 ]
 
 
