@@ -299,7 +299,8 @@ class RestShape:
     def __post_init__(self) -> None:
         sg, kp = np.asarray(self.sigma, dtype=float), np.asarray(self.kappa, dtype=float)
         if sg.ndim != 1 or sg.shape != kp.shape or len(sg) < 1 or np.any(np.diff(sg) <= 0):
-            raise ParameterError("rest shape: sigma must be strictly increasing fractions of the length, one kappa each")
+            raise ParameterError("rest shape: sigma must be strictly increasing fractions of the length, "
+                                 "one kappa each")
         if not np.all(np.isfinite(kp)) or np.any(kp < 0):
             raise ParameterError("rest shape: kappa must be finite rest curvatures >= 0 [1/m]")
 
@@ -794,7 +795,8 @@ def print_table(summary: dict[str, Any]) -> None:
     if "rest_shape" in summary:
         rs, st = summary["rest_shape"], summary["straight"]
         print(f"rest shape: kappa [1/m] {' '.join(f'{k:.2f}' for k in rs['kappa_per_m'])} at sigma "
-              f"{' '.join(f'{x:.2f}' for x in rs['sigma'])}; straight rest shape: eval L1 {1e3 * st['eval_l1']:.1f} mm, "
+              f"{' '.join(f'{x:.2f}' for x in rs['sigma'])}; straight rest shape: "
+              f"eval L1 {1e3 * st['eval_l1']:.1f} mm, "
               f"train L1 {1e3 * st['train_l1']:.1f} mm")
     print(f"cost {summary['cost']['cpu_s_per_simulated_s']:.3g} CPU s per simulated s")
     print("limits of the match: " + "; ".join(summary["limits"]))

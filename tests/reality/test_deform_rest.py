@@ -60,7 +60,8 @@ def synthetic_trial(path: Path, motion, kappa: float, duration: float = 1.5) -> 
     first = model.first
     last = type(model.last)("clamped", first.position + span, model.last.direction, model.last.moves)
     arrays = model.arrays._replace(rest_angle=RestShape((0.0, 1.0), (kappa, kappa)).angles(spec.n_masses, 0.5))
-    model = CableModel(spec, first, last, model.gravity, arrays, first.position + np.outer(np.linspace(0, 1, model.n), span))
+    x_line = first.position + np.outer(np.linspace(0, 1, model.n), span)
+    model = CableModel(spec, first, last, model.gravity, arrays, x_line)
     x0 = model.x0.copy()
     x0[1:-1, 2] -= 0.15 * np.sin(np.pi * np.linspace(0, 1, model.n))[1:-1]
     x0[1:-1, 1] += 0.03 * np.sin(np.pi * np.linspace(0, 1, model.n))[1:-1]  # off the plane: the set picks one
