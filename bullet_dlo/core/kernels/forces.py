@@ -29,6 +29,9 @@ Material frame (issue 22, opt-in: ``ModelArrays.tw`` non-empty): twist springs a
 part of the bending energy of :mod:`bullet_dlo.core.kernels.twist` join the energy, the forces, the
 Jacobian and the clamp moments; ``k_bend`` then holds the mean of the two bending constants.
 
+Curved rest shape (opt-in: ``ModelArrays.rest_angle`` non-empty): :mod:`bullet_dlo.core.kernels.rest_shape`
+turns each interior bending energy into 1/2 k_b (beta - beta0)^2 (energy, forces and the node's Hessian).
+
 Jacobian storage: block-banded, ``jac[i, o] = dF_i / dx_{i+o-2}`` with shape (n, 5, 3, 3)
 (bending couples nodes up to two apart). ``definite=True`` drops the compressive part of the
 stretch Hessian (the usual filter that keeps M + h^2 K positive definite for implicit steps);
