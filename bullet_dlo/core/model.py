@@ -48,6 +48,7 @@ def read_only(a: np.ndarray) -> np.ndarray:
 _NO_TWIST = no_twist()._replace(**{k: read_only(getattr(no_twist(), k)) for k in TWIST_PARAMETERS})
 _NO_DRAG = read_only(np.zeros(0))  # the empty drag law of every cable without quadratic drag
 _CROSS_FLOW = read_only(np.zeros(1, dtype=np.int64))
+_NO_REST_SHAPE = read_only(np.zeros(0))  # no rest angles: a straight rest shape (no kernel touches it)
 
 
 class TwistParameters(NamedTuple):
@@ -79,6 +80,8 @@ class ModelArrays(NamedTuple):
     drag_k: quadratic fluid drag constants 1/2 rho_f C_d w l0 [kg/m] per segment, (n-1,), empty without
     the law; drag_face: (1,) int, 1 = the drag acts along the material frame's face normal d2
     (rectangle), 0 = on the cross-flow component (see :mod:`bullet_dlo.core.kernels.drag`).
+    rest_angle: rest turning angle per bending node [rad], (n,) (interior nodes; a curved rest shape,
+    see :mod:`bullet_dlo.core.kernels.rest_shape`), empty for a straight rest shape.
     """
 
     mass: np.ndarray
@@ -97,6 +100,7 @@ class ModelArrays(NamedTuple):
     tw_drag: np.ndarray = _NO_TWIST.drag
     drag_k: np.ndarray = _NO_DRAG
     drag_face: np.ndarray = _CROSS_FLOW
+    rest_angle: np.ndarray = _NO_REST_SHAPE
 
     @property
     def tw(self) -> TwistParameters:
@@ -111,7 +115,7 @@ class KernelArrays(NamedTuple):
     built from, so a kernel that advances the twist state writes the state's arrays).
 
     mass [kg], damp [N s/m], k_stretch [N/m], rest_length [m], gravity [m/s^2], c_stretch [N s/m],
-    tw_inertia [kg m^2], tw_drag [N m s/rad], drag_k [kg/m], drag_face: the model's (:class:`ModelArrays`);
+    tw_inertia [kg m^2], tw_drag [N m s/rad], drag_k [kg/m], drag_face, rest_angle [rad]: the model's
     k_bend [N m/rad^2], c_bend [N m s/rad^2], f_ext [N], held, tw_k_twist [N m/rad], tw_c_twist [N m s/rad],
     tw_k_aniso [N m/rad^2], tw_normal, tw_clamp: the control's (:class:`CableControl`); tw_theta [rad],
     tw_omega [rad/s], tw_ref, tw_tan, tw_mref [rad], tw_flag: the twist state's
@@ -143,6 +147,7 @@ class KernelArrays(NamedTuple):
     tw_flag: np.ndarray
     drag_k: np.ndarray
     drag_face: np.ndarray
+    rest_angle: np.ndarray
 
     @property
     def tw(self) -> TwistArrays:
@@ -232,7 +237,7 @@ def kernel_arrays(model: ModelArrays, control: CableControl | None = None,
         tw_c_twist=control.c_twist, tw_k_aniso=control.k_aniso, tw_inertia=model.tw_inertia,
         tw_drag=model.tw_drag, tw_theta=twist.theta, tw_omega=twist.omega, tw_ref=twist.ref, tw_tan=twist.tan,
         tw_mref=twist.mref, tw_normal=control.normal, tw_clamp=control.clamp, tw_flag=twist.flag,
-        drag_k=model.drag_k, drag_face=model.drag_face)
+        drag_k=model.drag_k, drag_face=model.drag_face, rest_angle=model.rest_angle)
 
 
 @dataclass(frozen=True)

@@ -32,7 +32,21 @@ frozen shape: DLO1 12.2 mm (11.1-14.0; frozen 56.6), DLO2 7.7 mm (10.2; frozen 5
 trial 67 (44 mm: the real cable swings over the top, the model's does not) and 61 (20 mm).
 With ``--twist`` (linearised intervals): 12.3 / 7.5 / 7.7 mm, within 0.2 mm of the above at 1.5x
 the cost: with the grippers' roll unknown and no rest curvature, twist hardly changes the shape.
-What limits the match: :data:`LIMITS`.
+Curved rest shape (``--rest-shape``, :class:`RestShape`, :func:`fit_rest_shape`): the real cables keep a
+set (the mean turning between marker chords at DLO1's third free marker exceeds the straight model's by
+14.5 +- 2.0 degrees in every eval trial, ``demos/deform_diagnose.py``). A rest curvature at the free
+markers' places (:mod:`bullet_dlo.core.kernels.rest_shape`: its magnitude, the plane free) fitted on train
+lowers the eval L1 of DLO3 from 8.0 to 6.6 mm, DLO1's from 12.2 to 11.9 and DLO2's from 7.7 to 7.6 mm
+(``demos/deform_rest_shape.py``, docs/guides/validate.md).
+
+Where the rest of the error is (``demos/deform_diagnose.py``, DLO2, 4 eval trials): sideways (horizontal,
+normal to the chord between the clamps) about twice the vertical and along-chord parts; flat over the
+5 s (no drift); the start matches (0.4 mm at t = 0), and the model started from the measured state at
+any frame has most of its open-loop error within 0.2 s: the model answers the held ends' motion with a
+smaller sideways swing in some trials (half the measured, 60-70 ms late, in trial 41), which neither the
+damping (less of it: worse), the grip's direction (the cable's tangent at the grip is within 4 degrees
+of the held pair's) nor any roll convention for the grippers (kept level: 13.7 mm instead of 7.5)
+explains. What limits the match: :data:`LIMITS`.
 """
 from __future__ import annotations
 
@@ -271,10 +285,39 @@ def first_frames(rec: MarkerRecording, s_nodes: np.ndarray, num: Numerics) -> tu
     return pos, vel
 
 
+@dataclass(frozen=True)
+class RestShape:
+    """A curved rest shape: rest curvature magnitude kappa [1/m] (>= 0) at fractions ``sigma`` of the
+    cable's length between the clamps (0: first clamp, 1: last), linear in between and constant beyond
+    the ends; the model's interior nodes get the rest turning angle kappa(sigma_i) l0
+    (:mod:`bullet_dlo.core.kernels.rest_shape`: the energy 1/2 k_b (beta - beta0)^2, a cable that keeps a
+    set whose plane is free to turn). ``sigma`` strictly increasing."""
+
+    sigma: tuple[float, ...]
+    kappa: tuple[float, ...]
+
+    def __post_init__(self) -> None:
+        sg, kp = np.asarray(self.sigma, dtype=float), np.asarray(self.kappa, dtype=float)
+        if sg.ndim != 1 or sg.shape != kp.shape or len(sg) < 1 or np.any(np.diff(sg) <= 0):
+            raise ParameterError("rest shape: sigma must be strictly increasing fractions of the length, "
+                                 "one kappa each")
+        if not np.all(np.isfinite(kp)) or np.any(kp < 0):
+            raise ParameterError("rest shape: kappa must be finite rest curvatures >= 0 [1/m]")
+
+    def angles(self, n: int, length: float) -> np.ndarray:
+        """Rest turning angles [rad] of the n nodes of a cable of ``length`` [m] (clamp nodes 0)."""
+        l0 = length / (n - 1)
+        out = np.interp(np.linspace(0.0, 1.0, n), self.sigma, self.kappa) * l0
+        out[0] = out[-1] = 0.0
+        return out
+
+
 def build_model(rec: MarkerRecording, values: dict[str, float], num: Numerics,
-                gravity: Sequence[float] = STANDARD_GRAVITY) -> tuple[CableModel, CableState, np.ndarray]:
-    """The clamped cable between the inner held markers, its start state (first frames) and the
-    markers' arc lengths along it [m] (negative / beyond the length for the outer held markers)."""
+                gravity: Sequence[float] = STANDARD_GRAVITY, rest: RestShape | None = None
+                ) -> tuple[CableModel, CableState, np.ndarray]:
+    """The clamped cable between the inner held markers (with the curved ``rest`` shape if given), its
+    start state (first frames) and the markers' arc lengths along it [m] (negative / beyond the length
+    for the outer held markers)."""
     s0 = rec.s[rec.first_pair[1] % rec.n_markers]
     s1 = rec.s[rec.last_pair[0] % rec.n_markers]
     spec = cable_spec(float(s1 - s0), values, num.n_masses, num.twist)
@@ -283,15 +326,19 @@ def build_model(rec: MarkerRecording, values: dict[str, float], num: Numerics,
     x0, v0 = first_frames(rec, s_nodes, num)
     x0[0], x0[-1] = first.position, last.position
     g = np.asarray(gravity, dtype=float)
-    model = CableModel(spec, first, last, g, build_arrays(spec, "clamped", "clamped", g), x0)
+    arrays = build_arrays(spec, "clamped", "clamped", g)
+    if rest is not None:
+        arrays = arrays._replace(rest_angle=rest.angles(spec.n_masses, spec.length))
+    model = CableModel(spec, first, last, g, arrays, x0)
     return model, CableState(x0, v0, 0.0), rec.s - s0
 
 
 def predict(rec: MarkerRecording, values: dict[str, float], num: Numerics,
-            gravity: Sequence[float] = STANDARD_GRAVITY) -> tuple[np.ndarray | None, float]:
+            gravity: Sequence[float] = STANDARD_GRAVITY, rest: RestShape | None = None
+            ) -> tuple[np.ndarray | None, float]:
     """Model marker positions [m], (k, m, 3), open-loop over the whole recording (held markers
     as recorded), and the thread CPU time of the run [s]; None if the run went unstable."""
-    model, state, s = build_model(rec, values, num, gravity)
+    model, state, s = build_model(rec, values, num, gravity, rest)
     duration = float(rec.t[-1] - rec.t[0])
     every = max(1, round(float(rec.t[1] - rec.t[0]) / num.dt))
     tic = time.thread_time()
@@ -314,6 +361,10 @@ def predict(rec: MarkerRecording, values: dict[str, float], num: Numerics,
 def l1(pred: np.ndarray, rec: MarkerRecording) -> float:
     """The authors' metric: mean absolute coordinate error over all markers and frames [m]."""
     return float(np.mean(np.abs(pred - rec.markers)))
+
+
+def _l1_or_nan(pred: np.ndarray | None, rec: MarkerRecording) -> float:
+    return l1(pred, rec) if pred is not None else math.nan
 
 
 def frozen(rec: MarkerRecording) -> np.ndarray:
@@ -351,12 +402,13 @@ class Residual:
     """Free-marker residuals [m] of a set of trials as a function of the log parameters, every
     ``every``-th frame; an unstable run gives a large constant residual (10 cm per coordinate)."""
 
-    def __init__(self, recs: Sequence[MarkerRecording], num: Numerics, every: int = 5):
-        self.recs, self.num, self.every = list(recs), num, every
+    def __init__(self, recs: Sequence[MarkerRecording], num: Numerics, every: int = 5,
+                 rest: RestShape | None = None):
+        self.recs, self.num, self.every, self.rest = list(recs), num, every, rest
         self.evaluations, self.cpu_s, self.simulated_s = 0, 0.0, 0.0
 
     def trial(self, rec: MarkerRecording, theta: np.ndarray) -> np.ndarray:
-        pred, cpu = predict(rec, values_of(theta), self.num)
+        pred, cpu = predict(rec, values_of(theta), self.num, rest=self.rest)
         self.cpu_s += cpu
         self.simulated_s += float(rec.t[-1] - rec.t[0])
         size = len(rec.t[::self.every]) * len(rec.free) * 3
@@ -373,14 +425,16 @@ class Residual:
 
 
 def fit(recs: Sequence[MarkerRecording], num: Numerics, max_evaluations: int = 60,
-        guess: dict[str, float] | None = None, every: int = 5, f_scale: float = 0.02) -> Fit:
+        guess: dict[str, float] | None = None, every: int = 5, f_scale: float = 0.02,
+        rest: RestShape | None = None) -> Fit:
     """Least squares (scipy trust region, in log parameters) on the free-marker residuals of all
     ``recs`` at once, with about ``max_evaluations`` forward runs of the set in all (an iteration
     costs four: one run and three for the finite-difference Jacobian). The loss is soft-L1 with scale ``f_scale`` [m]: the metric is an L1, and a
     trial where the real cable swings over the top while the model's does not should not steer
     the fit alone. Without a ``guess`` it starts from the best of :data:`STIFFNESS_GRID` (the cost
-    is flat far from the optimum). At the optimum, per-trial Jacobians by forward differences (5 % steps)."""
-    res = Residual(recs, num, every)
+    is flat far from the optimum). At the optimum, per-trial Jacobians by forward differences (5 % steps).
+    ``rest``: the cable's curved rest shape (held fixed)."""
+    res = Residual(recs, num, every, rest)
     if guess is None:
         soft = lambda r: float(np.sum(np.sqrt(1.0 + (r / f_scale) ** 2)))
         costs = [soft(res(np.log([b, GUESS["damping_rate"], GUESS["internal_damping"]]))) for b in STIFFNESS_GRID]
@@ -403,6 +457,84 @@ def fit(recs: Sequence[MarkerRecording], num: Numerics, max_evaluations: int = 6
                str(sol.message))
 
 
+def turning_angles(x: np.ndarray) -> np.ndarray:
+    """Turning angle [rad] between the chords to the neighbouring markers at every interior marker,
+    (k, m - 2), of marker positions ``x`` [m], (k, m, 3)."""
+    a = np.diff(x, axis=1)
+    a /= np.linalg.norm(a, axis=2, keepdims=True)
+    return np.arccos(np.clip(np.einsum("kmj,kmj->km", a[:, :-1], a[:, 1:]), -1.0, 1.0))
+
+
+def free_sigma(rec: MarkerRecording) -> np.ndarray:
+    """The free markers' places as fractions of the length between the clamps (inner held markers), (f,)."""
+    s0, s1 = rec.s[rec.first_pair[1] % rec.n_markers], rec.s[rec.last_pair[0] % rec.n_markers]
+    return (rec.s[rec.free] - s0) / (s1 - s0)
+
+
+def identify_rest_shape(recs: Sequence[MarkerRecording], values: dict[str, float], num: Numerics,
+                        iterations: int = 3, start: RestShape | None = None) -> tuple[RestShape, list[float]]:
+    """The rest curvature that makes the model's mean turning at each free marker that of the recordings.
+
+    The turning angle between marker chords at a free marker, averaged over every frame of every trial,
+    measures how bent the cable is there on average; the model's (run open-loop with ``values``) is
+    compared to it and the rest curvature there raised by the excess over the markers' spacing:
+    kappa_j += (turn_measured_j - turn_model_j) / spacing_j, clipped at 0, ``iterations`` times (each a run
+    of every trial; the model's mean turning rises by less than the rest angle does, so the step does
+    not overshoot). Profile knots: the free markers' mean places (fractions of the clamp-to-clamp
+    length). Returns the rest shape and the mean train L1 [m] before each update and after the last.
+    """
+    sigma = np.mean([free_sigma(r) for r in recs], axis=0)
+    cols = [r.free - 1 for r in recs]  # turning_angles index of each free marker
+    measured = np.mean([turning_angles(r.markers)[:, c].mean(axis=0) for r, c in zip(recs, cols)], axis=0)
+    spacing = np.mean([0.5 * (r.s[r.free + 1] - r.s[r.free - 1]) for r in recs], axis=0)
+    kappa = np.zeros(len(sigma)) if start is None else np.interp(sigma, start.sigma, start.kappa)
+    history: list[float] = []
+    for it in range(iterations + 1):
+        rest = RestShape(tuple(sigma), tuple(kappa))
+        preds = [predict(r, values, num, rest=rest)[0] for r in recs]
+        if any(p is None for p in preds):
+            raise ParameterError("rest shape: the model went unstable while identifying it")
+        history.append(float(np.mean([l1(p, r) for p, r in zip(preds, recs)])))
+        if it == iterations:
+            break
+        model_turn = np.mean([turning_angles(p)[:, c].mean(axis=0) for p, c in zip(preds, cols)], axis=0)
+        kappa = np.maximum(kappa + (measured - model_turn) / spacing, 0.0)
+    return RestShape(tuple(sigma), tuple(kappa)), history
+
+
+def fit_rest_shape(recs: Sequence[MarkerRecording], values: dict[str, float], num: Numerics,
+                   max_evaluations: int = 60, every: int = 5, f_scale: float = 0.02,
+                   kappa_max: float = 30.0) -> tuple[RestShape, Fit, dict[str, Any]]:
+    """A curved rest shape and the three parameters, fitted on ``recs``.
+
+    Start: one step of :func:`identify_rest_shape` from straight (the measured mean turning at each free
+    marker in excess of the straight model's, over the marker spacing). Then the rest curvature at the
+    free markers' places (bounded to [0, ``kappa_max``] 1/m) by the same soft-L1 least squares on the
+    free-marker positions as :func:`fit` (``values`` held), and last the three parameters again with that
+    shape held (a third of the budget). ``max_evaluations``: forward runs of the set for the shape, about.
+    Returns the shape, the parameters' :class:`Fit` and what the shape fit saw (knots, L1s, evaluations).
+    """
+    start, hist = identify_rest_shape(recs, values, num, iterations=1)
+    sigma = np.asarray(start.sigma)
+    res = Residual(recs, num, every)
+
+    def residual(kappa: np.ndarray) -> np.ndarray:
+        res.rest = RestShape(tuple(sigma), tuple(np.maximum(kappa, 0.0)))
+        return np.concatenate(res.per_trial(np.log([values[k] for k in PARAMETERS])))
+
+    k0 = np.clip(np.asarray(start.kappa), 0.0, kappa_max - 1e-6)
+    sol = least_squares(residual, k0, bounds=(np.zeros_like(k0), np.full_like(k0, kappa_max)), method="trf",
+                        loss="soft_l1", f_scale=f_scale, diff_step=0.05, x_scale=1.0,
+                        max_nfev=max(1, max_evaluations // (len(k0) + 1)), xtol=1e-3, ftol=1e-4)
+    rest = RestShape(tuple(sigma), tuple(np.maximum(sol.x, 0.0)))
+    f = fit(recs, num, max(8, max_evaluations // 3), guess=values, every=every, f_scale=f_scale, rest=rest)
+    f.cpu_s += res.cpu_s
+    f.simulated_s += res.simulated_s
+    info = {"sigma": list(rest.sigma), "kappa_per_m": list(rest.kappa), "train_l1_straight": hist[0],
+            "train_l1_first_step": hist[1], "evaluations": res.evaluations + 2, "message": str(sol.message)}
+    return rest, f, info
+
+
 def linearised_loo(f: Fit, f_scale: float = 0.02) -> np.ndarray:
     """Log parameters with each trial left out, linearised: one Gauss-Newton step of the soft-L1
     problem (IRLS weights 1/sqrt(1 + (r/f_scale)^2)) from the optimum on the other trials'
@@ -419,11 +551,12 @@ def linearised_loo(f: Fit, f_scale: float = 0.02) -> np.ndarray:
     return np.array(thetas)
 
 
-def refit_loo(recs: Sequence[MarkerRecording], f: Fit, num: Numerics, max_evaluations: int = 20) -> np.ndarray:
-    """Log parameters with each trial left out, refitted from the full fit's optimum, (N, 3)."""
+def refit_loo(recs: Sequence[MarkerRecording], f: Fit, num: Numerics, max_evaluations: int = 20,
+              rest: RestShape | None = None) -> np.ndarray:
+    """Log parameters with each trial left out, refitted from the full fit's optimum, (N, 3) (``rest`` held)."""
     thetas = []
     for out in range(len(recs)):
-        g = fit([r for i, r in enumerate(recs) if i != out], num, max_evaluations, guess=f.values)
+        g = fit([r for i, r in enumerate(recs) if i != out], num, max_evaluations, guess=f.values, rest=rest)
         f.cpu_s, f.simulated_s = f.cpu_s + g.cpu_s, f.simulated_s + g.simulated_s
         thetas.append(g.theta)
     return np.array(thetas)
@@ -525,14 +658,17 @@ def numerics_report(recs: Sequence[MarkerRecording], values: dict[str, float], n
 
 
 LIMITS = [
-    ("no twist and an isotropic straight rest shape in the core model: the real cables are curved at rest "
-    "(the authors learn a curved rest shape) and their grippers' roll is unknown (a marker pair fixes only "
-    "a direction)"),
-    ("out-of-plane error dominates: the model's cable swings in the plane the held ends drive; real cables "
-    "roll sideways and sometimes swing over the top (e.g. DLO1 eval 67)"),
+    ("the grippers' roll is unknown (a marker pair fixes only a direction): the sideways (out-of-plane) error "
+     "dominates, is there within 0.2 s of a restart from the measured state, and no roll convention removes it "
+     "(--twist with the roll by parallel transport: within 0.5 mm; with the grippers kept level: twice the error)"),
+    ("a curved rest shape: real cables keep a set (DLO1: 14.5 deg more turning than the straight model at its "
+     "third free marker in every trial); --rest-shape fits its magnitude (the plane free), which needs the "
+     "material frame and the grippers' roll to be fixed to the cable"),
+    ("real cables sometimes swing over the top where the model's does not (e.g. DLO1 eval 67, 44 mm) and in "
+     "some trials swing sideways twice as far as the model's"),
     "damping law: linear drag + Kelvin-Voigt; damping_rate and internal_damping trade off",
     ("mass and diameter are guessed: shapes see only EI/(rho A); held markers are given (counted as 0 "
-    "error, as in the authors' metric)"),
+     "error, as in the authors' metric)"),
 ]
 
 
@@ -558,6 +694,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--intervals", default="linearised", choices=["linearised", "refit"],
                         help="leave-one-trial-out intervals: linearised (one Gauss-Newton step per trial left "
                              "out, no runs) or refit (each left-out fit rerun from the optimum; N x the fit's cost)")
+    parser.add_argument("--rest-shape", action="store_true",
+                        help="also fit a curved rest shape (rest curvature at the free markers' places, the energy "
+                             "1/2 k (beta - beta0)^2 of a cable that keeps a set) and predict with it; the straight "
+                             "model's results are written beside it")
     parser.add_argument("--no-numerics-check", action="store_true",
                         help="skip the numerical-damping and convergence-in-n checks")
 
@@ -581,12 +721,18 @@ def main(args: argparse.Namespace) -> int:
     train = [load_trial(p) for p in pick(trial_files(root / "train", "train"), most_train)]
     evals = [load_trial(p) for p in pick(trial_files(root / "eval", "eval"), most_eval)]
     f = fit(train, num, max_evaluations=max_eval)
-    params = jackknife(f, refit_loo(train, f, num) if args.intervals == "refit" else None)
+    rest, rest_info, straight = None, None, None
+    if getattr(args, "rest_shape", False):
+        straight = {"eval_l1": float(np.mean([_l1_or_nan(predict(r, f.values, num)[0], r) for r in evals])),
+                    "train_l1": float(np.mean([_l1_or_nan(predict(r, f.values, num)[0], r) for r in train])),
+                    "parameters": dict(f.values)}
+        rest, f, rest_info = fit_rest_shape(train, f.values, num, max_evaluations=max_eval)
+    params = jackknife(f, refit_loo(train, f, num, rest=rest) if args.intervals == "refit" else None)
     rows = {"train": {}, "eval": {}}
     preds = {}
     for split, recs in (("train", train), ("eval", evals)):
         for rec in recs:
-            pred, _ = predict(rec, f.values, num)
+            pred, _ = predict(rec, f.values, num, rest=rest)
             preds[(split, rec.name)] = pred
             rows[split][rec.name] = {"l1_m": l1(pred, rec) if pred is not None else None,
                                      "frozen_l1_m": l1(frozen(rec), rec), "stable": pred is not None}
@@ -609,6 +755,9 @@ def main(args: argparse.Namespace) -> int:
                  "fit_cpu_s": f.cpu_s},
         "limits": LIMITS,
     }
+    if rest is not None:
+        summary["rest_shape"] = rest_info
+        summary["straight"] = straight
     if not args.no_numerics_check:
         summary["numerics"].update(numerics_report(evals[:3], f.values, num))
     out = Path(args.json)
@@ -643,6 +792,12 @@ def print_table(summary: dict[str, Any]) -> None:
               f"with the fitted damping (implicit Euler {num['implicit_euler_numerical_damping_ratio']:.2g})")
         for row in num.get("convergence", []):
             print(f"  n={row['n_masses']:4d}: L1 {1e3 * row['l1_m']:.2f} mm, swing mode {row['swing_frequency_hz']:.4f} Hz")
+    if "rest_shape" in summary:
+        rs, st = summary["rest_shape"], summary["straight"]
+        print(f"rest shape: kappa [1/m] {' '.join(f'{k:.2f}' for k in rs['kappa_per_m'])} at sigma "
+              f"{' '.join(f'{x:.2f}' for x in rs['sigma'])}; straight rest shape: "
+              f"eval L1 {1e3 * st['eval_l1']:.1f} mm, "
+              f"train L1 {1e3 * st['train_l1']:.1f} mm")
     print(f"cost {summary['cost']['cpu_s_per_simulated_s']:.3g} CPU s per simulated s")
     print("limits of the match: " + "; ".join(summary["limits"]))
 

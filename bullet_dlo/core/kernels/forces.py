@@ -30,6 +30,9 @@ Material frame (issue 22, opt-in: ``ModelArrays.tw`` non-empty): twist springs a
 part of the bending energy of :mod:`bullet_dlo.core.kernels.twist` join the energy, the forces, the
 Jacobian and the clamp moments; ``k_bend`` then holds the mean of the two bending constants.
 
+Curved rest shape (opt-in: ``ModelArrays.rest_angle`` non-empty): :mod:`bullet_dlo.core.kernels.rest_shape`
+turns each interior bending energy into 1/2 k_b (beta - beta0)^2 (energy, forces and the node's Hessian).
+
 Jacobian storage: block-banded, ``jac[i, o] = dF_i / dx_{i+o-2}`` with shape (n, 5, 3, 3)
 (bending couples nodes up to two apart). ``definite=True`` drops the compressive part of the
 stretch Hessian (the usual filter that keeps M + h^2 K positive definite for implicit steps);
@@ -43,6 +46,7 @@ import numpy as np
 from numba import njit
 
 from bullet_dlo.core.kernels.drag import add_drag_forces, add_drag_jacobian, drag_dissipation  # noqa: F401
+from bullet_dlo.core.kernels.rest_shape import add_rest_shape_forces, rest_shape_energy, rest_shape_hessian
 from bullet_dlo.core.kernels.twist import (
     add_cross_matrix,
     add_twist_forces,
@@ -120,6 +124,7 @@ def internal_energy(m, x, dirs):
         e += 0.5 * k * theta * theta
     if has_twist(m):
         e += twist_energy(m, x, dirs)
+    e += rest_shape_energy(m, x)  # curved rest shape (0 without)
     return e
 
 
@@ -180,6 +185,7 @@ def internal_forces(m, x, dirs, out):
             out[i + 1, 2] -= gbz
     if has_twist(m):
         add_twist_forces(m, x, dirs, out)
+    add_rest_shape_forces(m, x, out)  # curved rest shape (no-op without)
 
 
 @njit(cache=True, error_model="numpy")
@@ -290,6 +296,7 @@ def force_jacobian(m, x, dirs, definite, jac):
             continue
         a0, a1, a2, b0, b1, b2 = _node_edges(x, i, dirs)
         _bend_hessian(a0, a1, a2, b0, b1, b2, k, g, hb)
+        rest_shape_hessian(m, x, i, definite, hb)  # curved rest shape (no-op without)
         scatter_node_hessian(jac, i, n, hb)
     if has_twist(m):
         add_twist_jacobian(m, x, dirs, jac)
