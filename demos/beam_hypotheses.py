@@ -95,7 +95,8 @@ def main() -> None:
             pp = [p2p(pred.t, pred.torques_filtered[:, j], m.t_end, a, b) for a, b in WINDOWS]
             v = residual_vibration(pred.t, pred.torques_filtered[:, j], m.t_end)
             print(f"{rec.name[4:-3]:14s} " + " ".join(f"{b / a:5.2f}" for a, b in zip(pm, pp))
-                  + f" | {v.damping_ratio / m.vibration.damping_ratio:5.2f} | {v.frequency_hz / m.vibration.frequency_hz:6.3f}")
+                  + f" | {v.damping_ratio / m.vibration.damping_ratio:5.2f}"
+                  + f" | {v.frequency_hz / m.vibration.frequency_hz:6.3f}")
     print("\nmeasured frequency [Hz] and damping ratio over windows " + ", ".join(f"{a:g}-{b:g}" for a, b in SPANS)
           + " s (base model's frequency beside)")
     for rec, m, pred in zip(recs, meas, results["base"]):

@@ -267,6 +267,10 @@ class Mounting:
     offset: tuple[float, float, float] = (0.0, 0.0, 0.0)
     clamp_mass: float = 0.0
 
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.clamp_mass) and self.clamp_mass >= 0.0):
+            raise ParameterError(f"clamp_mass must be a finite mass >= 0 kg, got {self.clamp_mass}")
+
     def axes(self, flange_rot: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Strip axis (clamp -> tip), width and thickness-normal directions in world, each (3,)."""
         beam = flange_rot @ Rotation.from_euler("z", self.yaw).as_matrix()
@@ -572,5 +576,5 @@ def with_damping(damping: dict[str, float], name: str, value: float) -> dict[str
 
 
 __all__ = ["BeamRecording", "read_beam_csv", "beam_files", "EstimateFilter", "identify_filter", "Strip",
-           "Mounting", "payload_torques", "PlaneRun", "plane_runs", "STRIP_MODELS", "run_rectangle", "Numerics", "Prediction",
-           "predict_torques", "free_vibration", "fit_recording"]
+           "Mounting", "payload_torques", "PlaneRun", "plane_runs", "STRIP_MODELS", "run_rectangle", "Numerics",
+           "Prediction", "predict_torques", "free_vibration", "fit_recording"]

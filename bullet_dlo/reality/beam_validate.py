@@ -302,8 +302,8 @@ class ClampMassFit:
         d["interval"] = list(self.interval)
         d["method"] = ("linear least squares of the 1.5-8 Hz band of (measured - predicted) external torques, all 7 "
                        "joints, the whole recording, on the band of the estimate-filtered torques of a 1 kg point mass "
-                       "at the clamp point, m J_c^T (a - g); the motion's flange accelerations (several m/s^2) identify "
-                       "it; interval: min-max of the per-recording values")
+                       "at the clamp point, m J_c^T (a - g); the motion's flange accelerations (several m/s^2) "
+                       "identify it; interval: min-max of the per-recording values")
         return d
 
 
@@ -453,7 +453,8 @@ def validate_beam(fit_dir: str | Path, predict_dir: str | Path, *, damping: str 
                                      duration=duration) for r in fit_recs]
             mass_fit = fit_clamp_mass(fit_recs, preds, panda, numerics, estimate)
             mounting = Mounting(clamp_mass=mass_fit.value)
-            log(f"clamp payload {mass_fit.value:.3g} kg (per file {mass_fit.interval[0]:.3g}-{mass_fit.interval[1]:.3g})")
+            lo, hi = mass_fit.interval
+            log(f"clamp payload {mass_fit.value:.3g} kg (per file {lo:.3g}-{hi:.3g})")
         elif clamp_mass != "off":
             mounting = Mounting(clamp_mass=float(clamp_mass))
         fitted = fit_damping(fit_recs, fit_meas, panda, damping, strip, numerics, estimate, fixed, mounting)

@@ -134,3 +134,10 @@ def test_validate_beam_bad_clamp_mass_is_one_line_exit_2(tmp_path, capsys, value
                  "--clamp-mass", value])
     err = capsys.readouterr().err.strip()
     assert code == 2 and len(err.splitlines()) == 1 and "--clamp-mass" in err
+
+
+def test_a_negative_clamp_mass_is_one_clear_error():
+    from bullet_dlo.core.validate import ParameterError
+
+    with pytest.raises(ParameterError, match="clamp_mass must be a finite mass >= 0 kg"):
+        Mounting(clamp_mass=-0.1)
