@@ -44,7 +44,7 @@ def cmd_beam(args: argparse.Namespace) -> int:
                                      strip=strip, estimate=estimate, duration=args.duration,
                                      limit_files=args.limit_files, check_numerics=not args.no_numerics_check,
                                      fit_youngs_modulus=args.fit_youngs_modulus, drag=args.drag_coefficient,
-                                     log=log)
+                                     clamp_mass=args.clamp_mass, log=log)
     out = Path(args.json)
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(json.dumps(summary, indent=2))
@@ -68,6 +68,10 @@ def cmd_beam(args: argparse.Namespace) -> int:
           f"{summary['estimate_filter']['cutoff_hz']:.3g} Hz + {1e3 * summary['estimate_filter']['delay_s']:.3g} ms; "
           f"{args.strip_model} strip, {args.integrator}, n {args.n_masses}, dt {numerics.dt:g} s; "
           f"{summary['cost_per_simulated_second']:.3g} CPU s per simulated s")
+    if "clamp_mass_fit" in params:
+        cm = params["clamp_mass_fit"]
+        print(f"clamp payload {cm['value']:.3g} kg fitted (per file {cm['interval'][0]:.3g}-{cm['interval'][1]:.3g}; "
+              f"band residual {cm['residual_rms_without']:.3g} -> {cm['residual_rms_with']:.3g} N m on the fit files)")
     if "numerics" in summary:
         num = summary["numerics"]
         print(f"numerical damping ratio {num['numerical_damping_ratio']:.2g} (implicit Euler "
@@ -114,6 +118,11 @@ def add_parsers(sub, common: argparse.ArgumentParser) -> None:
                         "1.204 kg/m^3): off (default), fit (C_d fitted on FIT_DIR together with damping_rate, from "
                         "the damping's amplitude dependence over windows of each decay) or a value C_d [-] in "
                         "[0, 1000] held while the damping is fitted")
+    b.add_argument("--clamp-mass", default="off", metavar="{off,fit,KG}",
+                   help="a rigid payload at the clamp (the clamp hardware) that Franka's estimate does not know: its "
+                        "weight change and inertia m (g - a) join the predicted torques; off (default), fit (fitted on "
+                        "FIT_DIR by linear least squares of the 1.5-8 Hz torque residual over the whole recordings, "
+                        "then held) or a mass [kg] in [0, 10]")
     b.add_argument("--strip-model", default="planes", choices=["planes", "rectangle"],
                    help="planes: two superposed planar runs of an isotropic cable, one per bending plane (default); "
                         "rectangle: one 3-D run of a rectangle-section cable with twist, clamped with the flange's "

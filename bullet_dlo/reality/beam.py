@@ -259,10 +259,17 @@ class Strip:
 class Mounting:
     """How the strip sits on the flange: beam frame = flange frame turned by ``yaw`` [rad] about
     its z; the strip runs from the clamp point ``offset`` [m] (beam frame) along the beam frame's
-    -x; width along y, thickness along z."""
+    -x; width along y, thickness along z. ``clamp_mass`` [kg]: a rigid payload at the clamp point
+    (the clamp hardware) that Franka's estimate does not know, so its weight change and inertia
+    m (g - a) appear in the external torques (:func:`payload_torques`; 0: none)."""
 
     yaw: float = MOUNT_YAW
     offset: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    clamp_mass: float = 0.0
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.clamp_mass) and self.clamp_mass >= 0.0):
+            raise ParameterError(f"clamp_mass must be a finite mass >= 0 kg, got {self.clamp_mass}")
 
     def axes(self, flange_rot: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Strip axis (clamp -> tip), width and thickness-normal directions in world, each (3,)."""
@@ -320,7 +327,8 @@ class Prediction:
     """Model output for one recording at the recording's times t [s], (k,): clamp force [N] and
     moment about the clamp [N m] exerted by the strip on the flange (world, (k, 3) each), the flange
     wrench [N, N m] (k, 6), external joint torques tau = -J^T w [N m] (k, 7), unfiltered and through
-    the estimate filter, both as deviations from t = 0; cpu_s: thread CPU time of the runs [s]."""
+    the estimate filter, both as deviations from t = 0 (with the mounting's clamp payload, if any:
+    :func:`payload_torques`); cpu_s: thread CPU time of the runs [s]."""
 
     t: np.ndarray
     force: np.ndarray
@@ -334,17 +342,46 @@ class Prediction:
     tip: np.ndarray | None = None  # the strip's free tip [m], (k, 3), world (planes: the weak-plane run's)
 
 
+def low_passed_q(rec: BeamRecording, numerics: Numerics) -> np.ndarray:
+    """The measured joint positions [rad], (k, 7), low-passed (zero phase) at ``numerics.q_cutoff_hz``."""
+    return sosfiltfilt(butter(4, numerics.q_cutoff_hz, fs=rec.rate, output="sos"), rec.q, axis=0)
+
+
 def flange_motion(rec: BeamRecording, panda: Panda, numerics: Numerics, duration: float
                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Knot times [s], (m,), flange positions [m], (m, 3), and rotations, (m, 3, 3), over
     [0, duration] every ``knot_step`` from the low-passed measured joint positions."""
-    sos = butter(4, numerics.q_cutoff_hz, fs=rec.rate, output="sos")
-    q = sosfiltfilt(sos, rec.q, axis=0)
+    q = low_passed_q(rec, numerics)
     stop = min(duration, float(rec.t[-1]))
     times = np.arange(0.0, stop + 1e-9, numerics.knot_step)
     rows = np.clip(np.searchsorted(rec.t, times), 0, len(rec.t) - 1)
     pos, rot = panda.flange_path(q[rows])
     return times, pos, rot
+
+
+def payload_torques(panda: Panda, q: np.ndarray, rate: float, mounting: Mounting = Mounting(), mass: float = 1.0,
+                    gravity: tuple[float, float, float] = STANDARD_GRAVITY, cutoff_hz: float = 40.0) -> np.ndarray:
+    """External joint torques [N m], (k, 7), of a point mass ``mass`` [kg] at the clamp point carried along joint
+    rows q [rad], (k, 7), sampled at ``rate`` [Hz], as deviations from the first row.
+
+    The mass exerts w = (m (g - a), r x m (g - a)) on the flange (a [m/s^2] the clamp point's acceleration, r the
+    clamp point from the flange origin), so Franka's estimate reports tau = -J^T w = m J_c^T (a - g), J_c the clamp
+    point's linear Jacobian: the torque with which the motors carry a mass their model does not contain (for
+    m 1 kg it is the regressor :func:`fit_clamp_mass` fits m on). ``a`` is the second difference of the clamp path
+    (forward kinematics of q), low-passed at ``cutoff_hz`` [Hz]: PyBullet's poses are single precision, and the
+    second difference of 1 ms samples would turn their rounding into 0.1 m/s^2 of noise."""
+    q = np.asarray(q, dtype=float)
+    fpos, frot = panda.flange_path(q)
+    clamp = mounting.clamp_point(fpos, frot)
+    dt = 1.0 / rate
+    acc = np.gradient(np.gradient(clamp, dt, axis=0), dt, axis=0)
+    if len(q) > 27:  # sosfiltfilt's pad length for a 4th-order filter
+        acc = sosfiltfilt(butter(4, min(cutoff_hz, 0.45 * rate), fs=rate, output="sos"), acc, axis=0)
+    load = mass * (np.asarray(gravity, dtype=float) - acc)  # force of the mass on the flange [N]
+    arm = clamp - fpos
+    wrench = np.hstack([load, np.cross(arm, load)])
+    tau = external_torques(panda.jacobians(q), wrench)
+    return tau - tau[0]
 
 
 def run_plane(strip: Strip, run: PlaneRun, numerics: Numerics, damping: dict[str, float], clamp0: np.ndarray,
@@ -417,7 +454,8 @@ def predict_torques(rec: BeamRecording, panda: Panda, strip: Strip = Strip(), da
     The strip's clamp follows the flange path (forward kinematics of the low-passed measured q);
     the strip model (``numerics.strip_model``, module doc) gives the clamp load; the wrench about the
     flange origin maps to joint torques tau = -J(q)^T w; deviations from t = 0 (the strip at rest
-    before the motion), then ``estimate`` applied. ``duration`` [s]: simulated time (default: the whole recording).
+    before the motion), plus the clamp payload's (``mounting.clamp_mass``, :func:`payload_torques`), then
+    ``estimate`` applied. ``duration`` [s]: simulated time (default: the whole recording).
     """
     import time as _time
 
@@ -451,6 +489,9 @@ def predict_torques(rec: BeamRecording, panda: Panda, strip: Strip = Strip(), da
     wrench = np.hstack([force, moment + np.cross(arm, force)])
     tau = external_torques(panda.jacobians(rec.q[rows]), wrench)
     tau = tau - tau[0]
+    if mounting.clamp_mass:
+        tau = tau + payload_torques(panda, low_passed_q(rec, numerics)[rows], 1.0 / TICK, mounting,
+                                    mounting.clamp_mass, gravity)
     filtered = estimate.apply(tau, 1.0 / TICK)
     return Prediction(t=t, force=force, moment=moment, wrench=wrench, torques=tau, torques_filtered=filtered,
                       cpu_s=_time.thread_time() - tic, simulated_s=float(t[-1] - t[0]), warnings=warnings,
@@ -535,5 +576,5 @@ def with_damping(damping: dict[str, float], name: str, value: float) -> dict[str
 
 
 __all__ = ["BeamRecording", "read_beam_csv", "beam_files", "EstimateFilter", "identify_filter", "Strip",
-           "Mounting", "PlaneRun", "plane_runs", "STRIP_MODELS", "run_rectangle", "Numerics", "Prediction",
-           "predict_torques", "free_vibration", "fit_recording"]
+           "Mounting", "payload_torques", "PlaneRun", "plane_runs", "STRIP_MODELS", "run_rectangle", "Numerics",
+           "Prediction", "predict_torques", "free_vibration", "fit_recording"]
