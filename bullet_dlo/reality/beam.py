@@ -441,7 +441,6 @@ def run_rectangle(strip: Strip, numerics: Numerics, damping: dict[str, float], c
     model = CableModel.straight(spec, start=clamp0, direction=axis, ends=("clamped", "free"), motion=[path],
                                 gravity=gravity, roll=(clamp_roll(axis, width), 0.0))
     state = solve_static(model).state()
-    model.reset_twist()  # twist state rebuilt from the sagged shape
     return clamp_loads(model, state, numerics, duration, "the rectangle-strip run")
 
 
@@ -519,7 +518,6 @@ def free_vibration(strip: Strip, numerics: Numerics, duration: float = 5.0, damp
                                 gravity=(0, 0, -1.2 * 9.81))
     model = CableModel.straight(spec, start=(0, 0, 0), direction=(1, 0, 0), ends=("clamped", "free"))
     state = solve_static(heavy).state()
-    model.reset_twist()
     res = simulate(model, numerics.integrator, numerics.dt, duration, state=state,
                    record_every=max(1, int(round(TICK / numerics.dt))))
     if not res.stable:

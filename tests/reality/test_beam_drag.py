@@ -25,7 +25,6 @@ def _tip_decay(strip_model: str, drag_coefficient: float) -> tuple[np.ndarray, n
     model = CableModel.straight(spec, start=(0, 0, 0), direction=(1, 0, 0), ends=("clamped", "free"),
                                 gravity=(0, 0, 0))
     state = solve_static(heavy).state()
-    model.reset_twist()
     res = simulate(model, "bdf2", numerics.dt, 2.0, state=state, record_every=1, max_records=10**6)
     assert res.stable
     z, t = np.abs(res.x[:, -1, 2]), res.t
