@@ -52,7 +52,9 @@ def test_wrist_sensors_read_the_torsion_of_a_turned_gripper(robot, grip):
 def test_a_cable_without_twist_reads_no_torsion():
     """The opt-in: a round cable without ``twist`` has no material frame, and a rolled gripper feels nothing about
     the cable axis (the clamp holds only the tangent)."""
-    moments, model = held_turn("panda", twist=False)
+    with pytest.warns(UserWarning, match="rolls the right gripper 90 deg about the cable axis, but the cable has no "
+                                         "material frame"):
+        moments, model = held_turn("panda", twist=False)
     torque = CABLE.torsional_rigidity * TURN / CABLE.length
     assert np.abs(moments[:, 0]).max() < 1e-4 * torque
     assert np.abs(model[:, 0]).max() < 1e-4 * torque
@@ -78,3 +80,18 @@ def test_external_holder_roll_twists_a_clamped_end_not_a_pinned_one(mode):
         moments = cable.end_moments()
     torque = spec.torsional_rigidity * TURN / spec.length if mode == "clamped" else 0.0
     assert moments[:, 0] == pytest.approx([torque, -torque], rel=1e-3, abs=1e-9)
+
+
+def test_roll_warning_names_the_rolled_gripper_only():
+    """The warning of a frameless cable's rolled gripper: a roll about the cable axis (a move, a sine) is named with
+    its angle; a swing or yaw of the gripper (the cable turns, it does not twist) and a cable with a frame are not."""
+    from bullet_dlo.core.boundary import Sine
+    from bullet_dlo.robots.dual_arm.scene import roll_warning
+
+    x = np.array([[0.0, 0.0, 0.5], [0.15, 0.0, 0.5], [0.3, 0.0, 0.5]])
+    roll = Move("last", (0.0, 0.0, 0.0), START, DURATION, rotation=(TURN, 0.0, 0.0))
+    assert "the right gripper 90 deg" in roll_warning(False, x, [roll])
+    assert "the left gripper 22.9 deg" in roll_warning(False, x, [Sine("first", frequency=2.0, rotation=(0.4, 0, 0))])
+    assert roll_warning(True, x, [roll]) == ""
+    swing = Move("last", (0.0, 0.0, 0.01), START, DURATION, rotation=(0.0, 0.3, 0.2))
+    assert roll_warning(False, x, [swing, Sine("first", frequency=2.0, rotation=(0.0, 0.0, 0.4))]) == ""

@@ -7,11 +7,15 @@ with a task of its own instead (see :mod:`bullet_dlo.robots.dual_arm`).
 """
 from __future__ import annotations
 
+import math
+import warnings
 from typing import Sequence
 
 import numpy as np
 
+from bullet_dlo.analysis.resolve import ROLL_TOL, end_roll
 from bullet_dlo.config.robot import DualArmSpec
+from bullet_dlo.core.boundary import EndHolder
 from bullet_dlo.robots.dual_arm.observation import DualArmObservation
 from bullet_dlo.robots.dual_arm.physics import DualArmPhysics
 from bullet_dlo.robots.dual_arm.task import DualArmTask
@@ -78,7 +82,14 @@ class DualArmScene:
     def follow_motion(self, items: Sequence) -> None:
         """Schedule a scene's motion items for the grippers (the first cable end is the left gripper's):
         a plain straight-line Move as a gripper move (:meth:`move`), anything with rotations,
-        waypoints or sines as a pose the gripper follows (:meth:`DualArmTask.follow`)."""
+        waypoints or sines as a pose the gripper follows (:meth:`DualArmTask.follow`).
+
+        A motion that rolls a gripper about the cable's axis while the cable has no material frame warns
+        (:func:`roll_warning`): the wrists would read no torsion. Scene files and :func:`bullet_dlo.sim.build`
+        switch the frame on by need instead; this object's cable is built already."""
+        why = roll_warning(self.cable.model.spec.twist_enabled, self.cable.x, items)
+        if why:
+            warnings.warn(why, UserWarning, stacklevel=2)
         for m in items:
             if type(m).__name__ == "Move" and not any(m.rotation):
                 self.move("left" if m.end == "first" else "right", m.displacement, m.duration, start=m.start)
@@ -105,3 +116,34 @@ class DualArmScene:
 
     def __exit__(self, *exc) -> None:
         self.close()
+
+
+def roll_warning(twisting: bool, x: np.ndarray, items: Sequence, samples: int = 401) -> str:
+    """Why a gripper motion needs a material frame the cable lacks, or "": the largest roll [rad] of each end's
+    motion ``items`` about the cable's axis (its end-to-end direction of the node positions ``x`` [m], (n, 3))
+    until the last item ends (an item that runs forever: 2 s after its start)
+    (:func:`~bullet_dlo.analysis.resolve.end_roll`) beyond :data:`~bullet_dlo.analysis.resolve.ROLL_TOL`,
+    when ``twisting`` is False."""
+    if twisting or not items:
+        return ""
+    axis = x[-1] - x[0]
+    axis = axis / np.linalg.norm(axis)
+    def end_of(m) -> float:
+        duration = getattr(m, "duration", None)
+        duration = 2.0 if duration is None or not math.isfinite(duration) else float(duration)
+        return float(getattr(m, "start", 0.0) or 0.0) + duration
+
+    horizon = max(end_of(m) for m in items)
+    times = np.linspace(0.0, horizon, samples)
+    rolls = []
+    for end, arm, node in (("first", "left", 0), ("last", "right", -1)):
+        moves = tuple(m for m in items if m.end == end)
+        if not moves:
+            continue
+        roll = float(np.abs(end_roll(EndHolder("clamped", x[node], axis, moves), times)).max())
+        if roll > ROLL_TOL:
+            rolls.append(f"the {arm} gripper {np.degrees(roll):.3g} deg")
+    if not rolls:
+        return ""
+    return ("the motion rolls " + " and ".join(rolls) + " about the cable axis, but the cable has no material frame: "
+            "the wrists read no torsion; give the cable twist=True (scene files and bullet_dlo.sim.build do so by need)")
