@@ -246,7 +246,8 @@ class BulletCable:
                                        grip=self.grip, native=self.world.native_handle(), others=partners,
                                        exclude={**{(b, None): None for b in self.world.no_cable_contact},
                                                 **self._contact_exclusions},
-                                       rest_length=float(spec.rest_length))
+                                       rest_length=float(spec.rest_length),
+                                       segments=(self.arrays.k_stretch, self.arrays.rest_length, self.arrays.k_bend))
         if self._bullet_collisions_off:
             self._exclude_model_bodies()
 
