@@ -63,6 +63,7 @@ S_MIN = 1e-3  # segment interior: 0 < s < 1 away from the nodes by this much (no
 # a probed segment contact must come closer than both its nodes by this much [m] (above the narrow phase's
 # noise, 1e-9 m measured): on a flat face a capsule's closest point is anywhere along it, and the nodes carry it
 SEGMENT_DIP = 1e-7
+WRAP_BENDS = True  # a wrapped segment's bends: at its nodes against the path, the turn at the edge (contact.md)
 _GEOMS = {pb.GEOM_BOX: BOX, pb.GEOM_SPHERE: SPHERE, pb.GEOM_CYLINDER: CYLINDER, pb.GEOM_CAPSULE: CAPSULE}
 
 
@@ -207,6 +208,8 @@ class ContactSet:
             self._seg_k = self._seg_l = self._seg_b = np.zeros(0)
         else:
             self._seg_k, self._seg_l, self._seg_b = (np.ascontiguousarray(a, dtype=float) for a in segments)
+            if not WRAP_BENDS:
+                self._seg_b = np.zeros_like(self._seg_b)
         self.alpha = float(alpha)
         self.zeta = float(damping_ratio)
         exclude = exclude or {}
@@ -713,6 +716,18 @@ def _fill(c, st, key, shape, ia, ib, wa, wb, mu_s, mu_d, k_n, zeta, mk, x):
     c.count[0] = k + 1
 
 
+@njit(cache=True, error_model="numpy", inline="always")
+def _taut(x, i, ks, l0, kb):
+    """Whether segment i's tension T [N] bends the cable at an edge within the segment: its bend length
+    sqrt(EI / T) below the segment's length l0, T l0 > k_b (k_b = EI / l0, the larger of its nodes'). Then
+    the chain cannot bend round the edge itself and the segment wraps it; a slack or short segment keeps the
+    chain's own bends (a cable's overhang over a box edge stands on them)."""
+    d = 0.0
+    for j in range(3):
+        d += (x[i + 1, j] - x[i, j]) ** 2
+    return ks * (math.sqrt(d) - l0) * l0 > max(kb[i], kb[i + 1]) and kb[i] + kb[i + 1] > 0.0
+
+
 @njit(cache=True, error_model="numpy")
 def _make_wrap(c, k, rot, A, P, o1, o2, ks, l0, kb_a, kb_b, fresh, x):
     """Turn row k (a segment's capsule contact with the box edge through P along A, shape frame; rot: world
@@ -912,11 +927,15 @@ def detect(x, v, mass, sh, c, st, h, k_per_mass, zeta, self_mu, h_body, h_done, 
                         if not wrapped and not _may_reach_edge(q[i], q[i + 1], P, ax, size[ax], radius + margin):
                             continue
                         sp = _segment_axis(q[i], q[i + 1], P, A, size[ax], 0.0, cl, nl)
+                        # a chord cutting the corner through the box (a coarse segment draped round the edge)
+                        cuts = (wraps and sp > 0.0 and abs(cl[o1] + cl[3] * nl[o1]) < size[o1]
+                                and abs(cl[o2] + cl[3] * nl[o2]) < size[o2])
                         # a wrap is kept while the path wraps, even with the chord deep in the box
-                        if sp > 0.0 and (cl[3] - radius < margin or wrapped):
+                        if sp > 0.0 and (cl[3] - radius < margin or wrapped or cuts):
                             fresh = not st.active[key]
                             _add(c, st, key, s, i, i + 1, 1.0 - sp, sp, cl, nl, sh, k_per_mass, zeta, mass, x)
-                            if wraps and c.count[0] > 0 and st.keys[c.count[0] - 1] == key:
+                            if (wraps and c.count[0] > 0 and st.keys[c.count[0] - 1] == key
+                                    and (wrapped or cuts or _taut(x, i, seg_k[i], seg_l[i], seg_b))):
                                 k = c.count[0] - 1
                                 _make_wrap(c, k, rot, A, P, o1, o2, seg_k[i], seg_l[i], seg_b[i], seg_b[i + 1], fresh, x)
                                 if cl[3] - radius >= margin and not wrap_active(c, k, x):
