@@ -54,7 +54,7 @@ from numba import njit
 
 from bullet_dlo.bullet.kernels import bind
 from bullet_dlo.bullet.native import BASE_STATE, disabled_warning, read_base_states
-from bullet_dlo.core.kernels.contact import PENALTY, STICK, WRAP, Contacts, _wrap_cap, make_contacts, wrap_active, wrap_split
+from bullet_dlo.core.kernels.contact import PENALTY, STICK, WRAP, Contacts, _wrap_cap, make_contacts, wrap_active, wrap_energy, wrap_split
 
 BOX, SPHERE, CYLINDER, CAPSULE, PROBE = range(5)  # PROBE: a link measured by Bullet's narrow phase
 N_EDGES = 12  # a box's edges, each a segment feature of its own
@@ -741,9 +741,13 @@ def _make_wrap(c, k, rot, A, P, o1, o2, ks, l0, kb_a, kb_b, fresh, x):
         c.side[k, j] = rot[j, o1] * b1 + rot[j, o2] * b2
     c.seg[k, 0], c.seg[k, 1], c.seg[k, 2], c.seg[k, 3] = ks, l0, kb_a, kb_b
     c.kind[k] = WRAP
+    c.cap[k] = 0.0
     if fresh:
         c.anchor[k, 3] = wrap_split(c, k, x)
-    c.cap[k] = 0.0
+        # a wrap that starts with its path already round the edge (a chord cutting the corner, a taut capsule
+        # contact) starts with the energy of the path against the chord's: the model's switch, not work of the
+        # cable's forces, so the energy check counts it as done on the cable (no false alarm)
+        c.body_work[0] += wrap_energy(c, k, x)
     c.cap[k] = _wrap_cap(c, k, x)
 
 
@@ -932,7 +936,7 @@ def detect(x, v, mass, sh, c, st, h, k_per_mass, zeta, self_mu, h_body, h_done, 
                                 and abs(cl[o2] + cl[3] * nl[o2]) < size[o2])
                         # a wrap is kept while the path wraps, even with the chord deep in the box
                         if sp > 0.0 and (cl[3] - radius < margin or wrapped or cuts):
-                            fresh = not st.active[key]
+                            fresh = not (st.active[key] and st.wrap[key])  # a new wrap (or a capsule contact turning into one)
                             _add(c, st, key, s, i, i + 1, 1.0 - sp, sp, cl, nl, sh, k_per_mass, zeta, mass, x)
                             if (wraps and c.count[0] > 0 and st.keys[c.count[0] - 1] == key
                                     and (wrapped or cuts or _taut(x, i, seg_k[i], seg_l[i], seg_b))):

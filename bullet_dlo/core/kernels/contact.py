@@ -663,6 +663,14 @@ def wrap_split(c, k, x):
 
 
 @njit(cache=True, error_model="numpy")
+def wrap_energy(c, k, x):
+    """The elastic energy [J] wrap row k adds to the chain's at x (its part of :func:`contact_energy`)."""
+    g = np.empty(12)
+    h = np.empty((12, 12))
+    return _wrap_eval(c, k, x, g, h, False)[7]
+
+
+@njit(cache=True, error_model="numpy")
 def wrap_active(c, k, x):
     """Whether wrap row k's path wraps round its edge at x (alpha > 0, see :func:`_wrap_eval`)."""
     g = np.empty(12)
