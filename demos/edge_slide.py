@@ -9,6 +9,13 @@ drape, then watched for 1 s: "held" when its table end moved less than 2 mm, "sl
 sqrt(EI / T) of the cable at the edge (T = phi* w L), which the segments have to resolve.
 
     PYTHONPATH=. python demos/edge_slide.py [--rates 60 240 1000] [--n 10 20 40] [--E 2e6 8e6] [--places 0.05 0.25 0.5 0.75]
+
+``--lumped``: the model's own hanging fraction instead (the mass of the nodes beyond the edge; the
+masses are lumped at the nodes, so it steps by 1/(n - 1)), from the layout draped round the edge at rest length, with
+mu set so that it lies at 0.9 and 1.1 times phi*(mu) ("ok": held below 2 mm, slid above 20 mm; the
+table of docs/concepts/contact.md, "Edges"):
+
+    PYTHONPATH=. python demos/edge_slide.py --lumped [--rates 60 240 1000] [--n 10 20 40] [--places 0.25 0.5 0.75]
 """
 from __future__ import annotations
 
@@ -28,9 +35,30 @@ def main() -> None:
     ap.add_argument("--E", type=float, nargs="+", default=[2e6])
     ap.add_argument("--places", type=float, nargs="+", default=[0.05, 0.25, 0.5, 0.75])
     ap.add_argument("--mu", type=float, default=0.3)
+    ap.add_argument("--lumped", action="store_true", help="the lumped hanging fraction at 0.9 / 1.1 phi*(mu)")
     args = ap.parse_args()
     sys.path.insert(0, str(TESTS))
-    from test_edge_slide import HOLD, SLIDE, bracket, hang, soft_cable, threshold
+    from test_edge_slide import HOLD, SLID, SLIDE, bracket, hang, layout, lumped_fraction, mu_for, soft_cable, threshold
+
+    if args.lumped:
+        print("| Hz | n | place | lumped phi | mu at 0.9 phi* | travel [mm] | mu at 1.1 phi* | travel [mm] | verdict |")
+        print("|---|---|---|---|---|---|---|---|---|")
+        for hz, n, place in itertools.product(args.rates, args.n, args.places):
+            x, _ = layout(soft_cable(n), threshold(args.mu), place, wrapped=True)
+            phi = lumped_fraction(x)
+            runs = []
+            for f in (0.9, 1.1):
+                mu = mu_for(phi / f)
+                travel, _, cab = hang(soft_cable(n, mu), threshold(args.mu), place, hz, wrapped=True)
+                runs.append((mu, travel, cab))
+            (mu_lo, lo, c_lo), (mu_hi, hi, c_hi) = runs
+            if not (c_lo.stable and c_hi.stable):
+                verdict = f"unstable: {c_lo.reason or c_hi.reason}"
+            else:
+                verdict = "ok" if lo < HOLD and hi > SLID else ("slid below" if lo >= HOLD else "hooked")
+            print(f"| {hz:.0f} | {n} | {place} | {phi:.3f} | {mu_lo:.3f} | {lo * 1e3:.1f} | {mu_hi:.3f} | "
+                  f"{hi * 1e3:.1f} | {verdict} |", flush=True)
+        return
 
     star = threshold(args.mu)
     print(f"mu {args.mu}: phi* = {star:.3f} (capstan over the edge); frictionless edge {args.mu / (1 + args.mu):.3f}")

@@ -54,7 +54,7 @@ from numba import njit
 
 from bullet_dlo.bullet.kernels import bind
 from bullet_dlo.bullet.native import BASE_STATE, disabled_warning, read_base_states
-from bullet_dlo.core.kernels.contact import STICK, Contacts, make_contacts
+from bullet_dlo.core.kernels.contact import PENALTY, STICK, WRAP, Contacts, _wrap_cap, make_contacts, wrap_active, wrap_energy, wrap_split
 
 BOX, SPHERE, CYLINDER, CAPSULE, PROBE = range(5)  # PROBE: a link measured by Bullet's narrow phase
 N_EDGES = 12  # a box's edges, each a segment feature of its own
@@ -63,6 +63,7 @@ S_MIN = 1e-3  # segment interior: 0 < s < 1 away from the nodes by this much (no
 # a probed segment contact must come closer than both its nodes by this much [m] (above the narrow phase's
 # noise, 1e-9 m measured): on a flat face a capsule's closest point is anywhere along it, and the nodes carry it
 SEGMENT_DIP = 1e-7
+WRAP_BENDS = True  # a wrapped segment's bends: at its nodes against the path, the turn at the edge (contact.md)
 _GEOMS = {pb.GEOM_BOX: BOX, pb.GEOM_SPHERE: SPHERE, pb.GEOM_CYLINDER: CYLINDER, pb.GEOM_CAPSULE: CAPSULE}
 
 
@@ -95,13 +96,15 @@ class Shapes(NamedTuple):
 
 class Store(NamedTuple):
     """Friction state by contact key, kept from step to step: anchor (K, 4), state (K,), active (K,) bool;
-    keys (M,) int: the key of each row of the current Contacts; body (M,) int: its shape index."""
+    keys (M,) int: the key of each row of the current Contacts; body (M,) int: its shape index; wrap (K,)
+    bool: the key's row was a segment wrapped round an edge (kept while it wraps, however far the chord)."""
 
     anchor: np.ndarray
     state: np.ndarray
     active: np.ndarray
     keys: np.ndarray
     body: np.ndarray
+    wrap: np.ndarray
 
 
 class Probes(NamedTuple):
@@ -190,13 +193,23 @@ class ContactSet:
 
     def __init__(self, client: int, bodies, n: int, radius: float, mu_s: float, mu_d: float,
                  alpha: float, damping_ratio: float, self_contact: bool = True, grip=None, native: int = 0,
-                 others=(), exclude=None, rest_length: float = 0.0):
+                 others=(), exclude=None, rest_length: float = 0.0, segments=None):
         """``others``: the other cables (BulletCable) whose contacts with this one the model handles;
         ``exclude``: {(body, link): None (no contact) or a set of node indices that do not touch it (nor do the
         segments next to them)}, link None meaning every link of the body; ``rest_length`` [m]: the length of
-        the capsule that probes a segment (the cable's rest segment length; 0: nodes only)."""
+        the capsule that probes a segment (the cable's rest segment length; 0: nodes only); ``segments``: the
+        cable's segment stretch stiffnesses [N/m] and rest lengths [m], each (n - 1,), and bending constants
+        [N m/rad^2] (n,), which a segment wrapped
+        round a sharp edge of a static box needs (docs/concepts/contact.md, "Edges"); None: such a segment
+        meets the edge as a capsule (penalty contact, as before)."""
         self.client = client
         self.n = n
+        if segments is None:
+            self._seg_k = self._seg_l = self._seg_b = np.zeros(0)
+        else:
+            self._seg_k, self._seg_l, self._seg_b = (np.ascontiguousarray(a, dtype=float) for a in segments)
+            if not WRAP_BENDS:
+                self._seg_b = np.zeros_like(self._seg_b)
         self.alpha = float(alpha)
         self.zeta = float(damping_ratio)
         exclude = exclude or {}
@@ -279,7 +292,7 @@ class ContactSet:
         self.contacts: Contacts = make_contacts(n, capacity, radius, grip)  # grip: the cable's, kept across sets
         self.store = Store(anchor=np.zeros((nkeys, 4)), state=np.zeros(nkeys, np.int64),
                            active=np.zeros(nkeys, np.bool_), keys=np.zeros(capacity, np.int64),
-                           body=np.zeros(capacity, np.int64))
+                           body=np.zeros(capacity, np.int64), wrap=np.zeros(nkeys, np.bool_))
         first = np.cumsum([0] + [o.model.n for o in self.other_cables]).astype(np.int64)
         mu_o = [(o.model.spec.static_friction, o.model.spec.dynamic_friction) for o in self.other_cables]
         reps = [o.model.n for o in self.other_cables]
@@ -363,7 +376,8 @@ class ContactSet:
             self._probe(x, v, h)
         k_per_mass = self.alpha / (h * h)
         args = (x, v, mass, self.shapes, self.contacts, self.store, float(h), k_per_mass, self.zeta, self.self_mu,
-                float(dt), float(dt) if stepped else 0.0, self.others, self.probes)
+                float(dt), float(dt) if stepped else 0.0, self.others, self.probes, self._seg_k, self._seg_l,
+                self._seg_b)
         if self._detect is None:
             self._detect = bind(detect, *args)
         return self._detect(*args)
@@ -674,6 +688,7 @@ def _fill(c, st, key, shape, ia, ib, wa, wb, mu_s, mu_d, k_n, zeta, mk, x):
     """The rest of row count[0] (point, normal, body velocity set): nodes, stiffness k_n [N/m] (damping
     ratio zeta for the mass mk [kg]), friction, friction state."""
     k = c.count[0]
+    c.kind[k] = PENALTY
     c.node[k, 0], c.node[k, 1] = ia, ib
     c.weight[k, 0], c.weight[k, 1] = wa, wb
     c.k_n[k] = k_n
@@ -699,6 +714,55 @@ def _fill(c, st, key, shape, ia, ib, wa, wb, mu_s, mu_d, k_n, zeta, mk, x):
     st.keys[k] = key
     st.body[k] = shape
     c.count[0] = k + 1
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _taut(x, i, ks, l0, kb):
+    """Whether segment i's tension T [N] bends the cable at an edge within the segment: its bend length
+    sqrt(EI / T) below the segment's length l0, T l0 > k_b (k_b = EI / l0, the larger of its nodes'). Then
+    the chain cannot bend round the edge itself and the segment wraps it; a slack or short segment keeps the
+    chain's own bends (a cable's overhang over a box edge stands on them)."""
+    d = 0.0
+    for j in range(3):
+        d += (x[i + 1, j] - x[i, j]) ** 2
+    return ks * (math.sqrt(d) - l0) * l0 > max(kb[i], kb[i + 1]) and kb[i] + kb[i + 1] > 0.0
+
+
+@njit(cache=True, error_model="numpy")
+def _make_wrap(c, k, rot, A, P, o1, o2, ks, l0, kb_a, kb_b, fresh, x):
+    """Turn row k (a segment's capsule contact with the box edge through P along A, shape frame; rot: world
+    from shape) into a WRAP row: the edge line (its point c.point[k] already), its direction, the bisector of
+    its two faces' outward normals, the segment's spring; a new wrap's anchor splits the segment at equal
+    tension."""
+    b1 = math.copysign(1.0, P[o1]) / math.sqrt(2.0)
+    b2 = math.copysign(1.0, P[o2]) / math.sqrt(2.0)
+    for j in range(3):
+        c.axis[k, j] = rot[j, 0] * A[0] + rot[j, 1] * A[1] + rot[j, 2] * A[2]
+        c.side[k, j] = rot[j, o1] * b1 + rot[j, o2] * b2
+    c.seg[k, 0], c.seg[k, 1], c.seg[k, 2], c.seg[k, 3] = ks, l0, kb_a, kb_b
+    c.kind[k] = WRAP
+    c.cap[k] = 0.0
+    if fresh:
+        c.anchor[k, 3] = wrap_split(c, k, x)
+        # a wrap that starts with its path already round the edge (a chord cutting the corner, a taut capsule
+        # contact) starts with the energy of the path against the chord's: the model's switch, not work of the
+        # cable's forces, so the energy check counts it as done on the cable (no false alarm)
+        c.body_work[0] += wrap_energy(c, k, x)
+    c.cap[k] = _wrap_cap(c, k, x)
+
+
+@njit(cache=True, error_model="numpy")
+def _one_wrap_per_segment(c, first, n):
+    """A segment with more than one WRAP row (across two edges, of one box or two) keeps capsule contacts with
+    them instead: the wraps' potentials each replace the segment's whole spring and do not add."""
+    count = np.zeros(n, np.int64)
+    for k in range(first, c.count[0]):
+        if c.kind[k] == WRAP:
+            count[c.node[k, 0]] += 1
+    for k in range(first, c.count[0]):
+        if c.kind[k] == WRAP and count[c.node[k, 0]] > 1:
+            c.kind[k] = PENALTY
+            c.anchor[k, 3] = c.weight[k, 1]
 
 
 @njit(cache=True, error_model="numpy")
@@ -764,7 +828,7 @@ def _probe_candidates(x, box, reach, out, segments, nodes, segs, mid, quat):
 
 
 @njit(cache=True, error_model="numpy")
-def detect(x, v, mass, sh, c, st, h, k_per_mass, zeta, self_mu, h_body, h_done, oc, pr):
+def detect(x, v, mass, sh, c, st, h, k_per_mass, zeta, self_mu, h_body, h_done, oc, pr, seg_k, seg_l, seg_b):
     """Store the friction state of the last step's contacts by key, then fill ``c`` with the contacts
     of positions x [m] (n, 3) (velocities v [m/s]) whose gap is below the margin (cable radius + twice
     the distance the fastest node moves in a step of h [s] + 1 mm); self-contacts too unless
@@ -778,7 +842,13 @@ def detect(x, v, mass, sh, c, st, h, k_per_mass, zeta, self_mu, h_body, h_done, 
     Other cables (``oc``, :class:`Others`): their segments against this cable's (:func:`_cable_contacts`);
     the last step's contacts with them are corrected for where the other cable actually went.
 
-    Probed links (``pr``, :class:`Probes`): Bullet's closest points become contacts of the same law."""
+    Probed links (``pr``, :class:`Probes`): Bullet's closest points become contacts of the same law.
+
+    Edges of static boxes: a segment whose axis comes within the margin of one edge (of one box) is wrapped
+    round it (a WRAP row: its stretch measured along the path over the edge, capstan friction; see
+    :func:`~bullet_dlo.core.kernels.contact._wrap_eval`) when ``seg_k``, ``seg_l`` (the segments' stretch
+    stiffness [N/m] and rest length [m]) and ``seg_b`` (the nodes' bending constants [N m/rad^2]) are given; a segment near two edges keeps capsule contacts with
+    both (one wrap per segment)."""
     vmax = 0.0
     for i in range(v.shape[0]):
         for j in range(3):
@@ -789,6 +859,7 @@ def detect(x, v, mass, sh, c, st, h, k_per_mass, zeta, self_mu, h_body, h_done, 
         key = previous[k]
         st.anchor[key] = c.anchor[k]
         st.state[key] = c.state[k]
+        st.wrap[key] = c.kind[k] == WRAP
         s = st.body[k]
         if h_done > 0.0 and s >= 0 and sh.inv_mass[s] > 0.0:
             # Bullet moved the body by h v' (semi-implicit Euler), v' its velocity now, not by the h u
@@ -813,6 +884,7 @@ def detect(x, v, mass, sh, c, st, h, k_per_mass, zeta, self_mu, h_body, h_done, 
     nl = np.empty(3)
     P = np.empty(3)
     A = np.empty(3)
+    first_edge = c.count[0]
     for k in range(pr.count[0]):  # Bullet's closest points on the probed links (world frame already)
         s = pr.shape[k]
         ia, ib = pr.node[k, 0], pr.node[k, 1]
@@ -842,6 +914,7 @@ def detect(x, v, mass, sh, c, st, h, k_per_mass, zeta, self_mu, h_body, h_done, 
             if d - radius < margin:
                 _add(c, st, base + i, s, i, i, 1.0, 0.0, cl, nl, sh, k_per_mass, zeta, mass, x)
         if kind == BOX:  # segments against the 12 edges
+            wraps = seg_k.shape[0] == n - 1 and sh.inv_mass[s] == 0.0
             for ax in range(3):
                 o1 = (ax + 1) % 3
                 o2 = (ax + 2) % 3
@@ -853,12 +926,24 @@ def detect(x, v, mass, sh, c, st, h, k_per_mass, zeta, self_mu, h_body, h_done, 
                     P[o2] = size[o2] if e // 2 == 0 else -size[o2]
                     feat = 1 + 4 * ax + e
                     for i in range(n - 1):
-                        if not _may_reach_edge(q[i], q[i + 1], P, ax, size[ax], radius + margin):
+                        key = base + n + (n - 1) * feat + i
+                        wrapped = wraps and st.active[key] and st.wrap[key]
+                        if not wrapped and not _may_reach_edge(q[i], q[i + 1], P, ax, size[ax], radius + margin):
                             continue
                         sp = _segment_axis(q[i], q[i + 1], P, A, size[ax], 0.0, cl, nl)
-                        if sp > 0.0 and cl[3] - radius < margin:
-                            key = base + n + (n - 1) * feat + i
+                        # a chord cutting the corner through the box (a coarse segment draped round the edge)
+                        cuts = (wraps and sp > 0.0 and abs(cl[o1] + cl[3] * nl[o1]) < size[o1]
+                                and abs(cl[o2] + cl[3] * nl[o2]) < size[o2])
+                        # a wrap is kept while the path wraps, even with the chord deep in the box
+                        if sp > 0.0 and (cl[3] - radius < margin or wrapped or cuts):
+                            fresh = not (st.active[key] and st.wrap[key])  # a new wrap (or a capsule contact turning into one)
                             _add(c, st, key, s, i, i + 1, 1.0 - sp, sp, cl, nl, sh, k_per_mass, zeta, mass, x)
+                            if (wraps and c.count[0] > 0 and st.keys[c.count[0] - 1] == key
+                                    and (wrapped or cuts or _taut(x, i, seg_k[i], seg_l[i], seg_b))):
+                                k = c.count[0] - 1
+                                _make_wrap(c, k, rot, A, P, o1, o2, seg_k[i], seg_l[i], seg_b[i], seg_b[i + 1], fresh, x)
+                                if cl[3] - radius >= margin and not wrap_active(c, k, x):
+                                    c.count[0] = k  # the chord has left the edge: the wrap is over
         elif kind == SPHERE:
             P[:] = 0.0
             for i in range(n - 1):
@@ -892,6 +977,7 @@ def detect(x, v, mass, sh, c, st, h, k_per_mass, zeta, self_mu, h_body, h_done, 
                         continue  # beyond a cylinder's flat end: the nodes handle it
                     key = base + n + i
                     _add(c, st, key, s, i, i + 1, 1.0 - sp, sp, cl, nl, sh, k_per_mass, zeta, mass, x)
+    _one_wrap_per_segment(c, first_edge, n)
     if self_mu[0] >= 0.0:
         _self_contacts(x, mass, c, st, sh.kind.shape[0] * per_shape, self_mu, margin, k_per_mass, zeta)
     if oc.x.shape[0] > 0:

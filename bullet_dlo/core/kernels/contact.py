@@ -42,6 +42,7 @@ import numpy as np
 from numba import njit
 
 from bullet_dlo.core.kernels.banded import HALF
+from bullet_dlo.core.kernels.forces import _angle_terms, _bend_hessian
 from bullet_dlo.core.kernels.twist import has_twist, set_clamp, twist_ready, twist_step
 from bullet_dlo.core.kernels.steppers import (
     BDF2,
@@ -53,6 +54,8 @@ from bullet_dlo.core.kernels.steppers import (
 )
 
 STICK, SLIDE = 0, 1
+PENALTY, WRAP = 0, 1  # Contacts.kind: penalty contact, or a segment wrapped round a sharp edge
+SIGMA_MIN = 0.01  # a wrap's material fraction either side of the edge, at least (sub-spring stiffness ks / sigma)
 DEFAULT_ALPHA = 1.0e4  # k_n h^2 / m: contact frequency times step, squared
 MIN_CONTACT_ITER = 30  # Newton iterations allowed in contact at least (stick/slide kinks need more than 8)
 
@@ -107,6 +110,13 @@ class Contacts(NamedTuple):
     internal (M,) bool: the "body" is another part of the same cable (self-contact: its work is not
     external). node_force (n, 3) [N]: scratch for the contact forces on the nodes. grip: the
     friction grips of the ends (:class:`Grip`), evaluated with the contacts.
+    Edge wraps (docs/concepts/contact.md, "Edges"): kind (M,) int, PENALTY or WRAP; for a WRAP row
+    (segment node[k] across a sharp edge of a static body) point (M, 3) [m] is a point of the edge
+    line, axis (M, 3) its unit direction, side (M, 3) the unit bisector of the edge's outward normal
+    cone (the side the cable wraps round), seg (M, 4) the segment's stretch stiffness [N/m], rest
+    length [m] and the bending constants [N m/rad^2] at its two nodes, anchor[k, 3] the material fraction sigma of the segment on node[k, 0]'s side of the
+    edge (the friction anchor); normal, f_n: the direction and size of the edge's push on the cable
+    (results), cap [N]: the capstan's friction limit.
     """
 
     count: np.ndarray
@@ -131,6 +141,10 @@ class Contacts(NamedTuple):
     internal: np.ndarray
     node_force: np.ndarray
     grip: Grip
+    kind: np.ndarray
+    axis: np.ndarray
+    side: np.ndarray
+    seg: np.ndarray
 
 
 def make_contacts(n: int, capacity: int, radius: float, grip: Grip | None = None) -> Contacts:
@@ -143,7 +157,8 @@ def make_contacts(n: int, capacity: int, radius: float, grip: Grip | None = None
                     c_n=f(m), static_friction=f(m), dynamic_friction=f(m), anchor=f((m, 4)), state=np.zeros(m, np.int64), f_n=f(m),
                     f_t=f((m, 3)), cap=f(m), body_work=f(1), impact=np.zeros(1, np.int64),
                     internal=np.zeros(m, np.bool_), node_force=f((n, 3)),
-                    grip=grip if grip is not None else make_grip())
+                    grip=grip if grip is not None else make_grip(), kind=np.zeros(m, np.int64),
+                    axis=f((m, 3)), side=f((m, 3)), seg=f((m, 4)))
 
 
 # ----- the grips -----------------------------------------------------------------------------
@@ -298,14 +313,411 @@ def _approach(c, k, v):
     return q
 
 
+# ----- a segment wrapped round a sharp edge (docs/concepts/contact.md, "Edges") -------------------
+@njit(cache=True, error_model="numpy")
+def _bend_term(p, q, k, sign, gp, gq, hb):
+    """sign * 1/2 k theta(p, q)^2 (theta the angle between vectors p and q): returns it [J]; gp, gq (3,) <- its
+    gradients; hb (6, 6) <- its Hessian in (p, q) (the core's bending Hessian, times sign)."""
+    theta, s_, c_, la, lb, ux, uy, uz, wx, wy, wz, ratio, _ = _angle_terms(p[0], p[1], p[2], q[0], q[1], q[2])
+    ga = -sign * k * ratio / la
+    gb = -sign * k * ratio / lb
+    gp[0], gp[1], gp[2] = ga * (wx - c_ * ux), ga * (wy - c_ * uy), ga * (wz - c_ * uz)
+    gq[0], gq[1], gq[2] = gb * (ux - c_ * wx), gb * (uy - c_ * wy), gb * (uz - c_ * wz)
+    g = np.empty(12)
+    _bend_hessian(p[0], p[1], p[2], q[0], q[1], q[2], k, g, hb)
+    if sign < 0.0:
+        for i in range(6):
+            for j in range(6):
+                hb[i, j] = -hb[i, j]
+    return sign * 0.5 * k * theta * theta
+
+
+@njit(cache=True, error_model="numpy")
+def _add_bend(p, q, k, sign, Jp, Jq, grad, hess, want_hess):
+    """Add sign * 1/2 k theta(p, q)^2 with dp/dX = Jp, dq/dX = Jq (3, 12) to grad (12,), hess (12, 12) (the
+    Hessian through the first derivatives of p, q only); returns the term [J]."""
+    gp = np.empty(3)
+    gq = np.empty(3)
+    hb = np.empty((6, 6))
+    e = _bend_term(p, q, k, sign, gp, gq, hb)
+    for i in range(12):
+        acc = 0.0
+        for j in range(3):
+            acc += Jp[j, i] * gp[j] + Jq[j, i] * gq[j]
+        grad[i] += acc
+    if want_hess:
+        J = np.empty((6, 12))
+        J[0:3] = Jp
+        J[3:6] = Jq
+        JH = np.zeros((12, 6))
+        for i in range(12):
+            for a in range(6):
+                if J[a, i] == 0.0:
+                    continue
+                for b in range(6):
+                    JH[i, b] += J[a, i] * hb[a, b]
+        for i in range(12):
+            for j in range(12):
+                acc = 0.0
+                for b in range(6):
+                    acc += JH[i, b] * J[b, j]
+                hess[i, j] += acc
+    return e
+
+
+@njit(cache=True, error_model="numpy")
+def _path(E, A, B, r, xa, xb, gL, HL):
+    """The path of the axis from xa to xb round the edge line (point E, direction A, wrapping on the side B)
+    as in :func:`_wrap_eval`: returns its arc alpha [rad] (<= 0: not wrapped, gL and HL untouched); gL (6,)
+    <- dL/d(xa, xb), HL (6, 6) <- d2L/d(xa, xb)^2 (exact)."""
+    Q = np.empty(3)
+    Q[0] = A[1] * B[2] - A[2] * B[1]
+    Q[1] = A[2] * B[0] - A[0] * B[2]
+    Q[2] = A[0] * B[1] - A[1] * B[0]
+    pa = qa = za = pb = qb = zb = 0.0
+    for j in range(3):
+        wa, wb = xa[j] - E[j], xb[j] - E[j]
+        pa += wa * B[j]
+        qa += wa * Q[j]
+        za += wa * A[j]
+        pb += wb * B[j]
+        qb += wb * Q[j]
+        zb += wb * A[j]
+    da = math.sqrt(pa * pa + qa * qa)
+    db = math.sqrt(pb * pb + qb * qb)
+    if da == 0.0 or db == 0.0:
+        return 0.0
+    phia = math.atan2(qa, pa)
+    phib = math.atan2(qb, pb)
+    sg = 1.0 if phia >= phib else -1.0
+    ta = math.sqrt(max(da * da - r * r, 0.0))
+    tb = math.sqrt(max(db * db - r * r, 0.0))
+    alpha = abs(phia - phib) - math.acos(min(r / da, 1.0)) - math.acos(min(r / db, 1.0))
+    if alpha <= 0.0:
+        return alpha
+    P = ta + tb + r * alpha
+    dz = zb - za
+    L = math.sqrt(P * P + dz * dz)
+    gP = np.empty(6)
+    gZ = np.empty(6)
+    HP = np.zeros((6, 6))
+    for side in range(2):
+        d, t, pp, qq, sgn = (da, ta, pa, qa, sg) if side == 0 else (db, tb, pb, qb, -sg)
+        o = 3 * side
+        e_ = (pp * B + qq * Q) / d
+        pe = (-qq * B + pp * Q) / d
+        for j in range(3):
+            gP[o + j] = (t / d) * e_[j] + (r * sgn / d) * pe[j]
+            gZ[o + j] = -A[j] if side == 0 else A[j]
+        for i in range(3):
+            for j in range(3):
+                if d > r:
+                    ni = (r * e_[i] - sgn * t * pe[i]) / d
+                    nj = (r * e_[j] - sgn * t * pe[j]) / d
+                    HP[o + i, o + j] = ni * nj / max(t, 1e-6 * r)
+                else:
+                    HP[o + i, o + j] = -(r * sgn / (d * d)) * (pe[i] * e_[j] + e_[i] * pe[j])
+    for i in range(6):
+        gL[i] = (P * gP[i] + dz * gZ[i]) / L
+    for i in range(6):
+        for j in range(6):
+            HL[i, j] = (gP[i] * gP[j] + P * HP[i, j] + gZ[i] * gZ[j] - gL[i] * gL[j]) / L
+    return alpha
+
+
+@njit(cache=True, error_model="numpy")
+def _wrap_eval(c, k, x, grad, hess, want_hess):
+    """Wrap row k: segment a-b (a = node[k, 0], b = node[k, 1] = a + 1) whose axis must stay outside the
+    cylinder of the cable radius r round the edge line (point[k], axis[k] = A), wrapping round it on the
+    side[k] (B).
+
+    Geometry in the plane across the edge (coordinates p along B, q along A x B): node distances d_a, d_b
+    from the edge and angles phi_a, phi_b from B; the axis' path over the edge is tangent - arc -
+    tangent, P = t_a + t_b + r alpha (t = sqrt(d^2 - r^2), alpha = |phi_a - phi_b| - acos(r/d_a) -
+    acos(r/d_b) the arc, also the angle the cable turns through), unrolled with the offset along the
+    edge: L = sqrt(P^2 + Delta^2). The wrap is active while alpha > 0 (the chord passes closer to the
+    edge than r); at alpha = 0 the path is the chord.
+
+    Stretch: the segment's material is split at the edge: part 1 (node a's side, rest length sigma l0,
+    stiffness ks / sigma) spans L1 = (L + d_a - d_b)/2, part 2 the rest, L2 = L - L1 (L1 = d_a for a
+    sharp edge). The edge holds the split (sigma anchored, anchor[k, 3]) while the tensions differ by at
+    most the capstan's friction cap = (exp(mu alpha) - 1) T_small (frozen, cap[k]); beyond it the
+    material slides over the edge (the slip s minimises the two springs' energy plus cap |s|, the Huber
+    potential's limit). Bending: the bends at a and b are measured against the path's directions there
+    (seg[k, 2], seg[k, 3]: the bending constants at a and b, 0 to leave a bend alone), the turn over the
+    edge is the edge's. The row's potential replaces the segment's own spring and those two bends:
+
+        W = V(L1, L2) - 1/2 ks (|x_b - x_a| - l0)^2 + sum_{a, b} 1/2 k_b (theta_path^2 - theta_chord^2)
+
+    Returns (active, W [J], T1, T2 [N] the two parts' tensions, alpha [rad], slip s [m], L1 / L (the
+    frictionless split), the elastic part of W [J]). grad (12,) <- dW/dX [N], X the positions of nodes
+    a - 1, a, b, b + 1 (entries of a missing node stay 0); with want_hess, hess (12, 12) <- an
+    approximation of its Hessian [N/m]: the wrapped spring's positive semi-definite part (the two parts'
+    springs along the path, the path's geometric stiffness with the mean tension, the tension
+    difference's term left out) and the bends' Hessians through the first derivatives of the path's
+    directions, minus the chord's spring and bends as the core adds them (so the Newton matrix keeps
+    the core's kind of spring).
+    """
+    a, b = c.node[k, 0], c.node[k, 1]
+    n = x.shape[0]
+    r = c.radius[0]
+    ks, l0 = c.seg[k, 0], c.seg[k, 1]
+    kba = c.seg[k, 2] if a > 0 else 0.0
+    kbb = c.seg[k, 3] if b < n - 1 else 0.0
+    E, A, B = c.point[k], c.axis[k], c.side[k]
+    Q = np.empty(3)
+    Q[0] = A[1] * B[2] - A[2] * B[1]
+    Q[1] = A[2] * B[0] - A[0] * B[2]
+    Q[2] = A[0] * B[1] - A[1] * B[0]
+    pa = qa = za = pb = qb = zb = 0.0
+    ch = np.empty(3)
+    cl2 = 0.0
+    for j in range(3):
+        wa, wb = x[a, j] - E[j], x[b, j] - E[j]
+        pa += wa * B[j]
+        qa += wa * Q[j]
+        za += wa * A[j]
+        pb += wb * B[j]
+        qb += wb * Q[j]
+        zb += wb * A[j]
+        ch[j] = x[b, j] - x[a, j]
+        cl2 += ch[j] * ch[j]
+    chord = math.sqrt(cl2)
+    da = math.sqrt(pa * pa + qa * qa)
+    db = math.sqrt(pb * pb + qb * qb)
+    grad[:] = 0.0
+    if want_hess:
+        hess[:, :] = 0.0
+    if da == 0.0 or db == 0.0 or chord == 0.0:
+        return False, 0.0, 0.0, 0.0, 0.0, 0.0, 0.5, 0.0
+    phia = math.atan2(qa, pa)
+    phib = math.atan2(qb, pb)
+    sg = 1.0 if phia >= phib else -1.0
+    ta = math.sqrt(max(da * da - r * r, 0.0))
+    tb = math.sqrt(max(db * db - r * r, 0.0))
+    alpha = abs(phia - phib) - math.acos(min(r / da, 1.0)) - math.acos(min(r / db, 1.0))
+    if alpha <= 0.0:
+        return False, 0.0, 0.0, 0.0, 0.0, 0.0, min(max(0.5 * (chord + da - db) / chord, 0.0), 1.0), 0.0
+    P = ta + tb + r * alpha
+    dz = zb - za
+    L = math.sqrt(P * P + dz * dz)
+    L1 = 0.5 * (L + da - db)
+    L2 = L - L1
+    sig = min(max(c.anchor[k, 3], SIGMA_MIN), 1.0 - SIGMA_MIN)
+    k1, k2 = ks / sig, ks / (1.0 - sig)
+    e1, e2 = L1 - sig * l0, L2 - (1.0 - sig) * l0
+    tau = k1 * e1 - k2 * e2
+    cap = c.cap[k]
+    slip = 0.0
+    stick = abs(tau) <= cap
+    if not stick:
+        slip = (tau - math.copysign(cap, tau)) / (k1 + k2)
+    T1, T2 = k1 * (e1 - slip), k2 * (e2 + slip)
+    stored = 0.5 * k1 * (e1 - slip) ** 2 + 0.5 * k2 * (e2 + slip) ** 2 - 0.5 * ks * (chord - l0) ** 2
+    # gradients (6,) over (x_a, x_b) of P, L, D = d_a - d_b and the chord
+    ea = np.empty(3)
+    eb = np.empty(3)
+    pea = np.empty(3)
+    peb = np.empty(3)
+    for j in range(3):
+        ea[j] = (pa * B[j] + qa * Q[j]) / da
+        eb[j] = (pb * B[j] + qb * Q[j]) / db
+        pea[j] = (-qa * B[j] + pa * Q[j]) / da
+        peb[j] = (-qb * B[j] + pb * Q[j]) / db
+    gP = np.empty(6)
+    gL = np.empty(6)
+    gD = np.empty(6)
+    gC = np.empty(6)
+    gZ = np.empty(6)
+    for j in range(3):
+        gP[j] = (ta / da) * ea[j] + (r * sg / da) * pea[j]
+        gP[3 + j] = (tb / db) * eb[j] - (r * sg / db) * peb[j]
+        gZ[j] = -A[j]
+        gZ[3 + j] = A[j]
+        gL[j] = (P * gP[j] + dz * gZ[j]) / L
+        gL[3 + j] = (P * gP[3 + j] + dz * gZ[3 + j]) / L
+        gD[j] = ea[j]
+        gD[3 + j] = -eb[j]
+        gC[j] = -ch[j] / chord
+        gC[3 + j] = ch[j] / chord
+    tc = ks * (chord - l0)
+    for j in range(6):  # nodes a, b are entries 3..8 of the 12
+        grad[3 + j] = 0.5 * (T1 + T2) * gL[j] + 0.5 * (T1 - T2) * gD[j] - tc * gC[j]
+    # the path's exact Hessian H_L (6, 6): the bends need the derivatives of its directions
+    need_hl = kba > 0.0 or kbb > 0.0
+    HL = np.zeros((6, 6))
+    if need_hl or want_hess:
+        HP = np.zeros((6, 6))
+        for side in range(2):
+            d, t, e_, pe, sgn = (da, ta, ea, pea, sg) if side == 0 else (db, tb, eb, peb, -sg)
+            o = 3 * side
+            for i in range(3):
+                for j in range(3):
+                    if d > r:  # (1/t) n n^T, n normal to the tangent in the plane
+                        ni = (r * e_[i] - sgn * t * pe[i]) / d
+                        nj = (r * e_[j] - sgn * t * pe[j]) / d
+                        HP[o + i, o + j] = ni * nj / max(t, 1e-6 * r)
+                    else:  # on the arc: r sgn phi
+                        HP[o + i, o + j] = -(r * sgn / (d * d)) * (pe[i] * e_[j] + e_[i] * pe[j])
+        for i in range(6):
+            for j in range(6):
+                HL[i, j] = (gP[i] * gP[j] + P * HP[i, j] + gZ[i] * gZ[j] - gL[i] * gL[j]) / L
+    if want_hess:
+        J1 = 0.5 * (gL + gD)
+        J2 = 0.5 * (gL - gD)
+        kk = k1 * k2 / (k1 + k2)
+        tm = max(0.5 * (T1 + T2), 0.0)
+        geo = max(1.0 - l0 / chord, 0.0)
+        for i in range(6):
+            for j in range(6):
+                if stick:
+                    h = k1 * J1[i] * J1[j] + k2 * J2[i] * J2[j]
+                else:
+                    h = kk * gL[i] * gL[j]
+                # the path's geometric stiffness, its curvature bounded where a tangent is short
+                hl = gP[i] * gP[j] + gZ[i] * gZ[j] - gL[i] * gL[j]
+                if (i < 3) == (j < 3):
+                    o = 0 if i < 3 else 3
+                    d, t = (da, ta) if i < 3 else (db, tb)
+                    hl += P * HP[i, j] * max(t, 1e-6 * r) / max(t, 0.1 * r) if d > r else 0.0
+                h += tm * hl / L
+                # the chord's own spring (as the core's, compressive part filtered), taken out
+                ii, jj = i % 3, j % 3
+                cc = ch[ii] * ch[jj] / cl2
+                hc = ks * (cc + geo * ((1.0 if ii == jj else 0.0) - cc))
+                h -= hc if (i < 3) == (j < 3) else -hc
+                hess[3 + i, 3 + j] = h
+    if need_hl:
+        # bends at a (incoming segment u_a, outgoing: the path's direction -dL/dx_a, else the chord) and at b
+        Jp = np.zeros((3, 12))
+        Jq = np.zeros((3, 12))
+        p = np.empty(3)
+        q = np.empty(3)
+        gN = np.empty(6)
+        HN = np.empty((6, 6))
+        if kba > 0.0 and _path(E, A, B, r, x[a - 1], x[a], gN, HN) > 0.0:
+            kba = 0.0  # the segment before wraps the same edge: its row bends a (between the two paths)
+        if kba > 0.0:
+            for j in range(3):
+                p[j] = x[a, j] - x[a - 1, j]
+                q[j] = -gL[j]
+            Jp[:, :] = 0.0
+            Jq[:, :] = 0.0
+            for j in range(3):
+                Jp[j, j] = -1.0
+                Jp[j, 3 + j] = 1.0
+                for i in range(6):
+                    Jq[j, 3 + i] = -HL[j, i]
+            stored += _add_bend(p, q, kba, 1.0, Jp, Jq, grad, hess, want_hess)
+            Jq[:, :] = 0.0
+            for j in range(3):
+                q[j] = ch[j]
+                Jq[j, 3 + j] = -1.0
+                Jq[j, 6 + j] = 1.0
+            stored += _add_bend(p, q, kba, -1.0, Jp, Jq, grad, hess, want_hess)
+        if kbb > 0.0:
+            Jp[:, :] = 0.0
+            Jq[:, :] = 0.0
+            next_wraps = _path(E, A, B, r, x[b], x[b + 1], gN, HN) > 0.0
+            for j in range(3):
+                p[j] = gL[3 + j]
+                for i in range(6):
+                    Jp[j, 3 + i] = HL[3 + j, i]
+                if next_wraps:  # the segment after wraps the same edge: b bends between the two paths
+                    q[j] = -gN[j]
+                    for i in range(6):
+                        Jq[j, 6 + i] = -HN[j, i]
+                else:
+                    q[j] = x[b + 1, j] - x[b, j]
+                    Jq[j, 6 + j] = -1.0
+                    Jq[j, 9 + j] = 1.0
+            stored += _add_bend(p, q, kbb, 1.0, Jp, Jq, grad, hess, want_hess)
+            Jq[:, :] = 0.0
+            for j in range(3):
+                q[j] = x[b + 1, j] - x[b, j]
+                Jq[j, 6 + j] = -1.0
+                Jq[j, 9 + j] = 1.0
+            Jp[:, :] = 0.0
+            for j in range(3):
+                p[j] = ch[j]
+                Jp[j, 3 + j] = -1.0
+                Jp[j, 6 + j] = 1.0
+            stored += _add_bend(p, q, kbb, -1.0, Jp, Jq, grad, hess, want_hess)
+    if want_hess:
+        for i in range(12):
+            for j in range(i):
+                sym = 0.5 * (hess[i, j] + hess[j, i])
+                hess[i, j] = sym
+                hess[j, i] = sym
+    W = stored + cap * abs(slip)
+    return True, W, T1, T2, alpha, slip, L1 / L, stored
+
+
+@njit(cache=True, error_model="numpy")
+def wrap_split(c, k, x):
+    """The material fraction [-] of wrap row k's segment on node[k, 0]'s side of the edge that leaves both
+    parts at the same tension (L1 / L, see :func:`_wrap_eval`): a new wrap's friction anchor."""
+    g = np.empty(12)
+    h = np.empty((12, 12))
+    return _wrap_eval(c, k, x, g, h, False)[6]
+
+
+@njit(cache=True, error_model="numpy")
+def wrap_energy(c, k, x):
+    """The elastic energy [J] wrap row k adds to the chain's at x (its part of :func:`contact_energy`)."""
+    g = np.empty(12)
+    h = np.empty((12, 12))
+    return _wrap_eval(c, k, x, g, h, False)[7]
+
+
+@njit(cache=True, error_model="numpy")
+def wrap_active(c, k, x):
+    """Whether wrap row k's path wraps round its edge at x (alpha > 0, see :func:`_wrap_eval`)."""
+    g = np.empty(12)
+    h = np.empty((12, 12))
+    return _wrap_eval(c, k, x, g, h, False)[0]
+
+
+@njit(cache=True, error_model="numpy")
+def _wrap_cap(c, k, x):
+    """The capstan's friction limit [N] of wrap row k at x: (exp(mu alpha) - 1) T_small (mu_s while stuck,
+    mu_d while sliding; the tensions with the caps in c.cap)."""
+    g = np.empty(12)
+    h = np.empty((12, 12))
+    active, _, T1, T2, alpha, _, _, _ = _wrap_eval(c, k, x, g, h, False)
+    if not active:
+        return 0.0
+    mu = c.static_friction[k] if c.state[k] == STICK else c.dynamic_friction[k]
+    return (math.exp(mu * alpha) - 1.0) * max(min(T1, T2), 0.0)
+
+
 # ----- forces, potential, Jacobian -----------------------------------------------------------
 @njit(cache=True, error_model="numpy")
 def contact_forces(c, x, v, f):
     """f <- contact forces on the nodes [N] at (x, v), (n, 3); also fills c.f_n, c.f_t (caps frozen)."""
     f[:, :] = 0.0
     u = np.empty(3)
+    gw = np.empty(12)
+    hw = np.empty((12, 12))
     for k in range(c.count[0]):
         a, b = c.node[k, 0], c.node[k, 1]
+        if c.kind[k] == WRAP:
+            fn2 = 0.0
+            _wrap_eval(c, k, x, gw, hw, False)
+            for q in range(4):
+                i = a - 1 + q
+                if 0 <= i < x.shape[0]:
+                    for j in range(3):
+                        f[i, j] -= gw[3 * q + j]
+            for j in range(3):
+                push = -(gw[j] + gw[3 + j] + gw[6 + j] + gw[9 + j])  # the edge's push on the cable
+                fn2 += push * push
+                c.f_t[k, j] = 0.0
+            c.f_n[k] = math.sqrt(fn2)
+            if c.f_n[k] > 0.0:
+                for j in range(3):
+                    c.normal[k, j] = -(gw[j] + gw[3 + j] + gw[6 + j] + gw[9 + j]) / c.f_n[k]
+            continue
         wa, wb = c.weight[k, 0], c.weight[k, 1]
         g = _gap(c, k, x)
         fn = 0.0
@@ -335,7 +747,12 @@ def contact_potential(c, x, v, damping_weight):
     (caps frozen) and ``damping_weight`` [s] times the normal dampers' Rayleigh term (merit only)."""
     phi = 0.0
     u = np.empty(3)
+    gw = np.empty(12)
+    hw = np.empty((12, 12))
     for k in range(c.count[0]):
+        if c.kind[k] == WRAP:
+            phi += _wrap_eval(c, k, x, gw, hw, False)[1]
+            continue
         g = _gap(c, k, x)
         if g < 0.0:
             qn = _approach(c, k, v)
@@ -354,7 +771,12 @@ def contact_energy(c, x):
     """Energy [J] stored in the contacts at x: penalty springs and friction anchor springs."""
     e = 0.0
     u = np.empty(3)
+    gw = np.empty(12)
+    hw = np.empty((12, 12))
     for k in range(c.count[0]):
+        if c.kind[k] == WRAP:  # the two parts' springs instead of the chord's (elastic only: no slip at rest)
+            e += _wrap_eval(c, k, x, gw, hw, False)[7]
+            continue
         g = _gap(c, k, x)
         if g < 0.0:
             e += 0.5 * c.k_n[k] * g * g
@@ -374,7 +796,25 @@ def add_contact_jacobian(c, held, x, kx, kv, band):
     blk = np.empty((2, 3, 3))
     wts = np.empty((2, 2))
     u = np.empty(3)
+    gw = np.empty(12)
+    hw = np.empty((12, 12))
     for k in range(c.count[0]):
+        if c.kind[k] == WRAP:
+            if _wrap_eval(c, k, x, gw, hw, True)[0]:
+                nn = x.shape[0]
+                for aa in range(4):
+                    na = c.node[k, 0] - 1 + aa
+                    if na < 0 or na >= nn or held[na]:
+                        continue
+                    for bb in range(4):
+                        nb = c.node[k, 0] - 1 + bb
+                        if nb < 0 or nb >= nn or held[nb] or abs(aa - bb) > 2:
+                            continue
+                        for r in range(3):
+                            for q in range(3):
+                                row = 3 * na + r
+                                band[row, 3 * nb + q - row + HALF] += kx * hw[3 * aa + r, 3 * bb + q]
+            continue
         g = _gap(c, k, x)
         ul = _slip(c, k, x, u)
         kt, cap = c.k_t[k], c.cap[k]
@@ -414,6 +854,9 @@ def add_contact_jacobian(c, held, x, kx, kv, band):
 def elastic_caps(c, x, out):
     """out <- friction limits mu f_n [N] from the penalty force at x (mu_s if stuck, mu_d if sliding)."""
     for k in range(c.count[0]):
+        if c.kind[k] == WRAP:
+            out[k] = _wrap_cap(c, k, x)
+            continue
         g = _gap(c, k, x)
         mu = c.static_friction[k] if c.state[k] == STICK else c.dynamic_friction[k]
         out[k] = mu * c.k_n[k] * (-g) if g < 0.0 else 0.0
@@ -424,8 +867,23 @@ def elastic_caps(c, x, out):
 def _update_friction(c, x_end):
     """After the step: stick or slide by the final normal force; the anchors of sliding contacts follow."""
     u = np.empty(3)
+    gw = np.empty(12)
+    hw = np.empty((12, 12))
     for k in range(c.count[0]):
         a, b = c.node[k, 0], c.node[k, 1]
+        if c.kind[k] == WRAP:
+            c.cap[k] = max(c.cap[k], _wrap_cap(c, k, x_end))
+            active, _, _, _, _, slip, split, _ = _wrap_eval(c, k, x_end, gw, hw, False)
+            if not active:  # the chord is clear of the edge: the split that a new wrap starts from
+                c.anchor[k, 3] = split
+                c.state[k] = STICK
+            elif slip == 0.0:
+                c.state[k] = STICK
+            else:  # the material slid over the edge: the anchor follows
+                c.state[k] = SLIDE
+                sig = c.anchor[k, 3] + slip / c.seg[k, 1]
+                c.anchor[k, 3] = min(max(sig, SIGMA_MIN), 1.0 - SIGMA_MIN)
+            continue
         ul = _slip(c, k, x_end, u)
         kt = c.k_t[k]
         mu_now = c.static_friction[k] if c.state[k] == STICK else c.dynamic_friction[k]
@@ -476,7 +934,7 @@ def contact_step(stepper, m, x, v, samples, ws, has_prev, c):
     g_h = math.sqrt(m.gravity[0] ** 2 + m.gravity[1] ** 2 + m.gravity[2] ** 2) * h
     c.impact[0] = 0
     for k in range(c.count[0]):
-        if c.f_n[k] > 0.0 and -_approach(c, k, v) > g_h:
+        if c.kind[k] != WRAP and c.f_n[k] > 0.0 and -_approach(c, k, v) > g_h:
             c.impact[0] = 1
         for j in range(3):  # work of the body on the cable: f . u_b h (self-contact: internal, not counted)
             if not c.internal[k]:
