@@ -81,7 +81,7 @@ class CableContacts:
                               # the segments' springs and the bending constants in force (the control's, changed
                               # in place by grasp and release): what a segment wrapping an edge needs
                               segments=(cable.model.arrays.k_stretch, cable.model.arrays.rest_length,
-                                        cable.control.k_bend))
+                                        cable.control.k_bend, cable.control.held))
         if self.bullet_off:
             self.exclude_model_bodies()
 

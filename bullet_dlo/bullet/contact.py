@@ -200,14 +200,19 @@ class ContactSet:
         the capsule that probes a segment (the cable's rest segment length; 0: nodes only); ``segments``: the
         cable's segment stretch stiffnesses [N/m] and rest lengths [m], each (n - 1,), and bending constants
         [N m/rad^2] (n,), which a segment wrapped
-        round a sharp edge of a static box needs (docs/concepts/contact.md, "Edges"); None: such a segment
-        meets the edge as a capsule (penalty contact, as before)."""
+        round a sharp edge of a static box needs (docs/concepts/contact.md, "Edges"), and optionally which nodes
+        are held (n,) bool: a segment next to a held node does not wrap (a holder's work through the wrap is not
+        in the end loads the energy check counts); None: such a segment meets the edge as a capsule (penalty
+        contact, as before)."""
         self.client = client
         self.n = n
+        self._seg_held = np.zeros(0, dtype=np.bool_)
         if segments is None:
             self._seg_k = self._seg_l = self._seg_b = np.zeros(0)
         else:
-            self._seg_k, self._seg_l, self._seg_b = (np.ascontiguousarray(a, dtype=float) for a in segments)
+            self._seg_k, self._seg_l, self._seg_b = (np.ascontiguousarray(a, dtype=float) for a in segments[:3])
+            if len(segments) > 3:  # which nodes are held now (changed in place by grasp and release)
+                self._seg_held = segments[3]
             if not WRAP_BENDS:
                 self._seg_b = np.zeros_like(self._seg_b)
         self.alpha = float(alpha)
@@ -377,7 +382,7 @@ class ContactSet:
         k_per_mass = self.alpha / (h * h)
         args = (x, v, mass, self.shapes, self.contacts, self.store, float(h), k_per_mass, self.zeta, self.self_mu,
                 float(dt), float(dt) if stepped else 0.0, self.others, self.probes, self._seg_k, self._seg_l,
-                self._seg_b)
+                self._seg_b, self._seg_held)
         if self._detect is None:
             self._detect = bind(detect, *args)
         return self._detect(*args)
@@ -828,7 +833,8 @@ def _probe_candidates(x, box, reach, out, segments, nodes, segs, mid, quat):
 
 
 @njit(cache=True, error_model="numpy")
-def detect(x, v, mass, sh, c, st, h, k_per_mass, zeta, self_mu, h_body, h_done, oc, pr, seg_k, seg_l, seg_b):
+def detect(x, v, mass, sh, c, st, h, k_per_mass, zeta, self_mu, h_body, h_done, oc, pr, seg_k, seg_l, seg_b,
+           seg_held):
     """Store the friction state of the last step's contacts by key, then fill ``c`` with the contacts
     of positions x [m] (n, 3) (velocities v [m/s]) whose gap is below the margin (cable radius + twice
     the distance the fastest node moves in a step of h [s] + 1 mm); self-contacts too unless
@@ -848,7 +854,8 @@ def detect(x, v, mass, sh, c, st, h, k_per_mass, zeta, self_mu, h_body, h_done, 
     round it (a WRAP row: its stretch measured along the path over the edge, capstan friction; see
     :func:`~bullet_dlo.core.kernels.contact._wrap_eval`) when ``seg_k``, ``seg_l`` (the segments' stretch
     stiffness [N/m] and rest length [m]) and ``seg_b`` (the nodes' bending constants [N m/rad^2]) are given; a segment near two edges keeps capsule contacts with
-    both (one wrap per segment)."""
+    both (one wrap per segment); ``seg_held`` (n,) bool, when given, keeps segments next to a held node from
+    wrapping."""
     vmax = 0.0
     for i in range(v.shape[0]):
         for j in range(3):
@@ -927,18 +934,19 @@ def detect(x, v, mass, sh, c, st, h, k_per_mass, zeta, self_mu, h_body, h_done, 
                     feat = 1 + 4 * ax + e
                     for i in range(n - 1):
                         key = base + n + (n - 1) * feat + i
-                        wrapped = wraps and st.active[key] and st.wrap[key]
+                        wraps_i = wraps and not (seg_held.shape[0] == n and (seg_held[i] or seg_held[i + 1]))
+                        wrapped = wraps_i and st.active[key] and st.wrap[key]
                         if not wrapped and not _may_reach_edge(q[i], q[i + 1], P, ax, size[ax], radius + margin):
                             continue
                         sp = _segment_axis(q[i], q[i + 1], P, A, size[ax], 0.0, cl, nl)
                         # a chord cutting the corner through the box (a coarse segment draped round the edge)
-                        cuts = (wraps and sp > 0.0 and abs(cl[o1] + cl[3] * nl[o1]) < size[o1]
+                        cuts = (wraps_i and sp > 0.0 and abs(cl[o1] + cl[3] * nl[o1]) < size[o1]
                                 and abs(cl[o2] + cl[3] * nl[o2]) < size[o2])
                         # a wrap is kept while the path wraps, even with the chord deep in the box
                         if sp > 0.0 and (cl[3] - radius < margin or wrapped or cuts):
                             fresh = not (st.active[key] and st.wrap[key])  # a new wrap (or a capsule contact turning into one)
                             _add(c, st, key, s, i, i + 1, 1.0 - sp, sp, cl, nl, sh, k_per_mass, zeta, mass, x)
-                            if (wraps and c.count[0] > 0 and st.keys[c.count[0] - 1] == key
+                            if (wraps_i and c.count[0] > 0 and st.keys[c.count[0] - 1] == key
                                     and (wrapped or cuts or _taut(x, i, seg_k[i], seg_l[i], seg_b))):
                                 k = c.count[0] - 1
                                 _make_wrap(c, k, rot, A, P, o1, o2, seg_k[i], seg_l[i], seg_b[i], seg_b[i + 1], fresh, x)
