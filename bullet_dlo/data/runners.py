@@ -121,12 +121,18 @@ def _stop_pool(pool: ProcessPoolExecutor) -> None:
     """Shut ``pool`` down now: queued episodes cancelled, running workers terminated (their temporary
     files are removed by the next resume), without waiting for anything still running."""
     processes = list(getattr(pool, "_processes", {}).values())  # the executor has no public handle on them
+    manager = getattr(pool, "_executor_manager_thread", None)
     pool.shutdown(wait=False, cancel_futures=True)
     for proc in processes:
         if proc.is_alive():
             proc.terminate()
     for proc in processes:
         proc.join(timeout=5.0)
+    if manager is not None:
+        # Python < 3.12 races at exit: its atexit hook wakes a manager thread that may be closing
+        # its pipe at that moment ("handle is closed", a traceback after a clean stop). Once the
+        # workers are gone the thread ends within a poll; waiting here leaves nothing to race.
+        manager.join(timeout=5.0)
 
 
 def run_ray(spec_dict: dict, indices: list[int], out: str, workers: int, task: Task | None = None,
