@@ -89,10 +89,9 @@ def bullet_coil_self_contact() -> str:
     r = spec.diameter / 2
     h = r + 0.01
     path = np.array([(-0.1, 0, r), (0.1, 0, r), (0.1, 0.1, h), (0, 0.1, h), (0, -0.1, h)])
-    s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(path, axis=0), axis=1))])
-    x0 = np.stack([np.interp(np.arange(n) * spec.rest_length, s, path[:, j]) for j in range(3)], axis=1)
     with BulletWorld(dt=1 / 240) as world:
-        c = world.add_cable(spec, state=CableState(x0, np.zeros_like(x0)), self_collision="all", record_every=4)
+        c = world.add_cable(spec, state=CableState.along(path, spec.rest_length, n), self_collision="all",
+                            record_every=4)
         world.run(0.3)
         return _digest(*_cable_arrays(c))
 

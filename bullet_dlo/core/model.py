@@ -443,3 +443,12 @@ class CableState:
 
     def copy(self) -> "CableState":
         return CableState(self.x.copy(), self.v.copy(), self.t, None if self.twist is None else self.twist.copy())
+
+    @classmethod
+    def along(cls, points, spacing: float, n: int) -> "CableState":
+        """A cable at rest with its ``n`` nodes ``spacing`` [m] apart in arc length along the polyline ``points``
+        [m] (k, 3), from its first point (beyond the last point the last one is repeated)."""
+        p = np.asarray(points, dtype=float)
+        s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(p, axis=0), axis=1))])
+        x = np.stack([np.interp(np.arange(n) * spacing, s, p[:, j]) for j in range(3)], axis=1)
+        return cls(x, np.zeros_like(x))

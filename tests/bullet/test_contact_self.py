@@ -31,11 +31,9 @@ def fall_across_itself(self_collision: str) -> tuple[float, object]:
     r = spec.diameter / 2
     h = r + 0.01
     path = np.array([(-0.1, 0, r), (0.1, 0, r), (0.1, 0.1, h), (0, 0.1, h), (0, -0.1, h)])
-    s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(path, axis=0), axis=1))])
-    x0 = np.stack([np.interp(np.arange(n) * spec.rest_length, s, path[:, j]) for j in range(3)], axis=1)
     closest = np.inf
     with BulletWorld(dt=1 / 240) as world:
-        cable = world.add_cable(spec, state=CableState(x0, np.zeros_like(x0)), self_collision=self_collision)
+        cable = world.add_cable(spec, state=CableState.along(path, spec.rest_length, n), self_collision=self_collision)
         for k in range(240):
             world.step()
             if k % 4 == 0:

@@ -26,7 +26,6 @@ from __future__ import annotations
 
 import math
 
-import numpy as np
 from numba import njit
 
 BETA_MIN = 1e-6  # [rad] below this turning angle the rest term's direction is undefined: left out
@@ -40,7 +39,9 @@ def has_rest_shape(m):
 
 @njit(cache=True, error_model="numpy", inline="always")
 def _turn(x, i):
-    """Turning angle at interior node i and the pieces of its gradient: (beta, s, c, la, lb, u, w)."""
+    """Turning angle beta [rad] at interior node i and its gradient q (6,) in (a, b), a = x_i - x_{i-1},
+    b = x_{i+1} - x_i: d(beta)/da = -(w - c u)/(s |a|), d(beta)/db = -(u - c w)/(s |b|) (u, w the unit
+    edges, c and s the cosine and sine of beta); q is garbage below :data:`BETA_MIN`, where no caller uses it."""
     a0, a1, a2 = x[i, 0] - x[i - 1, 0], x[i, 1] - x[i - 1, 1], x[i, 2] - x[i - 1, 2]
     b0, b1, b2 = x[i + 1, 0] - x[i, 0], x[i + 1, 1] - x[i, 1], x[i + 1, 2] - x[i, 2]
     la = math.sqrt(a0 * a0 + a1 * a1 + a2 * a2)
@@ -52,7 +53,17 @@ def _turn(x, i):
     cy = u[2] * w[0] - u[0] * w[2]
     cz = u[0] * w[1] - u[1] * w[0]
     s = math.sqrt(cx * cx + cy * cy + cz * cz)
-    return math.atan2(s, c), s, c, la, lb, u, w
+    q = (-(w[0] - c * u[0]) / (s * la), -(w[1] - c * u[1]) / (s * la), -(w[2] - c * u[2]) / (s * la),
+         -(u[0] - c * w[0]) / (s * lb), -(u[1] - c * w[1]) / (s * lb), -(u[2] - c * w[2]) / (s * lb))
+    return math.atan2(s, c), q
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _rest_node(m, x, i):
+    """Node i's rest angle b0 [rad] and bending constant k [N m], or (0, 0) when it carries no rest term."""
+    if i == 0 or i == x.shape[0] - 1:
+        return 0.0, 0.0
+    return m.rest_angle[i], m.k_bend[i]
 
 
 @njit(cache=True, error_model="numpy")
@@ -62,38 +73,30 @@ def rest_shape_energy(m, x):
     if not has_rest_shape(m):
         return e
     for i in range(1, x.shape[0] - 1):
-        b0 = m.rest_angle[i]
-        k = m.k_bend[i]
+        b0, k = _rest_node(m, x, i)
         if b0 == 0.0 or k == 0.0:
             continue
-        beta = _turn(x, i)[0]
-        e += k * b0 * (0.5 * b0 - beta)
+        e += k * b0 * (0.5 * b0 - _turn(x, i)[0])
     return e
 
 
 @njit(cache=True, error_model="numpy")
 def add_rest_shape_forces(m, x, out):
-    """Add the rest angles' forces k b0 d(beta)/dx [N] into ``out`` (n, 3)."""
+    """Add the rest angles' forces k b0 d(beta)/dx [N] into ``out`` (n, 3) (the rest energy is -k b0 beta)."""
     if not has_rest_shape(m):
         return
     for i in range(1, x.shape[0] - 1):
-        b0 = m.rest_angle[i]
-        k = m.k_bend[i]
+        b0, k = _rest_node(m, x, i)
         if b0 == 0.0 or k == 0.0:
             continue
-        beta, s, c, la, lb, u, w = _turn(x, i)
+        beta, q = _turn(x, i)
         if beta < BETA_MIN:
             continue
-        # d(beta)/da = -(w - c u)/(s |a|), d(beta)/db = -(u - c w)/(s |b|); E' = -k b0 beta
-        ga = k * b0 / (s * la)  # dE'/da = ga (w - c u)
-        gb = k * b0 / (s * lb)
-        for j in range(3):
-            fa = ga * (w[j] - c * u[j])
-            fb = gb * (u[j] - c * w[j])
-            # a = x_i - x_{i-1}, b = x_{i+1} - x_i; F = -dE'/dx
-            out[i - 1, j] += fa
-            out[i, j] += fb - fa
-            out[i + 1, j] -= fb
+        g = k * b0
+        for j in range(3):  # d(beta)/dx: -q_a at i - 1, q_a - q_b at i, q_b at i + 1
+            out[i - 1, j] -= g * q[j]
+            out[i, j] += g * (q[j] - q[3 + j])
+            out[i + 1, j] += g * q[3 + j]
 
 
 @njit(cache=True, error_model="numpy")
@@ -104,22 +107,17 @@ def rest_shape_hessian(m, x, i, definite, hb):
     (H - k q q^T). ``definite``: the factor is clipped at 0 (a node bent less than its rest angle
     would otherwise contribute a negative curvature; Newton's iterations supply the rest).
     """
-    if not has_rest_shape(m) or i == 0 or i == x.shape[0] - 1:
+    if not has_rest_shape(m):
         return
-    b0 = m.rest_angle[i]
-    k = m.k_bend[i]
+    b0, k = _rest_node(m, x, i)
     if b0 == 0.0 or k == 0.0:
         return
-    beta, s, c, la, lb, u, w = _turn(x, i)
+    beta, q = _turn(x, i)
     if beta < BETA_MIN:
         return
     f = 1.0 - b0 / beta
     if definite and f < 0.0:
         f = 0.0
-    q = np.empty(6)
-    for j in range(3):
-        q[j] = -(w[j] - c * u[j]) / (s * la)
-        q[3 + j] = -(u[j] - c * w[j]) / (s * lb)
     for r in range(6):
         for col in range(6):
             kq = k * q[r] * q[col]
