@@ -90,7 +90,7 @@ SELF_COLLISION = SelfCollision.names()
 BULLET_SPHERES = ("auto", "live")
 # a parked proxy sphere: may sleep, is not woken by Bullet (its contacts or its velocity), asleep now
 _PARK = pb.ACTIVATION_STATE_ENABLE_SLEEPING | pb.ACTIVATION_STATE_DISABLE_WAKEUP
-_LIVE = pb.ACTIVATION_STATE_WAKE_UP | pb.ACTIVATION_STATE_ENABLE_WAKEUP | pb.ACTIVATION_STATE_DISABLE_SLEEPING
+_LIVE = pb.ACTIVATION_STATE_ENABLE_WAKEUP | pb.ACTIVATION_STATE_DISABLE_SLEEPING  # then WAKE_UP (a call of its own)
 CONTACT = Contact.names()
 
 
@@ -130,6 +130,8 @@ class BulletCable:
         self.bullet_spheres = bullet_spheres
         self.proxy = False  # the spheres are parked proxies now (see the module doc; BulletWorld re-takes the rule)
         self._mirrored = -1  # the step whose positions the parked spheres hold in Bullet
+        self._fresh: set[int] = set()  # spheres parked since the last step (see _hold_fresh)
+        self._waking = False  # woken from proxies before the last step (see _finish_waking)
         self.contact_damping = check_nonnegative("contact_damping", contact_damping)
         self.record_every = check_int("record_every", record_every, 1)
         st = (state or model.initial_state()).copy()
@@ -251,12 +253,25 @@ class BulletCable:
         if on:
             self._park(range(self.model.n))
         else:
+            self._fresh.clear()
             cid = self.world.client
             for b, pos, vel in zip(self.body_ids, self.x.tolist(), self._cp.v_bullet.tolist()):
                 pb.resetBasePositionAndOrientation(b, pos, (0.0, 0.0, 0.0, 1.0), physicsClientId=cid)
                 pb.resetBaseVelocity(b, vel, (0.0, 0.0, 0.0), physicsClientId=cid)
                 pb.changeDynamics(b, -1, activationState=_LIVE, physicsClientId=cid)
+                pb.changeDynamics(b, -1, activationState=pb.ACTIVATION_STATE_WAKE_UP, physicsClientId=cid)
+                pb.resetBaseVelocity(b, vel, (0.0, 0.0, 0.0), physicsClientId=cid)  # (awake now: it keeps it)
+            self._waking = True
         self.proxy = on
+
+    def _finish_waking(self) -> None:
+        """Bullet integrates a woken body only from its second step: put the spheres where the step they stood
+        still would have sent them (x' and the step's velocity), as if Bullet had moved them."""
+        cp, cid, h = self._cp, self.world.client, self.world.dt
+        for b, x0, x1 in zip(self.body_ids, self.x.tolist(), cp.x_new.tolist()):
+            pb.resetBasePositionAndOrientation(b, x1, (0.0, 0.0, 0.0, 1.0), physicsClientId=cid)
+            pb.resetBaseVelocity(b, [(p1 - p0) / h for p0, p1 in zip(x0, x1)], (0.0, 0.0, 0.0), physicsClientId=cid)
+        self._waking = False
 
     def _park(self, nodes) -> None:
         """Write the model's positions of ``nodes`` into their spheres and put them to sleep (a pose reset wakes
@@ -268,7 +283,18 @@ class BulletCable:
             pb.resetBasePositionAndOrientation(b, x[i].tolist(), (0.0, 0.0, 0.0, 1.0), physicsClientId=cid)
             pb.changeDynamics(b, -1, activationState=_PARK, physicsClientId=cid)
             pb.changeDynamics(b, -1, activationState=pb.ACTIVATION_STATE_SLEEP, physicsClientId=cid)
+            self._fresh.add(i)
         self._mirrored = self.steps
+
+    def _hold_fresh(self) -> None:
+        """Bullet puts a body to sleep only after its next step, which still lets it fall g h^2 from rest (0.17 mm
+        at 240 Hz): the spheres parked since the last step get their weight's opposite for that step."""
+        cid = self.world.client
+        mass, g = self.model.arrays.mass, self.world.gravity
+        for i in self._fresh:
+            pb.applyExternalForce(self.body_ids[i], -1, (-mass[i] * g).tolist(), (0.0, 0.0, 0.0), pb.LINK_FRAME,
+                                  physicsClientId=cid)  # (a parked sphere's frame is the world's, unrotated)
+        self._fresh.clear()
 
     def sync_bullet_spheres(self) -> None:
         """Proxy spheres: write the model's positions into Bullet now (n pose resets, ~10-25 us each; once per
@@ -368,6 +394,8 @@ class BulletCable:
         if solver.status != STABLE:
             return
         if self.proxy:  # parked spheres: Bullet does not move them (module doc); the touched bodies' reactions only
+            if self._fresh:
+                self._hold_fresh()
             cs = self.contact.set
             if cs is not None:
                 cs.apply_to_bodies()
@@ -390,6 +418,9 @@ class BulletCable:
 
     def sync_after_step(self, touched) -> None:
         """Take over Bullet's step: ``touched`` holds the spheres that had contacts (read back)."""
+        if self._waking:  # (their contacts of this step were taken where they stood still: not the cable's)
+            self._finish_waking()
+            touched = ()
         if self.solver.status == STABLE:
             # parked proxies are never read back: nothing in Bullet may touch them (the rule), and their Bullet
             # state is not the cable's
