@@ -117,3 +117,21 @@ def test_bullet_spheres_option_is_checked():
         live = world.add_cable(CableSpec.lv2017(n_masses=5), bullet_spheres="live", name="live")
         always = world.add_cable(CableSpec.lv2017(n_masses=5), start=(0, 0.2, 0.5), sync="always", name="always")
         assert not live.proxy and not always.proxy
+
+
+def test_set_up_calls_on_the_spheres_keep_them_parked():
+    """Pair filters (a grasp's), colours (the tube renderer's), exclusions and a point mass do not wake parked
+    spheres: Bullet leaves them where they were parked (a woken sphere would fall freely: no forces)."""
+    with BulletWorld(dt=1 / 240) as world:
+        c = world.add_cable(CableSpec.lv2017(n_masses=6), start=(0, 0, 0.3), ends=("clamped", "clamped"))
+        box = world.add_box((0.02,) * 3, (0.5, 0.5, 0.02), mass=0.1)
+        world.step(2)
+        cid = world.client
+        pb.setCollisionFilterPair(box, c.body_ids[0], -1, -1, 0, physicsClientId=cid)
+        pb.changeVisualShape(c.body_ids[1], -1, rgbaColor=[1, 0, 0, 1], physicsClientId=cid)
+        c.exclude_contact(box, nodes=[0, 1])
+        c.add_point_mass(2, 0.01)
+        before = np.array([pb.getBasePositionAndOrientation(b, physicsClientId=cid)[0] for b in c.body_ids])
+        world.step(10)
+        after = np.array([pb.getBasePositionAndOrientation(b, physicsClientId=cid)[0] for b in c.body_ids])
+        assert c.proxy and np.max(np.abs(after - before)) <= 1e-12
