@@ -30,6 +30,22 @@ Stepping order of one Bullet step (``BulletWorld.step`` drives it; the kernels a
    stops here and receives no more forces;
 7. record (every ``record_every`` steps) and plan the next step (1).
 
+Bullet spheres as proxies (``bullet_spheres="auto"``, the default): a cable whose contacts the model owns
+(``contact="model"``, ``sync="contacts"``, no GUI) and whose spheres nothing in Bullet may collide with (every
+other cable in the world handles cable contact through the model as well: :attr:`BulletCable.handles_cable_contact`
+of both) does not need Bullet to move its spheres: untouched spheres are never read back (step 4), so the model's
+trajectory does not depend on them. Its spheres are then parked asleep in Bullet (no sphere forces, no
+integration, and Bullet's broad phase no longer walks their padded boxes against each other every step: that walk
+grew as n^1.5 and was 60 % of the step at n = 1000), and their poses are written into Bullet only when something
+reads them: :meth:`BulletCable.bullet_positions`, :meth:`BulletCable.sync_bullet_spheres`,
+:meth:`~bullet_dlo.bullet.world.BulletWorld.sync_bullet_spheres`, a rendered frame
+(:func:`bullet_dlo.render.camera.render_frame`) and the spawn check of a new cable. A direct PyBullet read of a
+proxy sphere (``getBasePositionAndOrientation``, ``getClosestPoints`` with it) returns its pose as of the last such
+sync and a velocity of zero; the model's ``x`` and ``v`` are the cable's state. The rule is re-taken whenever a
+cable joins the world (a ``contact="bullet"`` cable wakes the others' spheres with their current state: Bullet then
+moves them as before, exactly where the model is). ``bullet_spheres="live"`` keeps the spheres moving in Bullet
+every step.
+
 Steps 5, 6 and 1 are one Numba call (:func:`~bullet_dlo.bullet.kernels.sync_and_advance`), made by the
 cable's :class:`~bullet_dlo.bullet.solver.CableSolver`.
 
@@ -71,6 +87,10 @@ from bullet_dlo.core.validate import (
 )
 
 SELF_COLLISION = SelfCollision.names()
+BULLET_SPHERES = ("auto", "live")
+# a parked proxy sphere: may sleep, is not woken by Bullet (its contacts or its velocity), asleep now
+_PARK = pb.ACTIVATION_STATE_ENABLE_SLEEPING | pb.ACTIVATION_STATE_DISABLE_WAKEUP
+_LIVE = pb.ACTIVATION_STATE_ENABLE_WAKEUP | pb.ACTIVATION_STATE_DISABLE_SLEEPING  # then WAKE_UP (a call of its own)
 CONTACT = Contact.names()
 
 
@@ -88,7 +108,8 @@ class BulletCable:
     def __init__(self, world, name: str, model: CableModel, integrator: str, *, state: CableState | None,
                  substeps: int, self_collision: str, sync: str, newton: NewtonOptions,
                  detector: DetectorOptions, record_every: int, color=(0.9, 0.35, 0.1, 1.0),
-                 contact: str = "auto", contact_stiffness: float = DEFAULT_ALPHA, contact_damping: float = 0.0):
+                 contact: str = "auto", contact_stiffness: float = DEFAULT_ALPHA, contact_damping: float = 0.0,
+                 bullet_spheres: str = "auto"):
         self.world = world
         self.name = name
         self.model = model
@@ -104,6 +125,13 @@ class BulletCable:
                                  f"implicit_midpoint), got {integrator!r}")
         self.model_contact = contact == "model" or (contact == "auto" and implicit)
         self.contact_stiffness = check_positive("contact_stiffness", contact_stiffness)
+        if bullet_spheres not in BULLET_SPHERES:
+            raise ParameterError(f"bullet_spheres must be one of {', '.join(BULLET_SPHERES)}, got {bullet_spheres!r}")
+        self.bullet_spheres = bullet_spheres
+        self.proxy = False  # the spheres are parked proxies now (see the module doc; BulletWorld re-takes the rule)
+        self._mirrored = -1  # the step whose positions the parked spheres hold in Bullet
+        self._fresh: set[int] = set()  # spheres parked since the last step (see _hold_fresh)
+        self._waking = False  # woken from proxies before the last step (see _finish_waking)
         self.contact_damping = check_nonnegative("contact_damping", contact_damping)
         self.record_every = check_int("record_every", record_every, 1)
         st = (state or model.initial_state()).copy()
@@ -208,6 +236,73 @@ class BulletCable:
                     pb.setCollisionFilterPair(body[i], body[j], -1, -1, 0, physicsClientId=cid)
         return body
 
+    # ----- the spheres in Bullet: live or parked proxies -----------------------------------------
+    def proxy_allowed(self) -> bool:
+        """This cable's own part of the proxy rule (module doc): ``bullet_spheres="auto"``, the model's
+        contact, ``sync="contacts"`` (``always`` reads every sphere back) and no GUI (its viewer draws Bullet's
+        poses every frame). :meth:`~bullet_dlo.bullet.world.BulletWorld.update_proxies` adds the other cables'."""
+        return (self.bullet_spheres == "auto" and self.model_contact and self.sync == "contacts"
+                and not getattr(self.world, "gui", False))
+
+    def set_proxy(self, on: bool) -> None:
+        """Park the spheres as proxies (``on``: their poses from the model's x, asleep) or make them live again
+        (poses x, velocities the ones the coming step's forces were planned from, awake): the model's trajectory
+        is the same either way. Called by the world when it re-takes the rule."""
+        if on == self.proxy:
+            return
+        if on:
+            self._park(range(self.model.n))
+        else:
+            self._fresh.clear()
+            cid = self.world.client
+            for b, pos, vel in zip(self.body_ids, self.x.tolist(), self._cp.v_bullet.tolist()):
+                pb.resetBasePositionAndOrientation(b, pos, (0.0, 0.0, 0.0, 1.0), physicsClientId=cid)
+                pb.resetBaseVelocity(b, vel, (0.0, 0.0, 0.0), physicsClientId=cid)
+                pb.changeDynamics(b, -1, activationState=_LIVE, physicsClientId=cid)
+                pb.changeDynamics(b, -1, activationState=pb.ACTIVATION_STATE_WAKE_UP, physicsClientId=cid)
+                pb.resetBaseVelocity(b, vel, (0.0, 0.0, 0.0), physicsClientId=cid)  # (awake now: it keeps it)
+            self._waking = True
+        self.proxy = on
+
+    def _finish_waking(self) -> None:
+        """Bullet integrates a woken body only from its second step: put the spheres where the step they stood
+        still would have sent them (x' and the step's velocity), as if Bullet had moved them."""
+        cp, cid, h = self._cp, self.world.client, self.world.dt
+        for b, x0, x1 in zip(self.body_ids, self.x.tolist(), cp.x_new.tolist()):
+            pb.resetBasePositionAndOrientation(b, x1, (0.0, 0.0, 0.0, 1.0), physicsClientId=cid)
+            pb.resetBaseVelocity(b, [(p1 - p0) / h for p0, p1 in zip(x0, x1)], (0.0, 0.0, 0.0), physicsClientId=cid)
+        self._waking = False
+
+    def _park(self, nodes) -> None:
+        """Write the model's positions of ``nodes`` into their spheres and put them to sleep (a pose reset wakes
+        a body; sleeping zeroes its velocity). Two activation calls: sleep is refused while sleeping is off."""
+        cid = self.world.client
+        x = self.x
+        for i in nodes:
+            b = self.body_ids[i]
+            pb.resetBasePositionAndOrientation(b, x[i].tolist(), (0.0, 0.0, 0.0, 1.0), physicsClientId=cid)
+            pb.changeDynamics(b, -1, activationState=_PARK, physicsClientId=cid)
+            pb.changeDynamics(b, -1, activationState=pb.ACTIVATION_STATE_SLEEP, physicsClientId=cid)
+            self._fresh.add(i)
+        self._mirrored = self.steps
+
+    def _hold_fresh(self) -> None:
+        """Bullet puts a body to sleep only after its next step, which still lets it fall g h^2 from rest (0.17 mm
+        at 240 Hz): the spheres parked since the last step get their weight's opposite for that step."""
+        cid = self.world.client
+        mass, g = self.model.arrays.mass, self.world.gravity
+        for i in self._fresh:
+            pb.applyExternalForce(self.body_ids[i], -1, (-mass[i] * g).tolist(), (0.0, 0.0, 0.0), pb.LINK_FRAME,
+                                  physicsClientId=cid)  # (a parked sphere's frame is the world's, unrotated)
+        self._fresh.clear()
+
+    def sync_bullet_spheres(self) -> None:
+        """Proxy spheres: write the model's positions into Bullet now (n pose resets, ~10-25 us each; once per
+        step at most), so that direct PyBullet reads of them (poses, closest points, images) see the cable where
+        it is. Live spheres are there already: nothing to do."""
+        if self.proxy and self._mirrored != self.steps:
+            self._park(range(self.model.n))
+
     @property
     def handles_cable_contact(self) -> bool:
         """Contacts with other cables are the model's (both cables model contact, neither has
@@ -298,6 +393,13 @@ class BulletCable:
         solver = self.solver
         if solver.status != STABLE:
             return
+        if self.proxy:  # parked spheres: Bullet does not move them (module doc); the touched bodies' reactions only
+            if self._fresh:
+                self._hold_fresh()
+            cs = self.contact.set
+            if cs is not None:
+                cs.apply_to_bodies()
+            return
         native = self.world.native_handle()
         if native:  # one compiled call instead of n PyBullet calls
             args = (native, self._body_array, solver.coupling.force, self.x)
@@ -316,8 +418,13 @@ class BulletCable:
 
     def sync_after_step(self, touched) -> None:
         """Take over Bullet's step: ``touched`` holds the spheres that had contacts (read back)."""
+        if self._waking:  # (their contacts of this step were taken where they stood still: not the cable's)
+            self._finish_waking()
+            touched = ()
         if self.solver.status == STABLE:
-            self._advance(sorted(touched) if touched else [])
+            # parked proxies are never read back: nothing in Bullet may touch them (the rule), and their Bullet
+            # state is not the cable's
+            self._advance(sorted(touched) if touched and not self.proxy else [])
 
     def _record_row(self, from_kernel: bool = False) -> None:
         """Append a row; ``from_kernel``: the step's kernel wrote its end loads and energy (``inp.record``)."""
@@ -342,6 +449,8 @@ class BulletCable:
         masses[node] += check_positive("point mass", mass)
         self.set_parameters(mass=masses)
         pb.changeDynamics(self.body_ids[node], -1, mass=float(masses[node]), physicsClientId=self.world.client)
+        if self.proxy:  # (changing a mass may wake the sphere)
+            self._park([node])
         self.solver.restart_detector(self.model, self.arrays)
         self._replan()
 
@@ -542,6 +651,8 @@ class BulletCable:
         return self.end_loads()[1]
 
     def bullet_positions(self) -> np.ndarray:
-        """Sphere positions read from Bullet [m], (n, 3) (n PyBullet calls: for checks, not loops)."""
+        """Sphere positions read from Bullet [m], (n, 3) (n PyBullet calls: for checks, not loops). Parked proxy
+        spheres get the model's positions first (:meth:`sync_bullet_spheres`)."""
+        self.sync_bullet_spheres()
         cid = self.world.client
         return np.array([pb.getBasePositionAndOrientation(b, physicsClientId=cid)[0] for b in self.body_ids])

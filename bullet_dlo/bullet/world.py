@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import os
 import time
+import weakref
 from pathlib import Path
 from typing import Any, Sequence
 
@@ -24,6 +25,16 @@ from bullet_dlo.core.spec import CableSpec
 from bullet_dlo.core.validate import ParameterError, check_nonnegative, check_positive, check_vector3
 
 SPAWN_TOLERANCE = 1e-4  # [m] penetration allowed at spawn before it counts as an overlap
+_WORLDS: "weakref.WeakValueDictionary[int, BulletWorld]" = weakref.WeakValueDictionary()  # client -> its world
+
+
+def sync_bullet_spheres(client: int) -> None:
+    """Write the parked proxy spheres of the world on PyBullet client ``client`` (if it is a
+    :class:`BulletWorld`'s) into Bullet (:meth:`BulletWorld.sync_bullet_spheres`): what reads Bullet's poses of
+    every body at once (a camera image) calls it first."""
+    world = _WORLDS.get(client)
+    if world is not None:
+        world.sync_bullet_spheres()
 
 
 def resolve_asset(path: str | os.PathLike) -> Path:
@@ -62,6 +73,8 @@ class BulletWorld:
         self.client = pb.connect(pb.GUI if gui else pb.DIRECT)
         if self.client < 0:
             raise ParameterError("could not connect to PyBullet (GUI mode needs a display; use gui=False)")
+        self.gui = bool(gui)
+        _WORLDS[self.client] = self
         pb.setTimeStep(self.dt, physicsClientId=self.client)
         pb.setGravity(*self.gravity.tolist(), physicsClientId=self.client)
         self.renderer = None
@@ -190,6 +203,7 @@ class BulletWorld:
         contact: str = "auto",
         contact_stiffness: float = 1.0e4,
         contact_damping: float = 0.0,
+        bullet_spheres: str = "auto",
     ) -> BulletCable:
         """Spawn a cable as Bullet spheres driven by the MSD model.
 
@@ -216,6 +230,9 @@ class BulletWorld:
             contact_stiffness: alpha = k_n h^2 / m of the model's contact penalty, > 0 (1e4: the
                 contact's natural period is 2 pi h / 100; penetration at rest about g h^2 / alpha).
             contact_damping: damping ratio of the model's normal contact, >= 0.
+            bullet_spheres: ``auto`` (the spheres are parked proxies, asleep in Bullet and written there only when
+                read, while the rule of :meth:`update_proxies` holds: model contact, and nothing in Bullet collides
+                with them) or ``live`` (Bullet moves them every step). See :mod:`bullet_dlo.bullet.cable`.
         """
         from bullet_dlo.core.engine import DetectorOptions
 
@@ -233,7 +250,9 @@ class BulletWorld:
         c = BulletCable(self, name, model, integrator, state=state, substeps=substeps,
                         self_collision=self_collision, sync=sync, newton=newton,
                         detector=detector or DetectorOptions(), record_every=record_every, contact=contact,
-                        contact_stiffness=contact_stiffness, contact_damping=contact_damping)
+                        contact_stiffness=contact_stiffness, contact_damping=contact_damping,
+                        bullet_spheres=bullet_spheres)
+        self.sync_bullet_spheres()  # the spawn check collides the new spheres with the others where they are
         try:
             self._check_spawn_overlap(c, set(overlap_ok))
         except ParameterError:
@@ -244,7 +263,24 @@ class BulletWorld:
             c.disable_bullet_collisions()
         self.cables[name] = c
         self._owners.update({b: (name, i) for i, b in enumerate(c.body_ids)})
+        self.update_proxies()
         return c
+
+    def update_proxies(self) -> None:
+        """Re-take the proxy rule for every cable (when cables join): a cable's spheres are parked proxies
+        (:meth:`BulletCable.set_proxy`) when its own conditions hold (:meth:`BulletCable.proxy_allowed`) and no
+        other cable's spheres may collide with them in Bullet, i.e. it and every other cable leave their mutual
+        contacts to the model (:attr:`BulletCable.handles_cable_contact`); else they are live."""
+        cables = list(self.cables.values())
+        for c in cables:
+            alone = all(c.handles_cable_contact and o.handles_cable_contact for o in cables if o is not c)
+            c.set_proxy(c.proxy_allowed() and alone)
+
+    def sync_bullet_spheres(self) -> None:
+        """Write every parked proxy cable's positions into Bullet (:meth:`BulletCable.sync_bullet_spheres`), for
+        direct PyBullet reads of the spheres; a rendered frame does it itself."""
+        for c in self.cables.values():
+            c.sync_bullet_spheres()
 
     def _check_spawn_overlap(self, cable: BulletCable, overlap_ok: set[int]) -> None:
         """Refuse a cable that starts inside the ground or another body."""
@@ -376,6 +412,8 @@ class BulletWorld:
     def close(self) -> None:
         """Disconnect the PyBullet client."""
         self._native = 0  # the handle dies with the connection
+        if _WORLDS.get(self.client) is self:
+            del _WORLDS[self.client]
         if pb.isConnected(self.client):
             pb.disconnect(self.client)
 

@@ -20,6 +20,7 @@ from typing import Sequence
 import numpy as np
 import pybullet as pb
 
+from bullet_dlo.bullet.world import sync_bullet_spheres
 from bullet_dlo.bullet.renderer import RENDERERS, Renderer, RenderError  # noqa: F401  (re-exported)
 from bullet_dlo.core.validate import ParameterError, check_int, check_positive, check_vector3
 from bullet_dlo.robots.transforms import rotation
@@ -116,6 +117,7 @@ def render_frame(client: int, camera: Camera, renderer: Renderer, mass_of_body: 
 
     mass_of_body: body id -> cable mass index (spheres and tube segments), for ``cable_mass``.
     """
+    sync_bullet_spheres(client)  # parked proxy spheres to where the cables are (bullet_dlo.bullet.cable)
     view, proj = camera.matrices(client)
     w, h = camera.width, camera.height
     light = np.asarray(camera.light_direction, float)

@@ -63,6 +63,7 @@ def test_cable_dropped_on_the_ground_comes_to_rest():
 
 def _box_clearance(world, cable, box):
     cid = world.client
+    world.sync_bullet_spheres()  # parked proxy spheres: Bullet has them where the model is only after a sync
     return min(pb.getClosestPoints(b, box, 1.0, physicsClientId=cid)[0][8] for b in cable.body_ids)
 
 
