@@ -8,6 +8,9 @@ Also prints the wall time per simulated second for the Lv cable at 60, 240 and 1
 the largest deviation between the Bullet and core trajectories. Writes
 ``bullet_overhead.json`` and ``bullet_overhead.png``.
 
+Both worlds keep their spheres live (``bullet_spheres="live"``): this measures the coupling through
+Bullet's spheres; a cable whose contacts the model owns parks them by default (docs/concepts/coupled-step.md).
+
 The baseline matters: Bullet's step costs several times more when the spheres move than
 when they rest (the broad phase re-sorts moving boxes; n = 200: ~1.1 ms vs ~0.3 ms), so
 the bare twin's spheres fall freely (reset before every timed block, 0.2 s of fall never
@@ -58,9 +61,10 @@ def overhead(n: int, integrator: str, repeats: int, block: int) -> dict:
     crit = critical_dt(model, integrator)
     substeps = 1 if crit is None else math.ceil(1e-3 / (0.9 * crit))  # explicit: stay inside the limit
     coupled = BulletWorld(dt=1e-3)
-    cable = coupled.add_cable(model, integrator=integrator, substeps=substeps, record_every=10**9)
+    cable = coupled.add_cable(model, integrator=integrator, substeps=substeps, record_every=10**9,
+                              bullet_spheres="live")
     bare = BulletWorld(dt=1e-3)
-    twin = bare.add_cable(model, record_every=10**9)  # same bodies and filters; only Bullet steps them
+    twin = bare.add_cable(model, record_every=10**9, bullet_spheres="live")  # same bodies; only Bullet steps them
 
     def bare_block(steps: int) -> None:
         bare.step_bare(steps)  # the spheres fall freely: moving bodies, as in the coupled world
@@ -103,7 +107,7 @@ def deviation() -> float:
         model = study(10)
         core = simulate(model, name, 1e-3, 1.0).final_state.x
         with BulletWorld(dt=1e-3) as world:
-            cable = world.add_cable(model, integrator=name)
+            cable = world.add_cable(model, integrator=name, bullet_spheres="live")  # Bullet integrates the forces
             world.run(1.0)
             worst = max(worst, float(np.max(np.abs(cable.bullet_positions() - core))))
     return worst
