@@ -185,7 +185,7 @@ def env_split(u, steps: int) -> dict[str, float]:
              (u, "_observation", "observation")]
     if physics.observation is not None:
         parts.append((physics.observation, "read_sensors", "wrist sensors"))
-    parts += [(robot, "track", "IK (track)") for robot in physics.robots]
+    parts += [(robot, "track", "IK (Robot.track)") for robot in physics.robots]
     for obj, name, label in parts:
         setattr(obj, name, timed(label, getattr(obj, name)))
     step_simulation = pb.stepSimulation
@@ -241,7 +241,8 @@ def main(argv: list[str] | None = None) -> None:
     args = parser.parse_args(argv)
     blocks, env_steps = (5, 10) if args.quick else (60, 150)
 
-    print(f"dual-arm step vs bare stepSimulation, same world, {blocks} interleaved blocks of {BLOCK} steps, "
+    print(f"load average {os.getloadavg()[0]:.2f}; "
+          f"dual-arm step vs bare stepSimulation, same world, {blocks} interleaved blocks of {BLOCK} steps, "
           "medians of CPU time per simulated second; native: Bullet's C API from compiled code "
           "(bullet_dlo.bullet.native), python: PyBullet's Python API (BULLET_DLO_NATIVE=0)")
     print(f"{'robot':6} {'n':>3} {'path':>7} {'dual-arm s/s':>13} {'bare s/s':>9} {'ratio':>6}")

@@ -149,13 +149,17 @@ class DualArmObservation:
         forces, torques = physics.cable.planned_end_loads()
         points, held = physics.load_points, physics.held
         due, offsets = [False, False], [None, None]
+        # without contacts in the step the kernel writes the cable's loads itself; with some, they are written
+        # here and _prepare adds Bullet's contacts on the tool (the same order of additions either way)
+        fill = not world.contacts()
         for arm, s in enumerate(self.sensors):
-            applied = s._applied  # the library's loads on the tool side; _prepare adds Bullet's contacts
-            if held[arm]:  # the cable's force at its end mass and its clamp torque, as a moment about 0
-                applied[:3] = forces[arm]
-                applied[3:] = torques[arm] + cross3(points[arm], forces[arm])  # np.cross's bits, 1/10 its cost
-            else:
-                applied[:] = 0.0
+            if not fill:
+                applied = s._applied  # the library's loads on the tool side
+                if held[arm]:  # the cable's force at its end mass and its clamp torque, as a moment about 0
+                    applied[:3] = forces[arm]
+                    applied[3:] = torques[arm] + cross3(points[arm], forces[arm])  # np.cross's bits, 1/10 its cost
+                else:
+                    applied[:] = 0.0
             due[arm], offsets[arm] = s._prepare(t)
         # both sensors' kernels (transmitted wrench, reading, check against the cable's load) in one call
         s0, s1 = self.sensors
@@ -164,7 +168,8 @@ class DualArmObservation:
                 (s0._applied, s1._applied), (s0._reaction, s1._reaction), (s0.payload, s1.payload), float(dt),
                 (s0.compensate_inertia, s1.compensate_inertia), (due[0], due[1]), (s0._tare, s1._tare),
                 (offsets[0], offsets[1]), (s0._memory, s1._memory), (s0._scratch, s1._scratch), forces, torques,
-                points, (bool(held[0]), bool(held[1])), float(t), check.worst, check.worst_t, check._sumsq, sampled)
+                points, (bool(held[0]), bool(held[1])), (fill, fill), float(t), check.worst, check.worst_t,
+                check._sumsq, sampled)
         if self._pair is None:
             self._pair = bind(wrist_pair, *args)
         self._pair(*args)
