@@ -185,7 +185,7 @@ def env_split(u, steps: int) -> dict[str, float]:
              (u, "_observation", "observation")]
     if physics.observation is not None:
         parts.append((physics.observation, "read_sensors", "wrist sensors"))
-    parts += [(robot, "track", "IK (track)") for robot in physics.robots]
+    parts += [(robot, "track", "IK (Robot.track)") for robot in physics.robots]
     for obj, name, label in parts:
         setattr(obj, name, timed(label, getattr(obj, name)))
     step_simulation = pb.stepSimulation
@@ -207,6 +207,37 @@ def env_split(u, steps: int) -> dict[str, float]:
     out["part: rest (env Python, reward, world loop)"] = total / steps - sum(out.values())
     out["total"] = total / steps
     return out
+
+
+def ik_cost(robot: str = "panda", solves: int = 300) -> dict[str, float]:
+    """CPU time [us] of one ``Robot.track`` solve (a target 1 cm away) per IK solver, interleaved in blocks of 10,
+    and the position error [m] each leaves, measured by PyBullet's forward kinematics on the twin."""
+    from bullet_dlo.config.robot import load_robot_spec
+    from bullet_dlo.robots.arm import Robot
+
+    client = pb.connect(pb.DIRECT)
+    arm = Robot.load(load_robot_spec(robot), client, (0.0, 0.0, 0.0), visuals=False)
+    try:
+        pos, quat = arm.grasp_pose()
+        target = pos + np.array([0.006, -0.005, 0.006])
+        times: dict[str, list[float]] = {solver: [] for solver in Robot.IK_SOLVERS}
+        out = {}
+        for _ in range(solves // 10):
+            for solver in Robot.IK_SOLVERS:
+                arm.ik_solver = solver
+                tic = CLOCK()
+                for _ in range(10):
+                    q = arm.track(target, quat)
+                times[solver].append((CLOCK() - tic) / 10)
+        for solver in Robot.IK_SOLVERS:
+            arm.ik_solver = solver
+            arm._set_twin(arm.track(target, quat))
+            out[solver] = (statistics.median(times[solver]) * 1e6,
+                           float(np.linalg.norm(arm.grasp_pose(kinematic=True)[0] - target)))
+        return out
+    finally:
+        arm.close()
+        pb.disconnect(client)
 
 
 def make_env():
@@ -241,7 +272,8 @@ def main(argv: list[str] | None = None) -> None:
     args = parser.parse_args(argv)
     blocks, env_steps = (5, 10) if args.quick else (60, 150)
 
-    print(f"dual-arm step vs bare stepSimulation, same world, {blocks} interleaved blocks of {BLOCK} steps, "
+    print(f"load average {os.getloadavg()[0]:.2f}; "
+          f"dual-arm step vs bare stepSimulation, same world, {blocks} interleaved blocks of {BLOCK} steps, "
           "medians of CPU time per simulated second; native: Bullet's C API from compiled code "
           "(bullet_dlo.bullet.native), python: PyBullet's Python API (BULLET_DLO_NATIVE=0)")
     print(f"{'robot':6} {'n':>3} {'path':>7} {'dual-arm s/s':>13} {'bare s/s':>9} {'ratio':>6}")
@@ -274,6 +306,10 @@ def main(argv: list[str] | None = None) -> None:
               f"(10-90 %: {r['lo']:.2f}-{r['hi']:.2f}), {1 / r['env']:.0f} env steps per CPU-second; split:")
         for k in sorted((k for k in r if k.startswith("part: ")), key=lambda k: -r[k]):
             print(f"  {r[k] * 1e6:8.1f} us  {100 * r[k] / r['total']:5.1f} %  {k[6:]}")
+
+    print("\nRobot.track, one solve per arm and control step (panda, a target 1 cm away), median CPU time:")
+    for solver, (us, err) in ik_cost().items():
+        print(f"  {solver:9} {us:7.1f} us, lands {err * 1e6:.2f} um from the target (PyBullet's forward kinematics)")
 
     rate, sim_rate = env_rate(env_steps)
     print(f"\nTensionTracking-v0 on one core: {rate:.0f} env steps/s ({sim_rate:.1f} simulated s per wall s); "

@@ -66,6 +66,7 @@ from bullet_dlo.envs import params
 from bullet_dlo.envs.randomisation import EnvRandomisation, RandomisationLike, check_control_period
 from bullet_dlo.render.camera import default_camera, render_frame
 from bullet_dlo.robots.dual_arm import DualArmPhysics
+from bullet_dlo.robots.kernels import FRAME, FRAME_QUAT
 from bullet_dlo.sim import build_arms
 
 CAMERA_VIEW = [(-0.45, 0.0, 0.2), (0.45, 0.0, 0.2), (0.0, 0.0, 0.5)]  # points [m] the cameras frame
@@ -224,18 +225,37 @@ class DualArmEnv(gym.Env):
     def _observation(self) -> dict[str, np.ndarray]:
         robots = self.physics.robots
         states = [pb.getJointStates(r.body, r.arm_joints, physicsClientId=r.client) for r in robots]
-        poses = [r.grasp_pose() for r in robots]
+        # the grasp frames as the coupling read them after the last physics step (the same bits as getLinkState)
+        frames = self.physics.reader.link_rows[:, 0, FRAME:FRAME_QUAT + 4]
         raw = {"joint_q": [[s[0] for s in st] for st in states], "joint_qd": [[s[1] for s in st] for st in states],
-               "gripper_pos": [p for p, _ in poses], "gripper_quat": [q for _, q in poses],
-               "wrench": [s.last.world() for s in self.sensors], "task": self._task_observation()}
+               "gripper_pos": frames[:, :3], "gripper_quat": frames[:, 3:],
+               "wrench": [s.values[6:12] for s in self.sensors], "task": self._task_observation()}
         if self.privileged:
             raw["cable"] = self.cable_points()
-        obs = {}
-        for key, value in raw.items():
-            obs[key] = self._finite(key, np.asarray(value, dtype=np.float32))
+        obs = {key: np.asarray(value, dtype=np.float32) for key, value in raw.items()}
+        # every box checked and clipped in one pass over one buffer (the same elementwise clip as key by key)
+        flat = np.concatenate([v.ravel() for v in obs.values()])
+        if not np.all(np.isfinite(flat)):  # an unstable step: key by key, which zeroes and ends the episode
+            obs = {key: self._finite(key, value) for key, value in obs.items()}
+        else:
+            low, high = self._flat_bounds(obs)
+            np.clip(flat, low, high, out=flat)
+            start = 0
+            for key, value in obs.items():
+                obs[key] = flat[start:start + value.size].reshape(value.shape)
+                start += value.size
         if self.camera:
             obs.update(self._images())
         return obs
+
+    def _flat_bounds(self, obs: dict[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+        """The boxes' low and high of the keys of ``obs``, in its order, as flat float32 arrays (made once)."""
+        keys = tuple(obs)
+        if getattr(self, "_bounds", (None,))[0] != keys:
+            space = self.observation_space
+            self._bounds = (keys, np.concatenate([space[k].low.ravel() for k in keys]),
+                            np.concatenate([space[k].high.ravel() for k in keys]))
+        return self._bounds[1], self._bounds[2]
 
     def _finite(self, key: str, value: np.ndarray) -> np.ndarray:
         """``value`` inside its box; a non-finite entry (an unstable step) becomes 0 and ends the episode."""

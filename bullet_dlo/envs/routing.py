@@ -164,16 +164,18 @@ class Clip:
         d = points[:, :2] - self.centre
         return d @ self.axis, d @ self.across
 
-    def threaded(self, x: np.ndarray) -> bool:
-        """A point of the cable ``x`` (n, 3) inside the slot: within the boxes' length, between them, below their top."""
-        p = resample(x)
+    def threaded(self, x: np.ndarray, points: np.ndarray | None = None) -> bool:
+        """A point of the cable ``x`` (n, 3) inside the slot: within the boxes' length, between them, below their top.
+        ``points``: ``resample(x)`` if the caller has it."""
+        p = resample(x) if points is None else points
         along, across = self.local(p)
         inside = (np.abs(along) <= 0.5 * CLIP_LENGTH) & (np.abs(across) < 0.5 * CLIP_GAP) & (p[:, 2] < self.top)
         return bool(inside.any())
 
-    def distance(self, x: np.ndarray) -> float:
-        """Smallest distance [m] from the cable ``x`` (n, 3) to the slot's centre segment (axis, mid-height)."""
-        p = resample(x)
+    def distance(self, x: np.ndarray, points: np.ndarray | None = None) -> float:
+        """Smallest distance [m] from the cable ``x`` (n, 3) to the slot's centre segment (axis, mid-height).
+        ``points``: ``resample(x)`` if the caller has it."""
+        p = resample(x) if points is None else points
         along, across = self.local(p)
         da = np.maximum(np.abs(along) - 0.5 * CLIP_LENGTH, 0.0)
         dz = p[:, 2] - (self.top - 0.5 * CLIP_HEIGHT)
@@ -344,9 +346,10 @@ class RoutingEnv(DualArmEnv):
         if self._measures is not None and self._measures["time"] == world.time:
             return self._measures
         x = np.nan_to_num(self.physics.cable.x)  # an unstable step: the episode ends, the measures stay finite
-        gaps = [float(segment_distances(x, p).min()) - PEG_RADIUS - self.cable_radius for p in self.route.pegs]
+        gaps = [float(segment_distances(x, peg).min()) - PEG_RADIUS - self.cable_radius for peg in self.route.pegs]
+        p = resample(x)  # once for both clip measures
         self._measures = {"time": world.time, "wraps": self.wraps(x), "gaps": np.array(gaps),
-                          "clip_distance": self.route.clip.distance(x), "threaded": self.route.clip.threaded(x),
+                          "clip_distance": self.route.clip.distance(x, p), "threaded": self.route.clip.threaded(x, p),
                           "end_force": float(np.linalg.norm(self.physics.cable.end_forces(), axis=1).max())}
         return self._measures
 

@@ -69,6 +69,7 @@ class TensionTrackingEnv(DualArmEnv):
 
     # ----- targets --------------------------------------------------------------------------------
     def _task_reset(self, rng: np.random.Generator) -> None:
+        self._cache = None  # a new world: its step count starts again
         mean = rng.uniform(*self.tension_range)
         self.profile = (mean, rng.uniform(0.0, self.max_amplitude) * mean, rng.uniform(2.0, 6.0),
                         rng.uniform(0.0, 2 * math.pi))
@@ -92,11 +93,27 @@ class TensionTrackingEnv(DualArmEnv):
 
     def tension(self) -> float:
         """True axial tension [N] from the cable model's end forces."""
-        return axial_tension(self.physics.cable.end_forces(), self.grippers())
+        return self._measure("tension", lambda: axial_tension(self.physics.cable.end_forces(), self.grippers()))
 
     def tension_sensed(self) -> float:
         """Axial tension [N] from the wrist sensors' readings."""
-        return axial_tension(np.array([s.last.force_world for s in self.sensors]), self.grippers())
+        return self._measure("tension_sensed", lambda: axial_tension(
+            np.array([s.values[6:9] for s in self.sensors]), self.grippers()))
+
+    def _measure(self, name: str, compute) -> float:
+        """``compute()``, once per physics state: an env step asks for the tension three times (observation,
+        reward, info); the cache is keyed on the world's step count and emptied at every reset."""
+        key = self.physics.world.steps
+        cache = getattr(self, "_cache", None)
+        if cache is None or cache[0] != key:
+            cache = self._cache = (key, {})
+        if name not in cache[1]:
+            cache[1][name] = compute()
+        return cache[1][name]
+
+    def _midpoint_error(self) -> float:
+        """Distance [m] of the cable's midpoint from its target now."""
+        return self._measure("midpoint_error", lambda: float(np.linalg.norm(self.midpoint() - self.target_point)))
 
     def _task_observation(self) -> np.ndarray:
         t = self.physics.world.time - self.t0
@@ -107,7 +124,7 @@ class TensionTrackingEnv(DualArmEnv):
 
     def _task_reward(self) -> tuple[float, bool]:
         err_t = abs(self.tension() - self.tension_target())
-        err_p = float(np.linalg.norm(self.midpoint() - self.target_point))
+        err_p = self._midpoint_error()
         reward = 0.5 * math.exp(-err_t / TENSION_SCALE) + 0.5 * math.exp(-err_p / POSITION_SCALE)
         return reward, self.tension() > self.overload
 
@@ -118,7 +135,7 @@ class TensionTrackingEnv(DualArmEnv):
     def _task_info(self) -> dict[str, Any]:
         tension = self.tension()
         return {"tension": tension, "tension_sensed": self.tension_sensed(), "tension_target": self.tension_target(),
-                "midpoint_error": float(np.linalg.norm(self.midpoint() - self.target_point)),
+                "midpoint_error": self._midpoint_error(),
                 "overload": bool(tension > self.overload)}
 
 

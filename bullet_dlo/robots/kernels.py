@@ -267,3 +267,36 @@ def load_mismatch(rows, reading, offset, force, torque, point, held, t, worst, w
             sumsq[kind] += err * err
             if err > worst[kind]:
                 worst[kind], worst_t[kind] = err, t
+
+
+@njit(cache=True, error_model="numpy")
+def wrist_pair(rows, tools, tool_memories, applied, reactions, payloads, dt, compensate, due, tares, offsets,
+               memories, outs, force, torque, point, held, fill, t, worst, worst_t, sumsq, sampled):
+    """Both wrist sensors of a dual-arm step in one call: per arm a, :func:`tool_reaction` then
+    :func:`sensor_reading` and, when it sampled, :func:`load_mismatch` against the cable's load, the same
+    arithmetic as the three calls one by one (bit for bit), without Python between them.
+
+    Per-arm arguments are tuples of two (rows, tools, tool_memories, payloads, memories) or arrays with the
+    arm first (applied (2, 6), reactions (2, 6), compensate (2,), due (2,), tares, offsets (2, 6), outs
+    (2, 12), force, torque, point (2, 3), held (2,), worst, worst_t, sumsq (2, 2)); ``sampled`` (2,) gets
+    whether each sensor sampled. Units as in those kernels. With ``fill[a]`` the cable's load on the tool
+    side is written into ``applied[a]`` first (force [N] at ``point[a]``, clamp torque, moment about the world
+    origin: ``torque + point x force``, the arithmetic of ``robots.transforms.cross3``; zero if not
+    ``held[a]``); else the caller wrote it (with Bullet's contacts added).
+    """
+    for a in range(2):
+        if fill[a]:
+            ld, f, p = applied[a], force[a], point[a]
+            if held[a]:
+                ld[0], ld[1], ld[2] = f[0], f[1], f[2]
+                ld[3] = torque[a, 0] + (p[1] * f[2] - p[2] * f[1])
+                ld[4] = torque[a, 1] + (p[2] * f[0] - p[0] * f[2])
+                ld[5] = torque[a, 2] + (p[0] * f[1] - p[1] * f[0])
+            else:
+                ld[:] = 0.0
+        tool_reaction(rows[a], tools[a], dt, tool_memories[a], applied[a], reactions[a])
+        sampled[a] = sensor_reading(rows[a], payloads[a], reactions[a], dt, compensate[a], due[a], tares[a],
+                                    offsets[a], memories[a], outs[a])
+        if sampled[a]:
+            load_mismatch(rows[a], outs[a], offsets[a], force[a], torque[a], point[a], held[a], t, worst[a],
+                          worst_t[a], sumsq[a])

@@ -225,6 +225,7 @@ class WristSensor:
         self.offset = np.zeros(6)  # bias plus noise of the latest sample [N, N m], sensor frame
         self.values = np.zeros(12)  # the latest sample: [f, m] sensor frame, [f, m] world frame
         self._last: Wrench | None = None
+        self._last_t: float | None = None  # time [s] of the latest sample (None before the first)
         self._reading = bind(sensor_reading, self._rows, self.payload, self._reaction, 1.0, True, True, self._tare,
                              self.bias, self._memory, self._scratch)  # no per-call type dispatch
 
@@ -285,25 +286,36 @@ class WristSensor:
         """
         if self._own_reader:
             self.reader.read()
-        due = self.gate.due(t)
         if applied is None:
             self._applied[:] = 0.0
         else:
             self._applied[:] = applied
+        due, offset = self._prepare(t)
+        self._transmit(self._rows, self._tool, float(dt), self._tool_memory, self._applied, self._reaction)
+        if self._reading(self._rows, self.payload, self._reaction, float(dt), self.compensate_inertia, due,
+                         self._tare, offset, self._memory, self._scratch):
+            self._sampled(t, offset)
+        return self.last  # held between samples
+
+    def _prepare(self, t: float) -> tuple[bool, np.ndarray]:
+        """Before the kernels of a step at time t [s], with ``_applied`` set to the library's loads: whether
+        a sample is due, then (if so) Bullet's contacts added to ``_applied`` and this sample's bias plus
+        noise drawn. Returns (due, offset (6,))."""
+        due = self.gate.due(t)
         if due:  # between samples only the momenta are tracked, and they need no loads
             self._add_contacts()
-        self._transmit(self._rows, self._tool, float(dt), self._tool_memory, self._applied, self._reaction)
         offset = self.bias
         if due and self._noisy:
             offset = self.bias + self.rng.normal(size=6) * self.noise_std
-        out = self._scratch
-        if not self._reading(self._rows, self.payload, self._reaction, float(dt), self.compensate_inertia, due,
-                             self._tare, offset, self._memory, out):
-            return self._last  # held between samples
+        return due, offset
+
+    def _sampled(self, t: float, offset: np.ndarray) -> None:
+        """After the reading kernel sampled at time t [s] into ``_scratch``: keep it (the Wrench is built
+        when :attr:`last` is read: most steps nobody reads it)."""
         self.offset = offset
-        values = self.values = out.copy()  # one array, four views
-        self._last = Wrench(t, values[0:3], values[3:6], values[6:9], values[9:12])
-        return self._last
+        self.values = self._scratch.copy()  # one array, four views
+        self._last_t = t
+        self._last = None
 
     def _add_contacts(self) -> None:
         """Add the contact forces Bullet applied to the tool side's links in the last step to the applied
@@ -334,4 +346,7 @@ class WristSensor:
     @property
     def last(self) -> Wrench | None:
         """The latest reading (None before the first :meth:`update`)."""
+        if self._last is None and self._last_t is not None:
+            values = self.values
+            self._last = Wrench(self._last_t, values[0:3], values[3:6], values[6:9], values[9:12])
         return self._last

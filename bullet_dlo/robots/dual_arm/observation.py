@@ -14,7 +14,7 @@ import numpy as np
 from bullet_dlo.core.validate import ParameterError, check_positive
 from bullet_dlo.robots.dual_arm.physics import ARMS, END_NODE, DualArmPhysics
 from bullet_dlo.bullet.kernels import bind
-from bullet_dlo.robots.kernels import load_mismatch
+from bullet_dlo.robots.kernels import load_mismatch, wrist_pair
 from bullet_dlo.robots.sensors import WristSensor
 from bullet_dlo.robots.transforms import cross3
 
@@ -132,7 +132,8 @@ class DualArmObservation:
                         for k, robot in enumerate(physics.robots)]
         for s in self.sensors:
             s.tare()
-        self._applied = np.zeros(6)  # the cable's load on one gripper in the last step [N, N m about 0]
+        self._sampled = np.zeros(2, dtype=np.bool_)  # which sensor sampled in the last step
+        self._pair = None  # wrist_pair's machine code, bound on first use
         self.check = SensorCheck(spec.cable.mass * float(np.linalg.norm(physics.world.gravity)))
         self.record = DualArmRecord()
         physics.observation = self  # the physics samples the sensors in its read phase
@@ -143,19 +144,39 @@ class DualArmObservation:
         """Sample the wrist sensors after the Bullet step (phase 4 of the dual-arm step, see
         :mod:`~bullet_dlo.robots.dual_arm.physics`) and check them against the loads the cable applied."""
         world, physics = self.physics.world, self.physics
+        t, dt = world.time, world.dt
         # what the cable applied in the Bullet step just taken: its step (after these hooks) replaces them
         forces, torques = physics.cable.planned_end_loads()
-        applied = self._applied
+        points, held = physics.load_points, physics.held
+        due, offsets = [False, False], [None, None]
+        # without contacts in the step the kernel writes the cable's loads itself; with some, they are written
+        # here and _prepare adds Bullet's contacts on the tool (the same order of additions either way)
+        fill = not world.contacts()
         for arm, s in enumerate(self.sensors):
-            if physics.held[arm]:  # the cable's force at its end mass and its clamp torque, as a moment about 0
-                applied[:3] = forces[arm]
-                applied[3:] = torques[arm] + cross3(physics.load_points[arm], forces[arm])  # np.cross's bits, 1/10 its cost
-            else:
-                applied[:] = 0.0
-            s.update(world.time, world.dt, applied)
-            if s.last.t == world.time:  # sampled in this step: compare with what the cable applied
-                self.check.check(arm, world.time, s, forces[arm], torques[arm], physics.load_points[arm],
-                                 physics.held[arm])
+            if not fill:
+                applied = s._applied  # the library's loads on the tool side
+                if held[arm]:  # the cable's force at its end mass and its clamp torque, as a moment about 0
+                    applied[:3] = forces[arm]
+                    applied[3:] = torques[arm] + cross3(points[arm], forces[arm])  # np.cross's bits, 1/10 its cost
+                else:
+                    applied[:] = 0.0
+            due[arm], offsets[arm] = s._prepare(t)
+        # both sensors' kernels (transmitted wrench, reading, check against the cable's load) in one call
+        s0, s1 = self.sensors
+        check, sampled = self.check, self._sampled
+        args = ((s0._rows, s1._rows), (s0._tool, s1._tool), (s0._tool_memory, s1._tool_memory),
+                (s0._applied, s1._applied), (s0._reaction, s1._reaction), (s0.payload, s1.payload), float(dt),
+                (s0.compensate_inertia, s1.compensate_inertia), (due[0], due[1]), (s0._tare, s1._tare),
+                (offsets[0], offsets[1]), (s0._memory, s1._memory), (s0._scratch, s1._scratch), forces, torques,
+                points, (bool(held[0]), bool(held[1])), (fill, fill), float(t), check.worst, check.worst_t,
+                check._sumsq, sampled)
+        if self._pair is None:
+            self._pair = bind(wrist_pair, *args)
+        self._pair(*args)
+        for arm, s in enumerate(self.sensors):
+            if sampled[arm]:
+                s._sampled(t, offsets[arm])
+        check.samples += int(sampled[0])
 
     def _record_step(self) -> None:
         r, cable = self.record, self.physics.cable

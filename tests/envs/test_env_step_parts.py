@@ -1,0 +1,52 @@
+"""The env step's cheaper parts against the direct queries they replace: the observation's grasp frames
+and wrenches, the Tension measures computed once per step, and the compiled IK's tracking."""
+from __future__ import annotations
+
+import numpy as np
+import pybullet as pb
+
+from bullet_dlo.envs.tension import TensionTrackingEnv, axial_tension
+
+
+def test_observation_and_measures_are_the_direct_queries_bit_for_bit():
+    """After each step: gripper_pos/quat are PyBullet's getLinkState of the grasp frame, the wrench the
+    sensors' latest world-frame sample (float32, inside the box); the cached tension, sensed tension and
+    midpoint error equal fresh computations, also right after a reset (a new world counts steps from 0)."""
+    env = TensionTrackingEnv()
+    try:
+        for seed in (0, 1):
+            obs, _ = env.reset(seed=seed)
+            rng = np.random.default_rng(seed)
+            for k in range(4):
+                robots = env.physics.robots
+                poses = [pb.getLinkState(r.body, r.grasp_link, computeForwardKinematics=True,
+                                         physicsClientId=r.client) for r in robots]
+                assert np.array_equal(obs["gripper_pos"], np.array([p[4] for p in poses], np.float32))
+                assert np.array_equal(obs["gripper_quat"], np.array([p[5] for p in poses], np.float32))
+                assert np.array_equal(obs["wrench"], np.array([s.last.world() for s in env.sensors], np.float32))
+                grippers = np.array(env.physics.cable.holder_positions())
+                assert env.tension() == axial_tension(env.physics.cable.end_forces(), grippers)
+                sensed = axial_tension(np.array([s.last.force_world for s in env.sensors]), grippers)
+                assert env.tension_sensed() == sensed
+                assert obs["task"][2] == np.float32(sensed)
+                assert env._midpoint_error() == float(np.linalg.norm(env.midpoint() - env.target_point))
+                obs, *_ = env.step(rng.uniform(-1, 1, 6).astype(np.float32))
+    finally:
+        env.close()
+
+
+def test_tracking_puts_the_grippers_on_their_targets():
+    """Held still for a few control steps, each gripper settles on its target pose (the IK's joints, the
+    arms' position control): within 1 mm of the target (the cable's load on a position-controlled arm)."""
+    env = TensionTrackingEnv()
+    try:
+        env.reset(seed=2)
+        for _ in range(3):
+            env.step(np.array([0.5, 0, -0.5, -0.5, 0, 0.5], np.float32))
+        for _ in range(15):
+            env.step(np.zeros(6, np.float32))
+        reached = np.array([r.grasp_pose()[0] for r in env.physics.robots])
+        assert np.abs(reached - env.target).max() < 1e-3
+        assert np.abs(env.target - env.home).max() > 2e-3  # the targets did move
+    finally:
+        env.close()
