@@ -872,10 +872,10 @@ def _add(c, st, key, shape, ia, ib, wa, wb, cl, nl, sh, k_per_mass, zeta, mass, 
     k = c.count[0]
     if k >= c.node.shape[0]:
         return
-    rot, pos = sh.rot[shape], sh.pos[shape]
     for j in range(3):
-        c.point[k, j] = pos[j] + rot[j, 0] * cl[0] + rot[j, 1] * cl[1] + rot[j, 2] * cl[2]
-        c.normal[k, j] = rot[j, 0] * nl[0] + rot[j, 1] * nl[1] + rot[j, 2] * nl[2]
+        c.point[k, j] = (sh.pos[shape, j] + sh.rot[shape, j, 0] * cl[0] + sh.rot[shape, j, 1] * cl[1]
+                         + sh.rot[shape, j, 2] * cl[2])
+        c.normal[k, j] = sh.rot[shape, j, 0] * nl[0] + sh.rot[shape, j, 1] * nl[1] + sh.rot[shape, j, 2] * nl[2]
     _add_row(c, st, key, shape, ia, ib, wa, wb, sh, k_per_mass, zeta, mass, x)
 
 
@@ -883,11 +883,12 @@ def _add(c, st, key, shape, ia, ib, wa, wb, cl, nl, sh, k_per_mass, zeta, mass, 
 def _add_row(c, st, key, shape, ia, ib, wa, wb, sh, k_per_mass, zeta, mass, x):
     """The rest of row count[0] once its world point and normal are set: the body's velocity there, the law."""
     k = c.count[0]
-    arm = c.point[k] - sh.com[shape]
-    w = sh.ang_vel[shape]
-    c.body_vel[k, 0] = sh.lin_vel[shape, 0] + w[1] * arm[2] - w[2] * arm[1]
-    c.body_vel[k, 1] = sh.lin_vel[shape, 1] + w[2] * arm[0] - w[0] * arm[2]
-    c.body_vel[k, 2] = sh.lin_vel[shape, 2] + w[0] * arm[1] - w[1] * arm[0]
+    # scalars, not array temporaries: each costs an allocation and reference counts per contact
+    a0, a1, a2 = c.point[k, 0] - sh.com[shape, 0], c.point[k, 1] - sh.com[shape, 1], c.point[k, 2] - sh.com[shape, 2]
+    w0, w1, w2 = sh.ang_vel[shape, 0], sh.ang_vel[shape, 1], sh.ang_vel[shape, 2]
+    c.body_vel[k, 0] = sh.lin_vel[shape, 0] + w1 * a2 - w2 * a1
+    c.body_vel[k, 1] = sh.lin_vel[shape, 1] + w2 * a0 - w0 * a2
+    c.body_vel[k, 2] = sh.lin_vel[shape, 2] + w0 * a1 - w1 * a0
     c.internal[k] = False
     mk = wa * mass[ia] + wb * mass[ib]  # stiffness by the mass at the contact point
     _fill(c, st, key, shape, ia, ib, wa, wb, sh.static_friction[shape], sh.dynamic_friction[shape], k_per_mass * mk, zeta, mk, x)
@@ -907,7 +908,8 @@ def _fill(c, st, key, shape, ia, ib, wa, wb, mu_s, mu_d, k_n, zeta, mk, x):
     c.static_friction[k] = mu_s
     c.dynamic_friction[k] = mu_d
     if st.active[key]:
-        c.anchor[k] = st.anchor[key]
+        for j in range(4):
+            c.anchor[k, j] = st.anchor[key, j]
         c.state[k] = st.state[key]
     else:
         for j in range(3):
@@ -920,7 +922,7 @@ def _fill(c, st, key, shape, ia, ib, wa, wb, mu_s, mu_d, k_n, zeta, mk, x):
     g -= c.radius[0]
     c.cap[k] = c.static_friction[k] * c.k_n[k] * (-g) if g < 0.0 else 0.0
     c.f_n[k] = 0.0
-    c.f_t[k, :] = 0.0
+    c.f_t[k, 0], c.f_t[k, 1], c.f_t[k, 2] = 0.0, 0.0, 0.0
     st.keys[k] = key
     st.body[k] = shape
     c.count[0] = k + 1
@@ -1283,7 +1285,8 @@ def detect(x, v, mass, sh, c, st, h, k_per_mass, zeta, self_mu, h_body, h_done, 
     previous = st.keys[:c.count[0]].copy()  # the keys in contact last step (their rows get overwritten)
     for k in range(previous.shape[0]):  # persist what the last step left
         key = previous[k]
-        st.anchor[key] = c.anchor[k]
+        for j in range(4):
+            st.anchor[key, j] = c.anchor[k, j]
         st.state[key] = c.state[k]
         st.wrap[key] = c.kind[k] == WRAP
         s = st.body[k]
