@@ -33,8 +33,13 @@ Bullet ``lateralFriction`` mu_b combines with them by the geometric mean, mu = s
 geometric mean is symmetric like Bullet's rule, lies between the two, and equals the cable's own
 coefficient on a body given the same value).
 
-Everything else a body can carry (triangle meshes, convex hulls, planes, compound shapes, the shapes of
-a URDF's child links, the robot arms' links and fingers) is measured by Bullet's own narrow phase
+A link whose one shape is a convex hull (a mesh made from vertices, a URDF's convex mesh: the arms' links
+and fingers) is a HULL row on the project's exact geometry (:class:`Hulls`, :func:`_hull_contacts`): its
+polytope from ``getMeshData``'s vertices, grown by Bullet's collision margin, used once Bullet's own distances
+agree with it at set-up (:meth:`ContactSet._hull`); a static hull's sharp edges wrap segments like a box's.
+
+Everything else a body can carry (triangle meshes, compounds of hulls, planes, heightfields, links with several
+shapes, the other shapes of a URDF's child links) is measured by Bullet's own narrow phase
 (:meth:`ContactSet._probe`): each such link is a PROBE row, and before the step every node (a point
 capsule of the cable radius) and every segment (a capsule of the cable radius) within reach of the link's
 bounding box asks ``getClosestPoints`` for the link's closest point within the margin. The answer
@@ -477,8 +482,8 @@ class ContactSet:
         cl, nl = np.zeros(3), np.zeros(3)
         offsets = []
         for p in _hull_points(vertices, planes, tri, tri_plane, edges, radius):
-            res = pb.getClosestPoints(-1, body, 1.0, -1, link, self._hull_probe, -1, (np.asarray(com) + rot @ p).tolist(),
-                                      physicsClientId=cid)
+            where = (np.asarray(com) + rot @ p).tolist()
+            res = pb.getClosestPoints(-1, body, 1.0, -1, link, self._hull_probe, -1, where, physicsClientId=cid)
             if not res:
                 return None
             offsets.append(hull_distance(hu, 0, p, cl, nl) - radius - min(r[8] for r in res))
