@@ -8,14 +8,15 @@ The goal of issue 10 is at most 2x. Writes ``contact_cost.json``, ``contact_cost
 and a picture of each scene (``contact_table.png``, ``contact_peg.png``) rendered through
 ``bullet_dlo.render``.
 
-Scenes: ``table``: the Lv cable lying on the ground (every node in contact); ``peg``: a soft
+Scenes: ``table``: the Lv cable lying on the ground (every node in contact); ``resting``: the same with a
+30 g box (4 x 4 x 2 cm, dynamic) resting across it (its twin: the box on the ground, the cable in the air); ``peg``: a soft
 cable (0.6 m, E 2 MPa) over a fixed 20 mm cylinder, both sides hanging with 50 g weights; ``box``
 and ``hull``: the Lv cable lying on a 0.4 x 0.2 x 0.1 m block, a Bullet box (exact geometry) or the
 same block as a convex hull mesh (Bullet's narrow phase, ``getClosestPoints`` per node and segment);
 their contact-free twins have the block in the world too, far from the cable. Step times are thread
 times (``time.thread_time``).
 
-Usage: ``python demos/contact_cost.py [--out DIR] [--masses 20 80] [--scenes table peg box hull]
+Usage: ``python demos/contact_cost.py [--out DIR] [--masses 20 80] [--scenes table peg box hull resting]
 [--repeats 5] [--block 200] [--quick]``
 (``--out`` defaults to ``out/contact_cost``; ``--out demos/gallery`` renews the committed pictures)
 (``--quick``: n = 20, one block of 20 steps, no pictures; for smoke tests).
@@ -25,6 +26,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import os
 import statistics
 import time
 from pathlib import Path
@@ -43,7 +45,8 @@ from bullet_dlo.core.spec import CableSpec  # noqa: E402
 HZ = 240.0
 Q_AXIS_Y = (math.sin(math.pi / 4), 0.0, 0.0, math.cos(math.pi / 4))
 R_PEG = 0.02
-COLORS = {"table": "#c46a2b", "peg": "#3b6ea5", "box": "#6a9a3b", "hull": "#8a4fa0"}
+COLORS = {"table": "#c46a2b", "peg": "#3b6ea5", "box": "#6a9a3b", "hull": "#8a4fa0", "resting": "#a03b4f"}
+RESTING_HALF = (0.02, 0.02, 0.01)  # [m] the resting box: 4 cm square across the cable, 2 cm tall (30 g)
 
 
 def _soft(n: int) -> CableSpec:
@@ -85,6 +88,17 @@ def scene(kind: str, n: int, contact: bool, renderer: str | None = None):
         else:
             cable = world.add_cable(spec, start=(-0.15, 0, 0.5), direction=(1, 0, 0), ends=("clamped", "clamped"))
         return world, cable
+    if kind == "resting":
+        spec = CableSpec.lv2017(n_masses=n, damping=0.02)
+        world = BulletWorld(dt=1 / HZ, renderer=renderer)
+        r = spec.diameter / 2
+        if contact:
+            cable = world.add_cable(spec, start=(-0.15, 0, r), direction=(1, 0, 0))
+            world.add_box(RESTING_HALF, (0.0, 0.0, 2 * r + RESTING_HALF[2]), mass=0.03, friction=0.5)
+        else:  # the same box resting on the ground, the cable in the air
+            cable = world.add_cable(spec, start=(-0.15, 0, 0.5), direction=(1, 0, 0), ends=("clamped", "clamped"))
+            world.add_box(RESTING_HALF, (0.0, 0.0, RESTING_HALF[2]), mass=0.03, friction=0.5)
+        return world, cable
     if kind == "table":
         spec = CableSpec.lv2017(n_masses=n, damping=0.02)
         world = BulletWorld(dt=1 / HZ, renderer=renderer)
@@ -124,10 +138,11 @@ def measure(kind: str, n: int, repeats: int, block: int) -> dict:
             with_c.append(per_step(wc, block))
             free.append(per_step(wf, block))
         assert cc.stable and cf.stable
-        ratio = statistics.median(a / b for a, b in zip(with_c, free))
+        ratios = [a / b for a, b in zip(with_c, free)]
         return {"scene": kind, "n": n, "contacts": int(cc.contacts_last_step),
                 "step_us": 1e6 * statistics.median(with_c), "free_step_us": 1e6 * statistics.median(free),
-                "ratio": ratio, "newton_per_step": cc.newton_iterations / max(cc.steps, 1)}
+                "ratio": statistics.median(ratios), "ratio_min": min(ratios), "ratio_max": max(ratios),
+                "newton_per_step": cc.newton_iterations / max(cc.steps, 1), "load": os.getloadavg()[0]}
     finally:
         wc.close()
         wf.close()
@@ -167,8 +182,8 @@ def main() -> None:
     ap.add_argument("--out", default="out/contact_cost",
                     help="output folder (default out/contact_cost; --out demos/gallery renews the committed pictures)")
     ap.add_argument("--masses", type=int, nargs="+", default=[20, 80])
-    ap.add_argument("--scenes", nargs="+", default=["table", "peg", "box", "hull"],
-                    choices=["table", "peg", "box", "hull"])
+    ap.add_argument("--scenes", nargs="+", default=["table", "peg", "box", "hull", "resting"],
+                    choices=["table", "peg", "box", "hull", "resting"])
     ap.add_argument("--repeats", type=int, default=5)
     ap.add_argument("--block", type=int, default=200, help="steps per timed block")
     ap.add_argument("--quick", action="store_true", help="n = 20, one block of 20 steps, no pictures")
@@ -183,9 +198,9 @@ def main() -> None:
         for n in args.masses:
             row = measure(kind, n, args.repeats, args.block)
             rows.append(row)
-            print(f"{kind:5s} n={n:3d} contacts {row['contacts']:3d}: {row['step_us']:7.1f} us vs contact-free "
-                  f"{row['free_step_us']:7.1f} us -> {row['ratio']:.2f}x (Newton {row['newton_per_step']:.2f}/step)",
-                  flush=True)
+            print(f"{kind:7s} n={n:3d} contacts {row['contacts']:3d}: {row['step_us']:7.1f} us vs contact-free "
+                  f"{row['free_step_us']:7.1f} us -> {row['ratio']:.2f}x ({row['ratio_min']:.2f}-{row['ratio_max']:.2f}; "
+                  f"Newton {row['newton_per_step']:.2f}/step; load {row['load']:.1f})", flush=True)
     (out / "contact_cost.json").write_text(json.dumps(rows, indent=1))
     chart(rows, out / "contact_cost.png")
     if not args.quick:

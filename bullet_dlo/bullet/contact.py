@@ -33,8 +33,13 @@ Bullet ``lateralFriction`` mu_b combines with them by the geometric mean, mu = s
 geometric mean is symmetric like Bullet's rule, lies between the two, and equals the cable's own
 coefficient on a body given the same value).
 
-Everything else a body can carry (triangle meshes, convex hulls, planes, compound shapes, the shapes of
-a URDF's child links, the robot arms' links and fingers) is measured by Bullet's own narrow phase
+A link whose one shape is a convex hull (a mesh made from vertices, a URDF's convex mesh: the arms' links
+and fingers) is a HULL row on the project's exact geometry (:class:`Hulls`, :func:`_hull_contacts`): its
+polytope from ``getMeshData``'s vertices, grown by Bullet's collision margin, used once Bullet's own distances
+agree with it at set-up (:meth:`ContactSet._hull`); a static hull's sharp edges wrap segments like a box's.
+
+Everything else a body can carry (triangle meshes, compounds of hulls, planes, heightfields, links with several
+shapes, the other shapes of a URDF's child links) is measured by Bullet's own narrow phase
 (:meth:`ContactSet._probe`): each such link is a PROBE row, and before the step every node (a point
 capsule of the cable radius) and every segment (a capsule of the cable radius) within reach of the link's
 bounding box asks ``getClosestPoints`` for the link's closest point within the margin. The answer
@@ -56,7 +61,8 @@ from bullet_dlo.bullet.kernels import bind
 from bullet_dlo.bullet.native import BASE_STATE, disabled_warning, read_base_states
 from bullet_dlo.core.kernels.contact import PENALTY, STICK, WRAP, Contacts, _wrap_cap, make_contacts, wrap_active, wrap_energy, wrap_split
 
-BOX, SPHERE, CYLINDER, CAPSULE, PROBE = range(5)  # PROBE: a link measured by Bullet's narrow phase
+BOX, SPHERE, CYLINDER, CAPSULE, PROBE, HULL = range(6)  # PROBE: a link measured by Bullet's narrow phase
+# HULL: a convex hull mesh on the project's exact geometry (:class:`Hulls`), checked against Bullet at set-up
 N_EDGES = 12  # a box's edges, each a segment feature of its own
 SMALL_N = 64  # self-contact candidates of cables up to this many nodes: every pair tried (faster there)
 S_MIN = 1e-3  # segment interior: 0 < s < 1 away from the nodes by this much (nodes are contacts of their own)
@@ -64,6 +70,13 @@ S_MIN = 1e-3  # segment interior: 0 < s < 1 away from the nodes by this much (no
 # noise, 1e-9 m measured): on a flat face a capsule's closest point is anywhere along it, and the nodes carry it
 SEGMENT_DIP = 1e-7
 WRAP_BENDS = True  # a wrapped segment's bends: at its nodes against the path, the turn at the edge (contact.md)
+EXACT_HULLS = True  # convex hulls on the project's geometry (False: Bullet's narrow phase, as for other meshes)
+# [m] a hull's distances (margin included) must match Bullet's within this at every check point 2-3 mm off it: its
+# GJK stops early by up to 4e-5 m near the vertices of the Panda's hulls (its point lies 1e-6 m inside the margin
+# and farther than the exact one), while a compound of hulls or another frame or scale differs by millimetres
+HULL_CHECK_TOL = 1e-4
+HULL_MAX_FACES = 4096  # hulls with more triangles stay with Bullet's narrow phase (the exact query loops over faces)
+WRAP_EDGE_MIN = math.pi / 4  # [rad] a hull edge whose faces turn by at least this is wrapped like a box edge
 _GEOMS = {pb.GEOM_BOX: BOX, pb.GEOM_SPHERE: SPHERE, pb.GEOM_CYLINDER: CYLINDER, pb.GEOM_CAPSULE: CAPSULE}
 
 
@@ -119,6 +132,114 @@ class Probes(NamedTuple):
     weight: np.ndarray
     point: np.ndarray
     normal: np.ndarray
+
+
+class Hulls(NamedTuple):
+    """Convex hulls on the project's own geometry, H hulls packed one after another (link centre-of-mass frame).
+
+    row (B,) int: the hull of each Shapes row (-1: none); near (B,) bool: the row's pose is current and it is
+    near the cable this step (a base link's always; a child link's when Bullet's broad phase names it);
+    margin (H,) [m]: Bullet's collision margin (the surface is the polytope grown by it); lo, hi (H, 3) [m]:
+    the vertices' box. Faces: plane_first (H + 1,) int, plane (F, 4): outward unit normal and offset d (n.x = d
+    on the face); tri_first (H + 1,), tri (T, 3, 3) [m]: the faces' triangles, tri_plane (T,) int: each one's
+    plane. Sharp edges (between two different planes): edge_first (H + 1,), edge_p (E, 3) [m] midpoint,
+    edge_a (E, 3) unit direction, edge_hl (E,) [m] half length, edge_n (E, 2, 3) the two faces' normals.
+    """
+
+    row: np.ndarray
+    near: np.ndarray
+    margin: np.ndarray
+    lo: np.ndarray
+    hi: np.ndarray
+    plane_first: np.ndarray
+    plane: np.ndarray
+    tri_first: np.ndarray
+    tri: np.ndarray
+    tri_plane: np.ndarray
+    edge_first: np.ndarray
+    edge_p: np.ndarray
+    edge_a: np.ndarray
+    edge_hl: np.ndarray
+    edge_n: np.ndarray
+
+
+def _hull_geometry(vertices: np.ndarray):
+    """Planes (F, 4), triangles (T, 3, 3), their planes (T,) and sharp edges (midpoint, unit direction, half
+    length, the two normals) of the convex hull of ``vertices`` [m] (V, 3); None if it is degenerate (flat)."""
+    from scipy.spatial import ConvexHull, QhullError
+
+    try:
+        hull = ConvexHull(vertices)
+    except (QhullError, ValueError):
+        return None
+    scale = float(np.ptp(vertices, axis=0).max())
+    planes: list[np.ndarray] = []
+    tri_plane = []
+    for eq in hull.equations:  # merge the coplanar triangles of one face (qhull triangulates)
+        nrm, off = eq[:3], -eq[3]
+        for f, pl in enumerate(planes):
+            if nrm @ pl[:3] > 1.0 - 1e-9 and abs(off - pl[3]) < 1e-9 * scale:
+                tri_plane.append(f)
+                break
+        else:
+            tri_plane.append(len(planes))
+            planes.append(np.array([*nrm, off]))
+    tri = vertices[hull.simplices]
+    owners: dict = {}
+    for t, simplex in enumerate(hull.simplices.tolist()):
+        for a, b in ((0, 1), (1, 2), (2, 0)):
+            owners.setdefault(tuple(sorted((simplex[a], simplex[b]))), []).append(tri_plane[t])
+    edges = []
+    for (a, b), fs in owners.items():
+        if len(fs) != 2 or fs[0] == fs[1]:
+            continue  # a diagonal inside a face
+        pa, pb_ = vertices[a], vertices[b]
+        d = pb_ - pa
+        hl = 0.5 * float(np.linalg.norm(d))
+        edges.append((0.5 * (pa + pb_), d / (2 * hl), hl, planes[fs[0]][:3], planes[fs[1]][:3]))
+    return np.array(planes), tri, np.array(tri_plane, np.int64), edges
+
+
+def _hull_points(vertices: np.ndarray, planes: np.ndarray, tri: np.ndarray, tri_plane: np.ndarray, edges,
+                 radius: float) -> np.ndarray:
+    """Check points [m] (link frame) just outside a hull: off each face's centre, each vertex and each edge's
+    midpoint (at most about 64 of each), where a compound of hulls, a scaled mesh or another frame would differ."""
+    pts = []
+    for f in range(min(len(planes), 64)):
+        centre = tri[tri_plane == f].reshape(-1, 3).mean(axis=0)
+        pts.append(centre + (radius + 2e-3) * planes[f, :3])
+    mid = vertices.mean(axis=0)
+    for v in vertices[:: max(1, len(vertices) // 64)]:
+        d = v - mid
+        pts.append(v + (radius + 2e-3) * d / max(float(np.linalg.norm(d)), 1e-12))
+    for centre, _, _, n1, n2 in edges[:: max(1, len(edges) // 64)]:
+        b = n1 + n2
+        pts.append(centre + (radius + 1e-3) * b / max(float(np.linalg.norm(b)), 1e-12))
+        pts.append(centre + (radius + 1e-3) * n1)
+    return np.array(pts)
+
+
+def _pack_hulls(hulls: list, row: list, n_exact: int) -> Hulls:
+    """The :class:`Hulls` of ``hulls`` [(planes, triangles, their planes, sharp edges, margin)], ``row``: each
+    Shapes row's hull (-1: none); the rows below n_exact (base links, read every step) are always near."""
+    def cat(parts, shape, dtype=float):
+        return np.concatenate(parts).astype(dtype) if parts else np.zeros(shape, dtype)
+
+    first = [np.cumsum([0] + [len(h[i]) for h in hulls]).astype(np.int64) for i in (0, 1, 3)]
+    edges = [e for h in hulls for e in h[3]]
+    verts = [h[1].reshape(-1, 3) for h in hulls]
+    row_a = np.array(row, np.int64)
+    return Hulls(row=row_a, near=(row_a >= 0) & (np.arange(len(row)) < n_exact),
+                 margin=np.array([h[4] for h in hulls], float),
+                 lo=np.array([v.min(axis=0) for v in verts]).reshape(-1, 3),
+                 hi=np.array([v.max(axis=0) for v in verts]).reshape(-1, 3),
+                 plane_first=first[0], plane=cat([h[0] for h in hulls], (0, 4)),
+                 tri_first=first[1], tri=cat([h[1] for h in hulls], (0, 3, 3)),
+                 tri_plane=cat([h[2] + f for h, f in zip(hulls, first[0][:-1])], (0,), np.int64),
+                 edge_first=first[2], edge_p=np.array([e[0] for e in edges], float).reshape(-1, 3),
+                 edge_a=np.array([e[1] for e in edges], float).reshape(-1, 3),
+                 edge_hl=np.array([e[2] for e in edges], float),
+                 edge_n=np.array([(e[3], e[4]) for e in edges], float).reshape(-1, 2, 3))
 
 
 class Others(NamedTuple):
@@ -219,6 +340,8 @@ class ContactSet:
         self.zeta = float(damping_ratio)
         exclude = exclude or {}
         exact, probed = [], []  # (body id, link, kind, local pos, local rot, size, dynamic, mu_b, 1/mass, 1/I_min, nodes out)
+        hulls: list = []  # (planes, triangles, their planes, sharp edges, margin [m]) of the HULL rows
+        self._hull_probe = -1  # Bullet's point capsule that checks a hull (made on first use)
         for body in bodies:
             for link in range(-1, pb.getNumJoints(body, physicsClientId=client)):
                 data = pb.getCollisionShapeData(body, link, physicsClientId=client)
@@ -232,6 +355,13 @@ class ContactSet:
                 i_min = min(info[2]) if mass > 0.0 else 0.0
                 common = (mass > 0.0, float(mu_b), 1.0 / mass if mass > 0.0 else 0.0,
                           1.0 / i_min if i_min > 0.0 else 0.0, frozenset(out))
+                hull = (self._hull(body, link, data, radius)
+                        if EXACT_HULLS and len(data) == 1 and data[0][2] == pb.GEOM_MESH else None)
+                if hull is not None:  # a convex hull Bullet agrees with: the project's exact geometry
+                    row = (body, link, HULL, np.zeros(3), np.eye(3), np.array([hull[4], len(hulls), 0.0])) + common
+                    hulls.append(hull)
+                    (exact if link < 0 else probed).append(row)  # a base link's pose is read every step
+                    continue
                 if link >= 0 or out or any(d[2] not in _GEOMS for d in data):
                     # a child link (its pose is the link's), a node exclusion or a shape the exact geometry does
                     # not cover: the whole link goes to Bullet's narrow phase (one query answers for all its shapes)
@@ -264,9 +394,10 @@ class ContactSet:
                              inv_mass=np.array([r[8] for r in rows]), inv_inertia=np.array([r[9] for r in rows]),
                              owner=np.array([pairs.index(pr) for pr in pairs], dtype=np.int64))
         self._probe_rows = {pairs[s]: s for s in range(self.n_exact, nb)}
-        self._probe_out = np.zeros((nb, n), np.bool_)  # nodes that do not touch a probed link
-        for s in range(self.n_exact, nb):
+        self._probe_out = np.zeros((nb, n), np.bool_)  # nodes that do not touch a probed link or a hull
+        for s in range(nb):
             self._probe_out[s, sorted(rows[s][10])] = True
+        self.hulls = _pack_hulls(hulls, [int(r[5][1]) if r[2] == HULL else -1 for r in rows], self.n_exact)
         cap_p = 2 * n * max(1, len(probed))
         self.probes = Probes(count=np.zeros(1, np.int64), shape=np.zeros(cap_p, np.int64),
                              node=np.zeros((cap_p, 2), np.int64), weight=np.zeros(cap_p), point=np.zeros((cap_p, 3)),
@@ -313,12 +444,53 @@ class ContactSet:
         for s in range(self.n_exact):
             self._read_pose(s, with_velocity=False)
         self._detect = None  # bound to the argument types on first use (skips Numba's per-call dispatch)
+        self._loads = None  # apply_to_bodies' per-row force, torque and touched rows (made on first use)
         # native reads of every row's base state (bullet.native), once checked against PyBullet's
         ne = self.n_exact
         self._bases = np.zeros((ne, BASE_STATE))
         self._base_args = (native, self.body_ids[:ne].astype(np.int32), self._bases, np.full((ne, 7), np.nan),
                            np.zeros(ne, dtype=np.bool_))
         self._read_bases = bind(read_base_states, *self._base_args) if native and ne and self._native_ok() else None
+
+    def _hull(self, body: int, link: int, data, radius: float):
+        """The convex hull of a link's one mesh shape (``getMeshData``'s vertices, link centre-of-mass frame) as
+        (planes, triangles, their planes, sharp edges, margin [m]) when Bullet's own distances agree with it at
+        check points round it (:func:`_hull_points`, within HULL_CHECK_TOL after one common margin); None
+        otherwise (a triangle mesh, a compound of hulls, a scaled or an unreadable mesh stay with Bullet's
+        narrow phase)."""
+        cid = self.client
+        try:
+            count, verts = pb.getMeshData(body, link, physicsClientId=cid)[:2]
+        except pb.error:
+            return None
+        if count < 4:
+            return None
+        vertices = np.asarray(verts, float).reshape(-1, 3)
+        geo = _hull_geometry(vertices)
+        if geo is None or len(geo[1]) > HULL_MAX_FACES:
+            return None
+        planes, tri, tri_plane, edges = geo
+        if self._hull_probe < 0:
+            self._hull_probe = pb.createCollisionShape(pb.GEOM_CAPSULE, radius=radius, height=1e-8,
+                                                       physicsClientId=cid)
+        if link < 0:
+            com, orn = pb.getBasePositionAndOrientation(body, physicsClientId=cid)
+        else:
+            com, orn = pb.getLinkState(body, link, physicsClientId=cid)[0:2]
+        rot = _rotation(orn)
+        hu = _pack_hulls([(planes, tri, tri_plane, edges, 0.0)], [0], 1)
+        cl, nl = np.zeros(3), np.zeros(3)
+        offsets = []
+        for p in _hull_points(vertices, planes, tri, tri_plane, edges, radius):
+            where = (np.asarray(com) + rot @ p).tolist()
+            res = pb.getClosestPoints(-1, body, 1.0, -1, link, self._hull_probe, -1, where, physicsClientId=cid)
+            if not res:
+                return None
+            offsets.append(hull_distance(hu, 0, p, cl, nl) - radius - min(r[8] for r in res))
+        margin = float(np.median(offsets))
+        if not (0.0 <= margin < 0.05) or max(abs(o - margin) for o in offsets) > HULL_CHECK_TOL:
+            return None
+        return planes, tri, tri_plane, edges, margin
 
     def _native_ok(self) -> bool:
         if read_base_states(*self._base_args) != self.n_exact:
@@ -382,7 +554,7 @@ class ContactSet:
         k_per_mass = self.alpha / (h * h)
         args = (x, v, mass, self.shapes, self.contacts, self.store, float(h), k_per_mass, self.zeta, self.self_mu,
                 float(dt), float(dt) if stepped else 0.0, self.others, self.probes, self._seg_k, self._seg_l,
-                self._seg_b, self._seg_held)
+                self._seg_b, self._seg_held, self.hulls, self._probe_out)
         if self._detect is None:
             self._detect = bind(detect, *args)
         return self._detect(*args)
@@ -429,6 +601,8 @@ class ContactSet:
         prev = self.store.body[:k_prev]
         self._prev_rows = {int(r) for r in np.unique(prev[prev >= self.n_exact])} if k_prev else set()
         rows |= self._prev_rows  # the links touched last step: their velocity now, for the work check
+        near = self.hulls.near
+        near[self.n_exact:] = False  # a child link's hull: its pose is read below when it is near
         if not rows:
             return
         nodes, segs, mid, quat, dist = self._cand
@@ -437,8 +611,13 @@ class ContactSet:
         box = self._box
         found = []  # (row, node a, node b, weight of b, point, normal)
         xl = None
+        kinds = self.shapes.kind
         for s in sorted(rows):
             body, link = self.rows[s][0:2]
+            if kinds[s] == HULL:  # on the exact geometry in detect(): its pose now
+                self._read_link(s)
+                near[s] = True
+                continue
             box[0], box[1] = pb.getAABB(body, link, physicsClientId=cid)
             args = (x, box, reach, self._probe_out[s], capsule >= 0, nodes, segs, mid, quat)
             if self._candidates is None:
@@ -533,22 +712,55 @@ class ContactSet:
         """Apply the reaction of every contact to its dynamic body (force at the centre of mass plus
         the torque of the forces about it), for the coming Bullet step."""
         c = self.contacts
-        k = int(c.count[0])
-        if k == 0 or not self.dynamic.any():
+        if int(c.count[0]) == 0 or not self.dynamic.any():
             return
-        idx = self.store.body[:k]
-        fn = c.f_n[:k].clip(min=0.0)
-        force = -(fn[:, None] * c.normal[:k] + c.f_t[:k])
+        if self._loads is None:
+            nb = len(self.rows)
+            self._loads = (c, self.store.body, self.dynamic, self.shapes.com, np.zeros((nb, 3)), np.zeros((nb, 3)),
+                           np.zeros(nb, np.int64))
+            self._body_loads = bind(_body_loads, *self._loads)  # skips the dispatch on a 26-array tuple (10 us)
+        force, torque, touched = self._loads[4:]
+        count = self._body_loads(*self._loads)
         cid = self.client
-        moving = (idx >= 0) & self.dynamic[np.maximum(idx, 0)]
-        for s in np.unique(idx[moving]):
-            sel = idx == s
-            arm = c.point[:k][sel] - self.shapes.com[s]
-            f_tot = force[sel].sum(axis=0)
-            tau = np.cross(arm, force[sel]).sum(axis=0)
+        apply, twist, frame = pb.applyExternalForce, pb.applyExternalTorque, pb.WORLD_FRAME
+        for s in touched[:count].tolist():
             body, link = int(self.body_ids[s]), int(self.links[s])
-            pb.applyExternalForce(body, link, f_tot.tolist(), self.shapes.com[s].tolist(), pb.WORLD_FRAME, cid)
-            pb.applyExternalTorque(body, link, tau.tolist(), pb.WORLD_FRAME, cid)
+            apply(body, link, force[s].tolist(), self.shapes.com[s].tolist(), frame, cid)
+            twist(body, link, torque[s].tolist(), frame, cid)
+
+
+@njit(cache=True, error_model="numpy")
+def _body_loads(c, body, dynamic, com, force, torque, touched):
+    """The contacts' reactions summed per dynamic Shapes row: force (B, 3) [N] and torque about its centre of mass
+    com (B, 3) [N m]; touched <- the rows touched, in increasing order; returns their count. (One compiled pass:
+    NumPy's per-call cost on these few rows was 50 us a step.)"""
+    nb = force.shape[0]
+    used = np.zeros(nb, np.bool_)
+    for k in range(c.count[0]):
+        s = body[k]
+        if s < 0 or not dynamic[s]:
+            continue
+        if not used[s]:
+            used[s] = True
+            force[s, :] = 0.0
+            torque[s, :] = 0.0
+        fn = max(c.f_n[k], 0.0)
+        f0 = -(fn * c.normal[k, 0] + c.f_t[k, 0])
+        f1 = -(fn * c.normal[k, 1] + c.f_t[k, 1])
+        f2 = -(fn * c.normal[k, 2] + c.f_t[k, 2])
+        a0, a1, a2 = c.point[k, 0] - com[s, 0], c.point[k, 1] - com[s, 1], c.point[k, 2] - com[s, 2]
+        force[s, 0] += f0
+        force[s, 1] += f1
+        force[s, 2] += f2
+        torque[s, 0] += a1 * f2 - a2 * f1
+        torque[s, 1] += a2 * f0 - a0 * f2
+        torque[s, 2] += a0 * f1 - a1 * f0
+    count = 0
+    for s in range(nb):
+        if used[s]:
+            touched[count] = s
+            count += 1
+    return count
 
 
 # ----- detection kernel --------------------------------------------------------------------------
@@ -661,34 +873,35 @@ def _segment_axis(qa, qb, P, A, hl, R, out_c, out_n):
     return s
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")  # a call passes ~45 arrays (refcounts): 2 us a row
 def _add(c, st, key, shape, ia, ib, wa, wb, cl, nl, sh, k_per_mass, zeta, mass, x):
     """Append a contact (surface point cl, normal nl in the shape frame) unless the arrays are full."""
     k = c.count[0]
     if k >= c.node.shape[0]:
         return
-    rot, pos = sh.rot[shape], sh.pos[shape]
     for j in range(3):
-        c.point[k, j] = pos[j] + rot[j, 0] * cl[0] + rot[j, 1] * cl[1] + rot[j, 2] * cl[2]
-        c.normal[k, j] = rot[j, 0] * nl[0] + rot[j, 1] * nl[1] + rot[j, 2] * nl[2]
+        c.point[k, j] = (sh.pos[shape, j] + sh.rot[shape, j, 0] * cl[0] + sh.rot[shape, j, 1] * cl[1]
+                         + sh.rot[shape, j, 2] * cl[2])
+        c.normal[k, j] = sh.rot[shape, j, 0] * nl[0] + sh.rot[shape, j, 1] * nl[1] + sh.rot[shape, j, 2] * nl[2]
     _add_row(c, st, key, shape, ia, ib, wa, wb, sh, k_per_mass, zeta, mass, x)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")  # a call passes ~45 arrays (refcounts): 2 us a row
 def _add_row(c, st, key, shape, ia, ib, wa, wb, sh, k_per_mass, zeta, mass, x):
     """The rest of row count[0] once its world point and normal are set: the body's velocity there, the law."""
     k = c.count[0]
-    arm = c.point[k] - sh.com[shape]
-    w = sh.ang_vel[shape]
-    c.body_vel[k, 0] = sh.lin_vel[shape, 0] + w[1] * arm[2] - w[2] * arm[1]
-    c.body_vel[k, 1] = sh.lin_vel[shape, 1] + w[2] * arm[0] - w[0] * arm[2]
-    c.body_vel[k, 2] = sh.lin_vel[shape, 2] + w[0] * arm[1] - w[1] * arm[0]
+    # scalars, not array temporaries: each costs an allocation and reference counts per contact
+    a0, a1, a2 = c.point[k, 0] - sh.com[shape, 0], c.point[k, 1] - sh.com[shape, 1], c.point[k, 2] - sh.com[shape, 2]
+    w0, w1, w2 = sh.ang_vel[shape, 0], sh.ang_vel[shape, 1], sh.ang_vel[shape, 2]
+    c.body_vel[k, 0] = sh.lin_vel[shape, 0] + w1 * a2 - w2 * a1
+    c.body_vel[k, 1] = sh.lin_vel[shape, 1] + w2 * a0 - w0 * a2
+    c.body_vel[k, 2] = sh.lin_vel[shape, 2] + w0 * a1 - w1 * a0
     c.internal[k] = False
     mk = wa * mass[ia] + wb * mass[ib]  # stiffness by the mass at the contact point
     _fill(c, st, key, shape, ia, ib, wa, wb, sh.static_friction[shape], sh.dynamic_friction[shape], k_per_mass * mk, zeta, mk, x)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")  # a call passes ~45 arrays (refcounts): 2 us a row
 def _fill(c, st, key, shape, ia, ib, wa, wb, mu_s, mu_d, k_n, zeta, mk, x):
     """The rest of row count[0] (point, normal, body velocity set): nodes, stiffness k_n [N/m] (damping
     ratio zeta for the mass mk [kg]), friction, friction state."""
@@ -702,7 +915,8 @@ def _fill(c, st, key, shape, ia, ib, wa, wb, mu_s, mu_d, k_n, zeta, mk, x):
     c.static_friction[k] = mu_s
     c.dynamic_friction[k] = mu_d
     if st.active[key]:
-        c.anchor[k] = st.anchor[key]
+        for j in range(4):
+            c.anchor[k, j] = st.anchor[key, j]
         c.state[k] = st.state[key]
     else:
         for j in range(3):
@@ -715,7 +929,7 @@ def _fill(c, st, key, shape, ia, ib, wa, wb, mu_s, mu_d, k_n, zeta, mk, x):
     g -= c.radius[0]
     c.cap[k] = c.static_friction[k] * c.k_n[k] * (-g) if g < 0.0 else 0.0
     c.f_n[k] = 0.0
-    c.f_t[k, :] = 0.0
+    c.f_t[k, 0], c.f_t[k, 1], c.f_t[k, 2] = 0.0, 0.0, 0.0
     st.keys[k] = key
     st.body[k] = shape
     c.count[0] = k + 1
@@ -734,17 +948,15 @@ def _taut(x, i, ks, l0, kb):
 
 
 @njit(cache=True, error_model="numpy")
-def _make_wrap(c, k, rot, A, P, o1, o2, ks, l0, kb_a, kb_b, fresh, x):
-    """Turn row k (a segment's capsule contact with the box edge through P along A, shape frame; rot: world
-    from shape) into a WRAP row: the edge line (its point c.point[k] already), its direction, the bisector of
-    its two faces' outward normals, the segment's spring; a new wrap's anchor splits the segment at equal
-    tension."""
-    b1 = math.copysign(1.0, P[o1]) / math.sqrt(2.0)
-    b2 = math.copysign(1.0, P[o2]) / math.sqrt(2.0)
+def _make_wrap(c, k, axis, side, ks, l0, kb_a, kb_b, edge_r, fresh, x):
+    """Turn row k (a segment's capsule contact with a sharp edge, its edge-line point c.point[k] already) into a
+    WRAP row: the edge's direction ``axis`` and the unit bisector ``side`` of its two faces' outward normals
+    (world frame), the segment's spring, the edge's radius edge_r [m] (0 for a box, a hull's collision margin);
+    a new wrap's anchor splits the segment at equal tension."""
     for j in range(3):
-        c.axis[k, j] = rot[j, 0] * A[0] + rot[j, 1] * A[1] + rot[j, 2] * A[2]
-        c.side[k, j] = rot[j, o1] * b1 + rot[j, o2] * b2
-    c.seg[k, 0], c.seg[k, 1], c.seg[k, 2], c.seg[k, 3] = ks, l0, kb_a, kb_b
+        c.axis[k, j] = axis[j]
+        c.side[k, j] = side[j]
+    c.seg[k, 0], c.seg[k, 1], c.seg[k, 2], c.seg[k, 3], c.seg[k, 4] = ks, l0, kb_a, kb_b, edge_r
     c.kind[k] = WRAP
     c.cap[k] = 0.0
     if fresh:
@@ -754,6 +966,20 @@ def _make_wrap(c, k, rot, A, P, o1, o2, ks, l0, kb_a, kb_b, fresh, x):
         # cable's forces, so the energy check counts it as done on the cable (no false alarm)
         c.body_work[0] += wrap_energy(c, k, x)
     c.cap[k] = _wrap_cap(c, k, x)
+
+
+@njit(cache=True, error_model="numpy")
+def _box_wrap(c, k, rot, A, P, o1, o2, ks, l0, kb_a, kb_b, fresh, x):
+    """:func:`_make_wrap` for the box edge through P along A (shape frame; rot: world from shape), on the
+    bisector of its faces o1 and o2."""
+    b1 = math.copysign(1.0, P[o1]) / math.sqrt(2.0)
+    b2 = math.copysign(1.0, P[o2]) / math.sqrt(2.0)
+    axis = np.empty(3)
+    side = np.empty(3)
+    for j in range(3):
+        axis[j] = rot[j, 0] * A[0] + rot[j, 1] * A[1] + rot[j, 2] * A[2]
+        side[j] = rot[j, o1] * b1 + rot[j, o2] * b2
+    _make_wrap(c, k, axis, side, ks, l0, kb_a, kb_b, 0.0, fresh, x)
 
 
 @njit(cache=True, error_model="numpy")
@@ -832,9 +1058,207 @@ def _probe_candidates(x, box, reach, out, segments, nodes, segs, mid, quat):
     return nn, ns
 
 
+@njit(cache=True, error_model="numpy", inline="always")
+def _tri_closest(q, t, out_c):
+    """Closest point out_c (3,) [m] of triangle t (3, 3) to q; returns the squared distance [m^2] (the
+    Voronoi regions of vertices, edges and face in turn: Ericson, Real-Time Collision Detection, 5.1.5)."""
+    ab0, ab1, ab2 = t[1, 0] - t[0, 0], t[1, 1] - t[0, 1], t[1, 2] - t[0, 2]
+    ac0, ac1, ac2 = t[2, 0] - t[0, 0], t[2, 1] - t[0, 1], t[2, 2] - t[0, 2]
+    ap0, ap1, ap2 = q[0] - t[0, 0], q[1] - t[0, 1], q[2] - t[0, 2]
+    d1 = ab0 * ap0 + ab1 * ap1 + ab2 * ap2
+    d2 = ac0 * ap0 + ac1 * ap1 + ac2 * ap2
+    u, v = 0.0, 0.0  # out_c = a + u ab + v ac
+    if d1 <= 0.0 and d2 <= 0.0:
+        pass
+    else:
+        bp0, bp1, bp2 = q[0] - t[1, 0], q[1] - t[1, 1], q[2] - t[1, 2]
+        d3 = ab0 * bp0 + ab1 * bp1 + ab2 * bp2
+        d4 = ac0 * bp0 + ac1 * bp1 + ac2 * bp2
+        cp0, cp1, cp2 = q[0] - t[2, 0], q[1] - t[2, 1], q[2] - t[2, 2]
+        d5 = ab0 * cp0 + ab1 * cp1 + ab2 * cp2
+        d6 = ac0 * cp0 + ac1 * cp1 + ac2 * cp2
+        vc = d1 * d4 - d3 * d2
+        vb = d5 * d2 - d1 * d6
+        va = d3 * d6 - d5 * d4
+        if d3 >= 0.0 and d4 <= d3:
+            u = 1.0
+        elif vc <= 0.0 and d1 >= 0.0 and d3 <= 0.0:
+            u = d1 / (d1 - d3)
+        elif d6 >= 0.0 and d5 <= d6:
+            v = 1.0
+        elif vb <= 0.0 and d2 >= 0.0 and d6 <= 0.0:
+            v = d2 / (d2 - d6)
+        elif va <= 0.0 and d4 - d3 >= 0.0 and d5 - d6 >= 0.0:
+            w = (d4 - d3) / ((d4 - d3) + (d5 - d6))
+            u, v = 1.0 - w, w
+        else:
+            den = 1.0 / (va + vb + vc)
+            u, v = vb * den, vc * den
+    out_c[0] = t[0, 0] + u * ab0 + v * ac0
+    out_c[1] = t[0, 1] + u * ab1 + v * ac1
+    out_c[2] = t[0, 2] + u * ab2 + v * ac2
+    return (q[0] - out_c[0]) ** 2 + (q[1] - out_c[1]) ** 2 + (q[2] - out_c[2]) ** 2
+
+
+@njit(cache=True, error_model="numpy")
+def _hull_distance(plane, tri, tri_plane, p0, q, pd, out_c, out_n):
+    """Signed distance [m] of point q from a convex polytope (faces ``plane`` (F, 4), triangles ``tri`` with
+    their planes ``tri_plane`` - p0), without the collision margin; closest surface point out_c and outward unit
+    normal out_n. Inside: the nearest face (as a box's). Outside: the closest point on the triangles of the faces
+    q lies beyond (a closest point's normal cone holds one of them). pd (F,): scratch."""
+    sd = -1e300
+    fb = 0
+    for f in range(plane.shape[0]):
+        d = plane[f, 0] * q[0] + plane[f, 1] * q[1] + plane[f, 2] * q[2] - plane[f, 3]
+        pd[f] = d
+        if d > sd:
+            sd = d
+            fb = f
+    if sd <= 0.0:
+        for j in range(3):
+            out_n[j] = plane[fb, j]
+            out_c[j] = q[j] - sd * out_n[j]
+        return sd
+    best = 1e300
+    cl = np.empty(3)
+    for t in range(tri.shape[0]):
+        if pd[tri_plane[t] - p0] <= 0.0:
+            continue
+        d2 = _tri_closest(q, tri[t], cl)
+        if d2 < best:
+            best = d2
+            out_c[0], out_c[1], out_c[2] = cl[0], cl[1], cl[2]
+    return _normal_from(q, out_c, out_n)
+
+
+@njit(cache=True, error_model="numpy")
+def hull_distance(hu, h, q, out_c, out_n):
+    """:func:`_hull_distance` of hull h of ``hu`` (:class:`Hulls`) at q [m] (its link frame), margin included:
+    the distance from the surface Bullet's bodies meet."""
+    p0, p1 = hu.plane_first[h], hu.plane_first[h + 1]
+    t0, t1 = hu.tri_first[h], hu.tri_first[h + 1]
+    pd = np.empty(p1 - p0)
+    d = _hull_distance(hu.plane[p0:p1], hu.tri[t0:t1], hu.tri_plane[t0:t1], p0, q, pd, out_c, out_n)
+    for j in range(3):
+        out_c[j] += hu.margin[h] * out_n[j]
+    return d - hu.margin[h]
+
+
+@njit(cache=True, error_model="numpy")
+def _hull_contacts(c, st, s, hu, q, x, mass, base, margin, out, sh, k_per_mass, zeta, seg_k, seg_l, seg_b, seg_held):
+    """Contacts of the nodes (local positions q (n, 3) [m]) and segments with hull row s (:class:`Hulls`): a
+    node meets the polytope grown by the margin m (closest point, :func:`_hull_distance`), a segment the
+    closest edge as a capsule of radius m (as a box's edges, with R = m: with the nodes exact for a convex
+    polytope, whose distance along a segment is smallest at a node or at an edge). An edge whose faces turn by
+    WRAP_EDGE_MIN or more is sharp: a static hull's wraps a taut segment like a box edge (radius r + m); a blunter
+    one (a faceted curve) meets the segment only where it comes closer between the nodes than at them (by
+    SEGMENT_DIP), as Bullet's narrow phase was asked, so a node near it is not met twice."""
+    n = x.shape[0]
+    radius = c.radius[0]
+    h = hu.row[s]
+    m = hu.margin[h]
+    reach = radius + margin + m
+    for j in range(3):
+        lo, hi = q[0, j], q[0, j]
+        for i in range(1, n):
+            lo = min(lo, q[i, j])
+            hi = max(hi, q[i, j])
+        if lo - reach > hu.hi[h, j] or hi + reach < hu.lo[h, j]:
+            return
+    p0, p1 = hu.plane_first[h], hu.plane_first[h + 1]
+    t0, t1 = hu.tri_first[h], hu.tri_first[h + 1]
+    plane, tri, tri_plane = hu.plane[p0:p1], hu.tri[t0:t1], hu.tri_plane[t0:t1]
+    pd = np.empty(p1 - p0)
+    cl = np.empty(4)
+    nl = np.empty(3)
+    near = np.zeros(n, np.bool_)
+    dist = np.full(n, 1e300)  # the nodes' distances from the polytope [m]
+    for i in range(n):
+        if out[i]:
+            continue
+        inside = True
+        for j in range(3):
+            if q[i, j] < hu.lo[h, j] - reach or q[i, j] > hu.hi[h, j] + reach:
+                inside = False
+        if not inside:
+            continue
+        near[i] = True
+        d = _hull_distance(plane, tri, tri_plane, p0, q[i], pd, cl, nl)
+        dist[i] = d
+        if d - m - radius < margin:
+            for j in range(3):
+                cl[j] += m * nl[j]
+            _add(c, st, base + i, s, i, i, 1.0, 0.0, cl, nl, sh, k_per_mass, zeta, mass, x)
+    wraps = seg_k.shape[0] == n - 1 and sh.inv_mass[s] == 0.0
+    e0, e1 = hu.edge_first[h], hu.edge_first[h + 1]
+    best_c = np.empty(4)
+    best_n = np.empty(3)
+    for i in range(n - 1):
+        if out[i] or out[i + 1]:
+            continue
+        key = base + n + i
+        wraps_i = wraps and not (seg_held.shape[0] == n and (seg_held[i] or seg_held[i + 1]))
+        wrapped = wraps_i and st.active[key] and st.wrap[key]
+        if not (near[i] or near[i + 1] or wrapped):
+            continue
+        best = 1e300
+        eb = -1
+        sb = 0.0
+        for e in range(e0, e1):
+            P, A, hl = hu.edge_p[e], hu.edge_a[e], hu.edge_hl[e]
+            skip = False
+            for j in range(3):  # the segment's box against the edge's, grown by the reach
+                ext = abs(A[j]) * hl + reach
+                if min(q[i, j], q[i + 1, j]) > P[j] + ext or max(q[i, j], q[i + 1, j]) < P[j] - ext:
+                    skip = True
+            if skip and not wrapped:
+                continue
+            sp = _segment_axis(q[i], q[i + 1], P, A, hl, m, cl, nl)
+            if sp > 0.0 and cl[3] < best:
+                best, eb, sb = cl[3], e, sp
+                best_c[:] = cl
+                best_n[:] = nl
+        if eb < 0:
+            continue
+        n1, n2 = hu.edge_n[eb, 0], hu.edge_n[eb, 1]
+        edge_sharp = (n1[0] * n2[0] + n1[1] * n2[1] + n1[2] * n2[2]) <= math.cos(WRAP_EDGE_MIN)
+        sharp = wraps_i and edge_sharp
+        # a chord cutting the corner through the hull (its closest point inside both faces)
+        cuts = sharp and (best_n[0] * n1[0] + best_n[1] * n1[1] + best_n[2] * n1[2] < 0.0
+                          and best_n[0] * n2[0] + best_n[1] * n2[1] + best_n[2] * n2[2] < 0.0)
+        held = sharp and wrapped
+        if not (best - radius < margin or held or cuts):
+            continue
+        if not edge_sharp and best + m > min(dist[i], dist[i + 1]) - SEGMENT_DIP:
+            continue  # a blunt edge (a faceted curve) no closer between the nodes than at them: the nodes carry it
+        fresh = not (st.active[key] and st.wrap[key])
+        _add(c, st, key, s, i, i + 1, 1.0 - sb, sb, best_c, best_n, sh, k_per_mass, zeta, mass, x)
+        k = c.count[0] - 1
+        if k < 0 or not (sharp and st.keys[k] == key and (held or cuts or _taut(x, i, seg_k[i], seg_l[i], seg_b))):
+            continue
+        rot, pos = sh.rot[s], sh.pos[s]
+        axis = np.empty(3)
+        side = np.empty(3)
+        bl = 0.0
+        for j in range(3):
+            bl += (n1[j] + n2[j]) ** 2
+        bl = math.sqrt(bl)
+        A = hu.edge_a[eb]
+        for j in range(3):
+            e_j = 0.0
+            for o in range(3):
+                e_j += rot[j, o] * (best_c[o] - m * best_n[o])  # the edge line's point, off the rounding
+            c.point[k, j] = pos[j] + e_j
+            axis[j] = rot[j, 0] * A[0] + rot[j, 1] * A[1] + rot[j, 2] * A[2]
+            side[j] = (rot[j, 0] * (n1[0] + n2[0]) + rot[j, 1] * (n1[1] + n2[1]) + rot[j, 2] * (n1[2] + n2[2])) / bl
+        _make_wrap(c, k, axis, side, seg_k[i], seg_l[i], seg_b[i], seg_b[i + 1], m, fresh, x)
+        if best - radius >= margin and not wrap_active(c, k, x):
+            c.count[0] = k  # the chord has left the edge: the wrap is over
+
+
 @njit(cache=True, error_model="numpy")
 def detect(x, v, mass, sh, c, st, h, k_per_mass, zeta, self_mu, h_body, h_done, oc, pr, seg_k, seg_l, seg_b,
-           seg_held):
+           seg_held, hu, out_nodes):
     """Store the friction state of the last step's contacts by key, then fill ``c`` with the contacts
     of positions x [m] (n, 3) (velocities v [m/s]) whose gap is below the margin (cable radius + twice
     the distance the fastest node moves in a step of h [s] + 1 mm); self-contacts too unless
@@ -850,6 +1274,10 @@ def detect(x, v, mass, sh, c, st, h, k_per_mass, zeta, self_mu, h_body, h_done, 
 
     Probed links (``pr``, :class:`Probes`): Bullet's closest points become contacts of the same law.
 
+    Convex hulls (``hu``, :class:`Hulls`): the rows of kind HULL near the cable, on their exact geometry
+    (:func:`_hull_contacts`), without the nodes ``out_nodes`` (B, n) bool of their row (and the segments next to
+    them).
+
     Edges of static boxes: a segment whose axis comes within the margin of one edge (of one box) is wrapped
     round it (a WRAP row: its stretch measured along the path over the edge, capstan friction; see
     :func:`~bullet_dlo.core.kernels.contact._wrap_eval`) when ``seg_k``, ``seg_l`` (the segments' stretch
@@ -864,7 +1292,8 @@ def detect(x, v, mass, sh, c, st, h, k_per_mass, zeta, self_mu, h_body, h_done, 
     previous = st.keys[:c.count[0]].copy()  # the keys in contact last step (their rows get overwritten)
     for k in range(previous.shape[0]):  # persist what the last step left
         key = previous[k]
-        st.anchor[key] = c.anchor[k]
+        for j in range(4):
+            st.anchor[key, j] = c.anchor[k, j]
         st.state[key] = c.state[k]
         st.wrap[key] = c.kind[k] == WRAP
         s = st.body[k]
@@ -905,7 +1334,7 @@ def detect(x, v, mass, sh, c, st, h, k_per_mass, zeta, self_mu, h_body, h_done, 
         _add_row(c, st, key, s, ia, ib, 1.0 - pr.weight[k], pr.weight[k], sh, k_per_mass, zeta, mass, x)
     for s in range(sh.kind.shape[0]):
         kind = sh.kind[s]
-        if kind == PROBE:
+        if kind == PROBE or (kind == HULL and not hu.near[s]):
             continue
         size = sh.size[s]
         rot, pos = sh.rot[s], sh.pos[s]
@@ -913,6 +1342,10 @@ def detect(x, v, mass, sh, c, st, h, k_per_mass, zeta, self_mu, h_body, h_done, 
             for j in range(3):
                 q[i, j] = (rot[0, j] * (x[i, 0] - pos[0]) + rot[1, j] * (x[i, 1] - pos[1])
                            + rot[2, j] * (x[i, 2] - pos[2]))
+        if kind == HULL:
+            _hull_contacts(c, st, s, hu, q, x, mass, s * per_shape, margin, out_nodes[s], sh, k_per_mass, zeta,
+                           seg_k, seg_l, seg_b, seg_held)
+            continue
         if _out_of_reach(q, kind, size, radius + margin):
             continue  # the cable's bounding box misses the shape's: nothing of it can touch
         base = s * per_shape
@@ -949,7 +1382,7 @@ def detect(x, v, mass, sh, c, st, h, k_per_mass, zeta, self_mu, h_body, h_done, 
                             if (wraps_i and c.count[0] > 0 and st.keys[c.count[0] - 1] == key
                                     and (wrapped or cuts or _taut(x, i, seg_k[i], seg_l[i], seg_b))):
                                 k = c.count[0] - 1
-                                _make_wrap(c, k, rot, A, P, o1, o2, seg_k[i], seg_l[i], seg_b[i], seg_b[i + 1], fresh, x)
+                                _box_wrap(c, k, rot, A, P, o1, o2, seg_k[i], seg_l[i], seg_b[i], seg_b[i + 1], fresh, x)
                                 if cl[3] - radius >= margin and not wrap_active(c, k, x):
                                     c.count[0] = k  # the chord has left the edge: the wrap is over
         elif kind == SPHERE:

@@ -179,7 +179,7 @@ def _right_angle_wrap(d: float, r: float, ks: float, l0: float, cap: float):
     c.node[0] = (1, 2)
     c.axis[0] = (0.0, 1.0, 0.0)
     c.side[0] = (math.sqrt(0.5), 0.0, math.sqrt(0.5))
-    c.seg[0] = (ks, l0, 0.0, 0.0)
+    c.seg[0] = (ks, l0, 0.0, 0.0, 0.0)  # no bends; a sharp edge (radius 0)
     c.cap[0] = cap
     x = np.array([[-d - l0, 0.0, r], [-d, 0.0, r], [r, 0.0, -d], [r, 0.0, -d - l0]])
     c.anchor[0, 3] = 0.5

@@ -113,8 +113,9 @@ class Contacts(NamedTuple):
     Edge wraps (docs/concepts/contact.md, "Edges"): kind (M,) int, PENALTY or WRAP; for a WRAP row
     (segment node[k] across a sharp edge of a static body) point (M, 3) [m] is a point of the edge
     line, axis (M, 3) its unit direction, side (M, 3) the unit bisector of the edge's outward normal
-    cone (the side the cable wraps round), seg (M, 4) the segment's stretch stiffness [N/m], rest
-    length [m] and the bending constants [N m/rad^2] at its two nodes, anchor[k, 3] the material fraction sigma of the segment on node[k, 0]'s side of the
+    cone (the side the cable wraps round), seg (M, 5) the segment's stretch stiffness [N/m], rest
+    length [m], the bending constants [N m/rad^2] at its two nodes and the edge's radius [m] (0 for a box's
+    sharp edge, the collision margin of a convex hull's edge; the axis wraps at the cable radius plus it), anchor[k, 3] the material fraction sigma of the segment on node[k, 0]'s side of the
     edge (the friction anchor); normal, f_n: the direction and size of the edge's push on the cable
     (results), cap [N]: the capstan's friction limit.
     """
@@ -158,7 +159,7 @@ def make_contacts(n: int, capacity: int, radius: float, grip: Grip | None = None
                     f_t=f((m, 3)), cap=f(m), body_work=f(1), impact=np.zeros(1, np.int64),
                     internal=np.zeros(m, np.bool_), node_force=f((n, 3)),
                     grip=grip if grip is not None else make_grip(), kind=np.zeros(m, np.int64),
-                    axis=f((m, 3)), side=f((m, 3)), seg=f((m, 4)))
+                    axis=f((m, 3)), side=f((m, 3)), seg=f((m, 5)))
 
 
 # ----- the grips -----------------------------------------------------------------------------
@@ -366,10 +367,14 @@ def _add_bend(p, q, k, sign, Jp, Jq, grad, hess, want_hess):
 
 
 @njit(cache=True, error_model="numpy")
-def _path(E, A, B, r, xa, xb, gL, HL):
+def _path_terms(E, A, B, r, xa, xb, want_h, geo, ev, gP, gZ, gL, HP, HL):
     """The path of the axis from xa to xb round the edge line (point E, direction A, wrapping on the side B)
-    as in :func:`_wrap_eval`: returns its arc alpha [rad] (<= 0: not wrapped, gL and HL untouched); gL (6,)
-    <- dL/d(xa, xb), HL (6, 6) <- d2L/d(xa, xb)^2 (exact)."""
+    as in :func:`_wrap_eval`, with its parts. geo (8,) <- (alpha [rad], P [m] the path across the edge, L
+    [m] unrolled, d_a, d_b [m] the nodes' distances from the edge, t_a, t_b [m] the tangents, the sign of
+    phi_a - phi_b); ev (4, 3) <- the unit directions e_a, e_b from the edge to the nodes and their turns
+    pe_a, pe_b in the plane across it; gP, gZ, gL (6,) <- dP, d(z_b - z_a), dL over (xa, xb); with want_h
+    HP (6, 6) <- d2P (per node, zero across) and HL (6, 6) <- d2L (exact). Returns alpha (<= 0: not wrapped,
+    only d_a and d_b set; 0 also when a node lies on the edge line)."""
     Q = np.empty(3)
     Q[0] = A[1] * B[2] - A[2] * B[1]
     Q[1] = A[2] * B[0] - A[0] * B[2]
@@ -385,6 +390,7 @@ def _path(E, A, B, r, xa, xb, gL, HL):
         zb += wb * A[j]
     da = math.sqrt(pa * pa + qa * qa)
     db = math.sqrt(pb * pb + qb * qb)
+    geo[3], geo[4] = da, db
     if da == 0.0 or db == 0.0:
         return 0.0
     phia = math.atan2(qa, pa)
@@ -398,30 +404,55 @@ def _path(E, A, B, r, xa, xb, gL, HL):
     P = ta + tb + r * alpha
     dz = zb - za
     L = math.sqrt(P * P + dz * dz)
+    geo[0], geo[1], geo[2], geo[5], geo[6], geo[7] = alpha, P, L, ta, tb, sg
+    for j in range(3):
+        ev[0, j] = (pa * B[j] + qa * Q[j]) / da
+        ev[1, j] = (pb * B[j] + qb * Q[j]) / db
+        ev[2, j] = (-qa * B[j] + pa * Q[j]) / da
+        ev[3, j] = (-qb * B[j] + pb * Q[j]) / db
+    for j in range(3):
+        gP[j] = (ta / da) * ev[0, j] + (r * sg / da) * ev[2, j]
+        gP[3 + j] = (tb / db) * ev[1, j] - (r * sg / db) * ev[3, j]
+        gZ[j] = -A[j]
+        gZ[3 + j] = A[j]
+        gL[j] = (P * gP[j] + dz * gZ[j]) / L
+        gL[3 + j] = (P * gP[3 + j] + dz * gZ[3 + j]) / L
+    if want_h:
+        HP[:, :] = 0.0
+        for side in range(2):
+            d, t, sgn = (da, ta, sg) if side == 0 else (db, tb, -sg)
+            o = 3 * side
+            for i in range(3):
+                for j in range(3):
+                    e_i, e_j, pe_i, pe_j = ev[side, i], ev[side, j], ev[2 + side, i], ev[2 + side, j]
+                    if d > r:  # (1/t) n n^T, n normal to the tangent in the plane
+                        ni = (r * e_i - sgn * t * pe_i) / d
+                        nj = (r * e_j - sgn * t * pe_j) / d
+                        HP[o + i, o + j] = ni * nj / max(t, 1e-6 * r)
+                    else:  # on the arc: r sgn phi
+                        HP[o + i, o + j] = -(r * sgn / (d * d)) * (pe_i * e_j + e_i * pe_j)
+        for i in range(6):
+            for j in range(6):
+                HL[i, j] = (gP[i] * gP[j] + P * HP[i, j] + gZ[i] * gZ[j] - gL[i] * gL[j]) / L
+    return alpha
+
+
+@njit(cache=True, error_model="numpy")
+def _path(E, A, B, r, xa, xb, gL, HL):
+    """The path of the axis from xa to xb round the edge line (point E, direction A, wrapping on the side B)
+    as in :func:`_wrap_eval`: returns its arc alpha [rad] (<= 0: not wrapped, gL and HL untouched); gL (6,)
+    <- dL/d(xa, xb), HL (6, 6) <- d2L/d(xa, xb)^2 (exact)."""
+    geo = np.empty(8)
+    ev = np.empty((4, 3))
     gP = np.empty(6)
     gZ = np.empty(6)
-    HP = np.zeros((6, 6))
-    for side in range(2):
-        d, t, pp, qq, sgn = (da, ta, pa, qa, sg) if side == 0 else (db, tb, pb, qb, -sg)
-        o = 3 * side
-        e_ = (pp * B + qq * Q) / d
-        pe = (-qq * B + pp * Q) / d
-        for j in range(3):
-            gP[o + j] = (t / d) * e_[j] + (r * sgn / d) * pe[j]
-            gZ[o + j] = -A[j] if side == 0 else A[j]
-        for i in range(3):
-            for j in range(3):
-                if d > r:
-                    ni = (r * e_[i] - sgn * t * pe[i]) / d
-                    nj = (r * e_[j] - sgn * t * pe[j]) / d
-                    HP[o + i, o + j] = ni * nj / max(t, 1e-6 * r)
-                else:
-                    HP[o + i, o + j] = -(r * sgn / (d * d)) * (pe[i] * e_[j] + e_[i] * pe[j])
-    for i in range(6):
-        gL[i] = (P * gP[i] + dz * gZ[i]) / L
-    for i in range(6):
-        for j in range(6):
-            HL[i, j] = (gP[i] * gP[j] + P * HP[i, j] + gZ[i] * gZ[j] - gL[i] * gL[j]) / L
+    gl = np.empty(6)
+    HP = np.empty((6, 6))
+    hl = np.empty((6, 6))
+    alpha = _path_terms(E, A, B, r, xa, xb, True, geo, ev, gP, gZ, gl, HP, hl)
+    if alpha > 0.0:
+        gL[:] = gl
+        HL[:, :] = hl
     return alpha
 
 
@@ -460,47 +491,38 @@ def _wrap_eval(c, k, x, grad, hess, want_hess):
     """
     a, b = c.node[k, 0], c.node[k, 1]
     n = x.shape[0]
-    r = c.radius[0]
+    r = c.radius[0] + c.seg[k, 4]  # the edge's own rounding (a mesh's collision margin) adds to the cable's radius
     ks, l0 = c.seg[k, 0], c.seg[k, 1]
     kba = c.seg[k, 2] if a > 0 else 0.0
     kbb = c.seg[k, 3] if b < n - 1 else 0.0
     E, A, B = c.point[k], c.axis[k], c.side[k]
-    Q = np.empty(3)
-    Q[0] = A[1] * B[2] - A[2] * B[1]
-    Q[1] = A[2] * B[0] - A[0] * B[2]
-    Q[2] = A[0] * B[1] - A[1] * B[0]
-    pa = qa = za = pb = qb = zb = 0.0
     ch = np.empty(3)
     cl2 = 0.0
     for j in range(3):
-        wa, wb = x[a, j] - E[j], x[b, j] - E[j]
-        pa += wa * B[j]
-        qa += wa * Q[j]
-        za += wa * A[j]
-        pb += wb * B[j]
-        qb += wb * Q[j]
-        zb += wb * A[j]
         ch[j] = x[b, j] - x[a, j]
         cl2 += ch[j] * ch[j]
     chord = math.sqrt(cl2)
-    da = math.sqrt(pa * pa + qa * qa)
-    db = math.sqrt(pb * pb + qb * qb)
     grad[:] = 0.0
     if want_hess:
         hess[:, :] = 0.0
-    if da == 0.0 or db == 0.0 or chord == 0.0:
+    if chord == 0.0:
         return False, 0.0, 0.0, 0.0, 0.0, 0.0, 0.5, 0.0
-    phia = math.atan2(qa, pa)
-    phib = math.atan2(qb, pb)
-    sg = 1.0 if phia >= phib else -1.0
-    ta = math.sqrt(max(da * da - r * r, 0.0))
-    tb = math.sqrt(max(db * db - r * r, 0.0))
-    alpha = abs(phia - phib) - math.acos(min(r / da, 1.0)) - math.acos(min(r / db, 1.0))
+    # the path's geometry, its gradient, and its exact Hessian H_L where the bends or the Newton matrix need it
+    need_hl = kba > 0.0 or kbb > 0.0
+    pg = np.empty(8)
+    ev = np.empty((4, 3))
+    gP = np.empty(6)
+    gZ = np.empty(6)
+    gL = np.empty(6)
+    HP = np.empty((6, 6))
+    HL = np.zeros((6, 6))
+    alpha = _path_terms(E, A, B, r, x[a], x[b], need_hl or want_hess, pg, ev, gP, gZ, gL, HP, HL)
+    da, db = pg[3], pg[4]
+    if da == 0.0 or db == 0.0:
+        return False, 0.0, 0.0, 0.0, 0.0, 0.0, 0.5, 0.0
     if alpha <= 0.0:
         return False, 0.0, 0.0, 0.0, 0.0, 0.0, min(max(0.5 * (chord + da - db) / chord, 0.0), 1.0), 0.0
-    P = ta + tb + r * alpha
-    dz = zb - za
-    L = math.sqrt(P * P + dz * dz)
+    P, L, ta, tb = pg[1], pg[2], pg[5], pg[6]
     L1 = 0.5 * (L + da - db)
     L2 = L - L1
     sig = min(max(c.anchor[k, 3], SIGMA_MIN), 1.0 - SIGMA_MIN)
@@ -514,54 +536,17 @@ def _wrap_eval(c, k, x, grad, hess, want_hess):
         slip = (tau - math.copysign(cap, tau)) / (k1 + k2)
     T1, T2 = k1 * (e1 - slip), k2 * (e2 + slip)
     stored = 0.5 * k1 * (e1 - slip) ** 2 + 0.5 * k2 * (e2 + slip) ** 2 - 0.5 * ks * (chord - l0) ** 2
-    # gradients (6,) over (x_a, x_b) of P, L, D = d_a - d_b and the chord
-    ea = np.empty(3)
-    eb = np.empty(3)
-    pea = np.empty(3)
-    peb = np.empty(3)
-    for j in range(3):
-        ea[j] = (pa * B[j] + qa * Q[j]) / da
-        eb[j] = (pb * B[j] + qb * Q[j]) / db
-        pea[j] = (-qa * B[j] + pa * Q[j]) / da
-        peb[j] = (-qb * B[j] + pb * Q[j]) / db
-    gP = np.empty(6)
-    gL = np.empty(6)
+    # gradients (6,) over (x_a, x_b) of D = d_a - d_b and the chord (P, Z, L from the path)
     gD = np.empty(6)
     gC = np.empty(6)
-    gZ = np.empty(6)
     for j in range(3):
-        gP[j] = (ta / da) * ea[j] + (r * sg / da) * pea[j]
-        gP[3 + j] = (tb / db) * eb[j] - (r * sg / db) * peb[j]
-        gZ[j] = -A[j]
-        gZ[3 + j] = A[j]
-        gL[j] = (P * gP[j] + dz * gZ[j]) / L
-        gL[3 + j] = (P * gP[3 + j] + dz * gZ[3 + j]) / L
-        gD[j] = ea[j]
-        gD[3 + j] = -eb[j]
+        gD[j] = ev[0, j]
+        gD[3 + j] = -ev[1, j]
         gC[j] = -ch[j] / chord
         gC[3 + j] = ch[j] / chord
     tc = ks * (chord - l0)
     for j in range(6):  # nodes a, b are entries 3..8 of the 12
         grad[3 + j] = 0.5 * (T1 + T2) * gL[j] + 0.5 * (T1 - T2) * gD[j] - tc * gC[j]
-    # the path's exact Hessian H_L (6, 6): the bends need the derivatives of its directions
-    need_hl = kba > 0.0 or kbb > 0.0
-    HL = np.zeros((6, 6))
-    if need_hl or want_hess:
-        HP = np.zeros((6, 6))
-        for side in range(2):
-            d, t, e_, pe, sgn = (da, ta, ea, pea, sg) if side == 0 else (db, tb, eb, peb, -sg)
-            o = 3 * side
-            for i in range(3):
-                for j in range(3):
-                    if d > r:  # (1/t) n n^T, n normal to the tangent in the plane
-                        ni = (r * e_[i] - sgn * t * pe[i]) / d
-                        nj = (r * e_[j] - sgn * t * pe[j]) / d
-                        HP[o + i, o + j] = ni * nj / max(t, 1e-6 * r)
-                    else:  # on the arc: r sgn phi
-                        HP[o + i, o + j] = -(r * sgn / (d * d)) * (pe[i] * e_[j] + e_[i] * pe[j])
-        for i in range(6):
-            for j in range(6):
-                HL[i, j] = (gP[i] * gP[j] + P * HP[i, j] + gZ[i] * gZ[j] - gL[i] * gL[j]) / L
     if want_hess:
         J1 = 0.5 * (gL + gD)
         J2 = 0.5 * (gL - gD)
