@@ -135,3 +135,18 @@ def test_set_up_calls_on_the_spheres_keep_them_parked():
         world.step(10)
         after = np.array([pb.getBasePositionAndOrientation(b, physicsClientId=cid)[0] for b in c.body_ids])
         assert c.proxy and np.max(np.abs(after - before)) <= 1e-12
+
+
+def test_every_model_contact_cable_leaves_static_bodies_to_the_model():
+    """With live spheres, a world's second and third model-contact cables had Bullet contacts with the
+    ground on top of the model's (PyBullet collides a pair when either group is in the other's mask, and
+    a static body's mask holds every cable group but the first's); all three lie on the ground here."""
+    spec = CableSpec.lv2017(n_masses=12, damping=0.02)
+    with BulletWorld(dt=1 / 240) as world:
+        cables = [world.add_cable(spec, name=f"c{k}", start=(0.0, 0.05 * k, spec.diameter / 2), direction=(1.0, 0, 0),
+                                  bullet_spheres="live") for k in range(3)]
+        world.step(30)
+        for cable in cables:
+            touching = [b for b in cable.body_ids if pb.getContactPoints(bodyA=b, physicsClientId=world.client)]
+            assert touching == [], (cable.name, len(touching))
+            assert abs(cable.x[:, 2].mean() - spec.diameter / 2) < 2e-4  # the model holds it on the ground
