@@ -16,8 +16,11 @@ compiled loop of ``--block`` calls on the benchmark's own model, in interleaved 
 Then the cost per step against n (the fixed part and the part per node, from ``simulate`` runs of
 100 s and 10 s, their difference per step), which says how much of the step does not grow with n.
 
+``--accuracy``: instead, the error and CPU cost of our candidates at 1 % and 0.1 % on S1 and S2 (implicit Euler,
+implicit midpoint, Gauss-Legendre; :data:`ACCURACY_CASES`), written to ``solver_accuracy.json``.
+
 Writes ``solver_cost.json`` into ``--out``. Usage:
-``python demos/solver_cost.py [--n 20] [--rounds 5] [--block 20000] [--out DIR] [--quick]``
+``python demos/solver_cost.py [--n 20] [--rounds 5] [--block 20000] [--out DIR] [--quick] [--accuracy]``
 """
 from __future__ import annotations
 
@@ -134,6 +137,39 @@ def per_step_vs_n(n_masses, rounds: int, long: float = 100.0) -> dict[int, list[
     return out
 
 
+ACCURACY_CASES = (("S1", "implicit_euler", 20, 1 / 60), ("S1", "implicit_euler", 40, 1 / 60),
+                  ("S1", "implicit_euler", 40, 0.05),
+                  ("S2", "implicit_midpoint", 20, 1e-3), ("S2", "gauss_legendre", 20, 1 / 160),
+                  ("S2", "gauss_legendre", 20, 5e-3), ("S2", "implicit_midpoint", 40, 2e-4),
+                  ("S2", "gauss_legendre", 40, 5e-3), ("S2", "gauss_legendre", 40, 3e-3),
+                  ("S2", "gauss_legendre", 40, 2e-3))
+"""Our candidates at 1 % and 0.1 % on S1 and S2 (scenario, integrator, n, dt [s])."""
+
+
+def accuracy(repeats: int = 3) -> list[dict]:
+    """Error and cost of :data:`ACCURACY_CASES`: thread CPU time of the whole scenario call (1 s simulated, with
+    the start's static solve), median and range of ``repeats`` interleaved runs after a short warm-up run."""
+    from bullet_dlo.bench.scenarios import RUNNERS
+
+    for sc, name, n, dt in ACCURACY_CASES:
+        RUNNERS[sc](n, name, dt, "core", 0.05)  # compile / load
+    cpu: dict[int, list[float]] = {k: [] for k in range(len(ACCURACY_CASES))}
+    points = {}
+    for _ in range(repeats):
+        for k, (sc, name, n, dt) in enumerate(ACCURACY_CASES):
+            c0 = time.thread_time()
+            points[k] = RUNNERS[sc](n, name, dt)
+            cpu[k].append(time.thread_time() - c0)
+    rows = []
+    for k, (sc, name, n, dt) in enumerate(ACCURACY_CASES):
+        p, v = points[k], cpu[k]
+        rows.append(dict(scenario=sc, integrator=name, n=n, dt=dt, error=p.error, amplitude_kept=p.extra,
+                         cpu_per_sim_s=statistics.median(v), cpu_min=min(v), cpu_max=max(v)))
+        print(f"  {sc} {name:18s} n={n:3d} dt={dt:.4g} s: error {100 * p.error:+.3f} %, "
+              f"{statistics.median(v):.4g} CPU s per simulated s ({min(v):.4g}-{max(v):.4g})")
+    return rows
+
+
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--n", type=int, default=20)
@@ -141,9 +177,22 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--block", type=int, default=20000)
     p.add_argument("--out", default="out/bench")
     p.add_argument("--quick", action="store_true", help="one round of 200 calls, n = 5 and 10 only (smoke test)")
+    p.add_argument("--accuracy", action="store_true",
+                   help="only the error and cost of our candidates at 1 %% and 0.1 %% on S1 and S2 (ACCURACY_CASES)")
     a = p.parse_args(argv)
     rounds, block = (1, 200) if a.quick else (a.rounds, a.block)
     load0 = os.getloadavg()
+    if a.accuracy:
+        print(f"S1 / S2, core engine, thread CPU time per simulated second; load {load0[0]:.2f} / {load0[1]:.2f} / "
+              f"{load0[2]:.2f}")
+        rows = accuracy(1 if a.quick else 3)
+        load1 = os.getloadavg()
+        print(f"load at the end {load1[0]:.2f} / {load1[1]:.2f} / {load1[2]:.2f}")
+        out = Path(a.out)
+        out.mkdir(parents=True, exist_ok=True)
+        (out / "solver_accuracy.json").write_text(json.dumps({"load_start": load0, "load_end": load1, "rows": rows},
+                                                             indent=2))
+        return 0
     report: dict = {"load_start": load0, "n": a.n, "rounds": rounds, "block": block, "parts": {}}
     for integrator, dt in (("implicit_euler", 1 / 60), ("implicit_midpoint", 1e-3)):
         costs, its = part_costs(integrator, a.n, dt, rounds, block)

@@ -248,13 +248,6 @@ def held_pose(plan, end, t, samples, k):
 
 
 @njit(cache=True, error_model="numpy")
-def sample_end(plan, end, t, h, samples):
-    """Held end ``end`` (0 first, 1 last) at t, t + h/2 and t + h [s] into ``samples`` (a :class:`HeldSamples`)."""
-    for k in range(3):
-        held_pose(plan, end, t + 0.5 * h * k, samples, k)
-
-
-@njit(cache=True, error_model="numpy")
 def _end_at_rest(plan, end):
     """Whether held end ``end`` never moves: no move, path or sine rows and no section axis to turn."""
     if plan.normal.shape[0] > 0:
@@ -277,16 +270,25 @@ def _rest_end(plan, end, samples):
 
 
 @njit(cache=True, error_model="numpy")
+def sample_end(plan, end, t, h, samples):
+    """Held end ``end`` (0 first, 1 last) at t, t + h/2 and t + h [s] into ``samples`` (a :class:`HeldSamples`);
+    an end that never moves takes the fast path :func:`_rest_end` (the same values)."""
+    if _end_at_rest(plan, end):
+        _rest_end(plan, end, samples)
+        return
+    for k in range(3):
+        held_pose(plan, end, t + 0.5 * h * k, samples, k)
+
+
+@njit(cache=True, error_model="numpy")
 def sample_holders(plan, t, h, samples):
     """Both held ends at t, t + h/2 and t + h [s] into ``samples`` (a :class:`HeldSamples`).
 
-    An end with no motion (a fixed clamp or pin, or a free end) takes the fast path :func:`_rest_end`.
+    An end with no motion (a fixed clamp or pin, or a free end) takes the fast path :func:`_rest_end`
+    (see :func:`sample_end`).
     """
-    for end in range(2):
-        if _end_at_rest(plan, end):
-            _rest_end(plan, end, samples)
-        else:
-            sample_end(plan, end, t, h, samples)
+    sample_end(plan, 0, t, h, samples)
+    sample_end(plan, 1, t, h, samples)
 
 
 @njit(cache=True, error_model="numpy")
