@@ -16,11 +16,14 @@ compiled loop of ``--block`` calls on the benchmark's own model, in interleaved 
 Then the cost per step against n (the fixed part and the part per node, from ``simulate`` runs of
 100 s and 10 s, their difference per step), which says how much of the step does not grow with n.
 
+``--per-step``: instead, only ``simulate``'s cost per step on S1 (n = 20, 1/60 s) and the study's cable (n = 10,
+1 kHz), with the public API only, so that ``PYTHONPATH=OLD_TREE python demos/solver_cost.py --per-step`` measures
+an older source tree the same way (interleave trees for an A/B).
 ``--accuracy``: instead, the error and CPU cost of our candidates at 1 % and 0.1 % on S1 and S2 (implicit Euler,
 implicit midpoint, Gauss-Legendre; :data:`ACCURACY_CASES`), written to ``solver_accuracy.json``.
 
 Writes ``solver_cost.json`` into ``--out``. Usage:
-``python demos/solver_cost.py [--n 20] [--rounds 5] [--block 20000] [--out DIR] [--quick] [--accuracy]``
+``python demos/solver_cost.py [--n 20] [--rounds 5] [--block 20000] [--out DIR] [--quick] [--accuracy] [--per-step]``
 """
 from __future__ import annotations
 
@@ -39,8 +42,12 @@ from bullet_dlo.core.engine import DetectorOptions, simulate
 from bullet_dlo.core.integrators import NewtonOptions, get_integrator, make_stepper
 from bullet_dlo.core.kernels.banded import band_solve
 from bullet_dlo.core.kernels.holders import empty_samples, sample_holders
-# private step kernels, timed one by one (names as in core/kernels/steppers.py when this was written)
-from bullet_dlo.core.kernels.steppers import _newton_matrix, _residual, _start_implicit, advance, make_workspace
+# private step kernels, timed one by one (names as in core/kernels/steppers.py when this was written); --per-step
+# uses only the public API, so that it also runs with PYTHONPATH on older source trees that lack some of them
+try:
+    from bullet_dlo.core.kernels.steppers import _newton_matrix, _residual, _start_implicit, advance, make_workspace
+except ImportError:  # an older tree: only --per-step works
+    pass
 
 
 @njit
@@ -170,6 +177,32 @@ def accuracy(repeats: int = 3) -> list[dict]:
     return rows
 
 
+def per_step(rounds: int = 3) -> dict[str, list[float]]:
+    """Cost per step [us] of ``simulate`` (implicit Euler; thread CPU time of a long minus a short run per extra
+    step) on S1 (n = 20, 1/60 s, fixed clamp) and the study's cable (n = 10, 1 kHz, one end moving 5 mm), in
+    ``rounds`` interleaved rounds; public API only (for A/B runs against older trees)."""
+    from bullet_dlo.core.boundary import Move
+    from bullet_dlo.core.model import CableModel
+    from bullet_dlo.core.spec import CableSpec
+
+    study = CableModel.straight(CableSpec.lv2017(n_masses=10, youngs_modulus=126e6, damping=0.01),
+                                ends=("clamped", "clamped"), motion=[Move("last", (0, 0, 0.005), 0.1, 0.1)])
+    cases = {"S1 n=20 1/60 s": (cantilever_model(s1_spec(20)), 1 / 60, 200.0),
+             "study n=10 1 kHz": (study, 1e-3, 4.0)}
+    for model, dt, _ in cases.values():
+        simulate(model, "implicit_euler", dt, 10 * dt, max_records=3)  # compile / load
+    out: dict[str, list[float]] = {k: [] for k in cases}
+    for _ in range(rounds):
+        for k, (model, dt, long) in cases.items():
+            c0 = time.thread_time()
+            a = simulate(model, "implicit_euler", dt, long, max_records=3)
+            c1 = time.thread_time()
+            b = simulate(model, "implicit_euler", dt, long / 10, max_records=3)
+            c2 = time.thread_time()
+            out[k].append(((c1 - c0) - (c2 - c1)) / (a.steps - b.steps) * 1e6)
+    return out
+
+
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--n", type=int, default=20)
@@ -179,9 +212,18 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--quick", action="store_true", help="one round of 200 calls, n = 5 and 10 only (smoke test)")
     p.add_argument("--accuracy", action="store_true",
                    help="only the error and cost of our candidates at 1 %% and 0.1 %% on S1 and S2 (ACCURACY_CASES)")
+    p.add_argument("--per-step", action="store_true",
+                   help="only simulate's cost per step on S1 and the study's cable (public API: runs on older trees)")
     a = p.parse_args(argv)
     rounds, block = (1, 200) if a.quick else (a.rounds, a.block)
     load0 = os.getloadavg()
+    if a.per_step:
+        res = per_step(1 if a.quick else 3)
+        load1 = os.getloadavg()
+        print(f"simulate, implicit Euler, us per step, median (range); load {load0[0]:.2f} -> {load1[0]:.2f}")
+        for k, v in res.items():
+            print(f"  {k}: {statistics.median(v):.2f} ({min(v):.2f}-{max(v):.2f})")
+        return 0
     if a.accuracy:
         print(f"S1 / S2, core engine, thread CPU time per simulated second; load {load0[0]:.2f} / {load0[1]:.2f} / "
               f"{load0[2]:.2f}")

@@ -178,3 +178,25 @@ def test_newton_matrix_is_the_exact_jacobian_and_band_solve_solves_it():
     y = rhs.copy()
     gl_band_solve(band.copy(), y, GL_HALF)
     assert np.allclose(y, np.linalg.solve(dense, rhs), rtol=1e-10, atol=1e-12)
+
+
+def test_resting_end_fast_path_gives_the_general_samples_bit_for_bit():
+    """sample_holders' fast path for an end that never moves writes exactly what the general sampler (held_pose
+    with empty tables) writes; the moving end of the same plan still follows its move."""
+    from bullet_dlo.core.kernels.holders import held_pose
+
+    spec = CableSpec.lv2017(n_masses=6)
+    move = Move("last", (0.01, -0.02, 0.03), start=0.0, duration=0.5, rotation=(0.0, 0.0, 0.2))
+    model = CableModel.straight(spec, (0.1, 0.2, 0.3), (0.6, 0.8, 0.0), ends=("clamped", "clamped"), motion=[move])
+    plan = model.holder_plan(model.control())
+    fast, general = empty_samples(), empty_samples()
+    for arr in (*fast, *general):
+        arr[:] = np.nan  # every entry must be written
+    t, h = 0.2, 0.01
+    sample_holders(plan, t, h, fast)
+    for end in (0, 1):
+        for k in range(3):
+            held_pose(plan, end, t + 0.5 * h * k, general, k)
+    for a, b in zip(fast, general):
+        assert np.array_equal(a, b)
+    assert not np.array_equal(fast.pos[0, 1], fast.pos[2, 1])  # the last end moves within the step
