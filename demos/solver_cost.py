@@ -16,8 +16,14 @@ compiled loop of ``--block`` calls on the benchmark's own model, in interleaved 
 Then the cost per step against n (the fixed part and the part per node, from ``simulate`` runs of
 100 s and 10 s, their difference per step), which says how much of the step does not grow with n.
 
+``--per-step``: instead, only ``simulate``'s cost per step on S1 (n = 20, 1/60 s) and the study's cable (n = 10,
+1 kHz), with the public API only, so that ``PYTHONPATH=OLD_TREE python demos/solver_cost.py --per-step`` measures
+an older source tree the same way (interleave trees for an A/B).
+``--accuracy``: instead, the error and CPU cost of our candidates at 1 % and 0.1 % on S1 and S2 (implicit Euler,
+implicit midpoint, Gauss-Legendre; :data:`ACCURACY_CASES`), written to ``solver_accuracy.json``.
+
 Writes ``solver_cost.json`` into ``--out``. Usage:
-``python demos/solver_cost.py [--n 20] [--rounds 5] [--block 20000] [--out DIR] [--quick]``
+``python demos/solver_cost.py [--n 20] [--rounds 5] [--block 20000] [--out DIR] [--quick] [--accuracy] [--per-step]``
 """
 from __future__ import annotations
 
@@ -36,8 +42,12 @@ from bullet_dlo.core.engine import DetectorOptions, simulate
 from bullet_dlo.core.integrators import NewtonOptions, get_integrator, make_stepper
 from bullet_dlo.core.kernels.banded import band_solve
 from bullet_dlo.core.kernels.holders import empty_samples, sample_holders
-# private step kernels, timed one by one (names as in core/kernels/steppers.py when this was written)
-from bullet_dlo.core.kernels.steppers import _newton_matrix, _residual, _start_implicit, advance, make_workspace
+# private step kernels, timed one by one (names as in core/kernels/steppers.py when this was written); --per-step
+# uses only the public API, so that it also runs with PYTHONPATH on older source trees that lack some of them
+try:
+    from bullet_dlo.core.kernels.steppers import _newton_matrix, _residual, _start_implicit, advance, make_workspace
+except ImportError:  # an older tree: only --per-step works
+    pass
 
 
 @njit
@@ -134,6 +144,65 @@ def per_step_vs_n(n_masses, rounds: int, long: float = 100.0) -> dict[int, list[
     return out
 
 
+ACCURACY_CASES = (("S1", "implicit_euler", 20, 1 / 60), ("S1", "implicit_euler", 40, 1 / 60),
+                  ("S1", "implicit_euler", 40, 0.05),
+                  ("S2", "implicit_midpoint", 20, 1e-3), ("S2", "gauss_legendre", 20, 1 / 160),
+                  ("S2", "gauss_legendre", 20, 5e-3), ("S2", "implicit_midpoint", 40, 2e-4),
+                  ("S2", "gauss_legendre", 40, 5e-3), ("S2", "gauss_legendre", 40, 3e-3),
+                  ("S2", "gauss_legendre", 40, 2e-3))
+"""Our candidates at 1 % and 0.1 % on S1 and S2 (scenario, integrator, n, dt [s])."""
+
+
+def accuracy(repeats: int = 3) -> list[dict]:
+    """Error and cost of :data:`ACCURACY_CASES`: thread CPU time of the whole scenario call (1 s simulated, with
+    the start's static solve), median and range of ``repeats`` interleaved runs after a short warm-up run."""
+    from bullet_dlo.bench.scenarios import RUNNERS
+
+    for sc, name, n, dt in ACCURACY_CASES:
+        RUNNERS[sc](n, name, dt, "core", 0.05)  # compile / load
+    cpu: dict[int, list[float]] = {k: [] for k in range(len(ACCURACY_CASES))}
+    points = {}
+    for _ in range(repeats):
+        for k, (sc, name, n, dt) in enumerate(ACCURACY_CASES):
+            c0 = time.thread_time()
+            points[k] = RUNNERS[sc](n, name, dt)
+            cpu[k].append(time.thread_time() - c0)
+    rows = []
+    for k, (sc, name, n, dt) in enumerate(ACCURACY_CASES):
+        p, v = points[k], cpu[k]
+        rows.append(dict(scenario=sc, integrator=name, n=n, dt=dt, error=p.error, amplitude_kept=p.extra,
+                         cpu_per_sim_s=statistics.median(v), cpu_min=min(v), cpu_max=max(v)))
+        print(f"  {sc} {name:18s} n={n:3d} dt={dt:.4g} s: error {100 * p.error:+.3f} %, "
+              f"{statistics.median(v):.4g} CPU s per simulated s ({min(v):.4g}-{max(v):.4g})")
+    return rows
+
+
+def per_step(rounds: int = 3) -> dict[str, list[float]]:
+    """Cost per step [us] of ``simulate`` (implicit Euler; thread CPU time of a long minus a short run per extra
+    step) on S1 (n = 20, 1/60 s, fixed clamp) and the study's cable (n = 10, 1 kHz, one end moving 5 mm), in
+    ``rounds`` interleaved rounds; public API only (for A/B runs against older trees)."""
+    from bullet_dlo.core.boundary import Move
+    from bullet_dlo.core.model import CableModel
+    from bullet_dlo.core.spec import CableSpec
+
+    study = CableModel.straight(CableSpec.lv2017(n_masses=10, youngs_modulus=126e6, damping=0.01),
+                                ends=("clamped", "clamped"), motion=[Move("last", (0, 0, 0.005), 0.1, 0.1)])
+    cases = {"S1 n=20 1/60 s": (cantilever_model(s1_spec(20)), 1 / 60, 200.0),
+             "study n=10 1 kHz": (study, 1e-3, 4.0)}
+    for model, dt, _ in cases.values():
+        simulate(model, "implicit_euler", dt, 10 * dt, max_records=3)  # compile / load
+    out: dict[str, list[float]] = {k: [] for k in cases}
+    for _ in range(rounds):
+        for k, (model, dt, long) in cases.items():
+            c0 = time.thread_time()
+            a = simulate(model, "implicit_euler", dt, long, max_records=3)
+            c1 = time.thread_time()
+            b = simulate(model, "implicit_euler", dt, long / 10, max_records=3)
+            c2 = time.thread_time()
+            out[k].append(((c1 - c0) - (c2 - c1)) / (a.steps - b.steps) * 1e6)
+    return out
+
+
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--n", type=int, default=20)
@@ -141,9 +210,31 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--block", type=int, default=20000)
     p.add_argument("--out", default="out/bench")
     p.add_argument("--quick", action="store_true", help="one round of 200 calls, n = 5 and 10 only (smoke test)")
+    p.add_argument("--accuracy", action="store_true",
+                   help="only the error and cost of our candidates at 1 %% and 0.1 %% on S1 and S2 (ACCURACY_CASES)")
+    p.add_argument("--per-step", action="store_true",
+                   help="only simulate's cost per step on S1 and the study's cable (public API: runs on older trees)")
     a = p.parse_args(argv)
     rounds, block = (1, 200) if a.quick else (a.rounds, a.block)
     load0 = os.getloadavg()
+    if a.per_step:
+        res = per_step(1 if a.quick else 3)
+        load1 = os.getloadavg()
+        print(f"simulate, implicit Euler, us per step, median (range); load {load0[0]:.2f} -> {load1[0]:.2f}")
+        for k, v in res.items():
+            print(f"  {k}: {statistics.median(v):.2f} ({min(v):.2f}-{max(v):.2f})")
+        return 0
+    if a.accuracy:
+        print(f"S1 / S2, core engine, thread CPU time per simulated second; load {load0[0]:.2f} / {load0[1]:.2f} / "
+              f"{load0[2]:.2f}")
+        rows = accuracy(1 if a.quick else 3)
+        load1 = os.getloadavg()
+        print(f"load at the end {load1[0]:.2f} / {load1[1]:.2f} / {load1[2]:.2f}")
+        out = Path(a.out)
+        out.mkdir(parents=True, exist_ok=True)
+        (out / "solver_accuracy.json").write_text(json.dumps({"load_start": load0, "load_end": load1, "rows": rows},
+                                                             indent=2))
+        return 0
     report: dict = {"load_start": load0, "n": a.n, "rounds": rounds, "block": block, "parts": {}}
     for integrator, dt in (("implicit_euler", 1 / 60), ("implicit_midpoint", 1e-3)):
         costs, its = part_costs(integrator, a.n, dt, rounds, block)

@@ -555,6 +555,9 @@ def bench_peers(out: Path, quick: bool = False, progress: Progress = _no_progres
     ours_n, ours_dts = ((20,), (1 / 60, 1e-3)) if quick else ((10, 20, 40), (1 / 60, 1 / 240, 1e-3))
     ours_cases = [sweeps.Case(sc, "core", name, n, dt) for sc in ("S1", "S2") for n in ours_n
                   for name in ("implicit_euler", "bdf2", "implicit_midpoint") for dt in ours_dts]
+    gl_dts = (5e-3,) if quick else (1 / 60, 1 / 160, 5e-3, 1 / 240)  # 4th order: S2 within 1 % at ~6 ms
+    ours_cases += [sweeps.Case(sc, "core", "gauss_legendre", n, dt) for sc in ("S1", "S2") for n in ours_n
+                   for dt in gl_dts]
     rows = sweeps.work_precision(ours_cases, progress("ours"))
     ours = {sc: sweeps.fastest(rows, sc, TOL) for sc in ("S1", "S2")}
     for sc, best in ours.items():

@@ -12,7 +12,7 @@ from typing import Sequence
 from bullet_dlo.bench.scenarios import BenchPoint
 
 COLORS = {"symplectic_euler": "tab:red", "rk4": "tab:olive", "implicit_euler": "tab:blue", "bdf2": "tab:orange",
-          "implicit_midpoint": "tab:purple", "explicit_euler": "tab:gray"}
+          "implicit_midpoint": "tab:purple", "gauss_legendre": "tab:brown", "explicit_euler": "tab:gray"}
 PEER_STYLE = {"pyelastica": ("*", "tab:green"), "mujoco": ("P", "tab:cyan"), "newton": ("X", "tab:olive")}
 SCENARIO_TITLES = {"S1": "S1: cantilever, static tip deflection", "S2": "S2: cantilever, first frequency",
                    "S3": "S3: study's lift, end forces (0.2 s means)", "S4": "S4: catenary, sag and end forces",

@@ -40,6 +40,7 @@ class IntegratorName(NamedSet):
     IMPLICIT_EULER = "implicit_euler"
     BDF2 = "bdf2"
     IMPLICIT_MIDPOINT = "implicit_midpoint"
+    GAUSS_LEGENDRE = "gauss_legendre"
 
 
 class EndMode(NamedSet):

@@ -14,6 +14,9 @@ name                   order  character
 ``bdf2``               2      backward differentiation, Newton on a banded system; L-stable,
                               damps stiff modes but keeps the slow dynamics
 ``implicit_midpoint``  2      symplectic and A-stable, Newton; no numerical damping at all
+``gauss_legendre``     4      2-stage Gauss-Legendre collocation: symplectic, A-stable, no numerical
+                              damping, 4th-order phase; Newton on the coupled two-stage system
+                              (:mod:`bullet_dlo.core.kernels.gauss_legendre`)
 =====================  =====  ========================================================
 
 Held nodes are kinematic: after every step they sit exactly at the prescribed pose. The step
@@ -28,6 +31,7 @@ from bullet_dlo.core.enums import IntegratorName, name_of
 from bullet_dlo.core.kernels.steppers import (
     BDF2,
     EXPLICIT_EULER,
+    GAUSS_LEGENDRE,
     IMPLICIT_EULER,
     IMPLICIT_MIDPOINT,
     RK4,
@@ -58,6 +62,7 @@ INTEGRATORS: dict[str, Integrator] = {
         Integrator("implicit_euler", IMPLICIT_EULER, 1, False),
         Integrator("bdf2", BDF2, 2, False),
         Integrator("implicit_midpoint", IMPLICIT_MIDPOINT, 2, False),
+        Integrator("gauss_legendre", GAUSS_LEGENDRE, 4, False),
     )
 }
 
@@ -78,7 +83,7 @@ class NewtonOptions:
     tol [-] * (momentum change of the step + gravity impulse) plus the round-off floor. None picks
     the method's default: 1e-3 for ``implicit_euler`` (its first-order error dwarfs a finer
     solve, so a second iteration runs only when the linearisation visibly failed) and 1e-6
-    for the second-order methods; definite: filter the compressive stretch Hessian so the
+    for the second- and fourth-order methods; definite: filter the compressive stretch Hessian so the
     system stays positive definite.
     """
 

@@ -17,7 +17,7 @@ def test_work_precision_quick(tmp_path):
     assert main(["bench", "work-precision", "--quick", "--out", str(tmp_path)]) == 0
     rows = list(csv.DictReader(open(tmp_path / "work_precision.csv")))
     methods = {r["integrator"] for r in rows}
-    assert methods == {"symplectic_euler", "rk4", "implicit_euler", "bdf2", "implicit_midpoint"}
+    assert methods == {"symplectic_euler", "rk4", "implicit_euler", "bdf2", "implicit_midpoint", "gauss_legendre"}
     assert {r["scenario"] for r in rows} == set(bench.SCENARIOS)
     assert {r["engine"] for r in rows} == {"core", "bullet"}
     unstable = [r for r in rows if r["stable"] == "False"]
@@ -27,6 +27,7 @@ def test_work_precision_quick(tmp_path):
     summary = json.loads((tmp_path / "work_precision_summary.json").read_text())
     # second-order energy-conserving midpoint keeps S2's oscillation, implicit Euler damps it away
     assert summary["S2_amplitude/implicit_midpoint"] > 0.9 > summary["S2_amplitude/implicit_euler"]
+    assert summary["S2_amplitude/gauss_legendre"] > 0.9  # symplectic and A-stable: no numerical damping either
 
 
 def test_resolve_meets_its_tolerance_and_picks_few_masses():

@@ -248,15 +248,45 @@ def held_pose(plan, end, t, samples, k):
 
 
 @njit(cache=True, error_model="numpy")
+def _end_at_rest(plan, end):
+    """Whether held end ``end`` never moves: no move, path or sine rows and no section axis to turn."""
+    if plan.normal.shape[0] > 0:
+        return False
+    if end == 0:
+        return plan.moves_first.shape[0] == 0 and plan.path_first.shape[0] == 0 and plan.sines_first.shape[0] == 0
+    return plan.moves_last.shape[0] == 0 and plan.path_last.shape[0] == 0 and plan.sines_last.shape[0] == 0
+
+
+@njit(cache=True, error_model="numpy")
+def _rest_end(plan, end, samples):
+    """A held end at rest at its start pose in all three samples, written element by element: the values
+    :func:`held_pose` gives with empty tables, without its array views (a fixed clamp costs ~0.1 us, not ~2.6)."""
+    for k in range(3):
+        for j in range(3):
+            samples.pos[k, end, j] = plan.start_pos[end, j]
+            samples.vel[k, end, j] = 0.0
+            samples.acc[k, end, j] = 0.0
+            samples.dir[k, end, j] = plan.start_dir[end, j]
+
+
+@njit(cache=True, error_model="numpy")
 def sample_end(plan, end, t, h, samples):
-    """Held end ``end`` (0 first, 1 last) at t, t + h/2 and t + h [s] into ``samples`` (a :class:`HeldSamples`)."""
+    """Held end ``end`` (0 first, 1 last) at t, t + h/2 and t + h [s] into ``samples`` (a :class:`HeldSamples`);
+    an end that never moves takes the fast path :func:`_rest_end` (the same values)."""
+    if _end_at_rest(plan, end):
+        _rest_end(plan, end, samples)
+        return
     for k in range(3):
         held_pose(plan, end, t + 0.5 * h * k, samples, k)
 
 
 @njit(cache=True, error_model="numpy")
 def sample_holders(plan, t, h, samples):
-    """Both held ends at t, t + h/2 and t + h [s] into ``samples`` (a :class:`HeldSamples`)."""
+    """Both held ends at t, t + h/2 and t + h [s] into ``samples`` (a :class:`HeldSamples`).
+
+    An end with no motion (a fixed clamp or pin, or a free end) takes the fast path :func:`_rest_end`
+    (see :func:`sample_end`).
+    """
     sample_end(plan, 0, t, h, samples)
     sample_end(plan, 1, t, h, samples)
 

@@ -23,6 +23,7 @@ import numpy as np
 from numba import njit
 
 from bullet_dlo.core.kernels.banded import HALF, assemble_system, band_solve
+from bullet_dlo.core.kernels.gauss_legendre import gauss_legendre_step
 from bullet_dlo.core.kernels.forces import (
     add_damping_jacobian,
     add_drag_jacobian,
@@ -33,7 +34,7 @@ from bullet_dlo.core.kernels.forces import (
 )
 from bullet_dlo.core.kernels.twist import has_twist, set_clamp, twist_ready, twist_step
 
-EXPLICIT_EULER, SYMPLECTIC_EULER, RK4, IMPLICIT_EULER, BDF2, IMPLICIT_MIDPOINT = range(6)
+EXPLICIT_EULER, SYMPLECTIC_EULER, RK4, IMPLICIT_EULER, BDF2, IMPLICIT_MIDPOINT, GAUSS_LEGENDRE = range(7)
 
 
 class Stepper(NamedTuple):
@@ -325,16 +326,27 @@ def newton(stepper, m, x, imp, ws, c=None, cap_tol=1e-3, max_passes=10):
     tol = stepper.tol
     # Residual scale: momentum gravity and external forces give in one step, and round-off
     # floor of stiff spring forces (k eps |x|) below which no iteration can go.
-    g_norm = np.sqrt(np.sum(m.gravity ** 2))
+    # (one pass of scalar loops: the same maxima and sums as numpy's reductions, without their temporaries)
+    g_norm = np.sqrt(0.0 + m.gravity[0] * m.gravity[0] + m.gravity[1] * m.gravity[1] + m.gravity[2] * m.gravity[2])
     xscale = 0.0
     phi_scale = 0.0  # the potential's scale (round-off allowance of the contact line search)
+    mass_max = -np.inf
+    fext_max = -np.inf
     for i in range(n):
+        mass_max = max(mass_max, m.mass[i])
         for j in range(3):
             xscale = max(xscale, abs(x[i, j]))
+            fext_max = max(fext_max, abs(m.f_ext[i, j]))
         if c is not None:
             phi_scale += m.mass[i] * g_norm * (abs(x[i, 0]) + abs(x[i, 1]) + abs(x[i, 2]) + 1.0)
-    r_scale = imp.hf * (np.max(m.mass) * g_norm + np.max(np.abs(m.f_ext))) + 1e-300
-    r_floor = 10.0 * 2.2e-16 * imp.hf * (np.max(m.k_stretch) * (xscale + np.max(m.rest_length)))
+    k_max = -np.inf
+    for i in range(m.k_stretch.shape[0]):
+        k_max = max(k_max, m.k_stretch[i])
+    rest_max = -np.inf
+    for i in range(m.rest_length.shape[0]):
+        rest_max = max(rest_max, m.rest_length[i])
+    r_scale = imp.hf * (mass_max * g_norm + fext_max) + 1e-300
+    r_floor = 10.0 * 2.2e-16 * imp.hf * (k_max * (xscale + rest_max))
     it = 0
     converged = False
     if c is None:
@@ -466,7 +478,8 @@ def advance(stepper, m, x, v, samples, ws, has_prev):
     twisting = has_twist(m)
     if twisting:
         twist_ready(m, x, samples.dir[0])
-        set_clamp(m, 2 if method in (IMPLICIT_EULER, BDF2) else (1 if method == IMPLICIT_MIDPOINT else 0))
+        set_clamp(m, 2 if method in (IMPLICIT_EULER, BDF2) else (1 if method in (IMPLICIT_MIDPOINT, GAUSS_LEGENDRE)
+                                                                 else 0))
     its, converged = 0, True
     if method == EXPLICIT_EULER:
         _explicit_euler(m, x, v, h, samples, ws)
@@ -474,6 +487,8 @@ def advance(stepper, m, x, v, samples, ws, has_prev):
         _symplectic_euler(m, x, v, h, samples, ws)
     elif method == RK4:
         _rk4(m, x, v, h, samples, ws)
+    elif method == GAUSS_LEGENDRE:
+        its, converged = gauss_legendre_step(stepper, m, x, v, samples)
     else:
         its, converged = _implicit(stepper, m, x, v, samples, ws, has_prev)
     if twisting:
