@@ -95,7 +95,8 @@ class TwistArrays(NamedTuple):
     mref: reference twist at each node at the last transport (unwrapped) [rad], (n,);
     normal: the clamps' section axis d1 at the three held-end sample times, (3, 2, 3) (shared with the
     holder plan, which writes it); clamp: the clamps' section axis the force kernels use now, (2, 3);
-    flag: (1,) int, 0 = the state is to be built from the positions at its next use.
+    flag: (1,) int, 0 = the state is to be built from the positions at its next use;
+    prev: the twist angles [rad] and rates [rad/s] before the last implicit step (BDF2's history), (2, n-1).
     """
 
     k_twist: np.ndarray
@@ -111,6 +112,7 @@ class TwistArrays(NamedTuple):
     normal: np.ndarray
     clamp: np.ndarray
     flag: np.ndarray
+    prev: np.ndarray
 
 
 class TwistState(NamedTuple):
@@ -119,7 +121,8 @@ class TwistState(NamedTuple):
     theta: twist angles [rad], (n-1,); omega: their rates [rad/s], (n-1,); ref: reference directors (unit),
     (n-1, 3); tan: the tangents they were last transported to (unit), (n-1, 3); mref: reference twist at each
     node at the last transport (unwrapped) [rad], (n,); flag: (1,) int, 0 = to be built from the positions at
-    its next use (a new state), 1 = built.
+    its next use (a new state), 1 = built; prev: theta and omega before the last implicit step, (2, n-1) (BDF2's
+    history, read only when the step is told it has one).
     """
 
     theta: np.ndarray
@@ -128,6 +131,7 @@ class TwistState(NamedTuple):
     tan: np.ndarray
     mref: np.ndarray
     flag: np.ndarray
+    prev: np.ndarray
 
     def copy(self) -> "TwistState":
         """An independent copy (same values)."""
@@ -139,7 +143,7 @@ def make_twist_state(n: int, enabled: bool = True) -> TwistState:
     cable without a material frame)."""
     s = n - 1 if enabled else 0
     return TwistState(np.zeros(s), np.zeros(s), np.zeros((s, 3)), np.zeros((s, 3)), np.zeros(n if enabled else 0),
-                      np.zeros(1, dtype=np.int64))
+                      np.zeros(1, dtype=np.int64), np.zeros((2, s)))
 
 
 TWIST_PARAMETERS = ("k_twist", "c_twist", "k_aniso", "inertia", "drag")  # the model's fields of TwistArrays
@@ -150,7 +154,7 @@ def no_twist() -> TwistArrays:
     """The empty :class:`TwistArrays` of a cable without a material frame."""
     e1, e2 = np.zeros(0), np.zeros((0, 3))
     return TwistArrays(e1, e1, e1, e1, e1, e1, e1, e2, e2, e1, np.zeros((0, 2, 3)), np.zeros((2, 3)),
-                       np.zeros(1, dtype=np.int64))
+                       np.zeros(1, dtype=np.int64), np.zeros((2, 0)))
 
 
 def make_twist(k_twist: np.ndarray, c_twist: np.ndarray, k_aniso: np.ndarray, inertia: np.ndarray,
@@ -159,7 +163,7 @@ def make_twist(k_twist: np.ndarray, c_twist: np.ndarray, k_aniso: np.ndarray, in
     n = k_twist.shape[0]
     return TwistArrays(k_twist, c_twist, k_aniso, inertia, drag, np.zeros(n - 1), np.zeros(n - 1),
                        np.zeros((n - 1, 3)), np.zeros((n - 1, 3)), np.zeros(n), np.zeros((3, 2, 3)),
-                       np.zeros((2, 3)), np.zeros(1, dtype=np.int64))
+                       np.zeros((2, 3)), np.zeros(1, dtype=np.int64), np.zeros((2, n - 1)))
 
 
 def twist_fields(tw: TwistArrays) -> dict[str, np.ndarray]:
