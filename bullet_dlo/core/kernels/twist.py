@@ -314,6 +314,44 @@ def node_geometry(m, x, dirs, theta, i, g):
 
 
 @njit(cache=True, error_model="numpy")
+def node_twist(m, x, dirs, theta, i, g):
+    """The part of :func:`node_geometry` a round or tube section needs: twist and curvature binormal (row 9 of
+    ``g``; rows 0-3 and 10-11 as there, the material frames and phi not computed). Returns (m_i twist [rad],
+    |e_a| [m], |e_b| [m])."""
+    n = x.shape[0]
+    ta, ra, tb, rb = g[0], g[1], g[2], g[3]
+    if i == 0:
+        la = 1.0
+        ta[:] = dirs[0]
+        _transport(m.tw_clamp[0], ta, ta, ra)
+        th_a = 0.0
+    else:
+        la = _unit_edge(x, i - 1, ta)
+        _transport(m.tw_ref[i - 1], m.tw_tan[i - 1], ta, ra)
+        th_a = theta[i - 1]
+    if i == n - 1:
+        lb = 1.0
+        tb[:] = dirs[1]
+        _transport(m.tw_clamp[1], tb, tb, rb)
+        th_b = 0.0
+    else:
+        lb = _unit_edge(x, i, tb)
+        _transport(m.tw_ref[i], m.tw_tan[i], tb, rb)
+        th_b = theta[i]
+    pa = g[10]
+    _transport(ra, ta, tb, pa)
+    tmp = g[11]
+    _cross(pa, rb, tmp)
+    psi = math.atan2(_dot(tmp, tb), _dot(pa, rb))
+    twist = th_b - th_a + m.tw_mref[i] + _wrap(psi - m.tw_mref[i])
+    c = _dot(ta, tb)
+    _cross(ta, tb, tmp)
+    for j in range(3):
+        g[9, j] = 2.0 * tmp[j] / (1.0 + c)
+    return twist, la, lb
+
+
+@njit(cache=True, error_model="numpy")
 def phi_jacobians(g, la, lb, ratio, alpha, c, pa, pb):
     """Plain derivatives dphi/da, dphi/db (3, 3) of the turning-angle vector into pa, pb (from
     :func:`node_geometry`'s scratch g): dphi/da = -alpha chi ga^T - (r/la)([w]x + chi u^T),
@@ -426,7 +464,7 @@ def update_frames(m, x, dirs):
         m.tw_tan[k, :] = t
     g = np.empty((12, 3))
     for i in range(n):
-        psi = node_geometry(m, x, dirs, m.tw_theta, i, g)[0] - _theta_diff(m, i, n)
+        psi = node_twist(m, x, dirs, m.tw_theta, i, g)[0] - _theta_diff(m, i, n)
         m.tw_mref[i] = psi
 
 

@@ -36,7 +36,7 @@ the twist included), so the coupled step has the method's order (2 for BDF2 and 
 """
 from __future__ import annotations
 
-import math
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit
@@ -56,9 +56,43 @@ from bullet_dlo.core.kernels.steppers import (
     _set_held,
     _start_implicit,
 )
-from bullet_dlo.core.kernels.twist import _curvatures, _dot, node_geometry, phi_jacobians, update_frames
+from bullet_dlo.core.kernels.twist import (
+    _curvatures,
+    _node_edge_gradients,
+    node_geometry,
+    node_twist,
+    phi_jacobians,
+    scatter_node_hessian,
+    update_frames,
+)
 
 HALF_T = 10  # scalar half-bandwidth of the interleaved (x_i, theta_i) layout
+
+
+class Scratch(NamedTuple):
+    """Small scratch arrays of the coupled step (allocated once per step): ga, gb (3,) edge gradients [N];
+    pa, pb (3, 3) dphi/d(edge) [1/m]; energy (1,) the material frame's energy at the last residual [J];
+    gv (11,), gi (11,) int: dm/dq of a node and its unknowns' indices; jrow (4, 6); hb (6, 6) node Hessian."""
+
+    ga: np.ndarray
+    gb: np.ndarray
+    pa: np.ndarray
+    pb: np.ndarray
+    energy: np.ndarray
+    gv: np.ndarray
+    gi: np.ndarray
+    jrow: np.ndarray
+    hb: np.ndarray
+
+
+@njit(cache=True, error_model="numpy")
+def _frameless(m):
+    """The kernel arrays ``m`` without the material frame (the same arrays, an empty ``tw_k_twist``): the force,
+    energy and Jacobian kernels then skip the twist terms, which the coupled step computes once per node itself."""
+    return _model.KernelArrays(m.mass, m.damp, m.k_stretch, m.rest_length, m.k_bend, m.gravity, m.f_ext, m.held,
+                               m.c_stretch, m.c_bend, np.zeros(0), m.tw_c_twist, m.tw_k_aniso, m.tw_inertia,
+                               m.tw_drag, m.tw_theta, m.tw_omega, m.tw_ref, m.tw_tan, m.tw_mref, m.tw_normal,
+                               m.tw_clamp, m.tw_flag, m.tw_prev, m.drag_k, m.drag_face, m.rest_angle)
 
 
 @njit(cache=True, error_model="numpy")
@@ -120,7 +154,7 @@ def _clamp_rate(m, xe, samples, mid, h, i):
 
 
 @njit(cache=True, error_model="numpy")
-def _residual(m, imp, ws, samples, mid, h, tb, wb, wa, vn, wn, wv, rate, tq, r, g):
+def _residual(m, mp, imp, ws, samples, mid, h, tb, wb, wa, vn, wn, wv, rate, tq, r, g, sc):
     """r <- the coupled residual [N s; N m s] at (v', w') = (vn, wn), interleaved (4 per node); returns its max
     with the twist rows divided by the segment's rest length (force units).
 
@@ -140,7 +174,9 @@ def _residual(m, imp, ws, samples, mid, h, tb, wb, wa, vn, wn, wv, rate, tq, r, 
     for k in range(ns):
         th[k] = tb[k] + cx * wn[k]
         wv[k] = wb[k] + cv * wn[k]
-    total_forces(m, xe, ve, imp.dirs, f)  # twist springs and anisotropic bending at Theta included
+    total_forces(mp, xe, ve, imp.dirs, f)  # without the material frame's terms (added below)
+    ga, gb, pa, pb = sc.ga, sc.gb, sc.pa, sc.pb
+    energy = 0.0
     for k in range(ns):
         tq[k] = -m.tw_drag[k] * wv[k]
     for i in range(n):
@@ -148,7 +184,11 @@ def _residual(m, imp, ws, samples, mid, h, tb, wb, wa, vn, wn, wv, rate, tq, r, 
         rate[i] = 0.0
         if kt == 0.0 and dl == 0.0 and ct == 0.0:
             continue
-        twist, la, lb, ratio, alpha, c = node_geometry(m, xe, imp.dirs, th, i, g)
+        if dl != 0.0:
+            twist, la, lb, ratio, alpha, c = node_geometry(m, xe, imp.dirs, th, i, g)
+        else:  # round and tube sections: twist and binormal only
+            twist, la, lb = node_twist(m, xe, imp.dirs, th, i, g)
+            ratio, alpha, c = 1.0, 0.0, 1.0  # (unused without anisotropy)
         s = kt * twist
         if ct != 0.0:
             kb = g[9]
@@ -164,17 +204,20 @@ def _residual(m, imp, ws, samples, mid, h, tb, wb, wa, vn, wn, wv, rate, tq, r, 
             else:
                 rt += _clamp_rate(m, xe, samples, mid, h, i)
             rate[i] = rt
-            sd = ct * rt
-            s += sd
-            for j in range(3):  # the damper's reaction on the positions: -sd d(dm/dt)/dV
-                if i > 0:
-                    fa = sd * kb[j] / (2.0 * la)
-                    f[i - 1, j] += fa
-                    f[i, j] -= fa
-                if i < ns:
-                    fb = sd * kb[j] / (2.0 * lb)
-                    f[i, j] += fb
-                    f[i + 1, j] -= fb
+            s += ct * rt
+        energy += 0.5 * kt * twist * twist
+        if dl != 0.0:
+            p1a, p2a, p1b, p2b = _curvatures(g)
+            energy += 0.25 * dl * (p1a * p1a - p2a * p2a + p1b * p1b - p2b * p2b)
+        # forces on the positions: -dE/dx of the twist spring and damper (stress s) and the anisotropic bending
+        _node_edge_gradients(g, s, la, lb, ratio, alpha, c, dl, 1.0, ga, gb, pa, pb)
+        for j in range(3):
+            if i > 0:  # e_a = x_i - x_{i-1}
+                f[i - 1, j] += ga[j]
+                f[i, j] -= ga[j]
+            if i < ns:  # e_b = x_{i+1} - x_i
+                f[i, j] += gb[j]
+                f[i + 1, j] -= gb[j]
         if i > 0:  # dm_i/dtheta_a = -1
             tq[i - 1] += s
         if i < ns:
@@ -195,25 +238,26 @@ def _residual(m, imp, ws, samples, mid, h, tb, wb, wa, vn, wn, wv, rate, tq, r, 
     for k in range(ns):
         val = hf * tq[k] - m.tw_inertia[k] * (wn[k] - wa[k])
         r[4 * k + 3] = val
-        sc = abs(val) / m.rest_length[k]
-        if not sc <= worst:
-            worst = sc
+        scaled = abs(val) / m.rest_length[k]
+        if not scaled <= worst:
+            worst = scaled
     r[4 * ns + 3] = 0.0
+    sc.energy[0] = energy
     return worst
 
 
 @njit(cache=True, error_model="numpy")
-def _merit(m, imp, ws, wa, vn, wn, wv, rate):
+def _merit(m, mp, imp, ws, wa, vn, wn, wv, rate, sc):
     """Incremental potential of the coupled step [J] (its gradient in (v', w') is -(cx/hf) times the residual)
     at the X, V, Theta, W, rates left by the last :func:`_residual` call."""
     xe, ve = ws.x_stage, ws.v_stage
     cx, cv, hf = imp.cx, imp.cv, imp.hf
-    rd = dissipation(m, xe, ve, imp.dirs)
+    rd = dissipation(mp, xe, ve, imp.dirs)
     for k in range(wn.shape[0]):
         rd += 0.5 * m.tw_drag[k] * wv[k] * wv[k]
     for i in range(rate.shape[0]):
         rd += 0.5 * m.tw_c_twist[i] * rate[i] * rate[i]
-    phi = internal_energy(m, xe, imp.dirs) + (cx / cv) * rd
+    phi = internal_energy(mp, xe, imp.dirs) + sc.energy[0] + (cx / cv) * rd
     for i in range(vn.shape[0]):
         for j in range(3):
             dv = vn[i, j] - ws.v_avg[i, j]
@@ -226,45 +270,29 @@ def _merit(m, imp, ws, wa, vn, wn, wv, rate):
 
 
 @njit(cache=True, error_model="numpy")
-def _newton_matrix(stepper, m, imp, ws, band, g, gv, gi, pa, pb, jrow):
+def _newton_matrix(stepper, m, mp, imp, ws, band, g, sc):
     """band <- the coupled Newton matrix (upper band, interleaved layout) at the X, V, Theta of the last residual."""
     n = ws.x_stage.shape[0]
     ns = n - 1
     xe = ws.x_stage
     cx, cv, hf = imp.cx, imp.cv, imp.hf
     jac = ws.jacobian
-    force_jacobian(m, xe, imp.dirs, stepper.definite, jac)
-    add_damping_jacobian(m, xe, imp.dirs, cv / cx, jac)
-    add_drag_jacobian(m, xe, ws.v_stage, cv / cx, jac)
+    force_jacobian(mp, xe, imp.dirs, stepper.definite, jac)
+    add_damping_jacobian(mp, xe, imp.dirs, cv / cx, jac)
+    add_drag_jacobian(mp, xe, ws.v_stage, cv / cx, jac)
     kc = hf * cx
     held = m.held
+    gv, gi, pa, pb, jrow, hb = sc.gv, sc.gi, sc.pa, sc.pb, sc.jrow, sc.hb
     band[:, :] = 0.0
-    for i in range(n):  # x-x blocks (upper triangle) from the position Jacobian
-        if held[i]:
-            continue
-        for o in range(2, 5):
-            p = i + o - 2
-            if p >= n or held[p]:
-                continue
-            for r in range(3):
-                for c in range(3):
-                    a, b = 4 * i + r, 4 * p + c
-                    if b >= a:
-                        band[a, b - a] -= kc * jac[i, o, r, c]
-    for i in range(n):
-        for r in range(3):
-            if held[i]:
-                band[4 * i + r, 0] = 1.0
-            else:
-                band[4 * i + r, 0] += m.mass[i] + hf * cv * m.damp[i]
-    for k in range(ns):
-        band[4 * k + 3, 0] += m.tw_inertia[k] + hf * cv * m.tw_drag[k]
-    band[4 * ns + 3, 0] = 1.0
     for i in range(n):
         kt, dl, ct = m.tw_k_twist[i], m.tw_k_aniso[i], m.tw_c_twist[i]
         if kt == 0.0 and dl == 0.0 and ct == 0.0:
             continue
-        twist, la, lb, ratio, alpha, c = node_geometry(m, xe, imp.dirs, m.tw_theta, i, g)
+        if dl != 0.0:
+            twist, la, lb, ratio, alpha, c = node_geometry(m, xe, imp.dirs, m.tw_theta, i, g)
+        else:
+            twist, la, lb = node_twist(m, xe, imp.dirs, m.tw_theta, i, g)
+            ratio, alpha, c = 1.0, 0.0, 1.0
         kb = g[9]
         # g = dm/dq over the node's unknowns: (index, value) pairs
         cnt = 0
@@ -293,28 +321,32 @@ def _newton_matrix(stepper, m, imp, ws, band, g, gv, gi, pa, pb, jrow):
         if coef != 0.0:
             for a in range(cnt):
                 for b in range(a, cnt):
-                    if gi[b] >= gi[a]:
-                        band[gi[a], gi[b] - gi[a]] += coef * gv[a] * gv[b]
-                    else:
-                        band[gi[b], gi[a] - gi[b]] += coef * gv[a] * gv[b]
+                    _add_sym(band, gi[a], gi[b], coef * gv[a] * gv[b])
         if dl == 0.0:
             continue
-        # anisotropic bending: d2E/dtheta_k dx = Delta (kappa_2 J_1 + kappa_1 J_2), d2E/dtheta_k^2 = Delta (k2^2 - k1^2)
         p1a, p2a, p1b, p2b = _curvatures(g)
         phi_jacobians(g, la, lb, ratio, alpha, c, pa, pb)
+        # x-x: the Gauss-Newton part of the anisotropic bending, Delta/2 sum_k (J1_k^T J1_k - J2_k^T J2_k)
+        for r in range(4):  # rows: m1_a, m2_a, m1_b, m2_b
+            d = g[4 + r]
+            for col in range(3):
+                jrow[r, col] = d[0] * pa[0, col] + d[1] * pa[1, col] + d[2] * pa[2, col]
+                jrow[r, 3 + col] = d[0] * pb[0, col] + d[1] * pb[1, col] + d[2] * pb[2, col]
+        for r in range(6):
+            for col in range(6):
+                hb[r, col] = 0.5 * dl * (jrow[0, r] * jrow[0, col] - jrow[1, r] * jrow[1, col]
+                                         + jrow[2, r] * jrow[2, col] - jrow[3, r] * jrow[3, col])
+        scatter_node_hessian(jac, i, n, hb)
+        # x-theta: d2E/dtheta_k dx = Delta (kappa_2 J_1 + kappa_1 J_2); theta-theta: Delta (kappa_2^2 - kappa_1^2)
         for e in range(2):
             if (e == 0 and i == 0) or (e == 1 and i == ns):
                 continue  # a clamp's virtual edge has no twist angle
             k = i - 1 if e == 0 else i
             k1, k2 = (p1a, p2a) if e == 0 else (p1b, p2b)
-            d1, d2 = g[4 + 2 * e], g[5 + 2 * e]
-            for col in range(3):  # jrow[0] over edge a, jrow[1] over edge b
-                jrow[0, col] = dl * (k2 * _dot3col(d1, pa, col) + k1 * _dot3col(d2, pa, col))
-                jrow[1, col] = dl * (k2 * _dot3col(d1, pb, col) + k1 * _dot3col(d2, pb, col))
             ti = 4 * k + 3
             for j in range(3):  # chain rule: a = x_i - x_{i-1}, b = x_{i+1} - x_i (clamp edges fixed)
-                ca = jrow[0, j] if i > 0 else 0.0
-                cb = jrow[1, j] if i < ns else 0.0
+                ca = dl * (k2 * jrow[2 * e, j] + k1 * jrow[2 * e + 1, j]) if i > 0 else 0.0
+                cb = dl * (k2 * jrow[2 * e, 3 + j] + k1 * jrow[2 * e + 1, 3 + j]) if i < ns else 0.0
                 if i > 0 and not held[i - 1]:
                     _add_sym(band, ti, 4 * (i - 1) + j, kc * (-ca))
                 if not held[i]:
@@ -325,12 +357,27 @@ def _newton_matrix(stepper, m, imp, ws, band, g, gv, gi, pa, pb, jrow):
             if stepper.definite and hd < 0.0:
                 hd = 0.0
             band[ti, 0] += kc * hd
-
-
-@njit(cache=True, error_model="numpy", inline="always")
-def _dot3col(d, p, col):
-    """d . p[:, col]."""
-    return d[0] * p[0, col] + d[1] * p[1, col] + d[2] * p[2, col]
+    for i in range(n):  # x-x blocks (upper triangle) from the position Jacobian
+        if held[i]:
+            continue
+        for o in range(2, 5):
+            p = i + o - 2
+            if p >= n or held[p]:
+                continue
+            for r in range(3):
+                for c in range(3):
+                    a, b = 4 * i + r, 4 * p + c
+                    if b >= a:
+                        band[a, b - a] -= kc * jac[i, o, r, c]
+    for i in range(n):
+        for r in range(3):
+            if held[i]:
+                band[4 * i + r, 0] = 1.0
+            else:
+                band[4 * i + r, 0] += m.mass[i] + hf * cv * m.damp[i]
+    for k in range(ns):
+        band[4 * k + 3, 0] += m.tw_inertia[k] + hf * cv * m.tw_drag[k]
+    band[4 * ns + 3, 0] = 1.0
 
 
 @njit(cache=True, error_model="numpy")
@@ -344,7 +391,7 @@ def coupled_implicit(stepper, m, x, v, samples, ws, has_prev):
     n = x.shape[0]
     ns = n - 1
     imp = _start_implicit(method, m, x, v, h, samples, ws, has_prev)
-    cx, cv, hf = imp.cx, imp.cv, imp.hf
+    cx, hf = imp.cx, imp.hf
     theta0 = m.tw_theta.copy()
     omega0 = m.tw_omega.copy()
     tb, wb, wa = np.empty(ns), np.empty(ns), np.empty(ns)
@@ -372,8 +419,9 @@ def coupled_implicit(stepper, m, x, v, samples, ws, has_prev):
     band = np.empty((size, HALF_T + 1))
     r, r_try = np.empty(size), np.empty(size)
     wn, w_try, wv, rate, tq = omega0.copy(), np.empty(ns), np.empty(ns), np.zeros(n), np.empty(ns)
-    gv, gi = np.empty(11), np.empty(11, dtype=np.int64)
-    pa, pb, jrow = np.empty((3, 3)), np.empty((3, 3)), np.empty((2, 3))
+    sc = Scratch(np.empty(3), np.empty(3), np.empty((3, 3)), np.empty((3, 3)), np.zeros(1), np.empty(11),
+                 np.empty(11, dtype=np.int64), np.empty((4, 6)), np.empty((6, 6)))
+    mp = _frameless(m)
     vn, v_try = ws.v_new, ws.v_try
     tol = stepper.tol
     g_norm = np.sqrt(np.sum(m.gravity ** 2))
@@ -388,10 +436,10 @@ def coupled_implicit(stepper, m, x, v, samples, ws, has_prev):
                                                                + 1.0) / lmin)
     it = 0
     converged = False
-    rnorm = _residual(m, imp, ws, samples, mid, h, tb, wb, wa, vn, wn, wv, rate, tq, r, g)
+    rnorm = _residual(m, mp, imp, ws, samples, mid, h, tb, wb, wa, vn, wn, wv, rate, tq, r, g, sc)
     while it < stepper.max_iter:
         it += 1
-        _newton_matrix(stepper, m, imp, ws, band, g, gv, gi, pa, pb, jrow)
+        _newton_matrix(stepper, m, mp, imp, ws, band, g, sc)
         band_solve_upper(band, r, HALF_T)  # r becomes the Newton direction
         phi0 = np.nan
         alpha = 1.0
@@ -403,15 +451,15 @@ def coupled_implicit(stepper, m, x, v, samples, ws, has_prev):
                     v_try[i, j] = vn[i, j] + alpha * r[4 * i + j]
             for k in range(ns):
                 w_try[k] = wn[k] + alpha * r[4 * k + 3]
-            rn_try = _residual(m, imp, ws, samples, mid, h, tb, wb, wa, v_try, w_try, wv, rate, tq, r_try, g)
+            rn_try = _residual(m, mp, imp, ws, samples, mid, h, tb, wb, wa, v_try, w_try, wv, rate, tq, r_try, g, sc)
             if rn_try < rnorm or rn_try <= tol * r_scale + r_floor:
                 accepted = True
                 break
             if phi0 != phi0:  # merit at the current iterate, computed once when first needed
-                _residual(m, imp, ws, samples, mid, h, tb, wb, wa, vn, wn, wv, rate, tq, r_try, g)
-                phi0 = _merit(m, imp, ws, wa, vn, wn, wv, rate)
-                _residual(m, imp, ws, samples, mid, h, tb, wb, wa, v_try, w_try, wv, rate, tq, r_try, g)
-            if _merit(m, imp, ws, wa, v_try, w_try, wv, rate) <= phi0:
+                _residual(m, mp, imp, ws, samples, mid, h, tb, wb, wa, vn, wn, wv, rate, tq, r_try, g, sc)
+                phi0 = _merit(m, mp, imp, ws, wa, vn, wn, wv, rate, sc)
+                _residual(m, mp, imp, ws, samples, mid, h, tb, wb, wa, v_try, w_try, wv, rate, tq, r_try, g, sc)
+            if _merit(m, mp, imp, ws, wa, v_try, w_try, wv, rate, sc) <= phi0:
                 accepted = True
                 break
             alpha *= 0.5
@@ -448,3 +496,8 @@ def coupled_implicit(stepper, m, x, v, samples, ws, has_prev):
     m.tw_clamp[:, :] = m.tw_normal[2]
     update_frames(m, x, samples.dir[2])
     return it, converged
+
+
+# The kernel arrays' type (model.py imports the kernels, so the module object is bound here; Numba resolves
+# ``_model.KernelArrays`` when it compiles).
+from bullet_dlo.core import model as _model  # noqa: E402
