@@ -119,7 +119,7 @@ class KernelArrays(NamedTuple):
     k_bend [N m/rad^2], c_bend [N m s/rad^2], f_ext [N], held, tw_k_twist [N m/rad], tw_c_twist [N m s/rad],
     tw_k_aniso [N m/rad^2], tw_normal, tw_clamp: the control's (:class:`CableControl`); tw_theta [rad],
     tw_omega [rad/s], tw_ref, tw_tan, tw_mref [rad], tw_flag: the twist state's
-    (:class:`~bullet_dlo.core.kernels.twist.TwistState`).
+    (:class:`~bullet_dlo.core.kernels.twist.TwistState`), tw_prev [rad, rad/s] its BDF2 history.
     """
 
     mass: np.ndarray
@@ -145,6 +145,7 @@ class KernelArrays(NamedTuple):
     tw_normal: np.ndarray
     tw_clamp: np.ndarray
     tw_flag: np.ndarray
+    tw_prev: np.ndarray
     drag_k: np.ndarray
     drag_face: np.ndarray
     rest_angle: np.ndarray
@@ -237,6 +238,7 @@ def kernel_arrays(model: ModelArrays, control: CableControl | None = None,
         tw_c_twist=control.c_twist, tw_k_aniso=control.k_aniso, tw_inertia=model.tw_inertia,
         tw_drag=model.tw_drag, tw_theta=twist.theta, tw_omega=twist.omega, tw_ref=twist.ref, tw_tan=twist.tan,
         tw_mref=twist.mref, tw_normal=control.normal, tw_clamp=control.clamp, tw_flag=twist.flag,
+        tw_prev=twist.prev,
         drag_k=model.drag_k, drag_face=model.drag_face, rest_angle=model.rest_angle)
 
 

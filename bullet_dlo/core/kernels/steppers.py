@@ -8,12 +8,13 @@ a :class:`Workspace` allocated once by :func:`make_workspace`, so no step alloca
 nodes are kinematic: after every step they sit exactly at the prescribed pose. The method
 table (names, orders, defaults) is :mod:`bullet_dlo.core.integrators`.
 
-A cable with a material frame (``KernelArrays.tw``, :mod:`bullet_dlo.core.kernels.twist`) is advanced
-in two stages per step (staggered, Gauss-Seidel): the positions by the chosen method with the twist
-angles held (the twist springs and the anisotropic bending act on them through their exact gradients;
-the clamps' section axes at the method's evaluation time), then the twist angles by an implicit Euler
-sub-step with the new positions held (:func:`~bullet_dlo.core.kernels.twist.twist_step`). The coupling
-is first order in h whatever the method; the twist sub-step is unconditionally stable.
+A cable with a material frame (``KernelArrays.tw``, :mod:`bullet_dlo.core.kernels.twist`) takes its
+implicit steps with positions and twist angles in one Newton system, the twist integrated by the same
+method (:func:`~bullet_dlo.core.kernels.twist_coupled.coupled_implicit`; the clamps' section axes at the
+method's evaluation time), so the step keeps the method's order. The explicit methods (and the contact step
+of :mod:`~bullet_dlo.core.kernels.contact`) advance the positions with the twist angles held, then the twist
+angles by an implicit Euler sub-step with the new positions held
+(:func:`~bullet_dlo.core.kernels.twist.twist_step`, staggered, first order in h).
 """
 from __future__ import annotations
 
@@ -480,6 +481,8 @@ def advance(stepper, m, x, v, samples, ws, has_prev):
         twist_ready(m, x, samples.dir[0])
         set_clamp(m, 2 if method in (IMPLICIT_EULER, BDF2) else (1 if method in (IMPLICIT_MIDPOINT, GAUSS_LEGENDRE)
                                                                  else 0))
+        if method in (IMPLICIT_EULER, BDF2, IMPLICIT_MIDPOINT):  # positions and twist in one Newton system
+            return _twist_coupled.coupled_implicit(stepper, m, x, v, samples, ws, has_prev)
     its, converged = 0, True
     if method == EXPLICIT_EULER:
         _explicit_euler(m, x, v, h, samples, ws)
@@ -491,7 +494,7 @@ def advance(stepper, m, x, v, samples, ws, has_prev):
         its, converged = gauss_legendre_step(stepper, m, x, v, samples)
     else:
         its, converged = _implicit(stepper, m, x, v, samples, ws, has_prev)
-    if twisting:
+    if twisting:  # explicit methods and Gauss-Legendre: the staggered twist sub-step
         twist_step(m, x, samples.dir[2], h)
     return its, converged
 
@@ -500,3 +503,4 @@ def advance(stepper, m, x, v, samples, ws, has_prev):
 # is bound here, after every name contact.py takes from it is defined; Numba resolves
 # ``_contact.<name>`` when it compiles).
 from bullet_dlo.core.kernels import contact as _contact  # noqa: E402
+from bullet_dlo.core.kernels import twist_coupled as _twist_coupled  # noqa: E402  (the coupled twisting step)

@@ -95,7 +95,8 @@ class TwistArrays(NamedTuple):
     mref: reference twist at each node at the last transport (unwrapped) [rad], (n,);
     normal: the clamps' section axis d1 at the three held-end sample times, (3, 2, 3) (shared with the
     holder plan, which writes it); clamp: the clamps' section axis the force kernels use now, (2, 3);
-    flag: (1,) int, 0 = the state is to be built from the positions at its next use.
+    flag: (1,) int, 0 = the state is to be built from the positions at its next use;
+    prev: the twist angles [rad] and rates [rad/s] before the last implicit step (BDF2's history), (2, n-1).
     """
 
     k_twist: np.ndarray
@@ -111,6 +112,7 @@ class TwistArrays(NamedTuple):
     normal: np.ndarray
     clamp: np.ndarray
     flag: np.ndarray
+    prev: np.ndarray
 
 
 class TwistState(NamedTuple):
@@ -119,7 +121,8 @@ class TwistState(NamedTuple):
     theta: twist angles [rad], (n-1,); omega: their rates [rad/s], (n-1,); ref: reference directors (unit),
     (n-1, 3); tan: the tangents they were last transported to (unit), (n-1, 3); mref: reference twist at each
     node at the last transport (unwrapped) [rad], (n,); flag: (1,) int, 0 = to be built from the positions at
-    its next use (a new state), 1 = built.
+    its next use (a new state), 1 = built; prev: theta and omega before the last implicit step, (2, n-1) (BDF2's
+    history, read only when the step is told it has one).
     """
 
     theta: np.ndarray
@@ -128,6 +131,7 @@ class TwistState(NamedTuple):
     tan: np.ndarray
     mref: np.ndarray
     flag: np.ndarray
+    prev: np.ndarray
 
     def copy(self) -> "TwistState":
         """An independent copy (same values)."""
@@ -139,7 +143,7 @@ def make_twist_state(n: int, enabled: bool = True) -> TwistState:
     cable without a material frame)."""
     s = n - 1 if enabled else 0
     return TwistState(np.zeros(s), np.zeros(s), np.zeros((s, 3)), np.zeros((s, 3)), np.zeros(n if enabled else 0),
-                      np.zeros(1, dtype=np.int64))
+                      np.zeros(1, dtype=np.int64), np.zeros((2, s)))
 
 
 TWIST_PARAMETERS = ("k_twist", "c_twist", "k_aniso", "inertia", "drag")  # the model's fields of TwistArrays
@@ -150,7 +154,7 @@ def no_twist() -> TwistArrays:
     """The empty :class:`TwistArrays` of a cable without a material frame."""
     e1, e2 = np.zeros(0), np.zeros((0, 3))
     return TwistArrays(e1, e1, e1, e1, e1, e1, e1, e2, e2, e1, np.zeros((0, 2, 3)), np.zeros((2, 3)),
-                       np.zeros(1, dtype=np.int64))
+                       np.zeros(1, dtype=np.int64), np.zeros((2, 0)))
 
 
 def make_twist(k_twist: np.ndarray, c_twist: np.ndarray, k_aniso: np.ndarray, inertia: np.ndarray,
@@ -159,7 +163,7 @@ def make_twist(k_twist: np.ndarray, c_twist: np.ndarray, k_aniso: np.ndarray, in
     n = k_twist.shape[0]
     return TwistArrays(k_twist, c_twist, k_aniso, inertia, drag, np.zeros(n - 1), np.zeros(n - 1),
                        np.zeros((n - 1, 3)), np.zeros((n - 1, 3)), np.zeros(n), np.zeros((3, 2, 3)),
-                       np.zeros((2, 3)), np.zeros(1, dtype=np.int64))
+                       np.zeros((2, 3)), np.zeros(1, dtype=np.int64), np.zeros((2, n - 1)))
 
 
 def twist_fields(tw: TwistArrays) -> dict[str, np.ndarray]:
@@ -310,6 +314,44 @@ def node_geometry(m, x, dirs, theta, i, g):
 
 
 @njit(cache=True, error_model="numpy")
+def node_twist(m, x, dirs, theta, i, g):
+    """The part of :func:`node_geometry` a round or tube section needs: twist and curvature binormal (row 9 of
+    ``g``; rows 0-3 and 10-11 as there, the material frames and phi not computed). Returns (m_i twist [rad],
+    |e_a| [m], |e_b| [m])."""
+    n = x.shape[0]
+    ta, ra, tb, rb = g[0], g[1], g[2], g[3]
+    if i == 0:
+        la = 1.0
+        ta[:] = dirs[0]
+        _transport(m.tw_clamp[0], ta, ta, ra)
+        th_a = 0.0
+    else:
+        la = _unit_edge(x, i - 1, ta)
+        _transport(m.tw_ref[i - 1], m.tw_tan[i - 1], ta, ra)
+        th_a = theta[i - 1]
+    if i == n - 1:
+        lb = 1.0
+        tb[:] = dirs[1]
+        _transport(m.tw_clamp[1], tb, tb, rb)
+        th_b = 0.0
+    else:
+        lb = _unit_edge(x, i, tb)
+        _transport(m.tw_ref[i], m.tw_tan[i], tb, rb)
+        th_b = theta[i]
+    pa = g[10]
+    _transport(ra, ta, tb, pa)
+    tmp = g[11]
+    _cross(pa, rb, tmp)
+    psi = math.atan2(_dot(tmp, tb), _dot(pa, rb))
+    twist = th_b - th_a + m.tw_mref[i] + _wrap(psi - m.tw_mref[i])
+    c = _dot(ta, tb)
+    _cross(ta, tb, tmp)
+    for j in range(3):
+        g[9, j] = 2.0 * tmp[j] / (1.0 + c)
+    return twist, la, lb
+
+
+@njit(cache=True, error_model="numpy")
 def phi_jacobians(g, la, lb, ratio, alpha, c, pa, pb):
     """Plain derivatives dphi/da, dphi/db (3, 3) of the turning-angle vector into pa, pb (from
     :func:`node_geometry`'s scratch g): dphi/da = -alpha chi ga^T - (r/la)([w]x + chi u^T),
@@ -422,7 +464,7 @@ def update_frames(m, x, dirs):
         m.tw_tan[k, :] = t
     g = np.empty((12, 3))
     for i in range(n):
-        psi = node_geometry(m, x, dirs, m.tw_theta, i, g)[0] - _theta_diff(m, i, n)
+        psi = node_twist(m, x, dirs, m.tw_theta, i, g)[0] - _theta_diff(m, i, n)
         m.tw_mref[i] = psi
 
 

@@ -1,0 +1,503 @@
+"""The implicit step of a cable with a material frame: positions and twist angles in one Newton system (issue 22).
+
+Unknowns: the end-of-step velocities v' (n, 3) and twist rates w' (n-1,). The twist angles are integrated by the
+same method as the positions, through the same affine map (:class:`~bullet_dlo.core.kernels.steppers.ImplicitMap`,
+cx [s], cv [-], hf [s]): Theta = theta_base + cx w', W = w_base + cv w' with
+
+* implicit Euler: theta_base = theta, w_avg = omega, w_base = 0;
+* BDF2 (with history ``tw_prev``): theta_base = (4 theta - theta_prev)/3, w_avg = (4 omega - omega_prev)/3;
+* implicit midpoint: theta_base = theta + h/4 omega, w_base = omega/2, w_avg = omega (forces at t + h/2),
+
+and one residual for both (hf times the generalised forces at (X, Theta, V, W) minus the momentum change):
+
+    r_x = hf F(X, Theta, V, W) - M (v' - v_avg),    r_theta = hf T(X, Theta, V, W) - I (w' - w_avg),
+
+T = -dE/dtheta - c I W - the Kelvin-Voigt twist torque. The Kelvin-Voigt twist dampers derive from the Rayleigh
+function 1/2 c_t (dm/dt)^2 with the twist rate dm_i/dt = W_b - W_a + kb_i . (dV_a / 2|e_a| + dV_b / 2|e_b|) (the
+reference twist's rate, Bergou 2008/2010) plus, at a clamp node, the clamp's own roll and turn over the step; they
+act on the positions too (-c_t dm/dt d(dm/dt)/dV), so the damping matrix is symmetric.
+
+The Newton matrix is M - hf cx dF/dq - hf cv dF/dq' over q = (x, theta), stored as a symmetric band with the
+unknowns interleaved (x_i then theta_i: 4 per node, the last theta slot an identity row), half-width 10. Its blocks:
+
+* x-x: the position Jacobian of :func:`~bullet_dlo.core.kernels.forces.force_jacobian` at Theta (isotropic
+  bending exact, the anisotropic bending's Gauss-Newton part) plus the twist springs' Gauss-Newton part
+  k_t g g^T (g = dm/dq: -kb/2|e_a|, kb/2|e_a| - kb/2|e_b|, kb/2|e_b| on x_{i-1}, x_i, x_{i+1}; -1, +1 on theta_a,
+  theta_b) and the Kelvin-Voigt twist dampers (cv/cx) c_t g g^T;
+* x-theta (the coupling): k_t g_x g_theta^T of the twist springs and Delta (kappa_2 J_1 + kappa_1 J_2) of the
+  anisotropic bending (J_j = m_j^T dphi/dx), the exact derivatives of the bending forces in theta and, at the
+  state where the frames were transported (the start of the step), of the twist torques in x;
+* theta-theta: k_t (tridiagonal) and Delta (kappa_2^2 - kappa_1^2) (filtered to >= 0 with ``definite``).
+
+Left out, as for the positions alone: the stress terms k_t m d2m/dx2 and the anisotropic bending's curvature
+terms (Newton's iterations converge without them). Newton iterates to the stepper's tolerance with the line search
+of :func:`~bullet_dlo.core.kernels.steppers.newton` on the incremental potential (kinetic and dissipative terms of
+the twist included), so the coupled step has the method's order (2 for BDF2 and implicit midpoint).
+"""
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+from numba import njit
+
+from bullet_dlo.core.kernels.drag import add_drag_jacobian
+from bullet_dlo.core.kernels.forces import (
+    add_damping_jacobian,
+    dissipation,
+    force_jacobian,
+    internal_energy,
+    total_forces,
+)
+from bullet_dlo.core.kernels.steppers import (
+    BDF2,
+    IMPLICIT_MIDPOINT,
+    _momentum_change,
+    _set_held,
+    _start_implicit,
+)
+from bullet_dlo.core.kernels.twist import (
+    _curvatures,
+    _node_edge_gradients,
+    node_geometry,
+    node_twist,
+    phi_jacobians,
+    scatter_node_hessian,
+    update_frames,
+)
+
+HALF_T = 10  # scalar half-bandwidth of the interleaved (x_i, theta_i) layout
+
+
+class Scratch(NamedTuple):
+    """Small scratch arrays of the coupled step (allocated once per step): ga, gb (3,) edge gradients [N];
+    pa, pb (3, 3) dphi/d(edge) [1/m]; energy (1,) the material frame's energy at the last residual [J];
+    gv (11,), gi (11,) int: dm/dq of a node and its unknowns' indices; jrow (4, 6); hb (6, 6) node Hessian."""
+
+    ga: np.ndarray
+    gb: np.ndarray
+    pa: np.ndarray
+    pb: np.ndarray
+    energy: np.ndarray
+    gv: np.ndarray
+    gi: np.ndarray
+    jrow: np.ndarray
+    hb: np.ndarray
+
+
+@njit(cache=True, error_model="numpy")
+def _frameless(m):
+    """The kernel arrays ``m`` without the material frame (the same arrays, an empty ``tw_k_twist``): the force,
+    energy and Jacobian kernels then skip the twist terms, which the coupled step computes once per node itself."""
+    return _model.KernelArrays(m.mass, m.damp, m.k_stretch, m.rest_length, m.k_bend, m.gravity, m.f_ext, m.held,
+                               m.c_stretch, m.c_bend, np.zeros(0), m.tw_c_twist, m.tw_k_aniso, m.tw_inertia,
+                               m.tw_drag, m.tw_theta, m.tw_omega, m.tw_ref, m.tw_tan, m.tw_mref, m.tw_normal,
+                               m.tw_clamp, m.tw_flag, m.tw_prev, m.drag_k, m.drag_face, m.rest_angle)
+
+
+@njit(cache=True, error_model="numpy")
+def band_solve_upper(band, rhs, half):
+    """Solve A y = rhs in place for a symmetric band matrix A given by its upper band ``band[r, c - r]``
+    (0 <= c - r <= half), shape (size, half + 1); rhs (size,) becomes y. Elimination without pivoting (A is
+    dominated by its positive diagonal); ``band`` is destroyed. Returns min |pivot|."""
+    size = rhs.shape[0]
+    min_pivot = np.inf
+    for k in range(size):
+        piv = band[k, 0]
+        if abs(piv) < min_pivot:
+            min_pivot = abs(piv)
+        last = min(k + half, size - 1)
+        for i in range(k + 1, last + 1):
+            f = band[k, i - k] / piv
+            if f == 0.0:
+                continue
+            for j in range(i, last + 1):
+                band[i, j - i] -= f * band[k, j - k]
+            rhs[i] -= f * rhs[k]
+    for k in range(size - 1, -1, -1):
+        acc = rhs[k]
+        last = min(k + half, size - 1)
+        for j in range(k + 1, last + 1):
+            acc -= band[k, j - k] * rhs[j]
+        rhs[k] = acc / band[k, 0]
+    return min_pivot
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _add_sym(band, a, b, val):
+    """A[a, b] += val and A[b, a] += val (a != b) in upper band storage; A[a, a] += val when a == b."""
+    if a <= b:
+        band[a, b - a] += val
+    else:
+        band[b, a - b] += val
+
+
+@njit(cache=True, error_model="numpy")
+def _clamp_rate(m, xe, samples, mid, h, i):
+    """Rate [rad/s] of the twist at clamp node i (0 or n-1) from the clamp's own roll and turn (positions xe
+    held), from its three samples psi_0, psi_1/2, psi_1 at t, t + h/2, t + h: at t + h (implicit Euler, BDF2)
+    (psi_0 - 4 psi_1/2 + 3 psi_1)/h, at t + h/2 (``mid``, implicit midpoint) (psi_1 - psi_0)/h: second order."""
+    e = 0 if i == 0 else 1
+    g = np.empty((12, 3))  # (the caller's scratch holds its node's geometry)
+    keep0, keep1, keep2 = m.tw_clamp[e, 0], m.tw_clamp[e, 1], m.tw_clamp[e, 2]
+    m.tw_clamp[e, :] = m.tw_normal[0, e]
+    p0 = node_geometry(m, xe, samples.dir[0], m.tw_theta, i, g)[0]
+    m.tw_clamp[e, :] = m.tw_normal[2, e]
+    p2 = node_geometry(m, xe, samples.dir[2], m.tw_theta, i, g)[0]
+    out = (p2 - p0) / h
+    if not mid:
+        m.tw_clamp[e, :] = m.tw_normal[1, e]
+        p1 = node_geometry(m, xe, samples.dir[1], m.tw_theta, i, g)[0]
+        out = (p0 - 4.0 * p1 + 3.0 * p2) / h
+    m.tw_clamp[e, 0], m.tw_clamp[e, 1], m.tw_clamp[e, 2] = keep0, keep1, keep2
+    return out
+
+
+@njit(cache=True, error_model="numpy")
+def _residual(m, mp, imp, ws, samples, mid, h, tb, wb, wa, vn, wn, wv, rate, tq, r, g, sc):
+    """r <- the coupled residual [N s; N m s] at (v', w') = (vn, wn), interleaved (4 per node); returns its max
+    with the twist rows divided by the segment's rest length (force units).
+
+    Leaves X, V in ws.x_stage, ws.v_stage, Theta in ``m.tw_theta`` (the force kernels read it there), W in
+    ``wv``, the twist torques T [N m] in ``tq`` and the twist rates dm/dt of the nodes with a twist damper in
+    ``rate`` (read by :func:`_merit`)."""
+    n = vn.shape[0]
+    ns = n - 1
+    cx, cv, hf = imp.cx, imp.cv, imp.hf
+    xe, ve, f = ws.x_stage, ws.v_stage, ws.force
+    for i in range(n):
+        for j in range(3):
+            xe[i, j] = ws.x_base[i, j] + cx * vn[i, j]
+            ve[i, j] = ws.v_base[i, j] + cv * vn[i, j]
+    _set_held(m.held, xe, ve, imp.pos_end, imp.vel_end)
+    th = m.tw_theta
+    for k in range(ns):
+        th[k] = tb[k] + cx * wn[k]
+        wv[k] = wb[k] + cv * wn[k]
+    total_forces(mp, xe, ve, imp.dirs, f)  # without the material frame's terms (added below)
+    ga, gb, pa, pb = sc.ga, sc.gb, sc.pa, sc.pb
+    energy = 0.0
+    for k in range(ns):
+        tq[k] = -m.tw_drag[k] * wv[k]
+    for i in range(n):
+        kt, dl, ct = m.tw_k_twist[i], m.tw_k_aniso[i], m.tw_c_twist[i]
+        rate[i] = 0.0
+        if kt == 0.0 and dl == 0.0 and ct == 0.0:
+            continue
+        if dl != 0.0:
+            twist, la, lb, ratio, alpha, c = node_geometry(m, xe, imp.dirs, th, i, g)
+        else:  # round and tube sections: twist and binormal only
+            twist, la, lb = node_twist(m, xe, imp.dirs, th, i, g)
+            ratio, alpha, c = 1.0, 0.0, 1.0  # (unused without anisotropy)
+        s = kt * twist
+        if ct != 0.0:
+            kb = g[9]
+            rt = (wv[i] if i < ns else 0.0) - (wv[i - 1] if i > 0 else 0.0)
+            if i > 0:
+                rt += (kb[0] * (ve[i, 0] - ve[i - 1, 0]) + kb[1] * (ve[i, 1] - ve[i - 1, 1])
+                       + kb[2] * (ve[i, 2] - ve[i - 1, 2])) / (2.0 * la)
+            else:
+                rt += _clamp_rate(m, xe, samples, mid, h, i)
+            if i < ns:
+                rt += (kb[0] * (ve[i + 1, 0] - ve[i, 0]) + kb[1] * (ve[i + 1, 1] - ve[i, 1])
+                       + kb[2] * (ve[i + 1, 2] - ve[i, 2])) / (2.0 * lb)
+            else:
+                rt += _clamp_rate(m, xe, samples, mid, h, i)
+            rate[i] = rt
+            s += ct * rt
+        energy += 0.5 * kt * twist * twist
+        if dl != 0.0:
+            p1a, p2a, p1b, p2b = _curvatures(g)
+            energy += 0.25 * dl * (p1a * p1a - p2a * p2a + p1b * p1b - p2b * p2b)
+        # forces on the positions: -dE/dx of the twist spring and damper (stress s) and the anisotropic bending
+        _node_edge_gradients(g, s, la, lb, ratio, alpha, c, dl, 1.0, ga, gb, pa, pb)
+        for j in range(3):
+            if i > 0:  # e_a = x_i - x_{i-1}
+                f[i - 1, j] += ga[j]
+                f[i, j] -= ga[j]
+            if i < ns:  # e_b = x_{i+1} - x_i
+                f[i, j] += gb[j]
+                f[i + 1, j] -= gb[j]
+        if i > 0:  # dm_i/dtheta_a = -1
+            tq[i - 1] += s
+        if i < ns:
+            tq[i] -= s
+        if dl != 0.0:
+            p1a, p2a, p1b, p2b = _curvatures(g)
+            if i > 0:
+                tq[i - 1] -= dl * p1a * p2a
+            if i < ns:
+                tq[i] -= dl * p1b * p2b
+    worst = 0.0
+    for i in range(n):
+        for j in range(3):
+            val = 0.0 if m.held[i] else hf * f[i, j] - m.mass[i] * (vn[i, j] - ws.v_avg[i, j])
+            r[4 * i + j] = val
+            if not abs(val) <= worst:  # also catches NaN
+                worst = abs(val)
+    for k in range(ns):
+        val = hf * tq[k] - m.tw_inertia[k] * (wn[k] - wa[k])
+        r[4 * k + 3] = val
+        scaled = abs(val) / m.rest_length[k]
+        if not scaled <= worst:
+            worst = scaled
+    r[4 * ns + 3] = 0.0
+    sc.energy[0] = energy
+    return worst
+
+
+@njit(cache=True, error_model="numpy")
+def _merit(m, mp, imp, ws, wa, vn, wn, wv, rate, sc):
+    """Incremental potential of the coupled step [J] (its gradient in (v', w') is -(cx/hf) times the residual)
+    at the X, V, Theta, W, rates left by the last :func:`_residual` call."""
+    xe, ve = ws.x_stage, ws.v_stage
+    cx, cv, hf = imp.cx, imp.cv, imp.hf
+    rd = dissipation(mp, xe, ve, imp.dirs)
+    for k in range(wn.shape[0]):
+        rd += 0.5 * m.tw_drag[k] * wv[k] * wv[k]
+    for i in range(rate.shape[0]):
+        rd += 0.5 * m.tw_c_twist[i] * rate[i] * rate[i]
+    phi = internal_energy(mp, xe, imp.dirs) + sc.energy[0] + (cx / cv) * rd
+    for i in range(vn.shape[0]):
+        for j in range(3):
+            dv = vn[i, j] - ws.v_avg[i, j]
+            phi += 0.5 * (cx / hf) * m.mass[i] * dv * dv
+            phi -= (m.mass[i] * m.gravity[j] + m.f_ext[i, j]) * xe[i, j]
+    for k in range(wn.shape[0]):
+        dw = wn[k] - wa[k]
+        phi += 0.5 * (cx / hf) * m.tw_inertia[k] * dw * dw
+    return phi
+
+
+@njit(cache=True, error_model="numpy")
+def _newton_matrix(stepper, m, mp, imp, ws, band, g, sc):
+    """band <- the coupled Newton matrix (upper band, interleaved layout) at the X, V, Theta of the last residual."""
+    n = ws.x_stage.shape[0]
+    ns = n - 1
+    xe = ws.x_stage
+    cx, cv, hf = imp.cx, imp.cv, imp.hf
+    jac = ws.jacobian
+    force_jacobian(mp, xe, imp.dirs, stepper.definite, jac)
+    add_damping_jacobian(mp, xe, imp.dirs, cv / cx, jac)
+    add_drag_jacobian(mp, xe, ws.v_stage, cv / cx, jac)
+    kc = hf * cx
+    held = m.held
+    gv, gi, pa, pb, jrow, hb = sc.gv, sc.gi, sc.pa, sc.pb, sc.jrow, sc.hb
+    band[:, :] = 0.0
+    for i in range(n):
+        kt, dl, ct = m.tw_k_twist[i], m.tw_k_aniso[i], m.tw_c_twist[i]
+        if kt == 0.0 and dl == 0.0 and ct == 0.0:
+            continue
+        if dl != 0.0:
+            twist, la, lb, ratio, alpha, c = node_geometry(m, xe, imp.dirs, m.tw_theta, i, g)
+        else:
+            twist, la, lb = node_twist(m, xe, imp.dirs, m.tw_theta, i, g)
+            ratio, alpha, c = 1.0, 0.0, 1.0
+        kb = g[9]
+        # g = dm/dq over the node's unknowns: (index, value) pairs
+        cnt = 0
+        for j in range(3):
+            if i > 0 and not held[i - 1]:
+                gi[cnt] = 4 * (i - 1) + j
+                gv[cnt] = -kb[j] / (2.0 * la)
+                cnt += 1
+            if not held[i]:
+                gi[cnt] = 4 * i + j
+                gv[cnt] = (kb[j] / (2.0 * la) if i > 0 else 0.0) - (kb[j] / (2.0 * lb) if i < ns else 0.0)
+                cnt += 1
+            if i < ns and not held[i + 1]:
+                gi[cnt] = 4 * (i + 1) + j
+                gv[cnt] = kb[j] / (2.0 * lb)
+                cnt += 1
+        if i > 0:
+            gi[cnt] = 4 * (i - 1) + 3
+            gv[cnt] = -1.0
+            cnt += 1
+        if i < ns:
+            gi[cnt] = 4 * i + 3
+            gv[cnt] = 1.0
+            cnt += 1
+        coef = kc * (kt + (cv / cx) * ct)
+        if coef != 0.0:
+            for a in range(cnt):
+                for b in range(a, cnt):
+                    _add_sym(band, gi[a], gi[b], coef * gv[a] * gv[b])
+        if dl == 0.0:
+            continue
+        p1a, p2a, p1b, p2b = _curvatures(g)
+        phi_jacobians(g, la, lb, ratio, alpha, c, pa, pb)
+        # x-x: the Gauss-Newton part of the anisotropic bending, Delta/2 sum_k (J1_k^T J1_k - J2_k^T J2_k)
+        for r in range(4):  # rows: m1_a, m2_a, m1_b, m2_b
+            d = g[4 + r]
+            for col in range(3):
+                jrow[r, col] = d[0] * pa[0, col] + d[1] * pa[1, col] + d[2] * pa[2, col]
+                jrow[r, 3 + col] = d[0] * pb[0, col] + d[1] * pb[1, col] + d[2] * pb[2, col]
+        for r in range(6):
+            for col in range(6):
+                hb[r, col] = 0.5 * dl * (jrow[0, r] * jrow[0, col] - jrow[1, r] * jrow[1, col]
+                                         + jrow[2, r] * jrow[2, col] - jrow[3, r] * jrow[3, col])
+        scatter_node_hessian(jac, i, n, hb)
+        # x-theta: d2E/dtheta_k dx = Delta (kappa_2 J_1 + kappa_1 J_2); theta-theta: Delta (kappa_2^2 - kappa_1^2)
+        for e in range(2):
+            if (e == 0 and i == 0) or (e == 1 and i == ns):
+                continue  # a clamp's virtual edge has no twist angle
+            k = i - 1 if e == 0 else i
+            k1, k2 = (p1a, p2a) if e == 0 else (p1b, p2b)
+            ti = 4 * k + 3
+            for j in range(3):  # chain rule: a = x_i - x_{i-1}, b = x_{i+1} - x_i (clamp edges fixed)
+                ca = dl * (k2 * jrow[2 * e, j] + k1 * jrow[2 * e + 1, j]) if i > 0 else 0.0
+                cb = dl * (k2 * jrow[2 * e, 3 + j] + k1 * jrow[2 * e + 1, 3 + j]) if i < ns else 0.0
+                if i > 0 and not held[i - 1]:
+                    _add_sym(band, ti, 4 * (i - 1) + j, kc * (-ca))
+                if not held[i]:
+                    _add_sym(band, ti, 4 * i + j, kc * (ca - cb))
+                if i < ns and not held[i + 1]:
+                    _add_sym(band, ti, 4 * (i + 1) + j, kc * cb)
+            hd = dl * (k2 * k2 - k1 * k1)
+            if stepper.definite and hd < 0.0:
+                hd = 0.0
+            band[ti, 0] += kc * hd
+    for i in range(n):  # x-x blocks (upper triangle) from the position Jacobian
+        if held[i]:
+            continue
+        for o in range(2, 5):
+            p = i + o - 2
+            if p >= n or held[p]:
+                continue
+            for r in range(3):
+                for c in range(3):
+                    a, b = 4 * i + r, 4 * p + c
+                    if b >= a:
+                        band[a, b - a] -= kc * jac[i, o, r, c]
+    for i in range(n):
+        for r in range(3):
+            if held[i]:
+                band[4 * i + r, 0] = 1.0
+            else:
+                band[4 * i + r, 0] += m.mass[i] + hf * cv * m.damp[i]
+    for k in range(ns):
+        band[4 * k + 3, 0] += m.tw_inertia[k] + hf * cv * m.tw_drag[k]
+    band[4 * ns + 3, 0] = 1.0
+
+
+@njit(cache=True, error_model="numpy")
+def coupled_implicit(stepper, m, x, v, samples, ws, has_prev):
+    """One implicit step (implicit Euler, BDF2 or implicit midpoint) of a cable with a material frame: positions,
+    velocities, twist angles and rates advanced together in place (see the module docstring); the reference
+    frames then transported to the new tangents. The clamps' section axes in ``m.tw_clamp`` must be those of
+    the method's evaluation time (as :func:`~bullet_dlo.core.kernels.steppers.advance` sets them).
+    Returns (Newton iterations, converged)."""
+    method, h = stepper.method, stepper.h
+    n = x.shape[0]
+    ns = n - 1
+    imp = _start_implicit(method, m, x, v, h, samples, ws, has_prev)
+    cx, hf = imp.cx, imp.hf
+    theta0 = m.tw_theta.copy()
+    omega0 = m.tw_omega.copy()
+    tb, wb, wa = np.empty(ns), np.empty(ns), np.empty(ns)
+    if method == BDF2 and has_prev:
+        for k in range(ns):
+            tb[k] = (4.0 * theta0[k] - m.tw_prev[0, k]) / 3.0
+            wa[k] = (4.0 * omega0[k] - m.tw_prev[1, k]) / 3.0
+            wb[k] = 0.0
+    elif method == IMPLICIT_MIDPOINT:
+        for k in range(ns):
+            tb[k] = theta0[k] + 0.25 * h * omega0[k]
+            wa[k] = omega0[k]
+            wb[k] = 0.5 * omega0[k]
+    else:
+        for k in range(ns):
+            tb[k] = theta0[k]
+            wa[k] = omega0[k]
+            wb[k] = 0.0
+    if method == BDF2:
+        m.tw_prev[0, :] = theta0
+        m.tw_prev[1, :] = omega0
+    g = np.empty((12, 3))
+    mid = method == IMPLICIT_MIDPOINT
+    size = 4 * n
+    band = np.empty((size, HALF_T + 1))
+    r, r_try = np.empty(size), np.empty(size)
+    wn, w_try, wv, rate, tq = omega0.copy(), np.empty(ns), np.empty(ns), np.zeros(n), np.empty(ns)
+    sc = Scratch(np.empty(3), np.empty(3), np.empty((3, 3)), np.empty((3, 3)), np.zeros(1), np.empty(11),
+                 np.empty(11, dtype=np.int64), np.empty((4, 6)), np.empty((6, 6)))
+    mp = _frameless(m)
+    vn, v_try = ws.v_new, ws.v_try
+    tol = stepper.tol
+    g_norm = np.sqrt(np.sum(m.gravity ** 2))
+    xscale = 0.0
+    for i in range(n):
+        for j in range(3):
+            xscale = max(xscale, abs(x[i, j]))
+    lmin = np.min(m.rest_length)
+    r_scale = hf * (np.max(m.mass) * g_norm + np.max(np.abs(m.f_ext))) + 1e-300
+    r_floor = 10.0 * 2.2e-16 * hf * (np.max(m.k_stretch) * (xscale + np.max(m.rest_length))
+                                     + np.max(m.tw_k_twist) * (np.max(np.abs(theta0)) + np.max(np.abs(m.tw_mref))
+                                                               + 1.0) / lmin)
+    it = 0
+    converged = False
+    rnorm = _residual(m, mp, imp, ws, samples, mid, h, tb, wb, wa, vn, wn, wv, rate, tq, r, g, sc)
+    while it < stepper.max_iter:
+        it += 1
+        _newton_matrix(stepper, m, mp, imp, ws, band, g, sc)
+        band_solve_upper(band, r, HALF_T)  # r becomes the Newton direction
+        phi0 = np.nan
+        alpha = 1.0
+        accepted = False
+        rn_try = 0.0
+        for _ in range(12):
+            for i in range(n):
+                for j in range(3):
+                    v_try[i, j] = vn[i, j] + alpha * r[4 * i + j]
+            for k in range(ns):
+                w_try[k] = wn[k] + alpha * r[4 * k + 3]
+            rn_try = _residual(m, mp, imp, ws, samples, mid, h, tb, wb, wa, v_try, w_try, wv, rate, tq, r_try, g, sc)
+            if rn_try < rnorm or rn_try <= tol * r_scale + r_floor:
+                accepted = True
+                break
+            if phi0 != phi0:  # merit at the current iterate, computed once when first needed
+                _residual(m, mp, imp, ws, samples, mid, h, tb, wb, wa, vn, wn, wv, rate, tq, r_try, g, sc)
+                phi0 = _merit(m, mp, imp, ws, wa, vn, wn, wv, rate, sc)
+                _residual(m, mp, imp, ws, samples, mid, h, tb, wb, wa, v_try, w_try, wv, rate, tq, r_try, g, sc)
+            if _merit(m, mp, imp, ws, wa, v_try, w_try, wv, rate, sc) <= phi0:
+                accepted = True
+                break
+            alpha *= 0.5
+        if not accepted:
+            break  # stagnated: keep the current iterate (reported as not converged)
+        vn[:, :] = v_try
+        wn[:] = w_try
+        r[:] = r_try
+        rnorm = rn_try
+        dmom = _momentum_change(m, ws, vn)
+        for k in range(ns):
+            dmom = max(dmom, m.tw_inertia[k] * abs(wn[k] - wa[k]) / m.rest_length[k])
+        if rnorm <= tol * (r_scale + dmom) + r_floor:
+            converged = True
+            break
+    for i in range(n):
+        for j in range(3):
+            if method == IMPLICIT_MIDPOINT:
+                x[i, j] += 0.5 * h * (v[i, j] + vn[i, j])
+            elif method == BDF2 and has_prev:
+                x[i, j] = ws.x_base[i, j] + cx * vn[i, j]
+            else:
+                x[i, j] += h * vn[i, j]
+    v[:, :] = vn
+    _set_held(m.held, x, v, samples.pos[2], samples.vel[2])
+    for k in range(ns):
+        if method == IMPLICIT_MIDPOINT:
+            m.tw_theta[k] = theta0[k] + 0.5 * h * (omega0[k] + wn[k])
+        elif method == BDF2 and has_prev:
+            m.tw_theta[k] = tb[k] + cx * wn[k]
+        else:
+            m.tw_theta[k] = theta0[k] + h * wn[k]
+        m.tw_omega[k] = wn[k]
+    m.tw_clamp[:, :] = m.tw_normal[2]
+    update_frames(m, x, samples.dir[2])
+    return it, converged
+
+
+# The kernel arrays' type (model.py imports the kernels, so the module object is bound here; Numba resolves
+# ``_model.KernelArrays`` when it compiles).
+from bullet_dlo.core import model as _model  # noqa: E402
