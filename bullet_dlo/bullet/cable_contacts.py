@@ -16,6 +16,10 @@ from bullet_dlo.core.kernels.contact import Contacts, make_contacts
 from bullet_dlo.core.validate import ParameterError
 
 CABLE_GROUPS = 0x7FFE  # the collision-group bits of cables (bit 0 is the world's default group)
+MODEL_CABLE_GROUP = 0x2
+"""The group of every cable whose contacts with the world and with other cables are the model's. PyBullet
+collides a pair when either body's group is in the other's mask, and a static body's mask holds every bit
+but this one (Bullet's static filter): any other group met static bodies in Bullet on top of the model."""
 
 
 class CableContacts:
@@ -140,7 +144,7 @@ class CableContacts:
         only with the spheres of cables whose contacts stay Bullet's (``contact="bullet"`` or
         ``self_collision="none"``)."""
         cable = self.cable
-        own = cable._group or cable.world.next_cable_group()
+        own = cable._group or (MODEL_CABLE_GROUP if cable.handles_cable_contact else cable.world.next_cable_group())
         mask = CABLE_GROUPS & ~own
         if cable.handles_cable_contact:
             mask &= ~cable.world._model_cable_groups  # (a pair collides only if each one's mask has the other)

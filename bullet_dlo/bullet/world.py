@@ -162,11 +162,12 @@ class BulletWorld:
         return body
 
     def next_cable_group(self) -> int:
-        """A collision-group bit of its own for a cable whose spheres never collide with each other."""
+        """A collision-group bit of its own for a cable whose spheres never collide with each other (bits 2-14;
+        bit 1 is :data:`~bullet_dlo.bullet.cable_contacts.MODEL_CABLE_GROUP`)."""
         self._groups_used += 1
-        if self._groups_used > 14:
-            raise ParameterError("at most 14 cables can have self_collision='none' in one world")
-        return 1 << self._groups_used
+        if self._groups_used > 13:
+            raise ParameterError("at most 13 cables can have self_collision='none' or Bullet's contact in one world")
+        return 1 << (self._groups_used + 1)
 
     # ----- cables -----------------------------------------------------------------------------
     def add_cable(
