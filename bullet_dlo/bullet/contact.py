@@ -614,10 +614,6 @@ class ContactSet:
         kinds = self.shapes.kind
         for s in sorted(rows):
             body, link = self.rows[s][0:2]
-            if kinds[s] == HULL:  # on the exact geometry in detect(): its pose now
-                self._read_link(s)
-                near[s] = True
-                continue
             box[0], box[1] = pb.getAABB(body, link, physicsClientId=cid)
             args = (x, box, reach, self._probe_out[s], capsule >= 0, nodes, segs, mid, quat)
             if self._candidates is None:
@@ -626,6 +622,9 @@ class ContactSet:
             if nn == 0 and ns == 0 and s not in self._prev_rows:
                 continue  # only its box was near (a gripper around an excluded end)
             self._read_link(s)
+            if kinds[s] == HULL:  # on the exact geometry in detect(), with its pose now
+                near[s] = True
+                continue
             xl = x.tolist() if xl is None else xl
             dist[:] = margin
             for i in nodes[:nn].tolist():
