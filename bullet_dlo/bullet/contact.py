@@ -163,9 +163,22 @@ class Hulls(NamedTuple):
     edge_n: np.ndarray
 
 
+_HULL_GEOMETRY: dict = {}
+""":func:`_hull_geometry` by vertex content: a robot's links are the same meshes in every world a process
+builds (qhull and the face merge cost ~0.1 s a link)."""
+
+
 def _hull_geometry(vertices: np.ndarray):
     """Planes (F, 4), triangles (T, 3, 3), their planes (T,) and sharp edges (midpoint, unit direction, half
-    length, the two normals) of the convex hull of ``vertices`` [m] (V, 3); None if it is degenerate (flat)."""
+    length, the two normals) of the convex hull of ``vertices`` [m] (V, 3); None if it is degenerate (flat).
+    The arrays are shared between calls with equal vertices: read only."""
+    key = (vertices.shape, vertices.tobytes())
+    if key not in _HULL_GEOMETRY:
+        _HULL_GEOMETRY[key] = _hull_geometry_of(vertices)
+    return _HULL_GEOMETRY[key]
+
+
+def _hull_geometry_of(vertices: np.ndarray):
     from scipy.spatial import ConvexHull, QhullError
 
     try:
@@ -173,17 +186,20 @@ def _hull_geometry(vertices: np.ndarray):
     except (QhullError, ValueError):
         return None
     scale = float(np.ptp(vertices, axis=0).max())
-    planes: list[np.ndarray] = []
+    planes = np.empty((len(hull.equations), 4))
+    n_planes = 0
     tri_plane = []
     for eq in hull.equations:  # merge the coplanar triangles of one face (qhull triangulates)
         nrm, off = eq[:3], -eq[3]
-        for f, pl in enumerate(planes):
-            if nrm @ pl[:3] > 1.0 - 1e-9 and abs(off - pl[3]) < 1e-9 * scale:
-                tri_plane.append(f)
-                break
+        same = np.flatnonzero((planes[:n_planes, :3] @ nrm > 1.0 - 1e-9)
+                              & (np.abs(off - planes[:n_planes, 3]) < 1e-9 * scale))
+        if same.size:
+            tri_plane.append(int(same[0]))
         else:
-            tri_plane.append(len(planes))
-            planes.append(np.array([*nrm, off]))
+            tri_plane.append(n_planes)
+            planes[n_planes, :3], planes[n_planes, 3] = nrm, off
+            n_planes += 1
+    planes = planes[:n_planes].copy()
     tri = vertices[hull.simplices]
     owners: dict = {}
     for t, simplex in enumerate(hull.simplices.tolist()):
@@ -197,22 +213,31 @@ def _hull_geometry(vertices: np.ndarray):
         d = pb_ - pa
         hl = 0.5 * float(np.linalg.norm(d))
         edges.append((0.5 * (pa + pb_), d / (2 * hl), hl, planes[fs[0]][:3], planes[fs[1]][:3]))
-    return np.array(planes), tri, np.array(tri_plane, np.int64), edges
+    tri_plane = np.array(tri_plane, np.int64)
+    for arr in (planes, tri, tri_plane):
+        arr.setflags(write=False)
+    return planes, tri, tri_plane, edges
+
+
+HULL_CHECK_POINTS = 64
+"""About this many check points per kind (faces, vertices, edges) compare a hull with Bullet's distances (one
+``getClosestPoints`` each, when a world meets a mesh link; 24 let the Panda's base through, whose hull is not
+Bullet's within HULL_CHECK_TOL)."""
 
 
 def _hull_points(vertices: np.ndarray, planes: np.ndarray, tri: np.ndarray, tri_plane: np.ndarray, edges,
                  radius: float) -> np.ndarray:
     """Check points [m] (link frame) just outside a hull: off each face's centre, each vertex and each edge's
-    midpoint (at most about 64 of each), where a compound of hulls, a scaled mesh or another frame would differ."""
+    midpoint (at most about HULL_CHECK_POINTS of each), where a compound of hulls, a scaled mesh or another frame would differ."""
     pts = []
-    for f in range(min(len(planes), 64)):
+    for f in range(min(len(planes), HULL_CHECK_POINTS)):
         centre = tri[tri_plane == f].reshape(-1, 3).mean(axis=0)
         pts.append(centre + (radius + 2e-3) * planes[f, :3])
     mid = vertices.mean(axis=0)
-    for v in vertices[:: max(1, len(vertices) // 64)]:
+    for v in vertices[:: max(1, len(vertices) // HULL_CHECK_POINTS)]:
         d = v - mid
         pts.append(v + (radius + 2e-3) * d / max(float(np.linalg.norm(d)), 1e-12))
-    for centre, _, _, n1, n2 in edges[:: max(1, len(edges) // 64)]:
+    for centre, _, _, n1, n2 in edges[:: max(1, len(edges) // HULL_CHECK_POINTS)]:
         b = n1 + n2
         pts.append(centre + (radius + 1e-3) * b / max(float(np.linalg.norm(b)), 1e-12))
         pts.append(centre + (radius + 1e-3) * n1)

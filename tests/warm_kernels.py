@@ -1,0 +1,53 @@
+"""Compile the suite's shared Numba kernels into the cache before the test processes start.
+
+On a clean checkout every process that meets a cold kernel compiles it: pytest-xdist's workers, the
+core suite's PyBullet-free runner and the demos' subprocesses start together and compiled the same
+kernels several times over (minutes each). ``tests/conftest.py`` runs this module once per part,
+the parts in parallel, before the workers start; each part is a few short runs that reach the
+kernels the suite uses (the runs' results are not checked here: the tests check them).
+
+Usage: ``python tests/warm_kernels.py core|bullet``.
+"""
+from __future__ import annotations
+
+import sys
+
+
+def core() -> None:
+    """The core engine's loop with every integrator, with and without a material frame."""
+    from bullet_dlo.core.boundary import Move
+    from bullet_dlo.core.engine import simulate
+    from bullet_dlo.core.model import CableModel
+    from bullet_dlo.core.spec import CableSpec
+
+    moves = [Move("last", (0.0, 0.0, 0.005), 0.0, 0.01)]
+    for twist in (False, True):
+        model = CableModel.straight(CableSpec.lv2017(n_masses=6, twist=twist), ends=("clamped", "clamped"),
+                                    motion=moves)
+        for integrator in ("explicit_euler", "symplectic_euler", "rk4", "implicit_euler", "bdf2",
+                           "implicit_midpoint", "gauss_legendre"):
+            simulate(model, integrator, 1e-4, 2e-3, max_records=3)
+
+
+def bullet() -> None:
+    """A dual-arm environment (arms, grasps, sensors, IK, model contact with the arms' links) and a cable
+    lying on the ground of a bare world."""
+    import gymnasium as gym
+
+    import bullet_dlo  # noqa: F401  (registers the environments)
+    from bullet_dlo.bullet.world import BulletWorld
+    from bullet_dlo.core.spec import CableSpec
+
+    world = BulletWorld(dt=1e-3)
+    spec = CableSpec.lv2017(n_masses=6)
+    world.add_cable(spec, start=(0.0, 0.0, 0.5 * spec.diameter))
+    world.step(3)
+    env = gym.make("bullet_dlo/TensionTracking-v0")
+    env.reset(seed=0)
+    for _ in range(2):
+        env.step(env.action_space.sample())
+    env.close()
+
+
+if __name__ == "__main__":
+    {"core": core, "bullet": bullet}[sys.argv[1]]()
