@@ -22,6 +22,12 @@ CORE_RUNNER = "test_core_suite_passes_without_pybullet_h5py_matplotlib_av_cv2"
 """The test of ``tests/test_layers.py`` that runs the whole core suite in a process without PyBullet."""
 
 
+def _selects_a_directory(config) -> bool:
+    """True when the session runs a test directory (or the default, the whole suite), not named files."""
+    args = [a.split("::")[0] for a in config.args] or ["."]
+    return any(Path(config.invocation_params.dir, a).is_dir() for a in args)
+
+
 def pytest_sessionstart(session):
     """With pytest-xdist (``-n N``): compile the shared Numba kernels into the cache before the workers
     start (``tests/warm_kernels.py``, its two parts in parallel). On a cold cache the workers, the core
@@ -31,6 +37,8 @@ def pytest_sessionstart(session):
         return  # a worker (the controller warmed the cache), or one process (it compiles each kernel once)
     if os.environ.get("NUMBA_DISABLE_JIT", "0") != "0":
         return
+    if not _selects_a_directory(config):
+        return  # a few files or tests: their own kernels compile faster than the whole warm-up (~3 min)
     script = Path(__file__).with_name("warm_kernels.py")
     parts = [subprocess.Popen([sys.executable, str(script), part], stdout=subprocess.DEVNULL,
                               stderr=subprocess.PIPE, text=True) for part in ("core", "bullet")]
