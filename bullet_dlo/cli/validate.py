@@ -44,7 +44,7 @@ def cmd_beam(args: argparse.Namespace) -> int:
                                      strip=strip, estimate=estimate, duration=args.duration,
                                      limit_files=args.limit_files, check_numerics=not args.no_numerics_check,
                                      fit_youngs_modulus=args.fit_youngs_modulus, drag=args.drag_coefficient,
-                                     clamp_mass=args.clamp_mass, log=log)
+                                     clamp_mass=args.clamp_mass, arm=args.arm, log=log)
     out = Path(args.json)
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(json.dumps(summary, indent=2))
@@ -123,6 +123,12 @@ def add_parsers(sub, common: argparse.ArgumentParser) -> None:
                         "weight change and inertia m (g - a) join the predicted torques; off (default), fit (fitted on "
                         "FIT_DIR by linear least squares of the 1.5-8 Hz torque residual over the whole recordings, "
                         "then held) or a mass [kg] in [0, 10]")
+    b.add_argument("--arm", default="measured", choices=["measured", "compliant", "loop"],
+                   help="how the strip's clamp moves: measured (default: the flange path of the measured joint "
+                        "angles); compliant (the strip on the arm's joint impedance K, D identified on FIT_DIR from "
+                        "tau_J against q - q_d, stepped together with the strip, about the measured path: the model "
+                        "strip's load moves the arm where it differs from the real strip's); loop (the same arm in "
+                        "the full loop driven by q_d). compliant and loop run the planes strip only")
     b.add_argument("--strip-model", default="planes", choices=["planes", "rectangle"],
                    help="planes: two superposed planar runs of an isotropic cable, one per bending plane (default); "
                         "rectangle: one 3-D run of a rectangle-section cable with twist, clamped with the flange's "

@@ -340,6 +340,7 @@ class Prediction:
     simulated_s: float
     warnings: list[str] = field(default_factory=list)
     tip: np.ndarray | None = None  # the strip's free tip [m], (k, 3), world (planes: the weak-plane run's)
+    arm_deviation: np.ndarray | None = None  # [rad], (k, 7): the compliant arm's q - q_ref (beam_arm); None: rigid
 
 
 def low_passed_q(rec: BeamRecording, numerics: Numerics) -> np.ndarray:

@@ -1,0 +1,193 @@
+"""The strip on the compliant arm (``validate beam --arm compliant|loop``, :mod:`bullet_dlo.reality.beam_arm`)."""
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+from scipy.signal import butter, lsim, sosfiltfilt
+
+from bullet_dlo.core.validate import ParameterError
+from bullet_dlo.reality.beam import BeamRecording, EstimateFilter, Numerics, Strip, predict_torques
+from bullet_dlo.reality.beam_arm import (ArmImpedance, ArmLoop, identify_arm, predict_torques_compliant,
+                                         strip_torque_real)
+
+DATA = Path(__file__).resolve().parents[3] / "shared" / "data" / "beam_handling"
+K_TRUE = np.array([1800.0, 2000.0, 1500.0, 1400.0, 1000.0, 600.0, 500.0])
+D_TRUE = np.array([60.0, 50.0, 55.0, 50.0, 25.0, 10.0, 8.0])
+
+
+def rest_to_rest(t: np.ndarray, q0: np.ndarray, dq: np.ndarray, t0: float, duration: float) -> tuple[np.ndarray, ...]:
+    """Minimum-jerk joint path [rad] and rates [rad/s] from q0 by dq over [t0, t0 + duration]."""
+    s = np.clip((t - t0) / duration, 0.0, 1.0)[:, None]
+    q = q0 + dq * (10 * s**3 - 15 * s**4 + 6 * s**5)
+    dqt = dq * (30 * s**2 - 60 * s**3 + 30 * s**4) / duration
+    return q, dqt
+
+
+def synthetic(name: str, t: np.ndarray, q: np.ndarray, q_d: np.ndarray, dq: np.ndarray, dq_d: np.ndarray,
+              tau_j: np.ndarray, tau_ext: np.ndarray) -> BeamRecording:
+    return BeamRecording(t=t, q=q, q_d=q_d, dq=dq, dq_d=dq_d, tau_J=tau_j, tau_ext_hat_filtered=tau_ext, name=name)
+
+
+def test_identify_arm_recovers_a_joint_impedance_and_holds_unidentifiable_joints_rigid():
+    """tau_J = -K e - D de/dt on joints 0-4 (e: random band-limited tracking errors after a motion); joints 5-6 carry
+    torque noise unrelated to e: K, D come back within 1 %, and 5-6 are held rigid (R^2 ~ 0)."""
+    rng = np.random.default_rng(3)
+    t = np.arange(0.0, 7.5, 1e-3)
+    q_d, dq_d = rest_to_rest(t, np.zeros(7), np.full(7, 0.2), 0.2, 0.5)
+    sos = butter(2, (2.0, 5.0), btype="bandpass", fs=1000.0, output="sos")
+    e = sosfiltfilt(sos, rng.normal(0.0, 1e-3, (len(t), 7)), axis=0)
+    de = np.gradient(e, 1e-3, axis=0)
+    tau = -K_TRUE * e - D_TRUE * de
+    tau[:, 5:] = sosfiltfilt(sos, rng.normal(0.0, 0.5, (len(t), 2)), axis=0)
+    rec = synthetic("syn", t, q_d + e, q_d, dq_d + de, dq_d, tau + 3.0, np.zeros_like(tau))
+    imp = identify_arm([rec])
+    np.testing.assert_allclose(imp.stiffness[:5], K_TRUE[:5], rtol=0.01)
+    np.testing.assert_allclose(imp.damping[:5], D_TRUE[:5], rtol=0.01)
+    assert imp.compliant.tolist() == [True] * 5 + [False] * 2
+    assert np.all(imp.r2[:5] > 0.99) and np.all(imp.r2[5:] < 0.1)
+    tau[:, 5:] = -K_TRUE[5:] * e[:, 5:] - D_TRUE[5:] * de[:, 5:]  # identifiable wrist: still held rigid
+    imp = identify_arm([synthetic("syn", t, q_d + e, q_d, dq_d + de, dq_d, tau, np.zeros_like(tau))])
+    np.testing.assert_allclose(imp.stiffness, K_TRUE, rtol=0.01)
+    assert imp.compliant.tolist() == [True] * 5 + [False] * 2
+    with pytest.raises(ParameterError, match="stiffness > 0"):
+        ArmImpedance(-K_TRUE, D_TRUE, np.ones(7), np.ones(7, dtype=bool))
+
+
+def test_arm_loop_rings_at_the_closed_form_frequency_without_numerical_damping():
+    """One compliant joint (inertia I, stiffness K, damping D) released from a static deflection under a held
+    torque: Newmark's response against the closed-form damped oscillator over 2 s."""
+    inertia, k, d, f0 = 0.8, 1500.0, 4.0, 2.0
+    imp = ArmImpedance(np.r_[k, np.ones(6)], np.r_[d, np.zeros(6)], np.ones(7), np.r_[True, np.zeros(6, dtype=bool)])
+    h = 1e-3
+    arm = ArmLoop(np.full((1, 7, 7), inertia), imp, h)
+    arm.q[:] = f0 / k  # at rest, deflected by the torque f0; the torque is removed at t = 0
+    arm.a[:] = -f0 / inertia  # the acceleration that goes with it (Newmark carries it)
+    ts = np.arange(1, 2001) * h
+    out = []
+    for i in range(len(ts)):
+        arm.step(i * h, np.zeros(7))
+        out.append(arm.q[0])
+    wn = math.sqrt(k / inertia)
+    zeta = d / (2 * math.sqrt(k * inertia))
+    wd = wn * math.sqrt(1 - zeta**2)
+    exact = f0 / k * np.exp(-zeta * wn * ts) * (np.cos(wd * ts) + zeta * wn / wd * np.sin(wd * ts))
+    # trapezoidal rule: no amplitude error, phase error (wn h)^2 / 12 per radian (1.6e-3 over 2 s at 6.9 Hz)
+    np.testing.assert_allclose(out, exact, atol=0.002 * f0 / k)
+    assert full_is_padded(arm)
+
+
+def full_is_padded(arm: ArmLoop) -> bool:
+    full = arm.full(np.array([7.0]))
+    return full[0] == 7.0 and not np.any(full[1:])
+
+
+def test_strip_torque_real_undoes_the_estimate_filter():
+    """A band-limited torque through Franka's filter (low-pass + delay) and back: within 2 % RMS in 1.5-8 Hz."""
+    rng = np.random.default_rng(5)
+    t = np.arange(0.0, 6.0, 1e-3)
+    q_d, dq_d = rest_to_rest(t, np.zeros(7), np.full(7, 0.1), 0.5, 0.5)
+    sos = butter(2, (1.5, 8.0), btype="bandpass", fs=1000.0, output="sos")
+    tau = sosfiltfilt(sos, rng.normal(0.0, 1.0, (len(t), 7)), axis=0)
+    tau[:500] = 0.0
+    est = EstimateFilter(4.2, 0.0065)
+    rec = synthetic("f", t, q_d, q_d, dq_d, dq_d, np.zeros_like(tau), est.apply(tau, 1000.0))
+    back = strip_torque_real(rec, est)
+    inner = slice(1000, 5000)
+    err = np.sqrt(np.mean((back[inner] - tau[inner]) ** 2)) / np.sqrt(np.mean(tau[inner] ** 2))
+    assert err < 0.02
+    raw = np.sqrt(np.mean((rec.tau_ext_hat_filtered[inner] - tau[inner]) ** 2)) / np.sqrt(np.mean(tau[inner] ** 2))
+    assert raw > 0.3  # the filter itself is far from the identity: the check has teeth
+
+
+@pytest.fixture(scope="module")
+def panda():
+    pytest.importorskip("pybullet")
+    from bullet_dlo.reality.panda import Panda
+
+    with Panda() as p:
+        yield p
+
+
+def swing(duration: float = 2.0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A 0.15 rad joint-0 swing of the Panda in 0.35 s from the beam_handling start pose: t, q, dq."""
+    t = np.arange(0.0, duration, 1e-3)
+    q0 = np.array([0.0, -0.3, 0.0, -2.2, 0.0, 2.0, 0.785])
+    dq = np.zeros(7)
+    dq[0] = 0.15
+    q, dqt = rest_to_rest(t, q0, dq, 0.1, 0.35)
+    return t, q, dqt
+
+
+def test_substitution_keeps_the_measured_path_when_the_model_strip_is_the_real_one(panda):
+    """A recording made by the model itself (its rigid-path torques through Franka's filter as the estimate): the
+    substituted arm barely moves (the model's torque equals the 'real' one), while the same arm with no real torque to
+    substitute (the strip's load acting on it alone) deflects 10x more: sign, lag and filter inversion agree."""
+    t, q, dq = swing()
+    est = EstimateFilter(4.2, 0.0065)
+    numerics = Numerics(n_masses=8)
+    damping = {"damping_rate": 0.3}
+    base = synthetic("self", t, q, q, dq, dq, np.zeros_like(q), np.zeros_like(q))
+    rigid = predict_torques(base, panda, Strip(), damping, numerics, est)
+    k = len(rigid.t)
+    tau_ext = np.zeros_like(q)
+    tau_ext[:k] = rigid.torques_filtered
+    tau_ext[k:] = rigid.torques_filtered[-1]
+    imp = ArmImpedance(K_TRUE, D_TRUE, np.ones(7), np.arange(7) < 5)
+    real = synthetic("self", t, q, q, dq, dq, np.zeros_like(q), tau_ext)
+    sub = predict_torques_compliant(real, panda, imp, Strip(), damping, numerics, est)
+    alone = predict_torques_compliant(base, panda, imp, Strip(), damping, numerics, est)
+    moved_sub = np.abs(sub.arm_deviation).max()
+    moved_alone = np.abs(alone.arm_deviation).max()
+    assert moved_alone > 1e-5  # the strip's load really deflects the arm (rad)
+    assert moved_sub < 0.1 * moved_alone
+    # and the substituted prediction is the rigid one (within a few % of the torque swing)
+    n = min(k, len(sub.t))
+    swing_ = np.ptp(rigid.torques[:n, 0])
+    assert np.max(np.abs(sub.torques[:n, 0] - rigid.torques[:n, 0])) < 0.05 * swing_
+
+
+def test_compliant_arm_needs_the_planes_strip(panda):
+    t, q, dq = swing(0.5)
+    rec = synthetic("x", t, q, q, dq, dq, np.zeros_like(q), np.zeros_like(q))
+    imp = ArmImpedance(K_TRUE, D_TRUE, np.ones(7), np.arange(7) < 5)
+    with pytest.raises(ParameterError, match="planes strip model only"):
+        predict_torques_compliant(rec, panda, imp, numerics=Numerics(strip_model="rectangle"))
+    with pytest.raises(ParameterError, match="wrist joints 5 and 6 rigid"):
+        predict_torques_compliant(rec, panda, ArmImpedance(K_TRUE, D_TRUE, np.ones(7), np.ones(7, dtype=bool)))
+
+
+@pytest.mark.skipif(not DATA.is_dir(), reason=f"beam_handling recordings not found at {DATA} (../shared/data)")
+def test_identified_arm_reproduces_the_measured_tracking_error(panda):
+    """Real data: the arm model (URDF inertia, K and D identified on two X recordings) driven by the real strip's
+    torque (the estimate, filter undone) gives the measured tracking error q - q_d of joints 0, 2 and 4 after the
+    Xdown_15cm motion (band 1.5-8 Hz): gain within 15 %, correlation above 0.9."""
+    from bullet_dlo.reality.beam import read_beam_csv
+    from bullet_dlo.reality.vibration import motion_span
+
+    recs = [read_beam_csv(DATA / f"ocp_{n}.csv") for n in ("Xdown_15cm_0.35s_1", "Xup_25cm_0.44s_1")]
+    imp = identify_arm(recs)
+    assert imp.compliant[[0, 2, 4]].all() and not imp.compliant[6]
+    rec = recs[0]
+    _, end = motion_span(rec.dq_d)
+    est = EstimateFilter(4.2, 0.0065)
+    seg = slice(end + 300, end + 6000)
+    tau = strip_torque_real(rec, est)
+    sos = butter(4, (1.5, 8.0), btype="bandpass", fs=1000.0, output="sos")
+    idx = np.flatnonzero(imp.compliant)
+    mass = panda.mass_matrix(rec.q[end + 500])[np.ix_(idx, idx)]
+    mi = np.linalg.inv(mass)
+    nc = len(idx)
+    a = np.block([[np.zeros((nc, nc)), np.eye(nc)], [-mi @ np.diag(imp.stiffness[idx]), -mi @ np.diag(imp.damping[idx])]])
+    b = np.vstack([np.zeros((nc, nc)), -mi])
+    u = sosfiltfilt(sos, tau[:, idx], axis=0)[seg]
+    _, y, _ = lsim((a, b, np.hstack([np.eye(nc), np.zeros((nc, nc))]), np.zeros((nc, nc))), u,
+                   np.arange(len(u)) * 1e-3)
+    e = sosfiltfilt(sos, rec.q - rec.q_d, axis=0)[seg][:, idx]
+    for j in (0, 2, 4):
+        c = list(idx).index(j)
+        gain = float(y[:, c] @ e[:, c] / (y[:, c] @ y[:, c]))
+        assert 0.85 < gain < 1.15, (j, gain)
+        assert np.corrcoef(y[:, c], e[:, c])[0, 1] > 0.9
