@@ -78,20 +78,31 @@ BENDING = {
               "cable: no plane coupling, no twist",
 }
 STRIP_LIMITS = {
-    "rectangle": "the core advances the twist in a staggered sub-step, first order in dt: when the flange rolls while "
-                 "the strip bends it makes a spurious strong-plane load (on ocp_Z_15cm the band-passed torque p2p "
-                 "+24 % at dt 1 ms, +2 % at 0.1 ms against the planes), hence dt 1e-4 s",
+    "rectangle": "the twist is solved with the positions in BDF2's Newton step (the implicit Euler and midpoint "
+                 "steps too; other integrators advance it in a staggered first-order sub-step): on ocp_Z_15cm the "
+                 "band-passed torque p2p is 1.608 / 1.607 N m at dt 1 / 0.1 ms (planes 1.608), hence dt 1e-3 s",
     "planes": "the strip's two bending planes are two superposed isotropic-cable runs: plane coupling, twist and the "
               "turning of the projection axes are left out (--strip-model rectangle has them: within 3 % on these "
               "recordings)",
 }
+ARM_LIMITS = {
+    "measured": "the clamp follows the flange path of the measured joint angles, and after the motion that path "
+                "carries the arm's reaction to the real strip (the arm under its controller is compliant and lossy at "
+                "3 Hz): about half of the model's damping ratio comes through it (driven by q_d instead, the model "
+                "keeps only damping_rate's 0.0065), and only while the model's frequency matches the real one (E 2 % "
+                "lower: the predicted damping ratio falls to 0.7-0.9x at the same damping_rate); the strip on the "
+                "compliant arm in a closed loop is --arm compliant / loop",
+    "compliant": "the strip on the arm's joint impedance (K, D per joint identified from tau_J against q - q_d, "
+                 "the URDF's inertia), substituted about the measured path with the real strip's torque (Franka's "
+                 "estimate, filter undone): it uses the predicted recording's own torque to take the real strip's "
+                 "reaction out of its measured path, so it is a replay of a known motion, not a prediction of a new "
+                 "one (--arm loop is); joints whose impedance the identifying folder does not determine (R^2 < 0.5) "
+                 "and the wrist are rigid",
+    "loop": "the strip on the arm's joint impedance in the full loop from q_d: nothing else moves the arm (the arm's "
+            "own tracking error during the motion, from its dynamics and Franka's model errors, is missing); joints "
+            "whose impedance the identifying folder does not determine (R^2 < 0.5) and the wrist are rigid",
+}
 LIMITS = [
-    "the clamp follows the flange path of the measured joint angles, and after the motion that path carries the "
-    "arm's reaction to the real strip (the arm under its controller is compliant and lossy at 3 Hz): about half of "
-    "the model's damping ratio comes through it (driven by q_d instead, the model keeps only damping_rate's 0.0065), "
-    "and only while the model's frequency matches the real one (E 2 % lower: the predicted damping ratio falls to "
-    "0.7-0.9x at the same damping_rate); the physics would be the strip on the compliant arm in a closed loop driven "
-    "by q_d (not built; docs/guides/validate.md, demos/beam_hypotheses.py)",
     "the motions are vibration-suppressing (optimal-control) motions: the residual vibration is a small remainder of "
     "the motion's excitation, and the model leaves 0.5-1.5x the measured one on the same measured path (q timing "
     "+-10 ms, the window +-0.2 s and the damping law change it by a few per cent)",
@@ -435,7 +446,8 @@ def validate_beam(fit_dir: str | Path, predict_dir: str | Path, *, damping: str 
                   numerics: Numerics = Numerics(), strip: Strip = Strip(), estimate: EstimateFilter | None = None,
                   duration: float | None = None, limit_files: int | None = None, check_numerics: bool = True,
                   fit_youngs_modulus: bool = False, drag: str | float = "off", clamp_mass: str | float = "off",
-                  arm: str = "measured", log=print) -> tuple[dict[str, Any], dict[str, tuple[BeamRecording, Measured, Prediction]]]:
+                  arm: str | None = None, arm_dir: str | Path | None = None,
+                  log=print) -> tuple[dict[str, Any], dict[str, tuple[BeamRecording, Measured, Prediction]]]:
     """Fit ``damping`` on the recordings of ``fit_dir``, predict those of ``predict_dir``.
 
     estimate: Franka's filter (default: identified on ``fit_dir``); duration: simulated seconds of each
@@ -447,11 +459,17 @@ def validate_beam(fit_dir: str | Path, predict_dir: str | Path, *, damping: str 
     clamp_mass: a rigid payload at the clamp that Franka's estimate does not know (:attr:`Mounting.clamp_mass`):
     ``"off"`` (default), ``"fit"`` (fitted on ``fit_dir`` first, :func:`fit_clamp_mass`, then held while the
     damping is fitted) or a mass [kg] in [0, 10].
-    arm: how the strip's clamp moves (:mod:`bullet_dlo.reality.beam_arm`): ``"measured"`` (default: the flange
-    path of the measured q), ``"compliant"`` (the strip on the arm's joint impedance identified on ``fit_dir``,
-    substituted about the measured q) or ``"loop"`` (the same arm in the full loop driven by q_d).
+    arm: how the strip's clamp moves (:mod:`bullet_dlo.reality.beam_arm`): ``"measured"`` (the flange path of the
+    measured q), ``"compliant"`` (the strip on the arm's joint impedance identified on ``fit_dir``, substituted about
+    the measured q) or ``"loop"`` (the same arm in the full loop driven by q_d); None (default): ``"compliant"`` for
+    the planes strip (better on the held-out files: docs/guides/validate.md), ``"measured"`` for the rectangle strip
+    (the loop runs the planes only); ``arm_dir``: the
+    folder whose recordings identify the arm's impedance instead of ``fit_dir`` (the controller is one for all
+    motions, but a folder of Z motions does not move joints 0 and 2 enough to identify them).
     Returns the JSON-ready summary and, per predicted file, (recording, measurement, prediction).
     """
+    if arm is None:
+        arm = "compliant" if numerics.strip_model == "planes" else "measured"
     check_arm_mode(arm)
     if drag == "fit" and damping != "damping_rate":
         raise ParameterError("--drag-coefficient fit fits C_d together with damping_rate: use --damping damping_rate")
@@ -479,7 +497,8 @@ def validate_beam(fit_dir: str | Path, predict_dir: str | Path, *, damping: str 
     tic = time.thread_time()
     arm_setting = None
     if arm != "measured":
-        arm_setting = ArmSetting(arm, identify_arm(fit_recs))
+        arm_recs = fit_recs if arm_dir is None else [read_in(f, "--arm-dir") for f in beam_files(arm_dir, "--arm-dir")]
+        arm_setting = ArmSetting(arm, identify_arm(arm_recs))
         imp = arm_setting.impedance
         log("arm joint impedance (joints " + ", ".join(map(str, np.flatnonzero(imp.compliant))) + " compliant): K "
             + " ".join(f"{k:.0f}" for k in imp.stiffness) + " N m/rad, D " + " ".join(f"{d:.1f}" for d in imp.damping)
@@ -548,7 +567,8 @@ def validate_beam(fit_dir: str | Path, predict_dir: str | Path, *, damping: str 
                        "material": "density and geometry nominal (midpoints of the stated ranges)"},
         "fit_files": [r.name for r in fit_recs],
         "arm": {"mode": arm, "what": ARM_MODES_DOC[arm],
-                **({"impedance": arm_setting.impedance.to_dict()} if arm_setting is not None else {})},
+                **({"impedance": arm_setting.impedance.to_dict(),
+                    "identified_on": [r.name for r in arm_recs]} if arm_setting is not None else {})},
         "model": {"integrator": numerics.integrator, "n": numerics.n_masses, "dt": numerics.dt,
                   "knot_step_s": numerics.knot_step, "q_cutoff_hz": numerics.q_cutoff_hz,
                   "strip_model": numerics.strip_model, "bending": BENDING[numerics.strip_model],
@@ -558,7 +578,7 @@ def validate_beam(fit_dir: str | Path, predict_dir: str | Path, *, damping: str 
                             "phase_deg_at_2.9_hz": float(np.degrees(np.angle(estimate.response(2.9))))},
         "cost_per_simulated_second": cpu / simulated if simulated else math.nan,
         "total_cpu_s": time.thread_time() - tic,
-        "limits": [STRIP_LIMITS[numerics.strip_model], *LIMITS],
+        "limits": [STRIP_LIMITS[numerics.strip_model], ARM_LIMITS[arm], *LIMITS],
     }
     if check_numerics:
         summary["numerics"] = numerics_check(strip, numerics, params)

@@ -180,7 +180,8 @@ def test_identified_arm_reproduces_the_measured_tracking_error(panda):
     mass = panda.mass_matrix(rec.q[end + 500])[np.ix_(idx, idx)]
     mi = np.linalg.inv(mass)
     nc = len(idx)
-    a = np.block([[np.zeros((nc, nc)), np.eye(nc)], [-mi @ np.diag(imp.stiffness[idx]), -mi @ np.diag(imp.damping[idx])]])
+    a = np.block([[np.zeros((nc, nc)), np.eye(nc)],
+                  [-mi @ np.diag(imp.stiffness[idx]), -mi @ np.diag(imp.damping[idx])]])
     b = np.vstack([np.zeros((nc, nc)), -mi])
     u = sosfiltfilt(sos, tau[:, idx], axis=0)[seg]
     _, y, _ = lsim((a, b, np.hstack([np.eye(nc), np.zeros((nc, nc))]), np.zeros((nc, nc))), u,
@@ -191,3 +192,23 @@ def test_identified_arm_reproduces_the_measured_tracking_error(panda):
         gain = float(y[:, c] @ e[:, c] / (y[:, c] @ y[:, c]))
         assert 0.85 < gain < 1.15, (j, gain)
         assert np.corrcoef(y[:, c], e[:, c])[0, 1] > 0.9
+
+
+def test_a_stiff_arm_in_the_loop_is_the_rigid_prescribed_path(panda):
+    """The full loop from q_d with a 1e7 N m/rad arm (deviations ~1e-7 rad) gives the torques of the clamp prescribed
+    on the q_d path (:func:`predict_torques`, one simulate call per plane): the hand-stepped weak-plane run (held-end
+    samples, BDF2 history, clamp loads) and the prescribed strong plane are the same model."""
+    t, q, dq = swing(1.2)
+    est = EstimateFilter(4.2, 0.0065)
+    numerics = Numerics(n_masses=8)
+    damping = {"damping_rate": 0.3}
+    rec = synthetic("stiff", t, q + 0.01, q, dq, dq, np.zeros_like(q), np.zeros_like(q))  # q far off: not used
+    stiff = ArmImpedance(np.full(7, 1e7), np.full(7, 1e3), np.ones(7), np.arange(7) < 5)
+    loop = predict_torques_compliant(rec, panda, stiff, Strip(), damping, numerics, est, drive="desired")
+    rigid = predict_torques(synthetic("stiff", t, q, q, dq, dq, np.zeros_like(q), np.zeros_like(q)), panda, Strip(),
+                            damping, numerics, est)
+    n = min(len(loop.t), len(rigid.t))
+    assert np.abs(loop.arm_deviation).max() < 1e-5
+    for j in range(5):
+        scale = np.ptp(rigid.torques[:n, j])
+        assert np.max(np.abs(loop.torques[:n, j] - rigid.torques[:n, j])) < 0.01 * scale + 1e-4, j
