@@ -1,7 +1,8 @@
 """The beam_handling recordings (Mamedov et al., ICRA): a Franka Panda carrying a steel strip.
 
 Reader of the libfranka CSV (:func:`read_beam_csv` -> :class:`BeamRecording`), the strip as a
-core cable clamped at the flange and driven by the recorded flange path (:func:`predict_torques`),
+core cable clamped at the flange and driven by the recorded flange path (:func:`predict_torques`; on the
+compliant arm in a closed loop: :mod:`bullet_dlo.reality.beam_arm`),
 and Franka's filtered external-torque estimate (:class:`EstimateFilter`, :func:`identify_filter`).
 
 The strip (:class:`Strip`): 0.52 x 0.08 x 0.001 m steel, E 190-205 GPa, density 7870-8070 kg/m^3

@@ -13,8 +13,9 @@ predicted damping ratio is linear in the parameter, so per fit recording two run
 at 0 and at a trial value) give the value that matches that recording's measured damping ratio.
 The fitted value is the mean over the fit recordings; its interval is their spread (min-max),
 and a leave-one-out check predicts each fit recording's damping ratio from the others' mean.
-The run at 0 also shows how much damping the robot's own measured motion brings (the flange is
-driven by the measured joint angles, so the arm's compliance is in the model).
+The run at 0 also shows how much damping the arm brings: through the measured flange path (``arm``
+``measured``: the recorded arm's reaction to the real strip) or through the arm's identified joint impedance the
+model strip loads (``compliant``, the default with the planes strip, and ``loop``: :mod:`bullet_dlo.reality.beam_arm`).
 
 The measured damping is amplitude dependent (larger at large amplitude): reported per recording
 over successive windows; a linear damping law cannot follow it, which limits the damping ratio
