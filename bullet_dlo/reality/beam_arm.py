@@ -10,17 +10,20 @@ M(q) q'' + c + g = tau_J + J^T w (w the load's wrench on the flange), so about t
     M(q) e'' + D e' + K e = -tau_ext + tau_other(t),      tau_ext = -J(q)^T w  (Franka's external torque).
 
 Checked on the recordings (``tests/reality/test_beam_arm.py``): driven by the real strip's external torque (the
-estimate with its filter undone), this model reproduces the measured tracking error of joints 0, 1, 2, 4 on the
-Xdown/Xup 15/25 cm files with gain 0.9-1.0 and correlation 0.9-0.99. Joints whose pooled R^2 is below
-:data:`MIN_R2` (joint 0 on the Z motions, which barely move it) are held rigid, and so are the wrist joints 5 and 6
-(R^2 0.2-0.3 on the recordings: they barely move either; their inertia, 0.01-0.05 kg m^2, is also too small for the
-staggered step below against the strip's strong-plane clamp, 6400x stiffer than the weak one).
+estimate with its filter undone), this model reproduces the measured tracking error of joints 0, 2 and 4 on
+Xdown_15cm with gain 0.9-1.0 and correlation 0.97-0.99 (0.67-1.02 and 0.84-0.99 on joints 0, 1, 2, 4 of the Xdown/Xup
+15/25 cm files). Joints whose pooled R^2 is below :data:`MIN_R2` (joints 0 and 2 on the Z motions, which barely move
+them) are held rigid, and so are the wrist joints 5 and 6 (R^2 0.1-0.3 on the recordings: they barely move either,
+and their small inertia would make the staggered step below ring against the strip's stiff clamp).
 
 **The closed loop** (:func:`predict_torques_compliant`). The arm's deviation delta from a reference joint path
 q_ref obeys M(q_ref) delta'' + D delta' + K delta = -(tau_ext,model - tau_sub) on its compliant joints; the strip's
 clamp follows FK(q_ref) + J(q_ref) delta (first order in delta, a few mrad at most), step by step at the strip's dt:
 the strip's clamp load at t gives tau_ext,model, one arm step (Newmark average acceleration, no numerical damping)
-gives delta at t + dt, the strip steps to t + dt with its clamp there (a one-step lag; halving dt checks it).
+gives delta at t + dt, the strip steps to t + dt with its clamp there (a one-step lag; halving dt changes the
+goal's peak-to-peak by 0.1-0.3 %). Only the weak-plane run is stepped in the loop: the strong plane (first mode near
+240 Hz) is a rigid part of the arm, its load along q_ref from a prescribed run and its inertia against delta in the
+arm's mass matrix (stepped in the loop, its stiff clamp with the one-step lag rang the loop at 200 Hz).
 
 * ``drive="measured"`` (substitution): q_ref = the measured q and tau_sub = the real strip's external torque
   (Franka's estimate with the identified filter undone: advanced by its delay, plus its derivative over the
