@@ -9,7 +9,7 @@ face gives k = 2 rho_air C_d kappa / (3 pi rho_s t) (:func:`~bullet_dlo.reality.
 so k says which drag coefficient C_d the data ask for.
 
 Step (``--dt-check FILE``): the rectangle strip's band-passed torque peak-to-peak on one recording at
-dt 1, 0.5, 0.25 and 0.1 ms against the planar pair's (the core's staggered twist step is first order in dt).
+dt 1, 0.5, 0.25 and 0.1 ms against the planar pair's (BDF2 solves the twist in its Newton step: converged at 1 ms).
 
     python demos/beam_damping.py ../shared/data/beam_handling
     python demos/beam_damping.py ../shared/data/beam_handling --dt-check ocp_Z_15cm_0.42s_1

@@ -10,7 +10,9 @@ damping ratio and of the frequency (damped sine over end + 1-6 s):
   all nine recordings (:func:`~bullet_dlo.reality.beam_validate.fit_clamp_mass`; per-file values printed);
 * ``q+10ms`` / ``q-10ms``: the joint angles shifted in time against the torques (timing of q and tau);
 * ``E x0.98``: the strip's E lowered by 2 % (its frequency then matches the measured within 0.5 %);
-* ``q_d``: the clamp driven by the desired joints q_d instead of the measured q (no arm reaction to the strip).
+* ``q_d``: the clamp driven by the desired joints q_d instead of the measured q (no arm reaction to the strip);
+* ``compliant`` / ``loop``: the strip on the arm's joint impedance identified on all nine recordings
+  (:mod:`bullet_dlo.reality.beam_arm`), substituted about the measured q / in the full loop from q_d.
 
 Then, from the recordings alone: the measured frequency and damping ratio over successive windows (does the
 frequency move with the amplitude, as a slipping or yielding clamp would make it?), the damped-sine fit over the
@@ -30,6 +32,7 @@ from scipy.signal import csd, welch
 
 from bullet_dlo.reality.beam import (EstimateFilter, Mounting, Numerics, Strip, beam_files, predict_torques,
                                      read_beam_csv)
+from bullet_dlo.reality.beam_arm import identify_arm, predict_torques_compliant
 from bullet_dlo.reality.beam_validate import fit_clamp_mass, measure
 from bullet_dlo.reality.panda import Panda
 from bullet_dlo.reality.vibration import band, damping_by_amplitude, fit_damped_sine, residual_vibration, window
@@ -75,11 +78,18 @@ def main() -> None:
               + ", ".join(f"{k[4:-3]} {v:.2f}" for k, v in mass.per_file.items())
               + f"; band residual {mass.residual_rms_without:.3f} -> {mass.residual_rms_with:.3f} N m")
         variants["payload"] = {"mounting": Mounting(clamp_mass=mass.value)}
+        variants["compliant"] = {"arm": "measured"}
+        variants["loop"] = {"arm": "desired"}
+        impedance = identify_arm(recs)
         for name, v in variants.items():
             preds = []
             for rec, m, b in zip(recs, meas, base):
                 if name == "base":
                     preds.append(b)
+                    continue
+                if "arm" in v:
+                    preds.append(predict_torques_compliant(rec, panda, impedance, Strip(), DAMPING, numerics, ESTIMATE,
+                                                           duration=m.t_end + 6.05, drive=v["arm"]))
                     continue
                 r = shifted(rec, v["shift"]) if "shift" in v else replace(rec, q=rec.q_d.copy()) if "q_d" in v else rec
                 preds.append(predict_torques(r, panda, v.get("strip", Strip()), DAMPING, numerics, ESTIMATE,

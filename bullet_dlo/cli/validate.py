@@ -44,7 +44,7 @@ def cmd_beam(args: argparse.Namespace) -> int:
                                      strip=strip, estimate=estimate, duration=args.duration,
                                      limit_files=args.limit_files, check_numerics=not args.no_numerics_check,
                                      fit_youngs_modulus=args.fit_youngs_modulus, drag=args.drag_coefficient,
-                                     clamp_mass=args.clamp_mass, log=log)
+                                     clamp_mass=args.clamp_mass, arm=args.arm, arm_dir=args.arm_dir, log=log)
     out = Path(args.json)
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(json.dumps(summary, indent=2))
@@ -66,7 +66,8 @@ def cmd_beam(args: argparse.Namespace) -> int:
                            else ""))
     print(f"{damping_note}; estimate filter "
           f"{summary['estimate_filter']['cutoff_hz']:.3g} Hz + {1e3 * summary['estimate_filter']['delay_s']:.3g} ms; "
-          f"{args.strip_model} strip, {args.integrator}, n {args.n_masses}, dt {numerics.dt:g} s; "
+          f"{args.strip_model} strip, {summary['arm']['mode']} arm, {args.integrator}, n {args.n_masses}, "
+          f"dt {numerics.dt:g} s; "
           f"{summary['cost_per_simulated_second']:.3g} CPU s per simulated s")
     if "clamp_mass_fit" in params:
         cm = params["clamp_mass_fit"]
@@ -123,16 +124,26 @@ def add_parsers(sub, common: argparse.ArgumentParser) -> None:
                         "weight change and inertia m (g - a) join the predicted torques; off (default), fit (fitted on "
                         "FIT_DIR by linear least squares of the 1.5-8 Hz torque residual over the whole recordings, "
                         "then held) or a mass [kg] in [0, 10]")
+    b.add_argument("--arm", choices=["measured", "compliant", "loop"],
+                   help="how the strip's clamp moves: compliant (the default with the planes strip: the strip on the "
+                        "arm's joint impedance K, D identified on FIT_DIR from tau_J against q - q_d, stepped together "
+                        "with the strip about the measured path, so that the model strip's load moves the arm where it "
+                        "differs from the real strip's); measured (the default with the rectangle strip: the flange "
+                        "path of the measured joint angles); loop (the compliant arm in the full loop driven by q_d). "
+                        "compliant and loop run the planes strip only")
+    b.add_argument("--arm-dir", metavar="DIR", help="with --arm compliant/loop: identify the arm's joint impedance on "
+                   "the beam_handling *.csv of DIR instead of FIT_DIR (it uses tau_J and q - q_d only; Z motions alone "
+                   "leave joints 0 and 2 unidentified, and they are then held rigid)")
     b.add_argument("--strip-model", default="planes", choices=["planes", "rectangle"],
                    help="planes: two superposed planar runs of an isotropic cable, one per bending plane (default); "
                         "rectangle: one 3-D run of a rectangle-section cable with twist, clamped with the flange's "
-                        "orientation (within 3 %% of planes on the recordings, 17-19x the cost)")
+                        "orientation (within 3 %% of planes on the recordings)")
     b.add_argument("--integrator", default="bdf2", choices=["bdf2", "implicit_euler", "implicit_midpoint"],
                    help="core integrator (bdf2: its numerical damping is measured and reported; implicit_euler "
                         "adds ~0.009, as much as the physical damping; implicit_midpoint rings)")
     b.add_argument("--n-masses", type=int, default=20, help="point masses of the strip model, >= 4 (20)")
-    b.add_argument("--dt", type=float, help="time step [s] (default 1e-4 for the rectangle strip, whose staggered "
-                   "twist step is first order in dt; 1e-3 for the planes)")
+    b.add_argument("--dt", type=float, help="time step [s] (default 1e-3 for both strip models: BDF2 solves the "
+                   "rectangle's twist in its Newton step, converged at 1 ms)")
     b.add_argument("--knot-step", type=float, default=0.004,
                    help="spacing of the flange-path waypoints taken from the recording [s] (0.004)")
     b.add_argument("--youngs-modulus", type=float, default=197.5e9, help="strip's E [Pa] (197.5e9, nominal)")

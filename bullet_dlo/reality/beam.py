@@ -1,7 +1,8 @@
 """The beam_handling recordings (Mamedov et al., ICRA): a Franka Panda carrying a steel strip.
 
 Reader of the libfranka CSV (:func:`read_beam_csv` -> :class:`BeamRecording`), the strip as a
-core cable clamped at the flange and driven by the recorded flange path (:func:`predict_torques`),
+core cable clamped at the flange and driven by the recorded flange path (:func:`predict_torques`; on the
+compliant arm in a closed loop: :mod:`bullet_dlo.reality.beam_arm`),
 and Franka's filtered external-torque estimate (:class:`EstimateFilter`, :func:`identify_filter`).
 
 The strip (:class:`Strip`): 0.52 x 0.08 x 0.001 m steel, E 190-205 GPa, density 7870-8070 kg/m^3
@@ -30,9 +31,11 @@ the strip's EA and mass per length) clamped at the flange:
 It neglects twist (the strip's polar inertia is 1.8e-4 kg m^2), the coupling of the planes and the
 rotation of the projection axes during the motion (the recorded flange turns by < 0.5 degrees).
 On a motion within the weak plane the two models agree (``tests/reality/test_beam_strip.py``); on the
-nine recordings their predictions differ by at most 3 % (the rectangle's first-order dt error at
-0.1 ms is about that much), at 17-19x the cost (2.6-2.9 against 0.15 CPU s per simulated second): the
-coupling and twist the rectangle adds change nothing measurable here, so the pair stays the default.
+nine recordings their predictions differ by at most 3 % (measured with the rectangle at dt 0.1 ms, when the core
+still advanced its twist in a staggered sub-step). The core's BDF2 step now solves the twist with the positions
+(one Newton system), and the rectangle's band-passed torque on ocp_Z_15cm is 1.608 / 1.607 / 1.607 / 1.607 N m
+at dt 1 / 0.5 / 0.25 / 0.1 ms (planes 1.608): both run at dt 1 ms. The coupling and twist the rectangle adds change
+nothing measurable here, so the pair stays the default.
 """
 from __future__ import annotations
 
@@ -59,9 +62,9 @@ GROUPS = ("q", "q_d", "dq", "dq_d", "tau_J", "tau_ext_hat_filtered")
 COLUMNS = ("duration", "success rate", *(f"{g}[{j}]" for g in GROUPS for j in range(N_JOINTS)))
 MOUNT_YAW = math.pi / 4  # [rad] beam frame = flange frame turned about its z (the xacro writes pi as 3.1415)
 STRIP_MODELS = ("rectangle", "planes")  # one 3-D run of a rectangle-section cable | two planar isotropic runs
-# [s] default steps: the rectangle's twist is advanced in a staggered sub-step (first order in dt), which
-# makes a spurious strong-plane load when the flange rolls while the strip bends (module doc)
-DEFAULT_DT = {"rectangle": 1e-4, "planes": 1e-3}
+# [s] default steps: with BDF2 the core couples the rectangle's twist into its Newton step, converged at 1 ms
+# (module doc; it used to be a staggered first-order sub-step that needed 0.1 ms)
+DEFAULT_DT = {"rectangle": 1e-3, "planes": 1e-3}
 
 
 def check_strip_model(name: str) -> str:
@@ -340,6 +343,7 @@ class Prediction:
     simulated_s: float
     warnings: list[str] = field(default_factory=list)
     tip: np.ndarray | None = None  # the strip's free tip [m], (k, 3), world (planes: the weak-plane run's)
+    arm_deviation: np.ndarray | None = None  # [rad], (k, 7): the compliant arm's q - q_ref (beam_arm); None: rigid
 
 
 def low_passed_q(rec: BeamRecording, numerics: Numerics) -> np.ndarray:

@@ -13,8 +13,9 @@ predicted damping ratio is linear in the parameter, so per fit recording two run
 at 0 and at a trial value) give the value that matches that recording's measured damping ratio.
 The fitted value is the mean over the fit recordings; its interval is their spread (min-max),
 and a leave-one-out check predicts each fit recording's damping ratio from the others' mean.
-The run at 0 also shows how much damping the robot's own measured motion brings (the flange is
-driven by the measured joint angles, so the arm's compliance is in the model).
+The run at 0 also shows how much damping the arm brings: through the measured flange path (``arm``
+``measured``: the recorded arm's reaction to the real strip) or through the arm's identified joint impedance the
+model strip loads (``compliant``, the default with the planes strip, and ``loop``: :mod:`bullet_dlo.reality.beam_arm`).
 
 The measured damping is amplitude dependent (larger at large amplitude): reported per recording
 over successive windows; a linear damping law cannot follow it, which limits the damping ratio
@@ -57,6 +58,7 @@ from bullet_dlo.reality.beam import (
     predict_torques,
     read_beam_csv,
 )
+from bullet_dlo.reality.beam_arm import ArmImpedance, check_arm_mode, identify_arm, predict_torques_compliant
 from bullet_dlo.reality.panda import Panda
 from bullet_dlo.reality.vibration import (
     SINE_WINDOW,
@@ -77,20 +79,31 @@ BENDING = {
               "cable: no plane coupling, no twist",
 }
 STRIP_LIMITS = {
-    "rectangle": "the core advances the twist in a staggered sub-step, first order in dt: when the flange rolls while "
-                 "the strip bends it makes a spurious strong-plane load (on ocp_Z_15cm the band-passed torque p2p "
-                 "+24 % at dt 1 ms, +2 % at 0.1 ms against the planes), hence dt 1e-4 s",
+    "rectangle": "the twist is solved with the positions in BDF2's Newton step (the implicit Euler and midpoint "
+                 "steps too; other integrators advance it in a staggered first-order sub-step): on ocp_Z_15cm the "
+                 "band-passed torque p2p is 1.608 / 1.607 N m at dt 1 / 0.1 ms (planes 1.608), hence dt 1e-3 s",
     "planes": "the strip's two bending planes are two superposed isotropic-cable runs: plane coupling, twist and the "
               "turning of the projection axes are left out (--strip-model rectangle has them: within 3 % on these "
               "recordings)",
 }
+ARM_LIMITS = {
+    "measured": "the clamp follows the flange path of the measured joint angles, and after the motion that path "
+                "carries the arm's reaction to the real strip (the arm under its controller is compliant and lossy at "
+                "3 Hz): about half of the model's damping ratio comes through it (driven by q_d instead, the model "
+                "keeps only damping_rate's 0.0065), and only while the model's frequency matches the real one (E 2 % "
+                "lower: the predicted damping ratio falls to 0.7-0.9x at the same damping_rate); the strip on the "
+                "compliant arm in a closed loop is --arm compliant / loop",
+    "compliant": "the strip on the arm's joint impedance (K, D per joint identified from tau_J against q - q_d, "
+                 "the URDF's inertia), substituted about the measured path with the real strip's torque (Franka's "
+                 "estimate, filter undone): it uses the predicted recording's own torque to take the real strip's "
+                 "reaction out of its measured path, so it is a replay of a known motion, not a prediction of a new "
+                 "one (--arm loop is); joints whose impedance the identifying folder does not determine (R^2 < 0.5) "
+                 "and the wrist are rigid",
+    "loop": "the strip on the arm's joint impedance in the full loop from q_d: nothing else moves the arm (the arm's "
+            "own tracking error during the motion, from its dynamics and Franka's model errors, is missing); joints "
+            "whose impedance the identifying folder does not determine (R^2 < 0.5) and the wrist are rigid",
+}
 LIMITS = [
-    "the clamp follows the flange path of the measured joint angles, and after the motion that path carries the "
-    "arm's reaction to the real strip (the arm under its controller is compliant and lossy at 3 Hz): about half of "
-    "the model's damping ratio comes through it (driven by q_d instead, the model keeps only damping_rate's 0.0065), "
-    "and only while the model's frequency matches the real one (E 2 % lower: the predicted damping ratio falls to "
-    "0.7-0.9x at the same damping_rate); the physics would be the strip on the compliant arm in a closed loop driven "
-    "by q_d (not built; docs/guides/validate.md, demos/beam_hypotheses.py)",
     "the motions are vibration-suppressing (optimal-control) motions: the residual vibration is a small remainder of "
     "the motion's excitation, and the model leaves 0.5-1.5x the measured one on the same measured path (q timing "
     "+-10 ms, the window +-0.2 s and the damping law change it by a few per cent)",
@@ -104,6 +117,30 @@ LIMITS = [
     "1 N m on joint 3 after a 25 cm Z move, constant once at rest) and the arm's unmodelled dynamics during the "
     "motion; the vibration metrics are immune to the offset (fitted constant, band-pass)",
 ]
+
+
+@dataclass(frozen=True)
+class ArmSetting:
+    """The arm the strip hangs on (``--arm``): mode ``compliant`` (substitution about the measured q) or ``loop``
+    (the full loop from q_d), with the joint impedance identified on FIT_DIR (:mod:`bullet_dlo.reality.beam_arm`)."""
+
+    mode: str
+    impedance: ArmImpedance
+
+    @property
+    def drive(self) -> str:
+        return "measured" if self.mode == "compliant" else "desired"
+
+
+def predict(rec: BeamRecording, panda: Panda, strip: Strip, damping: dict[str, float], numerics: Numerics,
+            estimate: EstimateFilter, mounting: Mounting = Mounting(), duration: float | None = None,
+            arm: ArmSetting | None = None) -> Prediction:
+    """:func:`~bullet_dlo.reality.beam.predict_torques` (clamp on the measured flange path, ``arm`` None) or
+    :func:`~bullet_dlo.reality.beam_arm.predict_torques_compliant` (the strip on the compliant arm)."""
+    if arm is None:
+        return predict_torques(rec, panda, strip, damping, numerics, estimate, mounting, duration=duration)
+    return predict_torques_compliant(rec, panda, arm.impedance, strip, damping, numerics, estimate, mounting,
+                                     duration=duration, drive=arm.drive)
 
 
 @dataclass(frozen=True)
@@ -163,7 +200,7 @@ class DampingFit:
 
 def fit_damping(recs: list[BeamRecording], measured: list[Measured], panda: Panda, name: str, strip: Strip,
                 numerics: Numerics, estimate: EstimateFilter, fixed: dict[str, float] | None = None,
-                mounting: Mounting = Mounting()) -> DampingFit:
+                mounting: Mounting = Mounting(), arm: ArmSetting | None = None) -> DampingFit:
     """Per recording, the ``name`` value whose predicted damping ratio equals the measured one
     (linear in the parameter: two runs, module doc); the mean, min-max and leave-one-out.
     ``fixed``: other model parameters held in every run (e.g. ``{"drag_coefficient": 8.0}``)."""
@@ -174,8 +211,8 @@ def fit_damping(recs: list[BeamRecording], measured: list[Measured], panda: Pand
     per_file, zeta0, slope, freq = {}, {}, {}, {}
     for rec, m in zip(recs, measured):
         duration = m.t_end + SINE_WINDOW[1] + 0.05
-        runs = [predicted_vibration(predict_torques(rec, panda, strip, {**fixed, name: c}, numerics, estimate,
-                                                    mounting, duration=duration), m) for c in (0.0, trial)]
+        runs = [predicted_vibration(predict(rec, panda, strip, {**fixed, name: c}, numerics, estimate,
+                                            mounting, duration=duration, arm=arm), m) for c in (0.0, trial)]
         z = [r.damping_ratio for r in runs]
         freq[rec.name] = m.vibration.frequency_hz / runs[0].frequency_hz
         slope[rec.name] = (z[1] - z[0]) / trial
@@ -190,6 +227,14 @@ def fit_damping(recs: list[BeamRecording], measured: list[Measured], panda: Pand
                       zeta0, loo, 2 * len(recs), freq)
 
 
+ARM_MODES_DOC = {
+    "measured": "the clamp follows the flange path of the measured joint angles (rigid: the recorded path carries the "
+                "arm's reaction to the real strip)",
+    "compliant": "the strip on the arm's identified joint impedance, substituted about the measured path: q = q_meas + "
+                 "delta, M delta'' + D delta' + K delta = -(tau_model - tau_real), stepped with the strip",
+    "loop": "the strip on the arm's identified joint impedance in the full loop from the desired path: q = q_d + e, "
+            "M e'' + D e' + K e = -tau_model (nothing else moves the arm)",
+}
 AMPLITUDE_SPANS = ((1.0, 2.5), (2.5, 4.0), (4.0, 5.5), (5.5, 7.0), (7.0, 9.0))  # [s] after the motion's end
 DRAG_TRIAL = 8.0  # trial C_d [-]: about the low-KC plate value (validate.md), adds zeta ~ 0.002-0.005
 TRANSIENT_ZETA = 0.05  # a window whose measured damping ratio is above it still carries the motion's transient
@@ -224,7 +269,8 @@ def _window_ratios(t: np.ndarray, y: np.ndarray, t_end: float) -> dict[float, di
 
 
 def fit_damping_drag(recs: list[BeamRecording], measured: list[Measured], panda: Panda, strip: Strip,
-                     numerics: Numerics, estimate: EstimateFilter, mounting: Mounting = Mounting()) -> DragFit:
+                     numerics: Numerics, estimate: EstimateFilter, mounting: Mounting = Mounting(),
+                     arm: ArmSetting | None = None) -> DragFit:
     """Fit ``damping_rate`` c and ``drag_coefficient`` C_d on the fit recordings: the amplitude dependence of
     the measured damping (windows of each decay) is what separates the quadratic law (zeta ~ C_d A) from the
     linear one (zeta ~ c). Per recording the predicted window damping ratios are linearised in (c, C_d) by
@@ -237,8 +283,8 @@ def fit_damping_drag(recs: list[BeamRecording], measured: list[Measured], panda:
     def ratios(rec: BeamRecording, m: Measured, p: np.ndarray) -> dict[float, dict[str, float]]:
         nonlocal runs
         runs += 1
-        pred = predict_torques(rec, panda, strip, {"damping_rate": float(p[0]), "drag_coefficient": float(p[1])},
-                               numerics, estimate, mounting, duration=m.t_end + AMPLITUDE_SPANS[-1][1] + 0.05)
+        pred = predict(rec, panda, strip, {"damping_rate": float(p[0]), "drag_coefficient": float(p[1])},
+                       numerics, estimate, mounting, duration=m.t_end + AMPLITUDE_SPANS[-1][1] + 0.05, arm=arm)
         return _window_ratios(pred.t, pred.torques_filtered[:, m.joint], m.t_end)
 
     for rec, m in zip(recs, measured):
@@ -401,6 +447,7 @@ def validate_beam(fit_dir: str | Path, predict_dir: str | Path, *, damping: str 
                   numerics: Numerics = Numerics(), strip: Strip = Strip(), estimate: EstimateFilter | None = None,
                   duration: float | None = None, limit_files: int | None = None, check_numerics: bool = True,
                   fit_youngs_modulus: bool = False, drag: str | float = "off", clamp_mass: str | float = "off",
+                  arm: str | None = None, arm_dir: str | Path | None = None,
                   log=print) -> tuple[dict[str, Any], dict[str, tuple[BeamRecording, Measured, Prediction]]]:
     """Fit ``damping`` on the recordings of ``fit_dir``, predict those of ``predict_dir``.
 
@@ -413,8 +460,18 @@ def validate_beam(fit_dir: str | Path, predict_dir: str | Path, *, damping: str 
     clamp_mass: a rigid payload at the clamp that Franka's estimate does not know (:attr:`Mounting.clamp_mass`):
     ``"off"`` (default), ``"fit"`` (fitted on ``fit_dir`` first, :func:`fit_clamp_mass`, then held while the
     damping is fitted) or a mass [kg] in [0, 10].
+    arm: how the strip's clamp moves (:mod:`bullet_dlo.reality.beam_arm`): ``"measured"`` (the flange path of the
+    measured q), ``"compliant"`` (the strip on the arm's joint impedance identified on ``fit_dir``, substituted about
+    the measured q) or ``"loop"`` (the same arm in the full loop driven by q_d); None (default): ``"compliant"`` for
+    the planes strip (better on the held-out files: docs/guides/validate.md), ``"measured"`` for the rectangle strip
+    (the loop runs the planes only); ``arm_dir``: the
+    folder whose recordings identify the arm's impedance instead of ``fit_dir`` (the controller is one for all
+    motions, but a folder of Z motions does not move joints 0 and 2 enough to identify them).
     Returns the JSON-ready summary and, per predicted file, (recording, measurement, prediction).
     """
+    if arm is None:
+        arm = "compliant" if numerics.strip_model == "planes" else "measured"
+    check_arm_mode(arm)
     if drag == "fit" and damping != "damping_rate":
         raise ParameterError("--drag-coefficient fit fits C_d together with damping_rate: use --damping damping_rate")
     if drag not in ("off", "fit"):
@@ -439,6 +496,14 @@ def validate_beam(fit_dir: str | Path, predict_dir: str | Path, *, damping: str 
     pred_recs = [read_in(f, "PREDICT_DIR") for f in pred_files]
     fit_meas = [measure(r) for r in fit_recs]
     tic = time.thread_time()
+    arm_setting = None
+    if arm != "measured":
+        arm_recs = fit_recs if arm_dir is None else [read_in(f, "--arm-dir") for f in beam_files(arm_dir, "--arm-dir")]
+        arm_setting = ArmSetting(arm, identify_arm(arm_recs))
+        imp = arm_setting.impedance
+        log("arm joint impedance (joints " + ", ".join(map(str, np.flatnonzero(imp.compliant))) + " compliant): K "
+            + " ".join(f"{k:.0f}" for k in imp.stiffness) + " N m/rad, D " + " ".join(f"{d:.1f}" for d in imp.damping)
+            + " N m s/rad, R^2 " + " ".join(f"{r:.2f}" for r in imp.r2))
     with Panda() as panda:
         if estimate is None:
             log(f"identifying Franka's estimate filter on {len(fit_recs)} recording(s) ...")
@@ -449,34 +514,37 @@ def validate_beam(fit_dir: str | Path, predict_dir: str | Path, *, damping: str 
         mounting, mass_fit = Mounting(), None
         if clamp_mass == "fit":  # the payload is linear and independent of the damping: one run per fit file
             log(f"fitting the clamp payload on {len(fit_recs)} recording(s) ...")
-            preds = [predict_torques(r, panda, strip, {**fixed, damping: TRIAL[damping]}, numerics, estimate,
-                                     duration=duration) for r in fit_recs]
+            preds = [predict(r, panda, strip, {**fixed, damping: TRIAL[damping]}, numerics, estimate,
+                             duration=duration, arm=arm_setting) for r in fit_recs]
             mass_fit = fit_clamp_mass(fit_recs, preds, panda, numerics, estimate)
             mounting = Mounting(clamp_mass=mass_fit.value)
             lo, hi = mass_fit.interval
             log(f"clamp payload {mass_fit.value:.3g} kg (per file {lo:.3g}-{hi:.3g})")
         elif clamp_mass != "off":
             mounting = Mounting(clamp_mass=float(clamp_mass))
-        fitted = fit_damping(fit_recs, fit_meas, panda, damping, strip, numerics, estimate, fixed, mounting)
+        fitted = fit_damping(fit_recs, fit_meas, panda, damping, strip, numerics, estimate, fixed, mounting,
+                                 arm_setting)
         e_note = "nominal (midpoint of 190-205 GPa)"
         if fit_youngs_modulus:  # f ~ sqrt(E) for the bending part (gravity's share does not scale): one update
             scale = float(np.median(list(fitted.frequency_ratio.values()))) ** 2
             strip = replace(strip, youngs_modulus=strip.youngs_modulus * scale)
             e_note = (f"fitted: nominal x {scale:.4f}, the median (f measured / f predicted)^2 over the fit recordings")
             log(f"E {strip.youngs_modulus / 1e9:.4g} GPa; refitting {damping} ...")
-            fitted = fit_damping(fit_recs, fit_meas, panda, damping, strip, numerics, estimate, fixed, mounting)
+            fitted = fit_damping(fit_recs, fit_meas, panda, damping, strip, numerics, estimate, fixed, mounting,
+                                 arm_setting)
         params = {**fixed, fitted.name: fitted.value}
         drag_fit = None
         if drag == "fit":
             log(f"fitting damping_rate and drag_coefficient on {len(fit_recs)} recording(s) (amplitude windows) ...")
-            drag_fit = fit_damping_drag(fit_recs, fit_meas, panda, strip, numerics, estimate, mounting)
+            drag_fit = fit_damping_drag(fit_recs, fit_meas, panda, strip, numerics, estimate, mounting,
+                                        arm_setting)
             params = {"damping_rate": drag_fit.damping_rate, "drag_coefficient": drag_fit.drag_coefficient}
             log(f"damping_rate {drag_fit.damping_rate:.4g} 1/s, drag_coefficient {drag_fit.drag_coefficient:.4g}")
         files, details = {}, {}
         for rec in pred_recs:
             log(f"predicting {rec.name} ...")
             m = measure(rec)
-            pred = predict_torques(rec, panda, strip, params, numerics, estimate, mounting, duration=duration)
+            pred = predict(rec, panda, strip, params, numerics, estimate, mounting, duration=duration, arm=arm_setting)
             files[rec.name] = file_result(rec, m, pred)
             details[rec.name] = (rec, m, pred)
     simulated = sum(f["simulated_s"] for f in files.values())
@@ -499,6 +567,9 @@ def validate_beam(fit_dir: str | Path, predict_dir: str | Path, *, damping: str 
                        "youngs_modulus_source": e_note,
                        "material": "density and geometry nominal (midpoints of the stated ranges)"},
         "fit_files": [r.name for r in fit_recs],
+        "arm": {"mode": arm, "what": ARM_MODES_DOC[arm],
+                **({"impedance": arm_setting.impedance.to_dict(),
+                    "identified_on": [r.name for r in arm_recs]} if arm_setting is not None else {})},
         "model": {"integrator": numerics.integrator, "n": numerics.n_masses, "dt": numerics.dt,
                   "knot_step_s": numerics.knot_step, "q_cutoff_hz": numerics.q_cutoff_hz,
                   "strip_model": numerics.strip_model, "bending": BENDING[numerics.strip_model],
@@ -508,7 +579,7 @@ def validate_beam(fit_dir: str | Path, predict_dir: str | Path, *, damping: str 
                             "phase_deg_at_2.9_hz": float(np.degrees(np.angle(estimate.response(2.9))))},
         "cost_per_simulated_second": cpu / simulated if simulated else math.nan,
         "total_cpu_s": time.thread_time() - tic,
-        "limits": [STRIP_LIMITS[numerics.strip_model], *LIMITS],
+        "limits": [STRIP_LIMITS[numerics.strip_model], ARM_LIMITS[arm], *LIMITS],
     }
     if check_numerics:
         summary["numerics"] = numerics_check(strip, numerics, params)

@@ -107,6 +107,11 @@ class Panda:
                                                physicsClientId=self._cid)
         return np.array(tau[:N_JOINTS])
 
+    def mass_matrix(self, q: Sequence[float]) -> np.ndarray:
+        """Joint-space inertia matrix of the arm [kg m^2], (7, 7), at q [rad] (URDF inertias, hand included)."""
+        m = self._p.calculateMassMatrix(self._arm, self._full(q), physicsClientId=self._cid)
+        return np.array(m)[:N_JOINTS, :N_JOINTS]
+
     def flange_path(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Flange positions [m], (k, 3), and rotations, (k, 3, 3), for joint rows q [rad], (k, 7)."""
         poses = [self.flange_pose(row) for row in np.asarray(q)]
