@@ -106,3 +106,31 @@ def test_fit_recovers_a_hidden_gravity_tilt_within_its_interval(tilted):
 def test_fit_refuses_an_unknown_extra_parameter(tilted):
     with pytest.raises(ParameterError, match="extra: 'wind' is not"):
         fit(tilted, NUM, max_evaluations=4, extra=("wind",))
+
+
+def test_validate_deform_with_fit_gravity_tilt_writes_the_tilts_and_the_untilted_stage(tmp_path):
+    """``validate deform --fit-gravity-tilt`` (bounded: 2 train, 1 eval trial, n = 11, a few runs): the tilts in
+    rad among the parameters, gravity's vector of magnitude |g|, and the same fit's first stage (no tilt) beside
+    it; --rest-shape with it is refused in one line."""
+    import argparse
+    import json
+
+    for split, seeds in (("train", (0, 1)), ("eval", (2,))):
+        (tmp_path / split).mkdir()
+        for seed in seeds:
+            tilted_trial(tmp_path / split / f"{seed}.pkl", MOTIONS[seed], HIDDEN, duration=1.0, seed=seed)
+    parser = argparse.ArgumentParser()
+    deform.add_arguments(parser)
+    common = ["--json", str(tmp_path / "o.json"), "--n-masses", "11", "--max-evaluations", "8",
+              "--no-numerics-check", "--no-plots", "--fit-gravity-tilt"]
+    assert deform.main(parser.parse_args([str(tmp_path), *common])) == 0
+    out = json.loads((tmp_path / "o.json").read_text())
+    assert out["parameters"]["gravity_tilt_y"]["unit"] == "rad"
+    assert set(deform.PARAMETERS) < set(out["parameters"])
+    assert math.isclose(np.linalg.norm(out["gravity_m_per_s2"]), 9.81, rel_tol=1e-12)
+    g = gravity_of({k: out["parameters"][k]["value"] for k in ("gravity_tilt_x", "gravity_tilt_y")})
+    assert np.allclose(out["gravity_m_per_s2"], g)
+    assert out["straight"]["parameters"]["gravity_tilt_y"] == 0.0 and math.isfinite(out["straight"]["eval_l1"])
+    with pytest.raises(ParameterError, match="--rest-shape cannot be combined") as err:
+        deform.main(parser.parse_args([str(tmp_path), *common, "--rest-shape"]))
+    assert "\n" not in str(err.value)
