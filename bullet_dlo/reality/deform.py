@@ -672,12 +672,13 @@ def jackknife(f: Fit, thetas: np.ndarray | None = None, level_z: float = 1.96) -
             at_bound = min(abs(f.theta[j] - b_lo), abs(f.theta[j] - b_hi)) < 0.005
             narrow = hi - lo < 0.05
         else:
-            lo = max(f.values[k] * math.exp(-level_z * sd[j]), b_lo)  # the fit's box bounds the interval
-            hi = min(f.values[k] * math.exp(level_z * sd[j]), b_hi)
+            spread = min(level_z * sd[j], 700.0)  # a parameter the data do not see can have an overflowing spread
+            lo = max(f.values[k] * math.exp(-spread), b_lo)  # the fit's box bounds the interval
+            hi = min(f.values[k] * math.exp(spread), b_hi)
             at_bound = min(abs(f.theta[j] - math.log(b_lo)), abs(f.theta[j] - math.log(b_hi))) < 0.05
             narrow = hi / lo < 3.0
         ident = bool(narrow and seen[j] >= 0.01 * seen.max() and not at_bound)
-        loo = thetas[:, j] if k in LINEAR_PARAMETERS else np.exp(thetas[:, j])
+        loo = thetas[:, j] if k in LINEAR_PARAMETERS else np.exp(np.minimum(thetas[:, j], 700.0))
         out[k] = {"value": f.values[k], "unit": unit_of(k), "interval_95": [lo, hi], "identifiable": ident,
                   "leave_one_out": [float(t) for t in loo], "at_bound": bool(at_bound)}
     return out

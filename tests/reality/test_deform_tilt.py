@@ -134,3 +134,16 @@ def test_validate_deform_with_fit_gravity_tilt_writes_the_tilts_and_the_untilted
     with pytest.raises(ParameterError, match="--rest-shape cannot be combined") as err:
         deform.main(parser.parse_args([str(tmp_path), *common, "--rest-shape"]))
     assert "\n" not in str(err.value)
+
+
+def test_jackknife_states_an_unseen_parameter_without_overflowing():
+    """Leave-one-out fits that run off to exp(1000) (a parameter the data do not see, e.g. drag at its lower
+    bound) give the box as the interval and 'not identifiable', not an OverflowError."""
+    names = deform.PARAMETERS + ("drag_per_mass",)
+    values = {**HIDDEN, "drag_per_mass": 1e-4}
+    theta = deform.theta_of(values, names)
+    jac = [np.ones((4, 4)), np.ones((4, 4))]
+    f = deform.Fit(deform.values_of(theta, names), theta, jac, [np.zeros(4)] * 2, 1, 0.0, 1.0, "", names)
+    loo = np.array([theta, theta + np.array([0.0, 0.0, 0.0, 2000.0])])
+    p = jackknife(f, loo)["drag_per_mass"]
+    assert p["interval_95"] == list(deform.EXTRA_BOUNDS["drag_per_mass"]) and not p["identifiable"]
