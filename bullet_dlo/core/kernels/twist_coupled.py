@@ -59,6 +59,10 @@ from bullet_dlo.core.kernels.steppers import (
 from bullet_dlo.core.kernels.twist import (
     _curvatures,
     _node_edge_gradients,
+    EdgeCache,
+    aniso_node_hessian,
+    edge_cache,
+    make_edge_cache,
     node_geometry,
     node_twist,
     phi_jacobians,
@@ -72,7 +76,11 @@ HALF_T = 10  # scalar half-bandwidth of the interleaved (x_i, theta_i) layout
 class Scratch(NamedTuple):
     """Small scratch arrays of the coupled step (allocated once per step): ga, gb (3,) edge gradients [N];
     pa, pb (3, 3) dphi/d(edge) [1/m]; energy (1,) the material frame's energy at the last residual [J];
-    gv (11,), gi (11,) int: dm/dq of a node and its unknowns' indices; jrow (4, 6); hb (6, 6) node Hessian."""
+    gv (11,), gi (11,) int: dm/dq of a node and its unknowns' indices; jrow (4, 6); hb (6, 6) node Hessian;
+    ec: the edges' tangents and transported reference directors at the last residual's X (:class:`EdgeCache`,
+    computed once per residual instead of once per node that touches the edge); kb (n, 3) the curvature
+    binormals and lab (n, 2) the edge lengths |e_a|, |e_b| [m] of the nodes at the last residual (the Newton
+    matrix is built at that X and reads them instead of recomputing the nodes' geometry)."""
 
     ga: np.ndarray
     gb: np.ndarray
@@ -83,6 +91,9 @@ class Scratch(NamedTuple):
     gi: np.ndarray
     jrow: np.ndarray
     hb: np.ndarray
+    ec: EdgeCache
+    kb: np.ndarray
+    lab: np.ndarray
 
 
 @njit(cache=True, error_model="numpy")
@@ -175,6 +186,8 @@ def _residual(m, mp, imp, ws, samples, mid, h, tb, wb, wa, vn, wn, wv, rate, tq,
         th[k] = tb[k] + cx * wn[k]
         wv[k] = wb[k] + cv * wn[k]
     total_forces(mp, xe, ve, imp.dirs, f)  # without the material frame's terms (added below)
+    ec = sc.ec
+    edge_cache(m, xe, ec)
     ga, gb, pa, pb = sc.ga, sc.gb, sc.pa, sc.pb
     energy = 0.0
     for k in range(ns):
@@ -185,10 +198,13 @@ def _residual(m, mp, imp, ws, samples, mid, h, tb, wb, wa, vn, wn, wv, rate, tq,
         if kt == 0.0 and dl == 0.0 and ct == 0.0:
             continue
         if dl != 0.0:
-            twist, la, lb, ratio, alpha, c = node_geometry(m, xe, imp.dirs, th, i, g)
+            twist, la, lb, ratio, alpha, c = node_geometry(m, xe, imp.dirs, th, i, g, ec)
         else:  # round and tube sections: twist and binormal only
-            twist, la, lb = node_twist(m, xe, imp.dirs, th, i, g)
+            twist, la, lb = node_twist(m, xe, imp.dirs, th, i, g, ec)
             ratio, alpha, c = 1.0, 0.0, 1.0  # (unused without anisotropy)
+        for j in range(3):  # (for the Newton matrix at this X)
+            sc.kb[i, j] = g[9, j]
+        sc.lab[i, 0], sc.lab[i, 1] = la, lb
         s = kt * twist
         if ct != 0.0:
             kb = g[9]
@@ -288,12 +304,12 @@ def _newton_matrix(stepper, m, mp, imp, ws, band, g, sc):
         kt, dl, ct = m.tw_k_twist[i], m.tw_k_aniso[i], m.tw_c_twist[i]
         if kt == 0.0 and dl == 0.0 and ct == 0.0:
             continue
-        if dl != 0.0:
-            twist, la, lb, ratio, alpha, c = node_geometry(m, xe, imp.dirs, m.tw_theta, i, g)
-        else:
-            twist, la, lb = node_twist(m, xe, imp.dirs, m.tw_theta, i, g)
+        if dl != 0.0:  # the frames and curvatures too (the edges from the last residual's cache)
+            twist, la, lb, ratio, alpha, c = node_geometry(m, xe, imp.dirs, m.tw_theta, i, g, sc.ec)
+        else:  # round and tube sections: the binormal and lengths the last residual stored
+            la, lb = sc.lab[i, 0], sc.lab[i, 1]
             ratio, alpha, c = 1.0, 0.0, 1.0
-        kb = g[9]
+        kb = sc.kb[i]
         # g = dm/dq over the node's unknowns: (index, value) pairs
         cnt = 0
         for j in range(3):
@@ -327,15 +343,7 @@ def _newton_matrix(stepper, m, mp, imp, ws, band, g, sc):
         p1a, p2a, p1b, p2b = _curvatures(g)
         phi_jacobians(g, la, lb, ratio, alpha, c, pa, pb)
         # x-x: the Gauss-Newton part of the anisotropic bending, Delta/2 sum_k (J1_k^T J1_k - J2_k^T J2_k)
-        for r in range(4):  # rows: m1_a, m2_a, m1_b, m2_b
-            d = g[4 + r]
-            for col in range(3):
-                jrow[r, col] = d[0] * pa[0, col] + d[1] * pa[1, col] + d[2] * pa[2, col]
-                jrow[r, 3 + col] = d[0] * pb[0, col] + d[1] * pb[1, col] + d[2] * pb[2, col]
-        for r in range(6):
-            for col in range(6):
-                hb[r, col] = 0.5 * dl * (jrow[0, r] * jrow[0, col] - jrow[1, r] * jrow[1, col]
-                                         + jrow[2, r] * jrow[2, col] - jrow[3, r] * jrow[3, col])
+        aniso_node_hessian(g, dl, pa, pb, jrow, hb)
         scatter_node_hessian(jac, i, n, hb)
         # x-theta: d2E/dtheta_k dx = Delta (kappa_2 J_1 + kappa_1 J_2); theta-theta: Delta (kappa_2^2 - kappa_1^2)
         for e in range(2):
@@ -420,7 +428,8 @@ def coupled_implicit(stepper, m, x, v, samples, ws, has_prev):
     r, r_try = np.empty(size), np.empty(size)
     wn, w_try, wv, rate, tq = omega0.copy(), np.empty(ns), np.empty(ns), np.zeros(n), np.empty(ns)
     sc = Scratch(np.empty(3), np.empty(3), np.empty((3, 3)), np.empty((3, 3)), np.zeros(1), np.empty(11),
-                 np.empty(11, dtype=np.int64), np.empty((4, 6)), np.empty((6, 6)))
+                 np.empty(11, dtype=np.int64), np.empty((4, 6)), np.empty((6, 6)), make_edge_cache(n),
+                 np.empty((n, 3)), np.empty((n, 2)))
     mp = _frameless(m)
     vn, v_try = ws.v_new, ws.v_try
     tol = stepper.tol
