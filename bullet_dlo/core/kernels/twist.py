@@ -246,81 +246,36 @@ def _unit_edge(x, k, out):
 
 
 # ----- node geometry ------------------------------------------------------------------------------
-class EdgeCache(NamedTuple):
-    """The edges' geometry at one set of positions, computed once and read by every node that touches an
-    edge (each interior edge is shared by two nodes): t (n-1, 3) unit tangents, length (n-1,) [m], r (n-1, 3)
-    reference directors transported (time-parallel) to t."""
-
-    t: np.ndarray
-    length: np.ndarray
-    r: np.ndarray
-
-
-@njit(cache=True, error_model="numpy")
-def make_edge_cache(n):
-    """An (unfilled) :class:`EdgeCache` of an n-node cable."""
-    return EdgeCache(np.empty((n - 1, 3)), np.empty(n - 1), np.empty((n - 1, 3)))
-
-
-@njit(cache=True, error_model="numpy")
-def edge_cache(m, x, ec):
-    """Fill ``ec`` (:class:`EdgeCache`) from the positions x [m] and the stored reference frames."""
-    for k in range(x.shape[0] - 1):
-        ec.length[k] = _unit_edge(x, k, ec.t[k])
-        _transport(m.tw_ref[k], m.tw_tan[k], ec.t[k], ec.r[k])
-
-
-@njit(cache=True, error_model="numpy", inline="always")
-def _edge_frame(m, x, theta, k, t, r, ec):
-    """t, r <- unit tangent and transported reference director of edge k (from ``ec`` when given); returns
-    (length [m], twist angle [rad])."""
-    if ec is None:
-        length = _unit_edge(x, k, t)
-        _transport(m.tw_ref[k], m.tw_tan[k], t, r)
-    else:
-        length = ec.length[k]
-        t[:] = ec.t[k]
-        r[:] = ec.r[k]
-    return length, theta[k]
-
-
-@njit(cache=True, error_model="numpy", inline="always")
-def _edge_frames(m, x, dirs, theta, i, g, ec):
-    """Rows 0-3 of scratch g <- t_a, r_a, t_b, r_b of node i's two edges (a clamp's virtual edge: the clamp
-    direction, length 1, its section axis re-orthonormalised, twist angle 0); returns (|e_a|, |e_b|, theta_a,
-    theta_b)."""
-    n = x.shape[0]
-    ta, ra, tb, rb = g[0], g[1], g[2], g[3]
-    if i == 0:
-        la, th_a = 1.0, 0.0
-        ta[:] = dirs[0]
-        _transport(m.tw_clamp[0], ta, ta, ra)
-    else:
-        la, th_a = _edge_frame(m, x, theta, i - 1, ta, ra, ec)
-    if i == n - 1:
-        lb, th_b = 1.0, 0.0
-        tb[:] = dirs[1]
-        _transport(m.tw_clamp[1], tb, tb, rb)
-    else:
-        lb, th_b = _edge_frame(m, x, theta, i, tb, rb, ec)
-    return la, lb, th_a, th_b
-
-
 # Scratch rows of g (12, 3): 0 t_a, 1 r_a, 2 t_b, 3 r_b, 4 m1_a, 5 m2_a, 6 m1_b, 7 m2_b, 8 phi,
 # 9 kb (curvature binormal), 10 transported r_a, 11 spare.
 @njit(cache=True, error_model="numpy")
-def node_geometry(m, x, dirs, theta, i, g, ec=None):
+def node_geometry(m, x, dirs, theta, i, g):
     """Frames, twist and curvature at node i into scratch ``g`` (see the row map above).
-
-    ec: optional :class:`EdgeCache` of x (:func:`edge_cache`), read instead of recomputing the edges' tangents
-    and transported reference directors (the same numbers; callers that visit every node once per x use it).
 
     theta: twist angles to use [rad], (n-1,). Returns (m_i twist [rad], |e_a| [m], |e_b| [m],
     ratio = beta/sin(beta), alpha = (sin - beta cos)/sin^3, c = cos(beta)); a clamp's virtual edge has
     length 1 (its direction is a unit vector, as in the bending kernels) and twist angle 0.
     """
+    n = x.shape[0]
     ta, ra, tb, rb = g[0], g[1], g[2], g[3]
-    la, lb, th_a, th_b = _edge_frames(m, x, dirs, theta, i, g, ec)
+    if i == 0:
+        la = 1.0
+        ta[:] = dirs[0]
+        _transport(m.tw_clamp[0], ta, ta, ra)  # (re-orthonormalised clamp axis)
+        th_a = 0.0
+    else:
+        la = _unit_edge(x, i - 1, ta)
+        _transport(m.tw_ref[i - 1], m.tw_tan[i - 1], ta, ra)
+        th_a = theta[i - 1]
+    if i == n - 1:
+        lb = 1.0
+        tb[:] = dirs[1]
+        _transport(m.tw_clamp[1], tb, tb, rb)
+        th_b = 0.0
+    else:
+        lb = _unit_edge(x, i, tb)
+        _transport(m.tw_ref[i], m.tw_tan[i], tb, rb)
+        th_b = theta[i]
     # reference twist: ra carried onto edge b, signed angle to rb about tb, unwrapped against mref
     pa = g[10]
     _transport(ra, ta, tb, pa)
@@ -359,12 +314,30 @@ def node_geometry(m, x, dirs, theta, i, g, ec=None):
 
 
 @njit(cache=True, error_model="numpy")
-def node_twist(m, x, dirs, theta, i, g, ec=None):
+def node_twist(m, x, dirs, theta, i, g):
     """The part of :func:`node_geometry` a round or tube section needs: twist and curvature binormal (row 9 of
     ``g``; rows 0-3 and 10-11 as there, the material frames and phi not computed). Returns (m_i twist [rad],
     |e_a| [m], |e_b| [m])."""
+    n = x.shape[0]
     ta, ra, tb, rb = g[0], g[1], g[2], g[3]
-    la, lb, th_a, th_b = _edge_frames(m, x, dirs, theta, i, g, ec)
+    if i == 0:
+        la = 1.0
+        ta[:] = dirs[0]
+        _transport(m.tw_clamp[0], ta, ta, ra)
+        th_a = 0.0
+    else:
+        la = _unit_edge(x, i - 1, ta)
+        _transport(m.tw_ref[i - 1], m.tw_tan[i - 1], ta, ra)
+        th_a = theta[i - 1]
+    if i == n - 1:
+        lb = 1.0
+        tb[:] = dirs[1]
+        _transport(m.tw_clamp[1], tb, tb, rb)
+        th_b = 0.0
+    else:
+        lb = _unit_edge(x, i, tb)
+        _transport(m.tw_ref[i], m.tw_tan[i], tb, rb)
+        th_b = theta[i]
     pa = g[10]
     _transport(ra, ta, tb, pa)
     tmp = g[11]

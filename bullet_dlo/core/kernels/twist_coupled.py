@@ -59,10 +59,7 @@ from bullet_dlo.core.kernels.steppers import (
 from bullet_dlo.core.kernels.twist import (
     _curvatures,
     _node_edge_gradients,
-    EdgeCache,
     aniso_node_hessian,
-    edge_cache,
-    make_edge_cache,
     node_geometry,
     node_twist,
     phi_jacobians,
@@ -76,11 +73,7 @@ HALF_T = 10  # scalar half-bandwidth of the interleaved (x_i, theta_i) layout
 class Scratch(NamedTuple):
     """Small scratch arrays of the coupled step (allocated once per step): ga, gb (3,) edge gradients [N];
     pa, pb (3, 3) dphi/d(edge) [1/m]; energy (1,) the material frame's energy at the last residual [J];
-    gv (11,), gi (11,) int: dm/dq of a node and its unknowns' indices; jrow (4, 6); hb (6, 6) node Hessian;
-    ec: the edges' tangents and transported reference directors at the last residual's X (:class:`EdgeCache`,
-    computed once per residual instead of once per node that touches the edge); kb (n, 3) the curvature
-    binormals and lab (n, 2) the edge lengths |e_a|, |e_b| [m] of the nodes at the last residual (the Newton
-    matrix is built at that X and reads them instead of recomputing the nodes' geometry)."""
+    gv (11,), gi (11,) int: dm/dq of a node and its unknowns' indices; jrow (4, 6); hb (6, 6) node Hessian."""
 
     ga: np.ndarray
     gb: np.ndarray
@@ -91,9 +84,6 @@ class Scratch(NamedTuple):
     gi: np.ndarray
     jrow: np.ndarray
     hb: np.ndarray
-    ec: EdgeCache
-    kb: np.ndarray
-    lab: np.ndarray
 
 
 @njit(cache=True, error_model="numpy")
@@ -186,8 +176,6 @@ def _residual(m, mp, imp, ws, samples, mid, h, tb, wb, wa, vn, wn, wv, rate, tq,
         th[k] = tb[k] + cx * wn[k]
         wv[k] = wb[k] + cv * wn[k]
     total_forces(mp, xe, ve, imp.dirs, f)  # without the material frame's terms (added below)
-    ec = sc.ec
-    edge_cache(m, xe, ec)
     ga, gb, pa, pb = sc.ga, sc.gb, sc.pa, sc.pb
     energy = 0.0
     for k in range(ns):
@@ -198,13 +186,10 @@ def _residual(m, mp, imp, ws, samples, mid, h, tb, wb, wa, vn, wn, wv, rate, tq,
         if kt == 0.0 and dl == 0.0 and ct == 0.0:
             continue
         if dl != 0.0:
-            twist, la, lb, ratio, alpha, c = node_geometry(m, xe, imp.dirs, th, i, g, ec)
+            twist, la, lb, ratio, alpha, c = node_geometry(m, xe, imp.dirs, th, i, g)
         else:  # round and tube sections: twist and binormal only
-            twist, la, lb = node_twist(m, xe, imp.dirs, th, i, g, ec)
+            twist, la, lb = node_twist(m, xe, imp.dirs, th, i, g)
             ratio, alpha, c = 1.0, 0.0, 1.0  # (unused without anisotropy)
-        for j in range(3):  # (for the Newton matrix at this X)
-            sc.kb[i, j] = g[9, j]
-        sc.lab[i, 0], sc.lab[i, 1] = la, lb
         s = kt * twist
         if ct != 0.0:
             kb = g[9]
@@ -304,12 +289,12 @@ def _newton_matrix(stepper, m, mp, imp, ws, band, g, sc):
         kt, dl, ct = m.tw_k_twist[i], m.tw_k_aniso[i], m.tw_c_twist[i]
         if kt == 0.0 and dl == 0.0 and ct == 0.0:
             continue
-        if dl != 0.0:  # the frames and curvatures too (the edges from the last residual's cache)
-            twist, la, lb, ratio, alpha, c = node_geometry(m, xe, imp.dirs, m.tw_theta, i, g, sc.ec)
-        else:  # round and tube sections: the binormal and lengths the last residual stored
-            la, lb = sc.lab[i, 0], sc.lab[i, 1]
+        if dl != 0.0:
+            twist, la, lb, ratio, alpha, c = node_geometry(m, xe, imp.dirs, m.tw_theta, i, g)
+        else:
+            twist, la, lb = node_twist(m, xe, imp.dirs, m.tw_theta, i, g)
             ratio, alpha, c = 1.0, 0.0, 1.0
-        kb = sc.kb[i]
+        kb = g[9]
         # g = dm/dq over the node's unknowns: (index, value) pairs
         cnt = 0
         for j in range(3):
@@ -428,8 +413,7 @@ def coupled_implicit(stepper, m, x, v, samples, ws, has_prev):
     r, r_try = np.empty(size), np.empty(size)
     wn, w_try, wv, rate, tq = omega0.copy(), np.empty(ns), np.empty(ns), np.zeros(n), np.empty(ns)
     sc = Scratch(np.empty(3), np.empty(3), np.empty((3, 3)), np.empty((3, 3)), np.zeros(1), np.empty(11),
-                 np.empty(11, dtype=np.int64), np.empty((4, 6)), np.empty((6, 6)), make_edge_cache(n),
-                 np.empty((n, 3)), np.empty((n, 2)))
+                 np.empty(11, dtype=np.int64), np.empty((4, 6)), np.empty((6, 6)))
     mp = _frameless(m)
     vn, v_try = ws.v_new, ws.v_try
     tol = stepper.tol
