@@ -564,16 +564,24 @@ def add_twist_jacobian(m, x, dirs, jac):
             continue
         twist, la, lb, ratio, alpha, c = node_geometry(m, x, dirs, m.tw_theta, i, g)
         phi_jacobians(g, la, lb, ratio, alpha, c, pa, pb)
-        for r in range(4):  # rows: m1_a, m2_a, m1_b, m2_b
-            d = g[4 + r]
-            for col in range(3):
-                jrow[r, col] = d[0] * pa[0, col] + d[1] * pa[1, col] + d[2] * pa[2, col]
-                jrow[r, 3 + col] = d[0] * pb[0, col] + d[1] * pb[1, col] + d[2] * pb[2, col]
-        for r in range(6):
-            for col in range(6):
-                hb[r, col] = 0.5 * dl * (jrow[0, r] * jrow[0, col] - jrow[1, r] * jrow[1, col]
-                                         + jrow[2, r] * jrow[2, col] - jrow[3, r] * jrow[3, col])
+        aniso_node_hessian(g, dl, pa, pb, jrow, hb)
         scatter_node_hessian(jac, i, n, hb)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def aniso_node_hessian(g, dl, pa, pb, jrow, hb):
+    """The Gauss-Newton part of node i's anisotropic bending Hessian over (e_a, e_b): jrow (4, 6) <- J_j =
+    m_j^T dphi/d(a, b) for the rows m1_a, m2_a, m1_b, m2_b (frames from :func:`node_geometry`'s g, pa, pb from
+    :func:`phi_jacobians`); hb (6, 6) <- Delta/2 sum_k (J1_k^T J1_k - J2_k^T J2_k) [N m] (dl = Delta)."""
+    for r in range(4):
+        d = g[4 + r]
+        for col in range(3):
+            jrow[r, col] = d[0] * pa[0, col] + d[1] * pa[1, col] + d[2] * pa[2, col]
+            jrow[r, 3 + col] = d[0] * pb[0, col] + d[1] * pb[1, col] + d[2] * pb[2, col]
+    for r in range(6):
+        for col in range(6):
+            hb[r, col] = 0.5 * dl * (jrow[0, r] * jrow[0, col] - jrow[1, r] * jrow[1, col]
+                                     + jrow[2, r] * jrow[2, col] - jrow[3, r] * jrow[3, col])
 
 
 @njit(cache=True, error_model="numpy")

@@ -59,6 +59,7 @@ from bullet_dlo.core.kernels.steppers import (
 from bullet_dlo.core.kernels.twist import (
     _curvatures,
     _node_edge_gradients,
+    aniso_node_hessian,
     node_geometry,
     node_twist,
     phi_jacobians,
@@ -327,15 +328,7 @@ def _newton_matrix(stepper, m, mp, imp, ws, band, g, sc):
         p1a, p2a, p1b, p2b = _curvatures(g)
         phi_jacobians(g, la, lb, ratio, alpha, c, pa, pb)
         # x-x: the Gauss-Newton part of the anisotropic bending, Delta/2 sum_k (J1_k^T J1_k - J2_k^T J2_k)
-        for r in range(4):  # rows: m1_a, m2_a, m1_b, m2_b
-            d = g[4 + r]
-            for col in range(3):
-                jrow[r, col] = d[0] * pa[0, col] + d[1] * pa[1, col] + d[2] * pa[2, col]
-                jrow[r, 3 + col] = d[0] * pb[0, col] + d[1] * pb[1, col] + d[2] * pb[2, col]
-        for r in range(6):
-            for col in range(6):
-                hb[r, col] = 0.5 * dl * (jrow[0, r] * jrow[0, col] - jrow[1, r] * jrow[1, col]
-                                         + jrow[2, r] * jrow[2, col] - jrow[3, r] * jrow[3, col])
+        aniso_node_hessian(g, dl, pa, pb, jrow, hb)
         scatter_node_hessian(jac, i, n, hb)
         # x-theta: d2E/dtheta_k dx = Delta (kappa_2 J_1 + kappa_1 J_2); theta-theta: Delta (kappa_2^2 - kappa_1^2)
         for e in range(2):
