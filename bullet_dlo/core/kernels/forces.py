@@ -337,7 +337,7 @@ def _bend_hessian(a0, a1, a2, b0, b1, b2, k, g, out):
             out[3 + col, r] = out[r, 3 + col]
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")  # inlined: a call passing m costs ~0.3 us
 def total_forces(m, x, v, dirs, out):
     """Elastic + gravity + damping + external forces [N], shape (n, 3), into ``out``."""
     internal_forces(m, x, dirs, out)
