@@ -8,8 +8,9 @@ the bodies, detection), the model's kernel (sync, checks, plan; and the share of
 Numba unboxing its ~110 arrays, timed as an empty kernel over the same arguments), and the recorder's
 row. The Python glue is the whole step minus its parts. Parts are timed in interleaved rounds with
 ``time.thread_time``; medians and ranges, the machine's load beside them. The bare step is a twin
-world with the same spheres, filters and ground, its spheres falling freely (moving, as in the coupled
-world).
+world with the same spheres, filters and ground, its spheres live in Bullet and falling freely
+(``bullet_spheres="live"``: a model-contact cable's spheres are otherwise parked proxies, asleep in Bullet, and
+its world's step costs about a third of that; printed beside it).
 
 Writes ``step_breakdown.json`` (every round of every part, the load) into ``--out``.
 
@@ -69,7 +70,9 @@ def main() -> None:
     world = BulletWorld(dt=1e-3)
     cable = world.add_cable(model, record_every=10**9)
     bare = BulletWorld(dt=1e-3)
-    twin = bare.add_cable(model, record_every=10**9)
+    twin = bare.add_cable(model, record_every=10**9, bullet_spheres="live")
+    parked = BulletWorld(dt=1e-3)
+    parked.add_cable(model, record_every=10**9)  # the default: its spheres are parked proxies
     kernel_world = BulletWorld(dt=1e-3)  # its cable is stepped by the kernel alone (no Bullet step between)
     kcable = kernel_world.add_cable(model, record_every=10**9)
     for w in (rec_world, world, kernel_world):
@@ -94,6 +97,7 @@ def main() -> None:
         "coupled step, recording every step": lambda: rec_world.step(),
         "coupled step, no recorder": lambda: world.step(),
         "bare stepSimulation (twin world)": lambda: pb.stepSimulation(bare.client),
+        "bare stepSimulation (twin, parked spheres)": lambda: pb.stepSimulation(parked.client),
         "  Bullet's step in the coupled world": lambda: pb.stepSimulation(world.client),
         "  forces to Bullet (apply_forces)": cable.apply_forces,
         "  contact query (getContactPoints)": lambda: pb.getContactPoints(-1, -1, -2, -2, world.client),
@@ -130,7 +134,7 @@ def main() -> None:
         {"n": args.n, "rounds_us": times, "median_us": med, "glue_us": glue, "load_start": load,
          "load_end": load_end}, indent=2))
     print(f"outputs written to {out.resolve()}")
-    for w in (rec_world, world, kernel_world, bare):
+    for w in (rec_world, world, kernel_world, bare, parked):
         w.close()
 
 
