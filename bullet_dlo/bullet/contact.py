@@ -75,6 +75,7 @@ EXACT_HULLS = True  # convex hulls on the project's geometry (False: Bullet's na
 # GJK stops early by up to 4e-5 m near the vertices of the Panda's hulls (its point lies 1e-6 m inside the margin
 # and farther than the exact one), while a compound of hulls or another frame or scale differs by millimetres
 HULL_CHECK_TOL = 1e-4
+EMPTY_LINK_BOX = 3e-3  # [m] broad-phase box of a link without a collision shape is at most this wide (2 mm measured)
 HULL_MAX_FACES = 4096  # hulls with more triangles stay with Bullet's narrow phase (the exact query loops over faces)
 WRAP_EDGE_MIN = math.pi / 4  # [rad] a hull edge whose faces turn by at least this is wrapped like a box edge
 _GEOMS = {pb.GEOM_BOX: BOX, pb.GEOM_SPHERE: SPHERE, pb.GEOM_CYLINDER: CYLINDER, pb.GEOM_CAPSULE: CAPSULE}
@@ -302,6 +303,15 @@ def _distance(point) -> float:
     return point[8]
 
 
+def _unlisted_shape(body: int, link: int, client: int) -> bool:
+    """Does a link for which PyBullet lists no collision shape have one all the same? PyBullet's
+    getCollisionShapeData does not list a heightfield (it prints "Unexpected collision shape type"), so the
+    link's box in the broad phase decides: a link without a collision shape has a point box grown by Bullet's
+    margin (measured: 2.0 mm wide for the Panda's panda_link8 and panda_grasptarget, 0 for a visual-only body)."""
+    lo, hi = pb.getAABB(body, link, physicsClientId=client)
+    return max(h - l for l, h in zip(lo, hi)) > EMPTY_LINK_BOX
+
+
 def _rotation(quat) -> np.ndarray:
     return np.array(pb.getMatrixFromQuaternion(quat)).reshape(3, 3)
 
@@ -370,8 +380,8 @@ class ContactSet:
         for body in bodies:
             for link in range(-1, pb.getNumJoints(body, physicsClientId=client)):
                 data = pb.getCollisionShapeData(body, link, physicsClientId=client)
-                if not data:
-                    continue
+                if not data and not _unlisted_shape(body, link, client):
+                    continue  # no collision shape
                 out = exclude.get((body, link), exclude.get((body, None), ()))
                 if out is None:
                     continue  # excluded: no contact with this link
@@ -387,7 +397,7 @@ class ContactSet:
                     hulls.append(hull)
                     (exact if link < 0 else probed).append(row)  # a base link's pose is read every step
                     continue
-                if link >= 0 or out or any(d[2] not in _GEOMS for d in data):
+                if not data or link >= 0 or out or any(d[2] not in _GEOMS for d in data):
                     # a child link (its pose is the link's), a node exclusion or a shape the exact geometry does
                     # not cover: the whole link goes to Bullet's narrow phase (one query answers for all its shapes)
                     probed.append((body, link, PROBE, np.zeros(3), np.eye(3), np.zeros(3)) + common)
