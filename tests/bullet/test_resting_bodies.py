@@ -102,9 +102,9 @@ def test_energy_a_body_takes_from_contact_is_reported():
     "the cable's implicit solve"))), pytest.param(120.0, marks=pytest.mark.xfail(strict=True, reason=(
         "open (issue 23 item 2): as at 60 Hz, 1.0-1.6 mm into the cable"))), 240.0, 1000.0])
 def test_a_box_resting_on_the_cable_stays_outside_it(hz):
-    """A 30 g box dropped 1 cm on the cable lying on the ground rests on it: no node of the cable's centre line
-    less than half the cable's radius from the box (the box 1 mm into the cable at most) after 1 s (the force balance above holds even for
-    a box that sank through the cable, so this checks the geometry)."""
+    """A 30 g box dropped 1 cm on the cable lying on the ground rests on it: after 1 s every node of the cable's
+    centre line is at least half the cable's radius outside the box (the box at most 1 mm into the cable). The
+    force balance above holds even for a box that sank through the cable; this checks the geometry."""
     spec = CableSpec.lv2017(n_masses=20, damping=0.02)
     r = spec.diameter / 2
     with BulletWorld(dt=1.0 / hz) as world:
