@@ -25,6 +25,10 @@ x-dependence is not differentiated, as there):
 stored by nodes (node i's unknowns: stage 1 xyz, stage 2 xyz), so that it is banded with a scalar
 half-width of 6 * 2 + 5 = 17; it is not symmetric, but its symmetric part is positive definite where
 the other methods' matrix is (the symmetric part of A^-1 is 3 I), so it is factorised without pivoting.
+Simplified Newton: the factorisation (about 18 us of a 35 us iteration at n = 20) is kept for the next
+iterations while each cuts the residual at least 4x (:data:`CONTRACTION`), else it is made again at the
+current iterate; an old matrix that does not lower the residual at all is replaced at once. On S2 (n = 20,
+5 ms) a step takes 4.2 iterations instead of 2.9, one of them with a factorisation, and 11-21 % less CPU.
 Convergence rules as in :func:`~bullet_dlo.core.kernels.steppers.newton`: a step is accepted when it
 lowers the residual (halved up to 12 times, else the iteration stops and the step is reported as not
 converged; there is no incremental potential to fall back on), converged when the residual is below
