@@ -25,6 +25,10 @@ x-dependence is not differentiated, as there):
 stored by nodes (node i's unknowns: stage 1 xyz, stage 2 xyz), so that it is banded with a scalar
 half-width of 6 * 2 + 5 = 17; it is not symmetric, but its symmetric part is positive definite where
 the other methods' matrix is (the symmetric part of A^-1 is 3 I), so it is factorised without pivoting.
+Simplified Newton: the factorisation (about 18 us of a 35 us iteration at n = 20) is kept for the next
+iterations while each cuts the residual at least 4x (:data:`CONTRACTION`), else it is made again at the
+current iterate; an old matrix that does not lower the residual at all is replaced at once. On S2 (n = 20,
+5 ms) a step takes 4.2 iterations instead of 2.9, one of them with a factorisation, and 11-21 % less CPU.
 Convergence rules as in :func:`~bullet_dlo.core.kernels.steppers.newton`: a step is accepted when it
 lowers the residual (halved up to 12 times, else the iteration stops and the step is reported as not
 converged; there is no incremental potential to fall back on), converged when the residual is below
@@ -61,6 +65,7 @@ AI12 = 2.0 * SQRT3 - 3.0
 AI21 = -3.0 - 2.0 * SQRT3
 AI22 = 3.0
 GL_HALF = 6 * BAND + 5  # scalar half-bandwidth of the stage system: 17
+CONTRACTION = 0.25  # a simplified Newton iteration must cut the residual at least this much, else a fresh Jacobian
 
 
 @njit(cache=True, error_model="numpy")
@@ -211,10 +216,10 @@ def _gl_matrix(m, h, xs, vstage, hdir, definite, jx, jv, band):
 
 
 @njit(cache=True, error_model="numpy")
-def gl_band_solve(band, rhs, half):
-    """Solve band * y = rhs in place for a general band matrix of half-width ``half`` stored as
-    band[r, c - r + half] (Gaussian elimination without pivoting; band destroyed). Returns min |pivot|."""
-    size = rhs.shape[0]
+def gl_band_factor(band, half):
+    """LU-factorise a general band matrix of half-width ``half`` stored as band[r, c - r + half] in place
+    (Gaussian elimination without pivoting; the multipliers are kept below the diagonal). Returns min |pivot|."""
+    size = band.shape[0]
     min_pivot = np.inf
     for k in range(size):
         piv = band[k, half]
@@ -223,17 +228,36 @@ def gl_band_solve(band, rhs, half):
         last = min(k + half, size - 1)
         for i in range(k + 1, last + 1):
             f = band[i, k - i + half] / piv
+            band[i, k - i + half] = f
             if f == 0.0:
                 continue
             for j in range(k + 1, last + 1):
                 band[i, j - i + half] -= f * band[k, j - k + half]
-            rhs[i] -= f * rhs[k]
+    return min_pivot
+
+
+@njit(cache=True, error_model="numpy")
+def gl_band_substitute(band, rhs, half):
+    """Solve L U y = rhs in place with the factors of :func:`gl_band_factor`."""
+    size = rhs.shape[0]
+    for k in range(size):
+        last = min(k + half, size - 1)
+        for i in range(k + 1, last + 1):
+            rhs[i] -= band[i, k - i + half] * rhs[k]
     for k in range(size - 1, -1, -1):
         acc = rhs[k]
         last = min(k + half, size - 1)
         for j in range(k + 1, last + 1):
             acc -= band[k, j - k + half] * rhs[j]
         rhs[k] = acc / band[k, half]
+
+
+@njit(cache=True, error_model="numpy")
+def gl_band_solve(band, rhs, half):
+    """Solve band * y = rhs in place for a general band matrix of half-width ``half`` stored as
+    band[r, c - r + half] (Gaussian elimination without pivoting; band destroyed). Returns min |pivot|."""
+    min_pivot = gl_band_factor(band, half)
+    gl_band_substitute(band, rhs, half)
     return min_pivot
 
 
@@ -258,10 +282,13 @@ def gauss_legendre_step(stepper, m, x, v, samples):
     f = np.empty((2, n, 3))
     r = np.empty(6 * n)
     r_try = np.empty(6 * n)
+    dv = np.empty(6 * n)
     jx = np.empty((2, n, 2 * BAND + 1, 3, 3))
     jv = np.empty((2, n, 2 * BAND + 1, 3, 3))
     band = np.empty((6 * n, 2 * GL_HALF + 1))
-    for s in range(2):  # first iterate: the current velocities (held nodes at their stage velocities)
+    # first iterate: the current velocities (held nodes at their stage velocities); a guess v + c_s h a from
+    # the forces at x was tried: the stiff stretch modes make it worse (5.9 against 4.2 iterations, S2 n = 20, 5 ms)
+    for s in range(2):
         for i in range(n):
             for j in range(3):
                 vs[s, i, j] = v[i, j]
@@ -292,25 +319,38 @@ def gauss_legendre_step(stepper, m, x, v, samples):
     rnorm = _gl_residual(m, x, v, h, vs, xs, vstage, f, hpos, hvel, hdir, r)
     it = 0
     converged = False
+    refresh = True  # factorise the Jacobian at the current iterate in this iteration
     while it < stepper.max_iter:
         it += 1
-        _gl_matrix(m, h, xs, vstage, hdir, stepper.definite, jx, jv, band)
-        gl_band_solve(band, r, GL_HALF)  # r becomes the Newton direction dV
+        fresh = refresh  # is the factorised matrix the Jacobian at the current iterate?
+        if refresh:
+            _gl_matrix(m, h, xs, vstage, hdir, stepper.definite, jx, jv, band)
+            gl_band_factor(band, GL_HALF)
+            refresh = False
+        dv[:] = r
+        gl_band_substitute(band, dv, GL_HALF)  # the Newton direction dV (simplified: an older matrix)
         alpha = 1.0
         accepted = False
         rn_try = rnorm
-        for _ in range(12):
+        for _ in range(12 if fresh else 1):
             for s in range(2):
                 for i in range(n):
                     for j in range(3):
-                        v_try[s, i, j] = vs[s, i, j] + alpha * r[6 * i + 3 * s + j]
+                        v_try[s, i, j] = vs[s, i, j] + alpha * dv[6 * i + 3 * s + j]
             rn_try = _gl_residual(m, x, v, h, v_try, xs, vstage, f, hpos, hvel, hdir, r_try)
             if rn_try < rnorm or rn_try <= tol * r_scale + r_floor:
                 accepted = True
                 break
             alpha *= 0.5
         if not accepted:
-            break  # stagnated: keep the current iterate (reported as not converged)
+            if fresh:
+                break  # stagnated with the exact Jacobian: keep the current iterate (reported as not converged)
+            # the old matrix no longer contracts: the stage states back at the iterate, then a fresh Jacobian
+            rnorm = _gl_residual(m, x, v, h, vs, xs, vstage, f, hpos, hvel, hdir, r)
+            refresh = True
+            it -= 1  # a rejected simplified iteration is not counted
+            continue
+        refresh = rn_try > CONTRACTION * rnorm  # slow contraction: refresh the Jacobian next iteration
         vs[:, :, :] = v_try
         r[:] = r_try
         rnorm = rn_try
