@@ -290,17 +290,32 @@ def edge_frame(x, dirs, theta, ref, tan, clamp, k):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _node_psi(x, dirs, theta, ref, tan, clamp, mref, i):
-    """The frames at node i and its reference twist psi (signed angle about t_b from r_a carried onto edge b
-    to r_b, not unwrapped): (psi, th_a, th_b, la, ta (3), ra (3), lb, tb (3), rb (3))."""
-    la, ta0, ta1, ta2, ra0, ra1, ra2, th_a = edge_frame(x, dirs, theta, ref, tan, clamp, i - 1)
-    lb, tb0, tb1, tb2, rb0, rb1, rb2, th_b = edge_frame(x, dirs, theta, ref, tan, clamp, i)
+def _psi(fa, fb):
+    """Reference twist at the node between edges a and b (frames ``fa``, ``fb`` from :func:`edge_frame`): the
+    signed angle about t_b from r_a carried onto edge b to r_b [rad], not unwrapped."""
+    la, ta0, ta1, ta2, ra0, ra1, ra2, th_a = fa
+    lb, tb0, tb1, tb2, rb0, rb1, rb2, th_b = fb
     p0, p1, p2 = _transport_s(ra0, ra1, ra2, ta0, ta1, ta2, tb0, tb1, tb2)
     c0 = p1 * rb2 - p2 * rb1
     c1 = p2 * rb0 - p0 * rb2
     c2 = p0 * rb1 - p1 * rb0
-    psi = math.atan2(c0 * tb0 + c1 * tb1 + c2 * tb2, p0 * rb0 + p1 * rb1 + p2 * rb2)
-    return (psi, th_a, th_b, la, ta0, ta1, ta2, ra0, ra1, ra2, lb, tb0, tb1, tb2, rb0, rb1, rb2)
+    return math.atan2(c0 * tb0 + c1 * tb1 + c2 * tb2, p0 * rb0 + p1 * rb1 + p2 * rb2)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def twist_of_frames(fa, fb, mref_i):
+    """:func:`node_twist` from the frames of the node's two edges (:func:`edge_frame`; a loop over the nodes
+    carries edge b's frame on as the next node's edge a, so each edge frame is computed once per sweep) and the
+    node's last reference twist mref_i [rad]."""
+    la, ta0, ta1, ta2, ra0, ra1, ra2, th_a = fa
+    lb, tb0, tb1, tb2, rb0, rb1, rb2, th_b = fb
+    psi = _psi(fa, fb)
+    twist = th_b - th_a + mref_i + _wrap(psi - mref_i)
+    c = ta0 * tb0 + ta1 * tb1 + ta2 * tb2
+    k0 = ta1 * tb2 - ta2 * tb1
+    k1 = ta2 * tb0 - ta0 * tb2
+    k2 = ta0 * tb1 - ta1 * tb0
+    return twist, la, lb, 2.0 * k0 / (1.0 + c), 2.0 * k1 / (1.0 + c), 2.0 * k2 / (1.0 + c)
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -309,34 +324,37 @@ def node_twist(x, dirs, theta, ref, tan, clamp, mref, i):
     |e_b| [m], curvature binormal kb = 2 t_a x t_b / (1 + t_a . t_b) (3 scalars)). Arrays: x [m] (n, 3), dirs the
     clamp directions (2, 3), theta [rad] (n-1,), the reference frames ref, tan (n-1, 3), the clamps' section axes
     clamp (2, 3), the reference twists mref [rad] (n,) (the ``tw_`` fields of the kernel arrays)."""
-    (psi, th_a, th_b, la, ta0, ta1, ta2, ra0, ra1, ra2,
-     lb, tb0, tb1, tb2, rb0, rb1, rb2) = _node_psi(x, dirs, theta, ref, tan, clamp, mref, i)
-    twist = th_b - th_a + mref[i] + _wrap(psi - mref[i])
-    c = ta0 * tb0 + ta1 * tb1 + ta2 * tb2
-    k0 = ta1 * tb2 - ta2 * tb1
-    k1 = ta2 * tb0 - ta0 * tb2
-    k2 = ta0 * tb1 - ta1 * tb0
-    return twist, la, lb, 2.0 * k0 / (1.0 + c), 2.0 * k1 / (1.0 + c), 2.0 * k2 / (1.0 + c)
+    return twist_of_frames(edge_frame(x, dirs, theta, ref, tan, clamp, i - 1),
+                           edge_frame(x, dirs, theta, ref, tan, clamp, i), mref[i])
 
 
 # Scratch rows of g (12, 3): 0 t_a, 1 r_a, 2 t_b, 3 r_b, 4 m1_a, 5 m2_a, 6 m1_b, 7 m2_b, 8 phi,
 # 9 kb (curvature binormal), 10 transported r_a, 11 spare.
 @njit(cache=True, error_model="numpy")
 def node_geometry(x, dirs, theta, ref, tan, clamp, mref, i, g):
-    """Frames, twist and curvature at node i into scratch ``g`` (see the row map above; row 10 not written).
+    """Frames, twist and curvature at node i into scratch ``g`` (see the row map above; rows 10-11 not written).
 
     Arrays as :func:`node_twist`; theta: twist angles to use [rad], (n-1,). Returns (m_i twist [rad], |e_a| [m],
     |e_b| [m], ratio = beta/sin(beta), alpha = (sin - beta cos)/sin^3, c = cos(beta)); a clamp's virtual edge
     has length 1 (its direction is a unit vector, as in the bending kernels) and twist angle 0.
     """
-    (psi, th_a, th_b, la, ta0, ta1, ta2, ra0, ra1, ra2,
-     lb, tb0, tb1, tb2, rb0, rb1, rb2) = _node_psi(x, dirs, theta, ref, tan, clamp, mref, i)
+    return geometry_of_frames(edge_frame(x, dirs, theta, ref, tan, clamp, i - 1),
+                              edge_frame(x, dirs, theta, ref, tan, clamp, i), mref[i], g)
+
+
+@njit(cache=True, error_model="numpy")
+def geometry_of_frames(fa, fb, mref_i, g):
+    """:func:`node_geometry` from the frames of the node's two edges (:func:`edge_frame`) and its last reference
+    twist mref_i [rad]."""
+    la, ta0, ta1, ta2, ra0, ra1, ra2, th_a = fa
+    lb, tb0, tb1, tb2, rb0, rb1, rb2, th_b = fb
+    psi = _psi(fa, fb)
     g[0, 0], g[0, 1], g[0, 2] = ta0, ta1, ta2
     g[1, 0], g[1, 1], g[1, 2] = ra0, ra1, ra2
     g[2, 0], g[2, 1], g[2, 2] = tb0, tb1, tb2
     g[3, 0], g[3, 1], g[3, 2] = rb0, rb1, rb2
     # reference twist unwrapped against mref
-    mr = mref[i] + _wrap(psi - mref[i])
+    mr = mref_i + _wrap(psi - mref_i)
     twist = th_b - th_a + mr
     # material frames: m1 = cos th r + sin th (t x r), m2 = t x m1
     ca, sa = math.cos(th_a), math.sin(th_a)
@@ -497,10 +515,13 @@ def update_frames(m, x, dirs):
         r0, r1, r2 = _transport_s(ref[k, 0], ref[k, 1], ref[k, 2], tan[k, 0], tan[k, 1], tan[k, 2], t0, t1, t2)
         ref[k, 0], ref[k, 1], ref[k, 2] = r0, r1, r2
         tan[k, 0], tan[k, 1], tan[k, 2] = t0, t1, t2
+    fb = edge_frame(x, dirs, theta, ref, tan, clamp, -1)
     for i in range(n):
+        fa = fb  # edge i-1's frame, carried on from the last node
+        fb = edge_frame(x, dirs, theta, ref, tan, clamp, i)
         th_b = theta[i] if i < n - 1 else 0.0
         th_a = theta[i - 1] if i > 0 else 0.0
-        mref[i] = node_twist(x, dirs, theta, ref, tan, clamp, mref, i)[0] - (th_b - th_a)
+        mref[i] = twist_of_frames(fa, fb, mref[i])[0] - (th_b - th_a)
 
 
 # ----- energy, forces, Jacobian, clamp moments ------------------------------------------------------

@@ -60,8 +60,10 @@ from bullet_dlo.core.kernels.twist import (
     _curvatures,
     _node_edge_gradients,
     aniso_node_hessian,
+    edge_frame,
+    geometry_of_frames,
     node_geometry,
-    node_twist,
+    twist_of_frames,
     phi_jacobians,
     scatter_node_hessian,
     update_frames,
@@ -184,16 +186,19 @@ def _residual(m, mp, imp, ws, samples, mid, h, tb, wb, wa, vn, wn, wv, rate, tq,
     energy = 0.0
     for k in range(ns):
         tq[k] = -drag[k] * wv[k]
+    fb = edge_frame(xe, dirs, th, ref, tan, clamp, -1)
     for i in range(n):
+        fa = fb  # edge i-1's frame, carried on from the last node (each edge frame computed once)
+        fb = edge_frame(xe, dirs, th, ref, tan, clamp, i)
         kt, dl, ct = ktw[i], kan[i], ctw[i]
         rate[i] = 0.0
         if kt == 0.0 and dl == 0.0 and ct == 0.0:
             continue
         if dl != 0.0:
-            twist, la, lb, ratio, alpha, c = node_geometry(xe, dirs, th, ref, tan, clamp, mref, i, g)
+            twist, la, lb, ratio, alpha, c = geometry_of_frames(fa, fb, mref[i], g)
             kb0, kb1, kb2 = g[9, 0], g[9, 1], g[9, 2]
         else:  # round and tube sections: twist and binormal only
-            twist, la, lb, kb0, kb1, kb2 = node_twist(xe, dirs, th, ref, tan, clamp, mref, i)
+            twist, la, lb, kb0, kb1, kb2 = twist_of_frames(fa, fb, mref[i])
             ratio, alpha, c = 1.0, 0.0, 1.0  # (unused without anisotropy)
         s = kt * twist
         if ct != 0.0:
@@ -304,15 +309,18 @@ def _newton_matrix(stepper, m, mp, imp, ws, band, g, sc):
     dirs = imp.dirs
     gv, gi, pa, pb, jrow, hb = sc.gv, sc.gi, sc.pa, sc.pb, sc.jrow, sc.hb
     band[:, :] = 0.0
+    fb = edge_frame(xe, dirs, th, ref, tan, clamp, -1)
     for i in range(n):
+        fa = fb  # edge i-1's frame, carried on from the last node
+        fb = edge_frame(xe, dirs, th, ref, tan, clamp, i)
         kt, dl, ct = ktw[i], kan[i], ctw[i]
         if kt == 0.0 and dl == 0.0 and ct == 0.0:
             continue
         if dl != 0.0:
-            twist, la, lb, ratio, alpha, c = node_geometry(xe, dirs, th, ref, tan, clamp, mref, i, g)
+            twist, la, lb, ratio, alpha, c = geometry_of_frames(fa, fb, mref[i], g)
             kb0, kb1, kb2 = g[9, 0], g[9, 1], g[9, 2]
         else:
-            twist, la, lb, kb0, kb1, kb2 = node_twist(xe, dirs, th, ref, tan, clamp, mref, i)
+            twist, la, lb, kb0, kb1, kb2 = twist_of_frames(fa, fb, mref[i])
             ratio, alpha, c = 1.0, 0.0, 1.0
         # g = dm/dq over the node's unknowns: (index, value) pairs
         cnt = 0
