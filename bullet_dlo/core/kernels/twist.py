@@ -532,7 +532,8 @@ def twist_energy(m, x, dirs):
     n = x.shape[0]
     g = np.empty((12, 3))
     e = 0.0
-    ktw, kan, theta, ref, tan, clamp, mref = m.tw_k_twist, m.tw_k_aniso, m.tw_theta, m.tw_ref, m.tw_tan, m.tw_clamp, m.tw_mref
+    ktw, kan, theta = m.tw_k_twist, m.tw_k_aniso, m.tw_theta
+    ref, tan, clamp, mref = m.tw_ref, m.tw_tan, m.tw_clamp, m.tw_mref
     for i in range(n):
         kt, dl = ktw[i], kan[i]
         if kt == 0.0 and dl == 0.0:
@@ -580,7 +581,8 @@ def add_twist_forces(m, x, dirs, out):
     g = np.empty((12, 3))
     ga, gb = np.empty(3), np.empty(3)
     pa, pb = np.empty((3, 3)), np.empty((3, 3))
-    ktw, kan, theta, ref, tan, clamp, mref = m.tw_k_twist, m.tw_k_aniso, m.tw_theta, m.tw_ref, m.tw_tan, m.tw_clamp, m.tw_mref
+    ktw, kan, theta = m.tw_k_twist, m.tw_k_aniso, m.tw_theta
+    ref, tan, clamp, mref = m.tw_ref, m.tw_tan, m.tw_clamp, m.tw_mref
     for i in range(n):
         kt, dl = ktw[i], kan[i]
         if kt == 0.0 and dl == 0.0:

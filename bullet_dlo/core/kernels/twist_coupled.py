@@ -273,7 +273,8 @@ def _merit(m, mp, imp, ws, wa, vn, wn, wv, rate, sc):
     at the X, V, Theta, W, rates left by the last :func:`_residual` call."""
     xe, ve = ws.x_stage, ws.v_stage
     cx, cv, hf = imp.cx, imp.cv, imp.hf
-    drag, ctw, inertia, mass, grav, fext, va = m.tw_drag, m.tw_c_twist, m.tw_inertia, m.mass, m.gravity, m.f_ext, ws.v_avg
+    drag, ctw, inertia = m.tw_drag, m.tw_c_twist, m.tw_inertia
+    mass, grav, fext, va = m.mass, m.gravity, m.f_ext, ws.v_avg
     rd = dissipation(mp, xe, ve, imp.dirs)
     for k in range(wn.shape[0]):
         rd += 0.5 * drag[k] * wv[k] * wv[k]
