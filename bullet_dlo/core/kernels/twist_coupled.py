@@ -70,12 +70,16 @@ from bullet_dlo.core.kernels.twist import (
 )
 
 HALF_T = 10  # scalar half-bandwidth of the interleaved (x_i, theta_i) layout
+# order of node i's unknowns in dm_i/dq as enumerated (x_{i-1,j}, x_{i,j}, x_{i+1,j} for j = 0..2, theta_{i-1},
+# theta_i), indexed by the local layout of :func:`_newton_matrix`
+_RANK = np.array([0, 3, 6, 9, 1, 4, 7, 10, 2, 5, 8])
 
 
 class Scratch(NamedTuple):
     """Small scratch arrays of the coupled step (allocated once per step): ga, gb (3,) edge gradients [N];
     pa, pb (3, 3) dphi/d(edge) [1/m]; energy (1,) the material frame's energy at the last residual [J];
-    gv (11,), gi (11,) int: dm/dq of a node and its unknowns' indices; jrow (4, 6); hb (6, 6) node Hessian;
+    gv (11,), gi (11,) int: dm/dq of a node over its unknowns' local layout and which are present;
+    jrow (4, 6); hb (6, 6) node Hessian;
     gc (12, 3): the clamps' twist-rate geometry (:func:`_clamp_rate`)."""
 
     ga: np.ndarray
@@ -323,35 +327,42 @@ def _newton_matrix(stepper, m, mp, imp, ws, band, g, sc):
         else:
             twist, la, lb, kb0, kb1, kb2 = twist_of_frames(fa, fb, mref[i])
             ratio, alpha, c = 1.0, 0.0, 1.0
-        # g = dm/dq over the node's unknowns: (index, value) pairs
-        cnt = 0
-        for j in range(3):
-            kbj = kb0 if j == 0 else (kb1 if j == 1 else kb2)
-            if i > 0 and not held[i - 1]:
-                gi[cnt] = 4 * (i - 1) + j
-                gv[cnt] = -kbj / (2.0 * la)
-                cnt += 1
-            if not held[i]:
-                gi[cnt] = 4 * i + j
-                gv[cnt] = (kbj / (2.0 * la) if i > 0 else 0.0) - (kbj / (2.0 * lb) if i < ns else 0.0)
-                cnt += 1
-            if i < ns and not held[i + 1]:
-                gi[cnt] = 4 * (i + 1) + j
-                gv[cnt] = kbj / (2.0 * lb)
-                cnt += 1
-        if i > 0:
-            gi[cnt] = 4 * (i - 1) + 3
-            gv[cnt] = -1.0
-            cnt += 1
-        if i < ns:
-            gi[cnt] = 4 * i + 3
-            gv[cnt] = 1.0
-            cnt += 1
+        # g = dm/dq over the node's unknowns in the local layout l = q - 4(i-1) (x_{i-1} 0-2, theta_{i-1} 3, x_i
+        # 4-6, theta_i 7, x_{i+1} 8-10; gi flags the present ones), added as coef g g^T row by row into the band;
+        # _RANK keeps each product's factor order that of the node-by-node enumeration before (bit-identical)
         coef = kc * (kt + (cv / cx) * ct)
         if coef != 0.0:
-            for a in range(cnt):
-                for b in range(a, cnt):
-                    _add_sym(band, gi[a], gi[b], coef * gv[a] * gv[b])
+            for q in range(11):
+                gv[q] = 0.0
+                gi[q] = 0
+            for j in range(3):
+                kbj = kb0 if j == 0 else (kb1 if j == 1 else kb2)
+                if i > 0 and not held[i - 1]:
+                    gv[j] = -kbj / (2.0 * la)
+                    gi[j] = 1
+                if not held[i]:
+                    gv[4 + j] = (kbj / (2.0 * la) if i > 0 else 0.0) - (kbj / (2.0 * lb) if i < ns else 0.0)
+                    gi[4 + j] = 1
+                if i < ns and not held[i + 1]:
+                    gv[8 + j] = kbj / (2.0 * lb)
+                    gi[8 + j] = 1
+            if i > 0:
+                gv[3] = -1.0
+                gi[3] = 1
+            if i < ns:
+                gv[7] = 1.0
+                gi[7] = 1
+            base = 4 * (i - 1)
+            for p in range(11):
+                if gi[p] == 0:
+                    continue
+                rp, gp, row = _RANK[p], gv[p], base + p
+                for q in range(p, 11):
+                    if gi[q] != 0:
+                        if rp <= _RANK[q]:
+                            band[row, q - p] += coef * gp * gv[q]
+                        else:
+                            band[row, q - p] += coef * gv[q] * gp
         if dl == 0.0:
             continue
         p1a, p2a, p1b, p2b = _curvatures(g)
