@@ -4,10 +4,13 @@ The same scene with and without a material frame: a round cable (``CableSpec.lv2
 under gravity, the last end moved 5 cm towards the first and rolled 90 degrees about the cable's axis over the
 run (the twisting cable feels the roll, the frameless one does not). Each run is ``--steps`` steps of BDF2 at
 dt 1 ms; twisting and frameless runs are interleaved ``--repeats`` times and timed in thread CPU time; the
-script prints per-step medians, ranges, the ratio of medians and the load average.
+script prints per-step medians, ranges, the ratio of medians and the load average. ``--parts`` prints instead
+where the coupled BDF2 step's time goes: each kernel timed alone per call (a compiled loop of calls at the state
+after 0.3 s of the same scene, thread CPU time, median and range of 5 batches), the frameless step's kernels beside.
 
     python demos/twist_cost.py
     python demos/twist_cost.py --ns 10 20 40 80 --repeats 7 --steps 1000 --method bdf2
+    python demos/twist_cost.py --parts --ns 80
 """
 from __future__ import annotations
 
@@ -41,6 +44,119 @@ def step_cost(m: CableModel, method: str, dt: float, steps: int) -> float:
     return cost
 
 
+def _parts(n: int) -> None:
+    """Per-call thread CPU time [us] of the coupled twisting step's kernels at n (and the frameless ones)."""
+    from numba import njit
+
+    from bullet_dlo.core.integrators import NewtonOptions, make_stepper
+    from bullet_dlo.core.kernels import twist_coupled as tc
+    from bullet_dlo.core.kernels.forces import force_jacobian, total_forces
+    from bullet_dlo.core.kernels.holders import empty_samples, sample_holders
+    from bullet_dlo.core.kernels.banded import band_solve
+    from bullet_dlo.core.kernels.steppers import _implicit, _newton_matrix, _start_implicit, make_workspace
+    from bullet_dlo.core.kernels.twist import set_clamp, update_frames
+
+    def state(twist: bool):
+        cm = model(n, twist, 1.0)
+        st = simulate(cm, "bdf2", 1e-3, 0.3, record_every=300).final_state.copy()
+        control = cm.control(None)
+        m = cm.kernel_arrays(control, st.twist if st.twist is not None else cm.twist_state())
+        samples = empty_samples()
+        sample_holders(cm.holder_plan(control), st.t, 1e-3, samples)
+        return m, samples, make_workspace(n), st.x.copy(), st.v.copy()
+
+    @njit
+    def residuals(reps, m, mp, imp, ws, samples, tb, wb, wa, vn, wn, wv, rate, tq, r, g, sc):
+        for _ in range(reps):
+            tc._residual(m, mp, imp, ws, samples, False, 1e-3, tb, wb, wa, vn, wn, wv, rate, tq, r, g, sc)
+
+    @njit
+    def matrices(reps, stepper, m, mp, imp, ws, band, g, sc):
+        for _ in range(reps):
+            tc._newton_matrix(stepper, m, mp, imp, ws, band, g, sc)
+
+    @njit
+    def solves(reps, band, r, bcopy, rcopy):
+        for _ in range(reps):
+            bcopy[:, :] = band
+            rcopy[:] = r
+            tc.band_solve_upper(bcopy, rcopy, tc.HALF_T)
+
+    @njit
+    def plain_solves(reps, band, r, bcopy, rcopy):
+        for _ in range(reps):
+            bcopy[:, :] = band
+            rcopy[:] = r
+            band_solve(bcopy, rcopy)
+
+    @njit
+    def frames(reps, m, x, dirs):
+        for _ in range(reps):
+            update_frames(m, x, dirs)
+
+    @njit
+    def forces(reps, m, x, v, dirs, f):
+        for _ in range(reps):
+            total_forces(m, x, v, dirs, f)
+
+    @njit
+    def jacobians(reps, m, x, dirs, jac):
+        for _ in range(reps):
+            force_jacobian(m, x, dirs, True, jac)
+
+    @njit
+    def coupled_steps(reps, stepper, m, x, v, samples, ws):
+        for _ in range(reps):
+            tc.coupled_implicit(stepper, m, x, v, samples, ws, True)
+
+    @njit
+    def plain_steps(reps, stepper, m, x, v, samples, ws):
+        for _ in range(reps):
+            _implicit(stepper, m, x, v, samples, ws, True)
+
+    def per_call(f, *a, reps: int = 2000) -> tuple[float, float, float]:
+        f(1, *a)  # compile
+        batches = []
+        for _ in range(5):
+            t0 = time.thread_time()
+            f(reps, *a)
+            batches.append((time.thread_time() - t0) / reps * 1e6)
+        return float(np.median(batches)), min(batches), max(batches)
+
+    stepper = make_stepper("bdf2", 1e-3, NewtonOptions())
+    m, samples, ws, x, v = state(True)
+    set_clamp(m, 2)
+    imp = _start_implicit(stepper.method, m, x, v, 1e-3, samples, ws, True)
+    ns = n - 1
+    sc = tc.Scratch(np.empty(3), np.empty(3), np.empty((3, 3)), np.empty((3, 3)), np.zeros(1), np.empty(11),
+                    np.empty(11, dtype=np.int64), np.empty((4, 6)), np.empty((6, 6)), np.empty((12, 3)))
+    mp = tc._frameless(m)
+    r, g, band = np.empty(4 * n), np.empty((12, 3)), np.empty((4 * n, tc.HALF_T + 1))
+    rows = {
+        "twist: residual": per_call(residuals, m, mp, imp, ws, samples, m.tw_theta.copy(), np.zeros(ns),
+                                    m.tw_omega.copy(), ws.v_new, m.tw_omega.copy(), np.empty(ns), np.zeros(n),
+                                    np.empty(ns), r, g, sc),
+        "twist: Newton matrix": per_call(matrices, stepper, m, mp, imp, ws, band, g, sc),
+        "twist: band solve (4n, half-width 10)": per_call(solves, band, r, band.copy(), r.copy()),
+        "twist: update_frames (once a step)": per_call(frames, m, ws.x_stage, imp.dirs),
+        "twist: frameless forces inside the residual": per_call(forces, mp, ws.x_stage, ws.v_stage, imp.dirs,
+                                                                ws.force),
+        "twist: frameless Jacobian inside the matrix": per_call(jacobians, mp, ws.x_stage, imp.dirs, ws.jacobian),
+        "twist: whole coupled step (held ends still)": per_call(coupled_steps, stepper, m, x, v, samples, ws, reps=300),
+    }
+    mf, sf, wsf, xf, vf = state(False)
+    rows["frameless: forces"] = per_call(forces, mf, xf, vf, sf.dir[2], wsf.force)
+    rows["frameless: Jacobian"] = per_call(jacobians, mf, xf, sf.dir[2], wsf.jacobian)
+    set_clamp(mf, 2)
+    _newton_matrix(stepper, mf, _start_implicit(stepper.method, mf, xf, vf, 1e-3, sf, wsf, True), wsf)
+    rf = np.ones(3 * n)
+    rows["frameless: band solve (3n)"] = per_call(plain_solves, wsf.band, rf, wsf.band.copy(), rf.copy())
+    rows["frameless: whole implicit step (held ends still)"] = per_call(plain_steps, stepper, mf, xf, vf, sf, wsf,
+                                                                       reps=300)
+    for name, (med, lo, hi) in rows.items():
+        print(f"n {n:3d} {name:50s} {med:8.2f} us per call ({lo:.2f}-{hi:.2f})", flush=True)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--ns", type=int, nargs="+", default=[10, 20, 40, 80])
@@ -48,7 +164,14 @@ def main() -> None:
     parser.add_argument("--steps", type=int, default=1000)
     parser.add_argument("--method", default="bdf2")
     parser.add_argument("--dt", type=float, default=1e-3)
+    parser.add_argument("--parts", action="store_true", help="time the coupled step's kernels alone (BDF2)")
     args = parser.parse_args()
+    if args.parts:
+        print(f"load average {os.getloadavg()[0]:.2f}")
+        for n in args.ns:
+            _parts(n)
+        print(f"load average at the end {os.getloadavg()[0]:.2f}")
+        return
     duration = args.steps * args.dt
     print(f"{args.method}, dt {args.dt:g} s, {args.steps} steps per run, {args.repeats} interleaved repeats; "
           f"load average {os.getloadavg()[0]:.2f} {os.getloadavg()[1]:.2f} {os.getloadavg()[2]:.2f}")

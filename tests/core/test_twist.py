@@ -105,6 +105,49 @@ def test_forces_and_clamp_moments_are_energy_gradients(spec):
         assert np.abs(tau - tau_fd).max() <= 1e-5 * np.abs(tau_fd).max()
 
 
+
+def test_scalar_node_kernels_agree_with_the_node_geometry_and_a_rotation():
+    """The per-node kernels the implicit step runs in scalars (no array views; issue 22 item 6) give the node
+    geometry's twist and curvature binormal, and the scalar parallel transport is the minimal rotation taking the
+    old tangent to the new one (scipy's rotation about t1 x t2 by their angle)."""
+    from bullet_dlo.core.kernels.twist import (_transport, _transport_s, edge_frame, node_geometry, node_twist,
+                                               twist_of_frames)
+    model = CableModel.straight(STRIP.with_(n_masses=9), ends=("clamped", "clamped"), roll=(0.3, 1.1),
+                                gravity=(0, 0, 0))
+    m, x0 = model.kernel_arrays(), model.initial_state().x
+    dirs = model.holder_plan().start_dir
+    internal_energy(m, x0, dirs)  # builds the frame
+    rng = np.random.default_rng(3)
+    m.tw.theta[:] += 0.3 * rng.standard_normal(m.tw.theta.shape)
+    x = x0 + 0.01 * rng.standard_normal(x0.shape)
+    update_frames(m, x, dirs)
+    x = x + 0.003 * rng.standard_normal(x0.shape)  # frames transported within the evaluation, as in a Newton step
+    tw = m.tw
+    g = np.empty((12, 3))
+    fb = edge_frame(x, dirs, tw.theta, tw.ref, tw.tan, tw.clamp, -1)
+    n = x.shape[0]
+    for i in range(n):
+        fa, fb = fb, edge_frame(x, dirs, tw.theta, tw.ref, tw.tan, tw.clamp, i)
+        twist, la, lb, *kb = node_twist(x, dirs, tw.theta, tw.ref, tw.tan, tw.clamp, tw.mref, i)
+        assert (twist, la, lb, *kb) == twist_of_frames(fa, fb, tw.mref[i])
+        ref_twist, ref_la, ref_lb = node_geometry(x, dirs, tw.theta, tw.ref, tw.tan, tw.clamp, tw.mref, i, g)[:3]
+        assert twist == pytest.approx(ref_twist, abs=1e-14) and (la, lb) == (ref_la, ref_lb)
+        assert np.array_equal(kb, g[9])
+        assert la == (1.0 if i == 0 else pytest.approx(np.linalg.norm(x[i] - x[i - 1]), rel=1e-15))
+        # the edge frame: unit tangent along the edge, unit director normal to it
+        t, r = np.array(fb[1:4]), np.array(fb[4:7])
+        assert abs(t @ r) < 1e-15 and np.linalg.norm(r) == pytest.approx(1.0, abs=1e-15)
+    for _ in range(20):
+        t1, t2 = (v / np.linalg.norm(v) for v in rng.standard_normal((2, 3)))
+        u = np.cross(t1, rng.standard_normal(3))
+        u /= np.linalg.norm(u)
+        out = np.empty(3)
+        _transport(u, t1, t2, out)
+        assert np.array_equal(out, _transport_s(*u, *t1, *t2))
+        axis = np.cross(t1, t2)
+        turn = Rotation.from_rotvec(axis / np.linalg.norm(axis) * math.atan2(np.linalg.norm(axis), t1 @ t2))
+        assert np.abs(out - turn.apply(u)).max() < 1e-14
+
 # ----- pure torsion -------------------------------------------------------------------------------
 @pytest.mark.parametrize("n", [3, 5, 10, 40])
 def test_pure_torsion_static_is_exact_at_every_n(n):

@@ -246,59 +246,135 @@ def _unit_edge(x, k, out):
 
 
 # ----- node geometry ------------------------------------------------------------------------------
+# The per-node kernels work in scalars: no array view (``g[0]``, ``m.tw_ref[k]``) and no KernelArrays
+# argument inside a per-node loop. Each view or array argument costs Numba an NRT incref/decref pair (an
+# atomic call each); a node function taking ``m`` (27 arrays) paid ~70 of them per call, 8x the arithmetic
+# (node twist at n = 80: 58 -> 7 us per sweep, bit-identical; see demos/twist_cost.py).
+@njit(cache=True, error_model="numpy", inline="always")
+def _transport_s(u0, u1, u2, a0, a1, a2, b0, b1, b2):
+    """:func:`_transport` in scalars: u parallel-transported from unit tangent a to unit tangent b, made unit
+    and normal to b; returns its three components (the same operations in the same order)."""
+    c = a0 * b0 + a1 * b1 + a2 * b2
+    bx = a1 * b2 - a2 * b1
+    by = a2 * b0 - a0 * b2
+    bz = a0 * b1 - a1 * b0
+    bu = bx * u0 + by * u1 + bz * u2
+    f = bu / (1.0 + c) if c > -1.0 + 1e-12 else 0.0
+    o0 = c * u0 + (by * u2 - bz * u1) + f * bx
+    o1 = c * u1 + (bz * u0 - bx * u2) + f * by
+    o2 = c * u2 + (bx * u1 - by * u0) + f * bz
+    d = o0 * b0 + o1 * b1 + o2 * b2
+    o0 -= d * b0
+    o1 -= d * b1
+    o2 -= d * b2
+    norm = math.sqrt(o0 * o0 + o1 * o1 + o2 * o2)
+    return o0 / norm, o1 / norm, o2 / norm
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def edge_frame(x, dirs, theta, ref, tan, clamp, k):
+    """Edge k's (length [m], unit tangent (3 scalars), reference director carried onto it (3 scalars), twist
+    angle [rad]); k = -1 and k = n - 1 are the clamps' virtual edges (length 1, tangent the clamp direction
+    ``dirs[e]``, director the clamp's section axis ``clamp[e]`` re-orthonormalised, twist angle 0)."""
+    n1 = x.shape[0] - 1
+    if k < 0 or k >= n1:
+        e = 0 if k < 0 else 1
+        t0, t1, t2 = dirs[e, 0], dirs[e, 1], dirs[e, 2]
+        r0, r1, r2 = _transport_s(clamp[e, 0], clamp[e, 1], clamp[e, 2], t0, t1, t2, t0, t1, t2)
+        return 1.0, t0, t1, t2, r0, r1, r2, 0.0
+    dx, dy, dz = x[k + 1, 0] - x[k, 0], x[k + 1, 1] - x[k, 1], x[k + 1, 2] - x[k, 2]
+    length = math.sqrt(dx * dx + dy * dy + dz * dz)
+    t0, t1, t2 = dx / length, dy / length, dz / length
+    r0, r1, r2 = _transport_s(ref[k, 0], ref[k, 1], ref[k, 2], tan[k, 0], tan[k, 1], tan[k, 2], t0, t1, t2)
+    return length, t0, t1, t2, r0, r1, r2, theta[k]
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _psi(fa, fb):
+    """Reference twist at the node between edges a and b (frames ``fa``, ``fb`` from :func:`edge_frame`): the
+    signed angle about t_b from r_a carried onto edge b to r_b [rad], not unwrapped."""
+    la, ta0, ta1, ta2, ra0, ra1, ra2, th_a = fa
+    lb, tb0, tb1, tb2, rb0, rb1, rb2, th_b = fb
+    p0, p1, p2 = _transport_s(ra0, ra1, ra2, ta0, ta1, ta2, tb0, tb1, tb2)
+    c0 = p1 * rb2 - p2 * rb1
+    c1 = p2 * rb0 - p0 * rb2
+    c2 = p0 * rb1 - p1 * rb0
+    return math.atan2(c0 * tb0 + c1 * tb1 + c2 * tb2, p0 * rb0 + p1 * rb1 + p2 * rb2)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def twist_of_frames(fa, fb, mref_i):
+    """:func:`node_twist` from the frames of the node's two edges (:func:`edge_frame`; a loop over the nodes
+    carries edge b's frame on as the next node's edge a, so each edge frame is computed once per sweep) and the
+    node's last reference twist mref_i [rad]."""
+    la, ta0, ta1, ta2, ra0, ra1, ra2, th_a = fa
+    lb, tb0, tb1, tb2, rb0, rb1, rb2, th_b = fb
+    psi = _psi(fa, fb)
+    twist = th_b - th_a + mref_i + _wrap(psi - mref_i)
+    c = ta0 * tb0 + ta1 * tb1 + ta2 * tb2
+    k0 = ta1 * tb2 - ta2 * tb1
+    k1 = ta2 * tb0 - ta0 * tb2
+    k2 = ta0 * tb1 - ta1 * tb0
+    return twist, la, lb, 2.0 * k0 / (1.0 + c), 2.0 * k1 / (1.0 + c), 2.0 * k2 / (1.0 + c)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def node_twist(x, dirs, theta, ref, tan, clamp, mref, i):
+    """The part of :func:`node_geometry` a round or tube section needs, in scalars: (m_i twist [rad], |e_a| [m],
+    |e_b| [m], curvature binormal kb = 2 t_a x t_b / (1 + t_a . t_b) (3 scalars)). Arrays: x [m] (n, 3), dirs the
+    clamp directions (2, 3), theta [rad] (n-1,), the reference frames ref, tan (n-1, 3), the clamps' section axes
+    clamp (2, 3), the reference twists mref [rad] (n,) (the ``tw_`` fields of the kernel arrays)."""
+    return twist_of_frames(edge_frame(x, dirs, theta, ref, tan, clamp, i - 1),
+                           edge_frame(x, dirs, theta, ref, tan, clamp, i), mref[i])
+
+
 # Scratch rows of g (12, 3): 0 t_a, 1 r_a, 2 t_b, 3 r_b, 4 m1_a, 5 m2_a, 6 m1_b, 7 m2_b, 8 phi,
 # 9 kb (curvature binormal), 10 transported r_a, 11 spare.
 @njit(cache=True, error_model="numpy")
-def node_geometry(m, x, dirs, theta, i, g):
-    """Frames, twist and curvature at node i into scratch ``g`` (see the row map above).
+def node_geometry(x, dirs, theta, ref, tan, clamp, mref, i, g):
+    """Frames, twist and curvature at node i into scratch ``g`` (see the row map above; rows 10-11 not written).
 
-    theta: twist angles to use [rad], (n-1,). Returns (m_i twist [rad], |e_a| [m], |e_b| [m],
-    ratio = beta/sin(beta), alpha = (sin - beta cos)/sin^3, c = cos(beta)); a clamp's virtual edge has
-    length 1 (its direction is a unit vector, as in the bending kernels) and twist angle 0.
+    Arrays as :func:`node_twist`; theta: twist angles to use [rad], (n-1,). Returns (m_i twist [rad], |e_a| [m],
+    |e_b| [m], ratio = beta/sin(beta), alpha = (sin - beta cos)/sin^3, c = cos(beta)); a clamp's virtual edge
+    has length 1 (its direction is a unit vector, as in the bending kernels) and twist angle 0.
     """
-    n = x.shape[0]
-    ta, ra, tb, rb = g[0], g[1], g[2], g[3]
-    if i == 0:
-        la = 1.0
-        ta[:] = dirs[0]
-        _transport(m.tw_clamp[0], ta, ta, ra)  # (re-orthonormalised clamp axis)
-        th_a = 0.0
-    else:
-        la = _unit_edge(x, i - 1, ta)
-        _transport(m.tw_ref[i - 1], m.tw_tan[i - 1], ta, ra)
-        th_a = theta[i - 1]
-    if i == n - 1:
-        lb = 1.0
-        tb[:] = dirs[1]
-        _transport(m.tw_clamp[1], tb, tb, rb)
-        th_b = 0.0
-    else:
-        lb = _unit_edge(x, i, tb)
-        _transport(m.tw_ref[i], m.tw_tan[i], tb, rb)
-        th_b = theta[i]
-    # reference twist: ra carried onto edge b, signed angle to rb about tb, unwrapped against mref
-    pa = g[10]
-    _transport(ra, ta, tb, pa)
-    tmp = g[11]
-    _cross(pa, rb, tmp)
-    psi = math.atan2(_dot(tmp, tb), _dot(pa, rb))
-    mref = m.tw_mref[i] + _wrap(psi - m.tw_mref[i])
-    twist = th_b - th_a + mref
-    # material frames
+    return geometry_of_frames(edge_frame(x, dirs, theta, ref, tan, clamp, i - 1),
+                              edge_frame(x, dirs, theta, ref, tan, clamp, i), mref[i], g)
+
+
+@njit(cache=True, error_model="numpy")
+def geometry_of_frames(fa, fb, mref_i, g):
+    """:func:`node_geometry` from the frames of the node's two edges (:func:`edge_frame`) and its last reference
+    twist mref_i [rad]."""
+    la, ta0, ta1, ta2, ra0, ra1, ra2, th_a = fa
+    lb, tb0, tb1, tb2, rb0, rb1, rb2, th_b = fb
+    psi = _psi(fa, fb)
+    g[0, 0], g[0, 1], g[0, 2] = ta0, ta1, ta2
+    g[1, 0], g[1, 1], g[1, 2] = ra0, ra1, ra2
+    g[2, 0], g[2, 1], g[2, 2] = tb0, tb1, tb2
+    g[3, 0], g[3, 1], g[3, 2] = rb0, rb1, rb2
+    # reference twist unwrapped against mref
+    mr = mref_i + _wrap(psi - mref_i)
+    twist = th_b - th_a + mr
+    # material frames: m1 = cos th r + sin th (t x r), m2 = t x m1
     ca, sa = math.cos(th_a), math.sin(th_a)
-    _cross(ta, ra, tmp)
-    for j in range(3):
-        g[4, j] = ca * ra[j] + sa * tmp[j]
-    _cross(ta, g[4], g[5])
+    m0 = ca * ra0 + sa * (ta1 * ra2 - ta2 * ra1)
+    m1 = ca * ra1 + sa * (ta2 * ra0 - ta0 * ra2)
+    m2 = ca * ra2 + sa * (ta0 * ra1 - ta1 * ra0)
+    g[4, 0], g[4, 1], g[4, 2] = m0, m1, m2
+    g[5, 0], g[5, 1], g[5, 2] = ta1 * m2 - ta2 * m1, ta2 * m0 - ta0 * m2, ta0 * m1 - ta1 * m0
     cb, sb = math.cos(th_b), math.sin(th_b)
-    _cross(tb, rb, tmp)
-    for j in range(3):
-        g[6, j] = cb * rb[j] + sb * tmp[j]
-    _cross(tb, g[6], g[7])
+    m0 = cb * rb0 + sb * (tb1 * rb2 - tb2 * rb1)
+    m1 = cb * rb1 + sb * (tb2 * rb0 - tb0 * rb2)
+    m2 = cb * rb2 + sb * (tb0 * rb1 - tb1 * rb0)
+    g[6, 0], g[6, 1], g[6, 2] = m0, m1, m2
+    g[7, 0], g[7, 1], g[7, 2] = tb1 * m2 - tb2 * m1, tb2 * m0 - tb0 * m2, tb0 * m1 - tb1 * m0
     # turning-angle vector phi = beta (ta x tb)/sin(beta) and curvature binormal 2 ta x tb/(1 + ta.tb)
-    c = _dot(ta, tb)
-    _cross(ta, tb, tmp)
-    s = math.sqrt(_dot(tmp, tmp))
+    c = ta0 * tb0 + ta1 * tb1 + ta2 * tb2
+    k0 = ta1 * tb2 - ta2 * tb1
+    k1 = ta2 * tb0 - ta0 * tb2
+    k2 = ta0 * tb1 - ta1 * tb0
+    s = math.sqrt(k0 * k0 + k1 * k1 + k2 * k2)
     beta = math.atan2(s, c)
     if beta < 1e-3:
         b2 = beta * beta
@@ -307,48 +383,20 @@ def node_geometry(m, x, dirs, theta, i, g):
     else:
         ratio = beta / s
         alpha = (s - beta * c) / (s * s * s)
-    for j in range(3):
-        g[8, j] = ratio * tmp[j]
-        g[9, j] = 2.0 * tmp[j] / (1.0 + c)
+    g[8, 0], g[8, 1], g[8, 2] = ratio * k0, ratio * k1, ratio * k2
+    g[9, 0], g[9, 1], g[9, 2] = 2.0 * k0 / (1.0 + c), 2.0 * k1 / (1.0 + c), 2.0 * k2 / (1.0 + c)
     return twist, la, lb, ratio, alpha, c
 
 
-@njit(cache=True, error_model="numpy")
-def node_twist(m, x, dirs, theta, i, g):
-    """The part of :func:`node_geometry` a round or tube section needs: twist and curvature binormal (row 9 of
-    ``g``; rows 0-3 and 10-11 as there, the material frames and phi not computed). Returns (m_i twist [rad],
-    |e_a| [m], |e_b| [m])."""
-    n = x.shape[0]
-    ta, ra, tb, rb = g[0], g[1], g[2], g[3]
-    if i == 0:
-        la = 1.0
-        ta[:] = dirs[0]
-        _transport(m.tw_clamp[0], ta, ta, ra)
-        th_a = 0.0
-    else:
-        la = _unit_edge(x, i - 1, ta)
-        _transport(m.tw_ref[i - 1], m.tw_tan[i - 1], ta, ra)
-        th_a = theta[i - 1]
-    if i == n - 1:
-        lb = 1.0
-        tb[:] = dirs[1]
-        _transport(m.tw_clamp[1], tb, tb, rb)
-        th_b = 0.0
-    else:
-        lb = _unit_edge(x, i, tb)
-        _transport(m.tw_ref[i], m.tw_tan[i], tb, rb)
-        th_b = theta[i]
-    pa = g[10]
-    _transport(ra, ta, tb, pa)
-    tmp = g[11]
-    _cross(pa, rb, tmp)
-    psi = math.atan2(_dot(tmp, tb), _dot(pa, rb))
-    twist = th_b - th_a + m.tw_mref[i] + _wrap(psi - m.tw_mref[i])
-    c = _dot(ta, tb)
-    _cross(ta, tb, tmp)
-    for j in range(3):
-        g[9, j] = 2.0 * tmp[j] / (1.0 + c)
-    return twist, la, lb
+@njit(cache=True, error_model="numpy", inline="always")
+def _add_cross_matrix_s(mat, scale, v0, v1, v2):
+    """:func:`add_cross_matrix` with v given as three scalars."""
+    mat[0, 1] -= scale * v2
+    mat[0, 2] += scale * v1
+    mat[1, 0] += scale * v2
+    mat[1, 2] -= scale * v0
+    mat[2, 0] -= scale * v1
+    mat[2, 1] += scale * v0
 
 
 @njit(cache=True, error_model="numpy")
@@ -357,24 +405,28 @@ def phi_jacobians(g, la, lb, ratio, alpha, c, pa, pb):
     :func:`node_geometry`'s scratch g): dphi/da = -alpha chi ga^T - (r/la)([w]x + chi u^T),
     dphi/db = -alpha chi gb^T + (r/lb)([u]x - chi w^T), u = t_a, w = t_b, chi = u x w,
     ga = (w - c u)/la, gb = (u - c w)/lb, r = beta/sin(beta)."""
-    u, w = g[0], g[2]
-    chi = np.empty(3)
-    _cross(u, w, chi)
+    u0, u1, u2 = g[0, 0], g[0, 1], g[0, 2]
+    w0, w1, w2 = g[2, 0], g[2, 1], g[2, 2]
+    chi0 = u1 * w2 - u2 * w1
+    chi1 = u2 * w0 - u0 * w2
+    chi2 = u0 * w1 - u1 * w0
     for r in range(3):
+        chi_r = chi0 if r == 0 else (chi1 if r == 1 else chi2)
         for col in range(3):
-            ga = (w[col] - c * u[col]) / la
-            gb = (u[col] - c * w[col]) / lb
-            pa[r, col] = -alpha * chi[r] * ga - (ratio / la) * chi[r] * u[col]
-            pb[r, col] = -alpha * chi[r] * gb - (ratio / lb) * chi[r] * w[col]
-    add_cross_matrix(pa, -ratio / la, w)
-    add_cross_matrix(pb, ratio / lb, u)
+            ga = (g[2, col] - c * g[0, col]) / la
+            gb = (g[0, col] - c * g[2, col]) / lb
+            pa[r, col] = -alpha * chi_r * ga - (ratio / la) * chi_r * g[0, col]
+            pb[r, col] = -alpha * chi_r * gb - (ratio / lb) * chi_r * g[2, col]
+    _add_cross_matrix_s(pa, -ratio / la, w0, w1, w2)
+    _add_cross_matrix_s(pb, ratio / lb, u0, u1, u2)
 
 
 @njit(cache=True, error_model="numpy", inline="always")
 def _curvatures(g):
     """Material curvatures (phi . m1, phi . m2) in the frames of edge a and edge b."""
-    phi = g[8]
-    return _dot(phi, g[4]), _dot(phi, g[5]), _dot(phi, g[6]), _dot(phi, g[7])
+    p0, p1, p2 = g[8, 0], g[8, 1], g[8, 2]
+    return (p0 * g[4, 0] + p1 * g[4, 1] + p2 * g[4, 2], p0 * g[5, 0] + p1 * g[5, 1] + p2 * g[5, 2],
+            p0 * g[6, 0] + p1 * g[6, 1] + p2 * g[6, 2], p0 * g[7, 0] + p1 * g[7, 1] + p2 * g[7, 2])
 
 
 # ----- state --------------------------------------------------------------------------------------
@@ -409,7 +461,7 @@ def twist_ready(m, x, dirs):
     m.tw_mref[:] = 0.0
     g = np.empty((12, 3))
     for i in range(n):  # reference twists of the built frames (0 but at a second clamp)
-        m.tw_mref[i] = node_geometry(m, x, dirs, m.tw_theta, i, g)[0]
+        m.tw_mref[i] = node_geometry(x, dirs, m.tw_theta, m.tw_ref, m.tw_tan, m.tw_clamp, m.tw_mref, i, g)[0]
     if m.tw_k_twist[0] != 0.0 or m.tw_k_twist[n - 1] != 0.0:
         twist_solve(m, x, dirs, 1.0, False, m.tw_mref)
 
@@ -455,25 +507,21 @@ def update_frames(m, x, dirs):
     """Transport the reference frames to the tangents of x (time-parallel) and store the new
     (unwrapped) reference twists; returns nothing. Call once per step, after the positions moved."""
     n = x.shape[0]
-    t = np.empty(3)
-    r = np.empty(3)
+    ref, tan, theta, clamp, mref = m.tw_ref, m.tw_tan, m.tw_theta, m.tw_clamp, m.tw_mref
     for k in range(n - 1):
-        _unit_edge(x, k, t)
-        _transport(m.tw_ref[k], m.tw_tan[k], t, r)
-        m.tw_ref[k, :] = r
-        m.tw_tan[k, :] = t
-    g = np.empty((12, 3))
+        dx, dy, dz = x[k + 1, 0] - x[k, 0], x[k + 1, 1] - x[k, 1], x[k + 1, 2] - x[k, 2]
+        length = math.sqrt(dx * dx + dy * dy + dz * dz)
+        t0, t1, t2 = dx / length, dy / length, dz / length
+        r0, r1, r2 = _transport_s(ref[k, 0], ref[k, 1], ref[k, 2], tan[k, 0], tan[k, 1], tan[k, 2], t0, t1, t2)
+        ref[k, 0], ref[k, 1], ref[k, 2] = r0, r1, r2
+        tan[k, 0], tan[k, 1], tan[k, 2] = t0, t1, t2
+    fb = edge_frame(x, dirs, theta, ref, tan, clamp, -1)
     for i in range(n):
-        psi = node_twist(m, x, dirs, m.tw_theta, i, g)[0] - _theta_diff(m, i, n)
-        m.tw_mref[i] = psi
-
-
-@njit(cache=True, error_model="numpy", inline="always")
-def _theta_diff(m, i, n):
-    """theta_b - theta_a at node i (clamp edges have theta 0)."""
-    th_b = m.tw_theta[i] if i < n - 1 else 0.0
-    th_a = m.tw_theta[i - 1] if i > 0 else 0.0
-    return th_b - th_a
+        fa = fb  # edge i-1's frame, carried on from the last node
+        fb = edge_frame(x, dirs, theta, ref, tan, clamp, i)
+        th_b = theta[i] if i < n - 1 else 0.0
+        th_a = theta[i - 1] if i > 0 else 0.0
+        mref[i] = twist_of_frames(fa, fb, mref[i])[0] - (th_b - th_a)
 
 
 # ----- energy, forces, Jacobian, clamp moments ------------------------------------------------------
@@ -484,11 +532,13 @@ def twist_energy(m, x, dirs):
     n = x.shape[0]
     g = np.empty((12, 3))
     e = 0.0
+    ktw, kan, theta = m.tw_k_twist, m.tw_k_aniso, m.tw_theta
+    ref, tan, clamp, mref = m.tw_ref, m.tw_tan, m.tw_clamp, m.tw_mref
     for i in range(n):
-        kt, dl = m.tw_k_twist[i], m.tw_k_aniso[i]
+        kt, dl = ktw[i], kan[i]
         if kt == 0.0 and dl == 0.0:
             continue
-        twist = node_geometry(m, x, dirs, m.tw_theta, i, g)[0]
+        twist = node_geometry(x, dirs, theta, ref, tan, clamp, mref, i, g)[0]
         e += 0.5 * kt * twist * twist
         if dl != 0.0:
             p1a, p2a, p1b, p2b = _curvatures(g)
@@ -514,13 +564,13 @@ def _node_edge_gradients(g, twist, la, lb, ratio, alpha, c, dl, kt, ga, gb, pa, 
         gb[j] = ft * g[9, j] / (2.0 * lb)
     if dl != 0.0:
         p1a, p2a, p1b, p2b = _curvatures(g)
-        q = np.empty(3)
-        for j in range(3):
-            q[j] = 0.5 * dl * (p1a * g[4, j] - p2a * g[5, j] + p1b * g[6, j] - p2b * g[7, j])
+        q0 = 0.5 * dl * (p1a * g[4, 0] - p2a * g[5, 0] + p1b * g[6, 0] - p2b * g[7, 0])
+        q1 = 0.5 * dl * (p1a * g[4, 1] - p2a * g[5, 1] + p1b * g[6, 1] - p2b * g[7, 1])
+        q2 = 0.5 * dl * (p1a * g[4, 2] - p2a * g[5, 2] + p1b * g[6, 2] - p2b * g[7, 2])
         phi_jacobians(g, la, lb, ratio, alpha, c, pa, pb)
         for j in range(3):
-            ga[j] += pa[0, j] * q[0] + pa[1, j] * q[1] + pa[2, j] * q[2]
-            gb[j] += pb[0, j] * q[0] + pb[1, j] * q[1] + pb[2, j] * q[2]
+            ga[j] += pa[0, j] * q0 + pa[1, j] * q1 + pa[2, j] * q2
+            gb[j] += pb[0, j] * q0 + pb[1, j] * q1 + pb[2, j] * q2
 
 
 @njit(cache=True, error_model="numpy")
@@ -531,11 +581,13 @@ def add_twist_forces(m, x, dirs, out):
     g = np.empty((12, 3))
     ga, gb = np.empty(3), np.empty(3)
     pa, pb = np.empty((3, 3)), np.empty((3, 3))
+    ktw, kan, theta = m.tw_k_twist, m.tw_k_aniso, m.tw_theta
+    ref, tan, clamp, mref = m.tw_ref, m.tw_tan, m.tw_clamp, m.tw_mref
     for i in range(n):
-        kt, dl = m.tw_k_twist[i], m.tw_k_aniso[i]
+        kt, dl = ktw[i], kan[i]
         if kt == 0.0 and dl == 0.0:
             continue
-        twist, la, lb, ratio, alpha, c = node_geometry(m, x, dirs, m.tw_theta, i, g)
+        twist, la, lb, ratio, alpha, c = node_geometry(x, dirs, theta, ref, tan, clamp, mref, i, g)
         _node_edge_gradients(g, twist, la, lb, ratio, alpha, c, dl, kt, ga, gb, pa, pb)
         if i > 0:  # e_a = x_i - x_{i-1}
             for j in range(3):
@@ -558,11 +610,12 @@ def add_twist_jacobian(m, x, dirs, jac):
     pa, pb = np.empty((3, 3)), np.empty((3, 3))
     jrow = np.empty((4, 6))
     hb = np.empty((6, 6))
+    kan, theta, ref, tan, clamp, mref = m.tw_k_aniso, m.tw_theta, m.tw_ref, m.tw_tan, m.tw_clamp, m.tw_mref
     for i in range(n):
-        dl = m.tw_k_aniso[i]
+        dl = kan[i]
         if dl == 0.0:
             continue
-        twist, la, lb, ratio, alpha, c = node_geometry(m, x, dirs, m.tw_theta, i, g)
+        twist, la, lb, ratio, alpha, c = node_geometry(x, dirs, theta, ref, tan, clamp, mref, i, g)
         phi_jacobians(g, la, lb, ratio, alpha, c, pa, pb)
         aniso_node_hessian(g, dl, pa, pb, jrow, hb)
         scatter_node_hessian(jac, i, n, hb)
@@ -574,10 +627,10 @@ def aniso_node_hessian(g, dl, pa, pb, jrow, hb):
     m_j^T dphi/d(a, b) for the rows m1_a, m2_a, m1_b, m2_b (frames from :func:`node_geometry`'s g, pa, pb from
     :func:`phi_jacobians`); hb (6, 6) <- Delta/2 sum_k (J1_k^T J1_k - J2_k^T J2_k) [N m] (dl = Delta)."""
     for r in range(4):
-        d = g[4 + r]
+        d0, d1, d2 = g[4 + r, 0], g[4 + r, 1], g[4 + r, 2]
         for col in range(3):
-            jrow[r, col] = d[0] * pa[0, col] + d[1] * pa[1, col] + d[2] * pa[2, col]
-            jrow[r, 3 + col] = d[0] * pb[0, col] + d[1] * pb[1, col] + d[2] * pb[2, col]
+            jrow[r, col] = d0 * pa[0, col] + d1 * pa[1, col] + d2 * pa[2, col]
+            jrow[r, 3 + col] = d0 * pb[0, col] + d1 * pb[1, col] + d2 * pb[2, col]
     for r in range(6):
         for col in range(6):
             hb[r, col] = 0.5 * dl * (jrow[0, r] * jrow[0, col] - jrow[1, r] * jrow[1, col]
@@ -631,7 +684,7 @@ def twist_clamp_torque(m, x, dirs, end):
     g = np.empty((12, 3))
     ga, gb = np.empty(3), np.empty(3)
     pa, pb = np.empty((3, 3)), np.empty((3, 3))
-    twist, la, lb, ratio, alpha, c = node_geometry(m, x, dirs, m.tw_theta, i, g)
+    twist, la, lb, ratio, alpha, c = node_geometry(x, dirs, m.tw_theta, m.tw_ref, m.tw_tan, m.tw_clamp, m.tw_mref, i, g)
     _node_edge_gradients(g, twist, la, lb, ratio, alpha, c, dl, kt, ga, gb, pa, pb)
     d = g[0] if end == 0 else g[2]
     gd = ga if end == 0 else gb  # dE/dd (the clamp direction plays edge a at the first end, b at the last)
@@ -654,11 +707,12 @@ def _theta_gradient(m, x, dirs, theta, grad, hdiag):
     g = np.empty((12, 3))
     grad[:] = 0.0
     hdiag[:] = 0.0
+    ktw, kan, ref, tan, clamp, mref = m.tw_k_twist, m.tw_k_aniso, m.tw_ref, m.tw_tan, m.tw_clamp, m.tw_mref
     for i in range(n):
-        kt, dl = m.tw_k_twist[i], m.tw_k_aniso[i]
+        kt, dl = ktw[i], kan[i]
         if kt == 0.0 and dl == 0.0:
             continue
-        twist = node_geometry(m, x, dirs, theta, i, g)[0]
+        twist = node_geometry(x, dirs, theta, ref, tan, clamp, mref, i, g)[0]
         if i > 0:  # dm_i/dtheta_{i-1} = -1
             grad[i - 1] -= kt * twist
         if i < n - 1:

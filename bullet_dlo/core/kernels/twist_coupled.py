@@ -60,20 +60,27 @@ from bullet_dlo.core.kernels.twist import (
     _curvatures,
     _node_edge_gradients,
     aniso_node_hessian,
+    edge_frame,
+    geometry_of_frames,
     node_geometry,
-    node_twist,
+    twist_of_frames,
     phi_jacobians,
     scatter_node_hessian,
     update_frames,
 )
 
 HALF_T = 10  # scalar half-bandwidth of the interleaved (x_i, theta_i) layout
+# order of node i's unknowns in dm_i/dq as enumerated (x_{i-1,j}, x_{i,j}, x_{i+1,j} for j = 0..2, theta_{i-1},
+# theta_i), indexed by the local layout of :func:`_newton_matrix`
+_RANK = np.array([0, 3, 6, 9, 1, 4, 7, 10, 2, 5, 8])
 
 
 class Scratch(NamedTuple):
     """Small scratch arrays of the coupled step (allocated once per step): ga, gb (3,) edge gradients [N];
     pa, pb (3, 3) dphi/d(edge) [1/m]; energy (1,) the material frame's energy at the last residual [J];
-    gv (11,), gi (11,) int: dm/dq of a node and its unknowns' indices; jrow (4, 6); hb (6, 6) node Hessian."""
+    gv (11,), gi (11,) int: dm/dq of a node over its unknowns' local layout and which are present;
+    jrow (4, 6); hb (6, 6) node Hessian;
+    gc (12, 3): the clamps' twist-rate geometry (:func:`_clamp_rate`)."""
 
     ga: np.ndarray
     gb: np.ndarray
@@ -84,6 +91,7 @@ class Scratch(NamedTuple):
     gi: np.ndarray
     jrow: np.ndarray
     hb: np.ndarray
+    gc: np.ndarray
 
 
 @njit(cache=True, error_model="numpy")
@@ -134,23 +142,19 @@ def _add_sym(band, a, b, val):
 
 
 @njit(cache=True, error_model="numpy")
-def _clamp_rate(m, xe, samples, mid, h, i):
+def _clamp_rate(m, xe, samples, mid, h, i, g):
     """Rate [rad/s] of the twist at clamp node i (0 or n-1) from the clamp's own roll and turn (positions xe
     held), from its three samples psi_0, psi_1/2, psi_1 at t, t + h/2, t + h: at t + h (implicit Euler, BDF2)
-    (psi_0 - 4 psi_1/2 + 3 psi_1)/h, at t + h/2 (``mid``, implicit midpoint) (psi_1 - psi_0)/h: second order."""
-    e = 0 if i == 0 else 1
-    g = np.empty((12, 3))  # (the caller's scratch holds its node's geometry)
-    keep0, keep1, keep2 = m.tw_clamp[e, 0], m.tw_clamp[e, 1], m.tw_clamp[e, 2]
-    m.tw_clamp[e, :] = m.tw_normal[0, e]
-    p0 = node_geometry(m, xe, samples.dir[0], m.tw_theta, i, g)[0]
-    m.tw_clamp[e, :] = m.tw_normal[2, e]
-    p2 = node_geometry(m, xe, samples.dir[2], m.tw_theta, i, g)[0]
+    (psi_0 - 4 psi_1/2 + 3 psi_1)/h, at t + h/2 (``mid``, implicit midpoint) (psi_1 - psi_0)/h: second order.
+    g: scratch (12, 3) other than the caller's node geometry. The clamp node reads only its own end's row of
+    the section axes and directions, so each sample's (2, 3) arrays stand in for ``tw_clamp`` and ``dirs``."""
+    th, ref, tan, mref, nrm = m.tw_theta, m.tw_ref, m.tw_tan, m.tw_mref, m.tw_normal
+    p0 = node_geometry(xe, samples.dir[0], th, ref, tan, nrm[0], mref, i, g)[0]
+    p2 = node_geometry(xe, samples.dir[2], th, ref, tan, nrm[2], mref, i, g)[0]
     out = (p2 - p0) / h
     if not mid:
-        m.tw_clamp[e, :] = m.tw_normal[1, e]
-        p1 = node_geometry(m, xe, samples.dir[1], m.tw_theta, i, g)[0]
+        p1 = node_geometry(xe, samples.dir[1], th, ref, tan, nrm[1], mref, i, g)[0]
         out = (p0 - 4.0 * p1 + 3.0 * p2) / h
-    m.tw_clamp[e, 0], m.tw_clamp[e, 1], m.tw_clamp[e, 2] = keep0, keep1, keep2
     return out
 
 
@@ -166,59 +170,79 @@ def _residual(m, mp, imp, ws, samples, mid, h, tb, wb, wa, vn, wn, wv, rate, tq,
     ns = n - 1
     cx, cv, hf = imp.cx, imp.cv, imp.hf
     xe, ve, f = ws.x_stage, ws.v_stage, ws.force
+    xb, vb, va = ws.x_base, ws.v_base, ws.v_avg
+    # the arrays the per-node loops read, taken out of the tuples once (see twist.py, "node geometry")
+    held, mass, rest = m.held, m.mass, m.rest_length
+    ktw, kan, ctw, drag, inertia = m.tw_k_twist, m.tw_k_aniso, m.tw_c_twist, m.tw_drag, m.tw_inertia
+    ref, tan, clamp, mref = m.tw_ref, m.tw_tan, m.tw_clamp, m.tw_mref
+    dirs = imp.dirs
     for i in range(n):
         for j in range(3):
-            xe[i, j] = ws.x_base[i, j] + cx * vn[i, j]
-            ve[i, j] = ws.v_base[i, j] + cv * vn[i, j]
-    _set_held(m.held, xe, ve, imp.pos_end, imp.vel_end)
+            xe[i, j] = xb[i, j] + cx * vn[i, j]
+            ve[i, j] = vb[i, j] + cv * vn[i, j]
+    _set_held(held, xe, ve, imp.pos_end, imp.vel_end)
     th = m.tw_theta
     for k in range(ns):
         th[k] = tb[k] + cx * wn[k]
         wv[k] = wb[k] + cv * wn[k]
-    total_forces(mp, xe, ve, imp.dirs, f)  # without the material frame's terms (added below)
+    total_forces(mp, xe, ve, dirs, f)  # without the material frame's terms (added below)
     ga, gb, pa, pb = sc.ga, sc.gb, sc.pa, sc.pb
     energy = 0.0
     for k in range(ns):
-        tq[k] = -m.tw_drag[k] * wv[k]
+        tq[k] = -drag[k] * wv[k]
+    fb = edge_frame(xe, dirs, th, ref, tan, clamp, -1)
     for i in range(n):
-        kt, dl, ct = m.tw_k_twist[i], m.tw_k_aniso[i], m.tw_c_twist[i]
+        fa = fb  # edge i-1's frame, carried on from the last node (each edge frame computed once)
+        fb = edge_frame(xe, dirs, th, ref, tan, clamp, i)
+        kt, dl, ct = ktw[i], kan[i], ctw[i]
         rate[i] = 0.0
         if kt == 0.0 and dl == 0.0 and ct == 0.0:
             continue
         if dl != 0.0:
-            twist, la, lb, ratio, alpha, c = node_geometry(m, xe, imp.dirs, th, i, g)
+            twist, la, lb, ratio, alpha, c = geometry_of_frames(fa, fb, mref[i], g)
+            kb0, kb1, kb2 = g[9, 0], g[9, 1], g[9, 2]
         else:  # round and tube sections: twist and binormal only
-            twist, la, lb = node_twist(m, xe, imp.dirs, th, i, g)
+            twist, la, lb, kb0, kb1, kb2 = twist_of_frames(fa, fb, mref[i])
             ratio, alpha, c = 1.0, 0.0, 1.0  # (unused without anisotropy)
         s = kt * twist
         if ct != 0.0:
-            kb = g[9]
             rt = (wv[i] if i < ns else 0.0) - (wv[i - 1] if i > 0 else 0.0)
             if i > 0:
-                rt += (kb[0] * (ve[i, 0] - ve[i - 1, 0]) + kb[1] * (ve[i, 1] - ve[i - 1, 1])
-                       + kb[2] * (ve[i, 2] - ve[i - 1, 2])) / (2.0 * la)
+                rt += (kb0 * (ve[i, 0] - ve[i - 1, 0]) + kb1 * (ve[i, 1] - ve[i - 1, 1])
+                       + kb2 * (ve[i, 2] - ve[i - 1, 2])) / (2.0 * la)
             else:
-                rt += _clamp_rate(m, xe, samples, mid, h, i)
+                rt += _clamp_rate(m, xe, samples, mid, h, i, sc.gc)
             if i < ns:
-                rt += (kb[0] * (ve[i + 1, 0] - ve[i, 0]) + kb[1] * (ve[i + 1, 1] - ve[i, 1])
-                       + kb[2] * (ve[i + 1, 2] - ve[i, 2])) / (2.0 * lb)
+                rt += (kb0 * (ve[i + 1, 0] - ve[i, 0]) + kb1 * (ve[i + 1, 1] - ve[i, 1])
+                       + kb2 * (ve[i + 1, 2] - ve[i, 2])) / (2.0 * lb)
             else:
-                rt += _clamp_rate(m, xe, samples, mid, h, i)
+                rt += _clamp_rate(m, xe, samples, mid, h, i, sc.gc)
             rate[i] = rt
             s += ct * rt
         energy += 0.5 * kt * twist * twist
+        # forces on the positions: -dE/dx of the twist spring and damper (stress s) and the anisotropic bending
         if dl != 0.0:
             p1a, p2a, p1b, p2b = _curvatures(g)
             energy += 0.25 * dl * (p1a * p1a - p2a * p2a + p1b * p1b - p2b * p2b)
-        # forces on the positions: -dE/dx of the twist spring and damper (stress s) and the anisotropic bending
-        _node_edge_gradients(g, s, la, lb, ratio, alpha, c, dl, 1.0, ga, gb, pa, pb)
-        for j in range(3):
-            if i > 0:  # e_a = x_i - x_{i-1}
-                f[i - 1, j] += ga[j]
-                f[i, j] -= ga[j]
-            if i < ns:  # e_b = x_{i+1} - x_i
-                f[i, j] += gb[j]
-                f[i + 1, j] -= gb[j]
+            _node_edge_gradients(g, s, la, lb, ratio, alpha, c, dl, 1.0, ga, gb, pa, pb)
+            ga0, ga1, ga2, gb0, gb1, gb2 = ga[0], ga[1], ga[2], gb[0], gb[1], gb[2]
+        else:  # (as _node_edge_gradients computes them without anisotropy)
+            ga0, ga1, ga2 = s * kb0 / (2.0 * la), s * kb1 / (2.0 * la), s * kb2 / (2.0 * la)
+            gb0, gb1, gb2 = s * kb0 / (2.0 * lb), s * kb1 / (2.0 * lb), s * kb2 / (2.0 * lb)
+        if i > 0:  # e_a = x_i - x_{i-1}
+            f[i - 1, 0] += ga0
+            f[i - 1, 1] += ga1
+            f[i - 1, 2] += ga2
+            f[i, 0] -= ga0
+            f[i, 1] -= ga1
+            f[i, 2] -= ga2
+        if i < ns:  # e_b = x_{i+1} - x_i
+            f[i, 0] += gb0
+            f[i, 1] += gb1
+            f[i, 2] += gb2
+            f[i + 1, 0] -= gb0
+            f[i + 1, 1] -= gb1
+            f[i + 1, 2] -= gb2
         if i > 0:  # dm_i/dtheta_a = -1
             tq[i - 1] += s
         if i < ns:
@@ -232,14 +256,14 @@ def _residual(m, mp, imp, ws, samples, mid, h, tb, wb, wa, vn, wn, wv, rate, tq,
     worst = 0.0
     for i in range(n):
         for j in range(3):
-            val = 0.0 if m.held[i] else hf * f[i, j] - m.mass[i] * (vn[i, j] - ws.v_avg[i, j])
+            val = 0.0 if held[i] else hf * f[i, j] - mass[i] * (vn[i, j] - va[i, j])
             r[4 * i + j] = val
             if not abs(val) <= worst:  # also catches NaN
                 worst = abs(val)
     for k in range(ns):
-        val = hf * tq[k] - m.tw_inertia[k] * (wn[k] - wa[k])
+        val = hf * tq[k] - inertia[k] * (wn[k] - wa[k])
         r[4 * k + 3] = val
-        scaled = abs(val) / m.rest_length[k]
+        scaled = abs(val) / rest[k]
         if not scaled <= worst:
             worst = scaled
     r[4 * ns + 3] = 0.0
@@ -253,20 +277,22 @@ def _merit(m, mp, imp, ws, wa, vn, wn, wv, rate, sc):
     at the X, V, Theta, W, rates left by the last :func:`_residual` call."""
     xe, ve = ws.x_stage, ws.v_stage
     cx, cv, hf = imp.cx, imp.cv, imp.hf
+    drag, ctw, inertia = m.tw_drag, m.tw_c_twist, m.tw_inertia
+    mass, grav, fext, va = m.mass, m.gravity, m.f_ext, ws.v_avg
     rd = dissipation(mp, xe, ve, imp.dirs)
     for k in range(wn.shape[0]):
-        rd += 0.5 * m.tw_drag[k] * wv[k] * wv[k]
+        rd += 0.5 * drag[k] * wv[k] * wv[k]
     for i in range(rate.shape[0]):
-        rd += 0.5 * m.tw_c_twist[i] * rate[i] * rate[i]
+        rd += 0.5 * ctw[i] * rate[i] * rate[i]
     phi = internal_energy(mp, xe, imp.dirs) + sc.energy[0] + (cx / cv) * rd
     for i in range(vn.shape[0]):
         for j in range(3):
-            dv = vn[i, j] - ws.v_avg[i, j]
-            phi += 0.5 * (cx / hf) * m.mass[i] * dv * dv
-            phi -= (m.mass[i] * m.gravity[j] + m.f_ext[i, j]) * xe[i, j]
+            dv = vn[i, j] - va[i, j]
+            phi += 0.5 * (cx / hf) * mass[i] * dv * dv
+            phi -= (mass[i] * grav[j] + fext[i, j]) * xe[i, j]
     for k in range(wn.shape[0]):
         dw = wn[k] - wa[k]
-        phi += 0.5 * (cx / hf) * m.tw_inertia[k] * dw * dw
+        phi += 0.5 * (cx / hf) * inertia[k] * dw * dw
     return phi
 
 
@@ -282,47 +308,61 @@ def _newton_matrix(stepper, m, mp, imp, ws, band, g, sc):
     add_damping_jacobian(mp, xe, imp.dirs, cv / cx, jac)
     add_drag_jacobian(mp, xe, ws.v_stage, cv / cx, jac)
     kc = hf * cx
-    held = m.held
+    held, mass, damp = m.held, m.mass, m.damp
+    ktw, kan, ctw, drag, inertia = m.tw_k_twist, m.tw_k_aniso, m.tw_c_twist, m.tw_drag, m.tw_inertia
+    th, ref, tan, clamp, mref = m.tw_theta, m.tw_ref, m.tw_tan, m.tw_clamp, m.tw_mref
+    dirs = imp.dirs
     gv, gi, pa, pb, jrow, hb = sc.gv, sc.gi, sc.pa, sc.pb, sc.jrow, sc.hb
     band[:, :] = 0.0
+    fb = edge_frame(xe, dirs, th, ref, tan, clamp, -1)
     for i in range(n):
-        kt, dl, ct = m.tw_k_twist[i], m.tw_k_aniso[i], m.tw_c_twist[i]
+        fa = fb  # edge i-1's frame, carried on from the last node
+        fb = edge_frame(xe, dirs, th, ref, tan, clamp, i)
+        kt, dl, ct = ktw[i], kan[i], ctw[i]
         if kt == 0.0 and dl == 0.0 and ct == 0.0:
             continue
         if dl != 0.0:
-            twist, la, lb, ratio, alpha, c = node_geometry(m, xe, imp.dirs, m.tw_theta, i, g)
+            twist, la, lb, ratio, alpha, c = geometry_of_frames(fa, fb, mref[i], g)
+            kb0, kb1, kb2 = g[9, 0], g[9, 1], g[9, 2]
         else:
-            twist, la, lb = node_twist(m, xe, imp.dirs, m.tw_theta, i, g)
+            twist, la, lb, kb0, kb1, kb2 = twist_of_frames(fa, fb, mref[i])
             ratio, alpha, c = 1.0, 0.0, 1.0
-        kb = g[9]
-        # g = dm/dq over the node's unknowns: (index, value) pairs
-        cnt = 0
-        for j in range(3):
-            if i > 0 and not held[i - 1]:
-                gi[cnt] = 4 * (i - 1) + j
-                gv[cnt] = -kb[j] / (2.0 * la)
-                cnt += 1
-            if not held[i]:
-                gi[cnt] = 4 * i + j
-                gv[cnt] = (kb[j] / (2.0 * la) if i > 0 else 0.0) - (kb[j] / (2.0 * lb) if i < ns else 0.0)
-                cnt += 1
-            if i < ns and not held[i + 1]:
-                gi[cnt] = 4 * (i + 1) + j
-                gv[cnt] = kb[j] / (2.0 * lb)
-                cnt += 1
-        if i > 0:
-            gi[cnt] = 4 * (i - 1) + 3
-            gv[cnt] = -1.0
-            cnt += 1
-        if i < ns:
-            gi[cnt] = 4 * i + 3
-            gv[cnt] = 1.0
-            cnt += 1
+        # g = dm/dq over the node's unknowns in the local layout l = q - 4(i-1) (x_{i-1} 0-2, theta_{i-1} 3, x_i
+        # 4-6, theta_i 7, x_{i+1} 8-10; gi flags the present ones), added as coef g g^T row by row into the band;
+        # _RANK keeps each product's factor order that of the node-by-node enumeration before (bit-identical)
         coef = kc * (kt + (cv / cx) * ct)
         if coef != 0.0:
-            for a in range(cnt):
-                for b in range(a, cnt):
-                    _add_sym(band, gi[a], gi[b], coef * gv[a] * gv[b])
+            for q in range(11):
+                gv[q] = 0.0
+                gi[q] = 0
+            for j in range(3):
+                kbj = kb0 if j == 0 else (kb1 if j == 1 else kb2)
+                if i > 0 and not held[i - 1]:
+                    gv[j] = -kbj / (2.0 * la)
+                    gi[j] = 1
+                if not held[i]:
+                    gv[4 + j] = (kbj / (2.0 * la) if i > 0 else 0.0) - (kbj / (2.0 * lb) if i < ns else 0.0)
+                    gi[4 + j] = 1
+                if i < ns and not held[i + 1]:
+                    gv[8 + j] = kbj / (2.0 * lb)
+                    gi[8 + j] = 1
+            if i > 0:
+                gv[3] = -1.0
+                gi[3] = 1
+            if i < ns:
+                gv[7] = 1.0
+                gi[7] = 1
+            base = 4 * (i - 1)
+            for p in range(11):
+                if gi[p] == 0:
+                    continue
+                rp, gp, row = _RANK[p], gv[p], base + p
+                for q in range(p, 11):
+                    if gi[q] != 0:
+                        if rp <= _RANK[q]:
+                            band[row, q - p] += coef * gp * gv[q]
+                        else:
+                            band[row, q - p] += coef * gv[q] * gp
         if dl == 0.0:
             continue
         p1a, p2a, p1b, p2b = _curvatures(g)
@@ -367,9 +407,9 @@ def _newton_matrix(stepper, m, mp, imp, ws, band, g, sc):
             if held[i]:
                 band[4 * i + r, 0] = 1.0
             else:
-                band[4 * i + r, 0] += m.mass[i] + hf * cv * m.damp[i]
+                band[4 * i + r, 0] += mass[i] + hf * cv * damp[i]
     for k in range(ns):
-        band[4 * k + 3, 0] += m.tw_inertia[k] + hf * cv * m.tw_drag[k]
+        band[4 * k + 3, 0] += inertia[k] + hf * cv * drag[k]
     band[4 * ns + 3, 0] = 1.0
 
 
@@ -413,7 +453,7 @@ def coupled_implicit(stepper, m, x, v, samples, ws, has_prev):
     r, r_try = np.empty(size), np.empty(size)
     wn, w_try, wv, rate, tq = omega0.copy(), np.empty(ns), np.empty(ns), np.zeros(n), np.empty(ns)
     sc = Scratch(np.empty(3), np.empty(3), np.empty((3, 3)), np.empty((3, 3)), np.zeros(1), np.empty(11),
-                 np.empty(11, dtype=np.int64), np.empty((4, 6)), np.empty((6, 6)))
+                 np.empty(11, dtype=np.int64), np.empty((4, 6)), np.empty((6, 6)), np.empty((12, 3)))
     mp = _frameless(m)
     vn, v_try = ws.v_new, ws.v_try
     tol = stepper.tol
