@@ -133,7 +133,7 @@ def hang(spec: CableSpec, phi: float, place: float, hz: float = 240.0, settle: f
 HOLD, SLIDE = 0.002, 0.05  # [m] travel of the table end in the second after settling: held / sliding
 
 
-@pytest.mark.parametrize("hz, place", [(60.0, 0.05), (240.0, 0.25), (1000.0, 0.75)])
+@pytest.mark.parametrize("hz, place", [(60.0, 0.05), (240.0, 0.25), (1000.0, 0.25), (1000.0, 0.5), (1000.0, 0.75)])
 def test_slides_over_the_edge_at_the_capstan_threshold(hz, place):
     spec = soft_cable(40)  # l = 15 mm, shorter than the bend sqrt(EI / T) = 30 mm at the edge
     star = threshold(MU)
