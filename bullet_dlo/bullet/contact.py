@@ -59,7 +59,8 @@ from numba import njit
 
 from bullet_dlo.bullet.kernels import bind
 from bullet_dlo.bullet.native import BASE_STATE, disabled_warning, read_base_states
-from bullet_dlo.core.kernels.contact import PENALTY, STICK, WRAP, Contacts, _wrap_cap, make_contacts, wrap_active, wrap_energy, wrap_split
+from bullet_dlo.core.kernels.contact import (PENALTY, STICK, WRAP, Contacts, _wrap_cap, make_contacts,
+                                             mark_wrap_neighbours, wrap_active, wrap_energy, wrap_split)
 
 BOX, SPHERE, CYLINDER, CAPSULE, PROBE, HULL = range(6)  # PROBE: a link measured by Bullet's narrow phase
 # HULL: a convex hull mesh on the project's exact geometry (:class:`Hulls`), checked against Bullet at set-up
@@ -991,6 +992,7 @@ def _make_wrap(c, k, axis, side, ks, l0, kb_a, kb_b, edge_r, fresh, x):
         c.axis[k, j] = axis[j]
         c.side[k, j] = side[j]
     c.seg[k, 0], c.seg[k, 1], c.seg[k, 2], c.seg[k, 3], c.seg[k, 4] = ks, l0, kb_a, kb_b, edge_r
+    c.seg[k, 5] = 0.0  # set by mark_wrap_neighbours once all rows are made
     c.kind[k] = WRAP
     c.cap[k] = 0.0
     if fresh:
@@ -1268,7 +1270,11 @@ def _hull_contacts(c, st, s, hu, q, x, mass, base, margin, out, sh, k_per_mass, 
         fresh = not (st.active[key] and st.wrap[key])
         _add(c, st, key, s, i, i + 1, 1.0 - sb, sb, best_c, best_n, sh, k_per_mass, zeta, mass, x)
         k = c.count[0] - 1
-        if k < 0 or not (sharp and st.keys[k] == key and (held or cuts or _taut(x, i, seg_k[i], seg_l[i], seg_b))):
+        # the segment before a wrapped one wraps too while its own path goes round the edge: its row then bends the
+        # node between them (the turn over the edge is the edge's), continuously (mark_wrap_neighbours)
+        before = i + 2 < n and st.active[key + 1] and st.wrap[key + 1]
+        if k < 0 or not (sharp and st.keys[k] == key
+                         and (held or cuts or before or _taut(x, i, seg_k[i], seg_l[i], seg_b))):
             continue
         rot, pos = sh.rot[s], sh.pos[s]
         axis = np.empty(3)
@@ -1413,8 +1419,11 @@ def detect(x, v, mass, sh, c, st, h, k_per_mass, zeta, self_mu, h_body, h_done, 
                         if sp > 0.0 and (cl[3] - radius < margin or wrapped or cuts):
                             fresh = not (st.active[key] and st.wrap[key])  # a new wrap (or a capsule contact turning into one)
                             _add(c, st, key, s, i, i + 1, 1.0 - sp, sp, cl, nl, sh, k_per_mass, zeta, mass, x)
+                            # the segment before a wrapped one (key + 1: the next segment at this edge) wraps
+                            # too: its row bends the node between them (mark_wrap_neighbours)
+                            before = i + 2 < n and st.active[key + 1] and st.wrap[key + 1]
                             if (wraps_i and c.count[0] > 0 and st.keys[c.count[0] - 1] == key
-                                    and (wrapped or cuts or _taut(x, i, seg_k[i], seg_l[i], seg_b))):
+                                    and (wrapped or cuts or before or _taut(x, i, seg_k[i], seg_l[i], seg_b))):
                                 k = c.count[0] - 1
                                 _box_wrap(c, k, rot, A, P, o1, o2, seg_k[i], seg_l[i], seg_b[i], seg_b[i + 1], fresh, x)
                                 if cl[3] - radius >= margin and not wrap_active(c, k, x):
@@ -1453,6 +1462,7 @@ def detect(x, v, mass, sh, c, st, h, k_per_mass, zeta, self_mu, h_body, h_done, 
                     key = base + n + i
                     _add(c, st, key, s, i, i + 1, 1.0 - sp, sp, cl, nl, sh, k_per_mass, zeta, mass, x)
     _one_wrap_per_segment(c, first_edge, n)
+    mark_wrap_neighbours(c, first_edge)  # after the last change of a row's kind
     if self_mu[0] >= 0.0:
         _self_contacts(x, mass, c, st, sh.kind.shape[0] * per_shape, self_mu, margin, k_per_mass, zeta)
     if oc.x.shape[0] > 0:

@@ -113,9 +113,11 @@ class Contacts(NamedTuple):
     Edge wraps (docs/concepts/contact.md, "Edges"): kind (M,) int, PENALTY or WRAP; for a WRAP row
     (segment node[k] across a sharp edge of a static body) point (M, 3) [m] is a point of the edge
     line, axis (M, 3) its unit direction, side (M, 3) the unit bisector of the edge's outward normal
-    cone (the side the cable wraps round), seg (M, 5) the segment's stretch stiffness [N/m], rest
-    length [m], the bending constants [N m/rad^2] at its two nodes and the edge's radius [m] (0 for a box's
-    sharp edge, the collision margin of a convex hull's edge; the axis wraps at the cable radius plus it), anchor[k, 3] the material fraction sigma of the segment on node[k, 0]'s side of the
+    cone (the side the cable wraps round), seg (M, 6) the segment's stretch stiffness [N/m], rest
+    length [m], the bending constants [N m/rad^2] at its two nodes, the edge's radius [m] (0 for a box's
+    sharp edge, the collision margin of a convex hull's edge; the axis wraps at the cable radius plus it) and
+    1.0 when the segment before has a WRAP row round the same edge (:func:`mark_wrap_neighbours`; that row
+    then bends the shared node while both paths wrap), else 0.0, anchor[k, 3] the material fraction sigma of the segment on node[k, 0]'s side of the
     edge (the friction anchor); normal, f_n: the direction and size of the edge's push on the cable
     (results), cap [N]: the capstan's friction limit.
     """
@@ -159,7 +161,7 @@ def make_contacts(n: int, capacity: int, radius: float, grip: Grip | None = None
                     f_t=f((m, 3)), cap=f(m), body_work=f(1), impact=np.zeros(1, np.int64),
                     internal=np.zeros(m, np.bool_), node_force=f((n, 3)),
                     grip=grip if grip is not None else make_grip(), kind=np.zeros(m, np.int64),
-                    axis=f((m, 3)), side=f((m, 3)), seg=f((m, 5)))
+                    axis=f((m, 3)), side=f((m, 3)), seg=f((m, 6)))
 
 
 # ----- the grips -----------------------------------------------------------------------------
@@ -580,8 +582,12 @@ def _wrap_eval(c, k, x, grad, hess, want_hess):
         q = np.empty(3)
         gN = np.empty(6)
         HN = np.empty((6, 6))
-        if kba > 0.0 and _path(E, A, B, r, x[a - 1], x[a], gN, HN) > 0.0:
-            kba = 0.0  # the segment before wraps the same edge: its row bends a (between the two paths)
+        if kba > 0.0 and c.seg[k, 5] > 0.0 and _path(E, A, B, r, x[a - 1], x[a], gN, HN) > 0.0:
+            # the segment before has its own wrap row round this edge and its path wraps: that row bends a
+            # (between the two paths). Without such a row nothing else would, and dropping the bend here
+            # made W jump (by 1e-3 J on the soft cable) where the segment before's chord crosses the
+            # cylinder round the edge: Newton's line search stalled on the jump (issue 23 item 3)
+            kba = 0.0
         if kba > 0.0:
             for j in range(3):
                 p[j] = x[a, j] - x[a - 1, j]
@@ -636,6 +642,33 @@ def _wrap_eval(c, k, x, grad, hess, want_hess):
                 hess[j, i] = sym
     W = stored + cap * abs(slip)
     return True, W, T1, T2, alpha, slip, L1 / L, stored
+
+
+@njit(cache=True, error_model="numpy")
+def mark_wrap_neighbours(c, first):
+    """seg[k, 5] <- 1.0 for each WRAP row k (from row ``first`` on) whose segment's predecessor has a WRAP row round
+    the same edge line (same direction and side, its point on the line within 1e-9 m), else 0.0. Only then does
+    :func:`_wrap_eval` leave the bend at the shared node to that row: the choice depends on the rows, not on
+    where the predecessor's chord happens to lie, so each row's potential is continuous in the positions."""
+    for k in range(first, c.count[0]):
+        if c.kind[k] != WRAP:
+            continue
+        c.seg[k, 5] = 0.0
+        for j in range(first, c.count[0]):
+            if c.kind[j] != WRAP or c.node[j, 0] != c.node[k, 0] - 1:
+                continue
+            dot_a = 0.0
+            dot_b = 0.0
+            along = 0.0
+            for q in range(3):
+                dot_a += c.axis[j, q] * c.axis[k, q]
+                dot_b += c.side[j, q] * c.side[k, q]
+                along += (c.point[j, q] - c.point[k, q]) * c.axis[k, q]
+            off = 0.0
+            for q in range(3):
+                off += (c.point[j, q] - c.point[k, q] - along * c.axis[k, q]) ** 2
+            if abs(dot_a) > 1.0 - 1e-12 and dot_b > 1.0 - 1e-12 and off < 1e-18:
+                c.seg[k, 5] = 1.0
 
 
 @njit(cache=True, error_model="numpy")
