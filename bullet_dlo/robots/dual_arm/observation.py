@@ -151,7 +151,8 @@ class DualArmObservation:
         due, offsets = [False, False], [None, None]
         # without contacts in the step the kernel writes the cable's loads itself; with some, they are written
         # here and _prepare adds Bullet's contacts on the tool (the same order of additions either way)
-        fill = not world.contacts()
+        model = self._model_tool_loads()  # the cable contact model's reactions on the tool links (None: none)
+        fill = not world.contacts() and model is None
         for arm, s in enumerate(self.sensors):
             if not fill:
                 applied = s._applied  # the library's loads on the tool side
@@ -160,6 +161,8 @@ class DualArmObservation:
                     applied[3:] = torques[arm] + cross3(points[arm], forces[arm])  # np.cross's bits, 1/10 its cost
                 else:
                     applied[:] = 0.0
+                if model is not None:
+                    applied += model[arm]
             due[arm], offsets[arm] = s._prepare(t)
         # both sensors' kernels (transmitted wrench, reading, check against the cable's load) in one call
         s0, s1 = self.sensors
@@ -177,6 +180,26 @@ class DualArmObservation:
             if sampled[arm]:
                 s._sampled(t, offsets[arm])
         check.samples += int(sampled[0])
+
+    def _model_tool_loads(self) -> np.ndarray | None:
+        """The reactions the cable's contact model applied to each arm's tool-side links (below the sensor joint)
+        in the Bullet step just taken, (2, 6): force [N] and moment about the world origin [N m], world frame; None
+        when it touched no tool link. They reach the links by applyExternalForce, which the sensor's Newton-Euler
+        does not see otherwise (a hand pushed by the cable read 0 N: tests/robots/test_arm_contact.py)."""
+        cable = self.physics.cable
+        cs = cable._contact_set
+        if cs is None or int(cs.contacts.count[0]) == 0:
+            return None
+        pc = cable.contact_forces()  # still the contacts whose reactions were applied in that step
+        out, hit = np.zeros((2, 6)), False
+        for arm, s in enumerate(self.sensors):
+            sel = (pc["body"] == s.robot.body) & np.isin(pc["link"], list(s._tool_links))
+            if sel.any():
+                f = -pc["force"][sel]  # on the links, at the contact points
+                out[arm, :3] = f.sum(axis=0)
+                out[arm, 3:] = np.cross(pc["point"][sel], f).sum(axis=0)
+                hit = True
+        return out if hit else None
 
     def _record_step(self) -> None:
         r, cable = self.record, self.physics.cable
