@@ -167,11 +167,21 @@ class DualArmObservation:
         # both sensors' kernels (transmitted wrench, reading, check against the cable's load) in one call
         s0, s1 = self.sensors
         check, sampled = self.check, self._sampled
+        held_c = (bool(held[0]), bool(held[1]))
+        if model is not None:  # the check's expected load: the held end's plus the model's push, moments about 0
+            force_c, torque_c, points = np.zeros((2, 3)), np.zeros((2, 3)), np.zeros((2, 3))
+            for arm in range(2):
+                if held[arm]:
+                    force_c[arm] = forces[arm]
+                    torque_c[arm] = torques[arm] + cross3(physics.load_points[arm], forces[arm])
+                force_c[arm] += model[arm, :3]
+                torque_c[arm] += model[arm, 3:]
+            forces, torques, held_c = force_c, torque_c, (True, True)
         args = ((s0._rows, s1._rows), (s0._tool, s1._tool), (s0._tool_memory, s1._tool_memory),
                 (s0._applied, s1._applied), (s0._reaction, s1._reaction), (s0.payload, s1.payload), float(dt),
                 (s0.compensate_inertia, s1.compensate_inertia), (due[0], due[1]), (s0._tare, s1._tare),
                 (offsets[0], offsets[1]), (s0._memory, s1._memory), (s0._scratch, s1._scratch), forces, torques,
-                points, (bool(held[0]), bool(held[1])), (fill, fill), float(t), check.worst, check.worst_t,
+                points, held_c, (fill, fill), float(t), check.worst, check.worst_t,
                 check._sumsq, sampled)
         if self._pair is None:
             self._pair = bind(wrist_pair, *args)
