@@ -151,7 +151,8 @@ class DualArmObservation:
         due, offsets = [False, False], [None, None]
         # without contacts in the step the kernel writes the cable's loads itself; with some, they are written
         # here and _prepare adds Bullet's contacts on the tool (the same order of additions either way)
-        fill = not world.contacts()
+        model = self._model_tool_loads()  # the cable contact model's reactions on the tool links (None: none)
+        fill = not world.contacts() and model is None
         for arm, s in enumerate(self.sensors):
             if not fill:
                 applied = s._applied  # the library's loads on the tool side
@@ -160,15 +161,27 @@ class DualArmObservation:
                     applied[3:] = torques[arm] + cross3(points[arm], forces[arm])  # np.cross's bits, 1/10 its cost
                 else:
                     applied[:] = 0.0
+                if model is not None:
+                    applied += model[arm]
             due[arm], offsets[arm] = s._prepare(t)
         # both sensors' kernels (transmitted wrench, reading, check against the cable's load) in one call
         s0, s1 = self.sensors
         check, sampled = self.check, self._sampled
+        held_c = (bool(held[0]), bool(held[1]))
+        if model is not None:  # the check's expected load: the held end's plus the model's push, moments about 0
+            force_c, torque_c, points = np.zeros((2, 3)), np.zeros((2, 3)), np.zeros((2, 3))
+            for arm in range(2):
+                if held[arm]:
+                    force_c[arm] = forces[arm]
+                    torque_c[arm] = torques[arm] + cross3(physics.load_points[arm], forces[arm])
+                force_c[arm] += model[arm, :3]
+                torque_c[arm] += model[arm, 3:]
+            forces, torques, held_c = force_c, torque_c, (True, True)
         args = ((s0._rows, s1._rows), (s0._tool, s1._tool), (s0._tool_memory, s1._tool_memory),
                 (s0._applied, s1._applied), (s0._reaction, s1._reaction), (s0.payload, s1.payload), float(dt),
                 (s0.compensate_inertia, s1.compensate_inertia), (due[0], due[1]), (s0._tare, s1._tare),
                 (offsets[0], offsets[1]), (s0._memory, s1._memory), (s0._scratch, s1._scratch), forces, torques,
-                points, (bool(held[0]), bool(held[1])), (fill, fill), float(t), check.worst, check.worst_t,
+                points, held_c, (fill, fill), float(t), check.worst, check.worst_t,
                 check._sumsq, sampled)
         if self._pair is None:
             self._pair = bind(wrist_pair, *args)
@@ -177,6 +190,26 @@ class DualArmObservation:
             if sampled[arm]:
                 s._sampled(t, offsets[arm])
         check.samples += int(sampled[0])
+
+    def _model_tool_loads(self) -> np.ndarray | None:
+        """The reactions the cable's contact model applied to each arm's tool-side links (below the sensor joint)
+        in the Bullet step just taken, (2, 6): force [N] and moment about the world origin [N m], world frame; None
+        when it touched no tool link. They reach the links by applyExternalForce, which the sensor's Newton-Euler
+        does not see otherwise (a hand pushed by the cable read 0 N: tests/robots/test_arm_contact.py)."""
+        cable = self.physics.cable
+        cs = cable._contact_set
+        if cs is None or int(cs.contacts.count[0]) == 0:
+            return None
+        pc = cable.contact_forces()  # still the contacts whose reactions were applied in that step
+        out, hit = np.zeros((2, 6)), False
+        for arm, s in enumerate(self.sensors):
+            sel = (pc["body"] == s.robot.body) & np.isin(pc["link"], list(s._tool_links))
+            if sel.any():
+                f = -pc["force"][sel]  # on the links, at the contact points
+                out[arm, :3] = f.sum(axis=0)
+                out[arm, 3:] = np.cross(pc["point"][sel], f).sum(axis=0)
+                hit = True
+        return out if hit else None
 
     def _record_step(self) -> None:
         r, cable = self.record, self.physics.cable
