@@ -10,6 +10,8 @@ cable still reported stable.
 """
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 import pybullet as pb
 import pytest
@@ -118,3 +120,23 @@ def test_a_box_resting_on_the_cable_stays_outside_it(hz):
         local = (cable.x - np.asarray(pos)) @ rot  # nodes in the box frame
         depth = np.min(np.asarray(HALF) - np.abs(local), axis=1)  # > 0: the centre line is inside the box
         assert depth.max() < -0.5 * r, f"a node {1e3 * (depth.max() + r):.2f} mm into the box"
+
+
+@pytest.mark.parametrize("hz, reported", [(60.0, True), (240.0, False), (1000.0, False)])
+def test_a_body_that_goes_into_the_cable_is_reported(hz, reported):
+    """Until a body rests on the cable at every step (the xfail above), one that goes into it is not silent: a
+    RuntimeWarning names the body once when it holds the cable's centre line; none where it rests on the cable."""
+    spec = CableSpec.lv2017(n_masses=20, damping=0.02)
+    r = spec.diameter / 2
+    with BulletWorld(dt=1.0 / hz) as world:
+        cable = world.add_cable(spec, start=(-0.15, 0.0, r), direction=(1, 0, 0))
+        world.run(0.1)
+        box = world.add_box(HALF, (0.0, 0.0, 2 * r + HALF[2] + 0.01), mass=0.03)
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            world.run(1.0)
+        inside = [w for w in caught if "holds the cable's centre line" in str(w.message)]
+        assert cable.stable, cable.reason
+        assert len(inside) == (1 if reported else 0), [str(w.message) for w in inside]
+        if reported:
+            assert f"body {box} " in str(inside[0].message)
