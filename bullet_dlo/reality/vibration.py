@@ -162,3 +162,36 @@ def drag_damping_ratio(drag_coefficient: float, tip_amplitude: float, strip, rho
     """
     return 2 * rho_air * drag_coefficient * MODE_DRAG_SHAPE * tip_amplitude / (3 * np.pi * strip.density
                                                                                 * strip.thickness)
+
+
+# ----- what a rest-to-rest motion leaves in a mode ---------------------------------------------------
+# First clamped-free bending mode (Euler-Bernoulli, beta L = 1.8751): int x phi dx / int phi dx = 0.7264 L.
+# The mode is forced by the base's translation plus its rotation times that lever, so the motion of the
+# strip-axis point 0.7264 L from the clamp, normal to the strip, is the mode's whole forcing.
+MODE_FORCING_LEVER = 0.7264
+
+
+def residual_excitation(t: np.ndarray, x: np.ndarray, t_end: float, frequency_hz: float,
+                        damping_ratio: float = 0.0) -> float:
+    """Amplitude [units of x] that a base motion x(t) leaves in an oscillator
+    u'' + 2 zeta omega u' + omega^2 u = -x'' at the end ``t_end`` [s] of the motion.
+
+    x [m] (k,) at times t [s] (uniform) starts at rest (x' = 0); omega = 2 pi ``frequency_hz`` [Hz] is the
+    undamped frequency, zeta = ``damping_ratio`` [-] acts during the motion. Duhamel's integral gives the free
+    vibration's amplitude after T as |int_0^T x''(s) exp((-zeta omega + i omega_d) (T - s)) ds| / omega_d,
+    omega_d = omega sqrt(1 - zeta^2); for zeta = 0 this is the Fourier transform of the
+    base acceleration at omega over omega (zero for a motion that cancels the mode). x'' by finite differences
+    of x (so x should be smooth: a low-passed path). For a strip's first mode, x is the normal motion of the
+    point ``MODE_FORCING_LEVER`` L along the strip from its clamp (translation plus rotation's lever).
+    """
+    t = np.asarray(t, dtype=float)
+    x = np.asarray(x, dtype=float)
+    if not (frequency_hz > 0 and 0.0 <= damping_ratio < 1.0):
+        raise ValueError(f"frequency_hz must be > 0 and damping_ratio in [0, 1), got {frequency_hz}, {damping_ratio}")
+    keep = t <= t_end + 1e-12
+    t, x = t[keep], x[keep]
+    a = np.gradient(np.gradient(x, t), t)
+    omega = 2 * np.pi * frequency_hz
+    omega_d = omega * np.sqrt(1.0 - damping_ratio**2)
+    kernel = np.exp((-damping_ratio * omega + 1j * omega_d) * (t[-1] - t))
+    return float(abs(np.trapezoid(a * kernel, t)) / omega_d)
