@@ -97,6 +97,17 @@ def test_energy_a_body_takes_from_contact_is_reported():
         assert cable.reason == "energy growth beyond the work done on the cable"
 
 
+def _box_dropped_on_cable(world: BulletWorld):
+    """An Lv cable (n = 20) settled 0.1 s on the ground, then a 30 g box (HALF) 1 cm above its middle:
+    (cable, box, cable radius [m])."""
+    spec = CableSpec.lv2017(n_masses=20, damping=0.02)
+    r = spec.diameter / 2
+    cable = world.add_cable(spec, start=(-0.15, 0.0, r), direction=(1, 0, 0))
+    world.run(0.1)
+    box = world.add_box(HALF, (0.0, 0.0, 2 * r + HALF[2] + 0.01), mass=0.03)
+    return cable, box, r
+
+
 @pytest.mark.parametrize("hz", [pytest.param(60.0, marks=pytest.mark.xfail(strict=True, reason=(
     "open (issue 23 item 2): the body's inertia softens each contact by 1 / (1 + h^2 lambda), lambda an upper "
     "bound of the body's fastest contact mode (rotation included), so a 30 g box meets about 11 N/m per contact at "
@@ -107,12 +118,8 @@ def test_a_box_resting_on_the_cable_stays_outside_it(hz):
     """A 30 g box dropped 1 cm on the cable lying on the ground rests on it: after 1 s every node of the cable's
     centre line is at least half the cable's radius outside the box (the box at most 1 mm into the cable). The
     force balance above holds even for a box that sank through the cable; this checks the geometry."""
-    spec = CableSpec.lv2017(n_masses=20, damping=0.02)
-    r = spec.diameter / 2
     with BulletWorld(dt=1.0 / hz) as world:
-        cable = world.add_cable(spec, start=(-0.15, 0.0, r), direction=(1, 0, 0))
-        world.run(0.1)
-        box = world.add_box(HALF, (0.0, 0.0, 2 * r + HALF[2] + 0.01), mass=0.03)
+        cable, box, r = _box_dropped_on_cable(world)
         world.run(1.0)
         assert cable.stable, cable.reason
         pos, orn = pb.getBasePositionAndOrientation(box, physicsClientId=world.client)
@@ -126,12 +133,8 @@ def test_a_box_resting_on_the_cable_stays_outside_it(hz):
 def test_a_body_that_goes_into_the_cable_is_reported(hz, reported):
     """Until a body rests on the cable at every step (the xfail above), one that goes into it is not silent: a
     RuntimeWarning names the body once when it holds the cable's centre line; none where it rests on the cable."""
-    spec = CableSpec.lv2017(n_masses=20, damping=0.02)
-    r = spec.diameter / 2
     with BulletWorld(dt=1.0 / hz) as world:
-        cable = world.add_cable(spec, start=(-0.15, 0.0, r), direction=(1, 0, 0))
-        world.run(0.1)
-        box = world.add_box(HALF, (0.0, 0.0, 2 * r + HALF[2] + 0.01), mass=0.03)
+        cable, box, r = _box_dropped_on_cable(world)
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
             world.run(1.0)
