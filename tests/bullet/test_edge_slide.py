@@ -168,16 +168,24 @@ def test_coarse_cable_slides_at_the_capstan_threshold(n, hz, place):
     assert travel[1.1] > SLID, f"phi = 1.1 phi*: held ({travel[1.1] * 1e3:.1f} mm)"
 
 
-def _right_angle_wrap(d: float, r: float, ks: float, l0: float, cap: float):
-    """A WRAP row: edge along y through the origin, faces +z and +x, node a on the top (-d, 0, r), node b on
-    the side (r, 0, -d); returns the row's results and its gradient over (x_{a-1}, x_a, x_b, x_{b+1})."""
+def _wrap_row(r: float, ks: float, l0: float, kb: float):
+    """One WRAP row of nodes (1, 2) of a 4-node cable of radius r [m] round an edge along y through the origin
+    (faces +z and +x): stretch ks [N/m], rest length l0 [m], bend kb [N m/rad^2] at both nodes, a sharp edge,
+    no wrap row on the segment before."""
     c = make_contacts(4, 1, r)
     c.count[0] = 1
     c.kind[0] = WRAP
     c.node[0] = (1, 2)
     c.axis[0] = (0.0, 1.0, 0.0)
     c.side[0] = (math.sqrt(0.5), 0.0, math.sqrt(0.5))
-    c.seg[0] = (ks, l0, 0.0, 0.0, 0.0, 0.0)  # no bends; a sharp edge (radius 0); no wrap row before it
+    c.seg[0] = (ks, l0, kb, kb, 0.0, 0.0)
+    return c
+
+
+def _right_angle_wrap(d: float, r: float, ks: float, l0: float, cap: float):
+    """A WRAP row: edge along y through the origin, faces +z and +x, node a on the top (-d, 0, r), node b on
+    the side (r, 0, -d); returns the row's results and its gradient over (x_{a-1}, x_a, x_b, x_{b+1})."""
+    c = _wrap_row(r, ks, l0, 0.0)  # no bends; a sharp edge (radius 0); no wrap row before it
     c.cap[0] = cap
     x = np.array([[-d - l0, 0.0, r], [-d, 0.0, r], [r, 0.0, -d], [r, 0.0, -d - l0]])
     c.anchor[0, 3] = 0.5
@@ -226,13 +234,7 @@ def test_wrap_potential_is_continuous_where_the_segment_before_meets_the_edge():
     coasted at their start velocity and the n = 40, 1 kHz release over the edge ran a node 0.4 mm into the table
     (the energy alarm of issue 23 item 3). The size of a genuine change is the gradient times the move."""
     r, ks, l0, kb = 0.002, 500.0, 0.015, 1.7e-3
-    c = make_contacts(4, 1, r)
-    c.count[0] = 1
-    c.kind[0] = WRAP
-    c.node[0] = (1, 2)
-    c.axis[0] = (0.0, 1.0, 0.0)
-    c.side[0] = (math.sqrt(0.5), 0.0, math.sqrt(0.5))
-    c.seg[0] = (ks, l0, kb, kb, 0.0, 0.0)  # bends at both nodes; no wrap row on the segment before
+    c = _wrap_row(r, ks, l0, kb)  # bends at both nodes; no wrap row on the segment before
     x = np.array([[-l0, 0.0, 0.0], [0.2e-3, 0.0, 2.2e-3], [r, 0.0, -0.012], [r, 0.0, -0.012 - l0]])
     c.anchor[0, 3] = _wrap_eval(c, 0, x, np.zeros(12), np.zeros((12, 12)), False)[6]
 
