@@ -11,7 +11,12 @@ All times in seconds, torques in N m, frequencies in Hz. Given a sampled signal 
   omega_d / (2 pi) (it differs from omega_n / (2 pi) by a factor sqrt(1 - zeta^2), 1 - 2e-4 at
   zeta = 0.02);
 * ``p2p_torque``: peak-to-peak of the 1.5-8 Hz band (4th-order Butterworth, zero phase, over
-  the whole signal) over [end + 1 s, end + 2 s].
+  the whole signal) over [end + 1 s, end + 2 s];
+* ``sine_amplitude``: the amplitude at end + 1.5 s of a sine at the signal's fitted frequency (and decay),
+  least-squares fitted over the same [end + 1 s, end + 2 s] with a constant and a linear trend
+  (:func:`sine_amplitude`): the level of the mode alone. Content in the band at other frequencies (the arm
+  settling, Franka's model errors) adds to the peak-to-peak but is nearly orthogonal to the sine over the
+  window's three cycles, so it barely moves this one.
 """
 from __future__ import annotations
 
@@ -30,13 +35,15 @@ BAND = (1.5, 8.0)  # [Hz]
 @dataclass(frozen=True)
 class Vibration:
     """Metrics of one signal: frequency_hz [Hz] (damped), damping_ratio [-], p2p_torque [N m],
-    amplitude [N m] (the fitted sine's amplitude at end + 1 s), fit_rms [N m] (residual of the sine fit)."""
+    amplitude [N m] (the damped sine's amplitude at end + 1 s, fitted over 1-6 s), fit_rms [N m] (residual of
+    that fit), sine_amplitude [N m] (:func:`sine_amplitude` over the p2p window, at its centre)."""
 
     frequency_hz: float
     damping_ratio: float
     p2p_torque: float
     amplitude: float
     fit_rms: float
+    sine_amplitude: float = float("nan")
 
     def to_dict(self) -> dict[str, float]:
         return {k: float(v) for k, v in asdict(self).items()}
@@ -106,6 +113,32 @@ def fit_damped_sine(t: np.ndarray, y: np.ndarray) -> tuple[float, float, float, 
     return float(abs(omega) / (2 * np.pi)), float(sigma / omega_n), float(amp), rms
 
 
+def sine_amplitude(t: np.ndarray, y: np.ndarray, frequency_hz: float, damping_ratio: float = 0.0) -> float:
+    """Amplitude [units of y] at the centre of t of the sine at ``frequency_hz`` [Hz] (damped frequency) decaying
+    at ``damping_ratio`` [-], least-squares fitted to y(t) with a constant and a linear trend.
+
+    The model y ~ exp(-sigma s) (a sin(omega_d s) + b cos(omega_d s)) + c + d s, s = t - centre, is linear in
+    (a, b, c, d) once the frequency and the decay sigma = zeta omega_d / sqrt(1 - zeta^2) are given, so the fit
+    is one linear solve; the amplitude is hypot(a, b). A component at another frequency f2 and amplitude B moves
+    it by about B |sin(pi dF T) / (pi dF T)| <= B / (pi dF T) (dF = |f2 - f|, T the window [s]: over 1 s at most
+    0.22 B for dF >= 1 Hz and 0.05 B at dF 2.1 Hz), where a peak-to-peak takes up to its whole 2 B; broadband noise
+    of RMS sigma adds about sigma sqrt(2 / samples). With zeta = 0 it is the window's mean amplitude (within (sigma T)^2 / 24 of
+    the centre's). Needs at least 8 samples and at least half a period in the window."""
+    t = np.asarray(t, dtype=float)
+    y = np.asarray(y, dtype=float)
+    if not (np.isfinite(frequency_hz) and frequency_hz > 0 and 0.0 <= damping_ratio < 1.0):
+        raise ValueError(f"frequency_hz must be > 0 and damping_ratio in [0, 1), got {frequency_hz}, {damping_ratio}")
+    if len(t) < 8 or (t[-1] - t[0]) * frequency_hz < 0.5:
+        raise ValueError(f"the window holds {len(t)} samples over {t[-1] - t[0] if len(t) else 0:.3g} s: the sine "
+                         f"fit needs at least 8 samples and half a period ({0.5 / frequency_hz:.3g} s)")
+    s = t - 0.5 * (t[0] + t[-1])
+    omega_d = 2 * np.pi * frequency_hz
+    envelope = np.exp(-damping_ratio * omega_d / np.sqrt(1.0 - damping_ratio**2) * s)
+    basis = np.stack([envelope * np.sin(omega_d * s), envelope * np.cos(omega_d * s), np.ones_like(s), s], axis=1)
+    coef = np.linalg.lstsq(basis, y, rcond=None)[0]
+    return float(np.hypot(coef[0], coef[1]))
+
+
 def residual_vibration(t: np.ndarray, y: np.ndarray, t_end: float) -> Vibration:
     """The metrics of the module doc for a torque deviation y [N m] (k,) at times t [s] (uniform),
     the motion having ended at ``t_end`` [s]."""
@@ -115,8 +148,13 @@ def residual_vibration(t: np.ndarray, y: np.ndarray, t_end: float) -> Vibration:
         raise ValueError(f"less than 50 samples in [end + {SINE_WINDOW[0]}, end + {SINE_WINDOW[1]}] s")
     f, zeta, amp, rms = fit_damped_sine(t[w], y[w])
     b = band(y, rate)
-    p2p = float(np.ptp(b[window(t, t_end + P2P_WINDOW[0], t_end + P2P_WINDOW[1])]))
-    return Vibration(frequency_hz=f, damping_ratio=zeta, p2p_torque=p2p, amplitude=amp, fit_rms=rms)
+    level = window(t, t_end + P2P_WINDOW[0], t_end + P2P_WINDOW[1])
+    p2p = float(np.ptp(b[level]))
+    # the mode's level over the p2p window: its own frequency and decay from the 1-6 s fit (a negative fitted
+    # decay, a growing signal, is taken as none: the window's mean amplitude)
+    sine = sine_amplitude(t[level], y[level], f, min(max(zeta, 0.0), 0.5))
+    return Vibration(frequency_hz=f, damping_ratio=zeta, p2p_torque=p2p, amplitude=amp, fit_rms=rms,
+                     sine_amplitude=sine)
 
 
 def most_affected_joint(t: np.ndarray, dev: np.ndarray, t_end: float) -> int:

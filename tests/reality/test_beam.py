@@ -145,8 +145,13 @@ def test_validate_beam_on_the_recordings(tmp_path, z_split):
     assert code == 0  # (no wall-clock bound here: a cold Numba cache or a second test process can triple it)
     summary = json.loads(out.read_text())
     entry = summary["files"]["ocp_Z_35cm_0.61s_1"]
-    assert set(entry["predicted"]) >= {"frequency_hz", "damping_ratio", "p2p_torque"}
+    assert set(entry["predicted"]) >= {"frequency_hz", "damping_ratio", "p2p_torque", "sine_amplitude"}
     assert entry["joint"] in range(7)
+    for side in ("measured", "predicted"):  # the mode's level: p2p / 2 is it plus whatever else is in the band
+        assert 0.9 < entry[side]["p2p_torque"] / (2 * entry[side]["sine_amplitude"]) < 1.5
+    assert entry["within_goal"]["sine_amplitude"] == (abs(entry["ratio"]["sine_amplitude"] - 1) <= 0.15)
+    assert summary["goals"]["frequency_hz"] == {"within": int(entry["within_goal"]["frequency_hz"]), "of": 1,
+                                                "tolerance": 0.02}
     assert entry["ratio"]["frequency_hz"] == pytest.approx(1.0, abs=0.02)
     assert entry["ratio"]["damping_ratio"] == pytest.approx(1.0, abs=0.3)
     assert 0.5 < entry["ratio"]["p2p_torque"] < 2.0
