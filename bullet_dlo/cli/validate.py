@@ -106,8 +106,10 @@ def add_parsers(sub, common: argparse.ArgumentParser) -> None:
                             "steel; two superposed planar runs, or one rectangle-section twisting cable). Per "
                             "file: the most affected joint's residual vibration, measured and predicted (frequency and "
                             "damping ratio of a damped sine over [end + 1 s, end + 6 s], peak-to-peak of the 1.5-8 Hz band "
-                            "over [end + 1 s, end + 2 s], RMS torque error). Writes the JSON, one PNG per predicted "
-                            "file beside it (OUT_STEM.<csv stem>.png), and prints a table."))
+                            "over [end + 1 s, end + 2 s], the amplitude of a sine at the signal's frequency fitted over "
+                            "the same window (the mode's level without the band's other content), RMS torque error). "
+                            "Writes the JSON, one PNG per predicted file beside it (OUT_STEM.<csv stem>.png), and "
+                            "prints a table with how many files meet each goal."))
     b.add_argument("fit_dir", metavar="FIT_DIR", help="folder of beam_handling *.csv recordings to fit the damping on")
     b.add_argument("predict_dir", metavar="PREDICT_DIR", help="folder of beam_handling *.csv recordings to predict")
     b.add_argument("--json", required=True, metavar="OUT", help="output JSON file (plots are written beside it)")

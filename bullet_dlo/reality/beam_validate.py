@@ -27,6 +27,11 @@ fitted with ``damping_rate`` on the fit recordings' damping ratios over successi
 (the amplitude dependence separates C_d A from c). Per predicted file ``p2p_at_end`` (the band's
 peak-to-peak over the first 0.5 s after the motion) tells an excitation miss from a damping miss.
 
+**The level** (:func:`file_result`): beside the band's peak-to-peak over end + 1-2 s, ``sine_amplitude`` (the
+amplitude of a sine at the signal's own frequency fitted over the same window,
+:func:`~bullet_dlo.reality.vibration.sine_amplitude`) for measurement and model, its ratio, and ``within_goal`` with the
+same 15 %; the summary's ``goals`` counts the files within each goal (:data:`GOALS`).
+
 **Clamp payload** (``clamp_mass``, :func:`fit_clamp_mass`): a rigid mass at the clamp (the clamp hardware)
 that Franka's estimate does not know adds m J_c^T (a - g) to the external torques; linear in m, so it is fitted
 by least squares on the fit recordings' torque residual (1.5-8 Hz band, all joints, whole recording: the motion's
