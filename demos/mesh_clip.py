@@ -4,7 +4,7 @@ Two Pandas hold a soft cord (0.6 m, 6 mm, 30 g). It passes through a U-shaped cl
 mesh, ``mesh_clip_clip.obj``) and past a vertical post (a 32-gon prism, a convex mesh,
 ``mesh_clip_post.obj``); a 20 g saddle-shaped part (three boxes: a bar on the cord and two legs either
 side of it) hangs on the cord between them. Both grippers lower the cord into the clip's slot (0.5-2 s),
-then the right one pulls it through the clip and round the post (2.5-4.5 s). Everything the cord meets
+then the right one pulls it through the clip and round the post while the left one feeds it (2.3-4 s). Everything the cord meets
 enters its contact model: the clip through Bullet's narrow phase (a triangle mesh), the post on the
 project's exact convex-hull geometry, the part as a dynamic body whose weight the cord carries.
 
@@ -51,24 +51,27 @@ CLIP_U = [(-0.022, 0.325), (0.022, 0.325), (0.022, 0.375), (0.012, 0.375), (0.01
           (-0.012, 0.337), (-0.012, 0.375), (-0.022, 0.375)]  # [m] (y, z), counter-clockwise
 CLIP_STAND = ((0.02, 0.02, 0.16), (-0.11, 0.0, 0.16))  # [m] half extents, centre: a box from the floor up
 # the post: a 32-gon of radius POST_R round POST_XY, extruded along z from 0 to POST_H
-POST_XY, POST_R, POST_H, POST_SIDES = (0.10, -0.04), 0.015, 0.44, 32
+POST_XY, POST_R, POST_H, POST_SIDES = (0.14, -0.04), 0.015, 0.44, 32
 DOWN, SLACK = 0.06, 0.03  # [m] both ends lowered, and moved inwards
-PULL = (0.0, -0.15, 0.0)  # [m] the right end's pull
+PULL = (-0.02, -0.16, 0.0)  # [m] the right end's pull
+FEED = 0.02  # [m] the left end moves towards the clip meanwhile: the cord it gives is drawn through the clip
 PART_MASS = 0.02  # [kg]
 BAR = (0.012, 0.012, 0.003)  # [m] half extents of the part's top bar (across the cord: y)
 LEG = (0.012, 0.003, 0.015)  # [m] half extents of each leg, hanging either side of the cord
 LEG_Y = 0.011  # [m] the legs' centres off the bar's centre (inner gap 16 mm, the cord 6 mm)
 PART_X = 0.0  # [m] where the part is hung on the cord
-PHASES = ((0.5, 2.0, "lower into the clip"), (2.5, 4.5, "pull through, round the post"))
+PHASES = ((0.5, 2.0, "lower into the clip"), (2.3, 4.0, "pull through, round the post"))
 
 
 def motion(quick: bool) -> list[dict]:
     """Both ends DOWN lower and SLACK inwards (the cord settles into the clip's slot and sags), then the
-    right end moves PULL: sideways past the post, which the cord wraps round as it is drawn through the clip."""
+    right end moves PULL: sideways past the post, which the cord wraps round, while the left one feeds FEED
+    towards the clip: the cord is drawn through it."""
     moves = [{"end": "first", "displacement": [SLACK, 0.0, -DOWN], "start": 0.5, "duration": 1.5},
              {"end": "last", "displacement": [-SLACK, 0.0, -DOWN], "start": 0.5, "duration": 1.5}]
     if not quick:
-        moves.append({"end": "last", "displacement": list(PULL), "start": 2.5, "duration": 2.0})
+        moves += [{"end": "last", "displacement": list(PULL), "start": 2.3, "duration": 1.7},
+                  {"end": "first", "displacement": [FEED, 0.0, 0.0], "start": 2.3, "duration": 1.7}]
     return moves
 
 
@@ -172,11 +175,20 @@ class Checks:
         self.world, self.cable, self.part, self.radius = arm_scene.world, arm_scene.cable, part, radius
         self.sdf = {"clip": np.inf, "post": np.inf}
         self.part_rows: list = []  # t, distance to the centre line, height, cable force z, floor contact
+        self.in_clip: list = []  # t, arc length [m] along the cord (from its first end) of its point at the clip's middle
 
     def __call__(self) -> None:
         pts = centre_line(self.cable.x)
         self.sdf["clip"] = min(self.sdf["clip"], float(prism_sdf(pts, CLIP_U, *CLIP_X, axis=0).min()))
         self.sdf["post"] = min(self.sdf["post"], float(prism_sdf(pts, post_polygon(), 0.0, POST_H, axis=2).min()))
+        x = self.cable.x
+        mid = 0.5 * sum(CLIP_X)
+        cross = np.nonzero((x[:-1, 0] - mid) * (x[1:, 0] - mid) <= 0.0)[0]
+        if len(cross):
+            i = int(cross[0])
+            seg = np.linalg.norm(np.diff(x, axis=0), axis=1)
+            f = (mid - x[i, 0]) / (x[i + 1, 0] - x[i, 0]) if x[i + 1, 0] != x[i, 0] else 0.0
+            self.in_clip.append((self.world.time, float(seg[:i].sum() + f * seg[i])))
         cid = self.world.client
         pos = np.array(pb.getBasePositionAndOrientation(self.part, physicsClientId=cid)[0])
         dist = float(np.linalg.norm(pts - pos, axis=1).min())
@@ -224,9 +236,16 @@ def run(out: Path, quick: bool) -> dict:
     state: dict = {}
 
     def on_arm_scene(arm_scene) -> None:
-        part = add_part(arm_scene.world, arm_scene.cable.x)
+        world = arm_scene.world
+        part = add_part(world, arm_scene.cable.x)
         checks = Checks(arm_scene, part, CORD["diameter"] / 2)
-        arm_scene.world.after_step.append(checks)
+        meshes = {name: body for body, name in world.bodies.items() if name in ("clip", "post")}
+
+        def last_forces() -> None:  # the cord's force on each mesh after the step [N]
+            forces = arm_scene.cable.body_forces()
+            state["mesh_forces"] = {name: forces.get(b, np.zeros(3)).tolist() for name, b in meshes.items()}
+
+        world.after_step += [checks, last_forces]
         state.update(arm_scene=arm_scene, checks=checks)
 
     size = (160, 120) if quick else (640, 480)
@@ -241,6 +260,7 @@ def run(out: Path, quick: bool) -> dict:
     wrench = state["arm_scene"].record.arrays()["wrench_world"][:, :, :3]
     magnitude = np.linalg.norm(wrench, axis=2)  # (k, 2)
     r = CORD["diameter"] / 2
+    clip_t, clip_s = np.array(checks.in_clip).T  # arc length at the clip's middle: how much was drawn through
     result = {
         "stable": summary["stable"], "cpu_s": cpu, "frames": summary["frames"],
         "penetration_mm": {k: 1e3 * max(0.0, -v) for k, v in checks.sdf.items()},
@@ -250,6 +270,8 @@ def run(out: Path, quick: bool) -> dict:
                  "support_over_weight_last_0.5s": float(rows[last, 3].mean() / weight),
                  "touched_floor": bool(rows[:, 4].any())},
         "wrist_force_N": {"max": magnitude.max(axis=0).tolist(), "final": magnitude[-1].tolist()},
+        "force_on_mesh_N": state["mesh_forces"],  # at the end: the cord on the clip and on the post
+        "drawn_through_clip_mm": 1e3 * (clip_s[np.searchsorted(clip_t, PHASES[1][0])] - clip_s[-1]),  # to the right
         "sensor_check_failures": len(summary.get("sensor_check", {}).get("failures", [])),
         "video": summary.get("side_by_side"),
         # the part every 0.1 s: t [s], distance to the centre line [m], height [m], cord's force up / its weight
@@ -281,6 +303,9 @@ def main() -> None:
           f"{100 * part['support_over_weight_last_0.5s']:.1f} % of its weight over the last 0.5 s, floor touched: "
           f"{part['touched_floor']})")
     fmax, ffin = res["wrist_force_N"]["max"], res["wrist_force_N"]["final"]
+    fc, fp = (np.linalg.norm(res["force_on_mesh_N"][k]) for k in ("clip", "post"))
+    print(f"cord drawn through the clip since the pull began: {res['drawn_through_clip_mm']:.1f} mm; the cord's force "
+          f"at the end on the clip {fc:.3f} N, on the post {fp:.3f} N")
     print(f"wrist force |F|: left max {fmax[0]:.3f} N, final {ffin[0]:.3f} N; right max {fmax[1]:.3f} N, final "
           f"{ffin[1]:.3f} N; sensor check failures: {res['sensor_check_failures']}")
     print(f"\noutputs written to {out.resolve()}")
