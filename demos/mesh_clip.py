@@ -271,7 +271,9 @@ def run(out: Path, quick: bool) -> dict:
                  "touched_floor": bool(rows[:, 4].any())},
         "wrist_force_N": {"max": magnitude.max(axis=0).tolist(), "final": magnitude[-1].tolist()},
         "force_on_mesh_N": state["mesh_forces"],  # at the end: the cord on the clip and on the post
-        "drawn_through_clip_mm": 1e3 * (clip_s[np.searchsorted(clip_t, PHASES[1][0])] - clip_s[-1]),  # to the right
+        # cord drawn through the clip (to the right) since the pull began (None: the run ended before it)
+        "drawn_through_clip_mm": (1e3 * (clip_s[np.searchsorted(clip_t, PHASES[1][0])] - clip_s[-1])
+                                  if clip_t[-1] > PHASES[1][0] else None),
         "sensor_check_failures": len(summary.get("sensor_check", {}).get("failures", [])),
         "video": summary.get("side_by_side"),
         # the part every 0.1 s: t [s], distance to the centre line [m], height [m], cord's force up / its weight
@@ -304,8 +306,9 @@ def main() -> None:
           f"{part['touched_floor']})")
     fmax, ffin = res["wrist_force_N"]["max"], res["wrist_force_N"]["final"]
     fc, fp = (np.linalg.norm(res["force_on_mesh_N"][k]) for k in ("clip", "post"))
-    print(f"cord drawn through the clip since the pull began: {res['drawn_through_clip_mm']:.1f} mm; the cord's force "
-          f"at the end on the clip {fc:.3f} N, on the post {fp:.3f} N")
+    drawn = res["drawn_through_clip_mm"]
+    print(("" if drawn is None else f"cord drawn through the clip since the pull began: {drawn:.1f} mm; ")
+          + f"the cord's force at the end on the clip {fc:.3f} N, on the post {fp:.3f} N")
     print(f"wrist force |F|: left max {fmax[0]:.3f} N, final {ffin[0]:.3f} N; right max {fmax[1]:.3f} N, final "
           f"{ffin[1]:.3f} N; sensor check failures: {res['sensor_check_failures']}")
     print(f"\noutputs written to {out.resolve()}")
