@@ -4,9 +4,10 @@ Two Pandas hold a soft cord (0.6 m, 6 mm, 30 g). It passes through a U-shaped cl
 mesh, ``mesh_clip_clip.obj``) and past a vertical post (a 32-gon prism, a convex mesh,
 ``mesh_clip_post.obj``); a 20 g saddle-shaped part (three boxes: a bar on the cord and two legs either
 side of it) hangs on the cord between them. Both grippers lower the cord into the clip's slot (0.5-2 s),
-then the right one pulls it through the clip and round the post while the left one feeds it (2.3-4 s). Everything the cord meets
-enters its contact model: the clip through Bullet's narrow phase (a triangle mesh), the post on the
-project's exact convex-hull geometry, the part as a dynamic body whose weight the cord carries.
+then the right one pulls it through the clip and round the post while the left one feeds it (2.3-4 s).
+Everything the cord meets enters its contact model: the clip through Bullet's narrow phase (a triangle
+mesh), the post on the project's exact convex-hull geometry, the part as a dynamic body (three box rows)
+whose weight the cord carries.
 
 It prints what it checks, measured independently of the contact model:
 
@@ -175,7 +176,7 @@ class Checks:
         self.world, self.cable, self.part, self.radius = arm_scene.world, arm_scene.cable, part, radius
         self.sdf = {"clip": np.inf, "post": np.inf}
         self.part_rows: list = []  # t, distance to the centre line, height, cable force z, floor contact
-        self.in_clip: list = []  # t, arc length [m] along the cord (from its first end) of its point at the clip's middle
+        self.in_clip: list = []  # t, arc length [m] from the cord's first end of its point at the clip's middle
 
     def __call__(self) -> None:
         pts = centre_line(self.cable.x)

@@ -1,14 +1,16 @@
 """A link's collision shapes, read without the call that kills the process.
 
 PyBullet's ``getCollisionShapeData`` (``PhysicsServerCommandProcessor::extractCollisionShapes``, the handler
-of CMD_REQUEST_COLLISION_SHAPE_INFO) describes a ``btMultiSphereShape`` by casting it to ``btCapsuleShapeZ``
-and reading the capsule's up axis, which in a multi-sphere shape is memory that holds its cached bounding
-box: an index of about 1e9, and the process dies with SIGSEGV (measured with PyBullet 3.2.7; bullet3
-master of 2025-01 has the same cast). The only PyBullet loader that makes that shape is ``loadMJCF``: a
-capsule geom given by ``fromto`` (pybullet_data's ``mjcf/capsule_fromtoX/Y/Z.xml``, the ant's and the
-humanoid's limbs) when the file is loaded without ``URDF_USE_IMPLICIT_CYLINDER``; with the flag the same
-geom is a ``btCapsuleShapeZ`` in a compound and reads fine. Cylinders given by ``fromto`` are convex hulls
-(they read fine).
+of CMD_REQUEST_COLLISION_SHAPE_INFO) describes a ``btMultiSphereShape`` (MULTI_SPHERE_SHAPE_PROXYTYPE) by
+casting it to ``btCapsuleShapeZ`` and calling ``getHalfHeight()``, which indexes the capsule's dimensions with
+its up axis: a member a multi-sphere shape does not have (its memory there holds the multi-sphere's own
+fields), so the index is garbage and the read leaves the process's memory: SIGSEGV, the whole process dies
+(measured with PyBullet 3.2.7 on pybullet_data's ``mjcf/capsule_fromtoX/Y/Z.xml`` and every limb of
+``mjcf/humanoid_symmetric.xml``; bullet3's source of 2025-01 has the same cast). The only PyBullet loader that
+makes that shape is ``loadMJCF``: a capsule geom given by ``fromto`` (the limbs of pybullet_data's ant and
+humanoids) when the file is loaded without ``URDF_USE_IMPLICIT_CYLINDER``; with the flag the same geom is a
+``btCapsuleShapeZ`` in a compound and reads fine. Cylinders given by ``fromto`` are convex hulls (they read
+fine).
 
 :func:`collision_shapes` answers what ``getCollisionShapeData`` would, or ``()`` for a link whose shapes
 PyBullet cannot describe; for such a link the caller uses Bullet's narrow phase (``getClosestPoints``,
