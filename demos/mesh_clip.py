@@ -245,6 +245,7 @@ def run(out: Path, quick: bool) -> dict:
         def last_forces() -> None:  # the cord's force on each mesh after the step [N]
             forces = arm_scene.cable.body_forces()
             state["mesh_forces"] = {name: forces.get(b, np.zeros(3)).tolist() for name, b in meshes.items()}
+            state.setdefault("mesh_z", []).append((world.time, sum(f[2] for f in state["mesh_forces"].values())))
 
         world.after_step += [checks, last_forces]
         state.update(arm_scene=arm_scene, checks=checks)
@@ -258,7 +259,13 @@ def run(out: Path, quick: bool) -> dict:
     rows = np.array(checks.part_rows, dtype=float)
     last = rows[:, 0] > rows[-1, 0] - 0.5
     weight = PART_MASS * G
-    wrench = state["arm_scene"].record.arrays()["wrench_world"][:, :, :3]
+    record = state["arm_scene"].record.arrays()
+    wrench = record["wrench_world"][:, :, :3]
+    # statics of cord and part together: what the grippers (tared wrist sensors: the cable's force on each) and
+    # the meshes (the contact model's force on them) carry, against both weights, over the last 0.5 s
+    mesh_t, mesh_z = np.array(state["mesh_z"]).T
+    grip_z = wrench[:, 0, 2] + wrench[:, 1, 2]
+    carried = -(grip_z[record["t"] > record["t"][-1] - 0.5].mean() + mesh_z[mesh_t > mesh_t[-1] - 0.5].mean())
     magnitude = np.linalg.norm(wrench, axis=2)  # (k, 2)
     r = CORD["diameter"] / 2
     clip_t, clip_s = np.array(checks.in_clip).T  # arc length at the clip's middle: how much was drawn through
@@ -271,6 +278,7 @@ def run(out: Path, quick: bool) -> dict:
                  "support_over_weight_last_0.5s": float(rows[last, 3].mean() / weight),
                  "touched_floor": bool(rows[:, 4].any())},
         "wrist_force_N": {"max": magnitude.max(axis=0).tolist(), "final": magnitude[-1].tolist()},
+        "supports_over_weights_last_0.5s": float(carried / ((CORD["mass"] + PART_MASS) * G)),
         "force_on_mesh_N": state["mesh_forces"],  # at the end: the cord on the clip and on the post
         # cord drawn through the clip (to the right) since the pull began (None: the run ended before it)
         "drawn_through_clip_mm": (1e3 * (clip_s[np.searchsorted(clip_t, PHASES[1][0])] - clip_s[-1])
@@ -310,6 +318,8 @@ def main() -> None:
     drawn = res["drawn_through_clip_mm"]
     print(("" if drawn is None else f"cord drawn through the clip since the pull began: {drawn:.1f} mm; ")
           + f"the cord's force at the end on the clip {fc:.3f} N, on the post {fp:.3f} N")
+    print(f"grippers and meshes carry {100 * res['supports_over_weights_last_0.5s']:.2f} % of the cord's and the "
+          f"part's weight over the last 0.5 s")
     print(f"wrist force |F|: left max {fmax[0]:.3f} N, final {ffin[0]:.3f} N; right max {fmax[1]:.3f} N, final "
           f"{ffin[1]:.3f} N; sensor check failures: {res['sensor_check_failures']}")
     print(f"\noutputs written to {out.resolve()}")

@@ -6,8 +6,9 @@ and 20 points per segment, every step) never enters the clip's polygon (signed d
 own description of the mesh), and the cord rests on the clip (its surface within 1 mm of the mesh: the
 cord is not held off it either); the part stays on the cord (its centre of mass within reach of the
 centre line, never on the floor) and the cord carries its weight (vertical force within 10 % of m g over
-the last 0.5 s, while the ends are still being lowered); every wrist sample agrees with the cable's load
-(the sensor check).
+the last 0.5 s, while the ends are still being lowered); the two wrist sensors and the clip together carry
+the cord's and the part's weight (within 5 %); every wrist sample agrees with the cable's load (the sensor
+check).
 """
 from __future__ import annotations
 
@@ -38,5 +39,8 @@ def test_mesh_clip_demo_quick(tmp_path):
     part = data["part"]
     assert part["on_cable"] and not part["touched_floor"]
     assert part["support_over_weight_last_0.5s"] == pytest.approx(1.0, abs=0.1)
+    # cord and part together: the grippers' wrist sensors and the clip carry both weights (the ends still
+    # decelerate as they are lowered: measured 102.4 %; 99.8 % at rest at the end of the full run)
+    assert data["supports_over_weights_last_0.5s"] == pytest.approx(1.0, abs=0.05)
     assert data["sensor_check_failures"] == 0
     assert all(f > 0.0 for f in data["wrist_force_N"]["final"])
