@@ -44,3 +44,43 @@ def test_mesh_clip_demo_quick(tmp_path):
     assert data["supports_over_weights_last_0.5s"] == pytest.approx(1.0, abs=0.05)
     assert data["sensor_check_failures"] == 0
     assert all(f > 0.0 for f in data["wrist_force_N"]["final"])
+
+
+def test_the_demos_geometry_is_the_meshes_it_loads(tmp_path):
+    """The signed distance the demo checks the centre line with is the meshes Bullet holds: from 300+ points
+    2-20 mm outside the clip (a concave triangle mesh, no margin) Bullet's distance equals it within 1e-6 m;
+    from the post (a convex hull, grown by Bullet's 1 mm margin) it is 1 mm less within 1e-5 m; and points
+    inside are negative (the post's axis: minus its radius; the clip's slot is outside, by its half width)."""
+    import importlib.util
+
+    import numpy as np
+    import pybullet as pb
+
+    spec = importlib.util.spec_from_file_location("mesh_clip", ROOT / "demos" / "mesh_clip.py")
+    mc = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mc)
+    clip, post = mc.write_meshes(tmp_path)
+    cid = pb.connect(pb.DIRECT)
+    try:
+        bodies = {"clip": pb.loadURDF(str(clip), useFixedBase=True, physicsClientId=cid),
+                  "post": pb.loadURDF(str(post), useFixedBase=True, physicsClientId=cid)}
+        probe_r = 1e-4
+        probe = pb.createCollisionShape(pb.GEOM_SPHERE, radius=probe_r, physicsClientId=cid)
+        rng = np.random.default_rng(0)
+        cases = {"clip": (mc.CLIP_U, *mc.CLIP_X, 0, (-0.11, 0.0, 0.35), 0.0),
+                 "post": (mc.post_polygon(), 0.0, mc.POST_H, 2, (*mc.POST_XY, 0.3), 1e-3)}
+        for name, (poly, lo, hi, axis, centre, margin) in cases.items():
+            pts = np.array(centre) + rng.uniform(-0.04, 0.04, (400, 3))
+            sdf = mc.prism_sdf(pts, poly, lo, hi, axis)
+            keep = (sdf > 0.002) & (sdf < 0.02)
+            assert keep.sum() > 100
+            bullet = np.array([min(h[8] for h in pb.getClosestPoints(-1, bodies[name], 0.05, -1, -1, probe, -1,
+                                                                     p.tolist(), physicsClientId=cid)) + probe_r
+                               for p in pts[keep]])
+            assert np.abs(bullet - (sdf[keep] - margin)).max() < (1e-6 if margin == 0.0 else 1e-5), name
+        axis_point = np.array([[*mc.POST_XY, 0.2]])
+        assert mc.prism_sdf(axis_point, mc.post_polygon(), 0.0, mc.POST_H, 2)[0] == pytest.approx(-mc.POST_R, abs=1e-9)
+        slot = np.array([[-0.11, 0.0, 0.35]])
+        assert mc.prism_sdf(slot, mc.CLIP_U, *mc.CLIP_X, 0)[0] == pytest.approx(0.012, abs=1e-9)
+    finally:
+        pb.disconnect(cid)
