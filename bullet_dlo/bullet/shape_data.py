@@ -35,7 +35,7 @@ physics server then lives in this process, and the copy holds the same world): a
 copy killed by a signal means the link cannot be described (``()``). Other connections (GUI, shared
 memory: the server is another thread or process, which a fork does not copy) return ``()`` for such a
 link. One forked read takes 8-25 ms (measured with the package and Numba loaded, 160 MB resident, load
-average 3-4: the MJCF humanoid's 12 limbs cost 0.2 s each time the contact set is built).
+average 3-4: the MJCF humanoid's 11 capsule links cost 0.2 s each time the contact set is built).
 """
 from __future__ import annotations
 
