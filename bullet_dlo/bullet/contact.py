@@ -60,6 +60,7 @@ from numba import njit
 
 from bullet_dlo.bullet.kernels import bind
 from bullet_dlo.bullet.native import BASE_STATE, disabled_warning, read_base_states
+from bullet_dlo.bullet.shape_data import collision_shapes
 from bullet_dlo.core.kernels.contact import (PENALTY, STICK, WRAP, Contacts, _wrap_cap, make_contacts,
                                              mark_wrap_neighbours, wrap_active, wrap_energy, wrap_split)
 
@@ -383,7 +384,7 @@ class ContactSet:
         self._hull_probe = -1  # Bullet's point capsule that checks a hull (made on first use)
         for body in bodies:
             for link in range(-1, pb.getNumJoints(body, physicsClientId=client)):
-                data = pb.getCollisionShapeData(body, link, physicsClientId=client)
+                data = collision_shapes(client, body, link)  # () where PyBullet would crash: a PROBE row
                 if not data and not _unlisted_shape(body, link, client):
                     continue  # no collision shape
                 out = exclude.get((body, link), exclude.get((body, None), ()))
