@@ -382,7 +382,9 @@ class BulletCable:
     def _step_input(self, do_sync: bool, record: bool, index: np.ndarray, pos: np.ndarray,
                     vel: np.ndarray) -> StepInput:
         """What the kernel needs from this step: time, flags, the touched spheres' read-back state."""
-        return self.solver.step_input(self.t, self.steps, do_sync, record, self.contacts, index, pos, vel)
+        # a re-plan (not do_sync) starts BDF2 afresh: the step's first plan already stored its history
+        return self.solver.step_input(self.t, self.steps if do_sync else 0, do_sync, record, self.contacts, index, pos,
+                                      vel)
 
     def _kernel_args(self, inp: StepInput) -> tuple:
         """Arguments of :func:`~bullet_dlo.bullet.kernels.sync_and_advance` (the same objects every step)."""
@@ -393,6 +395,8 @@ class BulletCable:
         solver = self.solver
         if solver.status != STABLE:
             return
+        if self.model_contact and self.contact.stale():  # bodies added since the coming step was planned:
+            self._replan()  # plan it again with them (a free body placed on the cable meets it in its first step)
         if self.proxy:  # parked spheres: Bullet does not move them (module doc); the touched bodies' reactions only
             if self._fresh:
                 self._hold_fresh()
