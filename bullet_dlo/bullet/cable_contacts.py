@@ -55,11 +55,6 @@ class CableContacts:
             return []
         return [c for c in cable.world.cables.values() if c is not cable and c.handles_cable_contact and c.stable]
 
-    def stale(self) -> bool:
-        """Whether the world's bodies changed since the contact set was built (the coming step was planned
-        without the new ones)."""
-        return self.cable.model_contact and self.bodies_seen != pb.getNumBodies(physicsClientId=self.cable.world.client)
-
     def refresh(self) -> None:
         """(Re)read the world's bodies for the contact model when they changed (new obstacles), and the
         other cables it handles contact with."""

@@ -434,6 +434,7 @@ class ContactSet:
         mu_b = np.array([r[7] for r in rows])
         pairs = [(r[0], r[1]) for r in rows]
         free_bodies = sorted({r[0] for r in rows if r[11]})
+        self.free_bodies = free_bodies  # body ids of the free bodies, by slot (contact.Bodies)
         self._inertia_diag = np.array([r[12] for r in rows]).reshape(nb, 3)  # [kg m^2] principal, CoM frame
         self.shapes = Shapes(kind=np.array([r[2] for r in rows], dtype=np.int64), pos=np.zeros((nb, 3)),
                              rot=np.zeros((nb, 3, 3)), size=np.array([r[5] for r in rows]).reshape(nb, 3),
@@ -443,6 +444,7 @@ class ContactSet:
                              owner=np.array([pairs.index(pr) for pr in pairs], dtype=np.int64),
                              slot=np.array([free_bodies.index(r[0]) if r[11] else -1 for r in rows], dtype=np.int64),
                              inertia=np.zeros((nb, 3, 3)))
+        self._free_slot = self.shapes.slot.copy()  # each row's slot; -1 in shapes.slot while the body is shared
         self._probe_rows = {pairs[s]: s for s in range(self.n_exact, nb)}
         self._probe_out = np.zeros((nb, n), np.bool_)  # nodes that do not touch a probed link or a hull
         for s in range(nb):
@@ -579,7 +581,7 @@ class ContactSet:
         sh.com[s] = com
         sh.pos[s] = np.asarray(com) + rot @ lpos
         sh.rot[s] = rot @ lrot
-        if sh.slot[s] >= 0:  # the base's frame is its inertial frame: principal axes
+        if self._free_slot[s] >= 0:  # the base's frame is its inertial frame: principal axes
             sh.inertia[s] = (rot * self._inertia_diag[s]) @ rot.T
 
     def _read_poses(self) -> None:
@@ -598,10 +600,17 @@ class ContactSet:
             self.shapes.lin_vel[:self.n_exact][dyn] = bases[dyn, 7:10]
             self.shapes.ang_vel[:self.n_exact][dyn] = bases[dyn, 10:13]
 
-    def update(self, x: np.ndarray, v: np.ndarray, mass: np.ndarray, h: float, dt: float, stepped: bool) -> int:
+    def update(self, x: np.ndarray, v: np.ndarray, mass: np.ndarray, h: float, dt: float, stepped: bool,
+               shared=()) -> int:
         """Read the moving bodies, detect the contacts of positions x [m] (n, 3) for a cable step of h [s]
         within a Bullet step of dt [s]; ``stepped``: Bullet has taken the step the last contacts were
-        planned for (their work is then counted with the bodies' velocities read now)."""
+        planned for (their work is then counted with the bodies' velocities read now). ``shared``: free bodies
+        this cable's step may not move by itself (the ground or another cable also holds them): they keep the
+        condensed contact (:func:`_condense_bodies`) this step."""
+        if self.free_bodies:
+            self.shapes.slot[:] = self._free_slot
+            if shared:
+                self.shapes.slot[np.isin(self.body_ids, list(shared))] = -1
         self._read_poses()
         if self.other_cables:
             self._read_others(dt)
@@ -617,6 +626,13 @@ class ContactSet:
         if self._any_dynamic and count:
             self._report_bodies_inside(x, count, dt)
         return count
+
+    def touched_free_bodies(self) -> list[int]:
+        """The free bodies (by body id) some contact of the coming step touches."""
+        c, st = self.contacts, self.store
+        rows = st.body[:int(c.count[0])]
+        slots = self._free_slot[rows[rows >= 0]]
+        return [self.free_bodies[s] for s in np.unique(slots[slots >= 0]).tolist()]
 
     def _report_bodies_inside(self, x: np.ndarray, count: int, dt: float) -> None:
         """Warn, once per body, when a dynamic body holds part of the cable's centre line (x [m]) deeper than
@@ -652,7 +668,7 @@ class ContactSet:
             com, orn, lin, ang = st[0], st[1], st[6], st[7]
         sh.com[s] = sh.pos[s] = com
         sh.rot[s] = _rotation(orn)
-        if sh.slot[s] >= 0:
+        if self._free_slot[s] >= 0:
             sh.inertia[s] = (sh.rot[s] * self._inertia_diag[s]) @ sh.rot[s].T
         sh.lin_vel[s] = lin
         sh.ang_vel[s] = ang
