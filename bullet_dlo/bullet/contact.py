@@ -334,21 +334,20 @@ class ContactSet:
     row's when the cable is near it; dynamic links (mass > 0) also their velocities, and they receive
     the contact forces (:meth:`apply_to_bodies`, on their link) during the coming Bullet step.
 
-    Two-way contact with a dynamic body: the cable's implicit step sees the body's surface move
-    at the body's velocity, but Bullet then moves the body under the contact force too. With the
-    penalty stiffness k_n = alpha m_k / h^2 (alpha = 1e4) and a body of mass M, that force, explicit
-    for the body, has k_n h^2 / M = alpha m_k / M per contact: 500 for a 30 g box on one 1.6 g node, far past
-    the explicit limit (about 1), so a box resting on a cable was thrown off at tens of m/s. The
-    detector therefore condenses the body's own inertia into its contacts (:func:`_condense_bodies`):
-    lambda [1/s^2], the body's fastest contact mode squared (largest eigenvalue of the 6 x 6
-    stiffness of its loaded contacts scaled by 1/M and 1/I_min, both upper bounds), scales every
-    contact on the body, stiffness, damping and friction cap, by 1 / (1 + h^2 lambda), h [s] the
-    Bullet step. For a body resting on N equal contacts that is the penalty in series with the
-    body's inertial "spring" M / (N h^2): the force leaves spring and body consistent at the end of
-    the step, and the body meets at most lambda h^2 / (1 + lambda h^2) < 1 per step (stable). At
-    rest the body sinks by about g h^2 more (its fall in one step: 0.2-0.4 mm at 240 Hz, 0.02 mm at
-    1 kHz); static bodies keep the full stiffness. The inertia is read at set-up (a later
-    changeDynamics of mass is not seen).
+    Two-way contact with a dynamic body. A free body (one dynamic link, no joints) moves inside the cable's
+    implicit step (:class:`~bullet_dlo.core.kernels.contact.Bodies`): its end-of-step velocity is solved with the
+    cable's, and the reactions applied to it during the coming Bullet step make Bullet's semi-implicit update
+    land on that velocity when nothing else touches it. A body that Bullet also supports (a contact with the
+    ground or another body in the last step) or that another cable touches, and every link of an articulated
+    body (the arms), meets the cable explicitly through Bullet instead: with the penalty stiffness k_n = alpha
+    m_k / h^2 (alpha = 1e4) and a body of mass M that force has k_n h^2 / M = alpha m_k / M per contact, 500 for
+    a 30 g box on one 1.6 g node, far past the explicit limit (about 1), so the detector condenses the body's
+    inertia into those contacts (:func:`_condense_bodies`): lambda [1/s^2], the body's fastest contact mode
+    squared (largest eigenvalue of the 6 x 6 stiffness of its loaded contacts scaled by 1/M and 1/I_min, both
+    upper bounds), scales every contact on the body, stiffness, damping and friction cap, by 1 / (1 + h^2
+    lambda), h [s] the Bullet step: the penalty in series with the body's inertia, stable, but the body sinks
+    about g h^2 more at rest (0.2-0.4 mm at 240 Hz, 2.7 mm at 60 Hz). Static bodies keep the full stiffness.
+    The inertia is read at set-up (a later changeDynamics of mass is not seen).
 
     The energy check counts the work the bodies did on the cable with their velocity after
     Bullet's step (what they actually did), so energy a body gains from contact shows up as

@@ -92,7 +92,7 @@ class BulletWorld:
         self.supported_bodies: set[int] = set()
         self.model_touches: dict[int, set[str]] = {}
         self._model_touches_now: dict[int, set[str]] = {}
-        self.bodies_added = False  # a body was added since the cables planned their coming step
+        self.bodies_added = False  # a dynamic body was added since the cables planned their coming step
         self.bodies: dict[int, str] = {}  # non-cable bodies and their names (for messages)
         # bodies left out of every cable's contact model (a scene obstacle's ``contact: false``); a cable's
         # own exclusions: BulletCable.exclude_contact. Read when a cable (re)builds its contact set.
@@ -166,7 +166,7 @@ class BulletWorld:
         except pb.error as err:
             raise ParameterError(f"could not load URDF {str(file)!r}: {err}") from None
         self.bodies[body] = name or file.stem
-        self.bodies_added = True
+        self.bodies_added = self.bodies_added or not fixed
         return body
 
     def _add_body(self, col: int, vis: int, position, orientation, mass, friction, name) -> int:
@@ -180,7 +180,7 @@ class BulletWorld:
         pb.changeDynamics(body, -1, lateralFriction=check_nonnegative("friction", friction),
                           physicsClientId=self.client)
         self.bodies[body] = name
-        self.bodies_added = True
+        self.bodies_added = self.bodies_added or mass > 0
         return body
 
     def next_cable_group(self) -> int:
@@ -348,7 +348,8 @@ class BulletWorld:
 
     def push_cables(self) -> None:
         """Phase 1 of :meth:`step`: every cable's sphere forces to Bullet (a cable first plans its coming step again
-        when bodies were added since it was planned: a body placed on the cable meets it in its first step)."""
+        when a dynamic body was added since it was planned: a body placed on the cable meets it in its first step;
+        a static one joins the next step's contacts)."""
         replan, self.bodies_added = self.bodies_added, False
         for c in self.cables.values():
             c.apply_forces(replan)
