@@ -142,3 +142,30 @@ def test_a_body_that_goes_into_the_cable_is_reported():
             assert len(inside) == (1 if reported else 0), [str(w.message) for w in inside]
             if reported:
                 assert f"body {box} " in str(inside[0].message)
+
+
+@pytest.mark.parametrize("hz", [60.0, 1000.0])
+def test_a_free_body_and_the_cable_exchange_momentum_exactly(hz):
+    """Weightless, a 30 g box thrown at 0.3 m/s and turning (0.5 rad/s) hits a free cable at rest: the cable's and
+    the box's momentum change by equal and opposite amounts every step (the body's motion and the reaction come
+    from one solve, and Bullet's update lands the box on the solved velocity)."""
+    spec = CableSpec.lv2017(n_masses=20, damping=0.0)  # (damping_rate drags to the world)
+    r = spec.diameter / 2
+    with BulletWorld(dt=1.0 / hz, gravity=(0.0, 0.0, 0.0), ground=False) as world:
+        cid = world.client
+        cable = world.add_cable(spec, start=(-0.15, 0.0, 0.0), direction=(1, 0, 0))
+        box = world.add_box(HALF, (0.01, 0.0, r + HALF[2] + 0.002), mass=0.03)
+        pb.changeDynamics(box, -1, linearDamping=0.0, angularDamping=0.0, physicsClientId=cid)  # (Bullet's 0.04/s)
+        pb.resetBaseVelocity(box, (0.0, 0.0, -0.3), (0.0, 0.5, 0.0), physicsClientId=cid)
+        mass = cable.model.arrays.mass
+        p0 = mass @ cable.v + 0.03 * np.asarray(pb.getBaseVelocity(box, physicsClientId=cid)[0])
+        hit = 0.0
+        for _ in range(world.steps_in(0.1)):
+            world.step()
+            lin = np.asarray(pb.getBaseVelocity(box, physicsClientId=cid)[0])
+            hit = max(hit, float(np.linalg.norm(cable.body_forces().get(box, np.zeros(3)))))
+            p = mass @ cable.v + 0.03 * lin
+            assert np.allclose(p, p0, rtol=0.0, atol=1e-4 * 0.03 * 0.3), (p, p0)  # (within Newton's tolerance)
+        assert cable.stable, cable.reason
+        assert hit > 0.0
+        assert np.linalg.norm(mass @ cable.v) > 0.2 * 0.03 * 0.3  # the box passed on a good part of its momentum
