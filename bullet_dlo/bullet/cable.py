@@ -364,8 +364,11 @@ class BulletCable:
             self._refresh_contact_set()
             cp = self._cp
             x0, v0 = (cp.x_new, cp.v_new) if do_sync else (cp.x, cp.v)  # the state this step starts from
-            self.contacts_last_step = self._contact_set.update(x0, v0, self.arrays.mass, self.stepper.h,
-                                                               self.world.dt, do_sync)
+            cs = self._contact_set
+            self.contacts_last_step = cs.update(x0, v0, self.arrays.mass, self.stepper.h, self.world.dt, do_sync,
+                                                self.world.shared_bodies(self.name) if cs.free_bodies else ())
+            if cs.free_bodies:
+                self.world.touched_by_model(self.name, cs.touched_free_bodies())
         record = do_sync and self.steps % self.record_every == 0
         inp = self._step_input(do_sync, record, idx_arr, pos, vel)
         active = self.grip.active
@@ -382,17 +385,22 @@ class BulletCable:
     def _step_input(self, do_sync: bool, record: bool, index: np.ndarray, pos: np.ndarray,
                     vel: np.ndarray) -> StepInput:
         """What the kernel needs from this step: time, flags, the touched spheres' read-back state."""
-        return self.solver.step_input(self.t, self.steps, do_sync, record, self.contacts, index, pos, vel)
+        # a re-plan (not do_sync) starts BDF2 afresh: the step's first plan already stored its history
+        return self.solver.step_input(self.t, self.steps if do_sync else 0, do_sync, record, self.contacts, index, pos,
+                                      vel)
 
     def _kernel_args(self, inp: StepInput) -> tuple:
         """Arguments of :func:`~bullet_dlo.bullet.kernels.sync_and_advance` (the same objects every step)."""
         return self.solver.kernel_args(self.arrays, self.control, self.contacts, inp)
 
-    def apply_forces(self) -> None:
-        """Apply the forces planned for the coming Bullet step (nothing once unstable)."""
+    def apply_forces(self, replan: bool = False) -> None:
+        """Apply the forces planned for the coming Bullet step (nothing once unstable); ``replan``: plan the step
+        again first (the world's bodies changed since it was planned)."""
         solver = self.solver
         if solver.status != STABLE:
             return
+        if replan and self.model_contact:  # bodies added since the coming step was planned: plan it again with
+            self._replan()  # them (a free body placed on the cable meets it in its first step)
         if self.proxy:  # parked spheres: Bullet does not move them (module doc); the touched bodies' reactions only
             if self._fresh:
                 self._hold_fresh()

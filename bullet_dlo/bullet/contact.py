@@ -96,7 +96,9 @@ class Shapes(NamedTuple):
     velocity; static_friction, dynamic_friction (B,): combined friction coefficients with the cable; inv_mass (B,) [1/kg]
     and inv_inertia (B,) [1/(kg m^2)]: the body's inverse mass and the largest eigenvalue of its
     inverse inertia (both 0 for a static body); owner (B,) int: the first shape of the same body and
-    link (the shapes of one link share its inertia).
+    link (the shapes of one link share its inertia); slot (B,) int: the free body's slot in the contact step's
+    :class:`~bullet_dlo.core.kernels.contact.Bodies` (-1: static, or a link of an articulated body); inertia
+    (B, 3, 3) [kg m^2]: a free body's inertia tensor in the world frame now (zero otherwise).
     """
 
     kind: np.ndarray
@@ -111,6 +113,8 @@ class Shapes(NamedTuple):
     inv_mass: np.ndarray
     inv_inertia: np.ndarray
     owner: np.ndarray
+    slot: np.ndarray
+    inertia: np.ndarray
 
 
 class Store(NamedTuple):
@@ -331,21 +335,20 @@ class ContactSet:
     row's when the cable is near it; dynamic links (mass > 0) also their velocities, and they receive
     the contact forces (:meth:`apply_to_bodies`, on their link) during the coming Bullet step.
 
-    Two-way contact with a dynamic body: the cable's implicit step sees the body's surface move
-    at the body's velocity, but Bullet then moves the body under the contact force too. With the
-    penalty stiffness k_n = alpha m_k / h^2 (alpha = 1e4) and a body of mass M, that force, explicit
-    for the body, has k_n h^2 / M = alpha m_k / M per contact: 500 for a 30 g box on one 1.6 g node, far past
-    the explicit limit (about 1), so a box resting on a cable was thrown off at tens of m/s. The
-    detector therefore condenses the body's own inertia into its contacts (:func:`_condense_bodies`):
-    lambda [1/s^2], the body's fastest contact mode squared (largest eigenvalue of the 6 x 6
-    stiffness of its loaded contacts scaled by 1/M and 1/I_min, both upper bounds), scales every
-    contact on the body, stiffness, damping and friction cap, by 1 / (1 + h^2 lambda), h [s] the
-    Bullet step. For a body resting on N equal contacts that is the penalty in series with the
-    body's inertial "spring" M / (N h^2): the force leaves spring and body consistent at the end of
-    the step, and the body meets at most lambda h^2 / (1 + lambda h^2) < 1 per step (stable). At
-    rest the body sinks by about g h^2 more (its fall in one step: 0.2-0.4 mm at 240 Hz, 0.02 mm at
-    1 kHz); static bodies keep the full stiffness. The inertia is read at set-up (a later
-    changeDynamics of mass is not seen).
+    Two-way contact with a dynamic body. A free body (one dynamic link, no joints) moves inside the cable's
+    implicit step (:class:`~bullet_dlo.core.kernels.contact.Bodies`): its end-of-step velocity is solved with the
+    cable's, and the reactions applied to it during the coming Bullet step make Bullet's semi-implicit update
+    land on that velocity when nothing else touches it. A body that Bullet also supports (a contact with the
+    ground or another body in the last step) or that another cable touches, and every link of an articulated
+    body (the arms), meets the cable explicitly through Bullet instead: with the penalty stiffness k_n = alpha
+    m_k / h^2 (alpha = 1e4) and a body of mass M that force has k_n h^2 / M = alpha m_k / M per contact, 500 for
+    a 30 g box on one 1.6 g node, far past the explicit limit (about 1), so the detector condenses the body's
+    inertia into those contacts (:func:`_condense_bodies`): lambda [1/s^2], the body's fastest contact mode
+    squared (largest eigenvalue of the 6 x 6 stiffness of its loaded contacts scaled by 1/M and 1/I_min, both
+    upper bounds), scales every contact on the body, stiffness, damping and friction cap, by 1 / (1 + h^2
+    lambda), h [s] the Bullet step: the penalty in series with the body's inertia, stable, but the body sinks
+    about g h^2 more at rest (0.2-0.4 mm at 240 Hz, 2.7 mm at 60 Hz). Static bodies keep the full stiffness.
+    The inertia is read at set-up (a later changeDynamics of mass is not seen).
 
     The energy check counts the work the bodies did on the cable with their velocity after
     Bullet's step (what they actually did), so energy a body gains from contact shows up as
@@ -393,8 +396,11 @@ class ContactSet:
                 info = pb.getDynamicsInfo(body, link, physicsClientId=client)
                 mass, mu_b = info[0:2]
                 i_min = min(info[2]) if mass > 0.0 else 0.0
+                # a free body (one dynamic link, no joints) moves in the cable's step (contact.Bodies); the links
+                # of an articulated body (an arm) keep the condensed contact (_condense_bodies)
+                free = mass > 0.0 and link < 0 and pb.getNumJoints(body, physicsClientId=client) == 0 and i_min > 0.0
                 common = (mass > 0.0, float(mu_b), 1.0 / mass if mass > 0.0 else 0.0,
-                          1.0 / i_min if i_min > 0.0 else 0.0, frozenset(out))
+                          1.0 / i_min if i_min > 0.0 else 0.0, frozenset(out), free, np.asarray(info[2], float))
                 hull = (self._hull(body, link, data, radius)
                         if EXACT_HULLS and len(data) == 1 and data[0][2] == pb.GEOM_MESH else None)
                 if hull is not None:  # a convex hull Bullet agrees with: the project's exact geometry
@@ -427,12 +433,18 @@ class ContactSet:
         nb = len(rows)
         mu_b = np.array([r[7] for r in rows])
         pairs = [(r[0], r[1]) for r in rows]
+        free_bodies = sorted({r[0] for r in rows if r[11]})
+        self.free_bodies = free_bodies  # body ids of the free bodies, by slot (contact.Bodies)
+        self._inertia_diag = np.array([r[12] for r in rows]).reshape(nb, 3)  # [kg m^2] principal, CoM frame
         self.shapes = Shapes(kind=np.array([r[2] for r in rows], dtype=np.int64), pos=np.zeros((nb, 3)),
                              rot=np.zeros((nb, 3, 3)), size=np.array([r[5] for r in rows]).reshape(nb, 3),
                              com=np.zeros((nb, 3)), lin_vel=np.zeros((nb, 3)), ang_vel=np.zeros((nb, 3)),
                              static_friction=np.sqrt(mu_s * mu_b), dynamic_friction=np.sqrt(mu_d * mu_b),
                              inv_mass=np.array([r[8] for r in rows]), inv_inertia=np.array([r[9] for r in rows]),
-                             owner=np.array([pairs.index(pr) for pr in pairs], dtype=np.int64))
+                             owner=np.array([pairs.index(pr) for pr in pairs], dtype=np.int64),
+                             slot=np.array([free_bodies.index(r[0]) if r[11] else -1 for r in rows], dtype=np.int64),
+                             inertia=np.zeros((nb, 3, 3)))
+        self._free_slot = self.shapes.slot.copy()  # each row's slot; -1 in shapes.slot while the body is shared
         self._probe_rows = {pairs[s]: s for s in range(self.n_exact, nb)}
         self._probe_out = np.zeros((nb, n), np.bool_)  # nodes that do not touch a probed link or a hull
         for s in range(nb):
@@ -465,7 +477,10 @@ class ContactSet:
         capacity = max(1, nb * (n + 2 * (n - 1)) + 4 * n + 2 * n * len(self.other_cables))
         # self-contact friction: the cable's own coefficients (negative: no self-contact)
         self.self_mu = np.array([mu_s, mu_d]) if self_contact else np.array([-1.0, -1.0])
-        self.contacts: Contacts = make_contacts(n, capacity, radius, grip)  # grip: the cable's, kept across sets
+        self.contacts: Contacts = make_contacts(n, capacity, radius, grip, len(free_bodies))  # grip: the cable's
+        par = pb.getPhysicsEngineParameters(physicsClientId=client)  # the bodies fall by the world's gravity
+        self.contacts.bodies.gravity[:] = [par["gravityAccelerationX"], par["gravityAccelerationY"],
+                                           par["gravityAccelerationZ"]]
         self.store = Store(anchor=np.zeros((nkeys, 4)), state=np.zeros(nkeys, np.int64),
                            active=np.zeros(nkeys, np.bool_), keys=np.zeros(capacity, np.int64),
                            body=np.zeros(capacity, np.int64), wrap=np.zeros(nkeys, np.bool_))
@@ -566,6 +581,8 @@ class ContactSet:
         sh.com[s] = com
         sh.pos[s] = np.asarray(com) + rot @ lpos
         sh.rot[s] = rot @ lrot
+        if self._free_slot[s] >= 0:  # the base's frame is its inertial frame: principal axes
+            sh.inertia[s] = (rot * self._inertia_diag[s]) @ rot.T
 
     def _read_poses(self) -> None:
         """Every shape's body pose (velocity too where it moves by dynamics): static bodies too, as a
@@ -583,10 +600,17 @@ class ContactSet:
             self.shapes.lin_vel[:self.n_exact][dyn] = bases[dyn, 7:10]
             self.shapes.ang_vel[:self.n_exact][dyn] = bases[dyn, 10:13]
 
-    def update(self, x: np.ndarray, v: np.ndarray, mass: np.ndarray, h: float, dt: float, stepped: bool) -> int:
+    def update(self, x: np.ndarray, v: np.ndarray, mass: np.ndarray, h: float, dt: float, stepped: bool,
+               shared=()) -> int:
         """Read the moving bodies, detect the contacts of positions x [m] (n, 3) for a cable step of h [s]
         within a Bullet step of dt [s]; ``stepped``: Bullet has taken the step the last contacts were
-        planned for (their work is then counted with the bodies' velocities read now)."""
+        planned for (their work is then counted with the bodies' velocities read now). ``shared``: free bodies
+        this cable's step may not move by itself (the ground or another cable also holds them): they keep the
+        condensed contact (:func:`_condense_bodies`) this step."""
+        if self.free_bodies:
+            self.shapes.slot[:] = self._free_slot
+            if shared:
+                self.shapes.slot[np.isin(self.body_ids, list(shared))] = -1
         self._read_poses()
         if self.other_cables:
             self._read_others(dt)
@@ -602,6 +626,13 @@ class ContactSet:
         if self._any_dynamic and count:
             self._report_bodies_inside(x, count, dt)
         return count
+
+    def touched_free_bodies(self) -> list[int]:
+        """The free bodies (by body id) some contact of the coming step touches."""
+        c, st = self.contacts, self.store
+        rows = st.body[:int(c.count[0])]
+        slots = self._free_slot[rows[rows >= 0]]
+        return [self.free_bodies[s] for s in np.unique(slots[slots >= 0]).tolist()]
 
     def _report_bodies_inside(self, x: np.ndarray, count: int, dt: float) -> None:
         """Warn, once per body, when a dynamic body holds part of the cable's centre line (x [m]) deeper than
@@ -637,6 +668,8 @@ class ContactSet:
             com, orn, lin, ang = st[0], st[1], st[6], st[7]
         sh.com[s] = sh.pos[s] = com
         sh.rot[s] = _rotation(orn)
+        if self._free_slot[s] >= 0:
+            sh.inertia[s] = (sh.rot[s] * self._inertia_diag[s]) @ sh.rot[s].T
         sh.lin_vel[s] = lin
         sh.ang_vel[s] = ang
 
@@ -809,11 +842,15 @@ def _body_loads(c, body, dynamic, com, force, torque, touched):
             used[s] = True
             force[s, :] = 0.0
             torque[s, :] = 0.0
-        fn = max(c.f_n[k], 0.0)
+        if c.slot[k] >= 0:  # a free body: the reaction its step solved with (the damper may pull), at its arm
+            fn = c.f_n[k]
+            a0, a1, a2 = c.arm[k, 0], c.arm[k, 1], c.arm[k, 2]
+        else:
+            fn = max(c.f_n[k], 0.0)
+            a0, a1, a2 = c.point[k, 0] - com[s, 0], c.point[k, 1] - com[s, 1], c.point[k, 2] - com[s, 2]
         f0 = -(fn * c.normal[k, 0] + c.f_t[k, 0])
         f1 = -(fn * c.normal[k, 1] + c.f_t[k, 1])
         f2 = -(fn * c.normal[k, 2] + c.f_t[k, 2])
-        a0, a1, a2 = c.point[k, 0] - com[s, 0], c.point[k, 1] - com[s, 1], c.point[k, 2] - com[s, 2]
         force[s, 0] += f0
         force[s, 1] += f1
         force[s, 2] += f2
@@ -964,6 +1001,8 @@ def _add_row(c, st, key, shape, ia, ib, wa, wb, sh, k_per_mass, zeta, mass, x):
     c.internal[k] = False
     mk = wa * mass[ia] + wb * mass[ib]  # stiffness by the mass at the contact point
     _fill(c, st, key, shape, ia, ib, wa, wb, sh.static_friction[shape], sh.dynamic_friction[shape], k_per_mass * mk, zeta, mk, x)
+    c.slot[k] = sh.slot[shape]
+    c.arm[k, 0], c.arm[k, 1], c.arm[k, 2] = a0, a1, a2
 
 
 @njit(cache=True, error_model="numpy", inline="always")  # a call passes ~45 arrays (refcounts): 2 us a row
@@ -972,6 +1011,7 @@ def _fill(c, st, key, shape, ia, ib, wa, wb, mu_s, mu_d, k_n, zeta, mk, x):
     ratio zeta for the mass mk [kg]), friction, friction state."""
     k = c.count[0]
     c.kind[k] = PENALTY
+    c.slot[k] = -1
     c.node[k, 0], c.node[k, 1] = ia, ib
     c.weight[k, 0], c.weight[k, 1] = wa, wb
     c.k_n[k] = k_n
@@ -1499,11 +1539,28 @@ def detect(x, v, mass, sh, c, st, h, k_per_mass, zeta, self_mu, h_body, h_done, 
         _cable_contacts(x, mass, c, st, oc, sh.kind.shape[0] * per_shape + 2 * (n - 1) ** 2,
                         margin + 2.0 * oc.vmax[0] * h_body, k_per_mass, zeta)
     _condense_bodies(c, st, sh, x, v, h_body)
+    _load_free_bodies(c, sh)
     for k in range(previous.shape[0]):  # active: in contact this step (what the next step continues)
         st.active[previous[k]] = False
     for k in range(c.count[0]):
         st.active[st.keys[k]] = True
     return c.count[0]
+
+
+@njit(cache=True, error_model="numpy")
+def _load_free_bodies(c, sh):
+    """The free bodies' mass, world inertia and velocity now into the contact step's Bodies (c.bodies)."""
+    bd = c.bodies
+    for s in range(sh.kind.shape[0]):
+        o = sh.slot[s]
+        if o < 0:
+            continue
+        bd.mass[o] = 1.0 / sh.inv_mass[s]
+        for j in range(3):
+            bd.vel[o, j] = sh.lin_vel[s, j]
+            bd.vel[o, 3 + j] = sh.ang_vel[s, j]
+            for q in range(3):
+                bd.inertia[o, j, q] = sh.inertia[s, j, q]
 
 
 @njit(cache=True, error_model="numpy")
@@ -1526,7 +1583,7 @@ def _condense_bodies(c, st, sh, x, v, h):
     any_dynamic = False
     for k in range(count):
         s = st.body[k]
-        if s >= 0 and sh.inv_mass[s] > 0.0:
+        if s >= 0 and sh.inv_mass[s] > 0.0 and sh.slot[s] < 0:
             any_dynamic = True
             break
     if not any_dynamic:
@@ -1536,7 +1593,7 @@ def _condense_bodies(c, st, sh, x, v, h):
     r = np.empty(3)
     for k in range(count):
         s = st.body[k]
-        if s < 0 or sh.inv_mass[s] <= 0.0:
+        if s < 0 or sh.inv_mass[s] <= 0.0 or sh.slot[s] >= 0:  # free bodies: in the step's solve instead
             continue
         a, b = c.node[k, 0], c.node[k, 1]
         wa, wb = c.weight[k, 0], c.weight[k, 1]
@@ -1602,7 +1659,7 @@ def _condense_bodies(c, st, sh, x, v, h):
         lam[o] = est
     for k in range(count):
         s = st.body[k]
-        if s >= 0 and sh.inv_mass[s] > 0.0:
+        if s >= 0 and sh.inv_mass[s] > 0.0 and sh.slot[s] < 0:
             scale = 1.0 / (1.0 + h * h * lam[sh.owner[s]])
             c.k_n[k] *= scale
             c.k_t[k] *= scale

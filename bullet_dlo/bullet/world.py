@@ -86,6 +86,13 @@ class BulletWorld:
             pb.setPhysicsEngineParameter(numSolverIterations=int(solver_iterations), physicsClientId=self.client)
         self.cables: dict[str, BulletCable] = {}
         self._owners: dict[int, tuple[str, int]] = {}  # sphere body id -> (cable name, mass index)
+        # free bodies that a cable's step may not move by itself (contact.Bodies): those in a Bullet contact
+        # in the last step (the ground or another body supports them) and, per cable, the free bodies touched by
+        # the model's contacts of each cable in the last step (a body on two cables is moved by neither alone)
+        self.supported_bodies: set[int] = set()
+        self.model_touches: dict[int, set[str]] = {}
+        self._model_touches_now: dict[int, set[str]] = {}
+        self.bodies_added = False  # a dynamic body was added since the cables planned their coming step
         self.bodies: dict[int, str] = {}  # non-cable bodies and their names (for messages)
         # bodies left out of every cable's contact model (a scene obstacle's ``contact: false``); a cable's
         # own exclusions: BulletCable.exclude_contact. Read when a cable (re)builds its contact set.
@@ -159,6 +166,7 @@ class BulletWorld:
         except pb.error as err:
             raise ParameterError(f"could not load URDF {str(file)!r}: {err}") from None
         self.bodies[body] = name or file.stem
+        self.bodies_added = self.bodies_added or not fixed
         return body
 
     def _add_body(self, col: int, vis: int, position, orientation, mass, friction, name) -> int:
@@ -172,6 +180,7 @@ class BulletWorld:
         pb.changeDynamics(body, -1, lateralFriction=check_nonnegative("friction", friction),
                           physicsClientId=self.client)
         self.bodies[body] = name
+        self.bodies_added = self.bodies_added or mass > 0
         return body
 
     def next_cable_group(self) -> int:
@@ -338,9 +347,23 @@ class BulletWorld:
                 hook()
 
     def push_cables(self) -> None:
-        """Phase 1 of :meth:`step`: every cable's sphere forces to Bullet."""
+        """Phase 1 of :meth:`step`: every cable's sphere forces to Bullet (a cable first plans its coming step again
+        when a dynamic body was added since it was planned: a body placed on the cable meets it in its first step;
+        a static one joins the next step's contacts)."""
+        replan, self.bodies_added = self.bodies_added, False
         for c in self.cables.values():
-            c.apply_forces()
+            c.apply_forces(replan)
+
+    def shared_bodies(self, cable: str) -> set[int]:
+        """The free bodies the cable named ``cable`` may not move in its own step: supported in Bullet, or touched
+        by another cable's contacts, in the last step."""
+        others = {b for b, names in self.model_touches.items() if names - {cable}}
+        return self.supported_bodies | others
+
+    def touched_by_model(self, cable: str, bodies) -> None:
+        """Record the free bodies the model's contacts of ``cable`` touch in the step being planned."""
+        for b in bodies:
+            self._model_touches_now.setdefault(b, set()).add(cable)
 
     def step_physics(self) -> None:
         """Phase 4 of :meth:`step`: Bullet's own step; the clock advances by ``dt``."""
@@ -353,6 +376,10 @@ class BulletWorld:
         for the world) and every cable takes its own step."""
         cables = list(self.cables.values())
         contacts = self.contacts() if cables else ()
+        owners = self._owners
+        self.supported_bodies = {b for cp in contacts if cp[1] not in owners and cp[2] not in owners
+                                 for b in (cp[1], cp[2])}
+        self.model_touches, self._model_touches_now = self._model_touches_now, {}
         # cables touching each other through the model read the ones still pending as held where they
         # are, the ones done as moving over their planned step (see ContactSet._read_others)
         self._pending = {c.name for c in cables}

@@ -42,6 +42,7 @@ import numpy as np
 from numba import njit
 
 from bullet_dlo.core.kernels.banded import HALF
+from bullet_dlo.core.kernels.gauss_legendre import gl_band_factor, gl_band_substitute
 from bullet_dlo.core.kernels.forces import _angle_terms, _bend_hessian
 from bullet_dlo.core.kernels.twist import has_twist, set_clamp, twist_ready, twist_step
 from bullet_dlo.core.kernels.steppers import (
@@ -93,6 +94,49 @@ def make_grip() -> Grip:
                 force=f((2, 3)))
 
 
+class Bodies(NamedTuple):
+    """Free rigid bodies (S slots) whose motion the contact step solves together with the cable's.
+
+    A dynamic body that Bullet moves only under the cable's force would meet the stiff contact
+    spring explicitly (k h^2 / M of hundreds): thrown off, or, softened, sinking g h^2 per step into
+    the cable. So each free body (a single rigid link, no joints) in contact is a 6-DOF unknown of
+    the cable's implicit step, delta = (U', Omega') its velocity at the end of the step: the
+    contact's body point moves by h (U' + Omega' x arm), and the body obeys backward Euler,
+    M (U' - U) = h (M g + F), I (Omega' - Omega) = h tau, with F, tau the contacts' reactions; Bullet's
+    semi-implicit update under those reactions lands the body on the same velocity (when nothing else
+    touches it). See docs/concepts/contact.md, "Bodies resting on the cable".
+
+    active (S,) bool: touched by a row this step; mass (S,) [kg]; inertia (S, 3, 3) [kg m^2] world
+    frame at the start of the step; gravity (3,) [m/s^2] of the bodies' world; vel (S, 6) [m/s, rad/s]
+    at the start of the step; vel_new, vel_try (S, 6): Newton's iterate and the line search's trial;
+    step (S, 6): Newton's direction; residual (S, 6) [N s, N m s] of the velocities the contact
+    rows hold now (:func:`load_bodies`); coupling (3n, 6S), schur (6S, 6S), work (3n,): scratch of
+    :func:`coupled_solve`.
+    """
+
+    active: np.ndarray
+    mass: np.ndarray
+    inertia: np.ndarray
+    gravity: np.ndarray
+    vel: np.ndarray
+    vel_new: np.ndarray
+    vel_try: np.ndarray
+    step: np.ndarray
+    residual: np.ndarray
+    coupling: np.ndarray
+    schur: np.ndarray
+    work: np.ndarray
+
+
+def make_bodies(n: int, slots: int) -> Bodies:
+    """Room for ``slots`` free bodies touching an n-node cable (none active)."""
+    s = int(slots)
+    f = np.zeros
+    return Bodies(active=np.zeros(s, np.bool_), mass=f(s), inertia=f((s, 3, 3)), gravity=f(3), vel=f((s, 6)),
+                  vel_new=f((s, 6)), vel_try=f((s, 6)), step=f((s, 6)), residual=f((s, 6)),
+                  coupling=f((3 * n, 6 * s)), schur=f((6 * s, 6 * s)), work=f(3 * n))
+
+
 class Contacts(NamedTuple):
     """The contacts of one cable for the coming step (capacity M rows; the first ``count[0]`` used).
 
@@ -120,6 +164,10 @@ class Contacts(NamedTuple):
     then bends the shared node while both paths wrap), else 0.0, anchor[k, 3] the material fraction sigma of the segment on node[k, 0]'s side of the
     edge (the friction anchor); normal, f_n: the direction and size of the edge's push on the cable
     (results), cap [N]: the capstan's friction limit.
+    Free bodies solved with the cable (:class:`Bodies`, field ``bodies``): slot (M,) int, the row's body slot
+    (-1: a static body, a link of an articulated body, the cable itself or another cable: its surface moves at
+    body_vel); arm (M, 3) [m]: the row's surface point from the body's centre of mass at the start of the step;
+    point0, anchor0 (M, 3) [m]: the row's surface point and anchor at the start of the step.
     """
 
     count: np.ndarray
@@ -148,11 +196,17 @@ class Contacts(NamedTuple):
     axis: np.ndarray
     side: np.ndarray
     seg: np.ndarray
+    slot: np.ndarray
+    arm: np.ndarray
+    point0: np.ndarray
+    anchor0: np.ndarray
+    bodies: Bodies
 
 
-def make_contacts(n: int, capacity: int, radius: float, grip: Grip | None = None) -> Contacts:
+def make_contacts(n: int, capacity: int, radius: float, grip: Grip | None = None, slots: int = 0) -> Contacts:
     """Empty contact arrays for an n-node cable of radius [m], room for ``capacity`` contacts
-    (``grip``: the cable's grips, shared between successive contact sets; None: inactive ones)."""
+    (``grip``: the cable's grips, shared between successive contact sets; None: inactive ones) and
+    ``slots`` free bodies solved with the cable (:class:`Bodies`)."""
     m = max(1, int(capacity))
     f = np.zeros
     return Contacts(count=np.zeros(1, np.int64), radius=np.full(1, float(radius)), node=np.zeros((m, 2), np.int64),
@@ -161,7 +215,8 @@ def make_contacts(n: int, capacity: int, radius: float, grip: Grip | None = None
                     f_t=f((m, 3)), cap=f(m), body_work=f(1), impact=np.zeros(1, np.int64),
                     internal=np.zeros(m, np.bool_), node_force=f((n, 3)),
                     grip=grip if grip is not None else make_grip(), kind=np.zeros(m, np.int64),
-                    axis=f((m, 3)), side=f((m, 3)), seg=f((m, 6)))
+                    axis=f((m, 3)), side=f((m, 3)), seg=f((m, 6)), slot=np.full(m, -1, np.int64), arm=f((m, 3)),
+                    point0=f((m, 3)), anchor0=f((m, 3)), bodies=make_bodies(n, slots))
 
 
 # ----- the grips -----------------------------------------------------------------------------
@@ -880,6 +935,298 @@ def elastic_caps(c, x, out):
         out[k] = mu * c.k_n[k] * (-g) if g < 0.0 else 0.0
 
 
+# ----- free bodies solved with the cable (see Bodies) ---------------------------------------------
+@njit(cache=True, error_model="numpy")
+def start_bodies(c, h):
+    """Start of a contact step of h [s]: mark the body slots some row touches, keep every row's surface
+    point and anchor at the start (point0, anchor0) and start Newton's body iterate at the bodies' velocity;
+    rows on other moving surfaces (slot -1) move at their body_vel over the step. Returns the active slots."""
+    bd = c.bodies
+    for s in range(bd.active.shape[0]):
+        bd.active[s] = False
+        for j in range(6):
+            bd.vel_new[s, j] = bd.vel[s, j]
+    for k in range(c.count[0]):
+        s = c.slot[k]
+        for j in range(3):
+            c.point0[k, j] = c.point[k, j]
+            c.anchor0[k, j] = c.anchor[k, j]
+        if s >= 0:
+            bd.active[s] = True
+        else:
+            for j in range(3):
+                c.point[k, j] += h * c.body_vel[k, j]
+                c.anchor[k, j] += h * c.body_vel[k, j]
+    active = 0
+    for s in range(bd.active.shape[0]):
+        if bd.active[s]:
+            active += 1
+    return active
+
+
+@njit(cache=True, error_model="numpy")
+def load_bodies(c, h, vel):
+    """Put the free bodies at end-of-step velocities vel (S, 6) [m/s, rad/s] into their rows: body_vel = U +
+    Omega x arm, the surface point and the anchor moved from the start of the step by h [s] times it."""
+    for k in range(c.count[0]):
+        s = c.slot[k]
+        if s < 0:
+            continue
+        a0, a1, a2 = c.arm[k, 0], c.arm[k, 1], c.arm[k, 2]
+        w0, w1, w2 = vel[s, 3], vel[s, 4], vel[s, 5]
+        c.body_vel[k, 0] = vel[s, 0] + w1 * a2 - w2 * a1
+        c.body_vel[k, 1] = vel[s, 1] + w2 * a0 - w0 * a2
+        c.body_vel[k, 2] = vel[s, 2] + w0 * a1 - w1 * a0
+        for j in range(3):
+            c.point[k, j] = c.point0[k, j] + h * c.body_vel[k, j]
+            c.anchor[k, j] = c.anchor0[k, j] + h * c.body_vel[k, j]
+
+
+@njit(cache=True, error_model="numpy")
+def body_residual(c, h, vel):
+    """bodies.residual <- h (M g + F) - M (U - U_0) and h tau - I (Omega - Omega_0) [N s, N m s] of the
+    velocities vel (S, 6) the rows hold (:func:`load_bodies`), F and tau the reactions of the rows' forces
+    c.f_n, c.f_t (minus the force on the cable, at the arm); zero for inactive slots."""
+    bd = c.bodies
+    res = bd.residual
+    for s in range(bd.active.shape[0]):
+        for j in range(6):
+            res[s, j] = 0.0
+        if not bd.active[s]:
+            continue
+        for j in range(3):
+            res[s, j] = bd.mass[s] * (h * bd.gravity[j] - (vel[s, j] - bd.vel[s, j]))
+            acc = 0.0
+            for q in range(3):
+                acc += bd.inertia[s, j, q] * (vel[s, 3 + q] - bd.vel[s, 3 + q])
+            res[s, 3 + j] = -acc
+    for k in range(c.count[0]):
+        s = c.slot[k]
+        if s < 0:
+            continue
+        f0 = -(c.f_n[k] * c.normal[k, 0] + c.f_t[k, 0])
+        f1 = -(c.f_n[k] * c.normal[k, 1] + c.f_t[k, 1])
+        f2 = -(c.f_n[k] * c.normal[k, 2] + c.f_t[k, 2])
+        a0, a1, a2 = c.arm[k, 0], c.arm[k, 1], c.arm[k, 2]
+        res[s, 0] += h * f0
+        res[s, 1] += h * f1
+        res[s, 2] += h * f2
+        res[s, 3] += h * (a1 * f2 - a2 * f1)
+        res[s, 4] += h * (a2 * f0 - a0 * f2)
+        res[s, 5] += h * (a0 * f1 - a1 * f0)
+
+
+@njit(cache=True, error_model="numpy")
+def body_potential(c, h, vel):
+    """The free bodies' part [J] of the step's incremental potential at velocities vel (S, 6): 1/2 (delta -
+    delta_0)^T M_b (delta - delta_0) - h M g . U (implicit Euler; the rows' contact potential is the cable's)."""
+    bd = c.bodies
+    phi = 0.0
+    for s in range(bd.active.shape[0]):
+        if not bd.active[s]:
+            continue
+        for j in range(3):
+            du = vel[s, j] - bd.vel[s, j]
+            phi += 0.5 * bd.mass[s] * du * du - h * bd.mass[s] * bd.gravity[j] * vel[s, j]
+            for q in range(3):
+                phi += 0.5 * (vel[s, 3 + j] - bd.vel[s, 3 + j]) * bd.inertia[s, j, q] * (vel[s, 3 + q] - bd.vel[s, 3 + q])
+    return phi
+
+
+@njit(cache=True, error_model="numpy")
+def bodies_converged(c, h, tol, floor):
+    """Whether every active body's residual is within ``tol`` of its momentum scale (h M |g| plus its momentum
+    change; for rotation the same times its radius of gyration plus I |dOmega|), plus a round-off ``floor``
+    [N s] (the cable's, of the stiff springs' forces)."""
+    bd = c.bodies
+    g = math.sqrt(bd.gravity[0] ** 2 + bd.gravity[1] ** 2 + bd.gravity[2] ** 2)
+    for s in range(bd.active.shape[0]):
+        if not bd.active[s]:
+            continue
+        m = bd.mass[s]
+        i_max = max(bd.inertia[s, 0, 0], bd.inertia[s, 1, 1], bd.inertia[s, 2, 2])
+        du = 0.0
+        dw = 0.0
+        rl = 0.0
+        ra = 0.0
+        for j in range(3):
+            du = max(du, abs(bd.vel_new[s, j] - bd.vel[s, j]))
+            dw = max(dw, abs(bd.vel_new[s, 3 + j] - bd.vel[s, 3 + j]))
+            rl = max(rl, abs(bd.residual[s, j]))
+            ra = max(ra, abs(bd.residual[s, 3 + j]))
+        lin = h * m * g + m * du
+        if not rl <= tol * lin + floor:  # (NaN fails too)
+            return False
+        if not ra <= tol * (lin * math.sqrt(i_max / m) + i_max * dw) + floor * math.sqrt(i_max / m):
+            return False
+    return True
+
+
+@njit(cache=True, error_model="numpy")
+def _end_bodies(c, h):
+    """After the step of h [s]: the free bodies' solved velocity is their start for a next sub-step, and each
+    row's arm turns with the body (the points stay where the step left them)."""
+    bd = c.bodies
+    for k in range(c.count[0]):
+        s = c.slot[k]
+        if s < 0:
+            continue
+        a0, a1, a2 = c.arm[k, 0], c.arm[k, 1], c.arm[k, 2]
+        w0, w1, w2 = bd.vel_new[s, 3], bd.vel_new[s, 4], bd.vel_new[s, 5]
+        c.arm[k, 0] += h * (w1 * a2 - w2 * a1)
+        c.arm[k, 1] += h * (w2 * a0 - w0 * a2)
+        c.arm[k, 2] += h * (w0 * a1 - w1 * a0)
+    for s in range(bd.active.shape[0]):
+        if bd.active[s]:
+            for j in range(6):
+                bd.vel[s, j] = bd.vel_new[s, j]
+
+
+@njit(cache=True, error_model="numpy")
+def _dense_solve(a, b, size):
+    """Solve a[:size, :size] y = b[:size] in place (Gaussian elimination with partial pivoting; a destroyed)."""
+    for k in range(size):
+        p = k
+        for i in range(k + 1, size):
+            if abs(a[i, k]) > abs(a[p, k]):
+                p = i
+        if p != k:
+            for j in range(size):
+                a[k, j], a[p, j] = a[p, j], a[k, j]
+            b[k], b[p] = b[p], b[k]
+        for i in range(k + 1, size):
+            f = a[i, k] / a[k, k]
+            if f == 0.0:
+                continue
+            for j in range(k, size):
+                a[i, j] -= f * a[k, j]
+            b[i] -= f * b[k]
+    for k in range(size - 1, -1, -1):
+        acc = b[k]
+        for j in range(k + 1, size):
+            acc -= a[k, j] * b[j]
+        b[k] = acc / a[k, k]
+
+
+@njit(cache=True, error_model="numpy")
+def coupled_solve(c, held, x, kx, kv, band, r):
+    """Newton's direction of the cable and the free bodies together: r (3n,) [N s] in, the cable's direction
+    dv [m/s] out (in place); the bodies' direction into bodies.step, from their residual bodies.residual.
+
+    The system [[A, C], [C^T, D]] with A the cable's Newton matrix (``band``, destroyed: factorised once), C
+    (3n, 6S) the rows' coupling -(w G) J and D = M_b + sum J^T G J, where G = kx (-dF/dx) + kv (-dF/dv) is a
+    row's 3x3 contact stiffness (normal at the closest point's weights w, friction at the anchor's) and J =
+    [I, -[arm]x] maps a body's (U', Omega') to its surface point's velocity; solved by the Schur complement
+    S = D - C^T A^-1 C (6S x 6S, dense). Held nodes keep their identity rows (no coupling).
+    """
+    bd = c.bodies
+    ns = bd.active.shape[0]
+    size = 6 * ns
+    C, D, work = bd.coupling, bd.schur, bd.work
+    C[:, :] = 0.0
+    D[:, :] = 0.0
+    for s in range(ns):
+        for j in range(3):
+            if bd.active[s]:
+                D[6 * s + j, 6 * s + j] = bd.mass[s]
+                for q in range(3):
+                    D[6 * s + 3 + j, 6 * s + 3 + q] = bd.inertia[s, j, q]
+            else:  # identity rows: a zero step
+                D[6 * s + j, 6 * s + j] = 1.0
+                D[6 * s + 3 + j, 6 * s + 3 + j] = 1.0
+    G = np.empty((2, 3, 3))
+    GJ = np.empty((3, 6))
+    J = np.zeros((3, 6))
+    u = np.empty(3)
+    wts = np.empty((2, 2))
+    for k in range(c.count[0]):
+        s = c.slot[k]
+        if s < 0:
+            continue
+        g = _gap(c, k, x)
+        ul = _slip(c, k, x, u)
+        kt, cap = c.k_t[k], c.cap[k]
+        stick = kt * ul <= cap and cap > 0.0
+        nv = c.normal[k]
+        for i in range(3):
+            for q in range(3):
+                nn = nv[i] * nv[q]
+                pt = (1.0 if i == q else 0.0) - nn
+                G[0, i, q] = (kx * c.k_n[k] + kv * c.c_n[k]) * nn if g < 0.0 else 0.0
+                if stick:
+                    G[1, i, q] = kx * kt * pt
+                elif ul > 0.0:
+                    G[1, i, q] = kx * (cap / ul) * (pt - u[i] * u[q] / (ul * ul))
+                else:
+                    G[1, i, q] = 0.0
+        a0, a1, a2 = c.arm[k, 0], c.arm[k, 1], c.arm[k, 2]
+        # J = [I, -[a]x]: -[a]x = [[0, a2, -a1], [-a2, 0, a0], [a1, -a0, 0]]
+        J[0, 0], J[1, 1], J[2, 2] = 1.0, 1.0, 1.0
+        J[0, 4], J[0, 5] = a2, -a1
+        J[1, 3], J[1, 5] = -a2, a0
+        J[2, 3], J[2, 4] = a1, -a0
+        wts[0, 0], wts[0, 1] = c.weight[k, 0], c.weight[k, 1]
+        wts[1, 0], wts[1, 1] = 1.0 - c.anchor[k, 3], c.anchor[k, 3]
+        for p in range(2):
+            for i in range(3):
+                for q in range(6):
+                    acc = 0.0
+                    for t in range(3):
+                        acc += G[p, i, t] * J[t, q]
+                    GJ[i, q] = acc
+            for i in range(6):  # D += J^T G J
+                for q in range(6):
+                    acc = 0.0
+                    for t in range(3):
+                        acc += J[t, i] * GJ[t, q]
+                    D[6 * s + i, 6 * s + q] += acc
+            for aa in range(2):  # C -= w G J on the row's nodes
+                na = c.node[k, aa]
+                w = wts[p, aa]
+                if w == 0.0 or held[na] or (aa == 1 and na == c.node[k, 0]):
+                    continue
+                if aa == 0 and c.node[k, 1] == na:  # a node contact: both weights on one node
+                    w = wts[p, 0] + wts[p, 1]
+                for i in range(3):
+                    for q in range(6):
+                        C[3 * na + i, 6 * s + q] -= w * GJ[i, q]
+    min_pivot = gl_band_factor(band, HALF)
+    gl_band_substitute(band, r, HALF)  # r <- y = A^-1 r
+    rb = bd.step  # right-hand side of the Schur system: R_b - C^T y
+    for s in range(ns):
+        for j in range(6):
+            col = 6 * s + j
+            acc = bd.residual[s, j] if bd.active[s] else 0.0
+            if bd.active[s]:
+                for i in range(r.shape[0]):
+                    acc -= C[i, col] * r[i]
+            rb[s, j] = acc
+    for col in range(size):  # S = D - C^T A^-1 C, one column per substitution
+        if not bd.active[col // 6]:
+            continue
+        for i in range(work.shape[0]):
+            work[i] = C[i, col]
+        gl_band_substitute(band, work, HALF)
+        for row in range(size):
+            if not bd.active[row // 6]:
+                continue
+            acc = 0.0
+            for i in range(work.shape[0]):
+                acc -= C[i, row] * work[i]
+            D[row, col] += acc
+    flat = rb.reshape(size)
+    _dense_solve(D, flat, size)
+    for i in range(work.shape[0]):  # dv = y - A^-1 C d_delta
+        acc = 0.0
+        for col in range(size):
+            acc += C[i, col] * flat[col]
+        work[i] = acc
+    gl_band_substitute(band, work, HALF)
+    for i in range(r.shape[0]):
+        r[i] -= work[i]
+    return min_pivot
+
+
 # ----- the implicit step with contacts ------------------------------------------------------
 @njit(cache=True, error_model="numpy")
 def _update_friction(c, x_end):
@@ -930,7 +1277,11 @@ def contact_step(stepper, m, x, v, samples, ws, has_prev, c):
     n = x.shape[0]
     if method == IMPLICIT_MIDPOINT:
         method = IMPLICIT_EULER
-    use_prev = has_prev and method == BDF2
+    # surface points and anchors on moving bodies: at the end of the step (where forces are evaluated); free
+    # bodies (c.bodies) move with the step's solve, by backward Euler: the step is then implicit Euler for the
+    # cable too (BDF2 keeps its history), so that cable and body share one incremental potential
+    bodies = start_bodies(c, h)
+    use_prev = has_prev and method == BDF2 and bodies == 0
     twisting = has_twist(m)
     if twisting:  # as advance does: the positions with the twist held, then the twist sub-step
         twist_ready(m, x, samples.dir[0])
@@ -943,12 +1294,9 @@ def contact_step(stepper, m, x, v, samples, ws, has_prev, c):
             gr.center[e, j] = samples.pos[2, e, j]
             gr.axis[e, j] = samples.dir[2, e, j]
             gr.vel[e, j] = samples.vel[2, e, j]
-    # surface points and anchors on moving bodies: at the end of the step (where forces are evaluated)
-    for k in range(c.count[0]):
-        for j in range(3):
-            c.point[k, j] += h * c.body_vel[k, j]
-            c.anchor[k, j] += h * c.body_vel[k, j]
     its, converged = newton(stepper, m, x, imp, ws, c, 1e-3, 10)
+    if bodies > 0:
+        _end_bodies(c, h)
     g_h = math.sqrt(m.gravity[0] ** 2 + m.gravity[1] ** 2 + m.gravity[2] ** 2) * h
     c.impact[0] = 0
     for k in range(c.count[0]):

@@ -390,12 +390,21 @@ def newton(stepper, m, x, imp, ws, c=None, cap_tol=1e-3, max_passes=10):
     nc = c.count[0]
     max_iter = max(stepper.max_iter, _contact.MIN_CONTACT_ITER)
     caps_new = np.empty(max(nc, 1))
+    bd = c.bodies  # free bodies solved with the cable (their velocities: bd.vel_new, started by the caller)
+    nb = 0
+    for s in range(bd.active.shape[0]):
+        nb += 1 if bd.active[s] else 0
+    if nb > 0:
+        _contact.load_bodies(c, imp.hf, bd.vel_new)
     _residual(m, imp, ws, vn, r)  # X at the predictor: caps from its penetration
     _contact.elastic_caps(c, ws.x_stage, c.cap)
     passes = 0
     while True:
         rnorm = _residual(m, imp, ws, vn, r, c)
-        if it > 0 and rnorm <= tol * (r_scale + _momentum_change(m, ws, vn)) + r_floor:
+        if nb > 0:
+            _contact.body_residual(c, imp.hf, bd.vel_new)
+        if (it > 0 and rnorm <= tol * (r_scale + _momentum_change(m, ws, vn)) + r_floor
+                and (nb == 0 or _contact.bodies_converged(c, imp.hf, tol, r_floor))):
             _contact.elastic_caps(c, ws.x_stage, caps_new)
             cmax = 0.0
             dcap = 0.0
@@ -413,21 +422,37 @@ def newton(stepper, m, x, imp, ws, c=None, cap_tol=1e-3, max_passes=10):
         it += 1
         _newton_matrix(stepper, m, imp, ws, c)
         phi0 = _merit(m, imp, ws, vn, c)
-        band_solve(ws.band, r)  # r becomes the Newton direction
+        if nb > 0:  # the bodies' velocities are unknowns too: their block and coupling, by a Schur complement
+            phi0 += _contact.body_potential(c, imp.hf, bd.vel_new)
+            _contact.coupled_solve(c, m.held, ws.x_stage, imp.hf * imp.cx, imp.hf * imp.cv, ws.band, r)
+        else:
+            band_solve(ws.band, r)  # r becomes the Newton direction
         alpha = 1.0
         accepted = False
         for _ in range(30):
             for i in range(n):
                 for j in range(3):
                     v_try[i, j] = vn[i, j] + alpha * r[3 * i + j]
+            if nb > 0:
+                for s in range(bd.active.shape[0]):
+                    for j in range(6):
+                        bd.vel_try[s, j] = bd.vel_new[s, j] + alpha * bd.step[s, j]
+                _contact.load_bodies(c, imp.hf, bd.vel_try)
             _residual(m, imp, ws, v_try, r_try, c)
-            if _merit(m, imp, ws, v_try, c) <= phi0 + 1e-13 * (abs(phi0) + phi_scale):
+            phi = _merit(m, imp, ws, v_try, c)
+            if nb > 0:
+                phi += _contact.body_potential(c, imp.hf, bd.vel_try)
+            if phi <= phi0 + 1e-13 * (abs(phi0) + phi_scale):
                 accepted = True
                 break
             alpha *= 0.5
         if not accepted:
             break
         vn[:, :] = v_try
+        if nb > 0:
+            bd.vel_new[:, :] = bd.vel_try
+    if nb > 0:
+        _contact.load_bodies(c, imp.hf, bd.vel_new)
     _residual(m, imp, ws, vn, r, c)  # forces and c.f_n, c.f_t at the accepted iterate
     return it, converged
 
