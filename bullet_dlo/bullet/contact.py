@@ -325,6 +325,15 @@ def _rotation(quat) -> np.ndarray:
     return np.array(pb.getMatrixFromQuaternion(quat)).reshape(3, 3)
 
 
+def _constrained_bodies(client: int) -> set[int]:
+    """The bodies some user constraint (``createConstraint``) joins to the world or to another body."""
+    out = set()
+    for i in range(pb.getNumConstraints(physicsClientId=client)):
+        info = pb.getConstraintInfo(pb.getConstraintUniqueId(i, physicsClientId=client), physicsClientId=client)
+        out.update(b for b in (info[0], info[2]) if b >= 0)
+    return out
+
+
 class ContactSet:
     """Shapes of the bodies in a world, the cable's Contacts and their persistence.
 
@@ -382,7 +391,9 @@ class ContactSet:
         self.alpha = float(alpha)
         self.zeta = float(damping_ratio)
         exclude = exclude or {}
-        exact, probed = [], []  # (body id, link, kind, local pos, local rot, size, dynamic, mu_b, 1/mass, 1/I_min, nodes out)
+        exact, probed = [], []  # (body id, link, kind, local pos, local rot, size, dynamic, mu_b, 1/mass, 1/I_min, nodes out,
+        #                            free, principal inertia)
+        constrained = _constrained_bodies(client)  # a body a user constraint holds is not free
         hulls: list = []  # (planes, triangles, their planes, sharp edges, margin [m]) of the HULL rows
         self._hull_probe = -1  # Bullet's point capsule that checks a hull (made on first use)
         for body in bodies:
@@ -398,7 +409,8 @@ class ContactSet:
                 i_min = min(info[2]) if mass > 0.0 else 0.0
                 # a free body (one dynamic link, no joints) moves in the cable's step (contact.Bodies); the links
                 # of an articulated body (an arm) keep the condensed contact (_condense_bodies)
-                free = mass > 0.0 and link < 0 and pb.getNumJoints(body, physicsClientId=client) == 0 and i_min > 0.0
+                free = (mass > 0.0 and link < 0 and pb.getNumJoints(body, physicsClientId=client) == 0 and i_min > 0.0
+                        and body not in constrained)
                 common = (mass > 0.0, float(mu_b), 1.0 / mass if mass > 0.0 else 0.0,
                           1.0 / i_min if i_min > 0.0 else 0.0, frozenset(out), free, np.asarray(info[2], float))
                 hull = (self._hull(body, link, data, radius)
@@ -445,6 +457,7 @@ class ContactSet:
                              slot=np.array([free_bodies.index(r[0]) if r[11] else -1 for r in rows], dtype=np.int64),
                              inertia=np.zeros((nb, 3, 3)))
         self._free_slot = self.shapes.slot.copy()  # each row's slot; -1 in shapes.slot while the body is shared
+        self._shared: frozenset = frozenset()
         self._probe_rows = {pairs[s]: s for s in range(self.n_exact, nb)}
         self._probe_out = np.zeros((nb, n), np.bool_)  # nodes that do not touch a probed link or a hull
         for s in range(nb):
@@ -608,9 +621,12 @@ class ContactSet:
         this cable's step may not move by itself (the ground or another cable also holds them): they keep the
         condensed contact (:func:`_condense_bodies`) this step."""
         if self.free_bodies:
-            self.shapes.slot[:] = self._free_slot
-            if shared:
-                self.shapes.slot[np.isin(self.body_ids, list(shared))] = -1
+            shared = frozenset(shared).intersection(self.free_bodies)
+            if shared != self._shared:  # (a resting body stays shared or not for many steps: no NumPy work then)
+                self._shared = shared
+                self.shapes.slot[:] = self._free_slot
+                for b in shared:
+                    self.shapes.slot[self.body_ids == b] = -1
         self._read_poses()
         if self.other_cables:
             self._read_others(dt)
@@ -1001,8 +1017,6 @@ def _add_row(c, st, key, shape, ia, ib, wa, wb, sh, k_per_mass, zeta, mass, x):
     c.internal[k] = False
     mk = wa * mass[ia] + wb * mass[ib]  # stiffness by the mass at the contact point
     _fill(c, st, key, shape, ia, ib, wa, wb, sh.static_friction[shape], sh.dynamic_friction[shape], k_per_mass * mk, zeta, mk, x)
-    c.slot[k] = sh.slot[shape]
-    c.arm[k, 0], c.arm[k, 1], c.arm[k, 2] = a0, a1, a2
 
 
 @njit(cache=True, error_model="numpy", inline="always")  # a call passes ~45 arrays (refcounts): 2 us a row
@@ -1011,7 +1025,6 @@ def _fill(c, st, key, shape, ia, ib, wa, wb, mu_s, mu_d, k_n, zeta, mk, x):
     ratio zeta for the mass mk [kg]), friction, friction state."""
     k = c.count[0]
     c.kind[k] = PENALTY
-    c.slot[k] = -1
     c.node[k, 0], c.node[k, 1] = ia, ib
     c.weight[k, 0], c.weight[k, 1] = wa, wb
     c.k_n[k] = k_n
@@ -1539,7 +1552,8 @@ def detect(x, v, mass, sh, c, st, h, k_per_mass, zeta, self_mu, h_body, h_done, 
         _cable_contacts(x, mass, c, st, oc, sh.kind.shape[0] * per_shape + 2 * (n - 1) ** 2,
                         margin + 2.0 * oc.vmax[0] * h_body, k_per_mass, zeta)
     _condense_bodies(c, st, sh, x, v, h_body)
-    _load_free_bodies(c, sh)
+    if c.bodies.mass.shape[0] > 0:  # free bodies in the world (a pass of its own: nothing to pay without them)
+        _load_free_bodies(c, st, sh)
     for k in range(previous.shape[0]):  # active: in contact this step (what the next step continues)
         st.active[previous[k]] = False
     for k in range(c.count[0]):
@@ -1548,8 +1562,15 @@ def detect(x, v, mass, sh, c, st, h, k_per_mass, zeta, self_mu, h_body, h_done, 
 
 
 @njit(cache=True, error_model="numpy")
-def _load_free_bodies(c, sh):
-    """The free bodies' mass, world inertia and velocity now into the contact step's Bodies (c.bodies)."""
+def _load_free_bodies(c, st, sh):
+    """The free bodies' mass, world inertia and velocity now into the contact step's Bodies (c.bodies), and each
+    row's slot (-1: not on a free body, or on a shared one) and arm [m] from the body's centre of mass."""
+    for k in range(c.count[0]):
+        s = st.body[k]
+        c.slot[k] = sh.slot[s] if s >= 0 and c.kind[k] == PENALTY else -1
+        if c.slot[k] >= 0:
+            for j in range(3):
+                c.arm[k, j] = c.point[k, j] - sh.com[s, j]
     bd = c.bodies
     for s in range(sh.kind.shape[0]):
         o = sh.slot[s]

@@ -357,6 +357,8 @@ class BulletWorld:
     def shared_bodies(self, cable: str) -> set[int]:
         """The free bodies the cable named ``cable`` may not move in its own step: supported in Bullet, or touched
         by another cable's contacts, in the last step."""
+        if not self.model_touches:
+            return self.supported_bodies
         others = {b for b, names in self.model_touches.items() if names - {cable}}
         return self.supported_bodies | others
 
