@@ -9,10 +9,11 @@ changed (:class:`~bullet_dlo.bullet.kernels.StepInput`). The state in is ``coupl
 ``coupling.x_new, v_new`` with the sphere forces that make Bullet land there; one step is one Numba call
 (:func:`~bullet_dlo.bullet.kernels.sync_and_advance`): take over the step Bullet made, check it, plan the next.
 
-A contact step whose Newton solve stalls far from convergence is taken again from its start as 2, then 4
-sub-steps (:class:`~bullet_dlo.bullet.kernels.StallGuard`); if even those stall, the cable stops as unstable
-(status STALLED) with a RuntimeWarning that says when and how far the solve was from convergence. Steps whose
-solve ends near convergence are kept and counted; a RuntimeWarning says so once when they exceed
+A contact step whose Newton solve coasts (ends far from convergence with the momentum where it started: the
+cable would move as if no force acted) is taken again from its start as 2, then 4 sub-steps
+(:class:`~bullet_dlo.bullet.kernels.StallGuard`); if even those coast, the cable stops as unstable (status
+STALLED) with a RuntimeWarning that says when and how far the solve was from convergence. Steps whose solve
+ends unconverged otherwise are kept and counted; a RuntimeWarning says so once when they exceed
 :data:`~bullet_dlo.core.engine.NEWTON_WARN_SHARE` of the steps (docs/concepts/integrators.md, "A stalled contact
 step").
 """
@@ -77,8 +78,9 @@ class CableSolver:
     detector: the instability detector; status: STABLE or why it stopped (:mod:`bullet_dlo.core.kernels.monitor`);
     time_to_instability [s] (None: stable); newton_iterations, newton_failures: counts over all steps (a failure:
     a step whose solves did not all converge, after its retry); near_misses: of those, the steps whose contact
-    solve ended near convergence (within ``stall_far``) and was kept; stall_retries: contact steps taken
-    again as sub-steps after a stall far from convergence; worst_kept_ratio: the largest residual ratio of a
+    solve ended near convergence (within ``stall_far``) and was kept; far_kept: those whose solve ended beyond
+    it but had moved the momentum (kept); coasts: kept solves that coasted (only with the guard off);
+    stall_retries: contact steps taken again as sub-steps after a coast; worst_kept_ratio: the largest residual ratio of a
     kept contact solve (:func:`~bullet_dlo.bullet.kernels.stall_ratio`); stall_report: why the run stopped as
     STALLED (None otherwise). stall_levels, stall_far: the retry's settings (:class:`StallGuard`; taken from
     :data:`STALL_RETRIES`, :data:`STALL_FAR` when the solver is made; a change takes effect with the next
@@ -193,6 +195,6 @@ class CableSolver:
         return (f"Newton did not converge in {self.newton_failures} of {self.steps_planned} steps so far "
                 f"({100 * share:.1f} %): {self.near_misses} contact steps ended near convergence (within "
                 f"{self.stall_far:g} of gravity's impulse in a step) and {self.far_kept} far from it (the worst at "
-                f"{self.worst_kept_ratio:.3g}) and were kept; {self.stall_retries} stalled far from it and were "
-                "taken again as sub-steps. The implicit "
+                f"{self.worst_kept_ratio:.3g}) and were kept; {self.stall_retries} coasted (no momentum moved) and "
+                "were taken again as sub-steps. The implicit "
                 "equations were solved only approximately; use a smaller dt or more substeps")
