@@ -40,11 +40,11 @@ NEWTON_WARN_MIN_STEPS = 100  # the share of unconverged steps is judged from thi
 
 
 def _array_pairs(obj, capacity: int, n: int, rows: list, whole: list) -> None:
-    """(live, copy) pairs of every array field of the NamedTuple ``obj`` (recursing into NamedTuple fields) into
-    ``rows`` (arrays indexed by contact row: first axis ``capacity`` > n) or ``whole``; empty arrays left out."""
-    for name in obj._fields:
-        a = getattr(obj, name)
-        if isinstance(a, tuple) and hasattr(a, "_fields"):
+    """(live, copy) pairs of every array in the tuple ``obj`` (a NamedTuple's fields; recursing into tuples and
+    NamedTuples in it) into ``rows`` (arrays indexed by contact row: first axis ``capacity`` > n) or ``whole``;
+    empty arrays and scalars left out."""
+    for a in obj:
+        if isinstance(a, tuple):
             _array_pairs(a, 0, n, rows, whole)
         elif isinstance(a, np.ndarray) and a.size:
             (rows if capacity > n and a.shape[0] == capacity else whole).append((a, a.copy()))

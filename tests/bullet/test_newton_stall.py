@@ -122,3 +122,21 @@ def test_a_converging_contact_run_is_unchanged_by_the_guard():
         states.append((cable.x.copy(), cable.v.copy()))
     (xa, va), (xb, vb) = states
     assert np.array_equal(xa, xb) and np.array_equal(va, vb)
+
+
+def test_the_guard_copies_every_array_of_the_contact_set():
+    """Every array of the Contacts (and of its Grip) has a saved copy, so that fields added later are restored
+    too; the row arrays are saved by row, the others whole."""
+    from bullet_dlo.core.kernels.contact import make_contacts
+    with falling_flat(240.0) as (world, cable, v0):
+        guard = cable.solver._guard
+        c = cable.contacts
+        saved = {id(live) for live, _ in guard.rows + guard.whole}
+        arrays = [a for a in c if isinstance(a, np.ndarray)] + list(c.grip)
+        assert all(id(a) in saved for a in arrays)
+        assert all(live.shape[0] == c.node.shape[0] for live, _ in guard.rows)
+    small = make_contacts(4, 3, 0.002)  # capacity 3 < n = 4: nothing is taken for a row array, all saved whole
+    rows, whole = [], []
+    solver_mod._array_pairs(small, 3, 4, rows, whole)
+    expected = [a for a in small if isinstance(a, np.ndarray) and a.size] + [a for a in small.grip if a.size]
+    assert not rows and sorted(id(live) for live, _ in whole) == sorted(id(a) for a in expected)
