@@ -140,3 +140,21 @@ def test_the_guard_copies_every_array_of_the_contact_set():
     solver_mod._array_pairs(small, 3, 4, rows, whole)
     expected = [a for a in small if isinstance(a, np.ndarray) and a.size] + [a for a in small.grip if a.size]
     assert not rows and sorted(id(live) for live, _ in whole) == sorted(id(a) for a in expected)
+
+
+def test_many_unconverged_steps_warn_once_with_their_share():
+    """A cable sliding over a box edge at 1 kHz (tests/bullet/test_edge_slide.py, n = 40, place 0.75, above the
+    threshold) ends about 40 % of its steps unconverged, far from convergence but never coasting: the steps are
+    kept (no retry, the run goes on) and one RuntimeWarning gives the share, as the core engine's result does."""
+    from test_edge_slide import bracket, hang, soft_cable, threshold
+    spec = soft_cable(40)
+    _, above = bracket(spec.n_masses, 0.75, threshold(0.3))
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        travel, _, cable = hang(spec, above, 0.75, 1000.0, settle=0.2, seconds=0.3)
+    s = cable.solver
+    assert cable.stable and s.stall_retries == 0 and s.coasts == 0
+    assert s.newton_failures > 0.1 * s.steps_planned and s.far_kept > 0
+    assert s.near_misses + s.far_kept == s.newton_failures  # every unconverged step was a contact solve, kept
+    text = [str(w.message) for w in caught if issubclass(w.category, RuntimeWarning) and "Newton" in str(w.message)]
+    assert len(text) == 1 and "%" in text[0] and "kept" in text[0], text
