@@ -124,21 +124,30 @@ def test_a_converging_contact_run_is_unchanged_by_the_guard():
     assert np.array_equal(xa, xb) and np.array_equal(va, vb)
 
 
+def _flat(t):
+    """The arrays in a tuple and in the tuples it holds (a NamedTuple's fields, its NamedTuples' fields)."""
+    for a in t:
+        if isinstance(a, tuple):
+            yield from _flat(a)
+        elif isinstance(a, np.ndarray):
+            yield a
+
+
 def test_the_guard_copies_every_array_of_the_contact_set():
-    """Every array of the Contacts (and of its Grip) has a saved copy, so that fields added later are restored
-    too; the row arrays are saved by row, the others whole."""
+    """Every array of the Contacts (and of the NamedTuples it holds: its Grip, its free Bodies) has a saved
+    copy, so that fields added later are restored too; the row arrays are saved by row, the others whole."""
     from bullet_dlo.core.kernels.contact import make_contacts
     with falling_flat(240.0) as (world, cable, v0):
         guard = cable.solver._guard
         c = cable.contacts
         saved = {id(live) for live, _ in guard.rows + guard.whole}
-        arrays = [a for a in c if isinstance(a, np.ndarray)] + list(c.grip)
-        assert all(id(a) in saved for a in arrays)
+        arrays = [a for a in _flat(c) if a.size]
+        assert len(arrays) > 30 and all(id(a) in saved for a in arrays)
         assert all(live.shape[0] == c.node.shape[0] for live, _ in guard.rows)
     small = make_contacts(4, 3, 0.002)  # capacity 3 < n = 4: nothing is taken for a row array, all saved whole
     rows, whole = [], []
     solver_mod._array_pairs(small, 3, 4, rows, whole)
-    expected = [a for a in small if isinstance(a, np.ndarray) and a.size] + [a for a in small.grip if a.size]
+    expected = [a for a in _flat(small) if a.size]
     assert not rows and sorted(id(live) for live, _ in whole) == sorted(id(a) for a in expected)
 
 
