@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import warnings
 
+import numba
 import numpy as np
 
 from bullet_dlo.bullet.kernels import (COASTED, FINAL_RATIO, FIRST_ITER, FIRST_MOVED, FIRST_RATIO, RETRY_SUBSTEPS, Coupling,
@@ -42,11 +43,12 @@ NEWTON_WARN_MIN_STEPS = 100  # the share of unconverged steps is judged from thi
 def _array_pairs(obj, capacity: int, n: int, rows: list, whole: list) -> None:
     """(live, copy) pairs of every array in the tuple ``obj`` (a NamedTuple's fields; recursing into tuples and
     NamedTuples in it) into ``rows`` (arrays indexed by contact row: first axis ``capacity`` > n) or ``whole``;
-    empty arrays and scalars left out."""
+    scalars left out. Empty arrays are kept: the pairs' types then follow the contact set's fields, not its
+    sizes (a contact set rebuilt with free bodies keeps the type the step kernel was bound to)."""
     for a in obj:
         if isinstance(a, tuple):
             _array_pairs(a, 0, n, rows, whole)
-        elif isinstance(a, np.ndarray) and a.size:
+        elif isinstance(a, np.ndarray):
             (rows if capacity > n and a.shape[0] == capacity else whole).append((a, a.copy()))
 
 
@@ -144,8 +146,11 @@ class CableSolver:
     def stall_guard(self, arrays: KernelArrays, contacts: Contacts) -> StallGuard:
         """The retry's copies for this contact set (made anew when the set was rebuilt)."""
         if self._guard is None or self._guard_contacts is not contacts:
+            old = self._guard
             self._guard = make_stall_guard(arrays, self.workspace, contacts, self.stall_levels, self.stall_far)
             self._guard_contacts = contacts
+            if old is not None and numba.typeof(old) != numba.typeof(self._guard):
+                self._kernel = None  # another structure (a row array sized like the rows by chance): bind anew
         return self._guard
 
     def step(self, arrays: KernelArrays, control: CableControl, contacts: Contacts, inp: StepInput) -> int:
