@@ -6,17 +6,18 @@ order is written down in :mod:`bullet_dlo.bullet.cable`.
 """
 from __future__ import annotations
 
+import math
 from typing import Callable, NamedTuple
 
 import numba
 import numpy as np
-from numba import njit
+from numba import literal_unroll, njit
 
 from bullet_dlo.core.kernels.contact import contact_energy, contact_step, grip_active
 from bullet_dlo.core.kernels.forces import clamp_torque, mechanical_energy
 from bullet_dlo.core.kernels.holders import ExternalHolders, HeldSamples, rotate, sample_end  # noqa: F401 (re-exported)
-from bullet_dlo.core.kernels.monitor import STABLE, end_forces, monitor
-from bullet_dlo.core.kernels.steppers import IMPLICIT_EULER, advance
+from bullet_dlo.core.kernels.monitor import STABLE, STALLED, end_forces, monitor
+from bullet_dlo.core.kernels.steppers import BDF2, IMPLICIT_EULER, Stepper, advance
 from bullet_dlo.core.kernels.twist import set_clamp
 
 
@@ -117,43 +118,243 @@ def external_samples(ext, e, tau0, hs, samples, normal):
             rotate(normal[k, e], tau * ext.omega[e, 0], tau * ext.omega[e, 1], tau * ext.omega[e, 2])
 
 
+# StallGuard.info: what the last planned step's contact solves left (written by coupled_targets)
+FIRST_RATIO, FIRST_ITER, FINAL_RATIO, RETRY_SUBSTEPS, COASTED, FIRST_MOVED = range(6)
+COAST_MOVE = 1e-3  # [-] a far solve that moved no node's momentum by this share of gravity's impulse coasted
+# (implicit Euler's tolerance; far solves of a cable resting on a table edge moved at least 0.011)
+
+
+class StallGuard(NamedTuple):
+    """What a contact step needs to be taken again when its Newton solve coasts far from convergence.
+
+    levels: retries at most, with 2, 4, ..., 2**levels sub-steps of the same integrator (0: none, a coast stops
+    the run at once; -1: no guard, nothing stops the run, the behaviour before it, with ``info`` still written);
+    far [-]: a solve ends far from
+    convergence when its largest momentum residual exceeds ``far`` times the scale newton's tolerance
+    multiplies (gravity's and the external forces' impulse on the heaviest node in a step, plus the step's
+    largest momentum change; :func:`stall_ratio`); x0 [m], v0 [m/s]: the state a contact sub-step starts from,
+    (n, 3); vs [m/s]: the velocities a retry's sub-step starts from, (n, 3); rows, whole: (live, saved) array pairs of everything else a contact step writes (every array of the
+    Contacts and of its grips, the twist state, BDF2's history): ``rows`` indexed by contact row (only the rows
+    in use are saved), ``whole`` copied whole; info (5,): the last planned step's worst residual ratio of a
+    first attempt that did not converge (0: all converged), the Newton iterations that solve took, the worst
+    ratio of the solves kept, the sub-steps of the retry kept (0: no retry), 1.0 when a kept solve coasted
+    (ended far from convergence without moving the momentum from its start, :func:`_coasted`: with ``levels``
+    >= 0 the run stops, status STALLED), and how far the first of those solves moved the momentum (in units of
+    gravity's impulse, :func:`momentum_moved` over :func:`impulse_scale`).
+    """
+
+    levels: int
+    far: float
+    x0: np.ndarray
+    v0: np.ndarray
+    vs: np.ndarray
+    rows: tuple
+    whole: tuple
+    info: np.ndarray
+
+
 @njit(cache=True, error_model="numpy")
-def coupled_targets(stepper, m, plan, ext, cp, ws, t, has_prev, contacts):
+def _copy_rows(pairs, k, save):
+    """The first k rows of each (live, saved) pair: live into saved (``save``) or back."""
+    for p in literal_unroll(pairs):
+        if save:
+            p[1][:k] = p[0][:k]
+        else:
+            p[0][:k] = p[1][:k]
+
+
+@njit(cache=True, error_model="numpy")
+def _copy_whole(pairs, save):
+    """Each (live, saved) pair whole: live into saved (``save``) or back."""
+    for p in literal_unroll(pairs):
+        if save:
+            p[1][:] = p[0]
+        else:
+            p[0][:] = p[1]
+
+
+@njit(cache=True, error_model="numpy")
+def impulse_scale(m, hf):
+    """hf (max_i m_i |g| + max |f_ext|) [N s]: the momentum gravity and the external forces give the heaviest node
+    in a step of force weight hf [s] (the scale of newton's residual tolerance)."""
+    g = math.sqrt(m.gravity[0] ** 2 + m.gravity[1] ** 2 + m.gravity[2] ** 2)
+    mass_max = 0.0
+    fext_max = 0.0
+    for i in range(m.mass.shape[0]):
+        mass_max = max(mass_max, m.mass[i])
+        for j in range(3):
+            fext_max = max(fext_max, abs(m.f_ext[i, j]))
+    return hf * (mass_max * g + fext_max) + 1e-300
+
+
+@njit(cache=True, error_model="numpy")
+def momentum_moved(m, v0, v1):
+    """max over free nodes of m_i |v1_i - v0_i| [N s]: how far a solve moved the momentum from its start v0."""
+    worst = 0.0
+    for i in range(v0.shape[0]):
+        if not m.held[i]:
+            for j in range(3):
+                worst = max(worst, m.mass[i] * abs(v1[i, j] - v0[i, j]))
+    return worst
+
+
+@njit(cache=True, error_model="numpy")
+def stall_ratio(m, ws, hf):
+    """After a Newton solve: its largest momentum residual (ws.residual) [N s] over the scale newton's
+    tolerance multiplies, :func:`impulse_scale` + max_i m_i |v'_i - v_avg,i| (hf [s] the step's force weight):
+    1 is the momentum gravity gives in a step (a cable that coasts through a step without its forces), the
+    tolerance is ``tol`` of it (1e-3 for implicit Euler). NaN counts as infinitely far."""
+    dmom = 0.0
+    for i in range(ws.v_new.shape[0]):
+        if not m.held[i]:
+            for j in range(3):
+                dmom = max(dmom, m.mass[i] * abs(ws.v_new[i, j] - ws.v_avg[i, j]))
+    worst = 0.0
+    for q in range(ws.residual.shape[0]):
+        if not abs(ws.residual[q]) <= worst:  # also catches NaN
+            worst = abs(ws.residual[q])
+    if worst != worst:
+        return np.inf
+    return worst / (impulse_scale(m, hf) + dmom)
+
+
+@njit(cache=True, error_model="numpy")
+def _coasted(m, far, v0, v, hf, ratio):
+    """A solve that ended far from convergence (``ratio`` above ``far``) without moving any free node's momentum
+    from its start v0 by COAST_MOVE of gravity's impulse: the cable would move as if no force acted."""
+    return ratio > far and momentum_moved(m, v0, v) <= COAST_MOVE * impulse_scale(m, hf)
+
+
+@njit(cache=True, error_model="numpy")
+def _sample(plan, ext, cp, t, tau0, hs):
+    """Held-end samples of the (sub-)step [t + tau0, t + tau0 + hs] [s] into cp.samples: an end a gripper
+    holds follows the measured pose, the others their tables."""
+    for e in range(2):
+        if ext.active[e]:
+            external_samples(ext, e, tau0, hs, cp.samples, plan.normal)
+        else:
+            sample_end(plan, e, t + tau0, hs, cp.samples)
+
+
+@njit(cache=True, error_model="numpy")
+def _force_weight(stepper, use_prev):
+    """hf [s] of contact_step's momentum balance: 2h/3 for BDF2 with history, else h (implicit Euler)."""
+    return 2.0 * stepper.h / 3.0 if use_prev and stepper.method == BDF2 else stepper.h
+
+
+@njit(cache=True, error_model="numpy")
+def _guarded_contact_step(stepper, m, plan, ext, cp, ws, t, k, prev, contacts, guard):
+    """Contact sub-step k of the coming Bullet step on (cp.x_new, cp.v_new), taken again from its start as 2,
+    4, ... sub-steps when its Newton solve coasts (:func:`_coasted`: far from convergence with the momentum where
+    it started) (:class:`StallGuard`): the first attempt whose solves all end within ``guard.far`` is kept, else
+    the last. Returns (Newton iterations, converged,
+    the worst residual ratio of the solves kept (0: all converged), whether one of them coasted)."""
+    save = guard.levels > 0
+    nc = contacts.count[0]
+    guard.x0[:, :] = cp.x_new
+    guard.v0[:, :] = cp.v_new
+    if save:  # (a few hundred numbers: the cost of the guard when Newton converges)
+        _copy_rows(guard.rows, nc, True)
+        _copy_whole(guard.whole, True)
+    has_prev = prev and contacts.impact[0] == 0
+    its, ok = contact_step(stepper, m, cp.x_new, cp.v_new, cp.samples, ws, has_prev, contacts)
+    if ok:
+        return its, ok, 0.0, False
+    hf = _force_weight(stepper, has_prev)
+    ratio = stall_ratio(m, ws, hf)
+    info = guard.info
+    if ratio > info[FIRST_RATIO]:
+        info[FIRST_RATIO] = ratio
+        info[FIRST_ITER] = its
+        info[FIRST_MOVED] = momentum_moved(m, guard.v0, cp.v_new) / impulse_scale(m, hf)
+    coast = _coasted(m, guard.far, guard.v0, cp.v_new, hf, ratio)
+    if not save or not coast:
+        # a near miss, or far after moving the momentum: kept (sub-steps do not help those: on a cable sliding
+        # over a box edge 918 of 921 retried steps, and 67 of 67 that stalled after some iterations, stayed
+        # far, at 1.6 to 9 times the CPU time; docs/concepts/integrators.md, "A stalled contact step")
+        return its, ok, ratio, coast
+    hs = stepper.h
+    worst = ratio
+    for level in range(1, guard.levels + 1):
+        last = level == guard.levels
+        sub = 2 ** level
+        hsub = hs / sub
+        sstep = Stepper(stepper.method, hsub, stepper.max_iter, stepper.tol, stepper.definite)
+        cp.x_new[:, :] = guard.x0
+        cp.v_new[:, :] = guard.v0
+        _copy_rows(guard.rows, nc, False)
+        _copy_whole(guard.whole, False)
+        worst = 0.0
+        coast = False
+        impact = 0
+        for s in range(sub):
+            _sample(plan, ext, cp, t, k * hs + s * hsub, hsub)
+            use_prev = s > 0 and contacts.impact[0] == 0  # BDF2: history only within the sub-steps
+            guard.vs[:, :] = cp.v_new
+            its_s, ok_s = contact_step(sstep, m, cp.x_new, cp.v_new, cp.samples, ws, use_prev, contacts)
+            its += its_s
+            impact = max(impact, contacts.impact[0])
+            if not ok_s:
+                hf_s = _force_weight(sstep, use_prev)
+                r_s = stall_ratio(m, ws, hf_s)
+                worst = max(worst, r_s)
+                coast = coast or _coasted(m, guard.far, guard.vs, cp.v_new, hf_s, r_s)
+                if worst > guard.far and not last:
+                    break  # this attempt failed: on to the next
+        contacts.impact[0] = impact
+        if worst <= guard.far or last:
+            info[RETRY_SUBSTEPS] = sub
+            # as after one step of hs: BDF2's history is the sub-step's start, the samples those of step hs
+            ws.x_prev[:, :] = guard.x0
+            ws.v_prev[:, :] = guard.v0
+            _sample(plan, ext, cp, t, k * hs, hs)
+            break
+    return its, worst == 0.0, worst, coast
+
+
+@njit(cache=True, error_model="numpy")
+def coupled_targets(stepper, m, plan, ext, cp, ws, t, has_prev, contacts, guard):
     """Plan the coming Bullet step from (cp.x, cp.v) at time t [s].
 
     Runs ``cp.substeps`` integrator steps into cp.x_new, cp.v_new (held ends in ``ext.active``
     follow the measured poses, the others their move tables; with ``contacts`` (core
     :class:`~bullet_dlo.core.kernels.contact.Contacts`, detected for this step, and its friction
-    grips) an implicit method takes them into its step; a BDF2 step after an impact restarts with implicit Euler)
+    grips) an implicit method takes them into its step; a BDF2 step after an impact restarts with implicit Euler;
+    a contact step whose Newton solve coasts far from convergence is taken again as 2, 4, ... sub-steps,
+    :class:`StallGuard` ``guard``, which receives what the solves left in ``guard.info``)
     and writes the sphere forces that
     make Bullet's semi-implicit update land on x_new into cp.force:
-    F = m ((x_new - x)/dt - v_bullet)/dt - m g_bullet. Returns (Newton iterations, all converged).
+    F = m ((x_new - x)/dt - v_bullet)/dt - m g_bullet. Returns (Newton iterations, all converged, a contact
+    solve coasted far from convergence even in the retry's sub-steps: the planned step is not to be taken).
     """
     cp.x_new[:, :] = cp.x
     cp.v_new[:, :] = cp.v
     hs = stepper.h
     iters = 0
     ok_all = True
+    stalled = False
+    guard.info[:] = 0.0
     for k in range(cp.substeps):
-        for e in range(2):  # an end a gripper holds follows the measured pose, the others their tables
-            if ext.active[e]:
-                external_samples(ext, e, k * hs, hs, cp.samples, plan.normal)
-            else:
-                sample_end(plan, e, t + k * hs, hs, cp.samples)
+        _sample(plan, ext, cp, t, k * hs, hs)
         prev = has_prev or k > 0
         if (contacts.count[0] > 0 or grip_active(contacts.grip)) and stepper.method >= IMPLICIT_EULER:
-            its, ok = contact_step(stepper, m, cp.x_new, cp.v_new, cp.samples, ws, prev and contacts.impact[0] == 0,
-                                   contacts)
+            its, ok, ratio, coast = _guarded_contact_step(stepper, m, plan, ext, cp, ws, t, k, prev, contacts, guard)
+            guard.info[FINAL_RATIO] = max(guard.info[FINAL_RATIO], ratio)
+            if coast:
+                guard.info[COASTED] = 1.0
+                stalled = guard.levels >= 0
         else:
             its, ok = advance(stepper, m, cp.x_new, cp.v_new, cp.samples, ws, prev)
         iters += its
         ok_all = ok_all and ok
+        if stalled:
+            return iters, ok_all, stalled  # nothing to plan: the run stops here
     h = cp.dt
     for i in range(cp.x.shape[0]):
         for j in range(3):
             v_target = (cp.x_new[i, j] - cp.x[i, j]) / h
             cp.force[i, j] = m.mass[i] * ((v_target - cp.v_bullet[i, j]) / h - cp.gravity[j])
-    return iters, ok_all
+    return iters, ok_all, stalled
 
 
 @njit(cache=True, error_model="numpy")
@@ -180,14 +381,17 @@ def take_over(cp, inp):
 
 
 @njit(cache=True, error_model="numpy")
-def sync_and_advance(stepper, m, plan, ext, cp, ws, det, inp, contacts):
+def sync_and_advance(stepper, m, plan, ext, cp, ws, det, inp, contacts, guard):
     """One Bullet step's work on the model side: take over (if ``inp.sync``), check, plan the next.
 
     ``contacts``: the model's contacts for the coming step (detected from the taken-over state);
     the energy check counts the energy stored in them and the work of the bodies they touch.
     With an external holder or on a recorded step (``inp.record``), also writes cp.end_force,
     cp.end_torque (:func:`end_loads` now), and on a recorded step cp.energy (the recorder's row without
-    calls of its own: they cost about a third of a step at n = 10). Returns (status, Newton iterations, converged); an unstable status plans nothing.
+    calls of its own: they cost about a third of a step at n = 10). ``guard``: the stalled contact step's retry
+    (:class:`StallGuard`); a contact solve that coasts far from convergence even so makes the status STALLED.
+    Returns (status, Newton iterations, converged); an unstable status plans nothing (its planned forces are not
+    to be applied).
     """
     status = STABLE
     if inp.sync:
@@ -197,7 +401,9 @@ def sync_and_advance(stepper, m, plan, ext, cp, ws, det, inp, contacts):
             status = monitor(m, cp.x, cp.v, cp.samples, det, inp.energy_check, extra)
     its, ok = 0, True
     if status == STABLE:
-        its, ok = coupled_targets(stepper, m, plan, ext, cp, ws, inp.t, inp.has_prev, contacts)
+        its, ok, stalled = coupled_targets(stepper, m, plan, ext, cp, ws, inp.t, inp.has_prev, contacts, guard)
+        if stalled:
+            status = STALLED
     if ext.active[0] or ext.active[1] or inp.record:  # the loads on external holders (the grasp coupling
         end_loads(m, cp.x, cp.v, cp.samples, contacts.grip, cp.end_force, cp.end_torque)  # applies them)
     if inp.record:

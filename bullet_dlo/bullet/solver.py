@@ -8,19 +8,67 @@ the control (the holders' measured poses), the contacts detected for the coming 
 changed (:class:`~bullet_dlo.bullet.kernels.StepInput`). The state in is ``coupling.x, v``, the state out
 ``coupling.x_new, v_new`` with the sphere forces that make Bullet land there; one step is one Numba call
 (:func:`~bullet_dlo.bullet.kernels.sync_and_advance`): take over the step Bullet made, check it, plan the next.
+
+A contact step whose Newton solve coasts (ends far from convergence with the momentum where it started: the
+cable would move as if no force acted) is taken again from its start as 2, then 4 sub-steps
+(:class:`~bullet_dlo.bullet.kernels.StallGuard`); if even those coast, the cable stops as unstable (status
+STALLED) with a RuntimeWarning that says when and how far the solve was from convergence. Steps whose solve
+ends unconverged otherwise are kept and counted; a RuntimeWarning says so once when they exceed
+:data:`~bullet_dlo.core.engine.NEWTON_WARN_SHARE` of the steps (docs/concepts/integrators.md, "A stalled contact
+step").
 """
 from __future__ import annotations
 
+import warnings
+
+import numba
 import numpy as np
 
-from bullet_dlo.bullet.kernels import Coupling, StepInput, bind, sync_and_advance
-from bullet_dlo.core.engine import DetectorOptions, start_detector
+from bullet_dlo.bullet.kernels import (COASTED, FINAL_RATIO, FIRST_ITER, FIRST_MOVED, FIRST_RATIO, RETRY_SUBSTEPS, Coupling,
+                                       StallGuard, StepInput, bind, sync_and_advance)
+from bullet_dlo.core.engine import NEWTON_WARN_SHARE, DetectorOptions, start_detector
 from bullet_dlo.core.integrators import Integrator, NewtonOptions, make_stepper
 from bullet_dlo.core.kernels.contact import Contacts
 from bullet_dlo.core.kernels.holders import empty_samples, sample_holders
-from bullet_dlo.core.kernels.monitor import STABLE
-from bullet_dlo.core.kernels.steppers import make_workspace
+from bullet_dlo.core.kernels.monitor import REASONS, STABLE, STALLED
+from bullet_dlo.core.kernels.steppers import Workspace, make_workspace
+from bullet_dlo.core.kernels.twist import TwistState
 from bullet_dlo.core.model import CableControl, CableModel, CableState, KernelArrays
+
+STALL_RETRIES = 2  # a stalled contact step is taken again as 2, then 4 sub-steps (0: stop at a coast; -1: no guard)
+STALL_FAR = 0.1  # [-] far from convergence: momentum residual above this share of gravity's impulse in a step
+NEWTON_WARN_MIN_STEPS = 100  # the share of unconverged steps is judged from this many planned steps on
+
+
+def _array_pairs(obj, capacity: int, n: int, rows: list, whole: list) -> None:
+    """(live, copy) pairs of every array in the tuple ``obj`` (a NamedTuple's fields; recursing into tuples and
+    NamedTuples in it) into ``rows`` (arrays indexed by contact row: first axis ``capacity`` > n) or ``whole``;
+    scalars left out. Empty arrays are kept: the pairs' types then follow the contact set's fields, not its
+    sizes (a contact set rebuilt with free bodies keeps the type the step kernel was bound to)."""
+    for a in obj:
+        if isinstance(a, tuple):
+            _array_pairs(a, 0, n, rows, whole)
+        elif isinstance(a, np.ndarray):
+            (rows if capacity > n and a.shape[0] == capacity else whole).append((a, a.copy()))
+
+
+def make_stall_guard(arrays: KernelArrays, workspace: Workspace, contacts: Contacts, levels: int,
+                     far: float) -> StallGuard:
+    """The :class:`~bullet_dlo.bullet.kernels.StallGuard` of a cable: copies of every array a contact step
+    writes. Every array field of ``contacts`` (and of its grips) is saved, so that fields added to
+    :class:`~bullet_dlo.core.kernels.contact.Contacts` later are restored too; plus the twist state in
+    ``arrays`` (and the clamps' current axes) and BDF2's history in ``workspace``."""
+    n = arrays.mass.shape[0]
+    rows: list = []
+    whole: list = []
+    _array_pairs(contacts, contacts.node.shape[0], n, rows, whole)
+    for name in [f"tw_{f}" for f in TwistState._fields] + ["tw_clamp"]:
+        a = getattr(arrays, name)
+        if a.size:
+            whole.append((a, a.copy()))
+    whole += [(workspace.x_prev, workspace.x_prev.copy()), (workspace.v_prev, workspace.v_prev.copy())]
+    return StallGuard(levels=int(levels), far=float(far), x0=np.zeros((n, 3)), v0=np.zeros((n, 3)),
+                      vs=np.zeros((n, 3)), rows=tuple(rows), whole=tuple(whole), info=np.zeros(6))
 
 
 class CableSolver:
@@ -30,7 +78,15 @@ class CableSolver:
     samples, planned end loads (:class:`~bullet_dlo.bullet.kernels.Coupling`); workspace: the step kernels'
     scratch; plan: the held ends' move tables (:class:`~bullet_dlo.core.kernels.holders.HolderPlan`);
     detector: the instability detector; status: STABLE or why it stopped (:mod:`bullet_dlo.core.kernels.monitor`);
-    time_to_instability [s] (None: stable); newton_iterations, newton_failures: counts over all steps.
+    time_to_instability [s] (None: stable); newton_iterations, newton_failures: counts over all steps (a failure:
+    a step whose solves did not all converge, after its retry); near_misses: of those, the steps whose contact
+    solve ended near convergence (within ``stall_far``) and was kept; far_kept: those whose solve ended beyond
+    it but had moved the momentum (kept); coasts: kept solves that coasted (only with the guard off);
+    stall_retries: contact steps taken again as sub-steps after a coast; worst_kept_ratio: the largest residual ratio of a
+    kept contact solve (:func:`~bullet_dlo.bullet.kernels.stall_ratio`); stall_report: why the run stopped as
+    STALLED (None otherwise). stall_levels, stall_far: the retry's settings (:class:`StallGuard`; taken from
+    :data:`STALL_RETRIES`, :data:`STALL_FAR` when the solver is made; a change takes effect with the next
+    contact set, or at once after ``solver._guard = None``).
     """
 
     def __init__(self, model: CableModel, arrays: KernelArrays, control: CableControl, state: CableState, *,
@@ -53,6 +109,18 @@ class CableSolver:
         self.time_to_instability: float | None = None
         self.newton_iterations = 0
         self.newton_failures = 0
+        self.near_misses = 0
+        self.far_kept = 0
+        self.coasts = 0
+        self.stall_retries = 0
+        self.worst_kept_ratio = 0.0
+        self.stall_report: str | None = None
+        self.steps_planned = 0
+        self.stall_levels = STALL_RETRIES
+        self.stall_far = STALL_FAR
+        self._warned_share = False
+        self._guard: StallGuard | None = None
+        self._guard_contacts: Contacts | None = None  # the contact set the guard's copies are of
         self._kernel = None  # sync_and_advance's machine code, bound on first use
 
     def restart_detector(self, model: CableModel, arrays: KernelArrays) -> None:
@@ -73,7 +141,17 @@ class CableSolver:
     def kernel_args(self, arrays: KernelArrays, control: CableControl, contacts: Contacts, inp: StepInput) -> tuple:
         """Arguments of :func:`~bullet_dlo.bullet.kernels.sync_and_advance` (the same objects every step)."""
         return (self.stepper, arrays, self.plan, control.holders, self.coupling, self.workspace, self.detector, inp,
-                contacts)
+                contacts, self.stall_guard(arrays, contacts))
+
+    def stall_guard(self, arrays: KernelArrays, contacts: Contacts) -> StallGuard:
+        """The retry's copies for this contact set (made anew when the set was rebuilt)."""
+        if self._guard is None or self._guard_contacts is not contacts:
+            old = self._guard
+            self._guard = make_stall_guard(arrays, self.workspace, contacts, self.stall_levels, self.stall_far)
+            self._guard_contacts = contacts
+            if old is not None and numba.typeof(old) != numba.typeof(self._guard):
+                self._kernel = None  # another structure (a row array sized like the rows by chance): bind anew
+        return self._guard
 
     def step(self, arrays: KernelArrays, control: CableControl, contacts: Contacts, inp: StepInput) -> int:
         """Take over Bullet's step (if ``inp.sync``), check it, plan the next; returns the status (STABLE or the
@@ -82,9 +160,46 @@ class CableSolver:
         if self._kernel is None:
             self._kernel = bind(sync_and_advance, *args)
         status, its, ok = self._kernel(*args)
+        self.steps_planned += 1
         self.newton_iterations += its
         self.newton_failures += 0 if ok else 1
+        info = args[-1].info
+        if info[RETRY_SUBSTEPS] > 0:
+            self.stall_retries += 1
+        if status == STABLE and info[FINAL_RATIO] > 0.0:
+            if info[FINAL_RATIO] <= self.stall_far:
+                self.near_misses += 1
+            else:
+                self.far_kept += 1
+            self.coasts += int(info[COASTED])
+            self.worst_kept_ratio = max(self.worst_kept_ratio, float(info[FINAL_RATIO]))
         if status != STABLE:
             self.status = status
             self.time_to_instability = inp.t
+            if status == STALLED:
+                retried = (f"taken again as {' then '.join(str(2 ** k) for k in range(1, self.stall_levels + 1))} "
+                           f"sub-steps it still ended at {info[FINAL_RATIO]:.3g}" if self.stall_levels > 0
+                           else "not taken again (no retries allowed)")
+                self.stall_report = (
+                    f"t = {inp.t:.6g} s: the contact Newton solve of the step ended after {int(info[FIRST_ITER])} "
+                    f"iteration(s) with its momentum residual at {info[FIRST_RATIO]:.3g} times gravity's impulse in "
+                    f"a step, having moved the momentum by {info[FIRST_MOVED]:.3g} of it: the cable would coast "
+                    f"through the step as if no force acted; {retried}. The cable is stopped as unstable "
+                    f"({REASONS[STALLED]}); try a smaller dt or softer contact")
+                warnings.warn(self.stall_report, RuntimeWarning, stacklevel=3)
+        elif not self._warned_share and self.steps_planned >= NEWTON_WARN_MIN_STEPS:
+            share = self.newton_failures / self.steps_planned
+            if share > NEWTON_WARN_SHARE:
+                self._warned_share = True
+                warnings.warn(self.failure_message(), RuntimeWarning, stacklevel=3)
         return status
+
+    def failure_message(self) -> str:
+        """What the counters say about the Newton solves so far, in one line (a warning's text)."""
+        share = self.newton_failures / max(self.steps_planned, 1)
+        return (f"Newton did not converge in {self.newton_failures} of {self.steps_planned} steps so far "
+                f"({100 * share:.1f} %): {self.near_misses} contact steps ended near convergence (within "
+                f"{self.stall_far:g} of gravity's impulse in a step) and {self.far_kept} far from it (the worst at "
+                f"{self.worst_kept_ratio:.3g}) and were kept; {self.stall_retries} coasted (no momentum moved) and "
+                "were taken again as sub-steps. The implicit "
+                "equations were solved only approximately; use a smaller dt or more substeps")

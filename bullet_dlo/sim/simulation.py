@@ -24,6 +24,7 @@ from bullet_dlo.bullet.cable import BulletCable
 from bullet_dlo.bullet.world import BulletWorld
 from bullet_dlo.config.scene import Scene
 from bullet_dlo.core.engine import (
+    NEWTON_WARN_SHARE,
     STRAIN_REASON,
     DetectorOptions,
     SimulationResult,
@@ -42,11 +43,17 @@ def cable_result(cable: BulletCable, dt: float, wall: float, t: np.ndarray, x: n
     """A Bullet cable's run as a SimulationResult: its status, counters, final state and end moments, with
     the recorded rows given (t [s] (k,), x [m] and v [m/s] (k, n, 3), end_forces [N] (k, 2, 3), energy [J] (k,));
     ``dt`` [s] the Bullet step, ``wall`` [s] the run's wall time."""
-    return SimulationResult(
+    result = SimulationResult(
         integrator=cable.method.name, dt=dt, stable=cable.stable, time_to_instability=cable.time_to_instability,
         reason=cable.reason, steps=cable.steps, wall_time_s=wall, t=t, x=x, v=v, end_forces=end_forces,
         energy=energy, final_state=cable.state(), end_moments=cable.end_moments(),
         newton_failures=cable.newton_failures, newton_iterations=cable.newton_iterations)
+    solver = cable.solver  # as the core engine: say when Newton failed in many steps, and why a run stalled
+    if solver.stall_report is not None:
+        result.warnings.append(solver.stall_report)
+    elif solver.newton_failures > NEWTON_WARN_SHARE * max(solver.steps_planned, 1):
+        result.warnings.append(solver.failure_message())
+    return result
 
 
 class Simulation:

@@ -24,8 +24,10 @@ from bullet_dlo.core.kernels.forces import clamp_torque, max_strain, mechanical_
 from bullet_dlo.core.kernels.twist import has_twist, transport, twist_clamp_torque
 
 STABLE, NONFINITE, STRETCH, ENERGY = 0, 1, 2, 3
+STALLED = 4  # set by the Bullet coupling (bullet.kernels.StallGuard), not by monitor()
 REASONS = {STABLE: None, NONFINITE: "non-finite state", STRETCH: "segment strain beyond bound",
-           ENERGY: "energy growth beyond the work done on the cable"}
+           ENERGY: "energy growth beyond the work done on the cable",
+           STALLED: "contact Newton stalled far from convergence, also in sub-steps"}
 
 
 class Detector(NamedTuple):

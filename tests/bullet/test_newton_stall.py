@@ -1,0 +1,169 @@
+"""A contact step whose Newton solve stalls far from convergence is taken again as sub-steps, or the run stops.
+
+The scene: a flat cable falling at 0.5 m/s onto the ground with a normal damper (``contact_damping=1``),
+placed so that Newton's start guess for the step, v' = v (no force acts: x' = x + h v), ends exactly at gap
+0+. Any Newton direction pushes the cable into the ground, where the damper switches on: the merit jumps by
+1/2 c_n (v . n)^2 however short the step, the line search fails on its 30 halvings, and the solve keeps its
+start guess. Before the guard (bullet/kernels.py, StallGuard) the cable then moved through that step as if
+no force acted (its velocity change was exactly zero), and nothing but a counter said so. Now the step is
+taken again as sub-steps, and a coast that is not cured stops the run (status STALLED) with a
+RuntimeWarning that says when and how far the solve was from convergence.
+"""
+from __future__ import annotations
+
+import contextlib
+import warnings
+
+import numpy as np
+import pytest
+
+from bullet_dlo.bullet import solver as solver_mod
+from bullet_dlo.bullet.kernels import COAST_MOVE, COASTED, FIRST_ITER, FIRST_MOVED, FIRST_RATIO, RETRY_SUBSTEPS
+from bullet_dlo.bullet.world import BulletWorld
+from bullet_dlo.core.kernels.monitor import STALLED
+from bullet_dlo.core.model import CableState
+from bullet_dlo.core.spec import CableSpec
+from test_contact_drops import drop
+
+G = 9.81
+SPEED = 0.5  # [m/s] downwards
+
+
+@contextlib.contextmanager
+def falling_flat(hz: float, n: int = 10):
+    """A world with the ground and an Lv cable (n nodes) lying flat along x, falling at SPEED, its height
+    chosen so that x + h v lands exactly at gap 0+ (the smallest float height above the ground's contact
+    height r + 0). Yields (world, cable, the start velocities (n, 3)); the cable's first step is planned."""
+    spec = CableSpec.lv2017(n_masses=n, damping=0.02)
+    r, h = spec.diameter / 2, 1.0 / hz
+    z = r + h * SPEED
+    while (z + h * -SPEED) - r <= 0.0:  # the kernel's X = x + h v' at v' = v, then the gap X_z - 0 - r
+        z = np.nextafter(z, 1.0)
+    x = np.zeros((n, 3))
+    x[:, 0] = np.linspace(-0.15, 0.15, n)
+    x[:, 2] = z
+    v = np.zeros((n, 3))
+    v[:, 2] = -SPEED
+    with BulletWorld(dt=h) as world:
+        cable = world.add_cable(spec, state=CableState(x, v.copy()), contact_damping=1.0)
+        yield world, cable, v
+
+
+@pytest.mark.parametrize("hz", [60.0, 240.0, 1000.0])
+def test_a_landing_that_would_coast_is_taken_again_and_does_not_coast(hz):
+    """The first attempt stalls on its start guess (iteration 1, momentum moved by nothing, residual about
+    gravity's impulse); the step is taken again as sub-steps, whose last solve does move the momentum (the
+    ground takes the fall: the velocity change is upwards, bounded by what the ground can take without
+    creating energy); the run goes on and the cable comes to rest on the ground with its weight supported.
+
+    Measured (demos/newton_stall.py --scenes landing): the retried step still ends about one gravity impulse
+    from convergence at every rate, at gap 0 exactly: the damper's force jumps there from 0 to c_n |v . n|, so
+    the step's implicit equations have no solution at that point (a property of the contact law, not of the
+    solve); it is kept and counted (``far_kept``), not a coast."""
+    h = 1.0 / hz
+    with falling_flat(hz) as (world, cable, v0):
+        info = cable.solver._guard.info
+        assert info[FIRST_ITER] == 1 and info[FIRST_RATIO] > solver_mod.STALL_FAR  # the first attempt stalled
+        assert info[FIRST_MOVED] < COAST_MOVE  # ... on its start guess: a coast
+        assert info[RETRY_SUBSTEPS] in (2, 4) and cable.solver.stall_retries == 1  # taken again as sub-steps
+        assert info[COASTED] == 0.0 and cable.stable  # which did not coast: the run goes on
+        dv = (cable._cp.v_new - v0)[:, 2]
+        assert np.all(np.abs(dv) > COAST_MOVE * G * h)  # every node's momentum moved (a coast: exactly 0)
+        assert np.all(np.abs(v0[:, 2] + dv) <= SPEED + G * h)  # no energy from the ground
+        world.step()
+        assert np.all(cable.x[:, 2] > cable.radius - 1e-4)  # not into the ground
+        world.run(0.5)
+        assert cable.stable and cable.solver.coasts == 0
+        support = cable.contact_forces()["force"].sum(axis=0)[2]
+        assert support == pytest.approx(cable.model.spec.mass * G, rel=0.01)  # lying at rest on the ground
+        assert np.abs(cable.v).max() < 1e-3
+
+
+def test_an_uncured_coast_stops_the_run_with_when_and_why(monkeypatch):
+    """With no retries allowed (STALL_RETRIES = 0) the coast is not cured: the cable stops at once, status
+    STALLED, its reason and a RuntimeWarning naming the time and the residual."""
+    monkeypatch.setattr(solver_mod, "STALL_RETRIES", 0)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        with falling_flat(240.0) as (world, cable, v0):
+            assert not cable.stable and cable.status == STALLED
+            assert cable.time_to_instability == 0.0
+            assert "stalled" in cable.reason
+            x_before = cable.x.copy()
+            world.step()  # nothing planned is applied: the cable stays where it stopped
+            assert np.array_equal(cable.x, x_before)
+    text = [str(w.message) for w in caught if issubclass(w.category, RuntimeWarning)]
+    assert any("t = 0 s" in t and "times gravity's impulse" in t and "coast" in t for t in text), text
+
+
+def test_without_the_guard_the_landing_coasts():
+    """The behaviour before the guard (STALL_RETRIES = -1), kept as a switch: the solve keeps its start guess,
+    the cable's velocity is unchanged by the step, and the run goes on as stable. This is what the retry
+    replaces (the test above fails on that code)."""
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(solver_mod, "STALL_RETRIES", -1)
+        with falling_flat(240.0) as (world, cable, v0):
+            assert cable.solver._guard.info[COASTED] == 1.0
+            assert np.array_equal(cable._cp.v_new, v0)  # the coast: x' = x + h v, no gravity, no contact
+            assert cable.stable and cable.solver.stall_retries == 0
+
+
+def test_a_converging_contact_run_is_unchanged_by_the_guard():
+    """A drop onto a box at 240 Hz (contacts in most steps, every solve converges): bit-identical final state
+    with the guard (default: its copies are made before every contact step) and without it (-1: no copies, no
+    retry; the code before the guard)."""
+    states = []
+    for levels in (-1, solver_mod.STALL_RETRIES):
+        with pytest.MonkeyPatch.context() as mp:
+            mp.setattr(solver_mod, "STALL_RETRIES", levels)
+            cable, _, _ = drop("box", "implicit_euler", 240.0, 20, duration=0.5)
+        assert cable.stable and cable.newton_failures == 0 and cable.solver.stall_retries == 0
+        assert cable.contact_forces()["normal_force"].sum() > 0.0  # it lies on the box: contacts were in the step
+        states.append((cable.x.copy(), cable.v.copy()))
+    (xa, va), (xb, vb) = states
+    assert np.array_equal(xa, xb) and np.array_equal(va, vb)
+
+
+def _flat(t):
+    """The arrays in a tuple and in the tuples it holds (a NamedTuple's fields, its NamedTuples' fields)."""
+    for a in t:
+        if isinstance(a, tuple):
+            yield from _flat(a)
+        elif isinstance(a, np.ndarray):
+            yield a
+
+
+def test_the_guard_copies_every_array_of_the_contact_set():
+    """Every array of the Contacts (and of the NamedTuples it holds: its Grip, its free Bodies) has a saved
+    copy, so that fields added later are restored too; the row arrays are saved by row, the others whole."""
+    from bullet_dlo.core.kernels.contact import make_contacts
+    with falling_flat(240.0) as (world, cable, v0):
+        guard = cable.solver._guard
+        c = cable.contacts
+        saved = {id(live) for live, _ in guard.rows + guard.whole}
+        arrays = list(_flat(c))
+        assert len(arrays) > 30 and all(id(a) in saved for a in arrays)
+        assert all(live.shape[0] == c.node.shape[0] for live, _ in guard.rows)
+    small = make_contacts(4, 3, 0.002)  # capacity 3 < n = 4: nothing is taken for a row array, all saved whole
+    rows, whole = [], []
+    solver_mod._array_pairs(small, 3, 4, rows, whole)
+    expected = list(_flat(small))
+    assert not rows and sorted(id(live) for live, _ in whole) == sorted(id(a) for a in expected)
+
+
+def test_many_unconverged_steps_warn_once_with_their_share():
+    """A cable sliding over a box edge at 1 kHz (tests/bullet/test_edge_slide.py, n = 40, place 0.75, above the
+    threshold) ends about 40 % of its steps unconverged, far from convergence but never coasting: the steps are
+    kept (no retry, the run goes on) and one RuntimeWarning gives the share, as the core engine's result does."""
+    from test_edge_slide import bracket, hang, soft_cable, threshold
+    spec = soft_cable(40)
+    _, above = bracket(spec.n_masses, 0.75, threshold(0.3))
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        travel, _, cable = hang(spec, above, 0.75, 1000.0, settle=0.2, seconds=0.3)
+    s = cable.solver
+    assert cable.stable and s.stall_retries == 0 and s.coasts == 0
+    assert s.newton_failures > 0.1 * s.steps_planned and s.far_kept > 0
+    assert s.near_misses + s.far_kept == s.newton_failures  # every unconverged step was a contact solve, kept
+    text = [str(w.message) for w in caught if issubclass(w.category, RuntimeWarning) and "Newton" in str(w.message)]
+    assert len(text) == 1 and "%" in text[0] and "kept" in text[0], text
