@@ -67,6 +67,8 @@ def make_stall_guard(arrays: KernelArrays, workspace: Workspace, contacts: Conta
         if a.size:
             whole.append((a, a.copy()))
     whole += [(workspace.x_prev, workspace.x_prev.copy()), (workspace.v_prev, workspace.v_prev.copy())]
+    if not rows:  # a contact set without row arrays (capacity <= n): Numba cannot unroll an empty tuple
+        rows.append((np.zeros(1), np.zeros(1)))
     return StallGuard(levels=int(levels), far=float(far), x0=np.zeros((n, 3)), v0=np.zeros((n, 3)),
                       vs=np.zeros((n, 3)), rows=tuple(rows), whole=tuple(whole), info=np.zeros(6))
 
