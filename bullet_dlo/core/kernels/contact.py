@@ -859,6 +859,29 @@ def contact_energy(c, x):
     return e + grip_energy(c.grip, x)
 
 
+@njit(cache=True, error_model="numpy", inline="always")
+def _row_blocks(c, k, x, kx, kv, u, blk):
+    """blk (2, 3, 3) <- penalty row k's stiffness at x: blk[0] = (kx k_n + kv c_n) n n^T while g < 0 (normal, at the
+    closest point), blk[1] = kx times the friction spring's (stick: k_t P_t; slide: (cap/|u|)(P_t - u u^T/|u|^2),
+    at the anchored point); u: scratch (3,)."""
+    g = _gap(c, k, x)
+    ul = _slip(c, k, x, u)
+    kt, cap = c.k_t[k], c.cap[k]
+    stick = kt * ul <= cap and cap > 0.0
+    nv = c.normal[k]
+    for r in range(3):
+        for q in range(3):
+            nn = nv[r] * nv[q]
+            pt = (1.0 if r == q else 0.0) - nn
+            blk[0, r, q] = (kx * c.k_n[k] + kv * c.c_n[k]) * nn if g < 0.0 else 0.0
+            if stick:
+                blk[1, r, q] = kx * kt * pt
+            elif ul > 0.0:
+                blk[1, r, q] = kx * (cap / ul) * (pt - u[r] * u[q] / (ul * ul))
+            else:
+                blk[1, r, q] = 0.0
+
+
 @njit(cache=True, error_model="numpy")
 def add_contact_jacobian(c, held, x, kx, kv, band):
     """band += kx (-dF/dx) + kv (-dF/dv) of the contact forces at x (3x3 blocks, symmetric).
@@ -888,22 +911,7 @@ def add_contact_jacobian(c, held, x, kx, kv, band):
                                 row = 3 * na + r
                                 band[row, 3 * nb + q - row + HALF] += kx * hw[3 * aa + r, 3 * bb + q]
             continue
-        g = _gap(c, k, x)
-        ul = _slip(c, k, x, u)
-        kt, cap = c.k_t[k], c.cap[k]
-        stick = kt * ul <= cap and cap > 0.0
-        nv = c.normal[k]
-        for r in range(3):
-            for q in range(3):
-                nn = nv[r] * nv[q]
-                pt = (1.0 if r == q else 0.0) - nn
-                blk[0, r, q] = (kx * c.k_n[k] + kv * c.c_n[k]) * nn if g < 0.0 else 0.0
-                if stick:
-                    blk[1, r, q] = kx * kt * pt
-                elif ul > 0.0:
-                    blk[1, r, q] = kx * (cap / ul) * (pt - u[r] * u[q] / (ul * ul))
-                else:
-                    blk[1, r, q] = 0.0
+        _row_blocks(c, k, x, kx, kv, u, blk)
         wts[0, 0], wts[0, 1] = c.weight[k, 0], c.weight[k, 1]  # normal force at the closest point
         wts[1, 0], wts[1, 1] = 1.0 - c.anchor[k, 3], c.anchor[k, 3]  # friction at the anchored point
         for p in range(2):
@@ -1143,22 +1151,7 @@ def coupled_solve(c, held, x, kx, kv, band, r):
         s = c.slot[k]
         if s < 0:
             continue
-        g = _gap(c, k, x)
-        ul = _slip(c, k, x, u)
-        kt, cap = c.k_t[k], c.cap[k]
-        stick = kt * ul <= cap and cap > 0.0
-        nv = c.normal[k]
-        for i in range(3):
-            for q in range(3):
-                nn = nv[i] * nv[q]
-                pt = (1.0 if i == q else 0.0) - nn
-                G[0, i, q] = (kx * c.k_n[k] + kv * c.c_n[k]) * nn if g < 0.0 else 0.0
-                if stick:
-                    G[1, i, q] = kx * kt * pt
-                elif ul > 0.0:
-                    G[1, i, q] = kx * (cap / ul) * (pt - u[i] * u[q] / (ul * ul))
-                else:
-                    G[1, i, q] = 0.0
+        _row_blocks(c, k, x, kx, kv, u, G)
         a0, a1, a2 = c.arm[k, 0], c.arm[k, 1], c.arm[k, 2]
         # J = [I, -[a]x]: -[a]x = [[0, a2, -a1], [-a2, 0, a0], [a1, -a0, 0]]
         J[0, 0], J[1, 1], J[2, 2] = 1.0, 1.0, 1.0
