@@ -223,10 +223,10 @@ def add_part(world, x: np.ndarray) -> int:
     return part
 
 
-def run(out: Path, quick: bool) -> dict:
+def run(out: Path, quick: bool, hz: float = HZ) -> dict:
     clip, post = write_meshes(out)
     scene = Scene.from_dict({
-        "name": "mesh clip", "cable": CORD, "integrator": "implicit_euler", "dt": 1.0 / HZ,
+        "name": "mesh clip", "cable": CORD, "integrator": "implicit_euler", "dt": 1.0 / hz,
         "duration": 1.5 if quick else 5.0, "motion": motion(quick),
         "arms": {"robot": "panda", "hold_height": HOLD, "table_height": 0.0},
         "bullet": {"obstacles": [
@@ -270,7 +270,11 @@ def run(out: Path, quick: bool) -> dict:
     r = CORD["diameter"] / 2
     clip_t, clip_s = np.array(checks.in_clip).T  # arc length at the clip's middle: how much was drawn through
     result = {
-        "stable": summary["stable"], "cpu_s": cpu, "frames": summary["frames"],
+        "stable": summary["stable"], "cpu_s": cpu,
+        # when and why the cable's detector stopped the run (None: it did not)
+        "instability": (None if summary["stable"] else
+                        {"reason": state["arm_scene"].cable.reason,
+                         "time_s": state["arm_scene"].cable.time_to_instability}), "frames": summary["frames"],
         "penetration_mm": {k: 1e3 * max(0.0, -v) for k, v in checks.sdf.items()},
         "clearance_minus_radius_mm": {k: 1e3 * (v - r) for k, v in checks.sdf.items()},
         "part": {"max_distance_to_centre_line_mm": 1e3 * float(rows[:, 1].max()),
@@ -286,7 +290,7 @@ def run(out: Path, quick: bool) -> dict:
         "sensor_check_failures": len(summary.get("sensor_check", {}).get("failures", [])),
         "video": summary.get("side_by_side"),
         # the part every 0.1 s: t [s], distance to the centre line [m], height [m], cord's force up / its weight
-        "part_track": [[round(v, 4) for v in (row[0], row[1], row[2], row[3] / weight)] for row in rows[::24]],
+        "part_track": [[round(v, 4) for v in (row[0], row[1], row[2], row[3] / weight)] for row in rows[::max(1, round(0.1 * hz))]],
     }
     # on the cord: its centre within the bar's half height + the cord's radius + the legs' reach of the centre line
     result["part"]["on_cable"] = (result["part"]["max_distance_to_centre_line_mm"] < 1e3 * (r + 2 * BAR[2] + LEG[2])
@@ -299,13 +303,16 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--out", default=None, help="output folder (default: a new temporary folder)")
     ap.add_argument("--quick", action="store_true", help="1.5 s at 160x120: the cord lowered into the clip")
+    ap.add_argument("--hz", type=float, default=HZ, help=f"physics rate [Hz] (default {HZ:g})")
     args = ap.parse_args()
     out = Path(args.out) if args.out else Path(tempfile.mkdtemp(prefix="mesh_clip_"))
     out.mkdir(parents=True, exist_ok=True)
-    res = run(out, args.quick)
+    res = run(out, args.quick, args.hz)
     pen, clr = res["penetration_mm"], res["clearance_minus_radius_mm"]
     part = res["part"]
     print(f"cable stable: {res['stable']}; {res['frames']} frames; {res['cpu_s']:.1f} s CPU")
+    if res["instability"]:
+        print(f"the run stopped at t = {res['instability']['time_s']:.3f} s: {res['instability']['reason']}")
     print(f"centre line inside the clip mesh: deepest {pen['clip']:.3f} mm; inside the post mesh: deepest "
           f"{pen['post']:.3f} mm (smallest clearance minus the cord's radius: clip {clr['clip']:+.3f} mm, "
           f"post {clr['post']:+.3f} mm)")
