@@ -64,6 +64,7 @@ from bullet_dlo.reality.beam import (
     read_beam_csv,
 )
 from bullet_dlo.reality.beam_arm import ArmImpedance, check_arm_mode, identify_arm, predict_torques_compliant
+from bullet_dlo.reality.beam_law import AMPLITUDE_DAMPING_MAX, file_decay, measured_law
 from bullet_dlo.reality.panda import Panda
 from bullet_dlo.reality.vibration import (
     SINE_WINDOW,
@@ -142,10 +143,14 @@ def predict(rec: BeamRecording, panda: Panda, strip: Strip, damping: dict[str, f
             arm: ArmSetting | None = None) -> Prediction:
     """:func:`~bullet_dlo.reality.beam.predict_torques` (clamp on the measured flange path, ``arm`` None) or
     :func:`~bullet_dlo.reality.beam_arm.predict_torques_compliant` (the strip on the compliant arm)."""
+    law = float(damping.get("amplitude_damping", 0.0))
+    damping = {k: v for k, v in damping.items() if k != "amplitude_damping"}
     if arm is None:
+        if law:
+            raise ParameterError("--amplitude-damping runs in the stepped arm-strip loop: use --arm compliant or loop")
         return predict_torques(rec, panda, strip, damping, numerics, estimate, mounting, duration=duration)
     return predict_torques_compliant(rec, panda, arm.impedance, strip, damping, numerics, estimate, mounting,
-                                     duration=duration, drive=arm.drive)
+                                     duration=duration, drive=arm.drive, amplitude_damping=law)
 
 
 @dataclass(frozen=True)
@@ -458,7 +463,7 @@ def validate_beam(fit_dir: str | Path, predict_dir: str | Path, *, damping: str 
                   duration: float | None = None, limit_files: int | None = None, check_numerics: bool = True,
                   fit_youngs_modulus: bool = False, drag: str | float = "off", clamp_mass: str | float = "off",
                   arm: str | None = None, arm_dir: str | Path | None = None,
-                  log=print) -> tuple[dict[str, Any], dict[str, tuple[BeamRecording, Measured, Prediction]]]:
+                  amplitude_damping: str | float = "off", log=print) -> tuple[dict[str, Any], dict[str, tuple[BeamRecording, Measured, Prediction]]]:
     """Fit ``damping`` on the recordings of ``fit_dir``, predict those of ``predict_dir``.
 
     estimate: Franka's filter (default: identified on ``fit_dir``); duration: simulated seconds of each
@@ -477,11 +482,28 @@ def validate_beam(fit_dir: str | Path, predict_dir: str | Path, *, damping: str 
     (the loop runs the planes only); ``arm_dir``: the
     folder whose recordings identify the arm's impedance instead of ``fit_dir`` (the controller is one for all
     motions, but a folder of Z motions does not move joints 0 and 2 enough to identify them).
+    amplitude_damping: the measured damping law's amplitude-dependent part, zeta = c A_tip
+    (:mod:`bullet_dlo.reality.beam_law`), in the strip's bending dampers of the arm-strip loop: ``"off"`` (default),
+    ``"law"`` (c [1/m] of the drag law zeta0 + c A fitted across FIT_DIR's decay envelopes, from the recordings alone,
+    then held while ``damping`` is fitted with it) or a slope c [1/m] in [0, 10]. Needs ``arm`` compliant or loop.
+    Every run reports the measured law per file (``measured.decay_law``) and across the fit files
+    (``parameters.damping_law``).
     Returns the JSON-ready summary and, per predicted file, (recording, measurement, prediction).
     """
     if arm is None:
         arm = "compliant" if numerics.strip_model == "planes" else "measured"
     check_arm_mode(arm)
+    if amplitude_damping not in ("off", "law"):
+        try:
+            amplitude_damping = float(amplitude_damping)
+        except (TypeError, ValueError):
+            raise ParameterError(f"--amplitude-damping must be off, law or a slope in [0, {AMPLITUDE_DAMPING_MAX:g}] "
+                                 f"1/m, got {amplitude_damping!r}") from None
+        if not (math.isfinite(amplitude_damping) and 0.0 <= amplitude_damping <= AMPLITUDE_DAMPING_MAX):
+            raise ParameterError(f"--amplitude-damping must be off, law or a slope in [0, {AMPLITUDE_DAMPING_MAX:g}] "
+                                 f"1/m, got {amplitude_damping}")
+    if amplitude_damping != "off" and arm == "measured":
+        raise ParameterError("--amplitude-damping runs in the stepped arm-strip loop: use --arm compliant or loop")
     if drag == "fit" and damping != "damping_rate":
         raise ParameterError("--drag-coefficient fit fits C_d together with damping_rate: use --damping damping_rate")
     if drag not in ("off", "fit"):
@@ -521,6 +543,12 @@ def validate_beam(fit_dir: str | Path, predict_dir: str | Path, *, damping: str 
         log(f"estimate filter: {estimate.cutoff_hz:.3g} Hz low-pass + {1e3 * estimate.delay_s:.3g} ms delay; "
             f"fitting {damping} on {len(fit_recs)} recording(s) ...")
         fixed = {} if drag in ("off", "fit") else {"drag_coefficient": float(drag)}
+        law_fit = measured_law(fit_recs, panda, strip, estimate)
+        if amplitude_damping != "off":
+            slope = law_fit["shared"]["drag"]["params"]["c"] if amplitude_damping == "law" else amplitude_damping
+            fixed["amplitude_damping"] = float(slope)
+            log(f"amplitude-dependent damping zeta = c A_tip, c {slope:.4g} 1/m "
+                + ("(the drag law across FIT_DIR's decays)" if amplitude_damping == "law" else "(given)"))
         mounting, mass_fit = Mounting(), None
         if clamp_mass == "fit":  # the payload is linear and independent of the damping: one run per fit file
             log(f"fitting the clamp payload on {len(fit_recs)} recording(s) ...")
@@ -556,6 +584,7 @@ def validate_beam(fit_dir: str | Path, predict_dir: str | Path, *, damping: str 
             m = measure(rec)
             pred = predict(rec, panda, strip, params, numerics, estimate, mounting, duration=duration, arm=arm_setting)
             files[rec.name] = file_result(rec, m, pred)
+            files[rec.name]["measured"]["decay_law"] = file_decay(rec, panda, strip, estimate).summary()
             details[rec.name] = (rec, m, pred)
     simulated = sum(f["simulated_s"] for f in files.values())
     goals = {k: {"within": sum(f["within_goal"][k] for f in files.values()), "of": len(files), "tolerance": tol}
@@ -563,7 +592,10 @@ def validate_beam(fit_dir: str | Path, predict_dir: str | Path, *, damping: str 
     cpu = sum(f["cpu_s"] for f in files.values())
     summary = {
         "files": files,
-        "parameters": {**params, damping + "_fit": fitted.to_dict(),
+        "parameters": {**params, damping + "_fit": fitted.to_dict(), "damping_law": law_fit,
+                       "amplitude_damping_source": ("off: linear damping only" if amplitude_damping == "off" else
+                                                    "the drag law's slope across FIT_DIR's decay envelopes" if
+                                                    amplitude_damping == "law" else "given"),
                        **({"drag_fit": drag_fit.to_dict()} if drag_fit is not None else {}),
                        "drag": ("off" if drag == "off" else
                                 "quadratic air drag on the strip's face, 1/2 rho_air C_d w |v_n| v_n per length, "
