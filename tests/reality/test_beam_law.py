@@ -158,3 +158,39 @@ def test_validate_beam_bad_amplitude_damping_is_one_line_exit_2(tmp_path, capsys
     code = main(["validate", "beam", str(tmp_path), str(tmp_path), "--json", str(tmp_path / "o.json"), *args])
     err = capsys.readouterr().err.strip()
     assert code == 2 and len(err.splitlines()) == 1 and word in err
+
+
+@pytest.mark.bullet
+def test_the_law_enters_the_arm_strip_loop_prediction():
+    """predict_torques_compliant with amplitude_damping c: a joint-0 swing of the Panda (0.15 rad in 0.35 s, a stiff
+    arm in the loop from q_d, so the clamp is at rest after the motion) rings with an added damping ratio of c times the
+    strip's tip amplitude over the window (within 25 %: the amplitude falls by about 2x over it); with c = 0 the
+    prediction is the old one. Fails on the old code (no such argument)."""
+    pytest.importorskip("pybullet")
+    from bullet_dlo.reality.beam import BeamRecording, EstimateFilter, Numerics
+    from bullet_dlo.reality.beam_arm import ArmImpedance, predict_torques_compliant
+    from bullet_dlo.reality.panda import Panda
+
+    t = np.arange(0.0, 2.6, 1e-3)
+    q0 = np.array([0.0, -0.3, 0.0, -2.2, 0.0, 2.0, 0.785])
+    s = np.clip((t - 0.1) / 0.35, 0.0, 1.0)[:, None]
+    q = q0 + np.r_[0.15, np.zeros(6)] * (10 * s**3 - 15 * s**4 + 6 * s**5)
+    dq = np.r_[0.15, np.zeros(6)] * (30 * s**2 - 60 * s**3 + 30 * s**4) / 0.35
+    zero = np.zeros_like(q)
+    rec = BeamRecording(t=t, q=q, q_d=q, dq=dq, dq_d=dq, tau_J=zero, tau_ext_hat_filtered=zero, name="swing")
+    stiff = ArmImpedance(np.full(7, 1e7), np.full(7, 1e3), np.ones(7), np.arange(7) < 5)
+    est, numerics, slope = EstimateFilter(4.2, 0.0065), Numerics(n_masses=8), 1.0
+    window = (t >= 0.8) & (t <= 2.5)
+    zeta, tip_amp = {}, {}
+    with Panda() as panda:
+        for c in (0.0, slope):
+            pred = predict_torques_compliant(rec, panda, stiff, Strip(), {}, numerics, est, drive="desired",
+                                             amplitude_damping=c)
+            w = window[:len(pred.t)]
+            zeta[c] = fit_damped_sine(pred.t[w], pred.torques[w, 0])[1]
+            tip = pred.tip[w] - pred.tip[w].mean(axis=0)
+            f = fit_damped_sine(pred.t[w], pred.torques[w, 0])[0]
+            tip_amp[c] = math.sqrt(sum(sine_amplitude(pred.t[w], tip[:, i], f) ** 2 for i in range(3)))
+    assert tip_amp[slope] > 0.003  # the swing leaves millimetres at the tip: a measurable law
+    assert zeta[0.0] < 2e-3  # no strip damping: BDF2's and the stiff arm's are all
+    assert zeta[slope] - zeta[0.0] == pytest.approx(slope * tip_amp[slope], rel=0.25)
