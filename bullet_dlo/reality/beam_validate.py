@@ -18,8 +18,7 @@ The run at 0 also shows how much damping the arm brings: through the measured fl
 model strip loads (``compliant``, the default with the planes strip, and ``loop``: :mod:`bullet_dlo.reality.beam_arm`).
 
 The measured damping is amplitude dependent (larger at large amplitude): reported per recording
-over successive windows; a linear damping law cannot follow it, which limits the damping ratio
-and the peak-to-peak on motions whose amplitude differs from the fit set's.
+over successive windows and as a fitted law (below).
 
 **Quadratic air drag** (``drag``, :func:`fit_damping_drag`): the core's face drag law
 (``drag_coefficient`` C_d, air) on the strip, either held at a given C_d (``damping`` fitted with it) or
@@ -31,6 +30,12 @@ peak-to-peak over the first 0.5 s after the motion) tells an excitation miss fro
 amplitude of a sine at the signal's own frequency fitted over the same window,
 :func:`~bullet_dlo.reality.vibration.sine_amplitude`) for measurement and model, its ratio, and ``within_goal`` with the
 same 15 %; the summary's ``goals`` counts the files within each goal (:data:`GOALS`).
+
+**The damping law** (:mod:`bullet_dlo.reality.beam_law`). Every run measures the law of FIT_DIR's decays from the
+recordings alone (``parameters.damping_law``; per predicted file ``measured.decay_law``): the decays follow
+zeta = zeta0 + c A_tip (c 0.35-0.43 1/m), not a constant, not Coulomb friction. ``amplitude_damping`` (``--amplitude-damping
+law``) puts c into the strip's bending dampers, set each step from its amplitude (the loop arms only); it is held while
+``damping`` is fitted with it. Off by default: it does not improve the held-out counts (docs/guides/validate.md).
 
 **Clamp payload** (``clamp_mass``, :func:`fit_clamp_mass`): a rigid mass at the clamp (the clamp hardware)
 that Franka's estimate does not know adds m J_c^T (a - g) to the external torques; linear in m, so it is fitted
