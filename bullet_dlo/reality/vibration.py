@@ -17,6 +17,12 @@ All times in seconds, torques in N m, frequencies in Hz. Given a sampled signal 
   (:func:`sine_amplitude`): the level of the mode alone. Content in the band at other frequencies (the arm
   settling, Franka's model errors) adds to the peak-to-peak but is nearly orthogonal to the sine over the
   window's three cycles, so it barely moves this one.
+
+The damping law (how zeta depends on the amplitude): :func:`envelope` (sines at the mode's frequency over windows of
+a few cycles), :func:`fit_decay_law` (closed-form decays of dA/dt = -zeta(A) omega A for :data:`DECAY_LAWS`: viscous,
+drag zeta0 + c A, friction zeta0 + b / A, power zeta_ref (A/A_ref)^p, fitted on ln A, one envelope or several with
+the law shared), :func:`best_decay_law` (Akaike criterion and effect size) and :func:`local_damping` (zeta over
+successive spans).
 """
 from __future__ import annotations
 
