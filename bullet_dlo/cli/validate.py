@@ -44,7 +44,8 @@ def cmd_beam(args: argparse.Namespace) -> int:
                                      strip=strip, estimate=estimate, duration=args.duration,
                                      limit_files=args.limit_files, check_numerics=not args.no_numerics_check,
                                      fit_youngs_modulus=args.fit_youngs_modulus, drag=args.drag_coefficient,
-                                     clamp_mass=args.clamp_mass, arm=args.arm, arm_dir=args.arm_dir, log=log)
+                                     clamp_mass=args.clamp_mass, arm=args.arm, arm_dir=args.arm_dir,
+                                     amplitude_damping=args.amplitude_damping, log=log)
     out = Path(args.json)
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(json.dumps(summary, indent=2))
@@ -69,6 +70,14 @@ def cmd_beam(args: argparse.Namespace) -> int:
           f"{args.strip_model} strip, {summary['arm']['mode']} arm, {args.integrator}, n {args.n_masses}, "
           f"dt {numerics.dt:g} s; "
           f"{summary['cost_per_simulated_second']:.3g} CPU s per simulated s")
+    law = params["damping_law"]
+    drag_law = law["shared"]["drag"]["params"]
+    print(f"measured damping law (FIT_DIR's decays, no model): {law['best_law']} across files, zeta = "
+          f"{drag_law['zeta0']:.4f} + {drag_law['c']:.3g} A_tip [m] (relative misfit {law['shared']['drag']['rms_log']:.3f}"
+          f", linear {law['shared']['viscous']['rms_log']:.3f}); per file: " + ", ".join(
+              f"{k[4:]} {v['best_law']}" for k, v in law["per_file"].items())
+          + ("" if "amplitude_damping" not in params else
+             f"; in the model: zeta = c A_tip with c {params['amplitude_damping']:.4g} 1/m"))
     if "clamp_mass_fit" in params:
         cm = params["clamp_mass_fit"]
         print(f"clamp payload {cm['value']:.3g} kg fitted (per file {cm['interval'][0]:.3g}-{cm['interval'][1]:.3g}; "
@@ -121,6 +130,12 @@ def add_parsers(sub, common: argparse.ArgumentParser) -> None:
                         "1.204 kg/m^3): off (default), fit (C_d fitted on FIT_DIR together with damping_rate, from "
                         "the damping's amplitude dependence over windows of each decay) or a value C_d [-] in "
                         "[0, 1000] held while the damping is fitted")
+    b.add_argument("--amplitude-damping", default="off", metavar="{off,law,C}",
+                   help="the measured amplitude-dependent damping zeta = c A_tip (A_tip the strip's tip amplitude [m]) "
+                        "in the strip's bending dampers, set each step from the current amplitude: off (default), law "
+                        "(c from the drag law zeta0 + c A fitted across FIT_DIR's decay envelopes, from the "
+                        "recordings alone, then held while --damping is fitted with it) or a slope c [1/m] in [0, 10]; "
+                        "needs --arm compliant or loop")
     b.add_argument("--clamp-mass", default="off", metavar="{off,fit,KG}",
                    help="a rigid payload at the clamp (the clamp hardware) that Franka's estimate does not know: its "
                         "weight change and inertia m (g - a) join the predicted torques; off (default), fit (fitted on "

@@ -220,10 +220,14 @@ def predict_torques_compliant(rec: BeamRecording, panda: Panda, impedance: ArmIm
                               damping: dict[str, float] | None = None, numerics: Numerics = Numerics(),
                               estimate: EstimateFilter = EstimateFilter(), mounting: Mounting = Mounting(),
                               duration: float | None = None, drive: str = "measured",
-                              gravity: tuple[float, float, float] = STANDARD_GRAVITY) -> Prediction:
+                              gravity: tuple[float, float, float] = STANDARD_GRAVITY,
+                              amplitude_damping: float = 0.0) -> Prediction:
     """:func:`~bullet_dlo.reality.beam.predict_torques` with the strip on the compliant arm (module doc):
     ``drive`` ``"measured"`` (substitution about the measured q) or ``"desired"`` (full loop from q_d). The
-    planar-pair strip only; the returned prediction carries the arm's deviation (``arm_deviation`` [rad], (k, 7))."""
+    planar-pair strip only; the returned prediction carries the arm's deviation (``arm_deviation`` [rad], (k, 7)).
+    ``amplitude_damping`` c [1/m]: the measured damping law's amplitude-dependent part, zeta = c A (A the strip's tip
+    amplitude), as the weak-plane run's bending dampers set each step
+    (:class:`bullet_dlo.reality.beam_law.AmplitudeDamping`); 0: none."""
     if impedance.compliant[5:].any():
         raise ParameterError("the arm-strip loop holds the wrist joints 5 and 6 rigid (their inertia is too small for "
                              "the staggered step against the strip's stiff strong-plane clamp); give an impedance with "
@@ -289,6 +293,12 @@ def predict_torques_compliant(rec: BeamRecording, panda: Panda, impedance: ArmIm
     smp = empty_samples()
     sample_holders(plan, 0.0, h, smp)
     x, v, ws = state.x.copy(), state.v.copy(), make_workspace(model.n)
+    law = None
+    if amplitude_damping:
+        from bullet_dlo.reality.beam_law import AmplitudeDamping, first_omega
+
+        law = AmplitudeDamping(m, amplitude_damping, first_omega(strip), damping.get("internal_damping", 0.0), x,
+                               smp.dir[0, 0])
     force, moment = np.zeros((2, 3)), np.zeros((2, 3))
     end_forces(m, x, v, smp.dir[0], smp.acc[0], force)
     clamp_moments(m, x, v, smp.dir[0], moment)
@@ -325,6 +335,8 @@ def predict_torques_compliant(rec: BeamRecording, panda: Panda, impedance: ArmIm
             smp.dir[s, 0] = _turn(smp.dir[s, 0], weak_run.rotate @ dx[3:])
         _, ok = advance(stepper, m, x, v, smp, ws, step > 0)
         failures += 0 if ok else 1
+        if law is not None:  # the dampers for the next step from the amplitude now
+            law.update(x, smp.dir[2, 0], h)
         end_forces(m, x, v, smp.dir[2], smp.acc[2], force)
         clamp_moments(m, x, v, smp.dir[2], moment)
         if not (np.all(np.isfinite(x)) and np.all(np.isfinite(force))):

@@ -158,6 +158,13 @@ def test_validate_beam_on_the_recordings(tmp_path, z_split):
     assert entry["rms_torque_error"] < entry["rms_measured_deviation"]  # the prediction explains part of the signal
     assert summary["parameters"]["damping_rate"] > 0
     assert (out.parent / "beam.ocp_Z_35cm_0.61s_1.png").is_file()
+    # the measured damping law, from the recordings alone: Z_15cm's and Z_35cm's decays grow with the amplitude
+    law = summary["parameters"]["damping_law"]
+    assert law["per_file"]["ocp_Z_15cm_0.42s_1"]["best_law"] == "drag"
+    assert entry["measured"]["decay_law"]["best_law"] == "drag"
+    assert law["shared"]["drag"]["params"]["c"] > 0.1  # [1/m]
+    assert "amplitude_damping" not in summary["parameters"]  # the law stays out of the default model
+    assert summary["limits"][2].startswith("the damping is amplitude dependent")
 
 
 @pytest.mark.bullet
