@@ -17,6 +17,7 @@ import numpy as np
 import pybullet as pb
 import pytest
 from test_contact_friction import capstan_onset
+from probes import deepest
 from test_contact_rest import settle, strain
 
 from bullet_dlo.bullet.world import BulletWorld
@@ -110,17 +111,6 @@ def test_capstan_on_a_hull_peg(hz):
     assert cable.newton_failures <= 0.01 * cable.steps
 
 
-def deepest(world: BulletWorld, body: int, x: np.ndarray, radius: float, probe: int) -> float:
-    """The smallest signed distance [m] of the spheres of ``radius`` at x (n, 3) to any link of ``body``."""
-    cid = world.client
-    worst = np.inf
-    for link in range(-1, pb.getNumJoints(body, physicsClientId=cid)):
-        for p in x.tolist():
-            for hit in pb.getClosestPoints(-1, body, 0.01, -1, link, probe, -1, p, physicsClientId=cid):
-                worst = min(worst, hit[8])
-    return worst
-
-
 @pytest.mark.parametrize("hz", [240.0, 60.0])
 def test_a_cable_swung_against_a_panda_stays_outside_it(hz):
     """An Lv cable pinned 9 cm beside a Panda's column (pybullet_data's URDF: meshes on child links), hanging,
@@ -145,7 +135,7 @@ def test_a_cable_swung_against_a_panda_stays_outside_it(hz):
             assert cable.stable, cable.reason
             pc = cable.contact_forces()
             touched |= bool(np.any(pc["body"] == arm))
-            worst = min(worst, deepest(world, arm, cable.x, spec.diameter / 2, probe))
+            worst = min(worst, deepest(world.client, arm, cable.x, probe, search=0.01))
         assert touched, "never touched the arm"
         assert worst > -(spec.diameter / 2 + HULL_MARGIN), worst  # the centre line outside the links' meshes
 

@@ -21,6 +21,7 @@ from __future__ import annotations
 import numpy as np
 import pybullet as pb
 import pytest
+from probes import deepest
 
 from bullet_dlo.config.robot import DualArmSpec
 from bullet_dlo.core.spec import CableSpec
@@ -28,16 +29,6 @@ from bullet_dlo.robots.dual_arm import DualArmScene
 
 HZ = 240.0
 MESH_MARGIN = 1e-3  # [m] Bullet's collision margin of the Panda's convex meshes (docs/concepts/contact.md)
-
-
-def deepest(cid: int, body: int, points: np.ndarray, probe: int) -> float:
-    """Smallest signed distance [m] of a sphere ``probe`` at each point (k, 3) to any link of ``body``."""
-    worst = np.inf
-    for link in range(-1, pb.getNumJoints(body, physicsClientId=cid)):
-        for p in points.tolist():
-            for hit in pb.getClosestPoints(-1, body, 0.02, -1, link, probe, -1, p, physicsClientId=cid):
-                worst = min(worst, hit[8])
-    return worst
 
 
 def push_through(exclude: bool = False) -> dict:
