@@ -209,6 +209,19 @@ def env_split(u, steps: int) -> dict[str, float]:
     return out
 
 
+def envs_vs_floor(env_steps: int) -> None:
+    """Part 2 printed: each environment's step against its physical floor, and the split of the env step."""
+    print(f"env step vs its physical floor (Bullet's bare step x physics steps per control step), interleaved, "
+          f"CPU time of this thread, {env_steps} steps, load average {os.getloadavg()[0]:.2f}")
+    for env_id in ENVS:
+        r = env_vs_floor(env_id, env_steps)
+        print(f"{env_id}: env step {r['env'] * 1e6:.0f} us, floor {r['floor'] * 1e6:.0f} us, ratio {r['ratio']:.2f} "
+              f"(10-90 %: {r['lo']:.2f}-{r['hi']:.2f}), {1 / r['env']:.0f} env steps per CPU-second; split:")
+        for k in sorted((k for k in r if k.startswith("part: ")), key=lambda k: -r[k]):
+            print(f"  {r[k] * 1e6:8.1f} us  {100 * r[k] / r['total']:5.1f} %  {k[6:]}")
+    print(f"load average {os.getloadavg()[0]:.2f}")
+
+
 def ik_cost(robot: str = "panda", solves: int = 300) -> dict[str, float]:
     """CPU time [us] of one ``Robot.track`` solve (a target 1 cm away) per IK solver, interleaved in blocks of 10,
     and the position error [m] each leaves, measured by PyBullet's forward kinematics on the twin."""
@@ -269,8 +282,16 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--masses", nargs="+", type=int, default=[10, 40])
     parser.add_argument("--python-too", action="store_true",
                         help="also time each case through PyBullet's Python API (the path without a C compiler)")
+    parser.add_argument("--envs-only", action="store_true",
+                        help="only part 2: each environment's step against its physical floor, and its split")
+    parser.add_argument("--env-steps", type=int, default=None, help="env steps of part 2 (default 150; 10 with --quick)")
     args = parser.parse_args(argv)
     blocks, env_steps = (5, 10) if args.quick else (60, 150)
+    if args.env_steps is not None:
+        env_steps = args.env_steps
+    if args.envs_only:
+        envs_vs_floor(env_steps)
+        return
 
     print(f"load average {os.getloadavg()[0]:.2f}; "
           f"dual-arm step vs bare stepSimulation, same world, {blocks} interleaved blocks of {BLOCK} steps, "
@@ -298,14 +319,8 @@ def main(argv: list[str] | None = None) -> None:
     for name, us in sorted(times.items(), key=lambda kv: -kv[1]):
         print(f"  {us:7.1f}  {name}")
 
-    print(f"\nenv step vs its physical floor (Bullet's bare step x physics steps per control step), interleaved, "
-          f"CPU time of this thread, {env_steps} steps, load average {os.getloadavg()[0]:.2f}")
-    for env_id in ENVS:
-        r = env_vs_floor(env_id, env_steps)
-        print(f"{env_id}: env step {r['env'] * 1e6:.0f} us, floor {r['floor'] * 1e6:.0f} us, ratio {r['ratio']:.2f} "
-              f"(10-90 %: {r['lo']:.2f}-{r['hi']:.2f}), {1 / r['env']:.0f} env steps per CPU-second; split:")
-        for k in sorted((k for k in r if k.startswith("part: ")), key=lambda k: -r[k]):
-            print(f"  {r[k] * 1e6:8.1f} us  {100 * r[k] / r['total']:5.1f} %  {k[6:]}")
+    print()
+    envs_vs_floor(env_steps)
 
     print("\nRobot.track, one solve per arm and control step (panda, a target 1 cm away), median CPU time:")
     for solver, (us, err) in ik_cost().items():
