@@ -161,14 +161,16 @@ def env_vs_floor(env_id: str, steps: int) -> dict[str, float]:
         if term or trunc:
             env.reset()
     ratios = np.array(full) / np.array(bare)
-    split = env_split(u, max(10, steps // 3))
+    split = env_split(u, max(10, steps // 2))
     env.close()
     return {"env": statistics.median(full), "floor": statistics.median(bare), "ratio": float(np.median(ratios)),
             "lo": float(np.percentile(ratios, 10)), "hi": float(np.percentile(ratios, 90)), **split}
 
 
-def env_split(u, steps: int) -> dict[str, float]:
-    """CPU time [s] per env step of its parts (hooks wrapped with timers; the rest is the env's own Python)."""
+def env_split(u, steps: int, warm: int = 5) -> dict[str, float]:
+    """CPU time [s] per env step of its parts: medians over ``steps`` env steps (after ``warm`` untimed ones, so
+    that a kernel compiled for a new episode is not counted), hooks wrapped with timers; the rest (the env's own
+    Python, reward, world loop) is each step's total minus its parts. Wrapping adds a little to every part."""
     physics = u.physics
     spent: dict[str, float] = {}
 
@@ -180,6 +182,9 @@ def env_split(u, steps: int) -> dict[str, float]:
             return out
         return run
 
+    for _ in range(warm):
+        if any(u.step(u.action_space.sample())[2:4]):
+            u.reset()
     parts = [(physics.cable, "apply_forces", "cable step"), (physics.cable, "sync_after_step", "cable step"),
              (physics, "_apply_cable_wrench", "grasp coupling"), (physics, "_follow_grippers", "grasp coupling"),
              (u, "_observation", "observation")]
@@ -190,23 +195,25 @@ def env_split(u, steps: int) -> dict[str, float]:
         setattr(obj, name, timed(label, getattr(obj, name)))
     step_simulation = pb.stepSimulation
     pb.stepSimulation = timed("Bullet stepSimulation", step_simulation)
-    total = 0.0
+    rows: list[dict[str, float]] = []
     try:
         for _ in range(steps):
             action = u.action_space.sample()
+            spent.clear()
             tic = CLOCK()
             _, _, term, trunc, _ = u.step(action)
-            total += CLOCK() - tic
+            total = CLOCK() - tic
+            row = {f"part: {k}": v for k, v in spent.items()}
+            row["part: rest (env Python, reward, world loop)"] = total - sum(spent.values())
+            row["total"] = total
+            rows.append(row)
             if term or trunc:
-                u.reset()
+                break  # a new episode's world: the hooks are on the old one's objects
     finally:
         pb.stepSimulation = step_simulation
         for obj, name, _ in parts:
             delattr(obj, name)
-    out = {f"part: {k}": v / steps for k, v in spent.items()}
-    out["part: rest (env Python, reward, world loop)"] = total / steps - sum(out.values())
-    out["total"] = total / steps
-    return out
+    return {k: statistics.median(r.get(k, 0.0) for r in rows) for k in rows[0]}
 
 
 def envs_vs_floor(env_steps: int) -> None:
@@ -219,6 +226,7 @@ def envs_vs_floor(env_steps: int) -> None:
               f"(10-90 %: {r['lo']:.2f}-{r['hi']:.2f}), {1 / r['env']:.0f} env steps per CPU-second; split:")
         for k in sorted((k for k in r if k.startswith("part: ")), key=lambda k: -r[k]):
             print(f"  {r[k] * 1e6:8.1f} us  {100 * r[k] / r['total']:5.1f} %  {k[6:]}")
+        print(f"  {r['total'] * 1e6:8.1f} us  (median of the timed steps' totals)")
     print(f"load average {os.getloadavg()[0]:.2f}")
 
 

@@ -77,9 +77,6 @@ def sensor_links(robot: Robot) -> list[int]:
 
 
 COMPENSATIONS = PAYLOADS
-NOISE_BLOCK = 64
-"""Noise samples (rows of 6 standard normal draws) a sensor with a generator of its own draws at once
-(:class:`~bullet_dlo.robots.dual_arm.DualArmObservation`'s sensors)."""
 """How a wrist sensor knows its payload (the scene's ``arms.payload``): ``urdf``: every tool-side link's mass, centre of mass and
 inertia from the robot description; ``calibrated``: mass and centre of mass identified from unloaded
 readings at several orientations (:func:`identify_payload`), as users of real F/T sensors do."""
@@ -168,9 +165,6 @@ class WristSensor:
         payload: the payload's model (:class:`PayloadFit` from a calibration); None: from the robot
             description (:func:`urdf_payload`).
         rng: random generator for the noise (seeded for reproducible data).
-        noise_block: noise samples drawn from ``rng`` at once, an integer >= 1 (1: one draw of 6 per sample). Above
-            1 the sensor draws ahead of its samples, the same numbers in the same order (cheaper per sample), so
-            ``rng`` must be the sensor's own: a generator shared with other users would hand them other numbers.
         contacts: returns the contact points of the step just taken as an unfiltered
             ``pybullet.getContactPoints()`` gives them (e.g. :meth:`~bullet_dlo.bullet.world.BulletWorld.contacts`,
             one query per step for the world); None: the sensor makes that query itself.
@@ -190,7 +184,7 @@ class WristSensor:
     def __init__(self, robot: Robot, gravity: Sequence[float], rate: float | None = None, noise_std=(0.0,) * 6,
                  bias=(0.0,) * 6, compensate_inertia: bool = True, payload: PayloadFit | None = None,
                  rng: np.random.Generator | None = None, contacts: Callable[[], Sequence] | None = None,
-                 reader: StateReader | None = None, row: int = 0, noise_block: int = 1):
+                 reader: StateReader | None = None, row: int = 0):
         name = robot.spec.sensor_joint
         if name not in robot.joint_index:
             raise ParameterError(f"robot {robot.spec.name!r} has no joint {name!r} for the F/T sensor")
@@ -225,12 +219,6 @@ class WristSensor:
         self._transmit = bind(tool_reaction, self._rows, self._tool, 1.0, self._tool_memory, self._applied,
                               self._reaction)
         self._noisy = bool(np.any(self.noise_std > 0))  # no noise: no draws (the generator is used only here)
-        if isinstance(noise_block, bool) or not isinstance(noise_block, (int, np.integer)) or noise_block < 1:
-            raise ParameterError(f"noise_block must be an integer >= 1, got {noise_block!r}")
-        self._noise_size = int(noise_block)
-        self._noise_block = np.zeros((self._noise_size, 6))  # standard normal draws of rng, used row by row
-        self._noise_row = self._noise_size  # the next row to use (all used: draw a block first)
-        self._noise_rng = self.rng  # the generator the block came from
         self._tare = np.zeros(6)
         self._memory = SensorMemory(np.zeros((len(self.payload.mass), 6)), np.zeros(1))
         self._scratch = np.zeros(12)
@@ -318,20 +306,8 @@ class WristSensor:
             self._add_contacts()
         offset = self.bias
         if due and self._noisy:
-            offset = self.bias + self._standard_normal() * self.noise_std
+            offset = self.bias + self.rng.normal(size=6) * self.noise_std
         return due, offset
-
-    def _standard_normal(self) -> np.ndarray:
-        """The next six standard normal draws of :attr:`rng` (6,), the numbers ``rng.normal(size=6)`` gives, taken
-        from a block of ``noise_block`` samples drawn at once (a draw of 6 costs about as much as one of 384).
-        A generator fills a block element by element in order, so sample k gets the bits of the k-th call of
-        ``rng.normal(size=6)``. A new :attr:`rng` (assigned) starts a new block at its next sample."""
-        k, block = self._noise_row, self._noise_block
-        if k == self._noise_size or self._noise_rng is not self.rng:
-            block = self._noise_block = self.rng.normal(size=(self._noise_size, 6))
-            self._noise_rng, k = self.rng, 0
-        self._noise_row = k + 1
-        return block[k]
 
     def _sampled(self, t: float, offset: np.ndarray) -> None:
         """After the reading kernel sampled at time t [s] into ``_scratch``: keep it (the Wrench is built

@@ -15,7 +15,7 @@ from bullet_dlo.core.validate import ParameterError, check_positive
 from bullet_dlo.robots.dual_arm.physics import ARMS, END_NODE, DualArmPhysics
 from bullet_dlo.bullet.kernels import bind
 from bullet_dlo.robots.kernels import load_mismatch, wrist_pair
-from bullet_dlo.robots.sensors import NOISE_BLOCK, WristSensor
+from bullet_dlo.robots.sensors import WristSensor
 from bullet_dlo.robots.transforms import cross3
 
 
@@ -128,8 +128,7 @@ class DualArmObservation:
         fits = physics.payload_fits or (None, None)
         self.sensors = [WristSensor(robot, physics.world.gravity, spec.sensor_rate, spec.noise_std, spec.bias,
                                     payload=fits[k], rng=np.random.default_rng(spec.seed + k),
-                                    contacts=physics.world.contacts, reader=physics.reader, row=k,
-                                    noise_block=NOISE_BLOCK)  # their generators are theirs alone
+                                    contacts=physics.world.contacts, reader=physics.reader, row=k)
                         for k, robot in enumerate(physics.robots)]
         for s in self.sensors:
             s.tare()
