@@ -374,7 +374,9 @@ class RoutingEnv(DualArmEnv):
         world = self.physics.world
         if self._measures is not None and self._measures["time"] == world.time:
             return self._measures
-        x = np.nan_to_num(self.physics.cable.x)  # an unstable step: the episode ends, the measures stay finite
+        x = self.physics.cable.x  # read only here
+        if not np.isfinite(x).all():  # an unstable step: the episode ends, the measures stay finite
+            x = np.nan_to_num(x)
         route = self.route
         distances = segment_distances_many(x, route.pegs)  # every peg at once, shared by the gaps and the wraps
         gaps = [float(d.min()) - PEG_RADIUS - self.cable_radius for d in distances]
