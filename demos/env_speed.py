@@ -12,7 +12,7 @@
 
 Prints ratios and rates; writes nothing. ``--quick`` for a short run (smoke test).
 
-    python demos/env_speed.py [--quick] [--robots panda kuka] [--masses 10 40] [--python-too]
+    python demos/env_speed.py [--quick] [--robots panda kuka] [--masses 10 40] [--python-too] [--envs-only] [--env-steps N]
 """
 from __future__ import annotations
 
