@@ -12,7 +12,7 @@
 
 Prints ratios and rates; writes nothing. ``--quick`` for a short run (smoke test).
 
-    python demos/env_speed.py [--quick] [--robots panda kuka] [--masses 10 40] [--python-too]
+    python demos/env_speed.py [--quick] [--robots panda kuka] [--masses 10 40] [--python-too] [--envs-only] [--env-steps N]
 """
 from __future__ import annotations
 
@@ -161,14 +161,16 @@ def env_vs_floor(env_id: str, steps: int) -> dict[str, float]:
         if term or trunc:
             env.reset()
     ratios = np.array(full) / np.array(bare)
-    split = env_split(u, max(10, steps // 3))
+    split = env_split(u, max(10, steps // 2))
     env.close()
     return {"env": statistics.median(full), "floor": statistics.median(bare), "ratio": float(np.median(ratios)),
             "lo": float(np.percentile(ratios, 10)), "hi": float(np.percentile(ratios, 90)), **split}
 
 
-def env_split(u, steps: int) -> dict[str, float]:
-    """CPU time [s] per env step of its parts (hooks wrapped with timers; the rest is the env's own Python)."""
+def env_split(u, steps: int, warm: int = 5) -> dict[str, float]:
+    """CPU time [s] per env step of its parts: medians over ``steps`` env steps (after ``warm`` untimed ones, so
+    that a kernel compiled for a new episode is not counted), hooks wrapped with timers; the rest (the env's own
+    Python, reward, world loop) is each step's total minus its parts. Wrapping adds a little to every part."""
     physics = u.physics
     spent: dict[str, float] = {}
 
@@ -180,6 +182,9 @@ def env_split(u, steps: int) -> dict[str, float]:
             return out
         return run
 
+    for _ in range(warm):
+        if any(u.step(u.action_space.sample())[2:4]):
+            u.reset()
     parts = [(physics.cable, "apply_forces", "cable step"), (physics.cable, "sync_after_step", "cable step"),
              (physics, "_apply_cable_wrench", "grasp coupling"), (physics, "_follow_grippers", "grasp coupling"),
              (u, "_observation", "observation")]
@@ -188,25 +193,59 @@ def env_split(u, steps: int) -> dict[str, float]:
     parts += [(robot, "track", "IK (Robot.track)") for robot in physics.robots]
     for obj, name, label in parts:
         setattr(obj, name, timed(label, getattr(obj, name)))
+    # inside the cable step (shown apart, not subtracted again): the contact model's detection, the solver's kernel
+    from bullet_dlo.bullet.contact import ContactSet
+
+    inner = [(ContactSet, "update", "  cable step: contact detection (ContactSet.update)"),
+             (physics.cable.solver, "step", "  cable step: solver kernel (CableSolver.step)")]
+    saved_inner = [getattr(obj, name) for obj, name, _ in inner]
+    for obj, name, label in inner:
+        setattr(obj, name, timed(label, getattr(obj, name)))
     step_simulation = pb.stepSimulation
     pb.stepSimulation = timed("Bullet stepSimulation", step_simulation)
-    total = 0.0
+    rows: list[dict[str, float]] = []
     try:
         for _ in range(steps):
             action = u.action_space.sample()
+            spent.clear()
             tic = CLOCK()
             _, _, term, trunc, _ = u.step(action)
-            total += CLOCK() - tic
+            total = CLOCK() - tic
+            row = {f"part: {k}": v for k, v in spent.items()}
+            row["part: rest (env Python, reward, world loop)"] = total - sum(v for k, v in spent.items()
+                                                                               if not k.startswith(" "))
+            row["total"] = total
+            rows.append(row)
             if term or trunc:
-                u.reset()
+                break  # a new episode's world: the hooks are on the old one's objects
     finally:
         pb.stepSimulation = step_simulation
         for obj, name, _ in parts:
             delattr(obj, name)
-    out = {f"part: {k}": v / steps for k, v in spent.items()}
-    out["part: rest (env Python, reward, world loop)"] = total / steps - sum(out.values())
-    out["total"] = total / steps
-    return out
+        for (obj, name, _), fn in zip(inner, saved_inner):
+            if obj is ContactSet:
+                setattr(obj, name, fn)
+            else:
+                delattr(obj, name)
+    keys = {k for r in rows for k in r}
+    return {k: statistics.median(r.get(k, 0.0) for r in rows) for k in keys}
+
+
+def envs_vs_floor(env_steps: int) -> None:
+    """Part 2 printed: each environment's step against its physical floor, and the split of the env step."""
+    print(f"env step vs its physical floor (Bullet's bare step x physics steps per control step), interleaved, "
+          f"CPU time of this thread, {env_steps} steps, load average {os.getloadavg()[0]:.2f}")
+    for env_id in ENVS:
+        r = env_vs_floor(env_id, env_steps)
+        print(f"{env_id}: env step {r['env'] * 1e6:.0f} us, floor {r['floor'] * 1e6:.0f} us, ratio {r['ratio']:.2f} "
+              f"(10-90 %: {r['lo']:.2f}-{r['hi']:.2f}), {1 / r['env']:.0f} env steps per CPU-second; split:")
+        arm = sum(r.get(f"part: {k}", 0.0) for k in ("wrist sensors", "grasp coupling", "observation",
+                                                      "IK (Robot.track)"))
+        for k in sorted((k for k in r if k.startswith("part: ")), key=lambda k: (k.startswith("part:  "), -r[k])):
+            print(f"  {r[k] * 1e6:8.1f} us  {100 * r[k] / r['total']:5.1f} %  {k[6:]}")
+        print(f"  {arm * 1e6:8.1f} us  {100 * arm / r['total']:5.1f} %  arm side (sensors, coupling, observation, IK)")
+        print(f"  {r['total'] * 1e6:8.1f} us  (median of the timed steps' totals)")
+    print(f"load average {os.getloadavg()[0]:.2f}")
 
 
 def ik_cost(robot: str = "panda", solves: int = 300) -> dict[str, float]:
@@ -269,8 +308,16 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--masses", nargs="+", type=int, default=[10, 40])
     parser.add_argument("--python-too", action="store_true",
                         help="also time each case through PyBullet's Python API (the path without a C compiler)")
+    parser.add_argument("--envs-only", action="store_true",
+                        help="only part 2: each environment's step against its physical floor, and its split")
+    parser.add_argument("--env-steps", type=int, default=None, help="env steps of part 2 (default 150; 10 with --quick)")
     args = parser.parse_args(argv)
     blocks, env_steps = (5, 10) if args.quick else (60, 150)
+    if args.env_steps is not None:
+        env_steps = args.env_steps
+    if args.envs_only:
+        envs_vs_floor(env_steps)
+        return
 
     print(f"load average {os.getloadavg()[0]:.2f}; "
           f"dual-arm step vs bare stepSimulation, same world, {blocks} interleaved blocks of {BLOCK} steps, "
@@ -298,14 +345,8 @@ def main(argv: list[str] | None = None) -> None:
     for name, us in sorted(times.items(), key=lambda kv: -kv[1]):
         print(f"  {us:7.1f}  {name}")
 
-    print(f"\nenv step vs its physical floor (Bullet's bare step x physics steps per control step), interleaved, "
-          f"CPU time of this thread, {env_steps} steps, load average {os.getloadavg()[0]:.2f}")
-    for env_id in ENVS:
-        r = env_vs_floor(env_id, env_steps)
-        print(f"{env_id}: env step {r['env'] * 1e6:.0f} us, floor {r['floor'] * 1e6:.0f} us, ratio {r['ratio']:.2f} "
-              f"(10-90 %: {r['lo']:.2f}-{r['hi']:.2f}), {1 / r['env']:.0f} env steps per CPU-second; split:")
-        for k in sorted((k for k in r if k.startswith("part: ")), key=lambda k: -r[k]):
-            print(f"  {r[k] * 1e6:8.1f} us  {100 * r[k] / r['total']:5.1f} %  {k[6:]}")
+    print()
+    envs_vs_floor(env_steps)
 
     print("\nRobot.track, one solve per arm and control step (panda, a target 1 cm away), median CPU time:")
     for solver, (us, err) in ik_cost().items():

@@ -114,6 +114,31 @@ def segment_distances(points: np.ndarray, centre: np.ndarray) -> np.ndarray:
     return np.linalg.norm(p[:-1] + t[:, None] * seg, axis=1)
 
 
+def segment_distances_many(points: np.ndarray, centres: np.ndarray) -> np.ndarray:
+    """:func:`segment_distances` from each of ``centres`` (k, 2) at once, (k, n - 1): row i has the bits of
+    ``segment_distances(points, centres[i])`` (the same operations per element, broadcast over the centres)."""
+    p = points[None, :, :2] - np.asarray(centres, dtype=float)[:, None, :2]
+    seg = np.diff(p, axis=1)
+    length2 = np.maximum(np.einsum("kij,kij->ki", seg, seg), 1e-18)
+    t = np.clip(-np.einsum("kij,kij->ki", p[:, :-1], seg) / length2, 0.0, 1.0)
+    return np.linalg.norm(p[:, :-1] + t[:, :, None] * seg, axis=2)
+
+
+def wrap_angles(x: np.ndarray, distances: np.ndarray, band: float, top: float = math.inf) -> list[float]:
+    """:func:`wrap_angle` around several pegs at once, given the cable's xy segment distances from each peg's axis
+    ``distances`` (k, n - 1) [m] (:func:`segment_distances_many`): the turning at the nodes is computed once.
+    The same numbers as ``wrap_angle`` peg by peg."""
+    seg = np.diff(x[:, :2], axis=0)
+    below = np.maximum(x[:-1, 2], x[1:, 2]) < top
+    cross = seg[:-1, 0] * seg[1:, 1] - seg[:-1, 1] * seg[1:, 0]
+    turn = np.arctan2(cross, np.einsum("ij,ij->i", seg[:-1], seg[1:]))  # at nodes 1 .. n-2
+    out = []
+    for d in distances:
+        near = (d < band) & below
+        out.append(float(turn[near[:-1] | near[1:]].sum()))
+    return out
+
+
 def wrap_angle(x: np.ndarray, centre: np.ndarray, band: float, top: float = math.inf) -> float:
     """Signed wrap angle [rad] of the cable ``x`` (n, 3) [m] around a vertical peg at ``centre`` (xy) [m]:
     the turning of its xy direction (counter-clockwise positive) at every node next to a segment that
@@ -167,19 +192,23 @@ class Clip:
     def threaded(self, x: np.ndarray, points: np.ndarray | None = None) -> bool:
         """A point of the cable ``x`` (n, 3) inside the slot: within the boxes' length, between them, below their top.
         ``points``: ``resample(x)`` if the caller has it."""
-        p = resample(x) if points is None else points
-        along, across = self.local(p)
-        inside = (np.abs(along) <= 0.5 * CLIP_LENGTH) & (np.abs(across) < 0.5 * CLIP_GAP) & (p[:, 2] < self.top)
-        return bool(inside.any())
+        return self.measure(x, points)[1]
 
     def distance(self, x: np.ndarray, points: np.ndarray | None = None) -> float:
         """Smallest distance [m] from the cable ``x`` (n, 3) to the slot's centre segment (axis, mid-height).
         ``points``: ``resample(x)`` if the caller has it."""
+        return self.measure(x, points)[0]
+
+    def measure(self, x: np.ndarray, points: np.ndarray | None = None) -> tuple[float, bool]:
+        """(:meth:`distance` [m], :meth:`threaded`) of the cable ``x`` (n, 3), the points' slot coordinates
+        computed once. ``points``: ``resample(x)`` if the caller has it."""
         p = resample(x) if points is None else points
         along, across = self.local(p)
-        da = np.maximum(np.abs(along) - 0.5 * CLIP_LENGTH, 0.0)
-        dz = p[:, 2] - (self.top - 0.5 * CLIP_HEIGHT)
-        return float(np.sqrt(da**2 + across**2 + dz**2).min())
+        abs_along, z = np.abs(along), p[:, 2]
+        inside = (abs_along <= 0.5 * CLIP_LENGTH) & (np.abs(across) < 0.5 * CLIP_GAP) & (z < self.top)
+        da = np.maximum(abs_along - 0.5 * CLIP_LENGTH, 0.0)
+        dz = z - (self.top - 0.5 * CLIP_HEIGHT)
+        return float(np.sqrt(da**2 + across**2 + dz**2).min()), bool(inside.any())
 
     def obstacles(self) -> list[dict]:
         """The two boxes as ``bullet.obstacles`` entries."""
@@ -345,11 +374,17 @@ class RoutingEnv(DualArmEnv):
         world = self.physics.world
         if self._measures is not None and self._measures["time"] == world.time:
             return self._measures
-        x = np.nan_to_num(self.physics.cable.x)  # an unstable step: the episode ends, the measures stay finite
-        gaps = [float(segment_distances(x, peg).min()) - PEG_RADIUS - self.cable_radius for peg in self.route.pegs]
-        p = resample(x)  # once for both clip measures
-        self._measures = {"time": world.time, "wraps": self.wraps(x), "gaps": np.array(gaps),
-                          "clip_distance": self.route.clip.distance(x, p), "threaded": self.route.clip.threaded(x, p),
+        x = self.physics.cable.x  # read only here
+        if not np.isfinite(x).all():  # an unstable step: the episode ends, the measures stay finite
+            x = np.nan_to_num(x)
+        route = self.route
+        distances = segment_distances_many(x, route.pegs)  # every peg at once, shared by the gaps and the wraps
+        gaps = [float(d.min()) - PEG_RADIUS - self.cable_radius for d in distances]
+        band = PEG_RADIUS + self.cable_radius + WRAP_MARGIN
+        wraps = np.array([s * w for s, w in zip(route.sides, wrap_angles(x, distances, band, self.peg_top))])
+        clip_distance, threaded = route.clip.measure(x, resample(x))
+        self._measures = {"time": world.time, "wraps": wraps, "gaps": np.array(gaps),
+                          "clip_distance": clip_distance, "threaded": threaded,
                           "end_force": float(np.linalg.norm(self.physics.cable.end_forces(), axis=1).max())}
         return self._measures
 
@@ -365,8 +400,14 @@ class RoutingEnv(DualArmEnv):
 
     def progress(self) -> tuple[float, bool]:
         """(P, all wrapped): P the mean over pegs of min(p_1 .. p_k) (see the module doc)."""
-        p = np.clip(self.measures()["wraps"] / WRAP_MIN, 0.0, 1.0)
-        return float(np.minimum.accumulate(p).mean()), bool(np.all(p >= 1.0))
+        m = self.measures()
+        cached = getattr(self, "_progress", None)
+        if cached is not None and cached[0] is m:  # asked twice a step (reward, info): once per measures
+            return cached[1]
+        p = np.clip(m["wraps"] / WRAP_MIN, 0.0, 1.0)
+        out = float(np.minimum.accumulate(p).mean()), bool(np.all(p >= 1.0))
+        self._progress = (m, out)
+        return out
 
     def is_success(self) -> bool:
         return self.progress()[1] and self.measures()["threaded"]

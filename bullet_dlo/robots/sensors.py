@@ -297,12 +297,12 @@ class WristSensor:
             self._sampled(t, offset)
         return self.last  # held between samples
 
-    def _prepare(self, t: float) -> tuple[bool, np.ndarray]:
+    def _prepare(self, t: float, contacts: bool = True) -> tuple[bool, np.ndarray]:
         """Before the kernels of a step at time t [s], with ``_applied`` set to the library's loads: whether
-        a sample is due, then (if so) Bullet's contacts added to ``_applied`` and this sample's bias plus
-        noise drawn. Returns (due, offset (6,))."""
+        a sample is due, then (if so) Bullet's contacts added to ``_applied`` (unless the caller knows the step
+        had none: ``contacts=False``) and this sample's bias plus noise drawn. Returns (due, offset (6,))."""
         due = self.gate.due(t)
-        if due:  # between samples only the momenta are tracked, and they need no loads
+        if due and contacts:  # between samples only the momenta are tracked, and they need no loads
             self._add_contacts()
         offset = self.bias
         if due and self._noisy:

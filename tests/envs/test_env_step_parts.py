@@ -50,3 +50,39 @@ def test_tracking_puts_the_grippers_on_their_targets():
         assert np.abs(env.target - env.home).max() > 2e-3  # the targets did move
     finally:
         env.close()
+
+
+def test_action_cleaning_is_nan_to_num_then_clip_bit_for_bit():
+    """The env's action cleaning (``DualArmEnv._clean_action``) gives the bits of np.clip(np.nan_to_num(a), -1, 1)
+    for NaN, both infinities, -0.0, subnormals, values out of the box, float32 arrays and lists, and returns a
+    new array (cleaning never writes into the caller's action)."""
+    from bullet_dlo.envs.dual_arm_env import DualArmEnv
+
+    cases = [np.array([np.nan, np.inf, -np.inf, -0.0, 0.3, -7.0]), [1e308, -1e-320, np.nan, 2.0, -2.0, 0.5],
+             np.array([0.1, -0.2, np.nan, 3.0, 0.0, -0.0], np.float32), np.random.default_rng(0).normal(0, 2, 6)]
+    for a in cases:
+        before = np.array(a, dtype=float)
+        ref = np.clip(np.nan_to_num(np.asarray(a, dtype=float)), -1.0, 1.0)
+        got = DualArmEnv._clean_action(a)
+        assert got.dtype == np.float64 and np.array_equal(ref.view(np.int64), got.view(np.int64))
+        got[:] = 5.0
+        assert np.array_equal(np.array(a, dtype=float), before, equal_nan=True)  # the caller's action untouched
+
+
+def test_a_step_with_a_bad_action_moves_the_targets_as_the_cleaned_action_does():
+    """NaN reads as 0 and infinities as +-1: two envs with the same seed, one given the bad action, one its
+    cleaned form, reach the same targets and observations bit for bit."""
+    bad = np.array([np.nan, np.inf, -np.inf, 0.5, -2.0, -0.0], np.float32)
+    clean = np.array([0.0, 1.0, -1.0, 0.5, -1.0, -0.0], np.float32)
+    out = []
+    for action in (bad, clean):
+        env = TensionTrackingEnv()
+        try:
+            env.reset(seed=4)
+            obs, *_ = env.step(action)
+            out.append((env.target.copy(), obs))
+        finally:
+            env.close()
+    (t0, o0), (t1, o1) = out
+    assert np.array_equal(t0, t1) and not np.array_equal(t0, env.home)
+    assert all(np.array_equal(o0[k], o1[k]) for k in o0)

@@ -203,3 +203,31 @@ def test_resample_vectorised_matches_the_segment_loop_bit_for_bit():
         gaps = np.linalg.norm(np.diff(fast, axis=0), axis=1)
         long = np.linalg.norm(np.diff(x, axis=0), axis=1) > 100 * routing.POINT_SPACING
         assert long.any() or gaps.max() <= routing.POINT_SPACING * (1 + 1e-12)
+
+
+def test_the_measures_of_all_pegs_at_once_are_the_peg_by_peg_ones_bit_for_bit():
+    """segment_distances_many and wrap_angles (the step's measures, every peg in one pass) give the bits of
+    segment_distances and wrap_angle peg by peg, on random cables (zero-length segments included) with and without
+    a top; Clip.measure gives distance() and threaded() of the points; a cable bent half around a peg wraps its
+    turning (pi less one segment's turn)."""
+    rng = np.random.default_rng(7)
+    for trial in range(200):
+        n = int(rng.integers(3, 60))
+        x = np.cumsum(rng.normal(0, 0.02, (n, 3)), axis=0) + rng.normal(0, 0.1, 3)
+        if trial % 5 == 0:
+            x[1] = x[0]  # a zero-length segment
+        pegs = rng.normal(0, 0.05, (int(rng.integers(1, 4)), 2))
+        many = routing.segment_distances_many(x, pegs)
+        top = math.inf if trial % 2 else float(np.median(x[:, 2]))
+        wraps = routing.wrap_angles(x, many, 0.03, top)
+        for k, peg in enumerate(pegs):
+            assert np.array_equal(many[k], routing.segment_distances(x, peg))
+            assert wraps[k] == wrap_angle(x, peg, 0.03, top)
+        clip = Clip(rng.normal(0, 0.05, 2), float(rng.uniform(-1, 1)), float(np.median(x[:, 2])))
+        p = routing.resample(x)
+        assert clip.measure(x, p) == (clip.distance(x), clip.threaded(x))
+    theta = np.linspace(-0.5 * math.pi, 0.5 * math.pi, 30)  # half around a peg at the origin, radius 2 cm
+    bent = np.stack([0.02 * np.cos(theta), 0.02 * np.sin(theta), np.zeros_like(theta)], axis=1)
+    d = routing.segment_distances_many(bent, np.zeros((1, 2)))
+    # the polyline's first and last segments point 180 deg less one segment's turn (pi / 29) apart
+    assert routing.wrap_angles(bent, d, 0.03)[0] == pytest.approx(math.pi * 28 / 29, rel=1e-9)

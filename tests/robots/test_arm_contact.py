@@ -35,7 +35,7 @@ def push_through(exclude: bool = False) -> dict:
     """Left Panda holds the cable's first end and lifts it 15 cm; the right Panda (its end released) moves its
     hand 28 cm towards the left one through the hanging cable. Returns per-check-step records."""
     spec = DualArmSpec(robot="panda", dt=1.0 / HZ, cable=CableSpec.lv2017(n_masses=12, damping=0.02))
-    out = {"depth": [], "tool": [], "proximal": [], "sensor": [], "links": set(), "stable": True}
+    out = {"depth": [], "tool": [], "proximal": [], "sensor": [], "links": set(), "stable": True, "model_loads": []}
     with DualArmScene(spec, record=False) as scene:
         cid, cable = scene.world.client, scene.cable
         right = scene.robots[1].body
@@ -51,6 +51,7 @@ def push_through(exclude: bool = False) -> dict:
         for k in range(int(1.4 * HZ)):
             scene.run(1.0 / HZ)
             out["stable"] &= bool(cable.stable)
+            out["model_loads"].append((scene.observation._model_tool_loads(), full_tool_loads(scene)))
             if scene.world.time < 0.9:
                 continue
             x = cable.x
@@ -67,6 +68,22 @@ def push_through(exclude: bool = False) -> dict:
         out[key] = np.array(out[key])
     out["radius"] = r
     return out
+
+
+def full_tool_loads(scene) -> np.ndarray | None:
+    """The contact model's reactions on each arm's tool links summed over every contact of ``contact_forces()``
+    (force [N], moment about the world origin [N m]; None when no contact is on a tool link): the reference for
+    ``DualArmObservation._model_tool_loads``, which skips the sum when no contact is on an arm at all."""
+    pc = scene.cable.contact_forces()
+    out, hit = np.zeros((2, 6)), False
+    for arm, s in enumerate(scene.sensors):
+        sel = (pc["body"] == s.robot.body) & np.isin(pc["link"], list(s._tool_links))
+        if sel.any():
+            f = -pc["force"][sel]
+            out[arm, :3] = f.sum(axis=0)
+            out[arm, 3:] = np.cross(pc["point"][sel], f).sum(axis=0)
+            hit = True
+    return out if hit else None
 
 
 @pytest.fixture(scope="module")
@@ -109,3 +126,15 @@ def test_the_wrist_sensor_reads_the_push_on_its_hand(pushed):
     assert np.abs(sensor[only_proximal]).max() < 1e-9
     # the per-sample sensor check (SensorCheck) expects the model's push too: it does not flag this run
     assert np.abs(pushed["check"]).max() < 1e-9, pushed["check"]
+
+
+def test_the_tool_loads_skip_only_steps_without_a_contact_on_a_tool(pushed):
+    """The sensors' per-step read of the contact model's reactions on the tools (which skips the per-contact sum
+    when no contact touches an arm) equals the full sum in every step of the push: None in the steps where the
+    cable touches nothing of an arm's tool side, the same bits where it touches the hand."""
+    rows = pushed["model_loads"]
+    touched = [full is not None for _, full in rows]
+    assert sum(touched) >= 5 and not all(touched)
+    for fast, full in rows:
+        assert (fast is None) == (full is None)
+        assert fast is None or np.array_equal(fast, full)

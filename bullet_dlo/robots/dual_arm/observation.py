@@ -133,6 +133,7 @@ class DualArmObservation:
         for s in self.sensors:
             s.tare()
         self._sampled = np.zeros(2, dtype=np.bool_)  # which sensor sampled in the last step
+        self._arm_bodies = frozenset(s.robot.body for s in self.sensors)
         self._pair = None  # wrist_pair's machine code, bound on first use
         self.check = SensorCheck(spec.cable.mass * float(np.linalg.norm(physics.world.gravity)))
         self.record = DualArmRecord()
@@ -144,52 +145,66 @@ class DualArmObservation:
         """Sample the wrist sensors after the Bullet step (phase 4 of the dual-arm step, see
         :mod:`~bullet_dlo.robots.dual_arm.physics`) and check them against the loads the cable applied."""
         world, physics = self.physics.world, self.physics
-        t, dt = world.time, world.dt
+        t = world.time
         # what the cable applied in the Bullet step just taken: its step (after these hooks) replaces them
         forces, torques = physics.cable.planned_end_loads()
         points, held = physics.load_points, physics.held
-        due, offsets = [False, False], [None, None]
+        s0, s1 = self.sensors
         # without contacts in the step the kernel writes the cable's loads itself; with some, they are written
         # here and _prepare adds Bullet's contacts on the tool (the same order of additions either way)
         model = self._model_tool_loads()  # the cable contact model's reactions on the tool links (None: none)
-        fill = not world.contacts() and model is None
-        for arm, s in enumerate(self.sensors):
-            if not fill:
-                applied = s._applied  # the library's loads on the tool side
-                if held[arm]:  # the cable's force at its end mass and its clamp torque, as a moment about 0
-                    applied[:3] = forces[arm]
-                    applied[3:] = torques[arm] + cross3(points[arm], forces[arm])  # np.cross's bits, 1/10 its cost
-                else:
-                    applied[:] = 0.0
-                if model is not None:
-                    applied += model[arm]
-            due[arm], offsets[arm] = s._prepare(t)
+        fill = model is None and not world.contacts()
+        if fill:  # the common step: nothing touched the tools, nothing to add before the kernel
+            due0, off0 = s0._prepare(t, False)
+            due1, off1 = s1._prepare(t, False)
+            held_c = (bool(held[0]), bool(held[1]))
+        else:
+            forces, torques, points, held_c, (due0, off0), (due1, off1) = self._tool_loads(
+                t, forces, torques, points, held, model)
         # both sensors' kernels (transmitted wrench, reading, check against the cable's load) in one call
-        s0, s1 = self.sensors
         check, sampled = self.check, self._sampled
-        held_c = (bool(held[0]), bool(held[1]))
-        if model is not None:  # the check's expected load: the held end's plus the model's push, moments about 0
-            force_c, torque_c, points = np.zeros((2, 3)), np.zeros((2, 3)), np.zeros((2, 3))
-            for arm in range(2):
-                if held[arm]:
-                    force_c[arm] = forces[arm]
-                    torque_c[arm] = torques[arm] + cross3(physics.load_points[arm], forces[arm])
-                force_c[arm] += model[arm, :3]
-                torque_c[arm] += model[arm, 3:]
-            forces, torques, held_c = force_c, torque_c, (True, True)
         args = ((s0._rows, s1._rows), (s0._tool, s1._tool), (s0._tool_memory, s1._tool_memory),
-                (s0._applied, s1._applied), (s0._reaction, s1._reaction), (s0.payload, s1.payload), float(dt),
-                (s0.compensate_inertia, s1.compensate_inertia), (due[0], due[1]), (s0._tare, s1._tare),
-                (offsets[0], offsets[1]), (s0._memory, s1._memory), (s0._scratch, s1._scratch), forces, torques,
+                (s0._applied, s1._applied), (s0._reaction, s1._reaction), (s0.payload, s1.payload), float(world.dt),
+                (s0.compensate_inertia, s1.compensate_inertia), (due0, due1), (s0._tare, s1._tare),
+                (off0, off1), (s0._memory, s1._memory), (s0._scratch, s1._scratch), forces, torques,
                 points, held_c, (fill, fill), float(t), check.worst, check.worst_t,
                 check._sumsq, sampled)
         if self._pair is None:
             self._pair = bind(wrist_pair, *args)
         self._pair(*args)
+        if sampled[0]:
+            s0._sampled(t, off0)
+            check.samples += 1
+        if sampled[1]:
+            s1._sampled(t, off1)
+
+    def _tool_loads(self, t: float, forces, torques, points, held, model):
+        """A step with Bullet's contacts or the contact model's reactions on a tool: each sensor's applied loads
+        (the held end's, the model's push, then in _prepare Bullet's contacts) written before the kernel, and the
+        check's expected load (held end plus the model's push, moments about 0). Returns the kernel's forces,
+        torques, points, held flags and both sensors' (due, offset)."""
+        prepared = []
         for arm, s in enumerate(self.sensors):
-            if sampled[arm]:
-                s._sampled(t, offsets[arm])
-        check.samples += int(sampled[0])
+            applied = s._applied  # the library's loads on the tool side
+            if held[arm]:  # the cable's force at its end mass and its clamp torque, as a moment about 0
+                applied[:3] = forces[arm]
+                applied[3:] = torques[arm] + cross3(points[arm], forces[arm])  # np.cross's bits, 1/10 its cost
+            else:
+                applied[:] = 0.0
+            if model is not None:
+                applied += model[arm]
+            prepared.append(s._prepare(t))
+        held_c = (bool(held[0]), bool(held[1]))
+        if model is not None:
+            force_c, torque_c, points_c = np.zeros((2, 3)), np.zeros((2, 3)), np.zeros((2, 3))
+            for arm in range(2):
+                if held[arm]:
+                    force_c[arm] = forces[arm]
+                    torque_c[arm] = torques[arm] + cross3(points[arm], forces[arm])
+                force_c[arm] += model[arm, :3]
+                torque_c[arm] += model[arm, 3:]
+            forces, torques, points, held_c = force_c, torque_c, points_c, (True, True)
+        return forces, torques, points, held_c, prepared[0], prepared[1]
 
     def _model_tool_loads(self) -> np.ndarray | None:
         """The reactions the cable's contact model applied to each arm's tool-side links (below the sensor joint)
@@ -198,7 +213,14 @@ class DualArmObservation:
         does not see otherwise (a hand pushed by the cable read 0 N: tests/robots/test_arm_contact.py)."""
         cable = self.physics.cable
         cs = cable._contact_set
-        if cs is None or int(cs.contacts.count[0]) == 0:
+        if cs is None:
+            return None
+        count = int(cs.contacts.count[0])
+        if count == 0:
+            return None
+        # contacts on the obstacles only (a cable on a peg): no arm touched, nothing to sum (per_contact costs 15 us)
+        ids, arms = cs.body_ids, self._arm_bodies  # contact k's body: body_ids[shape k] for shapes >= 0
+        if not len(ids) or not any(s >= 0 and int(ids[s]) in arms for s in cs.store.body[:count].tolist()):
             return None
         pc = cable.contact_forces()  # still the contacts whose reactions were applied in that step
         out, hit = np.zeros((2, 6)), False

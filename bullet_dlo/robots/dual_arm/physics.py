@@ -280,9 +280,10 @@ class DualArmPhysics:
     def _apply_cable_wrench(self) -> None:
         """Before the Bullet step: the cable's force [N] (at the end mass) and clamp torque [N m] on each holder."""
         held = self.held
-        for arm in (0, 1):  # a friction grip that the end slid out of holds nothing any more
-            if held[arm] and self.spec.grip == "friction" and not self.cable.grip.active[arm]:
-                held[arm] = False
+        if self.spec.grip == "friction":
+            for arm in (0, 1):  # a friction grip that the end slid out of holds nothing any more
+                if held[arm] and not self.cable.grip.active[arm]:
+                    held[arm] = False
         if not (held[0] or held[1]):
             return
         forces, torques = self.cable.planned_end_loads()  # left by the cable's own step kernel

@@ -113,6 +113,8 @@ class DualArmTask:
 
     def drive(self) -> None:
         """Before the Bullet step (phase 2 of the dual-arm step): joint targets for the arms that move during it."""
+        if not (self.moves or self.motion):  # nothing scheduled (an environment drives the arms itself)
+            return
         world = self.physics.world
         t_next = world.time + world.dt
         for a, robot in enumerate(self.physics.robots):
