@@ -71,17 +71,13 @@ from bullet_dlo.core.kernels.twist import (
 )
 
 HALF_T = 10  # scalar half-bandwidth of the interleaved (x_i, theta_i) layout
-# order of node i's unknowns in dm_i/dq as enumerated (x_{i-1,j}, x_{i,j}, x_{i+1,j} for j = 0..2, theta_{i-1},
-# theta_i), indexed by the local layout of :func:`_newton_matrix`
-_RANK = np.array([0, 3, 6, 9, 1, 4, 7, 10, 2, 5, 8])
 
 
 class Scratch(NamedTuple):
     """Scratch arrays of the coupled step (allocated once per step, :func:`make_scratch`): ga, gb (3,) edge
     gradients [N]; pa, pb (3, 3) dphi/d(edge) [1/m]; energy (1,) the material frame's energy at the last residual
-    [J]; gv (11,), gi (11,) int: dm/dq of a node over its unknowns' local layout and which are present;
-    jrow (4, 6); hb (6, 6) node Hessian; gc (12, 3): the clamps' twist-rate geometry (:func:`_clamp_rate`);
-    cg (11,): gv times the node's stiffness.
+    [J]; gv (11,): dm/dq of a node over its unknowns' local layout, cg (11,): gv times the node's stiffness;
+    jrow (4, 6); hb (6, 6) node Hessian; gc (12, 3): the clamps' twist-rate geometry (:func:`_clamp_rate`).
 
     What the last :func:`_residual` computed, for the Newton matrix at the same state (and, at the accepted
     iterate, the frames' transport at the end of the step): edges (n-1, 7) each edge's length [m], unit tangent
@@ -95,7 +91,6 @@ class Scratch(NamedTuple):
     pb: np.ndarray
     energy: np.ndarray
     gv: np.ndarray
-    gi: np.ndarray
     jrow: np.ndarray
     hb: np.ndarray
     gc: np.ndarray
@@ -107,8 +102,8 @@ class Scratch(NamedTuple):
 def make_scratch(n: int) -> Scratch:
     """The :class:`Scratch` of an n-node cable."""
     return Scratch(np.empty(3), np.empty(3), np.empty((3, 3)), np.empty((3, 3)), np.zeros(1), np.empty(11),
-                   np.empty(11, dtype=np.int64), np.empty((4, 6)), np.empty((6, 6)), np.empty((12, 3)),
-                   np.empty(11), np.empty((max(n - 1, 0), 7)), np.empty((n, 5)))
+                   np.empty((4, 6)), np.empty((6, 6)), np.empty((12, 3)), np.empty(11), np.empty((max(n - 1, 0), 7)),
+                   np.empty((n, 5)))
 
 
 _make_scratch = njit(cache=True)(make_scratch)  # the same, called from the compiled step
@@ -327,6 +322,53 @@ def _merit(m, mp, imp, ws, wa, vn, wn, wv, rate, sc):
     return phi
 
 
+# _FIRST[p, q]: whether g g^T's entry (p, q) of a node's local layout (below) is (coef g_p) g_q rather than
+# (coef g_q) g_p: p comes first in the enumeration x_{i-1,j}, x_{i,j}, x_{i+1,j} for j = 0..2, then theta_{i-1},
+# theta_i (its rank there: _RANK), the order of the first version of the loop, kept so that the band is
+# bit-identical (floating-point products commute, so only which factor takes coef matters)
+_RANK = np.array([0, 3, 6, 9, 1, 4, 7, 10, 2, 5, 8])
+_FIRST = np.array([[_RANK[p] <= _RANK[q] for q in range(11)] for p in range(11)])
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _present(p, pa, pi, pb, ta, tb):
+    """Whether local unknown p (0-10, see :func:`_add_twist_ggt`) of a node is an unknown of the system."""
+    a = p // 4
+    if p % 4 == 3:
+        return ta if a == 0 else tb
+    return pa if a == 0 else (pi if a == 1 else pb)
+
+
+@njit(cache=True, error_model="numpy")
+def _add_twist_ggt(band, base, coef, la, lb, kb0, kb1, kb2, pa, pi, pb, ta, tb, gv, cg):
+    """band += coef g g^T (upper band) for one node's twist, g = dm_i/dq over the local layout base + l
+    (x_{i-1} l = 0-2, theta_{i-1} 3, x_i 4-6, theta_i 7, x_{i+1} 8-10): -kb/2|e_a|, -1, kb/2|e_a| - kb/2|e_b|,
+    +1, kb/2|e_b| (a clamp's virtual edge: the x_i entry without its term). pa, pi, pb: whether x_{i-1}, x_i,
+    x_{i+1} are unknowns (not held, inside the chain); ta, tb: theta_{i-1}, theta_i. gv, cg (11,): scratch.
+    Each product's factor order is _FIRST's. A node with all 11 unknowns (all but the two or three next to each
+    held end) takes the loop without presence tests (half the time)."""
+    for j in range(3):
+        kbj = kb0 if j == 0 else (kb1 if j == 1 else kb2)
+        gv[j] = -kbj / (2.0 * la)
+        gv[4 + j] = (kbj / (2.0 * la) if ta else 0.0) - (kbj / (2.0 * lb) if tb else 0.0)
+        gv[8 + j] = kbj / (2.0 * lb)
+    gv[3] = -1.0
+    gv[7] = 1.0
+    for q in range(11):
+        cg[q] = coef * gv[q]
+    if pa and pi and pb and ta and tb:
+        for p in range(11):
+            for q in range(p, 11):
+                band[base + p, q - p] += cg[p] * gv[q] if _FIRST[p, q] else cg[q] * gv[p]
+        return
+    for p in range(11):
+        if not _present(p, pa, pi, pb, ta, tb):
+            continue
+        for q in range(p, 11):
+            if _present(q, pa, pi, pb, ta, tb):
+                band[base + p, q - p] += cg[p] * gv[q] if _FIRST[p, q] else cg[q] * gv[p]
+
+
 @njit(cache=True, error_model="numpy", inline="always")
 def _kept_frame(xe, dirs, th, ref, tan, clamp, edges, k):
     """:func:`~bullet_dlo.core.kernels.twist.edge_frame` of edge k at the last residual's state, its length,
@@ -352,7 +394,7 @@ def _newton_matrix(stepper, m, mp, imp, ws, band, g, sc):
     ktw, kan, ctw, drag, inertia = m.tw_k_twist, m.tw_k_aniso, m.tw_c_twist, m.tw_drag, m.tw_inertia
     th, ref, tan, clamp, mref = m.tw_theta, m.tw_ref, m.tw_tan, m.tw_clamp, m.tw_mref
     dirs = imp.dirs
-    gv, gi, pa, pb, jrow, hb, cg = sc.gv, sc.gi, sc.pa, sc.pb, sc.jrow, sc.hb, sc.cg
+    gv, pa, pb, jrow, hb, cg = sc.gv, sc.pa, sc.pb, sc.jrow, sc.hb, sc.cg
     edges, geo = sc.edges, sc.geo
     band[:, :] = 0.0
     for i in range(n):
@@ -368,48 +410,11 @@ def _newton_matrix(stepper, m, mp, imp, ws, band, g, sc):
             la, lb, kb0, kb1, kb2 = geo[i, 0], geo[i, 1], geo[i, 2], geo[i, 3], geo[i, 4]
             ratio, alpha, c = 1.0, 0.0, 1.0
         # g = dm/dq over the node's unknowns in the local layout l = q - 4(i-1) (x_{i-1} 0-2, theta_{i-1} 3, x_i
-        # 4-6, theta_i 7, x_{i+1} 8-10; gi lists the present ones), added as coef g g^T row by row into the band;
-        # _RANK keeps each product's factor order that of the node-by-node enumeration before (bit-identical:
-        # (coef g_p) g_q with p the earlier of the two in that enumeration)
+        # 4-6, theta_i 7, x_{i+1} 8-10), added as coef g g^T into the band's rows of the present unknowns
         coef = kc * (kt + (cv / cx) * ct)
         if coef != 0.0:
-            for q in range(11):
-                gv[q] = 0.0
-            cnt = 0
-            if i > 0 and not held[i - 1]:
-                gv[0], gv[1], gv[2] = -kb0 / (2.0 * la), -kb1 / (2.0 * la), -kb2 / (2.0 * la)
-                gi[0], gi[1], gi[2] = 0, 1, 2
-                cnt = 3
-            if i > 0:
-                gv[3] = -1.0
-                gi[cnt] = 3
-                cnt += 1
-            if not held[i]:
-                for j in range(3):
-                    kbj = kb0 if j == 0 else (kb1 if j == 1 else kb2)
-                    gv[4 + j] = (kbj / (2.0 * la) if i > 0 else 0.0) - (kbj / (2.0 * lb) if i < ns else 0.0)
-                    gi[cnt + j] = 4 + j
-                cnt += 3
-            if i < ns:
-                gv[7] = 1.0
-                gi[cnt] = 7
-                cnt += 1
-            if i < ns and not held[i + 1]:
-                gv[8], gv[9], gv[10] = kb0 / (2.0 * lb), kb1 / (2.0 * lb), kb2 / (2.0 * lb)
-                gi[cnt], gi[cnt + 1], gi[cnt + 2] = 8, 9, 10
-                cnt += 3
-            for q in range(11):
-                cg[q] = coef * gv[q]
-            base = 4 * (i - 1)
-            for a in range(cnt):
-                p = gi[a]
-                rp, row = _RANK[p], base + p
-                for b in range(a, cnt):
-                    q = gi[b]
-                    if rp <= _RANK[q]:
-                        band[row, q - p] += cg[p] * gv[q]
-                    else:
-                        band[row, q - p] += cg[q] * gv[p]
+            _add_twist_ggt(band, 4 * (i - 1), coef, la, lb, kb0, kb1, kb2, i > 0 and not held[i - 1],
+                           not held[i], i < ns and not held[i + 1], i > 0, i < ns, gv, cg)
         if dl == 0.0:
             continue
         p1a, p2a, p1b, p2b = _curvatures(g)
