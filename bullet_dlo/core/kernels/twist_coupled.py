@@ -18,7 +18,10 @@ reference twist's rate, Bergou 2008/2010) plus, at a clamp node, the clamp's own
 act on the positions too (-c_t dm/dt d(dm/dt)/dV), so the damping matrix is symmetric.
 
 The Newton matrix is M - hf cx dF/dq - hf cv dF/dq' over q = (x, theta), stored as a symmetric band with the
-unknowns interleaved (x_i then theta_i: 4 per node, the last theta slot an identity row), half-width 10. Its blocks:
+unknowns interleaved (x_i then theta_i: 4 per node, the last theta slot an identity row), half-width 10 (each node's
+rows end at column 4 i + 10, x_{i+2}; the solve works only inside that envelope). It is assembled from what the
+last residual computed at the same state (the edges' frames, the nodes' lengths and binormals), so the matrix
+repeats no geometry of a round section. Its blocks:
 
 * x-x: the position Jacobian of :func:`~bullet_dlo.core.kernels.forces.force_jacobian` at Theta (isotropic
   bending exact, the anisotropic bending's Gauss-Newton part) plus the twist springs' Gauss-Newton part
