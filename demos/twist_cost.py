@@ -80,7 +80,7 @@ def _parts(n: int) -> None:
         for _ in range(reps):
             bcopy[:, :] = band
             rcopy[:] = r
-            tc.band_solve_upper(bcopy, rcopy, tc.HALF_T)
+            tc.band_solve_upper(bcopy, rcopy, tc.HALF_T, 4)
 
     @njit
     def plain_solves(reps, band, r, bcopy, rcopy):
@@ -128,8 +128,7 @@ def _parts(n: int) -> None:
     set_clamp(m, 2)
     imp = _start_implicit(stepper.method, m, x, v, 1e-3, samples, ws, True)
     ns = n - 1
-    sc = tc.Scratch(np.empty(3), np.empty(3), np.empty((3, 3)), np.empty((3, 3)), np.zeros(1), np.empty(11),
-                    np.empty(11, dtype=np.int64), np.empty((4, 6)), np.empty((6, 6)), np.empty((12, 3)))
+    sc = tc.make_scratch(n)
     mp = tc._frameless(m)
     r, g, band = np.empty(4 * n), np.empty((12, 3)), np.empty((4 * n, tc.HALF_T + 1))
     rows = {

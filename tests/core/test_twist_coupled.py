@@ -15,7 +15,7 @@ import pytest
 from bullet_dlo.core.boundary import Move
 from bullet_dlo.core.engine import simulate
 from bullet_dlo.core.integrators import NewtonOptions
-from bullet_dlo.core.kernels.twist_coupled import band_solve_upper
+from bullet_dlo.core.kernels.twist_coupled import _add_twist_ggt, band_solve_upper
 from bullet_dlo.core.model import CableModel
 from bullet_dlo.core.spec import CableSpec
 
@@ -84,3 +84,52 @@ def test_upper_band_solver_matches_dense():
     y = b.copy()
     band_solve_upper(band, y, half)
     np.testing.assert_allclose(y, np.linalg.solve(a, b), rtol=1e-10, atol=1e-12)
+
+
+def test_upper_band_solver_with_the_coupled_layouts_envelope_matches_dense():
+    """group = 4 (the coupled step's layout: each node's 4 rows end at the node's first row + 10) skips the work
+    right of that envelope; on a random SPD matrix with exactly that sparsity it solves as numpy does and gives the
+    bits of the full-band elimination (the skipped entries stay zero). Fails on a solver without ``group``."""
+    rng = np.random.default_rng(5)
+    size, half = 4 * 12, 10
+    a = np.zeros((size, size))
+    for i in range(size):
+        for j in range(i, min(size, i - i % 4 + half + 1)):
+            a[i, j] = a[j, i] = rng.standard_normal()
+    a += np.diag(np.abs(a).sum(axis=1) + 1.0)
+    band = np.zeros((size, half + 1))
+    for i in range(size):
+        for j in range(i, min(size, i + half + 1)):
+            band[i, j - i] = a[i, j]
+    b = rng.standard_normal(size)
+    y, y_full = b.copy(), b.copy()
+    band_solve_upper(band.copy(), y, half, 4)
+    band_solve_upper(band.copy(), y_full, half)
+    np.testing.assert_allclose(y, np.linalg.solve(a, b), rtol=1e-10, atol=1e-12)
+    assert np.array_equal(y, y_full)
+
+
+@pytest.mark.parametrize("present", [(True,) * 5, (False, True, True, False, True), (True, False, True, True, True),
+                                     (True, True, False, True, False)])
+def test_twist_rank_one_block_is_coef_g_gT_over_the_present_unknowns(present):
+    """One node's twist block coef g g^T, g = dm_i/dq = (-kb/2la, -1, kb/2la - kb/2lb, +1, kb/2lb) over (x_{i-1},
+    theta_{i-1}, x_i, theta_i, x_{i+1}), against the dense outer product restricted to the present unknowns
+    (held or missing neighbours, an end's missing theta), in upper band storage at an offset."""
+    rng = np.random.default_rng(7)
+    coef, la, lb = 3.7, 0.011, 0.013
+    kb = rng.standard_normal(3)
+    pa, pi, pb, ta, tb = present
+    gfull = np.concatenate([-kb / (2 * la), [-1.0], (kb / (2 * la) if ta else 0.0) - (kb / (2 * lb) if tb else 0.0),
+                            [1.0], kb / (2 * lb)])
+    mask = np.array([pa] * 3 + [ta] + [pi] * 3 + [tb] + [pb] * 3)
+    g = np.where(mask, gfull, 0.0)
+    base, size, half = 4, 20, 10
+    band = np.zeros((size, half + 1))
+    _add_twist_ggt(band, base, coef, la, lb, kb[0], kb[1], kb[2], pa, pi, pb, ta, tb, np.empty(11), np.empty(11))
+    dense = np.zeros((size, size))
+    dense[base:base + 11, base:base + 11] = coef * np.outer(g, g)
+    got = np.zeros((size, size))
+    for r in range(size):
+        for c in range(r, min(size, r + half + 1)):
+            got[r, c] = band[r, c - r]
+    np.testing.assert_allclose(got, np.triu(dense), rtol=1e-14, atol=0.0)

@@ -515,6 +515,15 @@ def update_frames(m, x, dirs):
         r0, r1, r2 = _transport_s(ref[k, 0], ref[k, 1], ref[k, 2], tan[k, 0], tan[k, 1], tan[k, 2], t0, t1, t2)
         ref[k, 0], ref[k, 1], ref[k, 2] = r0, r1, r2
         tan[k, 0], tan[k, 1], tan[k, 2] = t0, t1, t2
+    reference_twists(x, dirs, theta, ref, tan, clamp, mref)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def reference_twists(x, dirs, theta, ref, tan, clamp, mref):
+    """The second half of :func:`update_frames`: mref <- the (unwrapped) reference twists of the frames ref, tan
+    (already transported to the tangents of x). The coupled implicit step calls it alone when its last residual
+    transported the frames to the end-of-step tangents already."""
+    n = x.shape[0]
     fb = edge_frame(x, dirs, theta, ref, tan, clamp, -1)
     for i in range(n):
         fa = fb  # edge i-1's frame, carried on from the last node

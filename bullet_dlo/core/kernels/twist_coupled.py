@@ -18,7 +18,10 @@ reference twist's rate, Bergou 2008/2010) plus, at a clamp node, the clamp's own
 act on the positions too (-c_t dm/dt d(dm/dt)/dV), so the damping matrix is symmetric.
 
 The Newton matrix is M - hf cx dF/dq - hf cv dF/dq' over q = (x, theta), stored as a symmetric band with the
-unknowns interleaved (x_i then theta_i: 4 per node, the last theta slot an identity row), half-width 10. Its blocks:
+unknowns interleaved (x_i then theta_i: 4 per node, the last theta slot an identity row), half-width 10 (each node's
+rows end at column 4 i + 10, x_{i+2}; the solve works only inside that envelope). It is assembled from what the
+last residual computed at the same state (the edges' frames, the nodes' lengths and binormals), so the matrix
+repeats no geometry of a round section. Its blocks:
 
 * x-x: the position Jacobian of :func:`~bullet_dlo.core.kernels.forces.force_jacobian` at Theta (isotropic
   bending exact, the anisotropic bending's Gauss-Newton part) plus the twist springs' Gauss-Newton part
@@ -65,22 +68,25 @@ from bullet_dlo.core.kernels.twist import (
     node_geometry,
     twist_of_frames,
     phi_jacobians,
+    reference_twists,
     scatter_node_hessian,
     update_frames,
 )
 
 HALF_T = 10  # scalar half-bandwidth of the interleaved (x_i, theta_i) layout
-# order of node i's unknowns in dm_i/dq as enumerated (x_{i-1,j}, x_{i,j}, x_{i+1,j} for j = 0..2, theta_{i-1},
-# theta_i), indexed by the local layout of :func:`_newton_matrix`
-_RANK = np.array([0, 3, 6, 9, 1, 4, 7, 10, 2, 5, 8])
 
 
 class Scratch(NamedTuple):
-    """Small scratch arrays of the coupled step (allocated once per step): ga, gb (3,) edge gradients [N];
-    pa, pb (3, 3) dphi/d(edge) [1/m]; energy (1,) the material frame's energy at the last residual [J];
-    gv (11,), gi (11,) int: dm/dq of a node over its unknowns' local layout and which are present;
-    jrow (4, 6); hb (6, 6) node Hessian;
-    gc (12, 3): the clamps' twist-rate geometry (:func:`_clamp_rate`)."""
+    """Scratch arrays of the coupled step (allocated once per step, :func:`make_scratch`): ga, gb (3,) edge
+    gradients [N]; pa, pb (3, 3) dphi/d(edge) [1/m]; energy (1,) the material frame's energy at the last residual
+    [J]; gv (11,): dm/dq of a node over its unknowns' local layout, cg (11,): gv times the node's stiffness;
+    jrow (4, 6); hb (6, 6) node Hessian; gc (12, 3): the clamps' twist-rate geometry (:func:`_clamp_rate`).
+
+    What the last :func:`_residual` computed, for the Newton matrix at the same state (and, at the accepted
+    iterate, the frames' transport at the end of the step): edges (n-1, 7) each edge's length [m], unit tangent
+    and reference director transported onto it (:func:`~bullet_dlo.core.kernels.twist.edge_frame`'s first seven
+    values); geo (n, 5) each node's |e_a|, |e_b| [m] and curvature binormal kb (3) (written for the nodes with a
+    twist spring or damper)."""
 
     ga: np.ndarray
     gb: np.ndarray
@@ -88,10 +94,22 @@ class Scratch(NamedTuple):
     pb: np.ndarray
     energy: np.ndarray
     gv: np.ndarray
-    gi: np.ndarray
     jrow: np.ndarray
     hb: np.ndarray
     gc: np.ndarray
+    cg: np.ndarray
+    edges: np.ndarray
+    geo: np.ndarray
+
+
+def make_scratch(n: int) -> Scratch:
+    """The :class:`Scratch` of an n-node cable."""
+    return Scratch(np.empty(3), np.empty(3), np.empty((3, 3)), np.empty((3, 3)), np.zeros(1), np.empty(11),
+                   np.empty((4, 6)), np.empty((6, 6)), np.empty((12, 3)), np.empty(11), np.empty((max(n - 1, 0), 7)),
+                   np.empty((n, 5)))
+
+
+_make_scratch = njit(cache=True)(make_scratch)  # the same, called from the compiled step
 
 
 @njit(cache=True, error_model="numpy")
@@ -105,17 +123,23 @@ def _frameless(m):
 
 
 @njit(cache=True, error_model="numpy")
-def band_solve_upper(band, rhs, half):
+def band_solve_upper(band, rhs, half, group=1):
     """Solve A y = rhs in place for a symmetric band matrix A given by its upper band ``band[r, c - r]``
     (0 <= c - r <= half), shape (size, half + 1); rhs (size,) becomes y. Elimination without pivoting (A is
-    dominated by its positive diagonal); ``band`` is destroyed. Returns min |pivot|."""
+    dominated by its positive diagonal); ``band`` is destroyed. Returns min |pivot|.
+
+    group: the unknowns come in groups of ``group`` consecutive rows whose entries all end at the same column,
+    the group's first row + half (the coupled step's layout: the 4 unknowns of a node couple to nodes up to two
+    ahead, (x_i, theta_i) to x_{i+2}: column 4 i + 10). Elimination fills only within that envelope, so row k's
+    work stops there: the same operations on the entries in it as with group = 1, and none on the zeros beyond
+    (the theta row of a node has 7 entries right of the diagonal instead of 10)."""
     size = rhs.shape[0]
     min_pivot = np.inf
     for k in range(size):
         piv = band[k, 0]
         if abs(piv) < min_pivot:
             min_pivot = abs(piv)
-        last = min(k + half, size - 1)
+        last = min(k - k % group + half, size - 1)
         for i in range(k + 1, last + 1):
             f = band[k, i - k] / piv
             if f == 0.0:
@@ -125,7 +149,7 @@ def band_solve_upper(band, rhs, half):
             rhs[i] -= f * rhs[k]
     for k in range(size - 1, -1, -1):
         acc = rhs[k]
-        last = min(k + half, size - 1)
+        last = min(k - k % group + half, size - 1)
         for j in range(k + 1, last + 1):
             acc -= band[k, j - k] * rhs[j]
         rhs[k] = acc / band[k, 0]
@@ -190,10 +214,14 @@ def _residual(m, mp, imp, ws, samples, mid, h, tb, wb, wa, vn, wn, wv, rate, tq,
     energy = 0.0
     for k in range(ns):
         tq[k] = -drag[k] * wv[k]
+    edges, geo = sc.edges, sc.geo
     fb = edge_frame(xe, dirs, th, ref, tan, clamp, -1)
     for i in range(n):
         fa = fb  # edge i-1's frame, carried on from the last node (each edge frame computed once)
         fb = edge_frame(xe, dirs, th, ref, tan, clamp, i)
+        if i < ns:  # kept for the Newton matrix and the frames' transport at the end of the step
+            edges[i, 0], edges[i, 1], edges[i, 2], edges[i, 3] = fb[0], fb[1], fb[2], fb[3]
+            edges[i, 4], edges[i, 5], edges[i, 6] = fb[4], fb[5], fb[6]
         kt, dl, ct = ktw[i], kan[i], ctw[i]
         rate[i] = 0.0
         if kt == 0.0 and dl == 0.0 and ct == 0.0:
@@ -204,6 +232,7 @@ def _residual(m, mp, imp, ws, samples, mid, h, tb, wb, wa, vn, wn, wv, rate, tq,
         else:  # round and tube sections: twist and binormal only
             twist, la, lb, kb0, kb1, kb2 = twist_of_frames(fa, fb, mref[i])
             ratio, alpha, c = 1.0, 0.0, 1.0  # (unused without anisotropy)
+        geo[i, 0], geo[i, 1], geo[i, 2], geo[i, 3], geo[i, 4] = la, lb, kb0, kb1, kb2
         s = kt * twist
         if ct != 0.0:
             rt = (wv[i] if i < ns else 0.0) - (wv[i - 1] if i > 0 else 0.0)
@@ -296,6 +325,62 @@ def _merit(m, mp, imp, ws, wa, vn, wn, wv, rate, sc):
     return phi
 
 
+# _FIRST[p, q]: whether g g^T's entry (p, q) of a node's local layout (below) is (coef g_p) g_q rather than
+# (coef g_q) g_p: p comes first in the enumeration x_{i-1,j}, x_{i,j}, x_{i+1,j} for j = 0..2, then theta_{i-1},
+# theta_i (its rank there: _RANK), the order of the first version of the loop, kept so that the band is
+# bit-identical (floating-point products commute, so only which factor takes coef matters)
+_RANK = np.array([0, 3, 6, 9, 1, 4, 7, 10, 2, 5, 8])
+_FIRST = np.array([[_RANK[p] <= _RANK[q] for q in range(11)] for p in range(11)])
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _present(p, pa, pi, pb, ta, tb):
+    """Whether local unknown p (0-10, see :func:`_add_twist_ggt`) of a node is an unknown of the system."""
+    a = p // 4
+    if p % 4 == 3:
+        return ta if a == 0 else tb
+    return pa if a == 0 else (pi if a == 1 else pb)
+
+
+@njit(cache=True, error_model="numpy")
+def _add_twist_ggt(band, base, coef, la, lb, kb0, kb1, kb2, pa, pi, pb, ta, tb, gv, cg):
+    """band += coef g g^T (upper band) for one node's twist, g = dm_i/dq over the local layout base + l
+    (x_{i-1} l = 0-2, theta_{i-1} 3, x_i 4-6, theta_i 7, x_{i+1} 8-10): -kb/2|e_a|, -1, kb/2|e_a| - kb/2|e_b|,
+    +1, kb/2|e_b| (a clamp's virtual edge: the x_i entry without its term). pa, pi, pb: whether x_{i-1}, x_i,
+    x_{i+1} are unknowns (not held, inside the chain); ta, tb: theta_{i-1}, theta_i. gv, cg (11,): scratch.
+    Each product's factor order is _FIRST's. A node with all 11 unknowns (all but the two or three next to each
+    held end) takes the loop without presence tests (half the time)."""
+    for j in range(3):
+        kbj = kb0 if j == 0 else (kb1 if j == 1 else kb2)
+        gv[j] = -kbj / (2.0 * la)
+        gv[4 + j] = (kbj / (2.0 * la) if ta else 0.0) - (kbj / (2.0 * lb) if tb else 0.0)
+        gv[8 + j] = kbj / (2.0 * lb)
+    gv[3] = -1.0
+    gv[7] = 1.0
+    for q in range(11):
+        cg[q] = coef * gv[q]
+    if pa and pi and pb and ta and tb:
+        for p in range(11):
+            for q in range(p, 11):
+                band[base + p, q - p] += cg[p] * gv[q] if _FIRST[p, q] else cg[q] * gv[p]
+        return
+    for p in range(11):
+        if not _present(p, pa, pi, pb, ta, tb):
+            continue
+        for q in range(p, 11):
+            if _present(q, pa, pi, pb, ta, tb):
+                band[base + p, q - p] += cg[p] * gv[q] if _FIRST[p, q] else cg[q] * gv[p]
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _kept_frame(xe, dirs, th, ref, tan, clamp, edges, k):
+    """:func:`~bullet_dlo.core.kernels.twist.edge_frame` of edge k at the last residual's state, its length,
+    tangent and transported director taken from that residual (``edges``), the clamps' virtual edges computed."""
+    if k < 0 or k >= edges.shape[0]:
+        return edge_frame(xe, dirs, th, ref, tan, clamp, k)
+    return (edges[k, 0], edges[k, 1], edges[k, 2], edges[k, 3], edges[k, 4], edges[k, 5], edges[k, 6], th[k])
+
+
 @njit(cache=True, error_model="numpy")
 def _newton_matrix(stepper, m, mp, imp, ws, band, g, sc):
     """band <- the coupled Newton matrix (upper band, interleaved layout) at the X, V, Theta of the last residual."""
@@ -312,57 +397,27 @@ def _newton_matrix(stepper, m, mp, imp, ws, band, g, sc):
     ktw, kan, ctw, drag, inertia = m.tw_k_twist, m.tw_k_aniso, m.tw_c_twist, m.tw_drag, m.tw_inertia
     th, ref, tan, clamp, mref = m.tw_theta, m.tw_ref, m.tw_tan, m.tw_clamp, m.tw_mref
     dirs = imp.dirs
-    gv, gi, pa, pb, jrow, hb = sc.gv, sc.gi, sc.pa, sc.pb, sc.jrow, sc.hb
+    gv, pa, pb, jrow, hb, cg = sc.gv, sc.pa, sc.pb, sc.jrow, sc.hb, sc.cg
+    edges, geo = sc.edges, sc.geo
     band[:, :] = 0.0
-    fb = edge_frame(xe, dirs, th, ref, tan, clamp, -1)
     for i in range(n):
-        fa = fb  # edge i-1's frame, carried on from the last node
-        fb = edge_frame(xe, dirs, th, ref, tan, clamp, i)
         kt, dl, ct = ktw[i], kan[i], ctw[i]
         if kt == 0.0 and dl == 0.0 and ct == 0.0:
             continue
-        if dl != 0.0:
-            twist, la, lb, ratio, alpha, c = geometry_of_frames(fa, fb, mref[i], g)
+        if dl != 0.0:  # the frames from the residual's edges (the same values edge_frame gives at this state)
+            twist, la, lb, ratio, alpha, c = geometry_of_frames(
+                _kept_frame(xe, dirs, th, ref, tan, clamp, edges, i - 1),
+                _kept_frame(xe, dirs, th, ref, tan, clamp, edges, i), mref[i], g)
             kb0, kb1, kb2 = g[9, 0], g[9, 1], g[9, 2]
-        else:
-            twist, la, lb, kb0, kb1, kb2 = twist_of_frames(fa, fb, mref[i])
+        else:  # round and tube sections: the residual's lengths and binormal at this state
+            la, lb, kb0, kb1, kb2 = geo[i, 0], geo[i, 1], geo[i, 2], geo[i, 3], geo[i, 4]
             ratio, alpha, c = 1.0, 0.0, 1.0
         # g = dm/dq over the node's unknowns in the local layout l = q - 4(i-1) (x_{i-1} 0-2, theta_{i-1} 3, x_i
-        # 4-6, theta_i 7, x_{i+1} 8-10; gi flags the present ones), added as coef g g^T row by row into the band;
-        # _RANK keeps each product's factor order that of the node-by-node enumeration before (bit-identical)
+        # 4-6, theta_i 7, x_{i+1} 8-10), added as coef g g^T into the band's rows of the present unknowns
         coef = kc * (kt + (cv / cx) * ct)
         if coef != 0.0:
-            for q in range(11):
-                gv[q] = 0.0
-                gi[q] = 0
-            for j in range(3):
-                kbj = kb0 if j == 0 else (kb1 if j == 1 else kb2)
-                if i > 0 and not held[i - 1]:
-                    gv[j] = -kbj / (2.0 * la)
-                    gi[j] = 1
-                if not held[i]:
-                    gv[4 + j] = (kbj / (2.0 * la) if i > 0 else 0.0) - (kbj / (2.0 * lb) if i < ns else 0.0)
-                    gi[4 + j] = 1
-                if i < ns and not held[i + 1]:
-                    gv[8 + j] = kbj / (2.0 * lb)
-                    gi[8 + j] = 1
-            if i > 0:
-                gv[3] = -1.0
-                gi[3] = 1
-            if i < ns:
-                gv[7] = 1.0
-                gi[7] = 1
-            base = 4 * (i - 1)
-            for p in range(11):
-                if gi[p] == 0:
-                    continue
-                rp, gp, row = _RANK[p], gv[p], base + p
-                for q in range(p, 11):
-                    if gi[q] != 0:
-                        if rp <= _RANK[q]:
-                            band[row, q - p] += coef * gp * gv[q]
-                        else:
-                            band[row, q - p] += coef * gv[q] * gp
+            _add_twist_ggt(band, 4 * (i - 1), coef, la, lb, kb0, kb1, kb2, i > 0 and not held[i - 1],
+                           not held[i], i < ns and not held[i + 1], i > 0, i < ns, gv, cg)
         if dl == 0.0:
             continue
         p1a, p2a, p1b, p2b = _curvatures(g)
@@ -393,15 +448,18 @@ def _newton_matrix(stepper, m, mp, imp, ws, band, g, sc):
     for i in range(n):  # x-x blocks (upper triangle) from the position Jacobian
         if held[i]:
             continue
-        for o in range(2, 5):
+        row = 4 * i
+        for r in range(3):  # the node's own block: its upper triangle
+            for c in range(r, 3):
+                band[row + r, c - r] -= kc * jac[i, 2, r, c]
+        for o in range(3, 5):  # the next two nodes' blocks, whole
             p = i + o - 2
             if p >= n or held[p]:
                 continue
+            off = 4 * (o - 2)
             for r in range(3):
                 for c in range(3):
-                    a, b = 4 * i + r, 4 * p + c
-                    if b >= a:
-                        band[a, b - a] -= kc * jac[i, o, r, c]
+                    band[row + r, off + c - r] -= kc * jac[i, o, r, c]
     for i in range(n):
         for r in range(3):
             if held[i]:
@@ -452,8 +510,7 @@ def coupled_implicit(stepper, m, x, v, samples, ws, has_prev):
     band = np.empty((size, HALF_T + 1))
     r, r_try = np.empty(size), np.empty(size)
     wn, w_try, wv, rate, tq = omega0.copy(), np.empty(ns), np.empty(ns), np.zeros(n), np.empty(ns)
-    sc = Scratch(np.empty(3), np.empty(3), np.empty((3, 3)), np.empty((3, 3)), np.zeros(1), np.empty(11),
-                 np.empty(11, dtype=np.int64), np.empty((4, 6)), np.empty((6, 6)), np.empty((12, 3)))
+    sc = _make_scratch(n)
     mp = _frameless(m)
     vn, v_try = ws.v_new, ws.v_try
     tol = stepper.tol
@@ -470,10 +527,11 @@ def coupled_implicit(stepper, m, x, v, samples, ws, has_prev):
     it = 0
     converged = False
     rnorm = _residual(m, mp, imp, ws, samples, mid, h, tb, wb, wa, vn, wn, wv, rate, tq, r, g, sc)
+    kept = True  # the last residual was at the current iterate (sc.edges: its frames)
     while it < stepper.max_iter:
         it += 1
         _newton_matrix(stepper, m, mp, imp, ws, band, g, sc)
-        band_solve_upper(band, r, HALF_T)  # r becomes the Newton direction
+        band_solve_upper(band, r, HALF_T, 4)  # r becomes the Newton direction
         phi0 = np.nan
         alpha = 1.0
         accepted = False
@@ -485,6 +543,7 @@ def coupled_implicit(stepper, m, x, v, samples, ws, has_prev):
             for k in range(ns):
                 w_try[k] = wn[k] + alpha * r[4 * k + 3]
             rn_try = _residual(m, mp, imp, ws, samples, mid, h, tb, wb, wa, v_try, w_try, wv, rate, tq, r_try, g, sc)
+            kept = False
             if rn_try < rnorm or rn_try <= tol * r_scale + r_floor:
                 accepted = True
                 break
@@ -500,6 +559,7 @@ def coupled_implicit(stepper, m, x, v, samples, ws, has_prev):
             break  # stagnated: keep the current iterate (reported as not converged)
         vn[:, :] = v_try
         wn[:] = w_try
+        kept = True  # (the last residual, at v_try, w_try)
         r[:] = r_try
         rnorm = rn_try
         dmom = _momentum_change(m, ws, vn)
@@ -527,7 +587,14 @@ def coupled_implicit(stepper, m, x, v, samples, ws, has_prev):
             m.tw_theta[k] = theta0[k] + h * wn[k]
         m.tw_omega[k] = wn[k]
     m.tw_clamp[:, :] = m.tw_normal[2]
-    update_frames(m, x, samples.dir[2])
+    if kept and not mid:  # X of the last residual is the new x: its edges' transported frames are the new ones
+        ref, tan, edges = m.tw_ref, m.tw_tan, sc.edges
+        for k in range(ns):
+            tan[k, 0], tan[k, 1], tan[k, 2] = edges[k, 1], edges[k, 2], edges[k, 3]
+            ref[k, 0], ref[k, 1], ref[k, 2] = edges[k, 4], edges[k, 5], edges[k, 6]
+        reference_twists(x, samples.dir[2], m.tw_theta, ref, tan, m.tw_clamp, m.tw_mref)
+    else:
+        update_frames(m, x, samples.dir[2])
     return it, converged
 
 
