@@ -118,7 +118,8 @@ class Bodies(NamedTuple):
 
     The Bodies are not a field of :class:`Contacts`: every compiled call that passes a NamedTuple takes and
     drops a reference to each of its arrays, and the contact kernels that run several times per Newton
-    iteration need none of these (a cable on a table paid 15 % more per step while they were a field).
+    iteration need none of these (while they were a field, the detection of a cable on the ground, no body in
+    the world, took 35 against 31 us a step at n = 20 and 120 against 106 us at n = 80; docs/concepts/contact.md).
     """
 
     active: np.ndarray
