@@ -173,10 +173,12 @@ def _same_step_from_the_guard(cable) -> list[str]:
 def test_a_contact_step_taken_again_from_the_guard_is_the_same_step():
     """The guard saves only what a contact step reads and also writes (bullet/solver.py, CONTACT_ROWS and the
     rest: copying all 56 arrays of the contact set cost 4.6 us a step); a step taken again after restoring them
-    is bit for bit the same step, in every array the step touches. Three scenes cover the step's writers: a 30 g
-    box resting on a cable on the ground (a free body solved in the step: its velocity, the rows' arms, the
-    moved points and anchors), a cable draped over a table edge (WRAP rows: the edge's push, the capstan caps,
-    the material sliding over the edge) and a cable dragged over the ground by one end (sliding anchors)."""
+    is bit for bit the same step, in every array the step touches. Three scenes: a 30 g box resting on a cable on
+    the ground (a free body solved in the step), a cable draped over a table edge (WRAP rows) and a cable dragged
+    over the ground by one end (sliding rows). Left unrestored one at a time, the rows' points, anchors and
+    stick/slide states, the bodies' work, the free body's velocity and the rows' arms each make one of these
+    scenes fail (checked once by unhooking each saved array); the caps, normals, impact flag and the grips' state
+    are saved because the step writes them before a retry could read them (bullet/solver.py, CONTACT_ROWS)."""
     from test_edge_slide import TABLE, layout, soft_cable
     spec = CableSpec.lv2017(n_masses=20, damping=0.02)
     r = spec.diameter / 2
