@@ -178,7 +178,8 @@ def test_a_contact_step_taken_again_from_the_guard_is_the_same_step():
     over the ground by one end (sliding rows). Left unrestored one at a time, the rows' points, anchors and
     stick/slide states, the bodies' work, the free body's velocity and the rows' arms each make one of these
     scenes fail (checked once by unhooking each saved array); the caps, normals, impact flag and the grips' state
-    are saved because the step writes them before a retry could read them (bullet/solver.py, CONTACT_ROWS)."""
+    are saved because the step overwrites them and reads them in cases these scenes do not reach (a wrap's
+    capstan cap, a gripped end; bullet/solver.py, CONTACT_ROWS)."""
     from test_edge_slide import TABLE, layout, soft_cable
     spec = CableSpec.lv2017(n_masses=20, damping=0.02)
     r = spec.diameter / 2
