@@ -16,8 +16,14 @@ same block as a convex hull mesh (Bullet's narrow phase, ``getClosestPoints`` pe
 their contact-free twins have the block in the world too, far from the cable. Step times are thread
 times (``time.thread_time``).
 
+``--split``: also the contact scene's step part by part (thread time per step, medians of the blocks):
+``ContactSet.update`` (the bodies' poses, detection), ``CableSolver.step`` (the cable's kernel: take-over,
+checks, the planned contact steps), the rest (Bullet's step, the forces to Bullet, the reactions on the bodies,
+Python), and the stall guard's copies per contact step (its save of what the step reads and writes, timed in a
+compiled loop).
+
 Usage: ``python demos/contact_cost.py [--out DIR] [--masses 20 80] [--scenes table peg box hull resting]
-[--repeats 5] [--block 200] [--quick]``
+[--repeats 5] [--block 200] [--split] [--quick]``
 (``--out`` defaults to ``out/contact_cost``; ``--out demos/gallery`` renews the committed pictures)
 (``--quick``: n = 20, one block of 20 steps, no pictures; for smoke tests).
 """
@@ -127,23 +133,84 @@ def per_step(world: BulletWorld, steps: int) -> float:
     return (time.thread_time() - tic) / steps
 
 
-def measure(kind: str, n: int, repeats: int, block: int) -> dict:
-    """Median per-step times [s] of the contact scene and its contact-free twin, and their ratio."""
+class _PartTimer:
+    """Thread time [s] spent in ``ContactSet.update`` and ``CableSolver.step`` while active (wrapped methods)."""
+
+    def __init__(self):
+        from bullet_dlo.bullet.contact import ContactSet
+        from bullet_dlo.bullet.solver import CableSolver
+        self.spent = {"update": 0.0, "solver": 0.0}
+        self._orig = [(ContactSet, "update", ContactSet.update), (CableSolver, "step", CableSolver.step)]
+        for cls, name, fn in self._orig:
+            setattr(cls, name, self._wrap(fn, "update" if name == "update" else "solver"))
+
+    def _wrap(self, fn, key):
+        spent = self.spent
+
+        def timed(*args, **kwargs):
+            tic = time.thread_time()
+            try:
+                return fn(*args, **kwargs)
+            finally:
+                spent[key] += time.thread_time() - tic
+        return timed
+
+    def restore(self) -> None:
+        for cls, name, fn in self._orig:
+            setattr(cls, name, fn)
+
+
+def guard_copy_us(cable, calls: int = 20000) -> float:
+    """Thread time [us] of the stall guard's save before one contact step of ``cable`` (compiled loop)."""
+    from numba import njit
+
+    from bullet_dlo.bullet.kernels import _copy_rows, _copy_whole
+
+    @njit
+    def loop(rows, whole, k, reps):
+        for _ in range(reps):
+            _copy_rows(rows, k, True)
+            _copy_whole(whole, True)
+        return 0
+
+    g, k = cable.solver._guard, int(cable.contacts.count[0])
+    loop(g.rows, g.whole, k, 1)
+    tic = time.thread_time()
+    loop(g.rows, g.whole, k, calls)
+    return 1e6 * (time.thread_time() - tic) / calls
+
+
+def measure(kind: str, n: int, repeats: int, block: int, split: bool = False) -> dict:
+    """Median per-step times [s] of the contact scene and its contact-free twin, and their ratio; ``split``: also
+    the contact scene's parts per step [us] (see the module doc)."""
     (wc, cc), (wf, cf) = scene(kind, n, True), scene(kind, n, False)
+    timer = _PartTimer() if split else None
     try:
         wc.run(0.5)
         wf.run(0.5)
-        with_c, free = [], []
+        with_c, free, parts = [], [], []
         for _ in range(repeats):
+            if timer:
+                timer.spent.update(update=0.0, solver=0.0)
             with_c.append(per_step(wc, block))
+            if timer:
+                parts.append({k: v / block for k, v in timer.spent.items()})
             free.append(per_step(wf, block))
         assert cc.stable and cf.stable
         ratios = [a / b for a, b in zip(with_c, free)]
-        return {"scene": kind, "n": n, "contacts": int(cc.contacts_last_step),
-                "step_us": 1e6 * statistics.median(with_c), "free_step_us": 1e6 * statistics.median(free),
-                "ratio": statistics.median(ratios), "ratio_min": min(ratios), "ratio_max": max(ratios),
-                "newton_per_step": cc.newton_iterations / max(cc.steps, 1), "load": os.getloadavg()[0]}
+        row = {"scene": kind, "n": n, "contacts": int(cc.contacts_last_step),
+               "step_us": 1e6 * statistics.median(with_c), "free_step_us": 1e6 * statistics.median(free),
+               "ratio": statistics.median(ratios), "ratio_min": min(ratios), "ratio_max": max(ratios),
+               "newton_per_step": cc.newton_iterations / max(cc.steps, 1), "load": os.getloadavg()[0]}
+        if split:
+            row["update_us"] = 1e6 * statistics.median(p["update"] for p in parts)
+            row["solver_us"] = 1e6 * statistics.median(p["solver"] for p in parts)
+            row["rest_us"] = 1e6 * statistics.median(t - p["update"] - p["solver"] for t, p in zip(with_c, parts))
+            row["guard_copy_us"] = guard_copy_us(cc)
+        return row
     finally:
+        if timer:
+            timer.restore()
         wc.close()
         wf.close()
 
@@ -186,6 +253,7 @@ def main() -> None:
                     choices=["table", "peg", "box", "hull", "resting"])
     ap.add_argument("--repeats", type=int, default=5)
     ap.add_argument("--block", type=int, default=200, help="steps per timed block")
+    ap.add_argument("--split", action="store_true", help="also the contact step's parts (see the module doc)")
     ap.add_argument("--quick", action="store_true", help="n = 20, one block of 20 steps, no pictures")
     args = ap.parse_args()
     if args.quick:
@@ -196,11 +264,15 @@ def main() -> None:
     rows = []
     for kind in args.scenes:
         for n in args.masses:
-            row = measure(kind, n, args.repeats, args.block)
+            row = measure(kind, n, args.repeats, args.block, args.split)
             rows.append(row)
             print(f"{kind:7s} n={n:3d} contacts {row['contacts']:3d}: {row['step_us']:7.1f} us vs contact-free "
                   f"{row['free_step_us']:7.1f} us -> {row['ratio']:.2f}x ({row['ratio_min']:.2f}-{row['ratio_max']:.2f}; "
                   f"Newton {row['newton_per_step']:.2f}/step; load {row['load']:.1f})", flush=True)
+            if args.split:
+                print(f"{'':7s}   parts per step: update {row['update_us']:.1f} us, solver {row['solver_us']:.1f} us, "
+                      f"rest {row['rest_us']:.1f} us; the guard's save {row['guard_copy_us']:.2f} us per contact step",
+                      flush=True)
     (out / "contact_cost.json").write_text(json.dumps(rows, indent=1))
     chart(rows, out / "contact_cost.png")
     if not args.quick:

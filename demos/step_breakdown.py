@@ -37,7 +37,7 @@ from bullet_dlo.core.spec import CableSpec
 
 
 @njit
-def _unbox_only(stepper, m, plan, ext, cp, ws, det, inp, contacts, guard):
+def _unbox_only(stepper, m, plan, ext, cp, ws, det, inp, contacts, bodies, guard):
     return 0
 
 

@@ -373,7 +373,7 @@ class BulletCable:
         inp = self._step_input(do_sync, record, idx_arr, pos, vel)
         active = self.grip.active
         gripped = (bool(active[0]), bool(active[1]))
-        status = self.solver.step(self.arrays, self.control, self.contacts, inp)
+        status = self.solver.step(self.arrays, self.control, self.contacts, self.contact.bodies, inp)
         for end in (0, 1):
             if gripped[end] and not active[end]:  # the end slid out of the gripper
                 self._let_go(end)
@@ -391,7 +391,7 @@ class BulletCable:
 
     def _kernel_args(self, inp: StepInput) -> tuple:
         """Arguments of :func:`~bullet_dlo.bullet.kernels.sync_and_advance` (the same objects every step)."""
-        return self.solver.kernel_args(self.arrays, self.control, self.contacts, inp)
+        return self.solver.kernel_args(self.arrays, self.control, self.contacts, self.contact.bodies, inp)
 
     def apply_forces(self, replan: bool = False) -> None:
         """Apply the forces planned for the coming Bullet step (nothing once unstable); ``replan``: plan the step

@@ -12,7 +12,7 @@ from __future__ import annotations
 import pybullet as pb
 
 from bullet_dlo.bullet.contact import ContactSet
-from bullet_dlo.core.kernels.contact import Contacts, make_contacts
+from bullet_dlo.core.kernels.contact import Bodies, Contacts, make_bodies, make_contacts
 from bullet_dlo.core.validate import ParameterError
 
 CABLE_GROUPS = 0x7FFE  # the collision-group bits of cables (bit 0 is the world's default group)
@@ -29,7 +29,8 @@ class CableContacts:
     when Bullet handles contact); bullet_off: :meth:`disable_bullet_collisions` was called; excluded: the
     (body, link)s whose Bullet contacts with the spheres are off; bodies_seen: bodies in the world when the set
     was built; exclusions: (body, link or None) -> None (all nodes) or node indices (:meth:`exclude`);
-    partners_seen: names of the other cables in the set; none: the empty contacts of a cable without them.
+    partners_seen: names of the other cables in the set; none, no_bodies: the empty contacts and free bodies of a
+    cable without them.
     """
 
     def __init__(self, cable):
@@ -41,12 +42,18 @@ class CableContacts:
         self.exclusions: dict = {}
         self.partners_seen: tuple = ()
         self.none = make_contacts(cable.model.n, 1, cable.radius, cable.grip)
+        self.no_bodies = make_bodies(cable.model.n, 1, 0)
         self.refresh()
 
     @property
     def contacts(self) -> Contacts:
         """The core Contacts of the coming step (empty arrays when Bullet handles contact)."""
         return self.set.contacts if self.set is not None else self.none
+
+    @property
+    def bodies(self) -> Bodies:
+        """The free bodies solved with the coming step's contacts (none when Bullet handles contact)."""
+        return self.set.bodies if self.set is not None else self.no_bodies
 
     def partners(self) -> list:
         """The other cables whose contacts with this one the model handles (stable ones)."""

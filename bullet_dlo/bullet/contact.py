@@ -61,8 +61,8 @@ from numba import njit
 from bullet_dlo.bullet.kernels import bind
 from bullet_dlo.bullet.native import BASE_STATE, disabled_warning, read_base_states
 from bullet_dlo.bullet.shape_data import collision_shapes
-from bullet_dlo.core.kernels.contact import (PENALTY, STICK, WRAP, Contacts, _wrap_cap, make_contacts,
-                                             mark_wrap_neighbours, wrap_active, wrap_energy, wrap_split)
+from bullet_dlo.core.kernels.contact import (PENALTY, STICK, WRAP, Bodies, Contacts, _wrap_cap, make_bodies,
+                                             make_contacts, mark_wrap_neighbours, wrap_active, wrap_energy, wrap_split)
 
 BOX, SPHERE, CYLINDER, CAPSULE, PROBE, HULL = range(6)  # PROBE: a link measured by Bullet's narrow phase
 # HULL: a convex hull mesh on the project's exact geometry (:class:`Hulls`), checked against Bullet at set-up
@@ -490,9 +490,11 @@ class ContactSet:
         capacity = max(1, nb * (n + 2 * (n - 1)) + 4 * n + 2 * n * len(self.other_cables))
         # self-contact friction: the cable's own coefficients (negative: no self-contact)
         self.self_mu = np.array([mu_s, mu_d]) if self_contact else np.array([-1.0, -1.0])
-        self.contacts: Contacts = make_contacts(n, capacity, radius, grip, len(free_bodies))  # grip: the cable's
+        self.contacts: Contacts = make_contacts(n, capacity, radius, grip)  # grip: the cable's
+        # the free bodies solved with the cable's step (beside the contacts: the contact kernels do not pass them)
+        self.bodies: Bodies = make_bodies(n, capacity, len(free_bodies))
         par = pb.getPhysicsEngineParameters(physicsClientId=client)  # the bodies fall by the world's gravity
-        self.contacts.bodies.gravity[:] = [par["gravityAccelerationX"], par["gravityAccelerationY"],
+        self.bodies.gravity[:] = [par["gravityAccelerationX"], par["gravityAccelerationY"],
                                            par["gravityAccelerationZ"]]
         self.store = Store(anchor=np.zeros((nkeys, 4)), state=np.zeros(nkeys, np.int64),
                            active=np.zeros(nkeys, np.bool_), keys=np.zeros(capacity, np.int64),
@@ -512,6 +514,7 @@ class ContactSet:
         for s in range(self.n_exact):
             self._read_pose(s, with_velocity=False)
         self._detect = None  # bound to the argument types on first use (skips Numba's per-call dispatch)
+        self._deepest = None  # _deepest_dynamic, bound likewise
         self._loads = None  # apply_to_bodies' per-row force, torque and touched rows (made on first use)
         self._inside_reported: set[int] = set()  # bodies already reported holding the cable's centre line
         # native reads of every row's base state (bullet.native), once checked against PyBullet's
@@ -633,7 +636,7 @@ class ContactSet:
         if self._probe_rows:
             self._probe(x, v, h)
         k_per_mass = self.alpha / (h * h)
-        args = (x, v, mass, self.shapes, self.contacts, self.store, float(h), k_per_mass, self.zeta, self.self_mu,
+        args = (x, v, mass, self.shapes, self.contacts, self.bodies, self.store, float(h), k_per_mass, self.zeta, self.self_mu,
                 float(dt), float(dt) if stepped else 0.0, self.others, self.probes, self._seg_k, self._seg_l,
                 self._seg_b, self._seg_held, self.hulls, self._probe_out)
         if self._detect is None:
@@ -655,6 +658,13 @@ class ContactSet:
         INSIDE_REPORTED radii: it went into the cable instead of resting on it (a contact too soft for the body at this step of dt [s]);
         silently the run would go on with a body lying through the cable."""
         c, st = self.contacts, self.store
+        args = (x, c.count, c.node, c.weight, c.normal, c.point, st.body, self.dynamic)
+        if self._deepest is None:
+            self._deepest = bind(_deepest_dynamic, *args)
+        # one compiled pass over the rows (this check in NumPy cost 28 us a step with a box on the cable); the
+        # rows are looked at again below only when one may be deep enough (the same test in NumPy decides)
+        if not self._deepest(*args) > INSIDE_REPORTED * float(c.radius[0]) * (1.0 - 1e-9):
+            return
         rows = st.body[:count]
         k = np.flatnonzero((rows >= 0) & self.dynamic[np.maximum(rows, 0)])
         if k.size == 0:
@@ -830,10 +840,10 @@ class ContactSet:
             return
         if self._loads is None:
             nb = len(self.rows)
-            self._loads = (c, self.store.body, self.dynamic, self.shapes.com, np.zeros((nb, 3)), np.zeros((nb, 3)),
-                           np.zeros(nb, np.int64))
-            self._body_loads = bind(_body_loads, *self._loads)  # skips the dispatch on a 26-array tuple (10 us)
-        force, torque, touched = self._loads[4:]
+            self._loads = (c.count, c.f_n, c.f_t, c.normal, c.point, self.bodies.slot, self.bodies.arm, self.store.body,
+                           self.dynamic, self.shapes.com, np.zeros((nb, 3)), np.zeros((nb, 3)), np.zeros(nb, np.int64))
+            self._body_loads = bind(_body_loads, *self._loads)  # skips Numba's dispatch (10 us on a Contacts)
+        force, torque, touched = self._loads[-3:]
         count = self._body_loads(*self._loads)
         cid = self.client
         apply, twist, frame = pb.applyExternalForce, pb.applyExternalTorque, pb.WORLD_FRAME
@@ -844,13 +854,33 @@ class ContactSet:
 
 
 @njit(cache=True, error_model="numpy")
-def _body_loads(c, body, dynamic, com, force, torque, touched):
+def _deepest_dynamic(x, count, node, weight, normal, point, body, dynamic):
+    """The largest depth [m] of the cable's centre line (x [m], (n, 3)) inside a dynamic body over the first
+    count[0] contact rows (node, weight, normal, point of the Contacts; body: their Shapes rows, -1 for none;
+    dynamic: per Shapes row); -inf without such a row."""
+    deepest = -np.inf
+    for k in range(count[0]):
+        s = body[k]
+        if s < 0 or not dynamic[s]:
+            continue
+        a, b = node[k, 0], node[k, 1]
+        d = 0.0
+        for j in range(3):
+            d -= normal[k, j] * (weight[k, 0] * x[a, j] + weight[k, 1] * x[b, j] - point[k, j])
+        deepest = max(deepest, d)
+    return deepest
+
+
+@njit(cache=True, error_model="numpy")
+def _body_loads(count, f_n, f_t, normal, point, slot, arm, body, dynamic, com, force, torque, touched):
     """The contacts' reactions summed per dynamic Shapes row: force (B, 3) [N] and torque about its centre of mass
-    com (B, 3) [N m]; touched <- the rows touched, in increasing order; returns their count. (One compiled pass:
-    NumPy's per-call cost on these few rows was 50 us a step.)"""
+    com (B, 3) [N m]; touched <- the rows touched, in increasing order; returns their count. The first count[0]
+    contact rows: the Contacts' f_n, f_t, normal, point and the Bodies' slot, arm (only these arrays: a whole
+    Contacts is 37 arrays to unbox at every call). (One compiled pass: NumPy's per-call cost on these few rows
+    was 50 us a step.)"""
     nb = force.shape[0]
     used = np.zeros(nb, np.bool_)
-    for k in range(c.count[0]):
+    for k in range(count[0]):
         s = body[k]
         if s < 0 or not dynamic[s]:
             continue
@@ -858,15 +888,15 @@ def _body_loads(c, body, dynamic, com, force, torque, touched):
             used[s] = True
             force[s, :] = 0.0
             torque[s, :] = 0.0
-        if c.slot[k] >= 0:  # a free body: the reaction its step solved with (the damper may pull), at its arm
-            fn = c.f_n[k]
-            a0, a1, a2 = c.arm[k, 0], c.arm[k, 1], c.arm[k, 2]
+        if slot[k] >= 0:  # a free body: the reaction its step solved with (the damper may pull), at its arm
+            fn = f_n[k]
+            a0, a1, a2 = arm[k, 0], arm[k, 1], arm[k, 2]
         else:
-            fn = max(c.f_n[k], 0.0)
-            a0, a1, a2 = c.point[k, 0] - com[s, 0], c.point[k, 1] - com[s, 1], c.point[k, 2] - com[s, 2]
-        f0 = -(fn * c.normal[k, 0] + c.f_t[k, 0])
-        f1 = -(fn * c.normal[k, 1] + c.f_t[k, 1])
-        f2 = -(fn * c.normal[k, 2] + c.f_t[k, 2])
+            fn = max(f_n[k], 0.0)
+            a0, a1, a2 = point[k, 0] - com[s, 0], point[k, 1] - com[s, 1], point[k, 2] - com[s, 2]
+        f0 = -(fn * normal[k, 0] + f_t[k, 0])
+        f1 = -(fn * normal[k, 1] + f_t[k, 1])
+        f2 = -(fn * normal[k, 2] + f_t[k, 2])
         force[s, 0] += f0
         force[s, 1] += f1
         force[s, 2] += f2
@@ -1380,7 +1410,7 @@ def _hull_contacts(c, st, s, hu, q, x, mass, base, margin, out, sh, k_per_mass, 
 
 
 @njit(cache=True, error_model="numpy")
-def detect(x, v, mass, sh, c, st, h, k_per_mass, zeta, self_mu, h_body, h_done, oc, pr, seg_k, seg_l, seg_b,
+def detect(x, v, mass, sh, c, bd, st, h, k_per_mass, zeta, self_mu, h_body, h_done, oc, pr, seg_k, seg_l, seg_b,
            seg_held, hu, out_nodes):
     """Store the friction state of the last step's contacts by key, then fill ``c`` with the contacts
     of positions x [m] (n, 3) (velocities v [m/s]) whose gap is below the margin (cable radius + twice
@@ -1396,6 +1426,9 @@ def detect(x, v, mass, sh, c, st, h, k_per_mass, zeta, self_mu, h_body, h_done, 
     the last step's contacts with them are corrected for where the other cable actually went.
 
     Probed links (``pr``, :class:`Probes`): Bullet's closest points become contacts of the same law.
+
+    Free bodies (``bd``, :class:`~bullet_dlo.core.kernels.contact.Bodies`, slots for the world's free bodies):
+    their mass, inertia and velocity, and each row's slot and arm (:func:`_load_free_bodies`).
 
     Convex hulls (``hu``, :class:`Hulls`): the rows of kind HULL near the cable, on their exact geometry
     (:func:`_hull_contacts`), without the nodes ``out_nodes`` (B, n) bool of their row (and the segments next to
@@ -1552,8 +1585,8 @@ def detect(x, v, mass, sh, c, st, h, k_per_mass, zeta, self_mu, h_body, h_done, 
         _cable_contacts(x, mass, c, st, oc, sh.kind.shape[0] * per_shape + 2 * (n - 1) ** 2,
                         margin + 2.0 * oc.vmax[0] * h_body, k_per_mass, zeta)
     _condense_bodies(c, st, sh, x, v, h_body)
-    if c.bodies.mass.shape[0] > 0:  # free bodies in the world (a pass of its own: nothing to pay without them)
-        _load_free_bodies(c, st, sh)
+    if bd.mass.shape[0] > 0:  # free bodies in the world (a pass of its own: nothing to pay without them)
+        _load_free_bodies(c, bd, st, sh)
     for k in range(previous.shape[0]):  # active: in contact this step (what the next step continues)
         st.active[previous[k]] = False
     for k in range(c.count[0]):
@@ -1562,16 +1595,15 @@ def detect(x, v, mass, sh, c, st, h, k_per_mass, zeta, self_mu, h_body, h_done, 
 
 
 @njit(cache=True, error_model="numpy")
-def _load_free_bodies(c, st, sh):
-    """The free bodies' mass, world inertia and velocity now into the contact step's Bodies (c.bodies), and each
+def _load_free_bodies(c, bd, st, sh):
+    """The free bodies' mass, world inertia and velocity now into the contact step's Bodies ``bd``, and each
     row's slot (-1: not on a free body, or on a shared one) and arm [m] from the body's centre of mass."""
     for k in range(c.count[0]):
         s = st.body[k]
-        c.slot[k] = sh.slot[s] if s >= 0 and c.kind[k] == PENALTY else -1
-        if c.slot[k] >= 0:
+        bd.slot[k] = sh.slot[s] if s >= 0 and c.kind[k] == PENALTY else -1
+        if bd.slot[k] >= 0:
             for j in range(3):
-                c.arm[k, j] = c.point[k, j] - sh.com[s, j]
-    bd = c.bodies
+                bd.arm[k, j] = c.point[k, j] - sh.com[s, j]
     for s in range(sh.kind.shape[0]):
         o = sh.slot[s]
         if o < 0:

@@ -243,7 +243,7 @@ def _force_weight(stepper, use_prev):
 
 
 @njit(cache=True, error_model="numpy")
-def _guarded_contact_step(stepper, m, plan, ext, cp, ws, t, k, prev, contacts, guard):
+def _guarded_contact_step(stepper, m, plan, ext, cp, ws, t, k, prev, contacts, bodies, guard):
     """Contact sub-step k of the coming Bullet step on (cp.x_new, cp.v_new), taken again from its start as 2,
     4, ... sub-steps when its Newton solve coasts (:func:`_coasted`: far from convergence with the momentum where
     it started) (:class:`StallGuard`): the first attempt whose solves all end within ``guard.far`` is kept, else
@@ -257,7 +257,7 @@ def _guarded_contact_step(stepper, m, plan, ext, cp, ws, t, k, prev, contacts, g
         _copy_rows(guard.rows, nc, True)
         _copy_whole(guard.whole, True)
     has_prev = prev and contacts.impact[0] == 0
-    its, ok = contact_step(stepper, m, cp.x_new, cp.v_new, cp.samples, ws, has_prev, contacts)
+    its, ok = contact_step(stepper, m, cp.x_new, cp.v_new, cp.samples, ws, has_prev, contacts, bodies)
     if ok:
         return its, ok, 0.0, False
     hf = _force_weight(stepper, has_prev)
@@ -291,7 +291,7 @@ def _guarded_contact_step(stepper, m, plan, ext, cp, ws, t, k, prev, contacts, g
             _sample(plan, ext, cp, t, k * hs + s * hsub, hsub)
             use_prev = s > 0 and contacts.impact[0] == 0  # BDF2: history only within the sub-steps
             guard.vs[:, :] = cp.v_new
-            its_s, ok_s = contact_step(sstep, m, cp.x_new, cp.v_new, cp.samples, ws, use_prev, contacts)
+            its_s, ok_s = contact_step(sstep, m, cp.x_new, cp.v_new, cp.samples, ws, use_prev, contacts, bodies)
             its += its_s
             impact = max(impact, contacts.impact[0])
             if not ok_s:
@@ -313,13 +313,14 @@ def _guarded_contact_step(stepper, m, plan, ext, cp, ws, t, k, prev, contacts, g
 
 
 @njit(cache=True, error_model="numpy")
-def coupled_targets(stepper, m, plan, ext, cp, ws, t, has_prev, contacts, guard):
+def coupled_targets(stepper, m, plan, ext, cp, ws, t, has_prev, contacts, bodies, guard):
     """Plan the coming Bullet step from (cp.x, cp.v) at time t [s].
 
     Runs ``cp.substeps`` integrator steps into cp.x_new, cp.v_new (held ends in ``ext.active``
     follow the measured poses, the others their move tables; with ``contacts`` (core
     :class:`~bullet_dlo.core.kernels.contact.Contacts`, detected for this step, and its friction
-    grips) an implicit method takes them into its step; a BDF2 step after an impact restarts with implicit Euler;
+    grips, and ``bodies``, the free bodies solved with it, :class:`~bullet_dlo.core.kernels.contact.Bodies`) an
+    implicit method takes them into its step; a BDF2 step after an impact restarts with implicit Euler;
     a contact step whose Newton solve coasts far from convergence is taken again as 2, 4, ... sub-steps,
     :class:`StallGuard` ``guard``, which receives what the solves left in ``guard.info``)
     and writes the sphere forces that
@@ -338,7 +339,8 @@ def coupled_targets(stepper, m, plan, ext, cp, ws, t, has_prev, contacts, guard)
         _sample(plan, ext, cp, t, k * hs, hs)
         prev = has_prev or k > 0
         if (contacts.count[0] > 0 or grip_active(contacts.grip)) and stepper.method >= IMPLICIT_EULER:
-            its, ok, ratio, coast = _guarded_contact_step(stepper, m, plan, ext, cp, ws, t, k, prev, contacts, guard)
+            its, ok, ratio, coast = _guarded_contact_step(stepper, m, plan, ext, cp, ws, t, k, prev, contacts, bodies,
+                                                          guard)
             guard.info[FINAL_RATIO] = max(guard.info[FINAL_RATIO], ratio)
             if coast:
                 guard.info[COASTED] = 1.0
@@ -381,10 +383,11 @@ def take_over(cp, inp):
 
 
 @njit(cache=True, error_model="numpy")
-def sync_and_advance(stepper, m, plan, ext, cp, ws, det, inp, contacts, guard):
+def sync_and_advance(stepper, m, plan, ext, cp, ws, det, inp, contacts, bodies, guard):
     """One Bullet step's work on the model side: take over (if ``inp.sync``), check, plan the next.
 
-    ``contacts``: the model's contacts for the coming step (detected from the taken-over state);
+    ``contacts``: the model's contacts for the coming step (detected from the taken-over state), ``bodies``: the
+    free bodies solved with them (:class:`~bullet_dlo.core.kernels.contact.Bodies`);
     the energy check counts the energy stored in them and the work of the bodies they touch.
     With an external holder or on a recorded step (``inp.record``), also writes cp.end_force,
     cp.end_torque (:func:`end_loads` now), and on a recorded step cp.energy (the recorder's row without
@@ -401,7 +404,8 @@ def sync_and_advance(stepper, m, plan, ext, cp, ws, det, inp, contacts, guard):
             status = monitor(m, cp.x, cp.v, cp.samples, det, inp.energy_check, extra)
     its, ok = 0, True
     if status == STABLE:
-        its, ok, stalled = coupled_targets(stepper, m, plan, ext, cp, ws, inp.t, inp.has_prev, contacts, guard)
+        its, ok, stalled = coupled_targets(stepper, m, plan, ext, cp, ws, inp.t, inp.has_prev, contacts, bodies,
+                                           guard)
         if stalled:
             status = STALLED
     if ext.active[0] or ext.active[1] or inp.record:  # the loads on external holders (the grasp coupling

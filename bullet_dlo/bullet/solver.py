@@ -28,7 +28,7 @@ from bullet_dlo.bullet.kernels import (COASTED, FINAL_RATIO, FIRST_ITER, FIRST_M
                                        StallGuard, StepInput, bind, sync_and_advance)
 from bullet_dlo.core.engine import NEWTON_WARN_SHARE, DetectorOptions, start_detector
 from bullet_dlo.core.integrators import Integrator, NewtonOptions, make_stepper
-from bullet_dlo.core.kernels.contact import Contacts
+from bullet_dlo.core.kernels.contact import Bodies, Contacts
 from bullet_dlo.core.kernels.holders import empty_samples, sample_holders
 from bullet_dlo.core.kernels.monitor import REASONS, STABLE, STALLED
 from bullet_dlo.core.kernels.steppers import Workspace, make_workspace
@@ -40,35 +40,41 @@ STALL_FAR = 0.1  # [-] far from convergence: momentum residual above this share 
 NEWTON_WARN_MIN_STEPS = 100  # the share of unconverged steps is judged from this many planned steps on
 
 
-def _array_pairs(obj, capacity: int, n: int, rows: list, whole: list) -> None:
-    """(live, copy) pairs of every array in the tuple ``obj`` (a NamedTuple's fields; recursing into tuples and
-    NamedTuples in it) into ``rows`` (arrays indexed by contact row: first axis ``capacity`` > n) or ``whole``;
-    scalars left out. Empty arrays are kept: the pairs' types then follow the contact set's fields, not its
-    sizes (a contact set rebuilt with free bodies keeps the type the step kernel was bound to)."""
-    for a in obj:
-        if isinstance(a, tuple):
-            _array_pairs(a, 0, n, rows, whole)
-        elif isinstance(a, np.ndarray):
-            (rows if capacity > n and a.shape[0] == capacity else whole).append((a, a.copy()))
+# What a contact step (core/kernels/contact.py, contact_step) reads that it also writes, by field: the retry restores
+# these. Every other array of the Contacts, its Grip and the Bodies is either left alone by the step (the detector's
+# geometry and parameters) or written before the step reads it (forces, scratch, the grippers' pose from the
+# samples, the bodies' iterates), so a step taken again from these is the same step
+# (tests/bullet/test_newton_stall.py, test_a_contact_step_taken_again_from_the_guard_is_the_same_step). A field
+# added to the step's state must be named here. (Copying every array, 56 of them, cost 4.6 us a contact step.)
+CONTACT_ROWS = ("point", "anchor", "state", "cap", "normal")  # by contact row (the first count rows)
+CONTACT_WHOLE = ("body_work", "impact")
+GRIP_WHOLE = ("active", "offset", "state")
+BODY_ROWS = ("arm",)
+BODY_WHOLE = ("vel",)
 
 
-def make_stall_guard(arrays: KernelArrays, workspace: Workspace, contacts: Contacts, levels: int,
+def step_state(contacts: Contacts, bodies: Bodies) -> tuple[list, list]:
+    """The arrays a contact step reads and writes (see :data:`CONTACT_ROWS`): (row arrays, whole arrays)."""
+    rows = [getattr(contacts, f) for f in CONTACT_ROWS] + [getattr(bodies, f) for f in BODY_ROWS]
+    whole = ([getattr(contacts, f) for f in CONTACT_WHOLE] + [getattr(contacts.grip, f) for f in GRIP_WHOLE]
+             + [getattr(bodies, f) for f in BODY_WHOLE])
+    return rows, whole
+
+
+def make_stall_guard(arrays: KernelArrays, workspace: Workspace, contacts: Contacts, bodies: Bodies, levels: int,
                      far: float) -> StallGuard:
-    """The :class:`~bullet_dlo.bullet.kernels.StallGuard` of a cable: copies of every array a contact step
-    writes. Every array field of ``contacts`` (and of its grips) is saved, so that fields added to
-    :class:`~bullet_dlo.core.kernels.contact.Contacts` later are restored too; plus the twist state in
-    ``arrays`` (and the clamps' current axes) and BDF2's history in ``workspace``."""
+    """The :class:`~bullet_dlo.bullet.kernels.StallGuard` of a cable: copies of the arrays a contact step reads
+    and writes (:func:`step_state` of ``contacts`` and ``bodies``), the twist state in ``arrays`` (and the clamps'
+    current axes) and BDF2's history in ``workspace``."""
     n = arrays.mass.shape[0]
-    rows: list = []
-    whole: list = []
-    _array_pairs(contacts, contacts.node.shape[0], n, rows, whole)
+    live_rows, live_whole = step_state(contacts, bodies)
+    rows = [(a, a.copy()) for a in live_rows]
+    whole = [(a, a.copy()) for a in live_whole]
     for name in [f"tw_{f}" for f in TwistState._fields] + ["tw_clamp"]:
         a = getattr(arrays, name)
         if a.size:
             whole.append((a, a.copy()))
     whole += [(workspace.x_prev, workspace.x_prev.copy()), (workspace.v_prev, workspace.v_prev.copy())]
-    if not rows:  # a contact set without row arrays (capacity <= n): Numba cannot unroll an empty tuple
-        rows.append((np.zeros(1), np.zeros(1)))
     return StallGuard(levels=int(levels), far=float(far), x0=np.zeros((n, 3)), v0=np.zeros((n, 3)),
                       vs=np.zeros((n, 3)), rows=tuple(rows), whole=tuple(whole), info=np.zeros(6))
 
@@ -140,25 +146,28 @@ class CableSolver:
         return StepInput(t, has_prev, sync, sync and steps % det.check_every == 0,
                          sync and steps % det.energy_every == 0, record, index, pos, vel)
 
-    def kernel_args(self, arrays: KernelArrays, control: CableControl, contacts: Contacts, inp: StepInput) -> tuple:
+    def kernel_args(self, arrays: KernelArrays, control: CableControl, contacts: Contacts, bodies: Bodies,
+                    inp: StepInput) -> tuple:
         """Arguments of :func:`~bullet_dlo.bullet.kernels.sync_and_advance` (the same objects every step)."""
         return (self.stepper, arrays, self.plan, control.holders, self.coupling, self.workspace, self.detector, inp,
-                contacts, self.stall_guard(arrays, contacts))
+                contacts, bodies, self.stall_guard(arrays, contacts, bodies))
 
-    def stall_guard(self, arrays: KernelArrays, contacts: Contacts) -> StallGuard:
-        """The retry's copies for this contact set (made anew when the set was rebuilt)."""
+    def stall_guard(self, arrays: KernelArrays, contacts: Contacts, bodies: Bodies) -> StallGuard:
+        """The retry's copies for this contact set and its bodies (made anew when the set was rebuilt)."""
         if self._guard is None or self._guard_contacts is not contacts:
             old = self._guard
-            self._guard = make_stall_guard(arrays, self.workspace, contacts, self.stall_levels, self.stall_far)
+            self._guard = make_stall_guard(arrays, self.workspace, contacts, bodies, self.stall_levels,
+                                           self.stall_far)
             self._guard_contacts = contacts
             if old is not None and numba.typeof(old) != numba.typeof(self._guard):
                 self._kernel = None  # another structure (a row array sized like the rows by chance): bind anew
         return self._guard
 
-    def step(self, arrays: KernelArrays, control: CableControl, contacts: Contacts, inp: StepInput) -> int:
-        """Take over Bullet's step (if ``inp.sync``), check it, plan the next; returns the status (STABLE or the
-        reason's code: then nothing is planned)."""
-        args = self.kernel_args(arrays, control, contacts, inp)
+    def step(self, arrays: KernelArrays, control: CableControl, contacts: Contacts, bodies: Bodies,
+             inp: StepInput) -> int:
+        """Take over Bullet's step (if ``inp.sync``), check it, plan the next with the contacts and the free bodies
+        solved with them; returns the status (STABLE or the reason's code: then nothing is planned)."""
+        args = self.kernel_args(arrays, control, contacts, bodies, inp)
         if self._kernel is None:
             self._kernel = bind(sync_and_advance, *args)
         status, its, ok = self._kernel(*args)

@@ -111,7 +111,15 @@ class Bodies(NamedTuple):
     at the start of the step; vel_new, vel_try (S, 6): Newton's iterate and the line search's trial;
     step (S, 6): Newton's direction; residual (S, 6) [N s, N m s] of the velocities the contact
     rows hold now (:func:`load_bodies`); coupling (3n, 6S), schur (6S, 6S), work (3n,): scratch of
-    :func:`coupled_solve`.
+    :func:`coupled_solve`. Per contact row (M rows, as :class:`Contacts`): slot (M,) int, the row's body slot
+    (-1: a static body, a link of an articulated body, the cable itself or another cable: its surface moves at
+    body_vel); arm (M, 3) [m]: the row's surface point from the body's centre of mass at the start of the step;
+    point0, anchor0 (M, 3) [m]: the row's surface point and anchor at the start of the step.
+
+    The Bodies are not a field of :class:`Contacts`: every compiled call that passes a NamedTuple takes and
+    drops a reference to each of its arrays, and the contact kernels that run several times per Newton
+    iteration need none of these (while they were a field, the detection of a cable on the ground, no body in
+    the world, took 35 against 31 us a step at n = 20 and 120 against 106 us at n = 80; docs/concepts/contact.md).
     """
 
     active: np.ndarray
@@ -126,15 +134,22 @@ class Bodies(NamedTuple):
     coupling: np.ndarray
     schur: np.ndarray
     work: np.ndarray
+    slot: np.ndarray
+    arm: np.ndarray
+    point0: np.ndarray
+    anchor0: np.ndarray
 
 
-def make_bodies(n: int, slots: int) -> Bodies:
-    """Room for ``slots`` free bodies touching an n-node cable (none active)."""
+def make_bodies(n: int, capacity: int, slots: int) -> Bodies:
+    """Room for ``slots`` free bodies touching an n-node cable (none active), for a contact set of ``capacity``
+    rows (as :func:`make_contacts`)."""
     s = int(slots)
+    m = max(1, int(capacity))
     f = np.zeros
     return Bodies(active=np.zeros(s, np.bool_), mass=f(s), inertia=f((s, 3, 3)), gravity=f(3), vel=f((s, 6)),
                   vel_new=f((s, 6)), vel_try=f((s, 6)), step=f((s, 6)), residual=f((s, 6)),
-                  coupling=f((3 * n, 6 * s)), schur=f((6 * s, 6 * s)), work=f(3 * n))
+                  coupling=f((3 * n, 6 * s)), schur=f((6 * s, 6 * s)), work=f(3 * n), slot=np.full(m, -1, np.int64),
+                  arm=f((m, 3)), point0=f((m, 3)), anchor0=f((m, 3)))
 
 
 class Contacts(NamedTuple):
@@ -164,10 +179,7 @@ class Contacts(NamedTuple):
     then bends the shared node while both paths wrap), else 0.0, anchor[k, 3] the material fraction sigma of the segment on node[k, 0]'s side of the
     edge (the friction anchor); normal, f_n: the direction and size of the edge's push on the cable
     (results), cap [N]: the capstan's friction limit.
-    Free bodies solved with the cable (:class:`Bodies`, field ``bodies``): slot (M,) int, the row's body slot
-    (-1: a static body, a link of an articulated body, the cable itself or another cable: its surface moves at
-    body_vel); arm (M, 3) [m]: the row's surface point from the body's centre of mass at the start of the step;
-    point0, anchor0 (M, 3) [m]: the row's surface point and anchor at the start of the step.
+    Free bodies solved with the cable: a :class:`Bodies` beside the Contacts (its rows' body slots and arms).
     """
 
     count: np.ndarray
@@ -196,17 +208,12 @@ class Contacts(NamedTuple):
     axis: np.ndarray
     side: np.ndarray
     seg: np.ndarray
-    slot: np.ndarray
-    arm: np.ndarray
-    point0: np.ndarray
-    anchor0: np.ndarray
-    bodies: Bodies
 
 
-def make_contacts(n: int, capacity: int, radius: float, grip: Grip | None = None, slots: int = 0) -> Contacts:
+def make_contacts(n: int, capacity: int, radius: float, grip: Grip | None = None) -> Contacts:
     """Empty contact arrays for an n-node cable of radius [m], room for ``capacity`` contacts
-    (``grip``: the cable's grips, shared between successive contact sets; None: inactive ones) and
-    ``slots`` free bodies solved with the cable (:class:`Bodies`)."""
+    (``grip``: the cable's grips, shared between successive contact sets; None: inactive ones). The free
+    bodies solved with the cable come beside it (:func:`make_bodies`)."""
     m = max(1, int(capacity))
     f = np.zeros
     return Contacts(count=np.zeros(1, np.int64), radius=np.full(1, float(radius)), node=np.zeros((m, 2), np.int64),
@@ -215,8 +222,7 @@ def make_contacts(n: int, capacity: int, radius: float, grip: Grip | None = None
                     f_t=f((m, 3)), cap=f(m), body_work=f(1), impact=np.zeros(1, np.int64),
                     internal=np.zeros(m, np.bool_), node_force=f((n, 3)),
                     grip=grip if grip is not None else make_grip(), kind=np.zeros(m, np.int64),
-                    axis=f((m, 3)), side=f((m, 3)), seg=f((m, 6)), slot=np.full(m, -1, np.int64), arm=f((m, 3)),
-                    point0=f((m, 3)), anchor0=f((m, 3)), bodies=make_bodies(n, slots))
+                    axis=f((m, 3)), side=f((m, 3)), seg=f((m, 6)))
 
 
 # ----- the grips -----------------------------------------------------------------------------
@@ -945,20 +951,20 @@ def elastic_caps(c, x, out):
 
 # ----- free bodies solved with the cable (see Bodies) ---------------------------------------------
 @njit(cache=True, error_model="numpy")
-def start_bodies(c, h):
-    """Start of a contact step of h [s]: mark the body slots some row touches, keep every row's surface
-    point and anchor at the start (point0, anchor0) and start Newton's body iterate at the bodies' velocity;
-    rows on other moving surfaces (slot -1) move at their body_vel over the step. Returns the active slots."""
-    bd = c.bodies
+def start_bodies(c, bd, h):
+    """Start of a contact step of h [s] with the free bodies ``bd`` (:class:`Bodies`): mark the body slots some
+    row touches, keep every row's surface point and anchor at the start (point0, anchor0) and start Newton's
+    body iterate at the bodies' velocity; rows on other moving surfaces (slot -1) move at their body_vel over
+    the step. Returns the active slots."""
     for s in range(bd.active.shape[0]):
         bd.active[s] = False
         for j in range(6):
             bd.vel_new[s, j] = bd.vel[s, j]
     for k in range(c.count[0]):
-        s = c.slot[k]
+        s = bd.slot[k]
         for j in range(3):
-            c.point0[k, j] = c.point[k, j]
-            c.anchor0[k, j] = c.anchor[k, j]
+            bd.point0[k, j] = c.point[k, j]
+            bd.anchor0[k, j] = c.anchor[k, j]
         if s >= 0:
             bd.active[s] = True
         else:
@@ -973,29 +979,28 @@ def start_bodies(c, h):
 
 
 @njit(cache=True, error_model="numpy")
-def load_bodies(c, h, vel):
-    """Put the free bodies at end-of-step velocities vel (S, 6) [m/s, rad/s] into their rows: body_vel = U +
-    Omega x arm, the surface point and the anchor moved from the start of the step by h [s] times it."""
+def load_bodies(c, bd, h, vel):
+    """Put the free bodies ``bd`` at end-of-step velocities vel (S, 6) [m/s, rad/s] into their rows: body_vel =
+    U + Omega x arm, the surface point and the anchor moved from the start of the step by h [s] times it."""
     for k in range(c.count[0]):
-        s = c.slot[k]
+        s = bd.slot[k]
         if s < 0:
             continue
-        a0, a1, a2 = c.arm[k, 0], c.arm[k, 1], c.arm[k, 2]
+        a0, a1, a2 = bd.arm[k, 0], bd.arm[k, 1], bd.arm[k, 2]
         w0, w1, w2 = vel[s, 3], vel[s, 4], vel[s, 5]
         c.body_vel[k, 0] = vel[s, 0] + w1 * a2 - w2 * a1
         c.body_vel[k, 1] = vel[s, 1] + w2 * a0 - w0 * a2
         c.body_vel[k, 2] = vel[s, 2] + w0 * a1 - w1 * a0
         for j in range(3):
-            c.point[k, j] = c.point0[k, j] + h * c.body_vel[k, j]
-            c.anchor[k, j] = c.anchor0[k, j] + h * c.body_vel[k, j]
+            c.point[k, j] = bd.point0[k, j] + h * c.body_vel[k, j]
+            c.anchor[k, j] = bd.anchor0[k, j] + h * c.body_vel[k, j]
 
 
 @njit(cache=True, error_model="numpy")
-def body_residual(c, h, vel):
+def body_residual(c, bd, h, vel):
     """bodies.residual <- h (M g + F) - M (U - U_0) and h tau - I (Omega - Omega_0) [N s, N m s] of the
     velocities vel (S, 6) the rows hold (:func:`load_bodies`), F and tau the reactions of the rows' forces
     c.f_n, c.f_t (minus the force on the cable, at the arm); zero for inactive slots."""
-    bd = c.bodies
     res = bd.residual
     for s in range(bd.active.shape[0]):
         for j in range(6):
@@ -1009,13 +1014,13 @@ def body_residual(c, h, vel):
                 acc += bd.inertia[s, j, q] * (vel[s, 3 + q] - bd.vel[s, 3 + q])
             res[s, 3 + j] = -acc
     for k in range(c.count[0]):
-        s = c.slot[k]
+        s = bd.slot[k]
         if s < 0:
             continue
         f0 = -(c.f_n[k] * c.normal[k, 0] + c.f_t[k, 0])
         f1 = -(c.f_n[k] * c.normal[k, 1] + c.f_t[k, 1])
         f2 = -(c.f_n[k] * c.normal[k, 2] + c.f_t[k, 2])
-        a0, a1, a2 = c.arm[k, 0], c.arm[k, 1], c.arm[k, 2]
+        a0, a1, a2 = bd.arm[k, 0], bd.arm[k, 1], bd.arm[k, 2]
         res[s, 0] += h * f0
         res[s, 1] += h * f1
         res[s, 2] += h * f2
@@ -1025,10 +1030,9 @@ def body_residual(c, h, vel):
 
 
 @njit(cache=True, error_model="numpy")
-def body_potential(c, h, vel):
+def body_potential(bd, h, vel):
     """The free bodies' part [J] of the step's incremental potential at velocities vel (S, 6): 1/2 (delta -
     delta_0)^T M_b (delta - delta_0) - h M g . U (implicit Euler; the rows' contact potential is the cable's)."""
-    bd = c.bodies
     phi = 0.0
     for s in range(bd.active.shape[0]):
         if not bd.active[s]:
@@ -1042,11 +1046,10 @@ def body_potential(c, h, vel):
 
 
 @njit(cache=True, error_model="numpy")
-def bodies_converged(c, h, tol, floor):
+def bodies_converged(bd, h, tol, floor):
     """Whether every active body's residual is within ``tol`` of its momentum scale (h M |g| plus its momentum
     change; for rotation the same times its radius of gyration plus I |dOmega|), plus a round-off ``floor``
     [N s] (the cable's, of the stiff springs' forces)."""
-    bd = c.bodies
     g = math.sqrt(bd.gravity[0] ** 2 + bd.gravity[1] ** 2 + bd.gravity[2] ** 2)
     for s in range(bd.active.shape[0]):
         if not bd.active[s]:
@@ -1071,19 +1074,18 @@ def bodies_converged(c, h, tol, floor):
 
 
 @njit(cache=True, error_model="numpy")
-def _end_bodies(c, h):
+def _end_bodies(c, bd, h):
     """After the step of h [s]: the free bodies' solved velocity is their start for a next sub-step, and each
     row's arm turns with the body (the points stay where the step left them)."""
-    bd = c.bodies
     for k in range(c.count[0]):
-        s = c.slot[k]
+        s = bd.slot[k]
         if s < 0:
             continue
-        a0, a1, a2 = c.arm[k, 0], c.arm[k, 1], c.arm[k, 2]
+        a0, a1, a2 = bd.arm[k, 0], bd.arm[k, 1], bd.arm[k, 2]
         w0, w1, w2 = bd.vel_new[s, 3], bd.vel_new[s, 4], bd.vel_new[s, 5]
-        c.arm[k, 0] += h * (w1 * a2 - w2 * a1)
-        c.arm[k, 1] += h * (w2 * a0 - w0 * a2)
-        c.arm[k, 2] += h * (w0 * a1 - w1 * a0)
+        bd.arm[k, 0] += h * (w1 * a2 - w2 * a1)
+        bd.arm[k, 1] += h * (w2 * a0 - w0 * a2)
+        bd.arm[k, 2] += h * (w0 * a1 - w1 * a0)
     for s in range(bd.active.shape[0]):
         if bd.active[s]:
             for j in range(6):
@@ -1117,9 +1119,9 @@ def _dense_solve(a, b, size):
 
 
 @njit(cache=True, error_model="numpy")
-def coupled_solve(c, held, x, kx, kv, band, r):
-    """Newton's direction of the cable and the free bodies together: r (3n,) [N s] in, the cable's direction
-    dv [m/s] out (in place); the bodies' direction into bodies.step, from their residual bodies.residual.
+def coupled_solve(c, bd, held, x, kx, kv, band, r):
+    """Newton's direction of the cable and the free bodies ``bd`` together: r (3n,) [N s] in, the cable's
+    direction dv [m/s] out (in place); the bodies' direction into bd.step, from their residual bd.residual.
 
     The system [[A, C], [C^T, D]] with A the cable's Newton matrix (``band``, destroyed: factorised once), C
     (3n, 6S) the rows' coupling -(w G) J and D = M_b + sum J^T G J, where G = kx (-dF/dx) + kv (-dF/dv) is a
@@ -1127,7 +1129,6 @@ def coupled_solve(c, held, x, kx, kv, band, r):
     [I, -[arm]x] maps a body's (U', Omega') to its surface point's velocity; solved by the Schur complement
     S = D - C^T A^-1 C (6S x 6S, dense). Held nodes keep their identity rows (no coupling).
     """
-    bd = c.bodies
     ns = bd.active.shape[0]
     size = 6 * ns
     C, D, work = bd.coupling, bd.schur, bd.work
@@ -1148,11 +1149,11 @@ def coupled_solve(c, held, x, kx, kv, band, r):
     u = np.empty(3)
     wts = np.empty((2, 2))
     for k in range(c.count[0]):
-        s = c.slot[k]
+        s = bd.slot[k]
         if s < 0:
             continue
         _row_blocks(c, k, x, kx, kv, u, G)
-        a0, a1, a2 = c.arm[k, 0], c.arm[k, 1], c.arm[k, 2]
+        a0, a1, a2 = bd.arm[k, 0], bd.arm[k, 1], bd.arm[k, 2]
         # J = [I, -[a]x]: -[a]x = [[0, a2, -a1], [-a2, 0, a0], [a1, -a0, 0]]
         J[0, 0], J[1, 1], J[2, 2] = 1.0, 1.0, 1.0
         J[0, 4], J[0, 5] = a2, -a1
@@ -1259,8 +1260,9 @@ def _update_friction(c, x_end):
 
 
 @njit(cache=True, error_model="numpy")
-def contact_step(stepper, m, x, v, samples, ws, has_prev, c):
-    """One implicit step of (x, v) in place with the contacts ``c`` (see the module docstring).
+def contact_step(stepper, m, x, v, samples, ws, has_prev, c, bd):
+    """One implicit step of (x, v) in place with the contacts ``c`` and the free bodies ``bd`` (:class:`Bodies`;
+    see the module docstring).
 
     Like :func:`~bullet_dlo.core.kernels.steppers.advance` for the implicit methods (implicit
     midpoint takes an implicit Euler step while contacts are active). Updates the friction state
@@ -1271,9 +1273,16 @@ def contact_step(stepper, m, x, v, samples, ws, has_prev, c):
     if method == IMPLICIT_MIDPOINT:
         method = IMPLICIT_EULER
     # surface points and anchors on moving bodies: at the end of the step (where forces are evaluated); free
-    # bodies (c.bodies) move with the step's solve, by backward Euler: the step is then implicit Euler for the
+    # bodies (bd) move with the step's solve, by backward Euler: the step is then implicit Euler for the
     # cable too (BDF2 keeps its history), so that cable and body share one incremental potential
-    bodies = start_bodies(c, h)
+    if bd.active.shape[0] > 0:
+        bodies = start_bodies(c, bd, h)
+    else:  # no free body in the world: nothing to keep for them (the same moves as start_bodies')
+        bodies = 0
+        for k in range(c.count[0]):
+            for j in range(3):
+                c.point[k, j] += h * c.body_vel[k, j]
+                c.anchor[k, j] += h * c.body_vel[k, j]
     use_prev = has_prev and method == BDF2 and bodies == 0
     twisting = has_twist(m)
     if twisting:  # as advance does: the positions with the twist held, then the twist sub-step
@@ -1287,9 +1296,9 @@ def contact_step(stepper, m, x, v, samples, ws, has_prev, c):
             gr.center[e, j] = samples.pos[2, e, j]
             gr.axis[e, j] = samples.dir[2, e, j]
             gr.vel[e, j] = samples.vel[2, e, j]
-    its, converged = newton(stepper, m, x, imp, ws, c, 1e-3, 10)
+    its, converged = newton(stepper, m, x, imp, ws, c, 1e-3, 10, bd)
     if bodies > 0:
-        _end_bodies(c, h)
+        _end_bodies(c, bd, h)
     g_h = math.sqrt(m.gravity[0] ** 2 + m.gravity[1] ** 2 + m.gravity[2] ** 2) * h
     c.impact[0] = 0
     for k in range(c.count[0]):

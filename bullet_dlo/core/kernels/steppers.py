@@ -307,9 +307,12 @@ def _newton_matrix(stepper, m, imp, ws, c=None):
 
 
 @njit(cache=True, error_model="numpy")
-def newton(stepper, m, x, imp, ws, c=None, cap_tol=1e-3, max_passes=10):
+def newton(stepper, m, x, imp, ws, c=None, cap_tol=1e-3, max_passes=10, bd=None):
     """Newton with line search on v' (in ws.v_new, started from the current velocity): the one
-    solve of every implicit step, with the optional contact and grip terms of a contact set ``c``.
+    solve of every implicit step, with the optional contact and grip terms of a contact set ``c``
+    and then the free bodies ``bd`` solved with it (:class:`~bullet_dlo.core.kernels.contact.Bodies`,
+    required with ``c``; kept out of ``c`` so that the contact kernels called several times per
+    iteration do not pass its arrays).
 
     The system M (v' - v_avg) = hf F(X, V) (+ contact forces) is the stationarity condition of an
     incremental potential (see :func:`_merit`), so a line search on it cannot blow up from a poor
@@ -390,21 +393,21 @@ def newton(stepper, m, x, imp, ws, c=None, cap_tol=1e-3, max_passes=10):
     nc = c.count[0]
     max_iter = max(stepper.max_iter, _contact.MIN_CONTACT_ITER)
     caps_new = np.empty(max(nc, 1))
-    bd = c.bodies  # free bodies solved with the cable (their velocities: bd.vel_new, started by the caller)
+    # bd: free bodies solved with the cable (their velocities: bd.vel_new, started by the caller)
     nb = 0
     for s in range(bd.active.shape[0]):
         nb += 1 if bd.active[s] else 0
     if nb > 0:
-        _contact.load_bodies(c, imp.hf, bd.vel_new)
+        _contact.load_bodies(c, bd, imp.hf, bd.vel_new)
     _residual(m, imp, ws, vn, r)  # X at the predictor: caps from its penetration
     _contact.elastic_caps(c, ws.x_stage, c.cap)
     passes = 0
     while True:
         rnorm = _residual(m, imp, ws, vn, r, c)
         if nb > 0:
-            _contact.body_residual(c, imp.hf, bd.vel_new)
+            _contact.body_residual(c, bd, imp.hf, bd.vel_new)
         if (it > 0 and rnorm <= tol * (r_scale + _momentum_change(m, ws, vn)) + r_floor
-                and (nb == 0 or _contact.bodies_converged(c, imp.hf, tol, r_floor))):
+                and (nb == 0 or _contact.bodies_converged(bd, imp.hf, tol, r_floor))):
             _contact.elastic_caps(c, ws.x_stage, caps_new)
             cmax = 0.0
             dcap = 0.0
@@ -423,8 +426,8 @@ def newton(stepper, m, x, imp, ws, c=None, cap_tol=1e-3, max_passes=10):
         _newton_matrix(stepper, m, imp, ws, c)
         phi0 = _merit(m, imp, ws, vn, c)
         if nb > 0:  # the bodies' velocities are unknowns too: their block and coupling, by a Schur complement
-            phi0 += _contact.body_potential(c, imp.hf, bd.vel_new)
-            _contact.coupled_solve(c, m.held, ws.x_stage, imp.hf * imp.cx, imp.hf * imp.cv, ws.band, r)
+            phi0 += _contact.body_potential(bd, imp.hf, bd.vel_new)
+            _contact.coupled_solve(c, bd, m.held, ws.x_stage, imp.hf * imp.cx, imp.hf * imp.cv, ws.band, r)
         else:
             band_solve(ws.band, r)  # r becomes the Newton direction
         alpha = 1.0
@@ -437,11 +440,11 @@ def newton(stepper, m, x, imp, ws, c=None, cap_tol=1e-3, max_passes=10):
                 for s in range(bd.active.shape[0]):
                     for j in range(6):
                         bd.vel_try[s, j] = bd.vel_new[s, j] + alpha * bd.step[s, j]
-                _contact.load_bodies(c, imp.hf, bd.vel_try)
+                _contact.load_bodies(c, bd, imp.hf, bd.vel_try)
             _residual(m, imp, ws, v_try, r_try, c)
             phi = _merit(m, imp, ws, v_try, c)
             if nb > 0:
-                phi += _contact.body_potential(c, imp.hf, bd.vel_try)
+                phi += _contact.body_potential(bd, imp.hf, bd.vel_try)
             if phi <= phi0 + 1e-13 * (abs(phi0) + phi_scale):
                 accepted = True
                 break
@@ -452,7 +455,7 @@ def newton(stepper, m, x, imp, ws, c=None, cap_tol=1e-3, max_passes=10):
         if nb > 0:
             bd.vel_new[:, :] = bd.vel_try
     if nb > 0:
-        _contact.load_bodies(c, imp.hf, bd.vel_new)
+        _contact.load_bodies(c, bd, imp.hf, bd.vel_new)
     _residual(m, imp, ws, vn, r, c)  # forces and c.f_n, c.f_t at the accepted iterate
     return it, converged
 
