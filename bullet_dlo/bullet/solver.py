@@ -37,6 +37,7 @@ from bullet_dlo.core.model import CableControl, CableModel, CableState, KernelAr
 
 STALL_RETRIES = 2  # a stalled contact step is taken again as 2, then 4 sub-steps (0: stop at a coast; -1: no guard)
 STALL_FAR = 0.1  # [-] far from convergence: momentum residual above this share of gravity's impulse in a step
+STALL_WILD = 10.0  # [-] wildly far: with a free body in the solve, taken again as sub-steps even when it moved the momentum
 NEWTON_WARN_MIN_STEPS = 100  # the share of unconverged steps is judged from this many planned steps on
 
 
@@ -62,7 +63,7 @@ def step_state(contacts: Contacts, bodies: Bodies) -> tuple[list, list]:
 
 
 def make_stall_guard(arrays: KernelArrays, workspace: Workspace, contacts: Contacts, bodies: Bodies, levels: int,
-                     far: float) -> StallGuard:
+                     far: float, wild: float = STALL_WILD) -> StallGuard:
     """The :class:`~bullet_dlo.bullet.kernels.StallGuard` of a cable: copies of the arrays a contact step reads
     and writes (:func:`step_state` of ``contacts`` and ``bodies``), the twist state in ``arrays`` (and the clamps'
     current axes) and BDF2's history in ``workspace``."""
@@ -75,7 +76,7 @@ def make_stall_guard(arrays: KernelArrays, workspace: Workspace, contacts: Conta
         if a.size:
             whole.append((a, a.copy()))
     whole += [(workspace.x_prev, workspace.x_prev.copy()), (workspace.v_prev, workspace.v_prev.copy())]
-    return StallGuard(levels=int(levels), far=float(far), x0=np.zeros((n, 3)), v0=np.zeros((n, 3)),
+    return StallGuard(levels=int(levels), far=float(far), wild=float(wild), x0=np.zeros((n, 3)), v0=np.zeros((n, 3)),
                       vs=np.zeros((n, 3)), rows=tuple(rows), whole=tuple(whole), info=np.zeros(6))
 
 
@@ -90,7 +91,7 @@ class CableSolver:
     a step whose solves did not all converge, after its retry); near_misses: of those, the steps whose contact
     solve ended near convergence (within ``stall_far``) and was kept; far_kept: those whose solve ended beyond
     it but had moved the momentum (kept); coasts: kept solves that coasted (only with the guard off);
-    stall_retries: contact steps taken again as sub-steps after a coast; worst_kept_ratio: the largest residual ratio of a
+    stall_retries: contact steps taken again as sub-steps after a coast or a solve beyond ``STALL_WILD`` with a free body in it; worst_kept_ratio: the largest residual ratio of a
     kept contact solve (:func:`~bullet_dlo.bullet.kernels.stall_ratio`); stall_report: why the run stopped as
     STALLED (None otherwise). stall_levels, stall_far: the retry's settings (:class:`StallGuard`; taken from
     :data:`STALL_RETRIES`, :data:`STALL_FAR` when the solver is made; a change takes effect with the next
