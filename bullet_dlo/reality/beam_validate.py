@@ -474,6 +474,21 @@ def read_in(path: Path, what: str) -> BeamRecording:
         raise ParameterError(f"{what}: {err}") from None
 
 
+def _mode_or_number(value, option: str, modes: tuple[str, ...], lo: float, hi: float, what: str, unit: str):
+    """``value`` as one of the words ``modes`` or a finite number in [lo, hi] (in ``unit``); else a
+    ParameterError naming ``option`` and what it allows."""
+    if value in modes:
+        return value
+    allowed = f"{option} must be {', '.join(modes)} or {what} in [{lo:g}, {hi:g}]{unit}"
+    try:
+        number = float(value)
+    except (TypeError, ValueError):
+        raise ParameterError(f"{allowed}, got {value!r}") from None
+    if not (math.isfinite(number) and lo <= number <= hi):
+        raise ParameterError(f"{allowed}, got {number:g}")
+    return number
+
+
 def validate_beam(fit_dir: str | Path, predict_dir: str | Path, *, damping: str = "damping_rate",
                   numerics: Numerics = Numerics(), strip: Strip = Strip(), estimate: EstimateFilter | None = None,
                   duration: float | None = None, limit_files: int | None = None, check_numerics: bool = True,
@@ -509,35 +524,14 @@ def validate_beam(fit_dir: str | Path, predict_dir: str | Path, *, damping: str 
     if arm is None:
         arm = "compliant" if numerics.strip_model == "planes" else "measured"
     check_arm_mode(arm)
-    if amplitude_damping not in ("off", "law"):
-        try:
-            amplitude_damping = float(amplitude_damping)
-        except (TypeError, ValueError):
-            raise ParameterError(f"--amplitude-damping must be off, law or a slope in [0, {AMPLITUDE_DAMPING_MAX:g}] "
-                                 f"1/m, got {amplitude_damping!r}") from None
-        if not (math.isfinite(amplitude_damping) and 0.0 <= amplitude_damping <= AMPLITUDE_DAMPING_MAX):
-            raise ParameterError(f"--amplitude-damping must be off, law or a slope in [0, {AMPLITUDE_DAMPING_MAX:g}] "
-                                 f"1/m, got {amplitude_damping}")
+    amplitude_damping = _mode_or_number(amplitude_damping, "--amplitude-damping", ("off", "law"), 0.0,
+                                        AMPLITUDE_DAMPING_MAX, "a slope", " 1/m")
     if amplitude_damping != "off" and arm == "measured":
         raise ParameterError("--amplitude-damping runs in the stepped arm-strip loop: use --arm compliant or loop")
     if drag == "fit" and damping != "damping_rate":
         raise ParameterError("--drag-coefficient fit fits C_d together with damping_rate: use --damping damping_rate")
-    if drag not in ("off", "fit"):
-        try:
-            drag = float(drag)
-        except (TypeError, ValueError):
-            raise ParameterError(f"--drag-coefficient must be off, fit or a number in [0, 1000], got {drag!r}") from None
-        if not 0.0 <= drag <= 1e3:
-            raise ParameterError(f"--drag-coefficient must be off, fit or a number in [0, 1000], got {drag}")
-    if clamp_mass not in ("off", "fit"):
-        try:
-            clamp_mass = float(clamp_mass)
-        except (TypeError, ValueError):
-            raise ParameterError(f"--clamp-mass must be off, fit or a mass in [0, {CLAMP_MASS_MAX:g}] kg, "
-                                 f"got {clamp_mass!r}") from None
-        if not 0.0 <= clamp_mass <= CLAMP_MASS_MAX:
-            raise ParameterError(f"--clamp-mass must be off, fit or a mass in [0, {CLAMP_MASS_MAX:g}] kg, "
-                                 f"got {clamp_mass}")
+    drag = _mode_or_number(drag, "--drag-coefficient", ("off", "fit"), 0.0, 1e3, "a number", "")
+    clamp_mass = _mode_or_number(clamp_mass, "--clamp-mass", ("off", "fit"), 0.0, CLAMP_MASS_MAX, "a mass", " kg")
     fit_files = beam_files(fit_dir, "FIT_DIR")[:limit_files]
     pred_files = beam_files(predict_dir, "PREDICT_DIR")[:limit_files]
     fit_recs = [read_in(f, "FIT_DIR") for f in fit_files]
