@@ -51,6 +51,8 @@ from scipy.spatial.transform import Rotation
 from bullet_dlo.analysis.fit_recording import RIGHT_FROM_LEFT, Recording, low_pass_delayed
 from bullet_dlo.core.boundary import Waypoints, default_normal
 from bullet_dlo.core.engine import simulate
+from bullet_dlo.core.kernels.holders import empty_samples, sample_holders
+from bullet_dlo.core.kernels.steppers import make_workspace
 from bullet_dlo.core.model import STANDARD_GRAVITY, CableModel
 from bullet_dlo.core.spec import CableSpec
 from bullet_dlo.core.statics import solve_static
@@ -580,3 +582,15 @@ def with_damping(damping: dict[str, float], name: str, value: float) -> dict[str
 __all__ = ["BeamRecording", "read_beam_csv", "beam_files", "EstimateFilter", "identify_filter", "Strip",
            "Mounting", "payload_torques", "PlaneRun", "plane_runs", "STRIP_MODELS", "run_rectangle", "Numerics",
            "Prediction", "predict_torques", "free_vibration", "fit_recording"]
+
+
+def stepped_start(model: CableModel, state, h: float) -> tuple:
+    """What a run of ``model`` stepped by hand (the core's ``advance``) needs to start from ``state``
+    (:class:`~bullet_dlo.core.model.CableState`) with steps of h [s]: (kernel arrays, holder plan, the first
+    step's held-end samples, x [m] and v [m/s] copies, a step workspace)."""
+    control = model.control(None)
+    m = model.kernel_arrays(control, model.twist_state())
+    plan = model.holder_plan(control)
+    smp = empty_samples()
+    sample_holders(plan, 0.0, h, smp)
+    return m, plan, smp, state.x.copy(), state.v.copy(), make_workspace(model.n)

@@ -47,9 +47,9 @@ from scipy.spatial.transform import Rotation
 
 from bullet_dlo.core.boundary import Waypoints
 from bullet_dlo.core.integrators import NewtonOptions, make_stepper
-from bullet_dlo.core.kernels.holders import empty_samples, sample_holders
+from bullet_dlo.core.kernels.holders import sample_holders
 from bullet_dlo.core.kernels.monitor import clamp_moments, end_forces
-from bullet_dlo.core.kernels.steppers import advance, make_workspace
+from bullet_dlo.core.kernels.steppers import advance
 from bullet_dlo.core.model import STANDARD_GRAVITY, CableModel
 from bullet_dlo.core.statics import solve_static
 from bullet_dlo.core.validate import ParameterError
@@ -66,6 +66,7 @@ from bullet_dlo.reality.beam import (
     payload_torques,
     plane_runs,
     run_plane,
+    stepped_start,
 )
 from bullet_dlo.reality.panda import N_JOINTS, Panda, external_torques
 from bullet_dlo.reality.vibration import BAND, motion_span
@@ -286,13 +287,7 @@ def predict_torques_compliant(rec: BeamRecording, panda: Panda, impedance: ArmIm
                      tuple(map(tuple, rotvec @ weak_run.rotate.T)), rest=False)
     model = CableModel.straight(spec, start=clamp[0], direction=axis, ends=("clamped", "free"), motion=[path],
                                 gravity=weak_run.translate @ g)
-    state = solve_static(model).state()
-    control = model.control(None)
-    m = model.kernel_arrays(control, model.twist_state())
-    plan = model.holder_plan(control)
-    smp = empty_samples()
-    sample_holders(plan, 0.0, h, smp)
-    x, v, ws = state.x.copy(), state.v.copy(), make_workspace(model.n)
+    m, plan, smp, x, v, ws = stepped_start(model, solve_static(model).state(), h)
     law = None
     if amplitude_damping:
         from bullet_dlo.reality.beam_law import AmplitudeDamping, first_omega

@@ -34,7 +34,7 @@ from typing import Any
 
 import numpy as np
 
-from bullet_dlo.reality.beam import BeamRecording, EstimateFilter, Mounting, Strip
+from bullet_dlo.reality.beam import BeamRecording, EstimateFilter, Mounting, Strip, stepped_start
 from bullet_dlo.reality.panda import Panda
 from bullet_dlo.reality.vibration import (
     DECAY_LAWS,
@@ -260,9 +260,9 @@ def law_free_decay(strip: Strip, slope: float, n_masses: int = 12, dt: float = 1
     the law's amplitude estimate [m] per step. Its decay follows zeta = c A (plus the integrator's and ``damping``'s
     linear share): the check that the model carries the measured law (``tests/reality/test_beam_law.py``)."""
     from bullet_dlo.core.integrators import NewtonOptions, make_stepper
-    from bullet_dlo.core.kernels.holders import empty_samples, sample_holders
+    from bullet_dlo.core.kernels.holders import sample_holders
     from bullet_dlo.core.kernels.monitor import end_forces
-    from bullet_dlo.core.kernels.steppers import advance, make_workspace
+    from bullet_dlo.core.kernels.steppers import advance
     from bullet_dlo.core.model import CableModel
     from bullet_dlo.core.statics import solve_static
 
@@ -272,13 +272,7 @@ def law_free_decay(strip: Strip, slope: float, n_masses: int = 12, dt: float = 1
     sagged = CableModel.straight(spec, start=(0, 0, 0), direction=axis, ends=("clamped", "free"),
                                  gravity=(0, 0, -9.81))
     model = CableModel.straight(spec, start=(0, 0, 0), direction=axis, ends=("clamped", "free"), gravity=(0, 0, 0))
-    start = solve_static(sagged).state()
-    control = model.control(None)
-    m = model.kernel_arrays(control, model.twist_state())
-    plan = model.holder_plan(control)
-    smp = empty_samples()
-    sample_holders(plan, 0.0, dt, smp)
-    x, v, ws = start.x.copy(), start.v.copy(), make_workspace(model.n)
+    m, plan, smp, x, v, ws = stepped_start(model, solve_static(sagged).state(), dt)
     law = AmplitudeDamping(m, slope, first_omega(strip), damping.get("internal_damping", 0.0), model.x0,
                            smp.dir[0, 0])
     stepper = make_stepper(integrator, dt, NewtonOptions())
