@@ -258,7 +258,7 @@ def _force_weight(stepper, use_prev):
 def _guarded_contact_step(stepper, m, plan, ext, cp, ws, t, k, prev, contacts, bodies, guard):
     """Contact sub-step k of the coming Bullet step on (cp.x_new, cp.v_new), taken again from its start as 2,
     4, ... sub-steps when its Newton solve coasts (:func:`_coasted`: far from convergence with the momentum where
-    it started) (:class:`StallGuard`): the first attempt whose solves all end within ``guard.far`` is kept, else
+    it started), or ends beyond ``guard.wild`` with a free body in it (:class:`StallGuard`): the first attempt whose solves all end within ``guard.far`` is kept, else
     the last. Returns (Newton iterations, converged,
     the worst residual ratio of the solves kept (0: all converged), whether one of them coasted)."""
     save = guard.levels > 0

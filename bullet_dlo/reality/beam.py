@@ -579,11 +579,6 @@ def with_damping(damping: dict[str, float], name: str, value: float) -> dict[str
     return {**damping, name: float(value)}
 
 
-__all__ = ["BeamRecording", "read_beam_csv", "beam_files", "EstimateFilter", "identify_filter", "Strip",
-           "Mounting", "payload_torques", "PlaneRun", "plane_runs", "STRIP_MODELS", "run_rectangle", "Numerics",
-           "Prediction", "predict_torques", "free_vibration", "fit_recording"]
-
-
 def stepped_start(model: CableModel, state, h: float) -> tuple:
     """What a run of ``model`` stepped by hand (the core's ``advance``) needs to start from ``state``
     (:class:`~bullet_dlo.core.model.CableState`) with steps of h [s]: (kernel arrays, holder plan, the first
@@ -594,3 +589,9 @@ def stepped_start(model: CableModel, state, h: float) -> tuple:
     smp = empty_samples()
     sample_holders(plan, 0.0, h, smp)
     return m, plan, smp, state.x.copy(), state.v.copy(), make_workspace(model.n)
+
+
+__all__ = ["BeamRecording", "read_beam_csv", "beam_files", "EstimateFilter", "identify_filter", "Strip",
+           "Mounting", "payload_torques", "PlaneRun", "plane_runs", "STRIP_MODELS", "run_rectangle", "Numerics",
+           "Prediction", "predict_torques", "free_vibration", "fit_recording", "stepped_start"]
+
