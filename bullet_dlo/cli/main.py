@@ -114,13 +114,38 @@ RUNS_KERNELS = {"simulate", "stability", "paper-table", "convergence", "grasp", 
 """Commands whose first run after an install compiles the Numba kernels."""
 
 
-def compile_notice(args: argparse.Namespace) -> None:
-    """One line on stderr before a command that will compile the kernels (an empty cache), unless quiet."""
+@contextlib.contextmanager
+def compile_notice(args: argparse.Namespace) -> Iterator[None]:
+    """One line on stderr when the command inside starts compiling the kernels (an empty cache), unless quiet.
+
+    The line comes at Numba's first compile event, not before the command runs: bad input is then refused
+    with its one error line (exit 2) before any kernel compiles, and nothing else."""
     from bullet_dlo._numba_cache import kernels_cold
 
-    if not args.quiet and args.command in RUNS_KERNELS and kernels_cold():
-        print("compiling the numerical kernels once (about a minute after an install or upgrade; cached "
-              "afterwards, never counted in run times; `bullet-dlo warmup` does it ahead)", file=sys.stderr)
+    if args.quiet or args.command not in RUNS_KERNELS or not kernels_cold():
+        yield
+        return
+    from numba.core import event
+
+    class FirstCompile(event.Listener):
+        told = False
+
+        def on_start(self, ev: event.Event) -> None:
+            if not self.told:
+                self.told = True
+                print("compiling the numerical kernels once (about a minute after an install or upgrade; "
+                      "cached afterwards, never counted in run times; `bullet-dlo warmup` does it ahead)",
+                      file=sys.stderr)
+
+        def on_end(self, ev: event.Event) -> None:
+            pass
+
+    listener = FirstCompile()
+    event.register("numba:compile", listener)
+    try:
+        yield
+    finally:
+        event.unregister("numba:compile", listener)
 
 
 def _reader_left() -> int:
@@ -165,8 +190,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         with quiet_output(args.quiet), renamed_key_lines(not args.quiet):
             try:
                 check_outputs(args)
-                compile_notice(args)
-                return int(args.func(args) or 0)
+                with compile_notice(args):
+                    return int(args.func(args) or 0)
             except ParameterError as err:
                 print(f"error: {err}", file=sys.stderr)
                 return 2

@@ -4,6 +4,7 @@ timer starts without changing the run."""
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
 
 import numpy as np
 
@@ -23,16 +24,38 @@ def test_a_cache_without_kernel_index_files_is_cold(tmp_path):
     assert not kernels_cold(tmp_path)
 
 
-def test_the_notice_is_one_stderr_line_for_commands_that_compile_unless_quiet(monkeypatch, capsys):
+def _compile_a_fresh_kernel() -> None:
+    from numba import njit
+
+    njit(lambda a: a + 1)(1.0)  # a new function: never in any cache, so Numba compiles it
+
+
+def test_the_notice_is_one_stderr_line_at_the_first_compile_unless_quiet(monkeypatch, capsys):
     monkeypatch.setattr("bullet_dlo._numba_cache.kernels_cold", lambda: True)
-    compile_notice(argparse.Namespace(command="simulate", quiet=False))
+    with compile_notice(argparse.Namespace(command="simulate", quiet=False)):
+        assert capsys.readouterr().err == ""  # nothing yet: bad input is refused before any kernel compiles
+        _compile_a_fresh_kernel()
+        _compile_a_fresh_kernel()
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and "compiling the numerical kernels once" in err[0]
-    compile_notice(argparse.Namespace(command="simulate", quiet=True))
-    compile_notice(argparse.Namespace(command="examples", quiet=False))
+    assert len(err) == 1 and "compiling the numerical kernels once" in err[0]  # once, at the first compile
+    _compile_a_fresh_kernel()  # after the command: nothing
+    for args in (argparse.Namespace(command="simulate", quiet=True), argparse.Namespace(command="examples", quiet=False)):
+        with compile_notice(args):
+            _compile_a_fresh_kernel()
     monkeypatch.setattr("bullet_dlo._numba_cache.kernels_cold", lambda: False)
-    compile_notice(argparse.Namespace(command="grasp", quiet=False))
+    with compile_notice(argparse.Namespace(command="grasp", quiet=False)):
+        _compile_a_fresh_kernel()
     assert capsys.readouterr().err == ""
+
+
+def test_bad_input_on_a_cold_cache_is_one_line(monkeypatch, capsys):
+    from bullet_dlo.cli.main import main
+
+    monkeypatch.setattr("bullet_dlo._numba_cache.kernels_cold", lambda: True)
+    scene = Path(__file__).resolve().parents[2] / "demos" / "scenes" / "lv_study.yaml"
+    assert main(["simulate", str(scene), "--dt", "-1"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("error:") and "dt" in err[0], err
 
 
 def test_the_loading_call_changes_nothing_and_is_reported_apart():
