@@ -6,9 +6,10 @@ run (the twisting cable feels the roll, the frameless one does not). Each run is
 dt 1 ms; twisting and frameless runs are interleaved ``--repeats`` times and timed in thread CPU time; the
 script prints per-step medians, ranges, the ratio of medians and the load average, then the same ratio of the
 steps alone: each ``simulate`` call also pays a fixed cost (about 21 ms, mostly the held-end speed warning's
-20 000 samples, the same with and without the frame), so the second ratio takes (run - one-step run) / (steps - 1). ``--parts`` prints instead
-where the coupled BDF2 step's time goes: each kernel timed alone per call (a compiled loop of calls at the state
-after 0.3 s of the same scene, thread CPU time, median and range of 5 batches), the frameless step's kernels beside.
+20 000 samples, the same with and without the frame), so the second ratio takes (run - one-step run) /
+(steps - 1). ``--parts`` prints instead where the coupled BDF2 step's time goes: each kernel timed alone per call
+(a compiled loop of calls at the state after 0.3 s of the same scene, thread CPU time, median and range of 5
+batches), the frameless step's kernels beside.
 
     python demos/twist_cost.py
     python demos/twist_cost.py --ns 10 20 40 80 --repeats 7 --steps 1000 --method bdf2
