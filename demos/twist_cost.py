@@ -4,9 +4,12 @@ The same scene with and without a material frame: a round cable (``CableSpec.lv2
 under gravity, the last end moved 5 cm towards the first and rolled 90 degrees about the cable's axis over the
 run (the twisting cable feels the roll, the frameless one does not). Each run is ``--steps`` steps of BDF2 at
 dt 1 ms; twisting and frameless runs are interleaved ``--repeats`` times and timed in thread CPU time; the
-script prints per-step medians, ranges, the ratio of medians and the load average. ``--parts`` prints instead
-where the coupled BDF2 step's time goes: each kernel timed alone per call (a compiled loop of calls at the state
-after 0.3 s of the same scene, thread CPU time, median and range of 5 batches), the frameless step's kernels beside.
+script prints per-step medians, ranges, the ratio of medians and the load average, then the same ratio of the
+steps alone: each ``simulate`` call also pays a fixed cost (about 21 ms, mostly the held-end speed warning's
+20 000 samples, the same with and without the frame), so the second ratio takes (run - one-step run) /
+(steps - 1). ``--parts`` prints instead where the coupled BDF2 step's time goes: each kernel timed alone per call
+(a compiled loop of calls at the state after 0.3 s of the same scene, thread CPU time, median and range of 5
+batches), the frameless step's kernels beside.
 
     python demos/twist_cost.py
     python demos/twist_cost.py --ns 10 20 40 80 --repeats 7 --steps 1000 --method bdf2
@@ -17,6 +20,7 @@ from __future__ import annotations
 import argparse
 import math
 import os
+import sys
 import time
 
 import numpy as np
@@ -165,6 +169,8 @@ def main() -> None:
     parser.add_argument("--dt", type=float, default=1e-3)
     parser.add_argument("--parts", action="store_true", help="time the coupled step's kernels alone (BDF2)")
     args = parser.parse_args()
+    if args.steps < 2:
+        sys.exit(print(f"--steps must be >= 2 (got {args.steps})", file=sys.stderr) or 2)
     if args.parts:
         print(f"load average {os.getloadavg()[0]:.2f}")
         for n in args.ns:
@@ -179,15 +185,20 @@ def main() -> None:
         for m in models.values():  # compile and warm up
             step_cost(m, args.method, args.dt, 20)
         costs: dict[str, list[float]] = {k: [] for k in models}
+        fixed: dict[str, list[float]] = {k: [] for k in models}
         for _ in range(args.repeats):
             for k, m in models.items():
                 costs[k].append(step_cost(m, args.method, args.dt, args.steps))
+                fixed[k].append(step_cost(m, args.method, args.dt, 1))
         med = {k: float(np.median(v)) for k, v in costs.items()}
+        steps_only = {k: (args.steps * med[k] - float(np.median(fixed[k]))) / (args.steps - 1) for k in models}
         rng = {k: (min(v), max(v)) for k, v in costs.items()}
         print(f"n {n:3d}: frameless {1e6 * med['frameless']:7.1f} us/step ({1e6 * rng['frameless'][0]:.1f}-"
               f"{1e6 * rng['frameless'][1]:.1f}), twist {1e6 * med['twist']:7.1f} us/step ({1e6 * rng['twist'][0]:.1f}-"
               f"{1e6 * rng['twist'][1]:.1f}), ratio {med['twist'] / med['frameless']:.2f} "
-              f"({rng['twist'][0] / rng['frameless'][1]:.2f}-{rng['twist'][1] / rng['frameless'][0]:.2f})", flush=True)
+              f"({rng['twist'][0] / rng['frameless'][1]:.2f}-{rng['twist'][1] / rng['frameless'][0]:.2f}); steps alone "
+              f"{1e6 * steps_only['frameless']:.1f} / {1e6 * steps_only['twist']:.1f} us, ratio "
+              f"{steps_only['twist'] / steps_only['frameless']:.2f}", flush=True)
     print(f"load average at the end {os.getloadavg()[0]:.2f}")
 
 

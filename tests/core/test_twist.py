@@ -108,10 +108,10 @@ def test_forces_and_clamp_moments_are_energy_gradients(spec):
 
 def test_scalar_node_kernels_agree_with_the_node_geometry_and_a_rotation():
     """The per-node kernels the implicit step runs in scalars (no array views; issue 22 item 6) give the node
-    geometry's twist and curvature binormal, and the scalar parallel transport is the minimal rotation taking the
-    old tangent to the new one (scipy's rotation about t1 x t2 by their angle)."""
-    from bullet_dlo.core.kernels.twist import (_transport, _transport_s, edge_frame, node_geometry, node_twist,
-                                               twist_of_frames)
+    geometry's twist and curvature binormal (``geometry_twist``: its very bits), and the scalar parallel transport
+    is the minimal rotation taking the old tangent to the new one (scipy's rotation about t1 x t2 by their angle)."""
+    from bullet_dlo.core.kernels.twist import (_transport, _transport_s, edge_frame, geometry_twist, node_geometry,
+                                               node_twist, twist_of_frames)
     model = CableModel.straight(STRIP.with_(n_masses=9), ends=("clamped", "clamped"), roll=(0.3, 1.1),
                                 gravity=(0, 0, 0))
     m, x0 = model.kernel_arrays(), model.initial_state().x
@@ -133,6 +133,8 @@ def test_scalar_node_kernels_agree_with_the_node_geometry_and_a_rotation():
         ref_twist, ref_la, ref_lb = node_geometry(x, dirs, tw.theta, tw.ref, tw.tan, tw.clamp, tw.mref, i, g)[:3]
         assert twist == pytest.approx(ref_twist, abs=1e-14) and (la, lb) == (ref_la, ref_lb)
         assert np.array_equal(kb, g[9])
+        # the twist energy, forces and clamp rates take node_geometry's bits from the frames alone
+        assert geometry_twist(fa, fb, tw.mref[i]) == (ref_twist, ref_la, ref_lb, *g[9])
         assert la == (1.0 if i == 0 else pytest.approx(np.linalg.norm(x[i] - x[i - 1]), rel=1e-15))
         # the edge frame: unit tangent along the edge, unit director normal to it
         t, r = np.array(fb[1:4]), np.array(fb[4:7])
