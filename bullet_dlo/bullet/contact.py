@@ -1446,6 +1446,7 @@ def detect(x, v, mass, sh, c, bd, st, h, k_per_mass, zeta, self_mu, h_body, h_do
             vmax = max(vmax, abs(v[i, j]))
     margin = c.radius[0] + 2.0 * vmax * h + 1e-3
     previous = st.keys[:c.count[0]].copy()  # the keys in contact last step (their rows get overwritten)
+    had_wrap = np.zeros(sh.kind.shape[0], np.bool_)  # shapes with a wrapped segment last step
     for k in range(previous.shape[0]):  # persist what the last step left
         key = previous[k]
         for j in range(4):
@@ -1453,6 +1454,8 @@ def detect(x, v, mass, sh, c, bd, st, h, k_per_mass, zeta, self_mu, h_body, h_do
         st.state[key] = c.state[k]
         st.wrap[key] = c.kind[k] == WRAP
         s = st.body[k]
+        if c.kind[k] == WRAP and s >= 0:
+            had_wrap[s] = True
         if h_done > 0.0 and s >= 0 and sh.inv_mass[s] > 0.0:
             # Bullet moved the body by h v' (semi-implicit Euler), v' its velocity now, not by the h u
             # the cable's step assumed: energy a body took from a too stiff contact counts as made
@@ -1476,6 +1479,8 @@ def detect(x, v, mass, sh, c, bd, st, h, k_per_mass, zeta, self_mu, h_body, h_do
     nl = np.empty(3)
     P = np.empty(3)
     A = np.empty(3)
+    q_lo = np.empty(3)
+    q_hi = np.empty(3)
     first_edge = c.count[0]
     for k in range(pr.count[0]):  # Bullet's closest points on the probed links (world frame already)
         s = pr.shape[k]
@@ -1511,6 +1516,13 @@ def detect(x, v, mass, sh, c, bd, st, h, k_per_mass, zeta, self_mu, h_body, h_do
                 _add(c, st, base + i, s, i, i, 1.0, 0.0, cl, nl, sh, k_per_mass, zeta, mass, x)
         if kind == BOX:  # segments against the 12 edges
             wraps = seg_k.shape[0] == n - 1 and sh.inv_mass[s] == 0.0
+            for j in range(3):  # the nodes' bounding box (shape frame), grown by the reach
+                q_lo[j], q_hi[j] = q[0, j], q[0, j]
+                for i in range(1, n):
+                    q_lo[j] = min(q_lo[j], q[i, j])
+                    q_hi[j] = max(q_hi[j], q[i, j])
+                q_lo[j] -= radius + margin
+                q_hi[j] += radius + margin
             for ax in range(3):
                 o1 = (ax + 1) % 3
                 o2 = (ax + 2) % 3
@@ -1520,6 +1532,12 @@ def detect(x, v, mass, sh, c, bd, st, h, k_per_mass, zeta, self_mu, h_body, h_do
                     P[ax] = 0.0
                     P[o1] = size[o1] if e % 2 == 0 else -size[o1]
                     P[o2] = size[o2] if e // 2 == 0 else -size[o2]
+                    if (not had_wrap[s] and (q_lo[ax] > size[ax] or q_hi[ax] < -size[ax] or q_lo[o1] > P[o1]
+                                             or q_hi[o1] < P[o1] or q_lo[o2] > P[o2] or q_hi[o2] < P[o2])):
+                        # the whole cable misses the edge as each segment would (_may_reach_edge), and no
+                        # segment wrapped round this box last step: nothing of it meets this edge (the ground's
+                        # edges under a cable lying on it: 12 (n - 1) tests a step)
+                        continue
                     feat = 1 + 4 * ax + e
                     for i in range(n - 1):
                         key = base + n + (n - 1) * feat + i

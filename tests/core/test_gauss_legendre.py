@@ -200,3 +200,31 @@ def test_resting_end_fast_path_gives_the_general_samples_bit_for_bit():
     for a, b in zip(fast, general):
         assert np.array_equal(a, b)
     assert not np.array_equal(fast.pos[0, 1], fast.pos[2, 1])  # the last end moves within the step
+
+
+def test_the_block_substitution_gives_each_columns_substitution_bit_for_bit():
+    """The free bodies' Schur complement (core/kernels/contact.py, coupled_solve) substitutes its columns together,
+    from the first row they fill: each column must come out as gl_band_substitute's, bit for bit (rows from
+    ``first`` on), and solve the band system (dense solve within round-off)."""
+    from bullet_dlo.core.kernels.banded import HALF
+    from bullet_dlo.core.kernels.contact import _substitute_columns
+    from bullet_dlo.core.kernels.gauss_legendre import gl_band_factor, gl_band_substitute
+
+    rng = np.random.default_rng(3)
+    size, m, first = 60, 6, 21
+    band = rng.normal(size=(size, 2 * HALF + 1))
+    band[:, HALF] = 4.0 * HALF + rng.random(size)  # diagonally dominant: no pivoting needed
+    dense = np.zeros((size, size))
+    for r in range(size):
+        for c in range(max(0, r - HALF), min(size, r + HALF + 1)):
+            dense[r, c] = band[r, c - r + HALF]
+    gl_band_factor(band, HALF)
+    rhs = np.zeros((size, m))
+    rhs[first:first + 12] = rng.normal(size=(12, m))
+    block = rhs.copy()
+    _substitute_columns(band, block, HALF, first)
+    for q in range(m):
+        col = rhs[:, q].copy()
+        gl_band_substitute(band, col, HALF)
+        assert col[first:].tobytes() == block[first:, q].tobytes()
+        np.testing.assert_allclose(col, np.linalg.solve(dense, rhs[:, q]), rtol=1e-10, atol=1e-12)

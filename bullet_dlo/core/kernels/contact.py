@@ -1186,6 +1186,15 @@ def coupled_solve(c, bd, held, x, kx, kv, band, r):
                         C[3 * na + i, 6 * s + q] -= w * GJ[i, q]
     min_pivot = gl_band_factor(band, HALF)
     gl_band_substitute(band, r, HALF)  # r <- y = A^-1 r
+    # C's columns are zero outside the rows of the nodes their body's rows touch (lo[s]..hi[s]); the sums below
+    # skip those zero terms (exactly: a sum that starts at +0.0 and subtracts finite products never holds -0.0, so
+    # a skipped +-0 term leaves it as it was) and the substitutions of C's columns start at the first row any of
+    # them fills (the zero rows before it change nothing)
+    lo, hi = _support(C, bd.active)
+    first = r.shape[0]
+    for s in range(ns):
+        if bd.active[s]:
+            first = min(first, lo[s])
     rb = bd.step  # right-hand side of the Schur system: R_b - C^T y
     for s in range(ns):
         for j in range(6):
@@ -1195,18 +1204,28 @@ def coupled_solve(c, bd, held, x, kx, kv, band, r):
                 for i in range(r.shape[0]):
                     acc -= C[i, col] * r[i]
             rb[s, j] = acc
-    for col in range(size):  # S = D - C^T A^-1 C, one column per substitution
-        if not bd.active[col // 6]:
-            continue
-        for i in range(work.shape[0]):
-            work[i] = C[i, col]
-        gl_band_substitute(band, work, HALF)
+    # S = D - C^T A^-1 C: A^-1 C for every column at once (each column's operations as one substitution's, in its
+    # order; the columns interleaved), then one dot product per entry over the row's support
+    cols = np.empty(size, np.int64)  # the active slots' columns, in order
+    m = 0
+    for col in range(size):
+        if bd.active[col // 6]:
+            cols[m] = col
+            m += 1
+    W = np.empty((work.shape[0], m))
+    for i in range(first, work.shape[0]):
+        for q in range(m):
+            W[i, q] = C[i, cols[q]]
+    _substitute_columns(band, W, HALF, first)
+    for q in range(m):
+        col = cols[q]
         for row in range(size):
-            if not bd.active[row // 6]:
+            s = row // 6
+            if not bd.active[s]:
                 continue
             acc = 0.0
-            for i in range(work.shape[0]):
-                acc -= C[i, row] * work[i]
+            for i in range(lo[s], hi[s] + 1):
+                acc -= C[i, row] * W[i, q]
             D[row, col] += acc
     flat = rb.reshape(size)
     _dense_solve(D, flat, size)
@@ -1219,6 +1238,54 @@ def coupled_solve(c, bd, held, x, kx, kv, band, r):
     for i in range(r.shape[0]):
         r[i] -= work[i]
     return min_pivot
+
+
+@njit(cache=True, error_model="numpy")
+def _support(C, active):
+    """First and last row (lo, hi, each (S,)) where the columns of each active body slot of C (3n, 6S) are not
+    zero (lo = 3n, hi = -1: none)."""
+    ns = active.shape[0]
+    lo = np.full(ns, C.shape[0], np.int64)
+    hi = np.full(ns, -1, np.int64)
+    for i in range(C.shape[0]):
+        for s in range(ns):
+            if not active[s]:
+                continue
+            for j in range(6):
+                if C[i, 6 * s + j] != 0.0:
+                    lo[s] = min(lo[s], i)
+                    hi[s] = i
+                    break
+    return lo, hi
+
+
+@njit(cache=True, error_model="numpy")
+def _substitute_columns(band, W, half, first):
+    """Solve L U Y = W in place (W (size, m), its rows before ``first`` zero and left alone) with the factors of
+    :func:`~bullet_dlo.core.kernels.gauss_legendre.gl_band_factor`: per column the operations of
+    :func:`~bullet_dlo.core.kernels.gauss_legendre.gl_band_substitute`, in its order (the same numbers), the
+    columns interleaved (independent chains: the substitution's back sweep is bound by the latency of its sums);
+    rows before ``first`` of Y are not computed (the forward sweep leaves them zero, the back sweep's rows below
+    them do not depend on them)."""
+    size, m = W.shape[0], W.shape[1]
+    for k in range(first, size):
+        last = min(k + half, size - 1)
+        for i in range(k + 1, last + 1):
+            f = band[i, k - i + half]
+            for q in range(m):
+                W[i, q] -= f * W[k, q]
+    acc = np.empty(m)
+    for k in range(size - 1, first - 1, -1):
+        last = min(k + half, size - 1)
+        for q in range(m):
+            acc[q] = W[k, q]
+        for j in range(k + 1, last + 1):
+            u = band[k, j - k + half]
+            for q in range(m):
+                acc[q] -= u * W[j, q]
+        d = band[k, half]
+        for q in range(m):
+            W[k, q] = acc[q] / d
 
 
 # ----- the implicit step with contacts ------------------------------------------------------

@@ -248,8 +248,16 @@ def _residual(m, imp, ws, vn, r, c=None):
                 worst = abs(val)
     if c is None:
         return worst
+    return _contact_residual(m, imp, ws, r, c)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _contact_residual(m, imp, ws, r, c):
+    """r += hf times the contact set ``c``'s forces at the X, V in ws.x_stage, ws.v_stage (into c.node_force,
+    c.f_n, c.f_t) on the free nodes, r holding the rest of :func:`_residual` there; returns max |r|."""
+    n = r.shape[0] // 3
     fc = c.node_force
-    _contact.contact_forces(c, xe, ve, fc)
+    _contact.contact_forces(c, ws.x_stage, ws.v_stage, fc)
     worst = 0.0
     for i in range(n):
         for j in range(3):
@@ -401,9 +409,16 @@ def newton(stepper, m, x, imp, ws, c=None, cap_tol=1e-3, max_passes=10, bd=None)
         _contact.load_bodies(c, bd, imp.hf, bd.vel_new)
     _residual(m, imp, ws, vn, r)  # X at the predictor: caps from its penetration
     _contact.elastic_caps(c, ws.x_stage, c.cap)
+    rnorm = _contact_residual(m, imp, ws, r, c)  # the first residual: the same X, V and elastic forces
+    # ``fresh``: r, rnorm, ws.x_stage, v_stage and the contact forces are those of vn with the caps in use (the
+    # first residual, or an accepted trial's): the loop does not take them again (each residual and its
+    # contact forces are a pure function of vn, the caps and the bodies' rows, so they would come out the same)
+    fresh = True
     passes = 0
     while True:
-        rnorm = _residual(m, imp, ws, vn, r, c)
+        if not fresh:
+            rnorm = _residual(m, imp, ws, vn, r, c)
+        fresh = False
         if nb > 0:
             _contact.body_residual(c, bd, imp.hf, bd.vel_new)
         if (it > 0 and rnorm <= tol * (r_scale + _momentum_change(m, ws, vn)) + r_floor
@@ -441,7 +456,7 @@ def newton(stepper, m, x, imp, ws, c=None, cap_tol=1e-3, max_passes=10, bd=None)
                     for j in range(6):
                         bd.vel_try[s, j] = bd.vel_new[s, j] + alpha * bd.step[s, j]
                 _contact.load_bodies(c, bd, imp.hf, bd.vel_try)
-            _residual(m, imp, ws, v_try, r_try, c)
+            rn_try = _residual(m, imp, ws, v_try, r_try, c)
             phi = _merit(m, imp, ws, v_try, c)
             if nb > 0:
                 phi += _contact.body_potential(bd, imp.hf, bd.vel_try)
@@ -452,11 +467,15 @@ def newton(stepper, m, x, imp, ws, c=None, cap_tol=1e-3, max_passes=10, bd=None)
         if not accepted:
             break
         vn[:, :] = v_try
+        r[:] = r_try  # the residual at the accepted iterate (the merit after it wrote nothing)
+        rnorm = rn_try
+        fresh = True
         if nb > 0:
             bd.vel_new[:, :] = bd.vel_try
-    if nb > 0:
-        _contact.load_bodies(c, bd, imp.hf, bd.vel_new)
-    _residual(m, imp, ws, vn, r, c)  # forces and c.f_n, c.f_t at the accepted iterate
+    if not converged:  # (converged: the last residual was taken at vn, with the bodies' rows at vel_new)
+        if nb > 0:
+            _contact.load_bodies(c, bd, imp.hf, bd.vel_new)
+        _residual(m, imp, ws, vn, r, c)  # forces and c.f_n, c.f_t at the accepted iterate
     return it, converged
 
 
