@@ -77,6 +77,10 @@ SEGMENT_DIP = 1e-7
 # are further contacts of the same node (segment), up to PROBE_EXTRA of them (a concave corner's other faces)
 PROBE_SAME_COS = math.cos(math.radians(30.0))
 PROBE_EXTRA = 2
+# [m] and only where the other face rises above the closest one's plane by this much (a concave corner): a coplanar
+# neighbour triangle answers with its edge, a contact whose linearised plane would be a phantom step on a flat
+# surface (measured on a heightfield slope: it held a sliding cable)
+PROBE_RISE = 1e-5
 WRAP_BENDS = True  # a wrapped segment's bends: at its nodes against the path, the turn at the edge (contact.md)
 EXACT_HULLS = True  # convex hulls on the project's geometry (False: Bullet's narrow phase, as for other meshes)
 # [m] a hull's distances (margin included) must match Bullet's within this at every check point 2-3 mm off it: its
@@ -338,13 +342,18 @@ def _probe_key(n: int, i: int, segment: bool, extra: bool, normal) -> int:
 
 def _distinct(res) -> list:
     """Bullet's answers to one query (closest first), one per contact: an answer whose normal lies within
-    PROBE_SAME_COS of a closer one's is dropped; at most 1 + PROBE_EXTRA."""
+    PROBE_SAME_COS of a closer one's is dropped, and so is one whose point does not rise PROBE_RISE above the
+    closest answer's plane (only a concave corner's other faces count); at most 1 + PROBE_EXTRA."""
     res = sorted(res, key=_distance) if len(res) > 1 else res
-    kept: list = []
-    for p in res:
+    kept: list = [res[0]]
+    c, m = res[0][6], res[0][7]  # the closest answer's point and normal: its face's plane
+    for p in res[1:]:
         n0, n1, n2 = p[7]
         if any(n0 * q[7][0] + n1 * q[7][1] + n2 * q[7][2] > PROBE_SAME_COS for q in kept):
             continue
+        a = p[6]
+        if m[0] * (a[0] - c[0]) + m[1] * (a[1] - c[1]) + m[2] * (a[2] - c[2]) < PROBE_RISE:
+            continue  # not above the closest face: a coplanar or falling neighbour's edge, no contact of its own
         kept.append(p)
         if len(kept) > PROBE_EXTRA:
             break
