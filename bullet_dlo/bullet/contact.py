@@ -759,8 +759,9 @@ class ContactSet:
         to the link between its nodes than at them (by SEGMENT_DIP) at an interior point (S_MIN < s <
         1 - S_MIN): elsewhere the nodes carry the contact, as on the primitives' faces. Bullet answers a
         triangle mesh triangle by triangle: besides the closest answer, answers whose normals differ from every
-        closer one's by more than 30 degrees are contacts of their own (:func:`_distinct`; a node or segment in a
-        concave corner meets each of its faces or edges), each with its own friction key (:func:`_probe_key`)."""
+        closer one's by more than 30 degrees and whose points rise above the closest answer's plane are contacts
+        of their own (:func:`_distinct`; a node or segment in a concave corner meets each of its faces or edges),
+        each with its own friction key (:func:`_probe_key`)."""
         pr = self.probes
         pr.count[0] = 0
         cable_box = self._cable_box
