@@ -72,6 +72,15 @@ S_MIN = 1e-3  # segment interior: 0 < s < 1 away from the nodes by this much (no
 # a probed segment contact must come closer than both its nodes by this much [m] (above the narrow phase's
 # noise, 1e-9 m measured): on a flat face a capsule's closest point is anywhere along it, and the nodes carry it
 SEGMENT_DIP = 1e-7
+# Bullet answers a query against a triangle mesh triangle by triangle: answers whose normals lie within this angle
+# of a closer one are the same contact (a face split into triangles, an edge seen from its two faces); the others
+# are further contacts of the same node (segment), up to PROBE_EXTRA of them (a concave corner's other faces)
+PROBE_SAME_COS = math.cos(math.radians(30.0))
+PROBE_EXTRA = 2
+# [m] and only where the other face rises above the closest one's plane by this much (a concave corner): a coplanar
+# neighbour triangle answers with its edge, a contact whose linearised plane would be a phantom step on a flat
+# surface (measured on a heightfield slope: it held a sliding cable)
+PROBE_RISE = 1e-5
 WRAP_BENDS = True  # a wrapped segment's bends: at its nodes against the path, the turn at the edge (contact.md)
 EXACT_HULLS = True  # convex hulls on the project's geometry (False: Bullet's narrow phase, as for other meshes)
 # [m] a hull's distances (margin included) must match Bullet's within this at every check point 2-3 mm off it: its
@@ -134,7 +143,7 @@ class Probes(NamedTuple):
     """Bullet's closest points of the coming step (:meth:`ContactSet._probe`), P rows, count[0] used: shape
     (P,) int: the PROBE row; node (P, 2) int and weight (P,): the nodes (i, i) of a node contact or (i, i + 1)
     of a segment contact and the weight s of node i + 1; point [m] (P, 3) on the link; normal (P, 3) unit,
-    from the link to the cable."""
+    from the link to the cable; key (P,) int: the row's friction key within its link's block (:func:`_probe_key`)."""
 
     count: np.ndarray
     shape: np.ndarray
@@ -142,6 +151,7 @@ class Probes(NamedTuple):
     weight: np.ndarray
     point: np.ndarray
     normal: np.ndarray
+    key: np.ndarray
 
 
 class Hulls(NamedTuple):
@@ -312,6 +322,44 @@ def _distance(point) -> float:
     return point[8]
 
 
+def keys_per_shape(n: int) -> int:
+    """Friction keys of one shape for a cable of n nodes: its nodes, then per feature (0: a segment's own row,
+    1-12: a box's edges; a probed link's further answers: 1-6 for segments) n - 1 segments; a probed link's
+    further node answers take six blocks of n from feature 7 on, 6 keys past the 13 features (:func:`_probe_key`)."""
+    return n + (N_EDGES + 1) * (n - 1) + 6
+
+
+def _probe_key(n: int, i: int, segment: bool, extra: bool, normal) -> int:
+    """The key (within its link's block) of a probed row: node i's or segment i's own (its closest answer), or,
+    for a further answer (``extra``), one of six by the normal's main direction (+-x, +-y, +-z), so that a
+    corner's contacts keep their friction anchors from step to step."""
+    if not extra:
+        return n + i if segment else i
+    a = max(range(3), key=lambda j: abs(normal[j]))
+    d = 2 * a + (normal[a] < 0.0)
+    return n + (n - 1) * (1 + d) + i if segment else n + 7 * (n - 1) + d * n + i
+
+
+def _distinct(res) -> list:
+    """Bullet's answers to one query (closest first), one per contact: an answer whose normal lies within
+    PROBE_SAME_COS of a closer one's is dropped, and so is one whose point does not rise PROBE_RISE above the
+    closest answer's plane (only a concave corner's other faces count); at most 1 + PROBE_EXTRA."""
+    res = sorted(res, key=_distance) if len(res) > 1 else res
+    kept: list = [res[0]]
+    c, m = res[0][6], res[0][7]  # the closest answer's point and normal: its face's plane
+    for p in res[1:]:
+        n0, n1, n2 = p[7]
+        if any(n0 * q[7][0] + n1 * q[7][1] + n2 * q[7][2] > PROBE_SAME_COS for q in kept):
+            continue
+        a = p[6]
+        if m[0] * (a[0] - c[0]) + m[1] * (a[1] - c[1]) + m[2] * (a[2] - c[2]) < PROBE_RISE:
+            continue  # not above the closest face: a coplanar or falling neighbour's edge, no contact of its own
+        kept.append(p)
+        if len(kept) > PROBE_EXTRA:
+            break
+    return kept
+
+
 def _unlisted_shape(body: int, link: int, client: int) -> bool:
     """Does a link for which PyBullet lists no collision shape have one all the same? PyBullet's
     getCollisionShapeData does not list a heightfield (it prints "Unexpected collision shape type"), so the
@@ -463,10 +511,10 @@ class ContactSet:
         for s in range(nb):
             self._probe_out[s, sorted(rows[s][10])] = True
         self.hulls = _pack_hulls(hulls, [int(r[5][1]) if r[2] == HULL else -1 for r in rows], self.n_exact)
-        cap_p = 2 * n * max(1, len(probed))
+        cap_p = 2 * (1 + PROBE_EXTRA) * n * max(1, len(probed))
         self.probes = Probes(count=np.zeros(1, np.int64), shape=np.zeros(cap_p, np.int64),
                              node=np.zeros((cap_p, 2), np.int64), weight=np.zeros(cap_p), point=np.zeros((cap_p, 3)),
-                             normal=np.zeros((cap_p, 3)))
+                             normal=np.zeros((cap_p, 3)), key=np.zeros(cap_p, np.int64))
         self._radius = float(radius)
         if probed:
             # a node is a capsule of (almost) no length, not a sphere: Bullet answers a sphere against a
@@ -483,11 +531,12 @@ class ContactSet:
             self._reach = None  # _reach_box bound on first use
             self._candidates = None  # _probe_candidates bound on first use
             self._prev_rows: set = set()
-        self.keys_per_shape = n + (N_EDGES + 1) * (n - 1)
+        self.keys_per_shape = keys_per_shape(n)
         self.other_cables = list(others)
         n_other = sum(o.model.n for o in self.other_cables)
         nkeys = max(1, nb * self.keys_per_shape + 2 * (n - 1) ** 2 + (n - 1) * n_other)
-        capacity = max(1, nb * (n + 2 * (n - 1)) + 4 * n + 2 * n * len(self.other_cables))
+        capacity = max(1, nb * (n + 2 * (n - 1)) + 4 * n + 2 * n * len(self.other_cables)
+                       + 2 * PROBE_EXTRA * n * len(probed))  # a probed link's further answers
         # self-contact friction: the cable's own coefficients (negative: no self-contact)
         self.self_mu = np.array([mu_s, mu_d]) if self_contact else np.array([-1.0, -1.0])
         self.contacts: Contacts = make_contacts(n, capacity, radius, grip)  # grip: the cable's
@@ -708,9 +757,11 @@ class ContactSet:
         cable radius and rest length along each segment, against the link, within the margin (the same
         as :func:`detect`'s). A node keeps the link's closest point; a segment only where it comes closer
         to the link between its nodes than at them (by SEGMENT_DIP) at an interior point (S_MIN < s <
-        1 - S_MIN): elsewhere the nodes carry the contact, as on the primitives' faces. Only the closest
-        point per node (segment) and link is kept: a node in a concave corner of a triangle mesh meets one
-        of its faces per step."""
+        1 - S_MIN): elsewhere the nodes carry the contact, as on the primitives' faces. Bullet answers a
+        triangle mesh triangle by triangle: besides the closest answer, answers whose normals differ from every
+        closer one's by more than 30 degrees and whose points rise above the closest answer's plane are contacts
+        of their own (:func:`_distinct`; a node or segment in a concave corner meets each of its faces or edges),
+        each with its own friction key (:func:`_probe_key`)."""
         pr = self.probes
         pr.count[0] = 0
         cable_box = self._cable_box
@@ -734,7 +785,8 @@ class ContactSet:
         closest = pb.getClosestPoints
         sphere, capsule = self._sphere, self._capsule
         box = self._box
-        found = []  # (row, node a, node b, weight of b, point, normal)
+        found = []  # (row, node a, node b, weight of b, point, normal, key)
+        n = len(x)
         xl = None
         kinds = self.shapes.kind
         for s in sorted(rows):
@@ -755,31 +807,39 @@ class ContactSet:
             for i in nodes[:nn].tolist():
                 res = closest(-1, body, margin, -1, link, sphere, -1, xl[i], physicsClientId=cid)
                 if res:
-                    best = min(res, key=_distance) if len(res) > 1 else res[0]
-                    dist[i] = best[8]
-                    found.append((s, i, i, 0.0, best[6], best[7]))
+                    answers = _distinct(res)
+                    dist[i] = answers[0][8]
+                    keys = set()
+                    for e, best in enumerate(answers):
+                        key = _probe_key(n, i, False, e > 0, best[7])
+                        if key not in keys:  # two further answers in one direction: the closer one
+                            keys.add(key)
+                            found.append((s, i, i, 0.0, best[6], best[7], key))
             for i, m, q in zip(segs[:ns].tolist(), mid[:ns].tolist(), quat[:ns].tolist()):
                 res = closest(-1, body, margin, -1, link, capsule, -1, m, _ORIGIN, q, physicsClientId=cid)
                 if not res:
                     continue
-                best = min(res, key=_distance) if len(res) > 1 else res[0]
-                if best[8] > min(dist[i], dist[i + 1]) - SEGMENT_DIP:
-                    continue  # no closer between the nodes than at them: the nodes carry it
-                xa, xb = xl[i], xl[i + 1]
-                pa, nb, r = best[5], best[7], self._radius
-                num = den = 0.0
-                for j in range(3):  # the capsule's axis point pa + r n, projected on the segment
-                    e = xb[j] - xa[j]
-                    num += (pa[j] + r * nb[j] - xa[j]) * e
-                    den += e * e
-                sp = num / den
-                if S_MIN < sp < 1.0 - S_MIN:
-                    found.append((s, i, i + 1, sp, best[6], nb))
+                keys = set()
+                for e, best in enumerate(_distinct(res)):
+                    if best[8] > min(dist[i], dist[i + 1]) - SEGMENT_DIP:
+                        continue  # no closer between the nodes than at them: the nodes carry it
+                    xa, xb = xl[i], xl[i + 1]
+                    pa, nb, r = best[5], best[7], self._radius
+                    num = den = 0.0
+                    for j in range(3):  # the capsule's axis point pa + r n, projected on the segment
+                        e_j = xb[j] - xa[j]
+                        num += (pa[j] + r * nb[j] - xa[j]) * e_j
+                        den += e_j * e_j
+                    sp = num / den
+                    key = _probe_key(n, i, True, e > 0, nb)
+                    if S_MIN < sp < 1.0 - S_MIN and key not in keys:
+                        keys.add(key)
+                        found.append((s, i, i + 1, sp, best[6], nb, key))
         k = min(len(found), pr.shape.shape[0])
         if k:
-            row, a, b, w, point, normal = zip(*found[:k])
+            row, a, b, w, point, normal, key = zip(*found[:k])
             pr.shape[:k], pr.node[:k, 0], pr.node[:k, 1], pr.weight[:k] = row, a, b, w
-            pr.point[:k], pr.normal[:k] = point, normal
+            pr.point[:k], pr.normal[:k], pr.key[:k] = point, normal, key
         pr.count[0] = k
 
     def _read_others(self, dt: float) -> None:
@@ -1471,7 +1531,7 @@ def detect(x, v, mass, sh, c, bd, st, h, k_per_mass, zeta, self_mu, h_body, h_do
     if h_done > 0.0:
         _cable_moved(c, st, oc, previous.shape[0], h_done)
     n = x.shape[0]
-    per_shape = n + (N_EDGES + 1) * (n - 1)
+    per_shape = n + (N_EDGES + 1) * (n - 1) + 6  # keys_per_shape(n)
     radius = c.radius[0]
     c.count[0] = 0
     q = np.empty((n, 3))
@@ -1491,7 +1551,7 @@ def detect(x, v, mass, sh, c, bd, st, h, k_per_mass, zeta, self_mu, h_body, h_do
         for j in range(3):
             c.point[m, j] = pr.point[k, j]
             c.normal[m, j] = pr.normal[k, j]
-        key = s * per_shape + (ia if ia == ib else n + ia)
+        key = s * per_shape + pr.key[k]
         _add_row(c, st, key, s, ia, ib, 1.0 - pr.weight[k], pr.weight[k], sh, k_per_mass, zeta, mass, x)
     for s in range(sh.kind.shape[0]):
         kind = sh.kind[s]
