@@ -34,28 +34,35 @@ def measure(cs, dt: float, stepped: bool, supported) -> list[int]:
     something besides this cable holds (``supported``: bodies with a Bullet contact in the last step; the bodies a
     user constraint holds; not the bodies another cable shares), with, in ``cs.held_load``, the force and torque
     [N, N m] (about the centre of mass, world frame) the world put on each in Bullet's last step of dt [s] besides
-    gravity and this cable's reaction (module doc). After a re-plan (``stepped`` False) the last step's."""
+    gravity and this cable's reaction (module doc); before a step was measured (a new contact set), the body's weight.
+    After a re-plan (``stepped`` False) the last step's."""
     sh, rows = cs.shapes, cs._slot_row
     now = np.concatenate((sh.lin_vel[rows], sh.ang_vel[rows]), axis=1)
     for o in np.flatnonzero(rows >= cs.n_exact).tolist():  # a probed base link: read now
         lin, ang = pb.getBaseVelocity(cs.free_bodies[o], physicsClientId=cs.client)
         now[o] = (*lin, *ang)
-    if not stepped:
-        return cs._measured if cs._seen.any() else []
+    if not stepped and cs._seen.any():
+        return cs._measured
     want = cs._held.union(supported).difference(cs._shared) if supported or cs._held else ()
     measured = []
     for o, body in enumerate(cs.free_bodies):
-        if body not in want or not cs._seen[o]:
+        if body not in want:
             continue
         s = int(rows[o])
         m = 1.0 / sh.inv_mass[s]
-        dv = (now[o] - cs._vel_before[o]) / dt
-        cs.held_load[o, :3] = m * (dv[:3] - cs.bodies.gravity) - cs._applied[o, :3]
-        cs.held_load[o, 3:] = sh.inertia[s] @ dv[3:] - cs._applied[o, 3:]
+        if cs._seen[o] and stepped:
+            dv = (now[o] - cs._vel_before[o]) / dt
+            cs.held_load[o, :3] = m * (dv[:3] - cs.bodies.gravity) - cs._applied[o, :3]
+            cs.held_load[o, 3:] = sh.inertia[s] @ dv[3:] - cs._applied[o, 3:]
+        else:  # no step measured yet (a new contact set): the holder carries the body's weight
+            cs.held_load[o, :3] = -m * cs.bodies.gravity
+            cs.held_load[o, 3:] = 0.0
         measured.append(o)
+    cs._measured = measured
+    if not stepped:
+        return measured
     cs._vel_before[:] = now
     cs._seen[:] = True
-    cs._measured = measured
     return measured
 
 
