@@ -366,7 +366,8 @@ class BulletCable:
             x0, v0 = (cp.x_new, cp.v_new) if do_sync else (cp.x, cp.v)  # the state this step starts from
             cs = self._contact_set
             self.contacts_last_step = cs.update(x0, v0, self.arrays.mass, self.stepper.h, self.world.dt, do_sync,
-                                                self.world.shared_bodies(self.name) if cs.free_bodies else ())
+                                                self.world.shared_bodies(self.name) if cs.free_bodies else (),
+                                                self.world.supported_bodies if cs.free_bodies else ())
             if cs.free_bodies and len(self.world.cables) > 1:  # (only another cable can share a body this way)
                 self.world.touched_by_model(self.name, cs.touched_free_bodies())
         record = do_sync and self.steps % self.record_every == 0

@@ -58,6 +58,7 @@ import numpy as np
 import pybullet as pb
 from numba import njit
 
+from bullet_dlo.bullet import held_bodies
 from bullet_dlo.bullet.kernels import bind
 from bullet_dlo.bullet.native import BASE_STATE, disabled_warning, read_base_states
 from bullet_dlo.bullet.shape_data import collision_shapes
@@ -395,9 +396,10 @@ class ContactSet:
     Two-way contact with a dynamic body. A free body (one dynamic link, no joints) moves inside the cable's
     implicit step (:class:`~bullet_dlo.core.kernels.contact.Bodies`): its end-of-step velocity is solved with the
     cable's, and the reactions applied to it during the coming Bullet step make Bullet's semi-implicit update
-    land on that velocity when nothing else touches it. A body that Bullet also supports (a contact with the
-    ground or another body in the last step) or that another cable touches, and every link of an articulated
-    body (the arms), meets the cable explicitly through Bullet instead: with the penalty stiffness k_n = alpha
+    land on that velocity when nothing else touches it. A free body that Bullet also supports (a contact with the
+    ground or another body in the last step) or a user constraint holds moves in the step too, under that load as
+    measured over Bullet's last step (:mod:`bullet_dlo.bullet.held_bodies`). A body that another cable touches,
+    and every link of an articulated body (the arms), meets the cable explicitly through Bullet instead: with the penalty stiffness k_n = alpha
     m_k / h^2 (alpha = 1e4) and a body of mass M that force has k_n h^2 / M = alpha m_k / M per contact, 500 for
     a 30 g box on one 1.6 g node, far past the explicit limit (about 1), so the detector condenses the body's
     inertia into those contacts (:func:`_condense_bodies`): lambda [1/s^2], the body's fastest contact mode
@@ -441,7 +443,7 @@ class ContactSet:
         exclude = exclude or {}
         exact, probed = [], []  # (body id, link, kind, local pos, local rot, size, dynamic, mu_b, 1/mass, 1/I_min, nodes out,
         #                            free, principal inertia)
-        constrained = _constrained_bodies(client)  # a body a user constraint holds is not free
+        constrained = _constrained_bodies(client)  # a free body a user constraint holds: its load is measured
         hulls: list = []  # (planes, triangles, their planes, sharp edges, margin [m]) of the HULL rows
         self._hull_probe = -1  # Bullet's point capsule that checks a hull (made on first use)
         for body in bodies:
@@ -455,10 +457,10 @@ class ContactSet:
                 info = pb.getDynamicsInfo(body, link, physicsClientId=client)
                 mass, mu_b = info[0:2]
                 i_min = min(info[2]) if mass > 0.0 else 0.0
-                # a free body (one dynamic link, no joints) moves in the cable's step (contact.Bodies); the links
-                # of an articulated body (an arm) keep the condensed contact (_condense_bodies)
-                free = (mass > 0.0 and link < 0 and pb.getNumJoints(body, physicsClientId=client) == 0 and i_min > 0.0
-                        and body not in constrained)
+                # a free body (one dynamic link, no joints) moves in the cable's step (contact.Bodies), with what
+                # else holds it (a user constraint, Bullet's contacts) as measured over the last step; the links of
+                # an articulated body (an arm) keep the condensed contact (_condense_bodies)
+                free = mass > 0.0 and link < 0 and pb.getNumJoints(body, physicsClientId=client) == 0 and i_min > 0.0
                 common = (mass > 0.0, float(mu_b), 1.0 / mass if mass > 0.0 else 0.0,
                           1.0 / i_min if i_min > 0.0 else 0.0, frozenset(out), free, np.asarray(info[2], float))
                 hull = (self._hull(body, link, data, radius)
@@ -506,6 +508,16 @@ class ContactSet:
                              inertia=np.zeros((nb, 3, 3)))
         self._free_slot = self.shapes.slot.copy()  # each row's slot; -1 in shapes.slot while the body is shared
         self._shared: frozenset = frozenset()
+        # the load on each free body from everything but this cable and gravity, measured over the last Bullet
+        # step (see update): its base row, velocity then [m/s, rad/s], the reaction applied in it, the load
+        ns = len(free_bodies)
+        self._slot_row = np.array([int(np.flatnonzero(self._free_slot == o)[0]) for o in range(ns)], np.int64)
+        self._held = frozenset(b for b in free_bodies if b in constrained)
+        self._vel_before = np.zeros((ns, 6))
+        self._seen = np.zeros(ns, np.bool_)
+        self._applied = np.zeros((ns, 6))
+        self.held_load = np.zeros((ns, 6))  # [N, N m] force and torque about the centre of mass, world frame
+        self._measured: list[int] = []
         self._probe_rows = {pairs[s]: s for s in range(self.n_exact, nb)}
         self._probe_out = np.zeros((nb, n), np.bool_)  # nodes that do not touch a probed link or a hull
         for s in range(nb):
@@ -666,12 +678,14 @@ class ContactSet:
             self.shapes.ang_vel[:self.n_exact][dyn] = bases[dyn, 10:13]
 
     def update(self, x: np.ndarray, v: np.ndarray, mass: np.ndarray, h: float, dt: float, stepped: bool,
-               shared=()) -> int:
+               shared=(), supported=()) -> int:
         """Read the moving bodies, detect the contacts of positions x [m] (n, 3) for a cable step of h [s]
         within a Bullet step of dt [s]; ``stepped``: Bullet has taken the step the last contacts were
         planned for (their work is then counted with the bodies' velocities read now). ``shared``: free bodies
-        this cable's step may not move by itself (the ground or another cable also holds them): they keep the
-        condensed contact (:func:`_condense_bodies`) this step."""
+        this cable's step may not move by itself (another cable also holds them): they keep the condensed
+        contact (:func:`_condense_bodies`) this step. ``supported``: free bodies Bullet also held in the last step
+        (a contact with the ground or another body); they, and the free bodies a user constraint holds, move in
+        the cable's step under the load the rest of the world put on them in the last step (:meth:`_measure`)."""
         if self.free_bodies:
             shared = frozenset(shared).intersection(self.free_bodies)
             if shared != self._shared:  # (a resting body stays shared or not for many steps: no NumPy work then)
@@ -684,6 +698,7 @@ class ContactSet:
             self._read_others(dt)
         if self._probe_rows:
             self._probe(x, v, h)
+        measured = self._measure(dt, stepped, supported) if self.free_bodies else ()
         k_per_mass = self.alpha / (h * h)
         args = (x, v, mass, self.shapes, self.contacts, self.bodies, self.store, float(h), k_per_mass, self.zeta, self.self_mu,
                 float(dt), float(dt) if stepped else 0.0, self.others, self.probes, self._seg_k, self._seg_l,
@@ -691,9 +706,19 @@ class ContactSet:
         if self._detect is None:
             self._detect = bind(detect, *args)
         count = self._detect(*args)
+        if measured:
+            self._hold(measured, dt, mass)
         if self._any_dynamic and count:
             self._report_bodies_inside(x, count, dt)
         return count
+
+    def _measure(self, dt: float, stepped: bool, supported) -> list[int]:
+        """See :func:`bullet_dlo.bullet.held_bodies.measure`."""
+        return held_bodies.measure(self, dt, stepped, supported)
+
+    def _hold(self, measured: list[int], dt: float, mass: np.ndarray) -> None:
+        """See :func:`bullet_dlo.bullet.held_bodies.hold`."""
+        held_bodies.hold(self, measured, dt, mass)
 
     def touched_free_bodies(self) -> list[int]:
         """The free bodies (by body id) some contact of the coming step touches."""
@@ -896,6 +921,7 @@ class ContactSet:
         """Apply the reaction of every contact to its dynamic body (force at the centre of mass plus
         the torque of the forces about it), for the coming Bullet step."""
         c = self.contacts
+        self._applied[:] = 0.0
         if int(c.count[0]) == 0 or not self.dynamic.any():
             return
         if self._loads is None:
@@ -911,6 +937,10 @@ class ContactSet:
             body, link = int(self.body_ids[s]), int(self.links[s])
             apply(body, link, force[s].tolist(), self.shapes.com[s].tolist(), frame, cid)
             twist(body, link, torque[s].tolist(), frame, cid)
+            o = self._free_slot[s]
+            if o >= 0:  # what this cable applied to a free body (see _measure)
+                self._applied[o, :3] += force[s]
+                self._applied[o, 3:] += torque[s]
 
 
 @njit(cache=True, error_model="numpy")

@@ -355,12 +355,12 @@ class BulletWorld:
             c.apply_forces(replan)
 
     def shared_bodies(self, cable: str) -> set[int]:
-        """The free bodies the cable named ``cable`` may not move in its own step: supported in Bullet, or touched
-        by another cable's contacts, in the last step."""
+        """The free bodies the cable named ``cable`` may not move in its own step: touched by another cable's
+        contacts in the last step (each cable's step alone would carry the body's whole weight). (The bodies
+        Bullet supports, :attr:`supported_bodies`, move in it under the load Bullet put on them.)"""
         if not self.model_touches:
-            return self.supported_bodies
-        others = {b for b, names in self.model_touches.items() if names - {cable}}
-        return self.supported_bodies | others
+            return set()
+        return {b for b, names in self.model_touches.items() if names - {cable}}
 
     def touched_by_model(self, cable: str, bodies) -> None:
         """Record the free bodies the model's contacts of ``cable`` touch in the step being planned."""

@@ -1,0 +1,89 @@
+"""Free bodies that something besides the cable holds, in the cable's implicit step (docs/concepts/contact.md,
+"Bodies resting on the cable").
+
+A free body (one dynamic link, no joints) that the cable touches moves inside the cable's step (its velocity is
+six unknowns of the step's Newton solve, :class:`~bullet_dlo.core.kernels.contact.Bodies`). When Bullet also holds
+it (a contact with the ground or another body in the last step) or a user constraint does, the cable's step does
+not know that support. It takes it as measured over Bullet's last step, from the body's own motion:
+
+    F_held = M (U - U_before) / dt - M g - F_applied,   tau_held = I (Omega - Omega_before) / dt - tau_applied,
+
+F_applied, tau_applied the reaction this cable applied in that step (so F_held is Bullet's contacts, constraints,
+damping, other cables' and a user's forces, however Bullet found them), and the body's backward Euler in the step
+becomes M (U' - U) = h (M g + F_held + F). The support then arrives in the same step as the cable's reaction: at
+rest the prediction of the body's motion is Bullet's, and the body does not sink g h^2 into the cable (the
+condensed contact's softness, which these bodies had before).
+
+The measured load lags one step. Where the cable pushes the body against what holds it (a board a constraint holds
+under the cable, a box on the table with the cable across it) a light body would yield in the cable's step while
+Bullet holds it rigidly, and the lag makes the cable bounce (a 30 g board under the 30 g cable gained energy at 60
+and 120 Hz). There the body takes an apparent mass M_a = M + CARRY_FACTOR m_c (m_c the cable's mass at those rows;
+the holder, rigid in Bullet, takes the push) in the step: M_a (U' - U) = h (M g + F_held + F). These functions
+hold no compiled code, so changing them does not empty the Numba cache.
+"""
+from __future__ import annotations
+
+import numpy as np
+import pybullet as pb
+
+CARRY_FACTOR = 10.0  # apparent mass per kg of cable pushing a held body against its holder
+
+
+def measure(cs, dt: float, stepped: bool, supported) -> list[int]:
+    """The slots of the free bodies of the contact set ``cs`` (:class:`~bullet_dlo.bullet.contact.ContactSet`) that
+    something besides this cable holds (``supported``: bodies with a Bullet contact in the last step; the bodies a
+    user constraint holds; not the bodies another cable shares), with, in ``cs.held_load``, the force and torque
+    [N, N m] (about the centre of mass, world frame) the world put on each in Bullet's last step of dt [s] besides
+    gravity and this cable's reaction (module doc); before a step was measured (a new contact set), the body's weight.
+    After a re-plan (``stepped`` False) the last step's."""
+    sh, rows = cs.shapes, cs._slot_row
+    now = np.concatenate((sh.lin_vel[rows], sh.ang_vel[rows]), axis=1)
+    for o in np.flatnonzero(rows >= cs.n_exact).tolist():  # a probed base link: read now
+        lin, ang = pb.getBaseVelocity(cs.free_bodies[o], physicsClientId=cs.client)
+        now[o] = (*lin, *ang)
+    if not stepped and cs._seen.any():
+        return cs._measured
+    want = cs._held.union(supported).difference(cs._shared) if supported or cs._held else ()
+    measured = []
+    for o, body in enumerate(cs.free_bodies):
+        if body not in want:
+            continue
+        s = int(rows[o])
+        m = 1.0 / sh.inv_mass[s]
+        if cs._seen[o] and stepped:
+            dv = (now[o] - cs._vel_before[o]) / dt
+            cs.held_load[o, :3] = m * (dv[:3] - cs.bodies.gravity) - cs._applied[o, :3]
+            cs.held_load[o, 3:] = sh.inertia[s] @ dv[3:] - cs._applied[o, 3:]
+        else:  # no step measured yet (a new contact set): the holder carries the body's weight
+            cs.held_load[o, :3] = -m * cs.bodies.gravity
+            cs.held_load[o, 3:] = 0.0
+        measured.append(o)
+    cs._measured = measured
+    if not stepped:
+        return measured
+    cs._vel_before[:] = now
+    cs._seen[:] = True
+    return measured
+
+
+def hold(cs, measured: list[int], dt: float, mass: np.ndarray) -> None:
+    """Put the measured loads of the slots ``measured`` (:func:`measure`) into the coming step's free bodies
+    (``cs.bodies``, just loaded by the detector), with the apparent mass where the cable pushes a body against its
+    holder (module doc; ``mass`` (n,) [kg] the cable's node masses): M_a (U' - U_0) = h (M_a g + F) with U_0 = U +
+    h ((M g + F_held) / M_a - g) is M_a (U' - U) = h (M g + F_held + F), the load an impulse over the Bullet step."""
+    bd, sh, c = cs.bodies, cs.shapes, cs.contacts
+    g = bd.gravity
+    count = int(c.count[0])
+    for o in measured:
+        s = int(cs._slot_row[o])
+        m = 1.0 / sh.inv_mass[s]
+        held = cs.held_load[o, :3]
+        # the cable's mass at the rows that push the body against what holds it (the row's normal, body to
+        # cable, along the held load)
+        k = np.flatnonzero((bd.slot[:count] == o) & (c.normal[:count] @ held > 0.0))
+        carried = float(c.weight[k, 0] @ mass[c.node[k, 0]] + c.weight[k, 1] @ mass[c.node[k, 1]]) if k.size else 0.0
+        scale = 1.0 + CARRY_FACTOR * carried / m  # the apparent mass over the true one
+        bd.mass[o] = scale * m
+        bd.inertia[o] *= scale
+        bd.vel[o, :3] += dt * ((m * g + held) / (scale * m) - g)
+        bd.vel[o, 3:] += dt * np.linalg.solve(bd.inertia[o], cs.held_load[o, 3:])

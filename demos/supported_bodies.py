@@ -1,0 +1,125 @@
+"""Issue 23 item 2: bodies on the cable that something else holds too (docs/concepts/contact.md, "Bodies resting on
+the cable").
+
+Two cases, each measured without the contact model's own numbers (its gaps and forces):
+
+- ``leaning``: a box (4 x 10 x 1 cm) lying across a cable on the table, one end on the table, the other part on
+  the cable (Bullet supports the box too). Statics: the cable carries the share of the weight the lever gives
+  (5/8 here), the table the rest; the box at rest.
+- ``held``: a 30 g board fixed in the air by a user constraint (JOINT_FIXED), the cable lying on it.
+
+Per case, mass and step: ``sink`` [mm], how far the body's face is inside the cable's surface (the centre line's
+distance to the face minus the cable radius, over the nodes under the face; positive: inside), at the end and its
+worst over the last second; ``balance``: (ground on cable + ground on box) / (m_cable + m_box) g (leaning) or the
+cable's push on the board / the cable's weight (held); ``rest``: when the box last moved faster than 1e-4 m/s [s].
+Usage: python demos/supported_bodies.py [--hz 60 120] [--mass 0.001 0.03 0.3 3] [--case leaning held]
+"""
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+
+import numpy as np
+import pybullet as pb
+
+from bullet_dlo.bullet.world import BulletWorld
+from bullet_dlo.core.spec import CableSpec
+
+G = 9.81
+HALF = (0.02, 0.05, 0.005)  # [m] the leaning box: 4 cm along the cable, 10 cm across, 1 cm thick
+OFFSET = 0.03  # [m] the box's centre from the cable, across it: the end 0.08 m from the cable lies on the table
+
+
+def _face_sink(cable, body: int, half, r: float, cid: int) -> float:
+    """How far [m] the body's bottom (leaning) or top (held) face is inside the cable's surface, over the nodes
+    under / over the face (positive: inside); -inf when no node is there."""
+    pos, orn = pb.getBasePositionAndOrientation(body, physicsClientId=cid)
+    rot = np.array(pb.getMatrixFromQuaternion(orn)).reshape(3, 3)
+    local = (cable.x - np.asarray(pos)) @ rot
+    over = (np.abs(local[:, 0]) < half[0]) & (np.abs(local[:, 1]) < half[1])
+    if not over.any():
+        return -math.inf
+    return float(np.max(r + half[2] - np.abs(local[over, 2])))
+
+
+def leaning(mass: float, hz: float, seconds: float) -> dict:
+    spec = CableSpec.lv2017(n_masses=20, damping=0.02)
+    r = spec.diameter / 2
+    with BulletWorld(dt=1.0 / hz) as world:
+        cid = world.client
+        cable = world.add_cable(spec, start=(-0.15, 0.0, r), direction=(1, 0, 0))
+        world.run(0.2)
+        hz_ = HALF[2]
+        p0, p1 = np.array([0.0, 0.0, 2 * r + 1e-4]), np.array([0.0, OFFSET + HALF[1], 1e-4])
+        u = (p1 - p0) / np.linalg.norm(p1 - p0)  # the box's local y
+        w = np.array([0.0, -u[2], u[1]])  # its local z
+        phi = math.atan2(u[2], u[1])
+        centre = p1 - HALF[1] * u + hz_ * w
+        box = world.add_box(HALF, centre.tolist(), (math.sin(phi / 2), 0.0, 0.0, math.cos(phi / 2)), mass=mass)
+        return _run(world, cable, box, mass, spec, r, seconds, HALF, "leaning")
+
+
+def held(mass: float, hz: float, seconds: float) -> dict:
+    spec = CableSpec.lv2017(n_masses=20, damping=0.05)
+    r, half = spec.diameter / 2, (0.6 * spec.length, 0.05, 0.01)
+    with BulletWorld(dt=1.0 / hz) as world:
+        cid = world.client
+        box = world.add_box(half, (0.0, 0.0, 0.3), mass=mass)
+        pb.createConstraint(box, -1, -1, -1, pb.JOINT_FIXED, (0, 0, 0), (0, 0, 0), (0.0, 0.0, 0.3),
+                            physicsClientId=cid)
+        cable = world.add_cable(spec, start=(-0.5 * spec.length, 0.0, 0.31 + r + 1e-4), direction=(1, 0, 0))
+        return _run(world, cable, box, mass, spec, r, seconds, half, "held")
+
+
+def _run(world, cable, box, mass, spec, r, seconds, half, case) -> dict:
+    cid = world.client
+    steps = world.steps_in(seconds)
+    last_moving, worst = 0.0, -math.inf
+    for k in range(steps):
+        world.step()
+        if not cable.stable:
+            break
+        v = float(np.linalg.norm(pb.getBaseVelocity(box, physicsClientId=cid)[0]))
+        if v > 1e-4:
+            last_moving = (k + 1) * world.dt
+        if (k + 1) * world.dt > seconds - 1.0:
+            worst = max(worst, _face_sink(cable, box, half, r, cid))
+    sink = _face_sink(cable, box, half, r, cid)
+    on_box = float(cable.body_forces().get(box, np.zeros(3))[2])
+    if case == "leaning":
+        pc = cable.contact_forces()
+        ground_on_cable = float(pc["force"][pc["body"] == world.ground_id][:, 2].sum())
+        ground_on_box = sum(cp[9] for cp in pb.getContactPoints(box, world.ground_id, physicsClientId=cid))
+        balance = (ground_on_cable + ground_on_box) / ((spec.mass + mass) * G)
+        share = on_box / (mass * G)  # of the box's weight on the cable (lever: 5/8)
+    else:
+        balance = -on_box / (spec.mass * G)
+        share = math.nan
+    return dict(case=case, mass=mass, hz=1.0 / world.dt, sink=1e3 * sink, worst=1e3 * worst, balance=balance,
+                share=share, rest=last_moving, status=cable.reason or "stable")
+
+
+def main(argv=None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--hz", type=float, nargs="+", default=[60.0, 120.0])
+    ap.add_argument("--mass", type=float, nargs="+", default=[0.001, 0.03, 0.3, 3.0, 10.0])
+    ap.add_argument("--case", nargs="+", choices=("leaning", "held"), default=["leaning", "held"])
+    ap.add_argument("--seconds", type=float, default=2.0)
+    args = ap.parse_args(argv)
+    for name, val, lo in (("--hz", min(args.hz), 10.0), ("--mass", min(args.mass), 1e-4), ("--seconds", args.seconds, 1.0)):
+        if not val >= lo:
+            print(f"{name} must be at least {lo:g}, got {val:g}", file=sys.stderr)
+            sys.exit(2)
+    print(f"{'case':8s} {'mass kg':>8s} {'Hz':>6s} {'sink mm':>8s} {'worst 1s':>8s} {'balance':>8s} {'on cable':>8s}"
+          f" {'rest s':>7s}  status")
+    for case in args.case:
+        for hz in args.hz:
+            for m in args.mass:
+                res = (leaning if case == "leaning" else held)(m, hz, args.seconds)
+                print(f"{case:8s} {m:8.3g} {hz:6.0f} {res['sink']:8.3f} {res['worst']:8.3f} {res['balance']:8.4f}"
+                      f" {res['share']:8.4f} {res['rest']:7.3f}  {res['status']}", flush=True)
+
+
+if __name__ == "__main__":
+    main()
