@@ -75,6 +75,8 @@ def hold(cs, measured: list[int], dt: float, mass: np.ndarray) -> None:
     g = bd.gravity
     count = int(c.count[0])
     for o in measured:
+        if not bd.active[o]:
+            continue  # no row of this cable touches it this step: it is not in the step (nor its inertia loaded)
         s = int(cs._slot_row[o])
         m = 1.0 / sh.inv_mass[s]
         held = cs.held_load[o, :3]
@@ -86,4 +88,7 @@ def hold(cs, measured: list[int], dt: float, mass: np.ndarray) -> None:
         bd.mass[o] = scale * m
         bd.inertia[o] *= scale
         bd.vel[o, :3] += dt * ((m * g + held) / (scale * m) - g)
-        bd.vel[o, 3:] += dt * np.linalg.solve(bd.inertia[o], cs.held_load[o, 3:])
+        try:
+            bd.vel[o, 3:] += dt * np.linalg.solve(bd.inertia[o], cs.held_load[o, 3:])
+        except np.linalg.LinAlgError:  # a point or flat body's inertia: no turn where it has none
+            bd.vel[o, 3:] += dt * (np.linalg.pinv(bd.inertia[o]) @ cs.held_load[o, 3:])
