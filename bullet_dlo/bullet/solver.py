@@ -71,10 +71,8 @@ def make_stall_guard(arrays: KernelArrays, workspace: Workspace, contacts: Conta
     live_rows, live_whole = step_state(contacts, bodies)
     rows = [(a, a.copy()) for a in live_rows]
     whole = [(a, a.copy()) for a in live_whole]
-    for name in [f"tw_{f}" for f in TwistState._fields] + ["tw_clamp"]:
-        a = getattr(arrays, name)
-        if a.size:
-            whole.append((a, a.copy()))
+    # every twist array, empty ones too: one tuple type for every cable, so the step kernels compile once
+    whole += [(a, a.copy()) for a in (getattr(arrays, f"tw_{f}") for f in (*TwistState._fields, "clamp"))]
     whole += [(workspace.x_prev, workspace.x_prev.copy()), (workspace.v_prev, workspace.v_prev.copy())]
     return StallGuard(levels=int(levels), far=float(far), wild=float(wild), x0=np.zeros((n, 3)), v0=np.zeros((n, 3)),
                       vs=np.zeros((n, 3)), rows=tuple(rows), whole=tuple(whole), info=np.zeros(6))
@@ -103,7 +101,7 @@ class CableSolver:
                  gravity: np.ndarray):
         n = model.n
         self.stepper = make_stepper(method, dt / substeps, newton)
-        self.coupling = Coupling(dt=float(dt), substeps=substeps, gravity=np.asarray(gravity, dtype=float),
+        self.coupling = Coupling(dt=float(dt), substeps=substeps, gravity=np.array(gravity, dtype=float),  # writable: one type
                                  x=state.x.copy(), v=state.v.copy(), v_bullet=state.v.copy(), x_new=np.zeros((n, 3)),
                                  v_new=np.zeros((n, 3)), force=np.zeros((n, 3)), samples=empty_samples(),
                                  end_force=np.zeros((2, 3)), end_torque=np.zeros((2, 3)), energy=np.zeros(1))
