@@ -226,7 +226,7 @@ def add_part(world, x: np.ndarray) -> int:
     return part
 
 
-def run(out: Path, quick: bool, hz: float = HZ) -> dict:
+def run(out: Path, quick: bool, hz: float = HZ, size: tuple[int, int] | None = None) -> dict:
     clip, post = write_meshes(out)
     scene = Scene.from_dict({
         "name": "mesh clip", "cable": CORD, "integrator": "implicit_euler", "dt": 1.0 / hz,
@@ -253,7 +253,7 @@ def run(out: Path, quick: bool, hz: float = HZ) -> dict:
         world.after_step += [checks, last_forces]
         state.update(arm_scene=arm_scene, checks=checks)
 
-    size = (160, 120) if quick else (640, 480)
+    size = size or ((160, 120) if quick else (640, 480))
     tic = time.process_time()  # the whole process: the renderer's threads too
     summary = render_scene(scene, out, width=size[0], height=size[1], phases=PHASES, progress=False,
                            still_time=None if quick else 4.6, on_arm_scene=on_arm_scene)
@@ -307,12 +307,22 @@ def main() -> None:
     ap.add_argument("--out", default=None, help="output folder (default: a new temporary folder)")
     ap.add_argument("--quick", action="store_true", help="1.5 s at 160x120: the cord lowered into the clip")
     ap.add_argument("--hz", type=float, default=HZ, help=f"physics rate [Hz] (default {HZ:g})")
+    ap.add_argument("--size", default=None, metavar="WxH",
+                    help="video size in pixels, each 16-1920 (default 640x480; --quick: 160x120)")
     args = ap.parse_args()
+    size = None
+    if args.size is not None:
+        try:
+            size = tuple(int(v) for v in args.size.lower().split("x"))
+        except ValueError:
+            size = ()
+        if len(size) != 2 or not all(16 <= v <= 1920 for v in size):
+            ap.error(f"--size must be WxH with each of W, H in 16-1920 pixels, got {args.size!r}")
     if not (math.isfinite(args.hz) and args.hz >= 10.0):
         ap.error(f"--hz must be a physics rate of at least 10 Hz, got {args.hz:g}")  # one line, exit 2
     out = Path(args.out) if args.out else Path(tempfile.mkdtemp(prefix="mesh_clip_"))
     out.mkdir(parents=True, exist_ok=True)
-    res = run(out, args.quick, args.hz)
+    res = run(out, args.quick, args.hz, size)
     pen, clr = res["penetration_mm"], res["clearance_minus_radius_mm"]
     part = res["part"]
     print(f"cable stable: {res['stable']}; {res['frames']} frames; {res['cpu_s']:.1f} s CPU")

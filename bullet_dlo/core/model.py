@@ -362,7 +362,7 @@ def with_arrays(model: CableModel, **arrays: np.ndarray) -> CableModel:
         low = "positive" if name == "mass" else "non-negative"
         if v.shape != old.shape or not np.all(np.isfinite(v)) or not np.all(v > 0 if name == "mass" else v >= 0):
             raise ParameterError(f"{name} must be {low} finite values of shape {old.shape}")
-        new[name] = read_only(v)  # as every model's arrays (and one array type for the kernels: one compile)
+        new[name] = v
     return replace(model, arrays=a._replace(**new))
 
 

@@ -77,7 +77,7 @@ from scipy.spatial.transform import Rotation
 from bullet_dlo.analysis.fit_recording import RIGHT_FROM_LEFT, Recording
 from bullet_dlo.core.boundary import EndHolder, Waypoints, default_normal
 from bullet_dlo.core.engine import simulate
-from bullet_dlo.core.model import STANDARD_GRAVITY, CableModel, CableState, build_arrays, read_only
+from bullet_dlo.core.model import STANDARD_GRAVITY, CableModel, CableState, build_arrays
 from bullet_dlo.core.spec import CableSpec
 from bullet_dlo.core.validate import ParameterError, check_int, check_positive
 from bullet_dlo.reality.recording import MarkerRecording
@@ -357,7 +357,7 @@ def build_model(rec: MarkerRecording, values: dict[str, float], num: Numerics,
     g = gravity_of(values) if gravity is None else np.asarray(gravity, dtype=float)
     arrays = build_arrays(spec, "clamped", "clamped", g)
     if rest is not None:
-        arrays = arrays._replace(rest_angle=read_only(rest.angles(spec.n_masses, spec.length)))  # as every model's
+        arrays = arrays._replace(rest_angle=rest.angles(spec.n_masses, spec.length))
     model = CableModel(spec, first, last, g, arrays, x0)
     return model, CableState(x0, v0, 0.0), rec.s - s0
 
