@@ -492,6 +492,7 @@ class ContactSet:
         self.links = np.array([r[1] for r in rows], dtype=np.int64)
         self.dynamic = np.array([r[6] for r in rows], dtype=np.bool_)
         self._any_dynamic = bool(self.dynamic[:self.n_exact].any())
+        self._dynamic_rows = bool(self.dynamic.any())
         nb = len(rows)
         mu_b = np.array([r[7] for r in rows])
         pairs = [(r[0], r[1]) for r in rows]
@@ -542,6 +543,9 @@ class ContactSet:
             self._cable_box = np.zeros((2, 3))
             self._reach = None  # _reach_box bound on first use
             self._candidates = None  # _probe_candidates bound on first use
+            self._rows_near = None  # _rows_with_candidates bound on first use
+            self._row_flags = np.zeros(nb, np.bool_)  # which hit rows have candidates (see _probe)
+            self._near_set = False  # a probed row's hull is marked near (hulls.near; cleared at the next probe)
             self._prev_rows: set = set()
         self.keys_per_shape = keys_per_shape(n)
         self.other_cables = list(others)
@@ -803,7 +807,9 @@ class ContactSet:
         self._prev_rows = {int(r) for r in np.unique(prev[prev >= self.n_exact])} if k_prev else set()
         rows |= self._prev_rows  # the links touched last step: their velocity now, for the work check
         near = self.hulls.near
-        near[self.n_exact:] = False  # a child link's hull: its pose is read below when it is near
+        if self._near_set:  # a child link's hull: its pose is read below when it is near
+            near[self.n_exact:] = False
+            self._near_set = False
         if not rows:
             return
         nodes, segs, mid, quat, dist = self._cand
@@ -814,18 +820,30 @@ class ContactSet:
         n = len(x)
         xl = None
         kinds = self.shapes.kind
-        for s in sorted(rows):
-            body, link = self.rows[s][0:2]
-            box[0], box[1] = pb.getAABB(body, link, physicsClientId=cid)
+        table = self.rows
+        order = sorted(rows)
+        # every hit link's box at once, and one compiled pass that says which have candidates (a gripper round an
+        # excluded end has none: its box is near, no node's is); only those are asked again for their candidates
+        boxes = np.array([pb.getAABB(table[s][0], table[s][1], physicsClientId=cid) for s in order])
+        idx = np.array(order, dtype=np.int64)
+        flags = self._row_flags[:len(order)]
+        args = (x, boxes, reach, self._probe_out, idx, capsule >= 0, nodes, segs, mid, quat, flags)
+        if self._rows_near is None:
+            self._rows_near = bind(_rows_with_candidates, *args)
+        self._rows_near(*args)
+        for r, s in enumerate(order):
+            if not flags[r] and s not in self._prev_rows:
+                continue  # only its box was near (a gripper around an excluded end)
+            body, link = table[s][0:2]
+            box[:] = boxes[r]
             args = (x, box, reach, self._probe_out[s], capsule >= 0, nodes, segs, mid, quat)
             if self._candidates is None:
                 self._candidates = bind(_probe_candidates, *args)
             nn, ns = self._candidates(*args)
-            if nn == 0 and ns == 0 and s not in self._prev_rows:
-                continue  # only its box was near (a gripper around an excluded end)
             self._read_link(s)
             if kinds[s] == HULL:  # on the exact geometry in detect(), with its pose now
                 near[s] = True
+                self._near_set = True
                 continue
             xl = x.tolist() if xl is None else xl
             dist[:] = margin
@@ -921,8 +939,9 @@ class ContactSet:
         """Apply the reaction of every contact to its dynamic body (force at the centre of mass plus
         the torque of the forces about it), for the coming Bullet step."""
         c = self.contacts
-        self._applied[:] = 0.0
-        if int(c.count[0]) == 0 or not self.dynamic.any():
+        if self.free_bodies:
+            self._applied[:] = 0.0
+        if int(c.count[0]) == 0 or not self._dynamic_rows:
             return
         if self._loads is None:
             nb = len(self.rows)
@@ -1295,6 +1314,16 @@ def _probe_candidates(x, box, reach, out, segments, nodes, segs, mid, quat):
             quat[ns, 0], quat[ns, 1], quat[ns, 2], quat[ns, 3] = -e1 / ql, e0 / ql, 0.0, (1.0 + e2) / ql
         ns += 1
     return nn, ns
+
+
+@njit(cache=True, error_model="numpy")
+def _rows_with_candidates(x, boxes, reach, out, rows, segments, nodes, segs, mid, quat, flags):
+    """For each row ``rows[r]`` (k,) with link box ``boxes[r]`` (k, 2, 3): whether :func:`_probe_candidates` finds
+    a node or a segment of x within ``reach`` of it (skipping that row's ``out`` nodes, (B, n) bool), into
+    ``flags[r]``; ``nodes``, ``segs``, ``mid``, ``quat``: its scratch (left as the last row's answer)."""
+    for r in range(rows.shape[0]):
+        nn, ns = _probe_candidates(x, boxes[r], reach, out[rows[r]], segments, nodes, segs, mid, quat)
+        flags[r] = nn > 0 or ns > 0
 
 
 @njit(cache=True, error_model="numpy", inline="always")
