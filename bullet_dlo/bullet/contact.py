@@ -69,6 +69,7 @@ from bullet_dlo.core.kernels.contact import (PENALTY, STICK, WRAP, Bodies, Conta
 BOX, SPHERE, CYLINDER, CAPSULE, PROBE, HULL = range(6)  # PROBE: a link measured by Bullet's narrow phase
 # HULL: a convex hull mesh on the project's exact geometry (:class:`Hulls`), checked against Bullet at set-up
 N_EDGES = 12  # a box's edges, each a segment feature of its own
+SKIP_QUIET = True  # skip detect() when quiet() proves it finds nothing (False: always detect; for the A/B test)
 SMALL_N = 64  # self-contact candidates of cables up to this many nodes: every pair tried (faster there)
 S_MIN = 1e-3  # segment interior: 0 < s < 1 away from the nodes by this much (nodes are contacts of their own)
 # a probed segment contact must come closer than both its nodes by this much [m] (above the narrow phase's
@@ -580,6 +581,7 @@ class ContactSet:
         for s in range(self.n_exact):
             self._read_pose(s, with_velocity=False)
         self._detect = None  # bound to the argument types on first use (skips Numba's per-call dispatch)
+        self._quiet = None  # quiet(), bound likewise
         self._deepest = None  # _deepest_dynamic, bound likewise
         self._loads = None  # apply_to_bodies' per-row force, torque and touched rows (made on first use)
         self._inside_reported: set[int] = set()  # bodies already reported holding the cable's centre line
@@ -704,6 +706,17 @@ class ContactSet:
         if self._probe_rows:
             self._probe(x, v, h)
         measured = self._measure(dt, stepped, supported) if self.free_bodies else ()
+        if (SKIP_QUIET and not self.other_cables and not self.free_bodies and self.contacts.count[0] == 0
+                and self.probes.count[0] == 0):
+            # no contact last step, no probed answer, nobody else's rows: detect() would find nothing and change
+            # nothing when quiet() says no shape and no pair of segments is within its margin (the same tests)
+            sh = self.shapes
+            qargs = (x, v, float(h), sh.kind, sh.size, sh.rot, sh.pos, self.hulls.near, self.contacts.radius,
+                     self.self_mu)
+            if self._quiet is None:
+                self._quiet = bind(quiet, *qargs)
+            if self._quiet(*qargs):
+                return 0
         k_per_mass = self.alpha / (h * h)
         args = (x, v, mass, self.shapes, self.contacts, self.bodies, self.store, float(h), k_per_mass, self.zeta, self.self_mu,
                 float(dt), float(dt) if stepped else 0.0, self.others, self.probes, self._seg_k, self._seg_l,
@@ -1738,6 +1751,38 @@ def detect(x, v, mass, sh, c, bd, st, h, k_per_mass, zeta, self_mu, h_body, h_do
 
 
 @njit(cache=True, error_model="numpy")
+def quiet(x, v, h, kind, size, rot, pos, near, radius, self_mu):
+    """Whether :func:`detect` of positions x [m] (n, 3), velocities v [m/s], a cable step of h [s] would find no
+    contact, by its own tests: every Shapes row (``kind``, ``size``, ``rot``, ``pos``) out of reach by its cull
+    (:func:`_out_of_reach`; PROBE rows are skipped there, a HULL row ``near`` is not culled) and, unless
+    self_mu[0] < 0, no pair of segments within the margin (:func:`_self_touches`). With no contact in the last step,
+    no probed answer, no other cable and no free body, such a detect() changes nothing but the count (0): the
+    caller skips it (``ContactSet.update``)."""
+    vmax = 0.0
+    for i in range(v.shape[0]):
+        for j in range(3):
+            vmax = max(vmax, abs(v[i, j]))
+    r = radius[0]
+    margin = r + 2.0 * vmax * h + 1e-3
+    n = x.shape[0]
+    q = np.empty((n, 3))
+    for s in range(kind.shape[0]):
+        if kind[s] == PROBE:
+            continue
+        if kind[s] == HULL:
+            if near[s]:
+                return False
+            continue
+        R, P = rot[s], pos[s]
+        for i in range(n):  # nodes in the shape frame, as detect() computes them
+            for j in range(3):
+                q[i, j] = (R[0, j] * (x[i, 0] - P[0]) + R[1, j] * (x[i, 1] - P[1]) + R[2, j] * (x[i, 2] - P[2]))
+        if not _out_of_reach(q, kind[s], size[s], r + margin):
+            return False
+    return not (self_mu[0] >= 0.0 and _self_touches(x, r, margin))
+
+
+@njit(cache=True, error_model="numpy")
 def _load_free_bodies(c, bd, st, sh):
     """The free bodies' mass, world inertia and velocity now into the contact step's Bodies ``bd``, and each
     row's slot (-1: not on a free body, or on a shared one) and arm [m] from the body's centre of mass."""
@@ -2021,6 +2066,47 @@ def _grid_pairs(x, skip, reach):
     return out[:k]
 
 
+@njit(cache=True, error_model="numpy", inline="always")
+def _self_candidates(x, radius, margin):
+    """The candidate pairs of segments of :func:`_self_contacts` (codes i n + j, :func:`_self_pairs`)."""
+    l0 = 0.0
+    for j in range(3):
+        l0 += (x[1, j] - x[0, j]) ** 2
+    # segments closer along the cable than pi r (a loop tighter than the cable is thick) never touch, and
+    # those within 2 r + margin would be near each other on a straight cable: both are left out
+    skip = 1 + int(math.ceil(max(math.pi * radius, 2.0 * radius + margin) / max(math.sqrt(l0), 1e-12)))
+    reach = 2.5 * math.sqrt(l0) + 2.0 * radius + margin  # first nodes farther apart: the segments cannot touch
+    return _self_pairs(x, skip, reach)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _self_pair(x, i, j, nl):
+    """Segments i and j of x: their closest points' parameters s, t and distance d [m], the vector between them into
+    ``nl`` (3,); d = -1 where the next segment owns the closest node (no contact of this pair)."""
+    n = x.shape[0]
+    s, t = _segments_closest(x[i], x[i + 1], x[j], x[j + 1])
+    if (s >= 1.0 and i < n - 2) or (t >= 1.0 and j < n - 2):
+        return s, t, -1.0  # the next segment owns this node
+    d2 = 0.0
+    for q in range(3):
+        nl[q] = (1.0 - s) * x[i, q] + s * x[i + 1, q] - (1.0 - t) * x[j, q] - t * x[j + 1, q]
+        d2 += nl[q] ** 2
+    return s, t, math.sqrt(d2)
+
+
+@njit(cache=True, error_model="numpy")
+def _self_touches(x, radius, margin):
+    """Whether :func:`_self_contacts` would add a row: a candidate pair of segments of x closer than 2 radius +
+    margin [m] (its own test)."""
+    n = x.shape[0]
+    nl = np.empty(3)
+    for code in _self_candidates(x, radius, margin):
+        s, t, d = _self_pair(x, code // n, code % n, nl)
+        if not (d < 0.0 or d == 0.0 or d - 2.0 * radius >= margin):
+            return True
+    return False
+
+
 @njit(cache=True, error_model="numpy")
 def _self_contacts(x, mass, c, st, key0, self_mu, margin, k_per_mass, zeta):
     """Contacts between segments of the cable that are not close along it (a cable lying across itself).
@@ -2034,25 +2120,11 @@ def _self_contacts(x, mass, c, st, key0, self_mu, margin, k_per_mass, zeta):
     """
     n = x.shape[0]
     radius = c.radius[0]
-    l0 = 0.0
-    for j in range(3):
-        l0 += (x[1, j] - x[0, j]) ** 2
-    # segments closer along the cable than pi r (a loop tighter than the cable is thick) never touch, and
-    # those within 2 r + margin would be near each other on a straight cable: both are left out
-    skip = 1 + int(math.ceil(max(math.pi * radius, 2.0 * radius + margin) / max(math.sqrt(l0), 1e-12)))
     nl = np.empty(3)
-    reach = 2.5 * math.sqrt(l0) + 2.0 * radius + margin  # first nodes farther apart: the segments cannot touch
-    for code in _self_pairs(x, skip, reach):
+    for code in _self_candidates(x, radius, margin):
         i, j = code // n, code % n
-        s, t = _segments_closest(x[i], x[i + 1], x[j], x[j + 1])
-        if (s >= 1.0 and i < n - 2) or (t >= 1.0 and j < n - 2):
-            continue  # the next segment owns this node
-        d2 = 0.0
-        for q in range(3):
-            nl[q] = (1.0 - s) * x[i, q] + s * x[i + 1, q] - (1.0 - t) * x[j, q] - t * x[j + 1, q]
-            d2 += nl[q] ** 2
-        d = math.sqrt(d2)
-        if d == 0.0 or d - 2.0 * radius >= margin:
+        s, t, d = _self_pair(x, i, j, nl)
+        if d < 0.0 or d == 0.0 or d - 2.0 * radius >= margin:
             continue
         for q in range(3):
             nl[q] /= d
