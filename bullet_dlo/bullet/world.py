@@ -371,8 +371,8 @@ class BulletWorld:
     @property
     def supported_bodies(self) -> set[int]:
         """The free bodies in a Bullet contact (not with a cable's sphere) in the last step: the ground or another body
-        supports them (a cable's step moves them under the load Bullet put on them, :mod:`bullet_dlo.bullet.held_bodies`).
-        Taken in phase 7 of :meth:`step`; when every cable's spheres are parked proxies and no cable's contact set has a
+        supports them (a cable's step moves them under the load Bullet put on them,
+        :mod:`bullet_dlo.bullet.held_bodies`). Taken in phase 7 of :meth:`step`; when every cable's spheres are parked proxies and no cable's contact set has a
         free body, phase 7 reads Bullet's contacts only if a cable asks for this set in it (a set rebuilt there with a
         new free body); otherwise it stays empty: only free bodies in it count, and there were none in the step."""
         if self._supported_due:
