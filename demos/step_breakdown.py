@@ -12,7 +12,12 @@ world with the same spheres, filters and ground, its spheres live in Bullet and 
 (``bullet_spheres="live"``: a model-contact cable's spheres are otherwise parked proxies, asleep in Bullet, and
 its world's step costs about a third of that; printed beside it).
 
-Writes ``step_breakdown.json`` (every round of every part, the load) into ``--out``.
+In situ (second table): the same parts inside ``BulletWorld.step`` of a third warmed world, each wrapped with a
+clock (its own cost, measured on a no-op, is taken off each part): what each part costs where it runs, after the
+others have had the caches (Bullet's step and the kernels cost 1.3-4x their isolated time there), and the Python
+glue left between them.
+
+Writes ``step_breakdown.json`` (every round of every part, the in-situ parts, the load) into ``--out``.
 
 Usage: ``python demos/step_breakdown.py [--n 10] [--rounds 9] [--block 400] [--out DIR] [--quick]``
 (``--quick``: one round of 20 calls; for smoke tests).
@@ -52,6 +57,74 @@ def per_call(fn, block: int) -> float:
     for _ in range(block):
         fn()
     return 1e6 * (time.thread_time() - t0) / block
+
+
+def in_situ(model: CableModel, rounds: int, block: int) -> tuple[dict[str, list[float]], float]:
+    """Per-part thread CPU time [us per step] inside ``BulletWorld.step`` (no recorder), each part wrapped with a
+    clock on its instance; returns the rounds of each part (the clock's cost taken off) and a wrapped call's cost
+    [us]."""
+    world = BulletWorld(dt=1e-3)
+    cable = world.add_cable(model, record_every=10**9)
+    world.step(50)
+    clock = time.thread_time_ns
+    acc: dict[str, int] = {}
+    calls: dict[str, int] = {}
+
+    def wrap(obj, attr: str, label: str) -> None:
+        fn = getattr(obj, attr)
+
+        def timed(*a, **k):
+            t0 = clock()
+            out = fn(*a, **k)
+            acc[label] = acc.get(label, 0) + clock() - t0
+            calls[label] = calls.get(label, 0) + 1
+            return out
+        setattr(obj, attr, timed)
+
+    # the clock's own cost, on a no-op (each round): inside a wrapped part's interval (``inner_us``) and of a whole
+    # wrapped call over the plain call it replaces (``over``: what a caller's interval pays for it)
+    probe = type("Probe", (), {"noop": staticmethod(lambda: None)})()
+    wrap(probe, "noop", "noop")
+
+    def clock_cost() -> tuple[float, float]:
+        acc.clear(), calls.clear()
+        t0 = clock()
+        for _ in range(block):
+            probe.noop()
+        return (clock() - t0) / block / 1e3 - per_call(lambda: None, block), acc["noop"] / block / 1e3
+    cs, solver = cable.contact.set, cable.solver
+    # (object, method, label, the part it runs inside: None at the top)
+    update, step = "contact model update", "CableSolver.step"
+    parts = [(world, "push_cables", "forces to Bullet (push_cables)", None),
+             (world, "step_physics", "Bullet's step", None),
+             (world, "contacts", "contact query (getContactPoints)", None),
+             (cable.contact, "refresh", "contact set refresh check", None),
+             (cs, "update", update, None),
+             (cs, "_read_poses", "  of which obstacle poses (native read)", update),
+             (cs, "_detect", "  of which detection kernel", update),
+             (solver, "step_input", "step input (StepInput)", None),
+             (solver, "step", step, None),
+             (solver, "_kernel", "  of which model kernel", step)]
+    for obj, attr, label, _ in parts:
+        wrap(obj, attr, label)
+    rounds_us: dict[str, list[float]] = {label: [] for *_, label, _ in parts}
+    rounds_us["step (timed parts)"] = []
+    overs = []
+    for _ in range(rounds):
+        over, inner_us = clock_cost()
+        overs.append(over)
+        acc.clear(), calls.clear()
+        t0 = clock()
+        world.step(block)
+        total = (clock() - t0) / block / 1e3
+        wrapped = sum(calls.get(label, 0) for *_, label, _ in parts) / block
+        rounds_us["step (timed parts)"].append(total - wrapped * over)
+        for obj, attr, label, _ in parts:
+            inner = sum(calls.get(lb, 0) for *_, lb, within in parts if within == label) / block
+            rounds_us[label].append(acc.get(label, 0) / block / 1e3 - (calls.get(label, 0) / block) * inner_us
+                                    - inner * over)
+    world.close()
+    return rounds_us, statistics.median(overs)
 
 
 def main() -> None:
@@ -114,8 +187,10 @@ def main() -> None:
         reset_twin()
         for name, fn in parts.items():
             times[name].append(per_call(fn, args.block))
+    situ, clock_us = in_situ(model, args.rounds, args.block)
     load_end = os.getloadavg()
     med = {k: statistics.median(v) for k, v in times.items()}
+    situ_med = {k: statistics.median(v) for k, v in situ.items()}
     print(f"n = {args.n}, 1 kHz, implicit Euler; thread CPU time per call [us], median (range) of {args.rounds} "
           f"interleaved rounds of {args.block}; load {load[0]:.2f} / {load[1]:.2f} / {load[2]:.2f} at the start, "
           f"{load_end[0]:.2f} / {load_end[1]:.2f} / {load_end[2]:.2f} at the end")
@@ -128,10 +203,18 @@ def main() -> None:
     print(f"  {'  Python glue (the step minus its parts)':44s} {glue:7.1f}")
     print(f"coupled / bare: {med['coupled step, no recorder'] / bare_us:.2f}x without the recorder, "
           f"{med['coupled step, recording every step'] / bare_us:.2f}x recording every step")
+    print(f"in situ: each part inside BulletWorld.step (no recorder), us per step, median (range); the clock's own "
+          f"cost ({clock_us:.2f} us per wrapped call) taken off")
+    for name, v in situ.items():
+        print(f"  {name:44s} {situ_med[name]:7.1f} ({min(v):.1f}-{max(v):.1f})")
+    situ_glue = situ_med["step (timed parts)"] - sum(
+        situ_med[k] for k in situ if not k.startswith("  ") and k != "step (timed parts)")
+    print(f"  {'Python glue (the step minus its parts)':44s} {situ_glue:7.1f}")
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     (out / "step_breakdown.json").write_text(json.dumps(
-        {"n": args.n, "rounds_us": times, "median_us": med, "glue_us": glue, "load_start": load,
+        {"n": args.n, "rounds_us": times, "median_us": med, "glue_us": glue, "in_situ_rounds_us": situ,
+         "in_situ_median_us": situ_med, "in_situ_glue_us": situ_glue, "clock_us": clock_us, "load_start": load,
          "load_end": load_end}, indent=2))
     print(f"outputs written to {out.resolve()}")
     for w in (rec_world, world, kernel_world, bare, parked):

@@ -360,24 +360,29 @@ class BulletCable:
             self.t += self.world.dt
             self.steps += 1
             self.contacts_last_step = len(touched)
+        solver, contact = self.solver, self.contact
         if self.model_contact:
-            self._refresh_contact_set()
-            cp = self._cp
+            contact.refresh()
+            cp = solver.coupling
             x0, v0 = (cp.x_new, cp.v_new) if do_sync else (cp.x, cp.v)  # the state this step starts from
-            cs = self._contact_set
-            self.contacts_last_step = cs.update(x0, v0, self.arrays.mass, self.stepper.h, self.world.dt, do_sync,
-                                                self.world.shared_bodies(self.name) if cs.free_bodies else (),
-                                                self.world.supported_bodies if cs.free_bodies else ())
-            if cs.free_bodies and len(self.world.cables) > 1:  # (only another cable can share a body this way)
-                self.world.touched_by_model(self.name, cs.touched_free_bodies())
+            cs = contact.set
+            world = self.world
+            free = cs.free_bodies
+            self.contacts_last_step = cs.update(x0, v0, self.arrays.mass, solver.stepper.h, world.dt, do_sync,
+                                                world.shared_bodies(self.name) if free else (),
+                                                world.supported_bodies if free else ())
+            if free and len(world.cables) > 1:  # (only another cable can share a body this way)
+                world.touched_by_model(self.name, cs.touched_free_bodies())
         record = do_sync and self.steps % self.record_every == 0
-        inp = self._step_input(do_sync, record, idx_arr, pos, vel)
+        contacts = contact.contacts
+        inp = solver.step_input(self.t, self.steps if do_sync else 0, do_sync, record, contacts, idx_arr, pos, vel)
         active = self.grip.active
-        gripped = (bool(active[0]), bool(active[1]))
-        status = self.solver.step(self.arrays, self.control, self.contacts, self.contact.bodies, inp)
-        for end in (0, 1):
-            if gripped[end] and not active[end]:  # the end slid out of the gripper
-                self._let_go(end)
+        gripped = active.tolist()
+        status = solver.step(self.arrays, self.control, contacts, contact.bodies, inp)
+        if gripped[0] or gripped[1]:
+            for end in (0, 1):
+                if gripped[end] and not active[end]:  # the end slid out of the gripper
+                    self._let_go(end)
         if record:
             self._record_row(from_kernel=True)
         elif do_sync and status != STABLE:
@@ -405,9 +410,8 @@ class BulletCable:
         if self.proxy:  # parked spheres: Bullet does not move them (module doc); the touched bodies' reactions only
             if self._fresh:
                 self._hold_fresh()
-            cs = self.contact.set
-            if cs is not None:
-                cs.apply_to_bodies()
+            if self.contact.any_dynamic:  # (no dynamic body in the set: no reaction to apply)
+                self.contact.set.apply_to_bodies()
             return
         native = self.world.native_handle()
         if native:  # one compiled call instead of n PyBullet calls
@@ -421,9 +425,8 @@ class BulletCable:
             frame = pb.WORLD_FRAME
             for b, f, pos in zip(self.body_ids, solver.coupling.force.tolist(), self.x.tolist()):
                 apply(b, -1, f, pos, frame, cid)  # positional: keyword parsing costs 50 % more per call
-        cs = self.contact.set
-        if cs is not None:
-            cs.apply_to_bodies()
+        if self.contact.any_dynamic:
+            self.contact.set.apply_to_bodies()
 
     def sync_after_step(self, touched) -> None:
         """Take over Bullet's step: ``touched`` holds the spheres that had contacts (read back)."""

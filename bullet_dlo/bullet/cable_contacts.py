@@ -36,6 +36,7 @@ class CableContacts:
     def __init__(self, cable):
         self.cable = cable
         self.set: ContactSet | None = None
+        self.any_dynamic = False  # the set has a dynamic row (a body the contacts' reactions are applied to)
         self.bullet_off = False
         self.excluded: set[tuple[int, int]] = set()
         self.bodies_seen = -1
@@ -68,13 +69,18 @@ class CableContacts:
         cable = self.cable
         if not cable.model_contact:
             return
-        alone = len(cable.world.cables) <= 1  # (this cable is in it once added): no partners can appear
-        if alone and not self.partners_seen and self.bodies_seen == len(cable.world.bodies):
-            return  # the common case, checked without building the partner list every step
-        partners = self.partners()
-        names = tuple(c.name for c in partners)
         cid = cable.world.client
         count = pb.getNumBodies(physicsClientId=cid)
+        cables = cable.world.cables
+        if not self.partners_seen and len(cables) == 1 and cables.get(cable.name) is cable:
+            # the common case: this cable alone in the world (so no partners), checked without building the
+            # partner list every step
+            if self.bodies_seen == count:
+                return
+            partners = []
+        else:
+            partners = self.partners()
+        names = tuple(c.name for c in partners)
         if self.bodies_seen == count and names == self.partners_seen:
             return
         spec = cable.model.spec
@@ -93,6 +99,7 @@ class CableContacts:
                               # in place by grasp and release): what a segment wrapping an edge needs
                               segments=(cable.model.arrays.k_stretch, cable.model.arrays.rest_length,
                                         cable.control.k_bend, cable.control.held))
+        self.any_dynamic = bool(self.set.dynamic.any())
         if self.bullet_off:
             self.exclude_model_bodies()
 

@@ -52,6 +52,7 @@ from __future__ import annotations
 
 import math
 import warnings
+from itertools import chain
 from typing import NamedTuple
 
 import numpy as np
@@ -68,6 +69,7 @@ from bullet_dlo.core.kernels.contact import (PENALTY, STICK, WRAP, Bodies, Conta
 BOX, SPHERE, CYLINDER, CAPSULE, PROBE, HULL = range(6)  # PROBE: a link measured by Bullet's narrow phase
 # HULL: a convex hull mesh on the project's exact geometry (:class:`Hulls`), checked against Bullet at set-up
 N_EDGES = 12  # a box's edges, each a segment feature of its own
+SKIP_QUIET = True  # skip detect() when quiet() proves it finds nothing (False: always detect; for the A/B test)
 SMALL_N = 64  # self-contact candidates of cables up to this many nodes: every pair tried (faster there)
 S_MIN = 1e-3  # segment interior: 0 < s < 1 away from the nodes by this much (nodes are contacts of their own)
 # a probed segment contact must come closer than both its nodes by this much [m] (above the narrow phase's
@@ -492,6 +494,7 @@ class ContactSet:
         self.links = np.array([r[1] for r in rows], dtype=np.int64)
         self.dynamic = np.array([r[6] for r in rows], dtype=np.bool_)
         self._any_dynamic = bool(self.dynamic[:self.n_exact].any())
+        self._dynamic_rows = bool(self.dynamic.any())
         nb = len(rows)
         mu_b = np.array([r[7] for r in rows])
         pairs = [(r[0], r[1]) for r in rows]
@@ -543,6 +546,9 @@ class ContactSet:
             self._cable_box = np.zeros((2, 3))
             self._reach = None  # _reach_box bound on first use
             self._candidates = None  # _probe_candidates bound on first use
+            self._rows_near = None  # _rows_with_candidates bound on first use
+            self._row_flags = np.zeros(nb, np.bool_)  # which hit rows have candidates (see _probe)
+            self._near_set = False  # a probed row's hull is marked near (hulls.near; cleared at the next probe)
             self._prev_rows: set = set()
         self.keys_per_shape = keys_per_shape(n)
         self.other_cables = list(others)
@@ -576,6 +582,7 @@ class ContactSet:
         for s in range(self.n_exact):
             self._read_pose(s, with_velocity=False)
         self._detect = None  # bound to the argument types on first use (skips Numba's per-call dispatch)
+        self._quiet = None  # quiet(), bound likewise
         self._deepest = None  # _deepest_dynamic, bound likewise
         self._loads = None  # apply_to_bodies' per-row force, torque and touched rows (made on first use)
         self._inside_reported: set[int] = set()  # bodies already reported holding the cable's centre line
@@ -701,6 +708,17 @@ class ContactSet:
             self._probe(x, v, h)
         measured = self._measure(dt, stepped, supported) if self.free_bodies else ()
         self._inv_dt[0] = 1.0 / dt
+        if (SKIP_QUIET and not self.other_cables and not self.free_bodies and self.contacts.count[0] == 0
+                and self.probes.count[0] == 0):
+            # no contact last step, no probed answer, nobody else's rows: detect() would find nothing and change
+            # nothing when quiet() says no shape and no pair of segments is within its margin (the same tests)
+            sh = self.shapes
+            qargs = (x, v, float(h), sh.kind, sh.size, sh.rot, sh.pos, self.hulls.near, self.contacts.radius,
+                     self.self_mu)
+            if self._quiet is None:
+                self._quiet = bind(quiet, *qargs)
+            if self._quiet(*qargs):
+                return 0
         k_per_mass = self.alpha / (h * h)
         args = (x, v, mass, self.shapes, self.contacts, self.bodies, self.store, float(h), k_per_mass, self.zeta, self.self_mu,
                 float(dt), float(dt) if stepped else 0.0, self.others, self.probes, self._seg_k, self._seg_l,
@@ -798,14 +816,18 @@ class ContactSet:
         margin = self._reach(*args)
         reach = self._radius + margin
         cid = self.client
-        hits = pb.getOverlappingObjects(cable_box[0].tolist(), cable_box[1].tolist(), physicsClientId=cid) or ()
-        rows = {self._probe_rows[hit] for hit in hits if hit in self._probe_rows}
+        lo, hi = cable_box.tolist()
+        hits = pb.getOverlappingObjects(lo, hi, physicsClientId=cid) or ()
+        rows = set(map(self._probe_rows.get, hits))  # (a hit that is no PROBE row: None)
+        rows.discard(None)
         k_prev = int(self.contacts.count[0])
         prev = self.store.body[:k_prev]
         self._prev_rows = {int(r) for r in np.unique(prev[prev >= self.n_exact])} if k_prev else set()
         rows |= self._prev_rows  # the links touched last step: their velocity now, for the work check
         near = self.hulls.near
-        near[self.n_exact:] = False  # a child link's hull: its pose is read below when it is near
+        if self._near_set:  # a child link's hull: its pose is read below when it is near
+            near[self.n_exact:] = False
+            self._near_set = False
         if not rows:
             return
         nodes, segs, mid, quat, dist = self._cand
@@ -816,18 +838,33 @@ class ContactSet:
         n = len(x)
         xl = None
         kinds = self.shapes.kind
-        for s in sorted(rows):
-            body, link = self.rows[s][0:2]
-            box[0], box[1] = pb.getAABB(body, link, physicsClientId=cid)
+        table = self.rows
+        order = sorted(rows)
+        # every hit link's box at once, and one compiled pass that says which have candidates (a gripper round an
+        # excluded end has none: its box is near, no node's is); only those are asked again for their candidates
+        k = len(order)
+        corners = chain.from_iterable(chain.from_iterable(
+            pb.getAABB(table[s][0], table[s][1], physicsClientId=cid) for s in order))
+        boxes = np.fromiter(corners, float, 6 * k).reshape(k, 2, 3)  # (np.array of the tuples: 5x slower)
+        idx = np.fromiter(order, np.int64, k)
+        flags = self._row_flags[:k]
+        args = (x, boxes, reach, self._probe_out, idx, capsule >= 0, nodes, segs, mid, quat, flags)
+        if self._rows_near is None:
+            self._rows_near = bind(_rows_with_candidates, *args)
+        self._rows_near(*args)
+        for r, (s, has) in enumerate(zip(order, flags.tolist())):
+            if not has and s not in self._prev_rows:
+                continue  # only its box was near (a gripper around an excluded end)
+            body, link = table[s][0:2]
+            box[:] = boxes[r]
             args = (x, box, reach, self._probe_out[s], capsule >= 0, nodes, segs, mid, quat)
             if self._candidates is None:
                 self._candidates = bind(_probe_candidates, *args)
             nn, ns = self._candidates(*args)
-            if nn == 0 and ns == 0 and s not in self._prev_rows:
-                continue  # only its box was near (a gripper around an excluded end)
             self._read_link(s)
             if kinds[s] == HULL:  # on the exact geometry in detect(), with its pose now
                 near[s] = True
+                self._near_set = True
                 continue
             xl = x.tolist() if xl is None else xl
             dist[:] = margin
@@ -923,8 +960,9 @@ class ContactSet:
         """Apply the reaction of every contact to its dynamic body (force at the centre of mass plus
         the torque of the forces about it), for the coming Bullet step."""
         c = self.contacts
-        self._applied[:] = 0.0
-        if int(c.count[0]) == 0 or not self.dynamic.any():
+        if self.free_bodies:
+            self._applied[:] = 0.0
+        if int(c.count[0]) == 0 or not self._dynamic_rows:
             return
         if self._loads is None:
             nb = len(self.rows)
@@ -1301,6 +1339,16 @@ def _probe_candidates(x, box, reach, out, segments, nodes, segs, mid, quat):
             quat[ns, 0], quat[ns, 1], quat[ns, 2], quat[ns, 3] = -e1 / ql, e0 / ql, 0.0, (1.0 + e2) / ql
         ns += 1
     return nn, ns
+
+
+@njit(cache=True, error_model="numpy")
+def _rows_with_candidates(x, boxes, reach, out, rows, segments, nodes, segs, mid, quat, flags):
+    """For each row ``rows[r]`` (k,) with link box ``boxes[r]`` (k, 2, 3): whether :func:`_probe_candidates` finds
+    a node or a segment of x within ``reach`` of it (skipping that row's ``out`` nodes, (B, n) bool), into
+    ``flags[r]``; ``nodes``, ``segs``, ``mid``, ``quat``: its scratch (left as the last row's answer)."""
+    for r in range(rows.shape[0]):
+        nn, ns = _probe_candidates(x, boxes[r], reach, out[rows[r]], segments, nodes, segs, mid, quat)
+        flags[r] = nn > 0 or ns > 0
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -1709,6 +1757,38 @@ def detect(x, v, mass, sh, c, bd, st, h, k_per_mass, zeta, self_mu, h_body, h_do
 
 
 @njit(cache=True, error_model="numpy")
+def quiet(x, v, h, kind, size, rot, pos, near, radius, self_mu):
+    """Whether :func:`detect` of positions x [m] (n, 3), velocities v [m/s], a cable step of h [s] would find no
+    contact, by its own tests: every Shapes row (``kind``, ``size``, ``rot``, ``pos``) out of reach by its cull
+    (:func:`_out_of_reach`; PROBE rows are skipped there, a HULL row ``near`` is not culled) and, unless
+    self_mu[0] < 0, no pair of segments within the margin (:func:`_self_touches`). With no contact in the last step,
+    no probed answer, no other cable and no free body, such a detect() changes nothing but the count (0): the
+    caller skips it (``ContactSet.update``)."""
+    vmax = 0.0
+    for i in range(v.shape[0]):
+        for j in range(3):
+            vmax = max(vmax, abs(v[i, j]))
+    r = radius[0]
+    margin = r + 2.0 * vmax * h + 1e-3
+    n = x.shape[0]
+    q = np.empty((n, 3))
+    for s in range(kind.shape[0]):
+        if kind[s] == PROBE:
+            continue
+        if kind[s] == HULL:
+            if near[s]:
+                return False
+            continue
+        R, P = rot[s], pos[s]
+        for i in range(n):  # nodes in the shape frame, as detect() computes them
+            for j in range(3):
+                q[i, j] = (R[0, j] * (x[i, 0] - P[0]) + R[1, j] * (x[i, 1] - P[1]) + R[2, j] * (x[i, 2] - P[2]))
+        if not _out_of_reach(q, kind[s], size[s], r + margin):
+            return False
+    return not (self_mu[0] >= 0.0 and _self_touches(x, r, margin))
+
+
+@njit(cache=True, error_model="numpy")
 def _load_free_bodies(c, bd, st, sh):
     """The free bodies' mass, world inertia and velocity now into the contact step's Bodies ``bd``, and each
     row's slot (-1: not on a free body, or on a shared one) and arm [m] from the body's centre of mass."""
@@ -1992,6 +2072,47 @@ def _grid_pairs(x, skip, reach):
     return out[:k]
 
 
+@njit(cache=True, error_model="numpy", inline="always")
+def _self_candidates(x, radius, margin):
+    """The candidate pairs of segments of :func:`_self_contacts` (codes i n + j, :func:`_self_pairs`)."""
+    l0 = 0.0
+    for j in range(3):
+        l0 += (x[1, j] - x[0, j]) ** 2
+    # segments closer along the cable than pi r (a loop tighter than the cable is thick) never touch, and
+    # those within 2 r + margin would be near each other on a straight cable: both are left out
+    skip = 1 + int(math.ceil(max(math.pi * radius, 2.0 * radius + margin) / max(math.sqrt(l0), 1e-12)))
+    reach = 2.5 * math.sqrt(l0) + 2.0 * radius + margin  # first nodes farther apart: the segments cannot touch
+    return _self_pairs(x, skip, reach)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _self_pair(x, i, j, nl):
+    """Segments i and j of x: their closest points' parameters s, t and distance d [m], the vector between them into
+    ``nl`` (3,); d = -1 where the next segment owns the closest node (no contact of this pair)."""
+    n = x.shape[0]
+    s, t = _segments_closest(x[i], x[i + 1], x[j], x[j + 1])
+    if (s >= 1.0 and i < n - 2) or (t >= 1.0 and j < n - 2):
+        return s, t, -1.0  # the next segment owns this node
+    d2 = 0.0
+    for q in range(3):
+        nl[q] = (1.0 - s) * x[i, q] + s * x[i + 1, q] - (1.0 - t) * x[j, q] - t * x[j + 1, q]
+        d2 += nl[q] ** 2
+    return s, t, math.sqrt(d2)
+
+
+@njit(cache=True, error_model="numpy")
+def _self_touches(x, radius, margin):
+    """Whether :func:`_self_contacts` would add a row: a candidate pair of segments of x closer than 2 radius +
+    margin [m] (its own test)."""
+    n = x.shape[0]
+    nl = np.empty(3)
+    for code in _self_candidates(x, radius, margin):
+        s, t, d = _self_pair(x, code // n, code % n, nl)
+        if not (d < 0.0 or d == 0.0 or d - 2.0 * radius >= margin):
+            return True
+    return False
+
+
 @njit(cache=True, error_model="numpy")
 def _self_contacts(x, mass, c, st, key0, self_mu, margin, k_per_mass, zeta):
     """Contacts between segments of the cable that are not close along it (a cable lying across itself).
@@ -2005,25 +2126,11 @@ def _self_contacts(x, mass, c, st, key0, self_mu, margin, k_per_mass, zeta):
     """
     n = x.shape[0]
     radius = c.radius[0]
-    l0 = 0.0
-    for j in range(3):
-        l0 += (x[1, j] - x[0, j]) ** 2
-    # segments closer along the cable than pi r (a loop tighter than the cable is thick) never touch, and
-    # those within 2 r + margin would be near each other on a straight cable: both are left out
-    skip = 1 + int(math.ceil(max(math.pi * radius, 2.0 * radius + margin) / max(math.sqrt(l0), 1e-12)))
     nl = np.empty(3)
-    reach = 2.5 * math.sqrt(l0) + 2.0 * radius + margin  # first nodes farther apart: the segments cannot touch
-    for code in _self_pairs(x, skip, reach):
+    for code in _self_candidates(x, radius, margin):
         i, j = code // n, code % n
-        s, t = _segments_closest(x[i], x[i + 1], x[j], x[j + 1])
-        if (s >= 1.0 and i < n - 2) or (t >= 1.0 and j < n - 2):
-            continue  # the next segment owns this node
-        d2 = 0.0
-        for q in range(3):
-            nl[q] = (1.0 - s) * x[i, q] + s * x[i + 1, q] - (1.0 - t) * x[j, q] - t * x[j + 1, q]
-            d2 += nl[q] ** 2
-        d = math.sqrt(d2)
-        if d == 0.0 or d - 2.0 * radius >= margin:
+        s, t, d = _self_pair(x, i, j, nl)
+        if d < 0.0 or d == 0.0 or d - 2.0 * radius >= margin:
             continue
         for q in range(3):
             nl[q] /= d

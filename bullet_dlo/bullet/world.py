@@ -89,7 +89,8 @@ class BulletWorld:
         # free bodies that a cable's step may not move by itself (contact.Bodies): those in a Bullet contact
         # in the last step (the ground or another body supports them) and, per cable, the free bodies touched by
         # the model's contacts of each cable in the last step (a body on two cables is moved by neither alone)
-        self.supported_bodies: set[int] = set()
+        self._supported: set[int] = set()  # see supported_bodies
+        self._supported_due = False  # phase 7 left the contact query for supported_bodies to its first reader
         self.model_touches: dict[int, set[str]] = {}
         self._model_touches_now: dict[int, set[str]] = {}
         self.bodies_added = False  # a dynamic body was added since the cables planned their coming step
@@ -367,6 +368,27 @@ class BulletWorld:
         for b in bodies:
             self._model_touches_now.setdefault(b, set()).add(cable)
 
+    @property
+    def supported_bodies(self) -> set[int]:
+        """The free bodies in a Bullet contact (not with a cable's sphere) in the last step: the ground or another body
+        supports them (a cable's step moves them under the load Bullet put on them,
+        :mod:`bullet_dlo.bullet.held_bodies`). Taken in phase 7 of :meth:`step`; when every cable's spheres are parked proxies and no cable's contact set has a
+        free body, phase 7 reads Bullet's contacts only if a cable asks for this set in it (a set rebuilt there with a
+        new free body); otherwise it stays empty: only free bodies in it count, and there were none in the step."""
+        if self._supported_due:
+            self._supported_due = False
+            self._supported = self._supported_in(self.contacts())
+        return self._supported
+
+    @supported_bodies.setter
+    def supported_bodies(self, bodies: set[int]) -> None:
+        self._supported_due = False
+        self._supported = bodies
+
+    def _supported_in(self, contacts) -> set[int]:
+        owners = self._owners
+        return {b for cp in contacts if cp[1] not in owners and cp[2] not in owners for b in (cp[1], cp[2])}
+
     def step_physics(self) -> None:
         """Phase 4 of :meth:`step`: Bullet's own step; the clock advances by ``dt``."""
         pb.stepSimulation(self.client)
@@ -377,10 +399,12 @@ class BulletWorld:
         """Phase 7 of :meth:`step`: the spheres that touched something are read back (one contact query
         for the world) and every cable takes its own step."""
         cables = list(self.cables.values())
-        contacts = self.contacts() if cables else ()
-        owners = self._owners
-        self.supported_bodies = {b for cp in contacts if cp[1] not in owners and cp[2] not in owners
-                                 for b in (cp[1], cp[2])}
+        # parked proxies are never read back (BulletCable.sync_after_step): with only those, Bullet's contacts serve
+        # just the free bodies' support (supported_bodies), asked for on demand when no contact set has a free body
+        lazy = all(c.proxy and not (c.contact.set is not None and c.contact.set.free_bodies) for c in cables)
+        contacts = self.contacts() if cables and not lazy else ()
+        self.supported_bodies = self._supported_in(contacts)
+        self._supported_due = lazy and bool(cables)
         self.model_touches, self._model_touches_now = self._model_touches_now, {}
         # cables touching each other through the model read the ones still pending as held where they
         # are, the ones done as moving over their planned step (see ContactSet._read_others)
@@ -389,6 +413,7 @@ class BulletWorld:
             self._take_cable_steps(cables, contacts)
         finally:
             self._pending = set()
+            self._supported_due = False  # (not asked in phase 7: no free body in any set, the empty set holds)
 
     def _take_cable_steps(self, cables, contacts) -> None:
         if not contacts:
