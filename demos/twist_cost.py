@@ -75,16 +75,17 @@ def _parts(n: int) -> None:
             tc._residual(m, mp, imp, ws, samples, False, 1e-3, tb, wb, wa, vn, wn, wv, rate, tq, r, g, sc)
 
     @njit
-    def matrices(reps, stepper, m, mp, imp, ws, band, g, sc):
+    def matrices(reps, stepper, m, mp, imp, ws, band, g, sc, lower, upx, samples):
         for _ in range(reps):
-            tc._newton_matrix(stepper, m, mp, imp, ws, band, g, sc)
+            tc._newton_matrix(stepper, m, mp, imp, ws, band, g, sc, True, lower, upx, samples, False, 1e-3)
 
     @njit
-    def solves(reps, band, r, bcopy, rcopy):
+    def solves(reps, band, lower, r, bcopy, lcopy, rcopy):
         for _ in range(reps):
             bcopy[:, :] = band
+            lcopy[:, :] = lower
             rcopy[:] = r
-            tc.band_solve_upper(bcopy, rcopy, tc.HALF_T, 4)
+            tc._band_lu_coupled(bcopy, lcopy, rcopy)
 
     @njit
     def plain_solves(reps, band, r, bcopy, rcopy):
@@ -135,12 +136,15 @@ def _parts(n: int) -> None:
     sc = tc.make_scratch(n)
     mp = tc._frameless(m)
     r, g, band = np.empty(4 * n), np.empty((12, 3)), np.empty((4 * n, tc.HALF_T + 1))
+    lower, upx = np.empty((4 * n, tc.HALF_T + 1)), np.empty((4 * n, tc.HALF_T + 1))
     rows = {
         "twist: residual": per_call(residuals, m, mp, imp, ws, samples, m.tw_theta.copy(), np.zeros(ns),
                                     m.tw_omega.copy(), ws.v_new, m.tw_omega.copy(), np.empty(ns), np.zeros(n),
                                     np.empty(ns), r, g, sc),
-        "twist: Newton matrix": per_call(matrices, stepper, m, mp, imp, ws, band, g, sc),
-        "twist: band solve (4n, half-width 10)": per_call(solves, band, r, band.copy(), r.copy()),
+        "twist: Newton matrix (exact)": per_call(matrices, stepper, m, mp, imp, ws, band, g, sc, lower, upx,
+                                                 samples),
+        "twist: band LU solve (4n, half-width 10)": per_call(solves, band, lower, r, band.copy(), lower.copy(),
+                                                             r.copy()),
         "twist: update_frames (once a step)": per_call(frames, m, ws.x_stage, imp.dirs),
         "twist: frameless forces inside the residual": per_call(forces, mp, ws.x_stage, ws.v_stage, imp.dirs,
                                                                 ws.force),
