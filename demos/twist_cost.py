@@ -14,6 +14,7 @@ batches), the frameless step's kernels beside.
     python demos/twist_cost.py
     python demos/twist_cost.py --ns 10 20 40 80 --repeats 7 --steps 1000 --method bdf2
     python demos/twist_cost.py --parts --ns 80
+    python demos/twist_cost.py --ns 80 --exact-from 1    # the exact Jacobian from the first Newton iteration
 """
 from __future__ import annotations
 
@@ -27,6 +28,7 @@ import numpy as np
 
 from bullet_dlo.core.boundary import Move
 from bullet_dlo.core.engine import simulate
+from bullet_dlo.core.integrators import NewtonOptions
 from bullet_dlo.core.model import CableModel
 from bullet_dlo.core.spec import CableSpec
 
@@ -38,10 +40,13 @@ def model(n: int, twist: bool, duration: float) -> CableModel:
     return CableModel.straight(spec, ends=("clamped", "clamped"), motion=[move])
 
 
+NEWTON = NewtonOptions()
+
+
 def step_cost(m: CableModel, method: str, dt: float, steps: int) -> float:
     """Thread CPU time per step [s] of one run."""
     t0 = time.thread_time()
-    res = simulate(m, method, dt, steps * dt, record_every=steps)
+    res = simulate(m, method, dt, steps * dt, record_every=steps, newton=NEWTON)
     cost = (time.thread_time() - t0) / steps
     if not res.stable:
         raise RuntimeError(f"unstable run: {res.reason}")
@@ -172,7 +177,13 @@ def main() -> None:
     parser.add_argument("--method", default="bdf2")
     parser.add_argument("--dt", type=float, default=1e-3)
     parser.add_argument("--parts", action="store_true", help="time the coupled step's kernels alone (BDF2)")
+    parser.add_argument("--exact-from", type=int, default=None,
+                        help="newton.exact_from: the Newton iteration from which the twisting step takes the exact "
+                             "Jacobian (default: NewtonOptions')")
     args = parser.parse_args()
+    global NEWTON
+    if args.exact_from is not None:
+        NEWTON = NewtonOptions(exact_from=args.exact_from)
     if args.steps < 2:
         sys.exit(print(f"--steps must be >= 2 (got {args.steps})", file=sys.stderr) or 2)
     if args.parts:

@@ -38,8 +38,9 @@ kb/2|e|), the twist gradient's part off the transported state (the reference fra
 (tan x t)/(1 + tan . t) per edge), the Kelvin-Voigt rate's position derivative, and the anisotropic bending's
 curvature terms (the Hessian of q . phi, the material frames' turn and spin). It is not symmetric (the residual's
 kb/2|e| is m's gradient only at the transported state), so it is stored as an upper and a lower band and
-eliminated without pivoting (:func:`_band_lu_coupled`); an iteration whose elimination meets a pivot <= 0 takes
-the symmetric Gauss-Newton matrix above instead. Newton then converges quadratically in the twist as in the
+eliminated without pivoting (:func:`_band_lu_coupled`), from the Newton iteration ``exact_from`` of the stepper
+on (:class:`~bullet_dlo.core.integrators.NewtonOptions`; the iterations before take the Gauss-Newton matrix
+above, cheaper per iteration); an iteration whose elimination meets a pivot <= 0 takes the Gauss-Newton matrix. Newton then converges quadratically in the twist as in the
 positions (the frameless Kelvin-Voigt dampers' position terms, left out of
 :func:`~bullet_dlo.core.kernels.forces.add_damping_jacobian`, aside). Newton iterates to the stepper's tolerance
 with the line search of :func:`~bullet_dlo.core.kernels.steppers.newton` on the incremental potential (kinetic and
@@ -47,6 +48,7 @@ dissipative terms of the twist included), so the coupled step has the method's o
 """
 from __future__ import annotations
 
+import math
 from typing import NamedTuple
 
 import numpy as np
@@ -95,7 +97,7 @@ class Scratch(NamedTuple):
     and reference director transported onto it (:func:`~bullet_dlo.core.kernels.twist.edge_frame`'s first seven
     values); geo (n, 6) each node's |e_a|, |e_b| [m], curvature binormal kb (3) and twist stress
     s = k_t m + c_t dm/dt [N m] (written for the nodes with a twist spring or damper); xw (36, 6): the exact
-    Jacobian's node scratch (:func:`_exact_node`)."""
+    Jacobian's node scratch (:func:`_exact_node`); zw (8, 11) :func:`_scatter_exact`'s."""
 
     ga: np.ndarray
     gb: np.ndarray
@@ -109,13 +111,14 @@ class Scratch(NamedTuple):
     edges: np.ndarray
     geo: np.ndarray
     xw: np.ndarray
+    zw: np.ndarray
 
 
 def make_scratch(n: int) -> Scratch:
     """The :class:`Scratch` of an n-node cable."""
     return Scratch(np.empty(3), np.empty(3), np.empty((3, 3)), np.empty((3, 3)), np.zeros(1), np.empty(11),
                    np.empty((4, 6)), np.empty((6, 6)), np.empty(11), np.empty((max(n - 1, 0), 7)),
-                   np.empty((n, 6)), np.zeros((36, 6)))
+                   np.empty((n, 6)), np.zeros((36, 6)), np.zeros((8, 11)))
 
 
 _make_scratch = njit(cache=True)(make_scratch)  # the same, called from the compiled step
@@ -660,52 +663,46 @@ def _exact_node(g, la, lb, ratio, alpha, c, kt, dl, s, ct, has_a, has_b, tan, i,
         W[7, 3 + j] += dl * (k1b * k1b - k2b * k2b) * W[26, 3 + j] / lb
 
 
-@njit(cache=True, error_model="numpy", inline="always")
-def _target(y, a, i, ns, held):
-    """(global unknown, sign) of the a-th (0, 1) unknown that local coordinate y (0-2 e_a, 3-5 e_b, 6 theta_a,
-    7 theta_b) of node i maps to (e_a = x_i - x_{i-1}, e_b = x_{i+1} - x_i); (-1, 0) where there is none (a clamp's
-    virtual edge, a held node)."""
-    if y < 3:
-        if i == 0:
-            return -1, 0.0
-        p = i - 1 + a
-        return (-1, 0.0) if held[p] else (4 * p + y, 1.0 if a == 1 else -1.0)
-    if y < 6:
-        if i == ns:
-            return -1, 0.0
-        p = i + a
-        return (-1, 0.0) if held[p] else (4 * p + y - 3, 1.0 if a == 1 else -1.0)
-    if a == 1:
-        return -1, 0.0
-    if y == 6:
-        return (4 * (i - 1) + 3, 1.0) if i > 0 else (-1, 0.0)
-    return (4 * i + 3, 1.0) if i < ns else (-1, 0.0)
-
-
 @njit(cache=True, error_model="numpy")
-def _scatter_exact(band, lower, upx, W, kc, i, ns, held):
-    """A += kc E^T X E for the node's extra terms X = W[0:8] (E: the local coordinates' map onto the unknowns):
-    the diagonal into ``band``, the entries above it into ``upx``, below it into ``lower`` (column-wise,
-    lower[q, p - q] = A[p, q])."""
+def _scatter_exact(band, lower, upx, W, Z, kc, i, ns, held):
+    """A += kc E^T X E for node i's extra terms X = W[0:8] (rows e_a, e_b, theta_a, theta_b; columns e_a, e_b),
+    E the map of the local unknowns (x_{i-1} 0-2, theta_{i-1} 3, x_i 4-6, theta_i 7, x_{i+1} 8-10) onto them
+    (e_a = x_i - x_{i-1}, e_b = x_{i+1} - x_i; a clamp's virtual edge is fixed): the diagonal into ``band``, the
+    entries above it into ``upx``, below it into ``lower`` (by columns, lower[q, p - q] = A[p, q]); held nodes'
+    unknowns left out. Z (8, 11): scratch, X E."""
+    ea, eb = i > 0, i < ns
+    pa, pi, pb = ea and not held[i - 1], not held[i], eb and not held[i + 1]
     for yr in range(8):
-        for a in range(2):
-            p, sp = _target(yr, a, i, ns, held)
-            if p < 0:
+        for j in range(3):
+            xa = W[yr, j] if ea else 0.0
+            xb = W[yr, 3 + j] if eb else 0.0
+            Z[yr, j] = -xa
+            Z[yr, 4 + j] = xa - xb
+            Z[yr, 8 + j] = xb
+    base = 4 * (i - 1)
+    for lr in range(11):
+        if not _present(lr, pa, pi, pb, ea, eb):
+            continue
+        node, comp = lr // 4, lr % 4
+        p = base + lr
+        for lc in range(11):
+            if lc % 4 == 3 or not _present(lc, pa, pi, pb, ea, eb):
                 continue
-            for yc in range(6):
-                v = kc * sp * W[yr, yc]
-                if v == 0.0:
-                    continue
-                for b in range(2):
-                    q, sq = _target(yc, b, i, ns, held)
-                    if q < 0:
-                        continue
-                    if p == q:
-                        band[p, 0] += v * sq
-                    elif p < q:
-                        upx[p, q - p] += v * sq
-                    else:
-                        lower[q, p - q] += v * sq
+            if comp == 3:
+                val = Z[6, lc] if node == 0 else Z[7, lc]
+            else:
+                za = Z[comp, lc] if ea else 0.0
+                zb = Z[3 + comp, lc] if eb else 0.0
+                val = -za if node == 0 else (za - zb if node == 1 else zb)
+            if val == 0.0:
+                continue
+            q = base + lc
+            if p == q:
+                band[p, 0] += kc * val
+            elif p < q:
+                upx[p, q - p] += kc * val
+            else:
+                lower[q, p - q] += kc * val
 
 
 @njit(cache=True, error_model="numpy")
@@ -797,7 +794,7 @@ def _newton_matrix(stepper, m, mp, imp, ws, band, g, sc, exact, lower, upx, samp
                 c = g[0, 0] * g[2, 0] + g[0, 1] * g[2, 1] + g[0, 2] * g[2, 2]
             _exact_node(g, la, lb, ratio, alpha, c, kt, dl, geo[i, 5], ct, i > 0, i < ns, tan, i, ws.v_stage,
                         wt, samples.dir, pa, pb, W)
-            _scatter_exact(band, lower, upx, W, kc, i, ns, held)
+            _scatter_exact(band, lower, upx, W, sc.zw, kc, i, ns, held)
         if dl == 0.0:
             continue
         p1a, p2a, p1b, p2b = _curvatures(g)
@@ -915,14 +912,18 @@ def coupled_implicit(stepper, m, x, v, samples, ws, has_prev):
     kept = True  # the last residual was at the current iterate (sc.edges: its frames)
     while it < stepper.max_iter:
         it += 1
-        # the exact Jacobian; where its elimination meets a pivot <= 0 (the matrix indefinite, e.g. beyond a twist
-        # buckling threshold at a large step), this iteration takes the symmetric Gauss-Newton matrix instead
-        _newton_matrix(stepper, m, mp, imp, ws, band, g, sc, True, lower, upx, samples, mid, h)
-        r_try[:] = r
-        if not _band_lu_coupled(band, lower, r) > 0.0:  # r becomes the Newton direction
-            r[:] = r_try
+        # from iteration stepper.exact_from on the exact Jacobian; where its elimination meets a pivot <= 0 (the
+        # matrix indefinite, e.g. beyond a twist buckling threshold at a large step) the Gauss-Newton matrix instead
+        exact = it >= stepper.exact_from
+        if exact:
+            _newton_matrix(stepper, m, mp, imp, ws, band, g, sc, True, lower, upx, samples, mid, h)
+            r_try[:] = r
+            if not _band_lu_coupled(band, lower, r) > 0.0:  # r becomes the Newton direction
+                r[:] = r_try
+                exact = False
+        if not exact:
             _newton_matrix(stepper, m, mp, imp, ws, band, g, sc, False, lower, upx, samples, mid, h)
-            band_solve_upper(band, r, HALF_T, 4)
+            band_solve_upper(band, r, HALF_T, 4)  # r becomes the Newton direction
         phi0 = np.nan
         alpha = 1.0
         accepted = False
