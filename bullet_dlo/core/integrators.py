@@ -41,7 +41,8 @@ from bullet_dlo.core.kernels.steppers import (
 from bullet_dlo.core.validate import check_bool, check_in_range, check_int, check_positive
 
 MAX_NEWTON_ITER = 1000
-EXACT_FROM = 4  # NewtonOptions.exact_from's default (docs/concepts/model.md, the twisting step's cost)
+EXACT_FROM = MAX_NEWTON_ITER + 1  # NewtonOptions.exact_from's default, never: the exact Jacobian costs more than it
+# saves (docs/concepts/model.md, the twisting step's cost)
 
 
 @dataclass(frozen=True)
@@ -88,7 +89,8 @@ class NewtonOptions:
     system stays positive definite; exact_from: the Newton iteration (1-based) from which the implicit step of a
     cable with a material frame takes the exact Jacobian of its residual (earlier iterations: the symmetric
     Gauss-Newton matrix, cheaper per iteration; see :mod:`~bullet_dlo.core.kernels.twist_coupled`), in
-    [1, 1001]; 1001: never.
+    [1, 1001]; 1001 (the default): never, the Gauss-Newton matrix throughout (it converges linearly but the
+    exact one's non-symmetric elimination and extra terms cost more than the iterations they save).
     """
 
     max_iter: int = 8
