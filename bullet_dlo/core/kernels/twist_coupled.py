@@ -32,17 +32,18 @@ repeats no geometry of a round section. Its blocks:
   state where the frames were transported (the start of the step), of the twist torques in x;
 * theta-theta: k_t (tridiagonal) and Delta (kappa_2^2 - kappa_1^2) (filtered to >= 0 with ``definite``).
 
-The Newton iterations take the exact Jacobian of this residual (:func:`_exact_node`): besides the blocks above,
-the stress terms s dgamma/dx of the twist (s = k_t m + c_t dm/dt, gamma = dm/dx as the residual computes it,
-kb/2|e|), the twist gradient's part off the transported state (the reference frames' spin within the step,
+The exact Jacobian of this residual (:func:`_exact_node`) is there on request: besides the blocks above, the
+stress terms s dgamma/dx of the twist (s = k_t m + c_t dm/dt, gamma = dm/dx as the residual computes it, kb/2|e|),
+the twist gradient's part off the transported state (the reference frames' spin within the step,
 (tan x t)/(1 + tan . t) per edge), the Kelvin-Voigt rate's position derivative, and the anisotropic bending's
 curvature terms (the Hessian of q . phi, the material frames' turn and spin). It is not symmetric (the residual's
 kb/2|e| is m's gradient only at the transported state), so it is stored as an upper and a lower band and
-eliminated without pivoting (:func:`_band_lu_coupled`), from the Newton iteration ``exact_from`` of the stepper
-on (:class:`~bullet_dlo.core.integrators.NewtonOptions`; the iterations before take the Gauss-Newton matrix
-above, cheaper per iteration); an iteration whose elimination meets a pivot <= 0 takes the Gauss-Newton matrix. Newton then converges quadratically in the twist as in the
-positions (the frameless Kelvin-Voigt dampers' position terms, left out of
-:func:`~bullet_dlo.core.kernels.forces.add_damping_jacobian`, aside). Newton iterates to the stepper's tolerance
+eliminated without pivoting (:func:`_band_lu_coupled`). The Newton iterations from the stepper's ``exact_from`` on
+take it (:class:`~bullet_dlo.core.integrators.NewtonOptions`), by default none: per iteration it costs about 2.2x
+the Gauss-Newton matrix and solve at n = 80 and saves only 3.0 -> 2.8 iterations per step (the frameless step's
+own count; docs/concepts/model.md). An iteration whose elimination meets a pivot <= 0 takes the Gauss-Newton
+matrix. With it Newton converges quadratically in the twist as in the positions (the frameless Kelvin-Voigt
+dampers' position terms, left out of :func:`~bullet_dlo.core.kernels.forces.add_damping_jacobian`, aside). Newton iterates to the stepper's tolerance
 with the line search of :func:`~bullet_dlo.core.kernels.steppers.newton` on the incremental potential (kinetic and
 dissipative terms of the twist included), so the coupled step has the method's order (2 for BDF2 and implicit midpoint).
 """
