@@ -39,7 +39,7 @@ the twist gradient's part off the transported state (the reference frames' spin 
 curvature terms (the Hessian of q . phi, the material frames' turn and spin). It is not symmetric (the residual's
 kb/2|e| is m's gradient only at the transported state), so it is stored as an upper and a lower band and
 eliminated without pivoting (:func:`_band_lu_coupled`). The Newton iterations from the stepper's ``exact_from`` on
-take it (:class:`~bullet_dlo.core.integrators.NewtonOptions`), by default none: per iteration it costs about 2.2x
+take it (:class:`~bullet_dlo.core.integrators.NewtonOptions`), by default none: per iteration it costs about 2x
 the Gauss-Newton matrix and solve at n = 80 and saves only 3.0 -> 2.8 iterations per step (the frameless step's
 own count; docs/concepts/model.md). An iteration whose elimination meets a pivot <= 0 takes the Gauss-Newton
 matrix. With it Newton converges quadratically in the twist as in the positions (the frameless Kelvin-Voigt
