@@ -141,3 +141,25 @@ def test_newton_converges_quadratically_with_the_exact_matrix():
     assert ex[3] < 1e-8 * ex[0]
     assert gn[3] / gn[2] > 0.1 * gn[2] / gn[1]  # about constant: linear
     assert gn[3] > 1e2 * ex[3]
+
+
+def test_band_lu_matches_dense_solve():
+    """The non-symmetric band elimination of the coupled layout (upper band by rows, lower by columns, each row's
+    and column's entries ending at its group's envelope) against a dense solve."""
+    rng = np.random.default_rng(7)
+    size, half = 4 * 7, tc.HALF_T
+    a = np.zeros((size, size))
+    for r in range(size):
+        for c in range(size):
+            if abs(r - c) <= half and max(r, c) <= min(r, c) - min(r, c) % 4 + half:
+                a[r, c] = rng.normal()
+        a[r, r] = 30.0 + rng.random()
+    band, lower = np.zeros((size, half + 1)), np.zeros((size, half + 1))
+    for r in range(size):
+        for d in range(min(half, size - 1 - r) + 1):
+            band[r, d] = a[r, r + d]
+            lower[r, d] = a[r + d, r]
+    rhs = rng.normal(size=size)
+    y = rhs.copy()
+    assert tc._band_lu_coupled(band, lower, y) > 0.0
+    np.testing.assert_allclose(y, np.linalg.solve(a, rhs), rtol=1e-12, atol=1e-14)
