@@ -80,9 +80,16 @@ def _parts(n: int) -> None:
             tc._residual(m, mp, imp, ws, samples, False, 1e-3, tb, wb, wa, vn, wn, wv, rate, tq, r, g, sc)
 
     @njit
-    def matrices(reps, stepper, m, mp, imp, ws, band, g, sc, lower, upx, samples):
+    def matrices(reps, stepper, m, mp, imp, ws, band, g, sc, lower, upx, samples, exact):
         for _ in range(reps):
-            tc._newton_matrix(stepper, m, mp, imp, ws, band, g, sc, True, lower, upx, samples, False, 1e-3)
+            tc._newton_matrix(stepper, m, mp, imp, ws, band, g, sc, exact, lower, upx, samples, False, 1e-3)
+
+    @njit
+    def sym_solves(reps, band, r, bcopy, rcopy):
+        for _ in range(reps):
+            bcopy[:, :] = band
+            rcopy[:] = r
+            tc.band_solve_upper(bcopy, rcopy, tc.HALF_T, 4)
 
     @njit
     def solves(reps, band, lower, r, bcopy, lcopy, rcopy):
@@ -146,10 +153,12 @@ def _parts(n: int) -> None:
         "twist: residual": per_call(residuals, m, mp, imp, ws, samples, m.tw_theta.copy(), np.zeros(ns),
                                     m.tw_omega.copy(), ws.v_new, m.tw_omega.copy(), np.empty(ns), np.zeros(n),
                                     np.empty(ns), r, g, sc),
+        "twist: Newton matrix (Gauss-Newton)": per_call(matrices, stepper, m, mp, imp, ws, band, g, sc, lower,
+                                                        upx, samples, False),
+        "twist: band solve (symmetric, 4n, half-width 10)": per_call(sym_solves, band, r, band.copy(), r.copy()),
         "twist: Newton matrix (exact)": per_call(matrices, stepper, m, mp, imp, ws, band, g, sc, lower, upx,
-                                                 samples),
-        "twist: band LU solve (4n, half-width 10)": per_call(solves, band, lower, r, band.copy(), lower.copy(),
-                                                             r.copy()),
+                                                 samples, True),
+        "twist: band LU solve (exact matrix)": per_call(solves, band, lower, r, band.copy(), lower.copy(), r.copy()),
         "twist: update_frames (once a step)": per_call(frames, m, ws.x_stage, imp.dirs),
         "twist: frameless forces inside the residual": per_call(forces, mp, ws.x_stage, ws.v_stage, imp.dirs,
                                                                 ws.force),
