@@ -14,6 +14,7 @@ batches), the frameless step's kernels beside.
     python demos/twist_cost.py
     python demos/twist_cost.py --ns 10 20 40 80 --repeats 7 --steps 1000 --method bdf2
     python demos/twist_cost.py --parts --ns 80
+    python demos/twist_cost.py --ns 80 --exact-from 1    # the exact Jacobian from the first Newton iteration
 """
 from __future__ import annotations
 
@@ -27,6 +28,7 @@ import numpy as np
 
 from bullet_dlo.core.boundary import Move
 from bullet_dlo.core.engine import simulate
+from bullet_dlo.core.integrators import NewtonOptions
 from bullet_dlo.core.model import CableModel
 from bullet_dlo.core.spec import CableSpec
 
@@ -38,10 +40,13 @@ def model(n: int, twist: bool, duration: float) -> CableModel:
     return CableModel.straight(spec, ends=("clamped", "clamped"), motion=[move])
 
 
+NEWTON = NewtonOptions()
+
+
 def step_cost(m: CableModel, method: str, dt: float, steps: int) -> float:
     """Thread CPU time per step [s] of one run."""
     t0 = time.thread_time()
-    res = simulate(m, method, dt, steps * dt, record_every=steps)
+    res = simulate(m, method, dt, steps * dt, record_every=steps, newton=NEWTON)
     cost = (time.thread_time() - t0) / steps
     if not res.stable:
         raise RuntimeError(f"unstable run: {res.reason}")
@@ -75,16 +80,24 @@ def _parts(n: int) -> None:
             tc._residual(m, mp, imp, ws, samples, False, 1e-3, tb, wb, wa, vn, wn, wv, rate, tq, r, g, sc)
 
     @njit
-    def matrices(reps, stepper, m, mp, imp, ws, band, g, sc):
+    def matrices(reps, stepper, m, mp, imp, ws, band, g, sc, lower, upx, samples, exact):
         for _ in range(reps):
-            tc._newton_matrix(stepper, m, mp, imp, ws, band, g, sc)
+            tc._newton_matrix(stepper, m, mp, imp, ws, band, g, sc, exact, lower, upx, samples, False, 1e-3)
 
     @njit
-    def solves(reps, band, r, bcopy, rcopy):
+    def sym_solves(reps, band, r, bcopy, rcopy):
         for _ in range(reps):
             bcopy[:, :] = band
             rcopy[:] = r
             tc.band_solve_upper(bcopy, rcopy, tc.HALF_T, 4)
+
+    @njit
+    def solves(reps, band, lower, r, bcopy, lcopy, rcopy):
+        for _ in range(reps):
+            bcopy[:, :] = band
+            lcopy[:, :] = lower
+            rcopy[:] = r
+            tc._band_lu_coupled(bcopy, lcopy, rcopy)
 
     @njit
     def plain_solves(reps, band, r, bcopy, rcopy):
@@ -135,12 +148,17 @@ def _parts(n: int) -> None:
     sc = tc.make_scratch(n)
     mp = tc._frameless(m)
     r, g, band = np.empty(4 * n), np.empty((12, 3)), np.empty((4 * n, tc.HALF_T + 1))
+    lower, upx = np.empty((4 * n, tc.HALF_T + 1)), np.empty((4 * n, tc.HALF_T + 1))
     rows = {
         "twist: residual": per_call(residuals, m, mp, imp, ws, samples, m.tw_theta.copy(), np.zeros(ns),
                                     m.tw_omega.copy(), ws.v_new, m.tw_omega.copy(), np.empty(ns), np.zeros(n),
                                     np.empty(ns), r, g, sc),
-        "twist: Newton matrix": per_call(matrices, stepper, m, mp, imp, ws, band, g, sc),
-        "twist: band solve (4n, half-width 10)": per_call(solves, band, r, band.copy(), r.copy()),
+        "twist: Newton matrix (Gauss-Newton)": per_call(matrices, stepper, m, mp, imp, ws, band, g, sc, lower,
+                                                        upx, samples, False),
+        "twist: band solve (symmetric, 4n, half-width 10)": per_call(sym_solves, band, r, band.copy(), r.copy()),
+        "twist: Newton matrix (exact)": per_call(matrices, stepper, m, mp, imp, ws, band, g, sc, lower, upx,
+                                                 samples, True),
+        "twist: band LU solve (exact matrix)": per_call(solves, band, lower, r, band.copy(), lower.copy(), r.copy()),
         "twist: update_frames (once a step)": per_call(frames, m, ws.x_stage, imp.dirs),
         "twist: frameless forces inside the residual": per_call(forces, mp, ws.x_stage, ws.v_stage, imp.dirs,
                                                                 ws.force),
@@ -168,7 +186,13 @@ def main() -> None:
     parser.add_argument("--method", default="bdf2")
     parser.add_argument("--dt", type=float, default=1e-3)
     parser.add_argument("--parts", action="store_true", help="time the coupled step's kernels alone (BDF2)")
+    parser.add_argument("--exact-from", type=int, default=None,
+                        help="newton.exact_from: the Newton iteration from which the twisting step takes the exact "
+                             "Jacobian (default: NewtonOptions')")
     args = parser.parse_args()
+    global NEWTON
+    if args.exact_from is not None:
+        NEWTON = NewtonOptions(exact_from=args.exact_from)
     if args.steps < 2:
         sys.exit(print(f"--steps must be >= 2 (got {args.steps})", file=sys.stderr) or 2)
     if args.parts:

@@ -294,7 +294,8 @@ def _guarded_contact_step(stepper, m, plan, ext, cp, ws, t, k, prev, contacts, b
         last = level == guard.levels
         sub = 2 ** level
         hsub = hs / sub
-        sstep = Stepper(stepper.method, hsub, stepper.max_iter, stepper.tol, stepper.definite)
+        sstep = Stepper(stepper.method, hsub, stepper.max_iter, stepper.tol, stepper.definite,
+                        stepper.exact_from)
         cp.x_new[:, :] = guard.x0
         cp.v_new[:, :] = guard.v0
         _copy_rows(guard.rows, nc, False)

@@ -41,6 +41,8 @@ from bullet_dlo.core.kernels.steppers import (
 from bullet_dlo.core.validate import check_bool, check_in_range, check_int, check_positive
 
 MAX_NEWTON_ITER = 1000
+EXACT_FROM = MAX_NEWTON_ITER + 1  # NewtonOptions.exact_from's default, never: the exact Jacobian costs more than it
+# saves (docs/concepts/model.md, the twisting step's cost)
 
 
 @dataclass(frozen=True)
@@ -84,12 +86,17 @@ class NewtonOptions:
     the method's default: 1e-3 for ``implicit_euler`` (its first-order error dwarfs a finer
     solve, so a second iteration runs only when the linearisation visibly failed) and 1e-6
     for the second- and fourth-order methods; definite: filter the compressive stretch Hessian so the
-    system stays positive definite.
+    system stays positive definite; exact_from: the Newton iteration (1-based) from which the implicit step of a
+    cable with a material frame takes the exact Jacobian of its residual (earlier iterations: the symmetric
+    Gauss-Newton matrix, cheaper per iteration; see :mod:`~bullet_dlo.core.kernels.twist_coupled`), in
+    [1, 1001]; 1001 (the default): never, the Gauss-Newton matrix throughout (it converges linearly but the
+    exact one's non-symmetric elimination and extra terms cost more than the iterations they save).
     """
 
     max_iter: int = 8
     tol: float | None = None
     definite: bool = True
+    exact_from: int = EXACT_FROM
 
     def __post_init__(self) -> None:
         # checked here, in Python: a non-bool ``definite`` would make Numba compile a new kernel specialisation
@@ -98,6 +105,7 @@ class NewtonOptions:
         if self.tol is not None:
             set_(self, "tol", check_in_range("newton.tol", self.tol, 1e-16, 1.0))
         set_(self, "definite", check_bool("newton.definite", self.definite))
+        set_(self, "exact_from", check_int("newton.exact_from", self.exact_from, 1, MAX_NEWTON_ITER + 1))
 
     def tolerance(self, integrator: str) -> float:
         """The residual tolerance used for ``integrator``."""
@@ -115,4 +123,5 @@ def make_stepper(integrator: str | Integrator, h: float, newton: NewtonOptions =
         max_iter=int(check_int("newton max_iter", newton.max_iter, 1)),
         tol=float(check_positive("newton tol", newton.tolerance(method.name))),
         definite=bool(newton.definite),
+        exact_from=int(newton.exact_from),
     )

@@ -70,6 +70,7 @@ SCENE_VALUES = {
     "newton.definite": ["abc", 2, NAN],
     "newton.max_iter": [0, 1e12, 2.5, "x"],
     "newton.tol": [-1, NAN, "x"],
+    "newton.exact_from": [0, 1e12, 2.5, "x"],
     "detector.max_strain": [-1, "x", NAN],
     "detector.check_every": [0, 1.5, "x"],
     "detector.energy_factor": [0, INF],

@@ -42,13 +42,15 @@ EXPLICIT_EULER, SYMPLECTIC_EULER, RK4, IMPLICIT_EULER, BDF2, IMPLICIT_MIDPOINT, 
 class Stepper(NamedTuple):
     """How to take a step: method code (above), step h [s], and the Newton settings of the
     implicit methods: at most ``max_iter`` iterations, residual tolerance ``tol`` (relative, see
-    :class:`~bullet_dlo.core.integrators.NewtonOptions`), ``definite`` stiffness filter."""
+    :class:`~bullet_dlo.core.integrators.NewtonOptions`), ``definite`` stiffness filter, and the iteration
+    ``exact_from`` from which the coupled twisting step takes its exact Jacobian."""
 
     method: int
     h: float
     max_iter: int
     tol: float
     definite: bool
+    exact_from: int
 
 
 class Workspace(NamedTuple):

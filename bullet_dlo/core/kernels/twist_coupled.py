@@ -17,7 +17,7 @@ function 1/2 c_t (dm/dt)^2 with the twist rate dm_i/dt = W_b - W_a + kb_i . (dV_
 reference twist's rate, Bergou 2008/2010) plus, at a clamp node, the clamp's own roll and turn over the step; they
 act on the positions too (-c_t dm/dt d(dm/dt)/dV), so the damping matrix is symmetric.
 
-The Newton matrix is M - hf cx dF/dq - hf cv dF/dq' over q = (x, theta), stored as a symmetric band with the
+The Newton matrix is M - hf cx dF/dq - hf cv dF/dq' over q = (x, theta). Its Gauss-Newton part is a symmetric band with the
 unknowns interleaved (x_i then theta_i: 4 per node, the last theta slot an identity row), half-width 10 (each node's
 rows end at column 4 i + 10, x_{i+2}; the solve works only inside that envelope). It is assembled from what the
 last residual computed at the same state (the edges' frames, the nodes' lengths and binormals), so the matrix
@@ -32,13 +32,24 @@ repeats no geometry of a round section. Its blocks:
   state where the frames were transported (the start of the step), of the twist torques in x;
 * theta-theta: k_t (tridiagonal) and Delta (kappa_2^2 - kappa_1^2) (filtered to >= 0 with ``definite``).
 
-Left out, as for the positions alone: the stress terms k_t m d2m/dx2 and the anisotropic bending's curvature
-terms (Newton's iterations converge without them). Newton iterates to the stepper's tolerance with the line search
-of :func:`~bullet_dlo.core.kernels.steppers.newton` on the incremental potential (kinetic and dissipative terms of
-the twist included), so the coupled step has the method's order (2 for BDF2 and implicit midpoint).
+The exact Jacobian of this residual (:func:`_exact_node`) is there on request: besides the blocks above, the
+stress terms s dgamma/dx of the twist (s = k_t m + c_t dm/dt, gamma = dm/dx as the residual computes it, kb/2|e|),
+the twist gradient's part off the transported state (the reference frames' spin within the step,
+(tan x t)/(1 + tan . t) per edge), the Kelvin-Voigt rate's position derivative, and the anisotropic bending's
+curvature terms (the Hessian of q . phi, the material frames' turn and spin). It is not symmetric (the residual's
+kb/2|e| is m's gradient only at the transported state), so it is stored as an upper and a lower band and
+eliminated without pivoting (:func:`_band_lu_coupled`). The Newton iterations from the stepper's ``exact_from`` on
+take it (:class:`~bullet_dlo.core.integrators.NewtonOptions`), by default none: per iteration it costs about 2x
+the Gauss-Newton matrix and solve at n = 80 and saves only 3.0 -> 2.8 iterations per step (the frameless step's
+own count; docs/concepts/model.md). An iteration whose elimination meets a pivot <= 0 takes the Gauss-Newton
+matrix. With it Newton converges quadratically in the twist as in the positions (the frameless Kelvin-Voigt
+dampers' position terms, left out of :func:`~bullet_dlo.core.kernels.forces.add_damping_jacobian`, aside). Newton iterates to the stepper's tolerance
+with the line search of :func:`~bullet_dlo.core.kernels.steppers.newton` on the incremental potential (kinetic and
+dissipative terms of the twist included), so the coupled step has the method's order (2 for BDF2 and implicit midpoint).
 """
 from __future__ import annotations
 
+import math
 from typing import NamedTuple
 
 import numpy as np
@@ -85,8 +96,9 @@ class Scratch(NamedTuple):
     What the last :func:`_residual` computed, for the Newton matrix at the same state (and, at the accepted
     iterate, the frames' transport at the end of the step): edges (n-1, 7) each edge's length [m], unit tangent
     and reference director transported onto it (:func:`~bullet_dlo.core.kernels.twist.edge_frame`'s first seven
-    values); geo (n, 5) each node's |e_a|, |e_b| [m] and curvature binormal kb (3) (written for the nodes with a
-    twist spring or damper)."""
+    values); geo (n, 6) each node's |e_a|, |e_b| [m], curvature binormal kb (3) and twist stress
+    s = k_t m + c_t dm/dt [N m] (written for the nodes with a twist spring or damper); xw (36, 6): the exact
+    Jacobian's node scratch (:func:`_exact_node`); zw (8, 11) :func:`_scatter_exact`'s."""
 
     ga: np.ndarray
     gb: np.ndarray
@@ -99,13 +111,15 @@ class Scratch(NamedTuple):
     cg: np.ndarray
     edges: np.ndarray
     geo: np.ndarray
+    xw: np.ndarray
+    zw: np.ndarray
 
 
 def make_scratch(n: int) -> Scratch:
     """The :class:`Scratch` of an n-node cable."""
     return Scratch(np.empty(3), np.empty(3), np.empty((3, 3)), np.empty((3, 3)), np.zeros(1), np.empty(11),
                    np.empty((4, 6)), np.empty((6, 6)), np.empty(11), np.empty((max(n - 1, 0), 7)),
-                   np.empty((n, 5)))
+                   np.empty((n, 6)), np.zeros((36, 6)), np.zeros((8, 11)))
 
 
 _make_scratch = njit(cache=True)(make_scratch)  # the same, called from the compiled step
@@ -137,9 +151,17 @@ def band_solve_upper(band, rhs, half, group=1):
     same order, its loops over each whole group's constant offsets (17.4 -> 9.1 us per solve at n = 80)."""
     if group == 4 and half == HALF_T:
         return _band_solve_coupled(band, rhs)
+    min_pivot = _eliminate_rows(band, rhs, 0, group, half, np.inf)
+    _back_substitute_rows(band, rhs, 0, group, half)
+    return min_pivot
+
+
+@njit(cache=True, error_model="numpy")
+def _eliminate_rows(band, rhs, start, group, half, min_pivot):
+    """The elimination of :func:`band_solve_upper` over rows start .. size - 1 (each row's work ending at its
+    group's envelope, clipped at the matrix's edge); returns min(min_pivot, the |pivots| met)."""
     size = rhs.shape[0]
-    min_pivot = np.inf
-    for k in range(size):
+    for k in range(start, size):
         piv = band[k, 0]
         if abs(piv) < min_pivot:
             min_pivot = abs(piv)
@@ -151,13 +173,19 @@ def band_solve_upper(band, rhs, half, group=1):
             for j in range(i, last + 1):
                 band[i, j - i] -= f * band[k, j - k]
             rhs[i] -= f * rhs[k]
-    for k in range(size - 1, -1, -1):
+    return min_pivot
+
+
+@njit(cache=True, error_model="numpy")
+def _back_substitute_rows(band, rhs, stop, group, half):
+    """The back substitution of :func:`band_solve_upper` over rows size - 1 down to stop."""
+    size = rhs.shape[0]
+    for k in range(size - 1, stop - 1, -1):
         acc = rhs[k]
         last = min(k - k % group + half, size - 1)
         for j in range(k + 1, last + 1):
             acc -= band[k, j - k] * rhs[j]
         rhs[k] = acc / band[k, 0]
-    return min_pivot
 
 
 @njit(cache=True, error_model="numpy")
@@ -183,24 +211,8 @@ def _band_solve_coupled(band, rhs):
                 for jj in range(ii, HALF_T + 1):
                     band[b + ii, jj - ii] -= f * band[k, jj - r]
                 rhs[b + ii] -= f * rhs[k]
-    for k in range(4 * full, size):
-        piv = band[k, 0]
-        if abs(piv) < min_pivot:
-            min_pivot = abs(piv)
-        last = min(k - k % 4 + HALF_T, size - 1)
-        for i in range(k + 1, last + 1):
-            f = band[k, i - k] / piv
-            if f == 0.0:
-                continue
-            for j in range(i, last + 1):
-                band[i, j - i] -= f * band[k, j - k]
-            rhs[i] -= f * rhs[k]
-    for k in range(size - 1, 4 * full - 1, -1):
-        acc = rhs[k]
-        last = min(k - k % 4 + HALF_T, size - 1)
-        for j in range(k + 1, last + 1):
-            acc -= band[k, j - k] * rhs[j]
-        rhs[k] = acc / band[k, 0]
+    min_pivot = _eliminate_rows(band, rhs, 4 * full, 4, HALF_T, min_pivot)  # the last groups: the general loop
+    _back_substitute_rows(band, rhs, 4 * full, 4, HALF_T)
     for gr in range(full - 1, -1, -1):
         b = 4 * gr
         for r in range(3, -1, -1):
@@ -308,6 +320,7 @@ def _residual(m, mp, imp, ws, samples, mid, h, tb, wb, wa, vn, wn, wv, rate, tq,
                 rt += _clamp_rate(m, xe, samples, mid, h, i)
             rate[i] = rt
             s += ct * rt
+        geo[i, 5] = s
         energy += 0.5 * kt * twist * twist
         # forces on the positions: -dE/dx of the twist spring and damper (stress s) and the anisotropic bending
         if dl != 0.0:
@@ -441,9 +454,290 @@ def _kept_frame(xe, dirs, th, ref, tan, clamp, edges, k):
     return (edges[k, 0], edges[k, 1], edges[k, 2], edges[k, 3], edges[k, 4], edges[k, 5], edges[k, 6], th[k])
 
 
+# ----- the exact Jacobian's terms beyond Gauss-Newton ----------------------------------------------------------
+# Scratch rows of sc.xw (44, 6): 0-7 X (8, 6) the node's extra d Gamma / d(e_a, e_b) over rows (e_a, e_b, theta_a,
+# theta_b); 8-13 D gamma (6, 6); 14-16 Y (3, 6); 17-19 K_a P_a / ((1+c) l_a) | K_b P_b / ((1+c) l_b); 20-22 H_uu |
+# H_ww; 23-25 H_uw | spare; 26 h_a | h_b (transport spins); 27 the spin vector sv (6); 28 d rate (6); 29 gamma 0-5;
+# 30 q | chi; 31 w x q | q x u; 32 F_u | F_w; 33-34 P H t | t^T H P (blocks aa, bb); 35 the same for ab.
+@njit(cache=True, error_model="numpy", inline="always")
+def _spin_row(W, row, off, t0, t1, t2, u0, u1, u2):
+    """W[row, off:off+3] <- (u x t)/(1 + u . t): the spin 1-form of the reference director transported in time
+    from tangent u (``tan``) to t, d(spin)/dt = -that (Bergou 2010's time-parallel frame, off its transported
+    state)."""
+    d = 1.0 + u0 * t0 + u1 * t1 + u2 * t2
+    W[row, off] = (u1 * t2 - u2 * t1) / d
+    W[row, off + 1] = (u2 * t0 - u0 * t2) / d
+    W[row, off + 2] = (u0 * t1 - u1 * t0) / d
+
+
 @njit(cache=True, error_model="numpy")
-def _newton_matrix(stepper, m, mp, imp, ws, band, g, sc):
-    """band <- the coupled Newton matrix (upper band, interleaved layout) at the X, V, Theta of the last residual."""
+def _exact_node(g, la, lb, ratio, alpha, c, kt, dl, s, ct, has_a, has_b, tan, i, ve, wts, sdirs, pa, pb, W):
+    """W[0:8] <- the terms of d Gamma / d(e_a, e_b) (Gamma = dE/d(e_a, e_b, theta_a, theta_b) as the residual
+    computes it, stress s = k_t m + c_t dm/dt) that the Gauss-Newton matrix leaves out (its columns over theta are
+    exact already):
+
+    * twist: k_t gamma sv^T (m's gradient off the transported state: the reference frames' spin, sv =
+      (h_a/l_a, -h_b/l_b), h = tan x t / (1 + tan . t)) + c_t gamma (d rate/de)^T + s D gamma (gamma = (kb/2l_a,
+      kb/2l_b, -1, +1), D gamma its derivative in the edges);
+    * anisotropic bending: [dphi/de]^T (the frames' turn and spin in dq) + the Hessian of q . phi at fixed q
+      (q = Delta/2 sum_k (kappa_1 m_1 - kappa_2 m_2)), and on the theta rows the spin in d kappa/de.
+
+    g: the node geometry (rows 0 t_a, 2 t_b, 9 kb; 4-8 frames and phi when dl != 0); has_a, has_b: whether edge
+    a, b is a segment (not a clamp's virtual edge); ve: V [m/s] (n, 3); wts (3,): the clamp rate's weights on the
+    three samples, sdirs the samples' clamp directions (3, 2, 3); pa, pb: dphi/de (dl != 0)."""
+    for r in range(8):
+        for col in range(6):
+            W[r, col] = 0.0
+    ta0, ta1, ta2 = g[0, 0], g[0, 1], g[0, 2]
+    tb0, tb1, tb2 = g[2, 0], g[2, 1], g[2, 2]
+    kb0, kb1, kb2 = g[9, 0], g[9, 1], g[9, 2]
+    for j in range(6):
+        W[26, j] = 0.0
+    if has_a:
+        _spin_row(W, 26, 0, ta0, ta1, ta2, tan[i - 1, 0], tan[i - 1, 1], tan[i - 1, 2])
+    if has_b:
+        _spin_row(W, 26, 3, tb0, tb1, tb2, tan[i, 0], tan[i, 1], tan[i, 2])
+    for j in range(3):
+        W[29, j] = g[9, j] / (2.0 * la)
+        W[29, 3 + j] = g[9, j] / (2.0 * lb)
+        W[27, j] = W[26, j] / la
+        W[27, 3 + j] = -W[26, 3 + j] / lb
+    # K_a = dkb/dt_a = (-2[t_b]x - kb t_b^T)/(1+c), K_b = dkb/dt_b = (2[t_a]x - kb t_a^T)/(1+c); rows 17-19 <- K P / l
+    for r in range(3):
+        kr = kb0 if r == 0 else (kb1 if r == 1 else kb2)
+        for col in range(3):
+            W[17 + r, col] = -kr * g[2, col]
+            W[17 + r, 3 + col] = -kr * g[0, col]
+    W[17, 1] += 2.0 * tb2
+    W[17, 2] -= 2.0 * tb1
+    W[18, 0] -= 2.0 * tb2
+    W[18, 2] += 2.0 * tb0
+    W[19, 0] += 2.0 * tb1
+    W[19, 1] -= 2.0 * tb0
+    W[17, 4] -= 2.0 * ta2
+    W[17, 5] += 2.0 * ta1
+    W[18, 3] += 2.0 * ta2
+    W[18, 5] -= 2.0 * ta0
+    W[19, 3] -= 2.0 * ta1
+    W[19, 4] += 2.0 * ta0
+    for r in range(3):
+        sa = W[17 + r, 0] * ta0 + W[17 + r, 1] * ta1 + W[17 + r, 2] * ta2
+        sb = W[17 + r, 3] * tb0 + W[17 + r, 4] * tb1 + W[17 + r, 5] * tb2
+        for col in range(3):
+            W[17 + r, col] = (W[17 + r, col] - sa * g[0, col]) / ((1.0 + c) * la)
+            W[17 + r, 3 + col] = (W[17 + r, 3 + col] - sb * g[2, col]) / ((1.0 + c) * lb)
+    # D gamma: d(kb/2l_a)/de_a = K_a P_a/(2 l_a^2 (1+c)) - kb t_a^T/(2 l_a^2), d(kb/2l_a)/de_b = K_b P_b/(2 l_a l_b (1+c)),
+    # and the same for kb/2l_b
+    for r in range(3):
+        for col in range(3):
+            W[8 + r, col] = W[17 + r, col] / (2.0 * la) - g[9, r] * g[0, col] / (2.0 * la * la)
+            W[8 + r, 3 + col] = W[17 + r, 3 + col] / (2.0 * la)
+            W[11 + r, col] = W[17 + r, col] / (2.0 * lb)
+            W[11 + r, 3 + col] = W[17 + r, 3 + col] / (2.0 * lb) - g[9, r] * g[2, col] / (2.0 * lb * lb)
+    for col in range(6):
+        W[28, col] = 0.0
+    if ct != 0.0:  # d rate/de: the positions' share kb/2l . dV (interior edges), the clamp rate's (virtual edges)
+        for e in range(2):
+            if (has_a if e == 0 else has_b):
+                p, q = (i - 1, i) if e == 0 else (i, i + 1)
+                dv0, dv1, dv2 = ve[q, 0] - ve[p, 0], ve[q, 1] - ve[p, 1], ve[q, 2] - ve[p, 2]
+                for col in range(6):
+                    W[28, col] += dv0 * W[8 + 3 * e, col] + dv1 * W[9 + 3 * e, col] + dv2 * W[10 + 3 * e, col]
+            else:  # sum_k w_k kb_k / (2 l) over the other (free) edge; the spins cancel (sum_k w_k = 0)
+                end = e
+                lo = lb if e == 0 else la
+                off = 3 if e == 0 else 0
+                for k in range(3):
+                    wk = wts[k]
+                    if wk == 0.0:
+                        continue
+                    d0, d1, d2 = sdirs[k, end, 0], sdirs[k, end, 1], sdirs[k, end, 2]
+                    if e == 0:
+                        a0, a1, a2, b0, b1, b2 = d0, d1, d2, tb0, tb1, tb2
+                    else:
+                        a0, a1, a2, b0, b1, b2 = ta0, ta1, ta2, d0, d1, d2
+                    den = (1.0 + a0 * b0 + a1 * b1 + a2 * b2) * lo
+                    W[28, off] += wk * (a1 * b2 - a2 * b1) / den
+                    W[28, off + 1] += wk * (a2 * b0 - a0 * b2) / den
+                    W[28, off + 2] += wk * (a0 * b1 - a1 * b0) / den
+    for r in range(8):
+        gr = W[29, r] if r < 6 else (-1.0 if r == 6 else 1.0)
+        for col in range(6):
+            W[r, col] += gr * (kt * W[27, col] + ct * W[28, col])
+    for r in range(6):
+        for col in range(6):
+            W[r, col] += s * W[8 + r, col]
+    if dl == 0.0:
+        return
+    p0, p1, p2 = g[8, 0], g[8, 1], g[8, 2]
+    k1a = p0 * g[4, 0] + p1 * g[4, 1] + p2 * g[4, 2]
+    k2a = p0 * g[5, 0] + p1 * g[5, 1] + p2 * g[5, 2]
+    k1b = p0 * g[6, 0] + p1 * g[6, 1] + p2 * g[6, 2]
+    k2b = p0 * g[7, 0] + p1 * g[7, 1] + p2 * g[7, 2]
+    hdl = 0.5 * dl
+    # Y = dq/de beyond Gauss-Newton: sum_d sign_d (d (phi^T Dd) + kappa_d Dd), Dm1 = -(t m1^T + m2 h^T)/l,
+    # Dm2 = (-t m2^T + m1 h^T)/l, phi^T Dm1 = -kappa_2 h^T/l, phi^T Dm2 = kappa_1 h^T/l (phi normal to t)
+    for j in range(3):
+        for col in range(3):
+            ya, yb = 0.0, 0.0
+            if has_a:
+                ha = W[26, col]
+                ya = (g[4, j] * (-k2a * ha / la) - g[5, j] * (k1a * ha / la)
+                      + k1a * (-(g[0, j] * g[4, col] + g[5, j] * ha) / la)
+                      - k2a * ((-g[0, j] * g[5, col] + g[4, j] * ha) / la))
+            if has_b:
+                hb = W[26, 3 + col]
+                yb = (g[6, j] * (-k2b * hb / lb) - g[7, j] * (k1b * hb / lb)
+                      + k1b * (-(g[2, j] * g[6, col] + g[7, j] * hb) / lb)
+                      - k2b * ((-g[2, j] * g[7, col] + g[6, j] * hb) / lb))
+            W[14 + j, col] = hdl * ya
+            W[14 + j, 3 + col] = hdl * yb
+    for r in range(3):
+        for col in range(6):
+            W[r, col] += pa[0, r] * W[14, col] + pa[1, r] * W[15, col] + pa[2, r] * W[16, col]
+            W[3 + r, col] += pb[0, r] * W[14, col] + pb[1, r] * W[15, col] + pb[2, r] * W[16, col]
+    # the Hessian of f = q . phi at fixed q, phi = r(c) (u x w): F_u = r' Q w + r (w x q), F_w = r' Q u + r (q x u)
+    # (Q = q . (u x w), r' = -alpha), its second derivatives in u, w, mapped onto the edges (u = e_a/|e_a|, ...)
+    for j in range(3):
+        W[30, j] = hdl * (k1a * g[4, j] - k2a * g[5, j] + k1b * g[6, j] - k2b * g[7, j])
+    q0, q1, q2 = W[30, 0], W[30, 1], W[30, 2]
+    x0, x1, x2 = ta1 * tb2 - ta2 * tb1, ta2 * tb0 - ta0 * tb2, ta0 * tb1 - ta1 * tb0
+    qq = q0 * x0 + q1 * x1 + q2 * x2
+    beta = math.atan2(math.sqrt(x0 * x0 + x1 * x1 + x2 * x2), c)
+    if beta < 0.05:  # r'' = d2(beta/sin beta)/dc2, its series (the closed form cancels to ~1e-16/beta^4)
+        b2 = beta * beta
+        r2 = 4.0 / 15.0 + b2 * (6.0 / 35.0 + b2 * (13.0 / 210.0 + b2 * (1153.0 / 69300.0)))
+    else:
+        sn = math.sqrt(x0 * x0 + x1 * x1 + x2 * x2)
+        r2 = (beta * sn * sn + 3.0 * c * (beta * c - sn)) / (sn * sn * sn * sn * sn)
+    r1 = -alpha
+    W[31, 0], W[31, 1], W[31, 2] = tb1 * q2 - tb2 * q1, tb2 * q0 - tb0 * q2, tb0 * q1 - tb1 * q0  # w x q
+    W[31, 3], W[31, 4], W[31, 5] = q1 * ta2 - q2 * ta1, q2 * ta0 - q0 * ta2, q0 * ta1 - q1 * ta0  # q x u
+    for j in range(3):
+        W[32, j] = r1 * qq * g[2, j] + ratio * W[31, j]
+        W[32, 3 + j] = r1 * qq * g[0, j] + ratio * W[31, 3 + j]
+    for r in range(3):
+        for col in range(3):
+            W[20 + r, col] = r2 * qq * g[2, r] * g[2, col] + r1 * (g[2, r] * W[31, col] + W[31, r] * g[2, col])
+            W[20 + r, 3 + col] = (r2 * qq * g[0, r] * g[0, col]
+                                  + r1 * (g[0, r] * W[31, 3 + col] + W[31, 3 + r] * g[0, col]))
+            W[23 + r, col] = r2 * qq * g[2, r] * g[0, col] + r1 * (g[2, r] * W[31, 3 + col] + W[31, r] * g[0, col])
+        W[23 + r, r] += r1 * qq
+    W[23, 1] += ratio * q2
+    W[23, 2] -= ratio * q1
+    W[24, 0] -= ratio * q2
+    W[24, 2] += ratio * q0
+    W[25, 0] += ratio * q1
+    W[25, 1] -= ratio * q0
+    # P H P = H - t (t^T H) - (H t) t^T + t (t^T H t) t^T (P = I - t t^T); rows 33 H t, 34 t^T H (aa | bb), 35 (ab)
+    for r in range(3):
+        W[33, r] = W[20 + r, 0] * ta0 + W[20 + r, 1] * ta1 + W[20 + r, 2] * ta2
+        W[34, r] = W[20, r] * ta0 + W[21, r] * ta1 + W[22, r] * ta2
+        W[33, 3 + r] = W[20 + r, 3] * tb0 + W[20 + r, 4] * tb1 + W[20 + r, 5] * tb2
+        W[34, 3 + r] = W[20, 3 + r] * tb0 + W[21, 3 + r] * tb1 + W[22, 3 + r] * tb2
+        W[35, r] = W[23 + r, 0] * tb0 + W[23 + r, 1] * tb1 + W[23 + r, 2] * tb2  # H_uw w
+        W[35, 3 + r] = W[23, r] * ta0 + W[24, r] * ta1 + W[25, r] * ta2  # u^T H_uw
+    saa = W[33, 0] * ta0 + W[33, 1] * ta1 + W[33, 2] * ta2
+    sbb = W[33, 3] * tb0 + W[33, 4] * tb1 + W[33, 5] * tb2
+    sab = W[35, 0] * ta0 + W[35, 1] * ta1 + W[35, 2] * ta2
+    uf = W[32, 0] * ta0 + W[32, 1] * ta1 + W[32, 2] * ta2
+    wf = W[32, 3] * tb0 + W[32, 4] * tb1 + W[32, 5] * tb2
+    for r in range(3):
+        ur, wr = g[0, r], g[2, r]
+        pfu_r = W[32, r] - uf * ur  # (P_u F_u)_r
+        pfw_r = W[32, 3 + r] - wf * wr
+        for col in range(3):
+            uc, wc = g[0, col], g[2, col]
+            pu = (1.0 if r == col else 0.0) - ur * uc
+            pw = (1.0 if r == col else 0.0) - wr * wc
+            pfu_c = W[32, col] - uf * uc
+            pfw_c = W[32, 3 + col] - wf * wc
+            haa = W[20 + r, col] - ur * W[34, col] - W[33, r] * uc + ur * saa * uc
+            hbb = W[20 + r, 3 + col] - wr * W[34, 3 + col] - W[33, 3 + r] * wc + wr * sbb * wc
+            hab = W[23 + r, col] - ur * W[35, 3 + col] - W[35, r] * wc + ur * sab * wc
+            W[r, col] += (haa - uf * pu - ur * pfu_c - pfu_r * uc) / (la * la)
+            W[3 + r, 3 + col] += (hbb - wf * pw - wr * pfw_c - pfw_r * wc) / (lb * lb)
+            W[r, 3 + col] += hab / (la * lb)
+            W[3 + col, r] += hab / (la * lb)
+    for j in range(3):
+        W[6, j] += dl * (k1a * k1a - k2a * k2a) * W[26, j] / la
+        W[7, 3 + j] += dl * (k1b * k1b - k2b * k2b) * W[26, 3 + j] / lb
+
+
+@njit(cache=True, error_model="numpy")
+def _scatter_exact(band, lower, upx, W, Z, kc, i, ns, held):
+    """A += kc E^T X E for node i's extra terms X = W[0:8] (rows e_a, e_b, theta_a, theta_b; columns e_a, e_b),
+    E the map of the local unknowns (x_{i-1} 0-2, theta_{i-1} 3, x_i 4-6, theta_i 7, x_{i+1} 8-10) onto them
+    (e_a = x_i - x_{i-1}, e_b = x_{i+1} - x_i; a clamp's virtual edge is fixed): the diagonal into ``band``, the
+    entries above it into ``upx``, below it into ``lower`` (by columns, lower[q, p - q] = A[p, q]); held nodes'
+    unknowns left out. Z (8, 11): scratch, X E."""
+    ea, eb = i > 0, i < ns
+    pa, pi, pb = ea and not held[i - 1], not held[i], eb and not held[i + 1]
+    for yr in range(8):
+        for j in range(3):
+            xa = W[yr, j] if ea else 0.0
+            xb = W[yr, 3 + j] if eb else 0.0
+            Z[yr, j] = -xa
+            Z[yr, 4 + j] = xa - xb
+            Z[yr, 8 + j] = xb
+    base = 4 * (i - 1)
+    for lr in range(11):
+        if not _present(lr, pa, pi, pb, ea, eb):
+            continue
+        node, comp = lr // 4, lr % 4
+        p = base + lr
+        for lc in range(11):
+            if lc % 4 == 3 or not _present(lc, pa, pi, pb, ea, eb):
+                continue
+            if comp == 3:
+                val = Z[6, lc] if node == 0 else Z[7, lc]
+            else:
+                za = Z[comp, lc] if ea else 0.0
+                zb = Z[3 + comp, lc] if eb else 0.0
+                val = -za if node == 0 else (za - zb if node == 1 else zb)
+            if val == 0.0:
+                continue
+            q = base + lc
+            if p == q:
+                band[p, 0] += kc * val
+            elif p < q:
+                upx[p, q - p] += kc * val
+            else:
+                lower[q, p - q] += kc * val
+
+
+@njit(cache=True, error_model="numpy")
+def _band_lu_coupled(band, lower, rhs):
+    """Solve A y = rhs in place for a band matrix A of the coupled layout (group 4, half-width HALF_T) given by its
+    upper band ``band[r, c - r]`` and its lower band by columns ``lower[c, r - c]``: elimination without pivoting
+    within the envelope of :func:`band_solve_upper` (the exact Newton matrix is not symmetric). Both arrays are
+    destroyed; returns the smallest pivot (signed: <= 0 or NaN means the elimination is not to be trusted)."""
+    size = rhs.shape[0]
+    min_pivot = np.inf
+    for k in range(size):
+        piv = band[k, 0]
+        if not piv >= min_pivot:
+            min_pivot = piv
+        last = min(k - k % 4 + HALF_T, size - 1)
+        for i in range(k + 1, last + 1):
+            f = lower[k, i - k] / piv
+            if f == 0.0:
+                continue
+            for j in range(k + 1, i):
+                lower[j, i - j] -= f * band[k, j - k]
+            for j in range(i, last + 1):
+                band[i, j - i] -= f * band[k, j - k]
+            rhs[i] -= f * rhs[k]
+    _back_substitute_rows(band, rhs, 0, 4, HALF_T)
+    return min_pivot
+
+
+@njit(cache=True, error_model="numpy")
+def _newton_matrix(stepper, m, mp, imp, ws, band, g, sc, exact, lower, upx, samples, mid, h):
+    """band <- the coupled Newton matrix (upper band, interleaved layout) at the X, V, Theta of the last residual:
+    its Gauss-Newton part (symmetric); with ``exact`` the exact Jacobian instead (:func:`_exact_node`'s terms
+    added), not symmetric: upper band in ``band``, lower band by columns in ``lower`` (``upx``: scratch of
+    band's shape). samples, mid, h: as :func:`_residual` took them (the clamp rate's derivative)."""
     n = ws.x_stage.shape[0]
     ns = n - 1
     xe = ws.x_stage
@@ -461,6 +755,17 @@ def _newton_matrix(stepper, m, mp, imp, ws, band, g, sc):
     gv, pa, pb, jrow, hb, cg = sc.gv, sc.pa, sc.pb, sc.jrow, sc.hb, sc.cg
     edges, geo = sc.edges, sc.geo
     band[:, :] = 0.0
+    W = sc.xw
+    if exact:
+        lower[:, :] = 0.0
+        upx[:, :] = 0.0
+        if mid:
+            wts = (-1.0 / h, 0.0, 1.0 / h)
+        else:
+            wts = (1.0 / h, -4.0 / h, 3.0 / h)
+        wt = np.array(wts)
+    else:
+        wt = np.zeros(3)
     for i in range(n):
         kt, dl, ct = ktw[i], kan[i], ctw[i]
         if kt == 0.0 and dl == 0.0 and ct == 0.0:
@@ -479,10 +784,21 @@ def _newton_matrix(stepper, m, mp, imp, ws, band, g, sc):
         if coef != 0.0:
             _add_twist_ggt(band, 4 * (i - 1), coef, la, lb, kb0, kb1, kb2, i > 0 and not held[i - 1],
                            not held[i], i < ns and not held[i + 1], i > 0, i < ns, gv, cg)
+        if dl != 0.0:
+            phi_jacobians(g, la, lb, ratio, alpha, c, pa, pb)
+        if exact:
+            if dl == 0.0:  # the tangents (the residual's edges; a clamp's direction) and binormal into g
+                for j in range(3):
+                    g[0, j] = edges[i - 1, 1 + j] if i > 0 else dirs[0, j]
+                    g[2, j] = edges[i, 1 + j] if i < ns else dirs[1, j]
+                g[9, 0], g[9, 1], g[9, 2] = kb0, kb1, kb2
+                c = g[0, 0] * g[2, 0] + g[0, 1] * g[2, 1] + g[0, 2] * g[2, 2]
+            _exact_node(g, la, lb, ratio, alpha, c, kt, dl, geo[i, 5], ct, i > 0, i < ns, tan, i, ws.v_stage,
+                        wt, samples.dir, pa, pb, W)
+            _scatter_exact(band, lower, upx, W, sc.zw, kc, i, ns, held)
         if dl == 0.0:
             continue
         p1a, p2a, p1b, p2b = _curvatures(g)
-        phi_jacobians(g, la, lb, ratio, alpha, c, pa, pb)
         # x-x: the Gauss-Newton part of the anisotropic bending, Delta/2 sum_k (J1_k^T J1_k - J2_k^T J2_k)
         aniso_node_hessian(g, dl, pa, pb, jrow, hb)
         scatter_node_hessian(jac, i, n, hb)
@@ -530,6 +846,11 @@ def _newton_matrix(stepper, m, mp, imp, ws, band, g, sc):
     for k in range(ns):
         band[4 * k + 3, 0] += inertia[k] + hf * cv * drag[k]
     band[4 * ns + 3, 0] = 1.0
+    if exact:  # lower <- the symmetric part's mirror plus the lower extra terms; band += the upper ones
+        for k in range(band.shape[0]):
+            for d in range(1, HALF_T + 1):
+                lower[k, d] += band[k, d]
+                band[k, d] += upx[k, d]
 
 
 @njit(cache=True, error_model="numpy")
@@ -569,6 +890,7 @@ def coupled_implicit(stepper, m, x, v, samples, ws, has_prev):
     mid = method == IMPLICIT_MIDPOINT
     size = 4 * n
     band = np.empty((size, HALF_T + 1))
+    lower, upx = np.empty((size, HALF_T + 1)), np.empty((size, HALF_T + 1))
     r, r_try = np.empty(size), np.empty(size)
     wn, w_try, wv, rate, tq = omega0.copy(), np.empty(ns), np.empty(ns), np.zeros(n), np.empty(ns)
     sc = _make_scratch(n)
@@ -591,8 +913,18 @@ def coupled_implicit(stepper, m, x, v, samples, ws, has_prev):
     kept = True  # the last residual was at the current iterate (sc.edges: its frames)
     while it < stepper.max_iter:
         it += 1
-        _newton_matrix(stepper, m, mp, imp, ws, band, g, sc)
-        band_solve_upper(band, r, HALF_T, 4)  # r becomes the Newton direction
+        # from iteration stepper.exact_from on the exact Jacobian; where its elimination meets a pivot <= 0 (the
+        # matrix indefinite, e.g. beyond a twist buckling threshold at a large step) the Gauss-Newton matrix instead
+        exact = it >= stepper.exact_from
+        if exact:
+            _newton_matrix(stepper, m, mp, imp, ws, band, g, sc, True, lower, upx, samples, mid, h)
+            r_try[:] = r
+            if not _band_lu_coupled(band, lower, r) > 0.0:  # r becomes the Newton direction
+                r[:] = r_try
+                exact = False
+        if not exact:
+            _newton_matrix(stepper, m, mp, imp, ws, band, g, sc, False, lower, upx, samples, mid, h)
+            band_solve_upper(band, r, HALF_T, 4)  # r becomes the Newton direction
         phi0 = np.nan
         alpha = 1.0
         accepted = False
