@@ -421,9 +421,9 @@ class ContactSet:
 
     def __init__(self, client: int, bodies, n: int, radius: float, mu_s: float, mu_d: float,
                  alpha: float, damping_ratio: float, self_contact: bool = True, grip=None, native: int = 0,
-                 others=(), exclude=None, rest_length: float = 0.0, segments=None, driven=()):
-        """``driven``: bodies whose links motors hold (:attr:`BulletWorld.driven_bodies
-        <bullet_dlo.bullet.world.BulletWorld.driven_bodies>`): their dynamic links meet the cable as kinematic
+                 others=(), exclude=None, rest_length: float = 0.0, segments=None, driven=None):
+        """``driven``: {body: None (every link) or a set of links} whose links motors hold
+        (:attr:`BulletWorld.driven_bodies <bullet_dlo.bullet.world.BulletWorld.driven_bodies>`): those dynamic links meet the cable as kinematic
         obstacles moving with the link's velocity (:data:`DRIVEN_INV_MASS`), their reactions still applied to the
         link in Bullet. ``others``: the other cables (BulletCable) whose contacts with this one the model handles;
         ``exclude``: {(body, link): None (no contact) or a set of node indices that do not touch it (nor do the
@@ -437,6 +437,7 @@ class ContactSet:
         contact, as before)."""
         self.client = client
         self.n = n
+        driven = driven or {}
         self._seg_held = np.zeros(0, dtype=np.bool_)
         if segments is None:
             self._seg_k = self._seg_l = self._seg_b = np.zeros(0)
@@ -472,7 +473,8 @@ class ContactSet:
                         and body not in driven)
                 inv_m = 1.0 / mass if mass > 0.0 else 0.0
                 inv_i = 1.0 / i_min if i_min > 0.0 else 0.0
-                if mass > 0.0 and body in driven:  # a motor-held link: kinematic in the cable's step
+                if mass > 0.0 and body in driven and (driven[body] is None or link in driven[body]):
+                    # a motor-held link: kinematic in the cable's step
                     inv_m = inv_i = DRIVEN_INV_MASS
                 common = (mass > 0.0, float(mu_b), inv_m, inv_i, frozenset(out), free, np.asarray(info[2], float))
                 hull = (self._hull(body, link, data, radius)

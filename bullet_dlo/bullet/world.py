@@ -101,7 +101,7 @@ class BulletWorld:
         # cables' loads, fixed joints: the arms the robots load): the cables meet their links as kinematic
         # obstacles (docs/concepts/contact.md, "Driven links"). Set with drive_body; read when a cable (re)builds
         # its contact set.
-        self.driven_bodies: set[int] = set()
+        self.driven_bodies: dict[int, frozenset | None] = {}  # body -> its driven links (None: all)
         self._groups_used = 0
         self._model_cable_groups = 0  # collision groups of the cables whose mutual contacts the model handles
         self._pending: set[str] = set()  # cables still to take their step in phase 7 (see take_cable_steps)
@@ -174,16 +174,16 @@ class BulletWorld:
         self.bodies_added = self.bodies_added or not fixed
         return body
 
-    def drive_body(self, body: int) -> None:
-        """Declare ``body``'s links held by motors: every joint between a link and the base position- or
-        velocity-controlled with a force limit far above the cables' loads, or fixed (a robot arm). The cables'
-        contact models then meet its links as kinematic obstacles that move with the link's own velocity, and
-        still apply their reactions to the link (its joint sensors read them)."""
+    def drive_body(self, body: int, links=None) -> None:
+        """Declare ``body``'s links ``links`` (None: all) held by motors: every joint between such a link and the
+        base position- or velocity-controlled with a force limit far above the cables' loads, or fixed (a robot
+        arm). The cables' contact models then meet those links as kinematic obstacles that move with the link's
+        own velocity, and still apply their reactions to the link (its joint sensors read them)."""
         try:
             pb.getBodyInfo(int(body), physicsClientId=self.client)
         except pb.error:
             raise ParameterError(f"drive_body: no body {body} in this world") from None
-        self.driven_bodies.add(int(body))
+        self.driven_bodies[int(body)] = None if links is None else frozenset(int(k) for k in links)
         for cable in self.cables.values():
             cable.contact.bodies_seen = -1  # rebuild its contact set at the next refresh
             cable.contact.refresh()
