@@ -404,7 +404,8 @@ class ContactSet:
     land on that velocity when nothing else touches it. A free body that Bullet also supports (a contact with the
     ground or another body in the last step) or a user constraint holds moves in the step too, under that load as
     measured over Bullet's last step (:mod:`bullet_dlo.bullet.held_bodies`). A body that another cable touches,
-    and every link of an articulated body (the arms), meets the cable explicitly through Bullet instead: with the penalty stiffness k_n = alpha
+    and every link of an articulated body that no motor drives, meets the cable explicitly through Bullet instead (a
+    driven link, ``driven``, is a kinematic obstacle: see ``__init__``): with the penalty stiffness k_n = alpha
     m_k / h^2 (alpha = 1e4) and a body of mass M that force has k_n h^2 / M = alpha m_k / M per contact, 500 for
     a 30 g box on one 1.6 g node, far past the explicit limit (about 1), so the detector condenses the body's
     inertia into those contacts (:func:`_condense_bodies`): lambda [1/s^2], the body's fastest contact mode
