@@ -94,6 +94,7 @@ class CableContacts:
                               cable.contact_damping, self_contact=cable.self_collision != "none",
                               grip=cable.grip, native=cable.world.native_handle(), others=partners,
                               exclude={**{(b, None): None for b in cable.world.no_cable_contact}, **self.exclusions},
+                              driven=dict(cable.world.driven_bodies),
                               rest_length=float(spec.rest_length),
                               # the segments' springs and the bending constants in force (the control's, changed
                               # in place by grasp and release): what a segment wrapping an edge needs

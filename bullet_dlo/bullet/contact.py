@@ -85,6 +85,11 @@ PROBE_EXTRA = 2
 # surface (measured on a heightfield slope: it held a sliding cable)
 PROBE_RISE = 1e-5
 WRAP_BENDS = True  # a wrapped segment's bends: at its nodes against the path, the turn at the edge (contact.md)
+DRIVEN_INV_MASS = 1e-200
+"""[1/kg, 1/(kg m^2)] The inverse mass and inertia a link of a driven body (a position-controlled arm) has in the
+cable's step: infinite in effect (the condensed contact's softening 1 / (1 + h^2 lambda) is exactly 1, so the link
+is a kinematic obstacle moving with its own velocity), yet not 0, which the kernels read as static (a static hull's
+edges wrap a segment; the work check would not correct a static body's motion)."""
 EXACT_HULLS = True  # convex hulls on the project's geometry (False: Bullet's narrow phase, as for other meshes)
 # [m] a hull's distances (margin included) must match Bullet's within this at every check point 2-3 mm off it: its
 # GJK stops early by up to 4e-5 m near the vertices of the Panda's hulls (its point lies 1e-6 m inside the margin
@@ -401,7 +406,8 @@ class ContactSet:
     land on that velocity when nothing else touches it. A free body that Bullet also supports (a contact with the
     ground or another body in the last step) or a user constraint holds moves in the step too, under that load as
     measured over Bullet's last step (:mod:`bullet_dlo.bullet.held_bodies`). A body that another cable touches,
-    and every link of an articulated body (the arms), meets the cable explicitly through Bullet instead: with the penalty stiffness k_n = alpha
+    and every link of an articulated body that no motor drives, meets the cable explicitly through Bullet instead (a
+    driven link, ``driven``, is a kinematic obstacle: see ``__init__``): with the penalty stiffness k_n = alpha
     m_k / h^2 (alpha = 1e4) and a body of mass M that force has k_n h^2 / M = alpha m_k / M per contact, 500 for
     a 30 g box on one 1.6 g node, far past the explicit limit (about 1), so the detector condenses the body's
     inertia into those contacts (:func:`_condense_bodies`): lambda [1/s^2], the body's fastest contact mode
@@ -418,8 +424,11 @@ class ContactSet:
 
     def __init__(self, client: int, bodies, n: int, radius: float, mu_s: float, mu_d: float,
                  alpha: float, damping_ratio: float, self_contact: bool = True, grip=None, native: int = 0,
-                 others=(), exclude=None, rest_length: float = 0.0, segments=None):
-        """``others``: the other cables (BulletCable) whose contacts with this one the model handles;
+                 others=(), exclude=None, rest_length: float = 0.0, segments=None, driven=None):
+        """``driven``: {body: None (every link) or a set of links} whose links motors hold
+        (:attr:`BulletWorld.driven_bodies <bullet_dlo.bullet.world.BulletWorld.driven_bodies>`): those dynamic links meet the cable as kinematic
+        obstacles moving with the link's velocity (:data:`DRIVEN_INV_MASS`), their reactions still applied to the
+        link in Bullet. ``others``: the other cables (BulletCable) whose contacts with this one the model handles;
         ``exclude``: {(body, link): None (no contact) or a set of node indices that do not touch it (nor do the
         segments next to them)}, link None meaning every link of the body; ``rest_length`` [m]: the length of
         the capsule that probes a segment (the cable's rest segment length; 0: nodes only); ``segments``: the
@@ -431,6 +440,7 @@ class ContactSet:
         contact, as before)."""
         self.client = client
         self.n = n
+        driven = driven or {}
         self._seg_held = np.zeros(0, dtype=np.bool_)
         if segments is None:
             self._seg_k = self._seg_l = self._seg_b = np.zeros(0)
@@ -462,9 +472,14 @@ class ContactSet:
                 # a free body (one dynamic link, no joints) moves in the cable's step (contact.Bodies), with what
                 # else holds it (a user constraint, Bullet's contacts) as measured over the last step; the links of
                 # an articulated body (an arm) keep the condensed contact (_condense_bodies)
-                free = mass > 0.0 and link < 0 and pb.getNumJoints(body, physicsClientId=client) == 0 and i_min > 0.0
-                common = (mass > 0.0, float(mu_b), 1.0 / mass if mass > 0.0 else 0.0,
-                          1.0 / i_min if i_min > 0.0 else 0.0, frozenset(out), free, np.asarray(info[2], float))
+                free = (mass > 0.0 and link < 0 and pb.getNumJoints(body, physicsClientId=client) == 0 and i_min > 0.0
+                        and body not in driven)
+                inv_m = 1.0 / mass if mass > 0.0 else 0.0
+                inv_i = 1.0 / i_min if i_min > 0.0 else 0.0
+                if mass > 0.0 and body in driven and (driven[body] is None or link in driven[body]):
+                    # a motor-held link: kinematic in the cable's step
+                    inv_m = inv_i = DRIVEN_INV_MASS
+                common = (mass > 0.0, float(mu_b), inv_m, inv_i, frozenset(out), free, np.asarray(info[2], float))
                 hull = (self._hull(body, link, data, radius)
                         if EXACT_HULLS and len(data) == 1 and data[0][2] == pb.GEOM_MESH else None)
                 if hull is not None:  # a convex hull Bullet agrees with: the project's exact geometry

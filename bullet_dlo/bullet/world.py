@@ -98,6 +98,11 @@ class BulletWorld:
         # bodies left out of every cable's contact model (a scene obstacle's ``contact: false``); a cable's
         # own exclusions: BulletCable.exclude_contact. Read when a cable (re)builds its contact set.
         self.no_cable_contact: set[int] = set()
+        # bodies whose links motors hold (position- or velocity-controlled joints whose force limits dwarf the
+        # cables' loads, fixed joints: the arms the robots load): the cables meet their links as kinematic
+        # obstacles (docs/concepts/contact.md, "Driven links"). Set with drive_body; read when a cable (re)builds
+        # its contact set.
+        self.driven_bodies: dict[int, frozenset | None] = {}  # body -> its driven links (None: all)
         self._groups_used = 0
         self._model_cable_groups = 0  # collision groups of the cables whose mutual contacts the model handles
         self._pending: set[str] = set()  # cables still to take their step in phase 7 (see take_cable_steps)
@@ -169,6 +174,20 @@ class BulletWorld:
         self.bodies[body] = name or file.stem
         self.bodies_added = self.bodies_added or not fixed
         return body
+
+    def drive_body(self, body: int, links=None) -> None:
+        """Declare ``body``'s links ``links`` (None: all) held by motors: every joint between such a link and the
+        base position- or velocity-controlled with a force limit far above the cables' loads, or fixed (a robot
+        arm). The cables' contact models then meet those links as kinematic obstacles that move with the link's
+        own velocity, and still apply their reactions to the link (its joint sensors read them)."""
+        try:
+            pb.getBodyInfo(int(body), physicsClientId=self.client)
+        except pb.error:
+            raise ParameterError(f"drive_body: no body {body} in this world") from None
+        self.driven_bodies[int(body)] = None if links is None else frozenset(int(k) for k in links)
+        for cable in self.cables.values():
+            cable.contact.bodies_seen = -1  # rebuild its contact set at the next refresh
+            cable.contact.refresh()
 
     def _add_body(self, col: int, vis: int, position, orientation, mass, friction, name) -> int:
         pos = check_vector3("position", position)

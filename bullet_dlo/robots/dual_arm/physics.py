@@ -152,6 +152,11 @@ class DualArmPhysics:
         robot = Robot.load(robot_spec, self.world.client, (sign * spec.base_distance, 0.0, 0.0), base_yaw,
                            visuals=spec.renderer is not None)  # no renderer: nothing will draw the meshes
         self.robots.append(robot)  # before the IK, so that close() releases its twin if the pose is unreachable
+        # position-controlled at its joints' force limits (hundreds of times the cable's loads): the cable meets its
+        # links as kinematic obstacles (docs/concepts/contact.md, "Driven links")
+        fingers = {robot.joint_index[name] for name in robot_spec.finger_joints}
+        self.world.drive_body(robot.body, [k for k in range(-1, pb.getNumJoints(robot.body, physicsClientId=robot.client))
+                                           if k not in fingers])
         quat = quat_from_axes((-sign, 0.0, 0.0), (0.0, 0.0, -1.0))  # top grasp, x pointing into the cable
         position = np.array([sign * 0.5 * spec.cable.length, 0.0, spec.hold_height])
         robot.reset_joints(robot.solve_ik(position, quat, seed=np.array(robot_spec.home)))
