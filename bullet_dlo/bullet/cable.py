@@ -410,8 +410,9 @@ class BulletCable:
         if self.proxy:  # parked spheres: Bullet does not move them (module doc); the touched bodies' reactions only
             if self._fresh:
                 self._hold_fresh()
-            if self.contact.any_dynamic:  # (no dynamic body in the set: no reaction to apply)
-                self.contact.set.apply_to_bodies()
+            cs = self.contact.set
+            if cs is not None:  # (it returns at once when no row has a dynamic body)
+                cs.apply_to_bodies()
             return
         native = self.world.native_handle()
         if native:  # one compiled call instead of n PyBullet calls
@@ -425,8 +426,9 @@ class BulletCable:
             frame = pb.WORLD_FRAME
             for b, f, pos in zip(self.body_ids, solver.coupling.force.tolist(), self.x.tolist()):
                 apply(b, -1, f, pos, frame, cid)  # positional: keyword parsing costs 50 % more per call
-        if self.contact.any_dynamic:
-            self.contact.set.apply_to_bodies()
+        cs = self.contact.set
+        if cs is not None:
+            cs.apply_to_bodies()
 
     def sync_after_step(self, touched) -> None:
         """Take over Bullet's step: ``touched`` holds the spheres that had contacts (read back)."""

@@ -36,7 +36,6 @@ class CableContacts:
     def __init__(self, cable):
         self.cable = cable
         self.set: ContactSet | None = None
-        self.any_dynamic = False  # the set has a dynamic row (a body the contacts' reactions are applied to)
         self.bullet_off = False
         self.excluded: set[tuple[int, int]] = set()
         self.bodies_seen = -1
@@ -100,7 +99,6 @@ class CableContacts:
                               # in place by grasp and release): what a segment wrapping an edge needs
                               segments=(cable.model.arrays.k_stretch, cable.model.arrays.rest_length,
                                         cable.control.k_bend, cable.control.held))
-        self.any_dynamic = bool(self.set.dynamic.any())
         if self.bullet_off:
             self.exclude_model_bodies()
 

@@ -52,7 +52,6 @@ from __future__ import annotations
 
 import math
 import warnings
-from itertools import chain
 from typing import NamedTuple
 
 import numpy as np
@@ -560,8 +559,6 @@ class ContactSet:
             self._cable_box = np.zeros((2, 3))
             self._reach = None  # _reach_box bound on first use
             self._candidates = None  # _probe_candidates bound on first use
-            self._rows_near = None  # _rows_with_candidates bound on first use
-            self._row_flags = np.zeros(nb, np.bool_)  # which hit rows have candidates (see _probe)
             self._near_set = False  # a probed row's hull is marked near (hulls.near; cleared at the next probe)
             self._prev_rows: set = set()
         self.keys_per_shape = keys_per_shape(n)
@@ -851,29 +848,15 @@ class ContactSet:
         n = len(x)
         xl = None
         kinds = self.shapes.kind
-        table = self.rows
-        order = sorted(rows)
-        # every hit link's box at once, and one compiled pass that says which have candidates (a gripper round an
-        # excluded end has none: its box is near, no node's is); only those are asked again for their candidates
-        k = len(order)
-        corners = chain.from_iterable(chain.from_iterable(
-            pb.getAABB(table[s][0], table[s][1], physicsClientId=cid) for s in order))
-        boxes = np.fromiter(corners, float, 6 * k).reshape(k, 2, 3)  # (np.array of the tuples: 5x slower)
-        idx = np.fromiter(order, np.int64, k)
-        flags = self._row_flags[:k]
-        args = (x, boxes, reach, self._probe_out, idx, capsule >= 0, nodes, segs, mid, quat, flags)
-        if self._rows_near is None:
-            self._rows_near = bind(_rows_with_candidates, *args)
-        self._rows_near(*args)
-        for r, (s, has) in enumerate(zip(order, flags.tolist())):
-            if not has and s not in self._prev_rows:
-                continue  # only its box was near (a gripper around an excluded end)
-            body, link = table[s][0:2]
-            box[:] = boxes[r]
+        for s in sorted(rows):
+            body, link = self.rows[s][0:2]
+            box[0], box[1] = pb.getAABB(body, link, physicsClientId=cid)
             args = (x, box, reach, self._probe_out[s], capsule >= 0, nodes, segs, mid, quat)
             if self._candidates is None:
                 self._candidates = bind(_probe_candidates, *args)
             nn, ns = self._candidates(*args)
+            if nn == 0 and ns == 0 and s not in self._prev_rows:
+                continue  # only its box was near (a gripper around an excluded end)
             self._read_link(s)
             if kinds[s] == HULL:  # on the exact geometry in detect(), with its pose now
                 near[s] = True
@@ -1348,16 +1331,6 @@ def _probe_candidates(x, box, reach, out, segments, nodes, segs, mid, quat):
             quat[ns, 0], quat[ns, 1], quat[ns, 2], quat[ns, 3] = -e1 / ql, e0 / ql, 0.0, (1.0 + e2) / ql
         ns += 1
     return nn, ns
-
-
-@njit(cache=True, error_model="numpy")
-def _rows_with_candidates(x, boxes, reach, out, rows, segments, nodes, segs, mid, quat, flags):
-    """For each row ``rows[r]`` (k,) with link box ``boxes[r]`` (k, 2, 3): whether :func:`_probe_candidates` finds
-    a node or a segment of x within ``reach`` of it (skipping that row's ``out`` nodes, (B, n) bool), into
-    ``flags[r]``; ``nodes``, ``segs``, ``mid``, ``quat``: its scratch (left as the last row's answer)."""
-    for r in range(rows.shape[0]):
-        nn, ns = _probe_candidates(x, boxes[r], reach, out[rows[r]], segments, nodes, segs, mid, quat)
-        flags[r] = nn > 0 or ns > 0
 
 
 @njit(cache=True, error_model="numpy", inline="always")
