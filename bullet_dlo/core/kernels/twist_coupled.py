@@ -88,6 +88,9 @@ from bullet_dlo.core.kernels.twist import (
 )
 
 HALF_T = 10  # scalar half-bandwidth of the interleaved (x_i, theta_i) layout
+# the nodes from which the round section's passes by rows (_round_twist) pay for their extra loops and stores:
+# BDF2 step at n = 10 and 20 1-3 % slower with them, at 40, 80, 160 5, 9, 10 % faster (demos/twist_cost.py)
+ROUND_PASSES_FROM = 32
 
 
 class Scratch(NamedTuple):
@@ -274,23 +277,23 @@ def _store_edge(edges, col, fr):
     edges[4, col], edges[5, col], edges[6, col], edges[7, col] = fr[4], fr[5], fr[6], fr[7]
 
 
-@njit(cache=True, error_model="numpy")
-def _prepare(m, sc):
-    """The per-step part of the scratch (the reference frames are fixed within a step): the reference directors
-    and tangents by rows into sc.rt, whether every node takes :func:`_round_twist` (no anisotropy, no twist
-    damper) into sc.flags[1]; sc.flags[0] <- 1."""
-    ref, tan = m.tw_ref, m.tw_tan
-    rt = sc.rt
-    for k in range(ref.shape[0]):
-        for j in range(3):
-            rt[j, k] = ref[k, j]
-            rt[3 + j, k] = tan[k, j]
-    fast = 1
-    for i in range(m.tw_k_aniso.shape[0]):
-        if m.tw_k_aniso[i] != 0.0 or m.tw_c_twist[i] != 0.0:
+@njit(cache=True, error_model="numpy", inline="always")
+def _prepare(ref, tan, kan, ctw, rt, flags):
+    """The per-step part of the scratch (the reference frames are fixed within a step): whether every node takes
+    :func:`_round_twist` (no anisotropy kan, no twist damper ctw, at least ROUND_PASSES_FROM nodes) into flags[1],
+    then the reference directors ref and tangents tan by rows into rt; flags[0] <- 1. (Arrays, not the tuples:
+    a call passing the kernel arrays and the scratch costs ~0.5 us of reference counting.)"""
+    fast = 1 if kan.shape[0] >= ROUND_PASSES_FROM else 0
+    for i in range(kan.shape[0]):
+        if kan[i] != 0.0 or ctw[i] != 0.0:
             fast = 0
-    sc.flags[1] = fast
-    sc.flags[0] = 1
+    if fast:
+        for k in range(ref.shape[0]):
+            for j in range(3):
+                rt[j, k] = ref[k, j]
+                rt[3 + j, k] = tan[k, j]
+    flags[1] = fast
+    flags[0] = 1
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -307,17 +310,16 @@ def _psi_args(E, i):
 
 
 @njit(cache=True, error_model="numpy")
-def _round_twist(xe, dirs, th, clamp, mref, ktw, f, tq, rate, sc):
+def _round_twist(xe, dirs, th, clamp, mref, ktw, f, tq, rate, E, geo, xs, rt, nd):
     """The twist part of :func:`_residual` for round and tube sections without twist dampers (every node; see
-    :func:`_prepare`): f += the twist springs' forces, tq += their torques, rate <- 0, sc.edges and sc.geo as the
-    node loop writes them; returns the twist energy [J]. The same operations in the same order per value as the
+    :func:`_prepare`): f += the twist springs' forces, tq += their torques, rate <- 0, E and geo (the scratch's edges
+    and geo; xs, rt, nd its rows of X, the reference frames and node scratch) as the node loop writes them; returns the twist energy [J]. The same operations in the same order per value as the
     node loop (:func:`~bullet_dlo.core.kernels.twist.edge_frame`, :func:`~bullet_dlo.core.kernels.twist._psi`,
     :func:`~bullet_dlo.core.kernels.twist.twist_of_frames`), so bit-identical, but split into passes over rows
     of arrays (edges, node geometry, the atan2s, twist and gradients) whose divisions and square roots the
     compiler runs 4 or 8 at a time; the sums (forces, torques, energy) in a last pass in node order."""
     n = xe.shape[0]
     ns = n - 1
-    E, geo, xs, rt, nd = sc.edges, sc.geo, sc.xs, sc.rt, sc.nd
     for i in range(n):
         xs[0, i], xs[1, i], xs[2, i] = xe[i, 0], xe[i, 1], xe[i, 2]
     _store_edge(E, 0, edge_frame(xe, dirs, th, rt, rt, clamp, -1))  # the clamps' virtual edges
@@ -403,9 +405,9 @@ def _residual(m, mp, imp, ws, samples, mid, h, tb, wb, wa, vn, wn, wv, rate, tq,
         tq[k] = -drag[k] * wv[k]
     edges, geo = sc.edges, sc.geo
     if sc.flags[0] == 0:
-        _prepare(m, sc)
+        _prepare(ref, tan, kan, ctw, sc.rt, sc.flags)
     if sc.flags[1] != 0:  # round and tube sections without twist dampers: the vectorised passes
-        energy = _round_twist(xe, dirs, th, clamp, mref, ktw, f, tq, rate, sc)
+        energy = _round_twist(xe, dirs, th, clamp, mref, ktw, f, tq, rate, edges, geo, sc.xs, sc.rt, sc.nd)
     else:
         energy = 0.0
         fb = edge_frame(xe, dirs, th, ref, tan, clamp, -1)
@@ -976,18 +978,17 @@ def _newton_matrix(stepper, m, mp, imp, ws, band, g, sc, exact, lower, upx, samp
 
 
 @njit(cache=True, error_model="numpy")
-def _round_reference_twists(x, dirs, theta, clamp, mref, sc):
+def _round_reference_twists(x, dirs, theta, clamp, mref, E, xs, nd):
     """:func:`~bullet_dlo.core.kernels.twist.reference_twists` at the end of a step whose last residual's frames
-    (sc.edges) are the new reference frames, by rows as :func:`_round_twist` (the same operations per value, so
-    bit-identical): each edge's frame transported from itself onto the tangent of x, the nodes' reference
-    twists. Overwrites sc.edges, sc.xs, sc.nd."""
+    (E, the scratch's edges) are the new reference frames, by rows as :func:`_round_twist` (the same operations per
+    value, so bit-identical): each edge's frame transported from itself onto the tangent of x, the nodes'
+    reference twists. Overwrites E and the scratch's rows xs, nd."""
     n = x.shape[0]
     ns = n - 1
-    E, xs, nd = sc.edges, sc.xs, sc.nd
     for i in range(n):
         xs[0, i], xs[1, i], xs[2, i] = x[i, 0], x[i, 1], x[i, 2]
-    _store_edge(E, 0, edge_frame(x, dirs, theta, sc.rt, sc.rt, clamp, -1))
-    _store_edge(E, n, edge_frame(x, dirs, theta, sc.rt, sc.rt, clamp, ns))
+    _store_edge(E, 0, edge_frame(x, dirs, theta, xs, xs, clamp, -1))  # (ref, tan not read for these)
+    _store_edge(E, n, edge_frame(x, dirs, theta, xs, xs, clamp, ns))
     for k in range(ns):  # edge_frame with ref = E[4:7, k + 1], tan = E[1:4, k + 1] (read before written)
         c = k + 1
         u0, u1, u2, a0, a1, a2 = E[4, c], E[5, c], E[6, c], E[1, c], E[2, c], E[3, c]
@@ -1142,7 +1143,7 @@ def coupled_implicit(stepper, m, x, v, samples, ws, has_prev):
             tan[k, 0], tan[k, 1], tan[k, 2] = edges[1, k + 1], edges[2, k + 1], edges[3, k + 1]
             ref[k, 0], ref[k, 1], ref[k, 2] = edges[4, k + 1], edges[5, k + 1], edges[6, k + 1]
         if sc.flags[1] != 0:  # (the same values by rows)
-            _round_reference_twists(x, samples.dir[2], m.tw_theta, m.tw_clamp, m.tw_mref, sc)
+            _round_reference_twists(x, samples.dir[2], m.tw_theta, m.tw_clamp, m.tw_mref, edges, sc.xs, sc.nd)
         else:
             reference_twists(x, samples.dir[2], m.tw_theta, ref, tan, m.tw_clamp, m.tw_mref)
     else:
