@@ -125,7 +125,9 @@ def test_twist_rank_one_block_is_coef_g_gT_over_the_present_unknowns(present):
     g = np.where(mask, gfull, 0.0)
     base, size, half = 4, 20, 10
     band = np.zeros((size, half + 1))
-    _add_twist_ggt(band, base, coef, la, lb, kb[0], kb[1], kb[2], pa, pi, pb, ta, tb, np.empty(11), np.empty(11))
+    qa, qb = kb / (2 * la), kb / (2 * lb)
+    _add_twist_ggt(band, base, coef, qa[0], qa[1], qa[2], qb[0], qb[1], qb[2], pa, pi, pb, ta, tb, np.empty(11),
+                   np.empty(11))
     dense = np.zeros((size, size))
     dense[base:base + 11, base:base + 11] = coef * np.outer(g, g)
     got = np.zeros((size, size))

@@ -52,6 +52,7 @@ from bullet_dlo.core.kernels.twist import (
     add_twist_forces,
     add_twist_jacobian,
     has_twist,
+    scatter_edge,
     scatter_node_hessian,
     twist_clamp_torque,
     twist_energy,
@@ -171,19 +172,9 @@ def internal_forces(m, x, dirs, out):
         gbx, gby, gbz = gb * (ux - c * wx), gb * (uy - c * wy), gb * (uz - c * wz)
         # a = x_i - x_{i-1}, b = x_{i+1} - x_i ; F = -dE/dx
         if i > 0:  # a depends on x_{i-1} (-1) and x_i (+1)
-            out[i - 1, 0] += gax
-            out[i - 1, 1] += gay
-            out[i - 1, 2] += gaz
-            out[i, 0] -= gax
-            out[i, 1] -= gay
-            out[i, 2] -= gaz
+            scatter_edge(out, i - 1, gax, gay, gaz)
         if i < n - 1:  # b depends on x_i (-1) and x_{i+1} (+1)
-            out[i, 0] += gbx
-            out[i, 1] += gby
-            out[i, 2] += gbz
-            out[i + 1, 0] -= gbx
-            out[i + 1, 1] -= gby
-            out[i + 1, 2] -= gbz
+            scatter_edge(out, i, gbx, gby, gbz)
     if has_twist(m):
         add_twist_forces(m, x, dirs, out)
     if has_rest_shape(m):  # curved rest shape (checked here: a call passing m costs ~0.5 us even as a no-op)

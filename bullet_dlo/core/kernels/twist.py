@@ -237,6 +237,18 @@ transport = _transport  # the public name (callers outside the kernels)
 
 
 @njit(cache=True, error_model="numpy", inline="always")
+def scatter_edge(f, k, g0, g1, g2):
+    """f[k] += g, f[k + 1] -= g: a gradient g = dE/de_k [N] of edge k = x_{k+1} - x_k as forces -dE/dx on its two
+    nodes (f (n, 3); in this order, so sums stay bit-identical to the loops written out)."""
+    f[k, 0] += g0
+    f[k, 1] += g1
+    f[k, 2] += g2
+    f[k + 1, 0] -= g0
+    f[k + 1, 1] -= g1
+    f[k + 1, 2] -= g2
+
+
+@njit(cache=True, error_model="numpy", inline="always")
 def _unit_edge(x, k, out):
     """out <- unit tangent of edge k; returns its length [m]."""
     dx, dy, dz = x[k + 1, 0] - x[k, 0], x[k + 1, 1] - x[k, 1], x[k + 1, 2] - x[k, 2]
@@ -640,19 +652,9 @@ def add_twist_forces(m, x, dirs, out):
             ga0, ga1, ga2 = ft * kb0 / (2.0 * la), ft * kb1 / (2.0 * la), ft * kb2 / (2.0 * la)
             gb0, gb1, gb2 = ft * kb0 / (2.0 * lb), ft * kb1 / (2.0 * lb), ft * kb2 / (2.0 * lb)
         if i > 0:  # e_a = x_i - x_{i-1}
-            out[i - 1, 0] += ga0
-            out[i - 1, 1] += ga1
-            out[i - 1, 2] += ga2
-            out[i, 0] -= ga0
-            out[i, 1] -= ga1
-            out[i, 2] -= ga2
+            scatter_edge(out, i - 1, ga0, ga1, ga2)
         if i < n - 1:  # e_b = x_{i+1} - x_i
-            out[i, 0] += gb0
-            out[i, 1] += gb1
-            out[i, 2] += gb2
-            out[i + 1, 0] -= gb0
-            out[i + 1, 1] -= gb1
-            out[i + 1, 2] -= gb2
+            scatter_edge(out, i, gb0, gb1, gb2)
 
 
 @njit(cache=True, error_model="numpy")

@@ -73,6 +73,8 @@ from bullet_dlo.core.kernels.steppers import (
 from bullet_dlo.core.kernels.twist import (
     _curvatures,
     _node_edge_gradients,
+    _transport_s,
+    _wrap,
     aniso_node_hessian,
     edge_frame,
     geometry_of_frames,
@@ -80,11 +82,15 @@ from bullet_dlo.core.kernels.twist import (
     twist_of_frames,
     phi_jacobians,
     reference_twists,
+    scatter_edge,
     scatter_node_hessian,
     update_frames,
 )
 
 HALF_T = 10  # scalar half-bandwidth of the interleaved (x_i, theta_i) layout
+# the nodes from which the round section's passes by rows (_round_twist) pay for their extra loops and stores:
+# BDF2 step at n = 10 and 20 1-3 % slower with them, at 40, 80, 160 5, 9, 10 % faster (demos/twist_cost.py)
+ROUND_PASSES_FROM = 32
 
 
 class Scratch(NamedTuple):
@@ -94,11 +100,16 @@ class Scratch(NamedTuple):
     jrow (4, 6); hb (6, 6) node Hessian.
 
     What the last :func:`_residual` computed, for the Newton matrix at the same state (and, at the accepted
-    iterate, the frames' transport at the end of the step): edges (n-1, 7) each edge's length [m], unit tangent
-    and reference director transported onto it (:func:`~bullet_dlo.core.kernels.twist.edge_frame`'s first seven
-    values); geo (n, 6) each node's |e_a|, |e_b| [m], curvature binormal kb (3) and twist stress
-    s = k_t m + c_t dm/dt [N m] (written for the nodes with a twist spring or damper); xw (36, 6): the exact
-    Jacobian's node scratch (:func:`_exact_node`); zw (8, 11) :func:`_scatter_exact`'s."""
+    iterate, the frames' transport at the end of the step), stored by rows (structure of arrays: the round
+    section's passes over edges and nodes then run in SIMD lanes, see :func:`_round_twist`): edges (8, n+1)
+    column k+1 edge k's length [m], unit tangent, reference director transported onto it and twist angle
+    (:func:`~bullet_dlo.core.kernels.twist.edge_frame`'s values; columns 0 and n the clamps' virtual edges);
+    geo (6, n) each node's |e_a|, |e_b| [m], curvature binormal kb (3) and twist stress s = k_t m + c_t dm/dt
+    [N m] (written for the nodes with a twist spring or damper); xw (36, 6): the exact Jacobian's node scratch
+    (:func:`_exact_node`); zw (8, 11) :func:`_scatter_exact`'s. Per step (the reference frames fixed within it,
+    taken by the first residual, :func:`_prepare`): xs (3, n) X by rows; rt (6, n-1) the reference directors
+    and tangents by rows; nd (12, n) the round pass's node scratch; flags (2,): prepared, and whether every
+    node is round or tube without a twist damper (the vectorised passes) or not (the node loop)."""
 
     ga: np.ndarray
     gb: np.ndarray
@@ -113,13 +124,18 @@ class Scratch(NamedTuple):
     geo: np.ndarray
     xw: np.ndarray
     zw: np.ndarray
+    xs: np.ndarray
+    rt: np.ndarray
+    nd: np.ndarray
+    flags: np.ndarray
 
 
 def make_scratch(n: int) -> Scratch:
     """The :class:`Scratch` of an n-node cable."""
     return Scratch(np.empty(3), np.empty(3), np.empty((3, 3)), np.empty((3, 3)), np.zeros(1), np.empty(11),
-                   np.empty((4, 6)), np.empty((6, 6)), np.empty(11), np.empty((max(n - 1, 0), 7)),
-                   np.empty((n, 6)), np.zeros((36, 6)), np.zeros((8, 11)))
+                   np.empty((4, 6)), np.empty((6, 6)), np.empty(11), np.empty((8, n + 1)),
+                   np.empty((6, n)), np.zeros((36, 6)), np.zeros((8, 11)), np.empty((3, n)),
+                   np.empty((6, max(n - 1, 0))), np.empty((12, n)), np.zeros(2, dtype=np.int64))
 
 
 _make_scratch = njit(cache=True)(make_scratch)  # the same, called from the compiled step
@@ -254,6 +270,108 @@ def _clamp_rate(m, xe, samples, mid, h, i):
     return out
 
 
+@njit(cache=True, error_model="numpy", inline="always")
+def _store_edge(edges, col, fr):
+    """edges[:, col] <- the 8 values of an :func:`~bullet_dlo.core.kernels.twist.edge_frame`."""
+    edges[0, col], edges[1, col], edges[2, col], edges[3, col] = fr[0], fr[1], fr[2], fr[3]
+    edges[4, col], edges[5, col], edges[6, col], edges[7, col] = fr[4], fr[5], fr[6], fr[7]
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _prepare(ref, tan, kan, ctw, rt, flags):
+    """The per-step part of the scratch (the reference frames are fixed within a step): whether every node takes
+    :func:`_round_twist` (no anisotropy kan, no twist damper ctw, at least ROUND_PASSES_FROM nodes) into flags[1],
+    then the reference directors ref and tangents tan by rows into rt; flags[0] <- 1. (Arrays, not the tuples:
+    a call passing the kernel arrays and the scratch costs ~0.5 us of reference counting.)"""
+    fast = 1 if kan.shape[0] >= ROUND_PASSES_FROM else 0
+    for i in range(kan.shape[0]):
+        if kan[i] != 0.0 or ctw[i] != 0.0:
+            fast = 0
+    if fast:
+        for k in range(ref.shape[0]):
+            for j in range(3):
+                rt[j, k] = ref[k, j]
+                rt[3 + j, k] = tan[k, j]
+    flags[1] = fast
+    flags[0] = 1
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _psi_args(E, i):
+    """The two arguments of :func:`~bullet_dlo.core.kernels.twist._psi`'s atan2 (its operations) at node i from
+    edge rows E (:class:`Scratch`'s edges: edge a in column i, edge b in column i + 1)."""
+    ta0, ta1, ta2, ra0, ra1, ra2 = E[1, i], E[2, i], E[3, i], E[4, i], E[5, i], E[6, i]
+    tb0, tb1, tb2, rb0, rb1, rb2 = E[1, i + 1], E[2, i + 1], E[3, i + 1], E[4, i + 1], E[5, i + 1], E[6, i + 1]
+    p0, p1, p2 = _transport_s(ra0, ra1, ra2, ta0, ta1, ta2, tb0, tb1, tb2)
+    c0 = p1 * rb2 - p2 * rb1
+    c1 = p2 * rb0 - p0 * rb2
+    c2 = p0 * rb1 - p1 * rb0
+    return c0 * tb0 + c1 * tb1 + c2 * tb2, p0 * rb0 + p1 * rb1 + p2 * rb2
+
+
+@njit(cache=True, error_model="numpy")
+def _round_twist(xe, dirs, th, clamp, mref, ktw, f, tq, rate, E, geo, xs, rt, nd):
+    """The twist part of :func:`_residual` for round and tube sections without twist dampers (every node; see
+    :func:`_prepare`): f += the twist springs' forces, tq += their torques, rate <- 0, E and geo (the scratch's edges
+    and geo; xs, rt, nd its rows of X, the reference frames and node scratch) as the node loop writes them; returns the twist energy [J]. The same operations in the same order per value as the
+    node loop (:func:`~bullet_dlo.core.kernels.twist.edge_frame`, :func:`~bullet_dlo.core.kernels.twist._psi`,
+    :func:`~bullet_dlo.core.kernels.twist.twist_of_frames`), so bit-identical, but split into passes over rows
+    of arrays (edges, node geometry, the atan2s, twist and gradients) whose divisions and square roots the
+    compiler runs 4 or 8 at a time; the sums (forces, torques, energy) in a last pass in node order."""
+    n = xe.shape[0]
+    ns = n - 1
+    for i in range(n):
+        xs[0, i], xs[1, i], xs[2, i] = xe[i, 0], xe[i, 1], xe[i, 2]
+    _store_edge(E, 0, edge_frame(xe, dirs, th, rt, rt, clamp, -1))  # the clamps' virtual edges
+    _store_edge(E, n, edge_frame(xe, dirs, th, rt, rt, clamp, ns))
+    for k in range(ns):  # edge_frame of edge k (by rows)
+        dx, dy, dz = xs[0, k + 1] - xs[0, k], xs[1, k + 1] - xs[1, k], xs[2, k + 1] - xs[2, k]
+        length = math.sqrt(dx * dx + dy * dy + dz * dz)
+        t0, t1, t2 = dx / length, dy / length, dz / length
+        r0, r1, r2 = _transport_s(rt[0, k], rt[1, k], rt[2, k], rt[3, k], rt[4, k], rt[5, k], t0, t1, t2)
+        E[0, k + 1], E[1, k + 1], E[2, k + 1], E[3, k + 1] = length, t0, t1, t2
+        E[4, k + 1], E[5, k + 1], E[6, k + 1] = r0, r1, r2
+    for k in range(ns):  # (a loop of its own: with it the loop above is not vectorised, 0.42 -> 1.6 us at n = 80)
+        E[7, k + 1] = th[k]
+    for i in range(n):  # _psi's atan2 arguments and twist_of_frames' binormal at node i (edges a = i-1, b = i)
+        nd[0, i], nd[1, i] = _psi_args(E, i)
+        ta0, ta1, ta2, tb0, tb1, tb2 = E[1, i], E[2, i], E[3, i], E[1, i + 1], E[2, i + 1], E[3, i + 1]
+        c = ta0 * tb0 + ta1 * tb1 + ta2 * tb2
+        k0 = ta1 * tb2 - ta2 * tb1
+        k1 = ta2 * tb0 - ta0 * tb2
+        k2 = ta0 * tb1 - ta1 * tb0
+        geo[0, i], geo[1, i] = E[0, i], E[0, i + 1]
+        geo[2, i], geo[3, i], geo[4, i] = 2.0 * k0 / (1.0 + c), 2.0 * k1 / (1.0 + c), 2.0 * k2 / (1.0 + c)
+    for i in range(n):  # (a library call each: not vectorised)
+        nd[0, i] = math.atan2(nd[0, i], nd[1, i])
+    for i in range(n):  # twist, stress, energy term and edge gradients
+        mr = mref[i]
+        twist = E[7, i + 1] - E[7, i] + mr + _wrap(nd[0, i] - mr)
+        kt = ktw[i]
+        s = kt * twist
+        geo[5, i] = s
+        nd[1, i] = 0.5 * kt * twist * twist
+        la, lb, kb0, kb1, kb2 = geo[0, i], geo[1, i], geo[2, i], geo[3, i], geo[4, i]
+        nd[2, i], nd[3, i], nd[4, i] = s * kb0 / (2.0 * la), s * kb1 / (2.0 * la), s * kb2 / (2.0 * la)
+        nd[5, i], nd[6, i], nd[7, i] = s * kb0 / (2.0 * lb), s * kb1 / (2.0 * lb), s * kb2 / (2.0 * lb)
+    energy = 0.0
+    for i in range(n):  # the sums, in node order
+        rate[i] = 0.0
+        if ktw[i] == 0.0:
+            continue
+        energy += nd[1, i]
+        if i > 0:  # e_a = x_i - x_{i-1}
+            scatter_edge(f, i - 1, nd[2, i], nd[3, i], nd[4, i])
+        if i < ns:  # e_b = x_{i+1} - x_i
+            scatter_edge(f, i, nd[5, i], nd[6, i], nd[7, i])
+        s = geo[5, i]
+        if i > 0:  # dm_i/dtheta_a = -1
+            tq[i - 1] += s
+        if i < ns:
+            tq[i] -= s
+    return energy
+
+
 @njit(cache=True, error_model="numpy")
 def _residual(m, mp, imp, ws, samples, mid, h, tb, wb, wa, vn, wn, wv, rate, tq, r, g, sc):
     """r <- the coupled residual [N s; N m s] at (v', w') = (vn, wn), interleaved (4 per node); returns its max
@@ -283,78 +401,72 @@ def _residual(m, mp, imp, ws, samples, mid, h, tb, wb, wa, vn, wn, wv, rate, tq,
         wv[k] = wb[k] + cv * wn[k]
     total_forces(mp, xe, ve, dirs, f)  # without the material frame's terms (added below)
     ga, gb, pa, pb = sc.ga, sc.gb, sc.pa, sc.pb
-    energy = 0.0
     for k in range(ns):
         tq[k] = -drag[k] * wv[k]
     edges, geo = sc.edges, sc.geo
-    fb = edge_frame(xe, dirs, th, ref, tan, clamp, -1)
-    for i in range(n):
-        fa = fb  # edge i-1's frame, carried on from the last node (each edge frame computed once)
-        fb = edge_frame(xe, dirs, th, ref, tan, clamp, i)
-        if i < ns:  # kept for the Newton matrix and the frames' transport at the end of the step
-            edges[i, 0], edges[i, 1], edges[i, 2], edges[i, 3] = fb[0], fb[1], fb[2], fb[3]
-            edges[i, 4], edges[i, 5], edges[i, 6] = fb[4], fb[5], fb[6]
-        kt, dl, ct = ktw[i], kan[i], ctw[i]
-        rate[i] = 0.0
-        if kt == 0.0 and dl == 0.0 and ct == 0.0:
-            continue
-        if dl != 0.0:
-            twist, la, lb, ratio, alpha, c = geometry_of_frames(fa, fb, mref[i], g)
-            kb0, kb1, kb2 = g[9, 0], g[9, 1], g[9, 2]
-        else:  # round and tube sections: twist and binormal only
-            twist, la, lb, kb0, kb1, kb2 = twist_of_frames(fa, fb, mref[i])
-            ratio, alpha, c = 1.0, 0.0, 1.0  # (unused without anisotropy)
-        geo[i, 0], geo[i, 1], geo[i, 2], geo[i, 3], geo[i, 4] = la, lb, kb0, kb1, kb2
-        s = kt * twist
-        if ct != 0.0:
-            rt = (wv[i] if i < ns else 0.0) - (wv[i - 1] if i > 0 else 0.0)
-            if i > 0:
-                rt += (kb0 * (ve[i, 0] - ve[i - 1, 0]) + kb1 * (ve[i, 1] - ve[i - 1, 1])
-                       + kb2 * (ve[i, 2] - ve[i - 1, 2])) / (2.0 * la)
-            else:
-                rt += _clamp_rate(m, xe, samples, mid, h, i)
+    if sc.flags[0] == 0:
+        _prepare(ref, tan, kan, ctw, sc.rt, sc.flags)
+    if sc.flags[1] != 0:  # round and tube sections without twist dampers: the vectorised passes
+        energy = _round_twist(xe, dirs, th, clamp, mref, ktw, f, tq, rate, edges, geo, sc.xs, sc.rt, sc.nd)
+    else:
+        energy = 0.0
+        fb = edge_frame(xe, dirs, th, ref, tan, clamp, -1)
+        _store_edge(edges, 0, fb)
+        for i in range(n):
+            fa = fb  # edge i-1's frame, carried on from the last node (each edge frame computed once)
+            fb = edge_frame(xe, dirs, th, ref, tan, clamp, i)
+            _store_edge(edges, i + 1, fb)  # kept for the Newton matrix and the frames' transport at the end
+            kt, dl, ct = ktw[i], kan[i], ctw[i]
+            rate[i] = 0.0
+            if kt == 0.0 and dl == 0.0 and ct == 0.0:
+                continue
+            if dl != 0.0:
+                twist, la, lb, ratio, alpha, c = geometry_of_frames(fa, fb, mref[i], g)
+                kb0, kb1, kb2 = g[9, 0], g[9, 1], g[9, 2]
+            else:  # round and tube sections: twist and binormal only
+                twist, la, lb, kb0, kb1, kb2 = twist_of_frames(fa, fb, mref[i])
+                ratio, alpha, c = 1.0, 0.0, 1.0  # (unused without anisotropy)
+            geo[0, i], geo[1, i], geo[2, i], geo[3, i], geo[4, i] = la, lb, kb0, kb1, kb2
+            s = kt * twist
+            if ct != 0.0:
+                rt = (wv[i] if i < ns else 0.0) - (wv[i - 1] if i > 0 else 0.0)
+                if i > 0:
+                    rt += (kb0 * (ve[i, 0] - ve[i - 1, 0]) + kb1 * (ve[i, 1] - ve[i - 1, 1])
+                           + kb2 * (ve[i, 2] - ve[i - 1, 2])) / (2.0 * la)
+                else:
+                    rt += _clamp_rate(m, xe, samples, mid, h, i)
+                if i < ns:
+                    rt += (kb0 * (ve[i + 1, 0] - ve[i, 0]) + kb1 * (ve[i + 1, 1] - ve[i, 1])
+                           + kb2 * (ve[i + 1, 2] - ve[i, 2])) / (2.0 * lb)
+                else:
+                    rt += _clamp_rate(m, xe, samples, mid, h, i)
+                rate[i] = rt
+                s += ct * rt
+            geo[5, i] = s
+            energy += 0.5 * kt * twist * twist
+            # forces on the positions: -dE/dx of the twist spring and damper (stress s) and the anisotropic bending
+            if dl != 0.0:
+                p1a, p2a, p1b, p2b = _curvatures(g)
+                energy += 0.25 * dl * (p1a * p1a - p2a * p2a + p1b * p1b - p2b * p2b)
+                _node_edge_gradients(g, s, la, lb, ratio, alpha, c, dl, 1.0, ga, gb, pa, pb)
+                ga0, ga1, ga2, gb0, gb1, gb2 = ga[0], ga[1], ga[2], gb[0], gb[1], gb[2]
+            else:  # (as _node_edge_gradients computes them without anisotropy)
+                ga0, ga1, ga2 = s * kb0 / (2.0 * la), s * kb1 / (2.0 * la), s * kb2 / (2.0 * la)
+                gb0, gb1, gb2 = s * kb0 / (2.0 * lb), s * kb1 / (2.0 * lb), s * kb2 / (2.0 * lb)
+            if i > 0:  # e_a = x_i - x_{i-1}
+                scatter_edge(f, i - 1, ga0, ga1, ga2)
+            if i < ns:  # e_b = x_{i+1} - x_i
+                scatter_edge(f, i, gb0, gb1, gb2)
+            if i > 0:  # dm_i/dtheta_a = -1
+                tq[i - 1] += s
             if i < ns:
-                rt += (kb0 * (ve[i + 1, 0] - ve[i, 0]) + kb1 * (ve[i + 1, 1] - ve[i, 1])
-                       + kb2 * (ve[i + 1, 2] - ve[i, 2])) / (2.0 * lb)
-            else:
-                rt += _clamp_rate(m, xe, samples, mid, h, i)
-            rate[i] = rt
-            s += ct * rt
-        geo[i, 5] = s
-        energy += 0.5 * kt * twist * twist
-        # forces on the positions: -dE/dx of the twist spring and damper (stress s) and the anisotropic bending
-        if dl != 0.0:
-            p1a, p2a, p1b, p2b = _curvatures(g)
-            energy += 0.25 * dl * (p1a * p1a - p2a * p2a + p1b * p1b - p2b * p2b)
-            _node_edge_gradients(g, s, la, lb, ratio, alpha, c, dl, 1.0, ga, gb, pa, pb)
-            ga0, ga1, ga2, gb0, gb1, gb2 = ga[0], ga[1], ga[2], gb[0], gb[1], gb[2]
-        else:  # (as _node_edge_gradients computes them without anisotropy)
-            ga0, ga1, ga2 = s * kb0 / (2.0 * la), s * kb1 / (2.0 * la), s * kb2 / (2.0 * la)
-            gb0, gb1, gb2 = s * kb0 / (2.0 * lb), s * kb1 / (2.0 * lb), s * kb2 / (2.0 * lb)
-        if i > 0:  # e_a = x_i - x_{i-1}
-            f[i - 1, 0] += ga0
-            f[i - 1, 1] += ga1
-            f[i - 1, 2] += ga2
-            f[i, 0] -= ga0
-            f[i, 1] -= ga1
-            f[i, 2] -= ga2
-        if i < ns:  # e_b = x_{i+1} - x_i
-            f[i, 0] += gb0
-            f[i, 1] += gb1
-            f[i, 2] += gb2
-            f[i + 1, 0] -= gb0
-            f[i + 1, 1] -= gb1
-            f[i + 1, 2] -= gb2
-        if i > 0:  # dm_i/dtheta_a = -1
-            tq[i - 1] += s
-        if i < ns:
-            tq[i] -= s
-        if dl != 0.0:
-            p1a, p2a, p1b, p2b = _curvatures(g)
-            if i > 0:
-                tq[i - 1] -= dl * p1a * p2a
-            if i < ns:
-                tq[i] -= dl * p1b * p2b
+                tq[i] -= s
+            if dl != 0.0:
+                p1a, p2a, p1b, p2b = _curvatures(g)
+                if i > 0:
+                    tq[i - 1] -= dl * p1a * p2a
+                if i < ns:
+                    tq[i] -= dl * p1b * p2b
     worst = 0.0
     for i in range(n):
         for j in range(3):
@@ -416,18 +528,20 @@ def _present(p, pa, pi, pb, ta, tb):
 
 
 @njit(cache=True, error_model="numpy")
-def _add_twist_ggt(band, base, coef, la, lb, kb0, kb1, kb2, pa, pi, pb, ta, tb, gv, cg):
+def _add_twist_ggt(band, base, coef, qa0, qa1, qa2, qb0, qb1, qb2, pa, pi, pb, ta, tb, gv, cg):
     """band += coef g g^T (upper band) for one node's twist, g = dm_i/dq over the local layout base + l
     (x_{i-1} l = 0-2, theta_{i-1} 3, x_i 4-6, theta_i 7, x_{i+1} 8-10): -kb/2|e_a|, -1, kb/2|e_a| - kb/2|e_b|,
     +1, kb/2|e_b| (a clamp's virtual edge: the x_i entry without its term). pa, pi, pb: whether x_{i-1}, x_i,
-    x_{i+1} are unknowns (not held, inside the chain); ta, tb: theta_{i-1}, theta_i. gv, cg (11,): scratch.
+    x_{i+1} are unknowns (not held, inside the chain); ta, tb: theta_{i-1}, theta_i. qa = kb/2|e_a|, qb = kb/2|e_b|
+    (3 scalars each). gv, cg (11,): scratch.
     Each product's factor order is _FIRST's. A node with all 11 unknowns (all but the two or three next to each
     held end) takes the loop without presence tests (half the time)."""
     for j in range(3):
-        kbj = kb0 if j == 0 else (kb1 if j == 1 else kb2)
-        gv[j] = -kbj / (2.0 * la)
-        gv[4 + j] = (kbj / (2.0 * la) if ta else 0.0) - (kbj / (2.0 * lb) if tb else 0.0)
-        gv[8 + j] = kbj / (2.0 * lb)
+        qa = qa0 if j == 0 else (qa1 if j == 1 else qa2)
+        qb = qb0 if j == 0 else (qb1 if j == 1 else qb2)
+        gv[j] = -qa
+        gv[4 + j] = (qa if ta else 0.0) - (qb if tb else 0.0)
+        gv[8 + j] = qb
     gv[3] = -1.0
     gv[7] = 1.0
     for q in range(11):
@@ -446,12 +560,11 @@ def _add_twist_ggt(band, base, coef, la, lb, kb0, kb1, kb2, pa, pi, pb, ta, tb, 
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _kept_frame(xe, dirs, th, ref, tan, clamp, edges, k):
-    """:func:`~bullet_dlo.core.kernels.twist.edge_frame` of edge k at the last residual's state, its length,
-    tangent and transported director taken from that residual (``edges``), the clamps' virtual edges computed."""
-    if k < 0 or k >= edges.shape[0]:
-        return edge_frame(xe, dirs, th, ref, tan, clamp, k)
-    return (edges[k, 0], edges[k, 1], edges[k, 2], edges[k, 3], edges[k, 4], edges[k, 5], edges[k, 6], th[k])
+def _kept_frame(edges, k):
+    """:func:`~bullet_dlo.core.kernels.twist.edge_frame` of edge k (-1 .. n-1, the clamps' virtual edges
+    included) at the last residual's state, as that residual computed it (``edges``, :class:`Scratch`)."""
+    c = k + 1
+    return (edges[0, c], edges[1, c], edges[2, c], edges[3, c], edges[4, c], edges[5, c], edges[6, c], edges[7, c])
 
 
 # ----- the exact Jacobian's terms beyond Gauss-Newton ----------------------------------------------------------
@@ -766,34 +879,45 @@ def _newton_matrix(stepper, m, mp, imp, ws, band, g, sc, exact, lower, upx, samp
         wt = np.array(wts)
     else:
         wt = np.zeros(3)
+    nd = sc.nd
+    fast = sc.flags[1] != 0
+    if fast:  # every node round: the twist gradient's kb/2|e| from the residual's geometry, by rows (vectorised)
+        for i in range(n):
+            la, lb, kb0, kb1, kb2 = geo[0, i], geo[1, i], geo[2, i], geo[3, i], geo[4, i]
+            nd[0, i], nd[1, i], nd[2, i] = kb0 / (2.0 * la), kb1 / (2.0 * la), kb2 / (2.0 * la)
+            nd[3, i], nd[4, i], nd[5, i] = kb0 / (2.0 * lb), kb1 / (2.0 * lb), kb2 / (2.0 * lb)
     for i in range(n):
         kt, dl, ct = ktw[i], kan[i], ctw[i]
         if kt == 0.0 and dl == 0.0 and ct == 0.0:
             continue
         if dl != 0.0:  # the frames from the residual's edges (the same values edge_frame gives at this state)
-            twist, la, lb, ratio, alpha, c = geometry_of_frames(
-                _kept_frame(xe, dirs, th, ref, tan, clamp, edges, i - 1),
-                _kept_frame(xe, dirs, th, ref, tan, clamp, edges, i), mref[i], g)
+            twist, la, lb, ratio, alpha, c = geometry_of_frames(_kept_frame(edges, i - 1), _kept_frame(edges, i),
+                                                                mref[i], g)
             kb0, kb1, kb2 = g[9, 0], g[9, 1], g[9, 2]
         else:  # round and tube sections: the residual's lengths and binormal at this state
-            la, lb, kb0, kb1, kb2 = geo[i, 0], geo[i, 1], geo[i, 2], geo[i, 3], geo[i, 4]
+            la, lb, kb0, kb1, kb2 = geo[0, i], geo[1, i], geo[2, i], geo[3, i], geo[4, i]
             ratio, alpha, c = 1.0, 0.0, 1.0
         # g = dm/dq over the node's unknowns in the local layout l = q - 4(i-1) (x_{i-1} 0-2, theta_{i-1} 3, x_i
         # 4-6, theta_i 7, x_{i+1} 8-10), added as coef g g^T into the band's rows of the present unknowns
         coef = kc * (kt + (cv / cx) * ct)
         if coef != 0.0:
-            _add_twist_ggt(band, 4 * (i - 1), coef, la, lb, kb0, kb1, kb2, i > 0 and not held[i - 1],
+            if fast:  # (the pass above)
+                qa0, qa1, qa2, qb0, qb1, qb2 = nd[0, i], nd[1, i], nd[2, i], nd[3, i], nd[4, i], nd[5, i]
+            else:
+                qa0, qa1, qa2 = kb0 / (2.0 * la), kb1 / (2.0 * la), kb2 / (2.0 * la)
+                qb0, qb1, qb2 = kb0 / (2.0 * lb), kb1 / (2.0 * lb), kb2 / (2.0 * lb)
+            _add_twist_ggt(band, 4 * (i - 1), coef, qa0, qa1, qa2, qb0, qb1, qb2, i > 0 and not held[i - 1],
                            not held[i], i < ns and not held[i + 1], i > 0, i < ns, gv, cg)
         if dl != 0.0:
             phi_jacobians(g, la, lb, ratio, alpha, c, pa, pb)
         if exact:
             if dl == 0.0:  # the tangents (the residual's edges; a clamp's direction) and binormal into g
                 for j in range(3):
-                    g[0, j] = edges[i - 1, 1 + j] if i > 0 else dirs[0, j]
-                    g[2, j] = edges[i, 1 + j] if i < ns else dirs[1, j]
+                    g[0, j] = edges[1 + j, i] if i > 0 else dirs[0, j]
+                    g[2, j] = edges[1 + j, i + 1] if i < ns else dirs[1, j]
                 g[9, 0], g[9, 1], g[9, 2] = kb0, kb1, kb2
                 c = g[0, 0] * g[2, 0] + g[0, 1] * g[2, 1] + g[0, 2] * g[2, 2]
-            _exact_node(g, la, lb, ratio, alpha, c, kt, dl, geo[i, 5], ct, i > 0, i < ns, tan, i, ws.v_stage,
+            _exact_node(g, la, lb, ratio, alpha, c, kt, dl, geo[5, i], ct, i > 0, i < ns, tan, i, ws.v_stage,
                         wt, samples.dir, pa, pb, W)
             _scatter_exact(band, lower, upx, W, sc.zw, kc, i, ns, held)
         if dl == 0.0:
@@ -851,6 +975,39 @@ def _newton_matrix(stepper, m, mp, imp, ws, band, g, sc, exact, lower, upx, samp
             for d in range(1, HALF_T + 1):
                 lower[k, d] += band[k, d]
                 band[k, d] += upx[k, d]
+
+
+@njit(cache=True, error_model="numpy")
+def _round_reference_twists(x, dirs, theta, clamp, mref, E, xs, nd):
+    """:func:`~bullet_dlo.core.kernels.twist.reference_twists` at the end of a step whose last residual's frames
+    (E, the scratch's edges) are the new reference frames, by rows as :func:`_round_twist` (the same operations per
+    value, so bit-identical): each edge's frame transported from itself onto the tangent of x, the nodes'
+    reference twists. Overwrites E and the scratch's rows xs, nd."""
+    n = x.shape[0]
+    ns = n - 1
+    for i in range(n):
+        xs[0, i], xs[1, i], xs[2, i] = x[i, 0], x[i, 1], x[i, 2]
+    _store_edge(E, 0, edge_frame(x, dirs, theta, xs, xs, clamp, -1))  # (ref, tan not read for these)
+    _store_edge(E, n, edge_frame(x, dirs, theta, xs, xs, clamp, ns))
+    for k in range(ns):  # edge_frame with ref = E[4:7, k + 1], tan = E[1:4, k + 1] (read before written)
+        c = k + 1
+        u0, u1, u2, a0, a1, a2 = E[4, c], E[5, c], E[6, c], E[1, c], E[2, c], E[3, c]
+        dx, dy, dz = xs[0, k + 1] - xs[0, k], xs[1, k + 1] - xs[1, k], xs[2, k + 1] - xs[2, k]
+        length = math.sqrt(dx * dx + dy * dy + dz * dz)
+        t0, t1, t2 = dx / length, dy / length, dz / length
+        r0, r1, r2 = _transport_s(u0, u1, u2, a0, a1, a2, t0, t1, t2)
+        E[0, c], E[1, c], E[2, c], E[3, c] = length, t0, t1, t2
+        E[4, c], E[5, c], E[6, c] = r0, r1, r2
+    for k in range(ns):  # (as in _round_twist)
+        E[7, k + 1] = theta[k]
+    for i in range(n):  # _psi's atan2 arguments
+        nd[0, i], nd[1, i] = _psi_args(E, i)
+    for i in range(n):
+        nd[0, i] = math.atan2(nd[0, i], nd[1, i])
+    for i in range(n):  # twist_of_frames' twist minus (th_b - th_a)
+        mr = mref[i]
+        dth = E[7, i + 1] - E[7, i]
+        mref[i] = dth + mr + _wrap(nd[0, i] - mr) - dth
 
 
 @njit(cache=True, error_model="numpy")
@@ -983,9 +1140,12 @@ def coupled_implicit(stepper, m, x, v, samples, ws, has_prev):
     if kept and not mid:  # X of the last residual is the new x: its edges' transported frames are the new ones
         ref, tan, edges = m.tw_ref, m.tw_tan, sc.edges
         for k in range(ns):
-            tan[k, 0], tan[k, 1], tan[k, 2] = edges[k, 1], edges[k, 2], edges[k, 3]
-            ref[k, 0], ref[k, 1], ref[k, 2] = edges[k, 4], edges[k, 5], edges[k, 6]
-        reference_twists(x, samples.dir[2], m.tw_theta, ref, tan, m.tw_clamp, m.tw_mref)
+            tan[k, 0], tan[k, 1], tan[k, 2] = edges[1, k + 1], edges[2, k + 1], edges[3, k + 1]
+            ref[k, 0], ref[k, 1], ref[k, 2] = edges[4, k + 1], edges[5, k + 1], edges[6, k + 1]
+        if sc.flags[1] != 0:  # (the same values by rows)
+            _round_reference_twists(x, samples.dir[2], m.tw_theta, m.tw_clamp, m.tw_mref, edges, sc.xs, sc.nd)
+        else:
+            reference_twists(x, samples.dir[2], m.tw_theta, ref, tan, m.tw_clamp, m.tw_mref)
     else:
         update_frames(m, x, samples.dir[2])
     return it, converged
