@@ -114,7 +114,10 @@ class Bodies(NamedTuple):
     :func:`coupled_solve`. Per contact row (M rows, as :class:`Contacts`): slot (M,) int, the row's body slot
     (-1: a static body, a link of an articulated body, the cable itself or another cable: its surface moves at
     body_vel); arm (M, 3) [m]: the row's surface point from the body's centre of mass at the start of the step;
-    point0, anchor0 (M, 3) [m]: the row's surface point and anchor at the start of the step.
+    point0, anchor0 (M, 3) [m]: the row's surface point and anchor at the start of the step. impulse (S, 6) [N s,
+    N m s]: the rows' reactions on each body summed over the (sub-)steps of the planned Bullet step (torque about
+    the centre of mass at the rows' arms): Bullet gets their mean, so that its update lands the body where the
+    sub-steps took it (:func:`_add_impulse`).
 
     The Bodies are not a field of :class:`Contacts`: every compiled call that passes a NamedTuple takes and
     drops a reference to each of its arrays, and the contact kernels that run several times per Newton
@@ -138,6 +141,7 @@ class Bodies(NamedTuple):
     arm: np.ndarray
     point0: np.ndarray
     anchor0: np.ndarray
+    impulse: np.ndarray
 
 
 def make_bodies(n: int, capacity: int, slots: int) -> Bodies:
@@ -149,7 +153,7 @@ def make_bodies(n: int, capacity: int, slots: int) -> Bodies:
     return Bodies(active=np.zeros(s, np.bool_), mass=f(s), inertia=f((s, 3, 3)), gravity=f(3), vel=f((s, 6)),
                   vel_new=f((s, 6)), vel_try=f((s, 6)), step=f((s, 6)), residual=f((s, 6)),
                   coupling=f((3 * n, 6 * s)), schur=f((6 * s, 6 * s)), work=f(3 * n), slot=np.full(m, -1, np.int64),
-                  arm=f((m, 3)), point0=f((m, 3)), anchor0=f((m, 3)))
+                  arm=f((m, 3)), point0=f((m, 3)), anchor0=f((m, 3)), impulse=f((s, 6)))
 
 
 class Contacts(NamedTuple):
@@ -1074,6 +1078,26 @@ def bodies_converged(bd, h, tol, floor):
 
 
 @njit(cache=True, error_model="numpy")
+def _add_impulse(c, bd, h):
+    """bd.impulse += the reactions of the rows on their free bodies over the step of h [s], force and torque about
+    the centre of mass at the rows' arms of the step (as :func:`body_residual` counts them)."""
+    for k in range(c.count[0]):
+        s = bd.slot[k]
+        if s < 0:
+            continue
+        f0 = -(c.f_n[k] * c.normal[k, 0] + c.f_t[k, 0])
+        f1 = -(c.f_n[k] * c.normal[k, 1] + c.f_t[k, 1])
+        f2 = -(c.f_n[k] * c.normal[k, 2] + c.f_t[k, 2])
+        a0, a1, a2 = bd.arm[k, 0], bd.arm[k, 1], bd.arm[k, 2]
+        bd.impulse[s, 0] += h * f0
+        bd.impulse[s, 1] += h * f1
+        bd.impulse[s, 2] += h * f2
+        bd.impulse[s, 3] += h * (a1 * f2 - a2 * f1)
+        bd.impulse[s, 4] += h * (a2 * f0 - a0 * f2)
+        bd.impulse[s, 5] += h * (a0 * f1 - a1 * f0)
+
+
+@njit(cache=True, error_model="numpy")
 def _end_bodies(c, bd, h):
     """After the step of h [s]: the free bodies' solved velocity is their start for a next sub-step, and each
     row's arm turns with the body (the points stay where the step left them)."""
@@ -1365,6 +1389,7 @@ def contact_step(stepper, m, x, v, samples, ws, has_prev, c, bd):
             gr.vel[e, j] = samples.vel[2, e, j]
     its, converged = newton(stepper, m, x, imp, ws, c, 1e-3, 10, bd)
     if bodies > 0:
+        _add_impulse(c, bd, h)
         _end_bodies(c, bd, h)
     g_h = math.sqrt(m.gravity[0] ** 2 + m.gravity[1] ** 2 + m.gravity[2] ** 2) * h
     c.impact[0] = 0
