@@ -55,6 +55,10 @@ from bullet_dlo.core.kernels.steppers import (
 )
 
 STICK, SLIDE = 0, 1
+# Contacts.lock during Newton (:func:`lock_rows`): the low two bits LOCK_STICK, LOCK_SLIDE or LOCK_FREE (the regime
+# follows the slip, k_t |u| <= cap: the Huber potential), the rest the row's switches so far in the solve
+LOCK_STICK, LOCK_SLIDE, LOCK_FREE = 1, 2, 3
+LOCK_SWITCHES = 4  # a row switched this often in one solve follows its slip again
 PENALTY, WRAP = 0, 1  # Contacts.kind: penalty contact, or a segment wrapped round a sharp edge
 SIGMA_MIN = 0.01  # a wrap's material fraction either side of the edge, at least (sub-spring stiffness ks / sigma)
 DEFAULT_ALPHA = 1.0e4  # k_n h^2 / m: contact frequency times step, squared
@@ -184,6 +188,8 @@ class Contacts(NamedTuple):
     edge (the friction anchor); normal, f_n: the direction and size of the edge's push on the cable
     (results), cap [N]: the capstan's friction limit.
     Free bodies solved with the cable: a :class:`Bodies` beside the Contacts (its rows' body slots and arms).
+    lock (M,) int: a penalty row's friction regime as Newton's active set holds it (0 outside Newton; see
+    :func:`lock_rows`).
     """
 
     count: np.ndarray
@@ -212,6 +218,7 @@ class Contacts(NamedTuple):
     axis: np.ndarray
     side: np.ndarray
     seg: np.ndarray
+    lock: np.ndarray
 
 
 def make_contacts(n: int, capacity: int, radius: float, grip: Grip | None = None) -> Contacts:
@@ -226,7 +233,7 @@ def make_contacts(n: int, capacity: int, radius: float, grip: Grip | None = None
                     f_t=f((m, 3)), cap=f(m), body_work=f(1), impact=np.zeros(1, np.int64),
                     internal=np.zeros(m, np.bool_), node_force=f((n, 3)),
                     grip=grip if grip is not None else make_grip(), kind=np.zeros(m, np.int64),
-                    axis=f((m, 3)), side=f((m, 3)), seg=f((m, 6)))
+                    axis=f((m, 3)), side=f((m, 3)), seg=f((m, 6)), lock=np.zeros(m, np.int64))
 
 
 # ----- the grips -----------------------------------------------------------------------------
@@ -379,6 +386,76 @@ def _approach(c, k, v):
     for j in range(3):
         q += c.normal[k, j] * (wa * v[a, j] + wb * v[b, j] - c.body_vel[k, j])
     return q
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _sticks(c, k, ul):
+    """Whether penalty row k's friction is its anchor spring (stick) at the slip |u| = ul: the regime Newton locked
+    it in (``c.lock``), else the Huber potential's region, k_t |u| <= cap; no cap, no friction (slide at cap 0)."""
+    cap = c.cap[k]
+    if cap <= 0.0:
+        return False
+    lk = c.lock[k] & 3
+    if lk == LOCK_STICK:
+        return True
+    if lk == LOCK_SLIDE:
+        return False
+    return c.k_t[k] * ul <= cap
+
+
+@njit(cache=True, error_model="numpy")
+def lock_rows(c, x):
+    """Newton's active set for the friction of the penalty rows (docs/concepts/contact.md, "Friction in Newton"):
+    a row not yet locked is locked to stick (every row first holds by its anchor spring: the elastic predictor); a
+    row locked to slide whose slip is now inside the stick region (k_t |u| < cap) goes to stick, since there the
+    slide potential cap |u| has its cone tip (u = 0) which Newton cannot approach. Returns how many rows' forces at x
+    changed."""
+    u = np.empty(3)
+    changed = 0
+    for k in range(c.count[0]):
+        if c.kind[k] == WRAP or c.cap[k] <= 0.0:
+            continue
+        lk = c.lock[k] & 3
+        if lk == LOCK_FREE:
+            continue
+        ul = _slip(c, k, x, u)
+        inside = c.k_t[k] * ul <= c.cap[k]
+        if c.lock[k] == 0:
+            c.lock[k] = LOCK_STICK
+            changed += 0 if inside else 1
+        elif lk == LOCK_SLIDE and inside:
+            changed += 1
+            _switch(c, k, LOCK_STICK)
+    return changed
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _switch(c, k, regime):
+    """Lock row k to ``regime``, counting the switch; after LOCK_SWITCHES its regime follows its slip."""
+    n = (c.lock[k] >> 2) + 1
+    c.lock[k] = (LOCK_FREE if n >= LOCK_SWITCHES else regime) + 4 * n
+
+
+@njit(cache=True, error_model="numpy")
+def unlock_inconsistent(c, x):
+    """At a converged solve with locked rows: a row locked to stick whose spring exceeds its cap (k_t |u| > cap
+    (1 + 1e-9)) goes to slide, one locked to slide whose slip lies inside the stick region goes to stick. Returns how
+    many switched (0: every locked row is where Coulomb's law puts it at x, the locked forces are the Huber
+    potential's, and the solve is the unlocked one's)."""
+    u = np.empty(3)
+    changed = 0
+    for k in range(c.count[0]):
+        lk = c.lock[k] & 3
+        if lk == 0 or lk == LOCK_FREE or c.kind[k] == WRAP:
+            continue
+        f = c.k_t[k] * _slip(c, k, x, u)
+        if lk == LOCK_STICK and f > c.cap[k] * (1.0 + 1e-9):
+            _switch(c, k, LOCK_SLIDE)
+            changed += 1
+        elif lk == LOCK_SLIDE and f < c.cap[k]:
+            _switch(c, k, LOCK_STICK)
+            changed += 1
+    return changed
 
 
 # ----- a segment wrapped round a sharp edge (docs/concepts/contact.md, "Edges") -------------------
@@ -808,7 +885,7 @@ def contact_forces(c, x, v, f):
             fn = -c.k_n[k] * g - c.c_n[k] * _approach(c, k, v)
         ul = _slip(c, k, x, u)
         kt, cap = c.k_t[k], c.cap[k]
-        if kt * ul <= cap and cap > 0.0:
+        if _sticks(c, k, ul):
             sc = -kt
         elif ul > 0.0:
             sc = -cap / ul
@@ -842,7 +919,9 @@ def contact_potential(c, x, v, damping_weight):
             phi += 0.5 * c.k_n[k] * g * g + 0.5 * damping_weight * c.c_n[k] * qn * qn
         ul = _slip(c, k, x, u)
         kt, cap = c.k_t[k], c.cap[k]
-        if kt * ul <= cap:
+        if cap <= 0.0:  # no friction
+            pass
+        elif _sticks(c, k, ul):
             phi += 0.5 * kt * ul * ul
         else:
             phi += cap * ul - 0.5 * cap * cap / kt
@@ -877,7 +956,7 @@ def _row_blocks(c, k, x, kx, kv, u, blk):
     g = _gap(c, k, x)
     ul = _slip(c, k, x, u)
     kt, cap = c.k_t[k], c.cap[k]
-    stick = kt * ul <= cap and cap > 0.0
+    stick = _sticks(c, k, ul)
     nv = c.normal[k]
     for r in range(3):
         for q in range(3):
