@@ -418,8 +418,11 @@ def newton(stepper, m, x, imp, ws, c=None, cap_tol=1e-3, max_passes=10, bd=None)
     fresh = True
     passes = 0
     c.lock[:nc] = 0
+    # the friction's stick-first active set (contact.lock_rows) in solves with free bodies, where Newton on the Huber
+    # potential was measured cycling (docs/concepts/contact.md, "Friction in Newton"); cable-only solves keep it
+    locking = nb > 0
     while True:
-        if _contact.lock_rows(c, ws.x_stage) > 0:  # (ws.x_stage: vn's X)
+        if locking and _contact.lock_rows(c, ws.x_stage) > 0:  # (ws.x_stage: vn's X)
             fresh = False  # a row's friction at vn changed (locked to stick from slide)
         if not fresh:
             rnorm = _residual(m, imp, ws, vn, r, c)
@@ -428,7 +431,7 @@ def newton(stepper, m, x, imp, ws, c=None, cap_tol=1e-3, max_passes=10, bd=None)
             _contact.body_residual(c, bd, imp.hf, bd.vel_new)
         if (it > 0 and rnorm <= tol * (r_scale + _momentum_change(m, ws, vn)) + r_floor
                 and (nb == 0 or _contact.bodies_converged(bd, imp.hf, tol, r_floor))):
-            if _contact.unlock_inconsistent(c, ws.x_stage) > 0:
+            if locking and _contact.unlock_inconsistent(c, ws.x_stage) > 0:
                 continue  # a locked row is in the wrong regime at this solution: solve on with it switched
             _contact.elastic_caps(c, ws.x_stage, caps_new)
             cmax = 0.0
