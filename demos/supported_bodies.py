@@ -11,7 +11,8 @@ Two cases, each measured without the contact model's own numbers (its gaps and f
 Per case, mass and step: ``sink`` [mm], how far the body's face is inside the cable's surface (the centre line's
 distance to the face minus the cable radius, over the nodes under the face; positive: inside), at the end and its
 worst over the last second; ``balance``: (ground on cable + ground on box) / (m_cable + m_box) g (leaning) or the
-cable's push on the board / the cable's weight (held); ``rest``: when the box last moved faster than 1e-4 m/s [s].
+cable's push on the board / the cable's weight (held); ``rest``: when the box last moved faster than 1e-4 m/s [s];
+``fails``: the cable's Newton solves that did not converge (``cable.solver.newton_failures``).
 Usage: python demos/supported_bodies.py [--hz 60 120] [--mass 0.001 0.03 0.3 3] [--case leaning held]
 """
 from __future__ import annotations
@@ -97,7 +98,7 @@ def _run(world, cable, box, mass, spec, r, seconds, half, case) -> dict:
         balance = -on_box / (spec.mass * G)
         share = math.nan
     return dict(case=case, mass=mass, hz=1.0 / world.dt, sink=1e3 * sink, worst=1e3 * worst, balance=balance,
-                share=share, rest=last_moving, status=cable.reason or "stable")
+                share=share, rest=last_moving, fails=cable.solver.newton_failures, status=cable.reason or "stable")
 
 
 def main(argv=None) -> None:
@@ -112,13 +113,13 @@ def main(argv=None) -> None:
             print(f"{name} must be at least {lo:g}, got {val:g}", file=sys.stderr)
             sys.exit(2)
     print(f"{'case':8s} {'mass kg':>8s} {'Hz':>6s} {'sink mm':>8s} {'worst 1s':>8s} {'balance':>8s} {'on cable':>8s}"
-          f" {'rest s':>7s}  status")
+          f" {'rest s':>7s} {'fails':>6s}  status")
     for case in args.case:
         for hz in args.hz:
             for m in args.mass:
                 res = (leaning if case == "leaning" else held)(m, hz, args.seconds)
                 print(f"{case:8s} {m:8.3g} {hz:6.0f} {res['sink']:8.3f} {res['worst']:8.3f} {res['balance']:8.4f}"
-                      f" {res['share']:8.4f} {res['rest']:7.3f}  {res['status']}", flush=True)
+                      f" {res['share']:8.4f} {res['rest']:7.3f} {res['fails']:6d}  {res['status']}", flush=True)
 
 
 if __name__ == "__main__":

@@ -533,6 +533,7 @@ class ContactSet:
         self._vel_before = np.zeros((ns, 6))
         self._seen = np.zeros(ns, np.bool_)
         self._applied = np.zeros((ns, 6))
+        self._inv_dt = np.ones(1)  # [1/s] of the Bullet step planned (a free body's mean reaction, _body_loads)
         self.held_load = np.zeros((ns, 6))  # [N, N m] force and torque about the centre of mass, world frame
         self._measured: list[int] = []
         self._probe_rows = {pairs[s]: s for s in range(self.n_exact, nb)}
@@ -718,6 +719,7 @@ class ContactSet:
         if self._probe_rows:
             self._probe(x, v, h)
         measured = self._measure(dt, stepped, supported) if self.free_bodies else ()
+        self._inv_dt[0] = 1.0 / dt
         if (SKIP_QUIET and not self.other_cables and not self.free_bodies and self.contacts.count[0] == 0
                 and self.probes.count[0] == 0):
             # no contact last step, no probed answer, nobody else's rows: detect() would find nothing and change
@@ -962,8 +964,9 @@ class ContactSet:
             return
         if self._loads is None:
             nb = len(self.rows)
-            self._loads = (c.count, c.f_n, c.f_t, c.normal, c.point, self.bodies.slot, self.bodies.arm, self.store.body,
-                           self.dynamic, self.shapes.com, np.zeros((nb, 3)), np.zeros((nb, 3)), np.zeros(nb, np.int64))
+            self._loads = (c.count, c.f_n, c.f_t, c.normal, c.point, self.bodies.slot, self.store.body, self.dynamic,
+                           self.shapes.com, self.bodies.impulse, self._inv_dt, np.zeros((nb, 3)), np.zeros((nb, 3)),
+                           np.zeros(nb, np.int64))
             self._body_loads = bind(_body_loads, *self._loads)  # skips Numba's dispatch (10 us on a Contacts)
         force, torque, touched = self._loads[-3:]
         count = self._body_loads(*self._loads)
@@ -998,28 +1001,39 @@ def _deepest_dynamic(x, count, node, weight, normal, point, body, dynamic):
 
 
 @njit(cache=True, error_model="numpy")
-def _body_loads(count, f_n, f_t, normal, point, slot, arm, body, dynamic, com, force, torque, touched):
+def _body_loads(count, f_n, f_t, normal, point, slot, body, dynamic, com, impulse, inv_dt, force, torque, touched):
     """The contacts' reactions summed per dynamic Shapes row: force (B, 3) [N] and torque about its centre of mass
     com (B, 3) [N m]; touched <- the rows touched, in increasing order; returns their count. The first count[0]
-    contact rows: the Contacts' f_n, f_t, normal, point and the Bodies' slot, arm (only these arrays: a whole
-    Contacts is 37 arrays to unbox at every call). (One compiled pass: NumPy's per-call cost on these few rows
-    was 50 us a step.)"""
+    contact rows: the Contacts' f_n, f_t, normal, point and the Bodies' slot (only these arrays: a whole Contacts
+    is 37 arrays to unbox at every call). A free body (its rows' slot >= 0) gets the mean of the reactions its
+    step solved with over the Bullet step, the Bodies' impulse times inv_dt[0] [1/s] (the damper may pull): a
+    step taken again as sub-steps has a force per sub-step, and the last one's alone left a leaning 30 g box
+    40 mN short for a whole step (docs/concepts/contact.md). (One compiled pass: NumPy's per-call cost on these
+    few rows was 50 us a step.) A body of several Shapes rows (the mesh-clip part: three boxes) has one slot:
+    its mean goes to the first of its rows touched, the others get none of it (handed to each, the part on the
+    cord got 3 times its reaction whenever bar and legs touched: carried at 0.395 of its weight)."""
     nb = force.shape[0]
     used = np.zeros(nb, np.bool_)
+    given = np.zeros(impulse.shape[0], np.bool_)
     for k in range(count[0]):
         s = body[k]
         if s < 0 or not dynamic[s]:
             continue
+        o = slot[k]
         if not used[s]:
             used[s] = True
-            force[s, :] = 0.0
-            torque[s, :] = 0.0
-        if slot[k] >= 0:  # a free body: the reaction its step solved with (the damper may pull), at its arm
-            fn = f_n[k]
-            a0, a1, a2 = arm[k, 0], arm[k, 1], arm[k, 2]
-        else:
-            fn = max(f_n[k], 0.0)
-            a0, a1, a2 = point[k, 0] - com[s, 0], point[k, 1] - com[s, 1], point[k, 2] - com[s, 2]
+            for j in range(3):
+                force[s, j] = 0.0
+                torque[s, j] = 0.0
+        if o >= 0:  # a free body: its mean reaction, once
+            if not given[o]:
+                given[o] = True
+                for j in range(3):
+                    force[s, j] += impulse[o, j] * inv_dt[0]
+                    torque[s, j] += impulse[o, 3 + j] * inv_dt[0]
+            continue
+        fn = max(f_n[k], 0.0)
+        a0, a1, a2 = point[k, 0] - com[s, 0], point[k, 1] - com[s, 1], point[k, 2] - com[s, 2]
         f0 = -(fn * normal[k, 0] + f_t[k, 0])
         f1 = -(fn * normal[k, 1] + f_t[k, 1])
         f2 = -(fn * normal[k, 2] + f_t[k, 2])

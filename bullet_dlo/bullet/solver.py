@@ -51,7 +51,7 @@ CONTACT_ROWS = ("point", "anchor", "state", "cap", "normal")  # by contact row (
 CONTACT_WHOLE = ("body_work", "impact")
 GRIP_WHOLE = ("active", "offset", "state")
 BODY_ROWS = ("arm",)
-BODY_WHOLE = ("vel",)
+BODY_WHOLE = ("vel", "impulse")
 
 
 def step_state(contacts: Contacts, bodies: Bodies) -> tuple[list, list]:

@@ -55,6 +55,10 @@ from bullet_dlo.core.kernels.steppers import (
 )
 
 STICK, SLIDE = 0, 1
+# Contacts.lock during Newton (:func:`lock_rows`): the low two bits LOCK_STICK, LOCK_SLIDE or LOCK_FREE (the regime
+# follows the slip, k_t |u| <= cap: the Huber potential), the rest the row's switches so far in the solve
+LOCK_STICK, LOCK_SLIDE, LOCK_FREE = 1, 2, 3
+LOCK_SWITCHES = 4  # a row switched this often in one solve follows its slip again
 PENALTY, WRAP = 0, 1  # Contacts.kind: penalty contact, or a segment wrapped round a sharp edge
 SIGMA_MIN = 0.01  # a wrap's material fraction either side of the edge, at least (sub-spring stiffness ks / sigma)
 DEFAULT_ALPHA = 1.0e4  # k_n h^2 / m: contact frequency times step, squared
@@ -114,7 +118,10 @@ class Bodies(NamedTuple):
     :func:`coupled_solve`. Per contact row (M rows, as :class:`Contacts`): slot (M,) int, the row's body slot
     (-1: a static body, a link of an articulated body, the cable itself or another cable: its surface moves at
     body_vel); arm (M, 3) [m]: the row's surface point from the body's centre of mass at the start of the step;
-    point0, anchor0 (M, 3) [m]: the row's surface point and anchor at the start of the step.
+    point0, anchor0 (M, 3) [m]: the row's surface point and anchor at the start of the step. impulse (S, 6) [N s,
+    N m s]: the rows' reactions on each body summed over the (sub-)steps of the planned Bullet step (torque about
+    the centre of mass at the rows' arms): Bullet gets their mean, so that its update lands the body where the
+    sub-steps took it (:func:`_add_impulse`).
 
     The Bodies are not a field of :class:`Contacts`: every compiled call that passes a NamedTuple takes and
     drops a reference to each of its arrays, and the contact kernels that run several times per Newton
@@ -138,6 +145,7 @@ class Bodies(NamedTuple):
     arm: np.ndarray
     point0: np.ndarray
     anchor0: np.ndarray
+    impulse: np.ndarray
 
 
 def make_bodies(n: int, capacity: int, slots: int) -> Bodies:
@@ -149,7 +157,7 @@ def make_bodies(n: int, capacity: int, slots: int) -> Bodies:
     return Bodies(active=np.zeros(s, np.bool_), mass=f(s), inertia=f((s, 3, 3)), gravity=f(3), vel=f((s, 6)),
                   vel_new=f((s, 6)), vel_try=f((s, 6)), step=f((s, 6)), residual=f((s, 6)),
                   coupling=f((3 * n, 6 * s)), schur=f((6 * s, 6 * s)), work=f(3 * n), slot=np.full(m, -1, np.int64),
-                  arm=f((m, 3)), point0=f((m, 3)), anchor0=f((m, 3)))
+                  arm=f((m, 3)), point0=f((m, 3)), anchor0=f((m, 3)), impulse=f((s, 6)))
 
 
 class Contacts(NamedTuple):
@@ -180,6 +188,8 @@ class Contacts(NamedTuple):
     edge (the friction anchor); normal, f_n: the direction and size of the edge's push on the cable
     (results), cap [N]: the capstan's friction limit.
     Free bodies solved with the cable: a :class:`Bodies` beside the Contacts (its rows' body slots and arms).
+    lock (M,) int: a penalty row's friction regime as Newton's active set holds it (0 outside Newton; see
+    :func:`lock_rows`).
     """
 
     count: np.ndarray
@@ -208,6 +218,7 @@ class Contacts(NamedTuple):
     axis: np.ndarray
     side: np.ndarray
     seg: np.ndarray
+    lock: np.ndarray
 
 
 def make_contacts(n: int, capacity: int, radius: float, grip: Grip | None = None) -> Contacts:
@@ -222,7 +233,7 @@ def make_contacts(n: int, capacity: int, radius: float, grip: Grip | None = None
                     f_t=f((m, 3)), cap=f(m), body_work=f(1), impact=np.zeros(1, np.int64),
                     internal=np.zeros(m, np.bool_), node_force=f((n, 3)),
                     grip=grip if grip is not None else make_grip(), kind=np.zeros(m, np.int64),
-                    axis=f((m, 3)), side=f((m, 3)), seg=f((m, 6)))
+                    axis=f((m, 3)), side=f((m, 3)), seg=f((m, 6)), lock=np.zeros(m, np.int64))
 
 
 # ----- the grips -----------------------------------------------------------------------------
@@ -375,6 +386,76 @@ def _approach(c, k, v):
     for j in range(3):
         q += c.normal[k, j] * (wa * v[a, j] + wb * v[b, j] - c.body_vel[k, j])
     return q
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _sticks(c, k, ul):
+    """Whether penalty row k's friction is its anchor spring (stick) at the slip |u| = ul: the regime Newton locked
+    it in (``c.lock``), else the Huber potential's region, k_t |u| <= cap; no cap, no friction (slide at cap 0)."""
+    cap = c.cap[k]
+    if cap <= 0.0:
+        return False
+    lk = c.lock[k] & 3
+    if lk == LOCK_STICK:
+        return True
+    if lk == LOCK_SLIDE:
+        return False
+    return c.k_t[k] * ul <= cap
+
+
+@njit(cache=True, error_model="numpy")
+def lock_rows(c, x):
+    """Newton's active set for the friction of the penalty rows (docs/concepts/contact.md, "Friction in Newton"):
+    a row not yet locked is locked to stick (every row first holds by its anchor spring: the elastic predictor); a
+    row locked to slide whose slip is now inside the stick region (k_t |u| < cap) goes to stick, since there the
+    slide potential cap |u| has its cone tip (u = 0) which Newton cannot approach. Returns how many rows' forces at x
+    changed."""
+    u = np.empty(3)
+    changed = 0
+    for k in range(c.count[0]):
+        if c.kind[k] == WRAP or c.cap[k] <= 0.0:
+            continue
+        lk = c.lock[k] & 3
+        if lk == LOCK_FREE:
+            continue
+        ul = _slip(c, k, x, u)
+        inside = c.k_t[k] * ul <= c.cap[k]
+        if c.lock[k] == 0:
+            c.lock[k] = LOCK_STICK
+            changed += 0 if inside else 1
+        elif lk == LOCK_SLIDE and inside:
+            changed += 1
+            _switch(c, k, LOCK_STICK)
+    return changed
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _switch(c, k, regime):
+    """Lock row k to ``regime``, counting the switch; after LOCK_SWITCHES its regime follows its slip."""
+    n = (c.lock[k] >> 2) + 1
+    c.lock[k] = (LOCK_FREE if n >= LOCK_SWITCHES else regime) + 4 * n
+
+
+@njit(cache=True, error_model="numpy")
+def unlock_inconsistent(c, x):
+    """At a converged solve with locked rows: a row locked to stick whose spring exceeds its cap (k_t |u| > cap
+    (1 + 1e-9)) goes to slide, one locked to slide whose slip lies inside the stick region goes to stick. Returns how
+    many switched (0: every locked row is where Coulomb's law puts it at x, the locked forces are the Huber
+    potential's, and the solve is the unlocked one's)."""
+    u = np.empty(3)
+    changed = 0
+    for k in range(c.count[0]):
+        lk = c.lock[k] & 3
+        if lk == 0 or lk == LOCK_FREE or c.kind[k] == WRAP:
+            continue
+        f = c.k_t[k] * _slip(c, k, x, u)
+        if lk == LOCK_STICK and f > c.cap[k] * (1.0 + 1e-9):
+            _switch(c, k, LOCK_SLIDE)
+            changed += 1
+        elif lk == LOCK_SLIDE and f < c.cap[k]:
+            _switch(c, k, LOCK_STICK)
+            changed += 1
+    return changed
 
 
 # ----- a segment wrapped round a sharp edge (docs/concepts/contact.md, "Edges") -------------------
@@ -804,7 +885,7 @@ def contact_forces(c, x, v, f):
             fn = -c.k_n[k] * g - c.c_n[k] * _approach(c, k, v)
         ul = _slip(c, k, x, u)
         kt, cap = c.k_t[k], c.cap[k]
-        if kt * ul <= cap and cap > 0.0:
+        if _sticks(c, k, ul):
             sc = -kt
         elif ul > 0.0:
             sc = -cap / ul
@@ -838,7 +919,9 @@ def contact_potential(c, x, v, damping_weight):
             phi += 0.5 * c.k_n[k] * g * g + 0.5 * damping_weight * c.c_n[k] * qn * qn
         ul = _slip(c, k, x, u)
         kt, cap = c.k_t[k], c.cap[k]
-        if kt * ul <= cap:
+        if cap <= 0.0:  # no friction
+            pass
+        elif _sticks(c, k, ul):
             phi += 0.5 * kt * ul * ul
         else:
             phi += cap * ul - 0.5 * cap * cap / kt
@@ -873,7 +956,7 @@ def _row_blocks(c, k, x, kx, kv, u, blk):
     g = _gap(c, k, x)
     ul = _slip(c, k, x, u)
     kt, cap = c.k_t[k], c.cap[k]
-    stick = kt * ul <= cap and cap > 0.0
+    stick = _sticks(c, k, ul)
     nv = c.normal[k]
     for r in range(3):
         for q in range(3):
@@ -1071,6 +1154,26 @@ def bodies_converged(bd, h, tol, floor):
         if not ra <= tol * (lin * math.sqrt(i_max / m) + i_max * dw) + floor * math.sqrt(i_max / m):
             return False
     return True
+
+
+@njit(cache=True, error_model="numpy")
+def _add_impulse(c, bd, h):
+    """bd.impulse += the reactions of the rows on their free bodies over the step of h [s], force and torque about
+    the centre of mass at the rows' arms of the step (as :func:`body_residual` counts them)."""
+    for k in range(c.count[0]):
+        s = bd.slot[k]
+        if s < 0:
+            continue
+        f0 = -(c.f_n[k] * c.normal[k, 0] + c.f_t[k, 0])
+        f1 = -(c.f_n[k] * c.normal[k, 1] + c.f_t[k, 1])
+        f2 = -(c.f_n[k] * c.normal[k, 2] + c.f_t[k, 2])
+        a0, a1, a2 = bd.arm[k, 0], bd.arm[k, 1], bd.arm[k, 2]
+        bd.impulse[s, 0] += h * f0
+        bd.impulse[s, 1] += h * f1
+        bd.impulse[s, 2] += h * f2
+        bd.impulse[s, 3] += h * (a1 * f2 - a2 * f1)
+        bd.impulse[s, 4] += h * (a2 * f0 - a0 * f2)
+        bd.impulse[s, 5] += h * (a0 * f1 - a1 * f0)
 
 
 @njit(cache=True, error_model="numpy")
@@ -1365,6 +1468,7 @@ def contact_step(stepper, m, x, v, samples, ws, has_prev, c, bd):
             gr.vel[e, j] = samples.vel[2, e, j]
     its, converged = newton(stepper, m, x, imp, ws, c, 1e-3, 10, bd)
     if bodies > 0:
+        _add_impulse(c, bd, h)
         _end_bodies(c, bd, h)
     g_h = math.sqrt(m.gravity[0] ** 2 + m.gravity[1] ** 2 + m.gravity[2] ** 2) * h
     c.impact[0] = 0

@@ -417,7 +417,13 @@ def newton(stepper, m, x, imp, ws, c=None, cap_tol=1e-3, max_passes=10, bd=None)
     # contact forces are a pure function of vn, the caps and the bodies' rows, so they would come out the same)
     fresh = True
     passes = 0
+    c.lock[:nc] = 0
+    # the friction's stick-first active set (contact.lock_rows) in solves with free bodies, where Newton on the Huber
+    # potential was measured cycling (docs/concepts/contact.md, "Friction in Newton"); cable-only solves keep it
+    locking = nb > 0
     while True:
+        if locking and _contact.lock_rows(c, ws.x_stage) > 0:  # (ws.x_stage: vn's X)
+            fresh = False  # a row's friction at vn changed (locked to stick from slide)
         if not fresh:
             rnorm = _residual(m, imp, ws, vn, r, c)
         fresh = False
@@ -425,6 +431,8 @@ def newton(stepper, m, x, imp, ws, c=None, cap_tol=1e-3, max_passes=10, bd=None)
             _contact.body_residual(c, bd, imp.hf, bd.vel_new)
         if (it > 0 and rnorm <= tol * (r_scale + _momentum_change(m, ws, vn)) + r_floor
                 and (nb == 0 or _contact.bodies_converged(bd, imp.hf, tol, r_floor))):
+            if locking and _contact.unlock_inconsistent(c, ws.x_stage) > 0:
+                continue  # a locked row is in the wrong regime at this solution: solve on with it switched
             _contact.elastic_caps(c, ws.x_stage, caps_new)
             cmax = 0.0
             dcap = 0.0
@@ -474,6 +482,7 @@ def newton(stepper, m, x, imp, ws, c=None, cap_tol=1e-3, max_passes=10, bd=None)
         fresh = True
         if nb > 0:
             bd.vel_new[:, :] = bd.vel_try
+    c.lock[:nc] = 0  # (converged: every row was in its Coulomb regime, so the forces are the unlocked ones)
     if not converged:  # (converged: the last residual was taken at vn, with the bodies' rows at vel_new)
         if nb > 0:
             _contact.load_bodies(c, bd, imp.hf, bd.vel_new)
