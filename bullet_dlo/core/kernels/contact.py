@@ -121,7 +121,7 @@ class Bodies(NamedTuple):
     point0, anchor0 (M, 3) [m]: the row's surface point and anchor at the start of the step. impulse (S, 6) [N s,
     N m s]: the rows' reactions on each body summed over the (sub-)steps of the planned Bullet step (torque about
     the centre of mass at the rows' arms): Bullet gets their mean, so that its update lands the body where the
-    sub-steps took it (:func:`_add_impulse`).
+    sub-steps took it (:func:`_add_reactions`).
 
     The Bodies are not a field of :class:`Contacts`: every compiled call that passes a NamedTuple takes and
     drops a reference to each of its arrays, and the contact kernels that run several times per Newton
@@ -1096,20 +1096,7 @@ def body_residual(c, bd, h, vel):
             for q in range(3):
                 acc += bd.inertia[s, j, q] * (vel[s, 3 + q] - bd.vel[s, 3 + q])
             res[s, 3 + j] = -acc
-    for k in range(c.count[0]):
-        s = bd.slot[k]
-        if s < 0:
-            continue
-        f0 = -(c.f_n[k] * c.normal[k, 0] + c.f_t[k, 0])
-        f1 = -(c.f_n[k] * c.normal[k, 1] + c.f_t[k, 1])
-        f2 = -(c.f_n[k] * c.normal[k, 2] + c.f_t[k, 2])
-        a0, a1, a2 = bd.arm[k, 0], bd.arm[k, 1], bd.arm[k, 2]
-        res[s, 0] += h * f0
-        res[s, 1] += h * f1
-        res[s, 2] += h * f2
-        res[s, 3] += h * (a1 * f2 - a2 * f1)
-        res[s, 4] += h * (a2 * f0 - a0 * f2)
-        res[s, 5] += h * (a0 * f1 - a1 * f0)
+    _add_reactions(c, bd, h, res)
 
 
 @njit(cache=True, error_model="numpy")
@@ -1156,10 +1143,11 @@ def bodies_converged(bd, h, tol, floor):
     return True
 
 
-@njit(cache=True, error_model="numpy")
-def _add_impulse(c, bd, h):
-    """bd.impulse += the reactions of the rows on their free bodies over the step of h [s], force and torque about
-    the centre of mass at the rows' arms of the step (as :func:`body_residual` counts them)."""
+@njit(cache=True, error_model="numpy", inline="always")
+def _add_reactions(c, bd, h, out):
+    """out (S, 6) += h times the reactions of the rows on their free bodies over a step of h [s]: force [N s] and
+    torque about the centre of mass at the rows' arms [N m s] (the body's residual, :func:`body_residual`, and the
+    impulse summed over the sub-steps of a Bullet step, ``bd.impulse``)."""
     for k in range(c.count[0]):
         s = bd.slot[k]
         if s < 0:
@@ -1168,12 +1156,12 @@ def _add_impulse(c, bd, h):
         f1 = -(c.f_n[k] * c.normal[k, 1] + c.f_t[k, 1])
         f2 = -(c.f_n[k] * c.normal[k, 2] + c.f_t[k, 2])
         a0, a1, a2 = bd.arm[k, 0], bd.arm[k, 1], bd.arm[k, 2]
-        bd.impulse[s, 0] += h * f0
-        bd.impulse[s, 1] += h * f1
-        bd.impulse[s, 2] += h * f2
-        bd.impulse[s, 3] += h * (a1 * f2 - a2 * f1)
-        bd.impulse[s, 4] += h * (a2 * f0 - a0 * f2)
-        bd.impulse[s, 5] += h * (a0 * f1 - a1 * f0)
+        out[s, 0] += h * f0
+        out[s, 1] += h * f1
+        out[s, 2] += h * f2
+        out[s, 3] += h * (a1 * f2 - a2 * f1)
+        out[s, 4] += h * (a2 * f0 - a0 * f2)
+        out[s, 5] += h * (a0 * f1 - a1 * f0)
 
 
 @njit(cache=True, error_model="numpy")
@@ -1468,7 +1456,7 @@ def contact_step(stepper, m, x, v, samples, ws, has_prev, c, bd):
             gr.vel[e, j] = samples.vel[2, e, j]
     its, converged = newton(stepper, m, x, imp, ws, c, 1e-3, 10, bd)
     if bodies > 0:
-        _add_impulse(c, bd, h)
+        _add_reactions(c, bd, h, bd.impulse)
         _end_bodies(c, bd, h)
     g_h = math.sqrt(m.gravity[0] ** 2 + m.gravity[1] ** 2 + m.gravity[2] ** 2) * h
     c.impact[0] = 0
