@@ -79,6 +79,18 @@ def test_the_clip_detects_a_cable_through_its_slot_below_the_top_only():
     assert inner == pytest.approx([0.5 * CLIP_GAP] * 2)
 
 
+def test_a_reset_gives_up_on_a_layout_with_negligible_odds():
+    """Two-peg layouts pass the layout rules in a few % of draws: MAX_DRAWS must make a reset that raises for want of
+    a layout negligible (below 1e-9; with 200 draws 0.55 % of two-peg resets raised, a flaky check_env)."""
+    rng = np.random.default_rng(7)
+    start, length = np.array([-0.3, 0.0]), 0.6
+    draws = 600
+    ok = sum(routing._route_ok(routing.draw_layout(rng, 2, start, length, 0.2, RHO), 0.5 * length, (-0.1, 0.35, 0.22))
+             for _ in range(draws))
+    assert ok > 0
+    assert (1.0 - ok / draws) ** routing.MAX_DRAWS < 1e-9
+
+
 def test_drawn_routes_keep_their_rules_and_their_ideal_path_wraps_each_peg_by_its_turn():
     """The route's own taut path (fixed end, around each peg on its circle, through the clip) measured by the
     same wrap and clip functions the environment uses: the drawn turn at each peg, threaded."""
