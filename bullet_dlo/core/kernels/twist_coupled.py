@@ -297,6 +297,31 @@ def _prepare(ref, tan, kan, ctw, rt, flags):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
+def _edges_by_rows(x, dirs, theta, clamp, E, xs, R, ri, ti, rc):
+    """E <- :func:`~bullet_dlo.core.kernels.twist.edge_frame`'s values of every edge of positions x by rows (column
+    k + 1 edge k; columns 0 and n the clamps' virtual edges; the same operations per value), edge k's director
+    transported from the reference director R[ri:ri+3, k+rc] on the reference tangent R[ti:ti+3, k+rc] (R may be
+    E itself: each column is read before it is written); xs <- x by rows."""
+    n = x.shape[0]
+    ns = n - 1
+    for i in range(n):
+        xs[0, i], xs[1, i], xs[2, i] = x[i, 0], x[i, 1], x[i, 2]
+    _store_edge(E, 0, edge_frame(x, dirs, theta, xs, xs, clamp, -1))  # (reference frames not read for these)
+    _store_edge(E, n, edge_frame(x, dirs, theta, xs, xs, clamp, ns))
+    for k in range(ns):
+        c = k + rc
+        u0, u1, u2, a0, a1, a2 = R[ri, c], R[ri + 1, c], R[ri + 2, c], R[ti, c], R[ti + 1, c], R[ti + 2, c]
+        dx, dy, dz = xs[0, k + 1] - xs[0, k], xs[1, k + 1] - xs[1, k], xs[2, k + 1] - xs[2, k]
+        length = math.sqrt(dx * dx + dy * dy + dz * dz)
+        t0, t1, t2 = dx / length, dy / length, dz / length
+        r0, r1, r2 = _transport_s(u0, u1, u2, a0, a1, a2, t0, t1, t2)
+        E[0, k + 1], E[1, k + 1], E[2, k + 1], E[3, k + 1] = length, t0, t1, t2
+        E[4, k + 1], E[5, k + 1], E[6, k + 1] = r0, r1, r2
+    for k in range(ns):  # (a loop of its own: with it the loop above is not vectorised, 0.42 -> 1.6 us at n = 80)
+        E[7, k + 1] = theta[k]
+
+
+@njit(cache=True, error_model="numpy", inline="always")
 def _psi_args(E, i):
     """The two arguments of :func:`~bullet_dlo.core.kernels.twist._psi`'s atan2 (its operations) at node i from
     edge rows E (:class:`Scratch`'s edges: edge a in column i, edge b in column i + 1)."""
@@ -320,19 +345,7 @@ def _round_twist(xe, dirs, th, clamp, mref, ktw, f, tq, rate, E, geo, xs, rt, nd
     compiler runs 4 or 8 at a time; the sums (forces, torques, energy) in a last pass in node order."""
     n = xe.shape[0]
     ns = n - 1
-    for i in range(n):
-        xs[0, i], xs[1, i], xs[2, i] = xe[i, 0], xe[i, 1], xe[i, 2]
-    _store_edge(E, 0, edge_frame(xe, dirs, th, rt, rt, clamp, -1))  # the clamps' virtual edges
-    _store_edge(E, n, edge_frame(xe, dirs, th, rt, rt, clamp, ns))
-    for k in range(ns):  # edge_frame of edge k (by rows)
-        dx, dy, dz = xs[0, k + 1] - xs[0, k], xs[1, k + 1] - xs[1, k], xs[2, k + 1] - xs[2, k]
-        length = math.sqrt(dx * dx + dy * dy + dz * dz)
-        t0, t1, t2 = dx / length, dy / length, dz / length
-        r0, r1, r2 = _transport_s(rt[0, k], rt[1, k], rt[2, k], rt[3, k], rt[4, k], rt[5, k], t0, t1, t2)
-        E[0, k + 1], E[1, k + 1], E[2, k + 1], E[3, k + 1] = length, t0, t1, t2
-        E[4, k + 1], E[5, k + 1], E[6, k + 1] = r0, r1, r2
-    for k in range(ns):  # (a loop of its own: with it the loop above is not vectorised, 0.42 -> 1.6 us at n = 80)
-        E[7, k + 1] = th[k]
+    _edges_by_rows(xe, dirs, th, clamp, E, xs, rt, 0, 3, 0)  # transported from the step's reference frames
     for i in range(n):  # _psi's atan2 arguments and twist_of_frames' binormal at node i (edges a = i-1, b = i)
         nd[0, i], nd[1, i] = _psi_args(E, i)
         ta0, ta1, ta2, tb0, tb1, tb2 = E[1, i], E[2, i], E[3, i], E[1, i + 1], E[2, i + 1], E[3, i + 1]
@@ -984,22 +997,7 @@ def _round_reference_twists(x, dirs, theta, clamp, mref, E, xs, nd):
     value, so bit-identical): each edge's frame transported from itself onto the tangent of x, the nodes'
     reference twists. Overwrites E and the scratch's rows xs, nd."""
     n = x.shape[0]
-    ns = n - 1
-    for i in range(n):
-        xs[0, i], xs[1, i], xs[2, i] = x[i, 0], x[i, 1], x[i, 2]
-    _store_edge(E, 0, edge_frame(x, dirs, theta, xs, xs, clamp, -1))  # (ref, tan not read for these)
-    _store_edge(E, n, edge_frame(x, dirs, theta, xs, xs, clamp, ns))
-    for k in range(ns):  # edge_frame with ref = E[4:7, k + 1], tan = E[1:4, k + 1] (read before written)
-        c = k + 1
-        u0, u1, u2, a0, a1, a2 = E[4, c], E[5, c], E[6, c], E[1, c], E[2, c], E[3, c]
-        dx, dy, dz = xs[0, k + 1] - xs[0, k], xs[1, k + 1] - xs[1, k], xs[2, k + 1] - xs[2, k]
-        length = math.sqrt(dx * dx + dy * dy + dz * dz)
-        t0, t1, t2 = dx / length, dy / length, dz / length
-        r0, r1, r2 = _transport_s(u0, u1, u2, a0, a1, a2, t0, t1, t2)
-        E[0, c], E[1, c], E[2, c], E[3, c] = length, t0, t1, t2
-        E[4, c], E[5, c], E[6, c] = r0, r1, r2
-    for k in range(ns):  # (as in _round_twist)
-        E[7, k + 1] = theta[k]
+    _edges_by_rows(x, dirs, theta, clamp, E, xs, E, 4, 1, 1)  # each edge's frame transported from itself
     for i in range(n):  # _psi's atan2 arguments
         nd[0, i], nd[1, i] = _psi_args(E, i)
     for i in range(n):
