@@ -47,7 +47,7 @@ from typing import Callable
 import numpy as np
 
 from bullet_dlo.analysis.measures import force_error, shape_error
-from bullet_dlo.core.boundary import EndHolder, MotionOffset
+from bullet_dlo.core.boundary import EndHolder, MotionOffset, Move, Sine, Waypoints
 from bullet_dlo.core.engine import SimulationResult
 from bullet_dlo.core.enums import ToleranceTarget, name_of
 from bullet_dlo.core.spec import CableSpec
@@ -116,8 +116,8 @@ def end_roll(holder: EndHolder, times: np.ndarray) -> np.ndarray:
     turns the held section axis d1 beyond the minimal rotation that carries the start tangent d0 to the
     current one R d0 (the twist part of R's swing-twist decomposition about d0). Zeros without motion."""
     times = np.asarray(times, dtype=float)
-    if not holder.moves:
-        return np.zeros(times.shape)
+    if not any(map(_turns, holder.moves)):
+        return np.zeros(times.shape)  # translations only: the held section never turns (and sampling costs ~0.1 s)
     end = holder.moves[0].end
     offset = MotionOffset(holder.moves, end)
     d0 = np.asarray(holder.direction, dtype=float) / np.linalg.norm(holder.direction)
@@ -133,6 +133,12 @@ def end_roll(holder: EndHolder, times: np.ndarray) -> np.ndarray:
         moved = n0 - float(n0 @ d1) / (1.0 + c) * (d0 + d1)  # n0 carried by the minimal rotation d0 -> d1
         out[k] = np.arctan2(float(np.cross(moved, n1) @ d1), float(moved @ n1))
     return out
+
+
+def _turns(item: Move | Waypoints | Sine) -> bool:
+    """Whether a motion item rotates its end at all (a nonzero rotation vector anywhere in it)."""
+    rows = item.rotations if isinstance(item, Waypoints) else (item.rotation,)
+    return any(v != 0.0 for row in rows for v in row)
 
 
 def twist_need(problem: ResolveProblem) -> str:

@@ -98,6 +98,8 @@ INSIDE_REPORTED = 0.5  # a dynamic body holding the cable's centre line this man
 # dropped 1 cm crosses it by 0.2 mm for a step at 240 Hz and rests 1.6 mm outside; at 60 Hz it ends 2 mm inside)
 EMPTY_LINK_BOX = 3e-3  # [m] broad-phase box of a link without a collision shape is at most this wide (2 mm measured)
 HULL_MAX_FACES = 4096  # hulls with more triangles stay with Bullet's narrow phase (the exact query loops over faces)
+_HULL_MEMO: dict = {}  # ContactSet._hull's answers by their inputs: an environment's reset and each exclusion rebuild
+HULL_MEMO_SIZE = 256  # the contact set with the same arm links at the same poses (the checks were 45 % of a reset)
 WRAP_EDGE_MIN = math.pi / 4  # [rad] a hull edge whose faces turn by at least this is wrapped like a box edge
 _GEOMS = {pb.GEOM_BOX: BOX, pb.GEOM_SPHERE: SPHERE, pb.GEOM_CYLINDER: CYLINDER, pb.GEOM_CAPSULE: CAPSULE}
 
@@ -619,6 +621,23 @@ class ContactSet:
         if count < 4:
             return None
         vertices = np.asarray(verts, float).reshape(-1, 3)
+        if link < 0:
+            com, orn = pb.getBasePositionAndOrientation(body, physicsClientId=cid)
+        else:
+            com, orn = pb.getLinkState(body, link, physicsClientId=cid)[0:2]
+        # the answer is a function of the mesh, its shape data, the link's pose and the radius: the same inputs to
+        # the bit give the same hull and margin without the ~200 distance queries
+        key = (vertices.tobytes(), repr([shape[2:] for shape in data]), tuple(com), tuple(orn), radius)  # not the body id
+        if key not in _HULL_MEMO:
+            if len(_HULL_MEMO) >= HULL_MEMO_SIZE:
+                _HULL_MEMO.clear()
+            _HULL_MEMO[key] = self._checked_hull(body, link, vertices, com, orn, radius)
+        return _HULL_MEMO[key]
+
+    def _checked_hull(self, body: int, link: int, vertices: np.ndarray, com, orn, radius: float):
+        """:meth:`_hull` computed: the hull of ``vertices`` and its margin if Bullet's distances agree at the check
+        points round the link at its pose (``com`` [m], ``orn`` quaternion), else None."""
+        cid = self.client
         geo = _hull_geometry(vertices)
         if geo is None or len(geo[1]) > HULL_MAX_FACES:
             return None
@@ -626,10 +645,6 @@ class ContactSet:
         if self._hull_probe < 0:
             self._hull_probe = pb.createCollisionShape(pb.GEOM_CAPSULE, radius=radius, height=1e-8,
                                                        physicsClientId=cid)
-        if link < 0:
-            com, orn = pb.getBasePositionAndOrientation(body, physicsClientId=cid)
-        else:
-            com, orn = pb.getLinkState(body, link, physicsClientId=cid)[0:2]
         rot = _rotation(orn)
         hu = _pack_hulls([(planes, tri, tri_plane, edges, 0.0)], [0], 1)
         cl, nl = np.zeros(3), np.zeros(3)

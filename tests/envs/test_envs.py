@@ -63,10 +63,10 @@ def test_make_gives_the_documented_spaces(env_id):
         env.close()
 
 
-@pytest.mark.parametrize("make", [lambda: TensionTrackingEnv(NOISY, render_mode="rgb_array", render_size=(64, 48)),
-                                  lambda: ShapingEnv(render_mode="rgb_array", render_size=(64, 48))])
-def test_check_env_passes(make):
-    env = make()
+def test_check_env_passes_with_randomised_noisy_episodes():
+    """check_env on a sampled configuration (noise and stiffness drawn per episode): reset(seed) must still be
+    deterministic. The registered ids with their defaults go through check_env in test_env_suite.py."""
+    env = TensionTrackingEnv(NOISY, render_mode="rgb_array", render_size=(64, 48), settle_time=0.05)
     try:
         check_env(env, skip_render_check=False)
     finally:

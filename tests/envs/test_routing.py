@@ -8,7 +8,6 @@ import gymnasium as gym
 import numpy as np
 import pybullet as pb
 import pytest
-from gymnasium.utils.env_checker import check_env
 
 import bullet_dlo  # noqa: F401  (registers the ids)
 from bullet_dlo.core.validate import ParameterError
@@ -132,14 +131,6 @@ def test_make_gives_the_documented_spaces_and_bad_arguments_are_named():
         env.close()
     with pytest.raises(ParameterError, match="max_yaw_rate"):
         RoutingEnv(max_yaw_rate=0.0)
-
-
-def test_check_env_passes():
-    env = RoutingEnv(render_mode="rgb_array", render_size=(64, 48))
-    try:
-        check_env(env, skip_render_check=False)
-    finally:
-        env.close()
 
 
 def test_same_seed_and_actions_give_identical_observations_and_sync_vector_env_steps():

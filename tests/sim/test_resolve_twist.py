@@ -11,7 +11,7 @@ import pytest
 
 from bullet_dlo.analysis.resolve import end_roll, resolve, twist_need
 from bullet_dlo.config.scene import Scene
-from bullet_dlo.core.boundary import EndHolder, Move, Sine
+from bullet_dlo.core.boundary import EndHolder, Move, Sine, Waypoints
 from bullet_dlo.core.spec import CableSpec
 from bullet_dlo.sim import build, resolve_problem, resolved
 
@@ -46,6 +46,10 @@ def test_roll_about_the_tangent_is_read_exactly():
     tilted = EndHolder("clamped", np.zeros(3), np.array([0.0, 0.6, 0.8]), (Sine("last", frequency=5.0,
                        rotation=(0.0, 0.3, 0.4), duration=0.2, ramp=0.0),))
     assert np.abs(end_roll(tilted, t)).max() == pytest.approx(0.5, rel=1e-6)
+    # a motion whose only rotation is in its last waypoint is sampled (not taken for a translation)
+    late = Waypoints("last", times=(0.0, 0.1, 0.2), displacements=((0, 0, 0), (0, 0, 0.01), (0, 0, 0.01)),
+                     rotations=((0, 0, 0), (0, 0, 0), (0.4, 0, 0)))
+    assert np.abs(end_roll(EndHolder("clamped", np.zeros(3), d, (SWING, late)), t)).max() == pytest.approx(0.4)
 
 
 def test_a_rolled_clamp_turns_the_frame_on_and_says_why():
