@@ -125,7 +125,8 @@ def _run(world, cable, box, mass, spec, r, seconds, half, case) -> dict:
         balance = -on_box / (spec.mass * G)
         share = math.nan
     return dict(case=case, mass=mass, hz=1.0 / world.dt, sink=1e3 * sink, worst=1e3 * worst, balance=balance,
-                share=share, rest=last_moving, creep=1e3 * creep, fails=cable.solver.newton_failures, status=cable.reason or "stable")
+                share=share, rest=last_moving, creep=1e3 * creep, fails=cable.solver.newton_failures,
+                status=cable.reason or "stable")
 
 
 def main(argv=None) -> None:
