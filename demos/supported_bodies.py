@@ -7,6 +7,10 @@ Two cases, each measured without the contact model's own numbers (its gaps and f
   the cable (Bullet supports the box too). Statics: the cable carries the share of the weight the lever gives
   (5/8 here), the table the rest; the box at rest.
 - ``held``: a 30 g board fixed in the air by a user constraint (JOINT_FIXED), the cable lying on it.
+- ``dragged``: a box of 40 x 10 x 4 cm on a frictionless table (Bullet holds it up), the cable lying along it and
+  pulled at its first node by 0.05 N after 1 s: static friction must drag the box (mu 0.8 / 0.6 on a 0.8 box);
+  ``balance`` is then the box's acceleration over 0.6 s over pull / (m_box + m_cable), the status says how many of
+  the cable's rows slide at the end.
 - ``rod``: Bullet alone, the leaning box on a fixed rod of the cable's radius where the cable lies (the reference for
   ``rest`` and ``creep``; sink, balance and share are not measured).
 
@@ -16,7 +20,7 @@ worst over the last second; ``balance``: (ground on cable + ground on box) / (m_
 cable's push on the board / the cable's weight (held); ``rest``: when the box last moved faster than 1e-4 m/s [s];
 ``creep``: the body's largest speed over the last second [mm/s]; ``fails``: the cable's Newton solves that did not
 converge (``cable.solver.newton_failures``).
-Usage: python demos/supported_bodies.py [--hz 60 120] [--mass 0.001 0.03 0.3 3] [--case leaning held rod]
+Usage: python demos/supported_bodies.py [--hz 60 120] [--mass 0.001 0.03 0.3 3] [--case leaning held dragged rod]
 """
 from __future__ import annotations
 
@@ -65,6 +69,30 @@ def leaning(mass: float, hz: float, seconds: float) -> dict:
         world.run(0.2)
         box = _lean_box(world, r, mass)
         return _run(world, cable, box, mass, spec, r, seconds, HALF, "leaning")
+
+
+def dragged(mass: float, hz: float, seconds: float) -> dict:
+    spec = CableSpec.lv2017(n_masses=20, static_friction=0.8, dynamic_friction=0.6)
+    r, pull, half = spec.diameter / 2, 0.05, (0.2, 0.05, 0.02)
+    with BulletWorld(dt=1.0 / hz, ground_friction=0.0) as world:
+        cid = world.client
+        box = world.add_box(half, (0.0, 0.0, half[2]), mass=mass, friction=0.8)
+        cable = world.add_cable(spec, start=(-0.15, 0.0, 2 * half[2] + r), direction=(1, 0, 0))
+        world.run(1.0)
+        cable.set_external_force(0, (-pull, 0.0, 0.0))  # along -x
+        t, v = [], []
+        for k in range(world.steps_in(0.6)):
+            world.step()
+            t.append(k * world.dt)
+            v.append(pb.getBaseVelocity(box, physicsClientId=cid)[0][0])
+        t, v = np.array(t), np.array(v)
+        accel = np.polyfit(t[t > 0.1], v[t > 0.1], 1)[0]
+        sliding = int(cable.contact_forces()["sliding"].sum())
+        nan = math.nan
+        ratio = accel / (-pull / (mass + spec.mass))
+        status = f"{cable.reason or 'stable'}, {sliding} rows sliding"
+        return dict(case="dragged", mass=mass, hz=hz, sink=nan, worst=nan, balance=ratio, share=nan, rest=nan,
+                    creep=nan, fails=cable.solver.newton_failures, status=status)
 
 
 def rod(mass: float, hz: float, seconds: float) -> dict:
@@ -133,7 +161,7 @@ def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--hz", type=float, nargs="+", default=[60.0, 120.0])
     ap.add_argument("--mass", type=float, nargs="+", default=[0.001, 0.03, 0.3, 3.0, 10.0])
-    ap.add_argument("--case", nargs="+", choices=("leaning", "held", "rod"), default=["leaning", "held"])
+    ap.add_argument("--case", nargs="+", choices=("leaning", "held", "dragged", "rod"), default=["leaning", "held"])
     ap.add_argument("--seconds", type=float, default=2.0)
     args = ap.parse_args(argv)
     for name, val, lo in (("--hz", min(args.hz), 10.0), ("--mass", min(args.mass), 1e-4), ("--seconds", args.seconds, 1.0)):
@@ -145,7 +173,7 @@ def main(argv=None) -> None:
     for case in args.case:
         for hz in args.hz:
             for m in args.mass:
-                res = {"leaning": leaning, "held": held, "rod": rod}[case](m, hz, args.seconds)
+                res = {"leaning": leaning, "held": held, "dragged": dragged, "rod": rod}[case](m, hz, args.seconds)
                 print(f"{case:8s} {m:8.3g} {hz:6.0f} {res['sink']:8.3f} {res['worst']:8.3f} {res['balance']:8.4f}"
                       f" {res['share']:8.4f} {res['rest']:7.3f} {res['creep']:7.3f} {res['fails']:6d}  {res['status']}",
                       flush=True)
