@@ -9,14 +9,19 @@ from __future__ import annotations
 import os
 import subprocess
 import sys
+import tempfile
 import warnings
 from pathlib import Path
 
 import numpy as np
 import pytest
 
+import core_runner  # tests/core_runner.py
+
 CORE_DIRS = {"core", "analysis", "config"}
 
+
+_STARTED: list[subprocess.Popen] = []  # the core suite's run started by this session (pytest_sessionstart)
 
 CORE_RUNNER = "test_core_suite_passes_without_pybullet_h5py_matplotlib_av_cv2"
 """The test of ``tests/test_layers.py`` that runs the whole core suite in a process without PyBullet."""
@@ -39,13 +44,41 @@ def pytest_sessionstart(session):
         return
     if not _selects_a_directory(config):
         return  # a few files or tests: their own kernels compile faster than the whole warm-up (~3 min)
+    warm = ["core", "bullet"]
+    if _selects_the_core_runner(config):
+        # the core suite starts now, beside the Bullet part, and compiles the core's kernels itself
+        # (tests/core_runner.py); the core part would compile them first, before the suite could start
+        out = tempfile.mkdtemp(prefix="bullet_dlo_core_suite_")
+        os.environ[core_runner.ENV] = out  # set before pytest-xdist starts the workers: the runner test reads it
+        _STARTED.append(subprocess.Popen([sys.executable, core_runner.__file__, out], stdout=subprocess.DEVNULL,
+                                         stderr=subprocess.DEVNULL))
+        warm.remove("core")
     script = Path(__file__).with_name("warm_kernels.py")
     parts = [subprocess.Popen([sys.executable, str(script), part], stdout=subprocess.DEVNULL,
-                              stderr=subprocess.PIPE, text=True) for part in ("core", "bullet")]
+                              stderr=subprocess.PIPE, text=True) for part in warm]
     for part in parts:
         _, err = part.communicate()
         if part.returncode:  # the tests that use these kernels will fail and say why; warn only
             warnings.warn(f"warming the kernel cache failed ({part.args[-1]}): {err.strip()[-400:]}")
+
+
+def _selects_the_core_runner(config) -> bool:
+    """Whether the session will run tests/test_layers.py's core runner: a directory holding it is selected and
+    no -k or -m expression could deselect it."""
+    if getattr(config.option, "keyword", "") or getattr(config.option, "markexpr", ""):
+        return False
+    layers = Path(__file__).with_name("test_layers.py").resolve()
+    args = [Path(config.invocation_params.dir, a.split("::")[0]).resolve() for a in config.args] or [layers.parent]
+    return any(a.is_dir() and a in layers.parents for a in args)
+
+
+def pytest_unconfigure(config):
+    """Stop a core suite the session started if the session ends first (an interrupt, ``-x``)."""
+    for proc in _STARTED:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    _STARTED.clear()
 
 
 def pytest_collection_modifyitems(config, items):
