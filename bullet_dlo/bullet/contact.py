@@ -60,7 +60,8 @@ from numba import njit
 
 from bullet_dlo.bullet import held_bodies
 from bullet_dlo.bullet.kernels import bind
-from bullet_dlo.bullet.native import BASE_STATE, disabled_warning, read_base_states
+from bullet_dlo.bullet.native import (BASE_STATE, _collision_info_init, _status_aabb, _submit, disabled_warning,
+                                      overlapping, read_base_states)
 from bullet_dlo.bullet.shape_data import collision_shapes
 from bullet_dlo.core.kernels.contact import (PENALTY, STICK, WRAP, Bodies, Contacts, _wrap_cap, make_bodies,
                                              make_contacts, mark_wrap_neighbours, wrap_active, wrap_energy, wrap_split)
@@ -564,6 +565,8 @@ class ContactSet:
             self._candidates = None  # _probe_candidates bound on first use
             self._near_set = False  # a probed row's hull is marked near (hulls.near; cleared at the next probe)
             self._prev_rows: set = set()
+            self._broad = None  # _probe_broad bound on first use (native reads only)
+            self._broad_args = self._native_broad(native, pairs, nb, n) if native else None
         self.keys_per_shape = keys_per_shape(n)
         self.other_cables = list(others)
         n_other = sum(o.model.n for o in self.other_cables)
@@ -671,6 +674,41 @@ class ContactSet:
                 disabled_warning("ContactSet", "a native base read differs from PyBullet's: unknown layout")
                 return False
         return True
+
+    def _native_broad(self, native: int, pairs: list, nb: int, n: int) -> tuple | None:
+        """The arguments of :func:`_probe_broad` but the step's (x, reach; filled in by :meth:`_probe`), or None
+        when Bullet's answers to its native reads differ from PyBullet's here (an unknown layout)."""
+        probe_pairs = [(int(b), int(link)) for b, link in self._probe_rows]
+        row_of = np.full((max(b for b, _ in probe_pairs) + 1, max(link for _, link in probe_pairs) + 2), -1, np.int64)
+        for (b, link), s in self._probe_rows.items():
+            row_of[b, link + 1] = s
+        nodes, segs, mid, quat, _ = self._cand
+        args = [native, self._cable_box, row_of, self.body_ids.copy(), self.links.copy(), np.zeros((1, 3)), 0.0,
+                self._probe_out, self._capsule >= 0, np.zeros_like(nodes), np.zeros_like(segs), np.zeros_like(mid),
+                np.zeros_like(quat), np.zeros(2, np.int64), np.zeros((4096, 2), np.int32), np.zeros(nb, np.bool_),
+                np.zeros((nb, 2, 3)), np.zeros(nb, np.int64)]
+        # check: every PROBE row's box, and the overlap of a box round all of them, as PyBullet answers them
+        cid = self.client
+        try:
+            boxes = {s: pb.getAABB(self.rows[s][0], self.rows[s][1], physicsClientId=cid)
+                     for s in range(self.n_exact, nb)}
+        except pb.error:
+            return None
+        if not boxes:
+            return None
+        lo = np.min([b[0] for b in boxes.values()], axis=0) - 1.0
+        hi = np.max([b[1] for b in boxes.values()], axis=0) + 1.0
+        box = np.array([lo, hi])
+        args[1], args[5], args[6] = box, np.zeros((1, 3)), 0.0
+        hits = pb.getOverlappingObjects(lo.tolist(), hi.tolist(), physicsClientId=cid) or ()
+        rows = sorted({self._probe_rows[h] for h in hits if h in self._probe_rows})
+        got = _probe_broad(*args)
+        if (got < 0 or np.flatnonzero(args[15]).tolist() != rows
+                or any(args[16][s].tolist() != [list(boxes[s][0]), list(boxes[s][1])] for s in rows)):
+            disabled_warning("ContactSet", "a native overlap or link box differs from PyBullet's: unknown layout")
+            return None
+        args[1] = self._cable_box
+        return tuple(args)
 
     def _read_pose(self, s: int, with_velocity: bool) -> None:
         body = self.rows[s][0]
@@ -843,10 +881,20 @@ class ContactSet:
         margin = self._reach(*args)
         reach = self._radius + margin
         cid = self.client
-        lo, hi = cable_box.tolist()
-        hits = pb.getOverlappingObjects(lo, hi, physicsClientId=cid) or ()
-        rows = set(map(self._probe_rows.get, hits))  # (a hit that is no PROBE row: None)
-        rows.discard(None)
+        rows = None
+        if self._broad_args is not None:  # the rows whose boxes meet no node or segment are left out here
+            args = self._broad_args
+            args = args[:5] + (x, reach) + args[7:]
+            if self._broad is None:
+                self._broad = bind(_probe_broad, *args)
+            nt = self._broad(*args)
+            if nt >= 0:
+                rows = set(args[-1][:nt].tolist())
+        if rows is None:
+            lo, hi = cable_box.tolist()
+            hits = pb.getOverlappingObjects(lo, hi, physicsClientId=cid) or ()
+            rows = set(map(self._probe_rows.get, hits))  # (a hit that is no PROBE row: None)
+            rows.discard(None)
         k_prev = int(self.contacts.count[0])
         prev = self.store.body[:k_prev]
         self._prev_rows = {int(r) for r in np.unique(prev[prev >= self.n_exact])} if k_prev else set()
@@ -1360,6 +1408,43 @@ def _probe_candidates(x, box, reach, out, segments, nodes, segs, mid, quat):
             quat[ns, 0], quat[ns, 1], quat[ns, 2], quat[ns, 3] = -e1 / ql, e0 / ql, 0.0, (1.0 + e2) / ql
         ns += 1
     return nn, ns
+
+
+@njit  # (calls Bullet's C API through ctypes: compiled once per process, not cached)
+def _probe_broad(handle, cable_box, row_of, row_body, row_link, x, reach, out, segments, nodes, segs, mid, quat,
+                 data, pairs, hit, boxes, todo):
+    """:meth:`ContactSet._probe`'s broad phase in one call: the PROBE rows whose links' broad-phase boxes overlap
+    ``cable_box`` (``getOverlappingObjects``; ``row_of[body, link + 1]``: the row of a (body, link) pair, -1: none)
+    into ``hit`` (rows,), each one's link box (``getAABB``, one collision-info request per body) into ``boxes``
+    (rows, 2, 3), and into ``todo`` the rows, in order, where :func:`_probe_candidates` finds a node or a segment
+    near the box (its buffers are scratch here). Returns how many (-1: a native read failed)."""
+    count = overlapping(handle, cable_box, data, pairs)
+    if count < 0:
+        return -1
+    hit[:] = False
+    for k in range(count):
+        b, link = pairs[k, 0], pairs[k, 1]
+        if 0 <= b < row_of.shape[0] and -1 <= link < row_of.shape[1] - 1:
+            s = row_of[b, link + 1]
+            if s >= 0:
+                hit[s] = True
+    nt = 0
+    body = -1
+    status = np.uint64(0)
+    for s in range(hit.shape[0]):
+        if not hit[s]:
+            continue
+        if row_body[s] != body:  # one request answers every link of the body (the rows of a body are adjacent)
+            body = row_body[s]
+            status = _submit(handle, _collision_info_init(handle, body))
+        box = boxes[s]
+        if _status_aabb(status, row_link[s], box.ctypes.data, box.ctypes.data + 24) == 0:
+            return -1
+        nn, ns = _probe_candidates(x, box, reach, out[s], segments, nodes, segs, mid, quat)
+        if nn > 0 or ns > 0:
+            todo[nt] = s
+            nt += 1
+    return nt
 
 
 @njit(cache=True, error_model="numpy", inline="always")

@@ -80,6 +80,10 @@ _link_state = _c("b3GetLinkState", _I, _U, _U, _I, _U)
 _joint_state = _c("b3GetJointState", _I, _U, _U, _I, _U)
 _sync_init = _c("b3InitSyncBodyInfoCommand", _U, _U)
 _actual_state = _c("b3GetStatusActualState", _I, _U, _U, _U, _U, _U, _U, _U, _U)
+_overlap_init = _c("b3InitAABBOverlapQuery", _U, _U, _U, _U)
+_overlap_results = _c("b3GetAABBOverlapResults", None, _U, _U)
+_collision_info_init = _c("b3RequestCollisionInfoCommandInit", _U, _U, _I)
+_status_aabb = _c("b3GetStatusAABB", _I, _U, _I, _U, _U)
 _memcpy = ctypes.CDLL(None).memcpy  # reads the doubles behind the pointers the C API hands out
 _memcpy.restype, _memcpy.argtypes = _U, [_U, _U, _U]
 BASE_STATE = 13
@@ -211,6 +215,23 @@ def read_base_states(handle, bodies, out, prev, moved):
             prev[b, j] = out[b, j]
         moved[b] = not same
         count += 0 if same else 1
+    return count
+
+
+@njit
+def overlapping(handle, box, data, pairs):
+    """PyBullet's ``getOverlappingObjects(box[0], box[1])``: the (body, link) pairs whose broad-phase boxes overlap
+    ``box`` (2, 3) [m] into ``pairs`` (k, 2) int32; ``data`` (2,) int64 is scratch (Bullet's b3AABBOverlapData).
+    Returns their count (-1: more than ``pairs`` holds)."""
+    data[0] = 0
+    data[1] = 0
+    _submit(handle, _overlap_init(handle, box.ctypes.data, box.ctypes.data + 24))
+    _overlap_results(handle, data.ctypes.data)
+    count = data[0] & 0xFFFFFFFF  # int m_numOverlappingObjects, then the pointer to the (id, link) pairs
+    if count > pairs.shape[0]:
+        return -1
+    if count > 0:
+        _memcpy(pairs.ctypes.data, data[1], 8 * count)
     return count
 
 
