@@ -8,8 +8,10 @@ implicit-Euler sub-step (``twist_step``): staggered, first order in dt. This dem
 a soft steel-like strip (rectangle 10 x 1 mm, E 2 GPa, 0.3 m, 9 nodes, the scene of
 ``tests/core/test_twist_coupled.py``) clamped flat at 2 cm above the ground, its free part drooped onto the
 ground (settled first, 0.5 s at dt 0.5 ms), then its clamp rolled by ``--roll`` degrees about the cable's
-axis over 0.3 s. ``contact``: on the ground (its last nodes stick on it, mu 1, the same rows throughout);
-``free``: the same start without the ground (no contact: the coupled step). Errors at the end against the
+axis over 0.3 s. On the ground: its last four nodes lie on it (the same four rows throughout), frictionless by
+default; the roll swings the strip sideways, so with ``--friction MU`` the rows slide (at mu 1 and 8 alike), and
+sliding friction is first order of its own (its direction from the anchor the last step left). Without the
+ground: the same start, no contact. Errors at the end against the
 same run at dt 4 ms / 64: the end torque about the clamp's axis [N m] (the clamp spring, its damper and the
 twist), the node positions [m] and the segments' material axes m1 (max over nodes).
 
@@ -22,7 +24,8 @@ Two details keep the comparison one of the integrator alone:
   first-order error of the twist, ``--as-reported``). The demo compares the planned state (``x_new``,
   ``v_new`` and the twist, all at T + dt) with the reference's at the same time.
 
-    python demos/twist_contact_order.py                  # BDF2, roll 30 degrees (~10 s)
+    python demos/twist_contact_order.py                  # BDF2, roll 30 degrees, frictionless (~5 s)
+    python demos/twist_contact_order.py --friction 1     # the rows slide: the friction's own first order
     python demos/twist_contact_order.py --method implicit_euler
     python demos/twist_contact_order.py --as-reported    # cable.state() / end_loads() as they are
     python demos/twist_contact_order.py --fine           # dt 1 ms to 0.125 ms (~30 s)
@@ -31,6 +34,7 @@ from __future__ import annotations
 
 import argparse
 import math
+from dataclasses import replace
 
 import numpy as np
 
@@ -48,8 +52,8 @@ T = 0.3  # [s] the roll
 Z = 0.02  # [m] the clamp's height
 NEWTON = NewtonOptions(tol=1e-8, max_iter=50)
 SPEC = CableSpec(length=0.3, diameter=0.001, mass=0.024, youngs_modulus=2e9, section="rectangle", width=0.01,
-                 thickness=0.001, n_masses=9, damping_rate=2.0, internal_damping=1e-3, static_friction=1.0,
-                 dynamic_friction=1.0)
+                 thickness=0.001, n_masses=9, damping_rate=2.0, internal_damping=1e-3, static_friction=0.0,
+                 dynamic_friction=0.0)
 
 
 def model(roll: float = 0.0) -> CableModel:
@@ -113,7 +117,7 @@ def table(method: str, roll: float, as_reported: bool, dts=DTS, ref_h=REF) -> No
         ref_stops = {h: round((T + shift * h) / REF) - shift for h in DTS}
         ref, _, _ = run(start, REF, ground, method, roll, set(ref_stops.values()), as_reported)
         ref_at = {h: ref[k] for h, k in ref_stops.items()}
-        print(f"\n{method}, {'on the ground (contact step, twist staggered)' if ground else 'no ground (coupled step)'}")
+        print(f"\n{method}, {'on the ground (contact step)' if ground else 'no ground'}, friction {SPEC.static_friction}")
         print(f"{'dt [ms]':>8} {'rows':>6} {'torque err [N m]':>17} {'order':>6} {'x err [m]':>10} {'order':>6} "
               f"{'m1 err':>10} {'order':>6} {'unconv.':>8}")
         prev = None
@@ -136,10 +140,15 @@ def main(argv=None) -> None:
     ap.add_argument("--roll", type=float, default=30.0, help="the clamp's roll over the run [deg], in (0, 90]")
     ap.add_argument("--as-reported", action="store_true",
                     help="compare cable.end_loads() and cable.state() at T (x at t, twist at t + dt)")
+    ap.add_argument("--friction", type=float, default=0.0, help="the strip's friction coefficient, >= 0")
     ap.add_argument("--fine", action="store_true", help="dt 1, 0.5, 0.25, 0.125 ms against dt 4 ms / 512")
     a = ap.parse_args(argv)
     if not 0.0 < a.roll <= 90.0:
         ap.exit(2, f"--roll must be in (0, 90] degrees, got {a.roll}\n")
+    if not a.friction >= 0.0:
+        ap.exit(2, f"--friction must be >= 0, got {a.friction}\n")
+    global SPEC
+    SPEC = replace(SPEC, static_friction=a.friction, dynamic_friction=a.friction)
     if a.fine:
         table(a.method, math.radians(a.roll), a.as_reported, (0.001, 0.0005, 0.00025, 0.000125), H0 / 512)
     else:
