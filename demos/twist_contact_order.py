@@ -1,9 +1,9 @@
 """Order in dt of a twisting cable's implicit step in contact and out of it (issue 22, item 1).
 
-Out of contact the implicit methods solve positions and twist angles in one Newton system (the coupled step,
-``bullet_dlo/core/kernels/twist_coupled.py``); in contact (``contact_step``, the Newton of every step whose
-cable touches something) the positions are solved with the twist angles held and the twist follows in an
-implicit-Euler sub-step (``twist_step``): staggered, first order in dt. This demo measures both on one scene:
+The implicit methods solve a twisting cable's positions and twist angles in one Newton system, out of contact
+(``coupled_implicit``) and in contact (``coupled_contact``, ``bullet_dlo/core/kernels/twist_coupled.py``; before,
+the contact step solved the positions with the twist held, then the twist in an implicit-Euler sub-step:
+staggered, first order). This demo measures the order on one scene, in contact and out of it:
 
 a soft steel-like strip (rectangle 10 x 1 mm, E 2 GPa, 0.3 m, 9 nodes, the scene of
 ``tests/core/test_twist_coupled.py``) clamped flat at 2 cm above the ground, its free part drooped onto the
@@ -79,7 +79,8 @@ def settled():
 
 def run(state, h, ground, method, roll, stops, as_reported=False):
     """Step the rolled strip from ``state`` at dt h; at each step count in ``stops`` take (torque about the clamp's
-    axis [N m], x [m], m1), the contact rows' counts met and the steps whose Newton solve ended unconverged: the planned state at t + h (module docstring), or with ``as_reported``
+    axis [N m], x [m], m1), the contact rows' counts met and the steps whose Newton solve ended
+    unconverged: the planned state at t + h (module docstring), or with ``as_reported``
     what ``cable.end_loads()`` and ``cable.state()`` give."""
     out = {}
     rows = set()
@@ -117,7 +118,8 @@ def table(method: str, roll: float, as_reported: bool, dts=DTS, ref_h=REF) -> No
         ref_stops = {h: round((T + shift * h) / REF) - shift for h in DTS}
         ref, _, _ = run(start, REF, ground, method, roll, set(ref_stops.values()), as_reported)
         ref_at = {h: ref[k] for h, k in ref_stops.items()}
-        print(f"\n{method}, {'on the ground (contact step)' if ground else 'no ground'}, friction {SPEC.static_friction}")
+        print(f"\n{method}, {'on the ground (contact step)' if ground else 'no ground'}, "
+              f"friction {SPEC.static_friction}")
         print(f"{'dt [ms]':>8} {'rows':>6} {'torque err [N m]':>17} {'order':>6} {'x err [m]':>10} {'order':>6} "
               f"{'m1 err':>10} {'order':>6} {'unconv.':>8}")
         prev = None

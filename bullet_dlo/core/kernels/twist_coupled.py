@@ -46,6 +46,12 @@ matrix. With it Newton converges quadratically in the twist as in the positions 
 dampers' position terms, left out of :func:`~bullet_dlo.core.kernels.forces.add_damping_jacobian`, aside). Newton iterates to the stepper's tolerance
 with the line search of :func:`~bullet_dlo.core.kernels.steppers.newton` on the incremental potential (kinetic and
 dissipative terms of the twist included), so the coupled step has the method's order (2 for BDF2 and implicit midpoint).
+
+In contact (:func:`coupled_contact`, called by :func:`~bullet_dlo.core.kernels.contact.contact_step` when no free
+body is in the solve) the same system takes the contact and grip forces on the position rows, their stiffness on
+the position block of the Gauss-Newton matrix and their potential in the merit, with the contact Newton's rules
+(potential decrease only, the friction caps an outer fixed point). BDF2 then keeps order 2 in contact
+(frictionless rows: ``tests/bullet/test_twist_contact_order.py``; sliding friction is first order of its own).
 """
 from __future__ import annotations
 
