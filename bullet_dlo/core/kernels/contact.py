@@ -1418,13 +1418,35 @@ def _update_friction(c, x_end):
 
 
 @njit(cache=True, error_model="numpy")
+def _step_work(m, v, h, c):
+    """After a contact step's solve (v [m/s]: the velocities at the step's start): c.impact, and the work of the
+    bodies and the grippers on the cable over the step added to c.body_work [J]."""
+    gr = c.grip
+    g_h = math.sqrt(m.gravity[0] ** 2 + m.gravity[1] ** 2 + m.gravity[2] ** 2) * h
+    c.impact[0] = 0
+    for k in range(c.count[0]):
+        if c.kind[k] != WRAP and c.f_n[k] > 0.0 and -_approach(c, k, v) > g_h:
+            c.impact[0] = 1
+        for j in range(3):  # work of the body on the cable: f . u_b h (self-contact: internal, not counted)
+            if not c.internal[k]:
+                c.body_work[0] += (c.f_n[k] * c.normal[k, j] + c.f_t[k, j]) * c.body_vel[k, j] * h
+    for e in range(2):  # work of the grippers on the cable
+        if gr.active[e]:
+            for j in range(3):
+                c.body_work[0] += gr.force[e, j] * gr.vel[e, j] * h
+
+
+@njit(cache=True, error_model="numpy")
 def contact_step(stepper, m, x, v, samples, ws, has_prev, c, bd):
     """One implicit step of (x, v) in place with the contacts ``c`` and the free bodies ``bd`` (:class:`Bodies`;
     see the module docstring).
 
     Like :func:`~bullet_dlo.core.kernels.steppers.advance` for the implicit methods (implicit
-    midpoint takes an implicit Euler step while contacts are active). Updates the friction state
-    and c.body_work; sets c.impact. Returns (Newton iterations, converged).
+    midpoint takes an implicit Euler step while contacts are active). A cable with a material frame solves
+    positions and twist in one Newton system (:func:`~bullet_dlo.core.kernels.twist_coupled.coupled_contact`)
+    unless a free body is in the solve: then the positions with the twist held, then the twist sub-step
+    (staggered, first order). Updates the friction state and c.body_work; sets c.impact. Returns (Newton
+    iterations, converged).
     """
     method, h = stepper.method, stepper.h
     n = x.shape[0]
@@ -1443,12 +1465,24 @@ def contact_step(stepper, m, x, v, samples, ws, has_prev, c, bd):
                 c.anchor[k, j] += h * c.body_vel[k, j]
     use_prev = has_prev and method == BDF2 and bodies == 0
     twisting = has_twist(m)
-    if twisting:  # as advance does: the positions with the twist held, then the twist sub-step
+    if twisting:  # as advance does
         twist_ready(m, x, samples.dir[0])
         set_clamp(m, 2)  # (implicit Euler and BDF2 evaluate at t + h)
+    gr = c.grip
+    if twisting and bodies == 0:  # positions and twist in one Newton system
+        for e in range(2):  # the grippers at the end of the step (where forces are evaluated)
+            for j in range(3):
+                gr.center[e, j] = samples.pos[2, e, j]
+                gr.axis[e, j] = samples.dir[2, e, j]
+                gr.vel[e, j] = samples.vel[2, e, j]
+        v0 = v.copy()
+        its, converged = _twist_coupled.coupled_contact(stepper, method, m, x, v, samples, ws, use_prev, c)
+        _step_work(m, v0, h, c)
+        _update_friction(c, x)  # contact points stay at the end of the step: the next step's start
+        _update_grips(gr, x)
+        return its, converged
     imp = _start_implicit(method, m, x, v, h, samples, ws, use_prev)
     vn = ws.v_new
-    gr = c.grip
     for e in range(2):  # the grippers at the end of the step (where forces are evaluated)
         for j in range(3):
             gr.center[e, j] = samples.pos[2, e, j]
@@ -1458,18 +1492,7 @@ def contact_step(stepper, m, x, v, samples, ws, has_prev, c, bd):
     if bodies > 0:
         _add_reactions(c, bd, h, bd.impulse)
         _end_bodies(c, bd, h)
-    g_h = math.sqrt(m.gravity[0] ** 2 + m.gravity[1] ** 2 + m.gravity[2] ** 2) * h
-    c.impact[0] = 0
-    for k in range(c.count[0]):
-        if c.kind[k] != WRAP and c.f_n[k] > 0.0 and -_approach(c, k, v) > g_h:
-            c.impact[0] = 1
-        for j in range(3):  # work of the body on the cable: f . u_b h (self-contact: internal, not counted)
-            if not c.internal[k]:
-                c.body_work[0] += (c.f_n[k] * c.normal[k, j] + c.f_t[k, j]) * c.body_vel[k, j] * h
-    for e in range(2):  # work of the grippers on the cable
-        if gr.active[e]:
-            for j in range(3):
-                c.body_work[0] += gr.force[e, j] * gr.vel[e, j] * h
+    _step_work(m, v, h, c)
     for i in range(n):
         for j in range(3):
             if use_prev:
@@ -1480,6 +1503,13 @@ def contact_step(stepper, m, x, v, samples, ws, has_prev, c, bd):
     _set_held(m.held, x, v, samples.pos[2], samples.vel[2])
     _update_friction(c, x)  # contact points stay at the end of the step: the next step's start
     _update_grips(gr, x)
-    if twisting:
+    if twisting:  # with a free body in the solve: the staggered twist sub-step
+        if method == BDF2:  # (the history of a coupled BDF2 step after this one)
+            m.tw_prev[0, :] = m.tw_theta
+            m.tw_prev[1, :] = m.tw_omega
         twist_step(m, x, samples.dir[2], h)
     return its, converged
+
+
+# The coupled step of a twisting cable (twist_coupled imports this module: bound after every name it takes)
+from bullet_dlo.core.kernels import twist_coupled as _twist_coupled  # noqa: E402

@@ -11,9 +11,10 @@ table (names, orders, defaults) is :mod:`bullet_dlo.core.integrators`.
 A cable with a material frame (``KernelArrays.tw``, :mod:`bullet_dlo.core.kernels.twist`) takes its
 implicit steps with positions and twist angles in one Newton system, the twist integrated by the same
 method (:func:`~bullet_dlo.core.kernels.twist_coupled.coupled_implicit`; the clamps' section axes at the
-method's evaluation time), so the step keeps the method's order. The explicit methods (and the contact step
-of :mod:`~bullet_dlo.core.kernels.contact`) advance the positions with the twist angles held, then the twist
-angles by an implicit Euler sub-step with the new positions held
+method's evaluation time), so the step keeps the method's order; the contact step of
+:mod:`~bullet_dlo.core.kernels.contact` too (:func:`~bullet_dlo.core.kernels.twist_coupled.coupled_contact`).
+The explicit methods, Gauss-Legendre and a contact step with a free body in its solve advance the positions with
+the twist angles held, then the twist angles by an implicit Euler sub-step with the new positions held
 (:func:`~bullet_dlo.core.kernels.twist.twist_step`, staggered, first order in h).
 """
 from __future__ import annotations

@@ -46,6 +46,12 @@ matrix. With it Newton converges quadratically in the twist as in the positions 
 dampers' position terms, left out of :func:`~bullet_dlo.core.kernels.forces.add_damping_jacobian`, aside). Newton iterates to the stepper's tolerance
 with the line search of :func:`~bullet_dlo.core.kernels.steppers.newton` on the incremental potential (kinetic and
 dissipative terms of the twist included), so the coupled step has the method's order (2 for BDF2 and implicit midpoint).
+
+In contact (:func:`coupled_contact`, called by :func:`~bullet_dlo.core.kernels.contact.contact_step` when no free
+body is in the solve) the same system takes the contact and grip forces on the position rows, their stiffness on
+the position block of the Gauss-Newton matrix and their potential in the merit, with the contact Newton's rules
+(potential decrease only, the friction caps an outer fixed point). BDF2 then keeps order 2 in contact
+(frictionless rows: ``tests/bullet/test_twist_contact_order.py``; sliding friction is first order of its own).
 """
 from __future__ import annotations
 
@@ -55,6 +61,7 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
+from bullet_dlo.core.kernels.banded import HALF
 from bullet_dlo.core.kernels.drag import add_drag_jacobian, has_drag
 from bullet_dlo.core.kernels.forces import (
     add_damping_jacobian,
@@ -1009,17 +1016,10 @@ def _round_reference_twists(x, dirs, theta, clamp, mref, E, xs, nd):
 
 
 @njit(cache=True, error_model="numpy")
-def coupled_implicit(stepper, m, x, v, samples, ws, has_prev):
-    """One implicit step (implicit Euler, BDF2 or implicit midpoint) of a cable with a material frame: positions,
-    velocities, twist angles and rates advanced together in place (see the module docstring); the reference
-    frames then transported to the new tangents. The clamps' section axes in ``m.tw_clamp`` must be those of
-    the method's evaluation time (as :func:`~bullet_dlo.core.kernels.steppers.advance` sets them).
-    Returns (Newton iterations, converged)."""
-    method, h = stepper.method, stepper.h
-    n = x.shape[0]
-    ns = n - 1
-    imp = _start_implicit(method, m, x, v, h, samples, ws, has_prev)
-    cx, hf = imp.cx, imp.hf
+def _bases(method, m, h, has_prev):
+    """The twist's part of the implicit map (module docstring): the step's start (theta0, omega0) and theta_base,
+    w_base, w_avg, each (n-1,); BDF2 then stores (theta0, omega0) as the history of the next step."""
+    ns = m.tw_theta.shape[0]
     theta0 = m.tw_theta.copy()
     omega0 = m.tw_omega.copy()
     tb, wb, wa = np.empty(ns), np.empty(ns), np.empty(ns)
@@ -1041,6 +1041,89 @@ def coupled_implicit(stepper, m, x, v, samples, ws, has_prev):
     if method == BDF2:
         m.tw_prev[0, :] = theta0
         m.tw_prev[1, :] = omega0
+    return theta0, omega0, tb, wb, wa
+
+
+@njit(cache=True, error_model="numpy")
+def _scales(m, x, hf, theta0):
+    """Newton's residual scale and round-off floor of the coupled step [N s] (see
+    :func:`~bullet_dlo.core.kernels.steppers.newton`; the floor counts the twist springs too)."""
+    g_norm = np.sqrt(np.sum(m.gravity ** 2))
+    xscale = 0.0
+    for i in range(x.shape[0]):
+        for j in range(3):
+            xscale = max(xscale, abs(x[i, j]))
+    lmin = np.min(m.rest_length)
+    r_scale = hf * (np.max(m.mass) * g_norm + np.max(np.abs(m.f_ext))) + 1e-300
+    r_floor = 10.0 * 2.2e-16 * hf * (np.max(m.k_stretch) * (xscale + np.max(m.rest_length))
+                                     + np.max(m.tw_k_twist) * (np.max(np.abs(theta0)) + np.max(np.abs(m.tw_mref))
+                                                               + 1.0) / lmin)
+    return r_scale, r_floor
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _change(m, ws, vn, wn, wa):
+    """The momentum change of the step, positions and twist (the twist's per rest length) [N s]."""
+    dmom = _momentum_change(m, ws, vn)
+    for k in range(wn.shape[0]):
+        dmom = max(dmom, m.tw_inertia[k] * abs(wn[k] - wa[k]) / m.rest_length[k])
+    return dmom
+
+
+@njit(cache=True, error_model="numpy")
+def _finish(method, m, x, v, samples, ws, has_prev, h, cx, theta0, omega0, tb, wn, kept, sc):
+    """The end of a coupled step from its solution (v', w') = (ws.v_new, wn): x, v, the twist angles and rates
+    in place, then the reference frames transported to the new tangents (from the last residual's edges when it
+    was taken at the solution, ``kept``, and the step is not the midpoint rule's)."""
+    n = x.shape[0]
+    ns = n - 1
+    mid = method == IMPLICIT_MIDPOINT
+    vn = ws.v_new
+    for i in range(n):
+        for j in range(3):
+            if method == IMPLICIT_MIDPOINT:
+                x[i, j] += 0.5 * h * (v[i, j] + vn[i, j])
+            elif method == BDF2 and has_prev:
+                x[i, j] = ws.x_base[i, j] + cx * vn[i, j]
+            else:
+                x[i, j] += h * vn[i, j]
+    v[:, :] = vn
+    _set_held(m.held, x, v, samples.pos[2], samples.vel[2])
+    for k in range(ns):
+        if method == IMPLICIT_MIDPOINT:
+            m.tw_theta[k] = theta0[k] + 0.5 * h * (omega0[k] + wn[k])
+        elif method == BDF2 and has_prev:
+            m.tw_theta[k] = tb[k] + cx * wn[k]
+        else:
+            m.tw_theta[k] = theta0[k] + h * wn[k]
+        m.tw_omega[k] = wn[k]
+    m.tw_clamp[:, :] = m.tw_normal[2]
+    if kept and not mid:  # X of the last residual is the new x: its edges' transported frames are the new ones
+        ref, tan, edges = m.tw_ref, m.tw_tan, sc.edges
+        for k in range(ns):
+            tan[k, 0], tan[k, 1], tan[k, 2] = edges[1, k + 1], edges[2, k + 1], edges[3, k + 1]
+            ref[k, 0], ref[k, 1], ref[k, 2] = edges[4, k + 1], edges[5, k + 1], edges[6, k + 1]
+        if sc.flags[1] != 0:  # (the same values by rows)
+            _round_reference_twists(x, samples.dir[2], m.tw_theta, m.tw_clamp, m.tw_mref, edges, sc.xs, sc.nd)
+        else:
+            reference_twists(x, samples.dir[2], m.tw_theta, ref, tan, m.tw_clamp, m.tw_mref)
+    else:
+        update_frames(m, x, samples.dir[2])
+
+
+@njit(cache=True, error_model="numpy")
+def coupled_implicit(stepper, m, x, v, samples, ws, has_prev):
+    """One implicit step (implicit Euler, BDF2 or implicit midpoint) of a cable with a material frame: positions,
+    velocities, twist angles and rates advanced together in place (see the module docstring); the reference
+    frames then transported to the new tangents. The clamps' section axes in ``m.tw_clamp`` must be those of
+    the method's evaluation time (as :func:`~bullet_dlo.core.kernels.steppers.advance` sets them).
+    Returns (Newton iterations, converged)."""
+    method, h = stepper.method, stepper.h
+    n = x.shape[0]
+    ns = n - 1
+    imp = _start_implicit(method, m, x, v, h, samples, ws, has_prev)
+    cx, hf = imp.cx, imp.hf
+    theta0, omega0, tb, wb, wa = _bases(method, m, h, has_prev)
     g = np.empty((12, 3))
     mid = method == IMPLICIT_MIDPOINT
     size = 4 * n
@@ -1052,16 +1135,7 @@ def coupled_implicit(stepper, m, x, v, samples, ws, has_prev):
     mp = _frameless(m)
     vn, v_try = ws.v_new, ws.v_try
     tol = stepper.tol
-    g_norm = np.sqrt(np.sum(m.gravity ** 2))
-    xscale = 0.0
-    for i in range(n):
-        for j in range(3):
-            xscale = max(xscale, abs(x[i, j]))
-    lmin = np.min(m.rest_length)
-    r_scale = hf * (np.max(m.mass) * g_norm + np.max(np.abs(m.f_ext))) + 1e-300
-    r_floor = 10.0 * 2.2e-16 * hf * (np.max(m.k_stretch) * (xscale + np.max(m.rest_length))
-                                     + np.max(m.tw_k_twist) * (np.max(np.abs(theta0)) + np.max(np.abs(m.tw_mref))
-                                                               + 1.0) / lmin)
+    r_scale, r_floor = _scales(m, x, hf, theta0)
     it = 0
     converged = False
     rnorm = _residual(m, mp, imp, ws, samples, mid, h, tb, wb, wa, vn, wn, wv, rate, tq, r, g, sc)
@@ -1110,45 +1184,164 @@ def coupled_implicit(stepper, m, x, v, samples, ws, has_prev):
         kept = True  # (the last residual, at v_try, w_try)
         r[:] = r_try
         rnorm = rn_try
-        dmom = _momentum_change(m, ws, vn)
-        for k in range(ns):
-            dmom = max(dmom, m.tw_inertia[k] * abs(wn[k] - wa[k]) / m.rest_length[k])
-        if rnorm <= tol * (r_scale + dmom) + r_floor:
+        if rnorm <= tol * (r_scale + _change(m, ws, vn, wn, wa)) + r_floor:
             converged = True
             break
+    _finish(method, m, x, v, samples, ws, has_prev, h, cx, theta0, omega0, tb, wn, kept, sc)
+    return it, converged
+
+
+# ----- the contact step's Newton with the twist (contact.contact_step without free bodies) ----------------
+@njit(cache=True, error_model="numpy")
+def _add_contacts(m, imp, ws, r, c):
+    """r += hf times the contact set ``c``'s forces at the X, V of the last :func:`_residual` (ws.x_stage,
+    ws.v_stage; into c.node_force, c.f_n, c.f_t) on the free nodes' position rows; returns the residual's max
+    as :func:`_residual` measures it (twist rows per rest length)."""
+    n = ws.x_stage.shape[0]
+    fc = c.node_force
+    _contact.contact_forces(c, ws.x_stage, ws.v_stage, fc)
+    worst = 0.0
     for i in range(n):
         for j in range(3):
-            if method == IMPLICIT_MIDPOINT:
-                x[i, j] += 0.5 * h * (v[i, j] + vn[i, j])
-            elif method == BDF2 and has_prev:
-                x[i, j] = ws.x_base[i, j] + cx * vn[i, j]
-            else:
-                x[i, j] += h * vn[i, j]
-    v[:, :] = vn
-    _set_held(m.held, x, v, samples.pos[2], samples.vel[2])
-    for k in range(ns):
-        if method == IMPLICIT_MIDPOINT:
-            m.tw_theta[k] = theta0[k] + 0.5 * h * (omega0[k] + wn[k])
-        elif method == BDF2 and has_prev:
-            m.tw_theta[k] = tb[k] + cx * wn[k]
-        else:
-            m.tw_theta[k] = theta0[k] + h * wn[k]
-        m.tw_omega[k] = wn[k]
-    m.tw_clamp[:, :] = m.tw_normal[2]
-    if kept and not mid:  # X of the last residual is the new x: its edges' transported frames are the new ones
-        ref, tan, edges = m.tw_ref, m.tw_tan, sc.edges
-        for k in range(ns):
-            tan[k, 0], tan[k, 1], tan[k, 2] = edges[1, k + 1], edges[2, k + 1], edges[3, k + 1]
-            ref[k, 0], ref[k, 1], ref[k, 2] = edges[4, k + 1], edges[5, k + 1], edges[6, k + 1]
-        if sc.flags[1] != 0:  # (the same values by rows)
-            _round_reference_twists(x, samples.dir[2], m.tw_theta, m.tw_clamp, m.tw_mref, edges, sc.xs, sc.nd)
-        else:
-            reference_twists(x, samples.dir[2], m.tw_theta, ref, tan, m.tw_clamp, m.tw_mref)
-    else:
-        update_frames(m, x, samples.dir[2])
+            if not m.held[i]:
+                r[4 * i + j] += imp.hf * fc[i, j]
+            if not abs(r[4 * i + j]) <= worst:
+                worst = abs(r[4 * i + j])
+    for k in range(n - 1):
+        scaled = abs(r[4 * k + 3]) / m.rest_length[k]
+        if not scaled <= worst:
+            worst = scaled
+    return worst
+
+
+@njit(cache=True, error_model="numpy")
+def _add_contact_band(c, held, x, kx, kv, cb, band):
+    """band (the coupled layout's upper band) += the contact set's kx (-dF/dx) + kv (-dF/dv) at x on the position
+    block: :func:`~bullet_dlo.core.kernels.contact.add_contact_jacobian` into ``cb`` (the frameless layout's full
+    band, scratch) and its upper triangle moved over (x_i, component r -> row 4 i + r; the rows couple nodes at
+    most two apart, within the coupled envelope)."""
+    cb[:, :] = 0.0
+    _contact.add_contact_jacobian(c, held, x, kx, kv, cb)
+    size = cb.shape[0]
+    for a in range(size):
+        ra = 4 * (a // 3) + a % 3
+        for d in range(HALF, 2 * HALF + 1):
+            val = cb[a, d]
+            if val == 0.0:
+                continue
+            b = a + d - HALF
+            off = 4 * (b // 3) + b % 3 - ra
+            if b < size and off <= HALF_T:
+                band[ra, off] += val
+
+
+@njit(cache=True, error_model="numpy")
+def coupled_contact(stepper, method, m, x, v, samples, ws, has_prev, c, cap_tol=1e-3, max_passes=10):
+    """One implicit step (``method``: implicit Euler or BDF2) of a cable with a material frame in contact (the
+    contact set ``c``, no free body in the solve), positions and twist in one Newton system: the coupled residual
+    of :func:`coupled_implicit` with the contact and grip forces added on the positions, their stiffness on the
+    position block of the Gauss-Newton matrix (the exact Jacobian is not taken here), their potential in the
+    merit; accepted on a potential decrease only and the friction caps an outer fixed point, as
+    :func:`~bullet_dlo.core.kernels.steppers.newton` does with contacts (without its friction active set, which
+    only solves with free bodies use). Advances x, v and the twist state in place and leaves the contact forces
+    at the solution in ``c`` and the position rows of its residual in ws.residual (the stall guard's measure).
+    Returns (Newton iterations, converged)."""
+    h = stepper.h
+    n = x.shape[0]
+    ns = n - 1
+    imp = _start_implicit(method, m, x, v, h, samples, ws, has_prev)
+    cx, cv, hf = imp.cx, imp.cv, imp.hf
+    theta0, omega0, tb, wb, wa = _bases(method, m, h, has_prev)
+    g = np.empty((12, 3))
+    mid = False
+    size = 4 * n
+    band = np.empty((size, HALF_T + 1))
+    lower, upx = np.empty((1, 1)), np.empty((1, 1))  # (the exact matrix's, unused)
+    cb = np.empty((3 * n, 2 * HALF + 1))
+    r, r_try = np.empty(size), np.empty(size)
+    wn, w_try, wv, rate, tq = omega0.copy(), np.empty(ns), np.empty(ns), np.zeros(n), np.empty(ns)
+    sc = _make_scratch(n)
+    mp = _frameless(m)
+    vn, v_try = ws.v_new, ws.v_try
+    tol = stepper.tol
+    r_scale, r_floor = _scales(m, x, hf, theta0)
+    g_norm = np.sqrt(0.0 + m.gravity[0] * m.gravity[0] + m.gravity[1] * m.gravity[1] + m.gravity[2] * m.gravity[2])
+    phi_scale = 0.0  # the potential's scale (round-off allowance of the line search)
+    for i in range(n):
+        phi_scale += m.mass[i] * g_norm * (abs(x[i, 0]) + abs(x[i, 1]) + abs(x[i, 2]) + 1.0)
+    nc = c.count[0]
+    max_iter = max(stepper.max_iter, _contact.MIN_CONTACT_ITER)
+    caps_new = np.empty(max(nc, 1))
+    _residual(m, mp, imp, ws, samples, mid, h, tb, wb, wa, vn, wn, wv, rate, tq, r, g, sc)  # X at the predictor
+    _contact.elastic_caps(c, ws.x_stage, c.cap)  # caps from its penetration
+    rnorm = _add_contacts(m, imp, ws, r, c)
+    fresh = True  # r, rnorm, the scratch and the contact forces are those of (vn, wn) with the caps in use
+    it = 0
+    passes = 0
+    converged = False
+    c.lock[:nc] = 0
+    while True:
+        if not fresh:
+            _residual(m, mp, imp, ws, samples, mid, h, tb, wb, wa, vn, wn, wv, rate, tq, r, g, sc)
+            rnorm = _add_contacts(m, imp, ws, r, c)
+        fresh = False
+        if it > 0 and rnorm <= tol * (r_scale + _change(m, ws, vn, wn, wa)) + r_floor:
+            _contact.elastic_caps(c, ws.x_stage, caps_new)
+            cmax = 0.0
+            dcap = 0.0
+            for k in range(nc):
+                cmax = max(cmax, caps_new[k])
+                dcap = max(dcap, abs(caps_new[k] - c.cap[k]))
+            if dcap <= cap_tol * cmax or passes >= max_passes or it >= max_iter:
+                converged = True
+                break
+            passes += 1
+            c.cap[:nc] = caps_new[:nc]
+            continue
+        if it >= max_iter:
+            break
+        it += 1
+        _newton_matrix(stepper, m, mp, imp, ws, band, g, sc, False, lower, upx, samples, mid, h)
+        _add_contact_band(c, m.held, ws.x_stage, hf * cx, hf * cv, cb, band)
+        phi0 = (_merit(m, mp, imp, ws, wa, vn, wn, wv, rate, sc)
+                + _contact.contact_potential(c, ws.x_stage, ws.v_stage, cx / cv))
+        band_solve_upper(band, r, HALF_T, 4)  # r becomes the Newton direction
+        alpha = 1.0
+        accepted = False
+        rn_try = 0.0
+        for _ in range(30):
+            for i in range(n):
+                for j in range(3):
+                    v_try[i, j] = vn[i, j] + alpha * r[4 * i + j]
+            for k in range(ns):
+                w_try[k] = wn[k] + alpha * r[4 * k + 3]
+            _residual(m, mp, imp, ws, samples, mid, h, tb, wb, wa, v_try, w_try, wv, rate, tq, r_try, g, sc)
+            rn_try = _add_contacts(m, imp, ws, r_try, c)
+            phi = (_merit(m, mp, imp, ws, wa, v_try, w_try, wv, rate, sc)
+                   + _contact.contact_potential(c, ws.x_stage, ws.v_stage, cx / cv))
+            if phi <= phi0 + 1e-13 * (abs(phi0) + phi_scale):
+                accepted = True
+                break
+            alpha *= 0.5
+        if not accepted:
+            break
+        vn[:, :] = v_try
+        wn[:] = w_try
+        r[:] = r_try
+        rnorm = rn_try
+        fresh = True
+    c.lock[:nc] = 0
+    if not converged:  # forces, c.f_n, c.f_t and the frames at the accepted iterate
+        _residual(m, mp, imp, ws, samples, mid, h, tb, wb, wa, vn, wn, wv, rate, tq, r, g, sc)
+        _add_contacts(m, imp, ws, r, c)
+    for i in range(n):
+        for j in range(3):
+            ws.residual[3 * i + j] = r[4 * i + j]
+    _finish(method, m, x, v, samples, ws, has_prev, h, cx, theta0, omega0, tb, wn, True, sc)
     return it, converged
 
 
 # The kernel arrays' type (model.py imports the kernels, so the module object is bound here; Numba resolves
 # ``_model.KernelArrays`` when it compiles).
 from bullet_dlo.core import model as _model  # noqa: E402
+from bullet_dlo.core.kernels import contact as _contact  # noqa: E402  (the contact terms of coupled_contact)
