@@ -1032,6 +1032,19 @@ def elastic_caps(c, x, out):
         out[k] = mu * c.k_n[k] * (-g) if g < 0.0 else 0.0
 
 
+@njit(cache=True, error_model="numpy")
+def caps_settled(c, x, caps_new, cap_tol) -> bool:
+    """caps_new <- the friction limits at x (:func:`elastic_caps`); whether they differ from those the solve used
+    (c.cap) by at most cap_tol of the largest (the contact Newton solves' outer fixed point on the caps)."""
+    elastic_caps(c, x, caps_new)
+    cmax = 0.0
+    dcap = 0.0
+    for k in range(c.count[0]):
+        cmax = max(cmax, caps_new[k])
+        dcap = max(dcap, abs(caps_new[k] - c.cap[k]))
+    return dcap <= cap_tol * cmax
+
+
 # ----- free bodies solved with the cable (see Bodies) ---------------------------------------------
 @njit(cache=True, error_model="numpy")
 def start_bodies(c, bd, h):

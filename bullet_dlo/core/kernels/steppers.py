@@ -434,13 +434,7 @@ def newton(stepper, m, x, imp, ws, c=None, cap_tol=1e-3, max_passes=10, bd=None)
                 and (nb == 0 or _contact.bodies_converged(bd, imp.hf, tol, r_floor))):
             if locking and _contact.unlock_inconsistent(c, ws.x_stage) > 0:
                 continue  # a locked row is in the wrong regime at this solution: solve on with it switched
-            _contact.elastic_caps(c, ws.x_stage, caps_new)
-            cmax = 0.0
-            dcap = 0.0
-            for k in range(nc):
-                cmax = max(cmax, caps_new[k])
-                dcap = max(dcap, abs(caps_new[k] - c.cap[k]))
-            if dcap <= cap_tol * cmax or passes >= max_passes or it >= max_iter:
+            if _contact.caps_settled(c, ws.x_stage, caps_new, cap_tol) or passes >= max_passes or it >= max_iter:
                 converged = True
                 break
             passes += 1

@@ -1159,11 +1159,7 @@ def coupled_implicit(stepper, m, x, v, samples, ws, has_prev):
         accepted = False
         rn_try = 0.0
         for _ in range(12):
-            for i in range(n):
-                for j in range(3):
-                    v_try[i, j] = vn[i, j] + alpha * r[4 * i + j]
-            for k in range(ns):
-                w_try[k] = wn[k] + alpha * r[4 * k + 3]
+            _trial(vn, wn, r, alpha, v_try, w_try, n, ns)
             rn_try = _residual(m, mp, imp, ws, samples, mid, h, tb, wb, wa, v_try, w_try, wv, rate, tq, r_try, g, sc)
             kept = False
             if rn_try < rnorm or rn_try <= tol * r_scale + r_floor:
@@ -1235,6 +1231,18 @@ def _add_contact_band(c, held, x, kx, kv, cb, band):
                 band[ra, off] += val
 
 
+@njit(cache=True, error_model="numpy", inline="always")
+def _trial(vn, wn, r, alpha, v_try, w_try, n, ns):
+    """The line search's trial velocities [m/s] of the n nodes and twist rates [rad/s] of the ns segments: (vn, wn)
+    + alpha times the Newton direction r (4 per node: 3 velocity components, then the twist rate of the segment
+    from it)."""
+    for i in range(n):
+        for j in range(3):
+            v_try[i, j] = vn[i, j] + alpha * r[4 * i + j]
+    for k in range(ns):
+        w_try[k] = wn[k] + alpha * r[4 * k + 3]
+
+
 @njit(cache=True, error_model="numpy")
 def coupled_contact(stepper, method, m, x, v, samples, ws, has_prev, c, cap_tol=1e-3, max_passes=10):
     """One implicit step (``method``: implicit Euler or BDF2) of a cable with a material frame in contact (the
@@ -1286,13 +1294,7 @@ def coupled_contact(stepper, method, m, x, v, samples, ws, has_prev, c, cap_tol=
             rnorm = _add_contacts(m, imp, ws, r, c)
         fresh = False
         if it > 0 and rnorm <= tol * (r_scale + _change(m, ws, vn, wn, wa)) + r_floor:
-            _contact.elastic_caps(c, ws.x_stage, caps_new)
-            cmax = 0.0
-            dcap = 0.0
-            for k in range(nc):
-                cmax = max(cmax, caps_new[k])
-                dcap = max(dcap, abs(caps_new[k] - c.cap[k]))
-            if dcap <= cap_tol * cmax or passes >= max_passes or it >= max_iter:
+            if _contact.caps_settled(c, ws.x_stage, caps_new, cap_tol) or passes >= max_passes or it >= max_iter:
                 converged = True
                 break
             passes += 1
@@ -1310,11 +1312,7 @@ def coupled_contact(stepper, method, m, x, v, samples, ws, has_prev, c, cap_tol=
         accepted = False
         rn_try = 0.0
         for _ in range(30):
-            for i in range(n):
-                for j in range(3):
-                    v_try[i, j] = vn[i, j] + alpha * r[4 * i + j]
-            for k in range(ns):
-                w_try[k] = wn[k] + alpha * r[4 * k + 3]
+            _trial(vn, wn, r, alpha, v_try, w_try, n, ns)
             _residual(m, mp, imp, ws, samples, mid, h, tb, wb, wa, v_try, w_try, wv, rate, tq, r_try, g, sc)
             rn_try = _add_contacts(m, imp, ws, r_try, c)
             phi = (_merit(m, mp, imp, ws, wa, v_try, w_try, wv, rate, sc)
