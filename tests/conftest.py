@@ -7,6 +7,7 @@ selects that test leaves the core tests to it (they are deselected in the sessio
 from __future__ import annotations
 
 import os
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -73,11 +74,14 @@ def _selects_the_core_runner(config) -> bool:
 
 
 def pytest_unconfigure(config):
-    """Stop a core suite the session started if the session ends first (an interrupt, ``-x``)."""
+    """Stop a core suite the session started if the session ends first (an interrupt, ``-x``), and remove its
+    output folder."""
     for proc in _STARTED:
         if proc.poll() is None:
             proc.kill()
             proc.wait()
+    if _STARTED:
+        shutil.rmtree(os.environ.pop(core_runner.ENV, ""), ignore_errors=True)
     _STARTED.clear()
 
 
