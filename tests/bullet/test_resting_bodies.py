@@ -67,9 +67,7 @@ def test_box_on_cable_comes_to_rest_and_the_ground_carries_both(settled, lane):
     moving = np.flatnonzero(v > 1e-4)
     t_rest = (moving[-1] + 1) * world.dt if moving.size else 0.0
     assert t_rest < 1.0  # at rest (speed < 0.1 mm/s) within the 2 s and for good
-    pc = cable.contact_forces()
-    on_cable = float(pc["force"][pc["body"] == world.ground_id][:, 2].sum())
-    on_box = sum(cp[9] for cp in pb.getContactPoints(box, world.ground_id, physicsClientId=world.client))
+    on_cable, on_box = _ground_loads(world, cable, box)
     weight = (cable.model.spec.mass + m_box) * G
     assert on_cable + on_box == pytest.approx(weight, rel=0.01)
     assert cable.body_forces()[box][2] == pytest.approx(m_box * G - on_box, rel=0.01, abs=1e-3 * m_box * G)  # holds it up
@@ -217,6 +215,13 @@ def _face_sink(cable, body: int, half, r: float, cid: int) -> float:
 LEANING_HALF = (0.02, 0.05, 0.005)  # [m] the leaning box: 4 cm along the cable, 10 cm across, 1 cm thick
 
 
+def _ground_loads(world, cable, box) -> tuple[float, float]:
+    """The ground's vertical push [N] on the cable (the contact model's rows) and on the box (Bullet's contacts)."""
+    pc = cable.contact_forces()
+    on_cable = float(pc["force"][pc["body"] == world.ground_id][:, 2].sum())
+    return on_cable, sum(cp[9] for cp in pb.getContactPoints(box, world.ground_id, physicsClientId=world.client))
+
+
 def _leaning_box(world, spec, m_box: float, offset: float = 0.03):
     """A cable (``spec``) left 0.2 s to settle on the table, then a box (LEANING_HALF) lying across it, its bottom face
     through the cable's top and the table ``offset`` + 5 cm from the cable. Returns (cable, box)."""
@@ -255,9 +260,7 @@ def test_a_box_leaning_on_the_cable_and_the_table_rests_on_the_cable(m_box, hz):
         assert cable.stable, cable.reason
         assert moving < 1.5
         assert abs(_face_sink(cable, box, half, r, cid)) < 0.1 * r
-        pc = cable.contact_forces()
-        on_cable = float(pc["force"][pc["body"] == world.ground_id][:, 2].sum())
-        on_box = sum(cp[9] for cp in pb.getContactPoints(box, world.ground_id, physicsClientId=cid))
+        on_cable, on_box = _ground_loads(world, cable, box)
         assert on_cable + on_box == pytest.approx((spec.mass + m_box) * G, rel=0.01)
         assert cable.body_forces()[box][2] == pytest.approx(5 / 8 * m_box * G, rel=0.03)
 
@@ -282,9 +285,7 @@ def test_a_1_g_box_leaning_on_the_cable_and_the_table_at_60_hz_rests_as_on_a_rig
                 late = max(late, float(np.linalg.norm(pb.getBaseVelocity(box, physicsClientId=cid)[0])))
         assert cable.stable, cable.reason
         assert late < 5e-5
-        pc = cable.contact_forces()
-        on_cable = float(pc["force"][pc["body"] == world.ground_id][:, 2].sum())
-        on_box = sum(cp[9] for cp in pb.getContactPoints(box, world.ground_id, physicsClientId=cid))
+        on_cable, on_box = _ground_loads(world, cable, box)
         assert on_cable + on_box == pytest.approx((spec.mass + m_box) * G, rel=0.01)
         assert cable.body_forces()[box][2] == pytest.approx(5 / 8 * m_box * G, rel=0.03)
 
@@ -304,9 +305,7 @@ def test_the_contact_newton_converges_under_a_300_g_box_leaning_on_the_cable_at_
         assert cable.stable, cable.reason
         assert cable.solver.newton_failures == 0
         assert np.linalg.norm(pb.getBaseVelocity(box, physicsClientId=cid)[0]) < 1e-4
-        pc = cable.contact_forces()
-        on_cable = float(pc["force"][pc["body"] == world.ground_id][:, 2].sum())
-        on_box = sum(cp[9] for cp in pb.getContactPoints(box, world.ground_id, physicsClientId=cid))
+        on_cable, on_box = _ground_loads(world, cable, box)
         assert on_cable + on_box == pytest.approx((spec.mass + m_box) * G, rel=0.01)
 
 
