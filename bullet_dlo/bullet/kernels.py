@@ -425,7 +425,8 @@ def sync_and_advance(stepper, m, plan, ext, cp, ws, det, inp, contacts, bodies, 
     # at t (dir[0] of the first sub-step)
     if ext.active[0] or ext.active[1] or inp.record or has_twist(m):
         _sample(plan, ext, cp, inp.t, 0.0, stepper.h)
-        twist_ready(m, cp.x, cp.samples.dir[0])  # (a new twist state: built as the plan would build it)
+        if has_twist(m):  # a new twist state: built as the plan would build it
+            twist_ready(m, cp.x, cp.samples.dir[0])
         end_loads(m, cp.x, cp.v, cp.samples, contacts.grip, cp.end_force, cp.end_torque)
         if inp.record:
             cp.energy[0] = mechanical_energy(m, cp.x, cp.v, cp.samples.dir[0])
