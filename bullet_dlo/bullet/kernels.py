@@ -407,8 +407,10 @@ def sync_and_advance(stepper, m, plan, ext, cp, ws, det, inp, contacts, bodies, 
     free bodies solved with them (:class:`~bullet_dlo.core.kernels.contact.Bodies`);
     the energy check counts the energy stored in them and the work of the bodies they touch.
     With an external holder, a material frame or on a recorded step (``inp.record``), also writes cp.end_force,
-    cp.end_torque (:func:`end_loads` of the state at t, before the plan advances the twist), and on a recorded
-    step cp.energy (the recorder's row without calls of its own: they cost about a third of a step at n = 10).
+    cp.end_torque (:func:`end_loads` of the state at t, before the plan advances the twist; a friction grip's
+    force row: the reaction of the planned step's grip force, as :func:`end_loads` gives it after the plan), and
+    on a recorded step cp.energy (the recorder's row without calls of its own: they cost about a third of a step
+    at n = 10).
     ``guard``: the stalled contact step's retry (:class:`StallGuard`); a contact solve that coasts far from
     convergence even so makes the status STALLED. Returns (status, Newton iterations, converged); an unstable
     status plans nothing (its planned forces are not to be applied).
@@ -436,4 +438,9 @@ def sync_and_advance(stepper, m, plan, ext, cp, ws, det, inp, contacts, bodies, 
                                            guard)
         if stalled:
             status = STALLED
+    grip = contacts.grip
+    for e in range(2):  # a friction grip's reaction: the force of the planned step, which acts over the coming
+        if grip.active[e]:  # Bullet step (the momentum the grip gives the end node is taken from the gripper)
+            for j in range(3):
+                cp.end_force[e, j] = -grip.force[e, j]
     return status, its, ok
