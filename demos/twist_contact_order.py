@@ -20,14 +20,15 @@ Two details keep the comparison one of the integrator alone:
 - the contact's penalty stiffness is k_n = alpha m / dt^2 (``contact_stiffness`` alpha): each run passes
   alpha = 1e4 (dt / 4 ms)^2, so k_n is the same at every dt (alpha 1e4 at 4 ms);
 - a Bullet cable's step plans the coming step: after ``world.step()`` its ``x``, ``v`` are at t but its twist
-  state already at t + dt (``cable.state()`` and ``cable.end_loads()`` pair them; that mix alone is a
-  first-order error of the twist, ``--as-reported``). The demo compares the planned state (``x_new``,
-  ``v_new`` and the twist, all at T + dt) with the reference's at the same time.
+  state (``cable.twist``) already at t + dt. The demo compares the planned state (``x_new``, ``v_new`` and the
+  twist, all at T + dt) with the reference's at the same time, or with ``--as-reported`` what
+  ``cable.end_loads()`` and ``cable.state()`` report, all at T (before the fix they paired x at t with the twist
+  of t + dt: first order).
 
     python demos/twist_contact_order.py                  # BDF2, roll 30 degrees, frictionless (~5 s)
     python demos/twist_contact_order.py --friction 1     # the rows slide: the friction's own first order
     python demos/twist_contact_order.py --method implicit_euler
-    python demos/twist_contact_order.py --as-reported    # cable.state() / end_loads() as they are
+    python demos/twist_contact_order.py --as-reported    # cable.state() / end_loads() as reported (at T)
     python demos/twist_contact_order.py --fine           # dt 1 ms to 0.125 ms (~30 s)
 """
 from __future__ import annotations
@@ -101,7 +102,8 @@ def run(state, h, ground, method, roll, stops, as_reported=False):
                     axis = cp.samples.dir[2, 0]
                     tq = clamp_torque(cable.arrays, cp.x_new, cp.v_new, cp.samples.dir[2], 0)
                     x = cp.x_new.copy()
-                out[k] = (float(np.dot(tq, axis)), x, material_axes(cable.state().twist))
+                tw = cable.state().twist if as_reported else cable.twist  # (the twist state planned for t + h)
+                out[k] = (float(np.dot(tq, axis)), x, material_axes(tw))
         assert cable.stable, cable.reason
         fails = cable.newton_failures
     return out, rows, fails
@@ -141,7 +143,7 @@ def main(argv=None) -> None:
     ap.add_argument("--method", choices=("bdf2", "implicit_euler"), default="bdf2")
     ap.add_argument("--roll", type=float, default=30.0, help="the clamp's roll over the run [deg], in (0, 90]")
     ap.add_argument("--as-reported", action="store_true",
-                    help="compare cable.end_loads() and cable.state() at T (x at t, twist at t + dt)")
+                    help="compare cable.end_loads() and cable.state() as reported, at T")
     ap.add_argument("--friction", type=float, default=0.0, help="the strip's friction coefficient, >= 0")
     ap.add_argument("--fine", action="store_true", help="dt 1, 0.5, 0.25, 0.125 ms against dt 4 ms / 512")
     a = ap.parse_args(argv)

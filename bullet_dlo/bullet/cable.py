@@ -156,6 +156,10 @@ class BulletCable:
         self.contacts_last_step = 0
         self.record = CableRecord()
         self._end_loads = None  # end_loads's machine code, bound on first use
+        # a twisting cable: its twist state at self.t (the plan advances self.twist to t + dt in place), kept for
+        # state(); None until the first plan (_advance), end_loads() then reads the kernel's loads at self.t
+        self._twist_now = None
+        self._twist_planned = False  # self.twist is at t + dt (a plan advanced it since _twist_now was taken)
         self._record_row()
         self._advance(None)  # plan the first step
 
@@ -378,6 +382,16 @@ class BulletCable:
         inp = solver.step_input(self.t, self.steps if do_sync else 0, do_sync, record, contacts, idx_arr, pos, vel)
         active = self.grip.active
         gripped = active.tolist()
+        if self.twist.theta.shape[0]:  # the twist state at self.t, before the plan advances it
+            if not do_sync:  # planned again from self.t: from the twist of self.t, not the one planned before
+                self._twist_at_t()
+            now = self._twist_now
+            if now is None:
+                self._twist_now = self.twist.copy()
+            else:
+                for a, b in zip(now, self.twist):
+                    a[...] = b
+            self._twist_planned = True
         status = solver.step(self.arrays, self.control, contacts, contact.bodies, inp)
         if gripped[0] or gripped[1]:
             for end in (0, 1):
@@ -387,6 +401,13 @@ class BulletCable:
             self._record_row(from_kernel=True)
         elif do_sync and status != STABLE:
             self._record_row()
+
+    def _twist_at_t(self) -> None:
+        """Undo the coming step's plan on the twist state (in place): back to its state at self.t."""
+        if self._twist_planned:
+            for a, b in zip(self.twist, self._twist_now):
+                a[...] = b
+            self._twist_planned = False
 
     def _step_input(self, do_sync: bool, record: bool, index: np.ndarray, pos: np.ndarray,
                     vel: np.ndarray) -> StepInput:
@@ -562,6 +583,7 @@ class BulletCable:
         c.k_twist[node], c.k_aniso[node] = end_twist_constants(spec, mode)
         c.c_twist[node] = c.k_twist[node] * spec.internal_damping
         if mode == "clamped":
+            self._twist_at_t()  # the section as it is at t, with the positions (a re-plan follows)
             self.ext.normal[end] = grip_section(self.arrays, self.x, self.ext.dir, end)
 
     def release(self, end: int) -> None:
@@ -620,8 +642,10 @@ class BulletCable:
         return REASONS[self.status]
 
     def state(self) -> CableState:
-        """The cable's current state as the model sees it (a copy, its twist state included)."""
-        return CableState(self.x.copy(), self.v.copy(), self.t, self.twist.copy())
+        """The cable's current state as the model sees it (a copy, its twist state included), all of it at
+        ``t`` (``self.twist`` is the twist state the coming step planned, at t + dt)."""
+        twist = self._twist_now if self._twist_now is not None else self.twist
+        return CableState(self.x.copy(), self.v.copy(), self.t, twist.copy())
 
     def end_forces(self) -> np.ndarray:
         """Force [N] the cable exerts on each held or gripped end now, (2, 3) (first, last)."""
@@ -629,7 +653,12 @@ class BulletCable:
 
     def end_loads(self) -> tuple[np.ndarray, np.ndarray]:
         """Force [N] (the reaction of a friction grip's force where one holds the end) and clamp torque
-        [N m] the cable exerts on each held end now, (2, 3) each (first, last): one kernel call."""
+        [N m] the cable exerts on each held end now, (2, 3) each (first, last): one kernel call. A twisting cable
+        (once planned): the loads the step's kernel computed from the state at ``t``, before its plan advanced
+        the twist state to t + dt (what the grippers get over the coming Bullet step)."""
+        if self._twist_now is not None:
+            cp = self._cp
+            return cp.end_force.copy(), cp.end_torque.copy()
         force, torque = np.empty((2, 3)), np.empty((2, 3))
         args = (self.arrays, self.x, self.v, self._cp.samples, self.grip, force, torque)
         if self._end_loads is None:

@@ -18,7 +18,7 @@ from bullet_dlo.core.kernels.forces import clamp_torque, mechanical_energy
 from bullet_dlo.core.kernels.holders import ExternalHolders, HeldSamples, rotate, sample_end  # noqa: F401 (re-exported)
 from bullet_dlo.core.kernels.monitor import STABLE, STALLED, end_forces, monitor
 from bullet_dlo.core.kernels.steppers import BDF2, IMPLICIT_EULER, Stepper, advance
-from bullet_dlo.core.kernels.twist import set_clamp
+from bullet_dlo.core.kernels.twist import has_twist, set_clamp, twist_ready
 
 
 class Coupling(NamedTuple):
@@ -406,12 +406,14 @@ def sync_and_advance(stepper, m, plan, ext, cp, ws, det, inp, contacts, bodies, 
     ``contacts``: the model's contacts for the coming step (detected from the taken-over state), ``bodies``: the
     free bodies solved with them (:class:`~bullet_dlo.core.kernels.contact.Bodies`);
     the energy check counts the energy stored in them and the work of the bodies they touch.
-    With an external holder or on a recorded step (``inp.record``), also writes cp.end_force,
-    cp.end_torque (:func:`end_loads` now), and on a recorded step cp.energy (the recorder's row without
-    calls of its own: they cost about a third of a step at n = 10). ``guard``: the stalled contact step's retry
-    (:class:`StallGuard`); a contact solve that coasts far from convergence even so makes the status STALLED.
-    Returns (status, Newton iterations, converged); an unstable status plans nothing (its planned forces are not
-    to be applied).
+    With an external holder, a material frame or on a recorded step (``inp.record``), also writes cp.end_force,
+    cp.end_torque (:func:`end_loads` of the state at t, before the plan advances the twist; a friction grip's
+    force row: the reaction of the planned step's grip force, as :func:`end_loads` gives it after the plan), and
+    on a recorded step cp.energy (the recorder's row without calls of its own: they cost about a third of a step
+    at n = 10).
+    ``guard``: the stalled contact step's retry (:class:`StallGuard`); a contact solve that coasts far from
+    convergence even so makes the status STALLED. Returns (status, Newton iterations, converged); an unstable
+    status plans nothing (its planned forces are not to be applied).
     """
     status = STABLE
     if inp.sync:
@@ -419,14 +421,26 @@ def sync_and_advance(stepper, m, plan, ext, cp, ws, det, inp, contacts, bodies, 
         if inp.check or inp.energy_check:
             extra = contact_energy(contacts, cp.x) - contacts.body_work[0] if inp.energy_check else 0.0
             status = monitor(m, cp.x, cp.v, cp.samples, det, inp.energy_check, extra)
+    # the loads on external holders (the grasp coupling applies them over the coming Bullet step) and the
+    # recorded energy: of the state at t, before coupled_targets advances the twist state (m.tw_*) to t + dt
+    # (x, v stay at t); a twisting cable's every step (BulletCable.end_loads reads them), the held ends sampled
+    # at t (dir[0] of the first sub-step)
+    if ext.active[0] or ext.active[1] or inp.record or has_twist(m):
+        _sample(plan, ext, cp, inp.t, 0.0, stepper.h)
+        if has_twist(m):  # a new twist state: built as the plan would build it
+            twist_ready(m, cp.x, cp.samples.dir[0])
+        end_loads(m, cp.x, cp.v, cp.samples, contacts.grip, cp.end_force, cp.end_torque)
+        if inp.record:
+            cp.energy[0] = mechanical_energy(m, cp.x, cp.v, cp.samples.dir[0])
     its, ok = 0, True
     if status == STABLE:
         its, ok, stalled = coupled_targets(stepper, m, plan, ext, cp, ws, inp.t, inp.has_prev, contacts, bodies,
                                            guard)
         if stalled:
             status = STALLED
-    if ext.active[0] or ext.active[1] or inp.record:  # the loads on external holders (the grasp coupling
-        end_loads(m, cp.x, cp.v, cp.samples, contacts.grip, cp.end_force, cp.end_torque)  # applies them)
-    if inp.record:
-        cp.energy[0] = mechanical_energy(m, cp.x, cp.v, cp.samples.dir[0])
+    grip = contacts.grip
+    for e in range(2):  # a friction grip's reaction: the force of the planned step, which acts over the coming
+        if grip.active[e]:  # Bullet step (the momentum the grip gives the end node is taken from the gripper)
+            for j in range(3):
+                cp.end_force[e, j] = -grip.force[e, j]
     return status, its, ok

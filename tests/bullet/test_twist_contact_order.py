@@ -56,7 +56,7 @@ def _planned(start, h, stops):
             if k in stops:
                 tq = clamp_torque(cable.arrays, cp.x_new, cp.v_new, cp.samples.dir[2], 0)
                 out[k] = np.array([float(np.dot(tq, cp.samples.dir[2, 0])), *cp.x_new.ravel(),
-                                   *_material_axes(cable.state().twist).ravel()])
+                                   *_material_axes(cable.twist).ravel()])  # (planned, t + h)
         assert cable.stable and cable.newton_failures == 0
     return out
 
