@@ -142,9 +142,20 @@ def mechanical_energy(m, x, v, dirs):
     return e
 
 
-@njit(cache=True, error_model="numpy")
-def internal_forces(m, x, dirs, out):
+@njit(cache=True, error_model="numpy", inline="always")  # a call passing m costs ~0.3-0.5 us: only the loop's arrays
+def internal_forces(m, x, dirs, out):                      # are passed to it (inlined: the dispatch is free)
     """Write the elastic forces -dE/dx [N], shape (n, 3), into ``out`` (overwritten)."""
+    _spring_forces(m.k_stretch, m.rest_length, m.k_bend, x, dirs, out)
+    if has_twist(m):
+        add_twist_forces(m, x, dirs, out)
+    if has_rest_shape(m):  # curved rest shape (checked here: a call passing m costs ~0.5 us even as a no-op)
+        add_rest_shape_forces(m, x, out)
+
+
+@njit(cache=True, error_model="numpy")
+def _spring_forces(k_stretch, rest_length, k_bend, x, dirs, out):
+    """out <- the stretch, bending and clamp springs' forces [N] (n, 3) (:func:`internal_forces` without its
+    twist and rest-shape terms)."""
     n = x.shape[0]
     out[:, :] = 0.0
     for i in range(n - 1):
@@ -152,7 +163,7 @@ def internal_forces(m, x, dirs, out):
         dy = x[i + 1, 1] - x[i, 1]
         dz = x[i + 1, 2] - x[i, 2]
         length = math.sqrt(dx * dx + dy * dy + dz * dz)
-        f = m.k_stretch[i] * (length - m.rest_length[i]) / length  # tension / length
+        f = k_stretch[i] * (length - rest_length[i]) / length  # tension / length
         out[i, 0] += f * dx
         out[i, 1] += f * dy
         out[i, 2] += f * dz
@@ -160,7 +171,7 @@ def internal_forces(m, x, dirs, out):
         out[i + 1, 1] -= f * dy
         out[i + 1, 2] -= f * dz
     for i in range(n):
-        k = m.k_bend[i]
+        k = k_bend[i]
         if k == 0.0:
             continue
         a0, a1, a2, b0, b1, b2 = _node_edges(x, i, dirs)
@@ -175,10 +186,6 @@ def internal_forces(m, x, dirs, out):
             scatter_edge(out, i - 1, gax, gay, gaz)
         if i < n - 1:  # b depends on x_i (-1) and x_{i+1} (+1)
             scatter_edge(out, i, gbx, gby, gbz)
-    if has_twist(m):
-        add_twist_forces(m, x, dirs, out)
-    if has_rest_shape(m):  # curved rest shape (checked here: a call passing m costs ~0.5 us even as a no-op)
-        add_rest_shape_forces(m, x, out)
 
 
 @njit(cache=True, error_model="numpy")
@@ -248,7 +255,7 @@ def clamp_damping_torque(m, x, v, dirs, end):
     return out
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")  # only the loop's arrays are passed (see internal_forces)
 def force_jacobian(m, x, dirs, definite, jac):
     """Write dF/dx of the elastic forces [N/m] into ``jac`` (shape (n, 5, 3, 3), overwritten).
 
@@ -256,48 +263,51 @@ def force_jacobian(m, x, dirs, definite, jac):
     drag (see :func:`bullet_dlo.core.kernels.banded.assemble_system`) and
     :func:`add_damping_jacobian` for the Kelvin-Voigt dampers.
     """
+    _spring_jacobian(m.k_stretch, m.rest_length, m.k_bend, m.rest_angle, x, dirs, definite, jac)
+    if has_twist(m):
+        add_twist_jacobian(m, x, dirs, jac)
+
+
+@njit(cache=True, error_model="numpy")
+def _spring_jacobian(k_stretch, rest_length, k_bend, rest_angle, x, dirs, definite, jac):
+    """jac <- dF/dx of the stretch, bending and clamp springs (with the rest angles' terms) (:func:`force_jacobian`
+    without the twist terms)."""
     n = x.shape[0]
     jac[:, :, :, :] = 0.0
-    hs = np.empty((3, 3))
-    d = np.empty(3)
     for i in range(n - 1):
-        d[0] = x[i + 1, 0] - x[i, 0]
-        d[1] = x[i + 1, 1] - x[i, 1]
-        d[2] = x[i + 1, 2] - x[i, 2]
-        length = math.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
-        k = m.k_stretch[i]
-        geo = 1.0 - m.rest_length[i] / length
+        d0 = x[i + 1, 0] - x[i, 0]
+        d1 = x[i + 1, 1] - x[i, 1]
+        d2 = x[i + 1, 2] - x[i, 2]
+        d = (d0, d1, d2)  # (a tuple, not a scratch array: no allocation)
+        length = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+        k = k_stretch[i]
+        geo = 1.0 - rest_length[i] / length
         if definite and geo < 0.0:
             geo = 0.0
-        for r in range(3):
-            for col in range(3):
-                dd = d[r] * d[col] / (length * length)
-                hs[r, col] = k * (dd + geo * ((1.0 if r == col else 0.0) - dd))
         # e = x_{i+1} - x_i: Hessian blocks (i,i)=+H, (i,i+1)=-H, (i+1,i)=-H, (i+1,i+1)=+H
         for r in range(3):
             for col in range(3):
-                hv = hs[r, col]
+                dd = d[r] * d[col] / (length * length)
+                hv = k * (dd + geo * ((1.0 if r == col else 0.0) - dd))
                 jac[i, 2, r, col] -= hv
                 jac[i, 3, r, col] += hv
                 jac[i + 1, 1, r, col] += hv
                 jac[i + 1, 2, r, col] -= hv
     hb = np.empty((6, 6))
     g = np.empty(12)
-    rest = has_rest_shape(m)  # checked once: a call passing m costs ~0.5 us a node even as a no-op
+    rest = rest_angle.shape[0] > 0  # (has_rest_shape) checked once: a call costs more than a short node
     for i in range(n):
-        k = m.k_bend[i]
+        k = k_bend[i]
         if k == 0.0:
             continue
         a0, a1, a2, b0, b1, b2 = _node_edges(x, i, dirs)
         _bend_hessian(a0, a1, a2, b0, b1, b2, k, g, hb)
         if rest:  # curved rest shape
-            rest_shape_hessian(m, x, i, definite, hb)
+            rest_shape_hessian(rest_angle, k_bend, x, i, definite, hb)
         scatter_node_hessian(jac, i, n, hb)
-    if has_twist(m):
-        add_twist_jacobian(m, x, dirs, jac)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")  # called per node: a call costs more than a short node
 def _bend_hessian(a0, a1, a2, b0, b1, b2, k, g, out):
     """Hessian of 1/2 k theta(a, b)^2 with respect to (a, b), shape (6, 6), into ``out`` (g: scratch (12,)).
 
@@ -432,12 +442,18 @@ def _stretch_rate(x, v, i):
     return dx, dy, dz, length, rel
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")  # only the dampers' arrays are passed (see internal_forces)
 def internal_damping_forces(m, x, v, dirs, out):
     """Add the Kelvin-Voigt damping forces -dR/dv [N], (n, 3), to ``out`` (see the block comment)."""
+    _damper_forces(m.c_stretch, m.c_bend, x, v, dirs, out)
+
+
+@njit(cache=True, error_model="numpy")
+def _damper_forces(c_stretch, c_bend, x, v, dirs, out):
+    """:func:`internal_damping_forces` from the damper constants [N s/m], [N m s/rad^2]."""
     n = x.shape[0]
     for i in range(n - 1):
-        c_s = m.c_stretch[i]
+        c_s = c_stretch[i]
         if c_s == 0.0:
             continue
         dx, dy, dz, length, rel = _stretch_rate(x, v, i)
@@ -451,7 +467,7 @@ def internal_damping_forces(m, x, v, dirs, out):
     g = np.empty((5, 3, 3))
     rate = np.empty(3)
     for i in range(n):
-        c_b = m.c_bend[i]
+        c_b = c_bend[i]
         if c_b == 0.0:
             continue
         _bend_node_blocks(x, i, dirs, g)
@@ -496,7 +512,7 @@ def dissipation(m, x, v, dirs):
     return r_sum
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")  # the no-op test inline, only the dampers' arrays passed
 def add_damping_jacobian(m, x, dirs, scale, jac):
     """jac += scale * dF/dv of the Kelvin-Voigt dampers [N s/m] (block-banded (n, 5, 3, 3)).
 
@@ -504,12 +520,17 @@ def add_damping_jacobian(m, x, dirs, scale, jac):
     of phi_dot, nodes up to two apart). The drag -diag(damp) is not included (see
     :func:`bullet_dlo.core.kernels.banded.assemble_system`). No-op without internal damping.
     """
-    if not _has_internal_damping(m):
-        return
+    if _has_internal_damping(m):
+        _damper_jacobian(m.c_stretch, m.c_bend, x, dirs, scale, jac)
+
+
+@njit(cache=True, error_model="numpy")
+def _damper_jacobian(c_stretch, c_bend, x, dirs, scale, jac):
+    """:func:`add_damping_jacobian` from the damper constants (with internal damping)."""
     n = x.shape[0]
     d = np.empty(3)
     for i in range(n - 1):
-        c_s = m.c_stretch[i]
+        c_s = c_stretch[i]
         if c_s == 0.0:
             continue
         d[0] = x[i + 1, 0] - x[i, 0]
@@ -525,7 +546,7 @@ def add_damping_jacobian(m, x, dirs, scale, jac):
                 jac[i + 1, 2, r, col] -= hv
     g = np.empty((5, 3, 3))
     for i in range(n):
-        c_b = m.c_bend[i]
+        c_b = c_bend[i]
         if c_b == 0.0:
             continue
         _bend_node_blocks(x, i, dirs, g)

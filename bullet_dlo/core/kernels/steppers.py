@@ -96,7 +96,7 @@ def make_workspace(n: int) -> Workspace:
 
 
 # ----- helpers -------------------------------------------------------------------------------
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def _set_held(held, x, v, pos, vel):
     """Put held nodes at the prescribed positions [m] and velocities [m/s] (pos, vel: (2, 3))."""
     n = x.shape[0]
@@ -234,6 +234,15 @@ def _residual(m, imp, ws, vn, r, c=None):
     (in c.node_force, and c.f_n, c.f_t) are added on the free nodes. Leaves X, V in ws.x_stage,
     ws.v_stage (read by :func:`_merit`).
     """
+    worst = _cable_residual(m, imp, ws, vn, r)
+    if c is None:
+        return worst
+    return _contact_residual(m, imp, ws, r, c)
+
+
+@njit(cache=True, error_model="numpy", inline="always")  # inlined in Newton's cable-only loop (a call passing m
+def _cable_residual(m, imp, ws, vn, r):                   # and ws costs ~0.5-1 us, twice a step)
+    """:func:`_residual` without contacts."""
     n = vn.shape[0]
     xe, ve, f = ws.x_stage, ws.v_stage, ws.force
     for i in range(n):
@@ -249,9 +258,7 @@ def _residual(m, imp, ws, vn, r, c=None):
             r[3 * i + j] = val
             if not abs(val) <= worst:  # also catches NaN
                 worst = abs(val)
-    if c is None:
-        return worst
-    return _contact_residual(m, imp, ws, r, c)
+    return worst
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -308,13 +315,19 @@ def _momentum_change(m, ws, vn):
 @njit(cache=True, error_model="numpy")
 def _newton_matrix(stepper, m, imp, ws, c=None):
     """ws.band <- the Newton matrix M - hf cx dF/dx - hf cv dF/dv (+ the contact set c's terms), block-banded."""
+    _cable_matrix(stepper, m, imp, ws)
+    if c is not None:
+        _contact.add_contact_jacobian(c, m.held, ws.x_stage, imp.hf * imp.cx, imp.hf * imp.cv, ws.band)
+
+
+@njit(cache=True, error_model="numpy", inline="always")  # inlined in Newton's cable-only loop
+def _cable_matrix(stepper, m, imp, ws):
+    """:func:`_newton_matrix` without contacts."""
     force_jacobian(m, ws.x_stage, imp.dirs, stepper.definite, ws.jacobian)
     add_damping_jacobian(m, ws.x_stage, imp.dirs, imp.cv / imp.cx, ws.jacobian)  # dF/dx + (cv/cx) dF/dv
     if has_drag(m):  # quadratic drag (checked here: a call passing m costs ~0.5 us even as a no-op)
         add_drag_jacobian(m, ws.x_stage, ws.v_stage, imp.cv / imp.cx, ws.jacobian)
     assemble_system(m, ws.jacobian, 1.0, imp.hf * imp.cx, imp.hf * imp.cv, ws.band)
-    if c is not None:
-        _contact.add_contact_jacobian(c, m.held, ws.x_stage, imp.hf * imp.cx, imp.hf * imp.cv, ws.band)
 
 
 @njit(cache=True, error_model="numpy")
@@ -367,10 +380,10 @@ def newton(stepper, m, x, imp, ws, c=None, cap_tol=1e-3, max_passes=10, bd=None)
     it = 0
     converged = False
     if c is None:
-        rnorm = _residual(m, imp, ws, vn, r)
+        rnorm = _cable_residual(m, imp, ws, vn, r)
         while it < stepper.max_iter:
             it += 1
-            _newton_matrix(stepper, m, imp, ws)
+            _cable_matrix(stepper, m, imp, ws)
             band_solve(ws.band, r)  # r becomes the Newton direction dv
             phi0 = np.nan
             alpha = 1.0
@@ -379,7 +392,7 @@ def newton(stepper, m, x, imp, ws, c=None, cap_tol=1e-3, max_passes=10, bd=None)
                 for i in range(n):
                     for j in range(3):
                         v_try[i, j] = vn[i, j] + alpha * r[3 * i + j]
-                rn_try = _residual(m, imp, ws, v_try, r_try)
+                rn_try = _cable_residual(m, imp, ws, v_try, r_try)
                 if rn_try < rnorm or rn_try <= tol * r_scale + r_floor:
                     accepted = True
                     break
@@ -485,7 +498,7 @@ def newton(stepper, m, x, imp, ws, c=None, cap_tol=1e-3, max_passes=10, bd=None)
     return it, converged
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")  # (a call passing m and ws costs ~0.5-1 us)
 def _start_implicit(method, m, x, v, h, samples, ws, has_prev):
     """The implicit method's affine map (see :func:`_implicit_map`) and Newton's first iterate in
     ws.v_new: the current velocities, held ends at their end-of-step velocities."""
@@ -500,7 +513,7 @@ def _start_implicit(method, m, x, v, h, samples, ws, has_prev):
     return imp
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def _implicit(stepper, m, x, v, samples, ws, has_prev):
     """Implicit Euler, BDF2 or implicit midpoint: solve for v', then update x consistently."""
     method, h = stepper.method, stepper.h

@@ -697,7 +697,7 @@ def aniso_node_hessian(g, dl, pa, pb, jrow, hb):
                                      + jrow[2, r] * jrow[2, col] - jrow[3, r] * jrow[3, col])
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")  # called per node
 def scatter_node_hessian(jac, i, n, hb):
     """jac -= the node Hessian hb (6, 6) over (e_a, e_b) mapped onto nodes i-1, i, i+1 (clamp edges fixed):
     a = x_i - x_{i-1}, b = x_{i+1} - x_i, by the chain rule jac[p, q-p+2] -= H_pq; at a clamp (i = 0 or
