@@ -242,30 +242,36 @@ class DualArmEnv(gym.Env):
                "wrench": [s.values[6:12] for s in self.sensors], "task": self._task_observation()}
         if self.privileged:
             raw["cable"] = self.cable_points()
-        obs = {key: np.asarray(value, dtype=np.float32) for key, value in raw.items()}
-        # every box checked and clipped in one pass over one buffer (the same elementwise clip as key by key)
-        flat = np.concatenate([v.ravel() for v in obs.values()])
-        if not np.all(np.isfinite(flat)):  # an unstable step: key by key, which zeroes and ends the episode
+        # every value written as float32 (np.asarray(value, np.float32)'s bits) into one new buffer, whose boxes are
+        # checked and clipped in one pass (the same elementwise clip as key by key); the keys are views of it
+        layout, low, high = self._flat_layout(raw)
+        flat = np.empty(len(low), np.float32)
+        obs = {}
+        for (key, start, stop, shape), value in zip(layout, raw.values()):
+            view = obs[key] = flat[start:stop].reshape(shape)
+            view[...] = value
+        if not np.isfinite(flat).all():  # an unstable step: key by key, which zeroes and ends the episode
             obs = {key: self._finite(key, value) for key, value in obs.items()}
         else:
-            low, high = self._flat_bounds(obs)
             np.clip(flat, low, high, out=flat)
-            start = 0
-            for key, value in obs.items():
-                obs[key] = flat[start:start + value.size].reshape(value.shape)
-                start += value.size
         if self.camera:
             obs.update(self._images())
         return obs
 
-    def _flat_bounds(self, obs: dict[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
-        """The boxes' low and high of the keys of ``obs``, in its order, as flat float32 arrays (made once)."""
-        keys = tuple(obs)
-        if getattr(self, "_bounds", (None,))[0] != keys:
-            space = self.observation_space
-            self._bounds = (keys, np.concatenate([space[k].low.ravel() for k in keys]),
+    def _flat_layout(self, raw: dict) -> tuple[tuple, np.ndarray, np.ndarray]:
+        """Where each key of ``raw`` lies in the flat observation buffer, in its order ((key, start, stop, shape)
+        per key, the shapes of the observation space), and the boxes' low and high there as flat float32 arrays
+        (made once)."""
+        keys = tuple(raw)
+        if getattr(self, "_layout", (None,))[0] != keys:
+            space, layout, start = self.observation_space, [], 0
+            for k in keys:
+                shape = space[k].shape
+                layout.append((k, start, start + int(np.prod(shape)), shape))
+                start = layout[-1][2]
+            self._layout = (keys, tuple(layout), np.concatenate([space[k].low.ravel() for k in keys]),
                             np.concatenate([space[k].high.ravel() for k in keys]))
-        return self._bounds[1], self._bounds[2]
+        return self._layout[1:]
 
     def _finite(self, key: str, value: np.ndarray) -> np.ndarray:
         """``value`` inside its box; a non-finite entry (an unstable step) becomes 0 and ends the episode."""
