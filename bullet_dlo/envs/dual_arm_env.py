@@ -54,6 +54,11 @@ import numpy as np
 import pybullet as pb
 from gymnasium import spaces
 
+try:  # np.clip's ufunc without its Python wrapper (the same bits; NumPy 1.x names its module numpy.core)
+    from numpy._core.umath import clip as _clip
+except ImportError:  # pragma: no cover - NumPy 1.x
+    from numpy.core.umath import clip as _clip
+
 try:  # Gymnasium >= 1.1 names the vector autoreset modes; 1.0 vectorises in next-step order without a name
     from gymnasium.vector import AutoresetMode
     AUTORESET = {"autoreset_mode": AutoresetMode.NEXT_STEP}
@@ -140,8 +145,8 @@ class DualArmEnv(gym.Env):
     def _apply_action(self, a: np.ndarray) -> None:
         """Move the gripper targets ``self.target`` (2, 3) [m] (and orientations ``self._quat``) by the clipped
         action ``a`` over one control period."""
-        self.target = np.clip(self.target + a.reshape(2, 3) * self.max_speed * self.control_dt,
-                              self.home - self.workspace, self.home + self.workspace)
+        self.target = _clip(self.target + a.reshape(2, 3) * self.max_speed * self.control_dt,
+                            self.home - self.workspace, self.home + self.workspace)
 
     def _joint_count(self) -> int:
         robots = self.randomisation.values("robot")
@@ -220,7 +225,7 @@ class DualArmEnv(gym.Env):
     def _clean_action(action) -> np.ndarray:
         """``action`` as a new float array clipped to [-1, 1], NaN read as 0 (what ``np.clip(np.nan_to_num(a), -1, 1)``
         gives, at a fifth of its cost: an infinity clips to +-1 as nan_to_num's largest float does)."""
-        a = np.clip(np.asarray(action, dtype=float), -1.0, 1.0)
+        a = _clip(np.asarray(action, dtype=float), -1.0, 1.0)
         nan = np.isnan(a)
         if nan.any():
             a[nan] = 0.0

@@ -70,15 +70,10 @@ from typing import Any
 import numpy as np
 from gymnasium import spaces
 
-try:  # np.clip's ufunc without its Python wrapper (NumPy 2; 1.x names its module numpy.core)
-    from numpy._core.umath import clip as _clip
-except ImportError:  # pragma: no cover - NumPy 1.x
-    from numpy.core.umath import clip as _clip
-
 from bullet_dlo.bullet.world import add_obstacles
 from bullet_dlo.core.validate import ParameterError
 from bullet_dlo.envs import params
-from bullet_dlo.envs.dual_arm_env import DualArmEnv
+from bullet_dlo.envs.dual_arm_env import DualArmEnv, _clip
 from bullet_dlo.robots.transforms import quat_from_axes, rotation
 
 MAX_PEGS = 2
@@ -369,8 +364,9 @@ class RoutingEnv(DualArmEnv):
     def _apply_action(self, a: np.ndarray) -> None:
         """Right gripper: velocity (3 values) and yaw rate (1) over one control period, kept in its box."""
         a = a.reshape(4)
-        self.target[1] = np.clip(self.target[1] + a[:3] * self.max_speed * self.control_dt, self._box[0], self._box[1])
-        self.yaw = float(np.clip(self.yaw + a[3] * self.max_yaw_rate * self.control_dt, -0.5 * math.pi, 0.5 * math.pi))
+        self.target[1] = _clip(self.target[1] + a[:3] * self.max_speed * self.control_dt, self._box[0], self._box[1])
+        yaw = float(self.yaw + a[3] * self.max_yaw_rate * self.control_dt)  # finite: the action is clean
+        self.yaw = min(max(yaw, -0.5 * math.pi), 0.5 * math.pi)  # np.clip of a finite number
         self._quat[1] = self.grasp_quat(self.yaw)
 
     @staticmethod
@@ -442,8 +438,9 @@ class RoutingEnv(DualArmEnv):
         cached = getattr(self, "_progress", None)
         if cached is not None and cached[0] is m:  # asked twice a step (reward, info): once per measures
             return cached[1]
-        p = np.clip(m["wraps"] / WRAP_MIN, 0.0, 1.0)
-        out = float(np.minimum.accumulate(p).mean()), bool(np.all(p >= 1.0))
+        p = _clip(m["wraps"] / WRAP_MIN, 0.0, 1.0)
+        first = np.minimum.accumulate(p)
+        out = float(np.add.reduce(first) / len(first)), bool((p >= 1.0).all())  # mean(): its sum and division
         self._progress = (m, out)
         return out
 
