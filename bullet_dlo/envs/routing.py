@@ -230,10 +230,12 @@ class Clip:
         p = resample(x) if points is None else points
         along, across = self.local(p)
         abs_along, z = np.abs(along), p[:, 2]
-        inside = (abs_along <= 0.5 * CLIP_LENGTH) & (np.abs(across) < 0.5 * CLIP_GAP) & (z < self.top)
         da = np.maximum(abs_along - 0.5 * CLIP_LENGTH, 0.0)
         dz = z - (self.top - 0.5 * CLIP_HEIGHT)
-        return float(np.sqrt(da * da + across * across + dz * dz).min()), bool(inside.any())
+        # the root of the smallest square: the smallest root (sqrt is monotonic and correctly rounded)
+        distance = float(np.sqrt((da * da + across * across + dz * dz).min()))
+        within = abs_along <= 0.5 * CLIP_LENGTH  # (most steps no point is level with the clip: done)
+        return distance, bool(within.any() and (within & (np.abs(across) < 0.5 * CLIP_GAP) & (z < self.top)).any())
 
     def obstacles(self) -> list[dict]:
         """The two boxes as ``bullet.obstacles`` entries."""
