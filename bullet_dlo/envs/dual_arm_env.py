@@ -54,6 +54,11 @@ import numpy as np
 import pybullet as pb
 from gymnasium import spaces
 
+try:  # np.clip's ufunc without its Python wrapper (the same bits; NumPy 1.x names its module numpy.core)
+    from numpy._core.umath import clip as _clip
+except ImportError:  # pragma: no cover - NumPy 1.x
+    from numpy.core.umath import clip as _clip
+
 try:  # Gymnasium >= 1.1 names the vector autoreset modes; 1.0 vectorises in next-step order without a name
     from gymnasium.vector import AutoresetMode
     AUTORESET = {"autoreset_mode": AutoresetMode.NEXT_STEP}
@@ -140,8 +145,8 @@ class DualArmEnv(gym.Env):
     def _apply_action(self, a: np.ndarray) -> None:
         """Move the gripper targets ``self.target`` (2, 3) [m] (and orientations ``self._quat``) by the clipped
         action ``a`` over one control period."""
-        self.target = np.clip(self.target + a.reshape(2, 3) * self.max_speed * self.control_dt,
-                              self.home - self.workspace, self.home + self.workspace)
+        self.target = _clip(self.target + a.reshape(2, 3) * self.max_speed * self.control_dt,
+                            self.home - self.workspace, self.home + self.workspace)
 
     def _joint_count(self) -> int:
         robots = self.randomisation.values("robot")
@@ -220,7 +225,7 @@ class DualArmEnv(gym.Env):
     def _clean_action(action) -> np.ndarray:
         """``action`` as a new float array clipped to [-1, 1], NaN read as 0 (what ``np.clip(np.nan_to_num(a), -1, 1)``
         gives, at a fifth of its cost: an infinity clips to +-1 as nan_to_num's largest float does)."""
-        a = np.clip(np.asarray(action, dtype=float), -1.0, 1.0)
+        a = _clip(np.asarray(action, dtype=float), -1.0, 1.0)
         nan = np.isnan(a)
         if nan.any():
             a[nan] = 0.0
@@ -242,30 +247,36 @@ class DualArmEnv(gym.Env):
                "wrench": [s.values[6:12] for s in self.sensors], "task": self._task_observation()}
         if self.privileged:
             raw["cable"] = self.cable_points()
-        obs = {key: np.asarray(value, dtype=np.float32) for key, value in raw.items()}
-        # every box checked and clipped in one pass over one buffer (the same elementwise clip as key by key)
-        flat = np.concatenate([v.ravel() for v in obs.values()])
-        if not np.all(np.isfinite(flat)):  # an unstable step: key by key, which zeroes and ends the episode
+        # every value written as float32 (np.asarray(value, np.float32)'s bits) into one new buffer, whose boxes are
+        # checked and clipped in one pass (the same elementwise clip as key by key); the keys are views of it
+        layout, low, high = self._flat_layout(raw)
+        flat = np.empty(len(low), np.float32)
+        obs = {}
+        for (key, start, stop, shape), value in zip(layout, raw.values()):
+            view = obs[key] = flat[start:stop].reshape(shape)
+            view[...] = value
+        if not np.isfinite(flat).all():  # an unstable step: key by key, which zeroes and ends the episode
             obs = {key: self._finite(key, value) for key, value in obs.items()}
         else:
-            low, high = self._flat_bounds(obs)
             np.clip(flat, low, high, out=flat)
-            start = 0
-            for key, value in obs.items():
-                obs[key] = flat[start:start + value.size].reshape(value.shape)
-                start += value.size
         if self.camera:
             obs.update(self._images())
         return obs
 
-    def _flat_bounds(self, obs: dict[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
-        """The boxes' low and high of the keys of ``obs``, in its order, as flat float32 arrays (made once)."""
-        keys = tuple(obs)
-        if getattr(self, "_bounds", (None,))[0] != keys:
-            space = self.observation_space
-            self._bounds = (keys, np.concatenate([space[k].low.ravel() for k in keys]),
+    def _flat_layout(self, raw: dict) -> tuple[tuple, np.ndarray, np.ndarray]:
+        """Where each key of ``raw`` lies in the flat observation buffer, in its order ((key, start, stop, shape)
+        per key, the shapes of the observation space), and the boxes' low and high there as flat float32 arrays
+        (made once)."""
+        keys = tuple(raw)
+        if getattr(self, "_layout", (None,))[0] != keys:
+            space, layout, start = self.observation_space, [], 0
+            for k in keys:
+                shape = space[k].shape
+                layout.append((k, start, start + int(np.prod(shape)), shape))
+                start = layout[-1][2]
+            self._layout = (keys, tuple(layout), np.concatenate([space[k].low.ravel() for k in keys]),
                             np.concatenate([space[k].high.ravel() for k in keys]))
-        return self._bounds[1], self._bounds[2]
+        return self._layout[1:]
 
     def _finite(self, key: str, value: np.ndarray) -> np.ndarray:
         """``value`` inside its box; a non-finite entry (an unstable step) becomes 0 and ends the episode."""

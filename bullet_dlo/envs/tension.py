@@ -35,7 +35,7 @@ POSITION_SCALE = 0.03  # [m] reward scale of the midpoint error
 def axial_tension(forces: np.ndarray, grippers: np.ndarray) -> float:
     """Mean pull [N] along the gripper-to-gripper axis of the forces on the tools, forces (2, 3) [N], grippers (2, 3) [m]."""
     u = grippers[1] - grippers[0]
-    u = u / max(float(np.linalg.norm(u)), 1e-9)
+    u = u / max(math.sqrt(u.dot(u)), 1e-9)  # np.linalg.norm of a vector is sqrt(x.dot(x)): its bits, without its wrapper
     return 0.5 * float(forces[0] @ u - forces[1] @ u)
 
 
@@ -89,7 +89,8 @@ class TensionTrackingEnv(DualArmEnv):
         return 0.5 * (x[(len(x) - 1) // 2] + x[len(x) // 2])
 
     def grippers(self) -> np.ndarray:
-        return np.array(self.physics.cable.holder_positions())
+        """The grasp frames' positions [m] (2, 3) as the cable's held ends last took them (a copy)."""
+        return self.physics.cable.holder_positions()
 
     def tension(self) -> float:
         """True axial tension [N] from the cable model's end forces."""
@@ -113,14 +114,21 @@ class TensionTrackingEnv(DualArmEnv):
 
     def _midpoint_error(self) -> float:
         """Distance [m] of the cable's midpoint from its target now."""
-        return self._measure("midpoint_error", lambda: float(np.linalg.norm(self.midpoint() - self.target_point)))
+        def error() -> float:
+            d = self.midpoint() - self.target_point
+            return math.sqrt(d.dot(d))  # np.linalg.norm of a vector: sqrt(d.dot(d)), without its wrapper
+
+        return self._measure("midpoint_error", error)
 
     def _task_observation(self) -> np.ndarray:
         t = self.physics.world.time - self.t0
         now = self.tension_target(t)
         grippers = self.grippers()
-        return np.array([now, self.tension_target(t + PREVIEW) - now, self.tension_sensed(),
-                         *(self.target_point - grippers.mean(axis=0))])
+        mean = (grippers[0] + grippers[1]) / 2  # grippers.mean(axis=0): its sum and division, without its wrapper
+        out = np.empty(6)
+        out[0], out[1], out[2] = now, self.tension_target(t + PREVIEW) - now, self.tension_sensed()
+        np.subtract(self.target_point, mean, out=out[3:])
+        return out
 
     def _task_reward(self) -> tuple[float, bool]:
         err_t = abs(self.tension() - self.tension_target())

@@ -171,6 +171,8 @@ class WristSensor:
         reader: a :class:`~bullet_dlo.bullet.native.StateReader` that its owner reads every step
             (e.g. the dual-arm coupling, which reads both arms in one call), whose row ``row`` holds
             the robot with :func:`sensor_links` last; None: the sensor reads for itself.
+        noise_block: samples' noise drawn from ``rng`` at once (the same numbers in the same order as one draw
+            per sample; for a generator nobody else draws from, e.g. the dual-arm sensors' own): 1 draws per sample.
     """
 
     TRANSMITTED = "newton_euler"
@@ -184,7 +186,7 @@ class WristSensor:
     def __init__(self, robot: Robot, gravity: Sequence[float], rate: float | None = None, noise_std=(0.0,) * 6,
                  bias=(0.0,) * 6, compensate_inertia: bool = True, payload: PayloadFit | None = None,
                  rng: np.random.Generator | None = None, contacts: Callable[[], Sequence] | None = None,
-                 reader: StateReader | None = None, row: int = 0):
+                 reader: StateReader | None = None, row: int = 0, noise_block: int = 1):
         name = robot.spec.sensor_joint
         if name not in robot.joint_index:
             raise ParameterError(f"robot {robot.spec.name!r} has no joint {name!r} for the F/T sensor")
@@ -219,6 +221,9 @@ class WristSensor:
         self._transmit = bind(tool_reaction, self._rows, self._tool, 1.0, self._tool_memory, self._applied,
                               self._reaction)
         self._noisy = bool(np.any(self.noise_std > 0))  # no noise: no draws (the generator is used only here)
+        self.noise_block = max(1, int(noise_block))
+        self._noise_rows: np.ndarray | None = None  # bias plus noise of the coming samples (noise_block > 1)
+        self._noise_next = 0
         self._tare = np.zeros(6)
         self._memory = SensorMemory(np.zeros((len(self.payload.mass), 6)), np.zeros(1))
         self._scratch = np.zeros(12)
@@ -306,8 +311,21 @@ class WristSensor:
             self._add_contacts()
         offset = self.bias
         if due and self._noisy:
-            offset = self.bias + self.rng.normal(size=6) * self.noise_std
+            offset = self._noise()
         return due, offset
+
+    def _noise(self) -> np.ndarray:
+        """Bias plus this sample's noise (6,): ``bias + rng.normal(size=6) * noise_std``, drawn ``noise_block``
+        samples at a time (Generator.normal draws a block's numbers in the order of one draw per sample, and the
+        products and sums are the same per element: the same bits)."""
+        if self.noise_block == 1:
+            return self.bias + self.rng.normal(size=6) * self.noise_std
+        rows, i = self._noise_rows, self._noise_next
+        if rows is None or i == len(rows):
+            rows = self._noise_rows = self.bias + self.rng.normal(size=(self.noise_block, 6)) * self.noise_std
+            i = 0
+        self._noise_next = i + 1
+        return rows[i]
 
     def _sampled(self, t: float, offset: np.ndarray) -> None:
         """After the reading kernel sampled at time t [s] into ``_scratch``: keep it (the Wrench is built

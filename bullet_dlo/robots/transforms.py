@@ -8,6 +8,7 @@ own quaternion-to-matrix and a third of SciPy's cost for the written-out matrix-
 """
 from __future__ import annotations
 
+import math
 from typing import Sequence
 
 import numpy as np
@@ -24,31 +25,39 @@ def rotation(quat: Sequence[float]) -> np.ndarray:
 
 
 def quat_from_matrix(rot: np.ndarray) -> np.ndarray:
-    """3x3 rotation matrix -> unit quaternion [x, y, z, w], shape (4,) (Shepperd: pivot on the largest component)."""
-    m = np.asarray(rot, float)
-    tr = np.trace(m)
+    """3x3 rotation matrix -> unit quaternion [x, y, z, w], shape (4,) (Shepperd: pivot on the largest component).
+
+    On Python floats: the same operations as on NumPy's scalars (np.trace sums the diagonal in order, the norm of a
+    vector is sqrt(q.dot(q))), at half their cost (Routing's gripper turns every control step); a matrix that is no
+    rotation gives NaN as before."""
+    m00, m01, m02, m10, m11, m12, m20, m21, m22 = np.asarray(rot, float).ravel().tolist()
+    tr = (m00 + m11) + m22
     if tr > 0:
         s = 2.0 * np.sqrt(tr + 1.0)
-        w, x, y, z = 0.25 * s, (m[2, 1] - m[1, 2]) / s, (m[0, 2] - m[2, 0]) / s, (m[1, 0] - m[0, 1]) / s
-    elif m[0, 0] > m[1, 1] and m[0, 0] > m[2, 2]:
-        s = 2.0 * np.sqrt(1.0 + m[0, 0] - m[1, 1] - m[2, 2])
-        w, x, y, z = (m[2, 1] - m[1, 2]) / s, 0.25 * s, (m[0, 1] + m[1, 0]) / s, (m[0, 2] + m[2, 0]) / s
-    elif m[1, 1] > m[2, 2]:
-        s = 2.0 * np.sqrt(1.0 + m[1, 1] - m[0, 0] - m[2, 2])
-        w, x, y, z = (m[0, 2] - m[2, 0]) / s, (m[0, 1] + m[1, 0]) / s, 0.25 * s, (m[1, 2] + m[2, 1]) / s
+        w, x, y, z = 0.25 * s, (m21 - m12) / s, (m02 - m20) / s, (m10 - m01) / s
+    elif m00 > m11 and m00 > m22:
+        s = 2.0 * np.sqrt(1.0 + m00 - m11 - m22)
+        w, x, y, z = (m21 - m12) / s, 0.25 * s, (m01 + m10) / s, (m02 + m20) / s
+    elif m11 > m22:
+        s = 2.0 * np.sqrt(1.0 + m11 - m00 - m22)
+        w, x, y, z = (m02 - m20) / s, (m01 + m10) / s, 0.25 * s, (m12 + m21) / s
     else:
-        s = 2.0 * np.sqrt(1.0 + m[2, 2] - m[0, 0] - m[1, 1])
-        w, x, y, z = (m[1, 0] - m[0, 1]) / s, (m[0, 2] + m[2, 0]) / s, (m[1, 2] + m[2, 1]) / s, 0.25 * s
+        s = 2.0 * np.sqrt(1.0 + m22 - m00 - m11)
+        w, x, y, z = (m10 - m01) / s, (m02 + m20) / s, (m12 + m21) / s, 0.25 * s
     q = np.array([x, y, z, w])
-    return q / np.linalg.norm(q)
+    return q / math.sqrt(q.dot(q))
 
 
 def quat_from_axes(x_axis: Sequence[float], z_axis: Sequence[float]) -> np.ndarray:
     """Quaternion [x, y, z, w] of the frame with the given z axis and x axis (z kept, x orthogonalised)."""
-    z = np.asarray(z_axis, float) / np.linalg.norm(z_axis)
-    x = np.asarray(x_axis, float) - np.dot(x_axis, z) * z
-    x /= np.linalg.norm(x)
-    return quat_from_matrix(np.column_stack([x, cross3(z, x), z]))
+    z = np.asarray(z_axis, float)
+    z = z / math.sqrt(z.dot(z))  # np.linalg.norm of a vector: sqrt(z.dot(z))
+    x = np.asarray(x_axis, float)
+    x = x - x.dot(z) * z
+    x /= math.sqrt(x.dot(x))
+    m = np.empty((3, 3))
+    m[:, 0], m[:, 1], m[:, 2] = x, cross3(z, x), z
+    return quat_from_matrix(m)
 
 
 def angle_between(q1: Sequence[float], q2: Sequence[float]) -> float:

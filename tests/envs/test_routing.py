@@ -206,6 +206,12 @@ def test_resample_vectorised_matches_the_segment_loop_bit_for_bit():
         gaps = np.linalg.norm(np.diff(fast, axis=0), axis=1)
         long = np.linalg.norm(np.diff(x, axis=0), axis=1) > 100 * routing.POINT_SPACING
         assert long.any() or gaps.max() <= routing.POINT_SPACING * (1 + 1e-12)
+    for k in (1, 7, 100):  # every segment gets the same k (the short path, a cable near its rest length)
+        x = np.cumsum(rng.normal(size=(20, 3)), axis=0)
+        x = x[0] + np.cumsum(np.r_[[np.zeros(3)], np.diff(x, axis=0) / np.linalg.norm(np.diff(x, axis=0), axis=1)[:, None]
+                                   * (k - 0.5) * routing.POINT_SPACING], axis=0)
+        fast, loop = routing.resample(x), routing.resample_loop(x)
+        assert len(fast) == 19 * k + 1 and np.array_equal(fast, loop)
 
 
 def test_the_measures_of_all_pegs_at_once_are_the_peg_by_peg_ones_bit_for_bit():

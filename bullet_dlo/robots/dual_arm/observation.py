@@ -110,6 +110,10 @@ class SensorCheck:
                 "allowed": self.allowed, "samples": self.samples, "failures": self.failures()}
 
 
+NOISE_BLOCK = 240
+"""Samples' noise each wrist sensor draws at once (one second at 240 Hz; the same numbers as a draw per sample)."""
+
+
 class DualArmObservation:
     """Wrist sensors on both arms (settings from ``physics.spec``) and, optionally, the per-step record.
 
@@ -128,7 +132,8 @@ class DualArmObservation:
         fits = physics.payload_fits or (None, None)
         self.sensors = [WristSensor(robot, physics.world.gravity, spec.sensor_rate, spec.noise_std, spec.bias,
                                     payload=fits[k], rng=np.random.default_rng(spec.seed + k),
-                                    contacts=physics.world.contacts, reader=physics.reader, row=k)
+                                    contacts=physics.world.contacts, reader=physics.reader, row=k,
+                                    noise_block=NOISE_BLOCK)  # their generators are their own
                         for k, robot in enumerate(physics.robots)]
         for s in self.sensors:
             s.tare()
@@ -161,14 +166,17 @@ class DualArmObservation:
         else:
             forces, torques, points, held_c, (due0, off0), (due1, off1) = self._tool_loads(
                 t, forces, torques, points, held, model)
-        # both sensors' kernels (transmitted wrench, reading, check against the cable's load) in one call
+        # both sensors' kernels (transmitted wrench, reading, check against the cable's load) in one call; the
+        # sensors' own arrays (filled in place) paired once
         check, sampled = self.check, self._sampled
-        args = ((s0._rows, s1._rows), (s0._tool, s1._tool), (s0._tool_memory, s1._tool_memory),
-                (s0._applied, s1._applied), (s0._reaction, s1._reaction), (s0.payload, s1.payload), float(world.dt),
-                (s0.compensate_inertia, s1.compensate_inertia), (due0, due1), (s0._tare, s1._tare),
-                (off0, off1), (s0._memory, s1._memory), (s0._scratch, s1._scratch), forces, torques,
-                points, held_c, (fill, fill), float(t), check.worst, check.worst_t,
-                check._sumsq, sampled)
+        if self._pair is None:
+            self._arrays = ((s0._rows, s1._rows), (s0._tool, s1._tool), (s0._tool_memory, s1._tool_memory),
+                            (s0._applied, s1._applied), (s0._reaction, s1._reaction))
+            self._arrays2 = ((s0._tare, s1._tare),)
+            self._arrays3 = ((s0._memory, s1._memory), (s0._scratch, s1._scratch))
+        args = (*self._arrays, (s0.payload, s1.payload), float(world.dt), (s0.compensate_inertia, s1.compensate_inertia),
+                (due0, due1), *self._arrays2, (off0, off1), *self._arrays3, forces, torques, points, held_c,
+                (fill, fill), float(t), check.worst, check.worst_t, check._sumsq, sampled)
         if self._pair is None:
             self._pair = bind(wrist_pair, *args)
         self._pair(*args)
