@@ -84,6 +84,8 @@ def cmd_grasp(args: argparse.Namespace) -> int:
             "sensor_check": sc.observation.check.summary(),
             "sensor_compensation": sc.sensors[0].compensation,
             "wall_time_s": wall, "first_step_s": first_step, "steps": sc.world.steps,
+            "twist_reason": sim.scene.twist_reason,
+            "pose_misses": [{"t": t, "arm": ("left", "right")[a], "distance_m": d} for t, a, d in sc.task.pose_misses],
         }
         if args.series:
             from bullet_dlo.data.recording import write_series
@@ -104,11 +106,16 @@ def cmd_grasp(args: argparse.Namespace) -> int:
         print(f"  {arm:5s} sensor (world) " + " ".join(f"{v:+.4f}" for v in data["wrench_world"][arm][:3])
               + " N   model " + " ".join(f"{v:+.4f}" for v in data["ground_truth_end_forces"][arm]) + " N")
     print(f"  vertical balance error {100 * data['force_balance_error']:+.3f} % of the weight")
+    if data["twist_reason"]:
+        print(f"  {data['twist_reason']}")
+    for miss in data["pose_misses"]:
+        print(f"  GRIPPER OFF ITS MOTION: the {miss['arm']} grasp frame {1000 * miss['distance_m']:.1f} mm from its "
+              f"target at t = {miss['t']:.3f} s (the arm cannot follow it; the readings after that do not describe it)")
     failures = data["sensor_check"]["failures"]
     for line in failures:
         print(f"  SENSOR CHECK FAILED: {line}")
     print_outputs(args.json, args.series, png)
-    return 1 if failures else 0
+    return 1 if failures or data["pose_misses"] else 0
 
 
 def _attach_series(scene):

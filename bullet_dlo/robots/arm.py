@@ -176,11 +176,32 @@ class Robot:
         (:class:`~bullet_dlo.robots.ik.ChainIK`, to 1e-9 m and 1e-8 rad in its own double-precision
         kinematics, at most 50 iterations) or PyBullet's IK on the twin (50 iterations, residual 1e-8).
         The two land on the target alike (``tests/robots/test_ik.py``) but not on the same bits."""
-        q = self.joint_positions()
+        return self._track_from(position, quat, self.joint_positions())
+
+    def _track_from(self, position: np.ndarray, quat: Sequence[float], q: np.ndarray) -> np.ndarray:
+        """:meth:`track`'s solve from joint angles ``q`` [rad]."""
         if self.ik_solver == "compiled":
             return self.chain_ik.solve(position, quat, q)
         self._set_twin(q)
         return self._ik(position, quat, null_space=False, iterations=50, residual=1e-8)
+
+    def path_miss(self, poses: Sequence[tuple[np.ndarray, np.ndarray]],
+                  tol: float = 1e-4) -> tuple[int, float, float] | None:
+        """Whether the grasp frame can follow ``poses`` (position [m], quaternion [x, y, z, w]) in order from the
+        current joints as :meth:`track` follows targets: each pose solved from the angles found for the one
+        before and checked by forward kinematics within ``tol`` [m] and ``10 tol`` [rad]. None if it can, else
+        (index of the first pose missed, its position error [m], its orientation error [rad]). A pose that
+        :meth:`solve_ik` reaches from other angles can still be beyond the path's reach (a roll that takes a
+        wrist joint to its limit on the way)."""
+        q = self.joint_positions()
+        for k, (pos, quat) in enumerate(poses):
+            q = self._track_from(pos, quat, q)
+            self._set_twin(q)
+            p_now, q_now = self.grasp_pose(kinematic=True)
+            err_p, err_r = float(np.linalg.norm(p_now - pos)), angle_between(q_now, quat)
+            if err_p > tol or err_r > 10 * tol:
+                return k, err_p, err_r
+        return None
 
     def _ik(self, position: Sequence[float], quat: Sequence[float], null_space: bool, iterations: int,
             residual: float) -> np.ndarray:

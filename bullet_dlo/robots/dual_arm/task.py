@@ -12,17 +12,23 @@ whose actions are joint targets) replaces this one and keeps the physics and obs
 """
 from __future__ import annotations
 
+import math
+import warnings
 from dataclasses import dataclass
 from typing import Sequence
 
 import numpy as np
 
 from bullet_dlo.core.boundary import Motion, MotionOffset, min_jerk
-from bullet_dlo.core.validate import check_positive, check_vector3
-from bullet_dlo.robots.dual_arm.physics import DualArmPhysics, arm_index, arm_indices
+from bullet_dlo.core.validate import ParameterError, check_positive, check_vector3
+from bullet_dlo.robots.dual_arm.physics import ARMS, DualArmPhysics, arm_index, arm_indices
 from bullet_dlo.robots.transforms import quat_from_matrix, rotation
 
 END_OF_ARM = ("first", "last")
+HORIZON = 2.0
+POSE_MISS = 5e-3
+"""[m] A grasp frame this far from its scheduled target has lost the motion (tracking lags it by < 0.2 mm)."""
+"""How far [s] :meth:`DualArmTask.follow` checks a motion item that runs forever (a sine without a duration)."""
 
 
 @dataclass(frozen=True)
@@ -48,6 +54,8 @@ class DualArmTask:
         self.moves: list[CartesianMove] = []
         self.motion: list[Motion] = []  # core motion items (end first = left, last = right), times from t = 0
         self._offsets: list[MotionOffset | None] = [None, None]  # per arm, rebuilt when an item is added
+        self.pose_misses: list[tuple[float, int, float]] = []
+        """(time [s], arm, distance [m]) where an arm's grasp frame first fell :data:`POSE_MISS` behind its target."""
         physics.task = self  # the physics calls drive() every step, after loading the grippers
 
     def grasp(self, arm: int | str | None = None) -> None:
@@ -76,15 +84,26 @@ class DualArmTask:
     def follow(self, item: Motion) -> None:
         """Add a core motion item (Move, Waypoints, Sine) to the grasp frame of the arm holding its end
         (first = left, last = right): displacements [m] and rotations [rad] about world axes, relative
-        to the grasp pose, times [s] of the world clock. Checks the targets at the item's start, end and
-        every 50 ms between (at most 1 s) for reachability with IK (ParameterError if unreachable)."""
-        self.motion.append(item)
+        to the grasp pose, times [s] of the world clock. Checks that the arm can follow it: the targets at the
+        item's start, end and every 50 ms between (the first :data:`HORIZON` s of an item that runs forever),
+        each solved from the joints found for the one before, as the per-step tracking does
+        (:meth:`~bullet_dlo.robots.arm.Robot.path_miss`; ParameterError naming the time and the miss: a
+        target out of reach, or a joint at its limit on the way, e.g. a large roll)."""
         a = END_OF_ARM.index(item.end)
+        before = self._offsets[a]
+        self.motion.append(item)
         self._offsets[a] = MotionOffset(self.motion, item.end)
         robot = self.physics.robots[a]
-        end = item.start + min(item.duration, 1.0)
-        for t in np.unique(np.r_[np.arange(item.start, end, 0.05), end]):
-            robot.solve_ik(*self.target_pose(a, float(t)), seed=robot.joint_positions())
+        end = item.start + (item.duration if math.isfinite(item.duration) else HORIZON)
+        times = np.unique(np.r_[np.arange(item.start, end, 0.05), end])
+        miss = robot.path_miss([self.target_pose(a, float(t)) for t in times])
+        if miss is not None:
+            self.motion.pop()
+            self._offsets[a] = before
+            k, err_p, err_r = miss
+            raise ParameterError(f"the {ARMS[a]} arm ({robot.spec.name}) cannot follow this motion: at t = "
+                                 f"{times[k]:.3f} s its grasp target is missed by {err_p * 1000:.1f} mm / "
+                                 f"{math.degrees(err_r):.1f} deg (out of reach, or a joint at its limit on the way)")
 
     def target(self, arm: int, t: float) -> np.ndarray:
         """Grasp-frame position [m] of arm ``arm`` scheduled for time ``t`` [s], shape (3,)."""
@@ -119,4 +138,18 @@ class DualArmTask:
         t_next = world.time + world.dt
         for a, robot in enumerate(self.physics.robots):
             if self._moving(a, t_next):
+                self._check_pose(a, world.time)
                 robot.set_targets(robot.track(*self.target_pose(a, t_next)))
+
+    def _check_pose(self, arm: int, t: float) -> None:
+        """Warn once per arm (and note it in :attr:`pose_misses`) when its grasp frame is :data:`POSE_MISS` or
+        more from its target at ``t`` [s]: the arm cannot follow the motion (its joints cannot move so, e.g. a
+        large roll that takes a wrist joint to its limit), and what the wrists read no longer belongs to it."""
+        if any(m[1] == arm for m in self.pose_misses):
+            return
+        miss = float(np.linalg.norm(self.physics.robots[arm].grasp_pose()[0] - self.target_pose(arm, t)[0]))
+        if miss >= POSE_MISS:
+            self.pose_misses.append((t, arm, miss))
+            warnings.warn(f"the {ARMS[arm]} arm's grasp frame is {miss * 1000:.1f} mm from its target at t = "
+                          f"{t:.3f} s: the arm cannot follow the motion (e.g. a joint at its limit), the wrist "
+                          "readings from here on do not describe it", stacklevel=2)
