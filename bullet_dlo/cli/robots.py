@@ -110,7 +110,7 @@ def cmd_grasp(args: argparse.Namespace) -> int:
         print(f"  {data['twist_reason']}")
     for miss in data["pose_misses"]:
         print(f"  GRIPPER OFF ITS MOTION: the {miss['arm']} grasp frame {1000 * miss['distance_m']:.1f} mm from its "
-              f"target at t = {miss['t']:.3f} s (the arm cannot follow it; the readings after that do not describe it)")
+              f"target at t = {miss['t']:.3f} s (the arm does not follow it: the wrists read the pose it reached)")
     failures = data["sensor_check"]["failures"]
     for line in failures:
         print(f"  SENSOR CHECK FAILED: {line}")

@@ -102,11 +102,11 @@ def test_a_roll_the_arm_cannot_follow_warns_when_the_gripper_leaves_its_target()
     """A KUKA gripper rolled 170 degrees about the cable over 1.9 s: its joints reach the path's end kinematically,
     but on the way the arm falls behind (a wrist joint near its limit) and the per-step tracking loses the pose: the
     gripper ends 16 cm away and the sensors read 300 N on a 0.29 N cable, where the run used to report nothing.
-    Now a warning names the arm and the time (about 1.35 s; tracking misses 0.1 mm before), and the task notes it."""
+    Now a warning names the arm and the time (about 1.4 s; tracking lags 0.1 mm before), and the task notes it."""
     with DualArmScene(DualArmConfig(robot="kuka", cable=CABLE.with_(twist=True), dt=1e-3)) as scene:
         scene.grasp()
         scene.follow_motion([Move("last", (0.0, 0.0, 0.0), START, 1.9, rotation=(math.radians(170.0), 0.0, 0.0))])
         with pytest.warns(UserWarning, match=r"the right arm's grasp frame is \d+\.\d mm from its target at t = 1\."):
             scene.run(1.5)
         (t, arm, miss), = scene.task.pose_misses
-        assert arm == 1 and 1.2 < t < 1.5 and miss >= 5e-3
+        assert arm == 1 and 1.2 < t < 1.5 and miss >= 0.02
