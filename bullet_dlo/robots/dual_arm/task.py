@@ -155,4 +155,5 @@ class DualArmTask:
             self.pose_misses.append((t, arm, miss))
             warnings.warn(f"the {ARMS[arm]} arm's grasp frame is {miss * 1000:.1f} mm from its target at t = "
                           f"{t:.3f} s: the arm does not follow the motion (too fast for its joints, a joint at its "
-                          "limit, or blocked); the wrists read the pose it reached, not the one asked for", stacklevel=2)
+                          "limit, or blocked); the wrists read the pose it reached, not the one asked for",
+                          stacklevel=2)
