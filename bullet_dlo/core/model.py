@@ -294,7 +294,9 @@ class CableModel:
             gravity: gravitational acceleration [m/s^2].
             roll: angles [rad] by which the first and last clamp hold the section turned about
                 ``direction`` from :func:`~bullet_dlo.core.boundary.default_normal` (a cable with a
-                material frame only: different rolls start it twisted, in twist equilibrium).
+                material frame only: different rolls start it twisted, in twist equilibrium). The start
+                state takes the shortest turn between the two sections, so the rolls must differ by less
+                than pi (ParameterError otherwise); twist a cable further by turning a clamp in ``motion``.
         """
         start_v = check_vector3("layout start", start)
         dir_v = check_vector3("layout direction", direction, unit=True)
@@ -306,6 +308,10 @@ class CableModel:
         moves = tuple(motion)
         if len(roll) != 2:
             raise ParameterError("roll must give two angles [rad]: (first, last)")
+        turn = float(roll[1]) - float(roll[0])
+        if not abs(turn) < math.pi:  # (also NaN) the start state is the shortest turn between the two sections
+            raise ParameterError(f"roll: the last clamp's roll minus the first's must be in (-pi, pi) [rad], got "
+                                 f"{turn!r} (twist a cable further by turning a clamp in its motion)")
         d1 = default_normal(dir_v)
         d2 = np.cross(dir_v, d1)
         normals = [math.cos(float(r)) * d1 + math.sin(float(r)) * d2 for r in roll]

@@ -248,3 +248,11 @@ def test_twist_mode_frequency():
     g, rho = spec.effective_shear_modulus, spec.density
     # round section: J = J_p, the torsion wave speed sqrt(G / rho); highest mode 2 c / l0
     assert twist_frequency(spec) == pytest.approx(2.0 * math.sqrt(g / rho) / spec.rest_length, rel=1e-12)
+
+
+@pytest.mark.parametrize("roll", [(0.0, 3.5), (0.0, 2 * math.pi + 0.3), (1.0, -2.5), (0.0, float("nan"))])
+def test_start_rolls_a_half_turn_or_more_apart_are_refused(roll):
+    """The start state takes the shortest turn between the clamps' sections: rolls 3.5 rad apart started the
+    cable twisted by 3.5 - 2 pi (the torque's sign flipped), 2 pi + 0.3 apart by 0.3 (4.6 % of the torque)."""
+    with pytest.raises(ParameterError, match=r"roll: .* must be in \(-pi, pi\)"):
+        CableModel.straight(CableSpec.lv2017(n_masses=5, twist=True), ends=("clamped", "clamped"), roll=roll)
