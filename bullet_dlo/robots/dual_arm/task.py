@@ -26,11 +26,11 @@ from bullet_dlo.robots.transforms import quat_from_matrix, rotation
 
 END_OF_ARM = ("first", "last")
 HORIZON = 2.0
+"""How far [s] :meth:`DualArmTask.follow` checks a motion item that runs forever (a sine without a duration)."""
 POSE_MISS = 0.02
 """[m] A grasp frame this far from its scheduled target has lost the motion (position control lags a slow roll by
 0.1 mm and the fast moves of dataset captures by up to about 5 mm; an arm that loses a roll at a joint limit
 drifts on to centimetres)."""
-"""How far [s] :meth:`DualArmTask.follow` checks a motion item that runs forever (a sine without a duration)."""
 
 
 @dataclass(frozen=True)
