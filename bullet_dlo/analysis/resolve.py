@@ -158,7 +158,7 @@ def twist_need(problem: ResolveProblem) -> str:
     for name, holder in zip(("first", "last"), problem.holders):
         if holder.mode != "clamped" or not holder.moves:
             continue
-        roll = float(np.max(np.abs(end_roll(holder, times))))
+        roll = float(np.max(np.abs(np.unwrap(end_roll(holder, times)))))  # (a roll past half a turn: unwrapped)
         if roll > ROLL_TOL:
             rolls.append(f"the {name} clamp rolls {np.degrees(roll):.3g} deg about the cable axis")
     if rolls:

@@ -135,6 +135,9 @@ class CableSpec:
             raise ParameterError(f"twist must be true or false, got {self.twist!r}")
         set_("twist", bool(self.twist))
         inner = check_nonnegative("inner_diameter", self.inner_diameter)
+        if section == "rectangle":  # (a rectangle needs both: "> 0" in the message, not ">= 0")
+            check_positive("width", self.width)
+            check_positive("thickness", self.thickness)
         width = check_nonnegative("width", self.width)
         thick = check_nonnegative("thickness", self.thickness)
         if section == "tube":
@@ -142,10 +145,7 @@ class CableSpec:
                 raise ParameterError(f"inner_diameter must be in [0, diameter = {self.diameter}) [m], got {inner}")
         elif inner != 0.0:
             raise ParameterError(f"inner_diameter is for section: tube only (section is {section})")
-        if section == "rectangle":
-            check_positive("width", width)
-            check_positive("thickness", thick)
-        elif width != 0.0 or thick != 0.0:
+        if section != "rectangle" and (width != 0.0 or thick != 0.0):
             raise ParameterError(f"width and thickness are for section: rectangle only (section is {section})")
         set_("inner_diameter", inner)
         set_("width", width)

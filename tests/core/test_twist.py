@@ -256,3 +256,11 @@ def test_start_rolls_a_half_turn_or_more_apart_are_refused(roll):
     cable twisted by 3.5 - 2 pi (the torque's sign flipped), 2 pi + 0.3 apart by 0.3 (4.6 % of the torque)."""
     with pytest.raises(ParameterError, match=r"roll: .* must be in \(-pi, pi\)"):
         CableModel.straight(CableSpec.lv2017(n_masses=5, twist=True), ends=("clamped", "clamped"), roll=roll)
+
+
+@pytest.mark.parametrize("width, thickness, name", [(-0.01, 0.001, "width"), (0.01, -0.002, "thickness")])
+def test_a_rectangle_side_below_zero_is_told_the_range_it_needs(width, thickness, name):
+    """A rectangle needs both sides > 0: a negative side was told ">= 0", and 0 then failed again."""
+    with pytest.raises(ParameterError, match=rf"^{name} must be a finite number > 0, got -"):
+        CableSpec(length=0.3, diameter=0.004, mass=0.03, youngs_modulus=1e8, section="rectangle", width=width,
+                  thickness=thickness)

@@ -107,3 +107,11 @@ def test_a_given_number_of_masses_gets_the_frame_too():
     assert res.end_moments[1, 0] == pytest.approx(-spec.torsional_rigidity * (math.pi / 2) / spec.length, rel=0.01)
     still = Scene(cable=ROUND, motion=(SWING,), duration=0.15)
     assert resolved(still) is still
+
+
+def test_the_reason_names_a_roll_past_half_a_turn():
+    """The reason reports the largest roll over the run, unwrapped: a clamp rolled 229 deg said "rolls 180 deg"
+    (each sample's roll is an angle in [-pi, pi])."""
+    turn = Move("last", rotation=(math.radians(229.0), 0.0, 0.0), start=0.02, duration=0.1)
+    why = twist_need(resolve_problem(Scene(cable=ROUND, motion=(turn,), duration=0.15)))
+    assert "last clamp rolls 229 deg about the cable axis" in why, why

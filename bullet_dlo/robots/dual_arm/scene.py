@@ -140,7 +140,7 @@ def roll_warning(twisting: bool, x: np.ndarray, items: Sequence, samples: int = 
         moves = tuple(m for m in items if m.end == end)
         if not moves:
             continue
-        roll = float(np.abs(end_roll(EndHolder("clamped", x[node], axis, moves), times)).max())
+        roll = float(np.abs(np.unwrap(end_roll(EndHolder("clamped", x[node], axis, moves), times))).max())
         if roll > ROLL_TOL:
             rolls.append(f"the {arm} gripper {np.degrees(roll):.3g} deg")
     if not rolls:
