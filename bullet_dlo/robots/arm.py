@@ -159,10 +159,7 @@ class Robot:
         q = self.joint_positions() if seed is None else np.asarray(seed, float)
         err_p = err_r = np.inf
         for k in range(iterations):
-            self._set_twin(q)
-            p_now, q_now = self.grasp_pose(kinematic=True)
-            err_p = float(np.linalg.norm(p_now - pos))
-            err_r = angle_between(q_now, quat)
+            err_p, err_r = self._twin_miss(q, pos, quat)
             if err_p < tol and err_r < 10 * tol:
                 return q
             q = self._ik(pos, quat, null_space=k < iterations // 2, iterations=100, residual=1e-7)
@@ -196,12 +193,17 @@ class Robot:
         q = self.joint_positions()
         for k, (pos, quat) in enumerate(poses):
             q = self._track_from(pos, quat, q)
-            self._set_twin(q)
-            p_now, q_now = self.grasp_pose(kinematic=True)
-            err_p, err_r = float(np.linalg.norm(p_now - pos)), angle_between(q_now, quat)
+            err_p, err_r = self._twin_miss(q, pos, quat)
             if err_p > tol or err_r > 10 * tol:
                 return k, err_p, err_r
         return None
+
+    def _twin_miss(self, q: np.ndarray, position: np.ndarray, quat: Sequence[float]) -> tuple[float, float]:
+        """The kinematic twin put at joint angles ``q`` [rad]: its grasp frame's distance [m] and angle [rad] from
+        the target ``position``, ``quat`` (forward kinematics)."""
+        self._set_twin(q)
+        p_now, q_now = self.grasp_pose(kinematic=True)
+        return float(np.linalg.norm(p_now - position)), angle_between(q_now, quat)
 
     def _ik(self, position: Sequence[float], quat: Sequence[float], null_space: bool, iterations: int,
             residual: float) -> np.ndarray:

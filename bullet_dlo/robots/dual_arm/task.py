@@ -150,7 +150,8 @@ class DualArmTask:
         the pose it reached, not the one asked for."""
         if any(m[1] == arm for m in self.pose_misses):
             return
-        miss = float(np.linalg.norm(self.physics.robots[arm].grasp_pose()[0] - self.target_pose(arm, t)[0]))
+        # the grasp frame as the coupling measured it after the last Bullet step (no query of its own)
+        miss = float(np.linalg.norm(self.physics.cable.ext.pos[arm] - self.target_pose(arm, t)[0]))
         if miss >= POSE_MISS:
             self.pose_misses.append((t, arm, miss))
             warnings.warn(f"the {ARMS[arm]} arm's grasp frame is {miss * 1000:.1f} mm from its target at t = "
