@@ -26,6 +26,7 @@ import numpy as np
 
 from bullet_dlo.envs import params
 from bullet_dlo.envs.dual_arm_env import DualArmEnv
+from bullet_dlo.robots.transforms import norm
 
 PREVIEW = 0.5  # [s] how far ahead the observation shows the profile
 TENSION_SCALE = 1.0  # [N] reward scale of the tension error
@@ -35,7 +36,7 @@ POSITION_SCALE = 0.03  # [m] reward scale of the midpoint error
 def axial_tension(forces: np.ndarray, grippers: np.ndarray) -> float:
     """Mean pull [N] along the gripper-to-gripper axis of the forces on the tools, forces (2, 3) [N], grippers (2, 3) [m]."""
     u = grippers[1] - grippers[0]
-    u = u / max(math.sqrt(u.dot(u)), 1e-9)  # np.linalg.norm of a vector is sqrt(x.dot(x)): its bits, without its wrapper
+    u = u / max(norm(u), 1e-9)
     return 0.5 * float(forces[0] @ u - forces[1] @ u)
 
 
@@ -114,11 +115,7 @@ class TensionTrackingEnv(DualArmEnv):
 
     def _midpoint_error(self) -> float:
         """Distance [m] of the cable's midpoint from its target now."""
-        def error() -> float:
-            d = self.midpoint() - self.target_point
-            return math.sqrt(d.dot(d))  # np.linalg.norm of a vector: sqrt(d.dot(d)), without its wrapper
-
-        return self._measure("midpoint_error", error)
+        return self._measure("midpoint_error", lambda: norm(self.midpoint() - self.target_point))
 
     def _task_observation(self) -> np.ndarray:
         t = self.physics.world.time - self.t0

@@ -45,16 +45,16 @@ def quat_from_matrix(rot: np.ndarray) -> np.ndarray:
         s = 2.0 * np.sqrt(1.0 + m22 - m00 - m11)
         w, x, y, z = (m10 - m01) / s, (m02 + m20) / s, (m12 + m21) / s, 0.25 * s
     q = np.array([x, y, z, w])
-    return q / math.sqrt(q.dot(q))
+    return q / norm(q)
 
 
 def quat_from_axes(x_axis: Sequence[float], z_axis: Sequence[float]) -> np.ndarray:
     """Quaternion [x, y, z, w] of the frame with the given z axis and x axis (z kept, x orthogonalised)."""
     z = np.asarray(z_axis, float)
-    z = z / math.sqrt(z.dot(z))  # np.linalg.norm of a vector: sqrt(z.dot(z))
+    z = z / norm(z)
     x = np.asarray(x_axis, float)
     x = x - x.dot(z) * z
-    x /= math.sqrt(x.dot(x))
+    x /= norm(x)
     m = np.empty((3, 3))
     m[:, 0], m[:, 1], m[:, 2] = x, cross3(z, x), z
     return quat_from_matrix(m)
@@ -68,3 +68,9 @@ def angle_between(q1: Sequence[float], q2: Sequence[float]) -> float:
 def cross3(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """a x b for two 3-vectors: np.cross's arithmetic (same bits) at a tenth of its cost, for per-step code."""
     return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
+
+
+def norm(v: np.ndarray) -> float:
+    """Euclidean length of a vector: np.linalg.norm's value for a 1-D float array (it computes sqrt(v.dot(v)):
+    the same bits) without its Python wrapper, for per-step code."""
+    return math.sqrt(v.dot(v))
