@@ -9,7 +9,12 @@ ends, lets the cable settle for ``settle_time`` and asks the task (a subclass) f
 :meth:`DualArmEnv._apply_action`). The gripper targets integrate them over the control
 period, stay inside a box of half-width ``workspace`` [m] around the grasp poses after reset, keep
 their orientation, and become joint targets by one IK solve per arm per control step (the arms'
-position control follows). ``control_dt`` [s] must be a whole multiple of the physics step
+position control follows). A target stays where its arm can follow: an action that takes it beyond
+the arm's reach (the IK misses it by more than 1 mm: out of the workspace, a joint at its limit)
+leaves that arm's target and joint targets as they were, and so does one that takes it more than
+:meth:`DualArmEnv.lag_limit` from a grasp frame that does not follow (blocked by an obstacle, the
+table or the other arm) and farther than it was: reversing acts at once, with no wind-up hidden
+from the observation. ``info["gripper_lag"]`` (2,) [m]: each grasp frame's distance from its target. ``control_dt`` [s] must be a whole multiple of the physics step
 (ParameterError otherwise), checked at construction for every dt the randomisation can draw.
 
 **Observation** (a Dict, float32 unless said; arms in the order left, right; j arm joints):
@@ -71,6 +76,7 @@ from bullet_dlo.envs import params
 from bullet_dlo.envs.randomisation import EnvRandomisation, RandomisationLike, check_control_period
 from bullet_dlo.render.camera import default_camera, render_frame
 from bullet_dlo.robots.dual_arm import DualArmPhysics
+from bullet_dlo.robots.dual_arm.task import POSE_MISS
 from bullet_dlo.robots.kernels import FRAME, FRAME_QUAT
 from bullet_dlo.sim import build_arms
 
@@ -148,6 +154,27 @@ class DualArmEnv(gym.Env):
         self.target = _clip(self.target + a.reshape(2, 3) * self.max_speed * self.control_dt,
                             self.home - self.workspace, self.home + self.workspace)
 
+    def lag_limit(self) -> float:
+        """Largest distance [m] an action may put a gripper target from its grasp frame: the run-time pose
+        check's 2 cm (:data:`~bullet_dlo.robots.dual_arm.task.POSE_MISS`) plus two control periods at
+        ``max_speed`` (the lag of an arm that follows)."""
+        return POSE_MISS + 2.0 * self.max_speed * self.control_dt
+
+    def _grasp_positions(self) -> np.ndarray:
+        """The grasp frames' positions (2, 3) [m] as the coupling read them after the last physics step."""
+        return self.physics.reader.link_rows[:, 0, FRAME:FRAME + 3]
+
+    def _hold_unfollowed(self, before: np.ndarray) -> None:
+        """Put back an arm's target ``before`` (its value before the action) where the action took it beyond
+        :meth:`lag_limit` from the grasp frame and farther than it was: the arm does not follow."""
+        grasp, limit = self._grasp_positions(), self.lag_limit()
+        for arm in range(2):
+            gap = self.target[arm] - grasp[arm]
+            if gap.dot(gap) > limit * limit:
+                was = before[arm] - grasp[arm]
+                if gap.dot(gap) > was.dot(was):
+                    self.target[arm] = before[arm]
+
     def _joint_count(self) -> int:
         robots = self.randomisation.values("robot")
         counts = {len(load_robot_spec(name).home) for name in robots}
@@ -205,10 +232,16 @@ class DualArmEnv(gym.Env):
     def step(self, action):
         if self.physics is None:
             raise RuntimeError("call reset() before step()")
+        before, quat_before = self.target.copy(), list(self._quat)
         self._apply_action(self._clean_action(action))
+        self._hold_unfollowed(before)
         for arm, robot in enumerate(self.physics.robots):
-            self._q_target[arm] = robot.track(self.target[arm], self._quat[arm])
-            robot.set_targets(self._q_target[arm])
+            q = robot.track_within(self.target[arm], self._quat[arm])
+            if q is None:  # beyond reach: the target and the joint targets stay
+                self.target[arm], self._quat[arm] = before[arm], quat_before[arm]
+                continue
+            self._q_target[arm] = q
+            robot.set_targets(q)
         world, cable = self.physics.world, self.physics.cable
         for _ in range(self.substeps):
             world.step()
@@ -233,8 +266,10 @@ class DualArmEnv(gym.Env):
 
     def _info(self) -> dict[str, Any]:
         cable = self.physics.cable
+        lag = self.target - self._grasp_positions()
         return {"unstable": bool(self.unstable), "reason": cable.reason if self.unstable else None,
-                "time": float(self.physics.world.time), "params": dict(self.draw.params), **self._task_info()}
+                "time": float(self.physics.world.time), "gripper_lag": np.sqrt((lag * lag).sum(axis=1)),
+                "params": dict(self.draw.params), **self._task_info()}
 
     # ----- observation ----------------------------------------------------------------------------
     def _observation(self) -> dict[str, np.ndarray]:

@@ -182,6 +182,21 @@ class Robot:
         self._set_twin(q)
         return self._ik(position, quat, null_space=False, iterations=50, residual=1e-8)
 
+    def track_within(self, position: np.ndarray, quat: Sequence[float], tol: float = 1e-3) -> np.ndarray | None:
+        """:meth:`track`, or None when its answer leaves the grasp frame more than ``tol`` [m] from ``position``: the
+        target is beyond the arm's reach from where it is (out of its workspace, or a joint at its limit on the
+        way). The compiled IK's own residual decides (no extra work; 1e-9 m on a reachable target); PyBullet's IK,
+        up to ~1.5 mm off a reachable target 2.5 cm away in one solve, by forward kinematics on the twin after
+        up to three solves, each from the last one's angles."""
+        q = self.track(position, quat)
+        if self.ik_solver == "compiled":
+            return q if self.chain_ik.error <= tol else None
+        for _ in range(3):
+            if self._twin_miss(q, position, quat)[0] <= tol:
+                return q
+            q = self._track_from(position, quat, q)
+        return None
+
     def path_miss(self, poses: Sequence[tuple[np.ndarray, np.ndarray]],
                   tol: float = 1e-4) -> tuple[int, float, float] | None:
         """Whether the grasp frame can follow ``poses`` (position [m], quaternion [x, y, z, w]) in order from the
