@@ -1,12 +1,12 @@
 """MuJoCo / ours at 1 % on S1 and S2, only the selected runs (the last stage of ``bullet-dlo bench peers``, without
 its 24-minute sweep): interleaved pairs of timing runs, thread CPU time (:func:`bullet_dlo.bench.peers.interleaved_ratio`).
 
-The runs are the cheapest within 1 % found by the sweep and ``demos/solver_cost.py --accuracy`` (docs/results/speed.md):
-S1, ours implicit Euler at n = 20 and 1/60 s against MuJoCo ``discrete`` at n = 20 and 1/60 s; S2, ours Gauss-Legendre
-at n = 20 and 5 ms (and the implicit midpoint at n = 20 and 1 ms) against MuJoCo ``discrete`` at n = 20 and 5e-4 s.
-Each side's cost is that of the whole call per simulated second (ours: ``simulate`` with its set-up; the peer: its
-timed phase), as ``bench peers`` reports it; the cost per step is that times dt. ``PYTHONPATH=TREE`` measures another
-source tree of ours the same way (interleave trees for an A/B).
+The runs are the cheapest within 1 % found by the sweep (``bullet-dlo bench peers``, 2026-11-29; docs/results/speed.md):
+S1, ours implicit Euler at n = 12 and 1/60 s against MuJoCo's joint chain (``discrete chain``) at n = 12 and 1/60 s and
+its flexcomp (``discrete``) at n = 12 and 1/60 s; S2, ours Gauss-Legendre at n = 12 and 5 ms against the chain at
+n = 10 and 5e-4 s and the flexcomp at n = 16 and 5e-4 s. Each side's cost is that of the whole call per simulated second
+(ours: ``simulate`` with its set-up; the peer: its timed phase), as ``bench peers`` reports it; the cost per step is that
+times dt. ``PYTHONPATH=TREE`` measures another source tree of ours the same way (interleave trees for an A/B).
 
 Usage: ``python demos/peer_ratio.py [--reps 7] [--only S1|S2]``
 """
@@ -18,9 +18,10 @@ import os
 from bullet_dlo.bench.peers import PeerCase, interleaved_ratio
 from bullet_dlo.bench.scenarios import s1_spec
 
-RUNS = (("S1", dict(scenario="S1", integrator="implicit_euler", n=20, dt=1 / 60), ("discrete", 1 / 60, 20)),
-        ("S2", dict(scenario="S2", integrator="gauss_legendre", n=20, dt=5e-3), ("discrete", 5e-4, 20)),
-        ("S2", dict(scenario="S2", integrator="implicit_midpoint", n=20, dt=1e-3), ("discrete", 5e-4, 20)))
+RUNS = (("S1", dict(scenario="S1", integrator="implicit_euler", n=12, dt=1 / 60), ("discrete chain", 1 / 60, 12)),
+        ("S1", dict(scenario="S1", integrator="implicit_euler", n=12, dt=1 / 60), ("discrete", 1 / 60, 12)),
+        ("S2", dict(scenario="S2", integrator="gauss_legendre", n=12, dt=5e-3), ("discrete chain", 5e-4, 10)),
+        ("S2", dict(scenario="S2", integrator="gauss_legendre", n=12, dt=5e-3), ("discrete", 5e-4, 16)))
 """(scenario, our run, MuJoCo's (integrator, dt [s], n))."""
 
 

@@ -1,9 +1,29 @@
-"""The benchmark's rod in MuJoCo (>= 4.0): a 1-D flexcomp, MuJoCo's discrete elastic rod, truly clamped.
+"""The benchmark's rod in MuJoCo (>= 4.0), truly clamped, in its two public forms: a 1-D flexcomp and a joint chain.
 
-MuJoCo 4.0 removed the ``elasticity.cable`` plugin (``<plugin plugin="mujoco.elasticity.cable">``
-fails with "plugin not found"); its replacement is ``<flexcomp dim="1">`` with
-``<elasticity young=...>`` (bending and torsion, no stretching). This is MuJoCo's best public
-set-up for the cantilever, as a user would write it:
+**Joint chain** (:class:`MujocoChainRod`, integrator labels ``"<integrator> chain"``; the cheaper of the two at
+equal accuracy, found by an independent audit of this benchmark): n - 1 rigid capsule bodies in a kinematic tree,
+each hinged to the one before by a ``ball`` joint with joint ``stiffness`` (what MuJoCo's ``composite
+type="cable"`` built before 4.0, with the bending in the joints instead of the plugin):
+
+* **clamp**: the first ball joint sits at x = 0 on the world with stiffness 2 E I / l (half the dual
+  length, as our clamp spring), the inner ones E I / l (our bending springs): the same springs as our
+  model; statically the chain is exact for its rigid segments, whose tip deflection is
+  (1 + 1/(n - 1)^2) w L^4 / (8 E I) (second order, +0.83 % at n = 12, +0.28 % at n = 20);
+* mass M / (n - 1) per segment at its centre, inertia of a solid cylinder of radius d / 2; a ball
+  joint's stiffness also resists twist (with E I / l instead of G J / l: no twist in S1 or S2);
+* damping: ``dof_damping = c M_jj`` (rate c [1/s], M_jj the joint-space mass matrix's diagonal at the
+  straight pose): MuJoCo has no mass-proportional damping in joint coordinates, and this is the
+  diagonal of c M; it only settles the rod (S1 and S2's settling), the free phase is undamped;
+* ``discrete`` integrates the joint springs implicitly in position; MuJoCo's explicit
+  integrators are unstable on this stiff chain above ~2e-5 s;
+* the tip is a site at the last segment's end; MuJoCo computes positions at the start of a step, so
+  :meth:`MujocoChainRod.advance` reads each step's tip height after the next step's kinematics (one
+  ``mj_kinematics`` per chunk for the last), never a stale value.
+
+**Flexcomp** (:class:`MujocoRod`, labels ``"discrete"``, ``"RK4"``, ``"Euler"``). MuJoCo 4.0 removed the
+``elasticity.cable`` plugin (``<plugin plugin="mujoco.elasticity.cable">`` fails with "plugin not found"); its
+replacement is ``<flexcomp dim="1">`` with ``<elasticity young=...>`` (bending and torsion, no stretching),
+set up as a user would write it:
 
 * **clamp**: a stub point at x = -s (s = :data:`STUB` x the segment length) before the n rod
   points at i L / (n - 1) along +x, and ``<pin id="0 1"/>``: the held edge is the stub behind
@@ -53,6 +73,12 @@ STUB = 1e-3
 INTEGRATORS = ("discrete", "RK4", "Euler")
 """The integrators MuJoCo 4.0 accepts with flex elasticity."""
 
+CHAIN = " chain"
+"""Suffix of an integrator label that selects the joint chain (``"discrete chain"``)."""
+
+CHAIN_INTEGRATORS = ("discrete", "implicitfast", "implicit", "RK4", "Euler")
+"""MuJoCo's integrators, all of which take joint stiffness."""
+
 
 def _xml(spec: CableSpec, dt: float, integrator: str) -> str:
     n, seg = spec.n_masses, spec.rest_length
@@ -75,10 +101,39 @@ def _xml(spec: CableSpec, dt: float, integrator: str) -> str:
 </mujoco>"""
 
 
-class MujocoRod:
-    """:class:`bullet_dlo.bench.peers.PeerRod` for MuJoCo; use it as a context manager to capture warnings."""
+class _MujocoBase:
+    """What both MuJoCo rods share: warnings captured while open (a context manager), gravity, velocities, the
+    forward pass and MuJoCo's own divergence signal. Subclasses set ``model``, ``data`` and ``_bad``."""
 
     name = "mujoco"
+    model: "mujoco.MjModel"
+    data: "mujoco.MjData"
+
+    def __enter__(self):
+        self._previous_hook = mujoco.get_mju_user_warning()
+        mujoco.set_mju_user_warning(self.warnings.append)
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        mujoco.set_mju_user_warning(self._previous_hook)
+
+    def set_gravity(self, g: float) -> None:
+        self.model.opt.gravity[:] = (0.0, 0.0, -g)
+
+    def refresh(self) -> None:
+        mujoco.mj_forward(self.model, self.data)  # body positions of the current state
+
+    def zero_velocities(self) -> None:
+        self.data.qvel[:] = 0.0
+
+    def diverged(self) -> bool:
+        """MuJoCo's bad-state warnings (it then silently resets the state) or non-finite velocities."""
+        return any(self.data.warning[w].number > 0 for w in self._bad) or not np.isfinite(self.data.qvel).all()
+
+
+class MujocoRod(_MujocoBase):
+    """:class:`bullet_dlo.bench.peers.PeerRod` for MuJoCo's flexcomp rod; use it as a context manager to capture
+    warnings."""
 
     def __init__(self, spec: CableSpec, dt: float, integrator: str = "discrete") -> None:
         if integrator not in INTEGRATORS:
@@ -107,17 +162,6 @@ class MujocoRod:
                      f"(soft, solref {solref[0]:.3g} {solref[1]:.3g}), lumped mass M/(n-1) per free vertex and half at "
                      "the tip")
 
-    def __enter__(self) -> "MujocoRod":
-        self._previous_hook = mujoco.get_mju_user_warning()
-        mujoco.set_mju_user_warning(self.warnings.append)
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        mujoco.set_mju_user_warning(self._previous_hook)
-
-    def set_gravity(self, g: float) -> None:
-        self.model.opt.gravity[:] = (0.0, 0.0, -g)
-
     def set_damping(self, rate: float) -> None:
         self.model.dof_damping[self._dofs] = rate * self._dof_mass
 
@@ -132,12 +176,6 @@ class MujocoRod:
             mujoco.mj_step(m, d)
             trace[i] = z0 + sign * qpos[adr]
 
-    def refresh(self) -> None:
-        mujoco.mj_forward(self.model, self.data)  # body positions of the current state
-
-    def zero_velocities(self) -> None:
-        self.data.qvel[:] = 0.0
-
     def positions(self) -> np.ndarray:
         """The n rod points (3, n) [m], the stub left out."""
         return self.data.flexvert_xpos.T[:, 1:]
@@ -145,6 +183,80 @@ class MujocoRod:
     def tip_z(self) -> float:
         return self._tip_z0 + self._tip_sign * float(self.data.qpos[self._tip_qpos])
 
-    def diverged(self) -> bool:
-        """MuJoCo's bad-state warnings (it then silently resets the state) or non-finite velocities."""
-        return any(self.data.warning[w].number > 0 for w in self._bad) or not np.isfinite(self.data.qvel).all()
+
+def _chain_xml(spec: CableSpec, dt: float, integrator: str) -> str:
+    n, seg, r = spec.n_masses, spec.rest_length, spec.diameter / 2
+    m = spec.mass / (n - 1)
+    i_axial, i_cross = m * r * r / 2, m * (3 * r * r + seg * seg) / 12  # solid cylinder about its centre
+    bodies = []
+    for i in range(n - 1):
+        k = (2.0 if i == 0 else 1.0) * spec.bending_rigidity / seg  # 2 EI / l at the clamp, EI / l inside [N m/rad]
+        bodies.append(f'<body name="seg_{i}" pos="{0.0 if i == 0 else seg:.17g} 0 0">'
+                      f'<joint name="node_{i}" type="ball" stiffness="{k:.17g}"/>'
+                      f'<inertial pos="{seg / 2:.17g} 0 0" mass="{m:.17g}" '
+                      f'diaginertia="{i_axial:.17g} {i_cross:.17g} {i_cross:.17g}"/>'
+                      f'<geom type="capsule" fromto="0 0 0 {seg:.17g} 0 0" size="{r:.17g}" contype="0" '
+                      f'conaffinity="0"/>' + (f'<site name="tip" pos="{seg:.17g} 0 0"/>' if i == n - 2 else ""))
+    return f"""
+<mujoco model="cantilever_chain">
+  <option timestep="{dt:.17g}" integrator="{integrator}" gravity="0 0 0"/>
+  <worldbody>{"".join(bodies)}{"</body>" * (n - 1)}</worldbody>
+</mujoco>"""
+
+
+class MujocoChainRod(_MujocoBase):
+    """:class:`bullet_dlo.bench.peers.PeerRod` for MuJoCo's joint chain (see the module doc); a context manager
+    like :class:`MujocoRod`."""
+
+    def __init__(self, spec: CableSpec, dt: float, integrator: str = "discrete") -> None:
+        if integrator not in CHAIN_INTEGRATORS:
+            raise ValueError(f"MuJoCo integrator must be one of {CHAIN_INTEGRATORS}, got {integrator!r}")
+        self.integrator = integrator + CHAIN
+        self.model = mujoco.MjModel.from_xml_string(_chain_xml(spec, dt, integrator))
+        self.data = mujoco.MjData(self.model)
+        self._tip = mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_SITE, "tip")
+        mujoco.mj_forward(self.model, self.data)
+        mass = np.zeros((self.model.nv, self.model.nv))
+        mujoco.mj_fullM(self.model, self.data, mass)
+        self._mass_diag = np.diag(mass).copy()
+        self._bad = [int(getattr(mujoco.mjtWarning, w)) for w in _BAD_STATE]
+        self.warnings: list[str] = []
+        self._previous_hook = None
+        self.note = (f"integrator={integrator}; chain of {spec.n_masses - 1} capsule bodies, ball joints with "
+                     "stiffness 2 EI/l at the clamp (x = 0) and EI/l inside, M/(n-1) per segment at its centre, "
+                     "solid-cylinder inertia, damping c diag(M) in joint space")
+
+    def set_damping(self, rate: float) -> None:
+        self.model.dof_damping[:] = rate * self._mass_diag
+
+    def advance(self, k: int, trace: np.ndarray | None = None) -> None:
+        """k steps; with ``trace`` (k,), the tip height [m] after each step: step i's height is the site
+        position MuJoCo computes at the start of step i + 1, the last one from one ``mj_kinematics``."""
+        m, d = self.model, self.data
+        if trace is None:
+            mujoco.mj_step(m, d, nstep=k)
+            return
+        site = d.site_xpos[self._tip]
+        mujoco.mj_step(m, d)
+        for i in range(1, k):
+            mujoco.mj_step(m, d)
+            trace[i - 1] = site[2]
+        mujoco.mj_kinematics(m, d)
+        trace[k - 1] = site[2]
+
+    def positions(self) -> np.ndarray:
+        """The n nodes (3, n) [m]: the segments' origins and the tip, as of MuJoCo's last kinematics."""
+        d = self.data
+        nodes = np.vstack([d.xpos[1:], d.site_xpos[self._tip][None, :]])
+        return nodes.T
+
+    def tip_z(self) -> float:
+        return float(self.data.site_xpos[self._tip, 2])
+
+
+def mujoco_rod(spec: CableSpec, dt: float, label: str) -> MujocoRod | MujocoChainRod:
+    """The MuJoCo rod an integrator ``label`` names: ``"discrete"``, ``"RK4"``, ``"Euler"`` (flexcomp) or
+    ``"<integrator> chain"`` (the joint chain, e.g. ``"discrete chain"``)."""
+    if label.endswith(CHAIN):
+        return MujocoChainRod(spec, dt, label[:-len(CHAIN)])
+    return MujocoRod(spec, dt, label)

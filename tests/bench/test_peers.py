@@ -53,6 +53,21 @@ def test_mujoco_converges_at_second_order_on_s1(tmp_path, monkeypatch):
     assert os.listdir(tmp_path) == []
 
 
+@needs_mujoco
+def test_mujoco_chain_is_the_exact_discrete_chain_on_s1(tmp_path, monkeypatch):
+    """MuJoCo's joint chain (ball joints with stiffness 2 EI / l at the clamp, EI / l inside; ``discrete`` at
+    1/60 s), clamped at x = 0: its tip deflection is the discrete chain's exact (1 + 1/(n - 1)^2) w L^4 / (8 EI)
+    within 1e-5 of w L^4 / (8 EI) (n = 8, 12, 20), second order in n; a chain clamped one segment in, or with
+    E I / l at the clamp, would be off by 10-50 % at these n."""
+    monkeypatch.chdir(tmp_path)
+    n_masses = (8, 12, 20)
+    errors = _s1_errors(lambda spec: run_mujoco(spec, 1 / 60, "static", 1.0, integrator="discrete chain"), n_masses)
+    for n, e in zip(n_masses, errors):
+        assert abs(e - _newton_chain_error(n)) < 1e-5, (n, e)
+    assert all(1.7 < p < 2.3 for p in convergence_order(errors, [n - 1 for n in n_masses]))
+    assert os.listdir(tmp_path) == []
+
+
 @needs_pyelastica
 def test_pyelastica_converges_at_second_order_on_s1():
     """PyElastica (PositionVerlet, 0.5 us), clamped by FixedConstraint on its stub: S1 error ~ n^-2
