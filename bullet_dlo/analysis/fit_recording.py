@@ -26,7 +26,12 @@ ringing, drops what is slow: a sensor's pose-dependent bias, an arm model's erro
 ``use``: which samples the residual compares (bool, (k,); None: all), e.g. not while an arm moves and
 its own dynamics model's error swamps the cable's load. ``section_frame``: the grasp
 frame's y axis is the held section's first axis d1 (a strip's width), for a cable with a material
-frame; otherwise the section's start orientation is the core's default.
+frame; otherwise the section's start orientation is the core's default. ``force_delay`` [s]: the measured
+force and moment (kinds ``force``, ``moment``) reach the recording this long after the poses they belong to;
+the prediction is compared at t - force_delay (interpolated linearly, held at its first value before the
+first sample). A dual-arm recording of this package's Bullet scene has one Bullet step: each step's
+wrist sensors read the joint reaction to the load the cable put on the gripper over that step, which is the
+cable's load of the step before (:mod:`bullet_dlo.data.recording` sets it when it reads one).
 
 Optional ``source``: how a simulated recording was made, {"integrator": name, "dt": seconds}, so
 a fit can say (or reproduce) the numerical damping its integrator put into the data.
@@ -90,6 +95,7 @@ class Recording:
     linear_band: tuple[float, float] | None = None
     section_frame: bool = False
     use: np.ndarray | None = field(default=None, compare=False)
+    force_delay: float = 0.0
 
     def __post_init__(self) -> None:
         t = _finite("t", self.t, np.shape(self.t)) if np.ndim(self.t) == 1 else np.zeros((0, 0))
@@ -117,6 +123,11 @@ class Recording:
             if use.shape != (k,) or use.dtype != bool or use.sum() < 3:
                 raise ParameterError(f"recording use must be a boolean mask of shape ({k},) selecting >= 3 samples")
             object.__setattr__(self, "use", use)
+        delay = float(self.force_delay) if isinstance(self.force_delay, (int, float)) else math.nan
+        if not (math.isfinite(delay) and 0.0 <= delay < 0.5 * (t[-1] - t[0])):
+            raise ParameterError(f"recording force_delay must be >= 0 and below half the recording's span "
+                                 f"({0.5 * (t[-1] - t[0]):g} s) [s], got {self.force_delay!r}")
+        object.__setattr__(self, "force_delay", delay)
         self._check_markers(k)
         self._check_holding()
         if not self.kinds():
@@ -228,15 +239,23 @@ def compared(rec: Recording, kind: str, y: np.ndarray) -> np.ndarray:
 def _predicted_raw(rec: Recording, kind: str, run: ModelRun) -> np.ndarray:
     k = len(rec.t)
     if kind == "force":
-        return run.forces.reshape(k, 6)
+        return delayed(run.forces.reshape(k, 6), rec.t, rec.force_delay)
     if kind == "moment":
-        return run.moments.reshape(k, 6)
+        return delayed(run.moments.reshape(k, 6), rec.t, rec.force_delay)
     if kind == "marker":
         return markers_on(run.x, run.s, rec.marker_s).reshape(k, -1)
     f, m = run.forces, run.moments
     wrench = np.concatenate([f[:, 0], m[:, 0], f[:, 1], m[:, 1]], axis=1)  # (k, 12)
     y = np.einsum("kqj,kj->kq", rec.linear_map, wrench)
     return y if rec.linear_filter is None else low_pass_delayed(y, rec.t, *rec.linear_filter)
+
+
+def delayed(y: np.ndarray, t: np.ndarray, delay: float) -> np.ndarray:
+    """``y`` (k, c) at times ``t`` [s] as seen ``delay`` [s] later: its value at t - delay, linearly interpolated
+    between samples and held at y[0] before t[0] (``y`` itself when ``delay`` is 0)."""
+    if delay == 0.0:
+        return y
+    return np.stack([np.interp(t - delay, t, y[:, c]) for c in range(y.shape[1])], axis=1)
 
 
 def band_passed(y: np.ndarray, t: np.ndarray, low: float, high: float) -> np.ndarray:

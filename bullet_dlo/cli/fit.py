@@ -15,7 +15,7 @@ from bullet_dlo.core.validate import ParameterError
 RANGES = {  # CLI option -> (low, high, inclusive-low) checked before anything runs
     "length": (0.0, math.inf, False), "diameter": (0.0, math.inf, False), "mass": (0.0, math.inf, False),
     "youngs_modulus": (0.0, math.inf, False), "dt": (0.0, math.inf, False), "skip": (0.0, math.inf, True),
-    "level": (0.5, 1.0, True), "max_holdout_ratio": (1.0, math.inf, True),
+    "level": (0.5, 1.0, True), "max_holdout_ratio": (1.0, math.inf, True), "max_noise_ratio": (1.0, math.inf, True),
     "max_numerical_damping": (0.0, math.inf, False), "max_relative_se": (0.0, math.inf, False),
     "sigma_force": (0.0, math.inf, False), "sigma_moment": (0.0, math.inf, False),
     "sigma_linear": (0.0, math.inf, False),
@@ -62,6 +62,7 @@ def cmd_fit(args: argparse.Namespace) -> int:
                          max_evaluations=args.max_evaluations, kinds=kinds, sigma=sigma or None,
                          windows=args.windows, min_windows=args.min_windows, level=args.level,
                          max_holdout_ratio=args.max_holdout_ratio, max_numerical_damping=args.max_numerical_damping,
+                         max_noise_ratio=args.max_noise_ratio,
                          max_relative_se=args.max_relative_se, profile_points=args.profile_points,
                          match_source=args.match_source, stiffness_grid=args.stiffness_grid)
     cable = argparse.Namespace(length=args.length, diameter=args.diameter, mass=args.mass)
@@ -322,6 +323,8 @@ def add_parsers(sub, common: argparse.ArgumentParser) -> None:
     s.add_argument("--min-windows", type=int, default=4, help="fewer independent windows than this in all: "
                    "discrepancy dominates, no confident number, 2-1000 (4)")
     s.add_argument("--level", type=float, default=0.95, help="interval coverage, in [0.5, 1) (0.95)")
+    s.add_argument("--max-noise-ratio", type=float, default=3.0, help="residual RMS over the noise level above which, "
+                   "with a residual that is not white, model discrepancy is declared (no confident number) (3)")
     s.add_argument("--max-holdout-ratio", type=float, default=1.5, help="held-out / in-sample residual RMS above "
                    "which discrepancy is declared, >= 1 (1.5)")
     s.add_argument("--max-numerical-damping", type=float, default=0.1, help="allowed numerical / physical "

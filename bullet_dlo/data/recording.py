@@ -32,7 +32,9 @@ about the grasp points [N m] (``wrench_world`` moments are about the sensor orig
 used as such); ``linear_map`` (k, q, 12) with ``linear_obs`` (k, q), a measurement linear in the
 end wrenches (e.g. joint torques, see :mod:`bullet_dlo.analysis.fit_recording`). With
 ``forces="end_forces"`` the model's ``end_moments`` come along as the moments. The attributes
-``integrator`` and ``dt`` [s] of a simulated file become the recording's ``source``.
+``integrator`` and ``dt`` [s] of a simulated file become the recording's ``source``; its wrist sensors
+(``wrench_world``) read each Bullet step's joint reaction to the cable's load of the step before, so such a
+file's forces get ``force_delay`` = ``dt`` (the model's ``end_forces`` none).
 
 Units: SI unless the file says otherwise: a CSV header's brackets, an HDF5 dataset's ``units``
 attribute, an NPZ ``attrs`` entry ``"units": {"ee_pos": "mm", ...}``; time s, ms or us; length m,
@@ -65,6 +67,7 @@ import math
 import os
 import re
 import stat
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -219,7 +222,9 @@ def read_recording(path: str | Path, forces: str = "wrench_world", units: str | 
         text = " ".join(str(err).split()) or type(err).__name__
         raise ParameterError(f"recording {path.name} cannot be read as {fmt} (damaged or truncated?): "
                              f"{text[:200]}") from None
-    return check_recording(raw, path.name, flag_units, window, source, cable)
+    rec = check_recording(raw, path.name, flag_units, window, source, cable)
+    delay = _wrench_delay(source) if forces == "wrench_world" else 0.0
+    return replace(rec, force_delay=delay) if delay else rec
 
 
 def check_recording(raw: dict[str, tuple[np.ndarray, str | None]], name: str, flag_units: dict[str, str],
@@ -303,8 +308,12 @@ def check_recording(raw: dict[str, tuple[np.ndarray, str | None]], name: str, fl
 def check_cable(rec: Recording, cable: Any) -> None:
     """The recording against the cable it should hold (``cable.length``, ``.diameter`` [m], ``.mass`` [kg] or
     None): grasp points farther apart than 1.5 lengths, or a weight from the forces far from the mass (or,
-    without a mass, a density outside 100..30000 kg/m^3), mean a unit mistake (ParameterError)."""
-    length, diameter = float(cable.length), float(cable.diameter)
+    without a mass, a density outside 100..30000 kg/m^3), mean a unit mistake (ParameterError). What the cable
+    does not state (None) is not checked."""
+    if getattr(cable, "length", None) is None:
+        return
+    length = float(cable.length)
+    diameter = None if getattr(cable, "diameter", None) is None else float(cable.diameter)
     mass = getattr(cable, "mass", None)
     span = float(np.max(np.linalg.norm(rec.grasp_pos[:, 1] - rec.grasp_pos[:, 0], axis=1)))
     if span > 1.5 * length:
@@ -319,6 +328,8 @@ def check_cable(rec: Recording, cable: Any) -> None:
             raise ParameterError(f"recording {rec.name}: the forces carry a weight of {weight:.4g} N, more than 30 "
                                  f"times the cable's ({mass * 9.81:.3g} N): forces must be in newtons (mN? state "
                                  f"the unit or --units force=mN)")
+        return
+    if diameter is None:
         return
     density = max(weight, 0.0) / 9.81 / (length * math.pi * diameter ** 2 / 4)  # [kg/m^3]
     if density > 3e4:
@@ -505,8 +516,20 @@ def _read_h5(path: Path, forces: str, window: Any, flag_units: dict[str, str]) -
         for key, obj in present.items():
             unit = obj.attrs.get("units", obj.attrs.get("unit"))
             raw[_role(key, forces)] = (obj[()], _unit_text(unit))
-        attrs = {k: f.attrs[k] for k in ("integrator", "dt") if k in f.attrs}
+        attrs = {k: f.attrs[k] for k in ("integrator", "dt") if k in f.attrs} or _episode_params(f.attrs)
     return _post(raw), _source(attrs)
+
+
+def _episode_params(attrs: Any) -> dict[str, Any]:
+    """``integrator`` and ``dt`` from a dataset episode's ``params`` attribute (a JSON object), or {}."""
+    text = attrs.get("params")
+    if isinstance(text, bytes):
+        text = text.decode("utf-8", "replace")
+    try:
+        params = json.loads(text) if isinstance(text, str) else {}
+    except ValueError:
+        return {}
+    return {k: params[k] for k in ("integrator", "dt") if isinstance(params, dict) and k in params}
 
 
 def _wanted(forces: str) -> tuple[list[str], list[str]]:
@@ -558,6 +581,12 @@ def _unit_text(unit: Any) -> str | None:
     if isinstance(unit, bytes):
         unit = unit.decode("utf-8", "replace")
     return str(unit)
+
+
+def _wrench_delay(source: dict[str, Any] | None) -> float:
+    """How long [s] a simulated file's wrist wrench lags its poses: one Bullet step (``source["dt"]``); 0 for a
+    file that does not say it was simulated."""
+    return float(source["dt"]) if source else 0.0
 
 
 def _source(attrs: dict[str, Any]) -> dict[str, Any] | None:

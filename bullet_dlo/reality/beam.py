@@ -109,16 +109,23 @@ def read_beam_csv(path: str | Path) -> BeamRecording:
     and what is wrong (missing columns, no rows, non-finite values)."""
     path = Path(path)
     try:
-        with path.open() as fh:
+        with path.open(encoding="utf-8") as fh:
             header = [c.strip() for c in fh.readline().split(",")]
     except OSError as err:
         raise ParameterError(f"beam recording {path}: cannot read ({err.strerror})") from None
+    except UnicodeDecodeError:
+        raise ParameterError(f"beam recording {path.name}: not UTF-8 text (a beam_handling CSV is plain text)") from None
     missing = [c for c in COLUMNS if c not in header]
     if missing:
         raise ParameterError(f"beam recording {path.name}: missing column(s) {', '.join(missing[:4])}"
                              f"{' ...' if len(missing) > 4 else ''}; a beam_handling CSV has {', '.join(COLUMNS[:3])} "
                              "... tau_ext_hat_filtered[6]")
-    data = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
+    try:
+        data = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2, encoding="utf-8")
+    except (ValueError, UnicodeDecodeError) as err:  # a text cell, a short or long row, a non-UTF-8 byte
+        what = " ".join(str(err).split(";")[0].split())[:160]
+        raise ParameterError(f"beam recording {path.name}: every row after the header must hold {len(header)} "
+                             f"numbers ({what})") from None
     if data.shape[0] < 3 or data.shape[1] != len(header) or not np.all(np.isfinite(data)):
         raise ParameterError(f"beam recording {path.name}: needs at least 3 rows of {len(header)} finite numbers")
     col = {c: i for i, c in enumerate(header)}

@@ -32,6 +32,19 @@ def test_reader_units_and_columns(tmp_path):
     assert rec.rate == pytest.approx(1000.0)
     with pytest.raises(ParameterError, match=r"missing column\(s\) tau_J\[3\]"):
         read_beam_csv(write_csv(tmp_path / "bad.csv", rows[:, :-1], tuple(c for c in COLUMNS if c != "tau_J[3]")))
+    # damaged rows: a text cell, a short row, a byte that is not UTF-8: one ParameterError each, no traceback
+    good = write_csv(tmp_path / "good.csv", rows).read_text().splitlines()
+    text = good[:3] + [good[3].rsplit(",", 1)[0] + ",abc"] + good[4:]
+    short = good[:3] + [",".join(good[3].split(",")[:20])] + good[4:]
+    for name, lines in (("text", text), ("short", short)):
+        path = tmp_path / f"{name}.csv"
+        path.write_text("\n".join(lines) + "\n")
+        with pytest.raises(ParameterError, match=f"{name}.csv: every row after the header must hold {len(COLUMNS)} "):
+            read_beam_csv(path)
+    latin = tmp_path / "latin.csv"
+    latin.write_bytes(("\n".join(good) + "\n").replace("duration", "dur\xe9e,duration", 1).encode("latin-1"))
+    with pytest.raises(ParameterError, match="latin.csv: not UTF-8 text"):
+        read_beam_csv(latin)
 
 
 def test_vibration_metrics_on_a_closed_form_damped_sine():
