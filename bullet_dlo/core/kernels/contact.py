@@ -172,7 +172,9 @@ class Contacts(NamedTuple):
     [m] and material parameter s_a on the segment; state (M,) int: STICK or SLIDE.
     Results of the step: f_n (M,) [N] normal force (>= 0), f_t (M, 3) [N] friction force, both on
     the cable; cap (M,) [N] friction limit used. Scalars (1,): count, radius [m] (cable radius),
-    body_work [J] work the touched bodies did on the cable so far, impact (1 when a contact took
+    body_work (2,) [J]: [0] work the touched bodies did on the cable so far, plus [1] the penalty energy that a
+    body Bullet moved further into the cable than the step planned left in this step's rows (not counted as
+    energy: see ``bullet.contact.detect``); impact (1 when a contact took
     load at an approach speed above g h: the next BDF2 step restarts with implicit Euler).
     internal (M,) bool: the "body" is another part of the same cable (self-contact: its work is not
     external). node_force (n, 3) [N]: scratch for the contact forces on the nodes. grip: the
@@ -230,7 +232,7 @@ def make_contacts(n: int, capacity: int, radius: float, grip: Grip | None = None
     return Contacts(count=np.zeros(1, np.int64), radius=np.full(1, float(radius)), node=np.zeros((m, 2), np.int64),
                     weight=f((m, 2)), normal=f((m, 3)), point=f((m, 3)), body_vel=f((m, 3)), k_n=f(m), k_t=f(m),
                     c_n=f(m), static_friction=f(m), dynamic_friction=f(m), anchor=f((m, 4)), state=np.zeros(m, np.int64), f_n=f(m),
-                    f_t=f((m, 3)), cap=f(m), body_work=f(1), impact=np.zeros(1, np.int64),
+                    f_t=f((m, 3)), cap=f(m), body_work=f(2), impact=np.zeros(1, np.int64),
                     internal=np.zeros(m, np.bool_), node_force=f((n, 3)),
                     grip=grip if grip is not None else make_grip(), kind=np.zeros(m, np.int64),
                     axis=f((m, 3)), side=f((m, 3)), seg=f((m, 6)), lock=np.zeros(m, np.int64))
