@@ -822,10 +822,12 @@ def main(args: argparse.Namespace) -> int:
     root = Path(args.dlo_dir)
     if not root.is_dir():
         raise ParameterError(f"DLO_DIR: {root} is not a folder (it must hold train/ and eval/ with *.pkl trials)")
+    check_int("--n-masses", args.n_masses, 4, 2000)  # the command line's names (Numerics checks its fields)
+    check_positive("--dt", args.dt)
     num = Numerics(integrator=args.integrator, n_masses=args.n_masses, dt=args.dt, twist=bool(args.twist))
-    most_train = check_int("max_train_trials", args.max_train_trials, 1)
-    most_eval = None if args.max_eval_trials is None else check_int("max_eval_trials", args.max_eval_trials, 1)
-    max_eval = check_int("max_evaluations", args.max_evaluations, 2)
+    most_train = check_int("--max-train-trials", args.max_train_trials, 1)
+    most_eval = None if args.max_eval_trials is None else check_int("--max-eval-trials", args.max_eval_trials, 1)
+    max_eval = check_int("--max-evaluations", args.max_evaluations, 2)
     train = [load_trial(p) for p in pick(trial_files(root / "train", "train"), most_train)]
     evals = [load_trial(p) for p in pick(trial_files(root / "eval", "eval"), most_eval)]
     extra = (("gravity_tilt_x", "gravity_tilt_y") if getattr(args, "fit_gravity_tilt", False) else ()) + \
