@@ -167,11 +167,11 @@ def _verify_failed(report, directory: str) -> int:
         print(line)
     what = []
     if report.problems:
-        what.append(f"{len(report.problems)} of {report.checked} recorded episodes failed verification (missing, "
-                    "damaged, foreign, swapped or non-finite)")
+        what.append(f"{len(report.problems)} of {report.checked} recorded episodes in {directory} failed "
+                    "verification (missing, damaged, foreign, swapped or non-finite)")
     if report.missing:
-        what.append(report.incomplete())
-    print(f"error: {directory}: {'; '.join(what)}; bullet-dlo capture ... --resume re-runs them", file=sys.stderr)
+        what.append(f"{directory} is {report.incomplete()}")
+    print(f"error: {'; '.join(what)}; bullet-dlo capture ... --resume re-runs them", file=sys.stderr)
     return 1
 
 
