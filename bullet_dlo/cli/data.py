@@ -3,8 +3,9 @@ and policy rollouts.
 
 ``capture`` and ``rollouts`` stop on SIGINT/SIGTERM with one line and exit status 130/143, having
 recorded what finished; a write failure (full disk, read-only folder) is one line and exit 1.
-``dataset verify`` and ``dataset summary`` name every missing, damaged, foreign or swapped
-episode and exit 1 with their count.
+``dataset verify`` and ``dataset summary`` name every missing, damaged, foreign, swapped or
+non-finite episode file, and every planned episode without a record (an incomplete capture), and
+exit 1 with their count.
 """
 from __future__ import annotations
 
@@ -164,18 +165,23 @@ def _verify_failed(report, directory: str) -> int:
     """Print the problems of ``report`` and its count line; exit status 1."""
     for line in report.lines():
         print(line)
-    print(f"error: {len(report.problems)} of {report.checked} recorded episodes in {directory} failed "
-          "verification (missing, damaged, foreign or swapped); bullet-dlo capture ... --resume re-runs them",
-          file=sys.stderr)
+    what = []
+    if report.problems:
+        what.append(f"{len(report.problems)} of {report.checked} recorded episodes in {directory} failed "
+                    "verification (missing, damaged, foreign, swapped or non-finite)")
+    if report.missing:
+        what.append(f"{directory} is {report.incomplete()}")
+    print(f"error: {'; '.join(what)}; bullet-dlo capture ... --resume re-runs them", file=sys.stderr)
     return 1
 
 
 def cmd_dataset_verify(args: argparse.Namespace) -> int:
     """``dataset verify DIR``: every recorded episode file against its manifest line, nothing else."""
     _, report = _verified(args.dir)
-    if report.problems:
+    if not report.ok:
         return _verify_failed(report, args.dir)
-    print(f"{report.checked} recorded episodes in {args.dir}: {report.hashed} verified by sha256, "
+    plan = f" (of {report.planned} planned, none missing)" if report.planned is not None else ""
+    print(f"{report.checked} recorded episodes{plan} in {args.dir}: {report.hashed} verified by sha256, "
           f"{report.unhashed} without a recorded hash; no problems")
     for line in report.lines():
         print(line)
@@ -218,8 +224,10 @@ def cmd_dataset_summary(args: argparse.Namespace) -> int:
     if args.json:
         write_json(args.json, summary | {"verification": {"checked": report.checked, "hashed": report.hashed,
                                                           "unhashed": report.unhashed,
-                                                          "problems": [str(p) for p in report.problems]}})
-    if report.problems:
+                                                          "problems": [str(p) for p in report.problems],
+                                                          "planned": report.planned,
+                                                          "missing": report.missing}})
+    if not report.ok:
         return _verify_failed(report, args.dir)
     for line in report.lines():
         print(line)

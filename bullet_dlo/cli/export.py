@@ -15,9 +15,12 @@ def cmd_export_lerobot(args: argparse.Namespace) -> int:
 
     res = export_lerobot(args.dataset, args.target, fps=args.fps, cable_points=args.cable_points,
                          include_flagged=args.include_flagged, progress=not args.quiet)
-    skipped = f"; {len(res.skipped)} episode(s) not exported (status not ok)" if res.skipped else ""
+    skipped = f"; {len(res.skipped)} episode(s) not exported (status not ok or NaN data)" if res.skipped else ""
     print(f"{res.episodes} episodes, {res.frames} frames at {res.fps} fps"
           f"{' with video' if res.video else ''} -> {res.out}{skipped}")
+    for episode, why in res.skipped:
+        if why not in ("flagged", "failed"):
+            print(f"  not exported: episode {episode}: {why}")
     return 0
 
 
@@ -46,8 +49,8 @@ def add_parsers(sub, common: argparse.ArgumentParser) -> None:
     e.add_argument("--fps", type=int, default=None, help="frame rate of a capture's export [Hz] (default: the "
                    "camera rate if it rendered frames, else its record rate); rollouts use their control rate")
     e.add_argument("--cable-points", type=int, default=None, metavar="K",
-                   help="cable as K points evenly spaced by node index (needed when episodes differ in node count; "
-                        "default: the nodes as recorded)")
+                   help="cable as K points evenly spaced by node index, 2 <= K <= 10000 (needed when episodes differ "
+                        "in node count; default: the nodes as recorded)")
     e.add_argument("--include-flagged", action="store_true", help="also export flagged episodes (default: ok only)")
     e.set_defaults(func=cmd_export_lerobot)
     r = esub.add_parser("robomimic", parents=[common], help="robomimic HDF5 (rollouts: obs, actions, rewards)",

@@ -196,7 +196,9 @@ def main(argv: Sequence[str] | None = None) -> int:
                 print(f"error: {err}", file=sys.stderr)
                 return 2
             except KeyboardInterrupt:  # capture and rollouts report what they kept themselves; others stop here
-                print("interrupted (Ctrl-C): stopped; files already completed are kept", file=sys.stderr)
+                # on a line of its own (a progress bar may hold the current one); partial videos were removed
+                print("\ninterrupted (Ctrl-C): stopped; files already completed are kept, partial ones removed",
+                      file=sys.stderr)
                 return 130
             except BrokenPipeError:
                 return _reader_left()

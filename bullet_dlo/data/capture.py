@@ -151,7 +151,7 @@ def _capture_locked(spec: CaptureSpec, out: Path, episodes: int, workers: int, b
     from tqdm import tqdm
 
     damaged: list = []
-    records = prepare(spec, out, resume, damaged)
+    records = prepare(spec, out, resume, damaged, episodes)
     todo = [i for i in range(episodes) if records.get(i, {}).get("status") not in ("ok", "flagged")]
     tries = {i: 0 for i in todo}
     bar = tqdm(total=episodes, initial=episodes - len(todo), desc="episodes", unit="ep", disable=not progress)

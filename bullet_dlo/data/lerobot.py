@@ -22,7 +22,9 @@ i is the state when action i was chosen (the observation at reset, then after ea
 that action, its reward and ``next.done`` on the last frame; the state after the last action is
 not a frame (LeRobot's convention). Episodes of status ``ok`` are exported (``include_flagged``:
 flagged ones too); LeRobot's ``episode_index`` counts them from 0, ``source_episode`` is the
-episode number in the capture.
+episode number in the capture. An episode whose file holds NaN or inf in any column is left out
+like a flagged one, its reason in ``skipped``; a dataset with planned episodes that have no record
+(an interrupted capture, see :mod:`bullet_dlo.data.integrity`) is refused: resume it first.
 
 **Features** (float32 unless said; arms left, right as in the capture; j arm joints, n cable nodes):
 
@@ -74,6 +76,8 @@ DATA_PATH = "data/chunk-{chunk_index:03d}/file-{file_index:03d}.parquet"
 VIDEO_PATH = "videos/{video_key}/chunk-{chunk_index:03d}/file-{file_index:03d}.mp4"
 EPISODES_PATH = "meta/episodes/chunk-{chunk_index:03d}/file-{file_index:03d}.parquet"
 CAMERA = "observation.images.overview"
+MAX_CABLE_POINTS = 10_000
+"""Largest ``--cable-points`` (the capture's cables have at most 200 nodes; 10^4 points are ~0.1 MB a frame)."""
 QUANTILES = {"q01": 0.01, "q10": 0.10, "q50": 0.50, "q90": 0.90, "q99": 0.99}
 WRENCH_NAMES = ["fx", "fy", "fz", "mx", "my", "mz"]
 WRENCH_UNITS = ["N", "N", "N", "N m", "N m", "N m"]
@@ -99,7 +103,7 @@ class ExportResult:
     frames: int
     fps: int
     video: bool
-    skipped: list[tuple[int, str]] = field(default_factory=list)  # (source episode, status) not exported
+    skipped: list[tuple[int, str]] = field(default_factory=list)  # (source episode, status or reason) not exported
 
 
 def _require_pyarrow():
@@ -270,16 +274,25 @@ def export_lerobot(dataset_dir: str | Path, out_dir: str | Path, *, fps: int | N
     that many points (needed when episodes differ in node count). ParameterError for bad input."""
     from tqdm import tqdm
 
-    from bullet_dlo.data.reader import Dataset
+    from bullet_dlo.data.integrity import nonfinite_columns
+    from bullet_dlo.data.reader import Dataset, parse_episode
 
     pa, pq = _require_pyarrow()
     dataset_dir, out_dir = Path(dataset_dir), Path(out_dir)
     if not dataset_dir.is_dir():
         raise ParameterError(f"DATASET {dataset_dir} is not a directory")
     check_output_dir(out_dir)
-    if cable_points is not None and not (isinstance(cable_points, int) and cable_points >= 2):
-        raise ParameterError(f"--cable-points must be an integer >= 2, got {cable_points!r}")
+    if cable_points is not None and not (isinstance(cable_points, int) and not isinstance(cable_points, bool)
+                                         and 2 <= cable_points <= MAX_CABLE_POINTS):
+        raise ParameterError(f"--cable-points must be an integer in [2, {MAX_CABLE_POINTS}], got {cable_points!r}")
     ds = Dataset(dataset_dir)
+    missing = ds.missing()
+    if missing:
+        from bullet_dlo.data.integrity import VerifyReport
+
+        gap = VerifyReport(planned=ds.planned, missing=missing, recorded=len(ds.records)).incomplete()
+        raise ParameterError(f"DATASET {dataset_dir} is {gap}; bullet-dlo capture ... --resume runs them "
+                             "(dataset verify names every problem)")
     spec = ds.spec["spec"]
     rollout = "rollout" in spec
     statuses = ("ok", "flagged") if include_flagged else ("ok",)
@@ -303,8 +316,14 @@ def export_lerobot(dataset_dir: str | Path, out_dir: str | Path, *, fps: int | N
     episodes: list[dict[str, Any]] = []
     robots, joints, nodes = set(), set(), set()
     total = 0
-    for e, record in enumerate(tqdm(records, desc="export lerobot", unit="ep", disable=not progress)):
-        ep = ds.load(record)
+    for record in tqdm(records, desc="export lerobot", unit="ep", disable=not progress):
+        e = len(episodes)
+        data = ds._checked_bytes(record)
+        bad = nonfinite_columns(data)
+        if bad:
+            skipped.append((int(record["episode"]), "NaN or inf in " + ", ".join(sorted(bad))))
+            continue
+        ep = parse_episode(data)
         if rollout:
             rows, rate = _rollout_frames(ep)
             if fps is None:
@@ -364,6 +383,9 @@ def export_lerobot(dataset_dir: str | Path, out_dir: str | Path, *, fps: int | N
         info["_stats_pictures"] = ep_pictures
         episodes.append(info)
         total += k
+    if not episodes:
+        raise ParameterError(f"{dataset_dir} has no episode to export: " + "; ".join(
+            f"episode {i}: {why}" for i, why in skipped if why not in ("ok", "flagged", "failed"))[:300])
     if len(joints) != 1:
         raise ParameterError(f"episodes with arms of {sorted(joints)} joints cannot share observation.state")
     if pictures and len(pictures) != len(episodes):
@@ -441,11 +463,10 @@ def _write(pa, pq, root: Path, features: dict, cols: dict, pictures: list, episo
     video_info = None
     if pictures:
         path = root / VIDEO_PATH.format(video_key=CAMERA, chunk_index=0, file_index=0)
-        writer = VideoWriter(path, fps, fmt="mp4")
-        for block in pictures:
-            for img in block:
-                writer.write(img)
-        writer.close()
+        with VideoWriter(path, fps, fmt="mp4") as writer:
+            for block in pictures:
+                for img in block:
+                    writer.write(img)
         probe = probe_video(writer.path)
         video_info = {"video.height": probe["height"], "video.width": probe["width"], "video.codec": probe["codec"],
                       "video.pix_fmt": "yuv420p", "video.is_depth_map": False, "video.fps": int(fps),

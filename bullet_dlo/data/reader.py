@@ -22,7 +22,14 @@ from bullet_dlo.core.validate import ParameterError
 from bullet_dlo.data.quality import plot_quality
 from bullet_dlo.data.integrity import Problem, VerifyReport, check_record, verify_records
 from bullet_dlo.data.safeio import read_regular
-from bullet_dlo.data.storage import JSON_ATTRS, episode_name, is_capture_dir, read_manifest, read_spec_file
+from bullet_dlo.data.storage import (
+    JSON_ATTRS,
+    episode_name,
+    is_capture_dir,
+    planned_episodes,
+    read_manifest,
+    read_spec_file,
+)
 
 OLD_TARE_TILT = 0.01
 """[rad] A gripper tilt above which an episode recorded with the old sensor-frame tare is warned about."""
@@ -87,10 +94,20 @@ class Dataset:
             if report.problems:
                 raise DamagedDataset(self.root, report.problems)
 
+    @property
+    def planned(self) -> int | None:
+        """How many episodes (0..N-1) the captures into this directory asked for (None: not stored)."""
+        return planned_episodes(self.spec)
+
     def verify(self) -> VerifyReport:
-        """Every recorded episode file hashed and checked against its manifest line (see
-        :mod:`bullet_dlo.data.integrity`)."""
-        return verify_records(self.root, self._by_episode, self.spec["digest"])
+        """Every recorded episode file hashed and checked against its manifest line, its columns scanned
+        for NaN and inf, the records compared with the planned episodes (see :mod:`bullet_dlo.data.integrity`)."""
+        return verify_records(self.root, self._by_episode, self.spec["digest"], planned=self.planned)
+
+    def missing(self) -> list[int]:
+        """Planned episodes without a record (cheap: no file is read; see :meth:`verify`)."""
+        return verify_records(self.root, self._by_episode, self.spec["digest"], full=False,
+                              planned=self.planned).missing
 
     def select(self, status: str | None = "ok", where: Callable[[dict], bool] | None = None,
                max_hf_energy: float | None = None) -> list[dict]:

@@ -2,7 +2,8 @@
 
 Layout of a capture directory::
 
-    capture.json            the spec and its digest: a directory never mixes specs
+    capture.json            the spec, its digest (recomputed on every read: an edited spec is refused) and
+                            the number of episodes planned (``episodes``: the largest N a capture asked for)
     .lock                   held (flock) by the capture writing into the directory
     manifest.jsonl          one JSON record per finished episode (written by the coordinator only)
     episode_000012.h5       one file per episode, written as ``*.h5.tmp-<pid>`` and renamed when complete
@@ -23,6 +24,7 @@ line; what was written before stays as it was.
 from __future__ import annotations
 
 import errno
+import hashlib
 import io
 import json
 import os
@@ -33,7 +35,7 @@ from typing import Any, Iterator
 
 import numpy as np
 
-from bullet_dlo.config.capture import CaptureSpec
+from bullet_dlo.config.capture import RENAMED, CaptureSpec
 from bullet_dlo.core.validate import ParameterError
 from bullet_dlo.data.safeio import (
     NotARegularFile,
@@ -342,8 +344,19 @@ def is_capture_dir(root: Path) -> bool:
     return (root / SPEC_FILE).is_file()
 
 
+def spec_digest(spec: dict) -> str:
+    """The digest of a spec in its stored dict form, as :meth:`CaptureSpec.digest` (sample keys under their
+    names before :data:`~bullet_dlo.config.capture.RENAMED`) and ``RolloutSpec.digest`` (a ``rollout`` key)
+    compute it."""
+    if "rollout" not in spec and isinstance(spec.get("sample"), dict):
+        old = {new: before for before, new in RENAMED.items()}
+        spec = {**spec, "sample": {old.get(k, k): v for k, v in spec["sample"].items()}}
+    return hashlib.sha256(json.dumps(spec, sort_keys=True, default=str).encode()).hexdigest()[:16]
+
+
 def read_spec_file(out: Path) -> dict:
-    """The parsed ``capture.json`` of ``out`` (never read through a link); ParameterError when it is damaged."""
+    """The parsed ``capture.json`` of ``out`` (never read through a link); ParameterError when it is damaged,
+    or when its spec does not hash to its digest (edited after the capture)."""
     path = out / SPEC_FILE
     try:
         meta = json.loads(read_regular(path).decode("utf-8"))
@@ -353,7 +366,28 @@ def read_spec_file(out: Path) -> dict:
     if not isinstance(meta, dict) or not isinstance(meta.get("digest"), str):
         raise ParameterError(f"{path} holds no spec digest; the spec of this capture directory is unknown: "
                              "capture into a new directory")
+    if not isinstance(meta.get("spec"), dict) or spec_digest(meta["spec"]) != meta["digest"]:
+        found = spec_digest(meta["spec"]) if isinstance(meta.get("spec"), dict) else "no spec"
+        raise ParameterError(f"{path}: its spec does not match its digest {meta['digest']} ({found}): it was edited "
+                             "after the capture, and its episodes belong to the spec the digest names; restore it")
+    planned = meta.get("episodes")
+    if planned is not None and not (isinstance(planned, int) and not isinstance(planned, bool) and planned >= 0):
+        raise ParameterError(f"{path}: episodes must be the planned episode count (an integer >= 0), got "
+                             f"{planned!r}")
     return meta
+
+
+def planned_episodes(meta: dict) -> int | None:
+    """How many episodes (0..N-1) the captures into a directory asked for, from its ``capture.json``
+    (None: written before the count was stored)."""
+    return meta.get("episodes")
+
+
+def _write_spec_file(out: Path, digest: str, spec: dict, episodes: int | None) -> None:
+    meta = {"digest": digest, "spec": spec, "version": version()}
+    if episodes is not None:
+        meta["episodes"] = int(episodes)
+    atomic_write_bytes(out / SPEC_FILE, json.dumps(meta, indent=2, default=str).encode("utf-8"))
 
 
 @contextmanager
@@ -398,9 +432,11 @@ def locked(out: Path) -> Iterator[None]:
         fh.close()
 
 
-def prepare(spec: CaptureSpec, out: Path, resume: bool, damaged: list | None = None) -> dict[int, dict]:
+def prepare(spec: CaptureSpec, out: Path, resume: bool, damaged: list | None = None,
+            episodes: int | None = None) -> dict[int, dict]:
     """Claim ``out`` for ``spec`` (or check it holds this spec), clean temporaries, reconcile finished
-    files whose manifest line was lost; returns the manifest records.
+    files whose manifest line was lost; returns the manifest records. ``episodes``: the N of this run,
+    stored in ``capture.json`` (the largest asked for) so that ``dataset verify`` names episodes that vanished.
 
     A directory whose ``capture.json`` is missing or damaged while it holds episodes is refused:
     its spec is unknown, and mixing two specs in one directory is never allowed. On resume every
@@ -421,13 +457,16 @@ def prepare(spec: CaptureSpec, out: Path, resume: bool, damaged: list | None = N
                                  f"{spec.digest()}); use another directory")
         if not resume and (read_manifest(out) or any(out.glob("episode_*.h5"))):
             raise ParameterError(f"{out} already holds episodes of this spec; pass --resume to continue")
+        if episodes is not None:
+            planned = max(episodes, max(read_manifest(out), default=-1) + 1)
+            if old.get("episodes") is None or old["episodes"] < planned:
+                _write_spec_file(out, old["digest"], old["spec"], planned)  # the plan grows, never shrinks
     else:
         if entry_kind(out / MANIFEST) != "missing" or any(out.glob("episode_*.h5")):
             raise ParameterError(f"{out} holds episodes but no {SPEC_FILE}: their spec is unknown; capture into "
                                  "a new directory")
-        text = json.dumps({"digest": spec.digest(), "spec": spec.to_dict(), "version": version()}, indent=2,
-                          default=str)
-        atomic_write_bytes(meta, text.encode("utf-8"))  # a kill leaves either no spec file or a whole one
+        # a kill leaves either no spec file or a whole one
+        _write_spec_file(out, spec.digest(), json.loads(json.dumps(spec.to_dict(), default=str)), episodes)
     for tmp in out.glob("*.tmp-*"):
         if entry_kind(tmp) in ("file", "symbolic link"):
             tmp.unlink()  # a link goes, never what it points to

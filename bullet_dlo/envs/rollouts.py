@@ -144,7 +144,7 @@ def record_rollouts(env_id: str, policy: str | Policy, out: str | Path, episodes
         out.mkdir(parents=True, exist_ok=True)
         tic = time.perf_counter()
         with locked(out):
-            records = prepare(spec, out, resume)
+            records = prepare(spec, out, resume, episodes=episodes)
             todo = [i for i in range(episodes) if records.get(i, {}).get("status") not in ("ok", "flagged")]
             for index in tqdm(todo, desc="rollouts", unit="ep", disable=not progress):
                 append_manifest(out, _run_safely(env, fn, spec, index, out))

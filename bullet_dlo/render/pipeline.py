@@ -125,6 +125,7 @@ def render_scene(scene, out: str | Path, *, robot: str | None = None, fps: float
     free = (False, False) if arm_scene is not None else tuple(mode == "free" for mode in scene.ends)
     if arm_scene is not None and on_arm_scene is not None:
         on_arm_scene(arm_scene)
+    writer = bar = None
     try:
         ground = world.ground_height if world.ground_id is not None else -np.inf
         envelope = cable_envelope(cable.x[[0, -1]], scene.cable.length, scene.motion, free, ground)
@@ -181,5 +182,11 @@ def render_scene(scene, out: str | Path, *, robot: str | None = None, fps: float
         summary["run"] = str(out / RUN_FILE)
         (out / "render.json").write_text(json.dumps(summary, indent=2))
         return summary
+    except BaseException:
+        if bar is not None:
+            bar.close()  # before the caller's message, so that it gets a line of its own
+        if writer is not None:
+            writer.abort()  # a Ctrl-C leaves no partial video under the final name
+        raise
     finally:
         sim.close()

@@ -9,6 +9,7 @@
 """
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -28,7 +29,10 @@ class VideoWriter:
     """Write RGB frames (H, W, 3) uint8 to ``path`` (suffix chosen by the format that works).
 
     fmt: ``auto`` (H.264 MP4, else VP9 WebM, else PNG sequence) or one of mp4 | webm | png.
-    After :meth:`close`, ``path``, ``format`` and ``codec`` say what was written.
+    After :meth:`close`, ``path``, ``format`` and ``codec`` say what was written. A video is written under a
+    temporary name in the same folder (``.scene.mp4.part-<pid>``) and renamed to ``path`` by :meth:`close`,
+    so a file under its final name is always a whole video; :meth:`abort` (or leaving a ``with`` block by an
+    exception, a Ctrl-C included) removes the partial file.
     """
 
     def __init__(self, path: str | Path, fps: float, fmt: str = "auto"):
@@ -43,6 +47,16 @@ class VideoWriter:
         self.path: Path | None = None
         self.frames = 0
         self._container = self._stream = None
+        self._partial: Path | None = None
+
+    def __enter__(self) -> "VideoWriter":
+        return self
+
+    def __exit__(self, kind, *_) -> None:
+        if kind is None:
+            self.close()
+        else:
+            self.abort()
 
     def _open(self, width: int, height: int) -> None:
         order = FORMATS if self.wanted == "auto" else (self.wanted,)
@@ -58,8 +72,10 @@ class VideoWriter:
 
                 codec = "libx264" if fmt == "mp4" else "libvpx-vp9"
                 path = self.base.with_suffix("." + fmt)
+                partial = path.with_name(f".{path.name}.part-{os.getpid()}")
                 options = {"movflags": "+faststart"} if fmt == "mp4" else {}
-                container = av.open(str(path), "w", options=options)
+                container = av.open(str(partial), "w", format=fmt, options=options)
+                self._partial = partial
                 stream = container.add_stream(codec, rate=int(round(self.fps)))
                 stream.width, stream.height, stream.pix_fmt = width, height, "yuv420p"
                 if fmt == "mp4":
@@ -92,6 +108,20 @@ class VideoWriter:
                 self._container.mux(packet)
             self._container.close()
             self._container = None
+            os.replace(self._partial, self.path)
+            self._partial = None
+
+    def abort(self) -> None:
+        """Stop writing and remove the partial video (the final name is never written; PNG frames stay)."""
+        container, self._container = self._container, None
+        if container is not None:
+            try:
+                container.close()
+            except Exception:  # noqa: BLE001 - the file goes anyway
+                pass
+        if self._partial is not None:
+            self._partial.unlink(missing_ok=True)
+            self._partial = None
 
 
 def probe_video(path: str | Path) -> dict:
@@ -159,7 +189,7 @@ def side_by_side(scene_video: str | Path, plot: PlotInfo, t_frames: np.ndarray, 
     image = cv2.imread(str(plot.path))[:, :, ::-1]
     writer = VideoWriter(out_path, fps)
     t0, t1 = plot.t_range
-    with av.open(str(scene_video)) as container:
+    with writer, av.open(str(scene_video)) as container:
         for k, frame in enumerate(container.decode(video=0)):
             scene = frame.to_ndarray(format="rgb24")
             h = scene.shape[0]
@@ -171,5 +201,4 @@ def side_by_side(scene_video: str | Path, plot: PlotInfo, t_frames: np.ndarray, 
                 x = int((x0 + (x1 - x0) * (t - t0) / max(t1 - t0, 1e-9)) * scale)
                 cv2.line(right, (x, int(y0 * scale)), (x, int(y1 * scale)), (220, 30, 30), 2)
             writer.write(np.concatenate([scene, right], axis=1))
-    writer.close()
     return writer

@@ -244,7 +244,7 @@ def build_cases() -> list[Case]:
         cases.append(Case(" ".join(argv[:1] + argv[2:] if argv[0] != "dataset" else argv), argv, names,
                           {**scene, "c.yaml": SPEC}))
     # damaged capture directories given to dataset summary
-    good_json = '{"digest": "x", "spec": {}, "version": "0"}'
+    good_json = '{"digest": "44136fa355b3678a", "spec": {}, "version": "0"}'  # the digest of {} (checked on read)
     damaged = {
         "garbage manifest": "not json at all\n{\"episode\": \n",
         "manifest of non-records": "[1, 2]\n\"text\"\n",

@@ -225,6 +225,7 @@ def test_every_damaged_episode_is_named_and_resume_reruns_it(tmp_path, capsys):
     capture(CaptureSpec(seed=2), other, 9, progress=False, task=fake_episode)
     original = {p.name: p.read_bytes() for p in out.glob("episode_*.h5")}
     assert all({"size", "sha256", "version", "spec_digest"} <= set(r) for r in lines(out))
+    assert json.loads((out / "capture.json").read_text())["episodes"] == 10  # the plan, for dataset verify
     expected = damage(out, other)
 
     report = Dataset(out, check=False).verify()

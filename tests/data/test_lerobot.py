@@ -259,3 +259,31 @@ def test_bad_input_is_one_line_and_exit_2(rolled, tmp_path, capsys):
     assert [line.split(":")[0] for line in err] == ["error", "error"]
     assert "not a capture directory" in err[0] and "not empty" in err[1]
     assert not (tmp_path / "o").exists()
+
+
+def test_an_episode_with_nan_is_left_out_and_cable_points_are_bounded(rolled, tmp_path, capsys):
+    """Issue 26 audit: a NaN inside a re-hashed episode reached the parquet and stats.json; --cable-points
+    100000000 asked for 402 GiB (MemoryError traceback)."""
+    import hashlib
+    import shutil
+
+    import h5py
+
+    src = tmp_path / "roll"
+    shutil.copytree(rolled, src)
+    path = src / "episode_000001.h5"
+    with h5py.File(path, "r+") as f:
+        f["wrench_sensor"][0, 0, 0] = np.nan
+    data = path.read_bytes()
+    recs = [json.loads(line) for line in (src / "manifest.jsonl").read_text().splitlines()]
+    for r in recs:
+        if r["episode"] == 1:
+            r.update(sha256=hashlib.sha256(data).hexdigest(), size=len(data))
+    (src / "manifest.jsonl").write_text("".join(json.dumps(r) + "\n" for r in recs))
+    res = export_lerobot(src, tmp_path / "lr")
+    assert res.episodes == 1 and res.skipped == [(1, "NaN or inf in wrench_sensor")]
+    stats = json.loads((tmp_path / "lr" / "meta" / "stats.json").read_text())
+    assert np.all(np.isfinite(stats["observation.wrench.left"]["mean"]))
+    assert main(["export", "lerobot", str(rolled), str(tmp_path / "big"), "--cable-points", "100000000"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--cable-points must be an integer in [2, 10000]" in err[0], err

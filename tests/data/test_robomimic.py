@@ -52,6 +52,9 @@ def test_bad_input_is_one_line_and_exit_2(rolled, tmp_path, capsys, case, words)
         shutil.copytree(rolled, cap)
         meta = json.loads((cap / "capture.json").read_text())
         meta["spec"].pop("rollout")
+        from bullet_dlo.data.storage import spec_digest
+
+        meta["digest"] = spec_digest(meta["spec"])  # a consistent capture.json (an edited one is refused)
         (cap / "capture.json").write_text(json.dumps(meta))
     target = {"capture": tmp_path / "a.hdf5", "exists": tmp_path / "old.hdf5", "suffix": tmp_path / "a.txt"}[case]
     source = cap if case == "capture" else rolled

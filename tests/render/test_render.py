@@ -116,3 +116,20 @@ def test_fallback_formats_and_side_by_side(tmp_path):
     sbs = side_by_side(mp4.path, plot, t, tmp_path / "sbs", fps=10)
     info = probe_video(sbs.path)
     assert info["frames"] == 5 and info["width"] > 64 and info["height"] == 48
+
+
+def test_an_interrupted_video_leaves_no_file_under_its_final_name(tmp_path):
+    """Issue 26 audit: a Ctrl-C during ``render`` left a 48-byte scene.mp4 PyAV cannot open. Videos are written
+    under a temporary name and renamed when closed; an interrupt removes the partial file."""
+    frames = [np.full((48, 64, 3), k * 20, dtype=np.uint8) for k in range(5)]
+    with pytest.raises(KeyboardInterrupt):
+        with VideoWriter(tmp_path / "scene", fps=10, fmt="mp4") as writer:
+            for f in frames:
+                writer.write(f)
+            assert not (tmp_path / "scene.mp4").exists()
+            raise KeyboardInterrupt
+    assert list(tmp_path.iterdir()) == []
+    with VideoWriter(tmp_path / "scene", fps=10, fmt="mp4") as writer:
+        for f in frames:
+            writer.write(f)
+    assert [p.name for p in tmp_path.iterdir()] == ["scene.mp4"] and probe_video(writer.path)["frames"] == 5
