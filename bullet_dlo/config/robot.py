@@ -12,6 +12,7 @@ import warnings
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, Callable, Mapping
 
+import numpy as np
 import yaml
 
 from bullet_dlo.assets import ROBOTS_DIR
@@ -112,6 +113,9 @@ class RobotSpec:
     grasp_link: link whose frame is the grasp frame (z approach, x along the held cable);
     home: arm joint angles [rad]; finger_joints: the fingers, made rigid at finger_closed [m or rad]
     (their closed position) when the robot is loaded (:func:`bullet_dlo.robots.compose.rigid_fingers`);
+    inertias: (link name, (ixx, iyy, izz) [kg m^2]) pairs replacing those links' rotational inertias
+    (principal, about their centres of mass, in their inertial frames; masses and centres of mass stay the
+    URDF's), e.g. physical values where the URDF has placeholders;
     name: the robot's name; sensor_joint: the joint whose reaction the wrist sensor reads; mount_link: the
     arm link the gripper is mounted on; max_force_scale: factor [-] on the arm's joint force limits;
     source: the YAML file it was read from.
@@ -128,7 +132,20 @@ class RobotSpec:
     finger_joints: tuple[str, ...] = ()
     finger_closed: float = 0.0
     max_force_scale: float = 1.0
+    inertias: tuple[tuple[str, tuple[float, float, float]], ...] = ()
     source: str = ""
+
+    def __post_init__(self) -> None:
+        pairs = dict(self.inertias).items() if isinstance(self.inertias, Mapping) else self.inertias
+        out = []
+        for link, values in pairs:
+            moments = check_vector3(f"robot {self.name!r} inertias.{link} [kg m^2]", values)
+            if np.any(moments < 0) or not np.all(np.isfinite(moments)) or np.any(moments > 1e3) or (
+                    moments.sum() - 2 * moments.max() < -1e-12 * moments.sum()):
+                raise ParameterError(f"robot {self.name!r} inertias.{link} must be three principal moments in "
+                                     f"[0, 1000] kg m^2, each at most the sum of the other two, got {list(values)}")
+            out.append((str(link), tuple(float(v) for v in moments)))
+        object.__setattr__(self, "inertias", tuple(out))
 
 
 def robot_names() -> list[str]:

@@ -35,7 +35,27 @@ def robot_urdf(spec: RobotSpec) -> Path:
         arm = compose_with_gripper(arm, _load(URDF_DIR / spec.gripper), spec.mount_link, spec.mount_xyz,
                                    spec.sensor_joint)
     rigid_fingers(arm, spec.finger_joints, spec.finger_closed)
+    set_inertias(arm, spec.inertias)
     return _write_cached(arm)
+
+
+def set_inertias(robot: yourdfpy.Robot, inertias: Sequence[tuple[str, Sequence[float]]]) -> None:
+    """Replace the rotational inertia of each named link by the principal moments (ixx, iyy, izz) [kg m^2]
+    about its centre of mass, in its inertial frame (masses and centres of mass unchanged), in place.
+
+    pybullet_data's panda.urdf gives every link a placeholder 0.1 kg m^2 (a massless grasp target too):
+    for the hand that is 40 to 100 times Franka's published values, and a wrist sensor whose payload
+    is identified as on a real robot (mass and centre of mass) read its turning hand's I alpha, about
+    1 N m, as a load (``robots/panda.yaml`` sets the published values).
+    """
+    links = {link.name: link for link in robot.links}
+    for name, moments in inertias:
+        link = links.get(name)
+        if link is None:
+            raise ParameterError(f"robot {robot.name!r} has no link {name!r} to set the inertia of")
+        if link.inertial is None:
+            link.inertial = yourdfpy.Inertial(mass=0.0, origin=np.eye(4), inertia=np.zeros((3, 3)))
+        link.inertial.inertia = np.diag(np.asarray(moments, dtype=float))
 
 
 def _load(path: Path) -> yourdfpy.Robot:

@@ -27,7 +27,7 @@ the held cable pulls on the gripper (a hanging cable gives a negative z force in
 from __future__ import annotations
 
 import warnings
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Callable, Sequence
 
 import numpy as np
@@ -79,7 +79,8 @@ def sensor_links(robot: Robot) -> list[int]:
 COMPENSATIONS = PAYLOADS
 """How a wrist sensor knows its payload (the scene's ``arms.payload``): ``urdf``: every tool-side link's mass, centre of mass and
 inertia from the robot description; ``calibrated``: mass and centre of mass identified from unloaded
-readings at several orientations (:func:`identify_payload`), as users of real F/T sensors do."""
+readings at several orientations (:func:`identify_payload`), then the rotational inertia from swings of
+the wrist (:func:`identify_inertia`), as users of real F/T sensors do."""
 
 
 def urdf_payload(robot: Robot, gravity: Sequence[float]) -> Payload:
@@ -92,11 +93,13 @@ def urdf_payload(robot: Robot, gravity: Sequence[float]) -> Payload:
 
 @dataclass(frozen=True)
 class PayloadFit:
-    """A payload identified from unloaded sensor readings at rest (:func:`identify_payload`).
+    """A payload identified from unloaded sensor readings (:func:`identify_payload` at rest, then
+    :func:`identify_inertia` while the wrist swings).
 
     mass [kg]; com [m]: its centre of mass in the sensor frame; force_offset [N], moment_offset
     [N m]: the sensor's own offset (sensor frame); rms_force [N], rms_moment [N m]: residuals of the
-    fit; orientations: how many readings it used.
+    static fit; orientations: how many readings it used; inertia [kg m^2]: its principal moments of
+    inertia about its centre of mass along the sensor frame's axes (zero: not identified).
     """
 
     mass: float
@@ -106,10 +109,13 @@ class PayloadFit:
     rms_force: float
     rms_moment: float
     orientations: int
+    inertia: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
     def payload(self, gravity: Sequence[float]) -> Payload:
-        """As the sensor kernel takes it: one body on the sensor's own row, no rotational inertia."""
-        return Payload(np.array([self.mass]), np.array([self.com]), np.zeros((1, 3)), np.array(gravity, dtype=float))
+        """As the sensor kernel takes it: one body on the sensor's own row (its rotational inertia along the
+        sensor frame's axes)."""
+        return Payload(np.array([self.mass]), np.array([self.com]), np.array([self.inertia], dtype=float),
+                       np.array(gravity, dtype=float))
 
 
 def identify_payload(rotations: np.ndarray, reactions: np.ndarray, gravity: Sequence[float]) -> PayloadFit:
@@ -139,6 +145,32 @@ def identify_payload(rotations: np.ndarray, reactions: np.ndarray, gravity: Sequ
     return PayloadFit(float(mass), tuple(float(v) for v in com), tuple(float(v) for v in f0),
                       tuple(float(v) for v in sol_m[3:]), float(np.sqrt(np.mean(res_f ** 2))),
                       float(np.sqrt(np.mean(res_m ** 2))), m)
+
+
+def identify_inertia(fit: PayloadFit, rotations: np.ndarray, accelerations: np.ndarray,
+                     angular_accelerations: np.ndarray, moments: np.ndarray, gravity: Sequence[float]) -> PayloadFit:
+    """``fit`` with the payload's rotational inertia identified, by least squares, from readings while the
+    wrist swings, taken where it turns back (angular velocity near zero, angular acceleration large).
+
+    rotations (m, 3, 3): the sensor frame's orientation (sensor -> world); accelerations (m, 3) [m/s^2],
+    angular_accelerations (m, 3) [rad/s^2]: the sensor frame origin's, world frame; moments (m, 3) [N m]: the
+    sensor joint's reaction moment then (sensor frame, about its origin); gravity [m/s^2] (3,). With no
+    angular velocity the arm applies m = J alpha + M c x (a + alpha x c - g) - m0 (sensor frame, ``fit``'s
+    M, c and m0), linear in the principal moments of J along the sensor frame's axes, each fitted on its own.
+    Bullet's joint reaction is right here, as at rest: its error while the links turn is of their velocities
+    (see the module doc). Moments the swings did not excite stay zero; a negative fit (noise) is clipped to zero.
+    """
+    rot = np.asarray(rotations, dtype=float)
+    to_sensor = lambda v: np.einsum("kji,kj->ki", rot, np.asarray(v, dtype=float))  # noqa: E731  R^T v per row
+    alpha, acc = to_sensor(angular_accelerations), to_sensor(accelerations)
+    g = np.einsum("kji,j->ki", rot, np.asarray(gravity, dtype=float))
+    c = np.asarray(fit.com, dtype=float)
+    lever = fit.mass * np.cross(c, acc + np.cross(alpha, c) - g)
+    rest = np.asarray(moments, dtype=float) - lever + np.asarray(fit.moment_offset, dtype=float)  # = J alpha
+    den = np.einsum("ki,ki->i", alpha, alpha)
+    excited = den > 1e-6 * max(float(den.max()), 1e-300)
+    inertia = np.where(excited, np.einsum("ki,ki->i", alpha, rest) / np.where(excited, den, 1.0), 0.0)
+    return replace(fit, inertia=tuple(float(max(v, 0.0)) for v in inertia))
 
 
 def skew(v: Sequence[float]) -> np.ndarray:

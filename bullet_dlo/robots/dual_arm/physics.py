@@ -46,7 +46,7 @@ from bullet_dlo.core.statics import solve_static
 from bullet_dlo.core.validate import ParameterError
 from bullet_dlo.robots.arm import Robot
 from bullet_dlo.robots.kernels import FRAME_QUAT, grasp_frames
-from bullet_dlo.robots.sensors import PayloadFit, identify_payload, sensor_links
+from bullet_dlo.robots.sensors import PayloadFit, identify_inertia, identify_payload, sensor_links
 from bullet_dlo.robots.transforms import quat_from_axes, rotation
 
 ARMS = ("left", "right")
@@ -60,6 +60,9 @@ Bullet's position motors (gain 0.1) remove 10 % of the arms' sag per step, so 15
 below 1e-6 of it; with 22, the tare held the payload's m a of a still-settling arm, which every
 later (inertia-compensated) reading carried as a bias ~ 1/dt: +1.0 % of the vertical load and
 0.5 mN sideways on the Panda at 1 kHz (``python demos/sensor_bias.py``)."""
+SWING = (0.05, 3.0, 2.0)
+"""A payload calibration's wrist swings (:meth:`DualArmPhysics.calibrate_payloads`): amplitude [rad], frequency
+[Hz] and periods of each of the last three joints in turn; about 20 rad/s^2 at the wrist, where it turns back."""
 SOLVER_RESIDUAL = 1e-9
 """Bullet's solver residual threshold in the dual-arm world (its default: 1e-7)."""
 NO_CONTACT_NODES = 3
@@ -212,8 +215,10 @@ class DualArmPhysics:
         """Identify each wrist sensor's payload (mass, centre of mass, offset) as on a real robot: turn each
         unloaded gripper about its grasp point by each rotation vector of ``tilts`` [rad] (world frame),
         settle, read the sensor joint and fit (:func:`~bullet_dlo.robots.sensors.identify_payload`);
-        then back to the grasp pose and settle. Poses the IK cannot reach exactly are used as reached
-        (the fit takes the measured orientation). Call before the cable is attached."""
+        then back to the grasp pose and settle; then the payload's rotational inertia from swings of the wrist
+        there (:meth:`_swing_wrists`, :func:`~bullet_dlo.robots.sensors.identify_inertia`). Poses the IK cannot
+        reach exactly are used as reached (the fit takes the measured orientation). Call before the cable is
+        attached."""
         homes = [r.joint_positions() for r in self.robots]
         links = [sensor_links(r)[0] for r in self.robots]  # the sensor frame is this link's CoM frame
         joints = [r.joint_index[r.spec.sensor_joint] for r in self.robots]
@@ -235,7 +240,56 @@ class DualArmPhysics:
         for robot, q in zip(self.robots, homes):
             robot.reset_joints(q)
         self.world.step_bare(SETTLE_STEPS)
-        return [identify_payload(np.array(rotations[a]), np.array(reactions[a]), self.world.gravity) for a in (0, 1)]
+        fits = [identify_payload(np.array(rotations[a]), np.array(reactions[a]), self.world.gravity) for a in (0, 1)]
+        return [identify_inertia(fit, *swing, self.world.gravity) for fit, swing in zip(fits, self._swing_wrists())]
+
+    def _swing_wrists(self) -> list[tuple[np.ndarray, ...]]:
+        """Both unloaded arms at rest swing each of their last three joints in turn by :data:`SWING` (amplitude
+        [rad], frequency [Hz], periods) about the pose they hold, then settle back; per arm the readings where the
+        wrist turns back (angular velocity below 5 % of its largest, angular acceleration above 30 %): the sensor
+        frame's rotations (m, 3, 3), its origin's acceleration and angular acceleration (backward differences of the
+        link velocities, world frame, (m, 3) each) and the sensor joint's reaction moment (m, 3) (for
+        :func:`~bullet_dlo.robots.sensors.identify_inertia`)."""
+        cid, dt = self.world.client, self.world.dt
+        amplitude, frequency, periods = SWING
+        links = [sensor_links(r)[0] for r in self.robots]
+        joints = [r.joint_index[r.spec.sensor_joint] for r in self.robots]
+        homes = [r.joint_positions() for r in self.robots]
+
+        def read(arm: int) -> tuple[np.ndarray, ...]:
+            robot = self.robots[arm]
+            state = pb.getLinkState(robot.body, links[arm], computeLinkVelocity=1, physicsClientId=cid)
+            moment = pb.getJointState(robot.body, joints[arm], physicsClientId=cid)[2][3:]
+            return rotation(state[1]), np.array(state[6]), np.array(state[7]), np.array(moment)
+
+        out: list[list[list[np.ndarray]]] = [[[], [], [], []], [[], [], [], []]]
+        steps = int(round(periods / frequency / dt))
+        for back in (3, 2, 1):
+            runs: list[list[tuple]] = [[], []]
+            prev = [read(a) for a in (0, 1)]
+            for k in range(1, steps + 1):
+                for robot, q in zip(self.robots, homes):
+                    target = q.copy()
+                    target[max(len(q) - back, 0)] += amplitude * np.sin(2.0 * np.pi * frequency * k * dt)
+                    robot.set_targets(target)
+                self.world.step_bare(1)
+                for arm in (0, 1):
+                    now = read(arm)
+                    runs[arm].append((now[0], (now[1] - prev[arm][1]) / dt, (now[2] - prev[arm][2]) / dt, now[2],
+                                      now[3]))
+                    prev[arm] = now
+            for arm in (0, 1):
+                spin = np.array([np.linalg.norm(r[3]) for r in runs[arm]])
+                turn = np.array([np.linalg.norm(r[2]) for r in runs[arm]])
+                for r, w, a in zip(runs[arm], spin, turn):
+                    if w <= 0.05 * spin.max() and a >= 0.3 * turn.max():
+                        for store, value in zip(out[arm], (r[0], r[1], r[2], r[4])):
+                            store.append(value)
+            for robot, q in zip(self.robots, homes):
+                robot.set_targets(q)
+            self.world.step_bare(SETTLE_STEPS)
+        return [tuple(np.array(v).reshape(-1, *((3, 3) if i == 0 else (3,))) for i, v in enumerate(out[a]))
+                for a in (0, 1)]
 
     # ----- the grasp coupling --------------------------------------------------------------------
     def clamp(self, arm: int) -> None:
