@@ -2,8 +2,9 @@
 
 ``simulate(model, "implicit_euler", dt=1e-3, duration=2.0)`` runs the whole time loop in
 Numba (:func:`bullet_dlo.core.kernels.loop.run_loop`, so even 1e-7 s steps are affordable; in pieces of
-about 0.1 s, so that a Ctrl-C stops it promptly, with the one-call result bit for bit) and returns a :class:`SimulationResult`. An unstable run is data, not an exception: the
-result says when it went unstable and why.
+about 0.1 s, so that a Ctrl-C stops it promptly, with the one-call result bit for bit) and returns
+a :class:`SimulationResult`. An unstable run is data, not an exception: the result says when it went
+unstable and why.
 
 Instability detector (cheap checks every ``check_every`` steps, energy every ``energy_every``):
 
