@@ -1,9 +1,10 @@
 """The core engine: run a cable model with one integrator, watch for instability, record.
 
 ``simulate(model, "implicit_euler", dt=1e-3, duration=2.0)`` runs the whole time loop in
-Numba (:func:`bullet_dlo.core.kernels.loop.run_loop`, so even 1e-7 s steps are affordable)
-and returns a :class:`SimulationResult`. An unstable run is data, not an exception: the
-result says when it went unstable and why.
+Numba (:func:`bullet_dlo.core.kernels.loop.run_loop`, so even 1e-7 s steps are affordable; in pieces of
+about 0.1 s, so that a Ctrl-C stops it promptly, with the one-call result bit for bit) and returns
+a :class:`SimulationResult`. An unstable run is data, not an exception: the result says when it went
+unstable and why.
 
 Instability detector (cheap checks every ``check_every`` steps, energy every ``energy_every``):
 
@@ -32,7 +33,7 @@ import numpy as np
 from bullet_dlo.core.integrators import NewtonOptions, get_integrator, make_stepper
 from bullet_dlo.core.kernels.forces import clamp_torque, internal_energy, max_strain, mechanical_energy
 from bullet_dlo.core.kernels.holders import HeldSamples, empty_samples, peak_speeds, sample_holders
-from bullet_dlo.core.kernels.loop import make_records, run_loop
+from bullet_dlo.core.kernels.loop import make_records, run_loop, start_loop
 from bullet_dlo.core.kernels.monitor import REASONS, STABLE, STRETCH, Detector, clamp_moments, end_forces
 from bullet_dlo.core.kernels.steppers import make_workspace
 from bullet_dlo.core.model import CableModel, CableState, KernelArrays
@@ -248,6 +249,26 @@ def confirm_strain(model: CableModel, first: SimulationResult,
     return first
 
 
+PIECE_S = 0.1  # wall time [s] a piece of the compiled time loop aims at: Python sees a Ctrl-C between pieces
+FIRST_PIECE = 16  # steps of the first piece; each next one is sized from the last one's speed, at most 8x longer
+
+
+def run_in_pieces(run: Callable[[int], int], n_steps: int) -> None:
+    """Call ``run(stop)`` (the compiled loop up to step ``stop``, returning its status) with growing ``stop``
+    until ``n_steps`` or an unstable status, each call sized to take about :data:`PIECE_S`: a Ctrl-C (which
+    Python raises only once a compiled call returns) then stops a run within about that time, however long
+    the run. The loop carries its whole state between calls, so the pieces give the one-call result bit for bit."""
+    done, piece = 0, FIRST_PIECE
+    while done < n_steps:
+        stop = min(n_steps, done + piece)
+        tic = time.perf_counter()
+        if run(stop) != STABLE:
+            return
+        took, ran = time.perf_counter() - tic, stop - done
+        piece = max(1, min(8 * ran, int(ran * PIECE_S / took) if took > 0 else 8 * ran))
+        done = stop
+
+
 def _simulate(model: CableModel, integrator: str, dt: float, duration: float, *, state: CableState | None,
               record_every: int | None, max_records: int, newton: NewtonOptions, detector: DetectorOptions,
               f_ext: np.ndarray | None) -> SimulationResult:
@@ -273,12 +294,15 @@ def _simulate(model: CableModel, integrator: str, dt: float, duration: float, *,
     rec = make_records(n_steps // record_every + 3, n, record_every)
     x, v = st.x, st.v
     ws = make_workspace(n)
+    loop = start_loop(det)
     tic = time.perf_counter()
-    run_loop(stepper, m, plan, x, v, st.t, 0, det, ws, rec)  # zero steps: compiles or loads, changes nothing
+    run_loop(stepper, m, plan, x, v, st.t, n_steps, 0, det, ws, rec, loop)  # no step: compiles/loads, records row 0
     compile_s = time.perf_counter() - tic
     tic = time.perf_counter()
-    steps, status, t_bad, rows, failures, iters = run_loop(stepper, m, plan, x, v, st.t, n_steps, det, ws, rec)
+    run_in_pieces(lambda stop: run_loop(stepper, m, plan, x, v, st.t, n_steps, stop, det, ws, rec, loop), n_steps)
     wall = time.perf_counter() - tic
+    steps, rows, failures, iters, status = (int(c) for c in loop.counts)
+    t_bad = float(loop.t_bad[0])
     t_final = st.t + steps * dt
     moments = np.zeros((2, 3))
     if status == STABLE:

@@ -15,7 +15,7 @@ from bullet_dlo.core.engine import DetectorOptions, simulate, start_detector
 from bullet_dlo.core.integrators import NewtonOptions, get_integrator, make_stepper
 from bullet_dlo.core.kernels.forces import mechanical_energy
 from bullet_dlo.core.kernels.holders import empty_samples, sample_holders
-from bullet_dlo.core.kernels.loop import make_records, run_loop
+from bullet_dlo.core.kernels.loop import make_records, run_loop, start_loop
 from bullet_dlo.core.kernels.steppers import make_workspace
 from bullet_dlo.core.model import CableModel
 from bullet_dlo.core.spec import CableSpec
@@ -48,9 +48,10 @@ def test_energy_balance_closes_with_the_clamp_moment_work():
     det = start_detector(DetectorOptions(), model, m, st.x, st.v, samples)
     stepper = make_stepper(get_integrator("implicit_midpoint"), dt, NewtonOptions())
     x, v = st.x.copy(), st.v.copy()
-    done, status, *_ = run_loop(stepper, m, plan, x, v, 0.0, steps, det, make_workspace(model.n),
-                                make_records(steps + 3, model.n, 1))
-    assert done == steps and status == 0
+    loop = start_loop(det)
+    status = run_loop(stepper, m, plan, x, v, 0.0, steps, steps, det, make_workspace(model.n),
+                      make_records(steps + 3, model.n, 1), loop)
+    assert loop.counts[0] == steps and status == 0
     sample_holders(plan, steps * dt, 0.0, samples)
     created = mechanical_energy(m, x, v, samples.dir[0]) - det.e0 - det.work[0]
     floor = SPEC.bending_rigidity / SPEC.length
