@@ -11,6 +11,8 @@ term); the detector now pays it as far as the rows, detected again, hold it.
 """
 from __future__ import annotations
 
+from contextlib import contextmanager
+
 import numpy as np
 import pybullet as pb
 import pytest
@@ -31,17 +33,25 @@ def _drop_duck(world, height: float) -> int:
     return duck
 
 
+SPEC = CableSpec.lv2017(n_masses=20, damping=0.02)
+
+
+@contextmanager
+def _duck_on_cable(dt: float):
+    """A world at step ``dt`` [s] with the Lv cable (n 20) lying on the ground along x, settled 0.1 s, and the
+    duck's lowest point 2 cm above the cable's top: (world, cable, duck)."""
+    r = SPEC.diameter / 2
+    with BulletWorld(dt=dt) as world:
+        cable = world.add_cable(SPEC, start=(-0.15, 0.0, r), direction=(1, 0, 0))
+        world.run(0.1)
+        yield world, cable, _drop_duck(world, 2 * r + 0.02)
+
+
 def test_a_compound_rocking_on_the_ground_and_the_cable_is_no_energy_alarm():
     """The duck (100 g) dropped 2 cm on a Lv cable lying on the ground, 60 Hz, 1.5 s: stable (before: stopped
     as "energy growth" at 1.17 s). (That the check still sees energy made in contact:
     test_contact_twoway.py::test_energy_check_catches_energy_made_in_contact.)"""
-    spec = CableSpec.lv2017(n_masses=20, damping=0.02)
-    r = spec.diameter / 2
-    with BulletWorld(dt=1 / 60) as world:
-        cid = world.client
-        cable = world.add_cable(spec, start=(-0.15, 0.0, r), direction=(1, 0, 0))
-        world.run(0.1)
-        duck = _drop_duck(world, 2 * r + 0.02)
+    with _duck_on_cable(1 / 60) as (world, cable, duck):
         peak = 0.0
         for _ in range(world.steps_in(1.5)):
             world.step()
@@ -57,13 +67,8 @@ def test_a_compound_resting_on_one_ground_point_and_the_cable_comes_to_rest(mass
     Bullet's contact points under the duck). Before the held load was under-relaxed (held_bodies.RELAX), the 2 g duck
     was still thrown about at 0.3 m/s and the 100 g one jittered (4.4e-3 m/s), the ground's load swinging between
     0.88 and 1.10 of the weights from step to step (Bullet rests the duck alone on the ground within 5e-5 m/s)."""
-    spec = CableSpec.lv2017(n_masses=20, damping=0.02)
-    r = spec.diameter / 2
-    with BulletWorld(dt=1 / 240) as world:
+    with _duck_on_cable(1 / 240) as (world, cable, duck):
         cid = world.client
-        cable = world.add_cable(spec, start=(-0.15, 0.0, r), direction=(1, 0, 0))
-        world.run(0.1)
-        duck = _drop_duck(world, 2 * r + 0.02)
         pb.changeDynamics(duck, -1, mass=mass, physicsClientId=cid)
         speeds = []
         for _ in range(world.steps_in(2.0)):
@@ -74,4 +79,4 @@ def test_a_compound_resting_on_one_ground_point_and_the_cable_comes_to_rest(mass
         forces = cable.contact_forces()
         on_cable = float(forces["force"][forces["body"] == world.ground_id, 2].sum())
         under_duck = sum(c[9] * c[7][2] for c in pb.getContactPoints(duck, world.ground_id, physicsClientId=cid))
-        assert abs(on_cable + abs(under_duck)) / ((spec.mass + mass) * G) == pytest.approx(1.0, abs=0.01)
+        assert abs(on_cable + abs(under_duck)) / ((SPEC.mass + mass) * G) == pytest.approx(1.0, abs=0.01)
