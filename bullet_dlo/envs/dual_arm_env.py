@@ -14,8 +14,9 @@ the arm's reach (the IK misses it by more than 1 mm: out of the workspace, a joi
 leaves that arm's target and joint targets as they were, and so does one that takes it more than
 :meth:`DualArmEnv.lag_limit` from a grasp frame that does not follow (blocked by an obstacle, the
 table or the other arm) and farther than it was: reversing acts at once, with no wind-up hidden
-from the observation. ``info["gripper_lag"]`` (2,) [m]: each grasp frame's distance from its target. ``control_dt`` [s] must be a whole multiple of the physics step
-(ParameterError otherwise), checked at construction for every dt the randomisation can draw.
+from the observation. ``info["gripper_lag"]`` (2,) [m]: each grasp frame's distance from its target.
+``control_dt`` [s] must be a whole multiple of the physics step (ParameterError otherwise), checked at
+construction for every dt the randomisation can draw.
 
 **Observation** (a Dict, float32 unless said; arms in the order left, right; j arm joints):
 
