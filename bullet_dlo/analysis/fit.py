@@ -793,9 +793,9 @@ def discrepancy_reasons(blocks: int, ratio: float, wh, noise_ratio: float, optio
     level [-]."""
     out = []
     if noise_ratio > options.max_noise_ratio and not wh.white:
-        out.append(f"the residual is {noise_ratio:.3g}x the recordings' noise level (limit {options.max_noise_ratio:g}) "
-                   f"and not white (Ljung-Box p {wh.p_value:.2g}): the model misses a systematic part of the signal, and "
-                   "the parameters absorb it")
+        out.append(f"the residual is {noise_ratio:.3g}x the recordings' noise level (limit "
+                   f"{options.max_noise_ratio:g}) and not white (Ljung-Box p {wh.p_value:.2g}): the model misses a "
+                   "systematic part of the signal, and the parameters absorb it")
     if blocks < options.min_windows:
         out.append(f"the residual is correlated over {wh.window_tau_s:.3g} s (integrated autocorrelation time "
                    f"{wh.tau_s:.3g} s, envelope {wh.envelope_samples:.4g} samples; effective samples "
