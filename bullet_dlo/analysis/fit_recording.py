@@ -73,7 +73,8 @@ class Recording:
     (cut-off [Hz], delay [s]) of a first-order filter the linear kind went through, or None;
     linear_band: (low, high) [Hz] of a zero-phase band both sides are compared in, or None;
     section_frame: the grasp frame's axis that is a flat section's width (module doc); use: which
-    samples the residual compares (bool, (k,); None: all).
+    samples the residual compares (bool, (k,); None: all); force_delay: how long [s] the measured force
+    and moment lag the poses they belong to (module doc; 0: none).
     """
 
     t: np.ndarray
