@@ -103,6 +103,10 @@ class BeamRecording:
         return 1.0 / float(np.median(np.diff(self.t)))
 
 
+MAX_JOINT_ANGLE = 2.0 * math.pi
+"""Largest joint angle [rad] a beam_handling recording may hold (a Panda's joints stay within +-3.1 rad)."""
+
+
 def read_beam_csv(path: str | Path) -> BeamRecording:
     """Read a beam_handling CSV (header ``duration, success rate, q[0..6], q_d[0..6], dq[0..6],
     dq_d[0..6], tau_J[0..6], tau_ext_hat_filtered[0..6]``). Raises ParameterError naming the file
@@ -115,6 +119,9 @@ def read_beam_csv(path: str | Path) -> BeamRecording:
         raise ParameterError(f"beam recording {path}: cannot read ({err.strerror})") from None
     except UnicodeDecodeError:
         raise ParameterError(f"beam recording {path.name}: not UTF-8 text (a beam_handling CSV is plain text)") from None
+    dupes = sorted({c for c in header if header.count(c) > 1})
+    if dupes:
+        raise ParameterError(f"beam recording {path.name}: column(s) {', '.join(dupes[:4])} named more than once")
     missing = [c for c in COLUMNS if c not in header]
     if missing:
         raise ParameterError(f"beam recording {path.name}: missing column(s) {', '.join(missing[:4])}"
@@ -130,6 +137,10 @@ def read_beam_csv(path: str | Path) -> BeamRecording:
         raise ParameterError(f"beam recording {path.name}: needs at least 3 rows of {len(header)} finite numbers")
     col = {c: i for i, c in enumerate(header)}
     group = {g: data[:, [col[f"{g}[{j}]"] for j in range(N_JOINTS)]] for g in GROUPS}
+    worst = float(np.abs(np.concatenate([group["q"], group["q_d"]])).max())
+    if worst > MAX_JOINT_ANGLE:
+        raise ParameterError(f"beam recording {path.name}: a joint angle of {worst:.4g} rad, beyond +-{MAX_JOINT_ANGLE:g} "
+                             "rad (a Panda's joints stay within +-3.1 rad): q and q_d must be in radians")
     ticks = data[:, col["duration"]]
     t = (ticks - ticks[0]) * TICK
     if np.any(np.diff(t) <= 0):

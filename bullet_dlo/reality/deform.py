@@ -124,6 +124,10 @@ class RestrictedUnpickler(pickle.Unpickler):
                              "numpy arrays: numpy.core.multiarray._reconstruct, numpy.ndarray, numpy.dtype)")
 
 
+MAX_MARKER_DISTANCE = 100.0
+"""Largest marker coordinate accepted [m] (as the fit's recordings: a larger one is a unit mistake)."""
+
+
 def read_pickle(path: str | Path) -> np.ndarray:
     """One DEFORM trial: marker positions [m], shape (T, 3, m), through :class:`RestrictedUnpickler`."""
     path = Path(path)
@@ -133,12 +137,18 @@ def read_pickle(path: str | Path) -> np.ndarray:
         raise ParameterError(f"{path}: {err}") from None
     except (pickle.UnpicklingError, EOFError, ValueError, TypeError, AttributeError, IndexError) as err:
         raise ParameterError(f"{path}: not a readable pickle of marker positions ({err})") from None
+    if np.iscomplexobj(raw) or (isinstance(raw, np.ndarray) and raw.dtype.kind not in "biuf"):
+        raise ParameterError(f"{path}: markers must be real numbers [m] (got {np.asarray(raw).dtype})")
     try:
         a = np.asarray(raw, dtype=float)
     except (ValueError, TypeError):
         raise ParameterError(f"{path}: markers must be a (T, 3, m) array of numbers [m]") from None
     if a.ndim != 3 or a.shape[1] != 3 or a.shape[0] < 3 or a.shape[2] < 5 or not np.all(np.isfinite(a)):
         raise ParameterError(f"{path}: markers must be a finite (T >= 3, 3, m >= 5) array [m], got shape {a.shape}")
+    far = float(np.abs(a).max())
+    if far > MAX_MARKER_DISTANCE:
+        raise ParameterError(f"{path}: a marker {far:.4g} m from the origin, above {MAX_MARKER_DISTANCE:g} m: markers "
+                             "must be in metres")
     return a
 
 

@@ -41,6 +41,14 @@ def test_reader_units_and_columns(tmp_path):
         path.write_text("\n".join(lines) + "\n")
         with pytest.raises(ParameterError, match=f"{name}.csv: every row after the header must hold {len(COLUMNS)} "):
             read_beam_csv(path)
+    dup = tmp_path / "dup.csv"
+    dup.write_text("\n".join([good[0] + ", q[3]"] + [line + ",0" for line in good[1:]]) + "\n")
+    with pytest.raises(ParameterError, match=r"dup.csv: column\(s\) q\[3\] named more than once"):
+        read_beam_csv(dup)
+    wild = rows.copy()
+    wild[:, 2] = 1e6  # q[0] [rad]: degrees or a counter, not radians
+    with pytest.raises(ParameterError, match="a joint angle of 1e\\+06 rad, beyond"):
+        read_beam_csv(write_csv(tmp_path / "wild.csv", wild))
     latin = tmp_path / "latin.csv"
     latin.write_bytes(("\n".join(good) + "\n").replace("duration", "dur\xe9e,duration", 1).encode("latin-1"))
     with pytest.raises(ParameterError, match="latin.csv: not UTF-8 text"):

@@ -55,6 +55,12 @@ def test_reader_reads_lists_and_numpy_arrays_and_refuses_a_wrong_shape(tmp_path)
     (tmp_path / "flat.pkl").write_bytes(pickle.dumps(a[:, 0].tolist()))
     with pytest.raises(ParameterError, match=r"\(T >= 3, 3, m >= 5\)"):
         read_pickle(tmp_path / "flat.pkl")
+    # not metres, or not real: refused (the imaginary part was dropped with a warning; 600 km was fitted)
+    for name, payload, match in (("complex", a + 1j, "markers must be real numbers"),
+                                 ("far", a + 6e5, "from the origin, above 100 m")):
+        (tmp_path / f"{name}.pkl").write_bytes(pickle.dumps(payload))
+        with pytest.raises(ParameterError, match=match):
+            read_pickle(tmp_path / f"{name}.pkl")
 
 
 def test_arc_lengths_straight_and_curved():
