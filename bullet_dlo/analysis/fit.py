@@ -619,7 +619,7 @@ def summarise(sol, names: list[str], fitted: CableSpec, layout: Layout, options:
     loads = [model_run(fitted, rec, options, gravity) for rec in layout.recs]
     loads = [x if x is not None else nan_run(rec, fitted) for x, rec in zip(loads, layout.recs)]
     discretisation = discretisation_check(fitted, layout, loads, jac, active, names, options, gravity)
-    half = half + np.array([discretisation["bias_log"].get(k, 0.0) for k in names])
+    half = half + np.array([discretisation["dt_shift"].get(k, 0.0) for k in names])
     jk = block_jackknife(r, jac[:, active], block) if active and blocks >= 2 else None
     ratio = jk.held_out_rms / jk.in_sample_rms if jk is not None and jk.in_sample_rms > 0 else math.inf
     explained = explained_share(r, layout)
@@ -815,18 +815,18 @@ def discretisation_check(fitted: CableSpec, layout: Layout, loads: list[ModelRun
     run again with dt halved and with n refined to 2 n - 1, and each change of its prediction is carried to the
     parameters by the fit's Jacobian (the Gauss-Newton step the refined model's residual would take), times
     2^p / (2^p - 1) (p: the integrator's order in dt, 2 in n: the distance to the converged model). The time
-    step's share is numerical error and is added to the intervals' half-widths (``bias_log``, log units). The
+    step's share is numerical error and is added to the intervals' half-widths (``dt_shift``, log units). The
     share of n is the model's resolution (the fit is of the n-mass model, as stated): it is reported, with a
-    warning (``warnings``) where it exceeds a parameter's interval. ``report``: both shifts (relative) and the
-    refined runs' change of the residual (RMS over the noise level; above a few, the linear step is rough)."""
+    warning where it exceeds a parameter's interval (``n_shift``, log units). ``report``: both shifts (relative)
+    and the refined runs' change of the residual (RMS over the noise level; above a few, the linear step is
+    rough)."""
     r0 = layout.weighted(loads)
-    bias = {k: 0.0 for k in names}
     report: dict[str, Any] = {"rule": "parameter shift when dt is halved (added to each interval's half-width) and "
                                       "when n -> 2 n - 1 (reported), extrapolated to the converged model"}
     shifts: dict[str, dict[str, float]] = {}
     if not active or not np.all(np.isfinite(r0)):
         report["skipped"] = "no parameter with a finite interval, or the fitted model's run is not finite"
-        return {"bias_log": bias, "report": report, "n_shift": {}}
+        return {"dt_shift": {}, "n_shift": {}, "report": report}
     order = INTEGRATORS[run_setup(layout.recs[0], options)[0]].order
     for label, factor in (("dt", 2.0 ** order / (2.0 ** order - 1.0)), ("n", 4.0 / 3.0)):
         runs = refined_runs(fitted, layout, options, gravity, label)
@@ -838,9 +838,7 @@ def discretisation_check(fitted: CableSpec, layout: Layout, loads: list[ModelRun
         shifts[label] = {names[j]: factor * abs(float(v)) for j, v in zip(active, shift)}
         report[label] = {"residual_change_over_noise": float(np.sqrt(np.mean(change ** 2))), "factor": factor,
                          "relative_bias": {k: math.expm1(b) for k, b in shifts[label].items()}}
-    for k, b in shifts.get("dt", {}).items():
-        bias[k] += b
-    return {"bias_log": bias, "report": report, "n_shift": shifts.get("n", {})}
+    return {"dt_shift": shifts.get("dt", {}), "n_shift": shifts.get("n", {}), "report": report}
 
 
 def refined_runs(fitted: CableSpec, layout: Layout, options: FitOptions, gravity: Sequence[float],
