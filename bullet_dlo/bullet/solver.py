@@ -20,12 +20,14 @@ step").
 from __future__ import annotations
 
 import warnings
+from operator import is_not
 
 import numba
 import numpy as np
 
 from bullet_dlo.bullet.kernels import (COASTED, FINAL_RATIO, FIRST_ITER, FIRST_MOVED, FIRST_RATIO, RETRY_SUBSTEPS, Coupling,
                                        StallGuard, StepInput, bind, sync_and_advance)
+from bullet_dlo.bullet.solver_call import make_step_args, step_with
 from bullet_dlo.core.engine import NEWTON_WARN_SHARE, DetectorOptions, start_detector
 from bullet_dlo.core.integrators import Integrator, NewtonOptions, make_stepper
 from bullet_dlo.core.kernels.contact import Bodies, Contacts
@@ -39,6 +41,7 @@ STALL_RETRIES = 2  # a stalled contact step is taken again as 2, then 4 sub-step
 STALL_FAR = 0.1  # [-] far from convergence: momentum residual above this share of gravity's impulse in a step
 STALL_WILD = 10.0  # [-] wildly far: with a free body in the solve, taken again as sub-steps even when it moved the momentum
 NEWTON_WARN_MIN_STEPS = 100  # the share of unconverged steps is judged from this many planned steps on
+PACK_ARGS = True  # call the step kernel on packed arguments (solver_call.py; False: the plain call, for A/B and tests)
 
 
 # What a contact step (core/kernels/contact.py, contact_step) reads that it also writes, by field: the retry restores
@@ -128,7 +131,10 @@ class CableSolver:
         self._warned_share = False
         self._guard: StallGuard | None = None
         self._guard_contacts: Contacts | None = None  # the contact set the guard's copies are of
-        self._kernel = None  # sync_and_advance's machine code, bound on first use
+        self._kernel = None  # step_with's machine code (sync_and_advance on packed arguments), bound on first use
+        self._packed: tuple = ()  # the objects packed into self._args (solver_call.StepArgs)
+        self._args = None
+        self._plain = None  # sync_and_advance's machine code (PACK_ARGS off)
 
     def restart_detector(self, model: CableModel, arrays: KernelArrays) -> None:
         """Start the detector again from the current state (after a set-up change of the model)."""
@@ -159,21 +165,27 @@ class CableSolver:
                                            self.stall_far)
             self._guard_contacts = contacts
             if old is not None and numba.typeof(old) != numba.typeof(self._guard):
-                self._kernel = None  # another structure (a row array sized like the rows by chance): bind anew
+                self._kernel = self._plain = None  # another structure (a row array sized like the rows by chance)
         return self._guard
 
     def step(self, arrays: KernelArrays, control: CableControl, contacts: Contacts, bodies: Bodies,
              inp: StepInput) -> int:
         """Take over Bullet's step (if ``inp.sync``), check it, plan the next with the contacts and the free bodies
         solved with them; returns the status (STABLE or the reason's code: then nothing is planned)."""
-        args = self.kernel_args(arrays, control, contacts, bodies, inp)
-        if self._kernel is None:
-            self._kernel = bind(sync_and_advance, *args)
-        status, its, ok = self._kernel(*args)
+        held = (self.stepper, arrays, self.plan, control.holders, self.coupling, self.workspace, self.detector,
+                contacts, bodies, self.stall_guard(arrays, contacts, bodies))
+        if not PACK_ARGS or not hasattr(sync_and_advance, "compile"):  # (JIT disabled: a plain call)
+            if self._plain is None:
+                self._plain = bind(sync_and_advance, *held[:7], inp, *held[7:])
+            status, its, ok = self._plain(*held[:7], inp, *held[7:])
+        else:
+            if self._kernel is None or any(map(is_not, held, self._packed)):
+                self._pack(held, inp)  # one of the objects was replaced: pack the ones a plain call would pass now
+            status, its, ok = self._kernel(self._args, inp)
+        info = held[-1].info
         self.steps_planned += 1
         self.newton_iterations += its
         self.newton_failures += 0 if ok else 1
-        info = args[-1].info
         if info[RETRY_SUBSTEPS] > 0:
             self.stall_retries += 1
         if status == STABLE and info[FINAL_RATIO] > 0.0:
@@ -203,6 +215,15 @@ class CableSolver:
                 self._warned_share = True
                 warnings.warn(self.failure_message(), RuntimeWarning, stacklevel=3)
         return status
+
+    def _pack(self, held: tuple, inp: StepInput) -> None:
+        """Pack ``held`` (the kernel's per-cable arguments, :data:`~bullet_dlo.bullet.solver_call.FIELDS`) into one
+        StructRef and bind the kernel to its type (Numba unboxes one pointer a step instead of ~150 arrays)."""
+        old = numba.typeof(self._args) if self._args is not None else None
+        self._args = make_step_args(*held)
+        self._packed = held
+        if self._kernel is None or numba.typeof(self._args) != old:
+            self._kernel = bind(step_with, self._args, inp)
 
     def failure_message(self) -> str:
         """What the counters say about the Newton solves so far, in one line (a warning's text)."""
