@@ -4,9 +4,10 @@ The study's cable (clamped, 5 mm move, implicit Euler, 1 kHz, ground plane; n = 
 stepped by :meth:`BulletWorld.step` (recording every step, as ``simulate`` does, and without a
 recorder), and each part of the step is timed on its own on the same warmed world: Bullet's step,
 the forces to Bullet (one compiled call), the contact query, the contact model's update (poses of
-the bodies, detection), the model's kernel (sync, checks, plan; and the share of it that is only
-Numba unboxing its ~110 arrays, timed as an empty kernel over the same arguments), and the recorder's
-row. The Python glue is the whole step minus its parts. Parts are timed in interleaved rounds with
+the bodies, detection), the model's kernel as the solver calls it (sync, checks, plan, on its packed arguments:
+``bullet/solver_call.py``; the share of it that is only Numba unboxing them, timed as an empty kernel over the same
+arguments, and beside it the unboxing of the plain call's ~150 arrays), and the recorder's row. The Python glue
+is the whole step minus its parts. Parts are timed in interleaved rounds with
 ``time.thread_time``; medians and ranges, the machine's load beside them. The bare step is a twin
 world with the same spheres, filters and ground, its spheres live in Bullet and falling freely
 (``bullet_spheres="live"``: a model-contact cable's spheres are otherwise parked proxies, asleep in Bullet, and
@@ -34,7 +35,8 @@ from pathlib import Path
 import pybullet as pb
 from numba import njit
 
-from bullet_dlo.bullet.kernels import bind, sync_and_advance
+from bullet_dlo.bullet.kernels import bind
+from bullet_dlo.bullet.solver_call import make_step_args, step_with
 from bullet_dlo.bullet.world import BulletWorld
 from bullet_dlo.core.boundary import Move
 from bullet_dlo.core.model import CableModel
@@ -43,6 +45,11 @@ from bullet_dlo.core.spec import CableSpec
 
 @njit
 def _unbox_only(stepper, m, plan, ext, cp, ws, det, inp, contacts, bodies, guard):
+    return 0
+
+
+@njit
+def _unbox_packed(args, inp):
     return 0
 
 
@@ -156,8 +163,10 @@ def main() -> None:
     kargs_rec = kcable._kernel_args(kcable._step_input(True, True, kcable._no_index, kcable._no_rows, kcable._no_rows))
     kargs = kargs[:7] + (kargs[7]._replace(check=True),) + kargs[8:]
     kargs_rec = kargs_rec[:7] + (kargs_rec[7]._replace(check=True),) + kargs_rec[8:]
-    unbox = bind(_unbox_only, *kargs)
-    kernel = bind(sync_and_advance, *kargs)  # the solver's step kernel, bound as CableSolver.step binds it
+    unbox_plain = bind(_unbox_only, *kargs)
+    packed = make_step_args(*kargs[:7], *kargs[8:])  # the solver's step kernel, packed and bound as CableSolver.step
+    kernel = bind(step_with, packed, kargs[7])
+    unbox = bind(_unbox_packed, packed, kargs[7])
     cs = cable._contact_set
     cp = cable._cp
 
@@ -176,9 +185,10 @@ def main() -> None:
         "  contact query (getContactPoints)": lambda: pb.getContactPoints(-1, -1, -2, -2, world.client),
         "  contact model update (poses, detect)": lambda: cs.update(cp.x_new, cp.v_new, cable.arrays.mass,
                                                                      cable.stepper.h, world.dt, True),
-        "  model kernel (sync, checks, plan)": lambda: kernel(*kargs),
-        "    of which unboxing its arguments": lambda: unbox(*kargs),
-        "  model kernel, recorded step": lambda: kernel(*kargs_rec),
+        "  model kernel (sync, checks, plan)": lambda: kernel(packed, kargs[7]),
+        "    of which unboxing its arguments": lambda: unbox(packed, kargs[7]),
+        "    (unboxing the plain call's arguments)": lambda: unbox_plain(*kargs),
+        "  model kernel, recorded step": lambda: kernel(packed, kargs_rec[7]),
         "  recorder row (copies, appends)": lambda: cable._record_row(from_kernel=True),
     }
     times = {k: [] for k in parts}
