@@ -7,7 +7,8 @@ takes the rest: the kernels' view of model, control and state (:class:`~bullet_d
 the control (the holders' measured poses), the contacts detected for the coming step and what Bullet's step
 changed (:class:`~bullet_dlo.bullet.kernels.StepInput`). The state in is ``coupling.x, v``, the state out
 ``coupling.x_new, v_new`` with the sphere forces that make Bullet land there; one step is one Numba call
-(:func:`~bullet_dlo.bullet.kernels.sync_and_advance`): take over the step Bullet made, check it, plan the next.
+(:func:`~bullet_dlo.bullet.kernels.sync_and_advance`): take over the step Bullet made, check it, plan the next. Its
+per-cable arguments go in packed (:mod:`bullet_dlo.bullet.solver_call`), so Numba unboxes two of them, not ~150 arrays.
 
 A contact step whose Newton solve coasts (ends far from convergence with the momentum where it started: the
 cable would move as if no force acted) is taken again from its start as 2, then 4 sub-steps
