@@ -468,6 +468,12 @@ def make_layout(recs: list[Recording], options: FitOptions, n_params: int) -> La
     kinds, keep = [], []
     for i, rec in enumerate(recs):
         have = [k for k in rec.kinds() if options.kinds is None or k in options.kinds]
+        lacking = [k for k in options.kinds or () if k not in rec.kinds()]
+        if lacking:  # a kind asked for is never dropped silently
+            hint = (" (a wrist sensor's moments are about the sensor, not the grasp point: give a grasp_moment "
+                    "column, or fit a simulated file's model moments: --forces end_forces)" if "moment" in lacking else "")
+            raise ParameterError(f"recording {rec.name or i} has no {', '.join(lacking)} residual, asked for by "
+                                 f"kinds {','.join(options.kinds or ())} (it has {', '.join(rec.kinds())}){hint}")
         if not have:
             raise ParameterError(f"recording {rec.name or i} has none of the residual kinds {list(options.kinds)} "
                                  f"(it has {', '.join(rec.kinds())})")

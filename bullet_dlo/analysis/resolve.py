@@ -150,7 +150,9 @@ def twist_need(problem: ResolveProblem) -> str:
     """
     c = problem.cable
     if c.section != "round":
-        return f"material frame on: the {c.section} section bends unequally about its two axes and twists"
+        if c.section == "rectangle":
+            return "material frame on: the rectangle section bends unequally about its two axes and twists"
+        return f"material frame on: a {c.section} section always carries it (its torsion G J)"
     if c.twist:
         return "material frame on: the cable asks for it (twist: true)"
     times = np.linspace(0.0, problem.duration, ROLL_SAMPLES)

@@ -92,7 +92,8 @@ class CableContacts:
                               spec.static_friction, spec.dynamic_friction, cable.contact_stiffness,
                               cable.contact_damping, self_contact=cable.self_collision != "none",
                               grip=cable.grip, native=cable.world.native_handle(), others=partners,
-                              exclude={**{(b, None): None for b in cable.world.no_cable_contact}, **self.exclusions},
+                              exclude={**{(b, None): None for b in cable.world.no_cable_contact}, **self.exclusions,
+                                       **{key: None for key in cable.world.no_collision_links}},
                               driven=dict(cable.world.driven_bodies),
                               rest_length=float(spec.rest_length),
                               # the segments' springs and the bending constants in force (the control's, changed

@@ -22,7 +22,7 @@ from bullet_dlo.core.boundary import Move
 from bullet_dlo.core.integrators import NewtonOptions
 from bullet_dlo.core.model import STANDARD_GRAVITY, CableModel, CableState
 from bullet_dlo.core.spec import CableSpec
-from bullet_dlo.core.validate import ParameterError, check_nonnegative, check_positive, check_vector3
+from bullet_dlo.core.validate import ParameterError, check_int, check_nonnegative, check_positive, check_vector3
 
 SPAWN_TOLERANCE = 1e-4  # [m] penetration allowed at spawn before it counts as an overlap
 _WORLDS: "weakref.WeakValueDictionary[int, BulletWorld]" = weakref.WeakValueDictionary()  # client -> its world
@@ -98,6 +98,9 @@ class BulletWorld:
         # bodies left out of every cable's contact model (a scene obstacle's ``contact: false``); a cable's
         # own exclusions: BulletCable.exclude_contact. Read when a cable (re)builds its contact set.
         self.no_cable_contact: set[int] = set()
+        # links that collide with nothing in Bullet (set_collision_filter with group and mask 0): out of every
+        # cable's contact model as well (PyBullet has no getter of a link's filter for the model to read)
+        self.no_collision_links: set[tuple[int, int]] = set()
         # bodies whose links motors hold (position- or velocity-controlled joints whose force limits dwarf the
         # cables' loads, fixed joints: the arms the robots load): the cables meet their links as kinematic
         # obstacles (docs/concepts/contact.md, "Driven links"). Set with drive_body; read when a cable (re)builds
@@ -185,6 +188,33 @@ class BulletWorld:
         except pb.error:
             raise ParameterError(f"drive_body: no body {body} in this world") from None
         self.driven_bodies[int(body)] = None if links is None else frozenset(int(k) for k in links)
+        for cable in self.cables.values():
+            cable.contact.bodies_seen = -1  # rebuild its contact set at the next refresh
+            cable.contact.refresh()
+
+    def set_collision_filter(self, body: int, link: int, group: int, mask: int) -> None:
+        """Bullet's collision filter group and mask of ``body``'s link ``link`` (-1: its base), told to the cables'
+        contact model too: the model cannot read Bullet's filters (PyBullet has setters only), so a filter set with
+        ``pb.setCollisionFilterGroupMask`` directly leaves the link solid to the cables. A link that collides with
+        nothing (``group`` and ``mask`` 0) is left out of every cable's contact model, now and for cables added
+        later, as Bullet leaves it out of its own collisions; any other filter keeps it in the model (out of one
+        cable's contact: :meth:`BulletCable.exclude_contact <bullet_dlo.bullet.cable.BulletCable.exclude_contact>`;
+        a scene obstacle: ``contact: false``)."""
+        cid = self.client
+        try:
+            pb.getBodyInfo(int(body), physicsClientId=cid)
+            joints = pb.getNumJoints(int(body), physicsClientId=cid)
+        except pb.error:
+            raise ParameterError(f"set_collision_filter: no body {body} in this world") from None
+        if not -1 <= int(link) < joints:
+            raise ParameterError(f"set_collision_filter: link must be in [-1, {joints - 1}], got {link}")
+        group, mask = check_int("group", group, 0, 2**31 - 1), check_int("mask", mask, 0, 2**31 - 1)
+        pb.setCollisionFilterGroupMask(int(body), int(link), group, mask, physicsClientId=cid)
+        key = (int(body), int(link))
+        if group == 0 and mask == 0:
+            self.no_collision_links.add(key)
+        else:
+            self.no_collision_links.discard(key)
         for cable in self.cables.values():
             cable.contact.bodies_seen = -1  # rebuild its contact set at the next refresh
             cable.contact.refresh()

@@ -70,8 +70,8 @@ takes episodes of the renamed spec, and draws are unchanged (same order, same ge
 ``section`` (choice or fixed of ``round`` | ``tube`` | ``rectangle``), ``inner_diameter`` [m] (a tube's),
 ``width`` and ``thickness`` [m] (a rectangle's) and ``twist`` (choice or fixed of true | false: a material
 frame, so the grippers' roll twists the cable and the wrists feel the torsion). Each dimension is used only
-by its own section, so a spec may choose among sections; a spec whose tube bore can reach the lowest
-diameter, or whose rectangle can be drawn 0 m wide or thick, is refused at load. Drawn after the grips,
+by its own section, so a spec may choose among sections; a spec whose tube bore can be drawn at 0 or reach
+the lowest diameter, or whose rectangle can be drawn 0 m wide or thick, is refused at load. Drawn after the grips,
 and in an episode's parameters only when ``sample:`` gives them (older specs keep their draws and their
 episodes' parameters).
 """
@@ -602,14 +602,17 @@ def _check_friction_order(sample: dict[str, Distribution]) -> None:
 
 
 def _check_sections(sample: dict[str, Distribution]) -> None:
-    """Refuse section dimensions that some draw could make invalid: a tube's inner diameter must stay below the
-    lowest drawn diameter, a rectangle's width and thickness above 0. Each dimension is used only by its own
+    """Refuse section dimensions that some draw could make invalid: a tube's inner diameter must stay above 0 and
+    below the lowest drawn diameter, a rectangle's width and thickness above 0. Each dimension is used only by its own
     section (an episode that draws another section ignores it), so one spec may choose among sections."""
     def span(key: str) -> tuple[float, float]:
         return support(sample.get(key) or parse_distribution(key, PARAMETERS[key][1]), PARAMETERS[key][2])
 
     dist = sample.get("section") or parse_distribution("section", PARAMETERS["section"][1])
     sections = set(dist.values or ()) | ({dist.value} if dist.value is not None else set())
+    if "tube" in sections and span("inner_diameter")[0] <= 0.0:
+        raise ParameterError(f"sample.inner_diameter can be drawn at 0 m (from {span('inner_diameter')[0]}): a tube "
+                             "needs a bore > 0 in every draw (a solid section is round)")
     if "tube" in sections and span("inner_diameter")[1] >= span("diameter")[0]:
         raise ParameterError(f"sample.inner_diameter can be drawn at or above sample.diameter (up to "
                              f"{span('inner_diameter')[1]} m, diameter from {span('diameter')[0]} m): a tube's bore "

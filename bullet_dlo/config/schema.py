@@ -8,6 +8,7 @@ and the checks of output paths, all applied before any work starts.
 """
 from __future__ import annotations
 
+import math
 import os
 from pathlib import Path
 from enum import Enum
@@ -87,20 +88,52 @@ LIMITS: dict[str, float] = {
 }
 
 
+SECTION_DIMENSIONS = {"inner_diameter": "tube", "width": "rectangle", "thickness": "rectangle"}  # key: its section
+
+
+def _check_section_dimensions(data: Mapping[str, Any], where: str) -> None:
+    """A section's own dimensions in their real ranges (a tube's bore in (0, diameter), a rectangle's width and
+    thickness in (0, 1] m), a tube's bore given, and no dimension of another section; one line naming the key."""
+    from bullet_dlo.core.validate import _float
+
+    shape = str(data.get("section", "round")).lower()
+    for key, owner in SECTION_DIMENSIONS.items():
+        if key not in data:
+            if shape == owner == "tube":
+                raise ParameterError(f"{where}.inner_diameter missing: a tube needs its bore, in (0, diameter) [m] "
+                                     f"(a solid section is round, with twist: true for a frame)")
+            continue
+        if shape != owner:
+            raise ParameterError(f"{where}.{key} is for section: {owner} only (section is {shape})")
+        lo, hi = CABLE_BOUNDS[key]
+        if key == "inner_diameter":
+            diameter = data.get("diameter")
+            top = f"diameter = {diameter}" if isinstance(diameter, (int, float)) else "the diameter"
+            v = _float(f"{where}.{key}", data[key], f"a number in (0, {top})")
+            ok = math.isfinite(v) and lo < v <= hi and (not isinstance(diameter, (int, float)) or v < diameter)
+            if not ok:
+                raise ParameterError(f"{where}.{key} must be in (0, {top}) [m] for section: tube, got {data[key]!r}")
+        else:
+            v = _float(f"{where}.{key}", data[key], f"a number in (0, {hi}]")
+            if not (math.isfinite(v) and 0.0 < v <= hi):
+                raise ParameterError(f"{where}.{key} must be in (0, {hi}] [m] for section: rectangle, got {data[key]!r}")
+
+
 def check_cable(data: Mapping[str, Any], where: str = "cable") -> None:
     """Check the numbers of a parsed cable mapping against :data:`CABLE_BOUNDS` (keys it has only;
     the cable class checks the rest), each error naming ``<where>.<key>`` and its range."""
     from bullet_dlo.core.validate import check_in_range, check_int
 
-    for key, (lo, hi) in CABLE_BOUNDS.items():
+    for key, names in CABLE_NAMES.items():
         if key in data:
+            one_of(f"{where}.{key}", str(data[key]).lower() if key == "section" else data[key], names)
+    for key, (lo, hi) in CABLE_BOUNDS.items():
+        if key in data and key not in SECTION_DIMENSIONS:
             if key == "n_masses":
                 check_int(f"{where}.{key}", data[key], int(lo), int(hi))
             else:
                 check_in_range(f"{where}.{key}", data[key], lo, hi)
-    for key, names in CABLE_NAMES.items():
-        if key in data:
-            one_of(f"{where}.{key}", str(data[key]).lower() if key == "section" else data[key], names)
+    _check_section_dimensions(data, where)
     for key in CABLE_FLAGS:
         if key in data and not isinstance(data[key], bool):
             raise ParameterError(f"{where}.{key} must be true or false, got {data[key]!r}")

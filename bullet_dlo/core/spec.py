@@ -66,7 +66,7 @@ class CableSpec:
             ``"tube"`` (outer diameter ``diameter``, inner diameter ``inner_diameter``) or
             ``"rectangle"`` (``width`` along the section's first axis d1, ``thickness`` along d2).
             For a rectangle ``diameter`` is only the envelope the contact layers use (give the thickness).
-        inner_diameter: inner diameter of a tube [m], in [0, diameter); 0 for other sections.
+        inner_diameter: inner diameter of a tube [m], in (0, diameter); 0 for other sections.
         width: rectangle width b [m] (along d1), > 0 for a rectangle; 0 for other sections.
         thickness: rectangle thickness h [m] (along d2), > 0 for a rectangle; 0 for other sections.
         twist: give the cable a material frame (a twist angle per segment, twist springs G J / l0,
@@ -141,8 +141,9 @@ class CableSpec:
         width = check_nonnegative("width", self.width)
         thick = check_nonnegative("thickness", self.thickness)
         if section == "tube":
-            if not inner < self.diameter:
-                raise ParameterError(f"inner_diameter must be in [0, diameter = {self.diameter}) [m], got {inner}")
+            if not 0.0 < inner < self.diameter:  # (0: a solid section is round; twist: true gives it a frame)
+                raise ParameterError(f"inner_diameter must be in (0, diameter = {self.diameter}) [m] for section: tube "
+                                     f"(a solid one is round, with twist: true for a frame), got {inner}")
         elif inner != 0.0:
             raise ParameterError(f"inner_diameter is for section: tube only (section is {section})")
         if section != "rectangle" and (width != 0.0 or thick != 0.0):

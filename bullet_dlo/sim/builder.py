@@ -54,16 +54,18 @@ def resolve_problem(scene: Scene) -> ResolveProblem:
 
 def with_needed_twist(scene: Scene) -> Scene:
     """``scene`` with the material frame switched on when it rolls a clamp about the cable's axis
-    (:func:`~bullet_dlo.analysis.resolve.twist_need`) and ``twist_reason`` saying why; the scene itself
-    when its cable has the frame already or never needs it. Every path does this, whether or not
+    (:func:`~bullet_dlo.analysis.resolve.twist_need`) and ``twist_reason`` saying why (also for a non-round
+    section, whose frame is always on); the scene itself when its cable asks for the frame (``twist: true``)
+    or never needs it. Every path does this, whether or not
     anything is ``auto``: a cable without the frame would feel nothing of the roll (zero torsion at the
     wrist), which is silently wrong, not a cheaper model."""
-    if scene.cable.twist_enabled:
+    if scene.cable.twist or scene.twist_reason:  # asked for, or said already
         return scene
-    why = twist_need(resolve_problem(scene))
+    why = twist_need(resolve_problem(scene))  # (a non-round section has the frame already: only the reason is new)
     if not why:
         return scene
-    return replace(scene, cable=scene.cable.with_(twist=True), twist_reason=why)
+    cable = scene.cable if scene.cable.twist_enabled else scene.cable.with_(twist=True)
+    return replace(scene, cable=cable, twist_reason=why)
 
 
 def resolved(scene: Scene) -> Scene:

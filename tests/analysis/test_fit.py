@@ -118,6 +118,11 @@ def test_bad_recordings_and_parameter_names_are_refused():
         fit_cable(rec, TRUE, ["youngs_modulus", "length"])
     with pytest.raises(ParameterError, match="start must be one of auto, static, straight, recorded"):
         FitOptions(start="settled")
+    # a kind asked for that a recording lacks is refused, not dropped (a grasp --series file's wrist moments are
+    # about the sensor: the fit ran on forces alone and put G at 5.6x its truth)
+    with pytest.raises(ParameterError, match="recording 0 has no moment residual, asked for by kinds force,moment "
+                                             r"\(it has force\) \(a wrist sensor's moments are about the sensor"):
+        fit_cable(rec, TRUE, ["youngs_modulus"], FitOptions(kinds=("force", "moment")))
 
 
 def test_a_linear_map_of_the_end_wrenches_is_a_residual_kind_of_its_own():

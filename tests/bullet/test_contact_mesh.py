@@ -179,6 +179,28 @@ def test_excluded_bodies_are_passed_through(tmp_path):
         assert cable.x[:, 2].max() < 0.01
 
 
+def test_a_link_that_collides_with_nothing_in_bullet_is_passed_through(tmp_path):
+    """BulletWorld.set_collision_filter with group and mask 0 (Bullet collides that link with nothing) leaves it
+    out of the cable's contact model too, set after the cable or before it (a box): the cable falls onto the ground
+    (before: set with PyBullet directly, a ghost sphere carried 0.179 N of a 0.196 N cable)."""
+    spec = CableSpec.lv2017(n_masses=10, damping=0.02)
+    r = spec.diameter / 2
+    with BulletWorld(dt=1 / 240) as world:
+        body, link, top = add_support(world, "child_link", tmp_path)
+        cable = world.add_cable(spec, start=(-0.15, 0.0, top + r + 0.001), direction=(1, 0, 0))
+        world.run(0.2)
+        assert cable.x[:, 2].min() > top  # held by the child link
+        world.set_collision_filter(body, link, 0, 0)
+        world.run(0.5)
+        assert cable.x[:, 2].max() < 0.01
+    with BulletWorld(dt=1 / 240) as world:
+        box = world.add_box(BOX, (0, 0, BOX[2]))
+        world.set_collision_filter(box, -1, 0, 0)
+        cable = world.add_cable(spec, start=(-0.15, 0.0, 2 * BOX[2] + r + 0.01), direction=(1, 0, 0))
+        world.run(0.5)
+        assert cable.x[:, 2].max() < 0.01 and box not in cable.body_forces()
+
+
 def test_a_mesh_added_after_the_cable_holds_it(tmp_path):
     """A hull created (by PyBullet directly, not through the world) after the cable: the cable lands on it."""
     spec = CableSpec.lv2017(n_masses=10, damping=0.02)

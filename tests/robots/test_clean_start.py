@@ -44,3 +44,30 @@ def test_cable_sagging_through_the_table_is_refused():
     soft = CableSpec.lv2017(n_masses=10, youngs_modulus=1e4, damping=0.02)
     with pytest.raises(ParameterError, match="through the table top"):
         DualArmScene(DualArmSpec(cable=soft, hold_height=0.26))
+
+
+def test_settled_state_takes_grasp_tangents_that_differ_by_the_ik_precision():
+    """The IK reaches the two grasp tangents to ~1e-8 rad; the last clamp's section axis must be built for its own
+    tangent (a 0.5 m cable on the Panda was refused: 'end normal ... must be normal'). Tangents 1e-7 rad apart
+    (about z and y) stand in for the arms; the settled cable sags by the static solve and spans the two grasps."""
+    from types import SimpleNamespace
+
+    from scipy.spatial.transform import Rotation
+
+    from bullet_dlo.core.model import CableModel
+    from bullet_dlo.robots.dual_arm.physics import DualArmPhysics
+    from bullet_dlo.robots.transforms import quat_from_axes
+
+    spec = CableSpec.lv2017(n_masses=10)
+    tilt = Rotation.from_rotvec([0.0, 1e-7, 1e-7])
+    poses = []
+    for sign, turn in ((-1.0, tilt), (1.0, tilt.inv())):
+        quat = (turn * Rotation.from_quat(quat_from_axes((-sign, 0.0, 0.0), (0.0, 0.0, -1.0)))).as_quat()
+        poses.append((np.array([sign * 0.5 * spec.length, 0.0, 0.4]), quat))
+    robots = [SimpleNamespace(grasp_pose=lambda pose=pose: pose) for pose in poses]
+    fake = SimpleNamespace(robots=robots, cable_direction=DualArmPhysics.cable_direction,
+                           spec=SimpleNamespace(table_height=0.0))
+    model = CableModel.straight(spec, poses[0][0], (1.0, 0.0, 0.0), ("free", "free"), (), (0.0, 0.0, -9.81))
+    state = DualArmPhysics.settled_state(fake, model)
+    assert np.allclose(state.x[[0, -1]], [poses[0][0], poses[1][0]], atol=1e-12)
+    assert state.x[:, 2].min() < 0.4 - 1e-4  # it sags under gravity

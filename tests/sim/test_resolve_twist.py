@@ -70,6 +70,16 @@ def test_a_strip_is_resolved_with_its_frame_and_the_reason():
     assert r.twist and all(seen) and "rectangle section" in r.why
 
 
+def test_a_tube_or_strip_scene_says_why_its_frame_is_on():
+    """Every path (``resolved``, not only ``auto``) gives a non-round section's reason (it was "": the frame is on
+    by the section, so the scene was returned as it was); ``twist: true`` asked for it and keeps ""."""
+    for cable in (ROUND.with_(section="tube", inner_diameter=0.002),
+                  ROUND.with_(section="rectangle", width=0.01, thickness=0.001)):
+        new = resolved(Scene(cable=cable, duration=0.1))
+        assert f" {cable.section} section " in new.twist_reason and new.cable == cable
+    assert resolved(Scene(cable=ROUND.with_(twist=True), duration=0.1)).twist_reason == ""
+
+
 def test_a_round_cable_that_never_rolls_keeps_the_model_without_frame():
     """A swinging, moving clamp (no roll), and a pinned end that rotates about the axis (a pin does not hold
     the roll): no frame, and the trials' results are those of the cable without twist."""

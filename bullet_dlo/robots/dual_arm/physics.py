@@ -41,6 +41,7 @@ from bullet_dlo.bullet.kernels import bind
 from bullet_dlo.bullet.native import StateReader, apply_wrenches
 from bullet_dlo.bullet.world import BulletWorld, add_obstacles
 from bullet_dlo.config.robot import CALIBRATION_TILTS, DualArmSpec, RobotSpec, load_robot_spec
+from bullet_dlo.core.boundary import default_normal
 from bullet_dlo.core.model import CableModel, CableState
 from bullet_dlo.core.statics import solve_static
 from bullet_dlo.core.validate import ParameterError
@@ -198,7 +199,10 @@ class DualArmPhysics:
         (p0, q0), (p1, q1) = (robot.grasp_pose() for robot in self.robots)
         d0, d1 = self.cable_direction(0, q0), self.cable_direction(1, q1)
         held = CableModel.straight(model.spec, p0, d0, ("clamped", "clamped"), (), model.gravity)
-        held = replace(held, last=replace(held.last, position=np.asarray(p1, dtype=float), direction=d1))
+        # the last clamp's section axis built for its own reached tangent d1: the first's (built for d0) is normal
+        # to d1 only to the IK's precision (~1e-8 rad), not to the 1e-9 EndHolder asks
+        held = replace(held, last=replace(held.last, position=np.asarray(p1, dtype=float), direction=d1,
+                                          normal=default_normal(d1)))
         x_start = model.x0.copy()  # the straight layout, its last node pulled onto the right grasp
         x_start += np.outer(np.linspace(0.0, 1.0, model.n), np.asarray(p1) - x_start[-1])
         res = solve_static(held, x_start)
