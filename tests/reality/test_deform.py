@@ -249,3 +249,61 @@ def test_fit_reads_a_real_deform_trial_as_the_validation_model_does():
     theirs, _ = deform.predict(load_trial(path), values, NUM)
     assert np.abs(ours - theirs).max() < 1e-4
     assert float(np.mean(np.abs(ours - measured))) < 0.5 * float(np.mean(np.abs(deform.frozen(load_trial(path)) - measured)))
+
+
+def two_mode_trials(rng, n: int, c_spread: float = 0.3, noise: float = 0.003, rho: float = 0.9):
+    """Closed-form stand-in for marker residuals: per trial two damped modes (omega 3-5 and 9-14 rad/s), each decaying
+    at (c_i + tau omega^2) / 2 (drag and Kelvin-Voigt damping); c_i = C exp(c_spread N(0, 1)) differs between trials;
+    AR(1) noise with lag-one correlation ``rho`` at 20 Hz (motion-capture residuals are correlated in time)."""
+    t = np.arange(0.0, 5.0, 0.05)
+
+    def signal(theta, w, a, ph):
+        c, tau = np.exp(theta)
+        return sum(ak * np.exp(-0.5 * (c + tau * wk**2) * t) * np.cos(wk * t + pk) for wk, ak, pk in zip(w, a, ph))
+
+    trials = []
+    for _ in range(n):
+        w, a, ph = rng.uniform([3, 9], [5, 14]), rng.uniform(0.02, 0.06, 2), rng.uniform(0, 2 * np.pi, 2)
+        e = np.empty((len(t), 3))
+        e[0] = rng.normal(0.0, noise, 3)
+        for k in range(1, len(t)):
+            e[k] = rho * e[k - 1] + rng.normal(0.0, noise * math.sqrt(1 - rho**2), 3)
+        y = signal(np.log([TRUE_C * math.exp(c_spread * rng.normal()), TRUE_TAU]), w, a, ph)[:, None] + e
+        trials.append(lambda th, w=w, a=a, ph=ph, y=y: (signal(th, w, a, ph)[:, None] - y).ravel())
+    return trials
+
+
+TRUE_C, TRUE_TAU = 1.0, 0.02
+
+
+def fit_two_modes(trials) -> deform.Fit:
+    from scipy.optimize import least_squares
+    names = ("damping_rate", "internal_damping")
+    sol = least_squares(lambda th: np.concatenate([r(th) for r in trials]), np.log([TRUE_C, TRUE_TAU]),
+                        loss="soft_l1", f_scale=0.02)
+    base = [r(sol.x) for r in trials]
+    jac = [np.stack([(r(sol.x + h) - b) / 1e-6 for h in 1e-6 * np.eye(2)], axis=1) for r, b in zip(trials, base)]
+    return deform.Fit(deform.values_of(sol.x, names), sol.x, jac, base, 0, 0.0, 0.0, "", names)
+
+
+def test_trial_clustered_intervals_cover_when_the_trials_differ():
+    """Each trial has its own drag (spread 0.3 in log) and correlated noise; 6 trials, 100 fits. The leave-one-trial-out
+    jackknife with z = 1.96 alone (the intervals before) held the population's drag in 84 of 100 (tau, the same in
+    every trial, 94); with Student's t (5 dof), the trials' own spread (the larger standard error) and the trade-off's
+    bounds, 97 and 99 of 100 (nominal 95). Where the two terms trade off, the combination reported holds the truth."""
+    rng = np.random.default_rng(1)
+    old, new, combined, truth = np.zeros(2), np.zeros(2), [], np.log([TRUE_C, TRUE_TAU])
+    for _ in range(100):
+        f = fit_two_modes(two_mode_trials(rng, 6))
+        loo = deform.linearised_loo(f)
+        sd = np.sqrt(5 / 6 * np.sum((loo - loo.mean(axis=0)) ** 2, axis=0))
+        old += np.abs(f.theta - truth) <= 1.96 * sd
+        p = jackknife(f)
+        new += [p[k]["interval_95"][0] <= v <= p[k]["interval_95"][1]
+                for k, v in (("damping_rate", TRUE_C), ("internal_damping", TRUE_TAU))]
+        if "agreed_damping" in p:
+            a = p["agreed_damping"]
+            combined.append(a["interval_95"][0] <= TRUE_C + TRUE_TAU * a["omega_rad_s"] ** 2 <= a["interval_95"][1])
+    assert old[0] <= 87, old  # drag, the term that differs between trials
+    assert np.all(new >= 90), new
+    assert len(combined) >= 3 and np.mean(combined) >= 0.8, combined
