@@ -780,8 +780,8 @@ def jackknife(f: Fit, thetas: np.ndarray | None = None, level: float = 0.95, tra
     identifiable when its interval spans less than a factor of 3, it is not at a bound, and the data see it
     (Jacobian column at least 1 % of the largest). Where ``damping_rate`` and ``internal_damping`` are each not
     identifiable, or the trials' own values of them correlate (|r| >= ``trade_off_correlation``) and either is not,
-    both are reported not identifiable with ``trades_off_with`` and the combination the trials agree on is given
-    under ``"agreed_damping"`` (:func:`agreed_damping`); when that combination is identifiable, each term's interval
+    both are reported not identifiable with ``trades_off_with`` and the combination the data determine is given
+    under ``"agreed_damping"`` (:func:`agreed_damping`); each term's interval then
     becomes an upper bound (``upper_bound_only``): from the box's lower bound to the combination's upper one over the
     term's weight (1 for damping_rate, omega^2 for internal_damping), since neither can exceed the combination."""
     thetas = linearised_loo(f) if thetas is None else np.asarray(thetas)
@@ -822,7 +822,7 @@ def jackknife(f: Fit, thetas: np.ndarray | None = None, level: float = 0.95, tra
                 out[k]["identifiable"] = False
                 out[k]["trades_off_with"] = other
                 out[k]["trade_off_correlation"] = r
-                if agreed is not None and agreed["identifiable"]:  # each term alone is at most the whole combination
+                if agreed is not None:  # each term alone is at most the whole combination
                     weight = 1.0 if k == TRADE_OFF[0] else agreed["omega_rad_s"] ** 2
                     out[k]["interval_95"] = [bounds_of(k)[0], min(max(agreed["interval_95"][1] / weight,
                                                                       out[k]["interval_95"][1]), bounds_of(k)[1])]
@@ -1019,7 +1019,10 @@ def main(args: argparse.Namespace) -> int:
         "gravity_m_per_s2": [float(g) for g in gravity_of(f.values)],
         "fit": {"evaluations": f.evaluations, "message": f.message, "train_trials": [r.name for r in train],
                 "loss": "soft_l1, scale 0.02 m, free markers every 5th frame",
-                "intervals": f"leave-one-trial-out jackknife, 95 %, {args.intervals}"},
+                "intervals": f"95 %, trial-clustered: Student's t (N - 1 dof) x the larger of the leave-one-trial-out "
+                             f"jackknife ({args.intervals}) and the trials' own spread / sqrt(N), widened by the fit's "
+                             f"remaining Gauss-Newton step; a damping pair that trades off gives its combination "
+                             f"(agreed_damping) and upper bounds only"},
         "numerics": {**asdict(num)},
         "cost": {"cpu_s_per_simulated_s": f.cpu_s / f.simulated_s, "clock": "time.thread_time",
                  "fit_cpu_s": f.cpu_s},
@@ -1054,8 +1057,11 @@ def print_table(summary: dict[str, Any]) -> None:
             print(f"{split:6} {name:>6} {v:>9} {1e3 * row['frozen_l1_m']:>12.1f}")
     for k, p in summary["parameters"].items():
         lo, hi = p["interval_95"]
-        print(f"{k:18} {p['value']:.4g} {p['unit']} (95 %: {lo:.3g} - {hi:.3g})"
-              + ("" if p["identifiable"] else "  not identifiable"))
+        what = f"at most {hi:.3g}" if p.get("upper_bound_only") else f"{lo:.3g} - {hi:.3g}"
+        name = f"{k} (omega {p['omega_rad_s']:.2f} rad/s)" if "omega_rad_s" in p else k
+        print(f"{name:18} {p['value']:.4g} {p['unit']} (95 %: {what})"
+              + ("" if p["identifiable"] else "  not identifiable")
+              + (f", trades off with {p['trades_off_with']}" if "trades_off_with" in p else ""))
     num = summary["numerics"]
     if "numerical_damping_ratio" in num:
         print(f"{num['integrator']} n={num['n_masses']} dt={num['dt']}: first swing mode {num['first_swing_mode_hz']:.3f} Hz, "

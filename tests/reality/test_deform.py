@@ -287,13 +287,13 @@ def fit_two_modes(trials) -> deform.Fit:
 
 
 def test_trial_clustered_intervals_cover_when_the_trials_differ():
-    """Each trial has its own drag (spread 0.3 in log) and correlated noise; 6 trials, 100 fits. The leave-one-trial-out
-    jackknife with z = 1.96 alone (the intervals before) held the population's drag in 84 of 100 (tau, the same in
-    every trial, 94); with Student's t (5 dof), the trials' own spread (the larger standard error) and the trade-off's
-    bounds, 97 and 99 of 100 (nominal 95). Where the two terms trade off, the combination reported holds the truth."""
+    """Each trial has its own drag (spread 0.3 in log) and correlated noise; 6 trials, 200 fits. The leave-one-trial-out
+    jackknife with z = 1.96 alone (the intervals before) held the population's drag in 165 of 200 (tau, the same in
+    every trial, 187); with Student's t (5 dof), the trials' own spread (the larger standard error) and the trade-off's
+    bounds, 189 and 197 of 200 (nominal 95 %). Where the two terms trade off (7 fits), the combination holds the truth."""
     rng = np.random.default_rng(1)
     old, new, combined, truth = np.zeros(2), np.zeros(2), [], np.log([TRUE_C, TRUE_TAU])
-    for _ in range(100):
+    for _ in range(200):
         f = fit_two_modes(two_mode_trials(rng, 6))
         loo = deform.linearised_loo(f)
         sd = np.sqrt(5 / 6 * np.sum((loo - loo.mean(axis=0)) ** 2, axis=0))
@@ -304,6 +304,6 @@ def test_trial_clustered_intervals_cover_when_the_trials_differ():
         if "agreed_damping" in p:
             a = p["agreed_damping"]
             combined.append(a["interval_95"][0] <= TRUE_C + TRUE_TAU * a["omega_rad_s"] ** 2 <= a["interval_95"][1])
-    assert old[0] <= 87, old  # drag, the term that differs between trials
-    assert np.all(new >= 90), new
+    assert old[0] <= 175, old  # drag, the term that differs between trials: 82 %
+    assert np.all(new >= 180), new  # 90 %
     assert len(combined) >= 3 and np.mean(combined) >= 0.8, combined
