@@ -716,25 +716,39 @@ TRADE_OFF = ("damping_rate", "internal_damping")
 c + tau omega^2 for a mode of angular frequency omega."""
 
 
-def trial_intervals(centre: np.ndarray, loo: np.ndarray, own: np.ndarray, level: float = 0.95
-                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
-    """Trial-clustered standard errors of ``centre`` (p,) from N trials: the leave-one-trial-out jackknife's
-    sqrt((N-1)/N sum (loo_i - mean)^2) and the between-trial one, the sample SD of each trial's own estimate
-    ``own`` (N, p) / sqrt(N) (inf where a trial alone does not determine a parameter). Returns both, the larger
-    (what the interval uses) and Student's t quantile with N - 1 degrees of freedom. Residuals within a trial are
-    correlated over many frames and markers (on DLO1 the marker residuals' correlation time is 3-16 samples at 20
-    Hz and neighbouring markers move together), and each trial has its own motion: the independent units are the
-    trials, not the samples. The jackknife alone follows the pooled fit's weights and was too narrow on DLO1 (the
-    8- and 24-trial intervals of damping_rate excluded each other) when a few trials carry the fit."""
+def trial_information(f: Fit, f_scale: float = 0.02) -> list[np.ndarray]:
+    """Each trial's information on the log parameters, J^T W J with the soft-L1 IRLS weights, (p, p) per trial."""
+    out = []
+    for j, r in zip(f.jac, f.residuals):
+        jw = j / np.sqrt(np.sqrt(1.0 + (r / f_scale) ** 2))[:, None]
+        out.append(jw.T @ jw)
+    return out
+
+
+def trial_intervals(centre: np.ndarray, loo: np.ndarray, own: np.ndarray, weights: np.ndarray, level: float = 0.95
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Trial-clustered standard errors of ``centre`` (p,) from N trials. The pooled fit is about a weighted mean of
+    the trials' own estimates ``own`` (N, p), weighted by their information ``weights`` (N, p); with trials that
+    differ, its variance is s^2 / n_eff, s the sample SD of ``own`` and n_eff = (sum w)^2 / sum w^2 the effective
+    number of trials (inf where a trial alone does not determine a parameter). Beside it the leave-one-trial-out
+    jackknife's sqrt((N-1)/N sum (loo_i - mean)^2); the larger is used, with Student's t at n_eff - 1 degrees of
+    freedom (at least 1). Returns jackknife, between-trial and used standard errors, t and n_eff, each (p,).
+
+    Why: residuals within a trial are correlated over many frames and markers (on DLO1 over 3-16 samples at 20 Hz,
+    and neighbouring markers together), so the independent units are trials, not samples; and a few trials carry
+    the fit (DLO1 on 8 trials: n_eff 3.4 for EI/(rho A), 1.1-1.3 for the damping terms), where the jackknife alone
+    with z 1.96 gave 8- and 24-trial intervals that excluded each other."""
     n = len(loo)
-    t = float(stats.t.ppf(0.5 + level / 2, n - 1)) if n > 1 else math.inf
+    w = np.asarray(weights, dtype=float)
+    n_eff = np.minimum(w.sum(axis=0) ** 2 / np.maximum((w ** 2).sum(axis=0), 1e-300), n)
+    t = stats.t.ppf(0.5 + level / 2, np.maximum(n_eff - 1.0, 1.0))
     if n < 2:
         inf = np.full(len(centre), math.inf)
-        return inf, inf, inf, t
+        return inf, inf, inf, t, n_eff
     jk = np.sqrt((n - 1) / n * np.sum((loo - loo.mean(axis=0)) ** 2, axis=0))
     with np.errstate(invalid="ignore"):
-        between = np.where(np.all(np.isfinite(own), axis=0), np.nanstd(own, axis=0, ddof=1) / math.sqrt(n), math.inf)
-    return jk, between, np.maximum(jk, between), t
+        between = np.where(np.all(np.isfinite(own), axis=0), np.nanstd(own, axis=0, ddof=1) / np.sqrt(n_eff), math.inf)
+    return jk, between, np.maximum(jk, between), t, n_eff
 
 
 def agreed_damping(f: Fit, loo: np.ndarray, own: np.ndarray, level: float = 0.95,
@@ -762,20 +776,24 @@ def agreed_damping(f: Fit, loo: np.ndarray, own: np.ndarray, level: float = 0.95
     w = math.sqrt(share * c / ((1.0 - share) * tau))
     comb = lambda th: np.log(np.exp(th[..., ic]) + np.exp(th[..., it]) * w ** 2)
     centre = comb(f.theta)
-    jk, between, se, t = trial_intervals(np.array([centre]), comb(loo)[:, None], comb(own)[:, None], level)
+    u = np.zeros(len(f.names))
+    u[ic], u[it] = 1.0 - share, share  # d comb / d theta at the fit
+    info = np.array([[u @ h @ u] for h in trial_information(f, f_scale)])
+    jk, between, se, t, n_eff = trial_intervals(np.array([centre]), comb(loo)[:, None], comb(own)[:, None], info, level)
     short = 0.0 if step is None else abs(float(comb(f.theta + step) - centre))
-    half = min(t * float(se[0]) + short, 700.0)
+    half = min(float(t[0]) * float(se[0]) + short, 700.0)
     return {"name": "damping_rate + internal_damping * omega^2", "unit": "1/s", "omega_rad_s": w,
             "value": float(math.exp(centre)), "interval_95": [float(math.exp(centre - half)), float(math.exp(centre + half))],
             "identifiable": bool(2 * half < math.log(3.0)), "per_trial": [float(x) for x in np.exp(comb(own))],
-            "log_standard_error": {"jackknife": float(jk[0]), "between_trials": float(between[0])}}
+            "log_standard_error": {"jackknife": float(jk[0]), "between_trials": float(between[0])},
+            "effective_trials": float(n_eff[0]), "t_quantile": float(t[0])}
 
 
 def jackknife(f: Fit, thetas: np.ndarray | None = None, level: float = 0.95, trade_off_correlation: float = 0.5
               ) -> dict[str, dict[str, Any]]:
     """Trial-clustered 95 % intervals (:func:`trial_intervals`) from leave-one-trial-out fits ``thetas`` (N, p) in
     log parameters (default: :func:`linearised_loo`) and each trial's own estimate (:func:`per_trial_estimates`):
-    value * exp(+-(t se + |step|)), t Student's with N - 1 degrees of freedom, step the fit's :func:`remaining_step`,
+    value * exp(+-(t se + |step|)), t Student's at n_eff - 1 degrees of freedom, step the fit's :func:`remaining_step`,
     clipped to :data:`BOUNDS`. A parameter is called
     identifiable when its interval spans less than a factor of 3, it is not at a bound, and the data see it
     (Jacobian column at least 1 % of the largest). Where ``damping_rate`` and ``internal_damping`` are each not
@@ -787,12 +805,14 @@ def jackknife(f: Fit, thetas: np.ndarray | None = None, level: float = 0.95, tra
     thetas = linearised_loo(f) if thetas is None else np.asarray(thetas)
     own = per_trial_estimates(f)
     n = len(thetas)
-    jk, between, se, t = trial_intervals(f.theta, thetas, own, level)
+    info = np.array([np.diag(h) for h in trial_information(f)])
+    jk, between, se, tq, n_eff = trial_intervals(f.theta, thetas, own, info, level)
     step = remaining_step(f)
     seen = np.linalg.norm(np.concatenate(f.jac), axis=0)
     out: dict[str, dict[str, Any]] = {}
     for j, k in enumerate(f.names):
         b_lo, b_hi = bounds_of(k)
+        t = float(tq[j])
         if k in LINEAR_PARAMETERS:  # a tilt: value +- t se [rad]; identifiable when the interval is under 0.05 rad wide
             lo, hi = max(f.values[k] - t * se[j] - abs(step[j]), b_lo), min(f.values[k] + t * se[j] + abs(step[j]), b_hi)
             at_bound = min(abs(f.theta[j] - b_lo), abs(f.theta[j] - b_hi)) < 0.005
@@ -809,7 +829,8 @@ def jackknife(f: Fit, thetas: np.ndarray | None = None, level: float = 0.95, tra
         out[k] = {"value": f.values[k], "unit": unit_of(k), "interval_95": [lo, hi], "identifiable": ident,
                   "leave_one_out": [float(x) for x in loo], "per_trial": [float(x) for x in mine],
                   "standard_error_log": {"jackknife": float(jk[j]), "between_trials": float(between[j])},
-                  "remaining_step_log": float(step[j]), "t_quantile": t, "trials": n, "at_bound": bool(at_bound)}
+                  "remaining_step_log": float(step[j]), "t_quantile": t, "trials": n,
+                  "effective_trials": float(n_eff[j]), "at_bound": bool(at_bound)}
     if all(k in out for k in TRADE_OFF) and n > 2:
         a, b = (f.names.index(k) for k in TRADE_OFF)
         ok = np.all(np.isfinite(own[:, [a, b]]), axis=1)

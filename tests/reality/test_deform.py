@@ -289,8 +289,9 @@ def fit_two_modes(trials) -> deform.Fit:
 def test_trial_clustered_intervals_cover_when_the_trials_differ():
     """Each trial has its own drag (spread 0.3 in log) and correlated noise; 6 trials, 200 fits. The leave-one-trial-out
     jackknife with z = 1.96 alone (the intervals before) held the population's drag in 165 of 200 (tau, the same in
-    every trial, 187); with Student's t (5 dof), the trials' own spread (the larger standard error) and the trade-off's
-    bounds, 189 and 197 of 200 (nominal 95 %). Where the two terms trade off (7 fits), the combination holds the truth."""
+    every trial, 187); with the trials' own spread over the effective number of trials (the larger standard error),
+    Student's t at its dof and the trade-off's bounds, 196 and 197 of 200 (nominal 95 %). Where the two terms trade
+    off (13 fits), the combination holds the truth."""
     rng = np.random.default_rng(1)
     old, new, combined, truth = np.zeros(2), np.zeros(2), [], np.log([TRUE_C, TRUE_TAU])
     for _ in range(200):
