@@ -783,7 +783,8 @@ def agreed_damping(f: Fit, loo: np.ndarray, own: np.ndarray, level: float = 0.95
     short = 0.0 if step is None else abs(float(comb(f.theta + step) - centre))
     half = min(float(t[0]) * float(se[0]) + short, 700.0)
     return {"name": "damping_rate + internal_damping * omega^2", "unit": "1/s", "omega_rad_s": w,
-            "value": float(math.exp(centre)), "interval_95": [float(math.exp(centre - half)), float(math.exp(centre + half))],
+            "value": float(math.exp(centre)),
+            "interval_95": [float(math.exp(centre - half)), float(math.exp(centre + half))],
             "identifiable": bool(2 * half < math.log(3.0)), "per_trial": [float(x) for x in np.exp(comb(own))],
             "log_standard_error": {"jackknife": float(jk[0]), "between_trials": float(between[0])},
             "effective_trials": float(n_eff[0]), "t_quantile": float(t[0])}
@@ -814,11 +815,12 @@ def jackknife(f: Fit, thetas: np.ndarray | None = None, level: float = 0.95, tra
         b_lo, b_hi = bounds_of(k)
         t = float(tq[j])
         if k in LINEAR_PARAMETERS:  # a tilt: value +- t se [rad]; identifiable when the interval is under 0.05 rad wide
-            lo, hi = max(f.values[k] - t * se[j] - abs(step[j]), b_lo), min(f.values[k] + t * se[j] + abs(step[j]), b_hi)
+            half = t * se[j] + abs(step[j])
+            lo, hi = max(f.values[k] - half, b_lo), min(f.values[k] + half, b_hi)
             at_bound = min(abs(f.theta[j] - b_lo), abs(f.theta[j] - b_hi)) < 0.005
             narrow = hi - lo < 0.05
         else:
-            spread = min(t * se[j] + abs(step[j]), 700.0)  # a parameter the data do not see can have an overflowing spread
+            spread = min(t * se[j] + abs(step[j]), 700.0)  # a parameter the data do not see: an overflowing spread
             lo = max(f.values[k] * math.exp(-spread), b_lo)  # the fit's box bounds the interval
             hi = min(f.values[k] * math.exp(spread), b_hi)
             at_bound = min(abs(f.theta[j] - math.log(b_lo)), abs(f.theta[j] - math.log(b_hi))) < 0.05
