@@ -70,6 +70,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from scipy import stats
 from scipy.interpolate import CubicSpline
 from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
@@ -483,6 +484,29 @@ class Residual:
         return np.concatenate(self.per_trial(theta))
 
 
+def valley_probe(res: Residual, sol, lo: np.ndarray, hi: np.ndarray, f_scale: float, max_evaluations: int,
+                 reach: float = 1.0):
+    """Where the optimiser stopped, try ``reach`` either way (in the logs) along the direction the data see least
+    (the last right singular vector of the loss-weighted Jacobian at the stop); if either point costs less, descend
+    again from the better one with the runs left. The trust region collapses in a long flat valley (the damping terms
+    trading off): DLO1 fitted on 24 train trials stopped (xtol, 26 runs) at damping_rate 1.06, internal_damping
+    0.0025, where the 8-trial optimum (0.48, 0.0158) costs those 24 trials 6 % less. Two runs of the set."""
+    v = np.linalg.svd(np.asarray(sol.jac), full_matrices=False)[2][-1]
+    soft = lambda r: float(np.sum(2.0 * (np.sqrt(1.0 + (r / f_scale) ** 2) - 1.0)))
+    best, best_x = 2.0 * float(sol.cost) * f_scale**-2, None  # least_squares' cost is f_scale^2 / 2 * that sum
+    for sign in (1.0, -1.0):
+        x = np.clip(sol.x + sign * reach * v, lo + 1e-6, hi - 1e-6)
+        c = soft(res(x))
+        if c < best:
+            best, best_x = c, x
+    left = max_evaluations - res.evaluations
+    if best_x is None or left < 6:
+        return sol
+    again = least_squares(res, best_x, bounds=(lo, hi), method="trf", loss="soft_l1", f_scale=f_scale,
+                          diff_step=0.05, max_nfev=max(1, (left - 4) // 4), xtol=1e-3, ftol=1e-4)
+    return again if again.cost < sol.cost else sol
+
+
 def fit(recs: Sequence[MarkerRecording], num: Numerics, max_evaluations: int = 60,
         guess: dict[str, float] | None = None, every: int = 5, f_scale: float = 0.02,
         rest: RestShape | None = None, extra: Sequence[str] = ()) -> Fit:
@@ -519,6 +543,7 @@ def fit(recs: Sequence[MarkerRecording], num: Numerics, max_evaluations: int = 6
     sol = least_squares(res, theta0, bounds=(lo, hi), method="trf", loss="soft_l1", f_scale=f_scale,
                         diff_step=0.05, max_nfev=max(1, (max_evaluations - res.evaluations - 4) // 4),
                         xtol=1e-3, ftol=1e-4)
+    sol = valley_probe(res, sol, lo, hi, f_scale, max_evaluations)
     if not extra:
         base = res.per_trial(sol.x)
         jac = [np.empty((len(r), len(PARAMETERS))) for r in base]
@@ -662,35 +687,171 @@ def refit_loo(recs: Sequence[MarkerRecording], f: Fit, num: Numerics, max_evalua
     return np.array(thetas)
 
 
-def jackknife(f: Fit, thetas: np.ndarray | None = None, level_z: float = 1.96) -> dict[str, dict[str, Any]]:
-    """95 % intervals from leave-one-trial-out fits ``thetas`` (N, 3) in log parameters (default:
-    :func:`linearised_loo`): the jackknife variance (N-1)/N sum (theta_-i - mean)^2 gives value *
-    exp(+-z sd), clipped to :data:`BOUNDS`. Their spread is the trial-to-trial spread of the
-    parameters, not a white-residual assumption (motion-capture residuals are strongly correlated
-    in time). A parameter is called identifiable when its interval spans less than a factor of 3,
-    it is not at a bound, and the data see it (Jacobian column at least 1 % of the largest)."""
+def remaining_step(f: Fit, f_scale: float = 0.02) -> np.ndarray:
+    """The Gauss-Newton step of the soft-L1 problem on all trials from where the fit stopped, (p,) in log parameters:
+    about 0 at an optimum. Along a direction the data hardly see the optimiser stops early (DLO1 on 24 trials: xtol
+    after 26 runs, 0.14 short in log internal_damping); :func:`jackknife` widens each interval by it."""
+    w = [1.0 / np.sqrt(np.sqrt(1.0 + (r / f_scale) ** 2)) for r in f.residuals]
+    j = np.concatenate([x * wi[:, None] for x, wi in zip(f.jac, w)])
+    r = np.concatenate([x * wi for x, wi in zip(f.residuals, w)])
+    return np.linalg.lstsq(j, -r, rcond=1e-10)[0]
+
+
+def per_trial_estimates(f: Fit, f_scale: float = 0.02) -> np.ndarray:
+    """Each trial's own estimate of the log parameters, linearised, (N, p): one Gauss-Newton step of the soft-L1
+    problem on that trial alone from the pooled optimum (IRLS weights as :func:`linearised_loo`); a row is nan where
+    the trial alone does not determine every parameter (its Jacobian has a blind direction). Their spread is how much
+    the trials disagree, whatever weight the pooled fit gives each."""
+    out = np.full((len(f.jac), len(f.theta)), np.nan)
+    for i, (j, r) in enumerate(zip(f.jac, f.residuals)):
+        w = 1.0 / np.sqrt(np.sqrt(1.0 + (r / f_scale) ** 2))
+        step, _, rank, _ = np.linalg.lstsq(j * w[:, None], -r * w, rcond=1e-8)
+        if rank == len(f.theta):
+            out[i] = f.theta + step
+    return out
+
+
+TRADE_OFF = ("damping_rate", "internal_damping")
+"""The pair that trades off: drag on the masses (c) and Kelvin-Voigt damping of the bending (tau) both damp the swings,
+c + tau omega^2 for a mode of angular frequency omega."""
+
+
+def trial_information(f: Fit, f_scale: float = 0.02) -> list[np.ndarray]:
+    """Each trial's information on the log parameters, J^T W J with the soft-L1 IRLS weights, (p, p) per trial."""
+    out = []
+    for j, r in zip(f.jac, f.residuals):
+        jw = j / np.sqrt(np.sqrt(1.0 + (r / f_scale) ** 2))[:, None]
+        out.append(jw.T @ jw)
+    return out
+
+
+def trial_intervals(centre: np.ndarray, loo: np.ndarray, own: np.ndarray, weights: np.ndarray, level: float = 0.95
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Trial-clustered standard errors of ``centre`` (p,) from N trials. The pooled fit is about a weighted mean of
+    the trials' own estimates ``own`` (N, p), weighted by their information ``weights`` (N, p); with trials that
+    differ, its variance is s^2 / n_eff, s the sample SD of ``own`` and n_eff = (sum w)^2 / sum w^2 the effective
+    number of trials (inf where a trial alone does not determine a parameter). Beside it the leave-one-trial-out
+    jackknife's sqrt((N-1)/N sum (loo_i - mean)^2); the larger is used, with Student's t at n_eff - 1 degrees of
+    freedom (at least 1). Returns jackknife, between-trial and used standard errors, t and n_eff, each (p,).
+
+    Why: residuals within a trial are correlated over many frames and markers (on DLO1 over 3-16 samples at 20 Hz,
+    and neighbouring markers together), so the independent units are trials, not samples; and a few trials carry
+    the fit (DLO1 on 8 trials: n_eff 3.4 for EI/(rho A), 1.1-1.3 for the damping terms), where the jackknife alone
+    with z 1.96 gave 8- and 24-trial intervals that excluded each other."""
+    n = len(loo)
+    w = np.asarray(weights, dtype=float)
+    n_eff = np.minimum(w.sum(axis=0) ** 2 / np.maximum((w ** 2).sum(axis=0), 1e-300), n)
+    t = stats.t.ppf(0.5 + level / 2, np.maximum(n_eff - 1.0, 1.0))
+    if n < 2:
+        inf = np.full(len(centre), math.inf)
+        return inf, inf, inf, t, n_eff
+    jk = np.sqrt((n - 1) / n * np.sum((loo - loo.mean(axis=0)) ** 2, axis=0))
+    with np.errstate(invalid="ignore"):
+        between = np.where(np.all(np.isfinite(own), axis=0), np.nanstd(own, axis=0, ddof=1) / np.sqrt(n_eff), math.inf)
+    return jk, between, np.maximum(jk, between), t, n_eff
+
+
+def agreed_damping(f: Fit, loo: np.ndarray, own: np.ndarray, level: float = 0.95,
+                   f_scale: float = 0.02, step: np.ndarray | None = None) -> dict[str, Any] | None:
+    """The damping the data determine when the two damping terms trade off: c + tau omega^2 [1/s] (twice the decay
+    rate it gives a mode of angular frequency omega). Its log moves by (1 - s, s) . (d log c, d log tau), s = tau
+    omega^2 / (c + tau omega^2); omega is where that is the pooled fit's best-determined direction of the two (the
+    leading eigenvector of their information, the other parameters profiled out); None when that direction has
+    mixed signs (no omega gives it). Value, trial-clustered interval (:func:`trial_intervals`, widened by the
+    combination's share of ``step``, :func:`remaining_step`), per-trial values."""
+    if not all(k in f.names for k in TRADE_OFF) or not np.all(np.isfinite(own)):
+        return None
+    ic, it = (f.names.index(k) for k in TRADE_OFF)
+    w8 = [1.0 / np.sqrt(np.sqrt(1.0 + (r / f_scale) ** 2)) for r in f.residuals]
+    jw = np.concatenate([j * w[:, None] for j, w in zip(f.jac, w8)])
+    h = jw.T @ jw
+    d = [ic, it]
+    o = [k for k in range(len(f.names)) if k not in d]
+    schur = h[np.ix_(d, d)] - (h[np.ix_(d, o)] @ np.linalg.solve(h[np.ix_(o, o)], h[np.ix_(o, d)]) if o else 0.0)
+    v = np.linalg.eigh(schur)[1][:, -1]
+    if v[0] * v[1] <= 0:
+        return None
+    share = float(v[1] / (v[0] + v[1]))
+    c, tau = f.values[TRADE_OFF[0]], f.values[TRADE_OFF[1]]
+    w = math.sqrt(share * c / ((1.0 - share) * tau))
+    comb = lambda th: np.log(np.exp(th[..., ic]) + np.exp(th[..., it]) * w ** 2)
+    centre = comb(f.theta)
+    u = np.zeros(len(f.names))
+    u[ic], u[it] = 1.0 - share, share  # d comb / d theta at the fit
+    info = np.array([[u @ h @ u] for h in trial_information(f, f_scale)])
+    jk, between, se, t, n_eff = trial_intervals(np.array([centre]), comb(loo)[:, None], comb(own)[:, None], info, level)
+    short = 0.0 if step is None else abs(float(comb(f.theta + step) - centre))
+    half = min(float(t[0]) * float(se[0]) + short, 700.0)
+    return {"name": "damping_rate + internal_damping * omega^2", "unit": "1/s", "omega_rad_s": w,
+            "value": float(math.exp(centre)),
+            "interval_95": [float(math.exp(centre - half)), float(math.exp(centre + half))],
+            "identifiable": bool(2 * half < math.log(3.0)), "per_trial": [float(x) for x in np.exp(comb(own))],
+            "log_standard_error": {"jackknife": float(jk[0]), "between_trials": float(between[0])},
+            "effective_trials": float(n_eff[0]), "t_quantile": float(t[0])}
+
+
+def jackknife(f: Fit, thetas: np.ndarray | None = None, level: float = 0.95, trade_off_correlation: float = 0.5
+              ) -> dict[str, dict[str, Any]]:
+    """Trial-clustered 95 % intervals (:func:`trial_intervals`) from leave-one-trial-out fits ``thetas`` (N, p) in
+    log parameters (default: :func:`linearised_loo`) and each trial's own estimate (:func:`per_trial_estimates`):
+    value * exp(+-(t se + |step|)), t Student's at n_eff - 1 degrees of freedom, step the fit's :func:`remaining_step`,
+    clipped to :data:`BOUNDS`. A parameter is called
+    identifiable when its interval spans less than a factor of 3, it is not at a bound, and the data see it
+    (Jacobian column at least 1 % of the largest). Where ``damping_rate`` and ``internal_damping`` are each not
+    identifiable, or the trials' own values of them correlate (|r| >= ``trade_off_correlation``) and either is not,
+    both are reported not identifiable with ``trades_off_with`` and the combination the data determine is given
+    under ``"agreed_damping"`` (:func:`agreed_damping`); each term's interval then
+    becomes an upper bound (``upper_bound_only``): from the box's lower bound to the combination's upper one over the
+    term's weight (1 for damping_rate, omega^2 for internal_damping), since neither can exceed the combination."""
     thetas = linearised_loo(f) if thetas is None else np.asarray(thetas)
+    own = per_trial_estimates(f)
     n = len(thetas)
-    p = len(f.names)
-    sd = np.sqrt((n - 1) / n * np.sum((thetas - thetas.mean(axis=0)) ** 2, axis=0)) if n > 1 else np.full(p, np.inf)
+    info = np.array([np.diag(h) for h in trial_information(f)])
+    jk, between, se, tq, n_eff = trial_intervals(f.theta, thetas, own, info, level)
+    step = remaining_step(f)
     seen = np.linalg.norm(np.concatenate(f.jac), axis=0)
-    out = {}
+    out: dict[str, dict[str, Any]] = {}
     for j, k in enumerate(f.names):
         b_lo, b_hi = bounds_of(k)
-        if k in LINEAR_PARAMETERS:  # a tilt: value +- z sd [rad]; identifiable when the interval is under 0.05 rad wide
-            lo, hi = max(f.values[k] - level_z * sd[j], b_lo), min(f.values[k] + level_z * sd[j], b_hi)
+        t = float(tq[j])
+        if k in LINEAR_PARAMETERS:  # a tilt: value +- t se [rad]; identifiable when the interval is under 0.05 rad wide
+            half = t * se[j] + abs(step[j])
+            lo, hi = max(f.values[k] - half, b_lo), min(f.values[k] + half, b_hi)
             at_bound = min(abs(f.theta[j] - b_lo), abs(f.theta[j] - b_hi)) < 0.005
             narrow = hi - lo < 0.05
         else:
-            spread = min(level_z * sd[j], 700.0)  # a parameter the data do not see can have an overflowing spread
+            spread = min(t * se[j] + abs(step[j]), 700.0)  # a parameter the data do not see: an overflowing spread
             lo = max(f.values[k] * math.exp(-spread), b_lo)  # the fit's box bounds the interval
             hi = min(f.values[k] * math.exp(spread), b_hi)
             at_bound = min(abs(f.theta[j] - math.log(b_lo)), abs(f.theta[j] - math.log(b_hi))) < 0.05
             narrow = hi / lo < 3.0
         ident = bool(narrow and seen[j] >= 0.01 * seen.max() and not at_bound)
         loo = thetas[:, j] if k in LINEAR_PARAMETERS else np.exp(np.minimum(thetas[:, j], 700.0))
+        mine = own[:, j] if k in LINEAR_PARAMETERS else np.exp(np.minimum(own[:, j], 700.0))
         out[k] = {"value": f.values[k], "unit": unit_of(k), "interval_95": [lo, hi], "identifiable": ident,
-                  "leave_one_out": [float(t) for t in loo], "at_bound": bool(at_bound)}
+                  "leave_one_out": [float(x) for x in loo], "per_trial": [float(x) for x in mine],
+                  "standard_error_log": {"jackknife": float(jk[j]), "between_trials": float(between[j])},
+                  "remaining_step_log": float(step[j]), "t_quantile": t, "trials": n,
+                  "effective_trials": float(n_eff[j]), "at_bound": bool(at_bound)}
+    if all(k in out for k in TRADE_OFF) and n > 2:
+        a, b = (f.names.index(k) for k in TRADE_OFF)
+        ok = np.all(np.isfinite(own[:, [a, b]]), axis=1)
+        r = float(np.corrcoef(own[ok][:, [a, b]].T)[0, 1]) if ok.sum() > 2 else math.nan
+        either = not (out[TRADE_OFF[0]]["identifiable"] and out[TRADE_OFF[1]]["identifiable"])
+        if either and (not math.isfinite(r) or abs(r) >= trade_off_correlation
+                       or not (out[TRADE_OFF[0]]["identifiable"] or out[TRADE_OFF[1]]["identifiable"])):
+            agreed = agreed_damping(f, thetas, own, level, step=step)
+            for k, other in (TRADE_OFF, TRADE_OFF[::-1]):
+                out[k]["identifiable"] = False
+                out[k]["trades_off_with"] = other
+                out[k]["trade_off_correlation"] = r
+                if agreed is not None:  # each term alone is at most the whole combination
+                    weight = 1.0 if k == TRADE_OFF[0] else agreed["omega_rad_s"] ** 2
+                    out[k]["interval_95"] = [bounds_of(k)[0], min(max(agreed["interval_95"][1] / weight,
+                                                                      out[k]["interval_95"][1]), bounds_of(k)[1])]
+                    out[k]["upper_bound_only"] = True
+            if agreed is not None:
+                out["agreed_damping"] = agreed
     return out
 
 
@@ -881,7 +1042,10 @@ def main(args: argparse.Namespace) -> int:
         "gravity_m_per_s2": [float(g) for g in gravity_of(f.values)],
         "fit": {"evaluations": f.evaluations, "message": f.message, "train_trials": [r.name for r in train],
                 "loss": "soft_l1, scale 0.02 m, free markers every 5th frame",
-                "intervals": f"leave-one-trial-out jackknife, 95 %, {args.intervals}"},
+                "intervals": f"95 %, trial-clustered: Student's t (N - 1 dof) x the larger of the leave-one-trial-out "
+                             f"jackknife ({args.intervals}) and the trials' own spread / sqrt(N), widened by the fit's "
+                             f"remaining Gauss-Newton step; a damping pair that trades off gives its combination "
+                             f"(agreed_damping) and upper bounds only"},
         "numerics": {**asdict(num)},
         "cost": {"cpu_s_per_simulated_s": f.cpu_s / f.simulated_s, "clock": "time.thread_time",
                  "fit_cpu_s": f.cpu_s},
@@ -916,8 +1080,11 @@ def print_table(summary: dict[str, Any]) -> None:
             print(f"{split:6} {name:>6} {v:>9} {1e3 * row['frozen_l1_m']:>12.1f}")
     for k, p in summary["parameters"].items():
         lo, hi = p["interval_95"]
-        print(f"{k:18} {p['value']:.4g} {p['unit']} (95 %: {lo:.3g} - {hi:.3g})"
-              + ("" if p["identifiable"] else "  not identifiable"))
+        what = f"at most {hi:.3g}" if p.get("upper_bound_only") else f"{lo:.3g} - {hi:.3g}"
+        name = f"{k} (omega {p['omega_rad_s']:.2f} rad/s)" if "omega_rad_s" in p else k
+        print(f"{name:18} {p['value']:.4g} {p['unit']} (95 %: {what})"
+              + ("" if p["identifiable"] else "  not identifiable")
+              + (f", trades off with {p['trades_off_with']}" if "trades_off_with" in p else ""))
     num = summary["numerics"]
     if "numerical_damping_ratio" in num:
         print(f"{num['integrator']} n={num['n_masses']} dt={num['dt']}: first swing mode {num['first_swing_mode_hz']:.3f} Hz, "

@@ -119,12 +119,13 @@ def synthetic(tmp_path_factory):
 
 
 def test_fit_recovers_hidden_parameters_within_its_intervals(synthetic):
-    """Made by the model itself (2 mm marker noise): the fitted EI/(rho A) and damping cover the truth."""
+    """Made by the model itself (2 mm marker noise): the fitted EI/(rho A) and damping cover the truth. Three trials of
+    unequal weight: Student's t at n_eff - 1 dof can keep EI/(rho A) from being called identifiable."""
     recs = [load_trial(p) for p in sorted((synthetic / "train").glob("*.pkl"))]
     f = fit(recs, NUM, max_evaluations=22)
     params = jackknife(f)
     b = params["bending_per_mass"]
-    assert b["identifiable"]
+    assert b["identifiable"] or b["effective_trials"] < 3.0, b  # here n_eff 2.5: t 6, 0.029-0.106 covering 0.05
     assert b["interval_95"][0] <= HIDDEN["bending_per_mass"] <= b["interval_95"][1], b
     assert abs(math.log(b["value"] / HIDDEN["bending_per_mass"])) < 0.2  # within 22 % after a short fit
     for k in ("damping_rate", "internal_damping"):
@@ -249,3 +250,62 @@ def test_fit_reads_a_real_deform_trial_as_the_validation_model_does():
     theirs, _ = deform.predict(load_trial(path), values, NUM)
     assert np.abs(ours - theirs).max() < 1e-4
     assert float(np.mean(np.abs(ours - measured))) < 0.5 * float(np.mean(np.abs(deform.frozen(load_trial(path)) - measured)))
+
+
+def two_mode_trials(rng, n: int, c_spread: float = 0.3, noise: float = 0.003, rho: float = 0.9):
+    """Closed-form stand-in for marker residuals: per trial two damped modes (omega 3-5 and 9-14 rad/s), each decaying
+    at (c_i + tau omega^2) / 2 (drag and Kelvin-Voigt damping); c_i = C exp(c_spread N(0, 1)) differs between trials;
+    AR(1) noise with lag-one correlation ``rho`` at 20 Hz (motion-capture residuals are correlated in time)."""
+    t = np.arange(0.0, 5.0, 0.05)
+
+    def signal(theta, w, a, ph):
+        c, tau = np.exp(theta)
+        return sum(ak * np.exp(-0.5 * (c + tau * wk**2) * t) * np.cos(wk * t + pk) for wk, ak, pk in zip(w, a, ph))
+
+    trials = []
+    for _ in range(n):
+        w, a, ph = rng.uniform([3, 9], [5, 14]), rng.uniform(0.02, 0.06, 2), rng.uniform(0, 2 * np.pi, 2)
+        e = np.empty((len(t), 3))
+        e[0] = rng.normal(0.0, noise, 3)
+        for k in range(1, len(t)):
+            e[k] = rho * e[k - 1] + rng.normal(0.0, noise * math.sqrt(1 - rho**2), 3)
+        y = signal(np.log([TRUE_C * math.exp(c_spread * rng.normal()), TRUE_TAU]), w, a, ph)[:, None] + e
+        trials.append(lambda th, w=w, a=a, ph=ph, y=y: (signal(th, w, a, ph)[:, None] - y).ravel())
+    return trials
+
+
+TRUE_C, TRUE_TAU = 1.0, 0.02
+
+
+def fit_two_modes(trials) -> deform.Fit:
+    from scipy.optimize import least_squares
+    names = ("damping_rate", "internal_damping")
+    sol = least_squares(lambda th: np.concatenate([r(th) for r in trials]), np.log([TRUE_C, TRUE_TAU]),
+                        loss="soft_l1", f_scale=0.02)
+    base = [r(sol.x) for r in trials]
+    jac = [np.stack([(r(sol.x + h) - b) / 1e-6 for h in 1e-6 * np.eye(2)], axis=1) for r, b in zip(trials, base)]
+    return deform.Fit(deform.values_of(sol.x, names), sol.x, jac, base, 0, 0.0, 0.0, "", names)
+
+
+def test_trial_clustered_intervals_cover_when_the_trials_differ():
+    """Each trial has its own drag (spread 0.3 in log) and correlated noise; 6 trials, 200 fits. The leave-one-trial-out
+    jackknife with z = 1.96 alone (the intervals before) held the population's drag in 165 of 200 (tau, the same in
+    every trial, 187); with the trials' own spread over the effective number of trials (the larger standard error),
+    Student's t at its dof and the trade-off's bounds, 196 and 197 of 200 (nominal 95 %). Where the two terms trade
+    off (13 fits), the combination holds the truth."""
+    rng = np.random.default_rng(1)
+    old, new, combined, truth = np.zeros(2), np.zeros(2), [], np.log([TRUE_C, TRUE_TAU])
+    for _ in range(200):
+        f = fit_two_modes(two_mode_trials(rng, 6))
+        loo = deform.linearised_loo(f)
+        sd = np.sqrt(5 / 6 * np.sum((loo - loo.mean(axis=0)) ** 2, axis=0))
+        old += np.abs(f.theta - truth) <= 1.96 * sd
+        p = jackknife(f)
+        new += [p[k]["interval_95"][0] <= v <= p[k]["interval_95"][1]
+                for k, v in (("damping_rate", TRUE_C), ("internal_damping", TRUE_TAU))]
+        if "agreed_damping" in p:
+            a = p["agreed_damping"]
+            combined.append(a["interval_95"][0] <= TRUE_C + TRUE_TAU * a["omega_rad_s"] ** 2 <= a["interval_95"][1])
+    assert old[0] <= 175, old  # drag, the term that differs between trials: 82 %
+    assert np.all(new >= 180), new  # 90 %
+    assert len(combined) >= 3 and np.mean(combined) >= 0.8, combined
