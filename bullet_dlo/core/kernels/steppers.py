@@ -35,7 +35,7 @@ from bullet_dlo.core.kernels.forces import (
     internal_energy,
     total_forces,
 )
-from bullet_dlo.core.kernels.twist import has_twist, set_clamp, twist_ready, twist_step
+from bullet_dlo.core.kernels.twist import has_twist, set_clamp, twist_ready
 
 EXPLICIT_EULER, SYMPLECTIC_EULER, RK4, IMPLICIT_EULER, BDF2, IMPLICIT_MIDPOINT, GAUSS_LEGENDRE = range(7)
 
@@ -551,6 +551,10 @@ def advance(stepper, m, x, v, samples, ws, has_prev):
                                                                  else 0))
         if method in (IMPLICIT_EULER, BDF2, IMPLICIT_MIDPOINT):  # positions and twist in one Newton system
             return _twist_coupled.coupled_implicit(stepper, m, x, v, samples, ws, has_prev)
+        if method == GAUSS_LEGENDRE:  # the twist in the collocation system
+            return _twist_coupled.coupled_gauss_legendre(stepper, m, x, v, samples, ws)
+        # the explicit methods: the twist angles and rates state of the method
+        return _twist_coupled.explicit_twist(stepper, m, x, v, samples, ws, method)
     its, converged = 0, True
     if method == EXPLICIT_EULER:
         _explicit_euler(m, x, v, h, samples, ws)
@@ -562,8 +566,6 @@ def advance(stepper, m, x, v, samples, ws, has_prev):
         its, converged = gauss_legendre_step(stepper, m, x, v, samples)
     else:
         its, converged = _implicit(stepper, m, x, v, samples, ws, has_prev)
-    if twisting:  # explicit methods and Gauss-Legendre: the staggered twist sub-step
-        twist_step(m, x, samples.dir[2], h)
     return its, converged
 
 
