@@ -13,9 +13,11 @@ implicit steps with positions and twist angles in one Newton system, the twist i
 method (:func:`~bullet_dlo.core.kernels.twist_coupled.coupled_implicit`; the clamps' section axes at the
 method's evaluation time), so the step keeps the method's order; the contact step of
 :mod:`~bullet_dlo.core.kernels.contact` too (:func:`~bullet_dlo.core.kernels.twist_coupled.coupled_contact`).
-The explicit methods, Gauss-Legendre and a contact step with a free body in its solve advance the positions with
-the twist angles held, then the twist angles by an implicit Euler sub-step with the new positions held
-(:func:`~bullet_dlo.core.kernels.twist.twist_step`, staggered, first order in h).
+Gauss-Legendre solves the stage twist rates in its collocation system
+(:func:`~bullet_dlo.core.kernels.twist_coupled.coupled_gauss_legendre`) and the explicit methods carry the twist
+angles and rates through their stages (:func:`~bullet_dlo.core.kernels.twist_coupled.explicit_twist`). Only a
+contact step with a free body in its solve advances the positions with the twist angles held, then the twist
+angles by an implicit Euler sub-step (:func:`~bullet_dlo.core.kernels.twist.twist_step`, staggered, first order).
 """
 from __future__ import annotations
 

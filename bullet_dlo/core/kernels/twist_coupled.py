@@ -52,6 +52,13 @@ body is in the solve) the same system takes the contact and grip forces on the p
 the position block of the Gauss-Newton matrix and their potential in the merit, with the contact Newton's rules
 (potential decrease only, the friction caps an outer fixed point). BDF2 then keeps order 2 in contact
 (frictionless rows: ``tests/bullet/test_twist_contact_order.py``; sliding friction is first order of its own).
+
+Gauss-Legendre (:func:`coupled_gauss_legendre`) solves both stages' velocities and twist rates in one Newton system
+(8 unknowns per node), each stage's forces and Gauss-Newton matrix from :func:`_residual` and :func:`_newton_matrix`;
+the explicit methods (:func:`explicit_twist`) take their stages' forces and torques from :func:`_residual`. Both
+advance the twist angle relative to the step's one-rotation transport of the reference frame at omega plus the
+holonomy rate (:func:`_holonomy_rates`), so that the material frame keeps the method's order
+(``tests/core/test_twist_gl_explicit_order.py``: order 4).
 """
 from __future__ import annotations
 
