@@ -25,11 +25,13 @@ axis's bending modes (E I2 > E I1 for a strip) are in :func:`stiffness_spectrum`
 Jacobian carries the anisotropic bending (exact about a straight cable), so :func:`critical_dt` covers
 them. Twist: n - 1 torsional modes, a chain of segment inertias I = rho J_p l0 and springs G J / l0, up to
 omega_t = (2 / l0) sqrt(G J / (rho J_p)) (:func:`twist_frequency`; for a round section the torsion
-wave speed sqrt(G / rho) over half a segment, typically 10-100x the highest bending frequency). Every
-method advances the twist by an implicit Euler sub-step (see :mod:`bullet_dlo.core.kernels.steppers`),
-unconditionally stable, so the twist modes set no critical step; they are damped by drag at c like the
-other modes and by Kelvin-Voigt twist dampers at tau omega^2 (at steps h >> 1/omega_t the sub-step
-leaves the twist quasi-static, which is what a rod with a material frame does at those time scales).
+wave speed sqrt(G / rho) over half a segment, typically 10-100x the highest bending frequency). The
+implicit methods solve the twist with the positions (A-stable: no critical step; at steps h >> 1/omega_t
+the twist is left quasi-static, which is what a rod with a material frame does at those time scales); the
+explicit methods carry it through their stages, so :func:`critical_dt` adds the twist chain's modes
+(:func:`twist_spectrum`, damped by drag at c like the other modes and by Kelvin-Voigt twist dampers at
+tau omega^2). They never set the limit: omega_t / omega_stretch = sqrt(G J / (E J_p)) <= 1 / sqrt(2 (1 + nu))
+(J <= J_p), so the stretch modes stay the fastest.
 """
 from __future__ import annotations
 
@@ -79,6 +81,19 @@ def stiffness_spectrum(model: CableModel, state: CableState | None = None) -> np
                     if col >= row:
                         ab[half + row - col, col] = block[r, c]
     return np.sort(eigvals_banded(ab, lower=False))
+
+
+def twist_spectrum(model: CableModel) -> np.ndarray:
+    """Eigenvalues omega^2 [1/s^2] of the twist chain of a cable with a material frame (segment inertias I_k,
+    springs k_t at the nodes, a clamp's spring at a clamped end), ascending, (n - 1,); empty without a frame."""
+    a = model.kernel_arrays()
+    kt, inertia = a.tw_k_twist, a.tw_inertia
+    if kt.shape[0] == 0:
+        return np.zeros(0)
+    ns = inertia.shape[0]
+    k = np.diag(kt[:ns] + kt[1:ns + 1]) - np.diag(kt[1:ns], 1) - np.diag(kt[1:ns], -1)
+    s = 1.0 / np.sqrt(inertia)
+    return np.sort(np.linalg.eigvalsh(s[:, None] * k * s[None, :]))
 
 
 def twist_frequency(spec: CableSpec) -> float:
@@ -156,8 +171,8 @@ def critical_dt(model: CableModel, integrator: str, state: CableState | None = N
     if not get_integrator(integrator).explicit:
         return None
     spec = model.spec
-    return critical_dt_from_modes(integrator, stiffness_spectrum(model, state), spec.mass_damping_rate,
-                                  spec.internal_damping)
+    modes = np.concatenate([stiffness_spectrum(model, state), twist_spectrum(model)])
+    return critical_dt_from_modes(integrator, modes, spec.mass_damping_rate, spec.internal_damping)
 
 
 @dataclass(frozen=True)

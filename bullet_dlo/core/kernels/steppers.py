@@ -13,9 +13,11 @@ implicit steps with positions and twist angles in one Newton system, the twist i
 method (:func:`~bullet_dlo.core.kernels.twist_coupled.coupled_implicit`; the clamps' section axes at the
 method's evaluation time), so the step keeps the method's order; the contact step of
 :mod:`~bullet_dlo.core.kernels.contact` too (:func:`~bullet_dlo.core.kernels.twist_coupled.coupled_contact`).
-The explicit methods, Gauss-Legendre and a contact step with a free body in its solve advance the positions with
-the twist angles held, then the twist angles by an implicit Euler sub-step with the new positions held
-(:func:`~bullet_dlo.core.kernels.twist.twist_step`, staggered, first order in h).
+Gauss-Legendre solves the stage twist rates in its collocation system
+(:func:`~bullet_dlo.core.kernels.twist_coupled.coupled_gauss_legendre`) and the explicit methods carry the twist
+angles and rates through their stages (:func:`~bullet_dlo.core.kernels.twist_coupled.explicit_twist`). Only a
+contact step with a free body in its solve advances the positions with the twist angles held, then the twist
+angles by an implicit Euler sub-step (:func:`~bullet_dlo.core.kernels.twist.twist_step`, staggered, first order).
 """
 from __future__ import annotations
 
@@ -35,7 +37,7 @@ from bullet_dlo.core.kernels.forces import (
     internal_energy,
     total_forces,
 )
-from bullet_dlo.core.kernels.twist import has_twist, set_clamp, twist_ready, twist_step
+from bullet_dlo.core.kernels.twist import has_twist, set_clamp, twist_ready
 
 EXPLICIT_EULER, SYMPLECTIC_EULER, RK4, IMPLICIT_EULER, BDF2, IMPLICIT_MIDPOINT, GAUSS_LEGENDRE = range(7)
 
@@ -551,6 +553,10 @@ def advance(stepper, m, x, v, samples, ws, has_prev):
                                                                  else 0))
         if method in (IMPLICIT_EULER, BDF2, IMPLICIT_MIDPOINT):  # positions and twist in one Newton system
             return _twist_coupled.coupled_implicit(stepper, m, x, v, samples, ws, has_prev)
+        if method == GAUSS_LEGENDRE:  # the twist in the collocation system
+            return _twist_coupled.coupled_gauss_legendre(stepper, m, x, v, samples, ws)
+        # the explicit methods: the twist angles and rates state of the method
+        return _twist_coupled.explicit_twist(stepper, m, x, v, samples, ws, method)
     its, converged = 0, True
     if method == EXPLICIT_EULER:
         _explicit_euler(m, x, v, h, samples, ws)
@@ -562,8 +568,6 @@ def advance(stepper, m, x, v, samples, ws, has_prev):
         its, converged = gauss_legendre_step(stepper, m, x, v, samples)
     else:
         its, converged = _implicit(stepper, m, x, v, samples, ws, has_prev)
-    if twisting:  # explicit methods and Gauss-Legendre: the staggered twist sub-step
-        twist_step(m, x, samples.dir[2], h)
     return its, converged
 
 

@@ -50,11 +50,11 @@ where together with the isotropic part it is 1/2 sum_k (k1 J1^T J1 + k2 J2^T J2)
 semi-definite); the terms proportional to the bending and twist stresses (and the twist-bending
 coupling of the positions) are left to Newton's iterations (see :mod:`~bullet_dlo.core.kernels.steppers`).
 
-Time integration: the implicit methods solve positions and twist angles in one Newton system, in contact too
-(:mod:`~bullet_dlo.core.kernels.twist_coupled`); the explicit methods, Gauss-Legendre and a contact step with a
-free body in its solve advance the twist angles after the positions by an implicit Euler sub-step with the new
-positions held (a staggered, Gauss-Seidel coupling, first order), solved by Newton on a tridiagonal system
-(:func:`twist_step`). The twist modes are stiff (omega ~ (1/l0) sqrt(G J / (rho J_p)),
+Time integration: every method integrates the twist with the positions (:mod:`~bullet_dlo.core.kernels.twist_coupled`:
+the implicit methods in one Newton system, in contact too, Gauss-Legendre in its collocation system, the explicit
+methods through their stages); a contact step with a free body in its solve advances the twist angles after the
+positions by an implicit Euler sub-step with the new positions held (a staggered, Gauss-Seidel coupling, first
+order), solved by Newton on a tridiagonal system (:func:`twist_step`). The twist modes are stiff (omega ~ (1/l0) sqrt(G J / (rho J_p)),
 the torsion wave speed over a segment), so the sub-step is implicit for every method; it is
 unconditionally stable and damps twist waves the step cannot resolve (quasi-static twist at large
 steps, the regime of Bergou 2008 sec. 7). Damping acts on twist with the meaning it has on the other

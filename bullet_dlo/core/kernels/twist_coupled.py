@@ -52,6 +52,13 @@ body is in the solve) the same system takes the contact and grip forces on the p
 the position block of the Gauss-Newton matrix and their potential in the merit, with the contact Newton's rules
 (potential decrease only, the friction caps an outer fixed point). BDF2 then keeps order 2 in contact
 (frictionless rows: ``tests/bullet/test_twist_contact_order.py``; sliding friction is first order of its own).
+
+Gauss-Legendre (:func:`coupled_gauss_legendre`) solves both stages' velocities and twist rates in one Newton system
+(8 unknowns per node), each stage's forces and Gauss-Newton matrix from :func:`_residual` and :func:`_newton_matrix`;
+the explicit methods (:func:`explicit_twist`) take their stages' forces and torques from :func:`_residual`. Both
+advance the twist angle relative to the step's one-rotation transport of the reference frame at omega plus the
+holonomy rate (:func:`_holonomy_rates`), so that the material frame keeps the method's order
+(``tests/core/test_twist_gl_explicit_order.py``: order 4).
 """
 from __future__ import annotations
 
@@ -59,7 +66,8 @@ import math
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit
+from numba import njit, types
+from numba.extending import overload
 
 from bullet_dlo.core.kernels.banded import HALF
 from bullet_dlo.core.kernels.drag import add_drag_jacobian, has_drag
@@ -70,9 +78,26 @@ from bullet_dlo.core.kernels.forces import (
     internal_energy,
     total_forces,
 )
+from bullet_dlo.core.kernels.gauss_legendre import (
+    A11,
+    A12,
+    A21,
+    A22,
+    AI11,
+    AI12,
+    AI21,
+    AI22,
+    C1,
+    C2,
+    SQRT3,
+    gl_band_factor,
+    gl_band_substitute,
+    stage_holders,
+)
 from bullet_dlo.core.kernels.steppers import (
     BDF2,
     IMPLICIT_MIDPOINT,
+    ImplicitMap,
     _momentum_change,
     _set_held,
     _start_implicit,
@@ -270,11 +295,37 @@ def _clamp_rate(m, xe, samples, mid, h, i):
     p2 = geometry_twist(edge_frame(xe, samples.dir[2], th, ref, tan, nrm[2], i - 1),
                         edge_frame(xe, samples.dir[2], th, ref, tan, nrm[2], i), mref[i])[0]
     out = (p2 - p0) / h
-    if not mid:
+    if _needs_half(mid):
         p1 = geometry_twist(edge_frame(xe, samples.dir[1], th, ref, tan, nrm[1], i - 1),
                             edge_frame(xe, samples.dir[1], th, ref, tan, nrm[1], i), mref[i])[0]
-        out = (p0 - 4.0 * p1 + 3.0 * p2) / h
+        out = _rate_of_samples(mid, p0, p1, p2, h)
     return out
+
+
+def _needs_half(mid):
+    """Whether :func:`_clamp_rate` reads the half-step sample (its Numba overloads below)."""
+
+
+def _rate_of_samples(mid, p0, p1, p2, h):
+    """The clamp twist's rate [rad/s] from its samples p0, p1, p2 at t, t + h/2, t + h (overloads below)."""
+
+
+@overload(_needs_half, inline="always")
+def _needs_half_impl(mid):
+    """``mid`` a bool (implicit Euler, BDF2: False; implicit midpoint: True): the half-step sample only at t + h;
+    a float (a Gauss-Legendre stage's time as a fraction c of the step): always."""
+    if isinstance(mid, types.Boolean):
+        return lambda mid: not mid
+    return lambda mid: True
+
+
+@overload(_rate_of_samples, inline="always")
+def _rate_of_samples_impl(mid, p0, p1, p2, h):
+    """bool ``mid`` (False): the one-sided second-order rate at t + h; a float c: the derivative of the quadratic
+    through the three samples at t + c h, ((4c - 3) p0 + (4 - 8c) p1 + (4c - 1) p2)/h (second order)."""
+    if isinstance(mid, types.Boolean):
+        return lambda mid, p0, p1, p2, h: (p0 - 4.0 * p1 + 3.0 * p2) / h
+    return lambda mid, p0, p1, p2, h: ((4.0 * mid - 3.0) * p0 + (4.0 - 8.0 * mid) * p1 + (4.0 * mid - 1.0) * p2) / h
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -1343,3 +1394,401 @@ def coupled_contact(stepper, method, m, x, v, samples, ws, has_prev, c, cap_tol=
 # ``_model.KernelArrays`` when it compiles).
 from bullet_dlo.core import model as _model  # noqa: E402
 from bullet_dlo.core.kernels import contact as _contact  # noqa: E402  (the contact terms of coupled_contact)
+
+
+# ----- Gauss-Legendre with the twist in its collocation system ------------------------------------------------
+GLT_HALF = 8 * 2 + 7  # scalar half-width of the stage system, 8 unknowns per node (2 stages x (x_i, theta_i)): 23
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _gl_index(a, s):
+    """The stage system's index of the coupled layout's unknown a (4 i + c) at stage s: 8 i + 4 s + c."""
+    return 8 * (a // 4) + 4 * s + a % 4
+
+
+@njit(cache=True, error_model="numpy")
+def _stage_axes(m, dirs, c, out):
+    """out (2, 3) <- the clamps' section axes at t + c h: the quadratic through the three samples of ``tw_normal``
+    (t, t + h/2, t + h), its component along the stage's clamp direction ``dirs`` removed, normalised."""
+    l0, l1, l2 = 2.0 * (c - 0.5) * (c - 1.0), -4.0 * c * (c - 1.0), 2.0 * c * (c - 0.5)
+    nrm = m.tw_normal
+    for e in range(2):
+        dot = 0.0
+        for j in range(3):
+            out[e, j] = l0 * nrm[0, e, j] + l1 * nrm[1, e, j] + l2 * nrm[2, e, j]
+            dot += out[e, j] * dirs[e, j]
+        norm = 0.0
+        for j in range(3):
+            out[e, j] -= dot * dirs[e, j]
+            norm += out[e, j] * out[e, j]
+        norm = math.sqrt(norm)
+        if norm > 0.0:
+            for j in range(3):
+                out[e, j] /= norm
+
+
+@njit(cache=True, error_model="numpy")
+def _holonomy_rates(m, x, h, vs, hpos, hvel, xs, hol):
+    """Stage positions xs (2, n, 3) [m] (held nodes at their stage poses) and hol (2, n-1) [rad/s]: the rate at each
+    stage of the angle between an edge's reference director carried by parallel transport in time and the one the
+    step transports by a single minimal rotation from the step's tangent t0 (``tw_tan``) to the stage's t,
+    t0 . (t x dt/dt) / (1 + t0 . t) (the solid angle the tangent sweeps; O(h^2) over a step: the twist angle
+    relative to the minimal rotation advances by omega + this)."""
+    n = x.shape[0]
+    tan = m.tw_tan
+    for s in range(2):
+        a0 = A11 if s == 0 else A21
+        a1 = A12 if s == 0 else A22
+        for i in range(n):
+            for j in range(3):
+                xs[s, i, j] = x[i, j] + h * (a0 * vs[0, i, j] + a1 * vs[1, i, j])
+        vel = np.empty((n, 3))
+        vel[:, :] = vs[s]
+        for e in range(2):
+            i = 0 if e == 0 else n - 1
+            if m.held[i]:
+                for j in range(3):
+                    xs[s, i, j] = hpos[s, e, j]
+                    vel[i, j] = hvel[s, e, j]
+        for k in range(n - 1):
+            d0, d1, d2 = xs[s, k + 1, 0] - xs[s, k, 0], xs[s, k + 1, 1] - xs[s, k, 1], xs[s, k + 1, 2] - xs[s, k, 2]
+            length = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+            t0, t1, t2 = d0 / length, d1 / length, d2 / length
+            u0, u1, u2 = vel[k + 1, 0] - vel[k, 0], vel[k + 1, 1] - vel[k, 1], vel[k + 1, 2] - vel[k, 2]
+            c0, c1, c2 = t1 * u2 - t2 * u1, t2 * u0 - t0 * u2, t0 * u1 - t1 * u0
+            s0, s1, s2 = tan[k, 0], tan[k, 1], tan[k, 2]
+            hol[s, k] = (s0 * c0 + s1 * c1 + s2 * c2) / (length * (1.0 + s0 * t0 + s1 * t1 + s2 * t2))
+
+
+@njit(cache=True, error_model="numpy")
+def _gl_stage(m, mp, x, theta0, h, s, vs, wsr, hol, ws, samples, hpos, hvel, hdir, haxes, wv, rate, tq, r4, g, sc):
+    """Evaluate stage s (0, 1) by :func:`_residual` with the map X = x_base + h a_ss V_s, x_base = x + h a_so V_o
+    (o the other stage), Theta = theta_base + h a_ss W_s, theta_base = theta0 + h a_so (W_o + hol_o) + h a_ss hol_s:
+    leaves the generalised forces F [N] in ws.force and T [N m] in ``tq`` (vs (2, n, 3) stage velocities, wsr
+    (2, n-1) stage twist rates, hol their holonomy rates, :func:`_holonomy_rates`)."""
+    n = x.shape[0]
+    ns = n - 1
+    o = 1 - s
+    a_so = A12 if s == 0 else A21
+    a_ss = A11 if s == 0 else A22
+    for i in range(n):
+        for j in range(3):
+            ws.x_base[i, j] = x[i, j] + h * a_so * vs[o, i, j]
+            ws.v_base[i, j] = 0.0
+            ws.v_avg[i, j] = vs[s, i, j]
+    tb = np.empty(ns)
+    wa = np.empty(ns)
+    for k in range(ns):
+        tb[k] = theta0[k] + h * a_so * (wsr[o, k] + hol[o, k]) + h * a_ss * hol[s, k]
+        wa[k] = wsr[s, k]
+    imp = ImplicitMap(h * a_ss, 1.0, h, hpos[s], hvel[s], hdir[s])
+    m.tw_clamp[:, :] = haxes[s]
+    _residual(m, mp, imp, ws, samples, C1 if s == 0 else C2, h, tb, np.zeros(ns), wa, vs[s], wsr[s], wv, rate, tq, r4,
+              g, sc)
+    return imp
+
+
+@njit(cache=True, error_model="numpy")
+def _gl_twist_residual(m, mp, x, v, theta0, omega0, h, vs, wsr, hol, xs, ws, samples, hpos, hvel, hdir, haxes,
+                       fs, tqs, wv, rate, r4, g, sc, r):
+    """r (8n,) <- the stage equations R_s = h F_s - M sum_q (A^-1)_sq (U_q - u) [N s; N m s] of positions and twist
+    (interleaved: node i's stage-0 x, theta_i, then stage-1's); 0 on held nodes and the last theta slot. Returns
+    max |r| with the twist rows per rest length (as :func:`_residual`). Leaves the stage forces in fs, tqs."""
+    n = x.shape[0]
+    ns = n - 1
+    _holonomy_rates(m, x, h, vs, hpos, hvel, xs, hol)
+    for s in range(2):
+        _gl_stage(m, mp, x, theta0, h, s, vs, wsr, hol, ws, samples, hpos, hvel, hdir, haxes, wv, rate, tqs[s], r4, g,
+                  sc)
+        fs[s, :, :] = ws.force
+    worst = 0.0
+    for i in range(n):
+        for s in range(2):
+            ai0 = AI11 if s == 0 else AI21
+            ai1 = AI12 if s == 0 else AI22
+            for j in range(3):
+                val = 0.0
+                if not m.held[i]:
+                    val = h * fs[s, i, j] - m.mass[i] * (ai0 * (vs[0, i, j] - v[i, j]) + ai1 * (vs[1, i, j] - v[i, j]))
+                r[8 * i + 4 * s + j] = val
+                if not abs(val) <= worst:
+                    worst = abs(val)
+            val = 0.0
+            if i < ns:
+                val = h * tqs[s, i] - m.tw_inertia[i] * (ai0 * (wsr[0, i] - omega0[i]) + ai1 * (wsr[1, i] - omega0[i]))
+                scaled = abs(val) / m.rest_length[i]
+                if not scaled <= worst:
+                    worst = scaled
+            r[8 * i + 4 * s + 3] = val
+    return worst
+
+
+@njit(cache=True, error_model="numpy")
+def _gl_twist_matrix(stepper, m, mp, x, theta0, h, vs, wsr, hol, ws, samples, hpos, hvel, hdir, haxes, wv, rate,
+                     tq, r4, g, sc, cb0, cb1, lower, upx, band):
+    """band (8n, 2 GLT_HALF + 1) <- -dR/dU of the stage equations (general band, band[r, c - r + GLT_HALF]), from
+    each stage's Gauss-Newton matrix of the coupled step (:func:`_newton_matrix`, upper band of the interleaved
+    layout): K_s = dF/dq and C_s = dF/dq' at stage s from two of them (cx 1, cv 0 and 1, hf 1), then
+    -dR_s/dU_q = -h^2 a_sq K_s - h delta_sq C_s + M (A^-1)_sq. The holonomy rates' derivatives are left out (they
+    are O(h) against the kept terms). Held nodes and the last theta slot: identity rows."""
+    n = x.shape[0]
+    ns = n - 1
+    size4 = 4 * n
+    band[:, :] = 0.0  # (hol: the holonomy rates of the last residual, taken at vs, wsr)
+    for s in range(2):
+        _gl_stage(m, mp, x, theta0, h, s, vs, wsr, hol, ws, samples, hpos, hvel, hdir, haxes, wv, rate, tq, r4, g, sc)
+        imp0 = ImplicitMap(1.0, 0.0, 1.0, hpos[s], hvel[s], hdir[s])
+        _newton_matrix(stepper, m, mp, imp0, ws, cb0, g, sc, False, lower, upx, samples, C1 if s == 0 else C2, h)
+        imp1 = ImplicitMap(1.0, 1.0, 1.0, hpos[s], hvel[s], hdir[s])
+        _newton_matrix(stepper, m, mp, imp1, ws, cb1, g, sc, False, lower, upx, samples, C1 if s == 0 else C2, h)
+        for a in range(size4):
+            fixed_a = (a % 4 != 3 and m.held[a // 4]) or a == size4 - 1
+            if fixed_a:
+                continue
+            diag_m = m.mass[a // 4] if a % 4 != 3 else m.tw_inertia[a // 4]
+            for d in range(HALF_T + 1):
+                b = a + d
+                if b >= size4:
+                    break
+                fixed_b = (b % 4 != 3 and m.held[b // 4]) or b == size4 - 1
+                if fixed_b:
+                    continue
+                kneg = cb0[a, d] - (diag_m if d == 0 else 0.0)  # -K_s (a, b)
+                cneg = cb1[a, d] - cb0[a, d]  # -C_s (a, b)
+                for q in range(2):
+                    a_sq = (A11 if q == 0 else A12) if s == 0 else (A21 if q == 0 else A22)
+                    val = h * h * a_sq * kneg + (h * cneg if s == q else 0.0)
+                    row, col = _gl_index(a, s), _gl_index(b, q)
+                    band[row, col - row + GLT_HALF] += val
+                    if d > 0:
+                        row, col = _gl_index(b, s), _gl_index(a, q)
+                        band[row, col - row + GLT_HALF] += val
+    for a in range(size4):
+        fixed_a = (a % 4 != 3 and m.held[a // 4]) or a == size4 - 1
+        for s in range(2):
+            row = _gl_index(a, s)
+            if fixed_a:
+                band[row, GLT_HALF] = 1.0
+                continue
+            diag_m = m.mass[a // 4] if a % 4 != 3 else m.tw_inertia[a // 4]
+            for q in range(2):
+                ai = (AI11 if q == 0 else AI12) if s == 0 else (AI21 if q == 0 else AI22)
+                col = _gl_index(a, q)
+                band[row, col - row + GLT_HALF] += diag_m * ai
+
+
+@njit(cache=True, error_model="numpy")
+def coupled_gauss_legendre(stepper, m, x, v, samples, ws):
+    """One 2-stage Gauss-Legendre step of a cable with a material frame: the stage velocities V_s and twist rates
+    W_s solved together in one Newton system (the collocation equations of positions and twist,
+    :func:`_gl_twist_residual`), x, v, theta, omega advanced in place, then the reference frames transported to the
+    new tangents. Held ends at their stage poses (:func:`~bullet_dlo.core.kernels.gauss_legendre.stage_holders`),
+    the clamps' section axes at the stage times by :func:`_stage_axes`. The twist angle relative to the step's
+    minimal-rotation transport advances by omega plus the holonomy rate (:func:`_holonomy_rates`), integrated by the
+    same collocation. Newton with the Gauss-Newton stage matrix (:func:`_gl_twist_matrix`) at every iteration and a
+    line search on the residual (12 halvings); converged as :func:`coupled_implicit`. Returns (iterations,
+    converged)."""
+    h = stepper.h
+    n = x.shape[0]
+    ns = n - 1
+    hpos = np.empty((2, 2, 3))
+    hvel = np.empty((2, 2, 3))
+    hdir = np.empty((2, 2, 3))
+    haxes = np.empty((2, 2, 3))
+    stage_holders(samples, C1, h, hpos[0], hvel[0], hdir[0])
+    stage_holders(samples, C2, h, hpos[1], hvel[1], hdir[1])
+    _stage_axes(m, hdir[0], C1, haxes[0])
+    _stage_axes(m, hdir[1], C2, haxes[1])
+    theta0 = m.tw_theta.copy()
+    omega0 = m.tw_omega.copy()
+    vs, v_try = np.empty((2, n, 3)), np.empty((2, n, 3))
+    wsr, w_try = np.empty((2, ns)), np.empty((2, ns))
+    for s in range(2):
+        vs[s, :, :] = v
+        for e in range(2):
+            i = 0 if e == 0 else n - 1
+            if m.held[i]:
+                vs[s, i, :] = hvel[s, e]
+        wsr[s, :] = omega0
+    hol = np.empty((2, ns))
+    xs = np.empty((2, n, 3))
+    fs = np.empty((2, n, 3))
+    tqs = np.empty((2, ns))
+    tq = np.empty(ns)
+    wv = np.empty(ns)
+    rate = np.zeros(n)
+    r4 = np.empty(4 * n)
+    g = np.empty((12, 3))
+    sc = _make_scratch(n)
+    mp = _frameless(m)
+    size = 8 * n
+    r, r_try, du = np.empty(size), np.empty(size), np.empty(size)
+    cb0, cb1 = np.empty((4 * n, HALF_T + 1)), np.empty((4 * n, HALF_T + 1))
+    lower, upx = np.empty((4 * n, HALF_T + 1)), np.empty((4 * n, HALF_T + 1))
+    band = np.empty((size, 2 * GLT_HALF + 1))
+    r_scale, r_floor = _scales(m, x, h, theta0)
+    tol = stepper.tol
+    rnorm = _gl_twist_residual(m, mp, x, v, theta0, omega0, h, vs, wsr, hol, xs, ws, samples, hpos, hvel, hdir,
+                               haxes, fs, tqs, wv, rate, r4, g, sc, r)
+    it = 0
+    converged = False
+    while it < stepper.max_iter:
+        it += 1
+        _gl_twist_matrix(stepper, m, mp, x, theta0, h, vs, wsr, hol, ws, samples, hpos, hvel, hdir, haxes, wv, rate,
+                         tq, r4, g, sc, cb0, cb1, lower, upx, band)
+        gl_band_factor(band, GLT_HALF)
+        du[:] = r
+        gl_band_substitute(band, du, GLT_HALF)
+        alpha = 1.0
+        accepted = False
+        rn_try = rnorm
+        for _ in range(12):
+            for s in range(2):
+                for i in range(n):
+                    for j in range(3):
+                        v_try[s, i, j] = vs[s, i, j] + alpha * du[8 * i + 4 * s + j]
+                for k in range(ns):
+                    w_try[s, k] = wsr[s, k] + alpha * du[8 * k + 4 * s + 3]
+            rn_try = _gl_twist_residual(m, mp, x, v, theta0, omega0, h, v_try, w_try, hol, xs, ws, samples, hpos,
+                                        hvel, hdir, haxes, fs, tqs, wv, rate, r4, g, sc, r_try)
+            if rn_try < rnorm or rn_try <= tol * r_scale + r_floor:
+                accepted = True
+                break
+            alpha *= 0.5
+        if not accepted:
+            break
+        vs[:, :, :] = v_try
+        wsr[:, :] = w_try
+        r[:] = r_try
+        rnorm = rn_try
+        dmom = 0.0  # the momentum change of the step over both stages (the twist's per rest length)
+        for i in range(n):
+            for s in range(2):
+                if not m.held[i]:
+                    for j in range(3):
+                        dmom = max(dmom, m.mass[i] * abs(vs[s, i, j] - v[i, j]))
+                if i < ns:
+                    dmom = max(dmom, m.tw_inertia[i] * abs(wsr[s, i] - omega0[i]) / m.rest_length[i])
+        if rnorm <= tol * (r_scale + dmom) + r_floor:
+            converged = True
+            break
+    _holonomy_rates(m, x, h, vs, hpos, hvel, xs, hol)  # at the solution
+    for i in range(n):
+        for j in range(3):
+            x[i, j] += 0.5 * h * (vs[0, i, j] + vs[1, i, j])
+            v[i, j] += SQRT3 * (vs[1, i, j] - vs[0, i, j])
+    _set_held(m.held, x, v, samples.pos[2], samples.vel[2])
+    for k in range(ns):
+        m.tw_theta[k] = theta0[k] + 0.5 * h * (wsr[0, k] + hol[0, k] + wsr[1, k] + hol[1, k])
+        m.tw_omega[k] = omega0[k] + SQRT3 * (wsr[1, k] - wsr[0, k])
+    m.tw_clamp[:, :] = m.tw_normal[2]
+    update_frames(m, x, samples.dir[2])
+    return it, converged
+
+
+# ----- the explicit methods with the twist as state -----------------------------------------------------------
+@njit(cache=True, error_model="numpy")
+def _explicit_forces(m, mp, xe, ve, th, w, k, h, samples, ws, tq, wv, rate, r4, g, sc):
+    """Generalised forces at the state (xe [m], th [rad], ve [m/s], w [rad/s]) with the held ends and clamps at
+    sample k (0: t, 1: t + h/2, 2: t + h): F [N] into ws.force (n, 3), T [N m] into tq (n-1,), by :func:`_residual`
+    (map X = (xe - ve) + ve, Theta = (th - w) + w). xe, ve: the held nodes' rows are set to the sample's pose."""
+    n = xe.shape[0]
+    ns = n - 1
+    _set_held(m.held, xe, ve, samples.pos[k], samples.vel[k])
+    for i in range(n):
+        for j in range(3):
+            ws.x_base[i, j] = xe[i, j] - ve[i, j]
+            ws.v_base[i, j] = 0.0
+            ws.v_avg[i, j] = ve[i, j]
+    tb = np.empty(ns)
+    for q in range(ns):
+        tb[q] = th[q] - w[q]
+    imp = ImplicitMap(1.0, 1.0, 1.0, samples.pos[k], samples.vel[k], samples.dir[k])
+    m.tw_clamp[:, :] = m.tw_normal[k]
+    _residual(m, mp, imp, ws, samples, 0.5 * k, h, tb, np.zeros(ns), w, ve, w, wv, rate, tq, r4, g, sc)
+
+
+@njit(cache=True, error_model="numpy")
+def _holonomy_rate(m, xe, ve, out):
+    """out (n-1,) <- the holonomy rate of each edge at the state (xe, ve) (see :func:`_holonomy_rates`) [rad/s]."""
+    tan = m.tw_tan
+    for k in range(xe.shape[0] - 1):
+        d0, d1, d2 = xe[k + 1, 0] - xe[k, 0], xe[k + 1, 1] - xe[k, 1], xe[k + 1, 2] - xe[k, 2]
+        length = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+        t0, t1, t2 = d0 / length, d1 / length, d2 / length
+        u0, u1, u2 = ve[k + 1, 0] - ve[k, 0], ve[k + 1, 1] - ve[k, 1], ve[k + 1, 2] - ve[k, 2]
+        c0, c1, c2 = t1 * u2 - t2 * u1, t2 * u0 - t0 * u2, t0 * u1 - t1 * u0
+        s0, s1, s2 = tan[k, 0], tan[k, 1], tan[k, 2]
+        out[k] = (s0 * c0 + s1 * c1 + s2 * c2) / (length * (1.0 + s0 * t0 + s1 * t1 + s2 * t2))
+
+
+@njit(cache=True, error_model="numpy")
+def explicit_twist(stepper, m, x, v, samples, ws, method):
+    """One step of an explicit method (``method``: 0 explicit Euler, 1 symplectic Euler, 2 RK4) of a cable with a
+    material frame, the twist angles and rates state of the same method: theta' = omega + the holonomy rate
+    (:func:`_holonomy_rate`, 0 at the step's start), I omega' = T, with the positions' forces F and the twist
+    torques T of the coupled implicit step (:func:`_residual`: twist springs, anisotropic bending, Kelvin-Voigt
+    twist dampers on both). x, v, theta, omega advanced in place, then the reference frames transported to the new
+    tangents. Returns (0, True)."""
+    h = stepper.h
+    n = x.shape[0]
+    ns = n - 1
+    theta0 = m.tw_theta.copy()
+    omega0 = m.tw_omega.copy()
+    tq, wv, rate, r4 = np.empty(ns), np.empty(ns), np.zeros(n), np.empty(4 * n)
+    g = np.empty((12, 3))
+    sc = _make_scratch(n)
+    mp = _frameless(m)
+    xe, ve = np.empty((n, 3)), np.empty((n, 3))
+    th, w, hol = np.empty(ns), np.empty(ns), np.empty(ns)
+    if method == 2:  # RK4: the stages carry (x, v, theta, omega); slopes kx, kv (workspace), kt, kw
+        kx, kv = ws.kx, ws.kv
+        kt, kw = np.empty((4, ns)), np.empty((4, ns))
+        for stage in range(4):
+            c = 0.0 if stage == 0 else (1.0 if stage == 3 else 0.5)
+            prev = max(stage - 1, 0)
+            k = (stage + 1) // 2
+            for i in range(n):
+                for j in range(3):
+                    xe[i, j] = x[i, j] + c * h * kx[prev, i, j]
+                    ve[i, j] = v[i, j] + c * h * kv[prev, i, j]
+            for q in range(ns):
+                th[q] = theta0[q] + c * h * kt[prev, q]
+                w[q] = omega0[q] + c * h * kw[prev, q]
+            _explicit_forces(m, mp, xe, ve, th, w, k, h, samples, ws, tq, wv, rate, r4, g, sc)
+            _holonomy_rate(m, xe, ve, hol)
+            for i in range(n):
+                for j in range(3):
+                    kx[stage, i, j] = ve[i, j]
+                    kv[stage, i, j] = ws.force[i, j] / m.mass[i]
+            for q in range(ns):
+                kt[stage, q] = w[q] + hol[q]
+                kw[stage, q] = tq[q] / m.tw_inertia[q]
+        for i in range(n):
+            for j in range(3):
+                x[i, j] += (h / 6.0) * (kx[0, i, j] + 2.0 * kx[1, i, j] + 2.0 * kx[2, i, j] + kx[3, i, j])
+                v[i, j] += (h / 6.0) * (kv[0, i, j] + 2.0 * kv[1, i, j] + 2.0 * kv[2, i, j] + kv[3, i, j])
+        for q in range(ns):
+            m.tw_theta[q] = theta0[q] + (h / 6.0) * (kt[0, q] + 2.0 * kt[1, q] + 2.0 * kt[2, q] + kt[3, q])
+            m.tw_omega[q] = omega0[q] + (h / 6.0) * (kw[0, q] + 2.0 * kw[1, q] + 2.0 * kw[2, q] + kw[3, q])
+    else:  # explicit / symplectic Euler: forces at the start (the holonomy rate is 0 there)
+        xe[:, :] = x
+        ve[:, :] = v
+        _explicit_forces(m, mp, xe, ve, theta0, omega0, 0, h, samples, ws, tq, wv, rate, r4, g, sc)
+        for i in range(n):
+            for j in range(3):
+                a = ws.force[i, j] / m.mass[i]
+                if method == 1:
+                    v[i, j] += h * a
+                    x[i, j] += h * v[i, j]
+                else:
+                    x[i, j] += h * v[i, j]
+                    v[i, j] += h * a
+        for q in range(ns):
+            w_new = omega0[q] + h * tq[q] / m.tw_inertia[q]
+            m.tw_theta[q] = theta0[q] + h * (w_new if method == 1 else omega0[q])
+            m.tw_omega[q] = w_new
+    _set_held(m.held, x, v, samples.pos[2], samples.vel[2])
+    m.tw_clamp[:, :] = m.tw_normal[2]
+    update_frames(m, x, samples.dir[2])
+    return 0, True
