@@ -18,39 +18,44 @@ COM, COM_QUAT, FRAME, FRAME_QUAT, LIN_VEL, ANG_VEL = 0, 3, 14, 17, 21, 24  # fie
 
 
 @njit(cache=True, error_model="numpy")
-def grasp_frames(rows, prev_vel, rate, section, ext):
+def grasp_frames(rows, prev, rate, section, ext):
     """Both grasp frames (the first link of ``rows[arm]``, (2, k, ROW)) into the cable's external holders.
 
-    Writes, per arm, into ``ext`` (ExternalHolders): pos [m] = link frame origin, vel [m/s] = the
-    frame origin's velocity v_com + omega x (frame - com), acc [m/s^2] = its backward difference
-    against ``prev_vel`` (2, 3) over 1/``rate`` [1/s] (0 at the first call: rate 0), omega [rad/s],
-    dir = the frame's x axis (arm 0) or its opposite (arm 1), unit: the cable runs from the left
-    gripper's x axis to the right one's, normal = the grasp frame's rotation times ``section[arm]`` (2, 3),
-    the held section's axis d1 in the grasp frame (fixed at the grasp: the gripper's roll about the cable
-    turns it; read only by a cable with a material frame). ``prev_vel`` becomes the velocities now.
+    Bullet's link velocities after a step are the step's mean velocities (its semi-implicit Euler moves a
+    body by h v_new), half a step behind the pose: the holders get the velocities at the pose's time. Writes,
+    per arm, into ``ext`` (ExternalHolders): pos [m] = link frame origin; acc [m/s^2] = the backward
+    difference of the frame origin's velocity v_b = v_com + omega x (frame - com) against ``prev`` over
+    1/``rate`` [1/s] (0 at the first call: rate 0); vel [m/s] = v_b + acc h / 2; alpha [rad/s^2] and omega
+    [rad/s] the same from Bullet's angular velocity; dir = the frame's x axis (arm 0) or its opposite
+    (arm 1), unit: the cable runs from the left gripper's x axis to the right one's, normal = the grasp
+    frame's rotation times ``section[arm]`` (2, 3), the held section's axis d1 in the grasp frame (fixed at
+    the grasp: the gripper's roll about the cable turns it; read only by a cable with a material frame).
+    ``prev`` (2, 6) becomes Bullet's velocities now (linear, angular).
     """
     rot = np.empty(9)
+    half_step = 0.5 / rate if rate > 0.0 else 0.0
     for arm in range(2):
         r = rows[arm, 0]
         wx, wy, wz = r[ANG_VEL], r[ANG_VEL + 1], r[ANG_VEL + 2]
         dx, dy, dz = r[FRAME] - r[COM], r[FRAME + 1] - r[COM + 1], r[FRAME + 2] - r[COM + 2]
-        vx = r[LIN_VEL] + (wy * dz - wz * dy)
-        vy = r[LIN_VEL + 1] + (wz * dx - wx * dz)
-        vz = r[LIN_VEL + 2] + (wx * dy - wy * dx)
-        ext.acc[arm, 0] = (vx - prev_vel[arm, 0]) * rate
-        ext.acc[arm, 1] = (vy - prev_vel[arm, 1]) * rate
-        ext.acc[arm, 2] = (vz - prev_vel[arm, 2]) * rate
-        prev_vel[arm, 0], prev_vel[arm, 1], prev_vel[arm, 2] = vx, vy, vz
+        vb = (r[LIN_VEL] + (wy * dz - wz * dy), r[LIN_VEL + 1] + (wz * dx - wx * dz),
+              r[LIN_VEL + 2] + (wx * dy - wy * dx))
+        wb = (wx, wy, wz)
+        for j in range(3):
+            acc = (vb[j] - prev[arm, j]) * rate
+            alpha = (wb[j] - prev[arm, 3 + j]) * rate
+            ext.acc[arm, j] = acc
+            ext.alpha[arm, j] = alpha
+            ext.vel[arm, j] = vb[j] + half_step * acc
+            ext.omega[arm, j] = wb[j] + half_step * alpha
+            prev[arm, j], prev[arm, 3 + j] = vb[j], wb[j]
+            ext.pos[arm, j] = r[FRAME + j]
         x, y, z, w = r[FRAME_QUAT], r[FRAME_QUAT + 1], r[FRAME_QUAT + 2], r[FRAME_QUAT + 3]
         sign = 1.0 if arm == 0 else -1.0
         ax = sign * (1.0 - 2.0 * (y * y + z * z))  # first column of the rotation matrix
         ay = sign * 2.0 * (x * y + z * w)
         az = sign * 2.0 * (x * z - y * w)
         scale = 1.0 / math.sqrt(ax * ax + ay * ay + az * az)
-        for j in range(3):
-            ext.pos[arm, j] = r[FRAME + j]
-            ext.omega[arm, j] = r[ANG_VEL + j]
-        ext.vel[arm, 0], ext.vel[arm, 1], ext.vel[arm, 2] = vx, vy, vz
         ext.dir[arm, 0], ext.dir[arm, 1], ext.dir[arm, 2] = ax * scale, ay * scale, az * scale
         sx, sy, sz = section[arm, 0], section[arm, 1], section[arm, 2]
         if sx != 0.0 or sy != 0.0 or sz != 0.0:  # (zero: no section held, nothing to turn)

@@ -129,7 +129,7 @@ class DualArmPhysics:
         self.reader = StateReader(self.world.client, self.world.native_handle(), [r.body for r in self.robots],
                                   [[r.grasp_link] + sensor_links(r) for r in self.robots],
                                   [r.joint_index[r.spec.sensor_joint] for r in self.robots])
-        self._grasp_velocity = np.zeros((2, 3))  # [m/s] one step ago, for the acceleration
+        self._grasp_velocity = np.zeros((2, 6))  # Bullet's [m/s], [rad/s] one step ago, for the accelerations
         self._grasp_links = np.array([r.grasp_link for r in self.robots], dtype=np.int32)
         self._held_mask = np.zeros(2, dtype=np.bool_)
         self._end_points = np.zeros((2, 3))  # [m] where the cable's end forces act: its end masses
