@@ -104,7 +104,9 @@ def _check_section_dimensions(data: Mapping[str, Any], where: str) -> None:
                                      f"(a solid section is round, with twist: true for a frame)")
             continue
         if shape != owner:
-            raise ParameterError(f"{where}.{key} is for section: {owner} only (section is {shape})")
+            allowed = "(0, diameter)" if owner == "tube" else f"(0, {CABLE_BOUNDS[key][1]}]"
+            raise ParameterError(f"{where}.{key} is for section: {owner} only (section is {shape}); with section: "
+                                 f"{owner} it is in {allowed} [m]")
         lo, hi = CABLE_BOUNDS[key]
         if key == "inner_diameter":
             diameter = data.get("diameter")
