@@ -1452,6 +1452,61 @@ def _step_work(m, v, h, c):
 
 
 @njit(cache=True, error_model="numpy")
+def felt_forces(c, held, r, hf, slot, bodies):
+    """After a Newton solve that ended unconverged: each row's force (c.f_n, c.f_t, a wrap row's c.normal) becomes
+    the force the cable's accepted step felt from it, so that its reaction (on the body, in ``contact_forces()``)
+    balances the cable's momentum change. r (3n,) [N s]: the solve's residual at the accepted iterate, hf F -
+    M (v' - v_avg) (0 on held nodes): node i felt hf F_i - r_i, so the contacts at i felt their forces minus
+    r_i / hf [N], shared among the rows at node i by their weight there (a penalty row its closest point's
+    weights, a wrap row 1 at each of its two nodes). A node without a row keeps its residual (none on the edge
+    slide: docs/concepts/integrators.md, "A stalled contact step"). A penalty row's normal force stays >= 0 and
+    its friction takes the rest (normal part too), a wrap row's push is the felt force's size and direction.
+    Rows on a free body solved with the cable (``bodies`` > 0 and ``slot`` (M,) >= 0) keep their force: the body's
+    velocity was solved with it, so its momentum balances that force (another impulse would move the body
+    other than the step planned)."""
+    nc = c.count[0]
+    n = r.shape[0] // 3
+    wsum = np.zeros(n)
+    for k in range(nc):
+        if bodies > 0 and slot[k] >= 0:
+            continue
+        w0 = 1.0 if c.kind[k] == WRAP else c.weight[k, 0]
+        w1 = 1.0 if c.kind[k] == WRAP else c.weight[k, 1]
+        wsum[c.node[k, 0]] += w0
+        wsum[c.node[k, 1]] += w1
+    d = np.empty(3)
+    for k in range(nc):
+        if bodies > 0 and slot[k] >= 0:
+            continue
+        d[:] = 0.0
+        for e in range(2):
+            i = c.node[k, e]
+            w = 1.0 if c.kind[k] == WRAP else c.weight[k, e]
+            if w > 0.0 and wsum[i] > 0.0 and not held[i]:
+                for j in range(3):
+                    d[j] -= (w / wsum[i]) * r[3 * i + j] / hf
+        if c.kind[k] == WRAP:
+            f2 = 0.0
+            for j in range(3):
+                d[j] += c.f_n[k] * c.normal[k, j]
+                f2 += d[j] * d[j]
+            fn = math.sqrt(f2)
+            c.f_n[k] = fn
+            if fn > 0.0:
+                for j in range(3):
+                    c.normal[k, j] = d[j] / fn
+            continue
+        fn = 0.0
+        for j in range(3):
+            d[j] += c.f_n[k] * c.normal[k, j] + c.f_t[k, j]
+            fn += d[j] * c.normal[k, j]
+        fn = max(fn, 0.0)
+        c.f_n[k] = fn
+        for j in range(3):
+            c.f_t[k, j] = d[j] - fn * c.normal[k, j]
+
+
+@njit(cache=True, error_model="numpy")
 def contact_step(stepper, m, x, v, samples, ws, has_prev, c, bd):
     """One implicit step of (x, v) in place with the contacts ``c`` and the free bodies ``bd`` (:class:`Bodies`;
     see the module docstring).
@@ -1504,9 +1559,6 @@ def contact_step(stepper, m, x, v, samples, ws, has_prev, c, bd):
             gr.axis[e, j] = samples.dir[2, e, j]
             gr.vel[e, j] = samples.vel[2, e, j]
     its, converged = newton(stepper, m, x, imp, ws, c, 1e-3, 10, bd)
-    if bodies > 0:
-        _add_reactions(c, bd, h, bd.impulse)
-        _end_bodies(c, bd, h)
     _step_work(m, v, h, c)
     for i in range(n):
         for j in range(3):
@@ -1518,6 +1570,11 @@ def contact_step(stepper, m, x, v, samples, ws, has_prev, c, bd):
     _set_held(m.held, x, v, samples.pos[2], samples.vel[2])
     _update_friction(c, x)  # contact points stay at the end of the step: the next step's start
     _update_grips(gr, x)
+    if not converged:  # the rows' forces the accepted step felt (the cable's step, friction and work as solved)
+        felt_forces(c, m.held, ws.residual, imp.hf, bd.slot, bodies)
+    if bodies > 0:
+        _add_reactions(c, bd, h, bd.impulse)
+        _end_bodies(c, bd, h)
     if twisting:  # with a free body in the solve: the staggered twist sub-step
         if method == BDF2:  # (the history of a coupled BDF2 step after this one)
             m.tw_prev[0, :] = m.tw_theta
