@@ -591,14 +591,17 @@ class BulletCable:
         self._let_go(end)
         self._replan()
 
-    def set_external_pose(self, end: int, position, velocity, acceleration, omega, direction, normal=None) -> None:
+    def set_external_pose(self, end: int, position, velocity, acceleration, omega, direction, normal=None,
+                          angular_acceleration=(0.0, 0.0, 0.0)) -> None:
         """Measured pose of the holder of ``end`` now, world frame: position [m], velocity [m/s],
-        acceleration [m/s^2], angular velocity omega [rad/s], each (3,); direction: clamp tangent
+        acceleration [m/s^2], angular velocity omega [rad/s], angular acceleration [rad/s^2], each (3), all at
+        the same time as the pose (a Bullet body's velocity after a step is the step's mean, half a step
+        earlier: see :func:`bullet_dlo.robots.kernels.grasp_frames`); direction: clamp tangent
         pointing along the cable from its first to its last mass (normalised here); normal: the holder's
         section axis d1 (3,), normal to direction, that a clamp of a cable with a material frame holds
         (its roll about the cable); None: it is carried from the last pose onto the new direction without
         roll (parallel transport). Only a cable with a material frame reads it. The step moves the held end
-        between poses with ``velocity`` and ``omega``, and the energy check counts the holder's work with them:
+        between poses at constant ``acceleration`` and ``angular_acceleration``, and the energy check counts the holder's work with them:
         a section turned from pose to pose with ``omega`` left at zero is work the check does not see, and a
         large roll so stops the run as "energy growth" (pass the holder's angular velocity)."""
         e = self.ext
@@ -610,6 +613,7 @@ class BulletCable:
             else:
                 e.normal[end] = normal
         e.pos[end], e.vel[end], e.acc[end], e.omega[end] = position, velocity, acceleration, omega
+        e.alpha[end] = angular_acceleration
         dx, dy, dz = direction  # normalised in scalars: this runs twice per coupled step
         scale = 1.0 / math.sqrt(dx * dx + dy * dy + dz * dz)
         e.dir[end] = (dx * scale, dy * scale, dz * scale)

@@ -102,20 +102,24 @@ def end_loads(m, x, v, samples, grip, out_force, out_torque):
 
 @njit(cache=True, error_model="numpy")
 def external_samples(ext, e, tau0, hs, samples, normal):
-    """Held-end samples of end ``e`` at tau0 + (0, hs/2, hs) [s] after the measurement in ``ext``;
-    ``normal``: the buffer (3, 2, 3) of the clamps' section axes (a twisting cable's ``tw_normal``,
-    written like dir) or (0, 2, 3) (no material frame: nothing written)."""
+    """Held-end samples of end ``e`` at tau0 + (0, hs/2, hs) [s] after the measurement in ``ext``, at constant
+    acceleration and angular acceleration; ``normal``: the buffer (3, 2, 3) of the clamps' section axes (a
+    twisting cable's ``tw_normal``, written like dir) or (0, 2, 3) (no material frame: nothing written)."""
     for k in range(3):
         tau = tau0 + 0.5 * hs * k
         for j in range(3):
-            samples.pos[k, e, j] = ext.pos[e, j] + tau * ext.vel[e, j]
-            samples.vel[k, e, j] = ext.vel[e, j]
+            samples.pos[k, e, j] = ext.pos[e, j] + tau * (ext.vel[e, j] + 0.5 * tau * ext.acc[e, j])
+            samples.vel[k, e, j] = ext.vel[e, j] + tau * ext.acc[e, j]
             samples.acc[k, e, j] = ext.acc[e, j]
             samples.dir[k, e, j] = ext.dir[e, j]
-        rotate(samples.dir[k, e], tau * ext.omega[e, 0], tau * ext.omega[e, 1], tau * ext.omega[e, 2])
+        # the turn over tau: tau times the mean angular velocity over it (exact for a fixed axis)
+        rx = tau * (ext.omega[e, 0] + 0.5 * tau * ext.alpha[e, 0])
+        ry = tau * (ext.omega[e, 1] + 0.5 * tau * ext.alpha[e, 1])
+        rz = tau * (ext.omega[e, 2] + 0.5 * tau * ext.alpha[e, 2])
+        rotate(samples.dir[k, e], rx, ry, rz)
         if normal.shape[0] > 0:
             normal[k, e, :] = ext.normal[e]
-            rotate(normal[k, e], tau * ext.omega[e, 0], tau * ext.omega[e, 1], tau * ext.omega[e, 2])
+            rotate(normal[k, e], rx, ry, rz)
 
 
 # StallGuard.info: what the last planned step's contact solves left (written by coupled_targets)

@@ -210,7 +210,7 @@ class CableControl:
             force[:] = f
         zeros = np.zeros((2, 3))
         holders = ExternalHolders(active=np.zeros(2, dtype=np.bool_), pos=zeros.copy(), vel=zeros.copy(),
-                                  acc=zeros.copy(), omega=zeros.copy(),
+                                  acc=zeros.copy(), omega=zeros.copy(), alpha=zeros.copy(),
                                   dir=np.array(start_dir, dtype=float),  # clamp directions until a holder takes over
                                   normal=np.array(start_normal, dtype=float))
         return cls(held=arrays.held.copy(), k_bend=arrays.k_bend.copy(), c_bend=arrays.c_bend.copy(),

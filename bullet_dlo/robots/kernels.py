@@ -18,39 +18,62 @@ COM, COM_QUAT, FRAME, FRAME_QUAT, LIN_VEL, ANG_VEL = 0, 3, 14, 17, 21, 24  # fie
 
 
 @njit(cache=True, error_model="numpy")
-def grasp_frames(rows, prev_vel, rate, section, ext):
+def grasp_frames(rows, history, rate, section, ext):
     """Both grasp frames (the first link of ``rows[arm]``, (2, k, ROW)) into the cable's external holders.
 
-    Writes, per arm, into ``ext`` (ExternalHolders): pos [m] = link frame origin, vel [m/s] = the
-    frame origin's velocity v_com + omega x (frame - com), acc [m/s^2] = its backward difference
-    against ``prev_vel`` (2, 3) over 1/``rate`` [1/s] (0 at the first call: rate 0), omega [rad/s],
-    dir = the frame's x axis (arm 0) or its opposite (arm 1), unit: the cable runs from the left
-    gripper's x axis to the right one's, normal = the grasp frame's rotation times ``section[arm]`` (2, 3),
-    the held section's axis d1 in the grasp frame (fixed at the grasp: the gripper's roll about the cable
-    turns it; read only by a cable with a material frame). ``prev_vel`` becomes the velocities now.
+    Writes, per arm, into ``ext`` (ExternalHolders): pos [m] = link frame origin; vel [m/s], acc [m/s^2],
+    omega [rad/s] and alpha [rad/s^2] from this pose and the two before it in ``history`` (2, 3, 7): the
+    second-order backward difference (3 p0 - 4 p1 + p2) / 2h and the second difference (p0 - 2 p1 + p2) / h^2
+    over h = 1/``rate`` [s], of the positions and of the rotation vectors between the orientations, so that the
+    cable's constant-acceleration extrapolation over the coming step is the parabola through the last three
+    poses. (Bullet's reported velocities are not used there: after a step they are J(q) times the joint
+    velocities the step moved with, half a step behind the pose in the joint accelerations; a held end
+    extrapolated from them made the cable's forces first order in dt.) Until two earlier poses are known
+    (``rate`` 0 restarts the history, e.g. at a grasp) the velocities are Bullet's, v_com + omega x
+    (frame - com), and the accelerations zero. dir = the frame's x axis (arm 0) or its opposite (arm 1),
+    unit: the cable runs from the left gripper's x axis to the right one's; normal = the grasp frame's
+    rotation times ``section[arm]`` (2, 3), the held section's axis d1 in the grasp frame (fixed at the grasp:
+    the gripper's roll about the cable turns it; read only by a cable with a material frame).
+    ``history[arm]`` rows: the pose one step ago, two steps ago (x, y, z, qx, qy, qz, qw), and [count, ...]
     """
     rot = np.empty(9)
+    theta1 = np.empty(3)
+    theta2 = np.empty(3)
     for arm in range(2):
         r = rows[arm, 0]
-        wx, wy, wz = r[ANG_VEL], r[ANG_VEL + 1], r[ANG_VEL + 2]
-        dx, dy, dz = r[FRAME] - r[COM], r[FRAME + 1] - r[COM + 1], r[FRAME + 2] - r[COM + 2]
-        vx = r[LIN_VEL] + (wy * dz - wz * dy)
-        vy = r[LIN_VEL + 1] + (wz * dx - wx * dz)
-        vz = r[LIN_VEL + 2] + (wx * dy - wy * dx)
-        ext.acc[arm, 0] = (vx - prev_vel[arm, 0]) * rate
-        ext.acc[arm, 1] = (vy - prev_vel[arm, 1]) * rate
-        ext.acc[arm, 2] = (vz - prev_vel[arm, 2]) * rate
-        prev_vel[arm, 0], prev_vel[arm, 1], prev_vel[arm, 2] = vx, vy, vz
+        h = history[arm]
+        count = 0.0 if rate == 0.0 else h[2, 0]
         x, y, z, w = r[FRAME_QUAT], r[FRAME_QUAT + 1], r[FRAME_QUAT + 2], r[FRAME_QUAT + 3]
+        if count >= 2.0:
+            relative_rotvec(x, y, z, w, h[0, 3], h[0, 4], h[0, 5], h[0, 6], theta1)
+            relative_rotvec(h[0, 3], h[0, 4], h[0, 5], h[0, 6], h[1, 3], h[1, 4], h[1, 5], h[1, 6], theta2)
+            for j in range(3):
+                p0, p1, p2 = r[FRAME + j], h[0, j], h[1, j]
+                ext.vel[arm, j] = (3.0 * p0 - 4.0 * p1 + p2) * 0.5 * rate
+                ext.acc[arm, j] = (p0 - 2.0 * p1 + p2) * rate * rate
+                ext.omega[arm, j] = (3.0 * theta1[j] - theta2[j]) * 0.5 * rate
+                ext.alpha[arm, j] = (theta1[j] - theta2[j]) * rate * rate
+        else:
+            wx, wy, wz = r[ANG_VEL], r[ANG_VEL + 1], r[ANG_VEL + 2]
+            dx, dy, dz = r[FRAME] - r[COM], r[FRAME + 1] - r[COM + 1], r[FRAME + 2] - r[COM + 2]
+            ext.vel[arm, 0] = r[LIN_VEL] + (wy * dz - wz * dy)
+            ext.vel[arm, 1] = r[LIN_VEL + 1] + (wz * dx - wx * dz)
+            ext.vel[arm, 2] = r[LIN_VEL + 2] + (wx * dy - wy * dx)
+            for j in range(3):
+                ext.omega[arm, j] = r[ANG_VEL + j]
+                ext.acc[arm, j] = 0.0
+                ext.alpha[arm, j] = 0.0
+        for j in range(7):  # shift the history
+            h[1, j] = h[0, j]
+            h[0, j] = r[FRAME + j]  # position 14:17 then quaternion 17:21
+        h[2, 0] = min(count + 1.0, 2.0)
+        for j in range(3):
+            ext.pos[arm, j] = r[FRAME + j]
         sign = 1.0 if arm == 0 else -1.0
         ax = sign * (1.0 - 2.0 * (y * y + z * z))  # first column of the rotation matrix
         ay = sign * 2.0 * (x * y + z * w)
         az = sign * 2.0 * (x * z - y * w)
         scale = 1.0 / math.sqrt(ax * ax + ay * ay + az * az)
-        for j in range(3):
-            ext.pos[arm, j] = r[FRAME + j]
-            ext.omega[arm, j] = r[ANG_VEL + j]
-        ext.vel[arm, 0], ext.vel[arm, 1], ext.vel[arm, 2] = vx, vy, vz
         ext.dir[arm, 0], ext.dir[arm, 1], ext.dir[arm, 2] = ax * scale, ay * scale, az * scale
         sx, sy, sz = section[arm, 0], section[arm, 1], section[arm, 2]
         if sx != 0.0 or sy != 0.0 or sz != 0.0:  # (zero: no section held, nothing to turn)
@@ -58,6 +81,22 @@ def grasp_frames(rows, prev_vel, rate, section, ext):
             ext.normal[arm, 0] = rot[0] * sx + rot[1] * sy + rot[2] * sz
             ext.normal[arm, 1] = rot[3] * sx + rot[4] * sy + rot[5] * sz
             ext.normal[arm, 2] = rot[6] * sx + rot[7] * sy + rot[8] * sz
+
+
+@njit(cache=True, error_model="numpy")
+def relative_rotvec(x0, y0, z0, w0, x1, y1, z1, w1, out):
+    """Rotation vector [rad] (world frame) of the turn from unit quaternion 1 to unit quaternion 0 (both
+    (x, y, z, w)): of q0 q1^-1, the shorter way round, into ``out`` (3,)."""
+    # q0 * conj(q1)
+    w = w0 * w1 + x0 * x1 + y0 * y1 + z0 * z1
+    x = -w0 * x1 + x0 * w1 - y0 * z1 + z0 * y1
+    y = -w0 * y1 + y0 * w1 - z0 * x1 + x0 * z1
+    z = -w0 * z1 + z0 * w1 - x0 * y1 + y0 * x1
+    if w < 0.0:
+        w, x, y, z = -w, -x, -y, -z
+    s = math.sqrt(x * x + y * y + z * z)
+    scale = 2.0 / w if s < 1e-12 else 2.0 * math.atan2(s, w) / s
+    out[0], out[1], out[2] = x * scale, y * scale, z * scale
 
 
 @njit(cache=True, error_model="numpy")

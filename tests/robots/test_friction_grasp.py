@@ -44,7 +44,8 @@ def test_wrist_force_saturates_at_two_mu_d_fn_while_the_ends_slip(robot):
     assert axial[0].max() < 0.9 * cap_d  # before the move the grips hold less than they could
     assert 0.95 * cap_d < axial.max() <= 1.05 * cap_s  # the pull rises to the break-away force, no further
     onset = int(np.argmax(sliding))
-    assert sliding[onset:].all() and onset > 0
+    pulling = rec["t"][moving] <= start + 1.0  # the grippers move; after it the ends may stick again
+    assert sliding[onset:][pulling[onset:]].all() and onset > 0
     assert np.allclose(axial[onset + 2:], cap_d, rtol=0.05)  # saturated at 2 mu_d F_n while the ends slip
     assert np.allclose(model[onset + 2:], cap_d, rtol=0.01)
     # each end slid along its gripper by about what the gripper moved (the cable's stretch barely changes)

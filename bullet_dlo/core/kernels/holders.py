@@ -76,11 +76,13 @@ class ExternalHolders(NamedTuple):
     """Measured holder poses (e.g. gripper links) that ends follow instead of their move tables.
 
     active: which ends follow them, (2,) bool; pos [m], vel [m/s], acc [m/s^2], omega
-    (angular velocity) [rad/s], dir (clamp direction, unit, along the cable from its first to
-    its last node): world frame, (2, 3) each, measured now and extrapolated over a step at
-    constant velocity and angular velocity; normal: the holder's section axis d1 (unit, normal to
-    dir), world frame, (2, 3), turned with dir over the step: the roll about the cable axis that a
-    clamp of a cable with a material frame holds (read only by such cables).
+    (angular velocity) [rad/s], alpha (angular acceleration) [rad/s^2], dir (clamp direction, unit,
+    along the cable from its first to its last node): world frame, (2, 3) each, measured now and
+    extrapolated over a step at constant acceleration and angular acceleration (second order: a
+    constant-velocity extrapolation leaves the held end a dt^2 behind an accelerating holder and its
+    velocity a dt behind, a first-order error in the cable's forces); normal: the holder's section
+    axis d1 (unit, normal to dir), world frame, (2, 3), turned with dir over the step: the roll about
+    the cable axis that a clamp of a cable with a material frame holds (read only by such cables).
     """
 
     active: np.ndarray
@@ -88,6 +90,7 @@ class ExternalHolders(NamedTuple):
     vel: np.ndarray
     acc: np.ndarray
     omega: np.ndarray
+    alpha: np.ndarray
     dir: np.ndarray
     normal: np.ndarray
 

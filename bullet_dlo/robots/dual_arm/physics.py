@@ -130,13 +130,13 @@ class DualArmPhysics:
         self.reader = StateReader(self.world.client, self.world.native_handle(), [r.body for r in self.robots],
                                   [[r.grasp_link] + sensor_links(r) for r in self.robots],
                                   [r.joint_index[r.spec.sensor_joint] for r in self.robots])
-        self._grasp_velocity = np.zeros((2, 3))  # [m/s] one step ago, for the acceleration
+        self._grasp_history = np.zeros((2, 3, 7))  # the grasp frames' last two poses, for their velocities
         self._grasp_links = np.array([r.grasp_link for r in self.robots], dtype=np.int32)
         self._held_mask = np.zeros(2, dtype=np.bool_)
         self._end_points = np.zeros((2, 3))  # [m] where the cable's end forces act: its end masses
         self._apply_wrenches = None  # native.apply_wrenches's machine code, bound on first use
         self._section = np.zeros((2, 3))  # held section axis d1 in each grasp frame (a twisting cable's roll)
-        self._grasp_frames = bind(grasp_frames, self.reader.link_rows, self._grasp_velocity, 0.0, self._section,
+        self._grasp_frames = bind(grasp_frames, self.reader.link_rows, self._grasp_history, 0.0, self._section,
                                   self.cable.ext)
         self.task = None  # set by a task (DualArmTask): it drives the arms in load()
         self.observation = None  # set by DualArmObservation: its sensors sample in read()
@@ -377,7 +377,7 @@ class DualArmPhysics:
         """After the Bullet step: read both arms (for the sensors too) and make the measured grasp frames
         the holder poses of the cable's ends (:func:`~bullet_dlo.robots.kernels.grasp_frames`)."""
         self.reader.read()
-        self._grasp_frames(self.reader.link_rows, self._grasp_velocity, 0.0 if first else 1.0 / self.world.dt,
+        self._grasp_frames(self.reader.link_rows, self._grasp_history, 0.0 if first else 1.0 / self.world.dt,
                            self._section, self.cable.ext)
 
     # ----- running -------------------------------------------------------------------------------
