@@ -4,7 +4,7 @@ Every planned Bullet step of every cable is tallied (a wrapper round :meth:`Cabl
 :class:`~bullet_dlo.bullet.kernels.StallGuard`'s info): the contact solves that did not converge at the first
 attempt, the Newton iteration they ended at (1: stalled on the start guess v' = v, the cable coasts through
 the step without its forces; 30: out of iterations), and their momentum residual in units of gravity's
-impulse in a step (:func:`~bullet_dlo.bullet.kernels.stall_ratio`; the tolerance is 1e-3 of it for implicit
+impulse in a step (:func:`~bullet_dlo.core.kernels.contact.stall_ratio`; the tolerance is 1e-3 of it for implicit
 Euler). "near": at most ``--far`` (kept), "far": beyond (taken again as sub-steps; with ``--levels -1`` the
 behaviour before the guard: kept too). Also printed with the retry on: steps retried, and whether the run
 stopped (status STALLED).

@@ -13,7 +13,8 @@ import numba
 import numpy as np
 from numba import literal_unroll, njit
 
-from bullet_dlo.core.kernels.contact import contact_energy, contact_step, grip_active
+from bullet_dlo.core.kernels.contact import (WILD_RATIO, contact_energy, contact_step, grip_active,  # noqa: F401
+                                             impulse_scale, stall_ratio)  # (re-exported)
 from bullet_dlo.core.kernels.forces import clamp_torque, mechanical_energy
 from bullet_dlo.core.kernels.holders import ExternalHolders, HeldSamples, rotate, sample_end  # noqa: F401 (re-exported)
 from bullet_dlo.core.kernels.monitor import STABLE, STALLED, end_forces, monitor
@@ -181,20 +182,6 @@ def _copy_whole(pairs, save):
 
 
 @njit(cache=True, error_model="numpy")
-def impulse_scale(m, hf):
-    """hf (max_i m_i |g| + max |f_ext|) [N s]: the momentum gravity and the external forces give the heaviest node
-    in a step of force weight hf [s] (the scale of newton's residual tolerance)."""
-    g = math.sqrt(m.gravity[0] ** 2 + m.gravity[1] ** 2 + m.gravity[2] ** 2)
-    mass_max = 0.0
-    fext_max = 0.0
-    for i in range(m.mass.shape[0]):
-        mass_max = max(mass_max, m.mass[i])
-        for j in range(3):
-            fext_max = max(fext_max, abs(m.f_ext[i, j]))
-    return hf * (mass_max * g + fext_max) + 1e-300
-
-
-@njit(cache=True, error_model="numpy")
 def momentum_moved(m, v0, v1):
     """max over free nodes of m_i |v1_i - v0_i| [N s]: how far a solve moved the momentum from its start v0."""
     worst = 0.0
@@ -203,26 +190,6 @@ def momentum_moved(m, v0, v1):
             for j in range(3):
                 worst = max(worst, m.mass[i] * abs(v1[i, j] - v0[i, j]))
     return worst
-
-
-@njit(cache=True, error_model="numpy")
-def stall_ratio(m, ws, hf):
-    """After a Newton solve: its largest momentum residual (ws.residual) [N s] over the scale newton's
-    tolerance multiplies, :func:`impulse_scale` + max_i m_i |v'_i - v_avg,i| (hf [s] the step's force weight):
-    1 is the momentum gravity gives in a step (a cable that coasts through a step without its forces), the
-    tolerance is ``tol`` of it (1e-3 for implicit Euler). NaN counts as infinitely far."""
-    dmom = 0.0
-    for i in range(ws.v_new.shape[0]):
-        if not m.held[i]:
-            for j in range(3):
-                dmom = max(dmom, m.mass[i] * abs(ws.v_new[i, j] - ws.v_avg[i, j]))
-    worst = 0.0
-    for q in range(ws.residual.shape[0]):
-        if not abs(ws.residual[q]) <= worst:  # also catches NaN
-            worst = abs(ws.residual[q])
-    if worst != worst:
-        return np.inf
-    return worst / (impulse_scale(m, hf) + dmom)
 
 
 @njit(cache=True, error_model="numpy")

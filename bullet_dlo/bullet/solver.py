@@ -26,8 +26,8 @@ from operator import is_not
 import numba
 import numpy as np
 
-from bullet_dlo.bullet.kernels import (COASTED, FINAL_RATIO, FIRST_ITER, FIRST_MOVED, FIRST_RATIO, RETRY_SUBSTEPS, Coupling,
-                                       StallGuard, StepInput, bind, sync_and_advance)
+from bullet_dlo.bullet.kernels import (COASTED, FINAL_RATIO, FIRST_ITER, FIRST_MOVED, FIRST_RATIO, RETRY_SUBSTEPS,
+                                       WILD_RATIO, Coupling, StallGuard, StepInput, bind, sync_and_advance)
 from bullet_dlo.bullet.solver_call import make_step_args, step_with
 from bullet_dlo.core.engine import NEWTON_WARN_SHARE, DetectorOptions, start_detector
 from bullet_dlo.core.integrators import Integrator, NewtonOptions, make_stepper
@@ -40,7 +40,8 @@ from bullet_dlo.core.model import CableControl, CableModel, CableState, KernelAr
 
 STALL_RETRIES = 2  # a stalled contact step is taken again as 2, then 4 sub-steps (0: stop at a coast; -1: no guard)
 STALL_FAR = 0.1  # [-] far from convergence: momentum residual above this share of gravity's impulse in a step
-STALL_WILD = 10.0  # [-] wildly far: with a free body in the solve, taken again as sub-steps even when it moved the momentum
+STALL_WILD = WILD_RATIO  # [-] wildly far: with a free body in the solve, taken again as sub-steps even when it moved
+# the momentum (and if the retry stays that far, the bodies get the reaction the cable felt: Bodies.felt_ratio)
 NEWTON_WARN_MIN_STEPS = 100  # the share of unconverged steps is judged from this many planned steps on
 PACK_ARGS = True  # call the step kernel on packed arguments (solver_call.py; False: the plain call, for A/B and tests)
 
@@ -94,7 +95,7 @@ class CableSolver:
     solve ended near convergence (within ``stall_far``) and was kept; far_kept: those whose solve ended beyond
     it but had moved the momentum (kept); coasts: kept solves that coasted (only with the guard off);
     stall_retries: contact steps taken again as sub-steps after a coast or a solve beyond ``STALL_WILD`` with a free body in it; worst_kept_ratio: the largest residual ratio of a
-    kept contact solve (:func:`~bullet_dlo.bullet.kernels.stall_ratio`); stall_report: why the run stopped as
+    kept contact solve (:func:`~bullet_dlo.core.kernels.contact.stall_ratio`); stall_report: why the run stopped as
     STALLED (None otherwise). stall_levels, stall_far: the retry's settings (:class:`StallGuard`; taken from
     :data:`STALL_RETRIES`, :data:`STALL_FAR` when the solver is made; a change takes effect with the next
     contact set, or at once after ``solver._guard = None``).
