@@ -225,7 +225,7 @@ def _force_weight(stepper, use_prev):
     return 2.0 * stepper.h / 3.0 if use_prev and stepper.method == BDF2 else stepper.h
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def _guarded_contact_step(stepper, m, plan, ext, cp, ws, t, k, prev, contacts, bodies, guard):
     """Contact sub-step k of the coming Bullet step on (cp.x_new, cp.v_new), taken again from its start as 2,
     4, ... sub-steps when its Newton solve coasts (:func:`_coasted`: far from convergence with the momentum where
@@ -299,7 +299,7 @@ def _guarded_contact_step(stepper, m, plan, ext, cp, ws, t, k, prev, contacts, b
     return its, worst == 0.0, worst, coast
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def coupled_targets(stepper, m, plan, ext, cp, ws, t, has_prev, contacts, bodies, guard):
     """Plan the coming Bullet step from (cp.x, cp.v) at time t [s].
 
@@ -370,7 +370,7 @@ def take_over(cp, inp):
             cp.v_bullet[i, j] = inp.touched_vel[k, j]
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def sync_and_advance(stepper, m, plan, ext, cp, ws, det, inp, contacts, bodies, guard):
     """One Bullet step's work on the model side: take over (if ``inp.sync``), check, plan the next.
 
