@@ -7,6 +7,8 @@ import importlib
 import subprocess
 import sys
 
+import pytest
+
 from bullet_dlo import _interrupt
 from bullet_dlo.cli.main import main
 
@@ -83,7 +85,8 @@ def test_a_ctrl_c_stops_a_long_compiled_core_run_within_a_second(tmp_path):
     scene, old = tmp_path / "s.yaml", tmp_path / "old.json"
     scene.write_text("cable: {preset: lv2017, n_masses: 10}\ndt: 0.001\nduration: 0.01\n")
     old.write_text('{"precious": 1}')
-    code = ("import sys; sys.argv[0] = '/usr/local/bin/bullet-dlo'; from bullet_dlo.cli.main import main; "
+    code = ("import faulthandler, signal, sys; faulthandler.register(signal.SIGUSR1); "  # a stack dump on demand
+            "sys.argv[0] = '/usr/local/bin/bullet-dlo'; from bullet_dlo.cli.main import main; "
             f"main(['-q', 'simulate', {str(scene)!r}]); print('ready', flush=True); "  # kernels loaded
             f"sys.exit(main(['-q', 'simulate', {str(scene)!r}, '--duration', '1e5', '--json', {str(old)!r}]))")
     proc = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
@@ -93,7 +96,13 @@ def test_a_ctrl_c_stops_a_long_compiled_core_run_within_a_second(tmp_path):
         time.sleep(1.0)  # inside the 1e8-step run
         os.kill(proc.pid, signal.SIGINT)
         tic = time.perf_counter()
-        proc.wait(timeout=10)
+        try:
+            proc.wait(timeout=10)
+        except subprocess.TimeoutExpired:  # say where it was: its Python stacks, then fail
+            os.kill(proc.pid, signal.SIGUSR1)
+            time.sleep(1.0)
+            proc.kill()
+            pytest.fail(f"not stopped 10 s after SIGINT; its stacks then:\n{proc.stderr.read()[-4000:]}")
         took = time.perf_counter() - tic
     finally:
         proc.kill()
