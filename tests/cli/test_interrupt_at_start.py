@@ -85,8 +85,9 @@ def test_a_ctrl_c_stops_a_long_compiled_core_run_within_a_second(tmp_path):
     scene, old = tmp_path / "s.yaml", tmp_path / "old.json"
     scene.write_text("cable: {preset: lv2017, n_masses: 10}\ndt: 0.001\nduration: 0.01\n")
     old.write_text('{"precious": 1}')
-    code = ("import faulthandler, signal, sys; faulthandler.register(signal.SIGUSR1); "  # a stack dump on demand
-            "sys.argv[0] = '/usr/local/bin/bullet-dlo'; from bullet_dlo.cli.main import main; "
+    stacks = tmp_path / "stacks.txt"  # a stack dump on demand, to a file: -q sends fd 2 to /dev/null
+    code = (f"import faulthandler, signal, sys; faulthandler.register(signal.SIGUSR1, open({str(stacks)!r}, 'w'), "
+            "all_threads=True); sys.argv[0] = '/usr/local/bin/bullet-dlo'; from bullet_dlo.cli.main import main; "
             f"main(['-q', 'simulate', {str(scene)!r}]); print('ready', flush=True); "  # kernels loaded
             f"sys.exit(main(['-q', 'simulate', {str(scene)!r}, '--duration', '1e5', '--json', {str(old)!r}]))")
     proc = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
@@ -102,7 +103,8 @@ def test_a_ctrl_c_stops_a_long_compiled_core_run_within_a_second(tmp_path):
             os.kill(proc.pid, signal.SIGUSR1)
             time.sleep(1.0)
             proc.kill()
-            pytest.fail(f"not stopped 10 s after SIGINT; its stacks then:\n{proc.stderr.read()[-4000:]}")
+            pytest.fail(f"not stopped 10 s after SIGINT; its stacks then:\n{stacks.read_text()[-4000:]}\n"
+                        f"stderr: {proc.stderr.read()[-1000:]}")
         took = time.perf_counter() - tic
     finally:
         proc.kill()
