@@ -21,7 +21,7 @@ from typing import Iterator
 from tqdm import tqdm
 
 
-def _flush_c_streams() -> None:
+def flush_c_streams() -> None:
     """Flush C stdio buffers (a pipe's are written only at exit otherwise, after fd 1 is restored)."""
     try:
         ctypes.CDLL(None).fflush(None)
@@ -61,7 +61,7 @@ def quiet_output(enabled: bool = True) -> Iterator[None]:
         return
     sys.stdout.flush()
     sys.stderr.flush()
-    _flush_c_streams()
+    flush_c_streams()
     saved = {fd: os.dup(fd) for fd in (1, 2)}
     devnull = os.open(os.devnull, os.O_WRONLY)
     try:
@@ -72,7 +72,7 @@ def quiet_output(enabled: bool = True) -> Iterator[None]:
             warnings.simplefilter("ignore")
             yield
     finally:
-        _flush_c_streams()  # what the C libraries buffered goes to /dev/null too
+        flush_c_streams()  # what the C libraries buffered goes to /dev/null too
         for fd in (1, 2):
             os.dup2(saved[fd], fd)
             os.close(saved[fd])
@@ -114,7 +114,7 @@ def native_output() -> Iterator[list[str]]:
 
     sys.stdout.flush()
     sys.stderr.flush()
-    _flush_c_streams()
+    flush_c_streams()
     text: list[str] = []
     saved = {fd: os.dup(fd) for fd in (1, 2)}
     with tempfile.TemporaryFile() as sink:
@@ -124,7 +124,7 @@ def native_output() -> Iterator[list[str]]:
             with _python_stream_on("stdout", saved[1]), _python_stream_on("stderr", saved[2]):
                 yield text
         finally:
-            _flush_c_streams()
+            flush_c_streams()
             for fd in (1, 2):
                 os.dup2(saved[fd], fd)
                 os.close(saved[fd])
