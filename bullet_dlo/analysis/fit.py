@@ -66,9 +66,11 @@ from bullet_dlo.analysis.fit_recording import (
     noise_scale,
     predicted,
 )
-from bullet_dlo.analysis.fit_stats import (WINDOW_TAUS, 
+from bullet_dlo.analysis.fit_stats import (
+    WINDOW_TAUS,
     block_jackknife,
     hac_variances,
+    recording_clustered,
     t_quantile,
     whiteness,
     window_bounds,
@@ -715,7 +717,8 @@ def assign_windows(layout: Layout, tau_s: float, sample_dt: float, most: int) ->
 def interval_half_widths(r: np.ndarray, jac: np.ndarray, active: list[int], block: np.ndarray, layout: Layout,
                          tau_samples: float, jac_sd: np.ndarray, level: float) -> tuple[np.ndarray, list[str]]:
     """Half-width of each parameter's interval in log space (inf where J is blind) and where it came from:
-    the widest of the window jackknife (Student's t, B - 1 dof), the HAC sandwich and the Jacobian one."""
+    the widest of the window jackknife (Student's t, B - 1 dof), the HAC sandwich, the Jacobian one and, with
+    several recordings, the random-effects one over them (:func:`~bullet_dlo.analysis.fit_stats.recording_clustered`)."""
     p = jac.shape[1]
     z = float(stats.norm.ppf(0.5 + level / 2))
     half = np.full(p, math.inf)
@@ -726,10 +729,13 @@ def interval_half_widths(r: np.ndarray, jac: np.ndarray, active: list[int], bloc
     sub = jac[:, active]
     jk = block_jackknife(r, sub, block).var_log if blocks >= 2 else np.full(len(active), math.inf)
     hac = hac_variances(r, sub, layout.rec_of, layout.sample_of, int(math.ceil(WINDOW_TAUS * tau_samples)))
+    clustered, _ = recording_clustered(r, sub, layout.rec_of, tau_samples, level)
     tq = t_quantile(blocks, level)
     for a, j in enumerate(active):
         options = {"window jackknife": tq * math.sqrt(jk[a]), "HAC": z * math.sqrt(max(hac[a], 0.0)),
                    "Jacobian": z * float(jac_sd[j])}
+        if math.isfinite(clustered[a]):
+            options["recordings"] = float(clustered[a])
         source[j] = max(options, key=options.get)
         half[j] = options[source[j]]
     return half, source
@@ -740,7 +746,9 @@ def interval_method(blocks: int, source: list[str], names: list[str], level: flo
     used = ", ".join(f"{k}: {s}" for k, s in zip(names, source))
     return (f"{100 * level:g} % interval in log space, the widest of: delete-a-window jackknife over {blocks} time "
             f"windows (each >= 5 residual correlation times; recordings are windows of their own), linearised "
-            f"refit, Student's t with {max(blocks - 1, 1)} dof; Newey-West (HAC) sandwich; Jacobian. Widest per "
+            f"refit, Student's t with {max(blocks - 1, 1)} dof; Newey-West (HAC) sandwich; Jacobian; with several "
+            f"recordings, a random-effects one over them (each recording's own estimate and variance, "
+            f"DerSimonian-Laird between-recording variance, Student's t with recordings - 1 dof). Widest per "
             f"parameter: {used}")
 
 

@@ -199,6 +199,48 @@ def block_jackknife(r: np.ndarray, jac: np.ndarray, block: np.ndarray) -> Jackkn
     return Jackknife(var, leave, own, held, math.sqrt(float(r @ r) / len(r)), by_block)
 
 
+def recording_clustered(r: np.ndarray, jac: np.ndarray, rec_of: np.ndarray, tau_samples: float,
+                        level: float) -> tuple[np.ndarray, np.ndarray]:
+    """Half-widths in log space of a random-effects interval over the recordings of a fit, and the number of
+    recordings it used, each (p,): inf where fewer than two recordings determine the parameters alone.
+
+    ``r`` (m,) and ``jac`` (m, p): the weighted residual and its Jacobian in log parameters at the pooled optimum;
+    ``rec_of`` (m,): each row's recording; ``tau_samples``: the residual's integrated autocorrelation time
+    [samples] (a recording's own variance is the white-noise one times it). Each recording's own linearised estimate
+    y_i and its variance v_i; the between-recording variance tau^2 of DerSimonian and Laird (0 when the recordings
+    agree within their noise); the common value's variance 1 / sum 1 / (v_i + tau^2), with Student's t at k - 1
+    degrees of freedom for k recordings.
+
+    Why: the window jackknife takes a recording's windows as independent, but recordings of one cable can differ
+    by more than their noise (handling, temperature, the cable's history: DEFORM's trials alone gave damping_rate
+    0.09-0.58 1/s); then only the number of recordings says how well their common value is known."""
+    n, p = int(rec_of.max()) + 1, jac.shape[1]
+    half, used = np.full(p, math.inf), np.zeros(p, dtype=int)
+    if n < 2:
+        return half, used
+    own = block_jackknife(r, jac, rec_of).per_window  # (n, p), nan where a recording alone does not determine them
+    var = np.full((n, p), np.nan)
+    for i in range(n):
+        rows = rec_of == i
+        if not np.all(np.isfinite(own[i])) or rows.sum() <= p:
+            continue
+        left = r[rows] + jac[rows] @ own[i]  # the recording's residual at its own optimum
+        s2 = float(left @ left) / (rows.sum() - p) * max(tau_samples, 1.0)
+        var[i] = np.diag(np.linalg.inv(jac[rows].T @ jac[rows])) * s2
+    for a in range(p):
+        ok = np.isfinite(own[:, a]) & np.isfinite(var[:, a])
+        k = int(ok.sum())
+        if k < 2:
+            continue
+        y, v = own[ok, a], np.maximum(var[ok, a], 1e-300)
+        w = 1.0 / v
+        q = float(np.sum(w * (y - np.sum(w * y) / np.sum(w)) ** 2))  # Cochran's Q
+        tau2 = max(0.0, (q - (k - 1)) / (np.sum(w) - np.sum(w ** 2) / np.sum(w)))
+        half[a] = float(stats.t.ppf(0.5 + level / 2, k - 1)) * math.sqrt(1.0 / np.sum(1.0 / (v + tau2)))
+        used[a] = k
+    return half, used
+
+
 def hac_variances(r: np.ndarray, jac: np.ndarray, channel_of: np.ndarray, sample_of: np.ndarray,
                   bandwidth: int) -> np.ndarray:
     """Newey-West variances of log parameters: (J^T J)^-1 S (J^T J)^-1 with S the Bartlett-weighted
