@@ -200,7 +200,7 @@ def main(argv: Sequence[str] | None = None) -> int:
 def end_stopped(code: int) -> None:
     """End the process with ``code`` now, without Python's teardown. A stopped command has closed its files and
     said what it kept; the teardown would only free memory, and after kernels compiled in this process (a cold
-    Numba cache) it takes seconds: 4-5 s on an idle machine, over 10 s on two busy cores, for 10^6 objects and
+    Numba cache) it takes seconds: 4-5 s on an idle machine, 3.6 s beside another compile, for 10^6 objects and
     the compiled code's LLVM modules. A Ctrl-C then looked ignored."""
     import os
 
