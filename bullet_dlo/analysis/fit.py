@@ -70,7 +70,7 @@ from bullet_dlo.analysis.fit_stats import (
     WINDOW_TAUS,
     block_jackknife,
     hac_variances,
-    recording_clustered,
+    recording_random_effects,
     t_quantile,
     whiteness,
     window_bounds,
@@ -718,7 +718,7 @@ def interval_half_widths(r: np.ndarray, jac: np.ndarray, active: list[int], bloc
                          tau_samples: float, jac_sd: np.ndarray, level: float) -> tuple[np.ndarray, list[str]]:
     """Half-width of each parameter's interval in log space (inf where J is blind) and where it came from:
     the widest of the window jackknife (Student's t, B - 1 dof), the HAC sandwich, the Jacobian one and, with
-    several recordings, the random-effects one over them (:func:`~bullet_dlo.analysis.fit_stats.recording_clustered`)."""
+    several recordings, the random-effects one over them (:func:`~bullet_dlo.analysis.fit_stats.recording_random_effects`)."""
     p = jac.shape[1]
     z = float(stats.norm.ppf(0.5 + level / 2))
     half = np.full(p, math.inf)
@@ -729,13 +729,13 @@ def interval_half_widths(r: np.ndarray, jac: np.ndarray, active: list[int], bloc
     sub = jac[:, active]
     jk = block_jackknife(r, sub, block).var_log if blocks >= 2 else np.full(len(active), math.inf)
     hac = hac_variances(r, sub, layout.rec_of, layout.sample_of, int(math.ceil(WINDOW_TAUS * tau_samples)))
-    clustered, _ = recording_clustered(r, sub, layout.rec_of, tau_samples, level)
+    random_effects, _ = recording_random_effects(r, sub, layout.rec_of, tau_samples, level)
     tq = t_quantile(blocks, level)
     for a, j in enumerate(active):
         options = {"window jackknife": tq * math.sqrt(jk[a]), "HAC": z * math.sqrt(max(hac[a], 0.0)),
                    "Jacobian": z * float(jac_sd[j])}
-        if math.isfinite(clustered[a]):
-            options["recordings"] = float(clustered[a])
+        if math.isfinite(random_effects[a]):
+            options["recordings"] = float(random_effects[a])
         source[j] = max(options, key=options.get)
         half[j] = options[source[j]]
     return half, source

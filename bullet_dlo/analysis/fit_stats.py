@@ -199,7 +199,7 @@ def block_jackknife(r: np.ndarray, jac: np.ndarray, block: np.ndarray) -> Jackkn
     return Jackknife(var, leave, own, held, math.sqrt(float(r @ r) / len(r)), by_block)
 
 
-def recording_clustered(r: np.ndarray, jac: np.ndarray, rec_of: np.ndarray, tau_samples: float,
+def recording_random_effects(r: np.ndarray, jac: np.ndarray, rec_of: np.ndarray, tau_samples: float,
                         level: float) -> tuple[np.ndarray, np.ndarray]:
     """Half-widths in log space of a random-effects interval over the recordings of a fit, and the number of
     recordings it used, each (p,): inf where fewer than two recordings determine the parameters alone.
@@ -218,13 +218,14 @@ def recording_clustered(r: np.ndarray, jac: np.ndarray, rec_of: np.ndarray, tau_
     half, used = np.full(p, math.inf), np.zeros(p, dtype=int)
     if n < 2:
         return half, used
-    own = block_jackknife(r, jac, rec_of).per_window  # (n, p), nan where a recording alone does not determine them
-    var = np.full((n, p), np.nan)
+    own, var = np.full((n, p), np.nan), np.full((n, p), np.nan)  # stay nan where a recording alone is blind
     for i in range(n):
         rows = rec_of == i
-        if not np.all(np.isfinite(own[i])) or rows.sum() <= p:
+        step = _solve(jac[rows], r[rows])
+        if step is None or rows.sum() <= p:
             continue
-        left = r[rows] + jac[rows] @ own[i]  # the recording's residual at its own optimum
+        own[i] = -step  # the recording's own estimate, from the pooled optimum
+        left = r[rows] - jac[rows] @ step  # its residual there
         s2 = float(left @ left) / (rows.sum() - p) * max(tau_samples, 1.0)
         var[i] = np.diag(np.linalg.inv(jac[rows].T @ jac[rows])) * s2
     for a in range(p):

@@ -6,7 +6,7 @@ import numpy as np
 from scipy import stats
 
 from bullet_dlo.analysis.fit import FitOptions, fit_cable, synthetic_recording
-from bullet_dlo.analysis.fit_stats import recording_clustered
+from bullet_dlo.analysis.fit_stats import recording_random_effects
 from bullet_dlo.core.boundary import Sine
 from bullet_dlo.core.spec import CableSpec
 
@@ -32,7 +32,7 @@ def test_three_recordings_that_differ_give_an_interval_as_wide_as_their_spread()
     assert res.interval_method.endswith("damping_rate: recordings")
 
 
-def test_recording_clustered_is_dersimonian_laird_over_the_recordings_own_estimates():
+def test_recording_random_effects_is_dersimonian_laird_over_the_recordings_own_estimates():
     """A linear model y = theta + e in three recordings of 50 samples whose own means differ (0.1, -0.2, 0.4) with
     noise of SD 0.05: the half-width is t(2) sqrt(1 / sum 1 / (v_i + tau^2)), v_i = s_i^2 / 50, tau^2 = (Q - 2) /
     (sum w - sum w^2 / sum w), computed here by hand; recordings that agree within their noise get tau^2 = 0;
@@ -43,7 +43,7 @@ def test_recording_clustered_is_dersimonian_laird_over_the_recordings_own_estima
         e = 0.05 * rng.standard_normal(150)
         r = -(own[rec_of] + e)  # residual at theta = 0 of data y = own + e, J = 1
         jac = np.ones((150, 1))
-        half, used = recording_clustered(r, jac, rec_of, 1.0, 0.95)
+        half, used = recording_random_effects(r, jac, rec_of, 1.0, 0.95)
         y = np.array([own[i] + e[rec_of == i].mean() for i in range(3)])
         v = np.array([e[rec_of == i].var(ddof=1) / 50 for i in range(3)])
         w = 1 / v
@@ -52,7 +52,7 @@ def test_recording_clustered_is_dersimonian_laird_over_the_recordings_own_estima
         assert used[0] == 3 and abs(half[0] - stats.t.ppf(0.975, 2) * np.sqrt(1 / np.sum(1 / (v + tau2)))) < 1e-9
         assert (tau2 > 0.04) if own.any() else (tau2 < 1e-4)
     blind = np.stack([np.ones(150), np.zeros(150)], axis=1)  # the second parameter moves nothing
-    assert np.isinf(recording_clustered(r, blind, rec_of, 1.0, 0.95)[0]).all()
+    assert np.isinf(recording_random_effects(r, blind, rec_of, 1.0, 0.95)[0]).all()
 
 
 def test_the_coverage_demo_runs_a_draw():
