@@ -85,6 +85,7 @@ PROBE_EXTRA = 2
 # surface (measured on a heightfield slope: it held a sliding cable)
 PROBE_RISE = 1e-5
 WRAP_BENDS = True  # a wrapped segment's bends: at its nodes against the path, the turn at the edge (contact.md)
+FOLLOW_TIME = 0.05  # [s] time constant of the low-pass over a free body's unplanned motion that stuck anchors follow
 DRIVEN_INV_MASS = 1e-200
 """[1/kg, 1/(kg m^2)] The inverse mass and inertia a link of a driven body (a position-controlled arm) has in the
 cable's step: infinite in effect (the condensed contact's softening 1 / (1 + h^2 lambda) is exactly 1, so the link
@@ -139,7 +140,9 @@ class Shapes(NamedTuple):
 class Store(NamedTuple):
     """Friction state by contact key, kept from step to step: anchor (K, 4), state (K,), active (K,) bool;
     keys (M,) int: the key of each row of the current Contacts; body (M,) int: its shape index; wrap (K,)
-    bool: the key's row was a segment wrapped round an edge (kept while it wraps, however far the chord)."""
+    bool: the key's row was a segment wrapped round an edge (kept while it wraps, however far the chord); drift
+    (K, 3) [m/s]: the part of a free body's velocity at a stuck row that the cable's steps did not plan, in the row's
+    tangent plane, low-passed over FOLLOW_TIME (the anchor follows it: see :func:`detect`)."""
 
     anchor: np.ndarray
     state: np.ndarray
@@ -147,6 +150,7 @@ class Store(NamedTuple):
     keys: np.ndarray
     body: np.ndarray
     wrap: np.ndarray
+    drift: np.ndarray
 
 
 class Probes(NamedTuple):
@@ -583,7 +587,8 @@ class ContactSet:
                                            par["gravityAccelerationZ"]]
         self.store = Store(anchor=np.zeros((nkeys, 4)), state=np.zeros(nkeys, np.int64),
                            active=np.zeros(nkeys, np.bool_), keys=np.zeros(capacity, np.int64),
-                           body=np.zeros(capacity, np.int64), wrap=np.zeros(nkeys, np.bool_))
+                           body=np.zeros(capacity, np.int64), wrap=np.zeros(nkeys, np.bool_),
+                           drift=np.zeros((nkeys, 3)))
         first = np.cumsum([0] + [o.model.n for o in self.other_cables]).astype(np.int64)
         mu_o = [(o.model.spec.static_friction, o.model.spec.dynamic_friction) for o in self.other_cables]
         reps = [o.model.n for o in self.other_cables]
@@ -1274,6 +1279,8 @@ def _fill(c, st, key, shape, ia, ib, wa, wb, mu_s, mu_d, k_n, zeta, mk, x):
             c.anchor[k, j] = wa * x[ia, j] + wb * x[ib, j]
         c.anchor[k, 3] = wb
         c.state[k] = STICK
+        for j in range(3):
+            st.drift[key, j] = 0.0
     g = 0.0
     for j in range(3):
         g += c.normal[k, j] * (wa * x[ia, j] + wb * x[ib, j] - c.point[k, j])
@@ -1712,6 +1719,24 @@ def detect(x, v, mass, sh, c, bd, st, h, k_per_mass, zeta, self_mu, h_body, h_do
             c.body_work[0] += h_done * ((fn * c.normal[k, 0] + c.f_t[k, 0]) * d0
                                         + (fn * c.normal[k, 1] + c.f_t[k, 1]) * d1
                                         + (fn * c.normal[k, 2] + c.f_t[k, 2]) * d2)
+            if c.kind[k] != WRAP and c.state[k] == STICK:
+                # a stuck anchor is a point of the body: it moves with what Bullet did, not only with the plan (a
+                # plank resting across the cable and the ground crept along the cable while its anchors lagged the
+                # ground's push, which the cable's step takes a step late). Followed at once, a body rocking
+                # between the ground and the cable (a duck at 240 Hz) was kept rocking: each follow stretches
+                # the friction spring by a move the body made without its force, energy the next step hands back.
+                # So the anchor follows the low-passed unplanned motion: a steady drift exactly, a rocking of
+                # period well below FOLLOW_TIME hardly. In the tangent plane only: the normal part is the penalty's
+                dn = c.normal[k, 0] * d0 + c.normal[k, 1] * d1 + c.normal[k, 2] * d2
+                a = min(1.0, h_done / FOLLOW_TIME)
+                st.drift[key, 0] += a * (d0 - dn * c.normal[k, 0] - st.drift[key, 0])
+                st.drift[key, 1] += a * (d1 - dn * c.normal[k, 1] - st.drift[key, 1])
+                st.drift[key, 2] += a * (d2 - dn * c.normal[k, 2] - st.drift[key, 2])
+                for j in range(3):
+                    st.anchor[key, j] += h_done * st.drift[key, j]
+            else:
+                for j in range(3):
+                    st.drift[key, j] = 0.0
             if c.kind[k] != WRAP:
                 # f_n times the move is the work at the planned end's force. A body Bullet moved further into the
                 # cable than planned (a step's lag of its support: a duck rocking on the ground and the cable,
