@@ -6,6 +6,8 @@ Two cases, each measured without the contact model's own numbers (its gaps and f
 - ``leaning``: a box (4 x 10 x 1 cm) lying across a cable on the table, one end on the table, the other part on
   the cable (Bullet supports the box too). Statics: the cable carries the share of the weight the lever gives
   (5/8 here), the table the rest; the box at rest.
+- ``plank``: a plank (2 x 10 x 1.2 cm) dropped 1 cm across the cable lying on the table, its centre 1 cm to one side:
+  it tips onto the table and rests on one end and the cable (``share``: of its weight on the cable).
 - ``held``: a 30 g board fixed in the air by a user constraint (JOINT_FIXED), the cable lying on it.
 - ``dragged``: a box of 40 x 10 x 4 cm on a frictionless table (Bullet holds it up), the cable lying along it and
   pulled at its first node by 0.05 N after 1 s: static friction must drag the box (mu 0.8 / 0.6 on a 0.8 box);
@@ -20,7 +22,7 @@ worst over the last second; ``balance``: (ground on cable + ground on box) / (m_
 cable's push on the board / the cable's weight (held); ``rest``: when the box last moved faster than 1e-4 m/s [s];
 ``creep``: the body's largest speed over the last second [mm/s]; ``fails``: the cable's Newton solves that did not
 converge (``cable.solver.newton_failures``).
-Usage: python demos/supported_bodies.py [--hz 60 120] [--mass 0.001 0.03 0.3 3] [--case leaning held dragged rod]
+Usage: python demos/supported_bodies.py [--hz 60 120] [--mass 0.001 0.03 0.3 3] [--case leaning plank held dragged rod]
 """
 from __future__ import annotations
 
@@ -37,6 +39,7 @@ from bullet_dlo.core.spec import CableSpec
 G = 9.81
 HALF = (0.02, 0.05, 0.005)  # [m] the leaning box: 4 cm along the cable, 10 cm across, 1 cm thick
 OFFSET = 0.03  # [m] the box's centre from the cable, across it: the end 0.08 m from the cable lies on the table
+PLANK_HALF = (0.01, 0.05, 0.006)  # [m] the plank: 2 cm along the cable, 10 cm across, 1.2 cm thick
 
 
 def _face_sink(cable, body: int, half, r: float, cid: int) -> float:
@@ -69,6 +72,16 @@ def leaning(mass: float, hz: float, seconds: float) -> dict:
         world.run(0.2)
         box = _lean_box(world, r, mass)
         return _run(world, cable, box, mass, spec, r, seconds, HALF, "leaning")
+
+
+def plank(mass: float, hz: float, seconds: float) -> dict:
+    spec = CableSpec.lv2017(n_masses=20, damping=0.02)
+    r = spec.diameter / 2
+    with BulletWorld(dt=1.0 / hz) as world:
+        cable = world.add_cable(spec, start=(-0.15, 0.0, r), direction=(1, 0, 0))
+        world.run(0.1)
+        box = world.add_box(PLANK_HALF, (0.0, 0.01, 2 * r + PLANK_HALF[2] + 0.01), mass=mass)
+        return _run(world, cable, box, mass, spec, r, seconds, PLANK_HALF, "plank")
 
 
 def dragged(mass: float, hz: float, seconds: float) -> dict:
@@ -143,7 +156,7 @@ def _run(world, cable, box, mass, spec, r, seconds, half, case) -> dict:
             creep = max(creep, v)
     sink = _face_sink(cable, box, half, r, cid)
     on_box = float(cable.body_forces().get(box, np.zeros(3))[2])
-    if case == "leaning":
+    if case in ("leaning", "plank"):
         pc = cable.contact_forces()
         ground_on_cable = float(pc["force"][pc["body"] == world.ground_id][:, 2].sum())
         ground_on_box = sum(cp[9] for cp in pb.getContactPoints(box, world.ground_id, physicsClientId=cid))
@@ -161,7 +174,7 @@ def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--hz", type=float, nargs="+", default=[60.0, 120.0])
     ap.add_argument("--mass", type=float, nargs="+", default=[0.001, 0.03, 0.3, 3.0, 10.0])
-    ap.add_argument("--case", nargs="+", choices=("leaning", "held", "dragged", "rod"), default=["leaning", "held"])
+    ap.add_argument("--case", nargs="+", choices=("leaning", "plank", "held", "dragged", "rod"), default=["leaning", "held"])
     ap.add_argument("--seconds", type=float, default=2.0)
     args = ap.parse_args(argv)
     for name, val, lo in (("--hz", min(args.hz), 10.0), ("--mass", min(args.mass), 1e-4), ("--seconds", args.seconds, 1.0)):
@@ -173,7 +186,7 @@ def main(argv=None) -> None:
     for case in args.case:
         for hz in args.hz:
             for m in args.mass:
-                res = {"leaning": leaning, "held": held, "dragged": dragged, "rod": rod}[case](m, hz, args.seconds)
+                res = {"leaning": leaning, "plank": plank, "held": held, "dragged": dragged, "rod": rod}[case](m, hz, args.seconds)
                 print(f"{case:8s} {m:8.3g} {hz:6.0f} {res['sink']:8.3f} {res['worst']:8.3f} {res['balance']:8.4f}"
                       f" {res['share']:8.4f} {res['rest']:7.3f} {res['creep']:7.3f} {res['fails']:6d}  {res['status']}",
                       flush=True)
