@@ -8,32 +8,22 @@ kernels the suite uses (the runs' results are not checked here: the tests check 
 
 Numba has no lock between processes: a kernel both parts reach before either has cached it is compiled
 twice. The coupled Bullet step (``sync_and_advance`` and the chain below it, one argument type for every
-cable, about 150 s of CPU cold) is therefore reached in the Bullet part only; the core part instead compiles
-what the PyBullet-free core runner would otherwise compile alone during the tests (measured with a
-``numba:compile`` listener per test on a cold run: about 100 s, 70 of them in two tests). Measured cold,
-CPU per part (2026-11-29, compile listener): before, core 250 s and Bullet 253 s with 103 s compiled in both;
-with four such tests here, core 286 s and Bullet 271 s with 22 s in both; the two largest are kept, so that
-the core part does not outlast the Bullet part, and the core runner compiles about 70 s less.
+cable, about 150 s of CPU cold) is therefore reached in the Bullet part only.
+
+A kernel called with an argument of another type (a writable array where models pass read-only ones) is
+compiled again with everything below it: two core tests that replaced a model array by a writable one compiled
+the coupled twist step's Newton matrix and residual anew (44 and 26 s of CPU, 2026-11-29). They pass read-only
+arrays now, and the core part of the warm-up no longer runs them: cold, 291 s of CPU for the core part with them
+taking 14 s, against 347 s with 81 s before (2026-11-30, ``NUMBA_CACHE_DIR`` empty, ``/usr/bin/time``).
 
 Usage: ``python tests/warm_kernels.py core|bullet``.
 """
 from __future__ import annotations
 
 import sys
-from pathlib import Path
-
-# core tests whose kernels take argument types of their own (test file::test name, under tests/core): the two
-# largest cold compiles of the core runner (44 and 26 s of CPU, 2026-11-29); the next ones (test_damping's, 23 s)
-# would make this part longer than the Bullet part
-DIRECT_KERNEL_TESTS = (
-    "test_twist_exact_jacobian.py::test_newton_matrix_is_the_residuals_jacobian",
-    "test_rest_shape.py::test_forces_are_minus_the_energy_gradient_and_jacobian_their_derivative",
-)
-
 
 def core() -> None:
-    """The core engine's loop with every integrator, with and without a material frame, then the core tests that
-    call kernels directly (``DIRECT_KERNEL_TESTS``)."""
+    """The core engine's loop with every integrator, with and without a material frame."""
     from bullet_dlo.core.boundary import Move
     from bullet_dlo.core.engine import simulate
     from bullet_dlo.core.model import CableModel
@@ -46,12 +36,6 @@ def core() -> None:
         for integrator in ("explicit_euler", "symplectic_euler", "rk4", "implicit_euler", "bdf2",
                            "implicit_midpoint", "gauss_legendre"):
             simulate(model, integrator, 1e-4, 2e-3, max_records=3)
-    # core tests that call kernels from Python with argument types of their own: run here, the PyBullet-free core
-    # runner (tests/test_layers.py) then finds them cached
-    import pytest
-
-    here = Path(__file__).parent / "core"
-    pytest.main([str(here / test) for test in DIRECT_KERNEL_TESTS] + ["-q", "-p", "no:cacheprovider"])
 
 
 def bullet() -> None:

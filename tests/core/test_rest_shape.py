@@ -11,7 +11,7 @@ import pytest
 from scipy.integrate import quad
 
 from bullet_dlo.core.kernels.forces import force_jacobian, internal_energy, internal_forces
-from bullet_dlo.core.model import CableModel
+from bullet_dlo.core.model import CableModel, read_only
 from bullet_dlo.core.spec import CableSpec
 from bullet_dlo.core.statics import solve_static
 
@@ -36,7 +36,8 @@ def arc(n: int, kappa0: float = KAPPA0) -> np.ndarray:
 def test_forces_are_minus_the_energy_gradient_and_jacobian_their_derivative():
     model = curved(7, ends=("free", "free"))
     # stretch springs off: they would dwarf the bending forces this checks
-    a = model.kernel_arrays()._replace(k_stretch=np.zeros(6))
+    # read-only as the model's own arrays: a writable one is another argument type (the kernels compiled again)
+    a = model.kernel_arrays()._replace(k_stretch=read_only(np.zeros(6)))
     dirs = model.holder_plan().start_dir
     rng = np.random.default_rng(3)
     x = arc(7, 3.0) + 0.01 * rng.normal(size=(7, 3))
@@ -53,7 +54,7 @@ def test_forces_are_minus_the_energy_gradient_and_jacobian_their_derivative():
     assert np.allclose(f, -grad, rtol=1e-5, atol=1e-6 * np.abs(f).max())
     # the rest term is really there: without it the forces differ by far more than the tolerance
     f0 = np.zeros((7, 3))
-    internal_forces(a._replace(rest_angle=np.zeros(0)), x, dirs, f0)
+    internal_forces(a._replace(rest_angle=read_only(np.zeros(0))), x, dirs, f0)
     assert np.abs(f - f0).max() > 0.3 * np.abs(f).max()
     jac = np.zeros((7, 5, 3, 3))
     force_jacobian(a, x, dirs, False, jac)

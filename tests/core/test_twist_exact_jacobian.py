@@ -19,7 +19,7 @@ from bullet_dlo.core.kernels import twist_coupled as tc
 from bullet_dlo.core.kernels.holders import empty_samples, sample_holders
 from bullet_dlo.core.kernels.steppers import _start_implicit, make_workspace
 from bullet_dlo.core.kernels.twist import set_clamp
-from bullet_dlo.core.model import CableModel
+from bullet_dlo.core.model import CableModel, read_only
 from bullet_dlo.core.spec import CableSpec
 
 H = 1e-3
@@ -36,7 +36,8 @@ def _state(ends, method):
     st = simulate(cm, "bdf2", H, 0.15, record_every=10**6).final_state.copy()
     control = cm.control(None)
     m = cm.kernel_arrays(control, st.twist)
-    m = m._replace(c_stretch=np.zeros_like(m.c_stretch), c_bend=np.zeros_like(m.c_bend))
+    # c_stretch read-only as in every model (a writable one is another argument type: the whole step compiled again)
+    m = m._replace(c_stretch=read_only(np.zeros_like(m.c_stretch)), c_bend=np.zeros_like(m.c_bend))
     samples = empty_samples()
     sample_holders(cm.holder_plan(control), st.t, H, samples)
     n = st.x.shape[0]
