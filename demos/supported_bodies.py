@@ -1,7 +1,7 @@
 """Issue 23 item 2: bodies on the cable that something else holds too (docs/concepts/contact.md, "Bodies resting on
 the cable").
 
-Two cases, each measured without the contact model's own numbers (its gaps and forces):
+The cases, each measured without the contact model's own numbers (its gaps and forces):
 
 - ``leaning``: a box (4 x 10 x 1 cm) lying across a cable on the table, one end on the table, the other part on
   the cable (Bullet supports the box too). Statics: the cable carries the share of the weight the lever gives
@@ -170,11 +170,14 @@ def _run(world, cable, box, mass, spec, r, seconds, half, case) -> dict:
                 status=cable.reason or "stable")
 
 
+CASES = {"leaning": leaning, "plank": plank, "held": held, "dragged": dragged, "rod": rod}
+
+
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--hz", type=float, nargs="+", default=[60.0, 120.0])
     ap.add_argument("--mass", type=float, nargs="+", default=[0.001, 0.03, 0.3, 3.0, 10.0])
-    ap.add_argument("--case", nargs="+", choices=("leaning", "plank", "held", "dragged", "rod"), default=["leaning", "held"])
+    ap.add_argument("--case", nargs="+", choices=tuple(CASES), default=["leaning", "held"])
     ap.add_argument("--seconds", type=float, default=2.0)
     args = ap.parse_args(argv)
     for name, val, lo in (("--hz", min(args.hz), 10.0), ("--mass", min(args.mass), 1e-4), ("--seconds", args.seconds, 1.0)):
@@ -186,7 +189,7 @@ def main(argv=None) -> None:
     for case in args.case:
         for hz in args.hz:
             for m in args.mass:
-                res = {"leaning": leaning, "plank": plank, "held": held, "dragged": dragged, "rod": rod}[case](m, hz, args.seconds)
+                res = CASES[case](m, hz, args.seconds)
                 print(f"{case:8s} {m:8.3g} {hz:6.0f} {res['sink']:8.3f} {res['worst']:8.3f} {res['balance']:8.4f}"
                       f" {res['share']:8.4f} {res['rest']:7.3f} {res['creep']:7.3f} {res['fails']:6d}  {res['status']}",
                       flush=True)
