@@ -236,6 +236,16 @@ def _leaning_box(world, spec, m_box: float, offset: float = 0.03):
     return cable, box
 
 
+def _last_moving(world, body: int, seconds: float) -> float:
+    """Run ``world`` ``seconds`` [s]; the time [s] after which ``body`` last moved faster than 1e-4 m/s (0: never)."""
+    moving = 0.0
+    for k in range(world.steps_in(seconds)):
+        world.step()
+        if np.linalg.norm(pb.getBaseVelocity(body, physicsClientId=world.client)[0]) > 1e-4:
+            moving = (k + 1) * world.dt
+    return moving
+
+
 @pytest.mark.parametrize("m_box, hz", [(0.03, 60.0), (3.0, 60.0), (0.03, 120.0), (0.001, 120.0)])
 def test_a_box_leaning_on_the_cable_and_the_table_rests_on_the_cable(m_box, hz):
     """A 4 x 10 x 1 cm box lying across the cable on the table, its far end on the table: Bullet supports the box too,
@@ -252,11 +262,7 @@ def test_a_box_leaning_on_the_cable_and_the_table_rests_on_the_cable(m_box, hz):
     with BulletWorld(dt=1.0 / hz) as world:
         cid = world.client
         cable, box = _leaning_box(world, spec, m_box)
-        moving = 0.0
-        for k in range(world.steps_in(2.0)):
-            world.step()
-            if np.linalg.norm(pb.getBaseVelocity(box, physicsClientId=cid)[0]) > 1e-4:
-                moving = (k + 1) * world.dt
+        moving = _last_moving(world, box, 2.0)
         assert cable.stable, cable.reason
         assert moving < 1.5
         assert abs(_face_sink(cable, box, half, r, cid)) < 0.1 * r
@@ -343,15 +349,10 @@ def test_a_plank_dropped_across_the_cable_at_60_hz_rests_without_creeping(m_plan
     spec = CableSpec.lv2017(n_masses=20, damping=0.02)
     r, half = spec.diameter / 2, PLANK_HALF
     with BulletWorld(dt=1.0 / 60.0) as world:
-        cid = world.client
         cable = world.add_cable(spec, start=(-0.15, 0.0, r), direction=(1, 0, 0))
         world.run(0.1)
         plank = world.add_box(half, (0.0, 0.01, 2 * r + half[2] + 0.01), mass=m_plank)
-        moving = 0.0
-        for k in range(world.steps_in(2.5)):
-            world.step()
-            if np.linalg.norm(pb.getBaseVelocity(plank, physicsClientId=cid)[0]) > 1e-4:
-                moving = (k + 1) * world.dt
+        moving = _last_moving(world, plank, 2.5)
         assert cable.stable, cable.reason
         assert moving < 1.5
         on_cable, on_plank = _ground_loads(world, cable, plank)
