@@ -45,7 +45,7 @@ def loaded_stiffness(spec: CableSpec, load: float) -> tuple[float, float]:
     n = spec.n_masses
     m = model.kernel_arrays()
     dirs = model.holder_plan().start_dir
-    twist_ready(m, model.x0.copy(), dirs)  # builds the material frame (straight, untwisted; writable x as in a step)
+    twist_ready(m, model.x0, dirs)  # builds the material frame (straight, untwisted)
     f_ext = np.zeros((n, 3))
     f_ext[-1, 1] = load
     res = solve_static(model, f_ext=f_ext)
