@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import sys
 
+
 def core() -> None:
     """The core engine's loop with every integrator, with and without a material frame."""
     from bullet_dlo.core.boundary import Move
