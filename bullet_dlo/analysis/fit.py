@@ -718,7 +718,8 @@ def interval_half_widths(r: np.ndarray, jac: np.ndarray, active: list[int], bloc
                          tau_samples: float, jac_sd: np.ndarray, level: float) -> tuple[np.ndarray, list[str]]:
     """Half-width of each parameter's interval in log space (inf where J is blind) and where it came from:
     the widest of the window jackknife (Student's t, B - 1 dof), the HAC sandwich, the Jacobian one and, with
-    several recordings, the random-effects one over them (:func:`~bullet_dlo.analysis.fit_stats.recording_random_effects`)."""
+    several recordings, the random-effects one over them
+    (:func:`~bullet_dlo.analysis.fit_stats.recording_random_effects`)."""
     p = jac.shape[1]
     z = float(stats.norm.ppf(0.5 + level / 2))
     half = np.full(p, math.inf)

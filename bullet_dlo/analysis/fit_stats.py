@@ -200,7 +200,7 @@ def block_jackknife(r: np.ndarray, jac: np.ndarray, block: np.ndarray) -> Jackkn
 
 
 def recording_random_effects(r: np.ndarray, jac: np.ndarray, rec_of: np.ndarray, tau_samples: float,
-                        level: float) -> tuple[np.ndarray, np.ndarray]:
+                             level: float) -> tuple[np.ndarray, np.ndarray]:
     """Half-widths in log space of a random-effects interval over the recordings of a fit, and the number of
     recordings it used, each (p,): inf where fewer than two recordings determine the parameters alone.
 
@@ -221,8 +221,10 @@ def recording_random_effects(r: np.ndarray, jac: np.ndarray, rec_of: np.ndarray,
     own, var = np.full((n, p), np.nan), np.full((n, p), np.nan)  # stay nan where a recording alone is blind
     for i in range(n):
         rows = rec_of == i
+        if rows.sum() <= p:  # no residual dof left to estimate its noise
+            continue
         step = _solve(jac[rows], r[rows])
-        if step is None or rows.sum() <= p:
+        if step is None:
             continue
         own[i] = -step  # the recording's own estimate, from the pooled optimum
         left = r[rows] - jac[rows] @ step  # its residual there

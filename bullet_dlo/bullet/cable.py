@@ -602,8 +602,9 @@ class BulletCable:
         (its roll about the cable); None: it is carried from the last pose onto the new direction without
         roll (parallel transport). Only a cable with a material frame reads it. The step moves the held end
         between poses at constant ``acceleration`` and ``angular_acceleration``, and the energy check counts
-        the holder's work with them: a section turned from pose to pose with ``omega`` left at zero is work the check does not see, and a
-        large roll so stops the run as "energy growth" (pass the holder's angular velocity)."""
+        the holder's work with them: a section turned from pose to pose with ``omega`` left at zero is work the
+        check does not see, and a large roll so stops the run as "energy growth" (pass the holder's angular
+        velocity)."""
         e = self.ext
         if self.control.k_twist.shape[0]:
             if normal is None:
