@@ -783,8 +783,7 @@ class ContactSet:
             # no contact last step, no probed answer, nobody else's rows: detect() would find nothing and change
             # nothing when quiet() says no shape and no pair of segments is within its margin (the same tests)
             sh = self.shapes
-            qargs = (x, v, float(h), sh.kind, sh.size, sh.rot, sh.pos, self.hulls.near, self.contacts.radius,
-                     self.self_mu)
+            qargs = (x, v, float(h), sh, self.hulls, self.contacts.radius, self.self_mu, float(dt))
             if self._quiet is None:
                 self._quiet = bind(quiet, *qargs)
             if self._quiet(*qargs):
@@ -1661,7 +1660,8 @@ def detect(x, v, mass, sh, c, bd, st, h, k_per_mass, zeta, self_mu, h_body, h_do
            seg_held, hu, out_nodes):
     """Store the friction state of the last step's contacts by key, then fill ``c`` with the contacts
     of positions x [m] (n, 3) (velocities v [m/s]) whose gap is below the margin (cable radius + twice
-    the distance the fastest node moves in a step of h [s] + 1 mm); self-contacts too unless
+    the distance the fastest node moves in a step of h [s] + 1 mm; with a shape, + twice the farthest its body
+    moves in a Bullet step of h_body, :func:`_sweep`); self-contacts too unless
     self_mu[0] < 0 (self_mu: static and dynamic friction cable on cable). Returns the count.
 
     Dynamic bodies: the last step's work of each one on the cable, counted by the contact step with
@@ -1792,16 +1792,17 @@ def detect(x, v, mass, sh, c, bd, st, h, k_per_mass, zeta, self_mu, h_body, h_do
             for j in range(3):
                 q[i, j] = (rot[0, j] * (x[i, 0] - pos[0]) + rot[1, j] * (x[i, 1] - pos[1])
                            + rot[2, j] * (x[i, 2] - pos[2]))
+        margin_s = margin + _sweep(sh, s, hu, h_body)  # the cable's margin and the body's own motion in a step
         if kind == HULL:
-            _hull_contacts(c, st, s, hu, q, x, mass, s * per_shape, margin, out_nodes[s], sh, k_per_mass, zeta,
+            _hull_contacts(c, st, s, hu, q, x, mass, s * per_shape, margin_s, out_nodes[s], sh, k_per_mass, zeta,
                            seg_k, seg_l, seg_b, seg_held)
             continue
-        if _out_of_reach(q, kind, size, radius + margin):
+        if _out_of_reach(q, kind, size, radius + margin_s):
             continue  # the cable's bounding box misses the shape's: nothing of it can touch
         base = s * per_shape
         for i in range(n):
             d = _node_closest(kind, size, q[i], cl, nl)
-            if d - radius < margin:
+            if d - radius < margin_s:
                 _add(c, st, base + i, s, i, i, 1.0, 0.0, cl, nl, sh, k_per_mass, zeta, mass, x)
         if kind == BOX:  # segments against the 12 edges
             wraps = seg_k.shape[0] == n - 1 and sh.inv_mass[s] == 0.0
@@ -1810,8 +1811,8 @@ def detect(x, v, mass, sh, c, bd, st, h, k_per_mass, zeta, self_mu, h_body, h_do
                 for i in range(1, n):
                     q_lo[j] = min(q_lo[j], q[i, j])
                     q_hi[j] = max(q_hi[j], q[i, j])
-                q_lo[j] -= radius + margin
-                q_hi[j] += radius + margin
+                q_lo[j] -= radius + margin_s
+                q_hi[j] += radius + margin_s
             for ax in range(3):
                 o1 = (ax + 1) % 3
                 o2 = (ax + 2) % 3
@@ -1832,14 +1833,14 @@ def detect(x, v, mass, sh, c, bd, st, h, k_per_mass, zeta, self_mu, h_body, h_do
                         key = base + n + (n - 1) * feat + i
                         wraps_i = wraps and not (seg_held.shape[0] == n and (seg_held[i] or seg_held[i + 1]))
                         wrapped = wraps_i and st.active[key] and st.wrap[key]
-                        if not wrapped and not _may_reach_edge(q[i], q[i + 1], P, ax, size[ax], radius + margin):
+                        if not wrapped and not _may_reach_edge(q[i], q[i + 1], P, ax, size[ax], radius + margin_s):
                             continue
                         sp = _segment_axis(q[i], q[i + 1], P, A, size[ax], 0.0, cl, nl)
                         # a chord cutting the corner through the box (a coarse segment draped round the edge)
                         cuts = (wraps_i and sp > 0.0 and abs(cl[o1] + cl[3] * nl[o1]) < size[o1]
                                 and abs(cl[o2] + cl[3] * nl[o2]) < size[o2])
                         # a wrap is kept while the path wraps, even with the chord deep in the box
-                        if sp > 0.0 and (cl[3] - radius < margin or wrapped or cuts):
+                        if sp > 0.0 and (cl[3] - radius < margin_s or wrapped or cuts):
                             fresh = not (st.active[key] and st.wrap[key])  # a new wrap (or a capsule contact turning into one)
                             _add(c, st, key, s, i, i + 1, 1.0 - sp, sp, cl, nl, sh, k_per_mass, zeta, mass, x)
                             # the segment before a wrapped one (key + 1: the next segment at this edge) wraps
@@ -1849,7 +1850,7 @@ def detect(x, v, mass, sh, c, bd, st, h, k_per_mass, zeta, self_mu, h_body, h_do
                                     and (wrapped or cuts or before or _taut(x, i, seg_k[i], seg_l[i], seg_b))):
                                 k = c.count[0] - 1
                                 _box_wrap(c, k, rot, A, P, o1, o2, seg_k[i], seg_l[i], seg_b[i], seg_b[i + 1], fresh, x)
-                                if cl[3] - radius >= margin and not wrap_active(c, k, x):
+                                if cl[3] - radius >= margin_s and not wrap_active(c, k, x):
                                     c.count[0] = k  # the chord has left the edge: the wrap is over
         elif kind == SPHERE:
             P[:] = 0.0
@@ -1868,7 +1869,7 @@ def detect(x, v, mass, sh, c, bd, st, h, k_per_mass, zeta, self_mu, h_body, h_do
                     nl[j] = q[i, j] + sp * (q[i + 1, j] - q[i, j])
                     r2 += nl[j] ** 2
                 rl = math.sqrt(r2)
-                if rl > 0.0 and rl - size[0] - radius < margin:
+                if rl > 0.0 and rl - size[0] - radius < margin_s:
                     for j in range(3):
                         nl[j] /= rl
                         cl[j] = size[0] * nl[j]
@@ -1879,7 +1880,7 @@ def detect(x, v, mass, sh, c, bd, st, h, k_per_mass, zeta, self_mu, h_body, h_do
             A[0], A[1], A[2] = 0.0, 0.0, 1.0
             for i in range(n - 1):
                 sp = _segment_axis(q[i], q[i + 1], P, A, size[1], size[0], cl, nl)
-                if sp > 0.0 and cl[3] - radius < margin:
+                if sp > 0.0 and cl[3] - radius < margin_s:
                     if kind == CYLINDER and abs(cl[2] - size[0] * nl[2]) >= size[1]:
                         continue  # beyond a cylinder's flat end: the nodes handle it
                     key = base + n + i
@@ -1911,11 +1912,45 @@ def detect(x, v, mass, sh, c, bd, st, h, k_per_mass, zeta, self_mu, h_body, h_do
     return c.count[0]
 
 
+@njit(cache=True, error_model="numpy", inline="always")
+def _sweep(sh, s, hu, h):
+    """Twice the farthest [m] a point of shape row s (:class:`Shapes`) moves in a step of h [s] by its body's velocity:
+    2 h (|U| + |Omega| R), R [m] the shape's reach from the body's centre of mass (its bounding sphere about its
+    frame, a hull's box corner, plus the frame's offset). Zero for a body at rest and for a PROBE row (not counted).
+
+    The cable's margin counts the cable's motion only; a body moving into the cable faster than that margin per step
+    was met only once it was inside it (a 0.3 kg box tipping off a cable at 13 rad/s at 60 Hz: 9 mm in, then
+    stopped as energy growth)."""
+    w = math.sqrt(sh.ang_vel[s, 0] ** 2 + sh.ang_vel[s, 1] ** 2 + sh.ang_vel[s, 2] ** 2)
+    u = math.sqrt(sh.lin_vel[s, 0] ** 2 + sh.lin_vel[s, 1] ** 2 + sh.lin_vel[s, 2] ** 2)
+    if w == 0.0 and u == 0.0:
+        return 0.0
+    kind, size = sh.kind[s], sh.size[s]
+    if kind == BOX:
+        extent = math.sqrt(size[0] ** 2 + size[1] ** 2 + size[2] ** 2)
+    elif kind == SPHERE:
+        extent = size[0]
+    elif kind == CYLINDER:
+        extent = math.sqrt(size[0] ** 2 + size[1] ** 2)
+    elif kind == CAPSULE:
+        extent = size[0] + size[1]
+    elif kind == HULL:
+        r2 = 0.0
+        for j in range(3):
+            r2 += max(abs(hu.lo[hu.row[s], j]), abs(hu.hi[hu.row[s], j])) ** 2
+        extent = math.sqrt(r2) + hu.margin[hu.row[s]]
+    else:
+        return 0.0
+    off = math.sqrt((sh.pos[s, 0] - sh.com[s, 0]) ** 2 + (sh.pos[s, 1] - sh.com[s, 1]) ** 2
+                    + (sh.pos[s, 2] - sh.com[s, 2]) ** 2)
+    return 2.0 * h * (u + w * (extent + off))
+
+
 @njit(cache=True, error_model="numpy")
-def quiet(x, v, h, kind, size, rot, pos, near, radius, self_mu):
-    """Whether :func:`detect` of positions x [m] (n, 3), velocities v [m/s], a cable step of h [s] would find no
-    contact, by its own tests: every Shapes row (``kind``, ``size``, ``rot``, ``pos``) out of reach by its cull
-    (:func:`_out_of_reach`; PROBE rows are skipped there, a HULL row ``near`` is not culled) and, unless
+def quiet(x, v, h, sh, hu, radius, self_mu, h_body):
+    """Whether :func:`detect` of positions x [m] (n, 3), velocities v [m/s], a cable step of h [s] in a Bullet step
+    of h_body [s] would find no contact, by its own tests: every :class:`Shapes` row out of reach by its cull
+    (:func:`_out_of_reach` with the row's margin; PROBE rows are skipped there, a HULL row near (``hu``) is not culled) and, unless
     self_mu[0] < 0, no pair of segments within the margin (:func:`_self_touches`). With no contact in the last step,
     no probed answer, no other cable and no free body, such a detect() changes nothing but the count (0): the
     caller skips it (``ContactSet.update``)."""
@@ -1927,18 +1962,19 @@ def quiet(x, v, h, kind, size, rot, pos, near, radius, self_mu):
     margin = r + 2.0 * vmax * h + 1e-3
     n = x.shape[0]
     q = np.empty((n, 3))
+    kind = sh.kind
     for s in range(kind.shape[0]):
         if kind[s] == PROBE:
             continue
         if kind[s] == HULL:
-            if near[s]:
+            if hu.near[s]:
                 return False
             continue
-        R, P = rot[s], pos[s]
+        R, P = sh.rot[s], sh.pos[s]
         for i in range(n):  # nodes in the shape frame, as detect() computes them
             for j in range(3):
                 q[i, j] = (R[0, j] * (x[i, 0] - P[0]) + R[1, j] * (x[i, 1] - P[1]) + R[2, j] * (x[i, 2] - P[2]))
-        if not _out_of_reach(q, kind[s], size[s], r + margin):
+        if not _out_of_reach(q, kind[s], sh.size[s], r + margin + _sweep(sh, s, hu, h_body)):
             return False
     return not (self_mu[0] >= 0.0 and _self_touches(x, r, margin))
 
