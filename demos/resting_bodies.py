@@ -4,10 +4,13 @@ For each box mass and step: peak reaction on the box [N] (and in units of its we
 speed [m/s], time to rest (box speed below 1e-4 m/s for good) [s], support balance at the end
 (ground on cable + ground on box) / ((m_cable + m_box) g), cable status, penetration of the box
 into the cable. Usage: python demos/resting_bodies.py [--drop 0.01] [--seconds 2] [--hz 240 1000]
+[--n 20] [--offset 0] [--yaw 0]: --offset [m] moves the box's centre off the cable (along y) and --yaw [rad] turns it
+about z, so that it tips off the cable onto the ground.
 """
 from __future__ import annotations
 
 import argparse
+import itertools
 import time
 
 import numpy as np
@@ -20,13 +23,15 @@ G = 9.81
 HALF = (0.02, 0.02, 0.01)  # [m] box half extents: 4 cm square across the cable, 2 cm tall
 
 
-def run(mass: float, hz: float, drop: float, seconds: float) -> dict:
-    spec = CableSpec.lv2017(n_masses=20, damping=0.02)
+def run(mass: float, hz: float, drop: float, seconds: float, n: int = 20, offset: float = 0.0,
+        yaw: float = 0.0) -> dict:
+    spec = CableSpec.lv2017(n_masses=n, damping=0.02)
     r = spec.diameter / 2
     with BulletWorld(dt=1.0 / hz) as world:
         cable = world.add_cable(spec, start=(-0.15, 0.0, r), direction=(1, 0, 0))
         world.run(0.2)  # the cable lies still on the ground
-        box = world.add_box(HALF, (0.0, 0.0, 2 * r + HALF[2] + drop), mass=mass, friction=0.5)
+        box = world.add_box(HALF, (0.0, offset, 2 * r + HALF[2] + drop), pb.getQuaternionFromEuler((0.0, 0.0, yaw)),
+                            mass=mass, friction=0.5)
         cid = world.client
         peak_f, peak_v, last_moving, worst_gap = 0.0, 0.0, 0.0, 0.0
         t_contact = tic = 0.0
@@ -62,16 +67,17 @@ def main() -> None:
     ap.add_argument("--seconds", type=float, default=2.0)
     ap.add_argument("--hz", type=float, nargs="+", default=[240, 1000])
     ap.add_argument("--mass", type=float, nargs="+", default=[0.001, 0.005, 0.03, 0.3, 3.0])
+    ap.add_argument("--n", type=int, nargs="+", default=[20], help="the cable's masses")
+    ap.add_argument("--offset", type=float, nargs="+", default=[0.0], help="[m] box centre off the cable, along y")
+    ap.add_argument("--yaw", type=float, nargs="+", default=[0.0], help="[rad] box turned about z")
     a = ap.parse_args()
-    print(f"{'drop':>7} {'hz':>5} {'mass':>6} {'peak F':>9} {'xW':>8} {'peak v':>8} {'rest':>6} {'balance':>8} "
-          f"{'gap mm':>7} {'box z':>7} {'ms/st':>6} status")
-    for drop in a.drop:
-        for hz in a.hz:
-            for m in a.mass:
-                o = run(m, hz, drop, a.seconds)
-                print(f"{drop:7.4f} {hz:5.0f} {m:6.3f} {o['peak_f']:9.3f} {o['peak_w']:8.1f} {o['peak_v']:8.4f} "
-                      f"{o['rest']:6.3f} {o['balance']:8.4f} {1e3 * o['gap']:7.3f} {o['z']:7.4f} "
-                      f"{o['ms_per_step']:6.3f} {o['status']}", flush=True)
+    print(f"{'n':>3} {'offset':>6} {'yaw':>4} {'drop':>7} {'hz':>5} {'mass':>6} {'peak F':>9} {'xW':>8} {'peak v':>8} "
+          f"{'rest':>6} {'balance':>8} {'gap mm':>7} {'box z':>7} {'ms/st':>6} status")
+    for n, offset, yaw, drop, hz, m in itertools.product(a.n, a.offset, a.yaw, a.drop, a.hz, a.mass):
+        o = run(m, hz, drop, a.seconds, n, offset, yaw)
+        print(f"{n:3d} {offset:6.3f} {yaw:4.1f} {drop:7.4f} {hz:5.0f} {m:6.3f} {o['peak_f']:9.3f} {o['peak_w']:8.1f} "
+              f"{o['peak_v']:8.4f} {o['rest']:6.3f} {o['balance']:8.4f} {1e3 * o['gap']:7.3f} {o['z']:7.4f} "
+              f"{o['ms_per_step']:6.3f} {o['status']}", flush=True)
 
 
 if __name__ == "__main__":
