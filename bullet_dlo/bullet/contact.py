@@ -86,6 +86,7 @@ PROBE_EXTRA = 2
 PROBE_RISE = 1e-5
 WRAP_BENDS = True  # a wrapped segment's bends: at its nodes against the path, the turn at the edge (contact.md)
 FOLLOW_TIME = 0.05  # [s] time constant of the low-pass over a free body's unplanned motion that stuck anchors follow
+SINK_TIME = 0.05  # [s] time constant over which the penetration a body's unplanned move left is let out (Store.sink)
 DRIVEN_INV_MASS = 1e-200
 """[1/kg, 1/(kg m^2)] The inverse mass and inertia a link of a driven body (a position-controlled arm) has in the
 cable's step: infinite in effect (the condensed contact's softening 1 / (1 + h^2 lambda) is exactly 1, so the link
@@ -118,7 +119,9 @@ class Shapes(NamedTuple):
     inverse inertia (both 0 for a static body); owner (B,) int: the first shape of the same body and
     link (the shapes of one link share its inertia); slot (B,) int: the free body's slot in the contact step's
     :class:`~bullet_dlo.core.kernels.contact.Bodies` (-1: static, or a link of an articulated body); inertia
-    (B, 3, 3) [kg m^2]: a free body's inertia tensor in the world frame now (zero otherwise).
+    (B, 3, 3) [kg m^2]: a free body's inertia tensor in the world frame now (zero otherwise); impact (B,) bool: the
+    free body gained a Bullet contact (the ground, another body) in the last Bullet step, a collision the cable's step
+    did not plan (its penetration into the cable is let out slowly: :class:`Store`, sink).
     """
 
     kind: np.ndarray
@@ -135,6 +138,7 @@ class Shapes(NamedTuple):
     owner: np.ndarray
     slot: np.ndarray
     inertia: np.ndarray
+    impact: np.ndarray
 
 
 class Store(NamedTuple):
@@ -142,7 +146,9 @@ class Store(NamedTuple):
     keys (M,) int: the key of each row of the current Contacts; body (M,) int: its shape index; wrap (K,)
     bool: the key's row was a segment wrapped round an edge (kept while it wraps, however far the chord); drift
     (K, 3) [m/s]: the part of a free body's velocity at a stuck row that the cable's steps did not plan, in the row's
-    tangent plane, low-passed over FOLLOW_TIME (the anchor follows it: see :func:`detect`)."""
+    tangent plane, low-passed over FOLLOW_TIME (the anchor follows it: see :func:`detect`); sink (K,) [m]: the
+    penetration of a row on a free body that Bullet's moves of the body, not the cable's step, made, not yet let out
+    (the row's surface point sits that much inside the body; it decays over SINK_TIME: see :func:`detect`)."""
 
     anchor: np.ndarray
     state: np.ndarray
@@ -151,6 +157,7 @@ class Store(NamedTuple):
     body: np.ndarray
     wrap: np.ndarray
     drift: np.ndarray
+    sink: np.ndarray
 
 
 class Probes(NamedTuple):
@@ -529,9 +536,10 @@ class ContactSet:
                              inv_mass=np.array([r[8] for r in rows]), inv_inertia=np.array([r[9] for r in rows]),
                              owner=np.array([pairs.index(pr) for pr in pairs], dtype=np.int64),
                              slot=np.array([free_bodies.index(r[0]) if r[11] else -1 for r in rows], dtype=np.int64),
-                             inertia=np.zeros((nb, 3, 3)))
+                             inertia=np.zeros((nb, 3, 3)), impact=np.zeros(nb, np.bool_))
         self._free_slot = self.shapes.slot.copy()  # each row's slot; -1 in shapes.slot while the body is shared
         self._shared: frozenset = frozenset()
+        self._was_supported: frozenset = frozenset()  # the free bodies in a Bullet contact the step before (impacts)
         # the load on each free body from everything but this cable and gravity, measured over the last Bullet
         # step (see update): its base row, velocity then [m/s, rad/s], the reaction applied in it, the load
         ns = len(free_bodies)
@@ -588,7 +596,7 @@ class ContactSet:
         self.store = Store(anchor=np.zeros((nkeys, 4)), state=np.zeros(nkeys, np.int64),
                            active=np.zeros(nkeys, np.bool_), keys=np.zeros(capacity, np.int64),
                            body=np.zeros(capacity, np.int64), wrap=np.zeros(nkeys, np.bool_),
-                           drift=np.zeros((nkeys, 3)))
+                           drift=np.zeros((nkeys, 3)), sink=np.zeros(nkeys))
         first = np.cumsum([0] + [o.model.n for o in self.other_cables]).astype(np.int64)
         mu_o = [(o.model.spec.static_friction, o.model.spec.dynamic_friction) for o in self.other_cables]
         reps = [o.model.n for o in self.other_cables]
@@ -772,6 +780,8 @@ class ContactSet:
                 for b in shared:
                     self.shapes.slot[self.body_ids == b] = -1
         self._read_poses()
+        if self.free_bodies and stepped:
+            self._mark_impacts(supported)
         if self.other_cables:
             self._read_others(dt)
         if self._probe_rows:
@@ -801,6 +811,18 @@ class ContactSet:
             self._report_bodies_inside(x, count, dt)
         return count
 
+    def _mark_impacts(self, supported) -> None:
+        """``shapes.impact``: the free bodies in a Bullet contact (``supported``) in the last step and not in the one
+        before, a collision the cable's step could not plan."""
+        now = frozenset(supported).intersection(self.free_bodies)
+        new = now - self._was_supported
+        self._was_supported = now
+        impact = self.shapes.impact
+        if impact.any():
+            impact[:] = False
+        for b in new:
+            impact[self.body_ids == b] = True
+
     def _measure(self, dt: float, stepped: bool, supported) -> list[int]:
         """See :func:`bullet_dlo.bullet.held_bodies.measure`."""
         return held_bodies.measure(self, dt, stepped, supported)
@@ -826,7 +848,8 @@ class ContactSet:
             self._deepest = bind(_deepest_dynamic, *args)
         # one compiled pass over the rows (this check in NumPy cost 28 us a step with a box on the cable); the
         # rows are looked at again below only when one may be deep enough (the same test in NumPy decides)
-        if not self._deepest(*args) > INSIDE_REPORTED * float(c.radius[0]) * (1.0 - 1e-9):
+        sink = st.sink[st.keys[:count]]  # the rows' surface points sit that much inside the body (Store)
+        if not self._deepest(*args) + float(sink.max()) > INSIDE_REPORTED * float(c.radius[0]) * (1.0 - 1e-9):
             return
         rows = st.body[:count]
         k = np.flatnonzero((rows >= 0) & self.dynamic[np.maximum(rows, 0)])
@@ -834,7 +857,7 @@ class ContactSet:
             return
         p = c.weight[k, 0:1] * x[c.node[k, 0]] + c.weight[k, 1:2] * x[c.node[k, 1]]
         radius = float(c.radius[0])
-        depth = -np.einsum("ij,ij->i", c.normal[k], p - c.point[k])  # of the centre line inside the body [m]
+        depth = sink[k] - np.einsum("ij,ij->i", c.normal[k], p - c.point[k])  # of the centre line inside the body [m]
         for j in np.flatnonzero(depth > INSIDE_REPORTED * radius).tolist():
             body = int(self.body_ids[rows[k[j]]])
             if body in self._inside_reported:
@@ -1280,6 +1303,11 @@ def _fill(c, st, key, shape, ia, ib, wa, wb, mu_s, mu_d, k_n, zeta, mk, x):
         c.state[k] = STICK
         for j in range(3):
             st.drift[key, j] = 0.0
+        st.sink[key] = 0.0
+    o = st.sink[key]
+    if o > 0.0:  # the surface point that much inside the body: the penetration its unplanned moves made, let out slowly
+        for j in range(3):
+            c.point[k, j] -= o * c.normal[k, j]
     g = 0.0
     for j in range(3):
         g += c.normal[k, j] * (wa * x[ia, j] + wb * x[ib, j] - c.point[k, j])
@@ -1750,6 +1778,17 @@ def detect(x, v, mass, sh, c, bd, st, h, k_per_mass, zeta, self_mu, h_body, h_do
                 e_plan = min(0.0, g_plan)
                 e_new = min(0.0, g_plan - delta)
                 extra = 0.5 * c.k_n[k] * (e_new * e_new - e_plan * e_plan) + c.k_n[k] * e_plan * delta
+                # The extra penetration itself is not the penalty's to push back: released by the stiff spring
+                # (k_n = 1e4 m_c / h^2, stiff for the cable's node mass) into a light body it launched it (a 1 g box
+                # tipping off the cable, its corner hitting the ground in Bullet's step, turned 2-4 mm into the
+                # cable and left at 3-20 m/s). The row's surface point moves into the body by it (Store.sink, in
+                # _fill) and comes back over SINK_TIME, a position correction without the spring's energy (as
+                # Bullet's split impulse); a move out of the cable takes back what it can
+                # Only a collision's (sh.impact): a body held in the step (a duck rocking on the ground and the
+                # cable) or misjudged (a mass changed after the set read it) keeps the penalty's push, or it sinks
+                keep = max(0.0, 1.0 - h_done / SINK_TIME)
+                pressed = e_plan - e_new if sh.impact[s] else min(0.0, e_plan - e_new)
+                st.sink[key] = max(0.0, keep * st.sink[key] + pressed)
                 if extra > 0.0:
                     if credit_max.shape[0] == 0:
                         credit_max = np.zeros(previous.shape[0])

@@ -17,8 +17,9 @@ condensed contact's softness, which these bodies had before).
 The measured load lags one step. Where the cable pushes the body against what holds it (a board a constraint holds
 under the cable, a box on the table with the cable across it) a light body would yield in the cable's step while
 Bullet holds it rigidly, and the lag makes the cable bounce (a 30 g board under the 30 g cable gained energy at 60
-and 120 Hz). There the body takes an apparent mass M_a = M + CARRY_FACTOR m_c (m_c the cable's mass at those rows;
-the holder, rigid in Bullet, takes the push) in the step: M_a (U' - U) = h (M g + F_held + F).
+and 120 Hz). There the body takes an apparent mass M_a = M + CARRY_FACTOR m_c (m_c the cable's mass at those rows, whose
+normals lie within 45 degrees of the held load; the holder, rigid in Bullet, takes the push) in the step:
+M_a (U' - U) = h (M g + F_held + F).
 
 The lag also makes the step move the body where Bullet's holder does not (a 1 g box leaning on the cable and the table
 at 60 Hz: a roll of 7 mrad/s planned every step, 0.06 mrad/s in Bullet), by about (change of the load / M) dt^2 a
@@ -40,10 +41,13 @@ hold no compiled code, so changing them does not empty the Numba cache.
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pybullet as pb
 
 CARRY_FACTOR = 10.0  # apparent mass per kg of cable pushing a held body against its holder
+CARRY_COS = math.cos(math.radians(45.0))  # a row pushes the body against its holder within 45 degrees of the load
 RELAX = 0.5  # share of the newly measured load taken each step (1: the last step's load as measured)
 
 
@@ -102,9 +106,11 @@ def hold(cs, measured: list[int], dt: float, mass: np.ndarray) -> None:
         s = int(cs._slot_row[o])
         m = 1.0 / sh.inv_mass[s]
         held = cs.held_load[o, :3]
-        # the cable's mass at the rows that push the body against what holds it (the row's normal, body to
-        # cable, along the held load)
-        k = np.flatnonzero((bd.slot[:count] == o) & (c.normal[:count] @ held > 0.0))
+        # the cable's mass at the rows that push the body against what holds it (the row's normal, body to cable,
+        # within 45 degrees of the held load). Any row with a part along it (> 0) also took in the side rows of a 1 g
+        # box tipping off the cable whose corner had just hit the ground (a load of one impact, mostly upwards): its
+        # apparent mass, 40x its own, pushed back the penetration of Bullet's impact and the box left at 3-20 m/s
+        k = np.flatnonzero((bd.slot[:count] == o) & (c.normal[:count] @ held > CARRY_COS * float(np.linalg.norm(held))))
         carried = float(c.weight[k, 0] @ mass[c.node[k, 0]] + c.weight[k, 1] @ mass[c.node[k, 1]]) if k.size else 0.0
         scale = 1.0 + CARRY_FACTOR * carried / m  # the apparent mass over the true one
         bd.mass[o] = scale * m
