@@ -1989,10 +1989,10 @@ def _sweep(sh, s, hu, h):
 def quiet(x, v, h, sh, hu, radius, self_mu, h_body):
     """Whether :func:`detect` of positions x [m] (n, 3), velocities v [m/s], a cable step of h [s] in a Bullet step
     of h_body [s] would find no contact, by its own tests: every :class:`Shapes` row out of reach by its cull
-    (:func:`_out_of_reach` with the row's margin; PROBE rows are skipped there, a HULL row near (``hu``) is not culled) and, unless
-    self_mu[0] < 0, no pair of segments within the margin (:func:`_self_touches`). With no contact in the last step,
-    no probed answer, no other cable and no free body, such a detect() changes nothing but the count (0): the
-    caller skips it (``ContactSet.update``)."""
+    (:func:`_out_of_reach` with the row's margin; PROBE rows are skipped there, a HULL row near (``hu``) is not
+    culled) and, unless self_mu[0] < 0, no pair of segments within the margin (:func:`_self_touches`). With no
+    contact in the last step, no probed answer, no other cable and no free body, such a detect() changes nothing but
+    the count (0): the caller skips it (``ContactSet.update``)."""
     vmax = 0.0
     for i in range(v.shape[0]):
         for j in range(3):
