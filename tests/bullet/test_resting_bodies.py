@@ -236,14 +236,30 @@ def _leaning_box(world, spec, m_box: float, offset: float = 0.03):
     return cable, box
 
 
-def _last_moving(world, body: int, seconds: float) -> float:
-    """Run ``world`` ``seconds`` [s]; the time [s] after which ``body`` last moved faster than 1e-4 m/s (0: never)."""
-    moving = 0.0
+def _motion(world, body: int, seconds: float) -> tuple[float, float]:
+    """Run ``world`` ``seconds`` [s]; the time [s] after which ``body`` last moved faster than 1e-4 m/s (0: never)
+    and its fastest speed [m/s]."""
+    moving, fastest = 0.0, 0.0
     for k in range(world.steps_in(seconds)):
         world.step()
-        if np.linalg.norm(pb.getBaseVelocity(body, physicsClientId=world.client)[0]) > 1e-4:
+        speed = float(np.linalg.norm(pb.getBaseVelocity(body, physicsClientId=world.client)[0]))
+        fastest = max(fastest, speed)
+        if speed > 1e-4:
             moving = (k + 1) * world.dt
-    return moving
+    return moving, fastest
+
+
+def _tipping_box(world, n: int, m_box: float, offset: float, yaw: float):
+    """A cable of ``n`` masses left 0.2 s to settle on the ground, then a box (HALF) of ``m_box`` [kg] 1 cm above it,
+    its centre ``offset`` [m] to the side and turned ``yaw`` [rad] about z, so that it tips off the cable onto the
+    ground. Returns (cable, box, spec)."""
+    spec = CableSpec.lv2017(n_masses=n, damping=0.02)
+    r = spec.diameter / 2
+    cable = world.add_cable(spec, start=(-0.15, 0.0, r), direction=(1, 0, 0))
+    world.run(0.2)
+    box = world.add_box(HALF, (0.0, offset, 2 * r + HALF[2] + 0.01), pb.getQuaternionFromEuler((0.0, 0.0, yaw)),
+                        mass=m_box)
+    return cable, box, spec
 
 
 @pytest.mark.parametrize("m_box, hz", [(0.03, 60.0), (3.0, 60.0), (0.03, 120.0), (0.001, 120.0)])
@@ -262,7 +278,7 @@ def test_a_box_leaning_on_the_cable_and_the_table_rests_on_the_cable(m_box, hz):
     with BulletWorld(dt=1.0 / hz) as world:
         cid = world.client
         cable, box = _leaning_box(world, spec, m_box)
-        moving = _last_moving(world, box, 2.0)
+        moving, _ = _motion(world, box, 2.0)
         assert cable.stable, cable.reason
         assert moving < 1.5
         assert abs(_face_sink(cable, box, half, r, cid)) < 0.1 * r
@@ -352,7 +368,7 @@ def test_a_plank_dropped_across_the_cable_at_60_hz_rests_without_creeping(m_plan
         cable = world.add_cable(spec, start=(-0.15, 0.0, r), direction=(1, 0, 0))
         world.run(0.1)
         plank = world.add_box(half, (0.0, 0.01, 2 * r + half[2] + 0.01), mass=m_plank)
-        moving = _last_moving(world, plank, 2.5)
+        moving, _ = _motion(world, plank, 2.5)
         assert cable.stable, cable.reason
         assert moving < 1.5
         on_cable, on_plank = _ground_loads(world, cable, plank)
@@ -367,15 +383,10 @@ def test_a_box_tipping_off_the_cable_at_60_hz_is_met_before_it_enters():
     as energy growth at 0.30 s. Now it rests (speed below 1e-4 m/s) within 1.5 s of 2 and the ground carries both
     weights within 1 % (the one step of Bullet's own corner impact still pushes the box into the cable: see
     docs/concepts/contact.md, 'Limits')."""
+    m_box = 0.3
     with BulletWorld(dt=1.0 / 60.0) as world:
-        spec = CableSpec.lv2017(n_masses=40, damping=0.02)
-        r = spec.diameter / 2
-        cable = world.add_cable(spec, start=(-0.15, 0.0, r), direction=(1, 0, 0))
-        world.run(0.2)
-        m_box = 0.3
-        box = world.add_box(HALF, (0.0, 0.012, 2 * r + HALF[2] + 0.01), pb.getQuaternionFromEuler((0.0, 0.0, 0.6)),
-                            mass=m_box)
-        moving = _last_moving(world, box, 2.0)
+        cable, box, spec = _tipping_box(world, 40, m_box, 0.012, 0.6)
+        moving, _ = _motion(world, box, 2.0)
         assert cable.stable, cable.reason
         assert moving < 1.5, f"the box still moved at {moving:.2f} s"
         on_cable, on_box = _ground_loads(world, cable, box)
@@ -391,21 +402,10 @@ def test_a_light_box_tipping_off_the_cable_at_60_hz_is_not_launched(n, offset, y
     that penetration is let out without the spring's energy (``Store.sink``) and the box is thrown at most 2 m/s
     (measured: 0.98, 1.69 and 0.77 m/s; it falls at 0.33 m/s), rests within 2 s and the ground carries both weights
     within 1 %."""
+    m_box = 0.001
     with BulletWorld(dt=1.0 / 60.0) as world:
-        spec = CableSpec.lv2017(n_masses=n, damping=0.02)
-        r = spec.diameter / 2
-        cable = world.add_cable(spec, start=(-0.15, 0.0, r), direction=(1, 0, 0))
-        world.run(0.2)
-        m_box = 0.001
-        box = world.add_box(HALF, (0.0, offset, 2 * r + HALF[2] + 0.01), pb.getQuaternionFromEuler((0.0, 0.0, yaw)),
-                            mass=m_box)
-        fastest, moving = 0.0, 0.0
-        for k in range(world.steps_in(2.0)):
-            world.step()
-            speed = float(np.linalg.norm(pb.getBaseVelocity(box, physicsClientId=world.client)[0]))
-            fastest = max(fastest, speed)
-            if speed > 1e-4:
-                moving = (k + 1) * world.dt
+        cable, box, spec = _tipping_box(world, n, m_box, offset, yaw)
+        moving, fastest = _motion(world, box, 2.0)
         assert cable.stable, cable.reason
         assert fastest < 2.0, f"the box was thrown at {fastest:.2f} m/s"
         assert moving < 2.0 - 1e-9, "the box still moved at 2 s"
