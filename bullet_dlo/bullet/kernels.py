@@ -14,7 +14,7 @@ import numpy as np
 from numba import literal_unroll, njit
 
 from bullet_dlo.core.kernels.contact import (WILD_RATIO, contact_energy, contact_step, grip_active,  # noqa: F401
-                                             impulse_scale, stall_ratio)  # (re-exported)
+                                             body_stall_ratio, impulse_scale, stall_ratio)  # (re-exported)
 from bullet_dlo.core.kernels.forces import clamp_torque, mechanical_energy
 from bullet_dlo.core.kernels.holders import ExternalHolders, HeldSamples, rotate, sample_end  # noqa: F401 (re-exported)
 from bullet_dlo.core.kernels.monitor import STABLE, STALLED, end_forces, monitor
@@ -245,22 +245,23 @@ def _guarded_contact_step(stepper, m, plan, ext, cp, ws, t, k, prev, contacts, b
         return its, ok, 0.0, False
     hf = _force_weight(stepper, has_prev)
     ratio = stall_ratio(m, ws, hf)
+    body = body_stall_ratio(bodies, hf)  # (a body off its balance with the cable balanced: wild, not a coast)
     info = guard.info
-    if ratio > info[FIRST_RATIO]:
-        info[FIRST_RATIO] = ratio
+    if max(ratio, body) > info[FIRST_RATIO]:
+        info[FIRST_RATIO] = max(ratio, body)
         info[FIRST_ITER] = its
         info[FIRST_MOVED] = momentum_moved(m, guard.v0, cp.v_new) / impulse_scale(m, hf)
     coast = _coasted(m, guard.far, guard.v0, cp.v_new, hf, ratio)
-    wild = ratio > guard.wild and _moves_a_body(bodies)
+    wild = max(ratio, body) > guard.wild and _moves_a_body(bodies)
     if not save or not (coast or wild):
         # a near miss, or far after moving the momentum: kept (sub-steps do not help those: on a cable sliding
         # over a box edge 918 of 921 retried steps, and 67 of 67 that stalled after some iterations, stayed
         # far, at 1.6 to 9 times the CPU time; docs/concepts/integrators.md, "A stalled contact step"), unless
         # wildly far with a free body in the solve: a 20 g part on a cord at 120 Hz got 8x its weight from a kept
         # solve at 69 and was launched (without a body, e.g. on an edge, the retry changes the slide, not the fault)
-        return its, ok, ratio, coast
+        return its, ok, max(ratio, body), coast
     hs = stepper.h
-    worst = ratio
+    worst = max(ratio, body)
     for level in range(1, guard.levels + 1):
         last = level == guard.levels
         sub = 2 ** level
@@ -284,7 +285,7 @@ def _guarded_contact_step(stepper, m, plan, ext, cp, ws, t, k, prev, contacts, b
             if not ok_s:
                 hf_s = _force_weight(sstep, use_prev)
                 r_s = stall_ratio(m, ws, hf_s)
-                worst = max(worst, r_s)
+                worst = max(worst, r_s, body_stall_ratio(bodies, hf_s))
                 coast = coast or _coasted(m, guard.far, guard.vs, cp.v_new, hf_s, r_s)
                 if worst > guard.far and not last:
                     break  # this attempt failed: on to the next

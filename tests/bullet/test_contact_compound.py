@@ -63,15 +63,17 @@ def test_a_compound_rocking_on_the_ground_and_the_cable_is_no_energy_alarm():
 @pytest.mark.parametrize("mass", [0.002, 0.1], ids=["2g", "100g"])
 def test_a_compound_resting_on_one_ground_point_and_the_cable_comes_to_rest(mass):
     """The duck dropped 2 cm on the cable at 240 Hz comes to rest on one ground point and the cable (below 1e-3 m/s
-    over the last 0.25 s of 2 s), and the ground then carries both weights within 1 % (the cable's ground rows plus
-    Bullet's contact points under the duck). Before the held load was under-relaxed (held_bodies.RELAX), the 2 g duck
+    over the last 0.25 s of 4 s), and the ground then carries both weights within 1 % (the cable's ground rows plus
+    Bullet's contact points under the duck). Its last rocking decays by about 1/e a second: the time it takes to
+    fall below 1e-3 m/s depends on the path of the drop (1.3 s, and 2.2 s once the probe's margin counted the duck's
+    own motion; 6e-5 m/s at 5 s). Before the held load was under-relaxed (held_bodies.RELAX), the 2 g duck
     was still thrown about at 0.3 m/s and the 100 g one jittered (4.4e-3 m/s), the ground's load swinging between
     0.88 and 1.10 of the weights from step to step (Bullet rests the duck alone on the ground within 5e-5 m/s)."""
     with _duck_on_cable(1 / 240) as (world, cable, duck):
         cid = world.client
         pb.changeDynamics(duck, -1, mass=mass, physicsClientId=cid)
         speeds = []
-        for _ in range(world.steps_in(2.0)):
+        for _ in range(world.steps_in(4.0)):
             world.step()
             speeds.append(float(np.linalg.norm(pb.getBaseVelocity(duck, physicsClientId=cid)[0])))
         assert cable.stable
@@ -80,3 +82,24 @@ def test_a_compound_resting_on_one_ground_point_and_the_cable_comes_to_rest(mass
         on_cable = float(forces["force"][forces["body"] == world.ground_id, 2].sum())
         under_duck = sum(c[9] * c[7][2] for c in pb.getContactPoints(duck, world.ground_id, physicsClientId=cid))
         assert abs(on_cable + abs(under_duck)) / ((SPEC.mass + mass) * G) == pytest.approx(1.0, abs=0.01)
+
+
+def test_a_compound_thrown_at_the_cable_is_met_before_it_enters():
+    """The duck (a compound of hulls: Bullet's narrow phase measures it) thrown down at 3 m/s from 2 cm above the cable
+    at 60 Hz moves 50 mm a step against a margin of 3 mm from the cable's own motion: the probe's margin adds twice the
+    duck's own motion in a step, so it is met before it closes. Checked with Bullet's own distances (a sphere of the
+    cable radius at each node against the duck): never inside by more than 0.1 mm. Before, 3.6 mm (1.4 mm at 1.5 m/s)."""
+    r = SPEC.diameter / 2
+    with _duck_on_cable(1 / 60) as (world, cable, duck):
+        cid = world.client
+        pb.resetBaseVelocity(duck, (0.0, 0.0, -3.0), (0.0, 0.0, 0.0), physicsClientId=cid)
+        sphere = pb.createCollisionShape(pb.GEOM_SPHERE, radius=r, physicsClientId=cid)
+        deepest = 0.0
+        for _ in range(world.steps_in(0.5)):
+            world.step()
+            for p in cable.x.tolist():
+                for c in pb.getClosestPoints(duck, -1, 0.0, collisionShapeB=sphere, collisionShapePositionB=p,
+                                             physicsClientId=cid):
+                    deepest = min(deepest, c[8])
+        assert cable.stable, cable.reason
+        assert deepest > -1e-4, f"a node {-1e3 * deepest:.2f} mm inside the duck"

@@ -188,7 +188,7 @@ def test_the_native_broad_phase_finds_what_pybullets_finds():
             answers = []
             for broad in (cs._broad_args, None):
                 saved, cs._broad_args = cs._broad_args, broad
-                cs._probe(x, np.zeros_like(x), physics.world.dt)
+                cs._probe(x, np.zeros_like(x), physics.world.dt, physics.world.dt)
                 cs._broad_args = saved
                 pr, k = cs.probes, int(cs.probes.count[0])
                 answers.append([pr.shape[:k].copy(), pr.node[:k].copy(), pr.weight[:k].copy(), pr.point[:k].copy(),
