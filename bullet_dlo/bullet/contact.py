@@ -1682,9 +1682,11 @@ def _hull_contacts(c, st, s, hu, q, x, mass, base, margin, out, sh, k_per_mass, 
         edge_sharp = (n1[0] * n2[0] + n1[1] * n2[1] + n1[2] * n2[2]) <= math.cos(WRAP_EDGE_MIN)
         sharp = wraps_i and edge_sharp
         # a chord cutting the corner through the hull (its closest point inside both faces)
-        cuts = sharp and (best_n[0] * n1[0] + best_n[1] * n1[1] + best_n[2] * n1[2] < 0.0
-                          and best_n[0] * n2[0] + best_n[1] * n2[1] + best_n[2] * n2[2] < 0.0)
-        if not sharp:  # the segment's point inside the polytope: it leaves by the nearest face (as in detect's boxes)
+        behind = (best_n[0] * n1[0] + best_n[1] * n1[1] + best_n[2] * n1[2] < 0.0
+                  and best_n[0] * n2[0] + best_n[1] * n2[1] + best_n[2] * n2[2] < 0.0)
+        cuts = sharp and behind
+        if behind and not sharp:  # (in front of either face's plane the point is outside: no polytope distance)
+            # the segment's point inside the polytope: it leaves by the nearest face (as in detect's boxes)
             for j in range(3):
                 qs[j] = best_c[j] + best_c[3] * best_n[j]
             d = _hull_distance(plane, tri, tri_plane, p0, qs, pd, cl, nl)
