@@ -155,7 +155,8 @@ class FitOptions:
     the start (the start among them), the best one starting it (0 or 1: none). An oscillating record
     has a residual with a minimum at every frequency that puts the ringing in phase somewhere; a local
     descent from a start a factor 2 off lands in one of those (a cantilever recording fitted at
-    0.16x its E, confidently, before the grid); min_explained: below this share [-] of the measured signal
+    0.16x its E, confidently, before the grid); after the descent the grid about the fitted values
+    finds other minima (:func:`other_minima`); min_explained: below this share [-] of the measured signal
     explained by the fitted model (1 - |r|^2 / |y|^2, weighted: what predicting nothing would leave), the
     model does not reproduce the signal and no number is confident (a strip fit at a tenth of its E
     predicted no ringing in the band the torques were compared in, and was called confident);
@@ -541,15 +542,19 @@ def fit_cable(rec: Recording | Sequence[Recording], spec: CableSpec, parameters:
     while True:
         cost = residual_function(layout, trial, options, gravity, runs)
         if halvings == 0:
-            theta = best_stiffness_start(cost, theta, names, options.stiffness_grid, (lo, hi))
-        sol = least_squares(cost, theta, bounds=(lo, hi), method="trf", diff_step=1e-3, x_scale=1.0,
-                            max_nfev=options.max_evaluations, xtol=1e-8, ftol=1e-10)
+            grid = stiffness_grid(cost, theta, names, options.stiffness_grid, (lo, hi))
+            theta = min(grid, key=lambda g: g[1])[0] if grid else theta
+        descend = lambda th: least_squares(cost, th, bounds=(lo, hi), method="trf", diff_step=1e-3, x_scale=1.0,
+                                           max_nfev=options.max_evaluations, xtol=1e-8, ftol=1e-10)
+        sol = descend(theta)
+        scan = stiffness_grid(cost, sol.x, names, options.stiffness_grid, (lo, hi))  # E about the fit, others fitted
+        sol, others = best_of_minima(sol, [descend(th) for th in other_minima(scan, sol.x, names)], names)
         fitted = trial(sol.x)
         check = numerics_for(fitted, recs[0], options, gravity)
         if options.integrator != "auto" or check.ok or halvings >= AUTO_HALVINGS:
             break
         options, theta, halvings = replace(options, dt=options.dt / 2), sol.x, halvings + 1
-    return summarise(sol, names, fitted, layout, options, gravity, runs[0], cost, check, (lo, hi))
+    return summarise(sol, names, fitted, layout, options, gravity, runs[0], cost, check, (lo, hi), others)
 
 
 def start_value(spec: CableSpec, name: str) -> float:
@@ -557,23 +562,49 @@ def start_value(spec: CableSpec, name: str) -> float:
     return spec.effective_shear_modulus if name == "shear_modulus" else GUESS[name]
 
 
-def best_stiffness_start(cost: Callable[[np.ndarray], np.ndarray], theta: np.ndarray, names: list[str],
-                         points: int, bounds: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
-    """``theta`` with log E replaced by the best of ``points`` values log-spaced over a decade either side
-    of it (itself among them; clipped to the bounds); unchanged when E is not fitted or points < 2."""
+def stiffness_grid(cost: Callable[[np.ndarray], np.ndarray], theta: np.ndarray, names: list[str],
+                   points: int, bounds: tuple[np.ndarray, np.ndarray]) -> list[tuple[np.ndarray, float]]:
+    """``theta`` with log E replaced by each of ``points`` values log-spaced over a decade either side of it
+    (itself among them; clipped to the bounds), with the cost |r|^2 there, in order of E; empty when E is not
+    fitted or points < 2. The descent starts from the best point of the grid about the start; the local minima
+    of the grid about the fitted values, other than the fit's own, are descended too (:func:`other_minima`)."""
     if "youngs_modulus" not in names or points < 2:
-        return theta
+        return []
     j = names.index("youngs_modulus")
-    offsets = np.log(10.0) * np.linspace(-1.0, 1.0, points | 1)  # odd: the start is the middle point
-    best, best_cost = theta, math.inf
-    for off in offsets:
+    grid = []
+    for off in np.log(10.0) * np.linspace(-1.0, 1.0, points | 1):  # odd: the start is the middle point
         th = theta.copy()
         th[j] = float(np.clip(theta[j] + off, bounds[0][j] + 1e-9, bounds[1][j] - 1e-9))
         r = cost(th)
-        c = float(r @ r)
-        if c < best_cost:
-            best, best_cost = th, c
-    return best
+        grid.append((th, float(r @ r)))
+    return grid
+
+
+def other_minima(grid: list[tuple[np.ndarray, float]], fitted: np.ndarray, names: list[str]) -> list[np.ndarray]:
+    """Starts of the grid's interior local minima in E (costlier neighbours on both sides) that lie more than
+    one grid step from the fitted log E ``fitted``: a cable held still under gravity pulls its clamps with a
+    tension that rises with E while it hangs like a string and falls once it holds itself up like a beam,
+    so a static load is met by two stiffnesses; the cheapest two, at most."""
+    if len(grid) < 3:
+        return []
+    j = names.index("youngs_modulus")
+    spacing = abs(grid[1][0][j] - grid[0][0][j])
+    minima = [grid[i] for i in range(1, len(grid) - 1)
+              if grid[i][1] < grid[i - 1][1] and grid[i][1] < grid[i + 1][1]
+              and abs(grid[i][0][j] - fitted[j]) > 1.01 * spacing]
+    return [th for th, _ in sorted(minima, key=lambda g: g[1])[:2]]
+
+
+def best_of_minima(sol, alternatives: list, names: list[str]) -> tuple[Any, list[tuple[float, float]]]:
+    """The cheapest of the descent ``sol`` and the ``alternatives`` (least_squares results), and the others that
+    ended more than 10 % away from it in E, as (E [Pa], |r|^2) pairs."""
+    best = min([sol, *alternatives], key=lambda s: s.cost)
+    if not alternatives:
+        return best, []
+    j = names.index("youngs_modulus")
+    others = [(math.exp(s.x[j]), 2.0 * float(s.cost)) for s in (sol, *alternatives)
+              if s is not best and abs(s.x[j] - best.x[j]) > math.log(1.1)]
+    return best, others
 
 
 def residual_function(layout: Layout, trial: Callable[[np.ndarray], CableSpec], options: FitOptions,
@@ -607,9 +638,12 @@ def numerics_for(spec: CableSpec, rec: Recording, options: FitOptions, gravity: 
 # ----- what the fit means ----------------------------------------------------------------------
 def summarise(sol, names: list[str], fitted: CableSpec, layout: Layout, options: FitOptions,
               gravity: Sequence[float], evaluations: int, cost: Callable[[np.ndarray], np.ndarray],
-              check: NumericalDampingCheck, bounds: tuple[np.ndarray, np.ndarray]) -> FitResult:
+              check: NumericalDampingCheck, bounds: tuple[np.ndarray, np.ndarray],
+              others: Sequence[tuple[float, float]] = ()) -> FitResult:
     """Intervals, whiteness, held-out residuals, profiles, the numerical check and the verdict of ``sol``
-    (a least_squares result in log parameters)."""
+    (a least_squares result in log parameters); ``others``: other local minima of the cost in E, as
+    (E [Pa], |r|^2): one whose cost rises less than the 95 % threshold above the fit's makes E not
+    identifiable."""
     r, jac = np.asarray(sol.fun), np.asarray(sol.jac)
     m, p = len(r), len(names)
     sigma2 = float(r @ r) / max(m - p, 1)
@@ -647,6 +681,8 @@ def summarise(sol, names: list[str], fitted: CableSpec, layout: Layout, options:
         se[k] = values[k] * rel[k]
         why = parameter_reason(k, j, at_bound[k], var_log[j], rel[k], global_reasons, check, options)
         why = why or kind_reasons.get(k) or source_reason(k, sources, options)
+        if k == "youngs_modulus":
+            why = why or second_minimum_reason(others, float(r @ r), sigma2 * wh.tau_samples)
         ident[k] = why is None
         if why:
             reasons[k] = why
@@ -683,7 +719,21 @@ def summarise(sol, names: list[str], fitted: CableSpec, layout: Layout, options:
                    "windows": blocks, "windows_per_recording": per_rec_windows}
     res.sigma_weighted = math.sqrt(sigma2)
     res.verdict["explained_share"] = explained
+    res.verdict["other_minima"] = [{"youngs_modulus": e, "cost_rise": (c - float(r @ r)) / (sigma2 * wh.tau_samples)}
+                                   for e, c in others]
     return res
+
+
+def second_minimum_reason(others: Sequence[tuple[float, float]], base: float, scale: float) -> str | None:
+    """Why E gets no confident number when another local minimum (E [Pa], |r|^2) costs less than the 95 %
+    threshold (3.84, in units of ``scale``, sigma^2 times the residual's correlation length) above ``base``
+    (the fit's |r|^2), or None."""
+    near = [(e, (c - base) / scale) for e, c in others if scale > 0 and (c - base) / scale < 3.84]
+    if not near:
+        return None
+    e, rise = min(near, key=lambda x: x[1])
+    return (f"another stiffness explains the data as well: E {e:.3g} Pa (cost rise {rise:.2g}, 95 % threshold "
+            f"3.84)")
 
 
 def explained_share(r: np.ndarray, layout: Layout) -> float:

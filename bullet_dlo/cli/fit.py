@@ -313,8 +313,9 @@ def add_parsers(sub, common: argparse.ArgumentParser) -> None:
                         "recorded when the recording has a shape, else static")
     s.add_argument("--stiffness-grid", type=int, default=9, help="Young's moduli tried before the descent, "
                    "log-spaced over a decade either side of --youngs-modulus, the best one starting it (an "
-                   "oscillating recording has a local minimum wherever the ringing falls in phase), 0-101 (9; "
-                   "0 or 1: none)")
+                   "oscillating recording has a local minimum wherever the ringing falls in phase); the same "
+                   "grid about the fitted values finds other minima (one as good makes E not identifiable), "
+                   "0-101 (9; 0 or 1: none)")
     s.add_argument("--skip", type=float, default=0.0, help="seconds at the start of each recording left out of "
                    "the residual, >= 0 (0)")
     s.add_argument("--max-evaluations", type=int, default=60, help="model runs allowed per fit, >= 2 (60)")

@@ -36,20 +36,30 @@ def test_informative_motion_recovers_every_parameter_within_its_standard_error()
 
 
 def test_static_hold_reports_the_damping_as_not_identifiable():
+    """A cable held still at its full length between two clamps: its weight is identified; its damping is not;
+    nor is its stiffness, since the clamps' pull rises with E while the cable hangs like a string and falls once
+    it holds itself up like a beam: two stiffnesses meet the measured pull (here 1.22e8 and 3.69e8 Pa, truth
+    1.26e8), the fit finds both and names the other (before, it stated whichever one its descent reached, with
+    an interval of a few per cent: 1.22e8 or 3.69e8 by chance of round-off in the static start)."""
     rec = synthetic_recording(TRUE, [], 0.5, rate=200.0, noise=NOISE, seed=2)
     res = fit_cable(rec, START)
     for name in ("internal_damping", "damping_rate"):
         assert not res.identifiable[name]
         assert any(w.startswith(f"{name} is not identifiable") for w in res.warnings)
-    for name in ("youngs_modulus", "mass"):  # the sag still gives stiffness and weight
-        assert res.identifiable[name]
-        assert abs(res.values[name] - getattr(TRUE, name)) <= 3.0 * res.standard_errors[name]
-        assert res.relative_se[name] < 0.05
+    assert res.identifiable["mass"]
+    assert abs(res.values["mass"] - TRUE.mass) <= 3.0 * res.standard_errors["mass"]
+    assert res.relative_se["mass"] < 0.05
+    assert not res.identifiable["youngs_modulus"]
+    assert any(w.startswith("youngs_modulus is not identifiable from this motion (another stiffness")
+               for w in res.warnings)
+    others = [o["youngs_modulus"] for o in res.verdict["other_minima"] if o["cost_rise"] < 3.84]
+    stiffnesses = [res.values["youngs_modulus"], *others]
+    assert len(stiffnesses) == 2 and max(stiffnesses) > 2.0 * min(stiffnesses)  # two separate minima
+    assert min(abs(e / TRUE.youngs_modulus - 1.0) for e in stiffnesses) < 0.05  # the truth is one of them
     assert not math.isfinite(res.condition) or res.condition > 1e8
-    # ... of the 8-mass model: the sag's E moves by tens of per cent with the masses (n 15 fits 1.7x), and the
-    # fit says so; the weight does not
-    moved = [w for w in res.warnings if w.startswith("youngs_modulus: refining the model to 15 masses moves it")]
-    assert moved and not any(w.startswith("mass: refining") for w in res.warnings)
+    # ... of the 8-mass model: the sag's E moves by tens of per cent with the masses (n 15 fits 1.7x); the
+    # weight does not
+    assert not any(w.startswith("mass: refining") for w in res.warnings)
     assert res.numerics["discretisation"]["n"]["relative_bias"]["youngs_modulus"] > 0.3
 
 
