@@ -338,8 +338,9 @@ def held_model(spec: CableSpec, first: EndHolder, last: EndHolder,
     return CableModel(spec, first, last, g, build_arrays(spec, first.mode, last.mode, g), x0)
 
 
-def start_state(model: CableModel, start: str, rec: Recording | None = None) -> CableState:
-    """The model's start (one of :data:`START`; ``auto`` and ``recorded`` need ``rec``)."""
+def start_state(model: CableModel, start: str, rec: Recording | None = None) -> CableState | None:
+    """The model's start (one of :data:`START`; ``auto`` and ``recorded`` need ``rec``); None when a static start
+    does not converge (its last iterate is no equilibrium: the run would start with a jolt)."""
     if start == "auto":
         start = "recorded" if rec is not None and rec.initial is not None else "static"
     if start == "recorded":
@@ -347,7 +348,8 @@ def start_state(model: CableModel, start: str, rec: Recording | None = None) -> 
             raise ParameterError("start recorded needs a recording with an initial shape (Recording.initial)")
         return recorded_state(model, rec)
     if start == "static":
-        return CableState(solve_static(model).x, np.zeros((model.n, 3)), 0.0)
+        res = solve_static(model)
+        return res.state() if res.converged else None
     return model.initial_state()
 
 
@@ -381,7 +383,8 @@ def run_loads(model: CableModel, t: np.ndarray, integrator: str, dt: float,
               start: str = "static") -> tuple[np.ndarray, np.ndarray] | None:
     """End forces [N] and clamp moments [N m] of ``model`` at times ``t`` [s] from 0, each (k, 2, 3),
     run with ``integrator`` at ``dt`` [s] from ``start``; None if the run went unstable."""
-    run = run_model(model, t, integrator, dt, start_state(model, start))
+    state = start_state(model, start)
+    run = None if state is None else run_model(model, t, integrator, dt, state)
     return None if run is None else (run.forces, run.moments)
 
 
@@ -409,13 +412,16 @@ def run_setup(rec: Recording, options: FitOptions) -> tuple[str, float]:
 def model_run(spec: CableSpec, rec: Recording, options: FitOptions = FitOptions(),
               gravity: Sequence[float] = STANDARD_GRAVITY) -> ModelRun | None:
     """The core model held as the recording says (its ends following the recorded grasp poses), at the
-    recorded times: end loads, and node positions when the recording has markers; None if unstable.
-    A recording that states its cable's length gets that length (same mass per length)."""
+    recorded times: end loads, and node positions when the recording has markers; None if unstable (or its
+    static start did not converge). A recording that states its cable's length gets that length (same mass per
+    length)."""
     spec = for_recording(spec, rec)
     model = held_model(spec, *holder_paths(rec, options.knot_rate), gravity)
     integrator, dt = run_setup(rec, options)
-    return run_model(model, rec.t - rec.t[0], integrator, dt, start_state(model, options.start, rec),
-                     positions=rec.markers is not None)
+    state = start_state(model, options.start, rec)
+    if state is None:
+        return None
+    return run_model(model, rec.t - rec.t[0], integrator, dt, state, positions=rec.markers is not None)
 
 
 def for_recording(spec: CableSpec, rec: Recording) -> CableSpec:
@@ -548,7 +554,8 @@ def fit_cable(rec: Recording | Sequence[Recording], spec: CableSpec, parameters:
                                            max_nfev=options.max_evaluations, xtol=1e-8, ftol=1e-10)
         sol = descend(theta)
         scan = stiffness_grid(cost, sol.x, names, options.stiffness_grid, (lo, hi))  # E about the fit, others fitted
-        sol, others = best_of_minima(sol, [descend(th) for th in other_minima(scan, sol.x, names)], names)
+        starts = other_minima(scan, sol.x, names, 2.0 * float(sol.cost))
+        sol, others = best_of_minima(sol, [descend(th) for th in starts], names)
         fitted = trial(sol.x)
         check = numerics_for(fitted, recs[0], options, gravity)
         if options.integrator != "auto" or check.ok or halvings >= AUTO_HALVINGS:
@@ -580,17 +587,20 @@ def stiffness_grid(cost: Callable[[np.ndarray], np.ndarray], theta: np.ndarray, 
     return grid
 
 
-def other_minima(grid: list[tuple[np.ndarray, float]], fitted: np.ndarray, names: list[str]) -> list[np.ndarray]:
+def other_minima(grid: list[tuple[np.ndarray, float]], fitted: np.ndarray, names: list[str],
+                 base: float) -> list[np.ndarray]:
     """Starts of the grid's interior local minima in E (costlier neighbours on both sides) that lie more than
-    one grid step from the fitted log E ``fitted``: a cable held still under gravity pulls its clamps with a
-    tension that rises with E while it hangs like a string and falls once it holds itself up like a beam,
-    so a static load is met by two stiffnesses; the cheapest two, at most."""
+    one grid step from the fitted log E ``fitted`` and cost less than twice the fit's |r|^2 ``base`` already
+    there (a recording that rings has a minimum wherever the ringing falls in phase, most of them far worse:
+    not worth a descent each): a cable held still under gravity pulls its clamps with a tension that rises
+    with E while it hangs like a string and falls once it holds itself up like a beam, so a static load is
+    met by two stiffnesses; the cheapest two, at most."""
     if len(grid) < 3:
         return []
     j = names.index("youngs_modulus")
     spacing = abs(grid[1][0][j] - grid[0][0][j])
     minima = [grid[i] for i in range(1, len(grid) - 1)
-              if grid[i][1] < grid[i - 1][1] and grid[i][1] < grid[i + 1][1]
+              if grid[i][1] < grid[i - 1][1] and grid[i][1] < grid[i + 1][1] and grid[i][1] < 2.0 * base
               and abs(grid[i][0][j] - fitted[j]) > 1.01 * spacing]
     return [th for th, _ in sorted(minima, key=lambda g: g[1])[:2]]
 
@@ -628,11 +638,12 @@ def residual_function(layout: Layout, trial: Callable[[np.ndarray], CableSpec], 
 def numerics_for(spec: CableSpec, rec: Recording, options: FitOptions, gravity: Sequence[float],
                  integrator: str | None = None, dt: float | None = None) -> NumericalDampingCheck:
     """The numerical-damping check of ``spec`` held as in ``rec`` at its first poses, for the model's
-    integrator and dt (or the ones given)."""
+    integrator and dt (or the ones given), about its static shape (the straight one where that does not
+    converge)."""
     model = held_model(for_recording(spec, rec), *holder_paths(rec, options.knot_rate), gravity)
     run_int, run_dt = run_setup(rec, options)
-    return numerical_damping_check(model, start_state(model, "static"), integrator or run_int, dt or run_dt,
-                                   options.max_numerical_damping)
+    state = start_state(model, "static") or model.initial_state()
+    return numerical_damping_check(model, state, integrator or run_int, dt or run_dt, options.max_numerical_damping)
 
 
 # ----- what the fit means ----------------------------------------------------------------------
@@ -1093,8 +1104,10 @@ def synthetic_recording(spec: CableSpec, motion: Sequence[Motion], duration: flo
     ends = [EndHolder("clamped", pos[0, arm], tangent, tuple(m for m in motion if m.end == end))
             for arm, end in enumerate(("first", "last"))]
     model = held_model(spec, ends[0], ends[1], gravity)
-    run = run_model(model, t, run_integrator(options), options.dt, start_state(model, options.start),
-                    positions=markers is not None)
+    state = start_state(model, options.start)
+    if state is None:
+        raise ParameterError("the synthetic recording's static start did not converge; use start straight")
+    run = run_model(model, t, run_integrator(options), options.dt, state, positions=markers is not None)
     if run is None:
         raise ParameterError("the synthetic recording went unstable; use a smaller dt or a gentler motion")
     forces, moments = run.forces, run.moments

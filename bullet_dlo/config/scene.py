@@ -167,9 +167,14 @@ class Scene:
         return CableModel.straight(self.cable, self.start, self.direction, self.ends, self.motion, self.gravity)
 
     def initial_state(self, model: CableModel) -> CableState:
-        """Straight at rest, or the static equilibrium under gravity (``initial: static``)."""
+        """Straight at rest, or the static equilibrium under gravity (``initial: static``; ParameterError when the
+        static solve does not converge, rather than a start that is no equilibrium)."""
         if self.initial == "static":
-            return solve_static(model).state()
+            res = solve_static(model)
+            if not res.converged:
+                raise ParameterError(f"initial: static did not converge (largest force {res.residual:.3g} N after "
+                                     f"{res.iterations} Newton iterations); use initial: straight")
+            return res.state()
         return model.initial_state()
 
     @property

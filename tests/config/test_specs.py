@@ -113,3 +113,20 @@ def test_dual_arm_start_follows_the_scene_file():
     scene = Scene.from_dict(base)
     model = scene.build_model()
     assert np.array_equal(scene.initial_state(model).x, model.initial_state().x)
+
+
+def test_a_static_start_that_does_not_converge_is_refused():
+    """``initial: static`` for a cable free at both ends has no equilibrium under gravity: the solve's last
+    iterate used to start the run as if it were one; now a ParameterError names the setting. A cantilever's
+    static start is its equilibrium."""
+    from bullet_dlo.config.scene import Scene
+
+    free = Scene.from_dict({"cable": {"preset": "lv2017", "n_masses": 8}, "ends": {"first": "free", "last": "free"},
+                            "initial": "static"})
+    with pytest.raises(ParameterError, match="initial: static did not converge"):
+        free.initial_state(free.build_model())
+    held = Scene.from_dict({"cable": {"preset": "lv2017", "n_masses": 8}, "ends": {"first": "clamped", "last": "free"},
+                            "initial": "static"})
+    model = held.build_model()
+    state = held.initial_state(model)
+    assert state.x[-1, 2] < model.x0[-1, 2] - 0.1  # it droops

@@ -1743,7 +1743,7 @@ def explicit_twist(stepper, m, x, v, samples, ws, method):
     th, w, hol = np.empty(ns), np.empty(ns), np.empty(ns)
     if method == 2:  # RK4: the stages carry (x, v, theta, omega); slopes kx, kv (workspace), kt, kw
         kx, kv = ws.kx, ws.kv
-        kt, kw = np.empty((4, ns)), np.empty((4, ns))
+        kt, kw = np.zeros((4, ns)), np.zeros((4, ns))  # zeroed: stage 0 adds 0 x kt[0] (0 x a stray NaN is NaN)
         for stage in range(4):
             c = 0.0 if stage == 0 else (1.0 if stage == 3 else 0.5)
             prev = max(stage - 1, 0)
