@@ -457,10 +457,16 @@ def test_a_segment_through_a_body_edge_leaves_by_the_nearest_face(shape):
             corners = [[a * he, b * he, c * he] for a in (-1, 1) for b in (-1, 1) for c in (-1, 1)]
             col = pb.createCollisionShape(pb.GEOM_MESH, vertices=corners, physicsClientId=cid)
             body = pb.createMultiBody(0.3, col, -1, pos, orn, physicsClientId=cid)
-        cs = bc.ContactSet(cid, [body], 2, r, 0.3, 0.3, 1e4, 0.5)
+        # arguments of the types a cable passes (read-only model arrays, live control arrays): other types would
+        # compile detect anew for this test alone (56 s of a CI run)
+        k_stretch, rest_length, mass = np.full(1, 1e3), np.full(1, 0.03), np.full(2, 0.01)
+        for a in (k_stretch, rest_length, mass):
+            a.flags.writeable = False
+        cs = bc.ContactSet(cid, [body], 2, r, 0.3, 0.3, 1e4, 0.5,
+                           segments=(k_stretch, rest_length, np.zeros(2), np.zeros(2, dtype=bool)))
         z = pos[2] - s * np.sqrt(2.0) + depth
         x = np.array([[-0.015, 0.0, z], [0.015, 0.0, z]])
-        cs.update(x, np.zeros((2, 3)), np.full(2, 0.01), 1 / 240, 1 / 240, False)
+        cs.update(x, np.zeros((2, 3)), mass, 1 / 240, 1 / 240, False)
         c = cs.contacts
         assert c.count[0] == 1
         assert c.node[0].tolist() == [0, 1] and c.weight[0] == pytest.approx([0.5, 0.5])
