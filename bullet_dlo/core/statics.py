@@ -4,9 +4,9 @@ Solves F_elastic(x) + m g + f_ext = 0 on the free nodes with the held ends at th
 poses. A cable with a material frame (issue 22) is solved with its twist condensed: at every iterate the
 reference frames are transported to the positions and the twist angles put in equilibrium with them
 (:func:`~bullet_dlo.core.kernels.twist.twist_solve`), so the forces are the gradient of the energy there
-and the potential that Newton's steps must lower is the energy minimised over the twist. Used to start runs from a settled cable (the study's "settle" phase without
-simulating it) and to measure discretisation error against beam theory without any
-integrator in the loop.
+and the potential that Newton's steps must lower is the energy minimised over the twist. Used to start
+runs from a settled cable (the study's "settle" phase without simulating it) and to measure
+discretisation error against beam theory without any integrator in the loop.
 """
 from __future__ import annotations
 
@@ -76,9 +76,13 @@ class _CondensedTwist:
         self.h_x = 1e-6 * length / (n - 1)  # [m]: central differences, error ~h^2 against round-off ~eps/h
         self.h_theta = 1e-6  # [rad]
 
-    def arrays_copy(self) -> tuple[np.ndarray, ...]:
+    def _arrays(self) -> tuple[np.ndarray, ...]:
+        """The twist state's arrays a static solve changes: twist angles, reference frames and twists."""
         a = self.a
-        return a.tw_theta.copy(), a.tw_ref.copy(), a.tw_tan.copy(), a.tw_mref.copy()
+        return a.tw_theta, a.tw_ref, a.tw_tan, a.tw_mref
+
+    def arrays_copy(self) -> tuple[np.ndarray, ...]:
+        return tuple(arr.copy() for arr in self._arrays())
 
     def settle(self, x: np.ndarray) -> None:
         """Transport the frames to x [m] and put the twist angles in equilibrium there (the DER forces are
@@ -90,8 +94,7 @@ class _CondensedTwist:
         self.saved = self.arrays_copy()
 
     def restore(self) -> None:
-        a = self.a
-        for dst, src in zip((a.tw_theta, a.tw_ref, a.tw_tan, a.tw_mref), self.saved):
+        for dst, src in zip(self._arrays(), self.saved):
             dst[:] = src
 
     def _gradient(self, x: np.ndarray, theta: np.ndarray) -> np.ndarray:

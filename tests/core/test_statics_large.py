@@ -82,8 +82,9 @@ def test_a_soft_cantilever_droops_to_the_heavy_elastica_at_second_order():
 def test_a_hanging_ribbon_with_its_clamp_rolled_is_an_equilibrium(roll):
     """The ribbon's static solve did not converge (200 iterations, the forces 3.7-15x its weight at rolls
     0.3-1.2 rad): its position matrix lacks the anisotropic bending's stress terms (strong-axis stiffness times
-    the bend), the twist was held at the straight start's, and each straight step stretched turning segments. Now: converged, the forces re-evaluated from scratch below 1e-7 of the
-    weight, and 0.2 s of the time stepper from it moves no node by a micrometre."""
+    the bend), the twist was held at the straight start's, and each straight step stretched turning segments.
+    Now: converged, the forces re-evaluated from scratch below 1e-7 of the weight, and 0.2 s of the time
+    stepper from it moves no node by a micrometre."""
     model = CableModel.straight(ribbon(21), ends=("clamped", "free"), roll=(roll, 0.0))
     res = solve_static(model)
     assert res.converged and res.residual < 1e-7 * model.spec.mass * G
