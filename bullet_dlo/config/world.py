@@ -8,9 +8,12 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any, Mapping
 
+import numpy as np
+
 from bullet_dlo.config.schema import LIMITS, one_of, only_keys, section
 from bullet_dlo.core.enums import ObstacleType, SelfCollision, Sync
-from bullet_dlo.core.validate import ParameterError, check_bool, check_finite, check_int, check_nonnegative
+from bullet_dlo.core.validate import (ParameterError, check_bool, check_finite, check_int, check_nonnegative,
+                                      check_positive, check_vector3)
 
 MAX_OBSTACLES = 1000
 """Most ``bullet.obstacles`` entries in one scene: 5000 took 26 s to build on a 2-core machine before a step."""
@@ -30,9 +33,9 @@ class BulletOptions:
     ground: add a ground plane at ground_height [m]; ground_friction: its Coulomb coefficient [-] (>= 0; a
     Bullet body's single coefficient, combined with the cable's static_friction and dynamic_friction);
     substeps: integrator steps per Bullet step (>= 1); self_collision: neighbours | none | all;
-    sync: contacts | always; obstacles: {type: box|cylinder|urdf, ...} entries whose keys are
-    checked here and whose values are checked when :func:`bullet_dlo.bullet.world.add_obstacles`
-    adds them.
+    sync: contacts | always; obstacles: {type: box|cylinder|urdf, ...} entries whose keys and numbers
+    (masses and friction >= 0, sizes > 0) are checked here; a URDF's file is found when
+    :func:`bullet_dlo.bullet.world.add_obstacles` adds it (relative paths from the working directory then).
     """
 
     ground: bool = True
@@ -73,4 +76,17 @@ def _obstacle(k: int, data: Any) -> dict:
     ob = dict(section(data, f"bullet.obstacles[{k}]"))
     kind = one_of(f"bullet.obstacles[{k}].type", ob.pop("type", None), ObstacleType)
     only_keys(ob, OBSTACLE_KEYS[kind], f"bullet.obstacles[{k}] ({kind})")
+    where = f"bullet.obstacles[{k}]"
+    for key in ("mass", "friction"):  # (the checks BulletWorld.add_box / add_cylinder apply again)
+        if key in ob:
+            ob[key] = check_nonnegative(f"{where}.{key}", ob[key])
+    for key in ("radius", "height"):
+        if key in ob:
+            ob[key] = check_positive(f"{where}.{key}", ob[key])
+    if "half_extents" in ob:
+        extents = check_vector3(f"{where}.half_extents", ob["half_extents"])
+        if not np.all(extents > 0.0):
+            raise ParameterError(f"{where}.half_extents must be three lengths > 0 [m], got {[float(e) for e in extents]}")
+    if kind == "urdf" and not (isinstance(ob.get("path"), str) and ob["path"].strip()):
+        raise ParameterError(f"{where}.path must name a URDF file, got {ob.get('path')!r}")
     return {"type": kind, **ob}

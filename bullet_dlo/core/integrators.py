@@ -28,6 +28,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from bullet_dlo.core.enums import IntegratorName, name_of
+from bullet_dlo.core.kernels.twist_coupled import EXACT_AUTO
 from bullet_dlo.core.kernels.steppers import (
     BDF2,
     EXPLICIT_EULER,
@@ -40,9 +41,8 @@ from bullet_dlo.core.kernels.steppers import (
 )
 from bullet_dlo.core.validate import check_bool, check_in_range, check_int, check_positive
 
-MAX_NEWTON_ITER = 1000
-EXACT_FROM = MAX_NEWTON_ITER + 1  # NewtonOptions.exact_from's default, never: the exact Jacobian costs more than it
-# saves (docs/concepts/model.md, the twisting step's cost)
+MAX_NEWTON_ITER = EXACT_AUTO - 1
+EXACT_FROM = EXACT_AUTO  # NewtonOptions.exact_from's default: the automatic choice (twist_coupled.EXACT_AUTO)
 
 
 @dataclass(frozen=True)
@@ -89,8 +89,12 @@ class NewtonOptions:
     system stays positive definite; exact_from: the Newton iteration (1-based) from which the implicit step of a
     cable with a material frame takes the exact Jacobian of its residual (earlier iterations: the symmetric
     Gauss-Newton matrix, cheaper per iteration; see :mod:`~bullet_dlo.core.kernels.twist_coupled`), in
-    [1, 1001]; 1001 (the default): never, the Gauss-Newton matrix throughout (it converges linearly but the
-    exact one's non-symmetric elimination and extra terms cost more than the iterations they save).
+    [1, 1001]; 1001 (the default) chooses: the exact Jacobian from the first iteration for anisotropic sections
+    (rectangles: the Gauss-Newton matrix leaves out their bending's curvature terms, and a flat strip's steps fail
+    and blow up with it), the Gauss-Newton matrix for round and tube sections (cheaper per iteration, and as
+    fast to converge unless the cable is twisted by turns). With any value, an iteration that takes a full
+    Gauss-Newton step and leaves more than a quarter of the residual switches the rest of the step to the exact
+    Jacobian (``twist_coupled.CONTRACTION``).
     """
 
     max_iter: int = 8

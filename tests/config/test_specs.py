@@ -28,6 +28,16 @@ CABLE = {"preset": "lv2017", "n_masses": 8}
         ({"obstacles": [{"type": "cone"}]}, "bullet.obstacles[0].type must be one of box, cylinder, urdf, got 'cone'"),
         ({"obstacles": [{"type": "box", "radius": 1}]}, "unknown key(s) radius in bullet.obstacles[0] (box)"),
         ({"obstacles": [[1, 2]]}, "bullet.obstacles[0] must be a mapping, got list"),
+        # values checked when the file is read, not only when a world is built from it
+        ({"obstacles": [{"type": "box", "half_extents": [0.1, 0.1, 0.1], "position": [0, 0, 0], "friction": -1}]},
+         "bullet.obstacles[0].friction must be a finite number >= 0, got -1"),
+        ({"obstacles": [{"type": "cylinder", "radius": 0.1, "height": 0.2, "mass": -2}]},
+         "bullet.obstacles[0].mass must be a finite number >= 0"),
+        ({"obstacles": [{"type": "cylinder", "radius": 0.0, "height": 0.2}]},
+         "bullet.obstacles[0].radius must be a finite number > 0"),
+        ({"obstacles": [{"type": "box", "half_extents": [0.1, -0.1, 0.1]}]},
+         "bullet.obstacles[0].half_extents must be three lengths > 0 [m], got [0.1, -0.1, 0.1]"),
+        ({"obstacles": [{"type": "urdf"}]}, "bullet.obstacles[0].path must name a URDF file, got None"),
     ],
 )
 def test_bullet_section_errors_name_the_key(section, needle):

@@ -39,10 +39,12 @@ the twist gradient's part off the transported state (the reference frames' spin 
 curvature terms (the Hessian of q . phi, the material frames' turn and spin). It is not symmetric (the residual's
 kb/2|e| is m's gradient only at the transported state), so it is stored as an upper and a lower band and
 eliminated without pivoting (:func:`_band_lu_coupled`). The Newton iterations from the stepper's ``exact_from`` on
-take it (:class:`~bullet_dlo.core.integrators.NewtonOptions`), by default none: per iteration it costs about 2x
-the Gauss-Newton matrix and solve at n = 80 and saves only 3.0 -> 2.8 iterations per step (the frameless step's
-own count; docs/concepts/model.md). An iteration whose elimination meets a pivot <= 0 takes the Gauss-Newton
-matrix. With it Newton converges quadratically in the twist as in the positions (the frameless Kelvin-Voigt
+take it (:class:`~bullet_dlo.core.integrators.NewtonOptions`); by default (:data:`EXACT_AUTO`) all of them for an
+anisotropic section, whose Gauss-Newton iterations fail, and for a round or tube section none until a Gauss-Newton
+iteration contracts poorly (:data:`CONTRACTION`; then the rest of the step): per iteration it costs about 2x the
+Gauss-Newton matrix and solve at n = 80, and a quarter turn's step needs as many iterations with either (3.0 ->
+2.8 per step; docs/concepts/model.md). An iteration whose elimination meets a pivot <= 0 takes the Gauss-Newton
+matrix; in contact, one whose direction finds no lower potential takes it for the rest of the step. With it Newton converges quadratically in the twist as in the positions (the frameless Kelvin-Voigt
 dampers' position terms, left out of :func:`~bullet_dlo.core.kernels.forces.add_damping_jacobian`, aside). Newton iterates to the stepper's tolerance
 with the line search of :func:`~bullet_dlo.core.kernels.steppers.newton` on the incremental potential (kinetic and
 dissipative terms of the twist included), so the coupled step has the method's order (2 for BDF2 and implicit midpoint).
@@ -1191,11 +1193,14 @@ def coupled_implicit(stepper, m, x, v, samples, ws, has_prev):
     converged = False
     rnorm = _residual(m, mp, imp, ws, samples, mid, h, tb, wb, wa, vn, wn, wv, rate, tq, r, g, sc)
     kept = True  # the last residual was at the current iterate (sc.edges: its frames)
+    first_exact = _first_exact(stepper, m)
+    slow = False  # a Gauss-Newton iteration of this step contracted poorly (see _contracted)
     while it < stepper.max_iter:
         it += 1
-        # from iteration stepper.exact_from on the exact Jacobian; where its elimination meets a pivot <= 0 (the
-        # matrix indefinite, e.g. beyond a twist buckling threshold at a large step) the Gauss-Newton matrix instead
-        exact = it >= stepper.exact_from
+        # the exact Jacobian from iteration first_exact on, or once the Gauss-Newton matrix contracts poorly; where
+        # its elimination meets a pivot <= 0 (the matrix indefinite, e.g. beyond a twist buckling threshold at a
+        # large step) the Gauss-Newton matrix instead
+        exact = it >= first_exact or slow
         if exact:
             _newton_matrix(stepper, m, mp, imp, ws, band, g, sc, True, lower, upx, samples, mid, h)
             r_try[:] = r
@@ -1230,12 +1235,46 @@ def coupled_implicit(stepper, m, x, v, samples, ws, has_prev):
         wn[:] = w_try
         kept = True  # (the last residual, at v_try, w_try)
         r[:] = r_try
+        slow = slow or not _contracted(rn_try, rnorm, alpha)
         rnorm = rn_try
         if rnorm <= tol * (r_scale + _change(m, ws, vn, wn, wa)) + r_floor:
             converged = True
             break
     _finish(method, m, x, v, samples, ws, has_prev, h, cx, theta0, omega0, tb, wn, kept, sc)
     return it, converged
+
+
+EXACT_AUTO = 1001
+"""``exact_from`` of the automatic choice (:class:`~bullet_dlo.core.integrators.NewtonOptions`' default): the exact
+Jacobian from the first iteration for a cable with anisotropic bending (the Gauss-Newton matrix leaves out its
+curvature terms, of order the bend times E I_strong / l0: a PET ribbon 20 x 0.3 mm, n 81, falling from a clamp
+rolled 0.7 rad at 1 kHz failed 86 of 270 steps with it and blew up at 0.27 s; exact from the second iteration, 28
+of 2000 steps failed and at 240 Hz it blew up; from the first, none of 2000), else only after a poor contraction."""
+CONTRACTION = 0.25
+"""The residual share [-] a Gauss-Newton iteration of the coupled twisting step must leave at most, with a full
+step, for the next iteration to keep the Gauss-Newton matrix. It leaves out the twist's stress terms, which matter
+for a cable twisted by turns or at a long step: there its iterations contract slowly and the exact Jacobian takes
+over for the rest of the step (the study's cable, n 40, its clamp turned 3 times in 1 s at 60 Hz, BDF2: 72 of 90
+steps failed with the Gauss-Newton matrix alone)."""
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _first_exact(stepper, m):
+    """The Newton iteration (1-based) from which the coupled step takes the exact Jacobian: the stepper's
+    ``exact_from``, or with :data:`EXACT_AUTO` 1 for a cable with anisotropic bending and never otherwise."""
+    if stepper.exact_from != EXACT_AUTO:
+        return stepper.exact_from
+    for i in range(m.tw_k_aniso.shape[0]):
+        if m.tw_k_aniso[i] != 0.0:
+            return 1
+    return EXACT_AUTO
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _contracted(r_new, r_old, alpha):
+    """Whether an accepted Newton iteration contracted well: a full step (alpha 1) that left at most
+    :data:`CONTRACTION` of the residual's max r_old (r_new after it)."""
+    return alpha == 1.0 and r_new <= CONTRACTION * r_old
 
 
 # ----- the contact step's Newton with the twist (contact.contact_step without free bodies) ----------------
@@ -1262,11 +1301,12 @@ def _add_contacts(m, imp, ws, r, c):
 
 
 @njit(cache=True, error_model="numpy")
-def _add_contact_band(c, held, x, kx, kv, cb, band):
+def _add_contact_band(c, held, x, kx, kv, cb, band, lower, exact):
     """band (the coupled layout's upper band) += the contact set's kx (-dF/dx) + kv (-dF/dv) at x on the position
     block: :func:`~bullet_dlo.core.kernels.contact.add_contact_jacobian` into ``cb`` (the frameless layout's full
     band, scratch) and its upper triangle moved over (x_i, component r -> row 4 i + r; the rows couple nodes at
-    most two apart, within the coupled envelope)."""
+    most two apart, within the coupled envelope); with ``exact`` its mirror into the exact matrix's lower band by
+    columns (``lower``, see :func:`_band_lu_coupled`) too."""
     cb[:, :] = 0.0
     _contact.add_contact_jacobian(c, held, x, kx, kv, cb)
     size = cb.shape[0]
@@ -1280,6 +1320,8 @@ def _add_contact_band(c, held, x, kx, kv, cb, band):
             off = 4 * (b // 3) + b % 3 - ra
             if b < size and off <= HALF_T:
                 band[ra, off] += val
+                if exact and off > 0:
+                    lower[ra, off] += val
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -1315,7 +1357,7 @@ def coupled_contact(stepper, method, m, x, v, samples, ws, has_prev, c, cap_tol=
     mid = False
     size = 4 * n
     band = np.empty((size, HALF_T + 1))
-    lower, upx = np.empty((1, 1)), np.empty((1, 1))  # (the exact matrix's, unused)
+    lower, upx = np.empty((size, HALF_T + 1)), np.empty((size, HALF_T + 1))
     cb = np.empty((3 * n, 2 * HALF + 1))
     r, r_try = np.empty(size), np.empty(size)
     wn, w_try, wv, rate, tq = omega0.copy(), np.empty(ns), np.empty(ns), np.zeros(n), np.empty(ns)
@@ -1338,6 +1380,9 @@ def coupled_contact(stepper, method, m, x, v, samples, ws, has_prev, c, cap_tol=
     it = 0
     passes = 0
     converged = False
+    first_exact = _first_exact(stepper, m)
+    slow = False  # a Gauss-Newton iteration contracted poorly: the exact Jacobian from then on (as coupled_implicit)
+    descent = False  # an exact direction found no lower potential: the Gauss-Newton matrix for the rest of the step
     c.lock[:nc] = 0
     while True:
         if not fresh:
@@ -1354,11 +1399,20 @@ def coupled_contact(stepper, method, m, x, v, samples, ws, has_prev, c, cap_tol=
         if it >= max_iter:
             break
         it += 1
-        _newton_matrix(stepper, m, mp, imp, ws, band, g, sc, False, lower, upx, samples, mid, h)
-        _add_contact_band(c, m.held, ws.x_stage, hf * cx, hf * cv, cb, band)
         phi0 = (_merit(m, mp, imp, ws, wa, vn, wn, wv, rate, sc)
                 + _contact.contact_potential(c, ws.x_stage, ws.v_stage, cx / cv))
-        band_solve_upper(band, r, HALF_T, 4)  # r becomes the Newton direction
+        exact = (it >= first_exact or slow) and not descent
+        if exact:
+            _newton_matrix(stepper, m, mp, imp, ws, band, g, sc, True, lower, upx, samples, mid, h)
+            _add_contact_band(c, m.held, ws.x_stage, hf * cx, hf * cv, cb, band, lower, True)
+            r_try[:] = r
+            if not _band_lu_coupled(band, lower, r) > 0.0:  # r becomes the Newton direction
+                r[:] = r_try
+                exact = False
+        if not exact:
+            _newton_matrix(stepper, m, mp, imp, ws, band, g, sc, False, lower, upx, samples, mid, h)
+            _add_contact_band(c, m.held, ws.x_stage, hf * cx, hf * cv, cb, band, lower, False)
+            band_solve_upper(band, r, HALF_T, 4)  # r becomes the Newton direction
         alpha = 1.0
         accepted = False
         rn_try = 0.0
@@ -1373,10 +1427,14 @@ def coupled_contact(stepper, method, m, x, v, samples, ws, has_prev, c, cap_tol=
                 break
             alpha *= 0.5
         if not accepted:
+            if exact:  # (the exact matrix is not symmetric: its direction need not descend) Gauss-Newton's from here,
+                descent = True  # the residual at the current iterate taken again (fresh is False)
+                continue
             break
         vn[:, :] = v_try
         wn[:] = w_try
         r[:] = r_try
+        slow = slow or not _contracted(rn_try, rnorm, alpha)
         rnorm = rn_try
         fresh = True
     c.lock[:nc] = 0

@@ -31,6 +31,12 @@ POSE_MISS = 0.02
 """[m] A grasp frame this far from its scheduled target has lost the motion (position control lags a slow roll by
 0.1 mm and the fast moves of dataset captures by up to about 5 mm; an arm that loses a roll at a joint limit
 drifts on to centimetres)."""
+SETTLED_MISS = 0.002
+"""[m] A grasp frame this far from its target :data:`SETTLE` s after its arm's last motion item ended has not
+reached the final pose: nothing lags once the targets stop moving (a KUKA rolled 120 degrees about the cable came
+to rest 11 mm off, its wrist joints near their limits, below :data:`POSE_MISS`)."""
+SETTLE = 0.2
+"""[s] Time after an arm's last motion item ends at which :data:`SETTLED_MISS` is checked."""
 
 
 @dataclass(frozen=True)
@@ -57,7 +63,7 @@ class DualArmTask:
         self.motion: list[Motion] = []  # core motion items (end first = left, last = right), times from t = 0
         self._offsets: list[MotionOffset | None] = [None, None]  # per arm, rebuilt when an item is added
         self.pose_misses: list[tuple[float, int, float]] = []
-        """(time [s], arm, distance [m]) where an arm's grasp frame first fell :data:`POSE_MISS` behind its target."""
+        """(time [s], arm, distance [m]) where an arm's grasp frame first missed its target (:meth:`_check_pose`)."""
         physics.task = self  # the physics calls drive() every step, after loading the grippers
 
     def grasp(self, arm: int | str | None = None) -> None:
@@ -140,19 +146,29 @@ class DualArmTask:
         t_next = world.time + world.dt
         for a, robot in enumerate(self.physics.robots):
             if self._moving(a, t_next):
-                self._check_pose(a, world.time)
+                self._check_pose(a, world.time, POSE_MISS)
                 robot.set_targets(robot.track(*self.target_pose(a, t_next)))
+            elif self._settled_at(a) is not None and 0.0 <= world.time - self._settled_at(a) < world.dt:
+                self._check_pose(a, world.time, SETTLED_MISS)
 
-    def _check_pose(self, arm: int, t: float) -> None:
-        """Warn once per arm (and note it in :attr:`pose_misses`) when its grasp frame is :data:`POSE_MISS` or
-        more from its target at ``t`` [s]: the arm does not follow the motion (too fast for its joints, a large roll
-        that takes a wrist joint to its limit, a gripper driven into the table), and what the wrists read belongs to
-        the pose it reached, not the one asked for."""
+    def _settled_at(self, arm: int) -> float | None:
+        """When [s] arm ``arm`` should have reached its final pose: :data:`SETTLE` after its last move or motion item
+        ends (None when it has none, or one that runs forever)."""
+        ends = [m.start + m.duration for m in self.moves if m.arm == arm]
+        ends += [m.start + m.duration for m in self.motion if m.end == END_OF_ARM[arm]]
+        return max(ends) + SETTLE if ends and all(math.isfinite(e) for e in ends) else None
+
+    def _check_pose(self, arm: int, t: float, limit: float) -> None:
+        """Warn once per arm (and note it in :attr:`pose_misses`) when its grasp frame is ``limit`` [m] or more
+        from its target at ``t`` [s] (:data:`POSE_MISS` while it moves, :data:`SETTLED_MISS` once it should have
+        come to rest): the arm does not follow the motion (too fast for its joints, a large roll that takes a wrist
+        joint to its limit, a gripper driven into the table), and what the wrists read belongs to the pose it
+        reached, not the one asked for."""
         if any(m[1] == arm for m in self.pose_misses):
             return
         # the grasp frame as the coupling measured it after the last Bullet step (no query of its own)
         miss = float(np.linalg.norm(self.physics.cable.ext.pos[arm] - self.target_pose(arm, t)[0]))
-        if miss >= POSE_MISS:
+        if miss >= limit:
             self.pose_misses.append((t, arm, miss))
             warnings.warn(f"the {ARMS[arm]} arm's grasp frame is {miss * 1000:.1f} mm from its target at t = "
                           f"{t:.3f} s: the arm does not follow the motion (too fast for its joints, a joint at its "
