@@ -86,7 +86,8 @@ def _obstacle(k: int, data: Any) -> dict:
     if "half_extents" in ob:
         extents = check_vector3(f"{where}.half_extents", ob["half_extents"])
         if not np.all(extents > 0.0):
-            raise ParameterError(f"{where}.half_extents must be three lengths > 0 [m], got {[float(e) for e in extents]}")
+            raise ParameterError(f"{where}.half_extents must be three lengths > 0 [m], "
+                                 f"got {[float(e) for e in extents]}")
     if kind == "urdf" and not (isinstance(ob.get("path"), str) and ob["path"].strip()):
         raise ParameterError(f"{where}.path must name a URDF file, got {ob.get('path')!r}")
     return {"type": kind, **ob}

@@ -44,7 +44,8 @@ anisotropic section, whose Gauss-Newton iterations fail, and for a round or tube
 iteration contracts poorly (:data:`CONTRACTION`; then the rest of the step): per iteration it costs about 2x the
 Gauss-Newton matrix and solve at n = 80, and a quarter turn's step needs as many iterations with either (3.0 ->
 2.8 per step; docs/concepts/model.md). An iteration whose elimination meets a pivot <= 0 takes the Gauss-Newton
-matrix; in contact, one whose direction finds no lower potential takes it for the rest of the step. With it Newton converges quadratically in the twist as in the positions (the frameless Kelvin-Voigt
+matrix; in contact, one whose direction finds no lower potential takes it for the rest of the step. With it
+Newton converges quadratically in the twist as in the positions (the frameless Kelvin-Voigt
 dampers' position terms, left out of :func:`~bullet_dlo.core.kernels.forces.add_damping_jacobian`, aside). Newton iterates to the stepper's tolerance
 with the line search of :func:`~bullet_dlo.core.kernels.steppers.newton` on the incremental potential (kinetic and
 dissipative terms of the twist included), so the coupled step has the method's order (2 for BDF2 and implicit midpoint).
