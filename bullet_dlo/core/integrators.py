@@ -28,7 +28,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from bullet_dlo.core.enums import IntegratorName, name_of
-from bullet_dlo.core.kernels.twist_coupled import EXACT_AUTO
 from bullet_dlo.core.kernels.steppers import (
     BDF2,
     EXPLICIT_EULER,
@@ -39,6 +38,7 @@ from bullet_dlo.core.kernels.steppers import (
     SYMPLECTIC_EULER,
     Stepper,
 )
+from bullet_dlo.core.kernels.twist_coupled import EXACT_AUTO
 from bullet_dlo.core.validate import check_bool, check_in_range, check_int, check_positive
 
 MAX_NEWTON_ITER = EXACT_AUTO - 1

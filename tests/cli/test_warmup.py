@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from bullet_dlo._numba_cache import kernels_cold
+from bullet_dlo._numba_cache import cache_folder, kernels_cold
 from bullet_dlo.cli.main import compile_notice
 from bullet_dlo.core.engine import simulate
 from bullet_dlo.core.model import CableModel
@@ -16,12 +16,16 @@ from bullet_dlo.core.spec import CableSpec
 
 
 def test_a_cache_without_kernel_index_files_is_cold(tmp_path):
-    cache = tmp_path / "core" / "kernels" / "__pycache__"
+    (tmp_path / "core" / "kernels").mkdir(parents=True)
+    (tmp_path / "core" / "kernels" / "loop.py").write_text("@njit\ndef run_loop(): ...\n")
+    cache = cache_folder(tmp_path) / "core" / "kernels"
     cache.mkdir(parents=True)
     (cache / "forces.stretch-12.py311.nbi").write_bytes(b"")
     assert kernels_cold(tmp_path)  # other kernels cached, the time loop not: its first run compiles
     (cache / "loop.run_loop-37.py311.nbi").write_bytes(b"")
     assert not kernels_cold(tmp_path)
+    (tmp_path / "core" / "kernels" / "loop.py").write_text("@njit\ndef run_loop(): return 1\n")
+    assert kernels_cold(tmp_path)  # an edited kernel: a new folder, nothing in it yet
 
 
 def _compile_a_fresh_kernel() -> None:

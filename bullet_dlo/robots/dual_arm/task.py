@@ -148,7 +148,9 @@ class DualArmTask:
             if self._moving(a, t_next):
                 self._check_pose(a, world.time, POSE_MISS)
                 robot.set_targets(robot.track(*self.target_pose(a, t_next)))
-            elif self._settled_at(a) is not None and 0.0 <= world.time - self._settled_at(a) < world.dt:
+                continue
+            settled = self._settled_at(a)
+            if settled is not None and 0.0 <= world.time - settled < world.dt:
                 self._check_pose(a, world.time, SETTLED_MISS)
 
     def _settled_at(self, arm: int) -> float | None:
