@@ -96,7 +96,9 @@ def ensure_fresh_cache() -> None:
     for old in CACHE_ROOT.glob("numba-*"):
         if old != folder:
             shutil.rmtree(old, ignore_errors=True)
-    for old in list(PACKAGE.rglob("__pycache__/*.nbi")) + list(PACKAGE.rglob("__pycache__/*.nbc")):
-        if folder not in old.parents:
-            old.unlink(missing_ok=True)  # (the single cache of earlier versions)
-    (CACHE_ROOT / "numba_sources.sha1").unlink(missing_ok=True)
+    legacy = CACHE_ROOT / "numba_sources.sha1"
+    if legacy.is_file():  # the single cache of earlier versions (they wrote this stamp): deleted once
+        for old in list(PACKAGE.rglob("__pycache__/*.nbi")) + list(PACKAGE.rglob("__pycache__/*.nbc")):
+            if folder not in old.parents:
+                old.unlink(missing_ok=True)
+        legacy.unlink(missing_ok=True)

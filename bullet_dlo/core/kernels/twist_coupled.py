@@ -1204,10 +1204,7 @@ def coupled_implicit(stepper, m, x, v, samples, ws, has_prev):
         exact = it >= first_exact or slow
         if exact:
             _newton_matrix(stepper, m, mp, imp, ws, band, g, sc, True, lower, upx, samples, mid, h)
-            r_try[:] = r
-            if not _band_lu_coupled(band, lower, r) > 0.0:  # r becomes the Newton direction
-                r[:] = r_try
-                exact = False
+            exact = _exact_direction(band, lower, r, r_try)
         if not exact:
             _newton_matrix(stepper, m, mp, imp, ws, band, g, sc, False, lower, upx, samples, mid, h)
             band_solve_upper(band, r, HALF_T, 4)  # r becomes the Newton direction
@@ -1269,6 +1266,19 @@ def _first_exact(stepper, m):
         if m.tw_k_aniso[i] != 0.0:
             return 1
     return EXACT_AUTO
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _exact_direction(band, lower, r, keep):
+    """r (the residual) becomes the Newton direction of the exact matrix (upper ``band``, ``lower`` band by columns,
+    both destroyed); where its elimination meets a pivot <= 0 (the matrix indefinite, e.g. beyond a twist buckling
+    threshold at a large step) r is left as it was and False is returned: the caller takes Gauss-Newton's.
+    ``keep``: scratch of r's shape."""
+    keep[:] = r
+    if _band_lu_coupled(band, lower, r) > 0.0:
+        return True
+    r[:] = keep
+    return False
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -1406,10 +1416,7 @@ def coupled_contact(stepper, method, m, x, v, samples, ws, has_prev, c, cap_tol=
         if exact:
             _newton_matrix(stepper, m, mp, imp, ws, band, g, sc, True, lower, upx, samples, mid, h)
             _add_contact_band(c, m.held, ws.x_stage, hf * cx, hf * cv, cb, band, lower, True)
-            r_try[:] = r
-            if not _band_lu_coupled(band, lower, r) > 0.0:  # r becomes the Newton direction
-                r[:] = r_try
-                exact = False
+            exact = _exact_direction(band, lower, r, r_try)
         if not exact:
             _newton_matrix(stepper, m, mp, imp, ws, band, g, sc, False, lower, upx, samples, mid, h)
             _add_contact_band(c, m.held, ws.x_stage, hf * cx, hf * cv, cb, band, lower, False)
