@@ -74,6 +74,10 @@ by its own section, so a spec may choose among sections; a spec whose tube bore 
 the lowest diameter, or whose rectangle can be drawn 0 m wide or thick, is refused at load. Drawn after the grips,
 and in an episode's parameters only when ``sample:`` gives them (older specs keep their draws and their
 episodes' parameters).
+
+**Cable friction.** ``dynamic_friction`` and ``static_friction`` [-] (default 0.2 / 0.3): as the grip's, a spec
+whose ``dynamic_friction`` range reaches above the lowest ``static_friction`` is refused at load.
+``static_friction`` is drawn last, and is in an episode's parameters only when ``sample:`` gives it.
 """
 from __future__ import annotations
 
@@ -142,9 +146,12 @@ PARAMETERS: dict[str, tuple[str, dict, tuple]] = {
     "width": ("float", {"dist": "fixed", "value": 0.0}, (0.0, 0.05)),
     "thickness": ("float", {"dist": "fixed", "value": 0.0}, (0.0, 0.05)),
     "twist": ("bool", {"dist": "fixed", "value": False}, ()),
+    # the cable's static friction, drawn after the sections, only when sampled (older specs keep their draws)
+    "static_friction": ("float", {"dist": "fixed", "value": 0.3}, (0.0, 2.0)),
 }
 SECTION_KEYS = ("poisson_ratio", "section", "inner_diameter", "width", "thickness", "twist")
-DRAWN_LAST = ("grip", "grip_force", "grip_static_friction", "grip_dynamic_friction", "grip_reach") + SECTION_KEYS
+OPTIONAL_KEYS = SECTION_KEYS + ("static_friction",)  # in an episode's parameters only when the spec samples them
+DRAWN_LAST = ("grip", "grip_force", "grip_static_friction", "grip_dynamic_friction", "grip_reach") + OPTIONAL_KEYS
 
 
 @dataclass(frozen=True)
@@ -542,7 +549,7 @@ class CaptureSpec:
             out[key] = self._sample(key, rng)
         out["noise_seed"] = int(rng.integers(2**31 - 1))
         for key in DRAWN_LAST:
-            if key in SECTION_KEYS and key not in self.sample:
+            if key in OPTIONAL_KEYS and key not in self.sample:
                 continue  # its default (the plain round cable), drawn without a number from rng
             out[key] = self._sample(key, rng)
         if self.motion:
@@ -589,16 +596,16 @@ def _check_grip_integrator(sample: dict[str, Distribution]) -> None:
 
 
 def _check_friction_order(sample: dict[str, Distribution]) -> None:
-    """Refuse grip friction ranges that allow a draw with dynamic > static friction (Coulomb friction needs
-    dynamic <= static; refusing at load rather than clipping keeps every draw what the spec says)."""
-    keys = ("grip_static_friction", "grip_dynamic_friction")
-    dists = {k: sample.get(k) or parse_distribution(k, PARAMETERS[k][1]) for k in keys}
-    lowest_static = support(dists["grip_static_friction"], PARAMETERS["grip_static_friction"][2])[0]
-    highest_dynamic = support(dists["grip_dynamic_friction"], PARAMETERS["grip_dynamic_friction"][2])[1]
-    if highest_dynamic > lowest_static:
-        raise ParameterError(f"sample.grip_dynamic_friction can be drawn above sample.grip_static_friction (up to "
-                             f"{highest_dynamic} > {lowest_static}); every draw needs 0 <= dynamic <= static friction: "
-                             "make the whole grip_dynamic_friction range lie at or below the grip_static_friction range")
+    """Refuse friction ranges (the cable's, the grip's) that allow a draw with dynamic > static friction (Coulomb
+    friction needs dynamic <= static; refusing at load rather than clipping keeps every draw what the spec says)."""
+    for static, dynamic in (("static_friction", "dynamic_friction"), ("grip_static_friction", "grip_dynamic_friction")):
+        dists = {k: sample.get(k) or parse_distribution(k, PARAMETERS[k][1]) for k in (static, dynamic)}
+        lowest_static = support(dists[static], PARAMETERS[static][2])[0]
+        highest_dynamic = support(dists[dynamic], PARAMETERS[dynamic][2])[1]
+        if highest_dynamic > lowest_static:
+            raise ParameterError(f"sample.{dynamic} can be drawn above sample.{static} (up to {highest_dynamic} > "
+                                 f"{lowest_static}); every draw needs 0 <= dynamic <= static friction: make the whole "
+                                 f"{dynamic} range lie at or below the {static} range")
 
 
 def _check_sections(sample: dict[str, Distribution]) -> None:

@@ -136,12 +136,30 @@ def check_cable(data: Mapping[str, Any], where: str = "cable") -> None:
             else:
                 check_in_range(f"{where}.{key}", data[key], lo, hi)
     _check_section_dimensions(data, where)
+    _check_friction_order(data, where)
     for key in CABLE_FLAGS:
         if key in data and not isinstance(data[key], bool):
             raise ParameterError(f"{where}.{key} must be true or false, got {data[key]!r}")
     if "diameter" in data and "length" in data and float(data["diameter"]) > DIAMETER_PER_LENGTH * float(data["length"]):
         raise ParameterError(f"{where}.diameter = {data['diameter']} m must be at most {DIAMETER_PER_LENGTH} x "
                              f"{where}.length ({data['length']} m)")
+
+
+def _check_friction_order(data: Mapping[str, Any], where: str) -> None:
+    """Coulomb friction slips at or below the force it holds: ``dynamic_friction <= static_friction`` (the
+    cable's default static_friction when the mapping leaves it out)."""
+    from dataclasses import fields
+
+    from bullet_dlo.core.spec import CableSpec
+
+    if "dynamic_friction" not in data:
+        return
+    default = {f.name: f.default for f in fields(CableSpec)}["static_friction"]
+    dynamic, static = float(data["dynamic_friction"]), float(data.get("static_friction", default))
+    if dynamic > static:
+        given = "" if "static_friction" in data else " (its default; give static_friction too)"
+        raise ParameterError(f"{where}.dynamic_friction ({dynamic}) must be at most {where}.static_friction "
+                             f"({static}){given}: Coulomb friction slips at or below the force it holds")
 
 
 # ----- output paths ------------------------------------------------------------------------------

@@ -53,8 +53,9 @@ class CableSpec:
             omega_k) decays as exp(-tau omega_k^2 t / 2) (damping ratio omega_k tau / 2: high
             modes are damped more); rigid translation and rotation are not damped.
         dynamic_friction: dynamic (sliding) Coulomb friction coefficient mu_d [-] against the
-            environment and other cables, >= 0 (``friction`` before 0.4: still accepted, deprecated).
-        static_friction: static Coulomb friction coefficient mu_s [-], >= 0.
+            environment and other cables, in [0, static_friction] (``friction`` before 0.4: still accepted,
+            deprecated).
+        static_friction: static Coulomb friction coefficient mu_s [-], >= dynamic_friction.
         poisson_ratio: Poisson's ratio nu [-], in [0, 0.5) (used by contact and shear-aware layers).
         shear_modulus: G [Pa] of the twist springs G J / l0, > 0; 0 (default): E / (2 (1 + nu)), the
             isotropic solid's. A stranded cable, a rope or a sheathed bundle twists far more easily than
@@ -119,6 +120,10 @@ class CableSpec:
         set_("internal_damping", check_in_range("internal_damping", self.internal_damping, 0.0, 1.0))
         set_("dynamic_friction", check_nonnegative("dynamic_friction", self.dynamic_friction))
         set_("static_friction", check_nonnegative("static_friction", self.static_friction))
+        if self.dynamic_friction > self.static_friction:
+            raise ParameterError(f"dynamic_friction ({self.dynamic_friction}) must be at most static_friction "
+                                 f"({self.static_friction}): Coulomb friction slips at or below the force it holds "
+                                 f"(give static_friction too)")
         set_("poisson_ratio", check_in_range("poisson_ratio", self.poisson_ratio, 0.0, 0.5, open_hi=True))
         set_("shear_modulus", check_nonnegative("shear_modulus", self.shear_modulus))
         set_("drag_coefficient", check_in_range("drag_coefficient", self.drag_coefficient, 0.0, 1e3))

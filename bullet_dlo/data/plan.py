@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 
 from bullet_dlo.analysis.resolve import resolve_masses, twist_need
-from bullet_dlo.config.capture import RENAMED, CaptureSpec
+from bullet_dlo.config.capture import PARAMETERS, RENAMED, CaptureSpec
 from bullet_dlo.config.scene import Scene
 from bullet_dlo.sim import resolve_problem
 from bullet_dlo.core.boundary import Motion, Move, parse_motion
@@ -122,5 +122,6 @@ def cable_spec(params: dict[str, Any]) -> CableSpec:
                      youngs_modulus=params["youngs_modulus"], n_masses=params["n_masses"],
                      damping=params["damping"], damping_rate=params.get("damping_rate", 0.0),
                      internal_damping=params.get("internal_damping", 0.0), dynamic_friction=params["dynamic_friction"],
+                     static_friction=params.get("static_friction", PARAMETERS["static_friction"][1]["value"]),
                      poisson_ratio=params.get("poisson_ratio", 0.3), section=section,
                      twist=params.get("twist", False), **{k: params[k] for k in shape if k in params})

@@ -61,7 +61,7 @@ SCENE_VALUES = {
     "cable.youngs_modulus": [1e20, 0, -5, NAN, "abc"],
     "cable.n_masses": [8.4, True, 1e12, 1, "ten", 10.0000001],
     "cable.damping": [-1, NAN, INF, "x"],
-    "cable.dynamic_friction": [-0.1, NAN],
+    "cable.dynamic_friction": [-0.1, NAN, 0.5],  # (0.5: above the default static_friction, 0.3)
     "cable.static_friction": [-1, "x"],
     "cable.section": ["hexagon"],  # every closed set (bullet_dlo.core.enums) refuses a stranger, listing its names
     "cable.discretisation": ["fine"],
@@ -127,7 +127,7 @@ SPEC_VALUES = {
     "sample.grip": [{"dist": "fixed", "value": "glue"}],
     "sample.section": [{"dist": "fixed", "value": "hexagon"}],
     "sample.integrator": [{"dist": "choice", "values": ["bdf2", "leapfrog"]}],
-    "sample.dynamic_friction": [{"dist": "gaussian", "mean": 0.3, "std": 0.1}],
+    "sample.dynamic_friction": [{"dist": "gaussian", "mean": 0.3, "std": 0.1}, {"dist": "uniform", "low": 0.1, "high": 0.4}],
     "sample.grip_dynamic_friction": [{"dist": "uniform", "low": 0.3, "high": 0.9}],
     "sample.grip_force": [{"dist": "fixed", "value": -2}],
 }

@@ -105,7 +105,7 @@ def test_capture_spec_round_trips_and_keeps_its_digest():
     or ``--resume`` would refuse directories captured before."""
     spec = CaptureSpec.from_yaml(ROOT / "demos" / "specs" / "dr_small.yaml")
     assert CaptureSpec.from_dict(spec.to_dict()) == spec
-    assert spec.digest() == "8b3a7c464c6f30fa"
+    assert spec.digest() == "75beb7e332dbafc6"  # (8b3a7c464c6f30fa until its dynamic_friction range met static's)
     assert CaptureSpec().digest() == "e883660e79932801"
     assert spec.draw(3) == CaptureSpec.from_dict(spec.to_dict()).draw(3) != spec.draw(4)
     assert spec.camera_width == 160 and isinstance(spec.camera_width, int) and spec.seed == 7
@@ -140,3 +140,29 @@ def test_a_static_start_that_does_not_converge_is_refused():
     model = held.build_model()
     state = held.initial_state(model)
     assert state.x[-1, 2] < model.x0[-1, 2] - 0.1  # it droops
+
+
+def test_cable_friction_must_slip_at_or_below_what_it_holds():
+    """Coulomb friction: dynamic <= static, for a cable spec and for every draw of a capture spec (the capture spec
+    drew dynamic_friction up to 0.4 against the fixed static 0.3 before, and the cable spec took mu_d > mu_s)."""
+    from bullet_dlo.core.spec import CableSpec
+    from bullet_dlo.data.plan import cable_spec
+
+    with pytest.raises(ParameterError, match=r"^dynamic_friction \(0.5\) must be at most static_friction \(0.3\)"):
+        CableSpec.lv2017(dynamic_friction=0.5)
+    assert CableSpec.lv2017(dynamic_friction=0.5, static_friction=0.5).dynamic_friction == 0.5
+    with pytest.raises(ParameterError, match=r"^cable.dynamic_friction \(0.4\) must be at most cable.static_friction"):
+        Scene.from_dict({"cable": {**CABLE, "dynamic_friction": 0.4}, "dt": 1e-3, "duration": 0.1})
+    u = {"dist": "uniform"}
+    with pytest.raises(ParameterError, match=r"^sample.dynamic_friction can be drawn above sample.static_friction"):
+        CaptureSpec.from_dict({"seed": 1, "sample": {"dynamic_friction": {**u, "low": 0.1, "high": 0.4}}})
+    spec = CaptureSpec.from_dict({"seed": 1, "sample": {"dynamic_friction": {**u, "low": 0.3, "high": 0.5},
+                                                        "static_friction": {**u, "low": 0.5, "high": 0.8}}})
+    for i in range(5):
+        params = spec.draw(i)
+        cable = cable_spec(params)
+        assert 0.5 <= cable.static_friction == params["static_friction"] <= 0.8
+        assert cable.dynamic_friction == params["dynamic_friction"] <= cable.static_friction
+    # a spec that does not sample it keeps its draws and its episodes' parameters (no static_friction key)
+    assert "static_friction" not in CaptureSpec.from_dict({"seed": 1}).draw(0)
+    assert cable_spec(CaptureSpec.from_dict({"seed": 1}).draw(0)).static_friction == 0.3

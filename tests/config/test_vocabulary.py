@@ -60,12 +60,12 @@ def test_cable_friction_is_dynamic_friction_in_yaml_constructor_and_with():
     old, msgs = deprecated(Scene.from_dict, scene(cable={**CABLE, "friction": 0.45, "static_friction": 0.6}))
     assert old == new and new.cable.dynamic_friction == 0.45
     assert msgs == ["cable.friction is deprecated; use cable.dynamic_friction (the old name goes in the next release)"]
-    built, msgs = deprecated(CableSpec, 0.3, 0.004, 0.03, 126e6, friction=0.45)
-    assert built == CableSpec(0.3, 0.004, 0.03, 126e6, dynamic_friction=0.45) and "use dynamic_friction" in msgs[0]
-    assert deprecated(CableSpec.lv2017().with_, friction=0.45)[0].dynamic_friction == 0.45
-    assert deprecated(CableSpec.lv2017, friction=0.45)[0] == CableSpec.lv2017(dynamic_friction=0.45)
-    alias, msgs = deprecated(lambda: CableSpec.lv2017(dynamic_friction=0.45).friction)  # read-only, one release
-    assert alias == 0.45 and msgs == ["CableSpec.friction is deprecated; use CableSpec.dynamic_friction"]
+    built, msgs = deprecated(CableSpec, 0.3, 0.004, 0.03, 126e6, friction=0.25)
+    assert built == CableSpec(0.3, 0.004, 0.03, 126e6, dynamic_friction=0.25) and "use dynamic_friction" in msgs[0]
+    assert deprecated(CableSpec.lv2017().with_, friction=0.25)[0].dynamic_friction == 0.25
+    assert deprecated(CableSpec.lv2017, friction=0.25)[0] == CableSpec.lv2017(dynamic_friction=0.25)
+    alias, msgs = deprecated(lambda: CableSpec.lv2017(dynamic_friction=0.25).friction)  # read-only, one release
+    assert alias == 0.25 and msgs == ["CableSpec.friction is deprecated; use CableSpec.dynamic_friction"]
     with pytest.raises(ParameterError, match="give only dynamic_friction"):
         CableSpec.from_dict({"preset": "lv2017", "friction": 0.1, "dynamic_friction": 0.2})
 
@@ -94,7 +94,7 @@ def test_grip_friction_pair_is_two_named_coefficients():
 
 def test_capture_spec_old_keys_warn_and_keep_values_draws_and_digest():
     u = {"dist": "uniform"}
-    sample_new = {"dynamic_friction": {**u, "low": 0.1, "high": 0.4}, "grip": "friction",
+    sample_new = {"dynamic_friction": {**u, "low": 0.1, "high": 0.3}, "grip": "friction",
                   "grip_static_friction": {**u, "low": 0.5, "high": 0.7},
                   "grip_dynamic_friction": {**u, "low": 0.2, "high": 0.4}}
     old_names = {v: k for k, v in SPEC_RENAMED.items()}
@@ -106,7 +106,7 @@ def test_capture_spec_old_keys_warn_and_keep_values_draws_and_digest():
                                   for o, n in SPEC_RENAMED.items())
     for i in range(4):
         d = new.draw(i)
-        assert d == old.draw(i) and 0.1 <= d["dynamic_friction"] <= 0.4
+        assert d == old.draw(i) and 0.1 <= d["dynamic_friction"] <= 0.3
         assert d["grip_dynamic_friction"] <= d["grip_static_friction"]
 
 
