@@ -6,7 +6,7 @@ stability policy may switch integrator or add substeps) and the same scene
 (:func:`~bullet_dlo.data.episode.episode_scene`, built by :func:`bullet_dlo.sim.build_arms`). An environment's reset draws one episode seed
 from its own generator (seeded by ``reset(seed=...)``), so the drawn parameters depend only on
 the reset seed. Used: the cable (length, diameter, mass, youngs_modulus, n_masses, damping,
-damping_rate, internal_damping, friction), dt, integrator, robot, hold_height, the grip (grip,
+damping_rate, internal_damping, dynamic_friction, static_friction), dt, integrator, robot, hold_height, the grip (grip,
 grip_force, grip_static_friction, grip_dynamic_friction, grip_reach) and the wrist sensors (noise_std,
 sensor_rate); the capture's gripper motion (displacement_*, speed, move_start or a ``motion:``
 section) and its episode/camera sections are not: the policy moves the arms, the environment

@@ -348,6 +348,7 @@ class RoutingEnv(DualArmEnv):
             "n_masses": {"dist": "fixed", "value": 20},
             "damping": {"dist": "uniform", "low": 0.01, "high": 0.03},
             "dynamic_friction": {"dist": "fixed", "value": 0.5},
+            "static_friction": {"dist": "fixed", "value": 0.5},  # (before 0.4: the default 0.3, below the dynamic)
             "hold_height": {"dist": "uniform", "low": 0.27, "high": 0.30},
         }
     }
