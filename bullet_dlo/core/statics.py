@@ -17,7 +17,7 @@ from scipy.linalg import solve_banded
 
 from bullet_dlo.core.kernels.banded import HALF, assemble_system, band_solve
 from bullet_dlo.core.kernels.forces import force_jacobian, internal_energy, total_forces
-from bullet_dlo.core.kernels.twist import TwistState, _theta_gradient, twist_ready, twist_solve, update_frames
+from bullet_dlo.core.kernels.twist import TwistState, theta_gradient, twist_ready, twist_solve, update_frames
 from bullet_dlo.core.model import CableModel, CableState, KernelArrays, ModelArrays
 
 
@@ -104,7 +104,7 @@ class _CondensedTwist:
         a.tw_theta[:] = theta
         update_frames(a, x, self.dirs)
         total_forces(a, x, self.zeros_v, self.dirs, self.f)
-        _theta_gradient(a, x, self.dirs, a.tw_theta, self.grad, self.hdiag)
+        theta_gradient(a, x, self.dirs, a.tw_theta, self.grad, self.hdiag)
         self.restore()
         g = np.zeros((n, 4))
         g[:, :3] = -self.f
@@ -113,7 +113,7 @@ class _CondensedTwist:
 
     def theta_residual(self, x: np.ndarray) -> np.ndarray:
         """dE/dtheta [N m] (n-1,) at x [m] and the kept twist angles (0 up to the twist solve's tolerance)."""
-        _theta_gradient(self.a, x, self.dirs, self.a.tw_theta, self.grad, self.hdiag)
+        theta_gradient(self.a, x, self.dirs, self.a.tw_theta, self.grad, self.hdiag)
         return self.grad.copy()
 
     def newton_step(self, x: np.ndarray, r: np.ndarray, mu: float) -> np.ndarray:

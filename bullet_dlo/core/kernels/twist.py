@@ -760,7 +760,7 @@ def twist_clamp_torque(m, x, dirs, end):
 
 # ----- the twist sub-step ---------------------------------------------------------------------------
 @njit(cache=True, error_model="numpy")
-def _theta_gradient(m, x, dirs, theta, grad, hdiag):
+def theta_gradient(m, x, dirs, theta, grad, hdiag):
     """grad <- dE/dtheta [N m] at twist angles ``theta`` (positions x held); hdiag <- the anisotropic
     part of d2E/dtheta2 (diagonal), filtered to >= 0 (keeps the Newton matrix positive definite)."""
     n = x.shape[0]
@@ -813,7 +813,7 @@ def twist_solve(m, x, dirs, h, dynamic, dref):
         its = it + 1
         for k in range(ns):
             theta_try[k] = m.tw_theta[k] + (h * w_new[k] if dynamic else w_new[k])
-        _theta_gradient(m, x, dirs, theta_try, grad, hd)
+        theta_gradient(m, x, dirs, theta_try, grad, hd)
         for k in range(ns):
             kt_a, kt_b = m.tw_k_twist[k], m.tw_k_twist[k + 1]
             if dynamic:
