@@ -81,6 +81,7 @@ from bullet_dlo.core.kernels.twist import grip_section, transport
 from bullet_dlo.core.model import CableControl, CableModel, CableState, end_twist_constants, kernel_arrays, with_arrays
 from bullet_dlo.core.validate import (
     ParameterError,
+    check_friction_order,
     check_int,
     check_nonnegative,
     check_positive,
@@ -537,8 +538,7 @@ class BulletCable:
         f_n = check_positive("grip normal force", normal_force)
         mu_s = check_nonnegative("grip_static_friction", static_friction)
         mu_d = check_nonnegative("grip_dynamic_friction", dynamic_friction)
-        if mu_d > mu_s:
-            raise ParameterError(f"grip_dynamic_friction must be in [0, grip_static_friction {mu_s}], got {mu_d}")
+        check_friction_order(mu_d, mu_s, "grip_")
         c, n, g = self.control, self.model.n, self.grip
         node = 0 if end == 0 else n - 1
         c.held[node] = False

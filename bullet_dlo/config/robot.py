@@ -26,6 +26,7 @@ from bullet_dlo.core.spec import CableSpec
 from bullet_dlo.core.validate import (
     ParameterError,
     check_finite,
+    check_friction_order,
     check_in_range,
     check_int,
     check_nonnegative,
@@ -63,9 +64,7 @@ def check_grip_friction(static: Any, dynamic: Any, where: str = "") -> tuple[flo
     ParameterError naming ``<where>grip_static_friction`` / ``<where>grip_dynamic_friction``."""
     s = check_in_range(f"{where}grip_static_friction", static, 0.0, 10.0)
     d = check_in_range(f"{where}grip_dynamic_friction", dynamic, 0.0, 10.0)
-    if d > s:
-        raise ParameterError(f"{where}grip_dynamic_friction ({d}) must be at most {where}grip_static_friction ({s}): "
-                             f"Coulomb friction slips at or below the force it holds")
+    check_friction_order(d, s, f"{where}grip_")
     return s, d
 
 

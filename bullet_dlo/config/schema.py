@@ -15,7 +15,7 @@ from enum import Enum
 from typing import Any, Callable, Iterable, Mapping, TypeVar
 
 from bullet_dlo.core.enums import Discretisation, NamedSet, Section, name_of
-from bullet_dlo.core.validate import ParameterError
+from bullet_dlo.core.validate import ParameterError, check_friction_order
 
 T = TypeVar("T")
 
@@ -156,10 +156,8 @@ def _check_friction_order(data: Mapping[str, Any], where: str) -> None:
         return
     default = {f.name: f.default for f in fields(CableSpec)}["static_friction"]
     dynamic, static = float(data["dynamic_friction"]), float(data.get("static_friction", default))
-    if dynamic > static:
-        given = "" if "static_friction" in data else " (its default; give static_friction too)"
-        raise ParameterError(f"{where}.dynamic_friction ({dynamic}) must be at most {where}.static_friction "
-                             f"({static}){given}: Coulomb friction slips at or below the force it holds")
+    hint = "" if "static_friction" in data else " (its default; give static_friction too)"
+    check_friction_order(dynamic, static, f"{where}.", hint)
 
 
 # ----- output paths ------------------------------------------------------------------------------

@@ -18,6 +18,7 @@ import numpy as np
 from bullet_dlo.core.enums import Discretisation, Section, name_of
 from bullet_dlo.core.validate import (
     ParameterError,
+    check_friction_order,
     check_in_range,
     check_int,
     check_nonnegative,
@@ -120,10 +121,7 @@ class CableSpec:
         set_("internal_damping", check_in_range("internal_damping", self.internal_damping, 0.0, 1.0))
         set_("dynamic_friction", check_nonnegative("dynamic_friction", self.dynamic_friction))
         set_("static_friction", check_nonnegative("static_friction", self.static_friction))
-        if self.dynamic_friction > self.static_friction:
-            raise ParameterError(f"dynamic_friction ({self.dynamic_friction}) must be at most static_friction "
-                                 f"({self.static_friction}): Coulomb friction slips at or below the force it holds "
-                                 f"(give static_friction too)")
+        check_friction_order(self.dynamic_friction, self.static_friction, hint=" (give static_friction too)")
         set_("poisson_ratio", check_in_range("poisson_ratio", self.poisson_ratio, 0.0, 0.5, open_hi=True))
         set_("shear_modulus", check_nonnegative("shear_modulus", self.shear_modulus))
         set_("drag_coefficient", check_in_range("drag_coefficient", self.drag_coefficient, 0.0, 1e3))

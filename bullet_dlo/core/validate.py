@@ -55,6 +55,15 @@ def check_in_range(name: str, value: Any, lo: float, hi: float, *, open_hi: bool
     return v
 
 
+def check_friction_order(dynamic: float, static: float, where: str = "", hint: str = "") -> None:
+    """Coulomb friction slips at or below the force it holds: refuse ``dynamic > static`` [-], naming
+    ``{where}dynamic_friction`` and ``{where}static_friction`` (``where``: e.g. "cable.", "arms.grip_";
+    ``hint``: appended to the static value). The one statement of the rule for the cable's and the grips'."""
+    if dynamic > static:
+        raise ParameterError(f"{where}dynamic_friction ({dynamic}) must be at most {where}static_friction "
+                             f"({static}){hint}: Coulomb friction slips at or below the force it holds")
+
+
 def check_int(name: str, value: Any, lo: int, hi: int | None = None) -> int:
     """Return ``value`` as an int in [lo, hi] or raise ParameterError (a float must be a whole
     number: 10.0 is 10, 8.4 is refused, never rounded)."""
