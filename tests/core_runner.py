@@ -22,7 +22,8 @@ ROOT = Path(__file__).resolve().parents[1]
 CORE_SUITE_DIRS = ("tests/core", "tests/analysis", "tests/config")
 ENV = "BULLET_DLO_CORE_RUNNER"
 """Environment variable naming the OUT_DIR of a run started by the session (the test waits for its result)."""
-TIMEOUT = 900.0  # [s] the run's longest wait (about 2-5 min cold on two busy cores)
+TIMEOUT = 2400.0  # [s] the run's longest wait: about 2-5 min cold on two busy cores of the earlier machines, 18 min on
+# this one (2026-12-01, AMD EPYC 2.4 GHz: the core loop's cold compile alone took 753 s beside another process)
 
 # Prefix of a ``python -c`` program: makes the comma-separated names in argv[1] unimportable
 # (a meta-path finder in front of every other), checks that it worked, and drops argv[1].
