@@ -134,7 +134,7 @@ def compile_notice(args: argparse.Namespace) -> Iterator[None]:
         def on_start(self, ev: event.Event) -> None:
             if not self.told:
                 self.told = True
-                print("compiling the numerical kernels once (about a minute after an install or upgrade; "
+                print("compiling the numerical kernels once (minutes after an install or upgrade; "
                       "cached afterwards, never counted in run times; `bullet-dlo warmup` does it ahead)",
                       file=sys.stderr)
 

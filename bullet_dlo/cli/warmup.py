@@ -1,7 +1,8 @@
 """``bullet-dlo warmup``: compile the numerical kernels once, ahead of the first real run.
 
 Numba compiles the kernels on their first call and caches them on disk beside the package; on a fresh
-install (or after an upgrade) that first call takes about a minute of CPU. This runs every core
+install (or after an upgrade) that first call takes minutes of CPU (about 21 for the main demo's kernels on a
+2.4 GHz AMD EPYC, 2026-12-01). This runs every core
 integrator, the twisting cable, model-owned contact with a Bullet world and the two arms for a few
 steps each, so that later commands start at once. It prints what it compiled and how long it took.
 """
@@ -51,7 +52,7 @@ def cmd_warmup(args: argparse.Namespace) -> int:
     from bullet_dlo._numba_cache import kernels_cold
 
     cold = kernels_cold()
-    print("compiling the numerical kernels (about a minute on a fresh install; cached beside the package "
+    print("compiling the numerical kernels (minutes on a fresh install; cached beside the package "
           "afterwards)" if cold else "loading the numerical kernels (compiling those not yet cached)")
     total = 0.0
     for what, cpu in warm_kernels(arms=not args.no_arms):
