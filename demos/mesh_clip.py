@@ -271,6 +271,7 @@ def run(out: Path, quick: bool, hz: float = HZ, size: tuple[int, int] | None = N
     carried = -(grip_z[record["t"] > record["t"][-1] - 0.5].mean() + mesh_z[mesh_t > mesh_t[-1] - 0.5].mean())
     magnitude = np.linalg.norm(wrench, axis=2)  # (k, 2)
     r = CORD["diameter"] / 2
+    solver = state["arm_scene"].cable.solver
     clip_t, clip_s = np.array(checks.in_clip).T  # arc length at the clip's middle: how much was drawn through
     result = {
         "stable": summary["stable"], "cpu_s": cpu,
@@ -291,6 +292,10 @@ def run(out: Path, quick: bool, hz: float = HZ, size: tuple[int, int] | None = N
         "drawn_through_clip_mm": (1e3 * (clip_s[np.searchsorted(clip_t, PHASES[1][0])] - clip_s[-1])
                                   if clip_t[-1] > PHASES[1][0] else None),
         "sensor_check_failures": len(summary.get("sensor_check", {}).get("failures", [])),
+        # the cable's Newton solves: how many steps ended unconverged (a light part on the cord makes many:
+        # docs/concepts/contact.md, Limits), and the worst residual kept, in units of gravity's impulse in a step
+        "newton": {"failed_steps": solver.newton_failures, "planned_steps": solver.steps_planned,
+                   "worst_kept_ratio": solver.worst_kept_ratio},
         "video": summary.get("side_by_side"),
         # the part every 0.1 s: t [s], distance to the centre line [m], height [m], cord's force up / its weight
         "part_track": [[round(v, 4) for v in (row[0], row[1], row[2], row[3] / weight)] for row in rows[::max(1, round(0.1 * hz))]],
@@ -326,6 +331,9 @@ def main() -> None:
     pen, clr = res["penetration_mm"], res["clearance_minus_radius_mm"]
     part = res["part"]
     print(f"cable stable: {res['stable']}; {res['frames']} frames; {res['cpu_s']:.1f} s CPU")
+    nw = res["newton"]
+    print(f"Newton solves unconverged in {nw['failed_steps']} of {nw['planned_steps']} steps (worst kept at "
+          f"{nw['worst_kept_ratio']:.3g} times gravity's impulse in a step)")
     if res["instability"]:
         print(f"the run stopped at t = {res['instability']['time_s']:.3f} s: {res['instability']['reason']}")
     print(f"centre line inside the clip mesh: deepest {pen['clip']:.3f} mm; inside the post mesh: deepest "

@@ -48,6 +48,10 @@ def test_mesh_clip_demo_quick(tmp_path):
     assert data["supports_over_weights_last_0.5s"] == pytest.approx(1.0, abs=0.05)
     assert data["sensor_check_failures"] == 0
     assert all(f > 0.0 for f in data["wrist_force_N"]["final"])
+    # the Newton solves are reported (not a bound on them: docs/concepts/contact.md, Limits), for every planned step
+    nw = data["newton"]
+    assert nw["planned_steps"] >= round(1.5 * 240) - 1 and 0 <= nw["failed_steps"] <= nw["planned_steps"]
+    assert f"Newton solves unconverged in {nw['failed_steps']} of {nw['planned_steps']} steps" in res.stdout
 
 
 def test_the_demos_geometry_is_the_meshes_it_loads(tmp_path):
