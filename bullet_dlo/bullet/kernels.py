@@ -237,8 +237,8 @@ def _guarded_contact_step(stepper, m, plan, ext, cp, ws, t, k, prev, contacts, b
     guard.x0[:, :] = cp.x_new
     guard.v0[:, :] = cp.v_new
     if save:  # (a few hundred numbers: the cost of the guard when Newton converges)
-        _copy_rows(guard.rows, nc, True)
-        _copy_whole(guard.whole, True)
+        _copy_rows(guard.rows, nc, save)  # (save: a runtime True; literals compiled each copy twice)
+        _copy_whole(guard.whole, save)
     has_prev = prev and contacts.impact[0] == 0
     its, ok = contact_step(stepper, m, cp.x_new, cp.v_new, cp.samples, ws, has_prev, contacts, bodies)
     if ok:
@@ -270,8 +270,8 @@ def _guarded_contact_step(stepper, m, plan, ext, cp, ws, t, k, prev, contacts, b
                         stepper.exact_from)
         cp.x_new[:, :] = guard.x0
         cp.v_new[:, :] = guard.v0
-        _copy_rows(guard.rows, nc, False)
-        _copy_whole(guard.whole, False)
+        _copy_rows(guard.rows, nc, not save)  # back (save is True here)
+        _copy_whole(guard.whole, not save)
         worst = 0.0
         coast = False
         impact = 0

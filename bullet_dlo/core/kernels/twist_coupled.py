@@ -69,8 +69,7 @@ import math
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit, types
-from numba.extending import overload
+from numba import njit
 
 from bullet_dlo.core.kernels.banded import HALF
 from bullet_dlo.core.kernels.drag import add_drag_jacobian, has_drag
@@ -285,50 +284,22 @@ def _add_sym(band, a, b, val):
 
 
 @njit(cache=True, error_model="numpy")
-def _clamp_rate(m, xe, samples, mid, h, i):
-    """Rate [rad/s] of the twist at clamp node i (0 or n-1) from the clamp's own roll and turn (positions xe
-    held), from its three samples psi_0, psi_1/2, psi_1 at t, t + h/2, t + h: at t + h (implicit Euler, BDF2)
-    (psi_0 - 4 psi_1/2 + 3 psi_1)/h, at t + h/2 (``mid``, implicit midpoint) (psi_1 - psi_0)/h: second order.
-    The clamp node reads only its own end's row of the section axes and directions, so each sample's (2, 3)
-    arrays stand in for ``tw_clamp`` and ``dirs``; each twist is :func:`node_geometry`'s (its bits), from the
-    two edge frames alone."""
+def _clamp_rate(m, xe, samples, frac, h, i):
+    """Rate [rad/s] of the twist at clamp node i (0 or n-1) at t + frac h from the clamp's own roll and turn
+    (positions xe held): the derivative of the quadratic through its three samples psi_0, psi_1/2, psi_1 at
+    t, t + h/2, t + h, ((4 frac - 3) psi_0 + (4 - 8 frac) psi_1/2 + (4 frac - 1) psi_1)/h, second order: at t + h
+    (frac 1: implicit Euler, BDF2) (psi_0 - 4 psi_1/2 + 3 psi_1)/h, at t + h/2 (frac 1/2: implicit midpoint)
+    (psi_1 - psi_0)/h, at a Gauss-Legendre stage's time c_s h. The clamp node reads only its own end's row of the
+    section axes and directions, so each sample's (2, 3) arrays stand in for ``tw_clamp`` and ``dirs``; each twist
+    is :func:`node_geometry`'s (its bits), from the two edge frames alone."""
     th, ref, tan, mref, nrm = m.tw_theta, m.tw_ref, m.tw_tan, m.tw_mref, m.tw_normal
     p0 = geometry_twist(edge_frame(xe, samples.dir[0], th, ref, tan, nrm[0], i - 1),
                         edge_frame(xe, samples.dir[0], th, ref, tan, nrm[0], i), mref[i])[0]
+    p1 = geometry_twist(edge_frame(xe, samples.dir[1], th, ref, tan, nrm[1], i - 1),
+                        edge_frame(xe, samples.dir[1], th, ref, tan, nrm[1], i), mref[i])[0]
     p2 = geometry_twist(edge_frame(xe, samples.dir[2], th, ref, tan, nrm[2], i - 1),
                         edge_frame(xe, samples.dir[2], th, ref, tan, nrm[2], i), mref[i])[0]
-    out = (p2 - p0) / h
-    if _needs_half(mid):
-        p1 = geometry_twist(edge_frame(xe, samples.dir[1], th, ref, tan, nrm[1], i - 1),
-                            edge_frame(xe, samples.dir[1], th, ref, tan, nrm[1], i), mref[i])[0]
-        out = _rate_of_samples(mid, p0, p1, p2, h)
-    return out
-
-
-def _needs_half(mid):
-    """Whether :func:`_clamp_rate` reads the half-step sample (its Numba overloads below)."""
-
-
-def _rate_of_samples(mid, p0, p1, p2, h):
-    """The clamp twist's rate [rad/s] from its samples p0, p1, p2 at t, t + h/2, t + h (overloads below)."""
-
-
-@overload(_needs_half, inline="always")
-def _needs_half_impl(mid):
-    """``mid`` a bool (implicit Euler, BDF2: False; implicit midpoint: True): the half-step sample only at t + h;
-    a float (a Gauss-Legendre stage's time as a fraction c of the step): always."""
-    if isinstance(mid, types.Boolean):
-        return lambda mid: not mid
-    return lambda mid: True
-
-
-@overload(_rate_of_samples, inline="always")
-def _rate_of_samples_impl(mid, p0, p1, p2, h):
-    """bool ``mid`` (False): the one-sided second-order rate at t + h; a float c: the derivative of the quadratic
-    through the three samples at t + c h, ((4c - 3) p0 + (4 - 8c) p1 + (4c - 1) p2)/h (second order)."""
-    if isinstance(mid, types.Boolean):
-        return lambda mid, p0, p1, p2, h: (p0 - 4.0 * p1 + 3.0 * p2) / h
-    return lambda mid, p0, p1, p2, h: ((4.0 * mid - 3.0) * p0 + (4.0 - 8.0 * mid) * p1 + (4.0 * mid - 1.0) * p2) / h
+    return ((4.0 * frac - 3.0) * p0 + (4.0 - 8.0 * frac) * p1 + (4.0 * frac - 1.0) * p2) / h
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -447,7 +418,7 @@ def _round_twist(xe, dirs, th, clamp, mref, ktw, f, tq, rate, E, geo, xs, rt, nd
 
 
 @njit(cache=True, error_model="numpy")
-def _residual(m, mp, imp, ws, samples, mid, h, tb, wb, wa, vn, wn, wv, rate, tq, r, g, sc):
+def _residual(m, mp, imp, ws, samples, frac, h, tb, wb, wa, vn, wn, wv, rate, tq, r, g, sc):
     """r <- the coupled residual [N s; N m s] at (v', w') = (vn, wn), interleaved (4 per node); returns its max
     with the twist rows divided by the segment's rest length (force units).
 
@@ -508,12 +479,12 @@ def _residual(m, mp, imp, ws, samples, mid, h, tb, wb, wa, vn, wn, wv, rate, tq,
                     rt += (kb0 * (ve[i, 0] - ve[i - 1, 0]) + kb1 * (ve[i, 1] - ve[i - 1, 1])
                            + kb2 * (ve[i, 2] - ve[i - 1, 2])) / (2.0 * la)
                 else:
-                    rt += _clamp_rate(m, xe, samples, mid, h, i)
+                    rt += _clamp_rate(m, xe, samples, frac, h, i)
                 if i < ns:
                     rt += (kb0 * (ve[i + 1, 0] - ve[i, 0]) + kb1 * (ve[i + 1, 1] - ve[i, 1])
                            + kb2 * (ve[i + 1, 2] - ve[i, 2])) / (2.0 * lb)
                 else:
-                    rt += _clamp_rate(m, xe, samples, mid, h, i)
+                    rt += _clamp_rate(m, xe, samples, frac, h, i)
                 rate[i] = rt
                 s += ct * rt
             geo[5, i] = s
@@ -920,11 +891,11 @@ def _band_lu_coupled(band, lower, rhs):
 
 
 @njit(cache=True, error_model="numpy")
-def _newton_matrix(stepper, m, mp, imp, ws, band, g, sc, exact, lower, upx, samples, mid, h):
+def _newton_matrix(stepper, m, mp, imp, ws, band, g, sc, exact, lower, upx, samples, frac, h):
     """band <- the coupled Newton matrix (upper band, interleaved layout) at the X, V, Theta of the last residual:
     its Gauss-Newton part (symmetric); with ``exact`` the exact Jacobian instead (:func:`_exact_node`'s terms
     added), not symmetric: upper band in ``band``, lower band by columns in ``lower`` (``upx``: scratch of
-    band's shape). samples, mid, h: as :func:`_residual` took them (the clamp rate's derivative)."""
+    band's shape). samples, frac, h: as :func:`_residual` took them (the clamp rate's derivative)."""
     n = ws.x_stage.shape[0]
     ns = n - 1
     xe = ws.x_stage
@@ -946,11 +917,8 @@ def _newton_matrix(stepper, m, mp, imp, ws, band, g, sc, exact, lower, upx, samp
     if exact:
         lower[:, :] = 0.0
         upx[:, :] = 0.0
-        if mid:
-            wts = (-1.0 / h, 0.0, 1.0 / h)
-        else:
-            wts = (1.0 / h, -4.0 / h, 3.0 / h)
-        wt = np.array(wts)
+        # d(clamp rate)/d(sample): the weights of _clamp_rate
+        wt = np.array(((4.0 * frac - 3.0) / h, (4.0 - 8.0 * frac) / h, (4.0 * frac - 1.0) / h))
     else:
         wt = np.zeros(3)
     nd = sc.nd
@@ -1179,7 +1147,7 @@ def coupled_implicit(stepper, m, x, v, samples, ws, has_prev):
     cx, hf = imp.cx, imp.hf
     theta0, omega0, tb, wb, wa = _bases(method, m, h, has_prev)
     g = np.empty((12, 3))
-    mid = method == IMPLICIT_MIDPOINT
+    frac = 0.5 if method == IMPLICIT_MIDPOINT else 1.0  # the residual's time in the step
     size = 4 * n
     band = np.empty((size, HALF_T + 1))
     lower, upx = np.empty((size, HALF_T + 1)), np.empty((size, HALF_T + 1))
@@ -1192,7 +1160,7 @@ def coupled_implicit(stepper, m, x, v, samples, ws, has_prev):
     r_scale, r_floor = _scales(m, x, hf, theta0)
     it = 0
     converged = False
-    rnorm = _residual(m, mp, imp, ws, samples, mid, h, tb, wb, wa, vn, wn, wv, rate, tq, r, g, sc)
+    rnorm = _residual(m, mp, imp, ws, samples, frac, h, tb, wb, wa, vn, wn, wv, rate, tq, r, g, sc)
     kept = True  # the last residual was at the current iterate (sc.edges: its frames)
     first_exact = _first_exact(stepper, m)
     slow = False  # a Gauss-Newton iteration of this step contracted poorly (see _contracted)
@@ -1203,10 +1171,10 @@ def coupled_implicit(stepper, m, x, v, samples, ws, has_prev):
         # large step) the Gauss-Newton matrix instead
         exact = it >= first_exact or slow
         if exact:
-            _newton_matrix(stepper, m, mp, imp, ws, band, g, sc, True, lower, upx, samples, mid, h)
+            _newton_matrix(stepper, m, mp, imp, ws, band, g, sc, exact, lower, upx, samples, frac, h)
             exact = _exact_direction(band, lower, r, r_try)
         if not exact:
-            _newton_matrix(stepper, m, mp, imp, ws, band, g, sc, False, lower, upx, samples, mid, h)
+            _newton_matrix(stepper, m, mp, imp, ws, band, g, sc, exact, lower, upx, samples, frac, h)
             band_solve_upper(band, r, HALF_T, 4)  # r becomes the Newton direction
         phi0 = np.nan
         alpha = 1.0
@@ -1214,15 +1182,15 @@ def coupled_implicit(stepper, m, x, v, samples, ws, has_prev):
         rn_try = 0.0
         for _ in range(12):
             _trial(vn, wn, r, alpha, v_try, w_try, n, ns)
-            rn_try = _residual(m, mp, imp, ws, samples, mid, h, tb, wb, wa, v_try, w_try, wv, rate, tq, r_try, g, sc)
+            rn_try = _residual(m, mp, imp, ws, samples, frac, h, tb, wb, wa, v_try, w_try, wv, rate, tq, r_try, g, sc)
             kept = False
             if rn_try < rnorm or rn_try <= tol * r_scale + r_floor:
                 accepted = True
                 break
             if phi0 != phi0:  # merit at the current iterate, computed once when first needed
-                _residual(m, mp, imp, ws, samples, mid, h, tb, wb, wa, vn, wn, wv, rate, tq, r_try, g, sc)
+                _residual(m, mp, imp, ws, samples, frac, h, tb, wb, wa, vn, wn, wv, rate, tq, r_try, g, sc)
                 phi0 = _merit(m, mp, imp, ws, wa, vn, wn, wv, rate, sc)
-                _residual(m, mp, imp, ws, samples, mid, h, tb, wb, wa, v_try, w_try, wv, rate, tq, r_try, g, sc)
+                _residual(m, mp, imp, ws, samples, frac, h, tb, wb, wa, v_try, w_try, wv, rate, tq, r_try, g, sc)
             if _merit(m, mp, imp, ws, wa, v_try, w_try, wv, rate, sc) <= phi0:
                 accepted = True
                 break
@@ -1365,7 +1333,7 @@ def coupled_contact(stepper, method, m, x, v, samples, ws, has_prev, c, cap_tol=
     cx, cv, hf = imp.cx, imp.cv, imp.hf
     theta0, omega0, tb, wb, wa = _bases(method, m, h, has_prev)
     g = np.empty((12, 3))
-    mid = False
+    frac = 1.0  # implicit Euler, BDF2: the residual at t + h
     size = 4 * n
     band = np.empty((size, HALF_T + 1))
     lower, upx = np.empty((size, HALF_T + 1)), np.empty((size, HALF_T + 1))
@@ -1384,7 +1352,7 @@ def coupled_contact(stepper, method, m, x, v, samples, ws, has_prev, c, cap_tol=
     nc = c.count[0]
     max_iter = max(stepper.max_iter, _contact.MIN_CONTACT_ITER)
     caps_new = np.empty(max(nc, 1))
-    _residual(m, mp, imp, ws, samples, mid, h, tb, wb, wa, vn, wn, wv, rate, tq, r, g, sc)  # X at the predictor
+    _residual(m, mp, imp, ws, samples, frac, h, tb, wb, wa, vn, wn, wv, rate, tq, r, g, sc)  # X at the predictor
     _contact.elastic_caps(c, ws.x_stage, c.cap)  # caps from its penetration
     rnorm = _add_contacts(m, imp, ws, r, c)
     fresh = True  # r, rnorm, the scratch and the contact forces are those of (vn, wn) with the caps in use
@@ -1397,7 +1365,7 @@ def coupled_contact(stepper, method, m, x, v, samples, ws, has_prev, c, cap_tol=
     c.lock[:nc] = 0
     while True:
         if not fresh:
-            _residual(m, mp, imp, ws, samples, mid, h, tb, wb, wa, vn, wn, wv, rate, tq, r, g, sc)
+            _residual(m, mp, imp, ws, samples, frac, h, tb, wb, wa, vn, wn, wv, rate, tq, r, g, sc)
             rnorm = _add_contacts(m, imp, ws, r, c)
         fresh = False
         if it > 0 and rnorm <= tol * (r_scale + _change(m, ws, vn, wn, wa)) + r_floor:
@@ -1414,19 +1382,19 @@ def coupled_contact(stepper, method, m, x, v, samples, ws, has_prev, c, cap_tol=
                 + _contact.contact_potential(c, ws.x_stage, ws.v_stage, cx / cv))
         exact = (it >= first_exact or slow) and not descent
         if exact:
-            _newton_matrix(stepper, m, mp, imp, ws, band, g, sc, True, lower, upx, samples, mid, h)
-            _add_contact_band(c, m.held, ws.x_stage, hf * cx, hf * cv, cb, band, lower, True)
+            _newton_matrix(stepper, m, mp, imp, ws, band, g, sc, exact, lower, upx, samples, frac, h)
+            _add_contact_band(c, m.held, ws.x_stage, hf * cx, hf * cv, cb, band, lower, exact)
             exact = _exact_direction(band, lower, r, r_try)
         if not exact:
-            _newton_matrix(stepper, m, mp, imp, ws, band, g, sc, False, lower, upx, samples, mid, h)
-            _add_contact_band(c, m.held, ws.x_stage, hf * cx, hf * cv, cb, band, lower, False)
+            _newton_matrix(stepper, m, mp, imp, ws, band, g, sc, exact, lower, upx, samples, frac, h)
+            _add_contact_band(c, m.held, ws.x_stage, hf * cx, hf * cv, cb, band, lower, exact)
             band_solve_upper(band, r, HALF_T, 4)  # r becomes the Newton direction
         alpha = 1.0
         accepted = False
         rn_try = 0.0
         for _ in range(30):
             _trial(vn, wn, r, alpha, v_try, w_try, n, ns)
-            _residual(m, mp, imp, ws, samples, mid, h, tb, wb, wa, v_try, w_try, wv, rate, tq, r_try, g, sc)
+            _residual(m, mp, imp, ws, samples, frac, h, tb, wb, wa, v_try, w_try, wv, rate, tq, r_try, g, sc)
             rn_try = _add_contacts(m, imp, ws, r_try, c)
             phi = (_merit(m, mp, imp, ws, wa, v_try, w_try, wv, rate, sc)
                    + _contact.contact_potential(c, ws.x_stage, ws.v_stage, cx / cv))
@@ -1447,12 +1415,13 @@ def coupled_contact(stepper, method, m, x, v, samples, ws, has_prev, c, cap_tol=
         fresh = True
     c.lock[:nc] = 0
     if not converged:  # forces, c.f_n, c.f_t and the frames at the accepted iterate
-        _residual(m, mp, imp, ws, samples, mid, h, tb, wb, wa, vn, wn, wv, rate, tq, r, g, sc)
+        _residual(m, mp, imp, ws, samples, frac, h, tb, wb, wa, vn, wn, wv, rate, tq, r, g, sc)
         _add_contacts(m, imp, ws, r, c)
     for i in range(n):
         for j in range(3):
             ws.residual[3 * i + j] = r[4 * i + j]
-    _finish(method, m, x, v, samples, ws, has_prev, h, cx, theta0, omega0, tb, wn, True, sc)
+    kept = bool(1)  # the last residual is at the solution (a runtime True: a literal compiles _finish twice)
+    _finish(method, m, x, v, samples, ws, has_prev, h, cx, theta0, omega0, tb, wn, kept, sc)
     return it, converged
 
 
@@ -1601,12 +1570,13 @@ def _gl_twist_matrix(stepper, m, mp, x, theta0, h, vs, wsr, hol, ws, samples, hp
     ns = n - 1
     size4 = 4 * n
     band[:, :] = 0.0  # (hol: the holonomy rates of the last residual, taken at vs, wsr)
+    exact = bool(0)  # Gauss-Newton matrices; a runtime False, as the other callers pass: a literal compiles anew
     for s in range(2):
         _gl_stage(m, mp, x, theta0, h, s, vs, wsr, hol, ws, samples, hpos, hvel, hdir, haxes, wv, rate, tq, r4, g, sc)
         imp0 = ImplicitMap(1.0, 0.0, 1.0, hpos[s], hvel[s], hdir[s])
-        _newton_matrix(stepper, m, mp, imp0, ws, cb0, g, sc, False, lower, upx, samples, C1 if s == 0 else C2, h)
+        _newton_matrix(stepper, m, mp, imp0, ws, cb0, g, sc, exact, lower, upx, samples, C1 if s == 0 else C2, h)
         imp1 = ImplicitMap(1.0, 1.0, 1.0, hpos[s], hvel[s], hdir[s])
-        _newton_matrix(stepper, m, mp, imp1, ws, cb1, g, sc, False, lower, upx, samples, C1 if s == 0 else C2, h)
+        _newton_matrix(stepper, m, mp, imp1, ws, cb1, g, sc, exact, lower, upx, samples, C1 if s == 0 else C2, h)
         for a in range(size4):
             fixed_a = (a % 4 != 3 and m.held[a // 4]) or a == size4 - 1
             if fixed_a:
@@ -1840,7 +1810,8 @@ def explicit_twist(stepper, m, x, v, samples, ws, method):
     else:  # explicit / symplectic Euler: forces at the start (the holonomy rate is 0 there)
         xe[:, :] = x
         ve[:, :] = v
-        _explicit_forces(m, mp, xe, ve, theta0, omega0, 0, h, samples, ws, tq, wv, rate, r4, g, sc)
+        # sample 0 as an int64, as the RK4 stages pass it (a literal 0 compiled the kernel a second time)
+        _explicit_forces(m, mp, xe, ve, theta0, omega0, np.int64(0), h, samples, ws, tq, wv, rate, r4, g, sc)
         for i in range(n):
             for j in range(3):
                 a = ws.force[i, j] / m.mass[i]
