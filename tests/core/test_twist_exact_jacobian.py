@@ -51,7 +51,9 @@ def _state(ends, method):
     tb, wa, wb = m.tw_theta.copy(), m.tw_omega.copy(), np.zeros(ns)
     if mid:
         tb, wb = m.tw_theta + 0.25 * H * m.tw_omega, 0.5 * m.tw_omega
-    return dict(m=m, mp=tc._frameless(m), imp=imp, ws=ws, samples=samples, mid=mid, tb=tb, wb=wb, wa=wa,
+    # the residual's time in the step, a float as the step passes it (1: implicit Euler, BDF2; 1/2: the midpoint)
+    frac = 0.5 if mid else 1.0
+    return dict(m=m, mp=tc._frameless(m), imp=imp, ws=ws, samples=samples, frac=frac, tb=tb, wb=wb, wa=wa,
                 wv=np.empty(ns), rate=np.zeros(n), tq=np.empty(ns), g=np.empty((12, 3)), sc=tc.make_scratch(n),
                 stepper=stepper, n=n)
 
@@ -61,7 +63,7 @@ def _residual(s, u):
     vn = np.ascontiguousarray(u.reshape(n, 4)[:, :3])
     wn = np.ascontiguousarray(u.reshape(n, 4)[:-1, 3])
     r = np.empty(4 * n)
-    tc._residual(s["m"], s["mp"], s["imp"], s["ws"], s["samples"], s["mid"], H, s["tb"], s["wb"], s["wa"], vn, wn,
+    tc._residual(s["m"], s["mp"], s["imp"], s["ws"], s["samples"], s["frac"], H, s["tb"], s["wb"], s["wa"], vn, wn,
                  s["wv"], s["rate"], s["tq"], r, s["g"], s["sc"])
     return r
 
@@ -72,7 +74,7 @@ def _matrix(s, u, exact):
     size = 4 * s["n"]
     band, lower, upx = (np.zeros((size, tc.HALF_T + 1)) for _ in range(3))
     tc._newton_matrix(s["stepper"], s["m"], s["mp"], s["imp"], s["ws"], band, s["g"], s["sc"], exact, lower, upx,
-                      s["samples"], s["mid"], H)
+                      s["samples"], s["frac"], H)
     a = np.zeros((size, size))
     for d in range(tc.HALF_T + 1):
         idx = np.arange(size - d)
