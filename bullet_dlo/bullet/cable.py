@@ -67,7 +67,7 @@ import pybullet as pb
 
 from bullet_dlo.bullet.cable_contacts import CABLE_GROUPS, CableContacts  # noqa: F401 (CABLE_GROUPS: its old home)
 from bullet_dlo.bullet.contact import ContactSet
-from bullet_dlo.bullet.native import apply_forces
+from bullet_dlo.bullet.native import apply_forces, kernel_api
 from bullet_dlo.bullet.kernels import StepInput, bind, end_loads
 from bullet_dlo.bullet.recorder import CableRecord  # noqa: F401 (its home before the split)
 from bullet_dlo.bullet.solver import CableSolver
@@ -438,7 +438,7 @@ class BulletCable:
             return
         native = self.world.native_handle()
         if native:  # one compiled call instead of n PyBullet calls
-            args = (native, self._body_array, solver.coupling.force, self.x)
+            args = (kernel_api(native), self._body_array, solver.coupling.force, self.x)
             if self._apply_native is None:
                 self._apply_native = bind(apply_forces, *args)
             self._apply_native(*args)

@@ -60,8 +60,8 @@ from numba import njit
 
 from bullet_dlo.bullet import held_bodies
 from bullet_dlo.bullet.kernels import bind
-from bullet_dlo.bullet.native import (BASE_STATE, _collision_info_init, _status_aabb, _submit, disabled_warning,
-                                      overlapping, read_base_states)
+from bullet_dlo.bullet.native import (BASE_STATE, HANDLE, collision_info_init, disabled_warning, kernel_api,
+                                      overlapping, read_base_states, status_aabb, submit)
 from bullet_dlo.bullet.shape_data import collision_shapes
 from bullet_dlo.core.kernels.contact import (PENALTY, STICK, WRAP, Bodies, Contacts, _gap, _wrap_cap, make_bodies,
                                              make_contacts, mark_wrap_neighbours, wrap_active, wrap_energy, wrap_split)
@@ -619,8 +619,8 @@ class ContactSet:
         # native reads of every row's base state (bullet.native), once checked against PyBullet's
         ne = self.n_exact
         self._bases = np.zeros((ne, BASE_STATE))
-        self._base_args = (native, self.body_ids[:ne].astype(np.int32), self._bases, np.full((ne, 7), np.nan),
-                           np.zeros(ne, dtype=np.bool_))
+        self._base_args = (kernel_api(native) if native else None, self.body_ids[:ne].astype(np.int32), self._bases,
+                           np.full((ne, 7), np.nan), np.zeros(ne, dtype=np.bool_))
         self._read_bases = bind(read_base_states, *self._base_args) if native and ne and self._native_ok() else None
 
     def _hull(self, body: int, link: int, data, radius: float):
@@ -696,8 +696,8 @@ class ContactSet:
         for (b, link), s in self._probe_rows.items():
             row_of[b, link + 1] = s
         nodes, segs, mid, quat, _ = self._cand
-        args = [native, self._cable_box, row_of, self.body_ids.copy(), self.links.copy(), np.zeros((1, 3)), 0.0,
-                self._probe_out, self._capsule >= 0, np.zeros_like(nodes), np.zeros_like(segs), np.zeros_like(mid),
+        args = [kernel_api(native), self._cable_box, row_of, self.body_ids.copy(), self.links.copy(), np.zeros((1, 3)),
+                0.0, self._probe_out, self._capsule >= 0, np.zeros_like(nodes), np.zeros_like(segs), np.zeros_like(mid),
                 np.zeros_like(quat), np.zeros(2, np.int64), np.zeros((4096, 2), np.int32), np.zeros(nb, np.bool_),
                 np.zeros((nb, 2, 3)), np.zeros(nb, np.int64)]
         # check: every PROBE row's box, and the overlap of a box round all of them, as PyBullet answers them
@@ -1468,15 +1468,15 @@ def _probe_candidates(x, box, reach, out, segments, nodes, segs, mid, quat):
     return nn, ns
 
 
-@njit  # (calls Bullet's C API through ctypes: compiled once per process, not cached)
-def _probe_broad(handle, cable_box, row_of, row_body, row_link, x, reach, out, segments, nodes, segs, mid, quat,
+@njit(cache=True)
+def _probe_broad(api, cable_box, row_of, row_body, row_link, x, reach, out, segments, nodes, segs, mid, quat,
                  data, pairs, hit, boxes, todo):
     """:meth:`ContactSet._probe`'s broad phase in one call: the PROBE rows whose links' broad-phase boxes overlap
     ``cable_box`` (``getOverlappingObjects``; ``row_of[body, link + 1]``: the row of a (body, link) pair, -1: none)
     into ``hit`` (rows,), each one's link box (``getAABB``, one collision-info request per body) into ``boxes``
     (rows, 2, 3), and into ``todo`` the rows, in order, where :func:`_probe_candidates` finds a node or a segment
     near the box (its buffers are scratch here). Returns how many (-1: a native read failed)."""
-    count = overlapping(handle, cable_box, data, pairs)
+    count = overlapping(api, cable_box, data, pairs)
     if count < 0:
         return -1
     hit[:] = False
@@ -1494,9 +1494,9 @@ def _probe_broad(handle, cable_box, row_of, row_body, row_link, x, reach, out, s
             continue
         if row_body[s] != body:  # one request answers every link of the body (the rows of a body are adjacent)
             body = row_body[s]
-            status = _submit(handle, _collision_info_init(handle, body))
+            status = submit(api, api[HANDLE], collision_info_init(api, api[HANDLE], body))
         box = boxes[s]
-        if _status_aabb(status, row_link[s], box.ctypes.data, box.ctypes.data + 24) == 0:
+        if status_aabb(api, status, row_link[s], box.ctypes.data, box.ctypes.data + 24) == 0:
             return -1
         nn, ns = _probe_candidates(x, box, reach, out[s], segments, nodes, segs, mid, quat)
         if nn > 0 or ns > 0:

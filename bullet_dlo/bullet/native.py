@@ -10,8 +10,12 @@ the handle of their physics server (``b3PluginContext.m_physClient``), and
 system's C compiler on first use and cached (``BULLET_DLO_CACHE``, default
 ``~/.cache/bullet_dlo``).
 
-The kernels here take that handle and plain arrays. Numba cannot cache code that calls ctypes
-functions, so they compile once per process (about 0.4 s each, on first use). Without a C
+The kernels here take that handle, with the addresses of the C functions they call, as one array
+(:func:`kernel_api`) and plain arrays. They call through those addresses (:func:`c_function`), not
+through ctypes objects: Numba compiles a ctypes object's address into the code, which it therefore
+cannot cache, and every process compiled the six kernels again (about 2.4 s of CPU each). The
+addresses differ between processes (the library loads anywhere), so they travel as an argument and
+the kernels are cached like every other. Without a C
 compiler, when the plugin does not load, or with ``BULLET_DLO_NATIVE=0``, :func:`connect`
 returns 0 and callers use PyBullet's Python API; results are identical either way
 (``tests/bullet/test_native.py``). Each reader checks a native read against PyBullet's once
@@ -30,7 +34,10 @@ from pathlib import Path
 
 import numpy as np
 import pybullet as pb
-from numba import njit
+from llvmlite import ir
+from numba import njit, types
+from numba.core import cgutils
+from numba.extending import intrinsic
 
 from bullet_dlo.bullet.kernels import bind
 
@@ -68,24 +75,72 @@ def _c(name: str, restype, *argtypes):
     return f
 
 
-_force_init = _c("b3ApplyExternalForceCommandInit", _U, _U)
-_add_force = _c("b3ApplyExternalForce", None, _U, _I, _I, _U, _U, _I)
-_add_torque = _c("b3ApplyExternalTorque", None, _U, _I, _I, _U, _I)
+_sync_init = _c("b3InitSyncBodyInfoCommand", _U, _U)  # (Python side: connect)
 _submit = _c("b3SubmitClientCommandAndWaitStatus", _U, _U, _U)
 _status_type = _c("b3GetStatusType", _I, _U)
-_state_init = _c("b3RequestActualStateCommandInit", _U, _U, _I)
-_state_velocity = _c("b3RequestActualStateCommandComputeLinkVelocity", _I, _U, _I)
-_state_kinematics = _c("b3RequestActualStateCommandComputeForwardKinematics", _I, _U, _I)
-_link_state = _c("b3GetLinkState", _I, _U, _U, _I, _U)
-_joint_state = _c("b3GetJointState", _I, _U, _U, _I, _U)
-_sync_init = _c("b3InitSyncBodyInfoCommand", _U, _U)
-_actual_state = _c("b3GetStatusActualState", _I, _U, _U, _U, _U, _U, _U, _U, _U)
-_overlap_init = _c("b3InitAABBOverlapQuery", _U, _U, _U, _U)
-_overlap_results = _c("b3GetAABBOverlapResults", None, _U, _U)
-_collision_info_init = _c("b3RequestCollisionInfoCommandInit", _U, _U, _I)
-_status_aabb = _c("b3GetStatusAABB", _I, _U, _I, _U, _U)
-_memcpy = ctypes.CDLL(None).memcpy  # reads the doubles behind the pointers the C API hands out
-_memcpy.restype, _memcpy.argtypes = _U, [_U, _U, _U]
+
+# ----- the C functions the kernels call, by address ------------------------------------------------
+_C_TYPES = {"u": types.uint64, "i": types.int32, "v": types.void}
+_KERNEL_API: list[str] = []  # their names; their addresses follow the handle in kernel_api()
+
+
+def c_function(name: str, signature: str):
+    """A Numba intrinsic ``f(api, *args)`` that calls C function ``name`` at the address ``api`` holds for it
+    (``api``: :func:`kernel_api`'s array). ``signature`` "r:ab..": the return type r, then each argument's,
+    u a 64-bit integer or pointer, i a C int, v void (return only); arguments are converted to them."""
+    ret, params = signature.split(":")
+    _KERNEL_API.append(name)
+    slot = len(_KERNEL_API)  # api[0] is the handle
+
+    @intrinsic
+    def call(typingctx, api, *args):
+        if len(args) != len(params) or not isinstance(api, types.Array):
+            return None
+
+        def codegen(context, builder, sig, llargs):
+            table = context.make_array(api)(context, builder, llargs[0])
+            where = cgutils.get_item_pointer(context, builder, api, table, [context.get_constant(types.intp, slot)])
+            fnty = ir.FunctionType(ir.VoidType() if ret == "v" else context.get_value_type(_C_TYPES[ret]),
+                                   [context.get_value_type(_C_TYPES[p]) for p in params])
+            fn = builder.inttoptr(builder.load(where), fnty.as_pointer())
+            values = [context.cast(builder, builder.extract_value(llargs[1], k), args[k], _C_TYPES[p])
+                      for k, p in enumerate(params)]
+            out = builder.call(fn, values)
+            return context.get_dummy_value() if ret == "v" else out
+        return _C_TYPES[ret](api, types.StarArgTuple.from_types(args)), codegen
+    return call
+
+
+force_init = c_function("b3ApplyExternalForceCommandInit", "u:u")
+add_force = c_function("b3ApplyExternalForce", "v:uiiuui")
+add_torque = c_function("b3ApplyExternalTorque", "v:uiiui")
+submit = c_function("b3SubmitClientCommandAndWaitStatus", "u:uu")
+state_init = c_function("b3RequestActualStateCommandInit", "u:ui")
+state_velocity = c_function("b3RequestActualStateCommandComputeLinkVelocity", "i:ui")
+state_kinematics = c_function("b3RequestActualStateCommandComputeForwardKinematics", "i:ui")
+link_state = c_function("b3GetLinkState", "i:uuiu")
+joint_state = c_function("b3GetJointState", "i:uuiu")
+actual_state = c_function("b3GetStatusActualState", "i:uuuuuuuu")
+overlap_init = c_function("b3InitAABBOverlapQuery", "u:uuu")
+overlap_results = c_function("b3GetAABBOverlapResults", "v:uu")
+collision_info_init = c_function("b3RequestCollisionInfoCommandInit", "u:ui")
+status_aabb = c_function("b3GetStatusAABB", "i:uiuu")
+memcpy = c_function("memcpy", "u:uuu")  # reads the doubles behind the pointers the C API hands out
+_ADDRESSES = np.array([ctypes.cast(getattr(ctypes.CDLL(None) if n == "memcpy" else _lib, n), ctypes.c_void_p).value
+                       for n in _KERNEL_API], dtype=np.uint64)
+HANDLE = 0  # api[HANDLE]: the C client handle
+_APIS: dict[int, np.ndarray] = {}
+
+
+def kernel_api(handle: int) -> np.ndarray:
+    """The kernels' first argument for connection ``handle`` (from :func:`connect`): the handle, then the
+    addresses of the C functions they call in this process, uint64 (1 + functions,)."""
+    api = _APIS.get(handle)
+    if api is None:
+        api = _APIS[handle] = np.concatenate([np.array([handle], dtype=np.uint64), _ADDRESSES])
+        api.flags.writeable = False
+    return api
+
 BASE_STATE = 13
 """Doubles per base state: CoM position (0:3), quaternion (3:7), linear (7:10) and angular (10:13) velocity."""
 
@@ -153,61 +208,66 @@ def disabled_warning(what: str, why: str) -> None:
                   stacklevel=3)
 
 
-# ----- kernels (compiled on first use, once per process) ------------------------------------------
-@njit
-def apply_forces(handle, bodies, force, point):
+# ----- kernels (``api``: kernel_api(handle)) ----------------------------------------------------
+@njit(cache=True)
+def apply_forces(api, bodies, force, point):
     """Force [N] (k, 3) at world point [m] (k, 3) on the base of each of ``bodies`` (k,) for the coming step."""
+    handle = api[HANDLE]
     for i in range(bodies.shape[0]):
-        cmd = _force_init(handle)
-        _add_force(cmd, bodies[i], -1, force.ctypes.data + 24 * i, point.ctypes.data + 24 * i, WORLD_FRAME)
-        _submit(handle, cmd)
+        cmd = force_init(api, handle)
+        add_force(api, cmd, bodies[i], -1, force.ctypes.data + 24 * i, point.ctypes.data + 24 * i, WORLD_FRAME)
+        submit(api, handle, cmd)
 
 
-@njit
-def apply_wrenches(handle, bodies, links, active, force, point, torque):
+@njit(cache=True)
+def apply_wrenches(api, bodies, links, active, force, point, torque):
     """On link ``links[i]`` of each body ``bodies[i]`` with ``active[i]`` (k,): force [N] (k, 3) at world
     point [m] ``point[i]`` (k, 3) and torque [N m] (k, 3), for the coming step."""
+    handle = api[HANDLE]
     for i in range(bodies.shape[0]):
         if not active[i]:
             continue
-        cmd = _force_init(handle)
-        _add_force(cmd, bodies[i], links[i], force.ctypes.data + 24 * i, point.ctypes.data + 24 * i, WORLD_FRAME)
-        _submit(handle, cmd)
-        cmd = _force_init(handle)
-        _add_torque(cmd, bodies[i], links[i], torque.ctypes.data + 24 * i, WORLD_FRAME)
-        _submit(handle, cmd)
+        cmd = force_init(api, handle)
+        add_force(api, cmd, bodies[i], links[i], force.ctypes.data + 24 * i, point.ctypes.data + 24 * i, WORLD_FRAME)
+        submit(api, handle, cmd)
+        cmd = force_init(api, handle)
+        add_torque(api, cmd, bodies[i], links[i], torque.ctypes.data + 24 * i, WORLD_FRAME)
+        submit(api, handle, cmd)
 
 
-@njit
-def read_states(handle, bodies, links, joints, link_out, joint_out):
+@njit(cache=True)
+def read_states(api, bodies, links, joints, link_out, joint_out):
     """One actual-state request per body (velocities and forward kinematics on): the link states of
     ``links[b]`` into ``link_out[b]`` (rows of :data:`ROW` doubles) and the state of joint ``joints[b]``
     (its reaction wrench at 2:8) into ``joint_out[b]``. Returns how many reads failed (0: all good)."""
+    handle = api[HANDLE]
     failed = 0
     for b in range(bodies.shape[0]):
-        cmd = _state_init(handle, bodies[b])
-        _state_velocity(cmd, 1)
-        _state_kinematics(cmd, 1)
-        status = _submit(handle, cmd)
+        cmd = state_init(api, handle, bodies[b])
+        state_velocity(api, cmd, 1)
+        state_kinematics(api, cmd, 1)
+        status = submit(api, handle, cmd)
         for k in range(links.shape[1]):
-            failed += 1 - _link_state(handle, status, links[b, k], link_out.ctypes.data + 8 * ROW * (b * links.shape[1] + k))
-        failed += 1 - _joint_state(handle, status, joints[b], joint_out.ctypes.data + 8 * JOINT_STATE * b)
+            row = link_out.ctypes.data + 8 * ROW * (b * links.shape[1] + k)
+            failed += 1 - link_state(api, handle, status, links[b, k], row)
+        failed += 1 - joint_state(api, handle, status, joints[b], joint_out.ctypes.data + 8 * JOINT_STATE * b)
     return failed
 
 
-@njit
-def read_base_states(handle, bodies, out, prev, moved):
+@njit(cache=True)
+def read_base_states(api, bodies, out, prev, moved):
     """Base state of each of ``bodies`` (k,) into ``out`` (k, :data:`BASE_STATE`), as PyBullet's
     getBasePositionAndOrientation and getBaseVelocity give it; ``moved[b]``: the pose differs from
     ``prev[b]`` (k, 7), which becomes it. Returns how many moved (-1: a read failed)."""
+    handle = api[HANDLE]
     pointers = np.zeros(2, dtype=np.uint64)  # where the status keeps q and q-dot
     count = 0
     for b in range(bodies.shape[0]):
-        status = _submit(handle, _state_init(handle, bodies[b]))
-        if _actual_state(status, 0, 0, 0, 0, pointers.ctypes.data, pointers.ctypes.data + 8, 0) == 0:
+        status = submit(api, handle, state_init(api, handle, bodies[b]))
+        if actual_state(api, status, 0, 0, 0, 0, pointers.ctypes.data, pointers.ctypes.data + 8, 0) == 0:
             return -1
-        _memcpy(out.ctypes.data + 8 * BASE_STATE * b, pointers[0], 56)  # base position and quaternion
-        _memcpy(out.ctypes.data + 8 * (BASE_STATE * b + 7), pointers[1], 48)  # base velocities
+        memcpy(api, out.ctypes.data + 8 * BASE_STATE * b, pointers[0], 56)  # base position and quaternion
+        memcpy(api, out.ctypes.data + 8 * (BASE_STATE * b + 7), pointers[1], 48)  # base velocities
         same = True
         for j in range(7):
             if out[b, j] != prev[b, j]:  # NaN (never read) counts as moved
@@ -218,20 +278,21 @@ def read_base_states(handle, bodies, out, prev, moved):
     return count
 
 
-@njit
-def overlapping(handle, box, data, pairs):
+@njit(cache=True)
+def overlapping(api, box, data, pairs):
     """PyBullet's ``getOverlappingObjects(box[0], box[1])``: the (body, link) pairs whose broad-phase boxes overlap
     ``box`` (2, 3) [m] into ``pairs`` (k, 2) int32; ``data`` (2,) int64 is scratch (Bullet's b3AABBOverlapData).
     Returns their count (-1: more than ``pairs`` holds)."""
+    handle = api[HANDLE]
     data[0] = 0
     data[1] = 0
-    _submit(handle, _overlap_init(handle, box.ctypes.data, box.ctypes.data + 24))
-    _overlap_results(handle, data.ctypes.data)
+    submit(api, handle, overlap_init(api, handle, box.ctypes.data, box.ctypes.data + 24))
+    overlap_results(api, handle, data.ctypes.data)
     count = data[0] & 0xFFFFFFFF  # int m_numOverlappingObjects, then the pointer to the (id, link) pairs
     if count > pairs.shape[0]:
         return -1
     if count > 0:
-        _memcpy(pairs.ctypes.data, data[1], 8 * count)
+        memcpy(api, pairs.ctypes.data, data[1], 8 * count)
     return count
 
 
@@ -258,7 +319,8 @@ class StateReader:
             if not self._native_matches():
                 disabled_warning("StateReader", "a native read differs from PyBullet's: unknown struct layout")
                 self.handle = 0
-        self._args = (self.handle, self.bodies, self.links, self.joints, self.link_rows, self.joint_rows)
+        api = kernel_api(self.handle) if self.handle else None
+        self._args = (api, self.bodies, self.links, self.joints, self.link_rows, self.joint_rows)
         self._read_native = bind(read_states, *self._args) if self.handle else None  # no per-call dispatch
 
     def read(self) -> None:
@@ -281,7 +343,8 @@ class StateReader:
     def _native_matches(self) -> bool:
         self._read_python()
         links, joints = self.link_rows.copy(), self.joint_rows.copy()
-        if read_states(self.handle, self.bodies, self.links, self.joints, self.link_rows, self.joint_rows) != 0:
+        api = kernel_api(self.handle)
+        if read_states(api, self.bodies, self.links, self.joints, self.link_rows, self.joint_rows) != 0:
             return False
         return (np.array_equal(links[..., :LINK_STATE_FIELDS], self.link_rows[..., :LINK_STATE_FIELDS])
                 and np.array_equal(joints, self.joint_rows))

@@ -32,7 +32,7 @@ import numpy as np
 
 from bullet_dlo.core.integrators import NewtonOptions, get_integrator, make_stepper
 from bullet_dlo.core.kernels.forces import clamp_torque, internal_energy, max_strain, mechanical_energy
-from bullet_dlo.core.kernels.holders import HeldSamples, empty_samples, peak_speeds, sample_holders
+from bullet_dlo.core.kernels.holders import HeldSamples, HolderPlan, empty_samples, peak_speeds, sample_holders
 from bullet_dlo.core.kernels.loop import make_records, run_loop, start_loop
 from bullet_dlo.core.kernels.monitor import REASONS, STABLE, STRETCH, Detector, clamp_moments, end_forces
 from bullet_dlo.core.kernels.steppers import make_workspace
@@ -76,6 +76,7 @@ CONFIRM_STRAIN_BOUND = 1e3  # the re-run's bound: a segment 1000x its rest lengt
 NEWTON_WARN_SHARE = 0.01  # warn when Newton fails to converge in more than this share of the steps
 MOVE_WARN_SEGMENTS = 1.0  # warn when a held end moves more than this many segment lengths in one step
 MOVE_SAMPLES = 20_000  # times at which the held ends' speed is sampled for that warning
+PEAK_MEMO_SIZE = 64  # motions whose sampled peak speeds are kept (a fit runs each recording's motion many times)
 STRAIN_REASON = REASONS[STRETCH]
 
 
@@ -222,11 +223,29 @@ def fastest_held_move(model: CableModel, dt: float, duration: float) -> tuple[fl
     moving = [held[e] and any(t.shape[0] for t in tables[e]) for e in (0, 1)]
     if not any(moving):
         return 0.0, "", 0.0
-    peak = np.zeros(2)
-    peak_speeds(plan, duration, max(MOVE_SAMPLES, 4 * int(duration / dt) + 1), empty_samples(), peak)
+    peak = sampled_peak_speeds(plan, duration, max(MOVE_SAMPLES, 4 * int(duration / dt) + 1))
     peak[~np.array(moving)] = 0.0
     e = int(np.argmax(peak))
     return float(peak[e]) * dt / float(np.min(model.arrays.rest_length)), ("first", "last")[e], float(peak[e])
+
+
+_PEAK_MEMO: dict[tuple, np.ndarray] = {}
+
+
+def sampled_peak_speeds(plan: HolderPlan, duration: float, count: int) -> np.ndarray:
+    """:func:`~bullet_dlo.core.kernels.holders.peak_speeds` of both ends [m/s] (2,), over [0, duration] [s] at
+    ``count`` times, remembered for the last :data:`PEAK_MEMO_SIZE` motions: sampling costs about 0.14 s
+    (20,000 times), as much as a fit's whole run of a short recording, and a fit runs the same motion with
+    other parameters tens of times. The key is the plan's bytes, so an equal motion gives the same answer."""
+    key = (duration, count, *((a.shape, a.tobytes()) for a in map(np.asarray, plan)))
+    peak = _PEAK_MEMO.pop(key, None)
+    if peak is None:
+        peak = np.zeros(2)
+        peak_speeds(plan, duration, count, empty_samples(), peak)
+        if len(_PEAK_MEMO) >= PEAK_MEMO_SIZE:
+            del _PEAK_MEMO[next(iter(_PEAK_MEMO))]  # the least recently used
+    _PEAK_MEMO[key] = peak  # (re)inserted last: the most recently used
+    return peak.copy()
 
 
 def confirm_strain(model: CableModel, first: SimulationResult,

@@ -14,16 +14,17 @@ import os
 
 import pytest
 
-from bullet_dlo.core.boundary import Move
+from bullet_dlo.core.boundary import Move, Waypoints
 from bullet_dlo.core.engine import simulate
-from bullet_dlo.core.kernels import steppers, twist_coupled
+from bullet_dlo.core.kernels import holders, steppers, twist_coupled
 from bullet_dlo.core.model import CableModel
 from bullet_dlo.core.spec import CableSpec
 
 INTEGRATORS = ("explicit_euler", "symplectic_euler", "rk4", "implicit_euler", "bdf2", "implicit_midpoint",
                "gauss_legendre")
 KERNELS = (twist_coupled._newton_matrix, twist_coupled._residual, twist_coupled._clamp_rate,
-           twist_coupled._explicit_forces, twist_coupled._finish, steppers._rk4_stage)
+           twist_coupled._explicit_forces, twist_coupled._finish, steppers._rk4_stage,
+           holders.sample_end, holders.held_pose, holders._end_at_rest, holders._rest_end, holders.quintic)
 
 
 def _signatures(kernel) -> list[tuple]:
@@ -40,7 +41,9 @@ def _differing(signatures: list[tuple], names: tuple[str, ...]) -> list[str]:
 
 @pytest.mark.skipif(os.environ.get("NUMBA_DISABLE_JIT", "0") != "0", reason="NUMBA_DISABLE_JIT: nothing is compiled")
 def test_every_integrators_kernels_have_one_signature():
-    moves = [Move("last", (0.0, 0.01, 0.005), 0.0, 0.01, rotation=(0.3, 0.0, 0.0))]
+    path = Waypoints("first", (0.0, 1e-3, 2e-3), ((0, 0, 0), (0, 0, 1e-3), (0, 1e-3, 0)),
+                     rotations=((0, 0, 0), (0.1, 0, 0), (0.1, 0.1, 0)))  # quintic segments (holders.quintic)
+    moves = [Move("last", (0.0, 0.01, 0.005), 0.0, 0.01, rotation=(0.3, 0.0, 0.0)), path]
     model = CableModel.straight(CableSpec.lv2017(n_masses=6, twist=True), ends=("clamped", "clamped"), motion=moves)
     for integrator in INTEGRATORS:
         assert simulate(model, integrator, 1e-4, 2e-3, max_records=3).stable or integrator == "explicit_euler"

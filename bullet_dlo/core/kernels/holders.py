@@ -184,9 +184,13 @@ def add_path(path, t, pos, vel, acc, direction, normal):
         if moving:
             vel[j] += dp / dur
             acc[j] += ddp / (dur * dur)
-    rotate(direction, quintic(path, lo, 20, u)[0], quintic(path, lo, 21, u)[0], quintic(path, lo, 22, u)[0])
+    # the rotation vector [rad] (np.int64 columns: a literal would compile quintic once per constant)
+    rx = quintic(path, lo, np.int64(20), u)[0]
+    ry = quintic(path, lo, np.int64(21), u)[0]
+    rz = quintic(path, lo, np.int64(22), u)[0]
+    rotate(direction, rx, ry, rz)
     if normal.shape[0] == 3:
-        rotate(normal, quintic(path, lo, 20, u)[0], quintic(path, lo, 21, u)[0], quintic(path, lo, 22, u)[0])
+        rotate(normal, rx, ry, rz)
 
 
 @njit(cache=True, error_model="numpy")
@@ -290,8 +294,8 @@ def sample_holders(plan, t, h, samples):
     An end with no motion (a fixed clamp or pin, or a free end) takes the fast path :func:`_rest_end`
     (see :func:`sample_end`).
     """
-    sample_end(plan, 0, t, h, samples)
-    sample_end(plan, 1, t, h, samples)
+    for end in range(2):  # (a loop, not two literal ends: sample_end and its callees compile once)
+        sample_end(plan, end, t, h, samples)
 
 
 @njit(cache=True, error_model="numpy")

@@ -38,7 +38,7 @@ from scipy.spatial.transform import Rotation
 
 from bullet_dlo.bullet.cable import BulletCable
 from bullet_dlo.bullet.kernels import bind
-from bullet_dlo.bullet.native import StateReader, apply_wrenches
+from bullet_dlo.bullet.native import StateReader, apply_wrenches, kernel_api
 from bullet_dlo.bullet.world import BulletWorld, add_obstacles
 from bullet_dlo.config.robot import CALIBRATION_TILTS, DualArmSpec, RobotSpec, load_robot_spec
 from bullet_dlo.core.boundary import default_normal
@@ -356,7 +356,8 @@ class DualArmPhysics:
         native = self.world.native_handle()
         if native:
             self._held_mask[0], self._held_mask[1] = held
-            args = (native, self.reader.bodies, self._grasp_links, self._held_mask, forces, points, torques)
+            args = (kernel_api(native), self.reader.bodies, self._grasp_links, self._held_mask, forces, points,
+                    torques)
             if self._apply_wrenches is None:
                 self._apply_wrenches = bind(apply_wrenches, *args)
             self._apply_wrenches(*args)
