@@ -70,7 +70,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from scipy import stats
 from scipy.interpolate import CubicSpline
 from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
@@ -741,6 +740,8 @@ def trial_intervals(centre: np.ndarray, loo: np.ndarray, own: np.ndarray, weight
     n = len(loo)
     w = np.asarray(weights, dtype=float)
     n_eff = np.minimum(w.sum(axis=0) ** 2 / np.maximum((w ** 2).sum(axis=0), 1e-300), n)
+    from scipy import stats  # here: importing it costs every CLI call 0.7 s (the parser imports this module)
+
     t = stats.t.ppf(0.5 + level / 2, np.maximum(n_eff - 1.0, 1.0))
     if n < 2:
         inf = np.full(len(centre), math.inf)
