@@ -20,6 +20,7 @@ import numpy as np
 
 N_JOINTS = 7
 FLANGE_LINK = 7  # panda_link8 (joint index of the fixed joint 8 in pybullet_data's panda.urdf)
+PATHS_KEPT = 8  # joint paths whose flange poses and Jacobians a Panda keeps (Panda._along)
 
 
 def external_torques(jacobian: np.ndarray, wrench: np.ndarray) -> np.ndarray:
@@ -73,8 +74,8 @@ class Panda:
             self._cid = None
 
     def _set(self, q: Sequence[float]) -> None:
-        for j in range(N_JOINTS):
-            self._p.resetJointState(self._arm, j, float(q[j]), physicsClientId=self._cid)
+        self._p.resetJointStatesMultiDof(self._arm, range(N_JOINTS), [[float(q[j])] for j in range(N_JOINTS)],
+                                         physicsClientId=self._cid)  # one call, not seven
 
     def _full(self, values: Sequence[float]) -> list[float]:
         """7 arm values padded with zeros for the fingers (PyBullet wants every movable joint)."""
@@ -113,10 +114,27 @@ class Panda:
         return np.array(m)[:N_JOINTS, :N_JOINTS]
 
     def flange_path(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Flange positions [m], (k, 3), and rotations, (k, 3, 3), for joint rows q [rad], (k, 7)."""
-        poses = [self.flange_pose(row) for row in np.asarray(q)]
-        return np.array([p for p, _ in poses]), np.array([r for _, r in poses])
+        """Flange positions [m], (k, 3), and rotations, (k, 3, 3), for joint rows q [rad], (k, 7) (remembered:
+        :meth:`_along`)."""
+        def compute(rows):
+            poses = [self.flange_pose(row) for row in rows]
+            return np.array([p for p, _ in poses]), np.array([r for _, r in poses])
+        pos, rot = self._along("flange_path", q, compute)
+        return pos.copy(), rot.copy()
 
     def jacobians(self, q: np.ndarray) -> np.ndarray:
-        """:meth:`jacobian` for joint rows q [rad], (k, 7): (k, 6, 7)."""
-        return np.array([self.jacobian(row) for row in np.asarray(q)])
+        """:meth:`jacobian` for joint rows q [rad], (k, 7): (k, 6, 7) (remembered: :meth:`_along`)."""
+        return self._along("jacobians", q, lambda rows: np.array([self.jacobian(row) for row in rows])).copy()
+
+    def _along(self, what: str, q: np.ndarray, compute):
+        """``compute(q)`` for joint rows q, kept for the last :data:`PATHS_KEPT` joint paths: a fit predicts the
+        same recordings with other strip parameters many times, and the arm's kinematics along a recording cost
+        more than the strip's run (one PyBullet pose reset and query per row)."""
+        rows = np.ascontiguousarray(q, dtype=float)
+        key = (what, rows.shape, rows.tobytes())
+        memo = self.__dict__.setdefault("_paths", {})
+        if key not in memo:
+            if len(memo) >= PATHS_KEPT:
+                del memo[next(iter(memo))]
+            memo[key] = compute(rows)
+        return memo[key]
