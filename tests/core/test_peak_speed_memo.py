@@ -29,3 +29,19 @@ def test_a_motion_run_again_samples_its_peak_speed_once_and_another_motion_anew(
     assert _run(1e-3, 2 * SPEC.youngs_modulus) == [] and len(calls) == 1  # same motion, other cable: remembered
     assert len(_run(fast)) == 1 and len(calls) == 2  # another motion: sampled, and it warns
     assert _run(1e-3) == [] and len(calls) == 2  # the first motion's answer kept
+
+
+def test_a_fine_step_samples_the_motion_not_the_steps(monkeypatch):
+    """At dt 1 us a 0.4 s run was sampled 1.6 million times (6 s of CPU) for a move of 0.1 s; now 100 times per
+    shortest feature, and the peak is still the minimum-jerk closed form 1.875 d / T."""
+    from bullet_dlo.core.boundary import Move
+    from bullet_dlo.core.engine import fastest_held_move
+
+    monkeypatch.setattr(engine, "_PEAK_MEMO", {}, raising=False)
+    counts = []
+    sample = engine.peak_speeds
+    monkeypatch.setattr(engine, "peak_speeds", lambda *args: (counts.append(args[2]), sample(*args))[1])
+    model = CableModel.straight(SPEC, ends=("clamped", "clamped"), motion=[Move("last", (0.0, 0.0, 0.01), 0.1, 0.1)])
+    _, end, speed = fastest_held_move(model, 1e-6, 0.4)
+    assert end == "last" and abs(speed - 1.875 * 0.01 / 0.1) < 1e-3 * speed
+    assert counts == [401]  # 100 per 0.1 s move over 0.4 s, not 4 per step (1.6 million)
