@@ -16,7 +16,7 @@ through ctypes objects: Numba compiles a ctypes object's address into the code, 
 cannot cache, and every process compiled the six kernels again (about 2.4 s of CPU each). The
 addresses differ between processes (the library loads anywhere), so they travel as an argument and
 the kernels are cached like every other. Without a C
-compiler, when the plugin does not load, or with ``BULLET_DLO_NATIVE=0``, :func:`connect`
+compiler, when the plugin does not load, with ``BULLET_DLO_NATIVE=0`` or ``NUMBA_DISABLE_JIT=1``, :func:`connect`
 returns 0 and callers use PyBullet's Python API; results are identical either way
 (``tests/bullet/test_native.py``). Each reader checks a native read against PyBullet's once
 before trusting the layout of Bullet's structs (:data:`LINK_STATE_FIELDS`).
@@ -146,8 +146,11 @@ BASE_STATE = 13
 
 
 def enabled() -> bool:
-    """Whether native calls may be used (``BULLET_DLO_NATIVE=0`` turns them off)."""
-    return os.environ.get("BULLET_DLO_NATIVE", "1") != "0"
+    """Whether native calls may be used (``BULLET_DLO_NATIVE=0`` turns them off, and so does ``NUMBA_DISABLE_JIT=1``:
+    the kernels' C calls are compiled intrinsics, which plain Python cannot run)."""
+    from numba.core import config
+
+    return os.environ.get("BULLET_DLO_NATIVE", "1") != "0" and not config.DISABLE_JIT
 
 
 def _cache_dir() -> Path:

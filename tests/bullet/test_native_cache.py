@@ -41,6 +41,7 @@ print(json.dumps({name: [len(f.signatures), sum(f.stats.cache_misses.values()), 
 
 
 @pytest.mark.skipif(native.plugin_library() is None, reason="no C compiler: the handle plugin cannot be built here")
+@pytest.mark.skipif(not native.enabled(), reason="native calls off (BULLET_DLO_NATIVE=0 or NUMBA_DISABLE_JIT=1)")
 def test_native_kernels_load_from_the_cache_in_a_new_process():
     runs = []
     for _ in range(2):  # the first may compile (a cold cache); the second must load every kernel
