@@ -5,7 +5,7 @@ A PET ribbon (0.4 m, 20 x 0.3 mm, E 2 GPa, damping_rate 5) is clamped 5 cm above
 (BDF2 by default, the model's contact). Each case runs ``--duration`` s or until the run's instability detector stops
 it, and prints whether it stayed stable (else when and why it was stopped), its Newton failures, the twist angles'
 range at the end [rad] and the lowest node's height over the run's last 0.2 s [mm] (a cable at rest on the ground
-sits at its radius, 0.5 mm).
+sits at its radius: 0.5 mm for the contact's ``--diameter`` of 1 mm).
 
 What it shows (the table in docs/concepts/model.md, "Where Gauss-Newton fails"): a ribbon clamped flat lands at
 every rate; with its section tilted, it lands frictionless and fails with friction, at 240 Hz, 1 kHz and 4 kHz,
@@ -17,6 +17,7 @@ which leaves out the anisotropic bending's curvature terms and does not converge
 
     python demos/ribbon_landing.py                        # rolls 0, 0.3, 1; friction 0 and 0.3; 240 Hz, 1 kHz
     python demos/ribbon_landing.py --rates 4000 --rolls 0.3
+    python demos/ribbon_landing.py --rates 1000 --rolls 0.3 --frictions 0.3 --widths 0.0006 0.003 0.01 0.02
     python demos/ribbon_landing.py --quick                # one tilted case each way, 1 kHz (~10 s)
 """
 from __future__ import annotations
@@ -32,20 +33,23 @@ from bullet_dlo.core.spec import CableSpec
 
 HEIGHT = 0.05  # [m] the clamp above the ground
 SETTLE_WINDOW = 0.2  # [s] the last part of a run whose lowest node is reported
+WIDTH, THICKNESS = 0.02, 0.0003  # [m] the ribbon's section
+DIAMETER = 0.001  # [m] the round section the contact sees
 
 
-def ribbon(n_masses: int, friction: float) -> CableSpec:
-    """The PET ribbon: 0.4 m, 20 x 0.3 mm, density 1400 kg/m^3, E 2 GPa; Coulomb friction ``friction`` (static and
-    dynamic)."""
-    return CableSpec(length=0.4, diameter=0.001, mass=0.4 * 0.02 * 0.0003 * 1400, youngs_modulus=2e9,
-                     section="rectangle", width=0.02, thickness=0.0003, n_masses=n_masses, damping_rate=5.0,
+def ribbon(n_masses: int, friction: float, width: float = WIDTH, diameter: float = DIAMETER) -> CableSpec:
+    """The PET ribbon: 0.4 m, ``width`` [m] x 0.3 mm, density 1400 kg/m^3, E 2 GPa; Coulomb friction ``friction``
+    (static and dynamic); the contact's round section ``diameter`` [m]."""
+    return CableSpec(length=0.4, diameter=diameter, mass=0.4 * width * THICKNESS * 1400, youngs_modulus=2e9,
+                     section="rectangle", width=width, thickness=THICKNESS, n_masses=n_masses, damping_rate=5.0,
                      static_friction=friction, dynamic_friction=friction)
 
 
-def land(rate: float, roll: float, friction: float, n_masses: int, duration: float, method: str) -> dict:
+def land(rate: float, roll: float, friction: float, n_masses: int, duration: float, method: str,
+         width: float = WIDTH, diameter: float = DIAMETER) -> dict:
     """One landing at ``rate`` [Hz] from a clamp rolled ``roll`` [rad]; returns what the module doc lists."""
-    model = CableModel.straight(ribbon(n_masses, friction), start=(0.0, 0.0, HEIGHT), ends=("clamped", "free"),
-                                roll=(roll, 0.0))
+    model = CableModel.straight(ribbon(n_masses, friction, width, diameter), start=(0.0, 0.0, HEIGHT),
+                                ends=("clamped", "free"), roll=(roll, 0.0))
     steps = int(round(duration * rate))
     window = max(1, int(round(SETTLE_WINDOW * rate)))
     lowest = np.inf
@@ -59,7 +63,7 @@ def land(rate: float, roll: float, friction: float, n_masses: int, duration: flo
             if k >= steps - window:
                 lowest = min(lowest, float(cable.x[:, 2].min()))
         theta = cable.twist.theta
-        return {"rate": rate, "roll": roll, "friction": friction, "stable": cable.stable,
+        return {"rate": rate, "roll": roll, "friction": friction, "width": width, "stable": cable.stable,
                 "stopped_at": None if cable.stable else (k + 1) / rate, "reason": cable.reason,
                 "newton_failures": cable.newton_failures, "steps": k + 1,
                 "theta": (float(theta.min()), float(theta.max())), "lowest_mm": 1e3 * lowest,
@@ -71,6 +75,10 @@ def main(argv=None) -> None:
     p.add_argument("--rates", type=float, nargs="+", default=[240.0, 1000.0], help="Bullet rates [Hz]")
     p.add_argument("--rolls", type=float, nargs="+", default=[0.0, 0.3, 1.0], help="clamp rolls [rad]")
     p.add_argument("--frictions", type=float, nargs="+", default=[0.0, 0.3], help="Coulomb coefficients [-]")
+    p.add_argument("--widths", type=float, nargs="+", default=[WIDTH],
+                   help="section widths [m] (thickness 0.3 mm; default 0.02): the stiffnesses' ratio is (w/h)^2")
+    p.add_argument("--diameter", type=float, default=DIAMETER,
+                   help="the round section the contact sees [m] (default 0.001; the lowest node then rests at half)")
     p.add_argument("--n", type=int, default=41, help="masses (default 41)")
     p.add_argument("--duration", type=float, default=1.0, help="simulated time per case [s] (default 1)")
     p.add_argument("--method", default="bdf2", help="integrator (default bdf2)")
@@ -78,19 +86,18 @@ def main(argv=None) -> None:
     args = p.parse_args(argv)
     if args.quick:
         args.rates, args.rolls, args.frictions, args.duration = [1000.0], [0.3], [0.0, 0.3], 0.4
-    print(f"ribbon 0.4 m x 20 x 0.3 mm, n {args.n}, {args.method}, clamp {HEIGHT * 1e3:.0f} mm above the ground")
-    print("rate [Hz]  roll [rad]  mu   result                                    Newton failures  theta [rad]"
-          "       lowest node, last 0.2 s [mm]  CPU [s]")
-    for rate in args.rates:
-        for roll in args.rolls:
-            for mu in args.frictions:
-                r = land(rate, roll, mu, args.n, args.duration, args.method)
-                result = "stable" if r["stable"] else f"stopped at {r['stopped_at']:.3f} s: {r['reason']}"
-                low = f"{r['lowest_mm']:.2f}" if r["stable"] else "-"
-                print(f"{rate:9.0f}  {roll:10.2f}  {mu:3.1f}  {result:40.40s}  {r['newton_failures']:6d} of "
-                      f"{r['steps']:<6d}  {r['theta'][0]:+.2f}..{r['theta'][1]:+.2f}  {low:>12s}  "
-                      f"{r['cpu_s']:.1f}")
-
+    print(f"ribbon 0.4 m x 0.3 mm thick, n {args.n}, {args.method}, clamp {HEIGHT * 1e3:.0f} mm above the ground")
+    print("width [mm]  rate [Hz]  roll [rad]  mu   result                                    Newton failures  "
+          "theta [rad]       lowest node, last 0.2 s [mm]  CPU [s]")
+    cases = [(w, rate, roll, mu) for w in args.widths for rate in args.rates for roll in args.rolls
+             for mu in args.frictions]
+    for width, rate, roll, mu in cases:
+        r = land(rate, roll, mu, args.n, args.duration, args.method, width, args.diameter)
+        result = "stable" if r["stable"] else f"stopped at {r['stopped_at']:.3f} s: {r['reason']}"
+        low = f"{r['lowest_mm']:.2f}" if r["stable"] else "-"
+        print(f"{1e3 * width:10.1f}  {rate:9.0f}  {roll:10.2f}  {mu:3.1f}  {result:40.40s}  "
+              f"{r['newton_failures']:6d} of {r['steps']:<6d}  {r['theta'][0]:+.2f}..{r['theta'][1]:+.2f}  {low:>12s}  "
+              f"{r['cpu_s']:.1f}")
 
 if __name__ == "__main__":
     main()
