@@ -99,5 +99,6 @@ def main(argv=None) -> None:
               f"{r['newton_failures']:6d} of {r['steps']:<6d}  {r['theta'][0]:+.2f}..{r['theta'][1]:+.2f}  {low:>12s}  "
               f"{r['cpu_s']:.1f}")
 
+
 if __name__ == "__main__":
     main()
