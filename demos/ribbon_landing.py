@@ -9,9 +9,9 @@ sits at its radius: 0.5 mm for the contact's ``--diameter`` of 1 mm).
 
 What it shows (the table in docs/concepts/model.md, "A tilted ribbon landing with friction"): a ribbon clamped flat
 lands at every rate; with its section tilted, from 1 kHz on it lands frictionless and is stopped with friction
-within a few steps of touching down (at 240 Hz it is stopped either way). The contact sees a round section (the ``diameter``), so the ground holds the
-ribbon at its centre line only: nothing in the contact lays a tilted strip flat, and the friction anchors hold the
-touching nodes while the strip, bent about a tilted axis, twists. There the exact Jacobian of the coupled step turns
+within a few steps of touching down (at 240 Hz it is stopped either way). The contact sees a round section (the
+``diameter``), so the ground holds the ribbon at its centre line only: nothing in the contact lays a tilted strip
+flat, and the friction anchors hold the touching nodes while the strip, bent about a tilted axis, twists. There the exact Jacobian of the coupled step turns
 indefinite from Newton's second iteration on (a pivot <= 0: ``_exact_direction`` hands the step to Gauss-Newton,
 which leaves out the anisotropic bending's curvature terms and does not converge).
 
