@@ -11,9 +11,10 @@ What it shows (the table in docs/concepts/model.md, "A tilted ribbon landing wit
 lands at every rate; with its section tilted, from 1 kHz on it lands frictionless and is stopped with friction
 within a few steps of touching down (at 240 Hz it is stopped either way). The contact sees a round section (the
 ``diameter``), so the ground holds the ribbon at its centre line only: nothing in the contact lays a tilted strip
-flat, and the friction anchors hold the touching nodes while the strip, bent about a tilted axis, twists. There the exact Jacobian of the coupled step turns
-indefinite from Newton's second iteration on (a pivot <= 0: ``_exact_direction`` hands the step to Gauss-Newton,
-which leaves out the anisotropic bending's curvature terms and does not converge).
+flat, and the friction anchors hold the touching nodes while the strip, bent about a tilted axis, twists. There
+the exact Jacobian of the coupled step turns indefinite from Newton's second iteration on (a pivot <= 0:
+``_exact_direction`` hands the step to Gauss-Newton, which leaves out the anisotropic bending's curvature terms and
+does not converge).
 
     python demos/ribbon_landing.py                        # rolls 0, 0.3, 1; friction 0 and 0.3; 240 Hz, 1 kHz
     python demos/ribbon_landing.py --rates 4000 --rolls 0.3
