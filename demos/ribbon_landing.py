@@ -1,20 +1,18 @@
-"""A flat ribbon landing on the ground with its section tilted: where it fails, and what triggers it (issue 22).
+"""A flat ribbon landing on the ground with its section tilted: where it works, and where it still fails (issue 22).
 
 A PET ribbon (0.4 m, 20 x 0.3 mm, E 2 GPa, damping_rate 5) is clamped 5 cm above the ground with its clamp rolled
 ``--roll`` rad about the cable's axis (its weak axis tilted), released straight, and falls onto the ground in Bullet
 (BDF2 by default, the model's contact). Each case runs ``--duration`` s or until the run's instability detector stops
 it, and prints whether it stayed stable (else when and why it was stopped), its Newton failures, the twist angles'
-range at the end [rad] and the lowest node's height over the run's last 0.2 s [mm] (a cable at rest on the ground
-sits at its radius: 0.5 mm for the contact's ``--diameter`` of 1 mm).
+range at the end [rad] and the lowest node's height over the run's last 0.2 s [mm] (a ribbon lying flat on the ground
+has its centre line at half its thickness, 0.15 mm: the contact presses with the rectangle's section, docs/concepts/
+contact.md, "Flat sections"; ``--diameter`` is the round envelope of the other contact layers).
 
 What it shows (the table in docs/concepts/model.md, "A tilted ribbon landing with friction"): a ribbon clamped flat
-lands at every rate; with its section tilted, from 1 kHz on it lands frictionless and is stopped with friction
-within a few steps of touching down (at 240 Hz it is stopped either way). The contact sees a round section (the
-``diameter``), so the ground holds the ribbon at its centre line only: nothing in the contact lays a tilted strip
-flat, and the friction anchors hold the touching nodes while the strip, bent about a tilted axis, twists. There
-the exact Jacobian of the coupled step turns indefinite from Newton's second iteration on (a pivot <= 0:
-``_exact_direction`` hands the step to Gauss-Newton, which leaves out the anisotropic bending's curvature terms and
-does not converge).
+lands at every rate; with its section tilted it lands on a frictionless ground from 1 kHz on, and with friction it is
+still stopped within a few steps of touching down at n 41 (a free ribbon dropped tilted with friction falls flat:
+tests/bullet/test_flat_section_contact.py). At the touch-down step Newton does not converge (30 iterations, the
+exact Jacobian of the anisotropic bending indefinite, the Gauss-Newton matrix that takes over without its curvature).
 
     python demos/ribbon_landing.py                        # rolls 0, 0.3, 1; friction 0 and 0.3; 240 Hz, 1 kHz
     python demos/ribbon_landing.py --rates 4000 --rolls 0.3
@@ -35,12 +33,12 @@ from bullet_dlo.core.spec import CableSpec
 HEIGHT = 0.05  # [m] the clamp above the ground
 SETTLE_WINDOW = 0.2  # [s] the last part of a run whose lowest node is reported
 WIDTH, THICKNESS = 0.02, 0.0003  # [m] the ribbon's section
-DIAMETER = 0.001  # [m] the round section the contact sees
+DIAMETER = 0.001  # [m] the round envelope of the contact layers that do not see the section
 
 
 def ribbon(n_masses: int, friction: float, width: float = WIDTH, diameter: float = DIAMETER) -> CableSpec:
     """The PET ribbon: 0.4 m, ``width`` [m] x 0.3 mm, density 1400 kg/m^3, E 2 GPa; Coulomb friction ``friction``
-    (static and dynamic); the contact's round section ``diameter`` [m]."""
+    (static and dynamic); the round envelope ``diameter`` [m] of the contact layers that do not see the section."""
     return CableSpec(length=0.4, diameter=diameter, mass=0.4 * width * THICKNESS * 1400, youngs_modulus=2e9,
                      section="rectangle", width=width, thickness=THICKNESS, n_masses=n_masses, damping_rate=5.0,
                      static_friction=friction, dynamic_friction=friction)
@@ -79,7 +77,8 @@ def main(argv=None) -> None:
     p.add_argument("--widths", type=float, nargs="+", default=[WIDTH],
                    help="section widths [m] (thickness 0.3 mm; default 0.02): the stiffnesses' ratio is (w/h)^2")
     p.add_argument("--diameter", type=float, default=DIAMETER,
-                   help="the round section the contact sees [m] (default 0.001; the lowest node then rests at half)")
+                   help="the round envelope of the contact layers that do not see the section (self-contact, "
+                        "other cables, edge wraps) [m] (default 0.001)")
     p.add_argument("--n", type=int, default=41, help="masses (default 41)")
     p.add_argument("--duration", type=float, default=1.0, help="simulated time per case [s] (default 1)")
     p.add_argument("--method", default="bdf2", help="integrator (default bdf2)")

@@ -22,6 +22,15 @@ collides a pair when either body's group is in the other's mask, and a static bo
 but this one (Bullet's static filter): any other group met static bodies in Bullet on top of the model."""
 
 
+def flat_section(spec) -> tuple[float, float]:
+    """The (width, thickness) [m] whose support distance the cable's contacts take (docs/concepts/contact.md, "Flat
+    sections"): a rectangle's, which always has the material frame; (0, 0) for a round or tube section (its
+    ``diameter``)."""
+    if spec.section == "rectangle":
+        return float(spec.width), float(spec.thickness)
+    return 0.0, 0.0
+
+
 class CableContacts:
     """The contact set of one cable and what it leaves out (see the module doc).
 
@@ -99,7 +108,8 @@ class CableContacts:
                               # the segments' springs and the bending constants in force (the control's, changed
                               # in place by grasp and release): what a segment wrapping an edge needs
                               segments=(cable.model.arrays.k_stretch, cable.model.arrays.rest_length,
-                                        cable.control.k_bend, cable.control.held))
+                                        cable.control.k_bend, cable.control.held),
+                              section=flat_section(spec))
         if self.bullet_off:
             self.exclude_model_bodies()
 

@@ -437,8 +437,11 @@ class ContactSet:
 
     def __init__(self, client: int, bodies, n: int, radius: float, mu_s: float, mu_d: float,
                  alpha: float, damping_ratio: float, self_contact: bool = True, grip=None, native: int = 0,
-                 others=(), exclude=None, rest_length: float = 0.0, segments=None, driven=None):
-        """``driven``: {body: None (every link) or a set of links} whose links motors hold
+                 others=(), exclude=None, rest_length: float = 0.0, segments=None, driven=None,
+                 section: tuple[float, float] = (0.0, 0.0)):
+        """``section``: a flat cable's (width, thickness) [m] (docs/concepts/contact.md, "Flat sections"; (0, 0):
+        round): its penalty rows press with the rectangle's support distance, and the contacts are looked for within
+        its half diagonal. ``driven``: {body: None (every link) or a set of links} whose links motors hold
         (:attr:`BulletWorld.driven_bodies <bullet_dlo.bullet.world.BulletWorld.driven_bodies>`): those dynamic links meet the cable as kinematic
         obstacles moving with the link's velocity (:data:`DRIVEN_INV_MASS`), their reactions still applied to the
         link in Bullet. ``others``: the other cables (BulletCable) whose contacts with this one the model handles;
@@ -587,7 +590,7 @@ class ContactSet:
                        + 2 * PROBE_EXTRA * n * len(probed))  # a probed link's further answers
         # self-contact friction: the cable's own coefficients (negative: no self-contact)
         self.self_mu = np.array([mu_s, mu_d]) if self_contact else np.array([-1.0, -1.0])
-        self.contacts: Contacts = make_contacts(n, capacity, radius, grip)  # grip: the cable's
+        self.contacts: Contacts = make_contacts(n, capacity, radius, grip, section)  # grip: the cable's
         # the free bodies solved with the cable's step (beside the contacts: the contact kernels do not pass them)
         self.bodies: Bodies = make_bodies(n, capacity, len(free_bodies))
         par = pb.getPhysicsEngineParameters(physicsClientId=client)  # the bodies fall by the world's gravity
@@ -793,7 +796,7 @@ class ContactSet:
             # no contact last step, no probed answer, nobody else's rows: detect() would find nothing and change
             # nothing when quiet() says no shape and no pair of segments is within its margin (the same tests)
             sh = self.shapes
-            qargs = (x, v, float(h), sh, self.hulls, self.contacts.radius, self.self_mu, float(dt))
+            qargs = (x, v, float(h), sh, self.hulls, self.contacts.reach, self.self_mu, float(dt))
             if self._quiet is None:
                 self._quiet = bind(quiet, *qargs)
             if self._quiet(*qargs):
@@ -920,7 +923,7 @@ class ContactSet:
         pr = self.probes
         pr.count[0] = 0
         cable_box = self._cable_box
-        args = (x, v, self._radius, h, cable_box)
+        args = (x, v, float(self.contacts.reach[0]), h, cable_box)  # (a flat section reaches further)
         if self._reach is None:
             self._reach = bind(_reach_box, *args)
         margin = self._reach(*args)
@@ -1767,7 +1770,7 @@ def detect(x, v, mass, sh, c, bd, st, h, k_per_mass, zeta, self_mu, h_body, h_do
     for i in range(v.shape[0]):
         for j in range(3):
             vmax = max(vmax, abs(v[i, j]))
-    margin = c.radius[0] + 2.0 * vmax * h + 1e-3
+    margin = c.reach[0] + 2.0 * vmax * h + 1e-3  # (reach: a flat section's half diagonal, else the radius)
     previous = st.keys[:c.count[0]].copy()  # the keys in contact last step (their rows get overwritten)
     had_wrap = np.zeros(sh.kind.shape[0], np.bool_)  # shapes with a wrapped segment last step
     credit_max = np.zeros(0)  # (previous rows) the penalty energy a body's unplanned move may have stored, [J]

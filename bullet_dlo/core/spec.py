@@ -67,7 +67,9 @@ class CableSpec:
         section: cross-section shape: ``"round"`` (solid, diameter ``diameter``; the default),
             ``"tube"`` (outer diameter ``diameter``, inner diameter ``inner_diameter``) or
             ``"rectangle"`` (``width`` along the section's first axis d1, ``thickness`` along d2).
-            For a rectangle ``diameter`` is only the envelope the contact layers use (give the thickness).
+            For a rectangle the contact with bodies presses at the section's edge or face (docs/concepts/contact.md,
+            "Flat sections") and ``diameter`` is the round envelope of the other contact layers (self-contact, other
+            cables, edge wraps, the Bullet spheres; give the thickness).
         inner_diameter: inner diameter of a tube [m], in (0, diameter); 0 for other sections.
         width: rectangle width b [m] (along d1), > 0 for a rectangle; 0 for other sections.
         thickness: rectangle thickness h [m] (along d2), > 0 for a rectangle; 0 for other sections.

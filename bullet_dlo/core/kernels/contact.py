@@ -44,7 +44,7 @@ from numba import njit
 from bullet_dlo.core.kernels.banded import HALF
 from bullet_dlo.core.kernels.gauss_legendre import gl_band_factor, gl_band_substitute
 from bullet_dlo.core.kernels.forces import _angle_terms, _bend_hessian
-from bullet_dlo.core.kernels.twist import has_twist, set_clamp, twist_ready, twist_step
+from bullet_dlo.core.kernels.twist import edge_frame, has_twist, set_clamp, twist_ready, twist_step
 from bullet_dlo.core.kernels.steppers import (
     BDF2,
     IMPLICIT_EULER,
@@ -64,6 +64,8 @@ SIGMA_MIN = 0.01  # a wrap's material fraction either side of the edge, at least
 DEFAULT_ALPHA = 1.0e4  # k_n h^2 / m: contact frequency times step, squared
 MIN_CONTACT_ITER = 30  # Newton iterations allowed in contact at least (stick/slide kinks need more than 8)
 WILD_RATIO = 10.0  # [-] a solve ending this far from convergence (stall_ratio) is wildly far (Bodies.felt_ratio)
+SUPPORT_COLS = 18  # Contacts.support's columns
+SUPPORT_ROUNDING = 1e-3  # [-] a flat section's support is rounded over a tilt of at least this (set_support)
 
 
 class Grip(NamedTuple):
@@ -197,6 +199,16 @@ class Contacts(NamedTuple):
     Free bodies solved with the cable: a :class:`Bodies` beside the Contacts (its rows' body slots and arms).
     lock (M,) int: a penalty row's friction regime as Newton's active set holds it (0 outside Newton; see
     :func:`lock_rows`).
+    A flat section (docs/concepts/contact.md, "Flat sections"): section (3,) the rectangle's half width along d1
+    and half thickness along d2 [m] and the rounding of its support function [-] (all 0 for a round section);
+    reach (1,) [m] how far from the centre line the section reaches (the detector's envelope: the radius, or the
+    rectangle's half diagonal); support (M, SUPPORT_COLS) per penalty row (:func:`set_support`): [0] the section's
+    support distance s along -normal [m] (0: the row takes the radius), [1] its rate ds/dt [m/s] from the twist
+    rates, [2:4] ds/dtheta [m/rad] and [4:6] d2s/dtheta^2 [m/rad^2] on the row's two edges (:func:`row_edges`; 0 on
+    an edge it does not have), [6:9] the tangential move [m] of the section's touching point since the step's start
+    from the section's turn about its axis (the friction's slip counts it: :func:`set_support`), [9:11] the two
+    edges' twist angles at the step's start [rad] (:func:`start_support`), [12:15], [15:18] the move's derivative
+    in the two edges' twist angles [m/rad].
     """
 
     count: np.ndarray
@@ -226,21 +238,34 @@ class Contacts(NamedTuple):
     side: np.ndarray
     seg: np.ndarray
     lock: np.ndarray
+    section: np.ndarray
+    reach: np.ndarray
+    support: np.ndarray
 
 
-def make_contacts(n: int, capacity: int, radius: float, grip: Grip | None = None) -> Contacts:
+def make_contacts(n: int, capacity: int, radius: float, grip: Grip | None = None,
+                  section: tuple[float, float] = (0.0, 0.0)) -> Contacts:
     """Empty contact arrays for an n-node cable of radius [m], room for ``capacity`` contacts
-    (``grip``: the cable's grips, shared between successive contact sets; None: inactive ones). The free
-    bodies solved with the cable come beside it (:func:`make_bodies`)."""
+    (``grip``: the cable's grips, shared between successive contact sets; None: inactive ones). ``section``: a
+    rectangle's (width, thickness) [m], whose support distance the penalty rows of a cable with a material frame
+    take instead of the radius; (0, 0): round. The free bodies solved with the cable come beside it
+    (:func:`make_bodies`)."""
     m = max(1, int(capacity))
     f = np.zeros
+    width, thickness = float(section[0]), float(section[1])
+    flat = np.zeros(3)
+    if width > 0.0 and thickness > 0.0:
+        # the corners rounded over a tilt of a quarter of h/b (a sharper kink costs Newton iterations on the ground)
+        flat[:] = 0.5 * width, 0.5 * thickness, min(1.0, max(SUPPORT_ROUNDING, 0.25 * thickness / width))
+    reach = max(float(radius), math.hypot(flat[0], flat[1]))
     return Contacts(count=np.zeros(1, np.int64), radius=np.full(1, float(radius)), node=np.zeros((m, 2), np.int64),
                     weight=f((m, 2)), normal=f((m, 3)), point=f((m, 3)), body_vel=f((m, 3)), k_n=f(m), k_t=f(m),
                     c_n=f(m), static_friction=f(m), dynamic_friction=f(m), anchor=f((m, 4)), state=np.zeros(m, np.int64), f_n=f(m),
                     f_t=f((m, 3)), cap=f(m), body_work=f(2), impact=np.zeros(1, np.int64),
                     internal=np.zeros(m, np.bool_), node_force=f((n, 3)),
                     grip=grip if grip is not None else make_grip(), kind=np.zeros(m, np.int64),
-                    axis=f((m, 3)), side=f((m, 3)), seg=f((m, 6)), lock=np.zeros(m, np.int64))
+                    axis=f((m, 3)), side=f((m, 3)), seg=f((m, 6)), lock=np.zeros(m, np.int64), section=flat,
+                    reach=np.full(1, reach), support=f((m, SUPPORT_COLS)))
 
 
 # ----- the grips -----------------------------------------------------------------------------
@@ -365,7 +390,8 @@ def _gap(c, k, x):
     g = 0.0
     for j in range(3):
         g += c.normal[k, j] * (wa * x[a, j] + wb * x[b, j] - c.point[k, j])
-    return g - c.radius[0]
+    s = c.support[k, 0]  # a flat section's support distance, else the radius
+    return g - (s if s > 0.0 else c.radius[0])
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -374,8 +400,8 @@ def _slip(c, k, x, u):
     a, b = c.node[k, 0], c.node[k, 1]
     sa = c.anchor[k, 3]
     dn = 0.0
-    for j in range(3):
-        u[j] = (1.0 - sa) * x[a, j] + sa * x[b, j] - c.anchor[k, j]
+    for j in range(3):  # (a flat section: plus its touching point's move with the section's turn; else 0)
+        u[j] = (1.0 - sa) * x[a, j] + sa * x[b, j] + c.support[k, 6 + j] - c.anchor[k, j]
         dn += u[j] * c.normal[k, j]
     ul = 0.0
     for j in range(3):
@@ -392,7 +418,107 @@ def _approach(c, k, v):
     q = 0.0
     for j in range(3):
         q += c.normal[k, j] * (wa * v[a, j] + wb * v[b, j] - c.body_vel[k, j])
-    return q
+    return q - c.support[k, 1]  # (a flat section turning towards the body reaches for it)
+
+
+# ----- a flat section's support (docs/concepts/contact.md, "Flat sections") -----------------------------------
+@njit(cache=True, error_model="numpy", inline="always")
+def row_edges(a, b, ns):
+    """The edges whose section a penalty row on nodes (a, b) touches with: a node row (a == b) the two edges at
+    node a (a - 1, a; the mean of their sections), a segment row (b = a + 1) edge a alone (-1, a); -1 for an edge
+    the cable has not (ns edges)."""
+    e0 = a - 1 if a == b and a >= 1 else -1
+    e1 = a if a < ns else -1
+    return e0, e1
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _rounded(a, eps):
+    """A rounded |a| (0 at 0, 1 at +-1; rounded over |a| ~ eps) and its first and second derivatives."""
+    q = math.sqrt(a * a + eps * eps)
+    scale = 1.0 / (math.sqrt(1.0 + eps * eps) - eps)
+    return (q - eps) * scale, a / q * scale, eps * eps / (q * q * q) * scale
+
+
+@njit(cache=True, error_model="numpy")
+def set_support(c, E, W):
+    """c.support <- each penalty row's support distance and its derivatives (see :class:`Contacts`) for a flat
+    section (c.section[0] > 0; else nothing), from the edges' frames ``E`` (the coupled step's
+    :class:`~bullet_dlo.core.kernels.twist_coupled.Scratch` edges: column k + 1 edge k, rows 1-3 its unit tangent
+    t, 4-6 its reference director r, 7 its twist angle theta) and twist rates ``W`` [rad/s] (n - 1,).
+
+    The material axes d1 = cos(theta) r + sin(theta) t x r (the width's), d2 = t x d1 (the thickness'); a rectangle
+    of half width b, half thickness h reaches s = b |d1 . n| + h |d2 . n| from its centre line towards a body of
+    normal n, with |.| rounded over eps = c.section[2] (|a| -> sqrt(a^2 + eps^2) - eps, scaled to 1 at |a| = 1).
+    With dd1/dtheta = d2, dd2/dtheta = -d1, s turns with theta: the penalty's potential 1/2 k_n (n . p - n . c - s)^2
+    then has the moment that lays a tilted strip flat. The friction holds the section's touching point, a depth s
+    below the centre line: turned by dtheta about its axis t, the section moves it tangentially by s dtheta (n x t)
+    (its offset across the section only moves it along n), so the slip counts s (theta - theta0) (n x t) over the
+    step (theta0: the step's start, kept in the row) and the friction's moment about the axis is f_t . s (n x t): a
+    strip rolling on its edge does not slip there, one lying flat rolls at its half thickness."""
+    hw, ht, eps = c.section[0], c.section[1], c.section[2]
+    if hw <= 0.0:
+        return
+    ns = W.shape[0]
+    for k in range(c.count[0]):
+        for q in range(SUPPORT_COLS):
+            if q < 9 or q >= 11:
+                c.support[k, q] = 0.0
+        if c.kind[k] == WRAP or c.internal[k]:  # (the other part of the same cable keeps the round envelope)
+            continue
+        e0, e1 = row_edges(c.node[k, 0], c.node[k, 1], ns)
+        beta = 0.5 if e0 >= 0 and e1 >= 0 else 1.0
+        n0, n1, n2 = c.normal[k, 0], c.normal[k, 1], c.normal[k, 2]
+        for slot in range(2):
+            e = e0 if slot == 0 else e1
+            if e < 0:
+                continue
+            col = e + 1
+            t0, t1, t2, r0, r1, r2, th = E[1, col], E[2, col], E[3, col], E[4, col], E[5, col], E[6, col], E[7, col]
+            b0, b1, b2 = t1 * r2 - t2 * r1, t2 * r0 - t0 * r2, t0 * r1 - t1 * r0
+            ct, st = math.cos(th), math.sin(th)
+            u0, u1, u2 = ct * r0 + st * b0, ct * r1 + st * b1, ct * r2 + st * b2  # d1
+            w0, w1, w2 = ct * b0 - st * r0, ct * b1 - st * r1, ct * b2 - st * r2  # d2 = t x d1
+            a1 = u0 * n0 + u1 * n1 + u2 * n2
+            a2 = w0 * n0 + w1 * n1 + w2 * n2
+            f1, g1, h1 = _rounded(a1, eps)
+            f2, g2, h2 = _rounded(a2, eps)
+            ds = hw * g1 * a2 - ht * g2 * a1
+            dds = hw * (h1 * a2 * a2 - g1 * a1) + ht * (h2 * a1 * a1 - g2 * a2)
+            se = hw * f1 + ht * f2
+            c.support[k, 0] += beta * se
+            c.support[k, 1] += beta * ds * W[e]
+            c.support[k, 2 + slot] = beta * ds
+            c.support[k, 4 + slot] = beta * dds
+            turn = th - c.support[k, 9 + slot]  # since the step's start
+            x0, x1, x2 = n1 * t2 - n2 * t1, n2 * t0 - n0 * t2, n0 * t1 - n1 * t0  # n x t
+            c.support[k, 6] += beta * se * turn * x0
+            c.support[k, 7] += beta * se * turn * x1
+            c.support[k, 8] += beta * se * turn * x2
+            lever = beta * (se + turn * ds)
+            c.support[k, 12 + 3 * slot] = lever * x0
+            c.support[k, 13 + 3 * slot] = lever * x1
+            c.support[k, 14 + 3 * slot] = lever * x2
+
+
+@njit(cache=True, error_model="numpy")
+def start_support(c, m, x, dirs):
+    """The rows' twist angles at the step's start (``m``'s twist state) and :func:`set_support` from its material
+    frame at positions x [m] (the coupled solve turns it with the twist; a solve that does not take the twist, the
+    staggered step with a free body, holds it)."""
+    if c.section[0] <= 0.0:
+        return
+    n = x.shape[0]
+    E = np.zeros((8, n + 1))
+    for k in range(n - 1):
+        fr = edge_frame(x, dirs, m.tw_theta, m.tw_ref, m.tw_tan, m.tw_clamp, k)
+        for q in range(8):
+            E[q, k + 1] = fr[q]
+    for k in range(c.count[0]):
+        e0, e1 = row_edges(c.node[k, 0], c.node[k, 1], n - 1)
+        c.support[k, 9] = m.tw_theta[e0] if e0 >= 0 else 0.0
+        c.support[k, 10] = m.tw_theta[e1] if e1 >= 0 else 0.0
+    set_support(c, E, m.tw_omega)
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -1502,6 +1628,8 @@ def _update_friction(c, x_end):
         cap_final = max(c.cap[k], mu_now * max(c.f_n[k], 0.0))
         if kt * ul <= cap_final * (1.0 + 1e-6):
             c.state[k] = STICK
+            for j in range(3):  # a flat section: the slip in the next step's terms, whose turn starts from here
+                c.anchor[k, j] -= c.support[k, 6 + j]
         else:
             c.state[k] = SLIDE
             capd = c.dynamic_friction[k] * max(c.f_n[k], 0.0)
@@ -1618,6 +1746,7 @@ def contact_step(stepper, m, x, v, samples, ws, has_prev, c, bd):
     if twisting:  # as advance does
         twist_ready(m, x, samples.dir[0])
         set_clamp(m, 2)  # (implicit Euler and BDF2 evaluate at t + h)
+        start_support(c, m, x, samples.dir[0])  # a flat section's rows: their turn is counted from here
     gr = c.grip
     if twisting and bodies == 0:  # positions and twist in one Newton system
         for e in range(2):  # the grippers at the end of the step (where forces are evaluated)

@@ -1258,13 +1258,16 @@ def _contracted(r_new, r_old, alpha):
 
 # ----- the contact step's Newton with the twist (contact.contact_step without free bodies) ----------------
 @njit(cache=True, error_model="numpy")
-def _add_contacts(m, imp, ws, r, c):
-    """r += hf times the contact set ``c``'s forces at the X, V of the last :func:`_residual` (ws.x_stage,
-    ws.v_stage; into c.node_force, c.f_n, c.f_t) on the free nodes' position rows; returns the residual's max
-    as :func:`_residual` measures it (twist rows per rest length)."""
+def _add_contacts(m, imp, ws, r, c, sc, wv):
+    """r += hf times the contact set ``c``'s forces at the X, Theta, V, W of the last :func:`_residual` (ws.x_stage,
+    ws.v_stage, the frames in sc.edges, the twist rates ``wv``; into c.node_force, c.f_n, c.f_t) on the free nodes'
+    position rows, and a flat section's contact moments on the twist rows (:func:`_add_section_moments`); returns
+    the residual's max as :func:`_residual` measures it (twist rows per rest length)."""
     n = ws.x_stage.shape[0]
     fc = c.node_force
+    _contact.set_support(c, sc.edges, wv)
     _contact.contact_forces(c, ws.x_stage, ws.v_stage, fc)
+    _add_section_moments(c, imp.hf, n - 1, r)
     worst = 0.0
     for i in range(n):
         for j in range(3):
@@ -1277,6 +1280,123 @@ def _add_contacts(m, imp, ws, r, c):
         if not scaled <= worst:
             worst = scaled
     return worst
+
+
+@njit(cache=True, error_model="numpy")
+def _add_section_moments(c, hf, ns, r):
+    """The twist rows r[4 e + 3] += hf times a flat section's contact moments [N m] about each of the row's edges e:
+    the normal force f_n [N] and the friction force f_t [N] act at the section's support point, -f_n ds/dtheta_e
+    + f_t . dr/dtheta_e (the generalised forces of the gap g = n . (p - c) - s and of the slip, which counts the
+    support point's move r - r0)."""
+    if c.section[0] <= 0.0:
+        return
+    for k in range(c.count[0]):
+        if c.support[k, 0] <= 0.0:
+            continue
+        fn = c.f_n[k]
+        e0, e1 = _contact.row_edges(c.node[k, 0], c.node[k, 1], ns)
+        for slot in range(2):
+            e = e0 if slot == 0 else e1
+            if e < 0:
+                continue
+            q = 12 + 3 * slot
+            moment = (-fn * c.support[k, 2 + slot] + c.f_t[k, 0] * c.support[k, q]
+                      + c.f_t[k, 1] * c.support[k, q + 1] + c.f_t[k, 2] * c.support[k, q + 2])
+            r[4 * e + 3] += hf * moment
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _add_band_entry(band, lower, exact, p, q, val):
+    """The symmetric pair of entries (p, q), (q, p) of the coupled layout += val (upper band, and with ``exact``
+    the mirror in the lower band; p == q: once)."""
+    a, b = min(p, q), max(p, q)
+    band[a, b - a] += val
+    if exact and b > a:
+        lower[a, b - a] += val
+
+
+@njit(cache=True, error_model="numpy")
+def _add_friction_turn(c, k, held, e0, e1, blk, band, lower, exact):
+    """Row k's friction spring blk[1] (3 x 3, symmetric) in its edges' twist angles: T^T K T's twist-twist and
+    twist-position entries, T the slip's gradient ((1 - s_a) I, s_a I on the row's nodes, dr/dtheta on edges e0,
+    e1)."""
+    sa = c.anchor[k, 3]
+    for slot in range(2):
+        e = e0 if slot == 0 else e1
+        if e < 0:
+            continue
+        q = 12 + 3 * slot
+        kd0, kd1, kd2 = 0.0, 0.0, 0.0  # K dr/dtheta_e
+        for j in range(3):
+            kd0 += blk[1, 0, j] * c.support[k, q + j]
+            kd1 += blk[1, 1, j] * c.support[k, q + j]
+            kd2 += blk[1, 2, j] * c.support[k, q + j]
+        for other in range(slot, 2):  # twist-twist (each pair once)
+            f = e0 if other == 0 else e1
+            if f < 0:
+                continue
+            p = 12 + 3 * other
+            val = kd0 * c.support[k, p] + kd1 * c.support[k, p + 1] + kd2 * c.support[k, p + 2]
+            _add_band_entry(band, lower, exact, 4 * e + 3, 4 * f + 3, val)
+        for side in range(2):  # twist-position
+            node = c.node[k, side]
+            w = 1.0 - sa if side == 0 else sa
+            if w == 0.0 or held[node] or (side == 1 and c.node[k, 1] == c.node[k, 0]):
+                continue
+            _add_band_entry(band, lower, exact, 4 * e + 3, 4 * node, w * kd0)
+            _add_band_entry(band, lower, exact, 4 * e + 3, 4 * node + 1, w * kd1)
+            _add_band_entry(band, lower, exact, 4 * e + 3, 4 * node + 2, w * kd2)
+
+
+@njit(cache=True, error_model="numpy")
+def _add_section_band(c, held, x, kx, kv, band, lower, exact):
+    """A flat section's contact terms in the coupled Newton matrix, kx (-dF/dq) + kv (-dF/dq') over the twist (the
+    position block is the frameless one's): for a row pressing (g < 0) with gap gradient G (w_a n, w_b n on its
+    nodes, -ds/dtheta on its edges' twist angles), (kx k_n + kv c_n) G G^T's entries in a twist angle and the
+    curvature of s, kx k_n |g| d2s/dtheta^2 (with ``exact`` as it is; else where it is >= 0: the Gauss-Newton
+    matrix stays positive definite); for its friction spring K (:func:`~bullet_dlo.core.kernels.contact._row_blocks`,
+    3 x 3) with slip gradient T ((1 - s_a) I, s_a I on its nodes, dr/dtheta on its edges), T^T K T's entries in a
+    twist angle. The frames' turn with the positions and the friction's d2r/dtheta^2 are left out (Gauss-Newton)."""
+    if c.section[0] <= 0.0:
+        return
+    ns = x.shape[0] - 1
+    idx = np.empty(8, np.int64)
+    val = np.empty(8)
+    blk = np.empty((2, 3, 3))
+    u = np.empty(3)
+    for k in range(c.count[0]):
+        if c.support[k, 0] <= 0.0:
+            continue
+        e0, e1 = _contact.row_edges(c.node[k, 0], c.node[k, 1], ns)
+        _contact._row_blocks(c, k, x, kx, kv, u, blk)
+        _add_friction_turn(c, k, held, e0, e1, blk, band, lower, exact)
+        g = _contact._gap(c, k, x)
+        if not g < 0.0:
+            continue
+        stiff = kx * c.k_n[k] + kv * c.c_n[k]
+        m = 0
+        for slot in range(2):  # the gradient's twist entries, then its position entries
+            e = e0 if slot == 0 else e1
+            if e >= 0:
+                idx[m] = 4 * e + 3
+                val[m] = -c.support[k, 2 + slot]
+                m += 1
+                curv = kx * c.k_n[k] * (-g) * c.support[k, 4 + slot]
+                if exact or curv > 0.0:
+                    _add_band_entry(band, lower, exact, 4 * e + 3, 4 * e + 3, curv)
+        nt = m
+        for slot in range(2):
+            node = c.node[k, slot]
+            w = c.weight[k, slot]
+            if w == 0.0 or held[node]:
+                continue
+            for j in range(3):
+                idx[m] = 4 * node + j
+                val[m] = w * c.normal[k, j]
+                m += 1
+        for p in range(nt):
+            for q in range(p, m):  # twist-twist and twist-position pairs
+                _add_band_entry(band, lower, exact, idx[p], idx[q], stiff * val[p] * val[q])
 
 
 @njit(cache=True, error_model="numpy")
@@ -1301,6 +1421,7 @@ def _add_contact_band(c, held, x, kx, kv, cb, band, lower, exact):
                 band[ra, off] += val
                 if exact and off > 0:
                     lower[ra, off] += val
+    _add_section_band(c, held, x, kx, kv, band, lower, exact)
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -1353,8 +1474,9 @@ def coupled_contact(stepper, method, m, x, v, samples, ws, has_prev, c, cap_tol=
     max_iter = max(stepper.max_iter, _contact.MIN_CONTACT_ITER)
     caps_new = np.empty(max(nc, 1))
     _residual(m, mp, imp, ws, samples, frac, h, tb, wb, wa, vn, wn, wv, rate, tq, r, g, sc)  # X at the predictor
+    _contact.set_support(c, sc.edges, wv)  # (a flat section's reach at the predictor: the caps' penetration)
     _contact.elastic_caps(c, ws.x_stage, c.cap)  # caps from its penetration
-    rnorm = _add_contacts(m, imp, ws, r, c)
+    rnorm = _add_contacts(m, imp, ws, r, c, sc, wv)
     fresh = True  # r, rnorm, the scratch and the contact forces are those of (vn, wn) with the caps in use
     it = 0
     passes = 0
@@ -1366,7 +1488,7 @@ def coupled_contact(stepper, method, m, x, v, samples, ws, has_prev, c, cap_tol=
     while True:
         if not fresh:
             _residual(m, mp, imp, ws, samples, frac, h, tb, wb, wa, vn, wn, wv, rate, tq, r, g, sc)
-            rnorm = _add_contacts(m, imp, ws, r, c)
+            rnorm = _add_contacts(m, imp, ws, r, c, sc, wv)
         fresh = False
         if it > 0 and rnorm <= tol * (r_scale + _change(m, ws, vn, wn, wa)) + r_floor:
             if _contact.caps_settled(c, ws.x_stage, caps_new, cap_tol) or passes >= max_passes or it >= max_iter:
@@ -1395,7 +1517,7 @@ def coupled_contact(stepper, method, m, x, v, samples, ws, has_prev, c, cap_tol=
         for _ in range(30):
             _trial(vn, wn, r, alpha, v_try, w_try, n, ns)
             _residual(m, mp, imp, ws, samples, frac, h, tb, wb, wa, v_try, w_try, wv, rate, tq, r_try, g, sc)
-            rn_try = _add_contacts(m, imp, ws, r_try, c)
+            rn_try = _add_contacts(m, imp, ws, r_try, c, sc, wv)
             phi = (_merit(m, mp, imp, ws, wa, v_try, w_try, wv, rate, sc)
                    + _contact.contact_potential(c, ws.x_stage, ws.v_stage, cx / cv))
             if phi <= phi0 + 1e-13 * (abs(phi0) + phi_scale):
@@ -1416,7 +1538,7 @@ def coupled_contact(stepper, method, m, x, v, samples, ws, has_prev, c, cap_tol=
     c.lock[:nc] = 0
     if not converged:  # forces, c.f_n, c.f_t and the frames at the accepted iterate
         _residual(m, mp, imp, ws, samples, frac, h, tb, wb, wa, vn, wn, wv, rate, tq, r, g, sc)
-        _add_contacts(m, imp, ws, r, c)
+        _add_contacts(m, imp, ws, r, c, sc, wv)
     for i in range(n):
         for j in range(3):
             ws.residual[3 * i + j] = r[4 * i + j]
