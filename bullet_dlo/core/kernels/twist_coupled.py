@@ -54,7 +54,9 @@ In contact (:func:`coupled_contact`, called by :func:`~bullet_dlo.core.kernels.c
 body is in the solve) the same system takes the contact and grip forces on the position rows, their stiffness on
 the position block of the Gauss-Newton matrix and their potential in the merit, with the contact Newton's rules
 (potential decrease only, the friction caps an outer fixed point). BDF2 then keeps order 2 in contact
-(frictionless rows: ``tests/bullet/test_twist_contact_order.py``; sliding friction is first order of its own).
+(frictionless rows: ``tests/bullet/test_twist_contact_order.py``; sliding friction is first order of its own). A flat
+section's rows add their moments on the twist rows and their twist entries to the Gauss-Newton matrix
+(:func:`_add_section_moments`, :func:`_add_section_band`; docs/concepts/contact.md, "Flat sections").
 
 Gauss-Legendre (:func:`coupled_gauss_legendre`) solves both stages' velocities and twist rates in one Newton system
 (8 unknowns per node), each stage's forces and Gauss-Newton matrix from :func:`_residual` and :func:`_newton_matrix`;
@@ -1284,10 +1286,10 @@ def _add_contacts(m, imp, ws, r, c, sc, wv):
 
 @njit(cache=True, error_model="numpy")
 def _add_section_moments(c, hf, ns, r):
-    """The twist rows r[4 e + 3] += hf times a flat section's contact moments [N m] about each of the row's edges e:
-    the normal force f_n [N] and the friction force f_t [N] act at the section's support point, -f_n ds/dtheta_e
-    + f_t . dr/dtheta_e (the generalised forces of the gap g = n . (p - c) - s and of the slip, which counts the
-    support point's move r - r0)."""
+    """The twist rows r[4 e + 3] += hf times a flat section's contact moments [N m] about each of the row's edges e,
+    -f_n ds/dtheta_e + f_t . dm/dtheta_e: the generalised forces of the normal force f_n [N] on the gap
+    g = n . (p - c) - s and of the friction force f_t [N] on the slip, which counts the touching point's move m,
+    s (theta - theta0) (n x t) (:func:`~bullet_dlo.core.kernels.contact.set_support`)."""
     if c.section[0] <= 0.0:
         return
     for k in range(c.count[0]):
@@ -1318,15 +1320,15 @@ def _add_band_entry(band, lower, exact, p, q, val):
 @njit(cache=True, error_model="numpy")
 def _add_friction_turn(c, k, held, e0, e1, blk, band, lower, exact):
     """Row k's friction spring blk[1] (3 x 3, symmetric) in its edges' twist angles: T^T K T's twist-twist and
-    twist-position entries, T the slip's gradient ((1 - s_a) I, s_a I on the row's nodes, dr/dtheta on edges e0,
-    e1)."""
+    twist-position entries, T the slip's gradient ((1 - s_a) I, s_a I on the row's nodes, the touching point's
+    dm/dtheta on edges e0, e1)."""
     sa = c.anchor[k, 3]
     for slot in range(2):
         e = e0 if slot == 0 else e1
         if e < 0:
             continue
         q = 12 + 3 * slot
-        kd0, kd1, kd2 = 0.0, 0.0, 0.0  # K dr/dtheta_e
+        kd0, kd1, kd2 = 0.0, 0.0, 0.0  # K dm/dtheta_e
         for j in range(3):
             kd0 += blk[1, 0, j] * c.support[k, q + j]
             kd1 += blk[1, 1, j] * c.support[k, q + j]
@@ -1355,8 +1357,9 @@ def _add_section_band(c, held, x, kx, kv, band, lower, exact):
     nodes, -ds/dtheta on its edges' twist angles), (kx k_n + kv c_n) G G^T's entries in a twist angle and the
     curvature of s, kx k_n |g| d2s/dtheta^2 (with ``exact`` as it is; else where it is >= 0: the Gauss-Newton
     matrix stays positive definite); for its friction spring K (:func:`~bullet_dlo.core.kernels.contact._row_blocks`,
-    3 x 3) with slip gradient T ((1 - s_a) I, s_a I on its nodes, dr/dtheta on its edges), T^T K T's entries in a
-    twist angle. The frames' turn with the positions and the friction's d2r/dtheta^2 are left out (Gauss-Newton)."""
+    3 x 3) with slip gradient T ((1 - s_a) I, s_a I on its nodes, the touching point's dm/dtheta on its edges), T^T K
+    T's entries in a twist angle. The frames' turn with the positions and the friction's d2m/dtheta^2 are left out
+    (Gauss-Newton)."""
     if c.section[0] <= 0.0:
         return
     ns = x.shape[0] - 1
