@@ -1309,12 +1309,11 @@ def _add_section_moments(c, hf, ns, r):
 
 @njit(cache=True, error_model="numpy", inline="always")
 def _add_band_entry(band, lower, exact, p, q, val):
-    """The symmetric pair of entries (p, q), (q, p) of the coupled layout += val (upper band, and with ``exact``
-    the mirror in the lower band; p == q: once)."""
-    a, b = min(p, q), max(p, q)
-    band[a, b - a] += val
-    if exact and b > a:
-        lower[a, b - a] += val
+    """The symmetric pair of entries (p, q), (q, p) of the coupled layout += val (:func:`_add_sym`), with ``exact``
+    the mirror in the lower band too (stored at the same places; p == q: the upper band only)."""
+    _add_sym(band, p, q, val)
+    if exact and p != q:
+        _add_sym(lower, p, q, val)
 
 
 @njit(cache=True, error_model="numpy")
