@@ -66,7 +66,7 @@ def _drop(tilt: float, friction: float, n: int = 11, rate: float = 1000.0, durat
             deepest = min(deepest, float((mid - reach).min()))
             if k >= steps - int(0.1 * rate):
                 centre = min(centre, float(x[:, 2].min()))
-        return cable.twist.theta.copy(), centre, deepest, cable.newton_failures
+        return cable.twist.theta.copy(), centre, deepest
 
 
 @pytest.mark.parametrize("tilt, friction", [(0.3, 0.0), (1.2, 0.3)])
@@ -74,9 +74,9 @@ def test_a_tilted_strip_falls_flat_onto_the_ground(tilt, friction):
     """Released with its section tilted 0.3 rad (frictionless) or 1.2 rad (friction 0.3), the strip ends flat: its
     section within 0.02 rad of the ground's plane (theta a multiple of pi), its centre line at h/2 above the ground
     (within 5 %, the penalty's sag aside), and no edge ever deeper in the ground than h/2 (the support function's
-    corners are rounded over a tilt of h/b, which lets a sharp edge in by up to about 0.6 h/2; with the round
-    envelope the tilted strip stayed tilted, its edge 3-9 mm through the ground)."""
-    theta, centre, deepest, _ = _drop(tilt, friction)
+    corners are rounded over a tilt of h/4b, which lets a sharp edge in a little; with the round envelope the tilted
+    strip stayed tilted, its edge 3-9 mm through the ground)."""
+    theta, centre, deepest = _drop(tilt, friction)
     off_flat = np.abs(np.angle(np.exp(2j * theta)) / 2.0)  # distance to the nearest multiple of pi [rad]
     assert off_flat.max() < 0.02, theta
     assert abs(centre - 0.5 * THICKNESS) < 0.05 * 0.5 * THICKNESS, centre
