@@ -1,5 +1,5 @@
-"""demos/ribbon_landing.py: what of a flat ribbon's landing works today (issue 22; the failing case, a tilted ribbon
-on a ground with friction at n 41, is measured in docs/concepts/model.md and left open)."""
+"""demos/ribbon_landing.py: what of a flat ribbon's landing works today (issue 22; the cases still failing, tilted
+ribbons at 60 and 120 Hz, are measured in docs/concepts/model.md and left open)."""
 from __future__ import annotations
 
 import importlib.util
@@ -29,3 +29,19 @@ def test_a_ribbon_lands_flat_with_friction_and_tilted_without():
         assert abs(run["lowest_mm"] - 0.5 * 1e3 * demo.THICKNESS) < 0.02, run["lowest_mm"]
         assert run["newton_failures"] <= 2, run["newton_failures"]
     assert tilted["theta"][1] - tilted["theta"][0] > 0.01  # the frame did turn: the twist was in the solve
+
+
+def test_a_tilted_ribbon_lands_on_a_ground_with_friction():
+    """At 1 kHz, n 41, BDF2, a ribbon whose clamp is rolled 0.3 rad lands on a ground with friction 0.3: stable over
+    0.6 s, its lowest node over the last 0.2 s no lower than half the thickness (less 0.02 mm of penalty sag) and no
+    higher than the section's reach at the clamp's roll, b/2 sin(0.3) + h/2 = 3.1 mm (resting, not hopping: it rests
+    tilted near the clamp, 1.1 mm), at most 5 % of the steps' solves failed. Until the section's contact forces
+    carried their bending couples (the gradient of the potential Newton's line search descends) and an indefinite
+    exact matrix was shifted rather than replaced by Gauss-Newton's, this run was stopped at 0.110 s, a few steps after
+    touching down."""
+    demo = _demo()
+    run = demo.land(1000.0, 0.3, 0.3, 41, 0.6, "bdf2")
+    assert run["stable"], (run["stopped_at"], run["reason"])
+    reach = 0.5 * demo.WIDTH * 0.29552 + 0.5 * demo.THICKNESS  # [m] b/2 sin(0.3) + h/2
+    assert 0.5 * 1e3 * demo.THICKNESS - 0.02 < run["lowest_mm"] < 1e3 * reach, run["lowest_mm"]
+    assert run["newton_failures"] <= 0.05 * run["steps"], run["newton_failures"]

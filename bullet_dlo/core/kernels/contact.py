@@ -64,7 +64,7 @@ SIGMA_MIN = 0.01  # a wrap's material fraction either side of the edge, at least
 DEFAULT_ALPHA = 1.0e4  # k_n h^2 / m: contact frequency times step, squared
 MIN_CONTACT_ITER = 30  # Newton iterations allowed in contact at least (stick/slide kinks need more than 8)
 WILD_RATIO = 10.0  # [-] a solve ending this far from convergence (stall_ratio) is wildly far (Bodies.felt_ratio)
-SUPPORT_COLS = 18  # Contacts.support's columns
+SUPPORT_COLS = 26  # Contacts.support's columns
 SUPPORT_ROUNDING = 1e-3  # [-] a flat section's support is rounded over a tilt of at least this (set_support)
 
 
@@ -208,7 +208,9 @@ class Contacts(NamedTuple):
     an edge it does not have), [6:9] the tangential move [m] of the section's touching point since the step's start
     from the section's turn about its axis (the friction's slip counts it: :func:`set_support`), [9:11] the two
     edges' twist angles at the step's start [rad] (:func:`start_support`), [12:15], [15:18] the move's derivative
-    in the two edges' twist angles [m/rad].
+    in the two edges' twist angles [m/rad], [18:21], [21:24] the support distance's gradient [-] in the far node
+    of each of the two edges (e + 1; minus it in node e): the material frame turns with the edge's tangent,
+    [24:26] each edge's part of the support distance [m] (with its weight in the row).
     """
 
     count: np.ndarray
@@ -418,7 +420,14 @@ def _approach(c, k, v):
     q = 0.0
     for j in range(3):
         q += c.normal[k, j] * (wa * v[a, j] + wb * v[b, j] - c.body_vel[k, j])
-    return q - c.support[k, 1]  # (a flat section turning towards the body reaches for it)
+    if c.support[k, 0] > 0.0:  # a flat section turning towards the body reaches for it (twist and tangent)
+        e0, e1 = row_edges(a, b, v.shape[0] - 1)
+        for slot in range(2):
+            e = e0 if slot == 0 else e1
+            if e >= 0:
+                for j in range(3):
+                    q -= c.support[k, 18 + 3 * slot + j] * (v[e + 1, j] - v[e, j])
+    return q - c.support[k, 1]
 
 
 # ----- a flat section's support (docs/concepts/contact.md, "Flat sections") -----------------------------------
@@ -441,11 +450,13 @@ def _rounded(a, eps):
 
 
 @njit(cache=True, error_model="numpy")
-def set_support(c, E, W):
+def set_support(c, E, W, ref, tan):
     """c.support <- each penalty row's support distance and its derivatives (see :class:`Contacts`) for a flat
     section (c.section[0] > 0; else nothing), from the edges' frames ``E`` (the coupled step's
-    :class:`~bullet_dlo.core.kernels.twist_coupled.Scratch` edges: column k + 1 edge k, rows 1-3 its unit tangent
-    t, 4-6 its reference director r, 7 its twist angle theta) and twist rates ``W`` [rad/s] (n - 1,).
+    :class:`~bullet_dlo.core.kernels.twist_coupled.Scratch` edges: column k + 1 edge k, rows 0 its length, 1-3
+    its unit tangent t, 4-6 its reference director r, 7 its twist angle theta), twist rates ``W`` [rad/s] (n -
+    1,) and the step's reference frames (``ref``, ``tan``: the directors r was transported from and their
+    tangents, (n - 1, 3); :func:`~bullet_dlo.core.kernels.twist.edge_frame`).
 
     The material axes d1 = cos(theta) r + sin(theta) t x r (the width's), d2 = t x d1 (the thickness'); a rectangle
     of half width b, half thickness h reaches s = b |d1 . n| + h |d2 . n| from its centre line towards a body of
@@ -455,7 +466,11 @@ def set_support(c, E, W):
     below the centre line: turned by dtheta about its axis t, the section moves it tangentially by s dtheta (n x t)
     (its offset across the section only moves it along n), so the slip counts s (theta - theta0) (n x t) over the
     step (theta0: the step's start, kept in the row) and the friction's moment about the axis is f_t . s (n x t): a
-    strip rolling on its edge does not slip there, one lying flat rolls at its half thickness."""
+    strip rolling on its edge does not slip there, one lying flat rolls at its half thickness.
+
+    The section also turns with its edge's tangent (r is the reference director transported onto it): s depends on
+    the edge's nodes, and the normal force, acting at the touching point off the centre line, has a bending moment
+    as well as the twisting one: -f_n ds/dx on the nodes (:func:`_support_gradient`)."""
     hw, ht, eps = c.section[0], c.section[1], c.section[2]
     if hw <= 0.0:
         return
@@ -490,6 +505,7 @@ def set_support(c, E, W):
             c.support[k, 1] += beta * ds * W[e]
             c.support[k, 2 + slot] = beta * ds
             c.support[k, 4 + slot] = beta * dds
+            c.support[k, 24 + slot] = beta * se
             turn = th - c.support[k, 9 + slot]  # since the step's start
             x0, x1, x2 = n1 * t2 - n2 * t1, n2 * t0 - n0 * t2, n0 * t1 - n1 * t0  # n x t
             c.support[k, 6] += beta * se * turn * x0
@@ -499,6 +515,44 @@ def set_support(c, E, W):
             c.support[k, 12 + 3 * slot] = lever * x0
             c.support[k, 13 + 3 * slot] = lever * x1
             c.support[k, 14 + 3 * slot] = lever * x2
+            _support_gradient(c, k, 18 + 3 * slot, beta, E, col, ref[e], tan[e], hw * g1, ht * g2)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _support_gradient(c, k, col0, beta, E, col, u, a, w1, w2):
+    """c.support[k, col0:col0 + 3] <- beta times the gradient of s_e = b rho(d1 . n) + h rho(d2 . n) [-] in the
+    far node of edge e (E's column ``col``; minus it in the near one), with w1 = b rho'(d1 . n), w2 = h rho'(d2 .
+    n): d1, d2 turn with the tangent t through the transport of the reference director u from tangent a, r = u -
+    (u . t)(a + t)/(1 + a . t), whose derivative A has A^T q = -u q.(a + t)/(1 + c) - (u . t) q/(1 + c) + (u . t)
+    (a + t) . q a/(1 + c)^2, c = a . t; d(d1 . n)/dt = cos(theta) P1 + sin(theta) P2, d(d2 . n)/dt = cos(theta) P2 -
+    sin(theta) P1 with P1 = A^T n, P2 = A^T (n x t) + r x n; dt/dx = (I - t t^T)/length."""
+    length, t0, t1, t2 = E[0, col], E[1, col], E[2, col], E[3, col]
+    r0, r1, r2, th = E[4, col], E[5, col], E[6, col], E[7, col]
+    n0, n1, n2 = c.normal[k, 0], c.normal[k, 1], c.normal[k, 2]
+    cc = a[0] * t0 + a[1] * t1 + a[2] * t2
+    for j in range(3):
+        c.support[k, col0 + j] = 0.0
+    if not 1.0 + cc > 1e-12:  # (a reversed edge: the transport is not defined; no gradient)
+        return
+    ut = u[0] * t0 + u[1] * t1 + u[2] * t2
+    s0, s1, s2 = a[0] + t0, a[1] + t1, a[2] + t2  # a + t
+    q0, q1, q2 = n1 * t2 - n2 * t1, n2 * t0 - n0 * t2, n0 * t1 - n1 * t0  # n x t
+    inv = 1.0 / (1.0 + cc)
+    sn = (s0 * n0 + s1 * n1 + s2 * n2) * inv
+    sq = (s0 * q0 + s1 * q1 + s2 * q2) * inv
+    ct, st = math.cos(th), math.sin(th)
+    g = np.empty(3)
+    for j in range(3):
+        nj = n0 if j == 0 else (n1 if j == 1 else n2)
+        qj = q0 if j == 0 else (q1 if j == 1 else q2)
+        p1 = -u[j] * sn - ut * nj * inv + ut * sn * inv * a[j]
+        rn = (r1 * n2 - r2 * n1) if j == 0 else ((r2 * n0 - r0 * n2) if j == 1 else (r0 * n1 - r1 * n0))  # r x n
+        p2 = -u[j] * sq - ut * qj * inv + ut * sq * inv * a[j] + rn
+        g[j] = w1 * (ct * p1 + st * p2) + w2 * (ct * p2 - st * p1)
+    gt = g[0] * t0 + g[1] * t1 + g[2] * t2
+    c.support[k, col0] = beta * (g[0] - gt * t0) / length
+    c.support[k, col0 + 1] = beta * (g[1] - gt * t1) / length
+    c.support[k, col0 + 2] = beta * (g[2] - gt * t2) / length
 
 
 @njit(cache=True, error_model="numpy")
@@ -518,7 +572,8 @@ def start_support(c, m, x, dirs):
         e0, e1 = row_edges(c.node[k, 0], c.node[k, 1], n - 1)
         c.support[k, 9] = m.tw_theta[e0] if e0 >= 0 else 0.0
         c.support[k, 10] = m.tw_theta[e1] if e1 >= 0 else 0.0
-    set_support(c, E, m.tw_omega)
+    set_support(c, E, m.tw_omega, m.tw_ref, m.tw_tan)
+    c.support[:c.count[0], 18:24] = 0.0  # (s held at the step's start: no gradient in the positions)
 
 
 @njit(cache=True, error_model="numpy", inline="always")

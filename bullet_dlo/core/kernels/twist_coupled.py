@@ -1263,13 +1263,15 @@ def _contracted(r_new, r_old, alpha):
 def _add_contacts(m, imp, ws, r, c, sc, wv):
     """r += hf times the contact set ``c``'s forces at the X, Theta, V, W of the last :func:`_residual` (ws.x_stage,
     ws.v_stage, the frames in sc.edges, the twist rates ``wv``; into c.node_force, c.f_n, c.f_t) on the free nodes'
-    position rows, and a flat section's contact moments on the twist rows (:func:`_add_section_moments`); returns
+    position rows, and a flat section's contact moments on the twist rows (:func:`_add_section_moments`) and
+    couples on its edges' nodes (:func:`_add_section_couples`); returns
     the residual's max as :func:`_residual` measures it (twist rows per rest length)."""
     n = ws.x_stage.shape[0]
     fc = c.node_force
-    _contact.set_support(c, sc.edges, wv)
+    _contact.set_support(c, sc.edges, wv, m.tw_ref, m.tw_tan)
     _contact.contact_forces(c, ws.x_stage, ws.v_stage, fc)
     _add_section_moments(c, imp.hf, n - 1, r)
+    _add_section_couples(c, sc.edges, fc)
     worst = 0.0
     for i in range(n):
         for j in range(3):
@@ -1305,6 +1307,42 @@ def _add_section_moments(c, hf, ns, r):
             moment = (-fn * c.support[k, 2 + slot] + c.f_t[k, 0] * c.support[k, q]
                       + c.f_t[k, 1] * c.support[k, q + 1] + c.f_t[k, 2] * c.support[k, q + 2])
             r[4 * e + 3] += hf * moment
+
+
+@njit(cache=True, error_model="numpy")
+def _add_section_couples(c, E, fc):
+    """fc [N] += the couples a flat section's contact forces put on its edges' nodes (+-, no net force) as the
+    section turns with the edges' tangents (edge frames ``E``, :class:`Scratch` edges): the normal force's -f_n
+    ds/dx (it acts at the touching point, off the centre line; ds/dx from
+    :func:`~bullet_dlo.core.kernels.contact.set_support`) and the friction's f_t . dm/dx, m = s (theta - theta0)
+    (n x t) the touching point's move: on the far node of edge e, (theta - theta0) ((f_t . n x t) ds/dx + s
+    (f_t x n)_perp / length), minus that on the near one."""
+    if c.section[0] <= 0.0:
+        return
+    ns = E.shape[1] - 2
+    for k in range(c.count[0]):
+        if c.support[k, 0] <= 0.0:
+            continue
+        n0, n1, n2 = c.normal[k, 0], c.normal[k, 1], c.normal[k, 2]
+        f0, f1, f2 = c.f_t[k, 0], c.f_t[k, 1], c.f_t[k, 2]
+        fxn0, fxn1, fxn2 = f1 * n2 - f2 * n1, f2 * n0 - f0 * n2, f0 * n1 - f1 * n0  # f_t x n
+        e0, e1 = _contact.row_edges(c.node[k, 0], c.node[k, 1], ns)
+        for slot in range(2):
+            e = e0 if slot == 0 else e1
+            if e < 0:
+                continue
+            col = e + 1
+            t0, t1, t2 = E[1, col], E[2, col], E[3, col]
+            turn = E[7, col] - c.support[k, 9 + slot]
+            fnt = fxn0 * t0 + fxn1 * t1 + fxn2 * t2  # f_t . (n x t)
+            lever = turn * c.support[k, 24 + slot] / E[0, col]
+            for j in range(3):
+                tj = t0 if j == 0 else (t1 if j == 1 else t2)
+                fj = fxn0 if j == 0 else (fxn1 if j == 1 else fxn2)
+                grad = c.support[k, 18 + 3 * slot + j]
+                push = -c.f_n[k] * grad + turn * fnt * grad + lever * (fj - fnt * tj)
+                fc[e + 1, j] += push
+                fc[e, j] -= push
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -1351,19 +1389,20 @@ def _add_friction_turn(c, k, held, e0, e1, blk, band, lower, exact):
 
 @njit(cache=True, error_model="numpy")
 def _add_section_band(c, held, x, kx, kv, band, lower, exact):
-    """A flat section's contact terms in the coupled Newton matrix, kx (-dF/dq) + kv (-dF/dq') over the twist (the
-    position block is the frameless one's): for a row pressing (g < 0) with gap gradient G (w_a n, w_b n on its
-    nodes, -ds/dtheta on its edges' twist angles), (kx k_n + kv c_n) G G^T's entries in a twist angle and the
-    curvature of s, kx k_n |g| d2s/dtheta^2 (with ``exact`` as it is; else where it is >= 0: the Gauss-Newton
-    matrix stays positive definite); for its friction spring K (:func:`~bullet_dlo.core.kernels.contact._row_blocks`,
-    3 x 3) with slip gradient T ((1 - s_a) I, s_a I on its nodes, the touching point's dm/dtheta on its edges), T^T K
-    T's entries in a twist angle. The frames' turn with the positions and the friction's d2m/dtheta^2 are left out
+    """A flat section's contact terms in the coupled Newton matrix, kx (-dF/dq) + kv (-dF/dq') beyond the frameless
+    position block's (w n)(w n)^T: for a row pressing (g < 0) with gap gradient G (w_a n, w_b n on its nodes, -+
+    ds/dx on its edges' nodes, -ds/dtheta on its edges' twist angles; :func:`~bullet_dlo.core.kernels.contact.
+    set_support`), (kx k_n + kv c_n) (G G^T - (w n)(w n)^T) and the curvature of s in the twist, kx k_n |g|
+    d2s/dtheta^2 (with ``exact`` as it is; else where it is >= 0: the Gauss-Newton matrix stays positive
+    definite); for its friction spring K (:func:`~bullet_dlo.core.kernels.contact._row_blocks`, 3 x 3) with slip
+    gradient T ((1 - s_a) I, s_a I on its nodes, the touching point's dm/dtheta on its edges), T^T K T's entries in
+    a twist angle. The curvature of s in the positions and the friction's d2m/dtheta^2 are left out
     (Gauss-Newton)."""
     if c.section[0] <= 0.0:
         return
     ns = x.shape[0] - 1
-    idx = np.empty(8, np.int64)
-    val = np.empty(8)
+    full = np.empty(11)  # G over the row's local unknowns: x of nodes a - 1, a, a + 1, then theta of edges e0, e1
+    axis = np.empty(11)  # its (w n) part (the frameless block has it)
     blk = np.empty((2, 3, 3))
     u = np.empty(3)
     for k in range(c.count[0]):
@@ -1376,29 +1415,57 @@ def _add_section_band(c, held, x, kx, kv, band, lower, exact):
         if not g < 0.0:
             continue
         stiff = kx * c.k_n[k] + kv * c.c_n[k]
-        m = 0
-        for slot in range(2):  # the gradient's twist entries, then its position entries
-            e = e0 if slot == 0 else e1
-            if e >= 0:
-                idx[m] = 4 * e + 3
-                val[m] = -c.support[k, 2 + slot]
-                m += 1
-                curv = kx * c.k_n[k] * (-g) * c.support[k, 4 + slot]
-                if exact or curv > 0.0:
-                    _add_band_entry(band, lower, exact, 4 * e + 3, 4 * e + 3, curv)
-        nt = m
+        base = c.node[k, 0] - 1
+        full[:] = 0.0
+        axis[:] = 0.0
         for slot in range(2):
             node = c.node[k, slot]
             w = c.weight[k, slot]
-            if w == 0.0 or held[node]:
+            if slot == 1 and node == c.node[k, 0]:
                 continue
             for j in range(3):
-                idx[m] = 4 * node + j
-                val[m] = w * c.normal[k, j]
-                m += 1
-        for p in range(nt):
-            for q in range(p, m):  # twist-twist and twist-position pairs
-                _add_band_entry(band, lower, exact, idx[p], idx[q], stiff * val[p] * val[q])
+                full[3 * (node - base) + j] += w * c.normal[k, j]
+                axis[3 * (node - base) + j] += w * c.normal[k, j]
+        for slot in range(2):
+            e = e0 if slot == 0 else e1
+            if e < 0:
+                continue
+            full[9 + slot] = -c.support[k, 2 + slot]
+            for j in range(3):
+                full[3 * (e + 1 - base) + j] -= c.support[k, 18 + 3 * slot + j]
+                full[3 * (e - base) + j] += c.support[k, 18 + 3 * slot + j]
+            curv = kx * c.k_n[k] * (-g) * c.support[k, 4 + slot]
+            if exact or curv > 0.0:
+                _add_band_entry(band, lower, exact, 4 * e + 3, 4 * e + 3, curv)
+        for p in range(11):
+            if full[p] == 0.0 or not _section_unknown(p, base, e0, e1, held):
+                continue
+            for q in range(p, 11):
+                if full[q] == 0.0 or not _section_unknown(q, base, e0, e1, held):
+                    continue
+                val = stiff * (full[p] * full[q] - axis[p] * axis[q])
+                if val != 0.0:
+                    _add_band_entry(band, lower, exact, _section_index(p, base, e0, e1),
+                                    _section_index(q, base, e0, e1), val)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _section_index(p, base, e0, e1):
+    """The coupled layout's index of :func:`_add_section_band`'s local unknown p (x of node base + p // 3, component
+    p % 3, for p < 9; else theta of edge e0 or e1)."""
+    if p < 9:
+        return 4 * (base + p // 3) + p % 3
+    return 4 * (e0 if p == 9 else e1) + 3
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _section_unknown(p, base, e0, e1, held):
+    """Whether :func:`_add_section_band`'s local unknown p is one of the solve's (a free node's position, a twist
+    angle of an edge the row has)."""
+    if p < 9:
+        node = base + p // 3
+        return 0 <= node < held.shape[0] and not held[node]
+    return (e0 if p == 9 else e1) >= 0
 
 
 @njit(cache=True, error_model="numpy")
@@ -1426,6 +1493,22 @@ def _add_contact_band(c, held, x, kx, kv, cb, band, lower, exact):
     _add_section_band(c, held, x, kx, kv, band, lower, exact)
 
 
+# An exact contact matrix whose elimination meets a pivot <= 0 is assembled again with its diagonal times 1 +
+# FIRST_SHIFT, 10 FIRST_SHIFT, ... (SHIFTS tries in all, the first unshifted; Marquardt's scaling: the step turns
+# towards each unknown's own Newton step), and Gauss-Newton's only after that: at the frictional impact of a
+# tilted ribbon (n 41, 1 kHz) the exact matrix is indefinite and Gauss-Newton's steps contract poorly (30
+# iterations at alpha 1/32 - 1/4, the step failed); a 1.1x diagonal converges it (docs/concepts/contact.md).
+SHIFTS = 5
+FIRST_SHIFT = 1e-3
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _scale_diagonal(band, factor):
+    """The diagonal of the upper ``band`` (column 0) times ``factor``."""
+    for i in range(band.shape[0]):
+        band[i, 0] *= factor
+
+
 @njit(cache=True, error_model="numpy", inline="always")
 def _trial(vn, wn, r, alpha, v_try, w_try, n, ns):
     """The line search's trial velocities [m/s] of the n nodes and twist rates [rad/s] of the ns segments: (vn, wn)
@@ -1446,7 +1529,8 @@ def coupled_contact(stepper, method, m, x, v, samples, ws, has_prev, c, cap_tol=
     position block of the Gauss-Newton matrix (the exact Jacobian is not taken here), their potential in the
     merit; accepted on a potential decrease only and the friction caps an outer fixed point, as
     :func:`~bullet_dlo.core.kernels.steppers.newton` does with contacts (without its friction active set, which
-    only solves with free bodies use). Advances x, v and the twist state in place and leaves the contact forces
+    only solves with free bodies use). An exact matrix that is indefinite is scaled on its diagonal before
+    Gauss-Newton's is taken (:data:`SHIFTS`). Advances x, v and the twist state in place and leaves the contact forces
     at the solution in ``c`` and the position rows of its residual in ws.residual (the stall guard's measure).
     Returns (Newton iterations, converged)."""
     h = stepper.h
@@ -1476,7 +1560,7 @@ def coupled_contact(stepper, method, m, x, v, samples, ws, has_prev, c, cap_tol=
     max_iter = max(stepper.max_iter, _contact.MIN_CONTACT_ITER)
     caps_new = np.empty(max(nc, 1))
     _residual(m, mp, imp, ws, samples, frac, h, tb, wb, wa, vn, wn, wv, rate, tq, r, g, sc)  # X at the predictor
-    _contact.set_support(c, sc.edges, wv)  # (a flat section's reach at the predictor: the caps' penetration)
+    _contact.set_support(c, sc.edges, wv, m.tw_ref, m.tw_tan)  # (a flat section's reach at the predictor: caps)
     _contact.elastic_caps(c, ws.x_stage, c.cap)  # caps from its penetration
     rnorm = _add_contacts(m, imp, ws, r, c, sc, wv)
     fresh = True  # r, rnorm, the scratch and the contact forces are those of (vn, wn) with the caps in use
@@ -1506,9 +1590,17 @@ def coupled_contact(stepper, method, m, x, v, samples, ws, has_prev, c, cap_tol=
                 + _contact.contact_potential(c, ws.x_stage, ws.v_stage, cx / cv))
         exact = (it >= first_exact or slow) and not descent
         if exact:
-            _newton_matrix(stepper, m, mp, imp, ws, band, g, sc, exact, lower, upx, samples, frac, h)
-            _add_contact_band(c, m.held, ws.x_stage, hf * cx, hf * cv, cb, band, lower, exact)
-            exact = _exact_direction(band, lower, r, r_try)
+            shift = 0.0  # an indefinite exact matrix (at an impact) is taken again with its diagonal scaled up
+            solved = False
+            for _ in range(SHIFTS):
+                _newton_matrix(stepper, m, mp, imp, ws, band, g, sc, exact, lower, upx, samples, frac, h)
+                _add_contact_band(c, m.held, ws.x_stage, hf * cx, hf * cv, cb, band, lower, exact)
+                _scale_diagonal(band, 1.0 + shift)
+                solved = _exact_direction(band, lower, r, r_try)
+                if solved:
+                    break
+                shift = FIRST_SHIFT if shift == 0.0 else 10.0 * shift
+            exact = solved
         if not exact:
             _newton_matrix(stepper, m, mp, imp, ws, band, g, sc, exact, lower, upx, samples, frac, h)
             _add_contact_band(c, m.held, ws.x_stage, hf * cx, hf * cv, cb, band, lower, exact)
