@@ -1418,11 +1418,9 @@ def _add_section_band(c, held, x, kx, kv, band, lower, exact):
         base = c.node[k, 0] - 1
         full[:] = 0.0
         axis[:] = 0.0
-        for slot in range(2):
+        for slot in range(2):  # (a row on one node with two weights adds both: the same local entries)
             node = c.node[k, slot]
             w = c.weight[k, slot]
-            if slot == 1 and node == c.node[k, 0]:
-                continue
             for j in range(3):
                 full[3 * (node - base) + j] += w * c.normal[k, j]
                 axis[3 * (node - base) + j] += w * c.normal[k, j]
