@@ -9,10 +9,11 @@ has its centre line at half its thickness, 0.15 mm: the contact presses with the
 contact.md, "Flat sections"; ``--diameter`` is the round envelope of the other contact layers).
 
 What it shows (the table in docs/concepts/model.md, "A tilted ribbon landing with friction"): a ribbon clamped flat
-lands at every rate; with its section tilted it lands or rests tilted (the clamp's twist, friction) at 240 Hz and 1
-kHz, with and without friction, from n 11 to 41; at 60 and 120 Hz a tilted ribbon is still stopped. The frictional
+lands at every rate; with its section tilted it lands or rests tilted (the clamp's twist, friction) from 120 Hz to 1
+kHz, with and without friction, from n 11 to 41; at 60 Hz a ribbon rolled 1 rad is still stopped. The frictional
 landings needed the section's contact forces to carry their bending couples (the gradient of the potential Newton's
-line search descends) and an indefinite exact matrix to be shifted rather than replaced by Gauss-Newton's.
+line search descends) and an indefinite exact matrix to be shifted rather than replaced by Gauss-Newton's; at 60 and
+120 Hz the touch-down steps are taken again as sub-steps.
 
     python demos/ribbon_landing.py                        # rolls 0, 0.3, 1; friction 0 and 0.3; 240 Hz, 1 kHz
     python demos/ribbon_landing.py --rates 4000 --rolls 0.3

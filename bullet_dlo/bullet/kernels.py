@@ -139,7 +139,7 @@ class StallGuard(NamedTuple):
     multiplies (gravity's and the external forces' impulse on the heaviest node in a step, plus the step's
     largest momentum change; :func:`stall_ratio`); wild [-]: a solve that ends beyond ``wild`` times that scale
     is taken again like a coast, even though it moved the momentum, when a free body is in the solve (such a
-    step hands the body an impulse of that many times its weight's); x0 [m], v0 [m/s]: the state a contact sub-step starts from,
+    step hands the body an impulse of that many times its weight's) or the cable's section is flat; x0 [m], v0 [m/s]: the state a contact sub-step starts from,
     (n, 3); vs [m/s]: the velocities a retry's sub-step starts from, (n, 3); rows, whole: (live, saved) array pairs of everything else a contact step writes (every array of the
     Contacts and of its grips, the twist state, BDF2's history): ``rows`` indexed by contact row (only the rows
     in use are saved), ``whole`` copied whole; info (5,): the last planned step's worst residual ratio of a
@@ -229,7 +229,8 @@ def _force_weight(stepper, use_prev):
 def _guarded_contact_step(stepper, m, plan, ext, cp, ws, t, k, prev, contacts, bodies, guard):
     """Contact sub-step k of the coming Bullet step on (cp.x_new, cp.v_new), taken again from its start as 2,
     4, ... sub-steps when its Newton solve coasts (:func:`_coasted`: far from convergence with the momentum where
-    it started), or ends beyond ``guard.wild`` with a free body in it (:class:`StallGuard`): the first attempt whose solves all end within ``guard.far`` is kept, else
+    it started), or ends beyond ``guard.wild`` with a free body in it or a flat section (:class:`StallGuard`): the
+    first attempt whose solves all end within ``guard.far`` is kept, else
     the last. Returns (Newton iterations, converged,
     the worst residual ratio of the solves kept (0: all converged), whether one of them coasted)."""
     save = guard.levels > 0
@@ -252,13 +253,16 @@ def _guarded_contact_step(stepper, m, plan, ext, cp, ws, t, k, prev, contacts, b
         info[FIRST_ITER] = its
         info[FIRST_MOVED] = momentum_moved(m, guard.v0, cp.v_new) / impulse_scale(m, hf)
     coast = _coasted(m, guard.far, guard.v0, cp.v_new, hf, ratio)
-    wild = max(ratio, body) > guard.wild and _moves_a_body(bodies)
+    # wildly far with a free body in the solve, or for a flat section (its impact at 60-120 Hz: sub-steps land it)
+    wild = max(ratio, body) > guard.wild and (_moves_a_body(bodies) or contacts.section[0] > 0.0)
     if not save or not (coast or wild):
         # a near miss, or far after moving the momentum: kept (sub-steps do not help those: on a cable sliding
         # over a box edge 918 of 921 retried steps, and 67 of 67 that stalled after some iterations, stayed
         # far, at 1.6 to 9 times the CPU time; docs/concepts/integrators.md, "A stalled contact step"), unless
         # wildly far with a free body in the solve: a 20 g part on a cord at 120 Hz got 8x its weight from a kept
-        # solve at 69 and was launched (without a body, e.g. on an edge, the retry changes the slide, not the fault)
+        # solve at 69 and was launched (without a body, e.g. on an edge, the retry changes the slide, not the fault),
+        # or with a flat section: a tilted ribbon landing at 60 or 120 Hz (its exact matrix indefinite) was stopped,
+        # and lands in 2 or 4 sub-steps
         return its, ok, max(ratio, body), coast
     hs = stepper.h
     worst = max(ratio, body)
