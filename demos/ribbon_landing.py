@@ -3,10 +3,11 @@
 A PET ribbon (0.4 m, 20 x 0.3 mm, E 2 GPa, damping_rate 5) is clamped 5 cm above the ground with its clamp rolled
 ``--roll`` rad about the cable's axis (its weak axis tilted), released straight, and falls onto the ground in Bullet
 (BDF2 by default, the model's contact). Each case runs ``--duration`` s or until the run's instability detector stops
-it, and prints whether it stayed stable (else when and why it was stopped), its Newton failures, the twist angles'
-range at the end [rad] and the lowest node's height over the run's last 0.2 s [mm] (a ribbon lying flat on the ground
-has its centre line at half its thickness, 0.15 mm: the contact presses with the rectangle's section, docs/concepts/
-contact.md, "Flat sections"; ``--diameter`` is the round envelope of the other contact layers).
+it, and prints whether it stayed stable (else when and why it was stopped), its Newton failures and iterations per
+step (a retried step's sub-steps counted), the twist angles' range at the end [rad] and the lowest node's height over
+the run's last 0.2 s [mm] (a ribbon lying flat on the ground has its centre line at half its thickness, 0.15 mm: the
+contact presses with the rectangle's section, docs/concepts/contact.md, "Flat sections"; ``--diameter`` is the round
+envelope of the other contact layers).
 
 What it shows (the table in docs/concepts/model.md, "A tilted ribbon landing with friction"): a ribbon clamped flat
 lands at every rate; with its section tilted it lands or rests tilted (the clamp's twist, friction) from 120 Hz to 1
@@ -66,6 +67,7 @@ def land(rate: float, roll: float, friction: float, n_masses: int, duration: flo
         return {"rate": rate, "roll": roll, "friction": friction, "width": width, "stable": cable.stable,
                 "stopped_at": None if cable.stable else (k + 1) / rate, "reason": cable.reason,
                 "newton_failures": cable.newton_failures, "steps": k + 1,
+                "iterations": cable.newton_iterations / (k + 1),
                 "theta": (float(theta.min()), float(theta.max())), "lowest_mm": 1e3 * lowest,
                 "cpu_s": time.thread_time() - t0}
 
@@ -89,7 +91,7 @@ def main(argv=None) -> None:
         args.rates, args.rolls, args.frictions, args.duration = [1000.0], [0.3], [0.0, 0.3], 0.4
     print(f"ribbon 0.4 m x 0.3 mm thick, n {args.n}, {args.method}, clamp {HEIGHT * 1e3:.0f} mm above the ground")
     print("width [mm]  rate [Hz]  roll [rad]  mu   result                                    Newton failures  "
-          "theta [rad]       lowest node, last 0.2 s [mm]  CPU [s]")
+          "iterations per step  theta [rad]       lowest node, last 0.2 s [mm]  CPU [s]")
     cases = [(w, rate, roll, mu) for w in args.widths for rate in args.rates for roll in args.rolls
              for mu in args.frictions]
     for width, rate, roll, mu in cases:
@@ -97,7 +99,8 @@ def main(argv=None) -> None:
         result = "stable" if r["stable"] else f"stopped at {r['stopped_at']:.3f} s: {r['reason']}"
         low = f"{r['lowest_mm']:.2f}" if r["stable"] else "-"
         print(f"{1e3 * width:10.1f}  {rate:9.0f}  {roll:10.2f}  {mu:3.1f}  {result:40.40s}  "
-              f"{r['newton_failures']:6d} of {r['steps']:<6d}  {r['theta'][0]:+.2f}..{r['theta'][1]:+.2f}  {low:>12s}  "
+              f"{r['newton_failures']:6d} of {r['steps']:<6d}  {r['iterations']:19.1f}  "
+              f"{r['theta'][0]:+.2f}..{r['theta'][1]:+.2f}  {low:>12s}  "
               f"{r['cpu_s']:.1f}")
 
 

@@ -10,9 +10,10 @@ import numpy as np
 import pytest
 
 from bullet_dlo.bullet.world import BulletWorld
-from bullet_dlo.core.kernels.contact import contact_forces, contact_potential, make_contacts, set_support
+from bullet_dlo.core.kernels.contact import contact_forces, contact_potential, make_contacts, row_edges, set_support
 from bullet_dlo.core.kernels.twist import edge_frame
-from bullet_dlo.core.kernels.twist_coupled import _add_section_couples, _add_section_moments
+from bullet_dlo.core.kernels.banded import HALF
+from bullet_dlo.core.kernels.twist_coupled import HALF_T, _add_contact_band, _add_section_couples, _add_section_moments
 from bullet_dlo.core.model import CableModel
 from bullet_dlo.core.spec import CableSpec
 
@@ -126,11 +127,11 @@ def test_support_distance_and_its_derivatives():
         assert not s0[12:15].any()
 
 
-def _section_contact(x, theta, ref, tan, theta0, rows):
-    """Contact rows against the ground (normal +z) for a 20 x 0.3 mm section on positions x [m] (n, 3) with twist
-    angles theta [rad] (n - 1,), reference frames (ref, tan) and step-start angles theta0; ``rows``: (node a,
-    node b, friction anchor [m] (3,), friction cap [N]) each. Returns (potential [J], forces on the nodes [N] (n,
-    3), moments about the edges [N m] (n - 1,)) as the coupled step computes them."""
+def _section_rows(x, theta, ref, tan, theta0, rows, ground=0.0):
+    """Contact rows against a ground at height ``ground`` [m] (normal +z) for a 20 x 0.3 mm section on positions x
+    [m] (n, 3) with twist angles theta [rad] (n - 1,), reference frames (ref, tan) and step-start angles theta0;
+    ``rows``: (node a, node b, friction anchor [m] (3,), friction cap [N]) each. Returns the contact set with its
+    support set, and the edges' frames (the coupled step's Scratch edges)."""
     n = x.shape[0]
     c = make_contacts(n, len(rows), 0.5 * THICKNESS, section=(WIDTH, THICKNESS))
     c.count[0] = len(rows)
@@ -138,10 +139,11 @@ def _section_contact(x, theta, ref, tan, theta0, rows):
         c.node[k] = a, b
         c.weight[k] = (1.0, 0.0) if a == b else (0.5, 0.5)
         c.normal[k] = 0.0, 0.0, 1.0
+        c.point[k] = 0.0, 0.0, ground
         c.k_n[k], c.k_t[k], c.cap[k] = 2e3, 1e3, cap
         c.anchor[k, :3] = anchor
         c.anchor[k, 3] = c.weight[k, 1]
-        e0, e1 = (a - 1, a) if a == b else (-1, a)
+        e0, e1 = row_edges(a, b, n - 1)
         c.support[k, 9] = theta0[e0] if e0 >= 0 else 0.0
         c.support[k, 10] = theta0[e1] if e1 >= 0 else 0.0
     E = np.zeros((8, n + 1))
@@ -149,6 +151,14 @@ def _section_contact(x, theta, ref, tan, theta0, rows):
     for k in range(n - 1):
         E[:, k + 1] = edge_frame.py_func(x, dirs, theta, ref, tan, clamp, k)
     set_support(c, E, np.zeros(n - 1), ref, tan)
+    return c, E
+
+
+def _section_contact(x, theta, ref, tan, theta0, rows):
+    """The contact of :func:`_section_rows` on the ground at height 0. Returns (potential [J], forces on the nodes
+    [N] (n, 3), moments about the edges [N m] (n - 1,)) as the coupled step computes them."""
+    n = x.shape[0]
+    c, E = _section_rows(x, theta, ref, tan, theta0, rows)
     v = np.zeros_like(x)
     force = np.zeros_like(x)
     contact_forces(c, x, v, force)
@@ -158,16 +168,10 @@ def _section_contact(x, theta, ref, tan, theta0, rows):
     return contact_potential(c, x, v, 0.0), force, r[3::4][: n - 1].copy()
 
 
-def test_section_contact_forces_are_the_gradient_of_its_potential():
-    """On a sloped strip whose section is tilted and turned since the step's start, pressing the ground at two node
-    rows and a segment row with friction (stuck and sliding), the contact forces on the nodes and moments about the
-    edges are minus the gradient of the contact potential (central differences, within 1e-5 of the largest): the
-    normal force acts at the touching point, off the centre line, so it puts a bending couple on the edges' nodes
-    as the section turns with their tangents, and so does the friction through the touching point's move. Without
-    those couples the force missed up to (n . t)(b/2)/l of the normal force per node (20 % here), the coupled
-    Newton's potential and residual disagreed, and a tilted ribbon's frictional landing failed its solves."""
-    rng = np.random.default_rng(3)
-    n, seg = 5, 0.01
+def _sloped_strip(seed: int, n: int = 5, seg: float = 0.01):
+    """Positions [m] of a strip sloping into the ground, its twist angles [rad], the step's start angles and
+    reference frames (other tangents than the edges'): a state the coupled step meets mid-solve."""
+    rng = np.random.default_rng(seed)
     x = np.zeros((n, 3))
     x[:, 0] = seg * np.arange(n)
     x[:, 2] = 0.2 * seg * np.arange(n)[::-1] - 0.004 + 2e-4 * rng.standard_normal(n)  # sloped, into the ground
@@ -180,6 +184,19 @@ def test_section_contact_forces_are_the_gradient_of_its_potential():
     ref /= np.linalg.norm(ref, axis=1)[:, None]
     theta = 0.4 + 0.1 * rng.standard_normal(n - 1)
     theta0 = theta - 0.05 * rng.standard_normal(n - 1)
+    return x, theta, theta0, ref, tan
+
+
+def test_section_contact_forces_are_the_gradient_of_its_potential():
+    """On a sloped strip whose section is tilted and turned since the step's start, pressing the ground at two node
+    rows and a segment row with friction (stuck and sliding), the contact forces on the nodes and moments about the
+    edges are minus the gradient of the contact potential (central differences, within 1e-5 of the largest): the
+    normal force acts at the touching point, off the centre line, so it puts a bending couple on the edges' nodes
+    as the section turns with their tangents, and so does the friction through the touching point's move. Without
+    those couples the force missed up to (n . t)(b/2)/l of the normal force per node (20 % here), the coupled
+    Newton's potential and residual disagreed, and a tilted ribbon's frictional landing failed its solves."""
+    n, seg = 5, 0.01
+    x, theta, theta0, ref, tan = _sloped_strip(3, n, seg)
     rows = [(a, b, 0.5 * (x[a] + x[b]) + offset, cap) for a, b, offset, cap in
             [(1, 1, np.array([1e-4, -2e-4, 0.0]), 10.0), (2, 2, np.array([-3e-3, 1e-3, 0.0]), 0.5),
              (3, 4, np.array([2e-4, 5e-4, 0.0]), 10.0)]]
@@ -204,3 +221,67 @@ def test_section_contact_forces_are_the_gradient_of_its_potential():
     scale = np.abs(force).max()
     np.testing.assert_allclose(force, -grad_x, rtol=0.0, atol=1e-5 * scale)
     np.testing.assert_allclose(moment, -grad_t, rtol=0.0, atol=1e-5 * scale * seg)
+
+
+def test_section_friction_stiffness_in_the_newton_matrix_is_its_slip_gradients():
+    """The coupled Newton matrix's friction terms of a flat section's rows (stuck and sliding, on node and segment
+    rows, a held node) are T^T K T: K the friction spring, T the slip's gradient over the positions and twist
+    angles, here from central differences of the slip with the support recomputed. The slip counts the section's
+    touching point's move s (theta - theta0) (n x t), which moves with the edges' nodes (s and n x t turn with the
+    tangent) as well as with theta: without those position terms (before) the matrix missed up to 5 % of the
+    friction spring here, and a tilted ribbon resting on the ground with friction took 8-10 Newton iterations a step
+    (linear convergence) and failed a fifth of its solves at 1 kHz (``demos/ribbon_landing.py``)."""
+    n = 5
+    x, theta, theta0, ref, tan = _sloped_strip(5, n)
+    rows = [(a, b, 0.5 * (x[a] + x[b]) + offset, cap) for a, b, offset, cap in
+            [(1, 1, np.array([1e-4, -2e-4, 0.0]), 10.0), (2, 2, np.array([-3e-3, 1e-3, 0.0]), 0.5),
+             (3, 4, np.array([2e-4, 5e-4, 0.0]), 10.0), (4, 4, np.array([-1e-3, 2e-3, 0.0]), 0.3)]]
+    ground = -0.05  # (no row presses: the friction's terms alone)
+    c, E = _section_rows(x, theta, ref, tan, theta0, rows, ground)
+    held = np.zeros(n, dtype=np.bool_)
+    held[0] = True
+    band = np.zeros((4 * n, HALF_T + 1))
+    _add_contact_band(c, held, x, E, 1.0, 0.0, np.zeros((3 * n, 2 * HALF + 1)), band, np.zeros_like(band), False)
+    matrix = np.zeros((4 * n, 4 * n))
+    for p in range(4 * n):
+        for d in range(HALF_T + 1):
+            if p + d < 4 * n:
+                matrix[p, p + d] = matrix[p + d, p] = band[p, d]
+
+    def slips(xq, thq):
+        """Each row's slip [m] (rows, 3): the anchored point and the touching point's move, off the anchor."""
+        cq, _ = _section_rows(xq, thq, ref, tan, theta0, rows, ground)
+        out = np.empty((len(rows), 3))
+        for k, (a, b, anchor, _) in enumerate(rows):
+            sa = cq.anchor[k, 3]
+            out[k] = (1.0 - sa) * xq[a] + sa * xq[b] + cq.support[k, 6:9] - anchor
+            out[k, 2] = 0.0  # (the tangential part: the ground's normal is z)
+        return out
+
+    d = 1e-7
+    grad = np.zeros((len(rows), 3, 4 * n))  # dslip/dq in the coupled layout (x_i at 4 i + j, theta_e at 4 e + 3)
+    for q in range(4 * n):
+        if q % 4 == 3 and q // 4 >= n - 1:
+            continue
+        xp, xm, tp, tm = x.copy(), x.copy(), theta.copy(), theta.copy()
+        if q % 4 == 3:
+            tp[q // 4] += d
+            tm[q // 4] -= d
+        else:
+            xp[q // 4, q % 4] += d
+            xm[q // 4, q % 4] -= d
+        grad[:, :, q] = (slips(xp, tp) - slips(xm, tm)) / (2.0 * d)
+    expected = np.zeros_like(matrix)
+    regimes = set()
+    for k in range(len(rows)):
+        u = slips(x, theta)[k]
+        ul = float(np.linalg.norm(u))
+        stick = c.k_t[k] * ul <= c.cap[k]
+        regimes.add(stick)
+        proj = np.diag([1.0, 1.0, 0.0])
+        spring = c.k_t[k] * proj if stick else c.cap[k] / ul * (proj - np.outer(u, u) / ul ** 2)
+        expected += grad[k].T @ spring @ grad[k]
+    assert regimes == {True, False}  # both regimes met
+    free = [q for q in range(4 * n) if not (q % 4 < 3 and held[q // 4]) and not (q % 4 == 3 and q // 4 >= n - 1)]
+    got, want = matrix[np.ix_(free, free)], expected[np.ix_(free, free)]
+    np.testing.assert_allclose(got, want, rtol=0.0, atol=1e-6 * np.abs(want).max())

@@ -55,8 +55,9 @@ body is in the solve) the same system takes the contact and grip forces on the p
 the position block of the Gauss-Newton matrix and their potential in the merit, with the contact Newton's rules
 (potential decrease only, the friction caps an outer fixed point). BDF2 then keeps order 2 in contact
 (frictionless rows: ``tests/bullet/test_twist_contact_order.py``; sliding friction is first order of its own). A flat
-section's rows add their moments on the twist rows and their twist entries to the Gauss-Newton matrix
-(:func:`_add_section_moments`, :func:`_add_section_band`; docs/concepts/contact.md, "Flat sections").
+section's rows add their moments on the twist rows, their couples on the edges' nodes and their gap's and slip's
+gradients in positions and twist to the Newton matrix (:func:`_add_section_moments`, :func:`_add_section_couples`,
+:func:`_add_section_band`; docs/concepts/contact.md, "Flat sections").
 
 Gauss-Legendre (:func:`coupled_gauss_legendre`) solves both stages' velocities and twist rates in one Newton system
 (8 unknowns per node), each stage's forces and Gauss-Newton matrix from :func:`_residual` and :func:`_newton_matrix`;
@@ -1354,68 +1355,103 @@ def _add_band_entry(band, lower, exact, p, q, val):
         _add_sym(lower, p, q, val)
 
 
+@njit(cache=True, error_model="numpy", inline="always")
+def _skew(n0, n1, n2, i, j):
+    """Entry (i, j) of the cross-product matrix [n]_x (n x q = [n]_x q)."""
+    if i == j:
+        return 0.0
+    if i == 0:
+        return -n2 if j == 1 else n1
+    if i == 1:
+        return n2 if j == 0 else -n0
+    return -n1 if j == 0 else n0
+
+
 @njit(cache=True, error_model="numpy")
-def _add_friction_turn(c, k, held, e0, e1, blk, band, lower, exact):
-    """Row k's friction spring blk[1] (3 x 3, symmetric) in its edges' twist angles: T^T K T's twist-twist and
-    twist-position entries, T the slip's gradient ((1 - s_a) I, s_a I on the row's nodes, the touching point's
-    dm/dtheta on edges e0, e1)."""
+def _slip_gradient(c, k, E, e0, e1, base, full, axis):
+    """full (3, 11) <- the gradient of penalty row k's slip over :func:`_add_section_band`'s local unknowns: the
+    anchored point's weights (1 - s_a) I, s_a I on the row's nodes and the section's touching point's move m = s
+    (theta - theta0) (n x t) (:func:`~bullet_dlo.core.kernels.contact.set_support`) in its edges' twist angles and
+    nodes, dm/dx_{e+1} = -dm/dx_e = (theta - theta0) ((n x t) ds/dx^T + s [n]_x (I - t t^T) / length), the
+    derivative :func:`_add_section_couples` applies to the friction force; axis (3, 11) <- its node-weight part
+    alone (the frameless block's). ``E``: the edges' frames (:class:`Scratch` edges)."""
+    full[:, :] = 0.0
+    axis[:, :] = 0.0
     sa = c.anchor[k, 3]
+    for side in range(2):  # (a row on one node: both weights there)
+        local = 3 * (c.node[k, side] - base)
+        w = 1.0 - sa if side == 0 else sa
+        for j in range(3):
+            full[j, local + j] += w
+            axis[j, local + j] += w
+    n0, n1, n2 = c.normal[k, 0], c.normal[k, 1], c.normal[k, 2]
     for slot in range(2):
         e = e0 if slot == 0 else e1
         if e < 0:
             continue
-        q = 12 + 3 * slot
-        kd0, kd1, kd2 = 0.0, 0.0, 0.0  # K dm/dtheta_e
-        for j in range(3):
-            kd0 += blk[1, 0, j] * c.support[k, q + j]
-            kd1 += blk[1, 1, j] * c.support[k, q + j]
-            kd2 += blk[1, 2, j] * c.support[k, q + j]
-        for other in range(slot, 2):  # twist-twist (each pair once)
-            f = e0 if other == 0 else e1
-            if f < 0:
-                continue
-            p = 12 + 3 * other
-            val = kd0 * c.support[k, p] + kd1 * c.support[k, p + 1] + kd2 * c.support[k, p + 2]
-            _add_band_entry(band, lower, exact, 4 * e + 3, 4 * f + 3, val)
-        for side in range(2):  # twist-position
-            node = c.node[k, side]
-            w = 1.0 - sa if side == 0 else sa
-            if w == 0.0 or held[node] or (side == 1 and c.node[k, 1] == c.node[k, 0]):
-                continue
-            _add_band_entry(band, lower, exact, 4 * e + 3, 4 * node, w * kd0)
-            _add_band_entry(band, lower, exact, 4 * e + 3, 4 * node + 1, w * kd1)
-            _add_band_entry(band, lower, exact, 4 * e + 3, 4 * node + 2, w * kd2)
+        col = e + 1
+        t0, t1, t2 = E[1, col], E[2, col], E[3, col]
+        turn = E[7, col] - c.support[k, 9 + slot]
+        lever = turn * c.support[k, 24 + slot] / E[0, col]
+        for i in range(3):
+            xi = (n1 * t2 - n2 * t1) if i == 0 else ((n2 * t0 - n0 * t2) if i == 1 else (n0 * t1 - n1 * t0))  # n x t
+            full[i, 9 + slot] = c.support[k, 12 + 3 * slot + i]
+            for j in range(3):
+                tj = t0 if j == 0 else (t1 if j == 1 else t2)
+                d = turn * xi * c.support[k, 18 + 3 * slot + j] + lever * (_skew(n0, n1, n2, i, j) - xi * tj)
+                full[i, 3 * (e + 1 - base) + j] += d
+                full[i, 3 * (e - base) + j] -= d
 
 
 @njit(cache=True, error_model="numpy")
-def _add_section_band(c, held, x, kx, kv, band, lower, exact):
+def _add_section_band(c, held, x, E, kx, kv, band, lower, exact):
     """A flat section's contact terms in the coupled Newton matrix, kx (-dF/dq) + kv (-dF/dq') beyond the frameless
-    position block's (w n)(w n)^T: for a row pressing (g < 0) with gap gradient G (w_a n, w_b n on its nodes, -+
-    ds/dx on its edges' nodes, -ds/dtheta on its edges' twist angles; :func:`~bullet_dlo.core.kernels.contact.
-    set_support`), (kx k_n + kv c_n) (G G^T - (w n)(w n)^T) and the curvature of s in the twist, kx k_n |g|
-    d2s/dtheta^2 (with ``exact`` as it is; else where it is >= 0: the Gauss-Newton matrix stays positive
-    definite); for its friction spring K (:func:`~bullet_dlo.core.kernels.contact._row_blocks`, 3 x 3) with slip
-    gradient T ((1 - s_a) I, s_a I on its nodes, the touching point's dm/dtheta on its edges), T^T K T's entries in
-    a twist angle. The curvature of s in the positions and the friction's d2m/dtheta^2 are left out
-    (Gauss-Newton)."""
+    position block's: for a row pressing (g < 0) with gap gradient G (w_a n, w_b n on its nodes, -+ ds/dx on its
+    edges' nodes, -ds/dtheta on its edges' twist angles; :func:`~bullet_dlo.core.kernels.contact.set_support`),
+    (kx k_n + kv c_n) (G G^T - (w n)(w n)^T) and the curvature of s in the twist, kx k_n |g| d2s/dtheta^2 (with
+    ``exact`` as it is; else where it is >= 0: the Gauss-Newton matrix stays positive definite); for its friction
+    spring K (:func:`~bullet_dlo.core.kernels.contact._row_blocks`, 3 x 3) with slip gradient T
+    (:func:`_slip_gradient`: the anchored point's weights on its nodes, the touching point's move in its edges' twist
+    angles and nodes), T^T K T - A^T K A (A: the weights alone, the frameless block's). The curvature of s in the
+    positions and the second derivatives of the move are left out (Gauss-Newton). ``E``: the edges' frames at x
+    (:class:`Scratch` edges)."""
     if c.section[0] <= 0.0:
         return
     ns = x.shape[0] - 1
     full = np.empty(11)  # G over the row's local unknowns: x of nodes a - 1, a, a + 1, then theta of edges e0, e1
     axis = np.empty(11)  # its (w n) part (the frameless block has it)
+    slip, slip_axis = np.empty((3, 11)), np.empty((3, 11))  # T and A over the same unknowns
+    k_slip, k_axis = np.empty((3, 11)), np.empty((3, 11))  # K T, K A
     blk = np.empty((2, 3, 3))
     u = np.empty(3)
     for k in range(c.count[0]):
         if c.support[k, 0] <= 0.0:
             continue
         e0, e1 = _contact.row_edges(c.node[k, 0], c.node[k, 1], ns)
+        base = c.node[k, 0] - 1
         _contact._row_blocks(c, k, x, kx, kv, u, blk)
-        _add_friction_turn(c, k, held, e0, e1, blk, band, lower, exact)
+        _slip_gradient(c, k, E, e0, e1, base, slip, slip_axis)
+        for i in range(3):
+            for p in range(11):
+                k_slip[i, p] = blk[1, i, 0] * slip[0, p] + blk[1, i, 1] * slip[1, p] + blk[1, i, 2] * slip[2, p]
+                k_axis[i, p] = (blk[1, i, 0] * slip_axis[0, p] + blk[1, i, 1] * slip_axis[1, p]
+                                + blk[1, i, 2] * slip_axis[2, p])
+        for p in range(11):
+            if not _section_unknown(p, base, e0, e1, held):
+                continue
+            for q in range(p, 11):
+                if not _section_unknown(q, base, e0, e1, held):
+                    continue
+                val = 0.0
+                for i in range(3):
+                    val += slip[i, p] * k_slip[i, q] - slip_axis[i, p] * k_axis[i, q]
+                if val != 0.0:
+                    _add_band_entry(band, lower, exact, _section_index(p, base, e0, e1),
+                                    _section_index(q, base, e0, e1), val)
         g = _contact._gap(c, k, x)
         if not g < 0.0:
             continue
         stiff = kx * c.k_n[k] + kv * c.c_n[k]
-        base = c.node[k, 0] - 1
         full[:] = 0.0
         axis[:] = 0.0
         for slot in range(2):  # (a row on one node with two weights adds both: the same local entries)
@@ -1467,12 +1503,13 @@ def _section_unknown(p, base, e0, e1, held):
 
 
 @njit(cache=True, error_model="numpy")
-def _add_contact_band(c, held, x, kx, kv, cb, band, lower, exact):
+def _add_contact_band(c, held, x, E, kx, kv, cb, band, lower, exact):
     """band (the coupled layout's upper band) += the contact set's kx (-dF/dx) + kv (-dF/dv) at x on the position
     block: :func:`~bullet_dlo.core.kernels.contact.add_contact_jacobian` into ``cb`` (the frameless layout's full
     band, scratch) and its upper triangle moved over (x_i, component r -> row 4 i + r; the rows couple nodes at
     most two apart, within the coupled envelope); with ``exact`` its mirror into the exact matrix's lower band by
-    columns (``lower``, see :func:`_band_lu_coupled`) too."""
+    columns (``lower``, see :func:`_band_lu_coupled`) too; then a flat section's terms (:func:`_add_section_band`,
+    ``E`` the edges' frames at x)."""
     cb[:, :] = 0.0
     _contact.add_contact_jacobian(c, held, x, kx, kv, cb)
     size = cb.shape[0]
@@ -1488,7 +1525,7 @@ def _add_contact_band(c, held, x, kx, kv, cb, band, lower, exact):
                 band[ra, off] += val
                 if exact and off > 0:
                     lower[ra, off] += val
-    _add_section_band(c, held, x, kx, kv, band, lower, exact)
+    _add_section_band(c, held, x, E, kx, kv, band, lower, exact)
 
 
 # An exact contact matrix whose elimination meets a pivot <= 0 is assembled again with its diagonal times 1 +
@@ -1523,13 +1560,15 @@ def _trial(vn, wn, r, alpha, v_try, w_try, n, ns):
 def coupled_contact(stepper, method, m, x, v, samples, ws, has_prev, c, cap_tol=1e-3, max_passes=10):
     """One implicit step (``method``: implicit Euler or BDF2) of a cable with a material frame in contact (the
     contact set ``c``, no free body in the solve), positions and twist in one Newton system: the coupled residual
-    of :func:`coupled_implicit` with the contact and grip forces added on the positions, their stiffness on the
-    position block of the Gauss-Newton matrix (the exact Jacobian is not taken here), their potential in the
-    merit; accepted on a potential decrease only and the friction caps an outer fixed point, as
-    :func:`~bullet_dlo.core.kernels.steppers.newton` does with contacts (without its friction active set, which
-    only solves with free bodies use). An exact matrix that is indefinite is scaled on its diagonal before
-    Gauss-Newton's is taken (:data:`SHIFTS`). Advances x, v and the twist state in place and leaves the contact forces
-    at the solution in ``c`` and the position rows of its residual in ws.residual (the stall guard's measure).
+    of :func:`coupled_implicit` with the contact and grip forces added on the positions (a flat section's also on
+    the twist), their stiffness in the Newton matrix (:func:`_add_contact_band`: the rows' springs through their gap
+    and slip gradients, without those gradients' own derivatives) beside the exact or Gauss-Newton matrix of the
+    rest, their potential in the merit; accepted on a potential decrease only and the friction caps an outer fixed
+    point, as :func:`~bullet_dlo.core.kernels.steppers.newton` does with contacts (without its friction active set,
+    which only solves with free bodies use). An exact matrix that is indefinite is scaled on its diagonal before
+    Gauss-Newton's is taken (:data:`SHIFTS`). Advances x, v and the twist state in place and leaves the contact
+    forces at the solution in ``c`` and the position rows of its residual in ws.residual (the stall guard's
+    measure).
     Returns (Newton iterations, converged)."""
     h = stepper.h
     n = x.shape[0]
@@ -1592,7 +1631,7 @@ def coupled_contact(stepper, method, m, x, v, samples, ws, has_prev, c, cap_tol=
             solved = False
             for _ in range(SHIFTS):
                 _newton_matrix(stepper, m, mp, imp, ws, band, g, sc, exact, lower, upx, samples, frac, h)
-                _add_contact_band(c, m.held, ws.x_stage, hf * cx, hf * cv, cb, band, lower, exact)
+                _add_contact_band(c, m.held, ws.x_stage, sc.edges, hf * cx, hf * cv, cb, band, lower, exact)
                 _scale_diagonal(band, 1.0 + shift)
                 solved = _exact_direction(band, lower, r, r_try)
                 if solved:
@@ -1601,7 +1640,7 @@ def coupled_contact(stepper, method, m, x, v, samples, ws, has_prev, c, cap_tol=
             exact = solved
         if not exact:
             _newton_matrix(stepper, m, mp, imp, ws, band, g, sc, exact, lower, upx, samples, frac, h)
-            _add_contact_band(c, m.held, ws.x_stage, hf * cx, hf * cv, cb, band, lower, exact)
+            _add_contact_band(c, m.held, ws.x_stage, sc.edges, hf * cx, hf * cv, cb, band, lower, exact)
             band_solve_upper(band, r, HALF_T, 4)  # r becomes the Newton direction
         alpha = 1.0
         accepted = False
