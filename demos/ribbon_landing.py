@@ -10,11 +10,12 @@ contact presses with the rectangle's section, docs/concepts/contact.md, "Flat se
 envelope of the other contact layers).
 
 What it shows (the table in docs/concepts/model.md, "A tilted ribbon landing with friction"): a ribbon clamped flat
-lands at every rate; with its section tilted it lands or rests tilted (the clamp's twist, friction) from 120 Hz to 1
-kHz, with and without friction, from n 11 to 41; at 60 Hz a ribbon rolled 1 rad is still stopped. The frictional
-landings needed the section's contact forces to carry their bending couples (the gradient of the potential Newton's
-line search descends) and an indefinite exact matrix to be shifted rather than replaced by Gauss-Newton's; at 60 and
-120 Hz the touch-down steps are taken again as sub-steps.
+lands at every rate; with its section tilted it lands or rests tilted (the clamp's twist, friction) from 60 Hz to 1
+kHz, with and without friction, from n 11 to 41. The frictional landings needed the section's contact forces to
+carry their bending couples (the gradient of the potential Newton's line search descends), the friction's whole
+slip gradient in the Newton matrix, and an indefinite exact matrix to be shifted rather than replaced by
+Gauss-Newton's; at 60 and 120 Hz the touch-down steps are taken again as sub-steps, and at 60 Hz a ribbon rolled 1
+rad needed a Gauss-Newton matrix that is positive semi-definite (its direction had ascended).
 
     python demos/ribbon_landing.py                        # rolls 0, 0.3, 1; friction 0 and 0.3; 240 Hz, 1 kHz
     python demos/ribbon_landing.py --rates 4000 --rolls 0.3

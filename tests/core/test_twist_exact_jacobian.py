@@ -102,7 +102,7 @@ def _start(s, rng):
                                          (("pinned", "clamped"), "implicit_midpoint")])
 def test_newton_matrix_is_the_residuals_jacobian(ends, method):
     """Against central differences of the residual in (v', w'): relative error <= 1e-6 (of the largest
-    off-diagonal entry), on random bent and twisted iterates; the Gauss-Newton matrix is off by > 1e-4."""
+    off-diagonal entry), on random bent and twisted iterates; the Gauss-Newton matrix is off by > 1e-5."""
     s = _state(ends, method)
     rng = np.random.default_rng(3)
     f = np.ix_(_free(s), _free(s))
@@ -117,7 +117,7 @@ def test_newton_matrix_is_the_residuals_jacobian(ends, method):
             jac[:, k] = -(_residual(s, up) - _residual(s, um)) / (2 * e)
         scale = np.abs((jac - np.diag(np.diag(jac)))[f]).max()
         assert np.abs((_matrix(s, u, True) - jac)[f]).max() <= 1e-6 * scale
-        assert np.abs((_matrix(s, u, False) - jac)[f]).max() > 1e-4 * scale
+        assert np.abs((_matrix(s, u, False) - jac)[f]).max() > 1e-5 * scale
 
 
 def test_newton_converges_quadratically_with_the_exact_matrix():
@@ -166,3 +166,43 @@ def test_band_lu_matches_dense_solve():
     y = rhs.copy()
     assert tc._band_lu_coupled(band, lower, y) > 0.0
     np.testing.assert_allclose(y, np.linalg.solve(a, rhs), rtol=1e-12, atol=1e-14)
+
+
+@pytest.mark.parametrize("width", [0.01, 0.03])
+def test_gauss_newton_matrix_is_positive_semi_definite_on_a_bent_strip(width):
+    """The Gauss-Newton matrix's stiffness (the matrix less its mass, damper and inertia diagonal) has no negative
+    eigenvalue on bent and twisted strips (b/h 10, and its stiff axis 9x stiffer): it is the fallback where the
+    exact matrix is indefinite, and its direction must descend. Before, the anisotropic bending's Gauss-Newton
+    terms were added to the exact Hessian of the isotropic part, which is not the Gauss-Newton matrix of the whole
+    bending away from a straight cable: smallest eigenvalues -9e-8 and -5e-6 of the largest entry (a stretch
+    spring's) here, Gauss-Newton directions that ascended, and a ribbon rolled 1 rad landing at 60 Hz stalled there
+    (``demos/ribbon_landing.py``)."""
+    s = _state(("clamped", "pinned"), "bdf2")
+    s["stepper"] = make_stepper("bdf2", H, NewtonOptions())  # (definite: the compressive stretch filtered, the default)
+    if width != 0.01:  # the same state with the stiff axis' constant raised by (b / 0.01)^2: the anisotropy of b/h
+        m = s["m"]
+        k1, k2 = m.k_bend + m.tw_k_aniso, m.k_bend - m.tw_k_aniso
+        scale = (width / 0.01) ** 2
+        k1, k2 = np.where(abs(k1) > abs(k2), k1 * scale, k1), np.where(abs(k2) > abs(k1), k2 * scale, k2)
+        like = [m.k_bend.flags.writeable, m.tw_k_aniso.flags.writeable]  # (the model's array types: no recompile)
+        kb, ka = ((a if w else read_only(a)) for a, w in zip(((k1 + k2) / 2, (k1 - k2) / 2), like))
+        m = m._replace(k_bend=kb, tw_k_aniso=ka)
+        s.update(m=m, mp=tc._frameless(m))
+    m, imp, n = s["m"], s["imp"], s["n"]
+    rng = np.random.default_rng(5)
+    f = np.ix_(_free(s), _free(s))
+    worst = []
+    for _ in range(3):
+        u = _start(s, rng)
+        a = _matrix(s, u, False)
+        diag = np.ones(4 * n)  # the matrix's own diagonal terms (held rows and the last twist row: 1)
+        for i in range(n):
+            if not m.held[i]:
+                diag[4 * i: 4 * i + 3] = m.mass[i] + imp.hf * imp.cv * m.damp[i]
+        for k in range(n - 1):
+            diag[4 * k + 3] = m.tw_inertia[k] + imp.hf * imp.cv * m.tw_drag[k]
+        stiffness = (a - np.diag(diag))[f]
+        assert np.allclose(stiffness, stiffness.T, rtol=0.0, atol=1e-12 * np.abs(stiffness).max())
+        worst.append(np.linalg.eigvalsh(stiffness).min() / np.abs(stiffness).max())
+    print("smallest eigenvalue / largest entry", worst)
+    assert min(worst) > -1e-9

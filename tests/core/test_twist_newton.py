@@ -34,12 +34,17 @@ def test_a_ribbon_falling_from_a_rolled_clamp_takes_converged_steps(method):
     assert drop[-1] < drop[0] - 0.1
 
 
-def test_gauss_newton_alone_is_what_fails_on_the_ribbon():
+def test_gauss_newton_alone_now_holds_the_ribbon():
     """The same run with the Gauss-Newton matrix until an iteration contracts poorly (exact_from past every
-    iteration the step takes) fails steps: the exact Jacobian's choice is what the ribbon needs."""
+    iteration the step takes): since that matrix is the whole bending's Gauss-Newton matrix (positive
+    semi-definite, ``twist_coupled._definite_bending``) every solve converges, in about 4 iterations a step
+    (the exact Jacobian's 2.4). Before, it added the anisotropic part's Gauss-Newton terms to the isotropic part's
+    exact Hessian, indefinite on a bent strip: 86 of the first 270 solves failed and the run blew up at 0.27 s."""
     model = CableModel.straight(RIBBON, ends=("clamped", "free"), roll=(0.7, 0.0))
-    res = simulate(model, "bdf2", 1e-3, 0.3, max_records=3, newton=NewtonOptions(exact_from=1000))
-    assert res.newton_failures > 0 or not res.stable
+    res = simulate(model, "bdf2", 1e-3, 0.5, max_records=3, newton=NewtonOptions(exact_from=1000))
+    assert res.stable, res.reason
+    assert res.newton_failures == 0
+    assert res.newton_iterations <= 6 * res.steps
 
 
 def test_a_cable_turned_three_times_at_60_hz_takes_converged_steps():

@@ -32,6 +32,12 @@ repeats no geometry of a round section. Its blocks:
   state where the frames were transported (the start of the step), of the twist torques in x;
 * theta-theta: k_t (tridiagonal) and Delta (kappa_2^2 - kappa_1^2) (filtered to >= 0 with ``definite``).
 
+These blocks are the exact matrix's base. Taken alone (the Gauss-Newton matrix) an anisotropic section's bending
+enters as its own Gauss-Newton matrix instead, 1/2 sum_k (k1 grad kappa_1 grad kappa_1^T + k2 grad kappa_2 grad
+kappa_2^T) over (x, theta) (:func:`_definite_bending`; without a rest shape): the blocks above are positive
+semi-definite only about a straight cable, and the Gauss-Newton direction, taken where the exact matrix is
+indefinite, must descend.
+
 The exact Jacobian of this residual (:func:`_exact_node`) is there on request: besides the blocks above, the
 stress terms s dgamma/dx of the twist (s = k_t m + c_t dm/dt, gamma = dm/dx as the residual computes it, kb/2|e|),
 the twist gradient's part off the transported state (the reference frames' spin within the step,
@@ -40,10 +46,10 @@ curvature terms (the Hessian of q . phi, the material frames' turn and spin). It
 kb/2|e| is m's gradient only at the transported state), so it is stored as an upper and a lower band and
 eliminated without pivoting (:func:`_band_lu_coupled`). The Newton iterations from the stepper's ``exact_from`` on
 take it (:class:`~bullet_dlo.core.integrators.NewtonOptions`); by default (:data:`EXACT_AUTO`) all of them for an
-anisotropic section, whose Gauss-Newton iterations fail, and for a round or tube section none until a Gauss-Newton
-iteration contracts poorly (:data:`CONTRACTION`; then the rest of the step): per iteration it costs about 2x the
-Gauss-Newton matrix and solve at n = 80, and a quarter turn's step needs as many iterations with either (3.0 ->
-2.8 per step; docs/concepts/model.md). An iteration whose elimination meets a pivot <= 0 takes the Gauss-Newton
+anisotropic section, whose Gauss-Newton iterations converge slowly, and for a round or tube section none until a
+Gauss-Newton iteration contracts poorly (:data:`CONTRACTION`; then the rest of the step): per iteration it costs
+about 2x the Gauss-Newton matrix and solve at n = 80, and a quarter turn's step needs as many iterations with either
+(3.0 -> 2.8 per step; docs/concepts/model.md). An iteration whose elimination meets a pivot <= 0 takes the Gauss-Newton
 matrix; in contact, one whose direction finds no lower potential takes it for the rest of the step. With it
 Newton converges quadratically in the twist as in the positions (the frameless Kelvin-Voigt
 dampers' position terms, left out of :func:`~bullet_dlo.core.kernels.forces.add_damping_jacobian`, aside). Newton iterates to the stepper's tolerance
@@ -77,6 +83,8 @@ from numba import njit
 from bullet_dlo.core.kernels.banded import HALF
 from bullet_dlo.core.kernels.drag import add_drag_jacobian, has_drag
 from bullet_dlo.core.kernels.forces import (
+    _bend_hessian,
+    _node_edges,
     add_damping_jacobian,
     dissipation,
     force_jacobian,
@@ -894,6 +902,24 @@ def _band_lu_coupled(band, lower, rhs):
 
 
 @njit(cache=True, error_model="numpy")
+def _definite_bending(x, dirs, i, kbar, jrow, hb, hiso, g12):
+    """hb (6, 6, over node i's edges a, b) += the isotropic bending's Gauss-Newton part minus its exact Hessian
+    (the one the position Jacobian holds), kbar/2 sum_k (J1_k^T J1_k + J2_k^T J2_k) - d2(kbar beta^2 / 2) (jrow:
+    the rows J_j of :func:`~bullet_dlo.core.kernels.twist.aniso_node_hessian`; hiso, g12: scratch): with the
+    anisotropic part's Delta/2 sum_k (J1_k^T J1_k - J2_k^T J2_k) the bending's Gauss-Newton matrix 1/2 sum_k (k1
+    J1_k^T J1_k + k2 J2_k^T J2_k), positive semi-definite. The exact isotropic Hessian with the anisotropic part's
+    Gauss-Newton terms is that only about a straight cable: a bent strip's can be indefinite, and so were the
+    Gauss-Newton directions taken where the exact matrix was (they ascended)."""
+    a0, a1, a2, b0, b1, b2 = _node_edges(x, i, dirs)
+    _bend_hessian(a0, a1, a2, b0, b1, b2, kbar, g12, hiso)
+    for r in range(6):
+        for col in range(6):
+            gn = jrow[0, r] * jrow[0, col] + jrow[1, r] * jrow[1, col] + jrow[2, r] * jrow[2, col] \
+                + jrow[3, r] * jrow[3, col]
+            hb[r, col] += 0.5 * kbar * gn - hiso[r, col]
+
+
+@njit(cache=True, error_model="numpy")
 def _newton_matrix(stepper, m, mp, imp, ws, band, g, sc, exact, lower, upx, samples, frac, h):
     """band <- the coupled Newton matrix (upper band, interleaved layout) at the X, V, Theta of the last residual:
     its Gauss-Newton part (symmetric); with ``exact`` the exact Jacobian instead (:func:`_exact_node`'s terms
@@ -917,6 +943,7 @@ def _newton_matrix(stepper, m, mp, imp, ws, band, g, sc, exact, lower, upx, samp
     edges, geo = sc.edges, sc.geo
     band[:, :] = 0.0
     W = sc.xw
+    hiso, gb12 = np.empty((6, 6)), np.empty(12)  # (scratch of _definite_bending)
     if exact:
         lower[:, :] = 0.0
         upx[:, :] = 0.0
@@ -968,8 +995,13 @@ def _newton_matrix(stepper, m, mp, imp, ws, band, g, sc, exact, lower, upx, samp
         if dl == 0.0:
             continue
         p1a, p2a, p1b, p2b = _curvatures(g)
-        # x-x: the Gauss-Newton part of the anisotropic bending, Delta/2 sum_k (J1_k^T J1_k - J2_k^T J2_k)
+        # x-x: the Gauss-Newton part of the anisotropic bending, Delta/2 sum_k (J1_k^T J1_k - J2_k^T J2_k); for the
+        # Gauss-Newton matrix the whole bending's instead (_definite_bending: positive semi-definite)
         aniso_node_hessian(g, dl, pa, pb, jrow, hb)
+        kbar = mp.k_bend[i]
+        gauss_newton = not exact and kbar > 0.0 and mp.rest_angle.shape[0] == 0  # (a rest shape: as before)
+        if gauss_newton:
+            _definite_bending(xe, dirs, i, kbar, jrow, hb, hiso, gb12)
         scatter_node_hessian(jac, i, n, hb)
         # x-theta: d2E/dtheta_k dx = Delta (kappa_2 J_1 + kappa_1 J_2); theta-theta: Delta (kappa_2^2 - kappa_1^2)
         for e in range(2):
@@ -978,9 +1010,12 @@ def _newton_matrix(stepper, m, mp, imp, ws, band, g, sc, exact, lower, upx, samp
             k = i - 1 if e == 0 else i
             k1, k2 = (p1a, p2a) if e == 0 else (p1b, p2b)
             ti = 4 * k + 3
+            # exact: d2E/dtheta dx = Delta (kappa_2 J1 + kappa_1 J2); Gauss-Newton: 1/2 (k1 kappa_2 J1 - k2 kappa_1 J2)
+            wa1 = 0.5 * (kbar + dl) if gauss_newton else dl
+            wa2 = 0.5 * (dl - kbar) if gauss_newton else dl
             for j in range(3):  # chain rule: a = x_i - x_{i-1}, b = x_{i+1} - x_i (clamp edges fixed)
-                ca = dl * (k2 * jrow[2 * e, j] + k1 * jrow[2 * e + 1, j]) if i > 0 else 0.0
-                cb = dl * (k2 * jrow[2 * e, 3 + j] + k1 * jrow[2 * e + 1, 3 + j]) if i < ns else 0.0
+                ca = (wa1 * k2 * jrow[2 * e, j] + wa2 * k1 * jrow[2 * e + 1, j]) if i > 0 else 0.0
+                cb = (wa1 * k2 * jrow[2 * e, 3 + j] + wa2 * k1 * jrow[2 * e + 1, 3 + j]) if i < ns else 0.0
                 if i > 0 and not held[i - 1]:
                     _add_sym(band, ti, 4 * (i - 1) + j, kc * (-ca))
                 if not held[i]:
@@ -988,7 +1023,9 @@ def _newton_matrix(stepper, m, mp, imp, ws, band, g, sc, exact, lower, upx, samp
                 if i < ns and not held[i + 1]:
                     _add_sym(band, ti, 4 * (i + 1) + j, kc * cb)
             hd = dl * (k2 * k2 - k1 * k1)
-            if stepper.definite and hd < 0.0:
+            if gauss_newton:  # 1/2 (k1 kappa_2^2 + k2 kappa_1^2)
+                hd = 0.5 * ((kbar + dl) * k2 * k2 + (kbar - dl) * k1 * k1)
+            elif stepper.definite and hd < 0.0:
                 hd = 0.0
             band[ti, 0] += kc * hd
     for i in range(n):  # x-x blocks (upper triangle) from the position Jacobian
