@@ -1233,6 +1233,28 @@ def caps_settled(c, x, caps_new, cap_tol) -> bool:
     return dcap <= cap_tol * cmax
 
 
+@njit(cache=True, error_model="numpy")
+def relax_caps(c, caps_new, history, passes):
+    """c.cap <- the friction limits [N] for the next pass of the outer fixed point cap = mu f_n(x(cap)), caps_new
+    the limits at the solution with c.cap (:func:`caps_settled`). From the second pass on, each row steps towards
+    caps_new by 1 / (1 - s), s its secant slope of the map over its last two passes, kept within [1/4, 1]: a row
+    whose limit overshoots (s < 0: a large limit lifts the row out of the ground and a small one lets it back in,
+    so its limit jumps between zero and a value, or alternates and decays slowly) moves part way, to where the
+    secant crosses; a row that converges monotonically takes the whole step. history (count, 2): each row's limit
+    used and the limit it gave in the last pass (written here)."""
+    for k in range(c.count[0]):
+        step = caps_new[k] - c.cap[k]
+        if passes > 1:
+            used = c.cap[k] - history[k, 0]
+            if used != 0.0:
+                slope = (caps_new[k] - history[k, 1]) / used
+                if slope < 0.0:
+                    step *= max(0.25, 1.0 / (1.0 - slope))
+        history[k, 0] = c.cap[k]
+        history[k, 1] = caps_new[k]
+        c.cap[k] += step
+
+
 # ----- free bodies solved with the cable (see Bodies) ---------------------------------------------
 @njit(cache=True, error_model="numpy")
 def start_bodies(c, bd, h):

@@ -1602,10 +1602,11 @@ def coupled_contact(stepper, method, m, x, v, samples, ws, has_prev, c, cap_tol=
     and slip gradients, without those gradients' own derivatives) beside the exact or Gauss-Newton matrix of the
     rest, their potential in the merit; accepted on a potential decrease only and the friction caps an outer fixed
     point, as :func:`~bullet_dlo.core.kernels.steppers.newton` does with contacts (without its friction active set,
-    which only solves with free bodies use). An exact matrix that is indefinite is scaled on its diagonal before
-    Gauss-Newton's is taken (:data:`SHIFTS`). Advances x, v and the twist state in place and leaves the contact
-    forces at the solution in ``c`` and the position rows of its residual in ws.residual (the stall guard's
-    measure).
+    which only solves with free bodies use), relaxed where a row's cap overshoots
+    (:func:`~bullet_dlo.core.kernels.contact.relax_caps`). An exact matrix that is indefinite is scaled on its
+    diagonal before Gauss-Newton's is taken (:data:`SHIFTS`). Advances x, v and the twist state in place and leaves
+    the contact forces at the solution in ``c`` and the position rows of its residual in ws.residual (the stall
+    guard's measure).
     Returns (Newton iterations, converged)."""
     h = stepper.h
     n = x.shape[0]
@@ -1633,6 +1634,7 @@ def coupled_contact(stepper, method, m, x, v, samples, ws, has_prev, c, cap_tol=
     nc = c.count[0]
     max_iter = max(stepper.max_iter, _contact.MIN_CONTACT_ITER)
     caps_new = np.empty(max(nc, 1))
+    history = np.zeros((max(nc, 1), 2))  # (relax_caps)
     _residual(m, mp, imp, ws, samples, frac, h, tb, wb, wa, vn, wn, wv, rate, tq, r, g, sc)  # X at the predictor
     _contact.set_support(c, sc.edges, wv, m.tw_ref, m.tw_tan)  # (a flat section's reach at the predictor: caps)
     _contact.elastic_caps(c, ws.x_stage, c.cap)  # caps from its penetration
@@ -1655,7 +1657,7 @@ def coupled_contact(stepper, method, m, x, v, samples, ws, has_prev, c, cap_tol=
                 converged = True
                 break
             passes += 1
-            c.cap[:nc] = caps_new[:nc]
+            _contact.relax_caps(c, caps_new, history, passes)
             continue
         if it >= max_iter:
             break
