@@ -34,10 +34,10 @@ def _install(levels: int, far: float) -> None:
     """Wrap CableSolver.step: set the retry's settings, tally each step's guard info."""
     orig = solver_mod.CableSolver.step
 
-    def step(self, arrays, control, contacts, inp):
+    def step(self, arrays, control, contacts, bodies, inp):
         if self._guard is None:
             self.stall_levels, self.stall_far = levels, far
-        status = orig(self, arrays, control, contacts, inp)
+        status = orig(self, arrays, control, contacts, bodies, inp)
         info = self._guard.info
         TALLY.append((float(info[FIRST_RATIO]), int(info[FIRST_ITER]), int(info[RETRY_SUBSTEPS]), float(info[FINAL_RATIO]),
                       float(info[COASTED]), float(info[FIRST_MOVED])))

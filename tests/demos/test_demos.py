@@ -198,3 +198,15 @@ def test_train_tension_without_torch_says_what_to_install():
     lines = [ln for ln in res.stderr.strip().splitlines() if not ln.startswith("pybullet build time")]
     assert res.returncode == 1 and "Traceback" not in res.stderr, res.stderr
     assert lines == ['error: training needs PyTorch and Stable-Baselines3 (torch is missing): pip install -e ".[rl]"']
+
+
+def test_newton_stall_demo_tallies_the_contact_solves():
+    """demos/newton_stall.py wraps CableSolver.step to tally each step's guard info (it broke silently when the
+    step gained its bodies argument: a TypeError at the first step). The quick capstan: every planned step with
+    contacts tallied, none unconverged."""
+    res = subprocess.run([sys.executable, str(ROOT / "demos" / "newton_stall.py"), "--scenes", "capstan", "--quick"],
+                         capture_output=True, text=True, timeout=600, cwd=ROOT)
+    assert res.returncode == 0, res.stderr
+    row = re.search(r"^\| capstan .*\|$", res.stdout, re.MULTILINE).group(0).split("|")
+    steps, unconverged, status = int(row[2]), int(row[3]), row[15].strip()
+    assert steps > 100 and unconverged == 0 and status == "stable", row
