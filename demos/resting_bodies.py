@@ -4,8 +4,10 @@ For each box mass and step: peak reaction on the box [N] (and in units of its we
 speed [m/s], time to rest (box speed below 1e-4 m/s for good) [s], support balance at the end
 (ground on cable + ground on box) / ((m_cable + m_box) g), cable status, penetration of the box
 into the cable. Usage: python demos/resting_bodies.py [--drop 0.01] [--seconds 2] [--hz 240 1000]
-[--n 20] [--offset 0] [--yaw 0]: --offset [m] moves the box's centre off the cable (along y) and --yaw [rad] turns it
-about z, so that it tips off the cable onto the ground.
+[--n 20] [--offset 0] [--yaw 0] [--trace]: --offset [m] moves the box's centre off the cable (along y) and --yaw [rad]
+turns it about z, so that it tips off the cable onto the ground; --trace prints every step from the box's first contact:
+its Newton iterations, whether the solve converged, the residual ratio of a kept unconverged solve
+(contact.stall_ratio), whether it was taken again as sub-steps, and the box's speed.
 """
 from __future__ import annotations
 
@@ -24,7 +26,7 @@ HALF = (0.02, 0.02, 0.01)  # [m] box half extents: 4 cm square across the cable,
 
 
 def run(mass: float, hz: float, drop: float, seconds: float, n: int = 20, offset: float = 0.0,
-        yaw: float = 0.0) -> dict:
+        yaw: float = 0.0, trace: bool = False) -> dict:
     spec = CableSpec.lv2017(n_masses=n, damping=0.02)
     r = spec.diameter / 2
     with BulletWorld(dt=1.0 / hz) as world:
@@ -37,6 +39,7 @@ def run(mass: float, hz: float, drop: float, seconds: float, n: int = 20, offset
         t_contact = tic = 0.0
         steps = int(round(seconds * hz))
         tic = time.perf_counter()
+        prev = _counters(cable.solver)
         for k in range(steps):
             world.step()
             f = cable.body_forces().get(box, np.zeros(3))
@@ -49,6 +52,10 @@ def run(mass: float, hz: float, drop: float, seconds: float, n: int = 20, offset
             on_box = pc["body"] == box
             if on_box.any():
                 worst_gap = min(worst_gap, float(pc["gap"][on_box].min()))
+                t_contact = t_contact or (k + 1) / hz
+            if trace and t_contact:
+                _trace_step(k + 1, hz, cable.solver, prev, v)
+            prev = _counters(cable.solver)
             if not cable.stable:
                 break
         wall = time.perf_counter() - tic
@@ -61,6 +68,20 @@ def run(mass: float, hz: float, drop: float, seconds: float, n: int = 20, offset
                     ms_per_step=1e3 * wall / max(k + 1, 1), z=pb.getBasePositionAndOrientation(box, physicsClientId=cid)[0][2])
 
 
+def _counters(solver) -> tuple:
+    """The solver's running counts: (Newton iterations, unconverged steps, sub-step retries)."""
+    return solver.newton_iterations, solver.newton_failures, solver.stall_retries
+
+
+def _trace_step(k: int, hz: float, solver, prev: tuple, box_speed: float) -> None:
+    """One line about step k's solve (the counters' change since ``prev``)."""
+    its, fails, retries = (a - b for a, b in zip(_counters(solver), prev))
+    ratio = solver.last_ratio
+    print(f"    step {k:5d} t {k / hz:7.4f} s  iterations {its:3d}  {'converged' if not fails else 'NOT converged'}"
+          f"{f'  residual ratio {ratio:.3g}' if fails else ''}{'  retried as sub-steps' if retries else ''}"
+          f"  box speed {box_speed:.4g} m/s", flush=True)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--drop", type=float, nargs="+", default=[1e-4, 0.01])
@@ -70,11 +91,12 @@ def main() -> None:
     ap.add_argument("--n", type=int, nargs="+", default=[20], help="the cable's masses")
     ap.add_argument("--offset", type=float, nargs="+", default=[0.0], help="[m] box centre off the cable, along y")
     ap.add_argument("--yaw", type=float, nargs="+", default=[0.0], help="[rad] box turned about z")
+    ap.add_argument("--trace", action="store_true", help="print every step's Newton solve from the box's first contact")
     a = ap.parse_args()
     print(f"{'n':>3} {'offset':>6} {'yaw':>4} {'drop':>7} {'hz':>5} {'mass':>6} {'peak F':>9} {'xW':>8} {'peak v':>8} "
           f"{'rest':>6} {'balance':>8} {'gap mm':>7} {'box z':>7} {'ms/st':>6} status")
     for n, offset, yaw, drop, hz, m in itertools.product(a.n, a.offset, a.yaw, a.drop, a.hz, a.mass):
-        o = run(m, hz, drop, a.seconds, n, offset, yaw)
+        o = run(m, hz, drop, a.seconds, n, offset, yaw, a.trace)
         print(f"{n:3d} {offset:6.3f} {yaw:4.1f} {drop:7.4f} {hz:5.0f} {m:6.3f} {o['peak_f']:9.3f} {o['peak_w']:8.1f} "
               f"{o['peak_v']:8.4f} {o['rest']:6.3f} {o['balance']:8.4f} {1e3 * o['gap']:7.3f} {o['z']:7.4f} "
               f"{o['ms_per_step']:6.3f} {o['status']}", flush=True)

@@ -95,7 +95,8 @@ class CableSolver:
     solve ended near convergence (within ``stall_far``) and was kept; far_kept: those whose solve ended beyond
     it but had moved the momentum (kept); coasts: kept solves that coasted (only with the guard off);
     stall_retries: contact steps taken again as sub-steps after a coast or a solve beyond ``STALL_WILD`` with a free body in it; worst_kept_ratio: the largest residual ratio of a
-    kept contact solve (:func:`~bullet_dlo.core.kernels.contact.stall_ratio`); stall_report: why the run stopped as
+    kept contact solve (:func:`~bullet_dlo.core.kernels.contact.stall_ratio`); last_ratio: the last step's (0 when
+    its solve converged); stall_report: why the run stopped as
     STALLED (None otherwise). stall_levels, stall_far: the retry's settings (:class:`StallGuard`; taken from
     :data:`STALL_RETRIES`, :data:`STALL_FAR` when the solver is made; a change takes effect with the next
     contact set, or at once after ``solver._guard = None``).
@@ -126,6 +127,7 @@ class CableSolver:
         self.coasts = 0
         self.stall_retries = 0
         self.worst_kept_ratio = 0.0
+        self.last_ratio = 0.0
         self.stall_report: str | None = None
         self.steps_planned = 0
         self.stall_levels = STALL_RETRIES
@@ -190,6 +192,7 @@ class CableSolver:
         self.newton_failures += 0 if ok else 1
         if info[RETRY_SUBSTEPS] > 0:
             self.stall_retries += 1
+        self.last_ratio = float(info[FINAL_RATIO])
         if status == STABLE and info[FINAL_RATIO] > 0.0:
             if info[FINAL_RATIO] <= self.stall_far:
                 self.near_misses += 1

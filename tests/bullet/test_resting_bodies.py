@@ -498,3 +498,24 @@ def test_the_bodies_stall_ratio_counts_in_weights_impulses():
     bd.residual[0, 4] = 0.0
     bd.residual[0, 0] = np.nan  # not the last number looked at
     assert body_stall_ratio(bd, h) == np.inf
+
+
+def test_the_solver_reports_the_residual_of_each_kept_unconverged_step():
+    """``CableSolver.last_ratio`` (what ``demos/resting_bodies.py --trace`` prints): the residual ratio the last step's
+    contact solve was kept at, 0 when it converged. Under the 3 kg box tipping off the cable at 120 Hz some solves end
+    at the iteration cap (docs/concepts/contact.md, "Why heavy bodies' solves fail"): exactly those steps report a
+    ratio (> 0), and the largest is the solver's worst_kept_ratio."""
+    with BulletWorld(dt=1.0 / 120.0) as world:
+        cable, _, _ = _tipping_box(world, 40, 3.0, 0.018, 1.0)
+        solver = cable.solver
+        ratios, failed = [], []
+        for _ in range(world.steps_in(0.5)):
+            before = solver.newton_failures
+            world.step()
+            ratios.append(solver.last_ratio)
+            failed.append(solver.newton_failures > before)
+        ratios, failed = np.array(ratios), np.array(failed)
+        assert failed.any() and not failed.all()
+        assert (ratios[failed] > 0.0).all()
+        assert (ratios[~failed] == 0.0).all()
+        assert ratios.max() == solver.worst_kept_ratio
