@@ -5,7 +5,8 @@ speed [m/s], time to rest (box speed below 1e-4 m/s for good) [s], support balan
 (ground on cable + ground on box) / ((m_cable + m_box) g), cable status, penetration of the box
 into the cable. Usage: python demos/resting_bodies.py [--drop 0.01] [--seconds 2] [--hz 240 1000]
 [--n 20] [--offset 0] [--yaw 0] [--trace]: --offset [m] moves the box's centre off the cable (along y) and --yaw [rad]
-turns it about z, so that it tips off the cable onto the ground; --trace prints every step from the box's first contact:
+turns it about z, so that it tips off the cable onto the ground; --trace prints every step from the first one in
+which the model has a contact row on the box:
 its Newton iterations, whether the solve converged, the residual ratio of a kept unconverged solve
 (contact.stall_ratio), whether it was taken again as sub-steps, and the box's speed.
 """
@@ -91,7 +92,8 @@ def main() -> None:
     ap.add_argument("--n", type=int, nargs="+", default=[20], help="the cable's masses")
     ap.add_argument("--offset", type=float, nargs="+", default=[0.0], help="[m] box centre off the cable, along y")
     ap.add_argument("--yaw", type=float, nargs="+", default=[0.0], help="[rad] box turned about z")
-    ap.add_argument("--trace", action="store_true", help="print every step's Newton solve from the box's first contact")
+    ap.add_argument("--trace", action="store_true",
+                    help="print every step's Newton solve from the first step with a contact row on the box")
     a = ap.parse_args()
     print(f"{'n':>3} {'offset':>6} {'yaw':>4} {'drop':>7} {'hz':>5} {'mass':>6} {'peak F':>9} {'xW':>8} {'peak v':>8} "
           f"{'rest':>6} {'balance':>8} {'gap mm':>7} {'box z':>7} {'ms/st':>6} status")

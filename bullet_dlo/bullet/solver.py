@@ -192,14 +192,14 @@ class CableSolver:
         self.newton_failures += 0 if ok else 1
         if info[RETRY_SUBSTEPS] > 0:
             self.stall_retries += 1
-        self.last_ratio = float(info[FINAL_RATIO])
-        if status == STABLE and info[FINAL_RATIO] > 0.0:
-            if info[FINAL_RATIO] <= self.stall_far:
+        ratio = self.last_ratio = float(info[FINAL_RATIO])
+        if status == STABLE and ratio > 0.0:
+            if ratio <= self.stall_far:
                 self.near_misses += 1
             else:
                 self.far_kept += 1
             self.coasts += int(info[COASTED])
-            self.worst_kept_ratio = max(self.worst_kept_ratio, float(info[FINAL_RATIO]))
+            self.worst_kept_ratio = max(self.worst_kept_ratio, ratio)
         if status != STABLE:
             self.status = status
             self.time_to_instability = inp.t
