@@ -375,7 +375,8 @@ class BulletCable:
             free = cs.free_bodies
             self.contacts_last_step = cs.update(x0, v0, self.arrays.mass, solver.stepper.h, world.dt, do_sync,
                                                 world.shared_bodies(self.name) if free else (),
-                                                world.supported_bodies if free else ())
+                                                world.supported_bodies if free else (),
+                                                world.support_points if free else None)
             if free and len(world.cables) > 1:  # (only another cable can share a body this way)
                 world.touched_by_model(self.name, cs.touched_free_bodies())
         record = do_sync and self.steps % self.record_every == 0

@@ -36,8 +36,29 @@ not converge for a body resting on one ground point and on the cable (pybullet_d
 period-4 rocking of +-0.45 mm at 60 Hz under 2 g, 0.3 m/s after 2 s; the ground's load swinging between 0.88 and
 1.10 of the weights at 240 Hz under 100 g, where Bullet rests the duck alone). The load is under-relaxed, each step
 moving it by RELAX of the way to the new measurement (a mode the full update flips, a factor -1 a step, it damps
-to 0): at rest it is the measured load, in a change it lags about a step more. These functions
-hold no compiled code, so changing them does not empty the Numba cache.
+to 0): at rest it is the measured load, in a change it lags about a step more.
+
+Bullet's contact points on the body (the ground, another body) carry a part of that load that the body's own motion
+in the step decides: a body that leaves its holder takes no more load from it. Taken whole from the last step, that
+part made the step plan a body on support it had lost: the duck of tests/bullet/test_contact_compound.py, tumbling
+back onto the cable and the ground at 60 Hz, lost its one ground point's 0.73 N in Bullet's next step while the plan
+still counted it; the plan lifted the duck at 0.054 m/s where Bullet dropped it at 0.06 m/s, 1.4 mm into the cable
+in one step. So each of those points (:attr:`BulletWorld.support_points
+<bullet_dlo.bullet.world.BulletWorld.support_points>`: the HOLD_POINTS that carried most) is a holder in the step
+(``Bodies.hold_*``): its normal load is taken as measured (not relaxed; the rest of the load is) and lets go by
+HOLD_RATE (M / dt) v_n while the body's point leaves it at v_n, down to nothing (the step's Newton solve has it in
+its residual, potential and Schur block). Pressing into it adds nothing: there the apparent mass above holds the
+body. What was tried and measured (2026-12-02, ``python demos/resting_bodies.py`` off-centre drop grids, docs/concepts/
+contact.md): a holder as stiff both ways (HOLD_RATE 3-100, with or without the apparent mass, with the point's load
+growing at most to its holder's whole load) kept 1 g boxes leaning on the cable and the table at 60 and 120 Hz from
+coming to rest; the points of one holder taken as one (at their centre of load) kept a 2 g duck rocking between its
+two ground points at 240 Hz (Bullet's contact distance is not taken as room to close: a loaded point 0.01 mm off the
+ground at 240 Hz would count as leaving at 2.4 mm/s, which lets go of 5.8 N under the 100 g duck). As it is, a 3 kg
+box rolling its load from one ground point of an edge to the other loses the part the rising point lets go (the other
+takes no more): one of the 72 drops at 60 Hz is stopped as energy growth. HOLD_RATE 30 kept the three 3 kg drops that
+fail at 100 but failed five others (one stopped), and let the duck at 1.5 m/s end 0.12 mm inside the cable; 50 was
+no better.
+These functions hold no compiled code, so changing them does not empty the Numba cache.
 """
 from __future__ import annotations
 
@@ -49,15 +70,19 @@ import pybullet as pb
 CARRY_FACTOR = 10.0  # apparent mass per kg of cable pushing a held body against its holder
 CARRY_COS = math.cos(math.radians(45.0))  # a row pushes the body against its holder within 45 degrees of the load
 RELAX = 0.5  # share of the newly measured load taken each step (1: the last step's load as measured)
+HOLD_RATE = 100.0  # a holder lets go of HOLD_RATE M v_n / dt of its load as the body leaves it at v_n [m/s]
 
 
-def measure(cs, dt: float, stepped: bool, supported) -> list[int]:
+def measure(cs, dt: float, stepped: bool, supported, support: dict) -> list[int]:
     """The slots of the free bodies of the contact set ``cs`` (:class:`~bullet_dlo.bullet.contact.ContactSet`) that
     something besides this cable holds (``supported``: bodies with a Bullet contact in the last step; the bodies a
     user constraint holds; not the bodies another cable shares), with, in ``cs.held_load``, the force and torque
     [N, N m] (about the centre of mass, world frame) the world put on each in Bullet's last step of dt [s] besides
     gravity and this cable's reaction (module doc); before a step was measured (a new contact set), the body's weight.
-    After a re-plan (``stepped`` False) the last step's."""
+    After a re-plan (``stepped`` False) the last step's. ``support`` {body: Bullet's contact points on it in the last
+    step} (:attr:`BulletWorld.support_points <bullet_dlo.bullet.world.BulletWorld.support_points>`): their normal
+    forces, ``cs.support_load``, are taken whole, and only the rest of the load (friction, constraints, ...) is
+    relaxed; the step changes them with the body's motion (:func:`hold_points`)."""
     sh, rows = cs.shapes, cs._slot_row
     now = np.concatenate((sh.lin_vel[rows], sh.ang_vel[rows]), axis=1)
     for o in np.flatnonzero(rows >= cs.n_exact).tolist():  # a probed base link: read now
@@ -73,16 +98,20 @@ def measure(cs, dt: float, stepped: bool, supported) -> list[int]:
             continue
         s = int(rows[o])
         m = 1.0 / sh.inv_mass[s]
+        pressed = support_load(cs, o, s, support.get(body, ()))
         if cs._seen[o] and stepped:
             dv = (now[o] - cs._vel_before[o]) / dt
             load = np.empty(6)
             load[:3] = m * (dv[:3] - cs.bodies.gravity) - cs._applied[o, :3]
             load[3:] = sh.inertia[s] @ dv[3:] - cs._applied[o, 3:]
             relax = RELAX if o in before else 1.0
-            cs.held_load[o] += relax * (load - cs.held_load[o])  # (module doc: the lag's limit cycle)
+            rest = cs.held_load[o] - cs.support_load[o]
+            rest += relax * (load - pressed - rest)  # (module doc: the lag's limit cycle)
+            cs.held_load[o] = rest + pressed
         else:  # no step measured yet (a new contact set): the holder carries the body's weight
             cs.held_load[o, :3] = -m * cs.bodies.gravity
             cs.held_load[o, 3:] = 0.0
+        cs.support_load[o] = pressed
         measured.append(o)
     cs._measured = measured
     if not stepped:
@@ -121,6 +150,52 @@ def hold(cs, measured: list[int], dt: float, mass: np.ndarray) -> None:
         except np.linalg.LinAlgError:  # a point or flat body's inertia: no turn where it has none
             bd.vel[o, 3:] += dt * (np.linalg.pinv(bd.inertia[o]) @ cs.held_load[o, 3:])
         soften_friction(c, bd, o, count, m, dt)
+        hold_points(cs, o, dt)
+
+
+def support_load(cs, o: int, s: int, points) -> np.ndarray:
+    """The force and torque [N, N m] (about the centre of mass, world frame) of the normal forces of Bullet's contact
+    points ``points`` on the body of slot ``o`` (shape row ``s``), the HOLD_POINTS that carried most, which it keeps
+    for :func:`hold_points` (arm [m], normal into the body, normal force [N], holder body and link, point [m])."""
+    kept, out = [], np.zeros(6)
+    com = cs.shapes.com[s]
+    for point, normal, load, holder, link, _ in sorted(points, key=lambda p: -p[2])[:cs.bodies.hold_load.shape[1]]:
+        arm, normal, load = np.subtract(point, com), np.asarray(normal), max(load, 0.0)
+        out[:3] += load * normal
+        out[3:] += load * np.cross(arm, normal)
+        kept.append((arm, normal, load, holder, link, point))
+    cs._support[o] = kept
+    return out
+
+
+def hold_points(cs, o: int, dt: float) -> None:
+    """Bullet's contact points on the body of slot ``o`` in the last step of dt [s] (:func:`support_load`) into the
+    coming step's holders (:class:`~bullet_dlo.core.kernels.contact.Bodies`, hold_*), each with the holder's normal
+    velocity there and the rate HOLD_RATE M / dt [N s/m] at which it lets go. (Bullet's contact distance is not
+    taken as room to close: a loaded point 0.01 mm off the ground at 240 Hz would then let go of a resting body's
+    whole weight.)"""
+    bd, cid = cs.bodies, cs.client
+    kept = cs._support[o]
+    for p, (arm, normal, load, holder, link, point) in enumerate(kept):
+        bd.hold_arm[o, p] = arm
+        bd.hold_normal[o, p] = normal
+        bd.hold_load[o, p] = load
+        bd.hold_vel[o, p] = float(holder_velocity(holder, link, point, cid) @ normal)
+    bd.hold_count[o] = len(kept)
+    bd.hold_c[o] = HOLD_RATE * bd.mass[o] / dt
+
+
+def holder_velocity(body: int, link: int, point, cid: int) -> np.ndarray:
+    """The velocity [m/s] of the holder's (body, link) material point at ``point`` [m] now (zero when it is fixed)."""
+    if link < 0 and pb.getDynamicsInfo(body, link, physicsClientId=cid)[0] == 0.0:
+        return np.zeros(3)
+    if link < 0:
+        lin, ang = pb.getBaseVelocity(body, physicsClientId=cid)
+        com = pb.getBasePositionAndOrientation(body, physicsClientId=cid)[0]
+    else:
+        st = pb.getLinkState(body, link, computeLinkVelocity=1, physicsClientId=cid)
+        com, lin, ang = st[0], st[6], st[7]
+    return np.asarray(lin) + np.cross(ang, np.subtract(point, com))
 
 
 def soften_friction(c, bd, o: int, count: int, m: float, dt: float) -> None:

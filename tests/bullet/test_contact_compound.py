@@ -84,22 +84,24 @@ def test_a_compound_resting_on_one_ground_point_and_the_cable_comes_to_rest(mass
         assert abs(on_cable + abs(under_duck)) / ((SPEC.mass + mass) * G) == pytest.approx(1.0, abs=0.01)
 
 
-@pytest.mark.parametrize("speed", [3.0, pytest.param(2.0, marks=pytest.mark.xfail(strict=True, reason=(
-    "known (docs/concepts/contact.md, 'Why heavy bodies' solves fail'): thrown at 2 m/s the duck meets the cable "
-    "again about 0.4 s later and a node ends 0.4-1.4 mm inside it; not traced yet")))])
+@pytest.mark.parametrize("speed", [1.5, 2.0, 2.5, 3.0])
 def test_a_compound_thrown_at_the_cable_is_met_before_it_enters(speed):
-    """The duck (a compound of hulls: Bullet's narrow phase measures it) thrown down at 3 m/s from 2 cm above the cable
-    at 60 Hz moves 50 mm a step against a margin of 3 mm from the cable's own motion: the probe's margin adds twice the
-    duck's own motion in a step, so it is met before it closes. Checked with Bullet's own distances (a sphere of the
-    cable radius at each node against the duck): never inside by more than 0.1 mm. Before, 3.6 mm (1.4 mm at 1.5 m/s).
-    At 2 m/s the throw is met too, but the duck's later return onto the cable is not (an expected failure)."""
+    """The duck (a compound of hulls: Bullet's narrow phase measures it) thrown down at 1.5-3 m/s from 2 cm above the
+    cable at 60 Hz moves up to 50 mm a step against a margin of 3 mm from the cable's own motion: the probe's margin
+    adds twice the duck's own motion in a step, so it is met before it closes. It bounces, tumbles (up to 0.19 rad a
+    step) and comes back onto the cable and the ground within 0.7 s. Checked with Bullet's own distances (a sphere of
+    the cable radius at each node against the duck): never inside by more than 0.1 mm. Before the margin counted the
+    duck's motion, 3.6 mm at 3 m/s (1.4 mm at 1.5 m/s); before the rows' points were found where the duck's material
+    meets the nodes at the step's end (``ContactSet._closest_on``), and before the step let the ground's load go as
+    the duck left it (bullet/held_bodies.py, holders), its return ended 1.54 / 1.36 / 0.43 mm inside at 1.5 / 2 /
+    2.5 m/s."""
     r = SPEC.diameter / 2
     with _duck_on_cable(1 / 60) as (world, cable, duck):
         cid = world.client
         pb.resetBaseVelocity(duck, (0.0, 0.0, -speed), (0.0, 0.0, 0.0), physicsClientId=cid)
         sphere = pb.createCollisionShape(pb.GEOM_SPHERE, radius=r, physicsClientId=cid)
         deepest = 0.0
-        for _ in range(world.steps_in(0.5)):
+        for _ in range(world.steps_in(0.7)):
             world.step()
             for p in cable.x.tolist():
                 for c in pb.getClosestPoints(duck, -1, 0.0, collisionShapeB=sphere, collisionShapePositionB=p,
@@ -107,3 +109,4 @@ def test_a_compound_thrown_at_the_cable_is_met_before_it_enters(speed):
                     deepest = min(deepest, c[8])
         assert cable.stable, cable.reason
         assert deepest > -1e-4, f"a node {-1e3 * deepest:.2f} mm inside the duck"
+

@@ -128,6 +128,15 @@ class Bodies(NamedTuple):
     :func:`stall_ratio` hands the bodies the reaction the cable felt, not the rows' forces at its last iterate
     (:func:`felt_forces`; default :data:`WILD_RATIO`).
 
+    What else holds a body (bullet/held_bodies.py): Bullet's contact points of the last step on slot s, the first
+    hold_count[s] (S,) of HOLD_POINTS: hold_arm (S, H, 3) [m] the point from the centre of mass, hold_normal (S, H, 3)
+    the unit normal from the holder into the body, hold_load (S, H) [N] the normal force Bullet found there,
+    hold_vel (S, H) [m/s] the holder's own velocity there along the normal;
+    hold_c (S,) [N s/m]: the rate at which a holder lets go. The step takes each holder's load as measured and lets
+    it go by hold_c v_n while the body's point leaves the holder at v_n (relative to the holder's), down to nothing
+    (:func:`_holder_change`): a body the step lifts off its holder loses that support in the same step, as in
+    Bullet. Pressing into it adds nothing (the measured load and the apparent mass of bullet/held_bodies.py hold it).
+
     The Bodies are not a field of :class:`Contacts`: every compiled call that passes a NamedTuple takes and
     drops a reference to each of its arrays, and the contact kernels that run several times per Newton
     iteration need none of these (while they were a field, the detection of a cable on the ground, no body in
@@ -152,6 +161,15 @@ class Bodies(NamedTuple):
     anchor0: np.ndarray
     impulse: np.ndarray
     felt_ratio: np.ndarray
+    hold_count: np.ndarray
+    hold_arm: np.ndarray
+    hold_normal: np.ndarray
+    hold_load: np.ndarray
+    hold_vel: np.ndarray
+    hold_c: np.ndarray
+
+
+HOLD_POINTS = 8  # Bullet's contact points kept per held body (a manifold holds up to 4 per pair of links)
 
 
 def make_bodies(n: int, capacity: int, slots: int) -> Bodies:
@@ -164,7 +182,9 @@ def make_bodies(n: int, capacity: int, slots: int) -> Bodies:
                   vel_new=f((s, 6)), vel_try=f((s, 6)), step=f((s, 6)), residual=f((s, 6)),
                   coupling=f((3 * n, 6 * s)), schur=f((6 * s, 6 * s)), work=f(3 * n), slot=np.full(m, -1, np.int64),
                   arm=f((m, 3)), point0=f((m, 3)), anchor0=f((m, 3)), impulse=f((s, 6)),
-                  felt_ratio=np.full(1, WILD_RATIO))
+                  felt_ratio=np.full(1, WILD_RATIO), hold_count=np.zeros(s, np.int64),
+                  hold_arm=f((s, HOLD_POINTS, 3)), hold_normal=f((s, HOLD_POINTS, 3)), hold_load=f((s, HOLD_POINTS)),
+                  hold_vel=f((s, HOLD_POINTS)), hold_c=f(s))
 
 
 class Contacts(NamedTuple):
@@ -1320,12 +1340,59 @@ def body_residual(c, bd, h, vel):
                 acc += bd.inertia[s, j, q] * (vel[s, 3 + q] - bd.vel[s, 3 + q])
             res[s, 3 + j] = -acc
     _add_reactions(c, bd, h, res)
+    _add_holders(bd, h, vel, res)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _holder_speed(bd, s, p, vel):
+    """The normal velocity [m/s] of body s's point at its holder contact p at velocities vel (S, 6), relative to the
+    holder's (bd.hold_vel; positive: leaving it)."""
+    a0, a1, a2 = bd.hold_arm[s, p, 0], bd.hold_arm[s, p, 1], bd.hold_arm[s, p, 2]
+    w0, w1, w2 = vel[s, 3], vel[s, 4], vel[s, 5]
+    u0 = vel[s, 0] + w1 * a2 - w2 * a1
+    u1 = vel[s, 1] + w2 * a0 - w0 * a2
+    u2 = vel[s, 2] + w0 * a1 - w1 * a0
+    n = bd.hold_normal[s, p]
+    return u0 * n[0] + u1 * n[1] + u2 * n[2] - bd.hold_vel[s, p]
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _holder_change(bd, s, p, vel):
+    """The change [N] of the normal load of body s's holder contact p from the one measured (bd.hold_load) at
+    velocities vel: -hold_c v_n while the body's point leaves the holder (v_n > 0), down to -hold_load (a holder
+    only pushes), else none; and whether it is in between (the load changes with v_n there)."""
+    dl = -bd.hold_c[s] * _holder_speed(bd, s, p, vel)
+    if dl >= 0.0:
+        return 0.0, False
+    if dl <= -bd.hold_load[s, p]:
+        return -bd.hold_load[s, p], False
+    return dl, True
+
+
+@njit(cache=True, error_model="numpy")
+def _add_holders(bd, h, vel, out):
+    """out (S, 6) += h times the change of the holders' loads on the active bodies at velocities vel (force [N s],
+    torque about the centre of mass [N m s]; :func:`_holder_change`)."""
+    for s in range(bd.active.shape[0]):
+        if not bd.active[s]:
+            continue
+        for p in range(bd.hold_count[s]):
+            dl, _ = _holder_change(bd, s, p, vel)
+            a, n = bd.hold_arm[s, p], bd.hold_normal[s, p]
+            f0, f1, f2 = h * dl * n[0], h * dl * n[1], h * dl * n[2]
+            out[s, 0] += f0
+            out[s, 1] += f1
+            out[s, 2] += f2
+            out[s, 3] += a[1] * f2 - a[2] * f1
+            out[s, 4] += a[2] * f0 - a[0] * f2
+            out[s, 5] += a[0] * f1 - a[1] * f0
 
 
 @njit(cache=True, error_model="numpy")
 def body_potential(bd, h, vel):
     """The free bodies' part [J] of the step's incremental potential at velocities vel (S, 6): 1/2 (delta -
-    delta_0)^T M_b (delta - delta_0) - h M g . U (implicit Euler; the rows' contact potential is the cable's)."""
+    delta_0)^T M_b (delta - delta_0) - h M g . U (implicit Euler; the rows' contact potential is the cable's) plus
+    the holders' (:func:`_holder_change`)."""
     phi = 0.0
     for s in range(bd.active.shape[0]):
         if not bd.active[s]:
@@ -1335,6 +1402,9 @@ def body_potential(bd, h, vel):
             phi += 0.5 * bd.mass[s] * du * du - h * bd.mass[s] * bd.gravity[j] * vel[s, j]
             for q in range(3):
                 phi += 0.5 * (vel[s, 3 + j] - bd.vel[s, 3 + j]) * bd.inertia[s, j, q] * (vel[s, 3 + q] - bd.vel[s, 3 + q])
+        for p in range(bd.hold_count[s]):  # h times the holder's potential in v_n: its slope is -(change of load)
+            cv, load = max(bd.hold_c[s] * _holder_speed(bd, s, p, vel), 0.0), bd.hold_load[s, p]
+            phi += h * (0.5 * cv * cv if cv < load else load * cv - 0.5 * load * load) / bd.hold_c[s]
     return phi
 
 
@@ -1508,7 +1578,26 @@ def _dense_solve(a, b, size):
 
 
 @njit(cache=True, error_model="numpy")
-def coupled_solve(c, bd, held, x, kx, kv, band, r):
+def _add_holder_block(bd, hf, D):
+    """D += hf hold_c (J^T n)(J^T n)^T for each holder contact that still pushes at bd.vel_new, J^T n = (n, a x n)."""
+    jn = np.empty(6)
+    for s in range(bd.active.shape[0]):
+        if not bd.active[s]:
+            continue
+        for p in range(bd.hold_count[s]):
+            if not _holder_change(bd, s, p, bd.vel_new)[1]:
+                continue
+            a, n = bd.hold_arm[s, p], bd.hold_normal[s, p]
+            jn[0], jn[1], jn[2] = n[0], n[1], n[2]
+            jn[3], jn[4], jn[5] = a[1] * n[2] - a[2] * n[1], a[2] * n[0] - a[0] * n[2], a[0] * n[1] - a[1] * n[0]
+            k = hf * bd.hold_c[s]
+            for i in range(6):
+                for q in range(6):
+                    D[6 * s + i, 6 * s + q] += k * jn[i] * jn[q]
+
+
+@njit(cache=True, error_model="numpy")
+def coupled_solve(c, bd, held, x, kx, kv, hf, band, r):
     """Newton's direction of the cable and the free bodies ``bd`` together: r (3n,) [N s] in, the cable's
     direction dv [m/s] out (in place); the bodies' direction into bd.step, from their residual bd.residual.
 
@@ -1516,7 +1605,8 @@ def coupled_solve(c, bd, held, x, kx, kv, band, r):
     (3n, 6S) the rows' coupling -(w G) J and D = M_b + sum J^T G J, where G = kx (-dF/dx) + kv (-dF/dv) is a
     row's 3x3 contact stiffness (normal at the closest point's weights w, friction at the anchor's) and J =
     [I, -[arm]x] maps a body's (U', Omega') to its surface point's velocity; solved by the Schur complement
-    S = D - C^T A^-1 C (6S x 6S, dense). Held nodes keep their identity rows (no coupling).
+    S = D - C^T A^-1 C (6S x 6S, dense). Held nodes keep their identity rows (no coupling). D also holds hf hold_c
+    J^T n n^T J of each holder contact that still pushes at bd.vel_new (hf [s] the step's force weight).
     """
     ns = bd.active.shape[0]
     size = 6 * ns
@@ -1532,6 +1622,7 @@ def coupled_solve(c, bd, held, x, kx, kv, band, r):
             else:  # identity rows: a zero step
                 D[6 * s + j, 6 * s + j] = 1.0
                 D[6 * s + 3 + j, 6 * s + 3 + j] = 1.0
+    _add_holder_block(bd, hf, D)
     G = np.empty((2, 3, 3))
     GJ = np.empty((3, 6))
     J = np.zeros((3, 6))

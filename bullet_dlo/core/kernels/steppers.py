@@ -462,7 +462,8 @@ def newton(stepper, m, x, imp, ws, c=None, cap_tol=1e-3, max_passes=10, bd=None)
         phi0 = _merit(m, imp, ws, vn, c)
         if nb > 0:  # the bodies' velocities are unknowns too: their block and coupling, by a Schur complement
             phi0 += _contact.body_potential(bd, imp.hf, bd.vel_new)
-            _contact.coupled_solve(c, bd, m.held, ws.x_stage, imp.hf * imp.cx, imp.hf * imp.cv, ws.band, r)
+            _contact.coupled_solve(c, bd, m.held, ws.x_stage, imp.hf * imp.cx, imp.hf * imp.cv, imp.hf, ws.band,
+                                    r)
         else:
             band_solve(ws.band, r)  # r becomes the Newton direction
         alpha = 1.0
