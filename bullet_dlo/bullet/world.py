@@ -90,7 +90,8 @@ class BulletWorld:
         # in the last step (the ground or another body supports them) and, per cable, the free bodies touched by
         # the model's contacts of each cable in the last step (a body on two cables is moved by neither alone)
         self._supported: set[int] = set()  # see supported_bodies
-        self._support_points: dict[int, list[tuple]] = {}  # see support_points
+        self._support_points: dict[int, list[tuple]] | None = {}  # see support_points (None: not built yet)
+        self._support_contacts: tuple = ()  # the contacts supported_bodies was taken from
         self._supported_due = False  # phase 7 left the contact query for supported_bodies to its first reader
         self.model_touches: dict[int, set[str]] = {}
         self._model_touches_now: dict[int, set[str]] = {}
@@ -440,20 +441,22 @@ class BulletWorld:
         """Bullet's contact points of the last step on each body of :attr:`supported_bodies`: {body: [(point on it
         [m], unit normal from the holder into it, normal force [N], holder body, holder link, distance [m])]}."""
         self.supported_bodies  # (taken with it)
+        if self._support_points is None:  # built on first demand: only a free body in a contact set asks
+            owners, points = self._owners, {}
+            for cp in self._support_contacts:
+                if cp[1] in owners or cp[2] in owners:
+                    continue
+                normal = cp[7]  # on B, from B towards A
+                points.setdefault(cp[1], []).append((cp[5], normal, cp[9], cp[2], cp[4], cp[8]))
+                points.setdefault(cp[2], []).append((cp[6], (-normal[0], -normal[1], -normal[2]), cp[9], cp[1],
+                                                     cp[3], cp[8]))
+            self._support_points = points
         return self._support_points
 
     def _supported_in(self, contacts) -> set[int]:
         owners = self._owners
-        points: dict[int, list[tuple]] = {}
-        for cp in contacts:
-            if cp[1] in owners or cp[2] in owners:
-                continue
-            normal = cp[7]  # on B, from B towards A
-            points.setdefault(cp[1], []).append((cp[5], normal, cp[9], cp[2], cp[4], cp[8]))
-            points.setdefault(cp[2], []).append((cp[6], (-normal[0], -normal[1], -normal[2]), cp[9], cp[1], cp[3],
-                                                 cp[8]))
-        self._support_points = points
-        return set(points)
+        self._support_contacts, self._support_points = contacts, None
+        return {b for cp in contacts if cp[1] not in owners and cp[2] not in owners for b in (cp[1], cp[2])}
 
     def step_physics(self) -> None:
         """Phase 4 of :meth:`step`: Bullet's own step; the clock advances by ``dt``."""
