@@ -1304,6 +1304,28 @@ def start_bodies(c, bd, h):
     return active
 
 
+@njit(cache=True, error_model="numpy", inline="always")
+def _point_velocity(vel, s, arm):
+    """The velocity [m/s] U + Omega x arm of body s's material point at ``arm`` (3,) [m] from its centre of mass,
+    at velocities vel (S, 6) [m/s, rad/s]."""
+    a0, a1, a2 = arm[0], arm[1], arm[2]
+    w0, w1, w2 = vel[s, 3], vel[s, 4], vel[s, 5]
+    return vel[s, 0] + w1 * a2 - w2 * a1, vel[s, 1] + w2 * a0 - w0 * a2, vel[s, 2] + w0 * a1 - w1 * a0
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _add_wrench(out, s, arm, h, f0, f1, f2):
+    """out[s] (6,) += h times the force (f0, f1, f2) and its torque arm x f about the centre of mass (force [N] or
+    [N s], arm [m])."""
+    a0, a1, a2 = arm[0], arm[1], arm[2]
+    out[s, 0] += h * f0
+    out[s, 1] += h * f1
+    out[s, 2] += h * f2
+    out[s, 3] += h * (a1 * f2 - a2 * f1)
+    out[s, 4] += h * (a2 * f0 - a0 * f2)
+    out[s, 5] += h * (a0 * f1 - a1 * f0)
+
+
 @njit(cache=True, error_model="numpy")
 def load_bodies(c, bd, h, vel):
     """Put the free bodies ``bd`` at end-of-step velocities vel (S, 6) [m/s, rad/s] into their rows: body_vel =
@@ -1312,11 +1334,7 @@ def load_bodies(c, bd, h, vel):
         s = bd.slot[k]
         if s < 0:
             continue
-        a0, a1, a2 = bd.arm[k, 0], bd.arm[k, 1], bd.arm[k, 2]
-        w0, w1, w2 = vel[s, 3], vel[s, 4], vel[s, 5]
-        c.body_vel[k, 0] = vel[s, 0] + w1 * a2 - w2 * a1
-        c.body_vel[k, 1] = vel[s, 1] + w2 * a0 - w0 * a2
-        c.body_vel[k, 2] = vel[s, 2] + w0 * a1 - w1 * a0
+        c.body_vel[k, 0], c.body_vel[k, 1], c.body_vel[k, 2] = _point_velocity(vel, s, bd.arm[k])
         for j in range(3):
             c.point[k, j] = bd.point0[k, j] + h * c.body_vel[k, j]
             c.anchor[k, j] = bd.anchor0[k, j] + h * c.body_vel[k, j]
@@ -1347,11 +1365,7 @@ def body_residual(c, bd, h, vel):
 def _holder_speed(bd, s, p, vel):
     """The normal velocity [m/s] of body s's point at its holder contact p at velocities vel (S, 6), relative to the
     holder's (bd.hold_vel; positive: leaving it)."""
-    a0, a1, a2 = bd.hold_arm[s, p, 0], bd.hold_arm[s, p, 1], bd.hold_arm[s, p, 2]
-    w0, w1, w2 = vel[s, 3], vel[s, 4], vel[s, 5]
-    u0 = vel[s, 0] + w1 * a2 - w2 * a1
-    u1 = vel[s, 1] + w2 * a0 - w0 * a2
-    u2 = vel[s, 2] + w0 * a1 - w1 * a0
+    u0, u1, u2 = _point_velocity(vel, s, bd.hold_arm[s, p])
     n = bd.hold_normal[s, p]
     return u0 * n[0] + u1 * n[1] + u2 * n[2] - bd.hold_vel[s, p]
 
@@ -1378,14 +1392,9 @@ def _add_holders(bd, h, vel, out):
             continue
         for p in range(bd.hold_count[s]):
             dl, _ = _holder_change(bd, s, p, vel)
-            a, n = bd.hold_arm[s, p], bd.hold_normal[s, p]
-            f0, f1, f2 = h * dl * n[0], h * dl * n[1], h * dl * n[2]
-            out[s, 0] += f0
-            out[s, 1] += f1
-            out[s, 2] += f2
-            out[s, 3] += a[1] * f2 - a[2] * f1
-            out[s, 4] += a[2] * f0 - a[0] * f2
-            out[s, 5] += a[0] * f1 - a[1] * f0
+            n = bd.hold_normal[s, p]
+            f = h * dl  # (scaled first: the same rounding as before the helper)
+            _add_wrench(out, s, bd.hold_arm[s, p], 1.0, f * n[0], f * n[1], f * n[2])
 
 
 @njit(cache=True, error_model="numpy")
@@ -1448,13 +1457,7 @@ def _add_reactions(c, bd, h, out):
         f0 = -(c.f_n[k] * c.normal[k, 0] + c.f_t[k, 0])
         f1 = -(c.f_n[k] * c.normal[k, 1] + c.f_t[k, 1])
         f2 = -(c.f_n[k] * c.normal[k, 2] + c.f_t[k, 2])
-        a0, a1, a2 = bd.arm[k, 0], bd.arm[k, 1], bd.arm[k, 2]
-        out[s, 0] += h * f0
-        out[s, 1] += h * f1
-        out[s, 2] += h * f2
-        out[s, 3] += h * (a1 * f2 - a2 * f1)
-        out[s, 4] += h * (a2 * f0 - a0 * f2)
-        out[s, 5] += h * (a0 * f1 - a1 * f0)
+        _add_wrench(out, s, bd.arm[k], h, f0, f1, f2)
 
 
 @njit(cache=True, error_model="numpy")
