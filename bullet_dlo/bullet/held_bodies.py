@@ -159,7 +159,7 @@ def support_load(cs, o: int, s: int, points) -> np.ndarray:
     for :func:`hold_points` (arm [m], normal into the body, normal force [N], holder body and link, point [m])."""
     kept, out = [], np.zeros(6)
     com = cs.shapes.com[s]
-    for point, normal, load, holder, link, _ in sorted(points, key=lambda p: -p[2])[:cs.bodies.hold_load.shape[1]]:
+    for point, normal, load, holder, link in sorted(points, key=lambda p: -p[2])[:cs.bodies.hold_load.shape[1]]:
         arm, normal, load = np.subtract(point, com), np.asarray(normal), max(load, 0.0)
         out[:3] += load * normal
         out[3:] += load * np.cross(arm, normal)

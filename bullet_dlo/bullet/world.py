@@ -439,7 +439,7 @@ class BulletWorld:
     @property
     def support_points(self) -> dict[int, list[tuple]]:
         """Bullet's contact points of the last step on each body of :attr:`supported_bodies`: {body: [(point on it
-        [m], unit normal from the holder into it, normal force [N], holder body, holder link, distance [m])]}."""
+        [m], unit normal from the holder into it, normal force [N], holder body, holder link)]}."""
         self.supported_bodies  # (taken with it)
         if self._support_points is None:  # built on first demand: only a free body in a contact set asks
             owners, points = self._owners, {}
@@ -447,9 +447,8 @@ class BulletWorld:
                 if cp[1] in owners or cp[2] in owners:
                     continue
                 normal = cp[7]  # on B, from B towards A
-                points.setdefault(cp[1], []).append((cp[5], normal, cp[9], cp[2], cp[4], cp[8]))
-                points.setdefault(cp[2], []).append((cp[6], (-normal[0], -normal[1], -normal[2]), cp[9], cp[1],
-                                                     cp[3], cp[8]))
+                points.setdefault(cp[1], []).append((cp[5], normal, cp[9], cp[2], cp[4]))
+                points.setdefault(cp[2], []).append((cp[6], (-normal[0], -normal[1], -normal[2]), cp[9], cp[1], cp[3]))
             self._support_points = points
         return self._support_points
 
