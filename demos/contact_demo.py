@@ -9,11 +9,15 @@ the force on the held end beside them) and, with ``--video``, ``contact_demo.mp4
 mu 0.2 / 0.4, wraps pi and pi/2, at 60, 240 and 1000 Hz (the check of
 tests/bullet/test_contact_friction.py over all rates).
 
+``--stiff-capstan``: the same cable made stiffer (E 2e6-3e7 Pa: bend length sqrt(E I / T) 0.3-1.2 times the wrap
+radius), wrap pi, mu 0.4, a 24 s ramp: slip onset vs the elastica's capstan ratio
+(``analysis.closed_forms.capstan_ratio``) and the string's (both with the wrapped part's weight).
+
 ``--drops``: the full drop grid of tests/bullet/test_contact_drops.py: ground / box / peg, each
 implicit integrator, 60 / 240 / 1000 Hz, n = 10, 20, 40, 80 (108 runs): stability, tunnelling,
 penetration and the final speed.
 
-Usage: ``python demos/contact_demo.py [--out DIR] [--video] [--capstan] [--drops] [--quick]``
+Usage: ``python demos/contact_demo.py [--out DIR] [--video] [--capstan] [--stiff-capstan] [--drops] [--quick]``
 (``--quick``: the pull demo for 0.5 s, no video; for smoke tests).
 """
 from __future__ import annotations
@@ -112,6 +116,31 @@ def capstan_table() -> list[dict]:
     return rows
 
 
+def stiff_capstan_table() -> list[dict]:
+    sys.path.insert(0, str(TESTS))
+    from test_contact_friction import G, R_CAPSTAN, capstan_onset
+
+    from bullet_dlo.analysis.closed_forms import capstan_ratio
+
+    rows, mu, theta = [], 0.4, math.pi
+    for youngs, hz in ((2e6, 240.0), (1e7, 240.0), (2e7, 240.0), (3e7, 60.0), (3e7, 240.0), (3e7, 1000.0)):
+        onset, cable = capstan_onset(theta, mu, hz=hz, youngs_modulus=youngs, ramp=24.0)
+        spec = cable.model.spec
+        lam = spec.mass / spec.length
+        rho = R_CAPSTAN + spec.diameter / 2
+        t_short = (0.05 + lam * (spec.length - theta * rho) / 2) * G  # as capstan_onset loads the short side
+        stiff = capstan_ratio(theta, mu, rho, t_short, spec.bending_rigidity, lam * G)
+        string = capstan_ratio(theta, mu, rho, t_short, 0.0, lam * G)
+        bend = math.sqrt(spec.bending_rigidity / t_short) / rho
+        rows.append({"youngs_modulus": youngs, "hz": hz, "bend_length_over_radius": bend, "onset": onset,
+                     "elastica": stiff, "string": string, "newton_failures": cable.newton_failures})
+        ratio = float("nan") if onset is None else onset
+        print(f"E {youngs:.0e} Pa {hz:6.0f} Hz bend length / radius {bend:.2f}: slip at {ratio:.3f}, elastica "
+              f"{stiff:.3f} ({ratio / stiff - 1:+.1%}), string {string:.3f} ({ratio / string - 1:+.1%}), "
+              f"Newton failures {cable.newton_failures}", flush=True)
+    return rows
+
+
 def drop_grid() -> list[dict]:
     sys.path.insert(0, str(TESTS))
     from test_contact_drops import drop
@@ -139,6 +168,8 @@ def main() -> None:
                     help="output folder (default out/contact_demo; --out demos/gallery renews the committed pictures)")
     ap.add_argument("--video", action="store_true", help="also write contact_demo.mp4")
     ap.add_argument("--capstan", action="store_true", help="capstan table at 60, 240, 1000 Hz")
+    ap.add_argument("--stiff-capstan", action="store_true",
+                    help="stiff cables over the cylinder against the elastica's capstan ratio (6 runs)")
     ap.add_argument("--drops", action="store_true", help="the full drop grid (108 runs)")
     ap.add_argument("--quick", action="store_true")
     args = ap.parse_args()
@@ -148,6 +179,8 @@ def main() -> None:
     print("pull over a peg:", summary["pull"])
     if args.capstan:
         summary["capstan"] = capstan_table()
+    if args.stiff_capstan:
+        summary["stiff_capstan"] = stiff_capstan_table()
     if args.drops:
         summary["drops"] = drop_grid()
     (out / "contact_demo.json").write_text(json.dumps(summary, indent=1))

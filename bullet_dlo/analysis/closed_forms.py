@@ -6,6 +6,8 @@ Every closed form of the package lives here once (tests, benchmarks and peers im
 * cantilever first bending frequency: f1 = 1.8751^2 / (2 pi) sqrt(E I / (rho A L^4))
 * cable hanging from a pinned end: elongation = M g L / (2 E A)
 * slack cable between two points at equal height: the catenary (sag and end forces)
+* capstan: tension ratio at the onset of slip over a fixed cylinder, exp(mu theta) for a string, with the
+  wrapped part's weight and with bending stiffness (lift-off of an elastica)
 
 The set-ups: the horizontal cantilever (:func:`cantilever_model`), the cantilever released
 from a small static deflection (:func:`cantilever_release`), the hanging cable, and the
@@ -73,6 +75,92 @@ def catenary(span: float, length: float, weight_per_length: float) -> tuple[floa
             hi = a
     a = math.sqrt(lo * hi)
     return a * (math.cosh(span / (2 * a)) - 1.0), weight_per_length * a, weight_per_length * length / 2
+
+
+def capstan_lift_off(bending_rigidity: float, tension: float, radius: float) -> float:
+    """Angle [rad] through which a rod of bending rigidity B [N m^2] under tension T [N] turns between a cylinder of
+    (centre-line) radius rho [m] that it wraps and its straight far part: sin(Delta / 2) = sqrt(B / T) / (2 rho).
+
+    The free part is an elastica under the constant force T along its far direction, straight at infinity: B kappa^2
+    / 2 = T (1 - cos psi), psi the angle between the tangent and that force; it leaves the cylinder with the curvature
+    1 / rho (its moment B kappa is continuous: the cylinder applies no couple). Raises ValueError where the bend length
+    sqrt(B / T) reaches the diameter 2 rho: the rod cannot bend to the cylinder and touches it at points only."""
+    bend_length = math.sqrt(bending_rigidity / tension)
+    if bend_length >= 2.0 * radius:
+        raise ValueError(f"bend length sqrt(B/T) = {bend_length:.4g} m reaches the wrap diameter 2 rho = "
+                         f"{2 * radius:.4g} m: the rod does not wrap the cylinder")
+    return 2.0 * math.asin(bend_length / (2.0 * radius))
+
+
+def capstan_ratio(theta: float, mu: float, radius: float, slack_tension: float, bending_rigidity: float = 0.0,
+                  weight_per_length: float = 0.0) -> float:
+    """Tension ratio T_tight / T_slack [-] at the onset of slip of a rod over a fixed cylinder with friction mu.
+
+    ``theta`` [rad] is the wrap of the string (the angle between the two far directions), ``radius`` rho [m] the
+    radius of the rod's centre line on the cylinder (cylinder radius plus the rod's), ``slack_tension`` [N] the far
+    tension on the side that holds. A string: exp(mu theta). With weight w [N/m] (the cylinder's axis horizontal, the
+    slack side hanging straight down, the wrap over the top from there), dT/dalpha + mu T = w rho (cos alpha - mu sin
+    alpha) along the arc (alpha the position angle from the horizontal, pi on the slack side, decreasing towards the
+    tight side): T = C exp(-mu alpha) + w rho ((1 - mu^2) sin alpha + 2 mu cos alpha) / (1 + mu^2), which for theta = pi
+    gives T_slack exp(mu pi) + w rho (2 mu / (1 + mu^2)) (1 + exp(mu pi)).
+
+    With bending rigidity B [N m^2] the rod leaves the cylinder Delta_s and Delta_t short of the string's tangent
+    points (:func:`capstan_lift_off`, at each side's far tension), so the arc in contact spans theta - Delta_s -
+    Delta_t. Inside it the curvature is 1 / rho, the moment constant, the shear zero: the string's law holds there.
+    At each lift-off point the free part's force, T along its far direction, meets the arc's tangent at Delta: the
+    cylinder takes a point load P = T sin Delta, whose friction mu P the slip engages too, so the arc's end tensions
+    are T_slack (cos Delta_s + mu sin Delta_s) and T_tight (cos Delta_t - mu sin Delta_t). To first order in Delta
+    the two ends cancel; to second, the ratio falls by about (1 + mu^2) (Delta_s^2 - Delta_t^2) / 2 of exp(mu theta)
+    (the slack side, at the lower tension, bends further). Frictionless, the ratio is 1 at any B (T cos Delta grows with
+    T). The free parts' weight is left out (the bend length is short against the hanging parts). Raises ValueError
+    where the rod does not wrap (bend length at least 2 rho) or no arc is left in contact."""
+    if not (theta > 0 and mu >= 0 and radius > 0 and slack_tension > 0 and bending_rigidity >= 0
+            and weight_per_length >= 0):
+        raise ValueError("capstan_ratio needs theta > 0, mu >= 0, radius > 0, slack_tension > 0, "
+                         "bending_rigidity >= 0, weight_per_length >= 0")
+    w, rho = weight_per_length, radius
+
+    def particular(alpha: float) -> float:  # a particular solution of the arc's tension equation [N]
+        return w * rho * ((1.0 - mu * mu) * math.sin(alpha) + 2.0 * mu * math.cos(alpha)) / (1.0 + mu * mu)
+
+    def lift_off(tension: float) -> float:
+        return capstan_lift_off(bending_rigidity, tension, rho) if bending_rigidity > 0 else 0.0
+
+    d_s = lift_off(slack_tension)
+    if d_s >= theta:
+        raise ValueError(f"no arc in contact: the slack side's lift-off {d_s:.4g} rad takes the whole wrap "
+                         f"{theta:.4g} rad")
+    a0 = math.pi - d_s  # where the arc in contact starts, from the slack side
+    t0 = slack_tension * (math.cos(d_s) + mu * math.sin(d_s))
+
+    def excess(ratio: float) -> float:  # the ratio the arc carries at the tight side's lift-off for this ratio, less it
+        d_t = lift_off(ratio * slack_tension)
+        a1 = math.pi - theta + d_t
+        hold = math.cos(d_t) - mu * math.sin(d_t)
+        if hold <= 0.0:  # the tight lift-off's friction alone holds any pull
+            return math.inf
+        t1 = (t0 - particular(a0)) * math.exp(mu * (a0 - a1)) + particular(a1)
+        return t1 / hold / slack_tension - ratio
+
+    # the tight side's lift-off shrinks as its tension grows, so the excess falls with the ratio: one root, bisected
+    # (a fixed-point iteration on it oscillates and barely contracts for stiff rods). Below lo the tight side's lift-off
+    # would leave no arc (or the rod would not wrap at all).
+    lo = 0.0
+    if bending_rigidity > 0:
+        half = min(theta - d_s, math.pi) / 2.0
+        lo = bending_rigidity / (slack_tension * (2.0 * rho * math.sin(half)) ** 2) * (1.0 + 1e-12)
+    hi = max(2.0 * lo, math.exp(mu * theta), 1.0)
+    while excess(hi) > 0.0:
+        hi *= 2.0
+    if lo > 0.0 and not excess(lo) > 0.0:
+        raise ValueError("no arc in contact: the rod is too stiff to wrap theta at these tensions")
+    for _ in range(200):
+        mid = 0.5 * (lo + hi)
+        if excess(mid) > 0.0:
+            lo = mid
+        else:
+            hi = mid
+    return 0.5 * (lo + hi)
 
 
 # ----- reference set-ups -------------------------------------------------------------------------
