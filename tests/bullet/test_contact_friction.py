@@ -32,14 +32,13 @@ def _arc(cx, cz, radius, a0, a1, k=300):
     return np.stack([cx + radius * np.cos(a), 0 * a, cz + radius * np.sin(a)], axis=1)
 
 
-def capstan_onset(theta: float, mu: float, hz: float = 240.0, integrator: str = "implicit_euler", peg=None,
-                  youngs_modulus: float = 2e6, ramp: float = 4.0):
+def capstan_world(theta: float, mu: float, hz: float = 240.0, integrator: str = "implicit_euler", peg=None,
+                  youngs_modulus: float = 2e6, n: int = 60):
     """Soft cable over a fixed cylinder, wrap ``theta`` (pi, or pi/2 with a frictionless guide turning the
-    short side down), 50 g on the short end; the long end's load ramps the static tension ratio
-    T_long/T_short from 1 to 2 exp(mu theta) over ``ramp`` [s]. Returns (ratio at slip onset, the cable):
-    onset is the short end rising 2 mm. ``peg(world, radius, friction)``: makes the cylinder (axis along
-    y through the origin; default: a Bullet cylinder)."""
-    n = 60
+    short side down), 50 g on the short end and the long end loaded for the static tension ratio T_long/T_short
+    1 (raise it by ``cable.control.f_ext[0, 2] = -(ratio - 1) t_short``). Returns (world, cable, t_short [N], the
+    tension where the short side leaves the cylinder). ``peg(world, radius, friction)``: makes the cylinder (axis
+    along y through the origin; default: a Bullet cylinder)."""
     spec = CableSpec(length=0.6, diameter=0.004, mass=0.009, youngs_modulus=youngs_modulus, n_masses=n,
                      dynamic_friction=mu, static_friction=mu)
     lam, r = spec.mass / spec.length, spec.diameter / 2
@@ -67,6 +66,14 @@ def capstan_onset(theta: float, mu: float, hz: float = 240.0, integrator: str = 
     cable.add_point_mass(-1, 0.05)
     cable.add_point_mass(0, t_short / G - lam * hang)  # ratio 1
     cable.set_parameters(damp=5.0 * cable.model.arrays.mass)  # drag 5 1/s settles the weights' bounce (no effect at rest)
+    return world, cable, t_short
+
+
+def capstan_onset(theta: float, mu: float, hz: float = 240.0, integrator: str = "implicit_euler", peg=None,
+                  youngs_modulus: float = 2e6, ramp: float = 4.0):
+    """The cable of :func:`capstan_world` with the ratio ramped from 1 to 2 exp(mu theta) over ``ramp`` [s] after
+    0.5 s at 1. Returns (ratio at slip onset, the cable): onset is the short end rising 2 mm."""
+    world, cable, t_short = capstan_world(theta, mu, hz, integrator, peg, youngs_modulus)
     ratio_max, settle = 2.0 * math.exp(mu * theta), 0.5
     z_settled = None
     try:
@@ -112,6 +119,29 @@ def test_a_stiff_cable_slips_at_the_capstan_ratio_of_an_elastica(youngs_modulus,
     assert onset == pytest.approx(stiff, rel=0.05), (onset, stiff, string)
     assert abs(onset / string - 1.0) > 0.10  # the case tells the two apart
     assert cable.newton_failures <= 2
+
+
+@pytest.mark.parametrize("theta, n", [(math.pi, 60), (math.pi / 2, 120)])
+def test_a_frictionless_capstan_holds_no_imbalance(theta, n):
+    """Without friction, sliding the cable along itself costs nothing but the loads' work (T_long - T_short) per
+    length: at ratio 1.02 the short end rises more than 1 cm in 2.5 s, ten times what it settles at 1. (With the pi/2 wrap's 12 mm guide at n = 60, 10 mm segments,
+    the polygon holds up to about 1.1 by its cogging over that radius, and the onset tests read it as friction.)"""
+    rises = []
+    for ratio in (1.0, 1.02):
+        world, cable, t_short = capstan_world(theta, 0.0, n=n)
+        try:
+            hz, z0 = 240.0, None
+            for k in range(int(3.0 * hz)):
+                t = (k + 1) / hz
+                cable.control.f_ext[0, 2] = -(ratio - 1.0) * t_short * min(1.0, max(0.0, t - 0.5) / 0.5)
+                world.step()
+                assert cable.stable, cable.reason
+                if t <= 0.5:
+                    z0 = cable.x[-1, 2]
+            rises.append(cable.x[-1, 2] - z0)
+        finally:
+            world.close()
+    assert rises[1] > 1e-2 and rises[1] > 10 * abs(rises[0]), rises  # (at 1: the initial shape's settling, 0.1-2 mm)
 
 
 def test_capstan_holds_at_sixty_hertz():
