@@ -3,11 +3,15 @@ rests on (it loaded as a mesh and was ignored before); shapes on child links are
 (Bullet's narrow phase, tests/bullet/test_contact_mesh.py), so nothing is warned about."""
 from __future__ import annotations
 
+import math
 import warnings
 
 import numpy as np
+import pybullet as pb
 import pytest
+from test_contact_friction import G, R_CAPSTAN, capstan_onset
 
+from bullet_dlo.analysis.closed_forms import capstan_ratio
 from bullet_dlo.bullet.world import BulletWorld
 from bullet_dlo.core.spec import CableSpec
 
@@ -53,3 +57,39 @@ def test_shapes_on_child_links_are_no_longer_left_out(tmp_path):
     x, messages = drape(tmp_path, CHILD)
     assert not any("not handled" in m for m in messages), messages
     assert np.all(x[:, 2] > 0.5 - 0.02)
+
+
+def urdf_peg(tmp_path):
+    """A peg maker for capstan_onset: PEG's cylinder (a URDF ``<cylinder>``, radius R_CAPSTAN, axis along y) at the
+    origin, with the given friction."""
+    urdf = tmp_path / "peg.urdf"
+    urdf.write_text(PEG.format(child=""))
+
+    def make(world: BulletWorld, radius: float, friction: float) -> int:
+        assert radius == R_CAPSTAN == 0.02  # (the file's radius)
+        body = world.add_urdf(urdf, (0.0, 0.0, 0.0))
+        pb.changeDynamics(body, -1, lateralFriction=friction, physicsClientId=world.client)
+        return body
+
+    return make
+
+
+@pytest.mark.parametrize("hz", [240.0, 60.0])
+def test_capstan_on_a_urdf_cylinder(hz, tmp_path):
+    """Slip onset of the capstan tests' cable wrapped half round a URDF cylinder: exp(mu pi) within 10 %."""
+    mu = 0.3
+    onset, cable = capstan_onset(math.pi, mu, hz=hz, peg=urdf_peg(tmp_path))
+    assert onset is not None, "never slipped"
+    assert onset == pytest.approx(math.exp(mu * math.pi), rel=0.10)
+
+
+def test_a_stiff_cable_on_a_urdf_cylinder_slips_at_the_elastica_ratio(tmp_path):
+    """The same with the cable 15x stiffer (bend length 1.2 x the wrap radius): the elastica's ratio within 5 %, the
+    string's 30 % above it (analysis.closed_forms.capstan_ratio; test_contact_friction for the Bullet cylinder)."""
+    mu, theta = 0.4, math.pi
+    onset, cable = capstan_onset(theta, mu, peg=urdf_peg(tmp_path), youngs_modulus=3e7, ramp=24.0)
+    spec = cable.model.spec
+    lam, rho = spec.mass / spec.length, R_CAPSTAN + spec.diameter / 2
+    t_short = (0.05 + lam * (spec.length - theta * rho) / 2) * G
+    assert onset == pytest.approx(capstan_ratio(theta, mu, rho, t_short, spec.bending_rigidity, lam * G), rel=0.05)
+    assert onset < 0.8 * capstan_ratio(theta, mu, rho, t_short, 0.0, lam * G)
