@@ -11,7 +11,8 @@ tests/bullet/test_contact_friction.py over all rates).
 
 ``--stiff-capstan``: the same cable made stiffer (E 2e6-3e7 Pa: bend length sqrt(E I / T) 0.3-1.2 times the wrap
 radius), wrap pi, mu 0.4, a 24 s ramp: slip onset vs the elastica's capstan ratio
-(``analysis.closed_forms.capstan_ratio``) and the string's (both with the wrapped part's weight).
+(``analysis.closed_forms.capstan_ratio``) and the string's (both with the wrapped part's weight); then E 3e7 on
+48-, 96- and 192-gon hull pegs at mu 0.3.
 
 ``--drops``: the full drop grid of tests/bullet/test_contact_drops.py: ground / box / peg, each
 implicit integrator, 60 / 240 / 1000 Hz, n = 10, 20, 40, 80 (108 runs): stability, tunnelling,
@@ -23,6 +24,7 @@ Usage: ``python demos/contact_demo.py [--out DIR] [--video] [--capstan] [--stiff
 from __future__ import annotations
 
 import argparse
+import functools
 import itertools
 import json
 import math
@@ -138,6 +140,24 @@ def stiff_capstan_table() -> list[dict]:
         print(f"E {youngs:.0e} Pa {hz:6.0f} Hz bend length / radius {bend:.2f}: slip at {ratio:.3f}, elastica "
               f"{stiff:.3f} ({ratio / stiff - 1:+.1%}), string {string:.3f} ({ratio / string - 1:+.1%}), "
               f"Newton failures {cable.newton_failures}", flush=True)
+    # the same on hull pegs (tests/bullet/test_contact_mesh.py): a rod too stiff to follow the facets rests on the
+    # vertices, so the polygon's sides count
+    sys.path.insert(0, str(TESTS.parent))  # (test_contact_mesh imports tests/probes.py)
+    from test_contact_mesh import hull_peg
+
+    mu = 0.3
+    for sides in (48, 96, 192):
+        onset, cable = capstan_onset(theta, mu, peg=functools.partial(hull_peg, sides=sides), youngs_modulus=3e7,
+                                     ramp=24.0)
+        spec = cable.model.spec
+        lam, rho = spec.mass / spec.length, R_CAPSTAN + spec.diameter / 2
+        t_short = (0.05 + lam * (spec.length - theta * rho) / 2) * G
+        stiff = capstan_ratio(theta, mu, rho, t_short, spec.bending_rigidity, lam * G)
+        rows.append({"youngs_modulus": 3e7, "hz": 240.0, "hull_sides": sides, "mu": mu, "onset": onset,
+                     "elastica": stiff, "newton_failures": cable.newton_failures})
+        ratio = float("nan") if onset is None else onset
+        print(f"E 3e+07 Pa, {sides}-gon hull peg, mu {mu}: slip at {ratio:.3f}, elastica {stiff:.3f} "
+              f"({ratio / stiff - 1:+.1%}), Newton failures {cable.newton_failures}", flush=True)
     return rows
 
 
@@ -169,7 +189,7 @@ def main() -> None:
     ap.add_argument("--video", action="store_true", help="also write contact_demo.mp4")
     ap.add_argument("--capstan", action="store_true", help="capstan table at 60, 240, 1000 Hz")
     ap.add_argument("--stiff-capstan", action="store_true",
-                    help="stiff cables over the cylinder against the elastica's capstan ratio (6 runs)")
+                    help="stiff cables over the cylinder and hull pegs against the elastica's capstan ratio (9 runs)")
     ap.add_argument("--drops", action="store_true", help="the full drop grid (108 runs)")
     ap.add_argument("--quick", action="store_true")
     args = ap.parse_args()
