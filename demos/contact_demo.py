@@ -120,20 +120,14 @@ def capstan_table() -> list[dict]:
 
 def stiff_capstan_table() -> list[dict]:
     sys.path.insert(0, str(TESTS))
-    from test_contact_friction import G, R_CAPSTAN, capstan_onset
-
-    from bullet_dlo.analysis.closed_forms import capstan_ratio
+    from test_contact_friction import R_CAPSTAN, capstan_onset, capstan_references
 
     rows, mu, theta = [], 0.4, math.pi
     for youngs, hz in ((2e6, 240.0), (1e7, 240.0), (2e7, 240.0), (3e7, 60.0), (3e7, 240.0), (3e7, 1000.0)):
         onset, cable = capstan_onset(theta, mu, hz=hz, youngs_modulus=youngs, ramp=24.0)
+        stiff, string, t_short = capstan_references(cable, theta, mu)
         spec = cable.model.spec
-        lam = spec.mass / spec.length
-        rho = R_CAPSTAN + spec.diameter / 2
-        t_short = (0.05 + lam * (spec.length - theta * rho) / 2) * G  # as capstan_onset loads the short side
-        stiff = capstan_ratio(theta, mu, rho, t_short, spec.bending_rigidity, lam * G)
-        string = capstan_ratio(theta, mu, rho, t_short, 0.0, lam * G)
-        bend = math.sqrt(spec.bending_rigidity / t_short) / rho
+        bend = math.sqrt(spec.bending_rigidity / t_short) / (R_CAPSTAN + spec.diameter / 2)
         rows.append({"youngs_modulus": youngs, "hz": hz, "bend_length_over_radius": bend, "onset": onset,
                      "elastica": stiff, "string": string, "newton_failures": cable.newton_failures})
         ratio = float("nan") if onset is None else onset
@@ -149,10 +143,7 @@ def stiff_capstan_table() -> list[dict]:
     for sides in (48, 96, 192):
         onset, cable = capstan_onset(theta, mu, peg=functools.partial(hull_peg, sides=sides), youngs_modulus=3e7,
                                      ramp=24.0)
-        spec = cable.model.spec
-        lam, rho = spec.mass / spec.length, R_CAPSTAN + spec.diameter / 2
-        t_short = (0.05 + lam * (spec.length - theta * rho) / 2) * G
-        stiff = capstan_ratio(theta, mu, rho, t_short, spec.bending_rigidity, lam * G)
+        stiff, _, _ = capstan_references(cable, theta, mu)
         rows.append({"youngs_modulus": 3e7, "hz": 240.0, "hull_sides": sides, "mu": mu, "onset": onset,
                      "elastica": stiff, "newton_failures": cable.newton_failures})
         ratio = float("nan") if onset is None else onset

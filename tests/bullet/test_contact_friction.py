@@ -69,6 +69,18 @@ def capstan_world(theta: float, mu: float, hz: float = 240.0, integrator: str = 
     return world, cable, t_short
 
 
+def capstan_references(cable, theta: float, mu: float) -> tuple[float, float, float]:
+    """(elastica, string, T_short [N]) for :func:`capstan_world`'s cable over the top (theta = pi, both sides hanging):
+    analysis.closed_forms.capstan_ratio with the cable's bending rigidity and without, the wrapped part's weight in
+    both, T_short as capstan_world loads the short side."""
+    assert theta == math.pi, "the wrapped weight's closed form is the over-the-top wrap"
+    spec = cable.model.spec
+    lam, rho = spec.mass / spec.length, R_CAPSTAN + spec.diameter / 2
+    t_short = (0.05 + lam * (spec.length - theta * rho) / 2) * G
+    return (capstan_ratio(theta, mu, rho, t_short, spec.bending_rigidity, lam * G),
+            capstan_ratio(theta, mu, rho, t_short, 0.0, lam * G), t_short)
+
+
 def capstan_onset(theta: float, mu: float, hz: float = 240.0, integrator: str = "implicit_euler", peg=None,
                   youngs_modulus: float = 2e6, ramp: float = 4.0):
     """The cable of :func:`capstan_world` with the ratio ramped from 1 to 2 exp(mu theta) over ``ramp`` [s] after
@@ -111,11 +123,7 @@ def test_a_stiff_cable_slips_at_the_capstan_ratio_of_an_elastica(youngs_modulus,
     mu, theta = 0.4, math.pi
     onset, cable = capstan_onset(theta, mu, hz=hz, youngs_modulus=youngs_modulus, ramp=24.0)
     assert onset is not None, "never slipped"
-    spec = cable.model.spec
-    rho, w = R_CAPSTAN + spec.diameter / 2, spec.mass / spec.length * G
-    t_short = (0.05 + spec.mass / spec.length * (spec.length - theta * rho) / 2) * G  # as capstan_onset loads it
-    stiff = capstan_ratio(theta, mu, rho, t_short, spec.bending_rigidity, w)
-    string = capstan_ratio(theta, mu, rho, t_short, 0.0, w)
+    stiff, string, _ = capstan_references(cable, theta, mu)
     assert onset == pytest.approx(stiff, rel=0.05), (onset, stiff, string)
     assert abs(onset / string - 1.0) > 0.10  # the case tells the two apart
     assert cable.newton_failures <= 2

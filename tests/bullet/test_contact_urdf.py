@@ -9,9 +9,8 @@ import warnings
 import numpy as np
 import pybullet as pb
 import pytest
-from test_contact_friction import G, R_CAPSTAN, capstan_onset
+from test_contact_friction import R_CAPSTAN, capstan_onset, capstan_references
 
-from bullet_dlo.analysis.closed_forms import capstan_ratio
 from bullet_dlo.bullet.world import BulletWorld
 from bullet_dlo.core.spec import CableSpec
 
@@ -88,8 +87,6 @@ def test_a_stiff_cable_on_a_urdf_cylinder_slips_at_the_elastica_ratio(tmp_path):
     string's 30 % above it (analysis.closed_forms.capstan_ratio; test_contact_friction for the Bullet cylinder)."""
     mu, theta = 0.4, math.pi
     onset, cable = capstan_onset(theta, mu, peg=urdf_peg(tmp_path), youngs_modulus=3e7, ramp=24.0)
-    spec = cable.model.spec
-    lam, rho = spec.mass / spec.length, R_CAPSTAN + spec.diameter / 2
-    t_short = (0.05 + lam * (spec.length - theta * rho) / 2) * G
-    assert onset == pytest.approx(capstan_ratio(theta, mu, rho, t_short, spec.bending_rigidity, lam * G), rel=0.05)
-    assert onset < 0.8 * capstan_ratio(theta, mu, rho, t_short, 0.0, lam * G)
+    stiff, string, _ = capstan_references(cable, theta, mu)
+    assert onset == pytest.approx(stiff, rel=0.05)
+    assert onset < 0.8 * string
