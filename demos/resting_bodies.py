@@ -1,7 +1,9 @@
 """Issue 23 item 2: a dynamic box dropped / placed on a cable lying on the ground.
 
 For each box mass and step: peak reaction on the box [N] (and in units of its weight), peak box
-speed [m/s], time to rest (box speed below 1e-4 m/s for good) [s], support balance at the end
+speed [m/s], the box's largest mechanical energy over the energy it was dropped with (E/E0: kinetic, and potential
+above its rest flat on the ground; the cable lies at rest, so above 1 the contact made energy), time to rest (box
+speed below 1e-4 m/s for good) [s], support balance at the end
 (ground on cable + ground on box) / ((m_cable + m_box) g), cable status, penetration of the box
 into the cable. Usage: python demos/resting_bodies.py [--drop 0.01] [--seconds 2] [--hz 240 1000]
 [--n 20] [--offset 0] [--yaw 0] [--trace]: --offset [m] moves the box's centre off the cable (along y) and --yaw [rad]
@@ -37,6 +39,7 @@ def run(mass: float, hz: float, drop: float, seconds: float, n: int = 20, offset
                             mass=mass, friction=0.5)
         cid = world.client
         peak_f, peak_v, last_moving, worst_gap = 0.0, 0.0, 0.0, 0.0
+        dropped = most = _energy(box, mass, cid)
         t_contact = tic = 0.0
         steps = int(round(seconds * hz))
         tic = time.perf_counter()
@@ -47,6 +50,7 @@ def run(mass: float, hz: float, drop: float, seconds: float, n: int = 20, offset
             peak_f = max(peak_f, float(np.linalg.norm(f)))
             v = np.linalg.norm(pb.getBaseVelocity(box, physicsClientId=cid)[0])
             peak_v = max(peak_v, float(v))
+            most = max(most, _energy(box, mass, cid))
             if v > 1e-4:
                 last_moving = (k + 1) / hz
             pc = cable.contact_forces()
@@ -64,9 +68,19 @@ def run(mass: float, hz: float, drop: float, seconds: float, n: int = 20, offset
         ground_on_cable = float(pc["force"][pc["body"] == world.ground_id][:, 2].sum())
         ground_on_box = sum(cp[9] for cp in pb.getContactPoints(box, world.ground_id, physicsClientId=cid))
         balance = (ground_on_cable + ground_on_box) / ((spec.mass + mass) * G)
-        return dict(mass=mass, hz=hz, peak_f=peak_f, peak_w=peak_f / (mass * G), peak_v=peak_v,
+        return dict(mass=mass, hz=hz, peak_f=peak_f, peak_w=peak_f / (mass * G), peak_v=peak_v, energy=most / dropped,
                     rest=last_moving, balance=balance, status=cable.reason or "stable", gap=worst_gap,
                     ms_per_step=1e3 * wall / max(k + 1, 1), z=pb.getBasePositionAndOrientation(box, physicsClientId=cid)[0][2])
+
+
+def _energy(box: int, mass: float, cid: int) -> float:
+    """The box's mechanical energy [J]: kinetic, and potential above its rest flat on the ground."""
+    pos, orn = pb.getBasePositionAndOrientation(box, physicsClientId=cid)
+    lin, ang = pb.getBaseVelocity(box, physicsClientId=cid)
+    local = np.array(pb.getMatrixFromQuaternion(orn)).reshape(3, 3).T @ np.asarray(ang)
+    a, b, c = (2 * h for h in HALF)
+    inertia = mass / 12 * np.array([b * b + c * c, a * a + c * c, a * a + b * b])
+    return mass * G * (pos[2] - HALF[2]) + 0.5 * mass * float(np.dot(lin, lin)) + 0.5 * float(inertia @ local ** 2)
 
 
 def _counters(solver) -> tuple:
@@ -96,11 +110,12 @@ def main() -> None:
                     help="print every step's Newton solve from the first step with a contact row on the box")
     a = ap.parse_args()
     print(f"{'n':>3} {'offset':>6} {'yaw':>4} {'drop':>7} {'hz':>5} {'mass':>6} {'peak F':>9} {'xW':>8} {'peak v':>8} "
-          f"{'rest':>6} {'balance':>8} {'gap mm':>7} {'box z':>7} {'ms/st':>6} status")
+          f"{'E/E0':>6} {'rest':>6} {'balance':>8} {'gap mm':>7} {'box z':>7} {'ms/st':>6} status")
     for n, offset, yaw, drop, hz, m in itertools.product(a.n, a.offset, a.yaw, a.drop, a.hz, a.mass):
         o = run(m, hz, drop, a.seconds, n, offset, yaw, a.trace)
         print(f"{n:3d} {offset:6.3f} {yaw:4.1f} {drop:7.4f} {hz:5.0f} {m:6.3f} {o['peak_f']:9.3f} {o['peak_w']:8.1f} "
-              f"{o['peak_v']:8.4f} {o['rest']:6.3f} {o['balance']:8.4f} {1e3 * o['gap']:7.3f} {o['z']:7.4f} "
+              f"{o['peak_v']:8.4f} {o['energy']:6.3f} {o['rest']:6.3f} {o['balance']:8.4f} {1e3 * o['gap']:7.3f} "
+              f"{o['z']:7.4f} "
               f"{o['ms_per_step']:6.3f} {o['status']}", flush=True)
 
 

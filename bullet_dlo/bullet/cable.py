@@ -65,6 +65,7 @@ import math
 import numpy as np
 import pybullet as pb
 
+from bullet_dlo.bullet import held_bodies
 from bullet_dlo.bullet.cable_contacts import CABLE_GROUPS, CableContacts  # noqa: F401 (CABLE_GROUPS: its old home)
 from bullet_dlo.bullet.contact import ContactSet
 from bullet_dlo.bullet.native import apply_forces, kernel_api
@@ -395,6 +396,9 @@ class BulletCable:
                     a[...] = b
             self._twist_planned = True
         status = solver.step(self.arrays, self.control, contacts, contact.bodies, inp)
+        cs = contact.set
+        if solver.last_ratio > 0.0 and self.model_contact and cs is not None and cs.free_bodies:  # kept unconverged
+            held_bodies.spare_thrown(cs, self.world.dt)
         if gripped[0] or gripped[1]:
             for end in (0, 1):
                 if gripped[end] and not active[end]:  # the end slid out of the gripper

@@ -547,6 +547,7 @@ class ContactSet:
         self._free_slot = self.shapes.slot.copy()  # each row's slot; -1 in shapes.slot while the body is shared
         self._shared: frozenset = frozenset()
         self._was_supported: frozenset = frozenset()  # the free bodies in a Bullet contact the step before (impacts)
+        self._spared: set[int] = set()  # free bodies handed less than the cable felt (held_bodies.spare_thrown)
         # the load on each free body from everything but this cable and gravity, measured over the last Bullet
         # step (see update): its base row, velocity then [m/s, rad/s], the reaction applied in it, the load
         ns = len(free_bodies)
@@ -2015,18 +2016,31 @@ def detect(x, v, mass, sh, c, bd, st, h, k_per_mass, zeta, self_mu, h_body, h_do
                         # (turned out only when the point is inside along the edge too: one below a vertical
                         # edge's end, under the bottom face, is outside the box)
                         inside = inside and abs(cl[ax] + cl[3] * nl[ax]) < size[ax]
-                        if inside and not wraps_i:
+                        # outside, the edge is the segment's nearest feature only where the direction from it lies
+                        # between its two faces' normals; elsewhere (beside a face) the face is, with its normal
+                        beside = sp > 0.0 and not inside and (nl[o1] * P[o1] < 0.0 or nl[o2] * P[o2] < 0.0)
+                        if (inside or beside) and not wraps_i:
                             # the direction from the edge to the segment's point then points into the box, and
                             # the distance is no depth: left so, the penalty pulled the segment through the edge,
                             # deeper in (a 0.3 kg box tipped off the cable, its edge through a segment between two
                             # nodes just outside it, squeezed the cable at 30-56 N between that row and the nodes'
                             # and was stopped as energy growth). The point leaves by the nearest face, as a node
-                            # inside does, where it is deeper than both nodes (else they carry it)
+                            # inside does, where it is deeper than both nodes (else they carry it). Beside a face,
+                            # the direction from the edge ran along the face into the box (a segment entering a
+                            # tipping 1 g box next to its bottom edge was pushed up into it while its node was pushed
+                            # out through the bottom, and the box, squeezed between the two rows, was thrown): the
+                            # row is the face's, which is the edge's where the two meet (found while the edge is
+                            # within reach, as before, and only for one of the edge's own faces: the point beneath a
+                            # plank is beside its bottom face for each top edge too, whose rows doubled the bottom's)
+                            reach = cl[3]
                             for j in range(3):
                                 qs[j] = cl[j] + cl[3] * nl[j]
                             cl[3] = _node_closest(kind, size, qs, cl, nl)
-                            if cl[3] > min(_node_closest(kind, size, q[i], qs, nl2),
-                                           _node_closest(kind, size, q[i + 1], qs, nl2)) - SEGMENT_DIP:
+                            if inside and cl[3] > min(_node_closest(kind, size, q[i], qs, nl2),
+                                                      _node_closest(kind, size, q[i + 1], qs, nl2)) - SEGMENT_DIP:
+                                continue
+                            if beside and (reach - radius >= margin_s
+                                           or nl[o1] * P[o1] < 0.0 or nl[o2] * P[o2] < 0.0):
                                 continue
                         # a wrap is kept while the path wraps, even with the chord deep in the box
                         if sp > 0.0 and (cl[3] - radius < margin_s or wrapped or cuts):

@@ -394,23 +394,52 @@ def test_a_box_tipping_off_the_cable_at_60_hz_is_met_before_it_enters():
         assert (on_cable + on_box) / ((spec.mass + m_box) * G) == pytest.approx(1.0, abs=0.01)
 
 
-@pytest.mark.parametrize("n, offset, yaw", [(40, 0.012, 1.0), (40, 0.018, 0.6), (80, 0.018, 1.0), (80, 0.006, 1.0)])
-def test_a_light_box_tipping_off_the_cable_at_60_hz_is_not_launched(n, offset, yaw):
-    """A 1 g box dropped 1 cm onto the cable at 60 Hz, its centre ``offset`` [m] to the side and turned ``yaw`` [rad],
-    tips off the cable: its corner hits the ground in Bullet's step, which the cable's step did not plan, and Bullet's
-    impact turns it 2-4 mm into the cable. Before, the penalty pushed that back with its stiff spring (stiff for the
-    cable's node mass, not the box's) and the box left at 15-21 m/s (stopped as energy growth at 0.13 s, or not). Now
-    that penetration is let out without the spring's energy (``Store.sink``) and the box is thrown at most 2 m/s
-    (measured: 0.33, 1.14, 0.41 and 0.33 m/s; it falls at 0.33 m/s), rests within 2 s and the ground carries both
-    weights within 1 %. The fourth case (n 80, 6 mm, 1 rad) was thrown at 3.5 m/s after that: its solve ended with the
-    cable balanced and the box 22 weights' impulses off its own balance, and Bullet moved it under the rows' forces;
-    the stall guard now counts the bodies' residual (``body_stall_ratio``) and takes such a step again as sub-steps."""
+def _box_energy(world, box: int, m_box: float) -> float:
+    """The box's (HALF) mechanical energy [J]: kinetic, and potential above its rest flat on the ground."""
+    cid = world.client
+    pos, orn = pb.getBasePositionAndOrientation(box, physicsClientId=cid)
+    lin, ang = pb.getBaseVelocity(box, physicsClientId=cid)
+    local = np.array(pb.getMatrixFromQuaternion(orn)).reshape(3, 3).T @ np.asarray(ang)
+    a, b, c = (2 * h for h in HALF)
+    inertia = m_box / 12 * np.array([b * b + c * c, a * a + c * c, a * a + b * b])
+    return m_box * G * (pos[2] - HALF[2]) + 0.5 * m_box * float(np.dot(lin, lin)) + 0.5 * float(inertia @ local ** 2)
+
+
+STOPPED_AT_240_HZ = pytest.mark.xfail(strict=True, reason="stopped as energy growth at 0.13 s (2026-12-03): the "
+                                      "reaction spared by held_bodies.spare_thrown let the box 2 mm into the cable")
+
+
+@pytest.mark.parametrize("n, offset, yaw, hz", [(40, 0.012, 1.0, 60), (40, 0.018, 0.6, 60), (40, 0.018, 1.0, 60),
+                                                (80, 0.018, 0.6, 60), (80, 0.018, 1.0, 60), (80, 0.006, 1.0, 60),
+                                                (40, 0.012, 0.3, 120), (40, 0.018, 0.6, 120), (40, 0.006, 0.3, 240),
+                                                (80, 0.018, 1.0, 240),
+                                                pytest.param(40, 0.018, 1.0, 240, marks=STOPPED_AT_240_HZ)])
+def test_a_light_box_tipping_off_the_cable_is_not_launched(n, offset, yaw, hz):
+    """A 1 g box dropped 1 cm onto the cable, its centre ``offset`` [m] to the side and turned ``yaw`` [rad], tips off
+    the cable onto the ground. The cable lies at rest, so the box can only lose energy: its mechanical energy never
+    exceeds what it was dropped with (5 % for round-off), it rests within 2 s and the ground carries both weights
+    within 1 %. History: the box's corner hits the ground in Bullet's step, which the cable's step did not plan, and
+    Bullet's impact turns it 2-4 mm into the cable; the penalty pushed that back with its stiff spring and the box left
+    at 15-21 m/s, until that penetration was let out without the spring's energy (``Store.sink``); a solve that ended
+    with the box 22 weights' impulses off its balance threw it at 3.5 m/s (n 80, 6 mm, 1 rad) until the stall guard
+    counted the bodies' residual (``body_stall_ratio``). Then still (main at e306af0), at 60 Hz a segment entering the
+    box beside its bottom edge kept the edge's direction, along the face into the box, and squeezed the box out (4.2,
+    4.1, 1.24 times its energy: n 40 18 mm 0.6 and 1 rad, n 80 18 mm 0.6 rad); at 120 and 240 Hz unconverged solves
+    that the guard kept spun it up (3.1, 1.8, 1.15, 2.8 times: the 120 and 240 Hz cases), where the reaction handed to
+    the body is now capped by the energy it brought (``held_bodies.spare_thrown``); and a holder carrying 5 % of the
+    box's weight gave it 24 times its mass in the step (``CARRY_MIN``)."""
     m_box = 0.001
-    with BulletWorld(dt=1.0 / 60.0) as world:
+    with BulletWorld(dt=1.0 / hz) as world:
         cable, box, spec = _tipping_box(world, n, m_box, offset, yaw)
-        moving, fastest = _motion(world, box, 2.0)
+        dropped = _box_energy(world, box, m_box)
+        most, moving = dropped, 0.0
+        for k in range(world.steps_in(2.0)):
+            world.step()
+            most = max(most, _box_energy(world, box, m_box))
+            if np.linalg.norm(pb.getBaseVelocity(box, physicsClientId=world.client)[0]) > 1e-4:
+                moving = (k + 1) * world.dt
         assert cable.stable, cable.reason
-        assert fastest < 2.0, f"the box was thrown at {fastest:.2f} m/s"
+        assert most < 1.05 * dropped, f"the box took {most / dropped:.2f} times the energy it was dropped with"
         assert moving < 2.0 - 1e-9, "the box still moved at 2 s"
         on_cable, on_box = _ground_loads(world, cable, box)
         assert (on_cable + on_box) / ((spec.mass + m_box) * G) == pytest.approx(1.0, abs=0.01)
@@ -475,6 +504,32 @@ def test_a_segment_through_a_body_edge_leaves_by_the_nearest_face(shape):
         p = c.weight[0, 0] * x[0] + c.weight[0, 1] * x[1]
         gap = float(normal @ (p - c.point[0])) - r
         assert gap == pytest.approx(-depth / np.sqrt(2.0) - r, abs=1e-9)
+
+
+def test_a_segment_entering_a_box_beside_an_edge_is_not_pushed_along_the_face():
+    """A segment that enters a box through a face next to an edge: its first node 0.4 mm outside the -x face, 1 mm above
+    the bottom edge, its second node inside. The segment's point nearest the edge line lies just outside that face,
+    beside it, where the face and not the edge is the nearest feature: the direction from the edge to it runs along the
+    face, up, into the box. Before, the row kept that direction (the tipping 1 g box at 60 Hz: the row pushed the
+    segment up into the box while the second node's row pushed it out through the bottom; the box, squeezed between
+    them, was thrown to 4 times its energy). Now every row's normal points out of the box where it touches it (for a
+    convex body, n . (c - centre) > 0 at its surface point c)."""
+    r, s = 0.002, 0.02
+    with BulletWorld(dt=1 / 60) as world:
+        body = world.add_box((s, s, s / 2), (0.0, 0.0, 0.2), mass=0.001)
+        k_stretch, rest_length, mass = np.full(1, 1e3), np.full(1, 0.0063), np.full(2, 7.5e-4)
+        for a in (k_stretch, rest_length, mass):
+            a.flags.writeable = False
+        cs = bc.ContactSet(world.client, [body], 2, r, 0.5, 0.5, 1e4, 0.5,
+                           segments=(k_stretch, rest_length, np.zeros(2), np.zeros(2, dtype=bool)))
+        x = np.array([[-s - 4e-4, 0.0, 0.2 - s / 2 + 1e-3], [-s + 6e-3, 0.0, 0.2 - s / 2 + 1.4e-3]])
+        cs.update(x, np.zeros((2, 3)), mass, 1 / 60, 1 / 60, False)
+        c = cs.contacts
+        count = int(c.count[0])
+        assert count >= 2  # both nodes meet the box
+        centre = np.array([0.0, 0.0, 0.2])
+        for k in range(count):
+            assert float(c.normal[k] @ (c.point[k] - centre)) > 0.0, (c.node[k], c.normal[k], c.point[k])
 
 
 def test_the_bodies_stall_ratio_counts_in_weights_impulses():
