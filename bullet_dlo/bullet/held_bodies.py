@@ -219,16 +219,18 @@ def spare_thrown(cs, dt: float) -> None:
             continue
         s = int(cs._slot_row[o])
         m, inertia = 1.0 / sh.inv_mass[s], sh.inertia[s]
+        lin, w = sh.lin_vel[s], sh.ang_vel[s]
+        if s >= cs.n_exact:  # a probed base link: read now (as measure does)
+            lin, w = (np.asarray(a) for a in pb.getBaseVelocity(cs.free_bodies[o], physicsClientId=cs.client))
         load = cs.held_load[o] if o in held else np.zeros(6)
         turn = np.linalg.pinv(inertia)  # (a point or flat body has no turn about some axes)
-        u0 = sh.lin_vel[s] + dt * (bd.gravity + load[:3] / m)
-        w0 = sh.ang_vel[s] + dt * (turn @ load[3:])
+        u0 = lin + dt * (bd.gravity + load[:3] / m)
+        w0 = w + dt * (turn @ load[3:])
         du, dw = bd.impulse[o, :3] / m, turn @ bd.impulse[o, 3:]
         a = 0.5 * m * du @ du + 0.5 * dw @ inertia @ dw  # the energy after, a a^2 + b a + c, of the share a of it
         b = m * u0 @ du + dw @ inertia @ w0
         c = 0.5 * m * u0 @ u0 + 0.5 * w0 @ inertia @ w0
-        w = sh.ang_vel[s]
-        had = max(0.5 * m * sh.lin_vel[s] @ sh.lin_vel[s] + 0.5 * w @ inertia @ w, c)
+        had = max(0.5 * m * lin @ lin + 0.5 * w @ inertia @ w, c)
         if a + b + c <= had or a <= 0.0:
             continue
         share = (-b + math.sqrt(max(b * b - 4.0 * a * (c - had), 0.0))) / (2.0 * a)  # the larger root (c <= had)
