@@ -66,7 +66,8 @@ gradients in positions and twist to the Newton matrix (:func:`_add_section_momen
 :func:`_add_section_band`; docs/concepts/contact.md, "Flat sections").
 
 Gauss-Legendre (:func:`coupled_gauss_legendre`) solves both stages' velocities and twist rates in one Newton system
-(8 unknowns per node), each stage's forces and Gauss-Newton matrix from :func:`_residual` and :func:`_newton_matrix`;
+(8 unknowns per node), each stage's forces and matrix (exact or Gauss-Newton, chosen as above) from :func:`_residual`
+and :func:`_newton_matrix`;
 the explicit methods (:func:`explicit_twist`) take their stages' forces and torques from :func:`_residual`. Both
 advance the twist angle relative to the step's one-rotation transport of the reference frame at omega plus the
 holonomy rate (:func:`_holonomy_rates`), so that the material frame keeps the method's order
@@ -1852,23 +1853,23 @@ def _gl_twist_residual(m, mp, x, v, theta0, omega0, h, vs, wsr, hol, xs, ws, sam
 
 @njit(cache=True, error_model="numpy")
 def _gl_twist_matrix(stepper, m, mp, x, theta0, h, vs, wsr, hol, ws, samples, hpos, hvel, hdir, haxes, wv, rate,
-                     tq, r4, g, sc, cb0, cb1, lower, upx, band):
+                     tq, r4, g, sc, exact, cb0, cb1, lower0, lower1, upx, band):
     """band (8n, 2 GLT_HALF + 1) <- -dR/dU of the stage equations (general band, band[r, c - r + GLT_HALF]), from
-    each stage's Gauss-Newton matrix of the coupled step (:func:`_newton_matrix`, upper band of the interleaved
-    layout): K_s = dF/dq and C_s = dF/dq' at stage s from two of them (cx 1, cv 0 and 1, hf 1), then
-    -dR_s/dU_q = -h^2 a_sq K_s - h delta_sq C_s + M (A^-1)_sq. The holonomy rates' derivatives are left out (they
-    are O(h) against the kept terms). Held nodes and the last theta slot: identity rows."""
+    each stage's matrix of the coupled step (:func:`_newton_matrix`, interleaved layout; Gauss-Newton, or with
+    ``exact`` the exact Jacobian, its lower band by columns in lower0 / lower1): K_s = dF/dq and C_s = dF/dq' at
+    stage s from two of them (cx 1, cv 0 and 1, hf 1), then -dR_s/dU_q = -h^2 a_sq K_s - h delta_sq C_s +
+    M (A^-1)_sq. The holonomy rates' derivatives are left out (they are O(h) against the kept terms). Held nodes
+    and the last theta slot: identity rows."""
     n = x.shape[0]
     ns = n - 1
     size4 = 4 * n
     band[:, :] = 0.0  # (hol: the holonomy rates of the last residual, taken at vs, wsr)
-    exact = bool(0)  # Gauss-Newton matrices; a runtime False, as the other callers pass: a literal compiles anew
     for s in range(2):
         _gl_stage(m, mp, x, theta0, h, s, vs, wsr, hol, ws, samples, hpos, hvel, hdir, haxes, wv, rate, tq, r4, g, sc)
         imp0 = ImplicitMap(1.0, 0.0, 1.0, hpos[s], hvel[s], hdir[s])
-        _newton_matrix(stepper, m, mp, imp0, ws, cb0, g, sc, exact, lower, upx, samples, C1 if s == 0 else C2, h)
+        _newton_matrix(stepper, m, mp, imp0, ws, cb0, g, sc, exact, lower0, upx, samples, C1 if s == 0 else C2, h)
         imp1 = ImplicitMap(1.0, 1.0, 1.0, hpos[s], hvel[s], hdir[s])
-        _newton_matrix(stepper, m, mp, imp1, ws, cb1, g, sc, exact, lower, upx, samples, C1 if s == 0 else C2, h)
+        _newton_matrix(stepper, m, mp, imp1, ws, cb1, g, sc, exact, lower1, upx, samples, C1 if s == 0 else C2, h)
         for a in range(size4):
             fixed_a = (a % 4 != 3 and m.held[a // 4]) or a == size4 - 1
             if fixed_a:
@@ -1888,7 +1889,9 @@ def _gl_twist_matrix(stepper, m, mp, x, theta0, h, vs, wsr, hol, ws, samples, hp
                     val = h * h * a_sq * kneg + (h * cneg if s == q else 0.0)
                     row, col = _gl_index(a, s), _gl_index(b, q)
                     band[row, col - row + GLT_HALF] += val
-                    if d > 0:
+                    if d > 0:  # (b, a): the same entry, or the exact matrix's lower band
+                        if exact:
+                            val = h * h * a_sq * lower0[a, d] + (h * (lower1[a, d] - lower0[a, d]) if s == q else 0.0)
                         row, col = _gl_index(b, s), _gl_index(a, q)
                         band[row, col - row + GLT_HALF] += val
     for a in range(size4):
@@ -1913,9 +1916,10 @@ def coupled_gauss_legendre(stepper, m, x, v, samples, ws):
     new tangents. Held ends at their stage poses (:func:`~bullet_dlo.core.kernels.gauss_legendre.stage_holders`),
     the clamps' section axes at the stage times by :func:`_stage_axes`. The twist angle relative to the step's
     minimal-rotation transport advances by omega plus the holonomy rate (:func:`_holonomy_rates`), integrated by the
-    same collocation. Newton with the Gauss-Newton stage matrix (:func:`_gl_twist_matrix`) at every iteration and a
-    line search on the residual (12 halvings); converged as :func:`coupled_implicit`. Returns (iterations,
-    converged)."""
+    same collocation. Newton on the stage matrix (:func:`_gl_twist_matrix`), exact or Gauss-Newton as
+    :func:`coupled_implicit` chooses (:func:`_first_exact`, :func:`_contracted`; Gauss-Newton's for the rest of the
+    step where the exact one meets a zero pivot or its direction no decrease), and a line search on the residual
+    (12 halvings); converged as :func:`coupled_implicit`. Returns (iterations, converged)."""
     h = stepper.h
     n = x.shape[0]
     ns = n - 1
@@ -1952,7 +1956,8 @@ def coupled_gauss_legendre(stepper, m, x, v, samples, ws):
     size = 8 * n
     r, r_try, du = np.empty(size), np.empty(size), np.empty(size)
     cb0, cb1 = np.empty((4 * n, HALF_T + 1)), np.empty((4 * n, HALF_T + 1))
-    lower, upx = np.empty((4 * n, HALF_T + 1)), np.empty((4 * n, HALF_T + 1))
+    lower0, lower1 = np.empty((4 * n, HALF_T + 1)), np.empty((4 * n, HALF_T + 1))
+    upx = np.empty((4 * n, HALF_T + 1))
     band = np.empty((size, 2 * GLT_HALF + 1))
     r_scale, r_floor = _scales(m, x, h, theta0)
     tol = stepper.tol
@@ -1960,11 +1965,22 @@ def coupled_gauss_legendre(stepper, m, x, v, samples, ws):
                                haxes, fs, tqs, wv, rate, r4, g, sc, r)
     it = 0
     converged = False
+    first_exact = _first_exact(stepper, m)
+    slow = False  # a Gauss-Newton iteration of this step contracted poorly (see _contracted)
+    gauss_newton = False  # the exact matrix failed this step (a zero pivot, or its direction found no decrease)
     while it < stepper.max_iter:
         it += 1
+        # the stage matrices exact as coupled_implicit chooses them; Gauss-Newton's where the exact one failed
+        exact = (it >= first_exact or slow) and not gauss_newton
         _gl_twist_matrix(stepper, m, mp, x, theta0, h, vs, wsr, hol, ws, samples, hpos, hvel, hdir, haxes, wv, rate,
-                         tq, r4, g, sc, cb0, cb1, lower, upx, band)
-        gl_band_factor(band, GLT_HALF)
+                         tq, r4, g, sc, exact, cb0, cb1, lower0, lower1, upx, band)
+        pivot = gl_band_factor(band, GLT_HALF)
+        if exact and not pivot > 0.0:  # (also NaN)
+            gauss_newton = True
+            exact = not gauss_newton  # (a runtime False: a literal compiles _newton_matrix anew)
+            _gl_twist_matrix(stepper, m, mp, x, theta0, h, vs, wsr, hol, ws, samples, hpos, hvel, hdir, haxes, wv,
+                             rate, tq, r4, g, sc, exact, cb0, cb1, lower0, lower1, upx, band)
+            gl_band_factor(band, GLT_HALF)
         du[:] = r
         gl_band_substitute(band, du, GLT_HALF)
         alpha = 1.0
@@ -1984,10 +2000,14 @@ def coupled_gauss_legendre(stepper, m, x, v, samples, ws):
                 break
             alpha *= 0.5
         if not accepted:
+            if exact:  # the exact direction found no decrease: Gauss-Newton's for the rest of the step
+                gauss_newton = True
+                continue
             break
         vs[:, :, :] = v_try
         wsr[:, :] = w_try
         r[:] = r_try
+        slow = slow or not _contracted(rn_try, rnorm, alpha)
         rnorm = rn_try
         dmom = 0.0  # the momentum change of the step over both stages (the twist's per rest length)
         for i in range(n):
