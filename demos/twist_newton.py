@@ -53,8 +53,8 @@ def main() -> None:
                     help="implicit integrators to run (default gauss_legendre bdf2)")
     ap.add_argument("--dts", nargs="+", type=float, default=[1e-3, 1 / 240],
                     help="time steps [s] (default 0.001 and 1/240)")
-    ap.add_argument("--max-iter", nargs="+", type=int, default=[8],
-                    help="Newton iteration caps per step (default 8, the methods' default)")
+    ap.add_argument("--max-iter", nargs="+", type=int, default=[None],
+                    help="Newton iteration caps per step (default: each method's, 8, and 24 for gauss_legendre)")
     ap.add_argument("--turns", nargs="+", type=float, default=[3.0],
                     help="turns of the pushed cable's last clamp (default 3)")
     ap.add_argument("--frameless", action="store_true",
@@ -76,8 +76,10 @@ def main() -> None:
             for dt in args.dts:
                 for cap in args.max_iter:
                     t0 = time.thread_time()
-                    res = simulate(model, method, dt, duration, max_records=3, newton=NewtonOptions(max_iter=cap))
+                    newton = NewtonOptions(max_iter=cap)
+                    res = simulate(model, method, dt, duration, max_records=3, newton=newton)
                     cpu = time.thread_time() - t0
+                    cap = newton.iterations(method)
                     outcome = "stable" if res.stable else f"stopped at {res.final_state.t:.3f} s: {res.reason}"
                     print(f"{name:28s} {method:16s} {dt:9.6f} {cap:4d} {res.newton_failures:4d}/{res.steps:<5d} "
                           f"{res.newton_iterations / max(res.steps, 1):8.2f} {cpu:8.2f}  {outcome}", flush=True)

@@ -42,6 +42,14 @@ from bullet_dlo.core.kernels.twist_coupled import EXACT_AUTO
 from bullet_dlo.core.validate import check_bool, check_in_range, check_int, check_positive
 
 MAX_NEWTON_ITER = EXACT_AUTO - 1
+MAX_ITER = 8
+"""Newton iterations per step at most, the implicit methods' default (``NewtonOptions.max_iter`` None)."""
+MAX_ITER_GAUSS_LEGENDRE = 24
+"""The same for ``gauss_legendre``: its collocation system (both stages at once) converges more slowly at long
+steps (the study's cable pushed 30 % in at 60 Hz: 12.9 iterations a step, 32 of 40 solves failed with 8 and the run
+was stopped, 6 of 90 with 16, none with 20; ``python demos/twist_newton.py --scenes pushed --turns 0 --frameless
+--dts 0.016667 --max-iter 8 16 20``). A failed solve keeps an unconverged iterate; the cap costs only steps that
+need it."""
 EXACT_FROM = EXACT_AUTO  # NewtonOptions.exact_from's default: the automatic choice (twist_coupled.EXACT_AUTO)
 
 
@@ -81,7 +89,9 @@ class NewtonOptions:
     """Newton settings for implicit methods.
 
     max_iter: Newton iterations per step at most (``max_iter=1`` makes ``implicit_euler`` the
-    pure linearly implicit method); tol: convergence when the momentum residual is below
+    pure linearly implicit method); None picks the method's default, :data:`MAX_ITER` (8), and
+    :data:`MAX_ITER_GAUSS_LEGENDRE` (24) for ``gauss_legendre``, whose stage system converges more slowly at
+    long steps; tol: convergence when the momentum residual is below
     tol [-] * (momentum change of the step + gravity impulse) plus the round-off floor. None picks
     the method's default: 1e-3 for ``implicit_euler`` (its first-order error dwarfs a finer
     solve, so a second iteration runs only when the linearisation visibly failed) and 1e-6
@@ -97,7 +107,7 @@ class NewtonOptions:
     Jacobian (``twist_coupled.CONTRACTION``).
     """
 
-    max_iter: int = 8
+    max_iter: int | None = None
     tol: float | None = None
     definite: bool = True
     exact_from: int = EXACT_FROM
@@ -105,11 +115,18 @@ class NewtonOptions:
     def __post_init__(self) -> None:
         # checked here, in Python: a non-bool ``definite`` would make Numba compile a new kernel specialisation
         set_ = object.__setattr__
-        set_(self, "max_iter", check_int("newton.max_iter", self.max_iter, 1, MAX_NEWTON_ITER))
+        if self.max_iter is not None:
+            set_(self, "max_iter", check_int("newton.max_iter", self.max_iter, 1, MAX_NEWTON_ITER))
         if self.tol is not None:
             set_(self, "tol", check_in_range("newton.tol", self.tol, 1e-16, 1.0))
         set_(self, "definite", check_bool("newton.definite", self.definite))
         set_(self, "exact_from", check_int("newton.exact_from", self.exact_from, 1, MAX_NEWTON_ITER + 1))
+
+    def iterations(self, integrator: str) -> int:
+        """The Newton iteration cap per step used for ``integrator``."""
+        if self.max_iter is not None:
+            return self.max_iter
+        return MAX_ITER_GAUSS_LEGENDRE if get_integrator(integrator).name == "gauss_legendre" else MAX_ITER
 
     def tolerance(self, integrator: str) -> float:
         """The residual tolerance used for ``integrator``."""
@@ -124,7 +141,7 @@ def make_stepper(integrator: str | Integrator, h: float, newton: NewtonOptions =
     return Stepper(
         method=int(method.code),
         h=float(check_positive("dt", h)),
-        max_iter=int(check_int("newton max_iter", newton.max_iter, 1)),
+        max_iter=int(check_int("newton max_iter", newton.iterations(method.name), 1)),
         tol=float(check_positive("newton tol", newton.tolerance(method.name))),
         definite=bool(newton.definite),
         exact_from=int(newton.exact_from),
