@@ -1762,6 +1762,12 @@ def _hull_contacts(c, st, s, hu, q, x, mass, base, margin, out, sh, k_per_mass, 
         behind = (best_n[0] * n1[0] + best_n[1] * n1[1] + best_n[2] * n1[2] < 0.0
                   and best_n[0] * n2[0] + best_n[1] * n2[1] + best_n[2] * n2[2] < 0.0)
         cuts = sharp and behind
+        # outside, the edge is the nearest feature only where the direction from it lies between its two faces'
+        # normals (best_n = a n1 + b n2 (+ along the edge) with a, b >= 0); elsewhere (beside a face) the face is
+        c12 = n1[0] * n2[0] + n1[1] * n2[1] + n1[2] * n2[2]
+        d1 = best_n[0] * n1[0] + best_n[1] * n1[1] + best_n[2] * n1[2]
+        d2 = best_n[0] * n2[0] + best_n[1] * n2[1] + best_n[2] * n2[2]
+        beside = not behind and (d1 - c12 * d2 < 0.0 or d2 - c12 * d1 < 0.0)
         if behind and not sharp:  # (in front of either face's plane the point is outside: no polytope distance)
             # the segment's point inside the polytope: it leaves by the nearest face (as in detect's boxes)
             for j in range(3):
@@ -1774,6 +1780,24 @@ def _hull_contacts(c, st, s, hu, q, x, mass, base, margin, out, sh, k_per_mass, 
                     best_c[j] = cl[j] + m * nl[j]
                     best_n[j] = nl[j]
                 best = best_c[3] = d - m
+        elif beside and not sharp:
+            # the direction from the edge runs along the face into the polytope (as detect's box edges before
+            # 2026-12-03: a segment entering a hull next to an edge was pushed into it along the face): the row is
+            # the face's, which is the edge's where the two meet, while the edge is within reach and only for one of
+            # the edge's own faces (another face's row belongs to that face's edges and nodes)
+            if best - radius >= margin:
+                continue
+            for j in range(3):
+                qs[j] = best_c[j] + best_c[3] * best_n[j]
+            d = _hull_distance(plane, tri, tri_plane, p0, qs, pd, cl, nl)
+            own1 = nl[0] * n1[0] + nl[1] * n1[1] + nl[2] * n1[2]
+            own2 = nl[0] * n2[0] + nl[1] * n2[1] + nl[2] * n2[2]
+            if max(own1, own2) < 1.0 - 1e-9:
+                continue
+            for j in range(3):
+                best_c[j] = cl[j] + m * nl[j]
+                best_n[j] = nl[j]
+            best = best_c[3] = d - m
         held = sharp and wrapped
         if not (best - radius < margin or held or cuts):
             continue
