@@ -11,12 +11,19 @@ T / ref: node positions x [m], material axes m1 (max over segments) and the torq
     python demos/twist_method_order.py                          # Gauss-Legendre, T 0.5 s, dt 5 -> 0.625 ms (~10 s)
     python demos/twist_method_order.py --method rk4 --duration 0.05 --steps 500,1000,2000,4000 --ref 16000 \\
         --internal-damping 0                                    # RK4 (explicit: no internal damping, ~3 s)
+    python demos/twist_method_order.py --cost 0.001             # CPU per step: Gauss-Legendre against BDF2 (~15 s)
+
+``--cost DT`` times instead whole runs of T at step DT with each method's default Newton settings (Gauss-Legendre,
+BDF2, and Gauss-Legendre with the Gauss-Newton stage matrices, ``exact_from`` 1000), interleaved in 5 rounds, in
+thread CPU time: median and range in us per step, Newton iterations per step, the load average.
 """
 from __future__ import annotations
 
 import argparse
 import math
+import os
 import sys
+import time
 
 import numpy as np
 
@@ -45,6 +52,25 @@ def final(cable: CableModel, method: str, duration: float, steps: int):
     return res.x[-1], m1, res.end_moments[0, 0], res.newton_iterations / res.steps
 
 
+def cost(cable: CableModel, duration: float, dt: float, rounds: int = 5) -> None:
+    """Print each method's CPU time per step [us] (median, range over interleaved rounds) and iterations per step."""
+    runs = {"gauss_legendre": ("gauss_legendre", NewtonOptions()), "bdf2": ("bdf2", NewtonOptions()),
+            "gauss_legendre, Gauss-Newton stage matrices": ("gauss_legendre", NewtonOptions(exact_from=1000))}
+    times = {name: [] for name in runs}
+    its = {}
+    for _ in range(rounds):
+        for name, (method, newton) in runs.items():
+            t0 = time.thread_time()
+            res = simulate(cable, method, dt, duration, max_records=3, newton=newton)
+            times[name].append((time.thread_time() - t0) / res.steps * 1e6)
+            its[name] = res.newton_iterations / res.steps
+    print(f"T {duration} s at dt {dt * 1e3:.4g} ms, {rounds} interleaved rounds, load {os.getloadavg()[0]:.1f}")
+    print("| method | us per step (range) | Newton its/step |")
+    print("|---|---|---|")
+    for name, ts in times.items():
+        print(f"| {name} | {np.median(ts):.0f} ({min(ts):.0f}-{max(ts):.0f}) | {its[name]:.1f} |")
+
+
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--method", default="gauss_legendre")
@@ -52,7 +78,15 @@ def main(argv=None) -> None:
     ap.add_argument("--steps", default="100,200,400,800")
     ap.add_argument("--ref", type=int, default=3200)
     ap.add_argument("--internal-damping", type=float, default=1e-3)
+    ap.add_argument("--cost", type=float, metavar="DT",
+                    help="time Gauss-Legendre against BDF2 at step DT [s] instead (see above)")
     a = ap.parse_args(argv)
+    if a.cost is not None:
+        if not 0 < a.cost <= a.duration:
+            print(f"--cost: a step in (0, {a.duration}] s", file=sys.stderr)
+            raise SystemExit(2)
+        cost(model(a.internal_damping), a.duration, a.cost)
+        return
     try:
         steps = [int(s) for s in a.steps.split(",")]
     except ValueError:
