@@ -253,6 +253,14 @@ def _motion(world, body: int, seconds: float) -> tuple[float, float]:
 HULL_MARGIN = 1e-3  # [m] Bullet's collision margin of a mesh shape (its surface that much outside the vertices)
 
 
+def _add_hull_box(world, half, position, orn=(0.0, 0.0, 0.0, 1.0), mass: float = 0.0) -> int:
+    """A box of half extents ``half`` [m] as a convex hull of its 8 corners (a Bullet mesh, its surface HULL_MARGIN
+    outside them) at ``position`` [m], turned by ``orn`` (quaternion), of ``mass`` [kg]: the body id."""
+    corners = [[sx * half[0], sy * half[1], sz * half[2]] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)]
+    col = pb.createCollisionShape(pb.GEOM_MESH, vertices=corners, physicsClientId=world.client)
+    return pb.createMultiBody(mass, col, -1, position, orn, physicsClientId=world.client)
+
+
 def _tipping_box(world, n: int, m_box: float, offset: float, yaw: float, shape: str = "box"):
     """A cable of ``n`` masses left 0.2 s to settle on the ground, then a box (HALF) of ``m_box`` [kg] 1 cm above it,
     its centre ``offset`` [m] to the side and turned ``yaw`` [rad] about z, so that it tips off the cable onto the
@@ -266,10 +274,7 @@ def _tipping_box(world, n: int, m_box: float, offset: float, yaw: float, shape: 
     if shape == "box":
         box = world.add_box(HALF, (0.0, offset, 2 * r + HALF[2] + 0.01), turn, mass=m_box)
     else:
-        corners = [[sx * HALF[0], sy * HALF[1], sz * HALF[2]] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)]
-        col = pb.createCollisionShape(pb.GEOM_MESH, vertices=corners, physicsClientId=world.client)
-        box = pb.createMultiBody(m_box, col, -1, (0.0, offset, 2 * r + HALF[2] + HULL_MARGIN + 0.01), turn,
-                                 physicsClientId=world.client)
+        box = _add_hull_box(world, HALF, (0.0, offset, 2 * r + HALF[2] + HULL_MARGIN + 0.01), turn, m_box)
     return cable, box, spec
 
 
@@ -497,10 +502,8 @@ def test_a_segment_through_a_body_edge_leaves_by_the_nearest_face(shape):
         if shape == "box":
             body = world.add_box((s, s, s), pos, orn, mass=0.3)
         else:
-            he = s - 1e-3  # the hull inside the margin, so that its grown surface has the cube's faces
-            corners = [[a * he, b * he, c * he] for a in (-1, 1) for b in (-1, 1) for c in (-1, 1)]
-            col = pb.createCollisionShape(pb.GEOM_MESH, vertices=corners, physicsClientId=cid)
-            body = pb.createMultiBody(0.3, col, -1, pos, orn, physicsClientId=cid)
+            he = s - HULL_MARGIN  # the hull inside the margin, so that its grown surface has the cube's faces
+            body = _add_hull_box(world, (he, he, he), pos, orn, 0.3)
         # arguments of the types a cable passes (read-only model arrays, live control arrays): other types would
         # compile detect anew for this test alone (56 s of a CI run)
         k_stretch, rest_length, mass = np.full(1, 1e3), np.full(1, 0.03), np.full(2, 0.01)
@@ -539,10 +542,8 @@ def test_a_segment_entering_a_box_beside_an_edge_is_not_pushed_along_the_face(ki
         if kind == "box":
             body = world.add_box((s, s, s / 2), (0.0, 0.0, 0.2), mass=0.001)
         else:
-            corners = [[sx * s, sy * s, sz * s / 2] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)]
-            col = pb.createCollisionShape(pb.GEOM_MESH, vertices=corners, physicsClientId=world.client)
-            body = pb.createMultiBody(0.001, col, -1, [0.0, 0.0, 0.2], physicsClientId=world.client)
-            grow = 1e-3  # [m] Bullet's collision margin of a mesh (as in test_contact_mesh.py)
+            body = _add_hull_box(world, (s, s, s / 2), (0.0, 0.0, 0.2), mass=0.001)
+            grow = HULL_MARGIN
         k_stretch, rest_length, mass = np.full(1, 1e3), np.full(1, 0.0063), np.full(2, 7.5e-4)
         for a in (k_stretch, rest_length, mass):
             a.flags.writeable = False

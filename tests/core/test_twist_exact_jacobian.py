@@ -95,6 +95,18 @@ def _matrix(s, u, exact):
     return a
 
 
+def _minus_central_jacobian(residual, u, columns):
+    """-dR/du by central differences (steps 1e-6 max(1, |u_k|)) in the given columns; the others zero."""
+    jac = np.zeros((u.size, u.size))
+    for k in columns:
+        e = 1e-6 * max(1.0, abs(u[k]))
+        up, um = u.copy(), u.copy()
+        up[k] += e
+        um[k] -= e
+        jac[:, k] = -(residual(up) - residual(um)) / (2 * e)
+    return jac
+
+
 def _free(s):
     held = s["m"].held
     return [k for k in range(4 * s["n"] - 1) if not (k % 4 < 3 and held[k // 4])]
@@ -120,13 +132,7 @@ def test_newton_matrix_is_the_residuals_jacobian(ends, method):
     f = np.ix_(_free(s), _free(s))
     for _ in range(2):
         u = _start(s, rng)
-        jac = np.zeros((u.size, u.size))
-        for k in range(u.size):
-            e = 1e-6 * max(1.0, abs(u[k]))
-            up, um = u.copy(), u.copy()
-            up[k] += e
-            um[k] -= e
-            jac[:, k] = -(_residual(s, up) - _residual(s, um)) / (2 * e)
+        jac = _minus_central_jacobian(lambda w: _residual(s, w), u, range(u.size))
         scale = np.abs((jac - np.diag(np.diag(jac)))[f]).max()
         assert np.abs((_matrix(s, u, True) - jac)[f]).max() <= 1e-6 * scale
         assert np.abs((_matrix(s, u, False) - jac)[f]).max() > 1e-5 * scale
@@ -233,13 +239,7 @@ def test_gauss_legendre_stage_matrix_is_the_stage_residuals_jacobian(ends):
             u[:, :, :3] = s["v"][:, None, :] + rng.normal(0.0, 0.3, (n, 2, 3))
             u[:-1, :, 3] = s["omega0"][:, None] + rng.normal(0.0, 200.0, (n - 1, 2))
             u = u.ravel()
-            jac = np.zeros((u.size, u.size))
-            for k in free:
-                e = 1e-6 * max(1.0, abs(u[k]))
-                up, um = u.copy(), u.copy()
-                up[k] += e
-                um[k] -= e
-                jac[:, k] = -(_gl_residual(s, up) - _gl_residual(s, um)) / (2 * e)
+            jac = _minus_central_jacobian(lambda w: _gl_residual(s, w), u, free)
             scale = np.abs((jac - np.diag(np.diag(jac)))[f]).max()
             exact = np.abs((_gl_matrix(s, u, True) - jac)[f]).max() / scale
             gauss_newton = np.abs((_gl_matrix(s, u, False) - jac)[f]).max() / scale
