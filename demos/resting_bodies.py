@@ -4,12 +4,14 @@ For each box mass and step: peak reaction on the box [N] (and in units of its we
 speed [m/s], the box's largest mechanical energy over the energy it was dropped with (E/E0: kinetic, and potential
 above its rest flat on the ground; the cable lies at rest, so above 1 the contact made energy), time to rest (box
 speed below 1e-4 m/s for good) [s], support balance at the end
-(ground on cable + ground on box) / ((m_cable + m_box) g), cable status, penetration of the box
-into the cable. Usage: python demos/resting_bodies.py [--drop 0.01] [--seconds 2] [--hz 240 1000]
-[--n 20] [--offset 0] [--yaw 0] [--shape box] [--trace]: --offset [m] moves the box's centre off the cable (along y)
+(ground on cable + ground on box) / ((m_cable + m_box) g), penetration of the box into the cable, D/scl (the
+largest rise of the box's own energy balance over its scale, bullet/body_energy.py: the cable stops at 1),
+cable status. Usage: python demos/resting_bodies.py [--drop 0.01] [--seconds 2] [--hz 240 1000]
+[--n 20] [--offset 0] [--yaw 0] [--shape box] [--trace] [--no-spare]: --offset [m] moves the box's centre off the cable (along y)
 and --yaw [rad] turns it about z, so that it tips off the cable onto the ground; --shape hull drops the same box as a
 convex hull of its 8 corners (Bullet's mesh, its surface a collision margin of 1 mm further out, met by the contact
-model's hull rows instead of its box rows); --trace prints every step from the first one in
+model's hull rows instead of its box rows); --no-spare switches off the cap on an unconverged solve's reaction
+(held_bodies.spare_thrown), to see what it prevents; --trace prints every step from the first one in
 which the model has a contact row on the box:
 its Newton iterations, whether the solve converged, the residual ratio of a kept unconverged solve
 (contact.stall_ratio), whether it was taken again as sub-steps, and the box's speed.
@@ -23,6 +25,7 @@ import time
 import numpy as np
 import pybullet as pb
 
+from bullet_dlo.bullet import held_bodies
 from bullet_dlo.bullet.world import BulletWorld
 from bullet_dlo.core.spec import CableSpec
 
@@ -49,7 +52,7 @@ def run(mass: float, hz: float, drop: float, seconds: float, n: int = 20, offset
             low = HALF[2] + HULL_MARGIN
             box = pb.createMultiBody(mass, col, -1, (0.0, offset, 2 * r + low + drop), turn, physicsClientId=cid)
             pb.changeDynamics(box, -1, lateralFriction=0.5, physicsClientId=cid)
-        peak_f, peak_v, last_moving, worst_gap = 0.0, 0.0, 0.0, 0.0
+        peak_f, peak_v, last_moving, worst_gap, rise = 0.0, 0.0, 0.0, 0.0, 0.0
         dropped = most = _energy(box, mass, cid, low)
         t_contact = tic = 0.0
         steps = int(round(seconds * hz))
@@ -69,6 +72,10 @@ def run(mass: float, hz: float, drop: float, seconds: float, n: int = 20, offset
             if on_box.any():
                 worst_gap = min(worst_gap, float(pc["gap"][on_box].min()))
                 t_contact = t_contact or (k + 1) / hz
+            cs = cable.contact.set
+            if cs is not None and cs.free_bodies:
+                be = cs.energy_check
+                rise = max(rise, float(((be.gain - be.lowest) / (be.scale + be.exchanged)).max()))
             if trace and t_contact:
                 _trace_step(k + 1, hz, cable.solver, prev, v)
             prev = _counters(cable.solver)
@@ -80,7 +87,7 @@ def run(mass: float, hz: float, drop: float, seconds: float, n: int = 20, offset
         ground_on_box = sum(cp[9] for cp in pb.getContactPoints(box, world.ground_id, physicsClientId=cid))
         balance = (ground_on_cable + ground_on_box) / ((spec.mass + mass) * G)
         return dict(mass=mass, hz=hz, peak_f=peak_f, peak_w=peak_f / (mass * G), peak_v=peak_v, energy=most / dropped,
-                    rest=last_moving, balance=balance, status=cable.reason or "stable", gap=worst_gap,
+                    rest=last_moving, balance=balance, status=cable.reason or "stable", gap=worst_gap, rise=rise,
                     ms_per_step=1e3 * wall / max(k + 1, 1), z=pb.getBasePositionAndOrientation(box, physicsClientId=cid)[0][2])
 
 
@@ -119,18 +126,23 @@ def main() -> None:
     ap.add_argument("--yaw", type=float, nargs="+", default=[0.0], help="[rad] box turned about z")
     ap.add_argument("--shape", nargs="+", choices=("box", "hull"), default=["box"],
                     help="Bullet's box, or the same box as a convex hull of its corners (default box)")
+    ap.add_argument("--no-spare", action="store_true",
+                    help="switch off held_bodies.spare_thrown (the cap on an unconverged solve's reaction to a body)")
     ap.add_argument("--trace", action="store_true",
                     help="print every step's Newton solve from the first step with a contact row on the box")
     a = ap.parse_args()
+    if a.no_spare:
+        held_bodies.spare_thrown = lambda cs, dt: None  # (cable.py calls it through the module)
     print(f"{'shape':>5} {'n':>3} {'offset':>6} {'yaw':>4} {'drop':>7} {'hz':>5} {'mass':>6} {'peak F':>9} {'xW':>8} "
-          f"{'peak v':>8} {'E/E0':>6} {'rest':>6} {'balance':>8} {'gap mm':>7} {'box z':>7} {'ms/st':>6} status")
+          f"{'peak v':>8} {'E/E0':>6} {'rest':>6} {'balance':>8} {'gap mm':>7} {'box z':>7} {'ms/st':>6} {'D/scl':>6} "
+          "status")
     for shape, n, offset, yaw, drop, hz, m in itertools.product(a.shape, a.n, a.offset, a.yaw, a.drop, a.hz, a.mass):
         o = run(m, hz, drop, a.seconds, n, offset, yaw, a.trace, shape)
         print(f"{shape:>5} {n:3d} {offset:6.3f} {yaw:4.1f} {drop:7.4f} {hz:5.0f} {m:6.3f} {o['peak_f']:9.3f} "
               f"{o['peak_w']:8.1f} "
               f"{o['peak_v']:8.4f} {o['energy']:6.3f} {o['rest']:6.3f} {o['balance']:8.4f} {1e3 * o['gap']:7.3f} "
               f"{o['z']:7.4f} "
-              f"{o['ms_per_step']:6.3f} {o['status']}", flush=True)
+              f"{o['ms_per_step']:6.3f} {o['rise']:6.3f} {o['status']}", flush=True)
 
 
 if __name__ == "__main__":

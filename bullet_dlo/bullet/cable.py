@@ -65,7 +65,7 @@ import math
 import numpy as np
 import pybullet as pb
 
-from bullet_dlo.bullet import held_bodies
+from bullet_dlo.bullet import body_energy, held_bodies
 from bullet_dlo.bullet.cable_contacts import CABLE_GROUPS, CableContacts  # noqa: F401 (CABLE_GROUPS: its old home)
 from bullet_dlo.bullet.contact import ContactSet
 from bullet_dlo.bullet.native import apply_forces, kernel_api
@@ -77,7 +77,7 @@ from bullet_dlo.core.enums import Contact, EndMode, SelfCollision, Sync, name_of
 from bullet_dlo.core.integrators import NewtonOptions, get_integrator
 from bullet_dlo.core.kernels.contact import DEFAULT_ALPHA, SLIDE
 from bullet_dlo.core.kernels.forces import mechanical_energy
-from bullet_dlo.core.kernels.monitor import REASONS, STABLE
+from bullet_dlo.core.kernels.monitor import BODY_ENERGY, REASONS, STABLE
 from bullet_dlo.core.kernels.twist import grip_section, transport
 from bullet_dlo.core.model import CableControl, CableModel, CableState, end_twist_constants, kernel_arrays, with_arrays
 from bullet_dlo.core.validate import (
@@ -380,6 +380,11 @@ class BulletCable:
                                                 world.support_points if free else None)
             if free and len(world.cables) > 1:  # (only another cable can share a body this way)
                 world.touched_by_model(self.name, cs.touched_free_bodies())
+            if free and do_sync and body_energy.book(cs, world.support_points,
+                                                     solver.detector.energy_factor, self.t):
+                solver.stop(BODY_ENERGY, self.t, cs.energy_check.report)
+                self._record_row()
+                return
         record = do_sync and self.steps % self.record_every == 0
         contacts = contact.contacts
         inp = solver.step_input(self.t, self.steps if do_sync else 0, do_sync, record, contacts, idx_arr, pos, vel)
@@ -399,6 +404,8 @@ class BulletCable:
         cs = contact.set
         if solver.last_ratio > 0.0 and self.model_contact and cs is not None and cs.free_bodies:  # kept unconverged
             held_bodies.spare_thrown(cs, self.world.dt)
+        if status == STABLE and self.model_contact and cs is not None and cs.free_bodies:
+            body_energy.plan(cs, self.world.dt, solver.last_ratio == 0.0)
         if gripped[0] or gripped[1]:
             for end in (0, 1):
                 if gripped[end] and not active[end]:  # the end slid out of the gripper

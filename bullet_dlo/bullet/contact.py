@@ -59,6 +59,7 @@ import pybullet as pb
 from numba import njit
 
 from bullet_dlo.bullet import held_bodies
+from bullet_dlo.bullet.body_energy import BodyEnergy
 from bullet_dlo.bullet.kernels import bind
 from bullet_dlo.bullet.native import (BASE_STATE, HANDLE, collision_info_init, disabled_warning, kernel_api,
                                       overlapping, read_base_states, status_aabb, submit)
@@ -603,6 +604,10 @@ class ContactSet:
         par = pb.getPhysicsEngineParameters(physicsClientId=client)  # the bodies fall by the world's gravity
         self.bodies.gravity[:] = [par["gravityAccelerationX"], par["gravityAccelerationY"],
                                            par["gravityAccelerationZ"]]
+        # their own energy check (body_energy.py) and their velocities read after Bullet's last step [m/s, rad/s]
+        self.energy_check = BodyEnergy(client, free_bodies, 1.0 / self.shapes.inv_mass[self._slot_row],
+                                       self.bodies.gravity)
+        self.velocity_now = np.zeros((ns, 6))
         self.store = Store(anchor=np.zeros((nkeys, 4)), state=np.zeros(nkeys, np.int64),
                            active=np.zeros(nkeys, np.bool_), keys=np.zeros(capacity, np.int64),
                            body=np.zeros(capacity, np.int64), wrap=np.zeros(nkeys, np.bool_),

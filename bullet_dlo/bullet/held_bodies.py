@@ -99,6 +99,7 @@ def measure(cs, dt: float, stepped: bool, supported, support: dict) -> list[int]
     for o in np.flatnonzero(rows >= cs.n_exact).tolist():  # a probed base link: read now
         lin, ang = pb.getBaseVelocity(cs.free_bodies[o], physicsClientId=cs.client)
         now[o] = (*lin, *ang)
+    cs.velocity_now = now
     if not stepped and cs._seen.any():
         return cs._measured
     want = cs._held.union(supported).difference(cs._shared) if supported or cs._held else ()
@@ -213,19 +214,14 @@ def spare_thrown(cs, dt: float) -> None:
     the whole reaction: the momentum handed to the body is short by what is scaled away, in a step already off its
     balance; the body's move then counts as unplanned (an impact, :func:`measure`). dt [s]: the Bullet step."""
     bd, sh = cs.bodies, cs.shapes
-    held = set(cs._measured)
     for o in range(len(cs.free_bodies)):
         if not bd.active[o]:
             continue
         s = int(cs._slot_row[o])
         m, inertia = 1.0 / sh.inv_mass[s], sh.inertia[s]
-        lin, w = sh.lin_vel[s], sh.ang_vel[s]
-        if s >= cs.n_exact:  # a probed base link: read now (as measure does)
-            lin, w = (np.asarray(a) for a in pb.getBaseVelocity(cs.free_bodies[o], physicsClientId=cs.client))
-        load = cs.held_load[o] if o in held else np.zeros(6)
+        lin, w = cs.velocity_now[o, :3], cs.velocity_now[o, 3:]
         turn = np.linalg.pinv(inertia)  # (a point or flat body has no turn about some axes)
-        u0 = lin + dt * (bd.gravity + load[:3] / m)
-        w0 = w + dt * (turn @ load[3:])
+        u0, w0 = unloaded_velocity(cs, o, dt, turn)
         du, dw = bd.impulse[o, :3] / m, turn @ bd.impulse[o, 3:]
         a = 0.5 * m * du @ du + 0.5 * dw @ inertia @ dw  # the energy after, a a^2 + b a + c, of the share a of it
         b = m * u0 @ du + dw @ inertia @ w0
@@ -236,6 +232,18 @@ def spare_thrown(cs, dt: float) -> None:
         share = (-b + math.sqrt(max(b * b - 4.0 * a * (c - had), 0.0))) / (2.0 * a)  # the larger root (c <= had)
         bd.impulse[o] *= min(max(share, 0.0), 1.0)
         cs._spared.add(cs.free_bodies[o])
+
+
+def unloaded_velocity(cs, o: int, dt: float, turn: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The velocity [m/s] and turn rate [rad/s] Bullet's step of dt [s] would leave the free body of slot ``o`` with
+    without this cable's reaction: its velocity at the step's start (``cs.velocity_now``) plus dt (g + F_held / M)
+    and dt I^-1 tau_held (``turn``: the pseudo-inverse of its world inertia), the held load as the step counted it
+    (:func:`measure`; none for a body nothing else holds)."""
+    s = int(cs._slot_row[o])
+    m = 1.0 / cs.shapes.inv_mass[s]
+    load = cs.held_load[o] if o in cs._measured else np.zeros(6)
+    return (cs.velocity_now[o, :3] + dt * (cs.bodies.gravity + load[:3] / m),
+            cs.velocity_now[o, 3:] + dt * (turn @ load[3:]))
 
 
 def holder_velocity(body: int, link: int, point, cid: int) -> np.ndarray:

@@ -96,8 +96,8 @@ class CableSolver:
     it but had moved the momentum (kept); coasts: kept solves that coasted (only with the guard off);
     stall_retries: contact steps taken again as sub-steps after a coast or a solve beyond ``STALL_WILD`` with a free body in it; worst_kept_ratio: the largest residual ratio of a
     kept contact solve (:func:`~bullet_dlo.core.kernels.contact.stall_ratio`); last_ratio: the last step's (0 when
-    its solve converged); stall_report: why the run stopped as
-    STALLED (None otherwise). stall_levels, stall_far: the retry's settings (:class:`StallGuard`; taken from
+    its solve converged); stop_report: why the run stopped as
+    STALLED or BODY_ENERGY (:meth:`stop`; None otherwise). stall_levels, stall_far: the retry's settings (:class:`StallGuard`; taken from
     :data:`STALL_RETRIES`, :data:`STALL_FAR` when the solver is made; a change takes effect with the next
     contact set, or at once after ``solver._guard = None``).
     """
@@ -128,7 +128,7 @@ class CableSolver:
         self.stall_retries = 0
         self.worst_kept_ratio = 0.0
         self.last_ratio = 0.0
-        self.stall_report: str | None = None
+        self.stop_report: str | None = None
         self.steps_planned = 0
         self.stall_levels = STALL_RETRIES
         self.stall_far = STALL_FAR
@@ -207,19 +207,27 @@ class CableSolver:
                 retried = (f"taken again as {' then '.join(str(2 ** k) for k in range(1, self.stall_levels + 1))} "
                            f"sub-steps it still ended at {info[FINAL_RATIO]:.3g}" if self.stall_levels > 0
                            else "not taken again (no retries allowed)")
-                self.stall_report = (
+                self.stop_report = (
                     f"t = {inp.t:.6g} s: the contact Newton solve of the step ended after {int(info[FIRST_ITER])} "
                     f"iteration(s) with its momentum residual at {info[FIRST_RATIO]:.3g} times gravity's impulse in "
                     f"a step, having moved the momentum by {info[FIRST_MOVED]:.3g} of it: the cable would coast "
                     f"through the step as if no force acted; {retried}. The cable is stopped as unstable "
                     f"({REASONS[STALLED]}); try a smaller dt or softer contact")
-                warnings.warn(self.stall_report, RuntimeWarning, stacklevel=3)
+                warnings.warn(self.stop_report, RuntimeWarning, stacklevel=3)
         elif not self._warned_share and self.steps_planned >= NEWTON_WARN_MIN_STEPS:
             share = self.newton_failures / self.steps_planned
             if share > NEWTON_WARN_SHARE:
                 self._warned_share = True
                 warnings.warn(self.failure_message(), RuntimeWarning, stacklevel=3)
         return status
+
+    def stop(self, status: int, t: float, report: str) -> None:
+        """Stop the cable as unstable for a reason found outside the step kernel (``status``, a code of
+        :data:`~bullet_dlo.core.kernels.monitor.REASONS`) at time t [s], with a RuntimeWarning of ``report``."""
+        self.status = status
+        self.time_to_instability = t
+        self.stop_report = report
+        warnings.warn(report, RuntimeWarning, stacklevel=4)
 
     def _pack(self, held: tuple, inp: StepInput) -> None:
         """Pack ``held`` (the kernel's per-cable arguments, :data:`~bullet_dlo.bullet.solver_call.FIELDS`) into one

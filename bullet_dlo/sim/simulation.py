@@ -48,9 +48,9 @@ def cable_result(cable: BulletCable, dt: float, wall: float, t: np.ndarray, x: n
         reason=cable.reason, steps=cable.steps, wall_time_s=wall, t=t, x=x, v=v, end_forces=end_forces,
         energy=energy, final_state=cable.state(), end_moments=cable.end_moments(),
         newton_failures=cable.newton_failures, newton_iterations=cable.newton_iterations)
-    solver = cable.solver  # as the core engine: say when Newton failed in many steps, and why a run stalled
-    if solver.stall_report is not None:
-        result.warnings.append(solver.stall_report)
+    solver = cable.solver  # as the core engine: say when Newton failed in many steps, and why a run stopped
+    if solver.stop_report is not None:
+        result.warnings.append(solver.stop_report)
     elif solver.newton_failures > NEWTON_WARN_SHARE * max(solver.steps_planned, 1):
         result.warnings.append(solver.failure_message())
     return result

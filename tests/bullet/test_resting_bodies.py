@@ -78,7 +78,8 @@ def test_energy_a_body_takes_from_contact_is_reported():
     """A box the contact model believes to weigh 3 kg (its inertia is read at set-up) made 1 g
     afterwards: the contact is then far too stiff for it and throws it off. The energy check counts
     the work the body received with its velocity after Bullet's step, so it reports the energy made
-    (before, the cable stayed 'stable' while the box left at tens of m/s)."""
+    (before, the cable stayed 'stable' while the box left at tens of m/s). Since the bodies keep their own balance
+    (bullet/body_energy.py) the box's check sees it first, in the same step."""
     spec = CableSpec.lv2017(n_masses=20, damping=0.02)
     r = spec.diameter / 2
     with BulletWorld(dt=1 / 240) as world:
@@ -93,7 +94,8 @@ def test_energy_a_body_takes_from_contact_is_reported():
             if not cable.stable:
                 break
         assert not cable.stable
-        assert cable.reason == "energy growth beyond the work done on the cable"
+        assert cable.reason == "a body gained energy from contact beyond the work the cable's step did on it"
+        assert cable.time_to_instability < 0.05 + 5 / 240  # within a few steps of the change
 
 
 def _box_dropped_on_cable(world: BulletWorld):
@@ -463,6 +465,40 @@ def test_a_light_box_tipping_off_the_cable_is_not_launched(n, offset, yaw, hz, s
         assert moving < 2.0 - 1e-9, "the box still moved at 2 s"
         on_cable, on_box = _ground_loads(world, cable, box)
         assert (on_cable + on_box) / ((spec.mass + m_box) * G) == pytest.approx(1.0, abs=0.01)
+
+
+def test_a_light_box_thrown_by_a_reaction_it_was_not_planned_to_take_stops_the_cable(monkeypatch):
+    """The cable's energy check has the cable's scale (M g L = 0.09 J here): a 1 g box thrown off it takes 1e-4 J and
+    went unreported. Each free body now keeps its own balance (bullet/body_energy.py): its energy E over the steps
+    it is in the cable's plan, less the work W = J . (U + U') / 2 the plan's reaction does on it, may not rise above
+    its lowest value by more than its own scale M g l. To make a body gain energy, the guard that caps an unconverged
+    solve's reaction (``held_bodies.spare_thrown``) is switched off: the 1 g box tipping off the cable at 120 Hz
+    (n 40, 18 mm, 0.3 rad) then takes 8.0 times the energy it was dropped with (1.28 m/s, 2026-12-03), and the
+    cable reported "stable". Now the run stops in the step that threw it (or the next) with the new reason, and
+    says which body and how much; with the guard on, the same drop is not stopped (the guard's own tests above and
+    every test of this file that drops a box)."""
+    from bullet_dlo.bullet import held_bodies
+    monkeypatch.setattr(held_bodies, "spare_thrown", lambda cs, dt: None)
+    m_box = 0.001
+    with BulletWorld(dt=1.0 / 120) as world:
+        cable, box, _ = _tipping_box(world, 40, m_box, 0.018, 0.3)
+        dropped = _box_energy(world, box, m_box)
+        most, k_most = dropped, -1
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            for k in range(world.steps_in(2.0)):
+                world.step()
+                e = _box_energy(world, box, m_box)
+                if e > most:
+                    most, k_most = e, k
+                if not cable.stable:
+                    break
+        assert not cable.stable
+        assert cable.reason == "a body gained energy from contact beyond the work the cable's step did on it"
+        assert most > 2.0 * dropped  # the throw the guard prevents (it took 8.0 times the energy, 2026-12-03)
+        assert k - k_most <= 1  # reported in the step that threw it (or the next), not later
+        report = cable.solver.stop_report
+        assert f"body {box}" in report and any(report == str(w.message) for w in caught)
 
 
 @pytest.mark.parametrize("n, offset, yaw, m_box", [(40, 0.018, 1.0, 3.0), (40, 0.018, 0.6, 0.3)])

@@ -25,9 +25,11 @@ from bullet_dlo.core.kernels.twist import has_twist, transport, twist_clamp_torq
 
 STABLE, NONFINITE, STRETCH, ENERGY = 0, 1, 2, 3
 STALLED = 4  # set by the Bullet coupling (bullet.kernels.StallGuard), not by monitor()
+BODY_ENERGY = 5  # set by the Bullet coupling (bullet.body_energy), not by monitor()
 REASONS = {STABLE: None, NONFINITE: "non-finite state", STRETCH: "segment strain beyond bound",
            ENERGY: "energy growth beyond the work done on the cable",
-           STALLED: "contact Newton stalled far from convergence, also in sub-steps"}
+           STALLED: "contact Newton stalled far from convergence, also in sub-steps",
+           BODY_ENERGY: "a body gained energy from contact beyond the work the cable's step did on it"}
 
 
 class Detector(NamedTuple):
