@@ -1,20 +1,18 @@
 """Issue 23 item 2: a dynamic box dropped / placed on a cable lying on the ground.
 
-For each box mass and step: peak reaction on the box [N] (and in units of its weight), peak box
-speed [m/s], the box's largest mechanical energy over the energy it was dropped with (E/E0: kinetic, and potential
-above its rest flat on the ground; the cable lies at rest, so above 1 the contact made energy), time to rest (box
-speed below 1e-4 m/s for good) [s], support balance at the end
-(ground on cable + ground on box) / ((m_cable + m_box) g), penetration of the box into the cable, D/scl (the
-largest rise of the box's own energy balance over its scale, bullet/body_energy.py: the cable stops at 1),
-cable status. Usage: python demos/resting_bodies.py [--drop 0.01] [--seconds 2] [--hz 240 1000]
-[--n 20] [--offset 0] [--yaw 0] [--shape box] [--trace] [--no-spare]: --offset [m] moves the box's centre off the cable (along y)
-and --yaw [rad] turns it about z, so that it tips off the cable onto the ground; --shape hull drops the same box as a
-convex hull of its 8 corners (Bullet's mesh, its surface a collision margin of 1 mm further out, met by the contact
+For each box mass and step: peak reaction on the box [N] (and in units of its weight), peak box speed [m/s], the box's
+largest mechanical energy over the energy it was dropped with (E/E0: kinetic, and potential above its rest flat on the
+ground; the cable lies at rest, so above 1 the contact made energy), time to rest (box speed below 1e-4 m/s for good)
+[s], support balance at the end (ground on cable + ground on box) / ((m_cable + m_box) g), penetration of the box into
+the cable, D/scl (the largest rise of the box's own energy balance over its scale, bullet/body_energy.py: the cable
+stops at 1), cable status. Usage: python demos/resting_bodies.py [--drop 0.01] [--seconds 2] [--hz 240 1000] [--n 20]
+[--offset 0] [--yaw 0] [--shape box] [--trace] [--no-spare]: --offset [m] moves the box's centre off the cable (along
+y) and --yaw [rad] turns it about z, so that it tips off the cable onto the ground; --shape hull drops the same box as
+a convex hull of its 8 corners (Bullet's mesh, its surface a collision margin of 1 mm further out, met by the contact
 model's hull rows instead of its box rows); --no-spare switches off the cap on an unconverged solve's reaction
-(held_bodies.spare_thrown), to see what it prevents; --trace prints every step from the first one in
-which the model has a contact row on the box:
-its Newton iterations, whether the solve converged, the residual ratio of a kept unconverged solve
-(contact.stall_ratio), whether it was taken again as sub-steps, and the box's speed.
+(held_bodies.spare_thrown), to see what it prevents; --trace prints every step from the first one in which the model
+has a contact row on the box: its Newton iterations, whether the solve converged, the residual ratio of a kept
+unconverged solve (contact.stall_ratio), whether it was taken again as sub-steps, and the box's speed.
 """
 from __future__ import annotations
 

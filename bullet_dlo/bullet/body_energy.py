@@ -24,7 +24,8 @@ had and what it would have without J: the bound ``spare_thrown`` enforces, so th
 what Bullet does, and with it off (or any other way round it) the excess counts as made. The check stops the cable
 (status BODY_ENERGY) when D rises above its lowest value so far by more than ``energy_factor`` times the body's own
 scale, so that energy Bullet's contacts took out earlier (an impact on the ground) does not hide a gain that follows.
-The scale is M |g| l (l its largest extent: the work of lifting it by its size) plus the kinetic energy it came into
+The scale is M |g| l / 2 (l its largest extent: more than tipping it over an edge lifts it, since its centre of mass
+rises by less than half its size) plus the kinetic energy it came into
 the plan with and the sum of |W| since, as the cable's scale holds the holders' sum |dW|: without gravity a box
 thrown at a cable has no other (the scale was 0 there, and the first rounding stopped the run).
 
@@ -47,7 +48,7 @@ MOVING = 1e-6  # [m/s] a holder moving faster than this at a contact point can d
 class BodyEnergy:
     """The balance of the free bodies of one contact set, by slot (ns slots): their energy at the last booked
     state, the plan's work in the coming step, the booked gain D and its lowest value so far [J], the scale's parts
-    M |g| l and the energy exchanged [J]; ``report``: why the check stopped the cable (None while every body is
+    M |g| l / 2 and the energy exchanged [J]; ``report``: why the check stopped the cable (None while every body is
     within its bound)."""
 
     def __init__(self, client: int, free_bodies: list[int], mass: np.ndarray, gravity: np.ndarray):
@@ -62,7 +63,7 @@ class BodyEnergy:
         g = float(np.linalg.norm(gravity))
         size = np.array([_largest_extent(client, b) for b in free_bodies])
         self.size = size
-        self.scale = np.asarray(mass, float) * g * size  # [J] M |g| l
+        self.scale = 0.5 * np.asarray(mass, float) * g * size  # [J] M |g| l / 2
         self.exchanged = np.zeros(ns)  # [J] the kinetic energy it came with plus sum |W| (module doc)
         self.report: str | None = None
         self.fixed: dict[tuple[int, int], bool] = {}  # (body, link): a fixed base (no work)
@@ -133,7 +134,7 @@ def book(cs, support: dict, factor: float, t: float) -> str | None:
             be.report = (
                 f"t = {t:.6g} s: body {body} ({1e3 * m:.4g} g) gained {rise:.3g} J from contact with the cable "
                 f"beyond the work the cable's step did on it, more than {factor:g} x its energy scale "
-                f"{scale:.3g} J (M g l = {be.scale[o]:.3g} J with l = {be.size[o]:.3g} m its size, plus the "
+                f"{scale:.3g} J (M g l / 2 = {be.scale[o]:.3g} J with l = {be.size[o]:.3g} m its size, plus the "
                 f"{be.exchanged[o]:.3g} J it brought and exchanged): Bullet moved it where the cable's "
                 "reaction was not planned to (an unconverged or lagging contact solve); the cable is stopped as "
                 "unstable; try a smaller dt")

@@ -96,9 +96,8 @@ class CableSolver:
     it but had moved the momentum (kept); coasts: kept solves that coasted (only with the guard off);
     stall_retries: contact steps taken again as sub-steps after a coast or a solve beyond ``STALL_WILD`` with a free body in it; worst_kept_ratio: the largest residual ratio of a
     kept contact solve (:func:`~bullet_dlo.core.kernels.contact.stall_ratio`); last_ratio: the last step's (0 when
-    its solve converged); stop_report: why the run stopped as
-    STALLED or BODY_ENERGY (:meth:`stop`; None otherwise). stall_levels, stall_far: the retry's settings (:class:`StallGuard`; taken from
-    :data:`STALL_RETRIES`, :data:`STALL_FAR` when the solver is made; a change takes effect with the next
+    its solve converged); stop_report: why the run stopped as STALLED or BODY_ENERGY (:meth:`stop`; None
+    otherwise). stall_levels, stall_far: the retry's settings (:class:`StallGuard`; taken from :data:`STALL_RETRIES`, :data:`STALL_FAR` when the solver is made; a change takes effect with the next
     contact set, or at once after ``solver._guard = None``).
     """
 
