@@ -36,7 +36,6 @@ These functions hold no compiled code, so changing them does not empty the Numba
 """
 from __future__ import annotations
 
-
 import numpy as np
 import pybullet as pb
 
