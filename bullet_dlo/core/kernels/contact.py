@@ -412,8 +412,9 @@ def _gap(c, k, x):
     g = 0.0
     for j in range(3):
         g += c.normal[k, j] * (wa * x[a, j] + wb * x[b, j] - c.point[k, j])
-    s = c.support[k, 0]  # a flat section's support distance, else the radius
-    return g - (s if s > 0.0 else c.radius[0])
+    # both read before the choice: an array read inside a branch costs Numba a reference count per call (10x here)
+    s, r = c.support[k, 0], c.radius[0]  # a flat section's support distance (else 0), the radius
+    return g - (s if s > 0.0 else r)
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -1165,18 +1166,19 @@ def _row_blocks(c, k, x, kx, kv, u, blk):
     ul = _slip(c, k, x, u)
     kt, cap = c.k_t[k], c.cap[k]
     stick = _sticks(c, k, ul)
-    nv = c.normal[k]
+    # scalars chosen first, arrays read in straight code (tests/core/test_kernel_refcounts.py)
+    kn = kx * c.k_n[k] + kv * c.c_n[k] if g < 0.0 else 0.0
+    kp, ku = 0.0, 0.0  # blk[1] = kp P_t - ku u u^T
+    if stick:
+        kp = kx * kt
+    elif ul > 0.0:
+        kp = kx * cap / ul
+        ku = kp / (ul * ul)
     for r in range(3):
         for q in range(3):
-            nn = nv[r] * nv[q]
-            pt = (1.0 if r == q else 0.0) - nn
-            blk[0, r, q] = (kx * c.k_n[k] + kv * c.c_n[k]) * nn if g < 0.0 else 0.0
-            if stick:
-                blk[1, r, q] = kx * kt * pt
-            elif ul > 0.0:
-                blk[1, r, q] = kx * (cap / ul) * (pt - u[r] * u[q] / (ul * ul))
-            else:
-                blk[1, r, q] = 0.0
+            nn = c.normal[k, r] * c.normal[k, q]  # (elements, not a view of the row: a view is reference-counted)
+            blk[0, r, q] = kn * nn
+            blk[1, r, q] = kp * ((1.0 if r == q else 0.0) - nn) - ku * u[r] * u[q]
 
 
 @njit(cache=True, error_model="numpy")
