@@ -1167,18 +1167,17 @@ def _row_blocks(c, k, x, kx, kv, u, blk):
     kt, cap = c.k_t[k], c.cap[k]
     stick = _sticks(c, k, ul)
     # scalars chosen first, arrays read in straight code (tests/core/test_kernel_refcounts.py)
-    kn = kx * c.k_n[k] + kv * c.c_n[k] if g < 0.0 else 0.0
-    kp, ku = 0.0, 0.0  # blk[1] = kp P_t - ku u u^T
+    kn = kx * c.k_n[k] + kv * c.c_n[k]
+    kp, ku, uu = 0.0, 0.0, 1.0  # blk[1] = kp (P_t - ku u u^T / uu)
     if stick:
         kp = kx * kt
     elif ul > 0.0:
-        kp = kx * cap / ul
-        ku = kp / (ul * ul)
+        kp, ku, uu = kx * (cap / ul), 1.0, ul * ul
     for r in range(3):
         for q in range(3):
             nn = c.normal[k, r] * c.normal[k, q]  # (elements, not a view of the row: a view is reference-counted)
-            blk[0, r, q] = kn * nn
-            blk[1, r, q] = kp * ((1.0 if r == q else 0.0) - nn) - ku * u[r] * u[q]
+            blk[0, r, q] = kn * nn if g < 0.0 else 0.0
+            blk[1, r, q] = kp * (((1.0 if r == q else 0.0) - nn) - ku * u[r] * u[q] / uu)
 
 
 @njit(cache=True, error_model="numpy")
