@@ -1363,6 +1363,7 @@ def _add_row(c, st, key, shape, ia, ib, wa, wb, sh, k_per_mass, zeta, mass, x):
     _fill(c, st, key, shape, ia, ib, wa, wb, sh.static_friction[shape], sh.dynamic_friction[shape], k_per_mass * mk, zeta, mk, x)
     if sh.impact[shape]:
         _sink_unplanned(c, st, key, k, x)
+    _last_use = c, st, sh, mass, x  # (last uses outside the branches: no reference counts per call, tests/core/test_kernel_refcounts.py)
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -1375,13 +1376,13 @@ def _sink_unplanned(c, st, key, k, x):
     box 0.11 J (stopped as energy growth at 0.13 s)."""
     g = _gap(c, k, x)
     extra = -g - st.depth[key]
-    if extra <= 0.0:
-        return
-    st.sink[key] += extra
-    for j in range(3):
-        c.point[k, j] -= extra * c.normal[k, j]
-    g += extra
-    c.cap[k] = c.static_friction[k] * c.k_n[k] * (-g) if g < 0.0 else 0.0
+    if extra > 0.0:
+        st.sink[key] += extra
+        for j in range(3):
+            c.point[k, j] -= extra * c.normal[k, j]
+        g += extra
+        c.cap[k] = c.static_friction[k] * c.k_n[k] * (-g) if g < 0.0 else 0.0
+    _last_use = c, st, x  # (last uses outside the branches: no reference counts per call, tests/core/test_kernel_refcounts.py)
 
 
 @njit(cache=True, error_model="numpy", inline="always")  # a call passes ~45 arrays (refcounts): 2 us a row
@@ -2379,14 +2380,16 @@ def _out_of_reach(q, kind, size, reach):
 def _may_reach_edge(qa, qb, P, ax, hl, reach):
     """False when segment qa-qb (shape frame) is farther than ``reach`` [m] from the box edge through P
     along axis ``ax`` (|t| <= hl) in some coordinate: then it cannot touch it (a cheap exact reject)."""
+    near = True
     for j in range(3):
         lo, hi = min(qa[j], qb[j]) - reach, max(qa[j], qb[j]) + reach
+        p = P[j]  # (read before the branches: see _gap in core/kernels/contact.py)
         if j == ax:
-            if lo > hl or hi < -hl:
-                return False
-        elif lo > P[j] or hi < P[j]:
-            return False
-    return True
+            near = near and not (lo > hl or hi < -hl)
+        else:
+            near = near and not (lo > p or hi < p)
+    _last_use = qa, qb, P  # (last uses outside the branches: no reference counts per call, tests/core/test_kernel_refcounts.py)
+    return near
 
 
 @njit(cache=True, error_model="numpy")

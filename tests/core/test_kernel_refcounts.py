@@ -16,6 +16,7 @@ import pytest
 from numba import njit
 
 from bullet_dlo.core.kernels import contact as K
+from llvm_loops import loop_increfs
 
 N = 6  # nodes
 ROWS = 5
@@ -99,7 +100,7 @@ def test_a_contact_rows_helper_compiles_without_reference_counting(helper):
     for section in ((0.0, 0.0), (0.02, 0.002)):  # round, flat: one compilation (the same types)
         value = CASES[helper](_contacts(section), x)
         assert np.isfinite(value)
-    (ir,) = WRAPPERS[helper].inspect_llvm().values()
-    counts = ir.count("call void @NRT_incref"), ir.count("call void @NRT_decref")
-    assert counts[0] == 0, (f"{helper}: {counts[0]} reference-count increments (and {counts[1]} decrements) in its "
-                            "compiled loop: an array field read inside a branch (read it before the branch)")
+    count = loop_increfs(WRAPPERS[helper])
+    assert count == 0, (f"{helper}: {count} reference-count increments in its compiled loop: an array or tuple whose "
+                        "last use sits inside a branch (read it before the branch)")
+

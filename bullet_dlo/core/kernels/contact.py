@@ -1367,8 +1367,8 @@ def _holder_speed(bd, s, p, vel):
     """The normal velocity [m/s] of body s's point at its holder contact p at velocities vel (S, 6), relative to the
     holder's (bd.hold_vel; positive: leaving it)."""
     u0, u1, u2 = _point_velocity(vel, s, bd.hold_arm[s, p])
-    n = bd.hold_normal[s, p]
-    return u0 * n[0] + u1 * n[1] + u2 * n[2] - bd.hold_vel[s, p]
+    return (u0 * bd.hold_normal[s, p, 0] + u1 * bd.hold_normal[s, p, 1] + u2 * bd.hold_normal[s, p, 2]
+            - bd.hold_vel[s, p])  # (elements, not a view of the normal: a view is reference-counted)
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -1377,10 +1377,11 @@ def _holder_change(bd, s, p, vel):
     velocities vel: -hold_c v_n while the body's point leaves the holder (v_n > 0), down to -hold_load (a holder
     only pushes), else none; and whether it is in between (the load changes with v_n there)."""
     dl = -bd.hold_c[s] * _holder_speed(bd, s, p, vel)
+    load = bd.hold_load[s, p]  # (read before the branches: see _gap)
     if dl >= 0.0:
         return 0.0, False
-    if dl <= -bd.hold_load[s, p]:
-        return -bd.hold_load[s, p], False
+    if dl <= -load:
+        return -load, False
     return dl, True
 
 
