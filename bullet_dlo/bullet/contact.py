@@ -1363,7 +1363,7 @@ def _add_row(c, st, key, shape, ia, ib, wa, wb, sh, k_per_mass, zeta, mass, x):
     _fill(c, st, key, shape, ia, ib, wa, wb, sh.static_friction[shape], sh.dynamic_friction[shape], k_per_mass * mk, zeta, mk, x)
     if sh.impact[shape]:
         _sink_unplanned(c, st, key, k, x)
-    _last_use = c, st, sh, mass, x  # (last uses outside the branches: no reference counts per call, tests/core/test_kernel_refcounts.py)
+    _last_use = c, st, sh, mass, x  # (a last use after the branches: tests/llvm_loops.py)
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -1382,7 +1382,7 @@ def _sink_unplanned(c, st, key, k, x):
             c.point[k, j] -= extra * c.normal[k, j]
         g += extra
         c.cap[k] = c.static_friction[k] * c.k_n[k] * (-g) if g < 0.0 else 0.0
-    _last_use = c, st, x  # (last uses outside the branches: no reference counts per call, tests/core/test_kernel_refcounts.py)
+    _last_use = c, st, x  # (a last use after the branches: tests/llvm_loops.py)
 
 
 @njit(cache=True, error_model="numpy", inline="always")  # a call passes ~45 arrays (refcounts): 2 us a row
@@ -2388,7 +2388,7 @@ def _may_reach_edge(qa, qb, P, ax, hl, reach):
             near = near and not (lo > hl or hi < -hl)
         else:
             near = near and not (lo > p or hi < p)
-    _last_use = qa, qb, P  # (last uses outside the branches: no reference counts per call, tests/core/test_kernel_refcounts.py)
+    _last_use = qa, qb, P  # (a last use after the branches: tests/llvm_loops.py)
     return near
 
 

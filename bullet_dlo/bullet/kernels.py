@@ -349,7 +349,8 @@ def coupled_targets(stepper, m, plan, ext, cp, ws, t, has_prev, contacts, bodies
         for j in range(3):
             v_target = (cp.x_new[i, j] - cp.x[i, j]) / h
             cp.force[i, j] = m.mass[i] * ((v_target - cp.v_bullet[i, j]) / h - cp.gravity[j])
-    _last_use = stepper, m, plan, ext, cp, ws, contacts, bodies, guard  # (last uses outside the branches: no reference counts per call, tests/core/test_kernel_refcounts.py)
+    # a last use after the branches (tests/llvm_loops.py)
+    _last_use = stepper, m, plan, ext, cp, ws, contacts, bodies, guard
     return iters, ok_all, stalled
 
 
@@ -420,5 +421,6 @@ def sync_and_advance(stepper, m, plan, ext, cp, ws, det, inp, contacts, bodies, 
         if grip.active[e]:  # Bullet step (the momentum the grip gives the end node is taken from the gripper)
             for j in range(3):
                 cp.end_force[e, j] = -grip.force[e, j]
-    _last_use = stepper, m, plan, ext, cp, ws, det, inp, contacts, bodies, guard  # (last uses outside the branches: no reference counts per call, tests/core/test_kernel_refcounts.py)
+    # a last use after the branches (tests/llvm_loops.py)
+    _last_use = stepper, m, plan, ext, cp, ws, det, inp, contacts, bodies, guard
     return status, its, ok

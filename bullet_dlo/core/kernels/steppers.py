@@ -110,7 +110,7 @@ def _set_held(held, x, v, pos, vel):
     if held[n - 1]:
         x[n - 1, :] = pos[1]
         v[n - 1, :] = vel[1]
-    _last_use = held, x, v, pos, vel  # (last uses outside the branches: no reference counts per call, tests/core/test_kernel_refcounts.py)
+    _last_use = held, x, v, pos, vel  # (a last use after the branches: tests/llvm_loops.py)
 
 
 @njit(cache=True, error_model="numpy")
@@ -261,7 +261,7 @@ def _cable_residual(m, imp, ws, vn, r):                   # and ws costs ~0.5-1 
             r[3 * i + j] = val
             if not abs(val) <= worst:  # also catches NaN
                 worst = abs(val)
-    _last_use = m, imp, ws, vn, r  # (last uses outside the branches: no reference counts per call, tests/core/test_kernel_refcounts.py)
+    _last_use = m, imp, ws, vn, r  # (a last use after the branches: tests/llvm_loops.py)
     return worst
 
 
@@ -279,7 +279,7 @@ def _contact_residual(m, imp, ws, r, c):
                 r[3 * i + j] += imp.hf * fc[i, j]
             if not abs(r[3 * i + j]) <= worst:
                 worst = abs(r[3 * i + j])
-    _last_use = m, imp, ws, r, c  # (last uses outside the branches: no reference counts per call, tests/core/test_kernel_refcounts.py)
+    _last_use = m, imp, ws, r, c  # (a last use after the branches: tests/llvm_loops.py)
     return worst
 
 
@@ -516,7 +516,7 @@ def _start_implicit(method, m, x, v, h, samples, ws, has_prev):
         vn[0] = samples.vel[2, 0]
     if m.held[n - 1]:
         vn[n - 1] = samples.vel[2, 1]
-    _last_use = m, samples, ws  # (last uses outside the branches: no reference counts per call, tests/core/test_kernel_refcounts.py)
+    _last_use = m, samples, ws  # (a last use after the branches: tests/llvm_loops.py)
     return imp
 
 
@@ -538,7 +538,7 @@ def _implicit(stepper, m, x, v, samples, ws, has_prev):
                 x[i, j] += h * vn[i, j]
     v[:, :] = vn
     _set_held(m.held, x, v, samples.pos[2], samples.vel[2])
-    _last_use = m, x, ws, imp, samples  # (last uses outside the branches: no reference counts per call, tests/core/test_kernel_refcounts.py)
+    _last_use = m, x, ws, imp, samples  # (a last use after the branches: tests/llvm_loops.py)
     return its, converged
 
 
