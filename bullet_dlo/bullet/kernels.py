@@ -345,10 +345,11 @@ def coupled_targets(stepper, m, plan, ext, cp, ws, t, has_prev, contacts, bodies
         if stalled:
             break  # nothing to plan: the run stops here
     h = cp.dt
-    for i in range(cp.x.shape[0] if not stalled else 0):
-        for j in range(3):
-            v_target = (cp.x_new[i, j] - cp.x[i, j]) / h
-            cp.force[i, j] = m.mass[i] * ((v_target - cp.v_bullet[i, j]) / h - cp.gravity[j])
+    if not stalled:
+        for i in range(cp.x.shape[0]):
+            for j in range(3):
+                v_target = (cp.x_new[i, j] - cp.x[i, j]) / h
+                cp.force[i, j] = m.mass[i] * ((v_target - cp.v_bullet[i, j]) / h - cp.gravity[j])
     # a last use after the branches (tests/llvm_loops.py)
     _last_use = stepper, m, plan, ext, cp, ws, contacts, bodies, guard
     return iters, ok_all, stalled
