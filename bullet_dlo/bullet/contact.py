@@ -1339,13 +1339,13 @@ def _segment_axis(qa, qb, P, A, hl, R, out_c, out_n):
 def _add(c, st, key, shape, ia, ib, wa, wb, cl, nl, sh, k_per_mass, zeta, mass, x):
     """Append a contact (surface point cl, normal nl in the shape frame) unless the arrays are full."""
     k = c.count[0]
-    if k >= c.node.shape[0]:
-        return
-    for j in range(3):
-        c.point[k, j] = (sh.pos[shape, j] + sh.rot[shape, j, 0] * cl[0] + sh.rot[shape, j, 1] * cl[1]
-                         + sh.rot[shape, j, 2] * cl[2])
-        c.normal[k, j] = sh.rot[shape, j, 0] * nl[0] + sh.rot[shape, j, 1] * nl[1] + sh.rot[shape, j, 2] * nl[2]
-    _add_row(c, st, key, shape, ia, ib, wa, wb, sh, k_per_mass, zeta, mass, x)
+    if k < c.node.shape[0]:  # (not an early return: the tuples' last uses must follow every branch)
+        for j in range(3):
+            c.point[k, j] = (sh.pos[shape, j] + sh.rot[shape, j, 0] * cl[0] + sh.rot[shape, j, 1] * cl[1]
+                             + sh.rot[shape, j, 2] * cl[2])
+            c.normal[k, j] = sh.rot[shape, j, 0] * nl[0] + sh.rot[shape, j, 1] * nl[1] + sh.rot[shape, j, 2] * nl[2]
+        _add_row(c, st, key, shape, ia, ib, wa, wb, sh, k_per_mass, zeta, mass, x)
+    _last_use = c, st, sh, mass, x, cl, nl  # (a last use after the branches: tests/llvm_loops.py)
 
 
 @njit(cache=True, error_model="numpy", inline="always")  # a call passes ~45 arrays (refcounts): 2 us a row
