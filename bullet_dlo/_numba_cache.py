@@ -25,14 +25,16 @@ from pathlib import Path
 PACKAGE = Path(__file__).resolve().parent
 CACHE_ROOT = PACKAGE / "__pycache__"
 """Where the kernels' cache folders (``numba-<hash>``) live."""
+JIT = Path("core", "kernels", "jit.py")
+"""The compiler every kernel is built with (its passes change the compiled code: hashed with the kernels)."""
 
 
 def kernel_sources(pkg: Path = PACKAGE) -> list[Path]:
-    """Modules of ``pkg`` (all subpackages) that define kernels or the NamedTuples they take."""
+    """Modules of ``pkg`` (all subpackages) that define kernels or the NamedTuples they take, and the compiler."""
     sources = []
     for src in sorted(pkg.rglob("*.py")):
         text = src.read_bytes()
-        if b"@njit" in text or b"(NamedTuple)" in text:
+        if b"@njit" in text or b"(NamedTuple)" in text or src == pkg / JIT:
             sources.append(src)
     return sources
 

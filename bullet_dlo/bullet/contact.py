@@ -56,7 +56,7 @@ from typing import NamedTuple
 
 import numpy as np
 import pybullet as pb
-from numba import njit
+from bullet_dlo.core.kernels.jit import njit
 
 from bullet_dlo.bullet import held_bodies
 from bullet_dlo.bullet.body_energy import BodyEnergy

@@ -11,12 +11,13 @@ from typing import Callable, NamedTuple
 
 import numba
 import numpy as np
-from numba import literal_unroll, njit
+from numba import literal_unroll
 
 from bullet_dlo.core.kernels.contact import (WILD_RATIO, contact_energy, contact_step, grip_active,  # noqa: F401
                                              body_stall_ratio, impulse_scale, stall_ratio)  # (re-exported)
 from bullet_dlo.core.kernels.forces import clamp_torque, mechanical_energy
 from bullet_dlo.core.kernels.holders import ExternalHolders, HeldSamples, rotate, sample_end  # noqa: F401 (re-exported)
+from bullet_dlo.core.kernels.jit import njit
 from bullet_dlo.core.kernels.monitor import STABLE, STALLED, end_forces, monitor
 from bullet_dlo.core.kernels.steppers import BDF2, IMPLICIT_EULER, Stepper, advance
 from bullet_dlo.core.kernels.twist import has_twist, set_clamp, twist_ready

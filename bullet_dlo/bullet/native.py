@@ -35,7 +35,9 @@ from pathlib import Path
 import numpy as np
 import pybullet as pb
 from llvmlite import ir
-from numba import njit, types
+from numba import types
+
+from bullet_dlo.core.kernels.jit import njit
 from numba.core import cgutils
 from numba.extending import intrinsic
 

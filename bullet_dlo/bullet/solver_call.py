@@ -12,10 +12,11 @@ kernel on the same data, the same bits.
 """
 from __future__ import annotations
 
-from numba import njit, types
+from numba import types
 from numba.experimental import structref
 
 from bullet_dlo.bullet.kernels import sync_and_advance
+from bullet_dlo.core.kernels.jit import njit
 
 FIELDS = ("stepper", "arrays", "plan", "holders", "coupling", "workspace", "detector", "contacts", "bodies", "guard")
 

@@ -11,7 +11,7 @@ dominated by its positive diagonal (mass) plus a positive semi-definite (filtere
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+from bullet_dlo.core.kernels.jit import njit
 
 from bullet_dlo.core.kernels.forces import BAND
 

@@ -39,7 +39,7 @@ import math
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit
+from bullet_dlo.core.kernels.jit import njit
 
 from bullet_dlo.core.kernels.banded import HALF
 from bullet_dlo.core.kernels.gauss_legendre import gl_band_factor, gl_band_substitute

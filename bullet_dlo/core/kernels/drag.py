@@ -39,7 +39,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+from bullet_dlo.core.kernels.jit import njit
 
 from bullet_dlo.core.kernels.twist import transport
 

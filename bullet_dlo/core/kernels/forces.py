@@ -43,7 +43,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+from bullet_dlo.core.kernels.jit import njit
 
 from bullet_dlo.core.kernels.drag import add_drag_forces, add_drag_jacobian, drag_dissipation, has_drag  # noqa: F401
 from bullet_dlo.core.kernels.rest_shape import add_rest_shape_forces, has_rest_shape, rest_shape_energy, rest_shape_hessian

@@ -47,7 +47,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+from bullet_dlo.core.kernels.jit import njit
 
 from bullet_dlo.core.kernels.drag import add_drag_jacobian
 from bullet_dlo.core.kernels.forces import BAND, add_damping_jacobian, force_jacobian, total_forces

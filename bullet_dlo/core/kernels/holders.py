@@ -20,7 +20,7 @@ import math
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit
+from bullet_dlo.core.kernels.jit import njit
 
 MOVE_COLUMNS = 8  # move row: start [s], duration [s], displacement [m] (3), rotation vector [rad] (3)
 PATH_COLUMNS = 38  # path row: t0 [s], t1 [s], position coefficients c0..c5 [m] (6 x 3), rotation c0..c5 [rad] (6 x 3)

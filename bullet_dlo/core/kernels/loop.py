@@ -5,7 +5,7 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit
+from bullet_dlo.core.kernels.jit import njit
 
 from bullet_dlo.core.kernels.forces import mechanical_energy
 from bullet_dlo.core.kernels.holders import HeldSamples, sample_holders

@@ -18,7 +18,7 @@ import math
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit
+from bullet_dlo.core.kernels.jit import njit
 
 from bullet_dlo.core.kernels.forces import clamp_torque, max_strain, mechanical_energy, total_forces
 from bullet_dlo.core.kernels.twist import has_twist, transport, twist_clamp_torque

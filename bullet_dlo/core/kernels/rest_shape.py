@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import math
 
-from numba import njit
+from bullet_dlo.core.kernels.jit import njit
 
 BETA_MIN = 1e-6  # [rad] below this turning angle the rest term's direction is undefined: left out
 

@@ -24,7 +24,7 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit
+from bullet_dlo.core.kernels.jit import njit
 
 from bullet_dlo.core.kernels.banded import HALF, assemble_system, band_solve
 from bullet_dlo.core.kernels.drag import has_drag

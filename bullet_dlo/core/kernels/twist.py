@@ -76,7 +76,7 @@ import math
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit
+from bullet_dlo.core.kernels.jit import njit
 
 
 class TwistArrays(NamedTuple):

@@ -79,7 +79,7 @@ import math
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit
+from bullet_dlo.core.kernels.jit import njit
 
 from bullet_dlo.core.kernels.banded import HALF
 from bullet_dlo.core.kernels.drag import add_drag_jacobian, has_drag
