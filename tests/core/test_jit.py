@@ -1,4 +1,4 @@
-"""The package's ``njit`` (core/kernels/jit.py): inlined kernels without reference counting, results unchanged.
+"""The package's ``njit`` (core/kernels/jit.py): kernels without reference counting, results and ownership unchanged.
 
 ``total_forces`` is inlined with the model's 27 arrays; with Numba's own pipeline each call in a compiled loop paid
 an atomic increment and decrement per array of each inlined copy of the tuple (86 per call at n = 10, 1.12 us
@@ -7,12 +7,16 @@ in the loop, and every force and Jacobian entry is the same bit for bit.
 """
 from __future__ import annotations
 
+import re
+
 import numba
 import numpy as np
+import pytest
+from numba.core.runtime import _nrt_python, rtsys
 
 from bullet_dlo import _numba_cache
 from bullet_dlo.core.kernels import forces as F
-from bullet_dlo.core.kernels.jit import ForwardingCompiler, njit
+from bullet_dlo.core.kernels.jit import KernelCompiler, njit
 from bullet_dlo.core.model import CableModel
 from bullet_dlo.core.spec import CableSpec
 from llvm_loops import loop_increfs
@@ -42,7 +46,7 @@ def _bent(spec: CableSpec) -> tuple:
 def test_inlined_model_kernels_compile_without_reference_counting_and_give_the_same_bits():
     ours = njit(_forces_loop)
     numbas = numba.njit(_forces_loop)
-    assert ours._compiler.pipeline_class is ForwardingCompiler
+    assert ours._compiler.pipeline_class is KernelCompiler
     for kw in ({}, {"internal_damping": 1e-3}):  # with the Kelvin-Voigt dampers: their branch taken
         a, x, v, dirs = _bent(CableSpec.lv2017(n_masses=10, **kw))
         results = []
@@ -75,3 +79,75 @@ def test_forwarding_follows_chains_of_copies_and_keeps_reassigned_variables():
 def test_the_compiler_is_hashed_with_the_kernels():
     """A change to the compiler's passes starts a new cache folder, as a change to a kernel does."""
     assert _numba_cache.PACKAGE / _numba_cache.JIT in _numba_cache.kernel_sources()
+
+
+def _own_increfs(kernel) -> int:
+    """NRT_incref calls of a compiled kernel's own function (not the functions linked beside it)."""
+    (ir,) = kernel.inspect_llvm().values()
+    for fn in re.split(r"^define ", ir, flags=re.M)[1:]:
+        head = re.search(r'@"?([^"(\s]+)', fn).group(1)
+        if kernel.py_func.__name__ in head and "cpython" not in head and "cfunc" not in head:
+            return fn.split("\n}", 1)[0].count("call void @NRT_incref")
+    raise AssertionError("function not found")
+
+
+def test_a_kernel_borrows_its_arguments():
+    """The spring forces (a loop and inlined helpers over six arrays): Numba's pipeline counts the arrays on entry
+    and exit of every call (4 left after its pruning); the package's counts none."""
+    ours = njit(error_model="numpy")(F._spring_forces.py_func)
+    a, x, _, dirs = _bent(CableSpec.lv2017(n_masses=10))
+    out = np.zeros_like(x)
+    ours(a.k_stretch, a.rest_length, a.k_bend, x, dirs, out)
+    assert np.abs(out).max() > 0.0
+    assert _own_increfs(ours) == 0
+
+
+@njit
+def _same(a):
+    return a
+
+
+@njit
+def _pair(a, b):
+    return a, b[0]
+
+
+@njit
+def _checked(a, limit):
+    if a[0] > limit:
+        raise ValueError("a[0] above the limit")
+    return a[0]
+
+
+@njit
+def _passes(a, k):
+    s = 0.0
+    for i in range(k):
+        b = _same(a)  # an argument returned
+        t = _pair(b, a)  # and kept in a tuple
+        c = np.full(3, float(i))  # an array made here, passed on and returned
+        s += t[0][0] + t[1] + _same(c)[1] + _checked(c, 1e9)
+    return s, _same(a), _pair(np.ones(2), a)
+
+
+def test_borrowed_arguments_keep_every_reference_count_balanced():
+    """Arguments returned, kept in tuples, made inside and passed on, and raised past: every allocation is freed
+    once (Numba's allocation statistics), and the caller's array keeps its owners."""
+    was_on = _nrt_python.memsys_stats_enabled()
+    _nrt_python.memsys_enable_stats()  # (NUMBA_NRT_STATS=1 does it at start-up)
+    a = np.arange(1.0, 4.0)
+    owners = __import__("sys").getrefcount(a)
+    before = rtsys.get_allocation_stats()
+    for _ in range(50):
+        s, same, (ones, first) = _passes(a, 20)
+        assert s == 20 * 1.0 + 20 * 1.0 + 2 * sum(range(20)) and first == 1.0
+        assert np.array_equal(same, a) and np.array_equal(ones, np.ones(2))
+        with pytest.raises(ValueError, match="above the limit"):
+            _checked(a, 0.5)
+    del s, same, ones, first
+    after = rtsys.get_allocation_stats()
+    if not was_on:
+        _nrt_python.memsys_disable_stats()
+    allocated, freed = after.mi_alloc - before.mi_alloc, after.mi_free - before.mi_free
+    assert allocated > 1000 and allocated == freed  # (20 arrays a call, each freed once)
+    assert __import__("sys").getrefcount(a) == owners
