@@ -151,3 +151,11 @@ def test_borrowed_arguments_keep_every_reference_count_balanced():
     allocated, freed = after.mi_alloc - before.mi_alloc, after.mi_free - before.mi_free
     assert allocated > 1000 and allocated == freed  # (20 arrays a call, each freed once)
     assert __import__("sys").getrefcount(a) == owners
+
+
+def test_every_kernel_of_the_package_compiles_with_its_compiler():
+    """A kernel decorated with Numba's own njit would compile, pass every test and pay the counting again."""
+    plain = [str(src.relative_to(_numba_cache.PACKAGE)) for src in _numba_cache.PACKAGE.rglob("*.py")
+             if re.search(r"^\s*from numba import[^\n]*\bnjit\b|\bnumba\.njit\(|^\s*import numba\.njit", src.read_text(),
+                          re.M) and src != _numba_cache.PACKAGE / _numba_cache.JIT]
+    assert plain == [], f"import njit from bullet_dlo.core.kernels.jit in {plain}"
