@@ -56,7 +56,6 @@ from typing import NamedTuple
 
 import numpy as np
 import pybullet as pb
-from bullet_dlo.core.kernels.jit import njit
 
 from bullet_dlo.bullet import held_bodies
 from bullet_dlo.bullet.body_energy import BodyEnergy
@@ -66,6 +65,7 @@ from bullet_dlo.bullet.native import (BASE_STATE, HANDLE, collision_info_init, d
 from bullet_dlo.bullet.shape_data import collision_shapes
 from bullet_dlo.core.kernels.contact import (PENALTY, STICK, WRAP, Bodies, Contacts, _gap, _wrap_cap, make_bodies,
                                              make_contacts, mark_wrap_neighbours, wrap_active, wrap_energy, wrap_split)
+from bullet_dlo.core.kernels.jit import njit
 
 BOX, SPHERE, CYLINDER, CAPSULE, PROBE, HULL = range(6)  # PROBE: a link measured by Bullet's narrow phase
 # HULL: a convex hull mesh on the project's exact geometry (:class:`Hulls`), checked against Bullet at set-up
@@ -1335,7 +1335,7 @@ def _segment_axis(qa, qb, P, A, hl, R, out_c, out_n):
     return s
 
 
-@njit(cache=True, error_model="numpy", inline="always")  # a call passes ~45 arrays (refcounts): 2 us a row
+@njit(cache=True, error_model="numpy", inline="always")  # (~45 arrays: 2 us a row called, under Numba's own pipeline)
 def _add(c, st, key, shape, ia, ib, wa, wb, cl, nl, sh, k_per_mass, zeta, mass, x):
     """Append a contact (surface point cl, normal nl in the shape frame) unless the arrays are full."""
     k = c.count[0]
@@ -1348,7 +1348,7 @@ def _add(c, st, key, shape, ia, ib, wa, wb, cl, nl, sh, k_per_mass, zeta, mass, 
     _last_use = c, st, sh, mass, x, cl, nl  # (a last use after the branches: tests/llvm_loops.py)
 
 
-@njit(cache=True, error_model="numpy", inline="always")  # a call passes ~45 arrays (refcounts): 2 us a row
+@njit(cache=True, error_model="numpy", inline="always")  # (~45 arrays: 2 us a row called, under Numba's own pipeline)
 def _add_row(c, st, key, shape, ia, ib, wa, wb, sh, k_per_mass, zeta, mass, x):
     """The rest of row count[0] once its world point and normal are set: the body's velocity there, the law."""
     k = c.count[0]
@@ -1385,7 +1385,7 @@ def _sink_unplanned(c, st, key, k, x):
     _last_use = c, st, x  # (a last use after the branches: tests/llvm_loops.py)
 
 
-@njit(cache=True, error_model="numpy", inline="always")  # a call passes ~45 arrays (refcounts): 2 us a row
+@njit(cache=True, error_model="numpy", inline="always")  # (~45 arrays: 2 us a row called, under Numba's own pipeline)
 def _fill(c, st, key, shape, ia, ib, wa, wb, mu_s, mu_d, k_n, zeta, mk, x):
     """The rest of row count[0] (point, normal, body velocity set): nodes, stiffness k_n [N/m] (damping
     ratio zeta for the mass mk [kg]), friction, friction state."""

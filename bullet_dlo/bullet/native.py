@@ -37,11 +37,11 @@ import pybullet as pb
 from llvmlite import ir
 from numba import types
 
-from bullet_dlo.core.kernels.jit import njit
 from numba.core import cgutils
 from numba.extending import intrinsic
 
 from bullet_dlo.bullet.kernels import bind
+from bullet_dlo.core.kernels.jit import njit
 
 ROW = 64
 """Doubles reserved per link state (Bullet's struct b3LinkState has 33; the rest is headroom)."""

@@ -21,9 +21,9 @@ from dataclasses import dataclass
 
 import numpy as np
 import pybullet as pb
-from bullet_dlo.core.kernels.jit import njit
 
 from bullet_dlo.bullet.kernels import bind
+from bullet_dlo.core.kernels.jit import njit
 from bullet_dlo.core.validate import ParameterError
 
 

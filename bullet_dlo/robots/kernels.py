@@ -12,6 +12,7 @@ import math
 from typing import NamedTuple
 
 import numpy as np
+
 from bullet_dlo.core.kernels.jit import njit
 
 COM, COM_QUAT, FRAME, FRAME_QUAT, LIN_VEL, ANG_VEL = 0, 3, 14, 17, 21, 24  # field offsets in a link-state row

@@ -39,11 +39,11 @@ import math
 from typing import NamedTuple
 
 import numpy as np
-from bullet_dlo.core.kernels.jit import njit
 
 from bullet_dlo.core.kernels.banded import HALF
 from bullet_dlo.core.kernels.gauss_legendre import gl_band_factor, gl_band_substitute
 from bullet_dlo.core.kernels.forces import _angle_terms, _bend_hessian
+from bullet_dlo.core.kernels.jit import njit
 from bullet_dlo.core.kernels.twist import edge_frame, has_twist, set_clamp, twist_ready, twist_step
 from bullet_dlo.core.kernels.steppers import (
     BDF2,

@@ -39,8 +39,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from bullet_dlo.core.kernels.jit import njit
 
+from bullet_dlo.core.kernels.jit import njit
 from bullet_dlo.core.kernels.twist import transport
 
 BAND = 2  # block half-bandwidth of the force Jacobian (as in forces.py)

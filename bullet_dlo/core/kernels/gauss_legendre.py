@@ -47,10 +47,10 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from bullet_dlo.core.kernels.jit import njit
 
 from bullet_dlo.core.kernels.drag import add_drag_jacobian
 from bullet_dlo.core.kernels.forces import BAND, add_damping_jacobian, force_jacobian, total_forces
+from bullet_dlo.core.kernels.jit import njit
 
 SQRT3 = math.sqrt(3.0)
 C1 = 0.5 - SQRT3 / 6.0  # stage times as fractions of h

@@ -20,6 +20,7 @@ import math
 from typing import NamedTuple
 
 import numpy as np
+
 from bullet_dlo.core.kernels.jit import njit
 
 MOVE_COLUMNS = 8  # move row: start [s], duration [s], displacement [m] (3), rotation vector [rad] (3)

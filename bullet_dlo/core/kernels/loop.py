@@ -5,10 +5,10 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import numpy as np
-from bullet_dlo.core.kernels.jit import njit
 
 from bullet_dlo.core.kernels.forces import mechanical_energy
 from bullet_dlo.core.kernels.holders import HeldSamples, sample_holders
+from bullet_dlo.core.kernels.jit import njit
 from bullet_dlo.core.kernels.monitor import STABLE, clamp_moments, end_forces, monitor
 from bullet_dlo.core.kernels.steppers import advance
 

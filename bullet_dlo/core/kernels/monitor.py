@@ -18,9 +18,9 @@ import math
 from typing import NamedTuple
 
 import numpy as np
-from bullet_dlo.core.kernels.jit import njit
 
 from bullet_dlo.core.kernels.forces import clamp_torque, max_strain, mechanical_energy, total_forces
+from bullet_dlo.core.kernels.jit import njit
 from bullet_dlo.core.kernels.twist import has_twist, transport, twist_clamp_torque
 
 STABLE, NONFINITE, STRETCH, ENERGY = 0, 1, 2, 3

@@ -102,7 +102,8 @@ def add_rest_shape_forces(m, x, out):
 @njit(cache=True, error_model="numpy")
 def rest_shape_hessian(rest_angle, k_bend, x, i, definite, hb):
     """Turn node i's bending Hessian ``hb`` (6, 6) in (a, b) of 1/2 k beta^2 into that of 1/2 k (beta - b0)^2
-    (rest_angle [rad], k_bend [N m/rad^2]: the model's arrays, passed alone: a call passing m costs ~0.5 us).
+    (rest_angle [rad], k_bend [N m/rad^2]: the model's arrays, passed alone: a call passing m cost ~0.5 us under
+    Numba's own pipeline).
 
     With q = grad(beta): H = k q q^T + k beta hess(beta), so the new one is k q q^T + (1 - b0/beta)
     (H - k q q^T). ``definite``: the factor is clipped at 0 (a node bent less than its rest angle

@@ -24,7 +24,6 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import numpy as np
-from bullet_dlo.core.kernels.jit import njit
 
 from bullet_dlo.core.kernels.banded import HALF, assemble_system, band_solve
 from bullet_dlo.core.kernels.drag import has_drag
@@ -37,6 +36,7 @@ from bullet_dlo.core.kernels.forces import (
     internal_energy,
     total_forces,
 )
+from bullet_dlo.core.kernels.jit import njit
 from bullet_dlo.core.kernels.twist import has_twist, set_clamp, twist_ready
 
 EXPLICIT_EULER, SYMPLECTIC_EULER, RK4, IMPLICIT_EULER, BDF2, IMPLICIT_MIDPOINT, GAUSS_LEGENDRE = range(7)
@@ -244,7 +244,7 @@ def _residual(m, imp, ws, vn, r, c=None):
 
 
 @njit(cache=True, error_model="numpy", inline="always")  # inlined in Newton's cable-only loop (a call passing m
-def _cable_residual(m, imp, ws, vn, r):                   # and ws costs ~0.5-1 us, twice a step)
+def _cable_residual(m, imp, ws, vn, r):                   # and ws cost ~0.5-1 us under Numba's own pipeline)
     """:func:`_residual` without contacts."""
     n = vn.shape[0]
     xe, ve, f = ws.x_stage, ws.v_stage, ws.force
@@ -305,7 +305,7 @@ def _merit(m, imp, ws, vn, c=None):
     return phi + _contact.contact_potential(c, xe, ve, cx / cv)
 
 
-@njit(cache=True, error_model="numpy", inline="always")  # a call passing m and ws costs ~0.5 us
+@njit(cache=True, error_model="numpy", inline="always")  # (a call passing m and ws: ~0.5 us under Numba's own pipeline)
 def _momentum_change(m, ws, vn):
     """max over free nodes of m |v' - v_avg| [N s]: the scale of the residual tolerance."""
     dmom = 0.0
@@ -330,7 +330,7 @@ def _cable_matrix(stepper, m, imp, ws):
     """:func:`_newton_matrix` without contacts."""
     force_jacobian(m, ws.x_stage, imp.dirs, stepper.definite, ws.jacobian)
     add_damping_jacobian(m, ws.x_stage, imp.dirs, imp.cv / imp.cx, ws.jacobian)  # dF/dx + (cv/cx) dF/dv
-    if has_drag(m):  # quadratic drag (checked here: a call passing m costs ~0.5 us even as a no-op)
+    if has_drag(m):  # quadratic drag (checked here: a no-op call passing m cost ~0.5 us, Numba's pipeline)
         add_drag_jacobian(m, ws.x_stage, ws.v_stage, imp.cv / imp.cx, ws.jacobian)
     assemble_system(m, ws.jacobian, 1.0, imp.hf * imp.cx, imp.hf * imp.cv, ws.band)
 
@@ -504,7 +504,7 @@ def newton(stepper, m, x, imp, ws, c=None, cap_tol=1e-3, max_passes=10, bd=None)
     return it, converged
 
 
-@njit(cache=True, error_model="numpy", inline="always")  # (a call passing m and ws costs ~0.5-1 us)
+@njit(cache=True, error_model="numpy", inline="always")  # (m, ws: ~0.5-1 us a call, Numba's pipeline)
 def _start_implicit(method, m, x, v, h, samples, ws, has_prev):
     """The implicit method's affine map (see :func:`_implicit_map`) and Newton's first iterate in
     ws.v_new: the current velocities, held ends at their end-of-step velocities."""

@@ -76,6 +76,7 @@ import math
 from typing import NamedTuple
 
 import numpy as np
+
 from bullet_dlo.core.kernels.jit import njit
 
 

@@ -79,7 +79,6 @@ import math
 from typing import NamedTuple
 
 import numpy as np
-from bullet_dlo.core.kernels.jit import njit
 
 from bullet_dlo.core.kernels.banded import HALF
 from bullet_dlo.core.kernels.drag import add_drag_jacobian, has_drag
@@ -108,6 +107,7 @@ from bullet_dlo.core.kernels.gauss_legendre import (
     gl_band_substitute,
     stage_holders,
 )
+from bullet_dlo.core.kernels.jit import njit
 from bullet_dlo.core.kernels.steppers import (
     BDF2,
     IMPLICIT_MIDPOINT,
@@ -326,7 +326,7 @@ def _prepare(ref, tan, kan, ctw, rt, flags):
     """The per-step part of the scratch (the reference frames are fixed within a step): whether every node takes
     :func:`_round_twist` (no anisotropy kan, no twist damper ctw, at least ROUND_PASSES_FROM nodes) into flags[1],
     then the reference directors ref and tangents tan by rows into rt; flags[0] <- 1. (Arrays, not the tuples:
-    a call passing the kernel arrays and the scratch costs ~0.5 us of reference counting.)"""
+    a call passing the kernel arrays and the scratch cost ~0.5 us of reference counting under Numba's own pipeline.)"""
     fast = 1 if kan.shape[0] >= ROUND_PASSES_FROM else 0
     for i in range(kan.shape[0]):
         if kan[i] != 0.0 or ctw[i] != 0.0:
@@ -933,7 +933,7 @@ def _newton_matrix(stepper, m, mp, imp, ws, band, g, sc, exact, lower, upx, samp
     jac = ws.jacobian
     force_jacobian(mp, xe, imp.dirs, stepper.definite, jac)
     add_damping_jacobian(mp, xe, imp.dirs, cv / cx, jac)
-    if has_drag(mp):  # (checked here: a call passing the arrays costs ~0.3 us even as a no-op)
+    if has_drag(mp):  # (checked here: a no-op call passing the arrays cost ~0.3 us, Numba's pipeline)
         add_drag_jacobian(mp, xe, ws.v_stage, cv / cx, jac)
     kc = hf * cx
     held, mass, damp = m.held, m.mass, m.damp
