@@ -25,6 +25,8 @@ FIELDS = ("stepper", "arrays", "plan", "holders", "coupling", "workspace", "dete
 class StepArgsType(types.StructRef):
     """Numba type of :class:`StepArgs` (fields: :data:`FIELDS`, typed as the objects packed)."""
 
+    fields_fixed = True  # no kernel sets a field (a new pack replaces the whole): the compiler borrows them (jit.py)
+
     def preprocess_fields(self, fields):
         return tuple((name, types.unliteral(typ)) for name, typ in fields)
 

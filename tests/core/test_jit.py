@@ -13,7 +13,9 @@ from typing import NamedTuple
 import numba
 import numpy as np
 import pytest
+from numba.core import types
 from numba.core.runtime import _nrt_python, rtsys
+from numba.experimental import structref
 
 from bullet_dlo import _numba_cache
 from bullet_dlo.core.kernels import forces as F
@@ -171,3 +173,77 @@ def test_every_kernel_of_the_package_compiles_with_its_compiler():
              if re.search(r"^\s*from numba import[^\n]*\bnjit\b|\bnumba\.njit\(|^\s*import numba\.njit", src.read_text(),
                           re.M) and src != _numba_cache.PACKAGE / _numba_cache.JIT]
     assert plain == [], f"import njit from bullet_dlo.core.kernels.jit in {plain}"
+
+
+@structref.register
+class _PackType(types.StructRef):
+    fields_fixed = True  # no kernel below sets a field: they are lent like a tuple's
+
+    def preprocess_fields(self, fields):
+        return tuple((name, types.unliteral(typ)) for name, typ in fields)
+
+
+@structref.register
+class _OpenPackType(types.StructRef):  # fields may be set: read with their own counts
+    def preprocess_fields(self, fields):
+        return tuple((name, types.unliteral(typ)) for name, typ in fields)
+
+
+class _Pack(structref.StructRefProxy):
+    pass
+
+
+class _OpenPack(structref.StructRefProxy):
+    pass
+
+
+structref.define_proxy(_Pack, _PackType, ["first", "inner"])
+structref.define_proxy(_OpenPack, _OpenPackType, ["first", "inner"])
+
+
+@njit
+def _pack_fields(p, k):
+    s = 0.0
+    for i in range(k):
+        f, g = _same(p.first), p.inner[1]  # fields read, passed on, returned
+        s += f[0] + g[i % 2] + _fields(_Arrays(p.first, p.inner))[1][0]
+    return s, p.first, _pair(p.inner[0], p.first)
+
+
+@njit
+def _replace_field(p, a):
+    old = p.first  # read with its own count: setting the field below drops the pack's reference to it
+    p.first = a
+    return old[0] + p.first[0]
+
+
+def test_structref_fields_are_lent_only_where_their_type_fixes_them():
+    """A pack whose type says no kernel sets its fields lends them like a tuple's; any other pack's field keeps its
+    own count, so replacing it during the call leaves the old array alive while it is used. Both keep every
+    allocation freed exactly once."""
+    was_on = _nrt_python.memsys_stats_enabled()
+    _nrt_python.memsys_enable_stats()
+    a, b = np.arange(1.0, 4.0), np.array([10.0, 20.0])
+    before = rtsys.get_allocation_stats()
+    for _ in range(20):
+        fixed, open_ = _make_pack(np.full(3, 2.0), (a, b)), _make_open_pack(np.full(3, 2.0), (a, b))
+        s, first, (inner0, f0) = _pack_fields(fixed, 10)
+        assert s == 10 * 2.0 + 5 * (10.0 + 20.0) + 10 * 1.0 and first[0] == 2.0 and inner0[0] == 1.0 and f0 == 2.0
+        assert _replace_field(open_, a) == 2.0 + 1.0  # the old field read after it was replaced
+        del fixed, open_, s, first, inner0, f0
+    after = rtsys.get_allocation_stats()
+    if not was_on:
+        _nrt_python.memsys_disable_stats()
+    allocated, freed = after.mi_alloc - before.mi_alloc, after.mi_free - before.mi_free
+    assert allocated > 40 and allocated == freed
+
+
+@njit
+def _make_pack(first, inner):
+    return _Pack(first, inner)
+
+
+@njit
+def _make_open_pack(first, inner):
+    return _OpenPack(first, inner)
+
