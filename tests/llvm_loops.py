@@ -10,18 +10,22 @@ from __future__ import annotations
 import re
 
 
-def loop_increfs(wrapper) -> int:
-    """NRT_incref calls inside loops (blocks on a cycle of the control-flow graph) of ``wrapper``'s own function in
-    its LLVM code (the kernels it calls without inlining are linked into the same module: not counted here)."""
+def own_function(wrapper) -> str:
+    """The LLVM code of ``wrapper``'s own function (the kernels it calls without inlining are linked into the same
+    module beside it; its CPython and cfunc wrappers too)."""
     (ir,) = wrapper.inspect_llvm().values()
     name = wrapper.py_func.__name__
-    body = None
     for fn in re.split(r"^define ", ir, flags=re.M)[1:]:
         head = re.search(r'@"?([^"(\s]+)', fn).group(1)  # the function's symbol
         if name in head and "cpython" not in head and "cfunc" not in head:
-            body = fn.split("\n}", 1)[0]
-            break
-    assert body is not None, f"{name} not found in its LLVM code"
+            return fn.split("\n}", 1)[0]
+    raise AssertionError(f"{name} not found in its LLVM code")
+
+
+def loop_increfs(wrapper) -> int:
+    """NRT_incref calls inside loops (blocks on a cycle of the control-flow graph) of ``wrapper``'s own function in
+    its LLVM code (the kernels it calls without inlining are not counted here)."""
+    body = own_function(wrapper)
     blocks, succ, label = {}, {}, "entry"
     for line in body.splitlines()[1:]:
         m = re.match(r'^"?([\w.$\-]+)"?:', line)
