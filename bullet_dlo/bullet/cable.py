@@ -350,12 +350,12 @@ class BulletCable:
     # ----- stepping -----------------------------------------------------------------------
     def _advance(self, touched: list[int] | None) -> None:
         """Sync the step Bullet made (unless ``touched`` is None: spawn) and plan the next one."""
-        cid = self.world.client
         do_sync = touched is not None
         idx = touched if do_sync else []
         if do_sync and self.sync == "always":
             idx = list(range(self.model.n))
         if idx:
+            cid = self.world.client
             pos = np.array([pb.getBasePositionAndOrientation(self.body_ids[i], physicsClientId=cid)[0] for i in idx])
             vel = np.array([pb.getBaseVelocity(self.body_ids[i], physicsClientId=cid)[0] for i in idx])
             idx_arr = np.asarray(idx, dtype=np.int64)
@@ -374,10 +374,12 @@ class BulletCable:
             cs = contact.set
             world = self.world
             free = cs.free_bodies
-            self.contacts_last_step = cs.update(x0, v0, self.arrays.mass, solver.stepper.h, world.dt, do_sync,
-                                                world.shared_bodies(self.name) if free else (),
-                                                world.supported_bodies if free else (),
-                                                world.support_points if free else None)
+            if free:
+                self.contacts_last_step = cs.update(x0, v0, self.arrays.mass, solver.stepper.h, world.dt, do_sync,
+                                                    world.shared_bodies(self.name), world.supported_bodies,
+                                                    world.support_points)
+            else:
+                self.contacts_last_step = cs.update(x0, v0, self.arrays.mass, solver.stepper.h, world.dt, do_sync)
             if free and len(world.cables) > 1:  # (only another cable can share a body this way)
                 world.touched_by_model(self.name, cs.touched_free_bodies())
             if free and do_sync and body_energy.book(cs, world.support_points,

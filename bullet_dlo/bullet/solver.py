@@ -43,6 +43,7 @@ STALL_FAR = 0.1  # [-] far from convergence: momentum residual above this share 
 STALL_WILD = WILD_RATIO  # [-] wildly far: with a free body in the solve, taken again as sub-steps even when it moved
 # the momentum (and if the retry stays that far, the bodies get the reaction the cable felt: Bodies.felt_ratio)
 NEWTON_WARN_MIN_STEPS = 100  # the share of unconverged steps is judged from this many planned steps on
+_new_tuple = tuple.__new__
 PACK_ARGS = True  # call the step kernel on packed arguments (solver_call.py; False: the plain call, for A/B and tests)
 
 
@@ -150,9 +151,10 @@ class CableSolver:
         steps taken so far, whether to take over Bullet's step and record it, the touched spheres' read-back
         state (index (k,), pos [m], vel [m/s] (k, 3))."""
         det = self.detector
-        has_prev = steps > 0 and contacts.impact[0] == 0  # BDF2 restarts after an impact
-        return StepInput(t, has_prev, sync, sync and steps % det.check_every == 0,
-                         sync and steps % det.energy_every == 0, record, index, pos, vel)
+        has_prev = steps > 0 and contacts.impact.item(0) == 0  # BDF2 restarts after an impact
+        # (tuple.__new__: the NamedTuple's own constructor is a Python function, 3x the cost)
+        return _new_tuple(StepInput, (t, has_prev, sync, sync and steps % det.check_every == 0,
+                                      sync and steps % det.energy_every == 0, record, index, pos, vel))
 
     def kernel_args(self, arrays: KernelArrays, control: CableControl, contacts: Contacts, bodies: Bodies,
                     inp: StepInput) -> tuple:
@@ -175,8 +177,11 @@ class CableSolver:
              inp: StepInput) -> int:
         """Take over Bullet's step (if ``inp.sync``), check it, plan the next with the contacts and the free bodies
         solved with them; returns the status (STABLE or the reason's code: then nothing is planned)."""
+        guard = self._guard
+        if guard is None or self._guard_contacts is not contacts:
+            guard = self.stall_guard(arrays, contacts, bodies)
         held = (self.stepper, arrays, self.plan, control.holders, self.coupling, self.workspace, self.detector,
-                contacts, bodies, self.stall_guard(arrays, contacts, bodies))
+                contacts, bodies, guard)
         if not PACK_ARGS or not hasattr(sync_and_advance, "compile"):  # (JIT disabled: a plain call)
             if self._plain is None:
                 self._plain = bind(sync_and_advance, *held[:7], inp, *held[7:])
@@ -185,13 +190,14 @@ class CableSolver:
             if self._kernel is None or any(map(is_not, held, self._packed)):
                 self._pack(held, inp)  # one of the objects was replaced: pack the ones a plain call would pass now
             status, its, ok = self._kernel(self._args, inp)
-        info = held[-1].info
+        info = guard.info
         self.steps_planned += 1
         self.newton_iterations += its
-        self.newton_failures += 0 if ok else 1
-        if info[RETRY_SUBSTEPS] > 0:
+        if not ok:
+            self.newton_failures += 1
+        if info.item(RETRY_SUBSTEPS) > 0:
             self.stall_retries += 1
-        ratio = self.last_ratio = float(info[FINAL_RATIO])
+        ratio = self.last_ratio = info.item(FINAL_RATIO)
         if status == STABLE and ratio > 0.0:
             if ratio <= self.stall_far:
                 self.near_misses += 1

@@ -453,8 +453,10 @@ class BulletWorld:
         return self._support_points
 
     def _supported_in(self, contacts) -> set[int]:
-        owners = self._owners
         self._support_contacts, self._support_points = contacts, None
+        if not contacts:
+            return set()
+        owners = self._owners
         return {b for cp in contacts if cp[1] not in owners and cp[2] not in owners for b in (cp[1], cp[2])}
 
     def step_physics(self) -> None:
@@ -469,11 +471,23 @@ class BulletWorld:
         cables = list(self.cables.values())
         # parked proxies are never read back (BulletCable.sync_after_step): with only those, Bullet's contacts serve
         # just the free bodies' support (supported_bodies), asked for on demand when no contact set has a free body
-        lazy = all(c.proxy and not (c.contact.set is not None and c.contact.set.free_bodies) for c in cables)
+        lazy = True
+        for c in cables:
+            cs = c.contact.set
+            if not c.proxy or (cs is not None and cs.free_bodies):
+                lazy = False
+                break
         contacts = self.contacts() if cables and not lazy else ()
-        self.supported_bodies = self._supported_in(contacts)
+        self._supported = self._supported_in(contacts)
         self._supported_due = lazy and bool(cables)
-        self.model_touches, self._model_touches_now = self._model_touches_now, {}
+        if self.model_touches or self._model_touches_now:  # (empty both: nothing to hand over)
+            self.model_touches, self._model_touches_now = self._model_touches_now, {}
+        if len(cables) < 2:  # nobody to read which cables are pending (ContactSet._read_others)
+            try:
+                self._take_cable_steps(cables, contacts)
+            finally:
+                self._supported_due = False
+            return
         # cables touching each other through the model read the ones still pending as held where they
         # are, the ones done as moving over their planned step (see ContactSet._read_others)
         self._pending = {c.name for c in cables}
@@ -485,9 +499,10 @@ class BulletWorld:
 
     def _take_cable_steps(self, cables, contacts) -> None:
         if not contacts:
+            pending = self._pending
             for c in cables:
                 c.sync_after_step(())
-                self._pending.discard(c.name)
+                pending.discard(c.name)
             return
         touched: dict[str, set[int]] = {c.name: set() for c in cables}
         owners = self._owners
