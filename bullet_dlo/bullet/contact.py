@@ -59,6 +59,7 @@ import pybullet as pb
 
 from bullet_dlo.bullet import held_bodies
 from bullet_dlo.bullet.body_energy import BodyEnergy
+from bullet_dlo.bullet.contact_call import make_broad_args, make_set_args
 from bullet_dlo.bullet.kernels import bind
 from bullet_dlo.bullet.native import (BASE_STATE, HANDLE, collision_info_init, disabled_warning, kernel_api,
                                       overlapping, read_base_states, status_aabb, submit)
@@ -71,6 +72,7 @@ BOX, SPHERE, CYLINDER, CAPSULE, PROBE, HULL = range(6)  # PROBE: a link measured
 # HULL: a convex hull mesh on the project's exact geometry (:class:`Hulls`), checked against Bullet at set-up
 N_EDGES = 12  # a box's edges, each a segment feature of its own
 SKIP_QUIET = True  # skip detect() when quiet() proves it finds nothing (False: always detect; for the A/B test)
+PACK_ARGS = True  # call detect, quiet and _probe_broad on the set's packed arrays (contact_call.py; False: plain calls)
 SMALL_N = 64  # self-contact candidates of cables up to this many nodes: every pair tried (faster there)
 S_MIN = 1e-3  # segment interior: 0 < s < 1 away from the nodes by this much (nodes are contacts of their own)
 # a probed segment contact must come closer than both its nodes by this much [m] (above the narrow phase's
@@ -588,7 +590,8 @@ class ContactSet:
             self._candidates = None  # _probe_candidates bound on first use
             self._near_set = False  # a probed row's hull is marked near (hulls.near; cleared at the next probe)
             self._prev_rows: set = set()
-            self._broad = None  # _probe_broad bound on first use (native reads only)
+            self._broad = None  # probe_broad_with bound on first use (native reads only)
+            self._broad_pack = None  # _probe_broad's arrays packed (contact_call.BroadArgs), on first use
             self._broad_args = self._native_broad(native, pairs, nb, n) if native else None
         self.keys_per_shape = keys_per_shape(n)
         self.other_cables = list(others)
@@ -626,8 +629,14 @@ class ContactSet:
         self._poses: list = [None] * nb
         for s in range(self.n_exact):
             self._read_pose(s, with_velocity=False)
-        self._detect = None  # bound to the argument types on first use (skips Numba's per-call dispatch)
-        self._quiet = None  # quiet(), bound likewise
+        # detect()'s and quiet()'s arrays, packed once (contact_call.py: Numba unboxes one pointer a call, not ~80
+        # arrays); None where nothing is compiled (NUMBA_DISABLE_JIT): the plain calls
+        self._set_args = (make_set_args(self.shapes, self.hulls, self.contacts, self.bodies, self.store, self.others,
+                                        self.probes, self._seg_k, self._seg_l, self._seg_b, self._seg_held,
+                                        self._probe_out, self.self_mu, self.zeta)
+                          if PACK_ARGS and hasattr(detect, "compile") else None)
+        self._detect = None  # detect_with (detect on the packed arrays), bound on first use (skips Numba's dispatch)
+        self._quiet = None  # quiet_with, bound likewise
         self._deepest = None  # _deepest_dynamic, bound likewise
         self._loads = None  # apply_to_bodies' per-row force, torque and touched rows (made on first use)
         self._inside_reported: set[int] = set()  # bodies already reported holding the cable's centre line
@@ -805,22 +814,31 @@ class ContactSet:
             self._probe(x, v, h, dt)
         measured = self._measure(dt, stepped, supported, support or {}) if self.free_bodies else ()
         self._inv_dt[0] = 1.0 / dt
-        if (SKIP_QUIET and not self.other_cables and not self.free_bodies and self.contacts.count[0] == 0
-                and self.probes.count[0] == 0):
+        packed = self._set_args
+        if (SKIP_QUIET and not self.other_cables and not self.free_bodies and self.contacts.count.item(0) == 0
+                and self.probes.count.item(0) == 0):
             # no contact last step, no probed answer, nobody else's rows: detect() would find nothing and change
             # nothing when quiet() says no shape and no pair of segments is within its margin (the same tests)
-            sh = self.shapes
-            qargs = (x, v, float(h), sh, self.hulls, self.contacts.reach, self.self_mu, float(dt))
+            if packed is None:
+                kernel, qargs = quiet, (x, v, float(h), self.shapes, self.hulls, self.contacts.reach, self.self_mu,
+                                        float(dt))
+            else:
+                kernel, qargs = quiet_with, (packed, x, v, float(h), float(dt))
             if self._quiet is None:
-                self._quiet = bind(quiet, *qargs)
+                self._quiet = bind(kernel, *qargs)
             if self._quiet(*qargs):
                 return 0
         k_per_mass = self.alpha / (h * h)
-        args = (x, v, mass, self.shapes, self.contacts, self.bodies, self.store, float(h), k_per_mass, self.zeta, self.self_mu,
-                float(dt), float(dt) if stepped else 0.0, self.others, self.probes, self._seg_k, self._seg_l,
-                self._seg_b, self._seg_held, self.hulls, self._probe_out)
+        if packed is None:
+            kernel, args = detect, (x, v, mass, self.shapes, self.contacts, self.bodies, self.store, float(h),
+                                    k_per_mass, self.zeta, self.self_mu, float(dt), float(dt) if stepped else 0.0,
+                                    self.others, self.probes, self._seg_k, self._seg_l, self._seg_b, self._seg_held,
+                                    self.hulls, self._probe_out)
+        else:
+            kernel, args = detect_with, (packed, x, v, mass, float(h), k_per_mass, float(dt),
+                                         float(dt) if stepped else 0.0)
         if self._detect is None:
-            self._detect = bind(detect, *args)
+            self._detect = bind(kernel, *args)
         count = self._detect(*args)
         if self.free_bodies:
             self.bodies.hold_count[:] = 0
@@ -951,14 +969,19 @@ class ContactSet:
         reach = self._radius + margin
         cid = self.client
         rows = None
-        if self._broad_args is not None:  # the rows whose boxes meet no node or segment are left out here
-            args = self._broad_args
-            args = args[:5] + (x, reach) + args[7:]
+        broad = self._broad_args
+        if broad is not None:  # the rows whose boxes meet no node or segment are left out here
+            if PACK_ARGS and hasattr(_probe_broad, "compile"):  # packed once (contact_call.py)
+                if self._broad_pack is None:
+                    self._broad_pack = make_broad_args(*broad[:5], *broad[7:])
+                kernel, args = probe_broad_with, (self._broad_pack, x, reach)
+            else:  # (nothing compiled, or the plain call asked for)
+                kernel, args = _probe_broad, broad[:5] + (x, reach) + broad[7:]
             if self._broad is None:
-                self._broad = bind(_probe_broad, *args)
+                self._broad = bind(kernel, *args)
             nt = self._broad(*args)
             if nt >= 0:
-                rows = set(args[-1][:nt].tolist())
+                rows = set(broad[-1][:nt].tolist())
         if rows is None:
             lo, hi = cable_box.tolist()
             hits = pb.getOverlappingObjects(lo, hi, physicsClientId=cid) or ()
@@ -1588,6 +1611,13 @@ def _probe_broad(api, cable_box, row_of, row_body, row_link, x, reach, out, segm
     return nt
 
 
+@njit(cache=True)
+def probe_broad_with(b, x, reach):
+    """:func:`_probe_broad` on a set's packed arrays ``b`` (:class:`~bullet_dlo.bullet.contact_call.BroadArgs`)."""
+    return _probe_broad(b.api, b.cable_box, b.row_of, b.row_body, b.row_link, x, reach, b.out, b.segments, b.nodes,
+                        b.segs, b.mid, b.quat, b.data, b.pairs, b.hit, b.boxes, b.todo)
+
+
 @njit(cache=True, error_model="numpy", inline="always")
 def _tri_closest(q, t, out_c):
     """Closest point out_c (3,) [m] of triangle t (3, 3) to q; returns the squared distance [m^2] (the
@@ -2148,6 +2178,13 @@ def detect(x, v, mass, sh, c, bd, st, h, k_per_mass, zeta, self_mu, h_body, h_do
 
 
 @njit(cache=True, error_model="numpy")
+def detect_with(a, x, v, mass, h, k_per_mass, h_body, h_done):
+    """:func:`detect` on a set's packed arrays ``a`` (:class:`~bullet_dlo.bullet.contact_call.SetArgs`)."""
+    return detect(x, v, mass, a.shapes, a.contacts, a.bodies, a.store, h, k_per_mass, a.zeta, a.self_mu, h_body, h_done,
+                  a.others, a.probes, a.seg_k, a.seg_l, a.seg_b, a.seg_held, a.hulls, a.probe_out)
+
+
+@njit(cache=True, error_model="numpy")
 def _pay_release(c, st, x, previous, released):
     """The work [J] of letting out the sink (:class:`Store`): each row detected now whose key (previous[j]) let out
     released[j] [m] this step has its surface point that much closer to the cable, and the penalty holds
@@ -2228,6 +2265,12 @@ def quiet(x, v, h, sh, hu, radius, self_mu, h_body):
         if not _out_of_reach(q, kind[s], sh.size[s], r + margin + _sweep(sh, s, hu, h_body)):
             return False
     return not (self_mu[0] >= 0.0 and _self_touches(x, r, margin))
+
+
+@njit(cache=True, error_model="numpy")
+def quiet_with(a, x, v, h, h_body):
+    """:func:`quiet` on a set's packed arrays ``a`` (:class:`~bullet_dlo.bullet.contact_call.SetArgs`)."""
+    return quiet(x, v, h, a.shapes, a.hulls, a.contacts.reach, a.self_mu, h_body)
 
 
 @njit(cache=True, error_model="numpy")
