@@ -5,8 +5,8 @@ arms' links (the broad phase) packed and plain on the same contact set."""
 from __future__ import annotations
 
 import numpy as np
-import pybullet as pb
 import pytest
+from probes import lines_through_links
 
 from bullet_dlo.bullet import contact
 from bullet_dlo.bullet.world import BulletWorld
@@ -56,12 +56,8 @@ def test_the_packed_broad_phase_finds_what_the_plain_one_finds():
         cs, cid, dt = physics.cable.contact.set, physics.world.client, physics.world.dt
         if cs._broad_args is None:
             pytest.skip("native reads off here: no compiled broad phase to pack")
-        rng = np.random.default_rng(1)
-        n, found = physics.cable.model.n, 0
-        for s in sorted(cs._probe_rows.values()):
-            lo, hi = np.array(pb.getAABB(cs.rows[s][0], cs.rows[s][1], physicsClientId=cid))
-            d = rng.normal(size=3)
-            x = rng.uniform(lo, hi) + np.outer(np.linspace(-0.06, 0.06, n), d / np.linalg.norm(d))
+        found = 0
+        for _, x in lines_through_links(cid, cs.rows, sorted(cs._probe_rows.values()), physics.cable.model.n, 1):
             packed, plain = probe_answers(cs, x, dt, True), probe_answers(cs, x, dt, False)
             for a, b in zip(packed, plain):
                 np.testing.assert_array_equal(a, b)

@@ -9,6 +9,7 @@ from __future__ import annotations
 import numpy as np
 import pybullet as pb
 import pytest
+from probes import lines_through_links
 
 from bullet_dlo.bullet import native
 from bullet_dlo.core.spec import CableSpec
@@ -179,12 +180,8 @@ def test_the_native_broad_phase_finds_what_pybullets_finds():
         drive(physics, 3)
         cs, cid = physics.cable._contact_set, physics.world.client
         assert cs._broad_args is not None
-        rng = np.random.default_rng(0)
-        n, found = physics.cable.model.n, 0
-        for s in sorted(cs._probe_rows.values()):
-            lo, hi = np.array(pb.getAABB(cs.rows[s][0], cs.rows[s][1], physicsClientId=cid))
-            d = rng.normal(size=3)
-            x = rng.uniform(lo, hi) + np.outer(np.linspace(-0.06, 0.06, n), d / np.linalg.norm(d))
+        found = 0
+        for _, x in lines_through_links(cid, cs.rows, sorted(cs._probe_rows.values()), physics.cable.model.n, 0):
             answers = []
             for broad in (cs._broad_args, None):
                 saved, cs._broad_args = cs._broad_args, broad
