@@ -24,9 +24,9 @@ BROAD_FIELDS = ("api", "cable_box", "row_of", "row_body", "row_link", "out", "se
 """:func:`~bullet_dlo.bullet.contact._probe_broad`'s arguments but the step's positions and reach."""
 
 
-class _Fixed(types.StructRef):
+class FixedFields(types.StructRef):
     """A pack of arrays that no kernel replaces (a new pack replaces the whole): the compiler borrows its fields
-    (:mod:`bullet_dlo.core.kernels.jit`)."""
+    (:mod:`bullet_dlo.core.kernels.jit`); fields typed as the objects packed. Base of every packed-arguments type."""
 
     fields_fixed = True
 
@@ -35,12 +35,12 @@ class _Fixed(types.StructRef):
 
 
 @structref.register
-class SetArgsType(_Fixed):
+class SetArgsType(FixedFields):
     """Numba type of :class:`SetArgs` (fields: :data:`SET_FIELDS`)."""
 
 
 @structref.register
-class BroadArgsType(_Fixed):
+class BroadArgsType(FixedFields):
     """Numba type of :class:`BroadArgs` (fields: :data:`BROAD_FIELDS`)."""
 
 

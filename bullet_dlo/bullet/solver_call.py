@@ -12,9 +12,9 @@ kernel on the same data, the same bits.
 """
 from __future__ import annotations
 
-from numba import types
 from numba.experimental import structref
 
+from bullet_dlo.bullet.contact_call import FixedFields
 from bullet_dlo.bullet.kernels import sync_and_advance
 from bullet_dlo.core.kernels.jit import njit
 
@@ -22,13 +22,8 @@ FIELDS = ("stepper", "arrays", "plan", "holders", "coupling", "workspace", "dete
 
 
 @structref.register
-class StepArgsType(types.StructRef):
+class StepArgsType(FixedFields):
     """Numba type of :class:`StepArgs` (fields: :data:`FIELDS`, typed as the objects packed)."""
-
-    fields_fixed = True  # no kernel sets a field (a new pack replaces the whole): the compiler borrows them (jit.py)
-
-    def preprocess_fields(self, fields):
-        return tuple((name, types.unliteral(typ)) for name, typ in fields)
 
 
 class StepArgs(structref.StructRefProxy):
