@@ -43,7 +43,7 @@ STALL_FAR = 0.1  # [-] far from convergence: momentum residual above this share 
 STALL_WILD = WILD_RATIO  # [-] wildly far: with a free body in the solve, taken again as sub-steps even when it moved
 # the momentum (and if the retry stays that far, the bodies get the reaction the cable felt: Bodies.felt_ratio)
 NEWTON_WARN_MIN_STEPS = 100  # the share of unconverged steps is judged from this many planned steps on
-_new_tuple = tuple.__new__
+_new_tuple = tuple.__new__  # makes a StepInput without the NamedTuple's constructor, a Python function
 PACK_ARGS = True  # call the step kernel on packed arguments (solver_call.py; False: the plain call, for A/B and tests)
 
 
@@ -152,7 +152,6 @@ class CableSolver:
         state (index (k,), pos [m], vel [m/s] (k, 3))."""
         det = self.detector
         has_prev = steps > 0 and contacts.impact.item(0) == 0  # BDF2 restarts after an impact
-        # (tuple.__new__: the NamedTuple's own constructor is a Python function, 3x the cost)
         return _new_tuple(StepInput, (t, has_prev, sync, sync and steps % det.check_every == 0,
                                       sync and steps % det.energy_every == 0, record, index, pos, vel))
 
@@ -177,9 +176,7 @@ class CableSolver:
              inp: StepInput) -> int:
         """Take over Bullet's step (if ``inp.sync``), check it, plan the next with the contacts and the free bodies
         solved with them; returns the status (STABLE or the reason's code: then nothing is planned)."""
-        guard = self._guard
-        if guard is None or self._guard_contacts is not contacts:
-            guard = self.stall_guard(arrays, contacts, bodies)
+        guard = self.stall_guard(arrays, contacts, bodies)
         held = (self.stepper, arrays, self.plan, control.holders, self.coupling, self.workspace, self.detector,
                 contacts, bodies, guard)
         if not PACK_ARGS or not hasattr(sync_and_advance, "compile"):  # (JIT disabled: a plain call)

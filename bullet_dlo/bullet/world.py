@@ -482,19 +482,16 @@ class BulletWorld:
         self._supported_due = lazy and bool(cables)
         if self.model_touches or self._model_touches_now:  # (empty both: nothing to hand over)
             self.model_touches, self._model_touches_now = self._model_touches_now, {}
-        if len(cables) < 2:  # nobody to read which cables are pending (ContactSet._read_others)
-            try:
-                self._take_cable_steps(cables, contacts)
-            finally:
-                self._supported_due = False
-            return
         # cables touching each other through the model read the ones still pending as held where they
-        # are, the ones done as moving over their planned step (see ContactSet._read_others)
-        self._pending = {c.name for c in cables}
+        # are, the ones done as moving over their planned step (see ContactSet._read_others; one cable: nobody)
+        several = len(cables) > 1
+        if several:
+            self._pending = {c.name for c in cables}
         try:
             self._take_cable_steps(cables, contacts)
         finally:
-            self._pending = set()
+            if several:
+                self._pending = set()
             self._supported_due = False  # (not asked in phase 7: no free body in any set, the empty set holds)
 
     def _take_cable_steps(self, cables, contacts) -> None:
