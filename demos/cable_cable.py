@@ -7,9 +7,14 @@ cables against their weight (model contact only).
 
     PYTHONPATH=. python demos/cable_cable.py [--drop 0.03] [--duration 1.5] [--n 10 20 40] [--shift 0.5] [--rates 60 240 1000] [--cost]
     PYTHONPATH=. python demos/cable_cable.py --heavy [--rates 60 240]
+    PYTHONPATH=. python demos/cable_cable.py --along [--rates 60 240 1000] [--n 10 40]
 
 ``--heavy``: a 300 g, 10 mm cable (n 12) laid 0.1 mm above a 10 g, 2 mm one (n 40) instead: the contact forces each
 cable feels from the other and the ground's support of both weights over 3 s (the staggered steps' slow settling).
+``--along``: a cable laid 0.1 mm above another one along its length (same n; then n and the last n of --n below it;
+then a 6 mm cable shifted 1 cm along a 4 mm one): per case, at 1 s, the vertical force each feels from the other
+over the upper one's weight (equal and opposite: +1 and -1), the ground's support of both weights, the largest speed
+and whether a cable was stopped.
 """
 from __future__ import annotations
 
@@ -129,6 +134,31 @@ def heavy_on_light(rate: float, times=(0.12, 0.5, 1.5, 3.0)) -> list[str]:
     return rows
 
 
+def lying_along(rate: float, n_low: int, n_up: int, d_up: float = 0.004, shift: float = 0.0,
+                duration: float = 1.0) -> str:
+    """A Lv cable (4 mm, n_low) on the ground along x and one of diameter d_up [m] (n_up) laid along it on top,
+    0.1 mm above contact and ``shift`` [m] further along x, after ``duration`` [s] at ``rate`` [Hz]: one row."""
+    low_spec = CableSpec.lv2017(n_masses=n_low, damping=0.02)
+    up_spec = CableSpec.lv2017(n_masses=n_up, damping=0.02, diameter=d_up)
+    length = low_spec.length
+    with BulletWorld(dt=1 / rate) as world:
+        low = world.add_cable(low_spec, start=(-length / 2, 0, 0.002), direction=(1, 0, 0), name="low")
+        up = world.add_cable(up_spec, start=(-length / 2 + shift, 0, 0.004 + d_up / 2 + 1e-4), direction=(1, 0, 0),
+                             name="up")
+        world.run(duration)
+        w_up = up_spec.mass * 9.81
+        f = {}
+        for c in (low, up):
+            cf = c.contact_forces()
+            f[c.name] = (float(cf["force"][cf["body"] == -2, 2].sum()), float(cf["force"][cf["body"] == world.ground_id,
+                                                                                        2].sum()))
+        ground = (f["low"][1] + f["up"][1]) / (w_up + low_spec.mass * 9.81)
+        speed = max(np.abs(low.v).max(), np.abs(up.v).max())
+        stopped = "; ".join(f"{c.name}: {c.reason}" for c in (low, up) if not c.stable) or "-"
+        return (f"{rate:>5.0f} {n_low:>5} {n_up:>4} {1e3 * d_up:>5.1f} {1e3 * shift:>6.1f} {f['up'][0] / w_up:>+8.4f} "
+                f"{f['low'][0] / w_up:>+9.4f} {ground:>8.4f} {speed:>8.1e}  {stopped}")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--drop", type=float, default=0.03)
@@ -138,7 +168,16 @@ def main() -> None:
     ap.add_argument("--rates", type=float, nargs="+", default=[60, 240, 1000])
     ap.add_argument("--cost", action="store_true", help="time a world step instead (240 Hz, n from --n)")
     ap.add_argument("--heavy", action="store_true", help="a heavy cable across a light one instead (see above)")
+    ap.add_argument("--along", action="store_true", help="a cable lying along another one instead (see above)")
     a = ap.parse_args()
+    if a.along:
+        print(f"{'rate':>5} {'n low':>5} {'n up':>4} {'d mm':>5} {'shift':>6} {'on up/W':>8} {'on low/W':>9} "
+              f"{'ground/W':>8} {'|v| max':>8}  stopped")
+        for rate in a.rates:
+            cases = [(n, n, 0.004, 0.0) for n in a.n] + [(a.n[0], a.n[-1], 0.004, 0.0), (a.n[-1], a.n[0], 0.006, 0.01)]
+            for n_low, n_up, d_up, shift in cases:
+                print(lying_along(rate, n_low, n_up, d_up, shift), flush=True)
+        return
     if a.heavy:
         print(f"{'rate':>5} {'t s':>6} {'on up N':>9} {'on low N':>9} {'ground/W':>8} {'|v| max':>8}")
         for rate in a.rates:

@@ -596,8 +596,8 @@ class ContactSet:
         self.keys_per_shape = keys_per_shape(n)
         self.other_cables = list(others)
         n_other = sum(o.model.n for o in self.other_cables)
-        nkeys = max(1, nb * self.keys_per_shape + 2 * (n - 1) ** 2 + (n - 1) * n_other)
-        capacity = max(1, nb * (n + 2 * (n - 1)) + 4 * n + 2 * n * len(self.other_cables)
+        nkeys = max(1, nb * self.keys_per_shape + 2 * (n - 1) ** 2 + (3 * n - 2) * n_other)  # _cable_contacts' keys
+        capacity = max(1, nb * (n + 2 * (n - 1)) + 4 * n + 2 * (n * len(self.other_cables) + n_other)
                        + 2 * PROBE_EXTRA * n * len(probed))  # a probed link's further answers
         # self-contact friction: the cable's own coefficients (negative: no self-contact)
         self.self_mu = np.array([mu_s, mu_d]) if self_contact else np.array([-1.0, -1.0])
@@ -2657,17 +2657,28 @@ def _cable_moved(c, st, oc, count, h_done):
             st.anchor[key, j] += d
 
 
+SNAP = 1e-9  # [-] an edge-edge closest point this near a segment's end is the end's node (a node row's)
+CROSSING = 0.1  # [-] two segments cross (an edge-edge row) when sin(angle) x the shorter exceeds this x r1 + r2
+
+
 @njit(cache=True, error_model="numpy")
 def _cable_contacts(x, mass, c, st, oc, key0, margin, k_per_mass, zeta):
     """Contacts of this cable's segments with the other cables' segments (capsules of each cable's radius).
 
-    Closest points of segment pairs as in :func:`_self_contacts` (a node belongs to the segment that
-    starts at it, on both cables); the other cable's capsule is a body whose surface moves at oc.u over
-    the step (the other cable's planned step, or held), with the stiffness and damping of the pair's
-    mean mass and the combined friction: the other cable does the same with this one, so at rest the
-    two forces are equal and opposite. Broad phase: each other cable's bounding box, then node
-    distances (segments whose first nodes are farther apart than both segments' lengths plus the
-    reach cannot touch)."""
+    Per pair of segments within reach, the rows of their closest features (the point-edge and edge-edge
+    distances of rod contact): (1) the two edges, where their closest points lie inside both and the segments
+    cross at an angle that defines them (:func:`_crossing`); (2) each node of this cable against the other
+    segment, where that segment holds the node's closest point on the other centre line near it (:func:`_node_on`:
+    one row where the line bends, or where the node lies over one of its nodes); (3) each node of the other cable
+    against this segment, by the same rule. Each node is taken once, with the segment that starts at it (the last
+    node with the last segment). Cables lying along each other then touch at every node of both (two parallel
+    segments have no single closest point pair: taken as one, the last node of a cable lying on another had no
+    row and sank into it, and rounding at shared nodes doubled rows, so that the two cables' steps held different
+    forces). The rules are the same with the two cables swapped, so the other cable's contact set holds the same
+    rows, with the same stiffness (the pair's mean mass at the point): equal and opposite forces at rest. The
+    other cable's capsule is a body whose surface moves at oc.u over the step (the other cable's planned step, or
+    held), with the combined friction. Broad phase: each other cable's bounding box, then node distances
+    (segments whose first nodes are farther apart than both segments' lengths plus the reach cannot touch)."""
     n = x.shape[0]
     radius = c.radius[0]
     N = oc.x.shape[0]
@@ -2684,7 +2695,6 @@ def _cable_contacts(x, mass, c, st, oc, key0, margin, k_per_mass, zeta):
         if i < n - 1:
             l_own = max(l_own, math.sqrt((x[i + 1, 0] - x[i, 0]) ** 2 + (x[i + 1, 1] - x[i, 1]) ** 2
                                          + (x[i + 1, 2] - x[i, 2]) ** 2))
-    nl = np.empty(3)
     for cc in range(oc.first.shape[0] - 1):
         a0, a1 = oc.first[cc], oc.first[cc + 1]
         rb = oc.radius[a0]
@@ -2710,29 +2720,117 @@ def _cable_contacts(x, mass, c, st, oc, key0, margin, k_per_mass, zeta):
                 d2 = (x[i, 0] - oc.x[q, 0]) ** 2 + (x[i, 1] - oc.x[q, 1]) ** 2 + (x[i, 2] - oc.x[q, 2]) ** 2
                 if d2 > pair_reach2:
                     continue
+                # (1) the edges, crossing at an angle their closest points are well defined at
                 s, t = _segments_closest(x[i], x[i + 1], oc.x[q], oc.x[q + 1])
-                if (s >= 1.0 and i < n - 2) or (t >= 1.0 and q < a1 - 2):
-                    continue  # the next segment owns this node
-                d2 = 0.0
-                for j in range(3):
-                    nl[j] = ((1.0 - s) * x[i, j] + s * x[i + 1, j]) - ((1.0 - t) * oc.x[q, j] + t * oc.x[q + 1, j])
-                    d2 += nl[j] ** 2
-                d = math.sqrt(d2)
-                if d == 0.0 or d - radius - rb >= margin:
-                    continue
-                k = c.count[0]
-                if k >= c.node.shape[0]:
-                    return
-                for j in range(3):
-                    nl[j] /= d
-                    p0 = (1.0 - t) * oc.x[q, j] + t * oc.x[q + 1, j]
-                    oc.row_p0[k, j] = p0
-                    c.normal[k, j] = nl[j]
-                    c.point[k, j] = p0 + rb * nl[j]
-                    c.body_vel[k, j] = (1.0 - t) * oc.u[q, j] + t * oc.u[q + 1, j]
-                oc.row_node[k, 0], oc.row_node[k, 1] = q, q + 1
-                oc.row_w[k, 0], oc.row_w[k, 1] = 1.0 - t, t
-                c.internal[k] = False
-                m_pair = 0.5 * ((1.0 - s) * mass[i] + s * mass[i + 1] + (1.0 - t) * oc.mass[q] + t * oc.mass[q + 1])
-                _fill(c, st, key0 + i * N + q, CABLE, i, i + 1, 1.0 - s, s, oc.static_friction[q], oc.dynamic_friction[q],
-                      k_per_mass * m_pair, zeta, m_pair, x)
+                if (SNAP < s < 1.0 - SNAP and SNAP < t < 1.0 - SNAP
+                        and _crossing(x[i], x[i + 1], oc.x[q], oc.x[q + 1], radius + rb)):
+                    if not _cable_row(x, mass, c, st, oc, key0 + i * N + q, i, s, q, t, rb, margin, k_per_mass,
+                                      zeta):
+                        return
+                # (2) this cable's nodes the segment owns (each node once) where the other segment is closest
+                for a in range(i, i + 1 + (1 if i == n - 2 else 0)):
+                    t = _node_on(x[a], oc.x, q, a0, a1)
+                    if t >= 0.0 and not _cable_row(x, mass, c, st, oc, key0 + (n - 1 + a) * N + q, a, 0.0, q, t,
+                                                   rb, margin, k_per_mass, zeta):
+                        return
+                # (3) the other cable's nodes its segment owns where this segment is closest (the same rule)
+                for b in range(q, q + 1 + (1 if q == a1 - 2 else 0)):
+                    s = _node_on(oc.x[b], x, i, 0, n)
+                    if s >= 0.0 and not _cable_row(x, mass, c, st, oc, key0 + (2 * n - 1 + i) * N + b, i, s, q,
+                                                   float(b - q), rb, margin, k_per_mass, zeta):
+                        return
+
+
+@njit(cache=True, error_model="numpy")
+def _crossing(a0, a1, b0, b1, reach):
+    """Whether segments a0-a1 and b0-b1 cross at an angle theta whose edge-edge row the node rows cannot stand for:
+    sin(theta) times the shorter length above CROSSING of the centre lines' contact distance ``reach`` [m] (below,
+    the node rows leave at most (CROSSING reach / 2)^2 / (2 reach) = reach / 800 of penetration between them, and
+    the closest points of two nearly parallel segments are ill defined: the two cables' sets took them
+    differently, rows on one side only)."""
+    aa = 0.0
+    ee = 0.0
+    ab = 0.0
+    for j in range(3):
+        da = a1[j] - a0[j]
+        db = b1[j] - b0[j]
+        aa += da * da
+        ee += db * db
+        ab += da * db
+    if aa <= 0.0 or ee <= 0.0:
+        return False
+    sin2 = max(0.0, 1.0 - ab * ab / (aa * ee))
+    return sin2 * min(aa, ee) > (CROSSING * reach) ** 2
+
+
+@njit(cache=True, error_model="numpy")
+def _projection(p, a, b):
+    """The parameter in [0, 1] of the point of segment a-b closest to p."""
+    num = 0.0
+    den = 0.0
+    for j in range(3):
+        d = b[j] - a[j]
+        num += (p[j] - a[j]) * d
+        den += d * d
+    if den <= 0.0:
+        return 0.0
+    return min(max(num / den, 0.0), 1.0)
+
+
+@njit(cache=True, error_model="numpy")
+def _node_on(p, ox, q, a0, a1):
+    """Where node p meets segment q of a centre line ox (its nodes a0 .. a1 - 1): the parameter in [0, 1] of the
+    point of segment q closest to p when that is a closest point of the whole line near there (p nearer to segment q
+    than to the one before it, and no nearer to the one after it: one row where the line bends about the point
+    next to p, or where p lies over a node of it), else -1."""
+    t = _projection(p, ox[q], ox[q + 1])
+    d = _distance2(p, ox[q], ox[q + 1], t)
+    if q > a0 and not d < _distance2(p, ox[q - 1], ox[q], _projection(p, ox[q - 1], ox[q])):
+        return -1.0
+    if q < a1 - 2 and not d <= _distance2(p, ox[q + 1], ox[q + 2], _projection(p, ox[q + 1], ox[q + 2])):
+        return -1.0
+    return t
+
+
+@njit(cache=True, error_model="numpy")
+def _distance2(p, a, b, t):
+    """Squared distance [m^2] from p to the point at t of segment a-b."""
+    d2 = 0.0
+    for j in range(3):
+        d2 += (p[j] - ((1.0 - t) * a[j] + t * b[j])) ** 2
+    return d2
+
+
+@njit(cache=True, error_model="numpy")
+def _cable_row(x, mass, c, st, oc, key, i, s, q, t, rb, margin, k_per_mass, zeta):
+    """A row between this cable's point at s on segment i (its last node: i n - 1, s 0) and the other cable's
+    point at t on its segment q, when their capsules are within ``margin``. Returns False when the rows are
+    full."""
+    n = x.shape[0]
+    if i == n - 1:
+        i, s = n - 2, 1.0
+    d2 = 0.0
+    nl = np.empty(3)
+    for j in range(3):
+        nl[j] = ((1.0 - s) * x[i, j] + s * x[i + 1, j]) - ((1.0 - t) * oc.x[q, j] + t * oc.x[q + 1, j])
+        d2 += nl[j] ** 2
+    d = math.sqrt(d2)
+    if d == 0.0 or d - c.radius[0] - rb >= margin:
+        return True
+    k = c.count[0]
+    if k >= c.node.shape[0]:
+        return False
+    for j in range(3):
+        nl[j] /= d
+        p0 = (1.0 - t) * oc.x[q, j] + t * oc.x[q + 1, j]
+        oc.row_p0[k, j] = p0
+        c.normal[k, j] = nl[j]
+        c.point[k, j] = p0 + rb * nl[j]
+        c.body_vel[k, j] = (1.0 - t) * oc.u[q, j] + t * oc.u[q + 1, j]
+    oc.row_node[k, 0], oc.row_node[k, 1] = q, q + 1
+    oc.row_w[k, 0], oc.row_w[k, 1] = 1.0 - t, t
+    c.internal[k] = False
+    m_pair = 0.5 * ((1.0 - s) * mass[i] + s * mass[i + 1] + (1.0 - t) * oc.mass[q] + t * oc.mass[q + 1])
+    _fill(c, st, key, CABLE, i, i + 1, 1.0 - s, s, oc.static_friction[q], oc.dynamic_friction[q],
+          k_per_mass * m_pair, zeta, m_pair, x)
+    return True
