@@ -392,3 +392,40 @@ def parse_motion(items: Sequence[Mapping[str, Any]] | None) -> tuple[Motion, ...
             raise ParameterError(f"motion: at most one waypoints entry per end ('{end}' has more)")
     return tuple(out)
 
+
+ROLL_TOL = 1e-3
+"""A clamp's roll about the cable axis [rad] above which the scene twists the cable (0.057 deg). Smaller rolls
+are side effects of tilts about an axis a hair off the perpendicular (2e-6 rad in the wrist tilt tests); the
+torsion they would give, G J / L x 1e-3 rad, is 0.01 N m for a 5 mm steel rod of 0.5 m, far less for cables."""
+ROLL_SAMPLES = 2001
+"""Instants over the scene's duration at which the clamps' roll is read."""
+
+
+def end_roll(holder: EndHolder, times: np.ndarray) -> np.ndarray:
+    """The roll [rad] of a held end about the cable's axis at ``times`` [s]: the angle by which its motion
+    turns the held section axis d1 beyond the minimal rotation that carries the start tangent d0 to the
+    current one R d0 (the twist part of R's swing-twist decomposition about d0). Zeros without motion."""
+    times = np.asarray(times, dtype=float)
+    if not any(map(turns, holder.moves)):
+        return np.zeros(times.shape)  # translations only: the held section never turns (and sampling costs ~0.1 s)
+    end = holder.moves[0].end
+    offset = MotionOffset(holder.moves, end)
+    d0 = np.asarray(holder.direction, dtype=float) / np.linalg.norm(holder.direction)
+    n0 = np.asarray(holder.normal, dtype=float)
+    out = np.empty(times.shape)
+    for k, t in enumerate(times):
+        rot = offset(float(t))[3]
+        d1, n1 = rot @ d0, rot @ n0
+        c = float(d0 @ d1)
+        if c < -1.0 + 1e-9:  # the tangent turned right round: the swing is ambiguous, count it as a roll
+            out[k] = np.pi
+            continue
+        moved = n0 - float(n0 @ d1) / (1.0 + c) * (d0 + d1)  # n0 carried by the minimal rotation d0 -> d1
+        out[k] = np.arctan2(float(np.cross(moved, n1) @ d1), float(moved @ n1))
+    return out
+
+
+def turns(item: Motion) -> bool:
+    """Whether a motion item rotates its end at all (a nonzero rotation vector anywhere in it)."""
+    rows = item.rotations if isinstance(item, Waypoints) else (item.rotation,)
+    return any(v != 0.0 for row in rows for v in row)

@@ -30,6 +30,7 @@ from typing import Callable
 
 import numpy as np
 
+from bullet_dlo.core.boundary import ROLL_SAMPLES, ROLL_TOL, end_roll, turns
 from bullet_dlo.core.integrators import NewtonOptions, get_integrator, make_stepper
 from bullet_dlo.core.kernels.forces import clamp_torque, internal_energy, max_strain, mechanical_energy
 from bullet_dlo.core.kernels.holders import HeldSamples, HolderPlan, empty_samples, peak_speeds, sample_holders
@@ -182,7 +183,8 @@ def simulate(
 
     The result's ``warnings`` say what a user should know although the run is stable (Newton
     failing in more than ``NEWTON_WARN_SHARE`` of the steps; a large but physical strain; a held
-    end moved more than ``MOVE_WARN_SEGMENTS`` segment lengths per step).
+    end moved more than ``MOVE_WARN_SEGMENTS`` segment lengths per step; a clamp rolled about the cable's axis
+    although the cable has no material frame, which it then does not feel).
     """
     kwargs = dict(state=state, record_every=record_every, max_records=max_records, newton=newton, f_ext=f_ext)
     result = _simulate(model, integrator, dt, duration, detector=detector, **kwargs)
@@ -190,6 +192,7 @@ def simulate(
         result = confirm_strain(model, result, lambda bound: _simulate(
             model, integrator, dt, duration, detector=replace(detector, max_strain=bound), **kwargs))
     result.warnings.extend(held_move_warnings(model, dt, duration))
+    result.warnings.extend(unfelt_roll_warnings(model, duration))
     share = result.newton_failure_share
     if share > NEWTON_WARN_SHARE:
         result.warnings.append(
@@ -197,6 +200,37 @@ def simulate(
             "the implicit equations were solved only approximately; use a smaller dt, raise newton.max_iter, "
             "or use implicit_euler")
     return result
+
+
+_ROLL_MEMO: dict[tuple, tuple] = {}
+
+
+def unfelt_roll_warnings(model: CableModel, duration: float) -> list[str]:
+    """A warning when a clamp's motion rolls it about the cable's axis by more than
+    :data:`~bullet_dlo.core.boundary.ROLL_TOL` within ``duration`` [s] while the cable has no material frame (a
+    round cable without ``twist``): the roll is not felt, no torsion, no torque about the axis (scene files and the
+    dual-arm scene turn the frame on for it; the core API leaves the model as given). Remembered per pair of
+    holders (a fit runs the same motion tens of times; sampling it costs about 0.1 s)."""
+    if model.spec.twist_enabled:
+        return []
+    key = (id(model.first), id(model.last), duration)
+    hit = _ROLL_MEMO.get(key)
+    if hit is not None and hit[0] is model.first and hit[1] is model.last:
+        return list(hit[2])
+    times = np.linspace(0.0, duration, ROLL_SAMPLES)
+    out = []
+    for name, holder in (("first", model.first), ("last", model.last)):
+        if holder.mode != "clamped" or not any(map(turns, holder.moves)):
+            continue
+        roll = float(np.max(np.abs(np.unwrap(end_roll(holder, times)))))
+        if roll > ROLL_TOL:
+            out.append(f"the {name} clamp rolls {math.degrees(roll):.3g} deg about the cable's axis, but the cable has "
+                       "no material frame (a round section without twist): the roll is not felt (no torsion); give "
+                       "the cable twist=True")
+    if len(_ROLL_MEMO) >= 64:
+        _ROLL_MEMO.clear()
+    _ROLL_MEMO[key] = (model.first, model.last, tuple(out))
+    return out
 
 
 def held_move_warnings(model: CableModel, dt: float, duration: float) -> list[str]:

@@ -64,6 +64,24 @@ def test_round_cable_without_twist_has_no_frame():
     assert model.arrays.tw.k_twist.size == 0 and model.holder_plan().normal.shape[0] == 0
 
 
+def test_a_clamp_rolled_on_a_cable_without_a_frame_is_reported():
+    """A round cable without twist cannot feel its clamp's roll about its axis: the torque about the axis stays 0.
+    The core API leaves the model as given (scene files turn the frame on), so the result says so; a swing of the
+    same clamp (no roll) and the same roll with a frame are not reported. Before, nothing was said."""
+    spec = CableSpec(length=0.3, diameter=0.001, mass=0.02, youngs_modulus=2e9, n_masses=8)
+    roll = Move("last", rotation=(math.pi / 2, 0, 0), duration=0.2)  # about x, the cable's axis
+    res = simulate(CableModel.straight(spec, gravity=(0, 0, 0), motion=[roll]), "bdf2", 1e-3, 0.3)
+    assert np.abs(res.end_moments[:, 0]).max() == 0.0
+    assert any("last clamp rolls 90 deg about the cable's axis" in w and "twist" in w for w in res.warnings)
+    swing = Move("last", rotation=(0, math.pi / 8, 0), duration=0.2)
+    assert not any("rolls" in w for w in simulate(CableModel.straight(spec, gravity=(0, 0, 0), motion=[swing]),
+                                                   "bdf2", 1e-3, 0.3).warnings)
+    framed = CableModel.straight(spec.with_(twist=True), gravity=(0, 0, 0), motion=[roll])
+    res = simulate(framed, "bdf2", 1e-3, 0.3)
+    assert not any("rolls" in w for w in res.warnings)
+    assert abs(res.end_moments[-1, 0]) > 0.0
+
+
 # ----- gradients --------------------------------------------------------------------------------
 @pytest.mark.parametrize("spec", [CableSpec.lv2017(n_masses=7, twist=True), STRIP.with_(n_masses=7)],
                          ids=["round", "strip"])
