@@ -16,6 +16,7 @@ import threading
 from pathlib import Path
 
 from bullet_dlo.cli.simulate import write_json
+from bullet_dlo.core.validate import ParameterError
 
 
 class _EarlyStop(threading.Event):
@@ -93,6 +94,10 @@ def _capture(args: argparse.Namespace, stop) -> int:
     print(f"{res.done} episodes in {res.out} ({res.flagged} flagged: unstable or failing a quality limit, "
           f"{res.failed} failed); ran {res.ran} "
           f"in {res.wall_time_s:.1f} s = {res.episodes_per_second:.2f} episodes/s with {args.workers} worker(s)")
+    planned = _planned(res.out)
+    if planned is not None and planned > args.episodes:  # (a directory's plan grows, never shrinks)
+        print(f"note: {res.out} plans {planned} episodes (an earlier capture asked for them); this one made sure of "
+              f"the first {args.episodes}: --episodes {planned} --resume completes it")
     if res.complete:
         return 0
     lost = [f"{len(res.failed_episodes)} of {args.episodes} episodes failed ({_first(res.failed_episodes)}; "
@@ -171,8 +176,28 @@ def _verify_failed(report, directory: str) -> int:
                     "verification (missing, damaged, foreign, swapped or non-finite)")
     if report.missing:
         what.append(f"{directory} is {report.incomplete()}")
-    print(f"error: {'; '.join(what)}; bullet-dlo capture ... --resume re-runs them", file=sys.stderr)
+    print(f"error: {'; '.join(what)}; bullet-dlo {_maker(directory)} ... --resume re-runs them", file=sys.stderr)
     return 1
+
+
+def _spec_of(directory) -> dict:
+    """The spec a capture or rollouts directory was made with (empty when it has none or it is damaged)."""
+    from bullet_dlo.data.storage import read_spec_file
+
+    try:
+        return read_spec_file(Path(directory))
+    except ParameterError:
+        return {}
+
+
+def _maker(directory) -> str:
+    """The command that makes ``directory``: ``rollouts`` for a rollouts directory, else ``capture``."""
+    return "rollouts" if "rollout" in _spec_of(directory).get("spec", {}) else "capture"
+
+
+def _planned(directory) -> int | None:
+    """The episode count a capture directory plans (None: unknown)."""
+    return _spec_of(directory).get("episodes")
 
 
 def cmd_dataset_verify(args: argparse.Namespace) -> int:

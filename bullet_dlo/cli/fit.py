@@ -25,6 +25,8 @@ MAX_N_MASSES = 200
 a 10 s recording already takes minutes on a 2-core machine (cost grows faster than n)."""
 MAX_MODEL_STEPS = 10**6
 """Most model steps per run (all recordings' last times / --dt)."""
+MIN_STEPS_PER_RECORDING = 50
+"""Fewest model steps over the shortest recording (a larger --dt resolves nothing the recording holds)."""
 INT_RANGES = {"n_masses": (3, MAX_N_MASSES), "beam_step": (1, 100), "max_evaluations": (2, 10**6), "windows": (2, 1000),
               "min_windows": (2, 1000), "stiffness_grid": (0, 101),
               "profile_points": (0, 101)}
@@ -79,6 +81,10 @@ def cmd_fit(args: argparse.Namespace) -> int:
     if args.mass is None and not any(r.force is not None or r.linear_obs is not None for r in recs):
         raise ParameterError("--mass is required for recordings without forces or torques (marker positions see "
                              "E I / (rho A) only): give the cable's mass [kg]")
+    shortest = min(float(r.t[-1] - r.t[0]) for r in recs)
+    if args.dt > shortest / MIN_STEPS_PER_RECORDING:
+        raise ParameterError(f"--dt must be at most {shortest / MIN_STEPS_PER_RECORDING:.3g} s (the shortest recording, "
+                             f"{shortest:.3g} s, in at least {MIN_STEPS_PER_RECORDING} model steps), got {args.dt:g}")
     steps = sum(float(r.t[-1]) for r in recs) / args.dt
     if steps > MAX_MODEL_STEPS:
         raise ParameterError(f"the model would run {steps:.3g} steps per evaluation (recordings' duration / --dt "
@@ -303,7 +309,8 @@ def add_parsers(sub, common: argparse.ArgumentParser) -> None:
                             "explicit_euler"],
                    help="core integrator of the model (implicit_midpoint); auto: bdf2 with --dt halved (up to 3 "
                         "times) until its numerical damping passes the check")
-    s.add_argument("--dt", type=float, default=1e-3, help="model time step [s], > 0 (1e-3)")
+    s.add_argument("--dt", type=float, default=1e-3,
+                   help="model time step [s], > 0 and at most 1/50 of the shortest recording (1e-3)")
     s.add_argument("--match-source", action="store_true", help="run the model with the integrator and dt a "
                    "simulated recording says it was made with (its integrator's numerical damping is then "
                    "reproduced instead of fitted as physical damping)")

@@ -11,22 +11,28 @@ import json
 import math
 from pathlib import Path
 
-from bullet_dlo.core.validate import ParameterError
+from bullet_dlo.cli.outputs import print_outputs
+from bullet_dlo.core.validate import ParameterError, check_in_range, check_int
+
+BEAM_RANGES = {  # validate beam's numeric options: their ranges (SI)
+    "dt": (1e-5, 0.01),  # [s] (below, a split runs for days; above, the 3 Hz mode has under 30 steps a period)
+    "knot_step": (1e-3, 0.1),  # [s] the flange path's waypoints (the recordings are at 1 kHz)
+    "youngs_modulus": (1e3, 1e13),  # [Pa] (the cable bounds of scene files)
+    "density": (1.0, 1e5),  # [kg/m^3]
+    "filter_cutoff": (0.1, 500.0),  # [Hz] (below the recordings' Nyquist frequency)
+}
 
 
 def cmd_beam(args: argparse.Namespace) -> int:
     from bullet_dlo.reality.beam import EstimateFilter, Numerics, Strip
     from bullet_dlo.reality.beam_validate import plot_file, table, validate_beam
 
-    for name in ("n_masses", "limit_files"):
-        value = getattr(args, name)
-        if value is not None and value < (4 if name == "n_masses" else 1):
-            raise ParameterError(f"--{name.replace('_', '-')} must be an integer >= {4 if name == 'n_masses' else 1}, "
-                                 f"got {value}")
-    for name in ("dt", "knot_step", "youngs_modulus", "density", "filter_cutoff"):
-        value = getattr(args, name)
-        if value is not None and not (math.isfinite(value) and value > 0):
-            raise ParameterError(f"--{name.replace('_', '-')} must be a finite number > 0, got {value}")
+    check_int("--n-masses", args.n_masses, 4, 400)
+    if args.limit_files is not None:
+        check_int("--limit-files", args.limit_files, 1)
+    for name, (lo, hi) in BEAM_RANGES.items():
+        if getattr(args, name) is not None:
+            check_in_range(f"--{name.replace('_', '-')}", getattr(args, name), lo, hi)
     if args.duration is not None and not (math.isfinite(args.duration) and args.duration >= 7.0):
         raise ParameterError(f"--duration must be >= 7 s (the metrics need end + 6 s), got {args.duration}")
     if args.filter_delay is not None and not (math.isfinite(args.filter_delay) and 0 <= args.filter_delay <= 0.1):
@@ -49,9 +55,11 @@ def cmd_beam(args: argparse.Namespace) -> int:
     out = Path(args.json)
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(json.dumps(summary, indent=2))
+    plots = []
     if not args.no_plots:
         for name, (rec, m, pred) in details.items():
-            plot_file(rec, m, pred, out.with_name(f"{out.stem}.{name}.png"))
+            plots.append(out.with_name(f"{out.stem}.{name}.png"))
+            plot_file(rec, m, pred, plots[-1])
     fit = summary["parameters"][f"{args.damping}_fit"]
     print(table(summary))
     params = summary["parameters"]
@@ -89,7 +97,7 @@ def cmd_beam(args: argparse.Namespace) -> int:
               + ", ".join(f"{f:.4f}" for f in num["convergence_frequency_hz"])
               + f" Hz, order {num['observed_order']:.2f}")
     print("limits of the match: " + "; ".join(summary["limits"]))
-    print(f"written {out.resolve()}" + ("" if args.no_plots else " and its plots beside it"))
+    print_outputs(out, *plots)
     return 0
 
 
@@ -158,22 +166,25 @@ def add_parsers(sub, common: argparse.ArgumentParser) -> None:
     b.add_argument("--integrator", default="bdf2", choices=["bdf2", "implicit_euler", "implicit_midpoint"],
                    help="core integrator (bdf2: its numerical damping is measured and reported; implicit_euler "
                         "adds ~0.009, as much as the physical damping; implicit_midpoint rings)")
-    b.add_argument("--n-masses", type=int, default=20, help="point masses of the strip model, >= 4 (20)")
-    b.add_argument("--dt", type=float, help="time step [s] (default 1e-3 for both strip models: BDF2 solves the "
+    b.add_argument("--n-masses", type=int, default=20, help="point masses of the strip model, in [4, 400] (20)")
+    b.add_argument("--dt", type=float, help="time step [s], in [1e-5, 0.01] (default 1e-3 for both strip models: BDF2 "
+                   "solves the "
                    "rectangle's twist in its Newton step, converged at 1 ms)")
     b.add_argument("--knot-step", type=float, default=0.004,
-                   help="spacing of the flange-path waypoints taken from the recording [s] (0.004)")
-    b.add_argument("--youngs-modulus", type=float, default=197.5e9, help="strip's E [Pa] (197.5e9, nominal)")
+                   help="spacing of the flange-path waypoints taken from the recording [s], in [0.001, 0.1] (0.004)")
+    b.add_argument("--youngs-modulus", type=float, default=197.5e9,
+                   help="strip's E [Pa], in [1e3, 1e13] (197.5e9, nominal)")
     b.add_argument("--fit-youngs-modulus", action="store_true",
                    help="also fit E on FIT_DIR: scaled so that the undamped model's residual-vibration frequency "
                         "matches the fit recordings' (median), starting from --youngs-modulus")
-    b.add_argument("--density", type=float, default=7970.0, help="strip's density [kg/m^3] (7970, nominal)")
-    b.add_argument("--filter-cutoff", type=float, help="Franka estimate filter: low-pass cut-off [Hz] "
+    b.add_argument("--density", type=float, default=7970.0,
+                   help="strip's density [kg/m^3], in [1, 1e5] (7970, nominal)")
+    b.add_argument("--filter-cutoff", type=float, help="Franka estimate filter: low-pass cut-off [Hz], in [0.1, 500] "
                    "(with --filter-delay; default: identified on FIT_DIR from tau_J)")
     b.add_argument("--filter-delay", type=float, help="Franka estimate filter: delay [s], in [0, 0.1]")
     b.add_argument("--duration", type=float, help="simulated seconds per predicted file, >= 7 (default: the whole "
                    "recording)")
-    b.add_argument("--limit-files", type=int, help="use only the first N files of each folder (quick checks)")
+    b.add_argument("--limit-files", type=int, help="use only the first N >= 1 files of each folder (quick checks)")
     b.add_argument("--no-plots", action="store_true", help="do not write the PNG plots")
     b.add_argument("--no-numerics-check", action="store_true",
                    help="skip the numerical-damping and convergence-in-n check of the chosen integrator, n and dt")

@@ -40,6 +40,7 @@ nothing measurable here, so the pair stays the default.
 from __future__ import annotations
 
 import math
+import warnings
 from dataclasses import dataclass, field
 from typing import NamedTuple
 from pathlib import Path
@@ -128,7 +129,9 @@ def read_beam_csv(path: str | Path) -> BeamRecording:
                              f"{' ...' if len(missing) > 4 else ''}; a beam_handling CSV has {', '.join(COLUMNS[:3])} "
                              "... tau_ext_hat_filtered[6]")
     try:
-        data = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2, encoding="utf-8")
+        with warnings.catch_warnings():  # (a header alone: loadtxt warns, the row check below says it in one line)
+            warnings.simplefilter("ignore", UserWarning)
+            data = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2, encoding="utf-8")
     except (ValueError, UnicodeDecodeError) as err:  # a text cell, a short or long row, a non-UTF-8 byte
         what = " ".join(str(err).split(";")[0].split())[:160]
         raise ParameterError(f"beam recording {path.name}: every row after the header must hold {len(header)} "

@@ -79,7 +79,8 @@ from bullet_dlo.core.boundary import EndHolder, Waypoints, default_normal
 from bullet_dlo.core.engine import simulate
 from bullet_dlo.core.model import STANDARD_GRAVITY, CableModel, CableState, build_arrays
 from bullet_dlo.core.spec import CableSpec
-from bullet_dlo.core.validate import ParameterError, check_int, check_positive
+from bullet_dlo.cli.outputs import print_outputs
+from bullet_dlo.core.validate import ParameterError, check_in_range, check_int, check_positive
 from bullet_dlo.reality.recording import MarkerRecording
 
 RATE = 100.0  # DEFORM frame rate [Hz]
@@ -124,6 +125,8 @@ class RestrictedUnpickler(pickle.Unpickler):
                              "numpy arrays: numpy.core.multiarray._reconstruct, numpy.ndarray, numpy.dtype)")
 
 
+DT_MIN = 1e-5
+"""Smallest model step [s] the DEFORM commands take (a fit at 1e-5 s runs 200x the default's steps)."""
 MAX_MARKER_DISTANCE = 100.0
 """Largest marker coordinate accepted [m] (as the fit's recordings: a larger one is a unit mistake)."""
 
@@ -137,7 +140,11 @@ def read_pickle(path: str | Path) -> np.ndarray:
         raise ParameterError(f"{path}: {err}") from None
     except (pickle.UnpicklingError, EOFError, ValueError, TypeError, AttributeError, IndexError) as err:
         raise ParameterError(f"{path}: not a readable pickle of marker positions ({err})") from None
-    if np.iscomplexobj(raw) or (isinstance(raw, np.ndarray) and raw.dtype.kind not in "biuf"):
+    try:  # (a ragged list is no array: numpy refuses it in either call)
+        unreal = np.iscomplexobj(raw) or (isinstance(raw, np.ndarray) and raw.dtype.kind not in "biuf")
+    except (ValueError, TypeError):
+        raise ParameterError(f"{path}: markers must be a (T, 3, m) array of numbers [m]") from None
+    if unreal:
         raise ParameterError(f"{path}: markers must be real numbers [m] (got {np.asarray(raw).dtype})")
     try:
         a = np.asarray(raw, dtype=float)
@@ -253,9 +260,7 @@ class Numerics:
 
     def __post_init__(self) -> None:
         check_int("n_masses", self.n_masses, 4, 2000)
-        check_positive("dt", self.dt)
-        if self.dt > 0.01:
-            raise ParameterError(f"dt must be at most 0.01 s (the frame interval), got {self.dt}")
+        check_in_range("dt", self.dt, DT_MIN, 0.01)  # (at most the frame interval; below DT_MIN a fit runs for days)
         check_positive("knot_rate", self.knot_rate)
         check_int("smooth", self.smooth, 1, 51)
 
@@ -954,7 +959,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--plots", metavar="DIR", help="folder for the PNG plots (default: OUT's folder)")
     parser.add_argument("--no-plots", action="store_true", help="write no plots")
     parser.add_argument("--n-masses", type=int, default=Numerics.n_masses, help="point masses of the model (21)")
-    parser.add_argument("--dt", type=float, default=Numerics.dt, help="time step [s] (0.002)")
+    parser.add_argument("--dt", type=float, default=Numerics.dt, help="time step [s], in [1e-5, 0.01] (0.002)")
     parser.add_argument("--integrator", default=Numerics.integrator,
                         choices=["bdf2", "implicit_midpoint", "implicit_euler"],
                         help="core integrator (bdf2: numerical damping ~1 %% of the fitted; implicit_euler ~10 %%)")
@@ -962,7 +967,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="give the cable the core's material frame (twist springs; the clamps' roll by "
                              "parallel transport of the held pairs: a marker pair does not fix it)")
     parser.add_argument("--max-train-trials", type=int, default=8,
-                        help="train trials the fit uses, evenly spread over the folder (8)")
+                        help="train trials the fit uses, evenly spread over the folder, >= 2 (8)")
     parser.add_argument("--max-eval-trials", type=int, help="eval trials predicted (default: all)")
     parser.add_argument("--max-evaluations", type=int, default=60,
                         help="forward runs of the train set allowed, about (60)")
@@ -995,12 +1000,18 @@ def main(args: argparse.Namespace) -> int:
     if not root.is_dir():
         raise ParameterError(f"DLO_DIR: {root} is not a folder (it must hold train/ and eval/ with *.pkl trials)")
     check_int("--n-masses", args.n_masses, 4, 2000)  # the command line's names (Numerics checks its fields)
-    check_positive("--dt", args.dt)
+    check_in_range("--dt", args.dt, DT_MIN, 0.01)
     num = Numerics(integrator=args.integrator, n_masses=args.n_masses, dt=args.dt, twist=bool(args.twist))
-    most_train = check_int("--max-train-trials", args.max_train_trials, 1)
+    most_train = check_int("--max-train-trials", args.max_train_trials, 2)  # (the intervals leave one trial out)
     most_eval = None if args.max_eval_trials is None else check_int("--max-eval-trials", args.max_eval_trials, 1)
     max_eval = check_int("--max-evaluations", args.max_evaluations, 2)
+    plot_dir = None if args.no_plots else Path(args.plots) if args.plots else Path(args.json).parent
+    if plot_dir is not None and plot_dir.exists() and not plot_dir.is_dir():
+        raise ParameterError(f"--plots: {plot_dir} is a file, not a folder")
     train = [load_trial(p) for p in pick(trial_files(root / "train", "train"), most_train)]
+    if len(train) < 2:
+        raise ParameterError(f"DLO_DIR: {root / 'train'} holds {len(train)} trial, at least 2 are needed (the fit's "
+                             "intervals leave one trial out)")
     evals = [load_trial(p) for p in pick(trial_files(root / "eval", "eval"), most_eval)]
     extra = (("gravity_tilt_x", "gravity_tilt_y") if getattr(args, "fit_gravity_tilt", False) else ()) + \
         (("drag_per_mass",) if getattr(args, "fit_drag", False) else ())
@@ -1061,11 +1072,11 @@ def main(args: argparse.Namespace) -> int:
     out = Path(args.json)
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(json.dumps(summary, indent=1, default=float))
-    if not args.no_plots:
-        plot_dir = Path(args.plots) if args.plots else out.parent
-        plot_trials(plot_dir, out.stem, [(r, preds[("eval", r.name)]) for r in evals])
+    plots = []
+    if plot_dir is not None:
+        plots = plot_trials(plot_dir, out.stem, [(r, preds[("eval", r.name)]) for r in evals])
     print_table(summary)
-    print(f"written {out}")
+    print_outputs(out, *plots)
     return 0
 
 
@@ -1107,12 +1118,13 @@ def print_table(summary: dict[str, Any]) -> None:
     print("limits of the match: " + "; ".join(summary["limits"]))
 
 
-def plot_trials(folder: Path, stem: str, trials: list[tuple[MarkerRecording, np.ndarray | None]]) -> None:
-    """One PNG per eval trial: x, y, z of three free markers over time, measured vs predicted."""
+def plot_trials(folder: Path, stem: str, trials: list[tuple[MarkerRecording, np.ndarray | None]]) -> list[Path]:
+    """One PNG per eval trial: x, y, z of three free markers over time, measured vs predicted; returns their paths."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     folder.mkdir(parents=True, exist_ok=True)
+    written = []
     for rec, pred in trials:
         fig, axes = plt.subplots(3, 1, figsize=(8, 7), sharex=True)
         free = rec.free
@@ -1128,5 +1140,7 @@ def plot_trials(folder: Path, stem: str, trials: list[tuple[MarkerRecording, np.
         err = "unstable" if pred is None else f"L1 {1e3 * l1(pred, rec):.1f} mm"
         fig.suptitle(f"{stem}: trial {rec.name}, open-loop prediction ({err})")
         fig.tight_layout()
-        fig.savefig(folder / f"{stem}.{rec.name}.png", dpi=80)
+        written.append(folder / f"{stem}.{rec.name}.png")
+        fig.savefig(written[-1], dpi=80)
         plt.close(fig)
+    return written

@@ -263,6 +263,18 @@ def build_cases() -> list[Case]:
               Case("view, folder of nothing", ["view", "{d}/f", "--out", "{d}/v.html"], "capture", {"f": DIR}),
               Case("view, negative --max-frames", ["view", "{d}/r.npz", "--out", "{d}/v.html", "--max-frames", "-1"],
                    "--max-frames", {"r.npz": "text"})]
+    # validate beam's numeric options: checked before any file is read (a tiny --dt ran for ever, a huge one or an
+    # E of 1e300 ended in a traceback)
+    beam = ["validate", "beam", "{d}/f", "{d}/p", "--json", "{d}/o.json"]
+    for option, value in (("--dt", "1e-12"), ("--dt", "1e9"), ("--youngs-modulus", "1e300"),
+                          ("--n-masses", "100000000"), ("--knot-step", "1e9"), ("--density", "nan"),
+                          ("--filter-cutoff", "1e6")):
+        cases.append(Case(f"validate beam {option} {value}", beam + [option, value], option, {"f": DIR, "p": DIR}))
+    cases += [Case("validate deform --dt 1e-12", ["validate", "deform", "{d}/dlo", "--json", "{d}/o.json", "--dt",
+                                                  "1e-12"], "--dt", {"dlo": DIR}),
+              Case("validate deform --max-train-trials 1", ["validate", "deform", "{d}/dlo", "--json", "{d}/o.json",
+                                                            "--max-train-trials", "1"], "--max-train-trials",
+                   {"dlo": DIR})]
     cases += [Case("examples, under a file", ["examples", "{d}/f/sub"], "DIR", {"f": "text"}),
               Case("fit, band reversed", ["fit", "{d}/r.csv", "--length", "0.3", "--diameter", "0.004", "--band", "8",
                                           "1.5", "--out", "{d}/o"], "--band", {"r.csv": "t\n0\n"}),

@@ -52,6 +52,7 @@ def test_a_vanished_episode_makes_the_dataset_incomplete_until_resumed(tmp_path,
         assert main(argv) == 1
         cap = capsys.readouterr()
         assert "incomplete: 3 of 4 episodes recorded, missing 3" in cap.err and "no problems" not in cap.out
+        assert "bullet-dlo capture ... --resume" in cap.err  # (a rollouts directory: the test below)
     assert main(["export", "lerobot", str(out), str(tmp_path / "lr")]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "incomplete: 3 of 4" in err[0] and not (tmp_path / "lr").exists()
@@ -109,3 +110,18 @@ def test_an_edited_spec_with_its_old_digest_is_refused(tmp_path):
         Dataset(out)
     with pytest.raises(ParameterError, match="does not match its digest"):
         build(out, 2, resume=True)
+
+
+def test_an_incomplete_rollouts_directory_points_to_rollouts_resume(tmp_path, capsys):
+    """A rollouts directory is resumed by ``rollouts``, not ``capture`` (its hint said capture)."""
+    from bullet_dlo.data.storage import _write_spec_file, spec_digest
+
+    out = tmp_path / "ro"
+    build(out, 3)
+    spec = {"rollout": {"env_id": "bullet_dlo/TensionTracking-v0", "policy": "random"}, "randomisation": {}}
+    _write_spec_file(out, spec_digest(spec), spec, 3)
+    vanish(out, 2)
+    assert main(["dataset", "verify", str(out)]) == 1
+    err = capsys.readouterr().err
+    assert "bullet-dlo rollouts ... --resume" in err and "capture ..." not in err
+

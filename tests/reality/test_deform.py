@@ -155,6 +155,24 @@ def test_main_refuses_bad_input_with_one_line(tmp_path, synthetic):
     with pytest.raises(ParameterError, match="not allowed") as err:
         run_main(bad, tmp_path / "o.json")
     assert "\n" not in str(err.value)
+    # each refused before any fitting (they had run 30-50 s into a traceback, or for days)
+    one = tmp_path / "one"
+    for split in ("train", "eval"):
+        (one / split).mkdir(parents=True)
+        (one / split / "3.pkl").write_bytes((synthetic / "eval" / "3.pkl").read_bytes())
+    with pytest.raises(ParameterError, match="holds 1 trial, at least 2"):
+        run_main(one, tmp_path / "o.json")
+    with pytest.raises(ParameterError, match="--max-train-trials"):
+        run_main(synthetic, tmp_path / "o.json", "--max-train-trials", "1")
+    for dt in ("1e-12", "1e9"):
+        with pytest.raises(ParameterError, match="--dt must be in"):
+            run_main(synthetic, tmp_path / "o.json", "--dt", dt)
+    (tmp_path / "a_file").write_text("")
+    with pytest.raises(ParameterError, match="--plots: .* is a file"):
+        run_main(synthetic, tmp_path / "o.json", "--plots", str(tmp_path / "a_file"))
+    (bad / "train" / "1.pkl").write_bytes(pickle.dumps([[1.0, 2.0], [3.0]]))  # ragged: not an array
+    with pytest.raises(ParameterError, match="1.pkl: markers must be"):
+        read_pickle(bad / "train" / "1.pkl")
 
 
 def test_numerical_damping_of_bdf2_is_below_the_physical():
@@ -240,6 +258,9 @@ def test_bullet_dlo_fit_on_deform_trials_covers_the_hidden_stiffness(synthetic, 
     assert min(out["holdout"]["windows_per_recording"]) >= 1 and out["verdict"]["windows"] >= 3
     assert (tmp_path / "fit" / "fit.png").is_file()
     assert main(argv[:1] + files[:1] + ["--diameter", "0.01", "--out", str(tmp_path / "f2")]) == 2  # no --mass
+    # a step longer than the trial / 50 resolves nothing it holds (it wrote a fit with infinite intervals)
+    assert main(argv[:1] + files[:1] + ["--diameter", "0.01", "--mass", str(mass), "--dt", "1e9",
+                                        "--out", str(tmp_path / "f3")]) == 2
 
 
 @pytest.mark.skipif(not (DATA / "DLO3").is_dir(), reason=f"DEFORM data not found at {DATA} (../shared/data/deform)")
