@@ -79,7 +79,6 @@ from bullet_dlo.core.boundary import EndHolder, Waypoints, default_normal
 from bullet_dlo.core.engine import simulate
 from bullet_dlo.core.model import STANDARD_GRAVITY, CableModel, CableState, build_arrays
 from bullet_dlo.core.spec import CableSpec
-from bullet_dlo.cli.outputs import print_outputs
 from bullet_dlo.core.validate import ParameterError, check_in_range, check_int, check_positive
 from bullet_dlo.reality.recording import MarkerRecording
 
@@ -1076,7 +1075,7 @@ def main(args: argparse.Namespace) -> int:
     if plot_dir is not None:
         plots = plot_trials(plot_dir, out.stem, [(r, preds[("eval", r.name)]) for r in evals])
     print_table(summary)
-    print_outputs(out, *plots)
+    print("outputs: " + ", ".join(str(p.resolve()) for p in (out, *plots)))  # (as bullet_dlo.cli.outputs words it)
     return 0
 
 
