@@ -60,6 +60,8 @@ DTS = (1 / 60, 1 / 120, 1 / 240, 1 / 500, 1e-3, 5e-4, 2.5e-4)
 """Time steps tried [s], largest first."""
 INTEGRATORS = ("implicit_euler", "bdf2")
 """Integrators tried, cheapest first."""
+
+
 @dataclass(frozen=True)
 class ResolveProblem:
     """What :func:`resolve` needs of a scene (SI units).
