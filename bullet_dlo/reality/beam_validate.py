@@ -474,6 +474,14 @@ def read_in(path: Path, what: str) -> BeamRecording:
         raise ParameterError(f"{what}: {err}") from None
 
 
+def measure_in(rec: BeamRecording, what: str) -> Measured:
+    """:func:`measure`, its errors naming the folder argument ``what``."""
+    try:
+        return measure(rec)
+    except ParameterError as err:
+        raise ParameterError(f"{what}: {err}") from None
+
+
 def _mode_or_number(value, option: str, modes: tuple[str, ...], lo: float, hi: float, what: str, unit: str):
     """``value`` as one of the words ``modes`` or a finite number in [lo, hi] (in ``unit``); else a
     ParameterError naming ``option`` and what it allows."""
@@ -536,7 +544,8 @@ def validate_beam(fit_dir: str | Path, predict_dir: str | Path, *, damping: str 
     pred_files = beam_files(predict_dir, "PREDICT_DIR")[:limit_files]
     fit_recs = [read_in(f, "FIT_DIR") for f in fit_files]
     pred_recs = [read_in(f, "PREDICT_DIR") for f in pred_files]
-    fit_meas = [measure(r) for r in fit_recs]
+    fit_meas = [measure_in(r, "FIT_DIR") for r in fit_recs]
+    pred_meas = {r.name: measure_in(r, "PREDICT_DIR") for r in pred_recs}  # (before the fit: a bad file fails at once)
     tic = time.thread_time()
     arm_setting = None
     if arm != "measured":
@@ -591,7 +600,7 @@ def validate_beam(fit_dir: str | Path, predict_dir: str | Path, *, damping: str 
         files, details = {}, {}
         for rec in pred_recs:
             log(f"predicting {rec.name} ...")
-            m = measure(rec)
+            m = pred_meas[rec.name]
             pred = predict(rec, panda, strip, params, numerics, estimate, mounting, duration=duration, arm=arm_setting)
             files[rec.name] = file_result(rec, m, pred)
             files[rec.name]["measured"]["decay_law"] = file_decay(rec, panda, strip, estimate).summary()

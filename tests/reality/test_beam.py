@@ -197,3 +197,14 @@ def test_validate_beam_bad_input_is_one_line_exit_2(tmp_path, capsys):
     assert main(["validate", "beam", str(tmp_path / "empty"), str(tmp_path), "--json", str(tmp_path / "o.json")]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 2 and "FIT_DIR" in err[0] and "no *.csv" in err[1]
+    # a recording without motion: refused naming its folder (both folders are measured before the fit; a PREDICT_DIR
+    # file failed after the whole fit, naming only the file)
+    rows = np.zeros((20, len(COLUMNS)))
+    rows[:, 0] = 1000 + np.arange(20)
+    for folder in ("fit", "predict"):
+        (tmp_path / folder).mkdir()
+        write_csv(tmp_path / folder / "still.csv", rows)
+    assert main(["validate", "beam", str(tmp_path / "fit"), str(tmp_path / "predict"), "--json",
+                 str(tmp_path / "o.json")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("error: FIT_DIR: beam recording still:") and "no motion" in err[0]
