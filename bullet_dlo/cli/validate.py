@@ -168,8 +168,7 @@ def add_parsers(sub, common: argparse.ArgumentParser) -> None:
                         "adds ~0.009, as much as the physical damping; implicit_midpoint rings)")
     b.add_argument("--n-masses", type=int, default=20, help="point masses of the strip model, in [4, 400] (20)")
     b.add_argument("--dt", type=float, help="time step [s], in [1e-5, 0.01] (default 1e-3 for both strip models: BDF2 "
-                   "solves the "
-                   "rectangle's twist in its Newton step, converged at 1 ms)")
+                   "solves the rectangle's twist in its Newton step, converged at 1 ms)")
     b.add_argument("--knot-step", type=float, default=0.004,
                    help="spacing of the flange-path waypoints taken from the recording [s], in [0.001, 0.1] (0.004)")
     b.add_argument("--youngs-modulus", type=float, default=197.5e9,
