@@ -357,6 +357,12 @@ def keys_per_shape(n: int) -> int:
     return n + (N_EDGES + 1) * (n - 1) + 6
 
 
+def self_keys(n: int) -> int:
+    """Friction keys of self-contact for a cable of n nodes, two sides each (:func:`_self_contacts`): a pair of
+    segments' edges, (n - 1)^2, then a node on a segment, n (n - 1)."""
+    return 2 * (n - 1) * (2 * n - 1)
+
+
 def _probe_key(n: int, i: int, segment: bool, extra: bool, normal) -> int:
     """The key (within its link's block) of a probed row: node i's or segment i's own (its closest answer), or,
     for a further answer (``extra``), one of six by the normal's main direction (+-x, +-y, +-z), so that a
@@ -596,8 +602,8 @@ class ContactSet:
         self.keys_per_shape = keys_per_shape(n)
         self.other_cables = list(others)
         n_other = sum(o.model.n for o in self.other_cables)
-        nkeys = max(1, nb * self.keys_per_shape + 2 * (n - 1) ** 2 + (3 * n - 2) * n_other)  # _cable_contacts' keys
-        capacity = max(1, nb * (n + 2 * (n - 1)) + 4 * n + 2 * (n * len(self.other_cables) + n_other)
+        nkeys = max(1, nb * self.keys_per_shape + self_keys(n) + (3 * n - 2) * n_other)  # _cable_contacts' keys
+        capacity = max(1, nb * (n + 2 * (n - 1)) + 8 * n + 2 * (n * len(self.other_cables) + n_other)
                        + 2 * PROBE_EXTRA * n * len(probed))  # a probed link's further answers
         # self-contact friction: the cable's own coefficients (negative: no self-contact)
         self.self_mu = np.array([mu_s, mu_d]) if self_contact else np.array([-1.0, -1.0])
@@ -2151,9 +2157,9 @@ def detect(x, v, mass, sh, c, bd, st, h, k_per_mass, zeta, self_mu, h_body, h_do
     _one_wrap_per_segment(c, first_edge, n)
     mark_wrap_neighbours(c, first_edge)  # after the last change of a row's kind
     if self_mu[0] >= 0.0:
-        _self_contacts(x, mass, c, st, sh.kind.shape[0] * per_shape, self_mu, margin, k_per_mass, zeta)
+        _self_contacts(x, v, h, mass, c, st, sh.kind.shape[0] * per_shape, self_mu, margin, k_per_mass, zeta)
     if oc.x.shape[0] > 0:
-        _cable_contacts(x, mass, c, st, oc, sh.kind.shape[0] * per_shape + 2 * (n - 1) ** 2,
+        _cable_contacts(x, mass, c, st, oc, sh.kind.shape[0] * per_shape + 2 * (n - 1) * (2 * n - 1),  # self_keys(n)
                         margin + 2.0 * oc.vmax[0] * h_body, k_per_mass, zeta)
     _condense_bodies(c, st, sh, x, v, h_body)
     if bd.mass.shape[0] > 0:  # free bodies in the world (a pass of its own: nothing to pay without them)
@@ -2572,70 +2578,113 @@ def _self_candidates(x, radius, margin):
     return _self_pairs(x, skip, reach)
 
 
-@njit(cache=True, error_model="numpy", inline="always")
-def _self_pair(x, i, j, nl):
-    """Segments i and j of x: their closest points' parameters s, t and distance d [m], the vector between them into
-    ``nl`` (3,); d = -1 where the next segment owns the closest node (no contact of this pair)."""
-    n = x.shape[0]
-    s, t = _segments_closest(x[i], x[i + 1], x[j], x[j + 1])
-    if (s >= 1.0 and i < n - 2) or (t >= 1.0 and j < n - 2):
-        return s, t, -1.0  # the next segment owns this node
-    d2 = 0.0
-    for q in range(3):
-        nl[q] = (1.0 - s) * x[i, q] + s * x[i + 1, q] - (1.0 - t) * x[j, q] - t * x[j + 1, q]
-        d2 += nl[q] ** 2
-    return s, t, math.sqrt(d2)
-
-
 @njit(cache=True, error_model="numpy")
 def _self_touches(x, radius, margin):
-    """Whether :func:`_self_contacts` would add a row: a candidate pair of segments of x closer than 2 radius +
-    margin [m] (its own test)."""
+    """Whether :func:`_self_contacts` may add a row: a candidate pair of segments of x closer than 2 radius + margin
+    [m] (every row of a pair is at least that far apart)."""
     n = x.shape[0]
-    nl = np.empty(3)
     for code in _self_candidates(x, radius, margin):
-        s, t, d = _self_pair(x, code // n, code % n, nl)
-        if not (d < 0.0 or d == 0.0 or d - 2.0 * radius >= margin):
+        i, j = code // n, code % n
+        s, t = _segments_closest(x[i], x[i + 1], x[j], x[j + 1])
+        d2 = 0.0
+        for q in range(3):
+            d2 += ((1.0 - s) * x[i, q] + s * x[i + 1, q] - (1.0 - t) * x[j, q] - t * x[j + 1, q]) ** 2
+        if d2 < (2.0 * radius + margin) ** 2:
             return True
     return False
 
 
 @njit(cache=True, error_model="numpy")
-def _self_contacts(x, mass, c, st, key0, self_mu, margin, k_per_mass, zeta):
-    """Contacts between segments of the cable that are not close along it (a cable lying across itself).
+def _self_contacts(x, v, h, mass, c, st, key0, self_mu, margin, k_per_mass, zeta):
+    """Contacts between segments of the cable that are not close along it (a cable lying across or along itself).
 
-    Each side of a close pair of segments i, j gets a contact against the other's capsule held where it
-    is at the start of the step (lagged: the Newton matrix stays banded; extrapolating the other side
-    at its velocity pushed a falling segment through the one it lands on), both with the stiffness of
-    the pair's mean mass.
-    A node's closest point belongs to the segment that starts at it (no double contacts).
-    Candidate pairs come from a grid (:func:`_self_pairs`), in the order of a loop over i then j.
+    Per candidate pair of segments i < j (from a grid, :func:`_self_pairs`, in the order of a loop over i then j),
+    the rows of their closest features, by the rules of :func:`_cable_contacts` with the cable as the other cable:
+    the two edges where they cross at an angle that defines them (:func:`_crossing`), and each node either segment
+    owns (the segment that starts at it; the last node with the last segment) where the other segment holds its
+    closest point on the centre line near it (:func:`_node_on`). A cable folded or coiled along itself then touches
+    at every node of both strands (one closest pair per segment pair left nodes without a row: they sank into the
+    other strand and the Newton steps stopped converging; the lower strand of a fold felt up to 57 times the upper
+    one's weight). Each contact is two rows (:func:`_self_row`).
     """
     n = x.shape[0]
-    radius = c.radius[0]
-    nl = np.empty(3)
-    for code in _self_candidates(x, radius, margin):
-        i, j = code // n, code % n
-        s, t, d = _self_pair(x, i, j, nl)
-        if d < 0.0 or d == 0.0 or d - 2.0 * radius >= margin:
-            continue
-        for q in range(3):
-            nl[q] /= d
-        m_pair = 0.5 * ((1.0 - s) * mass[i] + s * mass[i + 1] + (1.0 - t) * mass[j] + t * mass[j + 1])
-        for side in range(2):  # the same stiffness on both sides: equal and opposite forces at rest
-            k = c.count[0]
-            if k >= c.node.shape[0]:
+    m = n - 1
+    r2 = 2.0 * c.radius[0]
+    for code in _self_candidates(x, c.radius[0], margin):
+        i, j = code // n, code % n  # i < j - 1: segment i never owns the last node
+        s, t = _segments_closest(x[i], x[i + 1], x[j], x[j + 1])
+        if SNAP < s < 1.0 - SNAP and SNAP < t < 1.0 - SNAP and _crossing(x[i], x[i + 1], x[j], x[j + 1], r2):
+            if not _self_row(x, v, h, mass, c, st, key0 + 2 * (i * m + j), i, s, j, t, self_mu, margin,
+                             k_per_mass, zeta):
                 return
-            a, u, b, w = (i, s, j, t) if side == 0 else (j, t, i, s)
-            sg = 1.0 if side == 0 else -1.0
-            for q in range(3):
-                c.normal[k, q] = sg * nl[q]
-                c.point[k, q] = (1.0 - w) * x[b, q] + w * x[b + 1, q] + radius * c.normal[k, q]
-                c.body_vel[k, q] = 0.0  # the other side held where it is (extrapolating it pushes through)
-            c.internal[k] = True
-            key = key0 + 2 * (i * (n - 1) + j) + side
-            _fill(c, st, key, -1, a, a + 1, 1.0 - u, u, self_mu[0], self_mu[1], k_per_mass * m_pair, zeta,
-                  m_pair, x)
+        t = _node_on(x[i], x, j, 0, n)  # node i on segment j
+        if t >= 0.0 and not _self_row(x, v, h, mass, c, st, key0 + 2 * (m * m + i * m + j), i, 0.0, j, t,
+                                      self_mu, margin, k_per_mass, zeta):
+            return
+        for b in range(j, j + 1 + (1 if j == n - 2 else 0)):  # segment j's nodes on segment i
+            s = _node_on(x[b], x, i, 0, n)
+            if s >= 0.0 and not _self_row(x, v, h, mass, c, st, key0 + 2 * (m * m + b * m + i), i, s, b, 0.0,
+                                          self_mu, margin, k_per_mass, zeta):
+                return
+
+
+@njit(cache=True, error_model="numpy")
+def _self_row(x, v, h, mass, c, st, key, i, s, j, t, self_mu, margin, k_per_mass, zeta):
+    """The two rows (keys ``key`` and key + 1) between the cable's point at s on segment i and its point at t on
+    segment j (a node index j = n - 1 with t 0 is the last node), when their capsules are within ``margin`` [m].
+
+    Each side's row is against the plane through the midpoint of the two centre-line points, normal to the line
+    between them, held over the step (lagged: the Newton matrix stays banded; extrapolating the other side at its
+    velocity pushed a falling segment through the one it lands on), with the stiffness of the pair's mean mass:
+    each side takes up half the penetration, equal and opposite forces at rest. (Against the other side's capsule
+    held where it was, each side took up all of it while the other did too: the pair left at twice the speed that
+    undoes the penetration, and a coil settling on itself felt 10-25 times its weight in net self-contact force.)
+
+    Friction acts on the slip of one side over the other: the two sides' stick offsets (material point minus anchor)
+    are made equal and opposite at each detection, so the anchors move with the pair's midpoint, and over the step
+    with the pair's mean velocity v [m/s] (h [s]: the step); each side takes up half the slip. (Anchored in the
+    world, a coil settling as a whole was braked by slip it did not make; a side that slid while the other stuck
+    left offsets in the same direction, a net self force of 5 % of the weight that stayed once both stuck.) The
+    stick spring is SELF_STICK of the penalty stiffness: at the penalty's (k h^2 / m = 1e4) the lagged sticking of
+    the two sides pumped a soft coil at 240 Hz to a stop in 30 steps; at 1 % a stuck row gives 100 mu times the
+    penetration of slip before it slides. Returns False when the rows are full."""
+    n = x.shape[0]
+    if j == n - 1:
+        j, t = n - 2, 1.0
+    radius = c.radius[0]
+    d2 = 0.0
+    for q in range(3):
+        d2 += ((1.0 - s) * x[i, q] + s * x[i + 1, q] - (1.0 - t) * x[j, q] - t * x[j + 1, q]) ** 2
+    d = math.sqrt(d2)
+    if d == 0.0 or d - 2.0 * radius >= margin:
+        return True
+    m_pair = 0.5 * ((1.0 - s) * mass[i] + s * mass[i + 1] + (1.0 - t) * mass[j] + t * mass[j + 1])
+    k0 = c.count[0]
+    if k0 + 1 >= c.node.shape[0]:
+        return False
+    for side in range(2):
+        k = k0 + side
+        a, u, b, w = (i, s, j, t) if side == 0 else (j, t, i, s)
+        for q in range(3):
+            nq = ((1.0 - s) * x[i, q] + s * x[i + 1, q] - (1.0 - t) * x[j, q] - t * x[j + 1, q]) / d
+            c.normal[k, q] = nq if side == 0 else -nq
+            c.point[k, q] = 0.5 * ((1.0 - u) * x[a, q] + u * x[a + 1, q] + (1.0 - w) * x[b, q] + w * x[b + 1, q])
+            c.body_vel[k, q] = 0.0  # the plane held where it is
+        c.internal[k] = True
+        _fill(c, st, key + side, -1, a, a + 1, 1.0 - u, u, self_mu[0], self_mu[1], k_per_mass * m_pair, zeta,
+              m_pair, x)
+        c.k_t[k] = SELF_STICK * c.k_n[k]
+    # the anchors: the two sides' stick offsets made equal and opposite (half their difference each), so that they
+    # move with the midpoint of the material points the slips are measured at; then over the step at its velocity
+    a0, s0, a1, s1 = c.node[k0, 0], c.anchor[k0, 3], c.node[k0 + 1, 0], c.anchor[k0 + 1, 3]
+    for q in range(3):
+        p0 = (1.0 - s0) * x[a0, q] + s0 * x[a0 + 1, q]
+        p1 = (1.0 - s1) * x[a1, q] + s1 * x[a1 + 1, q]
+        v_mid = 0.5 * ((1.0 - s0) * v[a0, q] + s0 * v[a0 + 1, q] + (1.0 - s1) * v[a1, q] + s1 * v[a1 + 1, q])
+        half = 0.5 * ((p0 - c.anchor[k0, q]) - (p1 - c.anchor[k0 + 1, q]))
+        c.anchor[k0, q] = p0 - half + h * v_mid
+        c.anchor[k0 + 1, q] = p1 + half + h * v_mid
+    return True
 
 
 @njit(cache=True, error_model="numpy")
@@ -2657,6 +2706,7 @@ def _cable_moved(c, st, oc, count, h_done):
             st.anchor[key, j] += d
 
 
+SELF_STICK = 0.01  # [-] a self-contact row's stick stiffness over its penalty stiffness (see _self_row)
 SNAP = 1e-9  # [-] an edge-edge closest point this near a segment's end is the end's node (a node row's)
 CROSSING = 0.1  # [-] two segments cross (an edge-edge row) when sin(angle) x the shorter exceeds this x r1 + r2
 
