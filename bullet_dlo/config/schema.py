@@ -15,6 +15,7 @@ from enum import Enum
 from typing import Any, Callable, Iterable, Mapping, TypeVar
 
 from bullet_dlo.core.enums import Discretisation, NamedSet, Section, name_of
+from bullet_dlo.core.spec import SECTION_MAX
 from bullet_dlo.core.validate import ParameterError, check_friction_order
 
 T = TypeVar("T")
@@ -71,8 +72,8 @@ CABLE_BOUNDS: dict[str, tuple[float, float]] = {
     "poisson_ratio": (0.0, 0.4999),  # G = E / (2 (1 + nu)): the twist springs G J / l0
     "shear_modulus": (0.0, 1e13),  # [Pa] G itself (0: from E and nu); a stranded cable's is far below E / 3
     "inner_diameter": (0.0, 1.0),  # [m] tube bore, below the diameter
-    "width": (0.0, 1.0),  # [m] rectangle width (along the section axis d1)
-    "thickness": (0.0, 1.0),  # [m] rectangle thickness (along d2)
+    "width": (0.0, SECTION_MAX),  # [m] rectangle width (along the section axis d1)
+    "thickness": (0.0, SECTION_MAX),  # [m] rectangle thickness (along d2)
 }
 CABLE_NAMES: dict[str, type[NamedSet]] = {"section": Section, "discretisation": Discretisation}
 CABLE_FLAGS = ("twist",)  # true or false (a material frame: twist springs, the grippers' roll)

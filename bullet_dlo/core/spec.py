@@ -28,6 +28,7 @@ from bullet_dlo.core.validate import (
 
 DISCRETISATIONS = Discretisation.names()
 SECTIONS = Section.names()
+SECTION_MAX = 1.0  # [m] a rectangle's width and thickness at most (scene files share it: config.schema)
 RENAMED: dict[str, str] = {"friction": "dynamic_friction"}
 """Deprecated cable parameter names -> their names now (accepted with a DeprecationWarning for one release)."""
 
@@ -141,8 +142,10 @@ class CableSpec:
         set_("twist", bool(self.twist))
         inner = check_nonnegative("inner_diameter", self.inner_diameter)
         if section == "rectangle":  # (a rectangle needs both: "> 0" in the message, not ">= 0")
-            check_positive("width", self.width)
-            check_positive("thickness", self.thickness)
+            for name in ("width", "thickness"):
+                if not 0.0 < check_positive(name, getattr(self, name)) <= SECTION_MAX:
+                    raise ParameterError(f"{name} must be in (0, {SECTION_MAX}] [m] for section: rectangle, got "
+                                         f"{getattr(self, name)!r}")
         width = check_nonnegative("width", self.width)
         thick = check_nonnegative("thickness", self.thickness)
         if section == "tube":

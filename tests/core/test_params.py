@@ -64,11 +64,14 @@ def test_damping_gives_uniform_decay_rate():
         ("poisson_ratio", 0.5, "poisson_ratio must be in [0.0, 0.5)"),
         ("discretisation", "fancy", "discretisation must be one of default, paper"),
         ("length", "abc", "length must be a number"),
+        ("width", 1.5, "width must be in (0, 1.0] [m] for section: rectangle"),  # scene files refuse it too
+        ("thickness", 2.0, "thickness must be in (0, 1.0] [m] for section: rectangle"),
     ],
 )
 def test_invalid_values_name_the_parameter(field, value, needle):
     with pytest.raises(ParameterError, match=None) as err:
-        CableSpec.lv2017(**{field: value})
+        section = {"section": "rectangle", "width": 0.01, "thickness": 0.001} if field in ("width", "thickness") else {}
+        CableSpec.lv2017(**{**section, field: value})
     assert needle in str(err.value)
 
 
