@@ -156,7 +156,7 @@ class BulletCable:
         self.grip = self.control.grip  # friction grips of the ends (grip_with_friction), shared by every contact set
         self.contact = CableContacts(self)  # the contact set, its exclusions, Bullet's filters
         self.contacts_last_step = 0
-        self.record = CableRecord()
+        self.record = CableRecord(self._cp.rows)  # (the step's kernel writes recorded rows into its block)
         self._end_loads = None  # end_loads's machine code, bound on first use
         # a twisting cable: its twist state at self.t (the plan advances self.twist to t + dt in place), kept for
         # state(); None until the first plan (_advance), end_loads() then reads the kernel's loads at self.t
@@ -479,9 +479,12 @@ class BulletCable:
     def _record_row(self, from_kernel: bool = False) -> None:
         """Append a row; ``from_kernel``: the step's kernel wrote its end loads and energy (``inp.record``)."""
         # sample 0 of the held-end samples is the current time (they are planned for the coming step)
-        cp = self._cp
-        if from_kernel:
-            self.record.append(self.t, self.x, self.v, cp.end_force, float(cp.energy[0]))
+        cp, record = self._cp, self.record
+        if from_kernel:  # the kernel wrote the row into cp.rows
+            if record.rows is cp.rows:
+                record.written()
+            else:  # (a record that replaced the cable's own)
+                record.take_from(cp.rows)
         else:
             self.record.append(self.t, self.x, self.v, self.end_forces(),
                                mechanical_energy(self.arrays, self.x, self.v, cp.samples.dir[0]))

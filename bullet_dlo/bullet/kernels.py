@@ -23,6 +23,28 @@ from bullet_dlo.core.kernels.steppers import BDF2, IMPLICIT_EULER, Stepper, adva
 from bullet_dlo.core.kernels.twist import has_twist, set_clamp, twist_ready
 
 
+ROW_FLOATS = 1 << 16  # floats of x and v per block (a block holds min(256, this / (6 n)) rows, at least one)
+
+
+class RecordRows(NamedTuple):
+    """A block of recorded rows: t [s], (k,); x [m], v [m/s], (k, n, 3); end_force [N], (k, 2, 3); energy [J], (k,);
+    count (1,) int64: the rows written so far (the next row's index)."""
+
+    t: np.ndarray
+    x: np.ndarray
+    v: np.ndarray
+    end_force: np.ndarray
+    energy: np.ndarray
+    count: np.ndarray
+
+
+def make_record_rows(n: int, rows: int | None = None) -> RecordRows:
+    """An empty block for an n-node cable (``rows``: its size; default as :data:`ROW_FLOATS` allows)."""
+    k = rows if rows is not None else max(1, min(256, ROW_FLOATS // (6 * max(n, 1))))
+    return RecordRows(np.zeros(k), np.zeros((k, n, 3)), np.zeros((k, n, 3)), np.zeros((k, 2, 3)), np.zeros(k),
+                      np.zeros(1, np.int64))
+
+
 class Coupling(NamedTuple):
     """A cable coupled to Bullet: the model's state and what the coming Bullet step needs.
 
@@ -33,7 +55,8 @@ class Coupling(NamedTuple):
     samples: held-end samples of the planned step's last substep (HeldSamples); end_force [N],
     end_torque [N m]: what the cable exerts on its held ends at the start of the planned step
     (:func:`end_loads`), (2, 3) each; energy [J] (1,): its mechanical energy then (written on
-    recorded steps).
+    recorded steps); rows: the record's block (:class:`RecordRows`) that a recorded step writes its row into
+    (t, x, v, end_force, energy: the row :class:`~bullet_dlo.bullet.recorder.CableRecord` keeps).
     """
 
     dt: float
@@ -49,6 +72,7 @@ class Coupling(NamedTuple):
     end_force: np.ndarray
     end_torque: np.ndarray
     energy: np.ndarray
+    rows: RecordRows
 
 
 class StepInput(NamedTuple):
@@ -57,7 +81,7 @@ class StepInput(NamedTuple):
     t: time of the state the next step is planned from [s]; has_prev: the integrator's history
     (BDF2) is valid; sync: take over the step Bullet just made; check, energy_check: run the
     cheap / energy checks of the detector; record: this step is recorded (end loads and energy
-    into the Coupling); touched_index: spheres that had contacts, (k,) int;
+    into the Coupling, its row into coupling.rows); touched_index: spheres that had contacts, (k,) int;
     touched_pos [m], touched_vel [m/s]: their state read back from Bullet, (k, 3).
     """
 
@@ -423,6 +447,27 @@ def sync_and_advance(stepper, m, plan, ext, cp, ws, det, inp, contacts, bodies, 
         if grip.active[e]:  # Bullet step (the momentum the grip gives the end node is taken from the gripper)
             for j in range(3):
                 cp.end_force[e, j] = -grip.force[e, j]
+    if inp.record:
+        write_row(cp.rows, inp.t, cp.x, cp.v, cp.end_force, cp.energy[0])
     # a last use after the branches (tests/llvm_loops.py)
     _last_use = stepper, m, plan, ext, cp, ws, det, inp, contacts, bodies, guard
     return status, its, ok
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def write_row(rows, t, x, v, end_force, energy):
+    """The row of time t [s] into the next free row of ``rows`` (:class:`RecordRows`; none free: nothing written,
+    which the record's flushing after every row rules out)."""
+    k = rows.count[0]
+    if k >= rows.t.shape[0]:
+        return
+    rows.t[k] = t
+    for i in range(x.shape[0]):
+        for j in range(3):
+            rows.x[k, i, j] = x[i, j]
+            rows.v[k, i, j] = v[i, j]
+    for e in range(2):
+        for j in range(3):
+            rows.end_force[k, e, j] = end_force[e, j]
+    rows.energy[k] = energy
+    rows.count[0] = k + 1

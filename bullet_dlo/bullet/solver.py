@@ -27,7 +27,8 @@ import numba
 import numpy as np
 
 from bullet_dlo.bullet.kernels import (COASTED, FINAL_RATIO, FIRST_ITER, FIRST_MOVED, FIRST_RATIO, RETRY_SUBSTEPS,
-                                       WILD_RATIO, Coupling, StallGuard, StepInput, bind, sync_and_advance)
+                                       WILD_RATIO, Coupling, StallGuard, StepInput, bind, make_record_rows,
+                                       sync_and_advance)
 from bullet_dlo.bullet.solver_call import make_step_args, step_with
 from bullet_dlo.core.engine import NEWTON_WARN_SHARE, DetectorOptions, start_detector
 from bullet_dlo.core.integrators import Integrator, NewtonOptions, make_stepper
@@ -110,7 +111,8 @@ class CableSolver:
         self.coupling = Coupling(dt=float(dt), substeps=substeps, gravity=np.array(gravity, dtype=float),  # writable: one type
                                  x=state.x.copy(), v=state.v.copy(), v_bullet=state.v.copy(), x_new=np.zeros((n, 3)),
                                  v_new=np.zeros((n, 3)), force=np.zeros((n, 3)), samples=empty_samples(),
-                                 end_force=np.zeros((2, 3)), end_torque=np.zeros((2, 3)), energy=np.zeros(1))
+                                 end_force=np.zeros((2, 3)), end_torque=np.zeros((2, 3)), energy=np.zeros(1),
+                                 rows=make_record_rows(n))
         self.workspace = make_workspace(n)
         # the samplers write a twisting cable's clamp axes into the control (not the model)
         self.plan = model.holder_plan(control)

@@ -3,6 +3,8 @@
 - Recorded rows: the step's kernel writes the end loads and the energy of a recorded step; each row must
   equal the read-outs (:meth:`BulletCable.end_forces`, the core's ``mechanical_energy``) of the same state,
   bit for bit, for a free cable on a table and for one whose ends are held by moving external holders.
+- The kernel writes each recorded row into the record's block of rows itself (no copies or appends in Python):
+  every row, across full blocks and beside rows written from Python, equals the state it records, in order.
 - A cable whose contacts the model owns keeps out of Bullet's contacts (its spheres neither touch each
   other nor the ground there) and still lies on the ground at one radius with supports equal to its weight.
 """
@@ -12,6 +14,8 @@ import numpy as np
 import pybullet as pb
 import pytest
 
+from bullet_dlo.bullet import kernels
+from bullet_dlo.bullet.recorder import CableRecord
 from bullet_dlo.bullet.world import BulletWorld
 from bullet_dlo.core.kernels.forces import mechanical_energy
 from bullet_dlo.core.spec import CableSpec
@@ -59,6 +63,35 @@ def test_recorded_rows_equal_the_readouts_with_moving_held_ends(record_every):
             assert np.array_equal(rec.end_forces[-1], cable.end_forces())
             assert rec.energy[-1] == mechanical_energy(cable.arrays, cable.x, cable.v, cable._cp.samples.dir[0])
         assert len(cable.record.t) == 31 and np.abs(cable.record.end_forces[-1]).max() > 0.1
+
+
+def test_rows_written_by_the_kernel_keep_every_state_in_order(monkeypatch):
+    """Blocks of 7 rows (n = 10): 40 recorded steps fill five blocks and part of a sixth; each row is the state
+    (t, x, v) after its step and its end loads, the first row (written from Python) included; a record that
+    replaces the cable's own keeps receiving the rows."""
+    monkeypatch.setattr(kernels, "ROW_FLOATS", 7 * 6 * 10)
+    spec = CableSpec.lv2017(n_masses=10, damping=0.01)
+    with BulletWorld(dt=1 / 240) as world:
+        cable = world.add_cable(spec, start=(0.0, 0.0, 0.01))
+        assert cable.record.rows.t.shape[0] == 7
+        seen = [(cable.t, cable.x.copy(), cable.v.copy(), cable.end_forces())]
+        for _ in range(40):
+            world.step()
+            seen.append((cable.t, cable.x.copy(), cable.v.copy(), cable.end_forces()))
+        rec = cable.record.arrays()
+        assert len(cable.record) == 41 and rec["x"].shape == (41, 10, 3)
+        assert np.array_equal(rec["t"], [s[0] for s in seen])
+        assert np.array_equal(rec["x"], np.array([s[1] for s in seen]))
+        assert np.array_equal(rec["v"], np.array([s[2] for s in seen]))
+        assert np.array_equal(rec["end_forces"], np.array([s[3] for s in seen]))
+        assert np.ptp(rec["x"][:, :, 2]) > 1e-3  # (the cable fell: the rows differ)
+        cable.record = CableRecord()
+        times = []
+        for _ in range(3):
+            world.step()
+            times.append(cable.t)
+        assert cable.record.t == times and times[0] > seen[-1][0]
+        assert np.array_equal(cable.record.x[-1], cable.x)
 
 
 def test_model_contact_cable_rests_on_the_ground_without_bullet_contacts():
