@@ -687,6 +687,15 @@ def summarise(sol, names: list[str], fitted: CableSpec, layout: Layout, options:
     ratio = jk.held_out_rms / jk.in_sample_rms if jk is not None and jk.in_sample_rms > 0 else math.inf
     explained = explained_share(r, layout)
     global_reasons = discrepancy_reasons(blocks, ratio, wh, math.sqrt(sigma2), options)
+    if global_reasons:
+        close = close_match_kinds(layout, loads, options)
+        if close:
+            flags = ", ".join(f"--sigma-{k}" if k != "marker" else "FitOptions.sigma['marker']" for k in close)
+            global_reasons.append(f"the model follows the {', '.join(close)} signal to within {100 * CLOSE_MATCH:g} % "
+                                  f"of its largest value, and the noise level it is held to was taken from the "
+                                  f"samples' differences: a recording with little or no measurement noise (a "
+                                  f"simulation without --noise?) makes any model discrepancy dominate; give the "
+                                  f"noise level the data are to be fitted to ({flags})")
     if explained < options.min_explained:
         global_reasons.append(f"the fitted model explains {100 * max(explained, 0.0):.3g} % of the measured signal "
                               f"(limit {100 * options.min_explained:g} %): it does not reproduce the signal")
@@ -743,6 +752,25 @@ def summarise(sol, names: list[str], fitted: CableSpec, layout: Layout, options:
     res.verdict["other_minima"] = [{"youngs_modulus": e, "cost_rise": (c - float(r @ r)) / (sigma2 * wh.tau_samples)}
                                    for e, c in others]
     return res
+
+
+CLOSE_MATCH = 0.01
+"""[-] A residual RMS below this share of a kind's largest measured magnitude: the model follows the signal
+closely, so a discrepancy verdict there rests on the noise level more than on the model."""
+
+
+def close_match_kinds(layout: Layout, loads: list[ModelRun], options: FitOptions) -> list[str]:
+    """The residual kinds whose noise level was estimated from the samples (not given) and whose residual RMS is
+    below :data:`CLOSE_MATCH` of the largest measured magnitude of that kind, in every recording holding it."""
+    out = []
+    for kind in layout.sigma:
+        if (options.sigma or {}).get(kind):
+            continue
+        held = [i for i, rec in enumerate(layout.recs) if kind in layout.kinds[i]]
+        if held and all(rms_of(layout, loads, i, kind)
+                        < CLOSE_MATCH * float(np.max(np.abs(layout.recs[i].observed(kind)))) for i in held):
+            out.append(kind)
+    return out
 
 
 def second_minimum_reason(others: Sequence[tuple[float, float]], base: float, scale: float) -> str | None:

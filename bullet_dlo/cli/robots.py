@@ -157,6 +157,7 @@ def cmd_render(args: argparse.Namespace) -> int:
         from bullet_dlo.data.recording import write_series
 
         write_series(args.series, recorders[0].arrays(), {"robot": robot, "dt": scene.dt,
+                                                           "integrator": scene.integrator,
                                                            "cable": scene.cable.to_dict()})
     print(f"renderer: {summary['renderer']} ({summary['renderer_note']}); {summary['frames']} frames, "
           f"{summary['format']} ({summary['codec']}) in {summary['wall_time_s']:.1f} s")

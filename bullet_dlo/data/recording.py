@@ -24,7 +24,9 @@ string), ``.h5``/``.hdf5`` (one dataset per column, attributes as in episodes; a
 episode file is read as is), ``.csv`` (only what a fit needs, one row per sample, a header
 naming the columns ``t, left_x, left_y, left_z, left_qx, left_qy, left_qz, left_qw, left_fx,
 left_fy, left_fz`` and the same with ``right_``, in any order, each optionally with its unit in
-brackets: ``t [s], left_x [m], ..., left_fx [N]``). A recording from a real robot in any of these
+brackets: ``t [s], left_x [m], ..., left_fx [N]``; lines before the header that start with ``#`` are
+comments, and one holding a JSON object gives the file's attributes, as ``write_series`` writes a simulation's
+``integrator`` and ``dt``). A recording from a real robot in any of these
 formats needs only ``t``, ``ee_pos``, ``ee_quat`` and ``wrench_world`` (forces; moments optional).
 
 Optional columns a fit also uses (NPZ/HDF5): ``grasp_moment`` (k, 2, 3), the measured moments
@@ -100,7 +102,8 @@ def write_series(path: str | Path, arrays: dict[str, np.ndarray], attrs: dict[st
     if suffix == ".npz":
         save_npz(path, arrays, attrs)
     elif suffix == ".csv":
-        write_csv(path, Recording(arrays["t"], arrays["ee_pos"], arrays["ee_quat"], arrays["wrench_world"][:, :, :3]))
+        write_csv(path, Recording(arrays["t"], arrays["ee_pos"], arrays["ee_quat"], arrays["wrench_world"][:, :, :3]),
+                  _source(attrs))
     else:
         import h5py
 
@@ -114,13 +117,16 @@ def write_series(path: str | Path, arrays: dict[str, np.ndarray], attrs: dict[st
     return path
 
 
-def write_csv(path: str | Path, rec: Recording) -> None:
-    """The CSV form of a recording (header in the module doc, each column's unit in brackets)."""
+def write_csv(path: str | Path, rec: Recording, source: dict[str, Any] | None = None) -> None:
+    """The CSV form of a recording (header in the module doc, each column's unit in brackets); ``source``: the
+    simulation's {"integrator", "dt"}, written as a first line ``# {...}`` (JSON) that :func:`read_recording` takes
+    as the NPZ and HDF5 attributes (without it a simulated file's one-step wrench lag went unmodelled)."""
     header = ["t [s]"] + [f"{arm}_{c}{CSV_UNIT_SUFFIX[c]}" for arm in ("left", "right") for c in CSV_FIELDS]
     cols = [rec.t[:, None]]
     for arm in (0, 1):
         cols += [rec.grasp_pos[:, arm], rec.grasp_quat[:, arm], rec.force[:, arm]]
-    np.savetxt(path, np.hstack(cols), delimiter=",", header=",".join(header), comments="", fmt="%.10g")
+    first = f"# {json.dumps(source)}\n" if source else ""
+    np.savetxt(path, np.hstack(cols), delimiter=",", header=first + ",".join(header), comments="", fmt="%.10g")
 
 
 # ----- reading: every check of a recording file happens here -----------------------------------
@@ -224,7 +230,31 @@ def read_recording(path: str | Path, forces: str = "wrench_world", units: str | 
                              f"{text[:200]}") from None
     rec = check_recording(raw, path.name, flag_units, window, source, cable)
     delay = _wrench_delay(source) if forces == "wrench_world" else 0.0
-    return replace(rec, force_delay=delay) if delay else rec
+    rec = replace(rec, force_delay=delay) if delay else rec
+    fresh = fresh_samples(rec.force, rec.moment) if rec.force is not None else None
+    if fresh is not None and rec.use is None:
+        rec = replace(rec, use=fresh)
+    return rec
+
+
+HELD_SHARE = 0.2
+"""Share of samples [-] that repeat the one before exactly, from which a recording's wrench is taken as a sensor
+sampled slower than the file (held between its samples) and only its fresh samples are compared."""
+
+
+def fresh_samples(force: np.ndarray, moment: np.ndarray | None) -> np.ndarray | None:
+    """Which samples hold a new reading (bool (k,)) when at least :data:`HELD_SHARE` of them repeat the previous
+    sample's forces (and moments) bit for bit, else None. A wrist sensor read at a lower rate than the file's
+    (``arms.sensor_rate``) holds each reading over several samples: compared as they are, the held samples are a
+    lagged copy the model cannot follow, and the noise level from sample-to-sample differences comes out near zero
+    (every fit then reported "model discrepancy dominates")."""
+    k = force.shape[0]
+    flat = force.reshape(k, -1) if moment is None else np.concatenate((force.reshape(k, -1), moment.reshape(k, -1)), 1)
+    same = np.all(flat[1:] == flat[:-1], axis=1)
+    if k < 4 or same.mean() < HELD_SHARE:
+        return None
+    fresh = np.concatenate(([True], ~same))
+    return fresh if fresh.sum() >= 3 else None
 
 
 def check_recording(raw: dict[str, tuple[np.ndarray, str | None]], name: str, flag_units: dict[str, str],
@@ -391,10 +421,15 @@ def _read_csv(path: Path, forces: str, window: Any, flag_units: dict[str, str]) 
     """Columns of a CSV recording, taken by the names in its header (units in brackets)."""
     data = path.read_bytes()
     rows = data.count(b"\n") + (not data.endswith(b"\n"))
-    if window is None:
-        _check_length(path.name, rows - 1)
     text = data.decode("utf-8-sig")
     lines = text.splitlines()
+    source, skip = None, 0
+    while skip < len(lines) and lines[skip].startswith("#"):  # comment lines; "# {...}": a simulation's source
+        source = source or _csv_source(lines[skip][1:])
+        skip += 1
+    if window is None:
+        _check_length(path.name, rows - 1 - skip)
+    lines = lines[skip:]
     header = next(csv.reader([lines[0]])) if lines else []
     parsed = [HEADER_UNIT.match(h) for h in header]
     if not header or any(m is None for m in parsed) or not any(m and m.group(1) == "t" for m in parsed):
@@ -415,7 +450,7 @@ def _read_csv(path: Path, forces: str, window: Any, flag_units: dict[str, str]) 
     index = {n: i for i, n in enumerate(names)}
     unit = {n: parsed[i].group(2) for n, i in index.items()}
     try:
-        values = np.loadtxt(io.StringIO(text), delimiter=",", skiprows=1, ndmin=2, dtype=float, comments=None)
+        values = np.loadtxt(io.StringIO(text), delimiter=",", skiprows=1 + skip, ndmin=2, dtype=float, comments=None)
     except ValueError as err:
         raise ParameterError(f"recording {path.name}: not a numeric CSV ({' '.join(str(err).split())[:160]}); "
                              f"every cell must be a real number") from None
@@ -432,7 +467,16 @@ def _read_csv(path: Path, forces: str, window: Any, flag_units: dict[str, str]) 
 
     raw = {"t": (column("t"), SI_DONE), "ee_pos": arm_block(CSV_FIELDS[:3]), "ee_quat": arm_block(CSV_FIELDS[3:7]),
            "force": arm_block(CSV_FIELDS[7:])}
-    return raw, None
+    return raw, source
+
+
+def _csv_source(comment: str) -> dict[str, Any] | None:
+    """{"integrator", "dt"} from a CSV comment line holding a JSON object (:func:`write_csv`), else None."""
+    try:
+        attrs = json.loads(comment)
+    except ValueError:
+        return None
+    return _source(attrs) if isinstance(attrs, dict) else None
 
 
 def _refuse_pickle(path: Path, err: Exception) -> None:

@@ -3,6 +3,7 @@ within their stated standard errors; a static hold reports the damping as not id
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -148,3 +149,17 @@ def test_a_linear_map_of_the_end_wrenches_is_a_residual_kind_of_its_own():
     lo, hi = res.intervals["youngs_modulus"]
     assert lo <= TRUE.youngs_modulus <= hi and hi / lo - 1 < 0.05
     assert res.to_dict()["per_recording"][0]["linear"]["rms"] == pytest.approx(NOISE, rel=0.2)
+
+
+def test_a_noise_free_recording_that_the_model_misses_says_to_give_its_noise_level():
+    """A recording without measurement noise (made at 1 ms, fitted at 4 ms: the model misses it by a little) has a
+    noise level from its sample differences at round-off, and the fit reports the discrepancy; the reasons now say
+    why and which option gives the noise level (before: no hint). With the level given, not that reason."""
+    rec = synthetic_recording(TRUE, STRETCH_AND_BEND, 1.0, rate=200.0, noise=0.0,
+                              options=FitOptions(integrator="bdf2", dt=1e-3))
+    opts = FitOptions(integrator="bdf2", dt=4e-3, max_evaluations=8, profile_points=0, stiffness_grid=0)
+    res = fit_cable(rec, TRUE, ["youngs_modulus"], opts)
+    assert res.verdict["discrepancy_dominates"]
+    assert any("--sigma-force" in r for r in res.verdict["reasons"]), res.verdict["reasons"]
+    given = fit_cable(rec, TRUE, ["youngs_modulus"], replace(opts, sigma={"force": NOISE}))
+    assert not any("--sigma-force" in r for r in given.verdict["reasons"])

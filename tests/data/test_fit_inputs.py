@@ -401,3 +401,32 @@ def test_cli_refuses_with_exit_2_and_one_line(tmp_path, capsys, fmt):
     assert code == 2 and len(lines) == 1 and "more than 30 times the cable's" in lines[0], lines
     code, lines = run_cli(capsys, ["fit", str(good), *CABLE, "--units", "length=inch", *out])
     assert code == 2 and lines == ["error: units: unit 'inch' not understood for length (use m, cm, mm)"], lines
+
+
+@pytest.mark.parametrize("fmt", FORMATS)
+def test_a_sensor_held_between_its_readings_is_compared_at_its_fresh_samples(tmp_path, fmt):
+    """A wrist sensor read at 100 Hz in a 1 kHz file (``arms.sensor_rate``) holds each reading for ten samples.
+    Compared as they were, the held samples are a lagged copy of the signal and the sample-to-sample noise
+    level came out 100x too small: every fit of such a file said "model discrepancy dominates". Now the reader
+    marks the fresh samples (``use``), and the noise level on them is the sensor's."""
+    from bullet_dlo.analysis.fit_recording import noise_scale
+    from bullet_dlo.data.recording import write_series
+
+    rng = np.random.default_rng(3)
+    a = base(k=1000, rate=1000.0)
+    held = np.repeat(rng.normal(0.0, 0.01, (100, 2, 3)), 10, axis=0)  # 10 mN noise, one draw per reading
+    a["force"] = a["force"] + held
+    wrench = np.concatenate((a["force"], np.zeros_like(a["force"])), axis=2)
+    path = write_series(tmp_path / f"held{fmt}", {"t": a["t"], "ee_pos": a["ee_pos"], "ee_quat": a["ee_quat"],
+                                                  "wrench_world": wrench})
+    rec = read_recording(path)
+    assert rec.use is not None and rec.use.sum() == 100 and np.array_equal(np.flatnonzero(rec.use), np.arange(0, 1000, 10))
+    y = rec.force.reshape(1000, 6)
+    assert 0.007 < noise_scale(y[rec.use]) < 0.013 and noise_scale(y) < 0.002
+    a_fresh = base(k=1000, rate=1000.0)
+    a_fresh["force"] = a_fresh["force"] + rng.normal(0.0, 0.01, (1000, 2, 3))
+    path = write_series(tmp_path / f"fresh{fmt}", {"t": a_fresh["t"], "ee_pos": a_fresh["ee_pos"],
+                                                   "ee_quat": a_fresh["ee_quat"],
+                                                   "wrench_world": np.concatenate((a_fresh["force"],
+                                                                                   np.zeros((1000, 2, 3))), axis=2)})
+    assert read_recording(path).use is None  # a sensor read every sample: all compared

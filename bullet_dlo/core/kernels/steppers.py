@@ -354,7 +354,8 @@ def newton(stepper, m, x, imp, ws, c=None, cap_tol=1e-3, max_passes=10, bd=None)
     decrease (with a round-off allowance) accepts a step (accepting residual decrease lets Newton
     cycle between stick and slide; 30 halvings at most), and the friction caps are an outer fixed
     point: re-taken from the converged X until they change by less than ``cap_tol`` (relative) or
-    after ``max_passes`` passes. Returns (iterations, converged).
+    after ``max_passes`` passes (without free bodies each row's cap moves part way where it overshoots:
+    :func:`~bullet_dlo.core.kernels.contact.relax_caps`). Returns (iterations, converged).
     """
     n = x.shape[0]
     vn, v_try, r, r_try = ws.v_new, ws.v_try, ws.residual, ws.residual_try
@@ -422,6 +423,7 @@ def newton(stepper, m, x, imp, ws, c=None, cap_tol=1e-3, max_passes=10, bd=None)
     nc = c.count[0]
     max_iter = max(stepper.max_iter, _contact.MIN_CONTACT_ITER)
     caps_new = np.empty(max(nc, 1))
+    history = np.zeros((max(nc, 1), 2))  # (contact.relax_caps)
     # bd: free bodies solved with the cable (their velocities: bd.vel_new, started by the caller)
     nb = 0
     for s in range(bd.active.shape[0]):
@@ -456,7 +458,10 @@ def newton(stepper, m, x, imp, ws, c=None, cap_tol=1e-3, max_passes=10, bd=None)
                 converged = True
                 break
             passes += 1
-            c.cap[:nc] = caps_new[:nc]
+            if nb == 0:  # a row whose cap overshoots between passes moves part way (relax_caps): a cable resting
+                _contact.relax_caps(c, caps_new, history, passes)  # over a box edge cycled between two caps of its
+            else:  # wrap row for ever; with free bodies whole (relaxed, a 3 kg box tipping off the cable was stopped)
+                c.cap[:nc] = caps_new[:nc]
             continue
         if it >= max_iter:
             break
