@@ -48,6 +48,8 @@ def check_args(args: argparse.Namespace) -> None:
         raise ParameterError(f"--band LOW HIGH must satisfy 0 < LOW < HIGH [Hz], got {band[0]!r} {band[1]!r}")
     for key, (lo, hi) in INT_RANGES.items():
         v = getattr(args, key)
+        if v is None and key == "n_masses":  # (not given: the recording's simulation's, or 10)
+            continue
         if not lo <= v <= hi:
             raise ParameterError(f"--{key.replace('_', '-')} must be an integer in [{lo}, {hi}], got {v!r}")
 
@@ -90,17 +92,18 @@ def cmd_fit(args: argparse.Namespace) -> int:
         raise ParameterError(f"the model would run {steps:.3g} steps per evaluation (recordings' duration / --dt "
                              f"{args.dt:g} s), more than {MAX_MODEL_STEPS:.0e}: use a larger --dt, fewer or "
                              f"shorter recordings (--time-window T0 T1)")
+    n_masses = args.n_masses or model_masses(recs)
     names = args.params.split(",") if args.params else default_parameters(fit_mass=args.mass is None)
     first = recs[0]
     weight = -float(np.mean(first.force[:, :, 2].sum(axis=1))) if first.force is not None else 0.0  # [N]
     if all(strips):  # beam_handling: the nominal strip as one rectangle-section cable, E and mass as given
         from bullet_dlo.reality.beam import Strip
 
-        spec = Strip().rectangle_spec(args.n_masses)
+        spec = Strip().rectangle_spec(n_masses)
         spec = spec.with_(youngs_modulus=args.youngs_modulus or spec.youngs_modulus, mass=args.mass or spec.mass)
     else:
         spec = CableSpec(length=length, diameter=args.diameter, mass=args.mass or max(weight / 9.81, 1e-4),
-                         youngs_modulus=args.youngs_modulus or 1e8, n_masses=args.n_masses, twist=args.twist)
+                         youngs_modulus=args.youngs_modulus or 1e8, n_masses=n_masses, twist=args.twist)
     from bullet_dlo.cli.quiet import elapsed
 
     with elapsed(f"fit: at most {args.max_evaluations} model runs", args.quiet):
@@ -121,6 +124,21 @@ def cmd_fit(args: argparse.Namespace) -> int:
     print_summary(res)
     print(f"outputs written to {out.resolve()}")
     return 0
+
+
+DEFAULT_N_MASSES = 10
+
+
+def model_masses(recs) -> int:
+    """The model's number of masses when ``--n-masses`` is not given: that of the simulation that made the
+    recordings, where every one of them states the same (a series' ``cable`` attribute, a dataset episode's
+    parameters; within the CLI's range), else :data:`DEFAULT_N_MASSES`. (Fitted with another n, a simulated
+    recording's parameters are those of another discretisation: a 14-mass recording fitted with 10 masses gave E
+    9 % low with a 0.7 % interval.)"""
+    ns = {(r.source or {}).get("n_masses") for r in recs}
+    n = ns.pop() if len(ns) == 1 else None
+    lo, hi = INT_RANGES["n_masses"]
+    return n if isinstance(n, int) and lo <= n <= hi else DEFAULT_N_MASSES
 
 
 BEAM_BAND = (1.5, 8.0)
@@ -283,7 +301,9 @@ def add_parsers(sub, common: argparse.ArgumentParser) -> None:
                    "beam_handling recordings: 1.5 8; else none)")
     s.add_argument("--beam-step", type=int, default=4, help="keep every N-th sample of a beam_handling "
                    "recording (1 kHz / N), 1-100 (4)")
-    s.add_argument("--n-masses", type=int, default=10, help=f"point masses of the model, 3-{MAX_N_MASSES} (10)")
+    s.add_argument("--n-masses", type=int, default=None,
+                   help=f"point masses of the model, 3-{MAX_N_MASSES} (default: the n of the simulation that made the "
+                        f"recordings, when they state it, else {DEFAULT_N_MASSES})")
     s.add_argument("--units", metavar="Q=U,...", help="units of the recording's columns that the file does not "
                    "state: time=s|ms|us, length=m|cm|mm, force=N|mN, moment='N m'|'N mm'|'mN m' (default SI)")
     s.add_argument("--time-window", nargs=2, type=float, metavar=("T0", "T1"), help="fit only the samples with "

@@ -560,12 +560,13 @@ def _read_h5(path: Path, forces: str, window: Any, flag_units: dict[str, str]) -
         for key, obj in present.items():
             unit = obj.attrs.get("units", obj.attrs.get("unit"))
             raw[_role(key, forces)] = (obj[()], _unit_text(unit))
-        attrs = {k: f.attrs[k] for k in ("integrator", "dt") if k in f.attrs} or _episode_params(f.attrs)
+        attrs = {k: f.attrs[k] for k in ("integrator", "dt", "cable", "n_masses") if k in f.attrs}
+        attrs = attrs if "integrator" in attrs else _episode_params(f.attrs)
     return _post(raw), _source(attrs)
 
 
 def _episode_params(attrs: Any) -> dict[str, Any]:
-    """``integrator`` and ``dt`` from a dataset episode's ``params`` attribute (a JSON object), or {}."""
+    """``integrator``, ``dt`` and ``n_masses`` from a dataset episode's ``params`` (a JSON object), or {}."""
     text = attrs.get("params")
     if isinstance(text, bytes):
         text = text.decode("utf-8", "replace")
@@ -573,7 +574,7 @@ def _episode_params(attrs: Any) -> dict[str, Any]:
         params = json.loads(text) if isinstance(text, str) else {}
     except ValueError:
         return {}
-    return {k: params[k] for k in ("integrator", "dt") if isinstance(params, dict) and k in params}
+    return {k: params[k] for k in ("integrator", "dt", "n_masses") if isinstance(params, dict) and k in params}
 
 
 def _wanted(forces: str) -> tuple[list[str], list[str]]:
@@ -634,8 +635,10 @@ def _wrench_delay(source: dict[str, Any] | None) -> float:
 
 
 def _source(attrs: dict[str, Any]) -> dict[str, Any] | None:
-    """{"integrator", "dt"} from a simulated series file's attributes (None when it does not say)."""
+    """{"integrator", "dt"} from a simulated series file's attributes (None when it does not say), with
+    "n_masses" where they give the simulated cable's (``n_masses``, or ``cable`` holding it: a dict or JSON)."""
     integrator, dt = attrs.get("integrator"), attrs.get("dt")
+    n = _cable_n(attrs)
     if isinstance(integrator, bytes):
         integrator = integrator.decode("utf-8", "replace")
     try:
@@ -644,4 +647,24 @@ def _source(attrs: dict[str, Any]) -> dict[str, Any] | None:
         dt = None
     if not integrator or not dt or not math.isfinite(dt) or dt <= 0:
         return None
-    return {"integrator": str(integrator), "dt": dt}
+    return {"integrator": str(integrator), "dt": dt} | ({"n_masses": n} if n else {})
+
+
+def _cable_n(attrs: dict[str, Any]) -> int | None:
+    """The simulated cable's number of masses from series attributes (``n_masses`` or ``cable``), or None."""
+    n = attrs.get("n_masses")
+    cable = attrs.get("cable")
+    if n is None and cable is not None:
+        if isinstance(cable, bytes):
+            cable = cable.decode("utf-8", "replace")
+        if isinstance(cable, str):
+            try:
+                cable = json.loads(cable)
+            except ValueError:
+                cable = None
+        n = cable.get("n_masses") if isinstance(cable, dict) else None
+    try:
+        n = int(n) if n is not None and float(n) == int(n) else None
+    except (TypeError, ValueError, OverflowError):
+        return None
+    return n if n is not None and 2 <= n <= 100_000 else None
