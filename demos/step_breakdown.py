@@ -189,7 +189,7 @@ def main() -> None:
         "    of which unboxing its arguments": lambda: unbox(packed, kargs[7]),
         "    (unboxing the plain call's arguments)": lambda: unbox_plain(*kargs),
         "  model kernel, recorded step": lambda: kernel(packed, kargs_rec[7]),
-        "  recorder row (copies, appends)": lambda: cable._record_row(from_kernel=True),
+        "  recorder row (Python side)": lambda: cable._record_row(from_kernel=True),
     }
     times = {k: [] for k in parts}
     load = os.getloadavg()
