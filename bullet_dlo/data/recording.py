@@ -244,7 +244,8 @@ sampled slower than the file (held between its samples) and only its fresh sampl
 
 def fresh_samples(force: np.ndarray, moment: np.ndarray | None) -> np.ndarray | None:
     """Which samples hold a new reading (bool (k,)) when at least :data:`HELD_SHARE` of them repeat the previous
-    sample's forces (and moments) bit for bit, else None. A wrist sensor read at a lower rate than the file's
+    sample's forces (and moments) bit for bit at a steady rate (a sensor's clock: 80 % of the readings held for the
+    same number of samples, +-1), else None. A wrist sensor read at a lower rate than the file's
     (``arms.sensor_rate``) holds each reading over several samples: compared as they are, the held samples are a
     lagged copy the model cannot follow, and the noise level from sample-to-sample differences comes out near zero
     (every fit then reported "model discrepancy dominates")."""
@@ -254,6 +255,12 @@ def fresh_samples(force: np.ndarray, moment: np.ndarray | None) -> np.ndarray | 
     if k < 4 or same.mean() < HELD_SHARE:
         return None
     fresh = np.concatenate(([True], ~same))
+    runs = np.diff(np.flatnonzero(fresh))  # samples per reading
+    if len(runs) < 2:
+        return None
+    period = np.bincount(runs).argmax()
+    if period < 2 or np.mean(np.abs(runs - period) <= 1) < 0.8:  # not a sensor's clock: e.g. a noise-free
+        return None  # recording at rest, whose repeats carry the static load and stay compared
     return fresh if fresh.sum() >= 3 else None
 
 

@@ -430,6 +430,12 @@ def test_a_sensor_held_between_its_readings_is_compared_at_its_fresh_samples(tmp
                                                    "wrench_world": np.concatenate((a_fresh["force"],
                                                                                    np.zeros((1000, 2, 3))), axis=2)})
     assert read_recording(path).use is None  # a sensor read every sample: all compared
+    a_fresh["force"][:500] = a_fresh["force"][0]  # a noise-free rest for half the file: no sensor clock, all compared
+    path = write_series(tmp_path / f"rest{fmt}", {"t": a_fresh["t"], "ee_pos": a_fresh["ee_pos"],
+                                                  "ee_quat": a_fresh["ee_quat"],
+                                                  "wrench_world": np.concatenate((a_fresh["force"],
+                                                                                  np.zeros((1000, 2, 3))), axis=2)})
+    assert read_recording(path).use is None
 
 
 @pytest.mark.parametrize("fmt", FORMATS)
