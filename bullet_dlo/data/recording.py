@@ -26,7 +26,7 @@ naming the columns ``t, left_x, left_y, left_z, left_qx, left_qy, left_qz, left_
 left_fy, left_fz`` and the same with ``right_``, in any order, each optionally with its unit in
 brackets: ``t [s], left_x [m], ..., left_fx [N]``; lines before the header that start with ``#`` are
 comments, and one holding a JSON object gives the file's attributes, as ``write_series`` writes a simulation's
-``integrator`` and ``dt``). A recording from a real robot in any of these
+``integrator``, ``dt`` and ``n_masses``). A recording from a real robot in any of these
 formats needs only ``t``, ``ee_pos``, ``ee_quat`` and ``wrench_world`` (forces; moments optional).
 
 Optional columns a fit also uses (NPZ/HDF5): ``grasp_moment`` (k, 2, 3), the measured moments
@@ -119,7 +119,7 @@ def write_series(path: str | Path, arrays: dict[str, np.ndarray], attrs: dict[st
 
 def write_csv(path: str | Path, rec: Recording, source: dict[str, Any] | None = None) -> None:
     """The CSV form of a recording (header in the module doc, each column's unit in brackets); ``source``: the
-    simulation's {"integrator", "dt"}, written as a first line ``# {...}`` (JSON) that :func:`read_recording` takes
+    simulation's {"integrator", "dt"} (and "n_masses" where known: :func:`_source`), written as a first line ``# {...}`` (JSON) that :func:`read_recording` takes
     as the NPZ and HDF5 attributes (without it a simulated file's one-step wrench lag went unmodelled)."""
     header = ["t [s]"] + [f"{arm}_{c}{CSV_UNIT_SUFFIX[c]}" for arm in ("left", "right") for c in CSV_FIELDS]
     cols = [rec.t[:, None]]
@@ -478,7 +478,7 @@ def _read_csv(path: Path, forces: str, window: Any, flag_units: dict[str, str]) 
 
 
 def _csv_source(comment: str) -> dict[str, Any] | None:
-    """{"integrator", "dt"} from a CSV comment line holding a JSON object (:func:`write_csv`), else None."""
+    """The source (:func:`_source`) from a CSV comment line holding a JSON object (:func:`write_csv`), else None."""
     try:
         attrs = json.loads(comment)
     except ValueError:
