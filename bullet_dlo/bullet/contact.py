@@ -96,10 +96,15 @@ cable's step: infinite in effect (the condensed contact's softening 1 / (1 + h^2
 is a kinematic obstacle moving with its own velocity), yet not 0, which the kernels read as static (a static hull's
 edges wrap a segment; the work check would not correct a static body's motion)."""
 EXACT_HULLS = True  # convex hulls on the project's geometry (False: Bullet's narrow phase, as for other meshes)
-# [m] a hull's distances (margin included) must match Bullet's within this at every check point 2-3 mm off it: its
-# GJK stops early by up to 4e-5 m near the vertices of the Panda's hulls (its point lies 1e-6 m inside the margin
-# and farther than the exact one), while a compound of hulls or another frame or scale differs by millimetres
+# [m] a hull's distances (margin included) must match Bullet's within this at half the check points 2-3 mm off it or
+# more, with one common margin, and nowhere be larger; a compound of hulls or another frame or scale differs by
+# millimetres. Elsewhere Bullet may be farther by up to HULL_GJK_TOL: its GJK takes support points within 1 cm of
+# one already in its simplex for the same point (the simplex solver's equal-vertex threshold, 1e-4 m^2) and stops,
+# so on a finely faceted hull its distance is too large (measured: pybullet_data's duck scaled 0.08, 0.15 mm; 0.03,
+# 0.29 mm; its sphere_smooth at 0.05, 0.14 mm; 4e-5 m near the Panda's vertices), never too small, and its closest
+# point is still a point of the hull (checked)
 HULL_CHECK_TOL = 1e-4
+HULL_GJK_TOL = 5e-4
 INSIDE_REPORTED = 0.5  # a dynamic body holding the cable's centre line this many radii deep is reported (a box
 # dropped 1 cm crosses it by 0.2 mm for a step at 240 Hz and rests 1.6 mm outside; at 60 Hz it ends 2 mm inside)
 EMPTY_LINK_BOX = 3e-3  # [m] broad-phase box of a link without a collision shape is at most this wide (2 mm measured)
@@ -352,9 +357,10 @@ def _distance(point) -> float:
 
 def keys_per_shape(n: int) -> int:
     """Friction keys of one shape for a cable of n nodes: its nodes, then per feature (0: a segment's own row,
-    1-12: a box's edges; a probed link's further answers: 1-6 for segments) n - 1 segments; a probed link's
-    further node answers take six blocks of n from feature 7 on, 6 keys past the 13 features (:func:`_probe_key`)."""
-    return n + (N_EDGES + 1) * (n - 1) + 6
+    1-12: a box's edges, a hull's blunt edges; a probed link's further answers: 1-6 for segments) n - 1 segments; a
+    probed link's further node answers take six blocks of n from feature 7 on, 6 keys past the 13 features
+    (:func:`_probe_key`); then two more segment features, a probed segment's answers beside its closest one."""
+    return n + (N_EDGES + 3) * (n - 1) + 6
 
 
 def self_keys(n: int) -> int:
@@ -372,6 +378,43 @@ def _probe_key(n: int, i: int, segment: bool, extra: bool, normal) -> int:
     a = max(range(3), key=lambda j: abs(normal[j]))
     d = 2 * a + (normal[a] < 0.0)
     return n + (n - 1) * (1 + d) + i if segment else n + 7 * (n - 1) + d * n + i
+
+
+def _beside_key(n: int, i: int, after: bool) -> int:
+    """The key (within its link's block) of probed segment i's answer beside its closest one, before or ``after``
+    it along the segment (:func:`keys_per_shape`)."""
+    return n + (N_EDGES + 1) * (n - 1) + 6 + (n - 1) * after + i
+
+
+def _along(answer, at, xa, xb, radius: float) -> float:
+    """Where along segment xa-xb [m] a capsule query's answer lies (0 at xa, 1 at xb): the capsule's axis point
+    (the answer's point on the capsule plus ``radius`` along its normal), moved back by the query's shift ``at``,
+    projected on the segment."""
+    pa, nb = answer[5], answer[7]
+    num = den = 0.0
+    for j in range(3):
+        e_j = xb[j] - xa[j]
+        num += (pa[j] - at[j] + radius * nb[j] - xa[j]) * e_j
+        den += e_j * e_j
+    return num / den
+
+
+def _beside(res, first, s_first: float, apart: float, at, xa, xb, radius: float) -> list:
+    """A segment's answers beside its closest one ``first`` (at ``s_first`` along it): of the answers facing the same
+    way (normals within PROBE_SAME_COS), the closest at least ``apart`` before it and the closest as far after it,
+    as (answer, s, after). A segment lying across a finely faceted triangle mesh rests on the next ridge as soon as
+    it tilts: that ridge must already be a row (as a hull's blunt edges beside the closest, :func:`_hull_contacts`)."""
+    m = first[7]
+    out = {}
+    for p in sorted(res, key=_distance):
+        n0, n1, n2 = p[7]
+        if n0 * m[0] + n1 * m[1] + n2 * m[2] <= PROBE_SAME_COS:
+            continue
+        sp = _along(p, at, xa, xb, radius)
+        after = sp > s_first + apart
+        if (after or sp < s_first - apart) and after not in out:
+            out[after] = (p, sp, after)
+    return list(out.values())
 
 
 def _distinct(res) -> list:
@@ -575,7 +618,7 @@ class ContactSet:
         for s in range(nb):
             self._probe_out[s, sorted(rows[s][10])] = True
         self.hulls = _pack_hulls(hulls, [int(r[5][1]) if r[2] == HULL else -1 for r in rows], self.n_exact)
-        cap_p = 2 * (1 + PROBE_EXTRA) * n * max(1, len(probed))
+        cap_p = 2 * (2 + PROBE_EXTRA) * n * max(1, len(probed))  # (segments: two answers beside the closest)
         self.probes = Probes(count=np.zeros(1, np.int64), shape=np.zeros(cap_p, np.int64),
                              node=np.zeros((cap_p, 2), np.int64), weight=np.zeros(cap_p), point=np.zeros((cap_p, 3)),
                              normal=np.zeros((cap_p, 3)), key=np.zeros(cap_p, np.int64))
@@ -604,7 +647,8 @@ class ContactSet:
         n_other = sum(o.model.n for o in self.other_cables)
         nkeys = max(1, nb * self.keys_per_shape + self_keys(n) + (3 * n - 2) * n_other)  # _cable_contacts' keys
         capacity = max(1, nb * (n + 2 * (n - 1)) + 8 * n + 2 * (n * len(self.other_cables) + n_other)
-                       + 2 * PROBE_EXTRA * n * len(probed))  # a probed link's further answers
+                       + 2 * (1 + PROBE_EXTRA) * n * len(probed)  # a probed link's further answers
+                       + (n - 1) * len(hulls))  # a hull's segments: up to three rows each (_hull_contacts)
         # self-contact friction: the cable's own coefficients (negative: no self-contact)
         self.self_mu = np.array([mu_s, mu_d]) if self_contact else np.array([-1.0, -1.0])
         self.contacts: Contacts = make_contacts(n, capacity, radius, grip, section)  # grip: the cable's
@@ -694,15 +738,23 @@ class ContactSet:
         rot = _rotation(orn)
         hu = _pack_hulls([(planes, tri, tri_plane, edges, 0.0)], [0], 1)
         cl, nl = np.zeros(3), np.zeros(3)
-        offsets = []
+        offsets, inside = [], []
         for p in _hull_points(vertices, planes, tri, tri_plane, edges, radius):
             where = (np.asarray(com) + rot @ p).tolist()
             res = pb.getClosestPoints(-1, body, 1.0, -1, link, self._hull_probe, -1, where, physicsClientId=cid)
             if not res:
                 return None
-            offsets.append(hull_distance(hu, 0, p, cl, nl) - radius - min(r[8] for r in res))
-        margin = float(np.median(offsets))
-        if not (0.0 <= margin < 0.05) or max(abs(o - margin) for o in offsets) > HULL_CHECK_TOL:
+            closest = min(res, key=_distance)
+            offsets.append(hull_distance(hu, 0, p, cl, nl) - radius - _distance(closest))
+            on_link = rot.T @ (np.asarray(closest[6]) - np.asarray(com))  # Bullet's closest point on the link
+            inside.append(hull_distance(hu, 0, on_link, cl, nl))
+        offsets = np.array(offsets)
+        # Bullet's distance is never below the true one (HULL_GJK_TOL): the margin is the offsets' top, taken as the
+        # median of those near it (Bullet's rounding is some 1e-9 m either way)
+        agree = offsets.max() - offsets <= HULL_CHECK_TOL
+        margin = float(np.median(offsets[agree]))
+        if not (0.0 <= margin < 0.05 and agree.mean() >= 0.5 and (margin - offsets).max() <= HULL_GJK_TOL
+                and max(inside) <= margin + HULL_CHECK_TOL):
             return None
         return planes, tri, tri_plane, edges, margin
 
@@ -959,7 +1011,8 @@ class ContactSet:
         triangle mesh triangle by triangle: besides the closest answer, answers whose normals differ from every
         closer one's by more than 30 degrees and whose points rise above the closest answer's plane are contacts
         of their own (:func:`_distinct`; a node or segment in a concave corner meets each of its faces or edges),
-        each with its own friction key (:func:`_probe_key`)."""
+        each with its own friction key (:func:`_probe_key`); a segment also keeps the closest answer facing the same
+        way on either side of its closest one (:func:`_beside`: the next ridges of a faceted curve)."""
         pr = self.probes
         pr.count[0] = 0
         cable_box = self._cable_box
@@ -1044,21 +1097,20 @@ class ContactSet:
                 if not res:
                     continue
                 keys = set()
-                for e, best in enumerate(_distinct(res)):
+                xa, xb, r = xl[i], xl[i + 1], self._radius
+                answers = _distinct(res)
+                s_first = _along(answers[0], at, xa, xb, r)
+                answered = [(best, _along(best, at, xa, xb, r), _probe_key(n, i, True, e > 0, best[7]))
+                        for e, best in enumerate(answers)]
+                apart = r / max(math.dist(xa, xb), 1e-12)  # a cable radius along the segment
+                answered += [(best, sp, _beside_key(n, i, after))
+                         for best, sp, after in _beside(res, answers[0], s_first, apart, at, xa, xb, r)]
+                for best, sp, key in answered:
                     if best[8] > min(dist[i], dist[i + 1]) - SEGMENT_DIP:
                         continue  # no closer between the nodes than at them: the nodes carry it
-                    xa, xb = xl[i], xl[i + 1]
-                    pa, nb, r = best[5], best[7], self._radius
-                    num = den = 0.0
-                    for j in range(3):  # the capsule's axis point pa + r n, moved back by the query's shift,
-                        e_j = xb[j] - xa[j]  # projected on the segment
-                        num += (pa[j] - at[j] + r * nb[j] - xa[j]) * e_j
-                        den += e_j * e_j
-                    sp = num / den
-                    key = _probe_key(n, i, True, e > 0, nb)
                     if S_MIN < sp < 1.0 - S_MIN and key not in keys:
                         keys.add(key)
-                        found.append((s, i, i + 1, sp, best[6], nb, key))
+                        found.append((s, i, i + 1, sp, best[6], best[7], key))
         k = min(len(found), pr.shape.shape[0])
         if k:
             row, a, b, w, point, normal, key = zip(*found[:k])
@@ -1710,6 +1762,14 @@ def hull_distance(hu, h, q, out_c, out_n):
     return d - hu.margin[h]
 
 
+@njit(cache=True, inline="always")
+def _edge_cos(hu, e) -> float:
+    """The cosine of the turn between the two faces of hull edge e (1: flat; a sharp edge's is at most
+    cos WRAP_EDGE_MIN)."""
+    n1, n2 = hu.edge_n[e, 0], hu.edge_n[e, 1]
+    return n1[0] * n2[0] + n1[1] * n2[1] + n1[2] * n2[2]
+
+
 @njit(cache=True, error_model="numpy")
 def _hull_contacts(c, st, s, hu, q, x, mass, base, margin, out, sh, k_per_mass, zeta, seg_k, seg_l, seg_b, seg_held):
     """Contacts of the nodes (local positions q (n, 3) [m]) and segments with hull row s (:class:`Hulls`): a
@@ -1762,6 +1822,10 @@ def _hull_contacts(c, st, s, hu, q, x, mass, base, margin, out, sh, k_per_mass, 
     best_c = np.empty(4)
     best_n = np.empty(3)
     qs = np.empty(3)
+    cand_e = np.empty(e1 - e0, np.int64)  # a segment's edges with an interior closest point, their s and distance [m]
+    cand_s = np.empty(e1 - e0)
+    cand_d = np.empty(e1 - e0)
+    picks = np.empty(3, np.int64)
     for i in range(n - 1):
         if out[i] or out[i + 1]:
             continue
@@ -1781,6 +1845,7 @@ def _hull_contacts(c, st, s, hu, q, x, mass, base, margin, out, sh, k_per_mass, 
         best = 1e300
         eb = -1
         sb = 0.0
+        nc = 0
         for e in range(e0, e1):
             P, A, hl = hu.edge_p[e], hu.edge_a[e], hu.edge_hl[e]
             skip = False
@@ -1791,87 +1856,121 @@ def _hull_contacts(c, st, s, hu, q, x, mass, base, margin, out, sh, k_per_mass, 
             if skip and not wrapped:
                 continue
             sp = _segment_axis(q[i], q[i + 1], P, A, hl, m, cl, nl)
-            if sp > 0.0 and cl[3] < best:
-                best, eb, sb = cl[3], e, sp
-                best_c[:] = cl
-                best_n[:] = nl
+            if sp > 0.0:
+                cand_e[nc], cand_s[nc], cand_d[nc] = e, sp, cl[3]
+                nc += 1
+                if cl[3] < best:
+                    best, eb, sb = cl[3], e, sp
         if eb < 0:
             continue
-        n1, n2 = hu.edge_n[eb, 0], hu.edge_n[eb, 1]
-        edge_sharp = (n1[0] * n2[0] + n1[1] * n2[1] + n1[2] * n2[2]) <= math.cos(WRAP_EDGE_MIN)
-        sharp = wraps_i and edge_sharp
-        # a chord cutting the corner through the hull (its closest point inside both faces)
-        behind = (best_n[0] * n1[0] + best_n[1] * n1[1] + best_n[2] * n1[2] < 0.0
-                  and best_n[0] * n2[0] + best_n[1] * n2[1] + best_n[2] * n2[2] < 0.0)
-        cuts = sharp and behind
-        # outside, the edge is the nearest feature only where the direction from it lies between its two faces'
-        # normals (best_n = a n1 + b n2 (+ along the edge) with a, b >= 0); elsewhere (beside a face) the face is
-        c12 = n1[0] * n2[0] + n1[1] * n2[1] + n1[2] * n2[2]
-        d1 = best_n[0] * n1[0] + best_n[1] * n1[1] + best_n[2] * n1[2]
-        d2 = best_n[0] * n2[0] + best_n[1] * n2[1] + best_n[2] * n2[2]
-        beside = not behind and (d1 - c12 * d2 < 0.0 or d2 - c12 * d1 < 0.0)
-        if behind and not sharp:  # (in front of either face's plane the point is outside: no polytope distance)
-            # the segment's point inside the polytope: it leaves by the nearest face (as in detect's boxes)
-            for j in range(3):
-                qs[j] = best_c[j] + best_c[3] * best_n[j]
-            d = _hull_distance(plane, tri, tri_plane, p0, qs, pd, cl, nl)
-            if d < 0.0:
-                if d > min(dist[i], dist[i + 1]) - SEGMENT_DIP:
-                    continue  # the nodes are as deep: they carry it
+        # the closest edge, and the closest blunt one within reach on either side of it along the segment (at least
+        # a radius away): a segment across a faceted curve tilts onto the next ridge, which must already be a row
+        # (with the closest edge's row alone, the row jumped between two ridges 2.4 mm apart on the duck, each time
+        # to the one the solve had just lifted the segment off, and the cable never came to rest)
+        picks[0], picks[1], picks[2] = eb, -1, -1
+        apart = radius / max(math.sqrt((q[i + 1, 0] - q[i, 0]) ** 2 + (q[i + 1, 1] - q[i, 1]) ** 2
+                                       + (q[i + 1, 2] - q[i, 2]) ** 2), 1e-12)
+        d_left, d_right = 1e300, 1e300
+        for k in range(nc):
+            e = cand_e[k]
+            if cand_d[k] - radius >= margin or _edge_cos(hu, e) <= math.cos(WRAP_EDGE_MIN):
+                continue
+            if cand_s[k] < sb - apart and cand_d[k] < d_left:
+                d_left, picks[1] = cand_d[k], e
+            elif cand_s[k] > sb + apart and cand_d[k] < d_right:
+                d_right, picks[2] = cand_d[k], e
+        used = 0  # the features taken by this segment's rows (a bit each)
+        for pick in range(3):
+            eb = picks[pick]
+            if eb < 0:
+                continue
+            sb = _segment_axis(q[i], q[i + 1], hu.edge_p[eb], hu.edge_a[eb], hu.edge_hl[eb], m, best_c, best_n)
+            best = best_c[3]
+            # a sharp edge's row is the segment's own (feature 0: its wrap state); a blunt one's is keyed by its edge (a
+            # feature of 1-12 by its index, the next free one if taken), so a row keeps its friction anchor while the
+            # same ridge carries it whichever of the segment's rows is closest
+            row_key = key
+            if _edge_cos(hu, eb) > math.cos(WRAP_EDGE_MIN):
+                f = eb % N_EDGES
+                while used & (1 << f):
+                    f = (f + 1) % N_EDGES
+                used |= 1 << f
+                row_key = base + n + (1 + f) * (n - 1) + i
+            n1, n2 = hu.edge_n[eb, 0], hu.edge_n[eb, 1]
+            edge_sharp = _edge_cos(hu, eb) <= math.cos(WRAP_EDGE_MIN)
+            sharp = wraps_i and edge_sharp
+            # a chord cutting the corner through the hull (its closest point inside both faces)
+            behind = (best_n[0] * n1[0] + best_n[1] * n1[1] + best_n[2] * n1[2] < 0.0
+                      and best_n[0] * n2[0] + best_n[1] * n2[1] + best_n[2] * n2[2] < 0.0)
+            cuts = sharp and behind
+            # outside, the edge is the nearest feature only where the direction from it lies between its two faces'
+            # normals (best_n = a n1 + b n2 (+ along the edge) with a, b >= 0); elsewhere (beside a face) the face is
+            c12 = n1[0] * n2[0] + n1[1] * n2[1] + n1[2] * n2[2]
+            d1 = best_n[0] * n1[0] + best_n[1] * n1[1] + best_n[2] * n1[2]
+            d2 = best_n[0] * n2[0] + best_n[1] * n2[1] + best_n[2] * n2[2]
+            beside = not behind and (d1 - c12 * d2 < 0.0 or d2 - c12 * d1 < 0.0)
+            if behind and not sharp:  # (in front of either face's plane the point is outside: no polytope distance)
+                # the segment's point inside the polytope: it leaves by the nearest face (as in detect's boxes)
+                for j in range(3):
+                    qs[j] = best_c[j] + best_c[3] * best_n[j]
+                d = _hull_distance(plane, tri, tri_plane, p0, qs, pd, cl, nl)
+                if d < 0.0:
+                    if d > min(dist[i], dist[i + 1]) - SEGMENT_DIP:
+                        continue  # the nodes are as deep: they carry it
+                    for j in range(3):
+                        best_c[j] = cl[j] + m * nl[j]
+                        best_n[j] = nl[j]
+                    best = best_c[3] = d - m
+            elif beside and not sharp:
+                # the direction from the edge runs along the face into the polytope (as detect's box edges before
+                # 2026-12-03: a segment entering a hull next to an edge was pushed into it along the face): the row is
+                # the face's, which is the edge's where the two meet, while the edge is within reach and only for one of
+                # the edge's own faces (another face's row belongs to that face's edges and nodes)
+                if best - radius >= margin:
+                    continue
+                for j in range(3):
+                    qs[j] = best_c[j] + best_c[3] * best_n[j]
+                d = _hull_distance(plane, tri, tri_plane, p0, qs, pd, cl, nl)
+                own1 = nl[0] * n1[0] + nl[1] * n1[1] + nl[2] * n1[2]
+                own2 = nl[0] * n2[0] + nl[1] * n2[1] + nl[2] * n2[2]
+                if max(own1, own2) < 1.0 - 1e-9:
+                    continue
                 for j in range(3):
                     best_c[j] = cl[j] + m * nl[j]
                     best_n[j] = nl[j]
                 best = best_c[3] = d - m
-        elif beside and not sharp:
-            # the direction from the edge runs along the face into the polytope (as detect's box edges before
-            # 2026-12-03: a segment entering a hull next to an edge was pushed into it along the face): the row is
-            # the face's, which is the edge's where the two meet, while the edge is within reach and only for one of
-            # the edge's own faces (another face's row belongs to that face's edges and nodes)
-            if best - radius >= margin:
+            held = sharp and wrapped
+            if not (best - radius < margin or held or cuts):
                 continue
-            for j in range(3):
-                qs[j] = best_c[j] + best_c[3] * best_n[j]
-            d = _hull_distance(plane, tri, tri_plane, p0, qs, pd, cl, nl)
-            own1 = nl[0] * n1[0] + nl[1] * n1[1] + nl[2] * n1[2]
-            own2 = nl[0] * n2[0] + nl[1] * n2[1] + nl[2] * n2[2]
-            if max(own1, own2) < 1.0 - 1e-9:
+            if not edge_sharp and best + m > min(dist[i], dist[i + 1]) - SEGMENT_DIP:
+                continue  # a blunt edge (a faceted curve) no closer between the nodes than at them: the nodes carry it
+            fresh = not (st.active[key] and st.wrap[key])
+            _add(c, st, row_key, s, i, i + 1, 1.0 - sb, sb, best_c, best_n, sh, k_per_mass, zeta, mass, x)
+            k = c.count[0] - 1
+            # the segment before a wrapped one wraps too while its own path goes round the edge: its row then bends the
+            # node between them (the turn over the edge is the edge's), continuously (mark_wrap_neighbours)
+            before = i + 2 < n and st.active[key + 1] and st.wrap[key + 1]
+            if k < 0 or not (sharp and st.keys[k] == key
+                             and (held or cuts or before or _taut(x, i, seg_k[i], seg_l[i], seg_b))):
                 continue
+            rot, pos = sh.rot[s], sh.pos[s]
+            axis = np.empty(3)
+            side = np.empty(3)
+            bl = 0.0
             for j in range(3):
-                best_c[j] = cl[j] + m * nl[j]
-                best_n[j] = nl[j]
-            best = best_c[3] = d - m
-        held = sharp and wrapped
-        if not (best - radius < margin or held or cuts):
-            continue
-        if not edge_sharp and best + m > min(dist[i], dist[i + 1]) - SEGMENT_DIP:
-            continue  # a blunt edge (a faceted curve) no closer between the nodes than at them: the nodes carry it
-        fresh = not (st.active[key] and st.wrap[key])
-        _add(c, st, key, s, i, i + 1, 1.0 - sb, sb, best_c, best_n, sh, k_per_mass, zeta, mass, x)
-        k = c.count[0] - 1
-        # the segment before a wrapped one wraps too while its own path goes round the edge: its row then bends the
-        # node between them (the turn over the edge is the edge's), continuously (mark_wrap_neighbours)
-        before = i + 2 < n and st.active[key + 1] and st.wrap[key + 1]
-        if k < 0 or not (sharp and st.keys[k] == key
-                         and (held or cuts or before or _taut(x, i, seg_k[i], seg_l[i], seg_b))):
-            continue
-        rot, pos = sh.rot[s], sh.pos[s]
-        axis = np.empty(3)
-        side = np.empty(3)
-        bl = 0.0
-        for j in range(3):
-            bl += (n1[j] + n2[j]) ** 2
-        bl = math.sqrt(bl)
-        A = hu.edge_a[eb]
-        for j in range(3):
-            e_j = 0.0
-            for o in range(3):
-                e_j += rot[j, o] * (best_c[o] - m * best_n[o])  # the edge line's point, off the rounding
-            c.point[k, j] = pos[j] + e_j
-            axis[j] = rot[j, 0] * A[0] + rot[j, 1] * A[1] + rot[j, 2] * A[2]
-            side[j] = (rot[j, 0] * (n1[0] + n2[0]) + rot[j, 1] * (n1[1] + n2[1]) + rot[j, 2] * (n1[2] + n2[2])) / bl
-        _make_wrap(c, k, axis, side, seg_k[i], seg_l[i], seg_b[i], seg_b[i + 1], m, fresh, x)
-        if best - radius >= margin and not wrap_active(c, k, x):
-            c.count[0] = k  # the chord has left the edge: the wrap is over
+                bl += (n1[j] + n2[j]) ** 2
+            bl = math.sqrt(bl)
+            A = hu.edge_a[eb]
+            for j in range(3):
+                e_j = 0.0
+                for o in range(3):
+                    e_j += rot[j, o] * (best_c[o] - m * best_n[o])  # the edge line's point, off the rounding
+                c.point[k, j] = pos[j] + e_j
+                axis[j] = rot[j, 0] * A[0] + rot[j, 1] * A[1] + rot[j, 2] * A[2]
+                side[j] = (rot[j, 0] * (n1[0] + n2[0]) + rot[j, 1] * (n1[1] + n2[1]) + rot[j, 2] * (n1[2] + n2[2])) / bl
+            _make_wrap(c, k, axis, side, seg_k[i], seg_l[i], seg_b[i], seg_b[i + 1], m, fresh, x)
+            if best - radius >= margin and not wrap_active(c, k, x):
+                c.count[0] = k  # the chord has left the edge: the wrap is over
 
 
 @njit(cache=True, error_model="numpy")
@@ -1997,7 +2096,7 @@ def detect(x, v, mass, sh, c, bd, st, h, k_per_mass, zeta, self_mu, h_body, h_do
     if h_done > 0.0:
         _cable_moved(c, st, oc, previous.shape[0], h_done)
     n = x.shape[0]
-    per_shape = n + (N_EDGES + 1) * (n - 1) + 6  # keys_per_shape(n)
+    per_shape = n + (N_EDGES + 3) * (n - 1) + 6  # keys_per_shape(n)
     radius = c.radius[0]
     c.count[0] = 0
     q = np.empty((n, 3))
