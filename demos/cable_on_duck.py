@@ -32,17 +32,22 @@ def duck(world: BulletWorld, concave: bool) -> tuple[int, np.ndarray, np.ndarray
     return body, np.array(lo), np.array(hi)
 
 
+
+def lay_across(world: BulletWorld, body: int, lo: np.ndarray, hi: np.ndarray, spec: CableSpec):
+    """The cable laid straight along x, 2 mm above the duck's highest point on the line through its box's middle."""
+    c = 0.5 * (lo + hi)
+    xs = np.linspace(c[0] - 0.15, c[0] + 0.15, 61)
+    rays = pb.rayTestBatch([[x, c[1], hi[2] + 0.1] for x in xs], [[x, c[1], lo[2] - 0.1] for x in xs],
+                           physicsClientId=world.client)
+    top = max(h[3][2] for h in rays if h[0] == body)
+    return world.add_cable(spec, start=(c[0] - 0.15, c[1], top + spec.diameter / 2 + 2e-3), direction=(1, 0, 0))
+
+
 def run(hz: float, n: int, seconds: float, concave: bool) -> None:
     spec = CableSpec.lv2017(n_masses=n, damping=0.02)
-    r = spec.diameter / 2
     with BulletWorld(dt=1.0 / hz, ground=True) as world:
         body, lo, hi = duck(world, concave)
-        c = 0.5 * (lo + hi)
-        xs = np.linspace(c[0] - 0.15, c[0] + 0.15, 61)
-        rays = pb.rayTestBatch([[x, c[1], hi[2] + 0.1] for x in xs], [[x, c[1], lo[2] - 0.1] for x in xs],
-                               physicsClientId=world.client)
-        top = max(h[3][2] for h in rays if h[0] == body)
-        cable = world.add_cable(spec, start=(c[0] - 0.15, c[1], top + r + 2e-3), direction=(1, 0, 0))
+        cable = lay_across(world, body, lo, hi, spec)
         weight = spec.mass * 9.81
         print(f"{'concave' if concave else 'hull'}, n {n}, {hz:.0f} Hz:")
         for k in range(round(seconds / 0.5)):

@@ -12,8 +12,10 @@ Scenes: ``table``: the Lv cable lying on the ground (every node in contact); ``r
 30 g box (4 x 4 x 2 cm, dynamic) resting across it (its twin: the box on the ground, the cable in the air); ``peg``: a soft
 cable (0.6 m, E 2 MPa) over a fixed 20 mm cylinder, both sides hanging with 50 g weights; ``box``
 and ``hull``: the Lv cable lying on a 0.4 x 0.2 x 0.1 m block, a Bullet box (exact geometry) or the
-same block as a convex hull mesh (Bullet's narrow phase, ``getClosestPoints`` per node and segment);
-their contact-free twins have the block in the world too, far from the cable. Step times are thread
+same block as a convex hull mesh (the project's exact hull geometry since 2026-12-01); ``duck``: the Lv cable
+lying across pybullet_data's duck (scaled 0.08, a convex hull of 1070 triangles: a finely faceted curved mesh,
+demos/cable_on_duck.py) and the ground; their contact-free twins have the block or the duck in the world too, far
+from the cable. Step times are thread
 times (``time.thread_time``).
 
 ``--split``: also the contact scene's step part by part (thread time per step, medians of the blocks):
@@ -22,7 +24,7 @@ checks, the planned contact steps), the rest (Bullet's step, the forces to Bulle
 Python), and the stall guard's copies per contact step (its save of what the step reads and writes, timed in a
 compiled loop).
 
-Usage: ``python demos/contact_cost.py [--out DIR] [--masses 20 80] [--scenes table peg box hull resting]
+Usage: ``python demos/contact_cost.py [--out DIR] [--masses 20 80] [--scenes table peg box hull duck resting]
 [--repeats 5] [--block 200] [--split] [--quick]``
 (``--out`` defaults to ``out/contact_cost``; ``--out demos/gallery`` renews the committed pictures)
 (``--quick``: n = 20, one block of 20 steps, no pictures; for smoke tests).
@@ -34,6 +36,7 @@ import json
 import math
 import os
 import statistics
+import sys
 import time
 from pathlib import Path
 
@@ -51,7 +54,8 @@ from bullet_dlo.core.spec import CableSpec  # noqa: E402
 HZ = 240.0
 Q_AXIS_Y = (math.sin(math.pi / 4), 0.0, 0.0, math.cos(math.pi / 4))
 R_PEG = 0.02
-COLORS = {"table": "#c46a2b", "peg": "#3b6ea5", "box": "#6a9a3b", "hull": "#8a4fa0", "resting": "#a03b4f"}
+COLORS = {"table": "#c46a2b", "peg": "#3b6ea5", "box": "#6a9a3b", "hull": "#8a4fa0", "duck": "#b8a030",
+          "resting": "#a03b4f"}
 RESTING_HALF = (0.02, 0.02, 0.01)  # [m] the resting box: 4 cm square across the cable, 2 cm tall (30 g)
 
 
@@ -93,6 +97,18 @@ def scene(kind: str, n: int, contact: bool, renderer: str | None = None):
             cable = world.add_cable(spec, start=(-0.15, 0, top), direction=(1, 0, 0))
         else:
             cable = world.add_cable(spec, start=(-0.15, 0, 0.5), direction=(1, 0, 0), ends=("clamped", "clamped"))
+        return world, cable
+    if kind == "duck":
+        sys.path.insert(0, str(Path(__file__).resolve().parent))
+        from cable_on_duck import duck, lay_across
+
+        spec = CableSpec.lv2017(n_masses=n, damping=0.02)
+        world = BulletWorld(dt=1 / HZ, renderer=renderer)
+        body, lo, hi = duck(world, concave=False)
+        if contact:
+            cable = lay_across(world, body, lo, hi, spec)
+        else:
+            cable = world.add_cable(spec, start=(-0.15, 0.5, 0.5), direction=(1, 0, 0), ends=("clamped", "clamped"))
         return world, cable
     if kind == "resting":
         spec = CableSpec.lv2017(n_masses=n, damping=0.02)
@@ -249,8 +265,8 @@ def main() -> None:
     ap.add_argument("--out", default="out/contact_cost",
                     help="output folder (default out/contact_cost; --out demos/gallery renews the committed pictures)")
     ap.add_argument("--masses", type=int, nargs="+", default=[20, 80])
-    ap.add_argument("--scenes", nargs="+", default=["table", "peg", "box", "hull", "resting"],
-                    choices=["table", "peg", "box", "hull", "resting"])
+    ap.add_argument("--scenes", nargs="+", default=["table", "peg", "box", "hull", "duck", "resting"],
+                    choices=["table", "peg", "box", "hull", "duck", "resting"])
     ap.add_argument("--repeats", type=int, default=5)
     ap.add_argument("--block", type=int, default=200, help="steps per timed block")
     ap.add_argument("--split", action="store_true", help="also the contact step's parts (see the module doc)")
