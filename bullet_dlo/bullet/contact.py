@@ -280,7 +280,8 @@ Bullet's within HULL_CHECK_TOL)."""
 def _hull_points(vertices: np.ndarray, planes: np.ndarray, tri: np.ndarray, tri_plane: np.ndarray, edges,
                  radius: float) -> np.ndarray:
     """Check points [m] (link frame) just outside a hull: off each face's centre, each vertex and each edge's
-    midpoint (at most about HULL_CHECK_POINTS of each), where a compound of hulls, a scaled mesh or another frame would differ."""
+    midpoint (at most about HULL_CHECK_POINTS of each), where a compound of hulls, a mesh read at another scale or in
+    another frame would differ."""
     pts = []
     for f in range(min(len(planes), HULL_CHECK_POINTS)):
         centre = tri[tri_plane == f].reshape(-1, 3).mean(axis=0)
@@ -701,8 +702,8 @@ class ContactSet:
         """The convex hull of a link's one mesh shape (``getMeshData``'s vertices, link centre-of-mass frame) as
         (planes, triangles, their planes, sharp edges, margin [m]) when Bullet's own distances agree with it at
         check points round it (:func:`_hull_points`, within HULL_CHECK_TOL after one common margin); None
-        otherwise (a triangle mesh, a compound of hulls, a scaled or an unreadable mesh stay with Bullet's
-        narrow phase)."""
+        otherwise (a triangle mesh, a compound of hulls or an unreadable mesh stay with Bullet's narrow phase; a
+        scaled mesh's vertices come scaled, and its hull is taken)."""
         cid = self.client
         try:
             count, verts = pb.getMeshData(body, link, physicsClientId=cid)[:2]
