@@ -10,44 +10,27 @@ finely faceted hull"). A cable at rest reads 1.0000 and a kinetic energy that de
 from __future__ import annotations
 
 import argparse
-import os
+import sys
+from pathlib import Path
 
 import numpy as np
-import pybullet as pb
-import pybullet_data
 
 from bullet_dlo.bullet.world import BulletWorld
 from bullet_dlo.core.spec import CableSpec
 
-
-def duck(world: BulletWorld, concave: bool) -> tuple[int, np.ndarray, np.ndarray]:
-    cid = world.client
-    col = pb.createCollisionShape(pb.GEOM_MESH, fileName=os.path.join(pybullet_data.getDataPath(), "duck.obj"),
-                                  meshScale=[0.08] * 3, flags=pb.GEOM_FORCE_CONCAVE_TRIMESH if concave else 0,
-                                  physicsClientId=cid)
-    body = pb.createMultiBody(0, col, -1, [0, 0, 0], pb.getQuaternionFromEuler((np.pi / 2, 0, 0.3)),
-                              physicsClientId=cid)
-    pb.performCollisionDetection(physicsClientId=cid)
-    lo, hi = pb.getAABB(body, -1, physicsClientId=cid)
-    return body, np.array(lo), np.array(hi)
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "bullet"))
+from test_fine_hull import add_mesh, lay_across  # noqa: E402  (the tests' duck and cable placement)
 
 
-
-def lay_across(world: BulletWorld, body: int, lo: np.ndarray, hi: np.ndarray, spec: CableSpec):
-    """The cable laid straight along x, 2 mm above the duck's highest point on the line through its box's middle."""
-    c = 0.5 * (lo + hi)
-    xs = np.linspace(c[0] - 0.15, c[0] + 0.15, 61)
-    rays = pb.rayTestBatch([[x, c[1], hi[2] + 0.1] for x in xs], [[x, c[1], lo[2] - 0.1] for x in xs],
-                           physicsClientId=world.client)
-    top = max(h[3][2] for h in rays if h[0] == body)
-    return world.add_cable(spec, start=(c[0] - 0.15, c[1], top + spec.diameter / 2 + 2e-3), direction=(1, 0, 0))
+def duck(world: BulletWorld, concave: bool) -> int:
+    """pybullet_data's duck scaled 0.08 (its hull, or its triangle mesh if ``concave``), a static body on its side."""
+    return add_mesh(world, "duck.obj", 0.08, concave)
 
 
 def run(hz: float, n: int, seconds: float, concave: bool) -> None:
     spec = CableSpec.lv2017(n_masses=n, damping=0.02)
     with BulletWorld(dt=1.0 / hz, ground=True) as world:
-        body, lo, hi = duck(world, concave)
-        cable = lay_across(world, body, lo, hi, spec)
+        cable = lay_across(world, duck(world, concave), spec)
         weight = spec.mass * 9.81
         print(f"{'concave' if concave else 'hull'}, n {n}, {hz:.0f} Hz:")
         for k in range(round(seconds / 0.5)):

@@ -104,9 +104,9 @@ def scene(kind: str, n: int, contact: bool, renderer: str | None = None):
 
         spec = CableSpec.lv2017(n_masses=n, damping=0.02)
         world = BulletWorld(dt=1 / HZ, renderer=renderer)
-        body, lo, hi = duck(world, concave=False)
+        body = duck(world, concave=False)
         if contact:
-            cable = lay_across(world, body, lo, hi, spec)
+            cable = lay_across(world, body, spec)
         else:
             cable = world.add_cable(spec, start=(-0.15, 0.5, 0.5), direction=(1, 0, 0), ends=("clamped", "clamped"))
         return world, cable
