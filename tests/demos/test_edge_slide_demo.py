@@ -2,20 +2,14 @@
 model's slides are measured against it in docs/concepts/contact.md, "Edges")."""
 from __future__ import annotations
 
-import importlib.util
 import math
-from pathlib import Path
 
 import pytest
-
-ROOT = Path(__file__).resolve().parents[2]
+from demo_module import load
 
 
 def _demo():
-    spec = importlib.util.spec_from_file_location("edge_slide", ROOT / "demos" / "edge_slide.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load("edge_slide")
 
 
 def test_the_rope_holds_below_the_capstan_threshold_and_reaches_its_terminal_speed_above():

@@ -59,14 +59,11 @@ def test_the_demos_geometry_is_the_meshes_it_loads(tmp_path):
     2-20 mm outside the clip (a concave triangle mesh, no margin) Bullet's distance equals it within 1e-6 m;
     from the post (a convex hull, grown by Bullet's 1 mm margin) it is 1 mm less within 1e-5 m; and points
     inside are negative (the post's axis: minus its radius; the clip's slot is outside, by its half width)."""
-    import importlib.util
-
     import numpy as np
     import pybullet as pb
+    from demo_module import load
 
-    spec = importlib.util.spec_from_file_location("mesh_clip", ROOT / "demos" / "mesh_clip.py")
-    mc = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mc)
+    mc = load("mesh_clip")
     clip, post = mc.write_meshes(tmp_path)
     cid = pb.connect(pb.DIRECT)
     try:

@@ -2,18 +2,13 @@
 measured in docs/concepts/model.md and left open)."""
 from __future__ import annotations
 
-import importlib.util
 import math
-from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[2]
+from demo_module import load
 
 
 def _demo():
-    spec = importlib.util.spec_from_file_location("ribbon_landing", ROOT / "demos" / "ribbon_landing.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load("ribbon_landing")
 
 
 def test_a_ribbon_lands_flat_with_friction_and_tilted_without():
