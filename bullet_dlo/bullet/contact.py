@@ -65,7 +65,7 @@ from bullet_dlo.bullet.native import (BASE_STATE, HANDLE, collision_info_init, d
                                       overlapping, read_base_states, status_aabb, submit)
 from bullet_dlo.bullet.shape_data import collision_shapes
 from bullet_dlo.core.kernels.contact import (PENALTY, STICK, WRAP, Bodies, Contacts, _gap, _wrap_cap, make_bodies,
-                                             make_contacts, mark_wrap_neighbours, wrap_active, wrap_energy, wrap_split)
+                                             make_contacts, mark_wrap_neighbours, wrap_active, wrap_energy, wrap_start)
 from bullet_dlo.core.kernels.jit import njit
 
 BOX, SPHERE, CYLINDER, CAPSULE, PROBE, HULL = range(6)  # PROBE: a link measured by Bullet's narrow phase
@@ -1100,9 +1100,9 @@ class ContactSet:
                 keys = set()
                 xa, xb, r = xl[i], xl[i + 1], self._radius
                 answers = _distinct(res)
-                s_first = _along(answers[0], at, xa, xb, r)
                 answered = [(best, _along(best, at, xa, xb, r), _probe_key(n, i, True, e > 0, best[7]))
                         for e, best in enumerate(answers)]
+                s_first = answered[0][1]
                 apart = r / max(math.dist(xa, xb), 1e-12)  # a cable radius along the segment
                 answered += [(best, sp, _beside_key(n, i, after))
                          for best, sp, after in _beside(res, answers[0], s_first, apart, at, xa, xb, r)]
@@ -1535,7 +1535,7 @@ def _make_wrap(c, k, axis, side, ks, l0, kb_a, kb_b, edge_r, fresh, x):
     c.kind[k] = WRAP
     c.cap[k] = 0.0
     if fresh:
-        c.anchor[k, 3] = wrap_split(c, k, x)
+        wrap_start(c, k, x)
         # a wrap that starts with its path already round the edge (a chord cutting the corner, a taut capsule
         # contact) starts with the energy of the path against the chord's: the model's switch, not work of the
         # cable's forces, so the energy check counts it as done on the cable (no false alarm)
@@ -1880,6 +1880,8 @@ def _hull_contacts(c, st, s, hu, q, x, mass, base, margin, out, sh, k_per_mass, 
                 nc += 1
                 if cl[3] < best:
                     best, eb, sb = cl[3], e, sp
+                    best_c[:] = cl  # the closest edge's point and normal (its row's, pick 0 below)
+                    best_n[:] = nl
         if eb < 0:
             continue
         # the closest edge, and the closest blunt one within reach on either side of it along the segment (at least
@@ -1903,7 +1905,8 @@ def _hull_contacts(c, st, s, hu, q, x, mass, base, margin, out, sh, k_per_mass, 
             eb = picks[pick]
             if eb < 0:
                 continue
-            sb = _segment_axis(q[i], q[i + 1], hu.edge_p[eb], hu.edge_a[eb], hu.edge_hl[eb], m, best_c, best_n)
+            if pick > 0:  # (the closest edge's point and normal are best_c, best_n from the edge loop)
+                sb = _segment_axis(q[i], q[i + 1], hu.edge_p[eb], hu.edge_a[eb], hu.edge_hl[eb], m, best_c, best_n)
             best = best_c[3]
             # a sharp edge's row is the segment's own (feature 0: its wrap state); a blunt one's is keyed by its edge (a
             # feature of 1-12 by its index, the next free one if taken), so a row keeps its friction anchor while the

@@ -35,7 +35,7 @@ import numpy as np
 import pytest
 
 from bullet_dlo.bullet.world import BulletWorld
-from bullet_dlo.core.kernels.contact import WRAP, _path, _wrap_eval, make_contacts
+from bullet_dlo.core.kernels.contact import WRAP, _arc_middle, _path, _recentre_wrap, _wrap_eval, make_contacts
 from bullet_dlo.core.model import CableState
 from bullet_dlo.core.spec import CableSpec
 
@@ -225,17 +225,14 @@ def test_wrap_is_a_capstan_over_the_edge():
         assert num == pytest.approx(g, abs=1e-6 * np.abs(g).max())
 
 
-@pytest.mark.xfail(strict=True, reason="known defect (docs/concepts/contact.md, Edges, 2026-12-04): the split over the "
-                   "edge moves with the nodes, so a node near the edge feels about (T1 + T2) / 2; the fixed split "
-                   "that passes this slowed nodes rounding the edge and is not in")
 def test_a_node_near_the_edge_feels_its_own_part_s_tension_along_the_path():
     """Node a on the table a little before the edge (closer than the radius: a coarse cable's last node on the
     table), node b down the side face, the wrap stuck with unequal tensions (a's part shorter in rest length).
     A rope over a post: a feels T1 along the path's direction at a (horizontal, towards the edge), b feels T2
-    along the path at b (up the side face), and the edge takes the rest. With the split (L + d_a - d_b) / 2,
-    a feels (T1 + T2) / 2 along the path plus (T2 - T1) / 2 along its direction from the edge: on the capstan
-    tests' cable 2 mN more pull than its table part holds at 0.9 phi*, and n = 20 with its last table node
-    1.6 mm before the edge slides below the threshold."""
+    along the path at b (up the side face), and the edge takes the rest. With the split (L + d_a - d_b) / 2
+    (before 2026-12-04), a felt (T1 + T2) / 2 along the path plus (T2 - T1) / 2 along its direction from the
+    edge: on the capstan tests' cable 2 mN more pull than its table part holds at 0.9 phi*, and n = 20 with its
+    last table node 1.6 mm before the edge slid below the threshold."""
     r, ks, l0 = 0.002, 800.0, 0.03
     c = _wrap_row(r, ks, l0, 0.0)
     c.cap[0] = 100.0  # stuck
@@ -251,6 +248,74 @@ def test_a_node_near_the_edge_feels_its_own_part_s_tension_along_the_path():
         spring = ks * (length - l0) * chord / length  # the chord's spring on a: the core adds it, the row takes it out
         assert -g[3:6] + spring == pytest.approx(T1 * np.array([1.0, 0.0, 0.0]), abs=1e-9 * abs(T1))
         assert -g[6:9] - spring == pytest.approx(T2 * np.array([0.0, 0.0, 1.0]), abs=1e-9 * abs(T2))
+
+
+
+def _skew_wrap(psi_shift: float, cap: float, kb: float = 2e-4):
+    """A WRAP row round the edge of _wrap_row with the nodes off the faces and apart along the edge (the
+    path unrolled with an offset), bends at both nodes, its split point psi_shift [rad] from its arc's middle."""
+    r, ks, l0 = 0.002, 800.0, 0.03
+    c = _wrap_row(r, ks, l0, kb)
+    x = np.array([[-0.045, -0.004, 0.004], [-0.012, 0.001, 0.0031], [0.0027, 0.006, -0.017],
+                  [0.004, 0.009, -0.046]])
+    c.anchor[0, 0] = _arc_middle(c, 0, x)[0] + psi_shift
+    c.anchor[0, 3] = 0.35
+    c.cap[0] = cap
+    return c, x
+
+
+@pytest.mark.parametrize("psi_shift", [-0.5, 0.0, 0.4, 3.0])
+@pytest.mark.parametrize("cap", [0.0, 0.05, 100.0])
+def test_the_wrap_s_forces_are_its_potential_s_gradient_wherever_its_split_point_lies(psi_shift, cap):
+    """The split point S stays put over a step and may leave the arc within it (3 rad: beyond the path, where
+    a fixed fraction of the path takes over); the row's forces must stay minus the gradient of its potential
+    (the implicit step's line search descends on it), stuck, sliding and frictionless."""
+    c, x = _skew_wrap(psi_shift, cap)
+    g = np.zeros(12)
+    active, W, T1, T2, alpha, slip, _, _ = _wrap_eval(c, 0, x, g, np.zeros((12, 12)), False)
+    assert active and 0.0 < alpha < math.pi
+    if cap == 100.0:
+        assert slip == 0.0 and abs(T1 - T2) > 0.05 * max(T1, T2)
+    num = np.zeros(12)
+    for i in range(12):
+        xp, xm = x.copy(), x.copy()
+        xp[i // 3, i % 3] += 1e-8
+        xm[i // 3, i % 3] -= 1e-8
+        num[i] = (_wrap_eval(c, 0, xp, np.zeros(12), np.zeros((12, 12)), False)[1]
+                  - _wrap_eval(c, 0, xm, np.zeros(12), np.zeros((12, 12)), False)[1]) / 2e-8
+    assert num == pytest.approx(g, abs=2e-6 * np.abs(g).max())
+
+
+def test_moving_the_split_point_keeps_the_tension_of_the_part_that_gives_material():
+    """Between steps a split point S that has left its arc moves to the arc's middle and the material between the
+    old and the new S changes part: the part that gives it keeps its strain (its tension exactly), the other takes
+    material at that strain, so its tension moves towards the giver's by the taken share of its material; the
+    stored energy's change counts as work on the cable (no false energy alarm). An S on its arc stays: moved at
+    every step it would pass tension from the tighter part to the slacker one on each trip back and forth."""
+    for beyond in (-0.2, 0.2):
+        c, x = _skew_wrap(0.0, 100.0, kb=0.0)
+        middle, alpha, L = _arc_middle(c, 0, x)
+        g, h = np.zeros(12), np.zeros((12, 12))
+        c.anchor[0, 0] = middle + beyond * 0.5 * alpha / 0.2  # at either end of the arc: S on it, left alone
+        before = c.anchor[0].copy()
+        _recentre_wrap(c, 0, x)
+        assert (c.anchor[0] == before).all()
+        c.anchor[0, 0] = middle + math.copysign(0.5 * alpha, beyond) + beyond  # off the arc by 0.2 rad
+        _, _, T1, T2, _, _, f_old, e_old = _wrap_eval(c, 0, x, g, h, False)
+        work, sigma = c.body_work[0], c.anchor[0, 3]
+        _recentre_wrap(c, 0, x)
+        assert c.anchor[0, 0] == middle
+        _, _, U1, U2, _, slip, f_new, e_new = _wrap_eval(c, 0, x, g, h, False)
+        moved = (f_new - f_old) * L  # path that part 1 took from part 2 [m]
+        assert slip == 0.0 and abs(moved) > 0.5 * alpha * 0.002  # S moved along the arc by r (alpha / 2 + 0.2)
+        giver, taker, before, after = (U2, U1, T2, T1) if moved > 0 else (U1, U2, T1, T2)
+        assert giver == pytest.approx(before, rel=1e-9)
+        gained = c.anchor[0, 3] - sigma  # the material fraction part 1 took [-]
+        assert gained * moved > 0.0
+        share = abs(gained) / (c.anchor[0, 3] if moved > 0 else 1.0 - c.anchor[0, 3])  # of the taker's material
+        assert taker - after == pytest.approx(share * (before - after), rel=1e-6)
+        assert c.body_work[0] - work == pytest.approx(e_new - e_old, abs=1e-15)
+
 
 
 def test_wrap_potential_is_continuous_where_the_segment_before_meets_the_edge():

@@ -722,12 +722,12 @@ def _add_bend(p, q, k, sign, Jp, Jq, grad, hess, want_hess):
 @njit(cache=True, error_model="numpy")
 def _path_terms(E, A, B, r, xa, xb, want_h, geo, ev, gP, gZ, gL, HP, HL):
     """The path of the axis from xa to xb round the edge line (point E, direction A, wrapping on the side B)
-    as in :func:`_wrap_eval`, with its parts. geo (8,) <- (alpha [rad], P [m] the path across the edge, L
+    as in :func:`_wrap_eval`, with its parts. geo (10,) <- (alpha [rad], P [m] the path across the edge, L
     [m] unrolled, d_a, d_b [m] the nodes' distances from the edge, t_a, t_b [m] the tangents, the sign of
-    phi_a - phi_b); ev (4, 3) <- the unit directions e_a, e_b from the edge to the nodes and their turns
+    phi_a - phi_b, the angles [rad] from B of the tangent points on a's and on b's side); ev (4, 3) <- the unit directions e_a, e_b from the edge to the nodes and their turns
     pe_a, pe_b in the plane across it; gP, gZ, gL (6,) <- dP, d(z_b - z_a), dL over (xa, xb); with want_h
     HP (6, 6) <- d2P (per node, zero across) and HL (6, 6) <- d2L (exact). Returns alpha (<= 0: not wrapped,
-    only d_a and d_b set; 0 also when a node lies on the edge line)."""
+    only d_a, d_b, t_a, t_b and the tangent points' angles set; 0 also when a node lies on the edge line)."""
     Q = np.empty(3)
     Q[0] = A[1] * B[2] - A[2] * B[1]
     Q[1] = A[2] * B[0] - A[0] * B[2]
@@ -751,7 +751,9 @@ def _path_terms(E, A, B, r, xa, xb, want_h, geo, ev, gP, gZ, gL, HP, HL):
     sg = 1.0 if phia >= phib else -1.0
     ta = math.sqrt(max(da * da - r * r, 0.0))
     tb = math.sqrt(max(db * db - r * r, 0.0))
-    alpha = abs(phia - phib) - math.acos(min(r / da, 1.0)) - math.acos(min(r / db, 1.0))
+    beta_a, beta_b = math.acos(min(r / da, 1.0)), math.acos(min(r / db, 1.0))
+    alpha = abs(phia - phib) - beta_a - beta_b
+    geo[5], geo[6], geo[8], geo[9] = ta, tb, phia - sg * beta_a, phib + sg * beta_b
     if alpha <= 0.0:
         return alpha
     P = ta + tb + r * alpha
@@ -795,7 +797,7 @@ def _path(E, A, B, r, xa, xb, gL, HL):
     """The path of the axis from xa to xb round the edge line (point E, direction A, wrapping on the side B)
     as in :func:`_wrap_eval`: returns its arc alpha [rad] (<= 0: not wrapped, gL and HL untouched); gL (6,)
     <- dL/d(xa, xb), HL (6, 6) <- d2L/d(xa, xb)^2 (exact)."""
-    geo = np.empty(8)
+    geo = np.empty(10)
     ev = np.empty((4, 3))
     gP = np.empty(6)
     gZ = np.empty(6)
@@ -822,9 +824,13 @@ def _wrap_eval(c, k, x, grad, hess, want_hess):
     edge: L = sqrt(P^2 + Delta^2). The wrap is active while alpha > 0 (the chord passes closer to the
     edge than r); at alpha = 0 the path is the chord.
 
-    Stretch: the segment's material is split at the edge: part 1 (node a's side, rest length sigma l0,
-    stiffness ks / sigma) spans L1 = (L + d_a - d_b)/2, part 2 the rest, L2 = L - L1 (L1 = d_a for a
-    sharp edge). The edge holds the split (sigma anchored, anchor[k, 3]) while the tensions differ by at
+    Stretch: the segment's material is split at a point S of the arc (its angle psi from B, anchor[k, 0], fixed
+    over a step: :func:`_update_friction` moves it to the arc's middle between steps, the material fraction
+    with it): part 1 (node a's side, rest length sigma l0, stiffness ks / sigma) spans the path from a to S,
+    L1 = L P1 / P with P1 = t_a + r theta_a (theta_a the arc from a's tangent point to S), part 2 the rest,
+    L2 = L - L1. So node a feels T1 along the path and b T2, whatever their distances from the edge (a split
+    that moved with the nodes, (L + d_a - d_b) / 2, pushed a node near the edge along its radius by
+    (T2 - T1) / 2: it lifted the last node on a table off its friction). The edge holds the split (sigma anchored, anchor[k, 3]) while the tensions differ by at
     most the capstan's friction cap = (exp(mu alpha) - 1) T_small (frozen, cap[k]); beyond it the
     material slides over the edge (the slip s minimises the two springs' energy plus cap |s|, the Huber
     potential's limit). Bending: the bends at a and b are measured against the path's directions there
@@ -834,7 +840,7 @@ def _wrap_eval(c, k, x, grad, hess, want_hess):
         W = V(L1, L2) - 1/2 ks (|x_b - x_a| - l0)^2 + sum_{a, b} 1/2 k_b (theta_path^2 - theta_chord^2)
 
     Returns (active, W [J], T1, T2 [N] the two parts' tensions, alpha [rad], slip s [m], L1 / L (the
-    frictionless split), the elastic part of W [J]). grad (12,) <- dW/dX [N], X the positions of nodes
+    frictionless split; not wrapped: t_a / (t_a + t_b), where a wrap starts from), the elastic part of W [J]). grad (12,) <- dW/dX [N], X the positions of nodes
     a - 1, a, b, b + 1 (entries of a missing node stay 0); with want_hess, hess (12, 12) <- an
     approximation of its Hessian [N/m]: the wrapped spring's positive semi-definite part (the two parts'
     springs along the path, the path's geometric stiffness with the mean tension, the tension
@@ -862,7 +868,7 @@ def _wrap_eval(c, k, x, grad, hess, want_hess):
         return False, 0.0, 0.0, 0.0, 0.0, 0.0, 0.5, 0.0
     # the path's geometry, its gradient, and its exact Hessian H_L where the bends or the Newton matrix need it
     need_hl = kba > 0.0 or kbb > 0.0
-    pg = np.empty(8)
+    pg = np.empty(10)
     ev = np.empty((4, 3))
     gP = np.empty(6)
     gZ = np.empty(6)
@@ -874,9 +880,14 @@ def _wrap_eval(c, k, x, grad, hess, want_hess):
     if da == 0.0 or db == 0.0:
         return False, 0.0, 0.0, 0.0, 0.0, 0.0, 0.5, 0.0
     if alpha <= 0.0:
-        return False, 0.0, 0.0, 0.0, 0.0, 0.0, min(max(0.5 * (chord + da - db) / chord, 0.0), 1.0), 0.0
-    P, L, ta, tb = pg[1], pg[2], pg[5], pg[6]
-    L1 = 0.5 * (L + da - db)
+        tt = pg[5] + pg[6]
+        return False, 0.0, 0.0, 0.0, 0.0, 0.0, pg[5] / tt if tt > 0.0 else 0.5, 0.0
+    P, L, ta, tb, sg = pg[1], pg[2], pg[5], pg[6], pg[7]
+    # the path from a to the split point S (kept inside the path: S leaves the arc only within a step)
+    P1 = ta + r * sg * (pg[8] - c.anchor[k, 0])
+    held = P1 < SIGMA_MIN * P or P1 > (1.0 - SIGMA_MIN) * P  # then a fixed fraction of P
+    P1 = min(max(P1, SIGMA_MIN * P), (1.0 - SIGMA_MIN) * P)
+    L1 = L * P1 / P
     L2 = L - L1
     sig = min(max(c.anchor[k, 3], SIGMA_MIN), 1.0 - SIGMA_MIN)
     k1, k2 = ks / sig, ks / (1.0 - sig)
@@ -889,20 +900,24 @@ def _wrap_eval(c, k, x, grad, hess, want_hess):
         slip = (tau - math.copysign(cap, tau)) / (k1 + k2)
     T1, T2 = k1 * (e1 - slip), k2 * (e2 + slip)
     stored = 0.5 * k1 * (e1 - slip) ** 2 + 0.5 * k2 * (e2 + slip) ** 2 - 0.5 * ks * (chord - l0) ** 2
-    # gradients (6,) over (x_a, x_b) of D = d_a - d_b and the chord (P, Z, L from the path)
-    gD = np.empty(6)
+    # gradients (6,) over (x_a, x_b) of the two parts' lengths and the chord (P, Z, L from the path)
+    J1 = np.empty(6)
+    J2 = np.empty(6)
     gC = np.empty(6)
+    for j in range(6):
+        if held:
+            gP1 = (P1 / P) * gP[j]
+        else:  # P1 = t_a + r theta_a: node a's part of dP only
+            gP1 = gP[j] if j < 3 else 0.0
+        J1[j] = (P1 / P) * gL[j] + (L / P) * (gP1 - (P1 / P) * gP[j])
+        J2[j] = gL[j] - J1[j]
     for j in range(3):
-        gD[j] = ev[0, j]
-        gD[3 + j] = -ev[1, j]
         gC[j] = -ch[j] / chord
         gC[3 + j] = ch[j] / chord
     tc = ks * (chord - l0)
     for j in range(6):  # nodes a, b are entries 3..8 of the 12
-        grad[3 + j] = 0.5 * (T1 + T2) * gL[j] + 0.5 * (T1 - T2) * gD[j] - tc * gC[j]
+        grad[3 + j] = T1 * J1[j] + T2 * J2[j] - tc * gC[j]
     if want_hess:
-        J1 = 0.5 * (gL + gD)
-        J2 = 0.5 * (gL - gD)
         kk = k1 * k2 / (k1 + k2)
         tm = max(0.5 * (T1 + T2), 0.0)
         geo = max(1.0 - l0 / chord, 0.0)
@@ -912,13 +927,13 @@ def _wrap_eval(c, k, x, grad, hess, want_hess):
                     h = k1 * J1[i] * J1[j] + k2 * J2[i] * J2[j]
                 else:
                     h = kk * gL[i] * gL[j]
-                # the path's geometric stiffness, its curvature bounded where a tangent is short
-                hl = gP[i] * gP[j] + gZ[i] * gZ[j] - gL[i] * gL[j]
+                # the path's geometric stiffness, its curvature bounded where a tangent is short; a node's
+                # own curvature carries its own part's tension (S fixed: P1 holds a's, P2 b's)
+                h += tm * (gP[i] * gP[j] + gZ[i] * gZ[j] - gL[i] * gL[j]) / L
                 if (i < 3) == (j < 3):
-                    o = 0 if i < 3 else 3
                     d, t = (da, ta) if i < 3 else (db, tb)
-                    hl += P * HP[i, j] * max(t, 1e-6 * r) / max(t, 0.1 * r) if d > r else 0.0
-                h += tm * hl / L
+                    ts = tm if held else max(T1 if i < 3 else T2, 0.0)
+                    h += ts * P * HP[i, j] * max(t, 1e-6 * r) / max(t, 0.1 * r) / L if d > r else 0.0
                 # the chord's own spring (as the core's, compressive part filtered), taken out
                 ii, jj = i % 3, j % 3
                 cc = ch[ii] * ch[jj] / cl2
@@ -1023,12 +1038,53 @@ def mark_wrap_neighbours(c, first):
 
 
 @njit(cache=True, error_model="numpy")
-def wrap_split(c, k, x):
-    """The material fraction [-] of wrap row k's segment on node[k, 0]'s side of the edge that leaves both
-    parts at the same tension (L1 / L, see :func:`_wrap_eval`): a new wrap's friction anchor."""
+def _arc_middle(c, k, x):
+    """The angle [rad] from the side B of the middle of wrap row k's arc at x (where its two tangent points'
+    angles meet when the path does not wrap), the arc alpha [rad] and the unrolled path's length L [m] (0 when
+    not wrapped)."""
+    geo = np.zeros(10)
+    ev = np.empty((4, 3))
+    g6 = np.empty(6)
+    h6 = np.empty((6, 6))
+    a, b = c.node[k, 0], c.node[k, 1]
+    alpha = _path_terms(c.point[k], c.axis[k], c.side[k], c.radius[0] + c.seg[k, 4], x[a], x[b], False, geo, ev,
+                        g6, g6, g6, h6, h6)
+    return 0.5 * (geo[8] + geo[9]), alpha, geo[2] if alpha > 0.0 else 0.0
+
+
+@njit(cache=True, error_model="numpy")
+def wrap_start(c, k, x):
+    """A new wrap's friction anchor: the split point S at its arc's middle, the material fraction [-] on
+    node[k, 0]'s side that leaves both parts at the same tension (L1 / L, see :func:`_wrap_eval`)."""
     g = np.empty(12)
     h = np.empty((12, 12))
-    return _wrap_eval(c, k, x, g, h, False)[6]
+    c.anchor[k, 0] = _arc_middle(c, k, x)[0]
+    c.anchor[k, 3] = _wrap_eval(c, k, x, g, h, False)[6]
+
+
+@njit(cache=True, error_model="numpy")
+def _recentre_wrap(c, k, x):
+    """Where wrap row k's split point S has left its arc at x (a node rounding the edge has passed it), move S
+    to the arc's middle (after a step: within one S stays put, so the nodes feel their own parts' tensions),
+    with the material between the old and the new S: the material fraction sigma changes by that stretch of path
+    over the stretch (1 + T / (k_s l0)) of the part that gives it, which keeps its tension; the other part's moves
+    towards it. Only where S has left the arc: moved at every step, S follows the arc's jitter back and forth,
+    and each return trip passes tension from the tighter part to the slacker one, eroding the capstan's
+    friction. The change of the stored energy counts as work on the cable, as a new wrap's energy does."""
+    g = np.empty(12)
+    h = np.empty((12, 12))
+    psi, alpha, L = _arc_middle(c, k, x)
+    if L == 0.0 or abs(c.anchor[k, 0] - psi) <= 0.5 * alpha:
+        return
+    _, _, T1, T2, _, _, f_old, e_old = _wrap_eval(c, k, x, g, h, False)
+    c.anchor[k, 0] = psi
+    f_new = _wrap_eval(c, k, x, g, h, False)[6]
+    ks, l0 = c.seg[k, 0], c.seg[k, 1]
+    moved = (f_new - f_old) * L  # path that changes from part 2 to part 1 [m]
+    t_left = T2 if moved > 0.0 else T1
+    sig = c.anchor[k, 3] + moved / (l0 + max(t_left, 0.0) / ks)
+    c.anchor[k, 3] = min(max(sig, SIGMA_MIN), 1.0 - SIGMA_MIN)
+    c.body_work[0] += _wrap_eval(c, k, x, g, h, False)[7] - e_old
 
 
 @njit(cache=True, error_model="numpy")
@@ -1786,14 +1842,17 @@ def _update_friction(c, x_end):
             c.cap[k] = max(c.cap[k], _wrap_cap(c, k, x_end))
             active, _, _, _, _, slip, split, _ = _wrap_eval(c, k, x_end, gw, hw, False)
             if not active:  # the chord is clear of the edge: the split that a new wrap starts from
+                c.anchor[k, 0] = _arc_middle(c, k, x_end)[0]
                 c.anchor[k, 3] = split
                 c.state[k] = STICK
-            elif slip == 0.0:
+                continue
+            if slip == 0.0:
                 c.state[k] = STICK
             else:  # the material slid over the edge: the anchor follows
                 c.state[k] = SLIDE
                 sig = c.anchor[k, 3] + slip / c.seg[k, 1]
                 c.anchor[k, 3] = min(max(sig, SIGMA_MIN), 1.0 - SIGMA_MIN)
+            _recentre_wrap(c, k, x_end)
             continue
         ul = _slip(c, k, x_end, u)
         kt = c.k_t[k]
