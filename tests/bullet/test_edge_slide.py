@@ -157,15 +157,33 @@ def test_coarse_cable_slides_at_the_capstan_threshold(n, hz, place):
     """Draped over the edge at rest length (the segment across it wrapped round it) with the lumped hanging fraction phi at 0.9 and at
     1.1 times the capstan threshold phi*(mu): held below, sliding above, no energy alarm. On the code before
     the wrap, n = 10 and 20 hooked above the threshold (the straight segment across the edge)."""
-    x, _ = layout(soft_cable(n), threshold(MU), place, wrapped=True)
+    _held_below_and_sliding_above(n, hz, place, MU)
+
+
+def _held_below_and_sliding_above(n: int, hz: float, place: float, mu0: float) -> None:
+    """The lumped hanging fraction of the draped layout for phi*(mu0) at 0.9 and 1.1 times phi*(mu) (mu set so):
+    held below, sliding above, no energy alarm."""
+    x, _ = layout(soft_cable(n), threshold(mu0), place, wrapped=True)
     phi = lumped_fraction(x)
     travel = {}
     for f in (0.9, 1.1):
         mu = mu_for(phi / f)
-        travel[f], _, cab = hang(soft_cable(n, mu), threshold(MU), place, hz, wrapped=True)
+        travel[f], _, cab = hang(soft_cable(n, mu), threshold(mu0), place, hz, wrapped=True)
         assert cab.stable, (f, cab.reason)
     assert travel[0.9] < HOLD, f"phi = 0.9 phi*: slid {travel[0.9] * 1e3:.1f} mm"
     assert travel[1.1] > SLID, f"phi = 1.1 phi*: held ({travel[1.1] * 1e3:.1f} mm)"
+
+
+@pytest.mark.parametrize("mu0, n, hz, place", [(0.1, 10, 60.0, 0.05), (0.1, 20, 60.0, 0.25), (0.1, 40, 240.0, 0.05),
+                                               (0.3, 20, 240.0, 0.05), (0.6, 10, 240.0, 0.05)])
+def test_a_node_at_the_edge_neither_slides_below_nor_hooks_above_the_threshold(mu0, n, hz, place):
+    """The last table node closer to the edge than the radius (place 0.05) or a slack low-friction cable (mu about
+    0.05-0.08, a node or two hanging). Before 2026-12-04: the split over the edge moved with the nodes and pulled
+    the last table node by (T2 - T1) / 2 along its radius, lifting it off its friction: mu 0.3 n 20 and mu 0.6 n 10
+    slid below the threshold (53 and 64-127 mm); with the split fixed, a node rounding the edge was held at the top of
+    the corner by its bend against the chord of the segment before (not wrapped: its closest point to the edge was
+    that node), and the mu 0.1 cases hooked above it (0.0-3.9 mm)."""
+    _held_below_and_sliding_above(n, hz, place, mu0)
 
 
 def _wrap_row(r: float, ks: float, l0: float, kb: float):
