@@ -200,6 +200,17 @@ def _wrap_row(r: float, ks: float, l0: float, kb: float):
     return c
 
 
+def _numeric_gradient(c, x: np.ndarray, eps: float) -> np.ndarray:
+    """Central differences [N] of wrap row 0's potential W over the positions of its four nodes (12,), step eps [m]."""
+    num = np.zeros(12)
+    for i in range(12):
+        xp, xm = x.copy(), x.copy()
+        xp[i // 3, i % 3] += eps
+        xm[i // 3, i % 3] -= eps
+        num[i] = (_wrap_eval(c, 0, xp, np.zeros(12), np.zeros((12, 12)), False)[1]
+                  - _wrap_eval(c, 0, xm, np.zeros(12), np.zeros((12, 12)), False)[1]) / (2 * eps)
+    return num
+
 def _right_angle_wrap(d: float, r: float, ks: float, l0: float, cap: float):
     """A WRAP row: edge along y through the origin, faces +z and +x, node a on the top (-d, 0, r), node b on
     the side (r, 0, -d); returns the row's results and its gradient over (x_{a-1}, x_a, x_b, x_{b+1})."""
@@ -233,14 +244,7 @@ def test_wrap_is_a_capstan_over_the_edge():
             assert out[5] == 0.0 and out[2] - out[3] == pytest.approx(ks * (L / 2 / 0.4 - L / 2 / 0.6))
         else:  # sliding: the material moves to a's part until the difference is the cap
             assert out[5] > 0.0 and out[2] - out[3] == pytest.approx(cap)
-        num = np.zeros(12)
-        for i in range(12):
-            xp, xm = x.copy(), x.copy()
-            xp[i // 3, i % 3] += 1e-7
-            xm[i // 3, i % 3] -= 1e-7
-            num[i] = (_wrap_eval(c, 0, xp, np.zeros(12), np.zeros((12, 12)), False)[1]
-                      - _wrap_eval(c, 0, xm, np.zeros(12), np.zeros((12, 12)), False)[1]) / 2e-7
-        assert num == pytest.approx(g, abs=1e-6 * np.abs(g).max())
+        assert _numeric_gradient(c, x, 1e-7) == pytest.approx(g, abs=1e-6 * np.abs(g).max())
 
 
 def test_a_node_near_the_edge_feels_its_own_part_s_tension_along_the_path():
@@ -294,14 +298,7 @@ def test_the_wrap_s_forces_are_its_potential_s_gradient_wherever_its_split_point
     assert active and 0.0 < alpha < math.pi
     if cap == 100.0:
         assert slip == 0.0 and abs(T1 - T2) > 0.05 * max(T1, T2)
-    num = np.zeros(12)
-    for i in range(12):
-        xp, xm = x.copy(), x.copy()
-        xp[i // 3, i % 3] += 1e-8
-        xm[i // 3, i % 3] -= 1e-8
-        num[i] = (_wrap_eval(c, 0, xp, np.zeros(12), np.zeros((12, 12)), False)[1]
-                  - _wrap_eval(c, 0, xm, np.zeros(12), np.zeros((12, 12)), False)[1]) / 2e-8
-    assert num == pytest.approx(g, abs=2e-6 * np.abs(g).max())
+    assert _numeric_gradient(c, x, 1e-8) == pytest.approx(g, abs=2e-6 * np.abs(g).max())
 
 
 def test_moving_the_split_point_keeps_the_tension_of_the_part_that_gives_material():
