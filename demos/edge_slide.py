@@ -19,6 +19,11 @@ same drag, phi growing by 1/(n - 1) as each node passes the edge), the yardstick
 ("ok" above the threshold: 20 mm or half the rope's travel, whichever is less):
 
     PYTHONPATH=. python demos/edge_slide.py --lumped [--rates 60 240 1000] [--n 10 20 40] [--places 0.25 0.5 0.75]
+
+``--trace PHI``: one run well above the threshold, the model's and the rope's travel and speed every 0.1 s (where the
+model loses its speed: at each node's crossing of the edge):
+
+    PYTHONPATH=. python demos/edge_slide.py --trace 0.5 --rates 240 --n 20 --places 0.5
 """
 from __future__ import annotations
 
@@ -39,11 +44,22 @@ def rope_travel(n: int, place: float, phi: float, mu: float, settle: float = 0.5
     capstan over the edge hold mu e (1 - phi) w L (e = exp(mu pi / 2)), the drag takes ``drag`` [1/s] times the
     momentum. Stops where the table end reaches the edge, and counts from the release if that is before the watch
     (as the demo's run does)."""
+    path = rope_path(n, place, phi, mu, settle + seconds, drag, length, g, dt)
+    if not path:
+        return 0.0
+    start = next((s for t, s, _ in path if t >= settle), 0.0)
+    return path[-1][1] - start
+
+
+def rope_path(n: int, place: float, phi: float, mu: float, seconds: float, drag: float = 5.0, length: float = 0.6,
+              g: float = 9.81, dt: float = 1e-4) -> list[tuple[float, float, float]]:
+    """(t [s], travel [m], speed [m/s]) after each step dt [s] of :func:`rope_travel`'s rope released at rest, over
+    ``seconds`` or until its table end reaches the edge."""
     e = math.exp(mu * math.pi / 2)
     seg = length / (n - 1)
-    s = v = t = start = 0.0
-    watching = False
-    while t < settle + seconds and s < (1.0 - phi) * length:
+    s = v = t = 0.0
+    out = []
+    while t < seconds and s < (1.0 - phi) * length:
         passed = 0 if s < place * seg else 1 + int((s - place * seg) / seg)
         f = min(phi + passed / (n - 1), 1.0)
         acc = g * (f - mu * e * (1.0 - f)) - drag * v
@@ -52,9 +68,41 @@ def rope_travel(n: int, place: float, phi: float, mu: float, settle: float = 0.5
         v += acc * dt
         s += v * dt
         t += dt
-        if not watching and t >= settle:
-            start, watching = s, True
-    return s - start
+        out.append((t, s, v))
+    return out
+
+
+def trace(hz: float, n: int, place: float, phi: float, mu: float, seconds: float = 1.5) -> None:
+    """Print every 0.1 s the table end's travel and speed of the model (released at rest, draped round the edge with
+    hanging fraction about ``phi``) and of the inextensible rope, and the nodes within 4 mm of the edge."""
+    import numpy as np
+    from test_edge_slide import TABLE, layout, lumped_fraction, soft_cable
+
+    from bullet_dlo.bullet.world import BulletWorld
+    from bullet_dlo.core.model import CableState
+
+    spec = soft_cable(n, mu)
+    x0, _ = layout(spec, phi, place, wrapped=True)
+    rope = rope_path(n, place, lumped_fraction(x0), mu, seconds)
+    print(f"lumped phi {lumped_fraction(x0):.3f}, phi* {mu * math.exp(mu * math.pi / 2) / (1 + mu * math.exp(mu * math.pi / 2)):.3f}")
+    print("| t [s] | model travel [mm] | model speed [mm/s] | rope travel [mm] | rope speed [mm/s] | nodes at the edge |")
+    print("|---|---|---|---|---|---|")
+    with BulletWorld(dt=1.0 / hz, ground=False) as world:
+        world.add_box(TABLE, (-TABLE[0], 0.0, -TABLE[2]), friction=mu)
+        cable = world.add_cable(spec, state=CableState(x0, np.zeros_like(x0)))
+        cable.set_parameters(damp=5.0 * cable.model.arrays.mass)
+        start, every = cable.x[0, 0], max(1, round(hz / 10))
+        for k in range(round(seconds * hz)):
+            world.step()
+            if not cable.stable or cable.x[0, 0] > 0.0:
+                print(f"stopped at {(k + 1) / hz:.3f} s: {cable.reason or 'the table end reached the edge'}")
+                break
+            if (k + 1) % every == 0:
+                t = (k + 1) / hz
+                _, rs, rv = min(rope, key=lambda r: abs(r[0] - t)) if rope else (t, 0.0, 0.0)
+                edge = [i for i in range(n) if abs(cable.x[i, 0]) < 0.004 and cable.x[i, 2] > -0.004]
+                print(f"| {t:.1f} | {(cable.x[0, 0] - start) * 1e3:.1f} | {cable.v[0, 0] * 1e3:.1f} | {rs * 1e3:.1f} | "
+                      f"{rv * 1e3:.1f} | {edge} |", flush=True)
 
 
 def main() -> None:
@@ -65,8 +113,14 @@ def main() -> None:
     ap.add_argument("--places", type=float, nargs="+", default=[0.05, 0.25, 0.5, 0.75])
     ap.add_argument("--mu", type=float, default=0.3)
     ap.add_argument("--lumped", action="store_true", help="the lumped hanging fraction at 0.9 / 1.1 phi*(mu)")
+    ap.add_argument("--trace", type=float, metavar="PHI",
+                    help="one run (the first rate, n and place) released with hanging fraction PHI at --mu: the model's "
+                         "and the rope's travel and speed every 0.1 s")
     args = ap.parse_args()
     sys.path.insert(0, str(TESTS))
+    if args.trace is not None:
+        trace(args.rates[0], args.n[0], args.places[0], args.trace, args.mu)
+        return
     from test_edge_slide import HOLD, SLID, SLIDE, bracket, hang, layout, lumped_fraction, mu_for, soft_cable, threshold
 
     if args.lumped:
