@@ -84,8 +84,10 @@ def trace(hz: float, n: int, place: float, phi: float, mu: float, seconds: float
     spec = soft_cable(n, mu)
     x0, _ = layout(spec, phi, place, wrapped=True)
     rope = rope_path(n, place, lumped_fraction(x0), mu, seconds)
-    print(f"lumped phi {lumped_fraction(x0):.3f}, phi* {mu * math.exp(mu * math.pi / 2) / (1 + mu * math.exp(mu * math.pi / 2)):.3f}")
-    print("| t [s] | model travel [mm] | model speed [mm/s] | rope travel [mm] | rope speed [mm/s] | nodes at the edge |")
+    e = math.exp(mu * math.pi / 2)
+    print(f"lumped phi {lumped_fraction(x0):.3f}, phi* {mu * e / (1 + mu * e):.3f}")
+    print("| t [s] | model travel [mm] | model speed [mm/s] | rope travel [mm] | rope speed [mm/s] | "
+          "nodes at the edge |")
     print("|---|---|---|---|---|---|")
     with BulletWorld(dt=1.0 / hz, ground=False) as world:
         world.add_box(TABLE, (-TABLE[0], 0.0, -TABLE[2]), friction=mu)
@@ -114,8 +116,8 @@ def main() -> None:
     ap.add_argument("--mu", type=float, default=0.3)
     ap.add_argument("--lumped", action="store_true", help="the lumped hanging fraction at 0.9 / 1.1 phi*(mu)")
     ap.add_argument("--trace", type=float, metavar="PHI",
-                    help="one run (the first rate, n and place) released with hanging fraction PHI at --mu: the model's "
-                         "and the rope's travel and speed every 0.1 s")
+                    help="one run (the first rate, n and place) released with hanging fraction PHI at --mu: the "
+                         "model's and the rope's travel and speed every 0.1 s")
     args = ap.parse_args()
     sys.path.insert(0, str(TESTS))
     if args.trace is not None:

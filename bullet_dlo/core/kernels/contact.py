@@ -724,10 +724,11 @@ def _path_terms(E, A, B, r, xa, xb, want_h, geo, ev, gP, gZ, gL, HP, HL):
     """The path of the axis from xa to xb round the edge line (point E, direction A, wrapping on the side B)
     as in :func:`_wrap_eval`, with its parts. geo (10,) <- (alpha [rad], P [m] the path across the edge, L
     [m] unrolled, d_a, d_b [m] the nodes' distances from the edge, t_a, t_b [m] the tangents, the sign of
-    phi_a - phi_b, the angles [rad] from B of the tangent points on a's and on b's side); ev (4, 3) <- the unit directions e_a, e_b from the edge to the nodes and their turns
-    pe_a, pe_b in the plane across it; gP, gZ, gL (6,) <- dP, d(z_b - z_a), dL over (xa, xb); with want_h
-    HP (6, 6) <- d2P (per node, zero across) and HL (6, 6) <- d2L (exact). Returns alpha (<= 0: not wrapped,
-    only d_a, d_b, t_a, t_b and the tangent points' angles set; 0 also when a node lies on the edge line)."""
+    phi_a - phi_b, the angles [rad] from B of the tangent points on a's and on b's side); ev (4, 3) <- the unit
+    directions e_a, e_b from the edge to the nodes and their turns pe_a, pe_b in the plane across it; gP, gZ, gL
+    (6,) <- dP, d(z_b - z_a), dL over (xa, xb); with want_h HP (6, 6) <- d2P (per node, zero across) and HL (6, 6) <-
+    d2L (exact). Returns alpha (<= 0: not wrapped, only d_a, d_b, t_a, t_b and the tangent points' angles set; 0 also
+    when a node lies on the edge line)."""
     Q = np.empty(3)
     Q[0] = A[1] * B[2] - A[2] * B[1]
     Q[1] = A[2] * B[0] - A[0] * B[2]
@@ -824,26 +825,26 @@ def _wrap_eval(c, k, x, grad, hess, want_hess):
     edge: L = sqrt(P^2 + Delta^2). The wrap is active while alpha > 0 (the chord passes closer to the
     edge than r); at alpha = 0 the path is the chord.
 
-    Stretch: the segment's material is split at a point S of the arc (its angle psi from B, anchor[k, 0], fixed
-    over a step: :func:`_update_friction` moves it to the arc's middle between steps, the material fraction
-    with it): part 1 (node a's side, rest length sigma l0, stiffness ks / sigma) spans the path from a to S,
-    L1 = L P1 / P with P1 = t_a + r theta_a (theta_a the arc from a's tangent point to S), part 2 the rest,
-    L2 = L - L1. So node a feels T1 along the path and b T2, whatever their distances from the edge (a split
-    that moved with the nodes, (L + d_a - d_b) / 2, pushed a node near the edge along its radius by
-    (T2 - T1) / 2: it lifted the last node on a table off its friction). The edge holds the split (sigma anchored, anchor[k, 3]) while the tensions differ by at
-    most the capstan's friction cap = (exp(mu alpha) - 1) T_small (frozen, cap[k]); beyond it the
-    material slides over the edge (the slip s minimises the two springs' energy plus cap |s|, the Huber
-    potential's limit). Bending: the bends at a and b are measured against the path's directions there
-    (seg[k, 2], seg[k, 3]: the bending constants at a and b, 0 to leave a bend alone), the turn over the
-    edge is the edge's. The row's potential replaces the segment's own spring and those two bends:
+    Stretch: the segment's material is split at a point S of the arc (its angle psi from B, anchor[k, 0], fixed over a
+    step: :func:`_update_friction` moves it to the arc's middle between steps, the material fraction with it): part 1
+    (node a's side, rest length sigma l0, stiffness ks / sigma) spans the path from a to S, L1 = L P1 / P with P1 = t_a
+    + r theta_a (theta_a the arc from a's tangent point to S), part 2 the rest, L2 = L - L1. So node a feels T1 along
+    the path and b T2, whatever their distances from the edge (a split that moved with the nodes, (L + d_a - d_b) / 2,
+    pushed a node near the edge along its radius by (T2 - T1) / 2: it lifted the last node on a table off its friction).
+    The edge holds the split (sigma anchored, anchor[k, 3]) while the tensions differ by at most the capstan's friction
+    cap = (exp(mu alpha) - 1) T_small (frozen, cap[k]); beyond it the material slides over the edge (the slip s
+    minimises the two springs' energy plus cap |s|, the Huber potential's limit). Bending: the bends at a and b are
+    measured against the path's directions there (seg[k, 2], seg[k, 3]: the bending constants at a and b, 0 to leave a
+    bend alone), the turn over the edge is the edge's. The row's potential replaces the segment's own spring and those
+    two bends:
 
         W = V(L1, L2) - 1/2 ks (|x_b - x_a| - l0)^2 + sum_{a, b} 1/2 k_b (theta_path^2 - theta_chord^2)
 
     Returns (active, W [J], T1, T2 [N] the two parts' tensions, alpha [rad], slip s [m], L1 / L (the
-    frictionless split; not wrapped: t_a / (t_a + t_b), where a wrap starts from), the elastic part of W [J]). grad (12,) <- dW/dX [N], X the positions of nodes
-    a - 1, a, b, b + 1 (entries of a missing node stay 0); with want_hess, hess (12, 12) <- an
-    approximation of its Hessian [N/m]: the wrapped spring's positive semi-definite part (the two parts'
-    springs along the path, the path's geometric stiffness with the mean tension, the tension
+    frictionless split; not wrapped: t_a / (t_a + t_b), where a wrap starts from), the elastic part of W [J]).
+    grad (12,) <- dW/dX [N], X the positions of nodes a - 1, a, b, b + 1 (entries of a missing node stay 0); with
+    want_hess, hess (12, 12) <- an approximation of its Hessian [N/m]: the wrapped spring's positive semi-definite part
+    (the two parts' springs along the path, the path's geometric stiffness with the mean tension, the tension
     difference's term left out) and the bends' Hessians through the first derivatives of the path's
     directions, minus the chord's spring and bends as the core adds them (so the Newton matrix keeps
     the core's kind of spring).
