@@ -161,8 +161,7 @@ def test_cable_slides_over_a_hull_edge_at_the_capstan_threshold(n, hz, place):
 
 @pytest.mark.xfail(strict=True, reason="known defect (docs/concepts/contact.md, Edges, 2026-12-04): the bend at "
                    "the node where the cable leaves the wrap's cylinder has the lever 1 / t (t its tangent, 0 on "
-                   "the cylinder); "
-                   "the run stops as a Newton stall at 1.04 s")
+                   "the cylinder); the run stops as a Newton stall at 1.04 s")
 def test_a_low_friction_cable_below_the_threshold_rests_on_a_hull_edge():
     """mu about 0.09 (phi*(0.1) laid out, mu set for 0.9 phi*), n = 40, 240 Hz, the last table node 0.75 mm before the
     hull table's edge: held and stable. Measured: stopped as "contact Newton stalled far from convergence" (the last

@@ -191,8 +191,7 @@ def test_a_node_at_the_edge_neither_slides_below_nor_hooks_above_the_threshold(m
 
 @pytest.mark.xfail(strict=True, reason="known defect (docs/concepts/contact.md, Edges, 2026-12-04): each node's "
                    "crossing of the edge stops the cable (the bend presses the node onto the edge); it goes "
-                   "0.08-0.60 of the "
-                   "rope's way at mu 0.3")
+                   "0.08-0.60 of the rope's way at mu 0.3")
 def test_above_the_threshold_the_cable_slides_at_least_half_as_far_as_a_rope():
     """n = 20 at 240 Hz, place 0.5, the lumped phi at 1.1 phi*(mu): the table end's travel in the watched second
     against the same lumped cable as an inextensible rope (demos/edge_slide.py's rope_travel: capstan at the edge,
