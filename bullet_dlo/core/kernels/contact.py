@@ -1299,35 +1299,6 @@ def elastic_caps(c, x, out):
 
 
 @njit(cache=True, error_model="numpy")
-def predicted_caps(c, x, v, mass, held, cx, hf, out):
-    """out <- the friction limits [N] a contact solve starts from (the first pass of its outer fixed point on the
-    caps): :func:`elastic_caps` at Newton's first iterate (x, v: the positions and velocities the step predicts from
-    the current velocity, x = x_base + cx v), each penalty row's normal force bounded by the force that stops its
-    approach within the step, k_n max(-g_start, 0) + m q / hf (q > 0 the approach speed, g_start = g + cx q the gap
-    the approach started from, m the effective mass of the row's point, hf [s] the step's force weight; no bound with
-    a held node). Unbounded, a node arriving at q starts with k_n cx q, k_n hf^2 / m times that force (1400-5000 for
-    a 9 g cable of 20 masses at 60 Hz - 1 kHz): a node swinging into a table's side face at 0.7 m/s at 1 kHz started
-    with a 738 N friction cap where about 0.1 N stops it, and Newton's first pass crawled (steps of 1/256) to its
-    iteration limit. The caps then follow the solution as before. Only in solves without free bodies: a body landing
-    on the cable presses its nodes with its own momentum too, and starting those rows from the node's alone changed
-    how resting and thrown bodies settled (7 tests of tests/bullet/test_resting_bodies.py and test_contact_compound.py
-    went wrong)."""
-    elastic_caps(c, x, out)
-    for k in range(c.count[0]):
-        if c.kind[k] == WRAP or out[k] <= 0.0:
-            continue
-        a, b = c.node[k, 0], c.node[k, 1]
-        q = -_approach(c, k, v)
-        if q <= 0.0 or held[a] or held[b]:
-            continue
-        wa, wb = c.weight[k, 0], c.weight[k, 1]
-        inv = 1.0 / mass[a] if a == b else wa * wa / mass[a] + wb * wb / mass[b]
-        fn = c.k_n[k] * max(-(_gap(c, k, x) + cx * q), 0.0) + q / (inv * hf)
-        mu = c.static_friction[k] if c.state[k] == STICK else c.dynamic_friction[k]
-        out[k] = min(out[k], mu * fn)
-
-
-@njit(cache=True, error_model="numpy")
 def caps_settled(c, x, caps_new, cap_tol) -> bool:
     """caps_new <- the friction limits at x (:func:`elastic_caps`); whether they differ from those the solve used
     (c.cap) by at most cap_tol of the largest (the contact Newton solves' outer fixed point on the caps)."""

@@ -431,10 +431,7 @@ def newton(stepper, m, x, imp, ws, c=None, cap_tol=1e-3, max_passes=10, bd=None)
     if nb > 0:
         _contact.load_bodies(c, bd, imp.hf, bd.vel_new)
     _residual(m, imp, ws, vn, r)  # X at the predictor: caps from its penetration
-    if nb == 0:  # bounded by the momentum of the arriving node (a free body's would count too: not bounded)
-        _contact.predicted_caps(c, ws.x_stage, ws.v_stage, m.mass, m.held, imp.cx, imp.hf, c.cap)
-    else:
-        _contact.elastic_caps(c, ws.x_stage, c.cap)
+    _contact.elastic_caps(c, ws.x_stage, c.cap)
     rnorm = _contact_residual(m, imp, ws, r, c)  # the first residual: the same X, V and elastic forces
     # ``fresh``: r, rnorm, ws.x_stage, v_stage and the contact forces are those of vn with the caps in use (the
     # first residual, or an accepted trial's): the loop does not take them again (each residual and its

@@ -1638,7 +1638,7 @@ def coupled_contact(stepper, method, m, x, v, samples, ws, has_prev, c, cap_tol=
     history = np.zeros((max(nc, 1), 2))  # (relax_caps)
     _residual(m, mp, imp, ws, samples, frac, h, tb, wb, wa, vn, wn, wv, rate, tq, r, g, sc)  # X at the predictor
     _contact.set_support(c, sc.edges, wv, m.tw_ref, m.tw_tan)  # (a flat section's reach at the predictor: caps)
-    _contact.predicted_caps(c, ws.x_stage, ws.v_stage, m.mass, m.held, cx, hf, c.cap)  # (bounded by momentum)
+    _contact.elastic_caps(c, ws.x_stage, c.cap)  # caps from its penetration
     rnorm = _add_contacts(m, imp, ws, r, c, sc, wv)
     fresh = True  # r, rnorm, the scratch and the contact forces are those of (vn, wn) with the caps in use
     it = 0
