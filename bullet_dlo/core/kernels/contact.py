@@ -61,6 +61,7 @@ LOCK_STICK, LOCK_SLIDE, LOCK_FREE = 1, 2, 3
 LOCK_SWITCHES = 4  # a row switched this often in one solve follows its slip again
 PENALTY, WRAP = 0, 1  # Contacts.kind: penalty contact, or a segment wrapped round a sharp edge
 SIGMA_MIN = 0.01  # a wrap's material fraction either side of the edge, at least (sub-spring stiffness ks / sigma)
+ARC_BLEND = 0.1  # [rad] a node between two wrapped paths loses its kink's bend as both arcs grow past this
 DEFAULT_ALPHA = 1.0e4  # k_n h^2 / m: contact frequency times step, squared
 MIN_CONTACT_ITER = 30  # Newton iterations allowed in contact at least (stick/slide kinks need more than 8)
 WILD_RATIO = 10.0  # [-] a solve ending this far from convergence (stall_ratio) is wildly far (Bodies.felt_ratio)
@@ -793,6 +794,25 @@ def _path_terms(E, A, B, r, xa, xb, want_h, geo, ev, gP, gZ, gL, HP, HL):
     return alpha
 
 
+@njit(cache=True, error_model="numpy", inline="always")
+def _arc_gradient(geo, ev, r, out):
+    """out (6,) <- d alpha / d(xa, xb) [1/m] of the path :func:`_path_terms` left in geo, ev (wrapped): alpha = sg
+    (phi_a - phi_b) - beta_a - beta_b, d phi = pe / d, d beta = r / (d t) e (0 on the cylinder, d <= r)."""
+    sg, da, db, ta, tb = geo[7], geo[3], geo[4], geo[5], geo[6]
+    ka = r / (da * ta) if da > r and ta > 0.0 else 0.0
+    kb = r / (db * tb) if db > r and tb > 0.0 else 0.0
+    for j in range(3):
+        out[j] = sg * ev[2, j] / da - ka * ev[0, j]
+        out[3 + j] = -sg * ev[3, j] / db - kb * ev[1, j]
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _blend(alpha):
+    """The smoothstep of alpha / ARC_BLEND [-] (0 at alpha = 0, 1 from ARC_BLEND on, C1) and its derivative [1/rad]."""
+    u = min(max(alpha / ARC_BLEND, 0.0), 1.0)
+    return u * u * (3.0 - 2.0 * u), 6.0 * u * (1.0 - u) / ARC_BLEND
+
+
 @njit(cache=True, error_model="numpy")
 def _path(E, A, B, r, xa, xb, gL, HL):
     """The path of the axis from xa to xb round the edge line (point E, direction A, wrapping on the side B)
@@ -835,8 +855,9 @@ def _wrap_eval(c, k, x, grad, hess, want_hess):
     cap = (exp(mu alpha) - 1) T_small (frozen, cap[k]); beyond it the material slides over the edge (the slip s
     minimises the two springs' energy plus cap |s|, the Huber potential's limit). Bending: the bends at a and b are
     measured against the path's directions there (seg[k, 2], seg[k, 3]: the bending constants at a and b, 0 to leave a
-    bend alone), the turn over the edge is the edge's. The row's potential replaces the segment's own spring and those
-    two bends:
+    bend alone), the turn over the edge is the edge's (a node b between two wrapped paths keeps the share
+    1 - s(alpha_ab) s(alpha_bc) of its bend, s the smoothstep of alpha / ARC_BLEND). The row's potential replaces the
+    segment's own spring and those two bends:
 
         W = V(L1, L2) - 1/2 ks (|x_b - x_a| - l0)^2 + sum_{a, b} 1/2 k_b (theta_path^2 - theta_chord^2)
 
@@ -976,7 +997,13 @@ def _wrap_eval(c, k, x, grad, hess, want_hess):
         if kbb > 0.0:
             Jp[:, :] = 0.0
             Jq[:, :] = 0.0
-            next_wraps = _path(E, A, B, r, x[b], x[b + 1], gN, HN) > 0.0
+            geo_n = np.zeros(10)
+            ev_n = np.empty((4, 3))
+            gP_n = np.empty(6)
+            gZ_n = np.empty(6)
+            HP_n = np.empty((6, 6))
+            alpha_n = _path_terms(E, A, B, r, x[b], x[b + 1], True, geo_n, ev_n, gP_n, gZ_n, gN, HP_n, HN)
+            next_wraps = alpha_n > 0.0
             for j in range(3):
                 p[j] = gL[3 + j]
                 for i in range(6):
@@ -989,7 +1016,28 @@ def _wrap_eval(c, k, x, grad, hess, want_hess):
                     q[j] = x[b + 1, j] - x[b, j]
                     Jq[j, 6 + j] = -1.0
                     Jq[j, 9 + j] = 1.0
-            stored += _add_bend(p, q, kbb, 1.0, Jp, Jq, grad, hess, want_hess)
+            keep = 1.0
+            if next_wraps:
+                # b between two wrapped paths: the kink 2 acos(r / d_b) between their tangents at b is no bend of the
+                # cable's (the turn over the edge is the edge's), and its 1/2 k_b theta^2, linear in b's lift off the
+                # cylinder, made b's potential V-shaped there: Newton did not converge in 142 of 144 steps of each
+                # crossing (issue 23 item 3). Kept in full where either arc starts (continuous with a chord's bend),
+                # gone once both arcs exceed ARC_BLEND: keep = 1 - s(alpha_ab) s(alpha_bc), its gradient exact, the
+                # Hessian the kept share of the bend's
+                s_ab, ds_ab = _blend(alpha)
+                s_bc, ds_bc = _blend(alpha_n)
+                keep = 1.0 - s_ab * s_bc
+                if keep < 1.0:
+                    theta = _angle_terms(p[0], p[1], p[2], q[0], q[1], q[2])[0]
+                    e_b = 0.5 * kbb * theta * theta
+                    ga = np.empty(6)
+                    _arc_gradient(pg, ev, r, ga)
+                    gb = np.empty(6)
+                    _arc_gradient(geo_n, ev_n, r, gb)
+                    for j in range(6):
+                        grad[3 + j] -= e_b * ds_ab * s_bc * ga[j]
+                        grad[6 + j] -= e_b * s_ab * ds_bc * gb[j]
+            stored += _add_bend(p, q, kbb * keep, 1.0, Jp, Jq, grad, hess, want_hess)
             Jq[:, :] = 0.0
             for j in range(3):
                 q[j] = x[b + 1, j] - x[b, j]
