@@ -62,6 +62,6 @@ def test_the_table_feels_what_the_sliding_cable_felt_at_every_step():
             load.append(-on_bodies / weight)
         failures = cable.solver.newton_failures - failures
         assert cable.stable
-    assert failures >= 10, failures  # the case this test is about: unconverged steps (35 of 48 on the code before)
+    assert failures >= 5, failures  # the case this test is about: unconverged steps (7 of 48; 35 before 2026-12-04)
     assert max(err) < 1e-3, max(err)  # converged steps within Newton's tolerance (8.7e-5 on the 240-step run)
     assert 0.3 < min(load) and max(load) < 4.0, (min(load), max(load))

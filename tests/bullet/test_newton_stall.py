@@ -20,6 +20,7 @@ import pytest
 from bullet_dlo.bullet import solver as solver_mod
 from bullet_dlo.bullet.kernels import COAST_MOVE, COASTED, FIRST_ITER, FIRST_MOVED, FIRST_RATIO, RETRY_SUBSTEPS
 from bullet_dlo.bullet.world import BulletWorld
+from bullet_dlo.core.engine import NEWTON_WARN_SHARE
 from bullet_dlo.core.kernels.monitor import STALLED
 from bullet_dlo.core.model import CableState
 from bullet_dlo.core.spec import CableSpec
@@ -210,8 +211,9 @@ def test_a_contact_step_taken_again_from_the_guard_is_the_same_step():
 
 def test_many_unconverged_steps_warn_once_with_their_share():
     """A cable sliding over a box edge at 1 kHz (tests/bullet/test_edge_slide.py, n = 40, place 0.75, above the
-    threshold) ends about 40 % of its steps unconverged, far from convergence but never coasting: the steps are
-    kept (no retry, the run goes on) and one RuntimeWarning gives the share, as the core engine's result does."""
+    threshold) ends about 8 % of its steps unconverged (40 % before the bend between two wraps kept only its share,
+    2026-12-04), far from convergence but never coasting: the steps are kept (no retry, the run goes on) and one
+    RuntimeWarning gives the share (above NEWTON_WARN_SHARE), as the core engine's result does."""
     from test_edge_slide import bracket, hang, soft_cable, threshold
     spec = soft_cable(40)
     _, above = bracket(spec.n_masses, 0.75, threshold(0.3))
@@ -220,7 +222,7 @@ def test_many_unconverged_steps_warn_once_with_their_share():
         travel, _, cable = hang(spec, above, 0.75, 1000.0, settle=0.2, seconds=0.3)
     s = cable.solver
     assert cable.stable and s.stall_retries == 0 and s.coasts == 0
-    assert s.newton_failures > 0.1 * s.steps_planned and s.far_kept > 0
+    assert s.newton_failures > 3 * NEWTON_WARN_SHARE * s.steps_planned and s.far_kept > 0
     assert s.near_misses + s.far_kept == s.newton_failures  # every unconverged step was a contact solve, kept
     text = [str(w.message) for w in caught if issubclass(w.category, RuntimeWarning) and "Newton" in str(w.message)]
     assert len(text) == 1 and "%" in text[0] and "kept" in text[0], text
