@@ -454,8 +454,9 @@ def test_the_bend_at_a_node_between_two_wraps_is_the_potential_s_gradient(theta_
 
 
 def test_a_node_on_the_arc_between_two_wraps_is_not_pressed_onto_the_edge_by_its_bend():
-    """Node b halfway round the edge between two wrapped paths, lifted 0.1 um off the cylinder or sunk 0.1 um into
-    it: the row's force on b along its radius differs by far less than the kink's 4 k_b / r (1.6 N here). Before,
+    """Node b halfway round the edge between two wrapped paths, lifted 10 nm off the cylinder or sunk 10 nm into it:
+    the row's force on b along its radius differs by far less than the kink's 4 k_b / r (1.6 N here; the tensions'
+    own radial force grows as the root of the lift, a few mN at 10 nm). Before,
     the bend 1/2 k_b (2 acos(r / d))^2 pulled b onto the cylinder with 4 k_b / r from outside and not at all from
     inside: a V-shaped potential whose minimum Newton could not converge to (142 of 144 steps of each crossing
     unconverged at 240 Hz, the cable crawling round the edge)."""
@@ -471,16 +472,29 @@ def test_a_node_on_the_arc_between_two_wraps_is_not_pressed_onto_the_edge_by_its
 
 
 def test_the_bend_at_b_is_continuous_where_the_next_segment_starts_to_wrap():
-    """Node c swung out from the side face until segment b - c stops wrapping (alpha_bc through 0): the row's
-    potential and its force on b change smoothly (the kink's bend is kept in full where an arc starts)."""
-    W, fb = [], []
-    for k in range(-20, 21):
+    """Node c moved out along x, 2 um a step, through the place where segment b - c stops wrapping (alpha_bc through
+    0, found by bisection): the row's potential changes smoothly (the kink's bend is kept in full where an arc starts,
+    and its share's slope is 0 there). Its force on b does not, on the code before either: with b 20 um off the
+    cylinder the chord's direction and the tangent's differ in their derivative by the tangent's lever 1 / t, and the
+    force jumps by 0.78 N (docs/concepts/contact.md, Edges: the entry and exit kinks left)."""
+    def placed(xc: float):
         c, x = _node_between_wraps(1.2, 2e-5)
-        x[3] = (0.002 + 0.0005 + k * 2e-6, 0.0, -0.02)  # the tangent from b to the cylinder meets x = 0.0025 near here
-        g = np.zeros(12)
-        res = _wrap_eval(c, 0, x, g, np.zeros((12, 12)), False)
-        W.append(res[1])
-        fb.append(g[6:9].copy())
+        x[3] = (xc, 0.0, -0.02)
+        return c, x
+
+    def arc(xc: float) -> float:
+        c, x = placed(xc)
+        return _path(c.point[0], c.axis[0], c.side[0], c.radius[0], x[2], x[3], np.zeros(6), np.zeros((6, 6)))
+
+    lo, hi = 0.0025, 0.02  # b - c wraps at lo, not at hi
+    assert arc(lo) > 0.0 > arc(hi)
+    for _ in range(60):
+        lo, hi = (0.5 * (lo + hi), hi) if arc(0.5 * (lo + hi)) > 0.0 else (lo, 0.5 * (lo + hi))
+    W, arcs = [], []
+    for k in range(-20, 21):
+        c, x = placed(lo + k * 2e-6)
+        W.append(_wrap_eval(c, 0, x, np.zeros(12), np.zeros((12, 12)), False)[1])
+        arcs.append(arc(lo + k * 2e-6))
+    assert arcs[0] > 0.0 > arcs[-1]
     dW = np.abs(np.diff(W))
-    dfb = np.linalg.norm(np.diff(np.array(fb), axis=0), axis=1)
-    assert dW.max() < 3 * np.median(dW) + 1e-12 and dfb.max() < 3 * np.median(dfb) + 1e-9, (dW, dfb)
+    assert dW.max() < 1.5 * np.median(dW), dW
