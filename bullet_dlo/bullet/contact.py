@@ -57,7 +57,7 @@ from typing import NamedTuple
 import numpy as np
 import pybullet as pb
 
-from bullet_dlo.bullet import held_bodies
+from bullet_dlo.bullet import bvh, held_bodies
 from bullet_dlo.bullet.body_energy import BodyEnergy
 from bullet_dlo.bullet.contact_call import make_broad_args, make_set_args
 from bullet_dlo.bullet.kernels import bind
@@ -196,6 +196,10 @@ class Hulls(NamedTuple):
     on the face); tri_first (H + 1,), tri (T, 3, 3) [m]: the faces' triangles, tri_plane (T,) int: each one's
     plane. Sharp edges (between two different planes): edge_first (H + 1,), edge_p (E, 3) [m] midpoint,
     edge_a (E, 3) unit direction, edge_hl (E,) [m] half length, edge_n (E, 2, 3) the two faces' normals.
+    Hierarchies (:mod:`bullet_dlo.bullet.bvh`) of a hull with at least :data:`TREE_MIN_TRIANGLES` triangles: tri_root,
+    edge_root (H,) int the roots of its triangles' and its edges' trees (-1: none, every feature is tested);
+    tree_lo, tree_hi (N, 3) [m], tree_right, tree_first, tree_count (N,) int, tree_item (I,) int: every tree's
+    nodes and items (:class:`bullet_dlo.bullet.bvh.Tree`, node indices global, items local to their hull).
     """
 
     row: np.ndarray
@@ -213,7 +217,20 @@ class Hulls(NamedTuple):
     edge_a: np.ndarray
     edge_hl: np.ndarray
     edge_n: np.ndarray
+    tri_root: np.ndarray
+    edge_root: np.ndarray
+    tree_lo: np.ndarray
+    tree_hi: np.ndarray
+    tree_right: np.ndarray
+    tree_first: np.ndarray
+    tree_count: np.ndarray
+    tree_item: np.ndarray
 
+
+TREE_SLACK = 1e-9  # [m] a tree's query box is grown by this beyond the exact test that follows it
+TREE_MIN_TRIANGLES = 64
+"""A hull of at least this many triangles gets trees of its triangles and edges (a finely faceted mesh: the duck's
+1070 triangles cost a node 2.5 us when each was tested); a smaller one is tested feature by feature."""
 
 _HULL_GEOMETRY: dict = {}
 """:func:`_hull_geometry` by vertex content: a robot's links are the same meshes in every world a process
@@ -307,6 +324,7 @@ def _pack_hulls(hulls: list, row: list, n_exact: int) -> Hulls:
     edges = [e for h in hulls for e in h[3]]
     verts = [h[1].reshape(-1, 3) for h in hulls]
     row_a = np.array(row, np.int64)
+    trees = _pack_trees(hulls)
     return Hulls(row=row_a, near=(row_a >= 0) & (np.arange(len(row)) < n_exact),
                  margin=np.array([h[4] for h in hulls], float),
                  lo=np.array([v.min(axis=0) for v in verts]).reshape(-1, 3),
@@ -317,7 +335,49 @@ def _pack_hulls(hulls: list, row: list, n_exact: int) -> Hulls:
                  edge_first=first[2], edge_p=np.array([e[0] for e in edges], float).reshape(-1, 3),
                  edge_a=np.array([e[1] for e in edges], float).reshape(-1, 3),
                  edge_hl=np.array([e[2] for e in edges], float),
-                 edge_n=np.array([(e[3], e[4]) for e in edges], float).reshape(-1, 2, 3))
+                 edge_n=np.array([(e[3], e[4]) for e in edges], float).reshape(-1, 2, 3), **trees)
+
+
+_HULL_TREES: dict = {}
+"""The trees of a hull geometry by the id of its triangles' array (shared and kept alive by _HULL_GEOMETRY; the
+entry holds it too, so the id is not reused)."""
+
+
+def _hull_trees(tri: np.ndarray, edges: list) -> tuple[bvh.Tree, bvh.Tree] | None:
+    """The trees of a hull's triangles and sharp edges, or None below TREE_MIN_TRIANGLES (or without edges)."""
+    if len(tri) < TREE_MIN_TRIANGLES or not edges:
+        return None
+    if id(tri) not in _HULL_TREES or _HULL_TREES[id(tri)][0] is not tri:
+        p = np.array([e[0] for e in edges], float)
+        a = np.array([e[1] for e in edges], float)
+        hl = np.array([e[2] for e in edges], float)
+        _HULL_TREES[id(tri)] = (tri, bvh.build(*bvh.triangle_boxes(tri)), bvh.build(*bvh.edge_boxes(p, a, hl)))
+    return _HULL_TREES[id(tri)][1:]
+
+
+def _pack_trees(hulls: list) -> dict:
+    """The tree fields of :class:`Hulls` for ``hulls`` (as :func:`_pack_hulls` takes them)."""
+    roots = np.full((2, len(hulls)), -1, np.int64)
+    parts: list[bvh.Tree] = []
+    nodes = items = 0
+    for h, hull in enumerate(hulls):
+        trees = _hull_trees(hull[1], hull[3])
+        if trees is None:
+            continue
+        for kind, tree in enumerate(trees):
+            roots[kind, h] = nodes
+            parts.append(tree._replace(right=np.where(tree.right >= 0, tree.right + nodes, -1),
+                                       first=tree.first + items))
+            nodes += len(tree.right)
+            items += len(tree.item)
+
+    def cat(field, shape, dtype):
+        return np.concatenate([getattr(t, field) for t in parts]).astype(dtype) if parts else np.zeros(shape, dtype)
+
+    return dict(tri_root=roots[0], edge_root=roots[1], tree_lo=cat("lo", (0, 3), float),
+                tree_hi=cat("hi", (0, 3), float), tree_right=cat("right", (0,), np.int64),
+                tree_first=cat("first", (0,), np.int64), tree_count=cat("count", (0,), np.int64),
+                tree_item=cat("item", (0,), np.int64))
 
 
 class Others(NamedTuple):
@@ -1772,13 +1832,75 @@ def _hull_distance(plane, tri, tri_plane, p0, q, pd, out_c, out_n):
 
 
 @njit(cache=True, error_model="numpy")
+def _closest_triangle(hu, h, q, out_c, cl, stack, limit2=1e300):
+    """The triangle of hull h (:class:`Hulls`, its tree) nearest to q [m] (link frame) within sqrt(limit2) [m]: its
+    global index, with its closest point in out_c and the squared distance [m^2] (-1, limit2: none, or no tree). A
+    subtree is skipped only when its box is farther than the best triangle so far, so the result is the nearest of
+    all (ties: the lower index). cl (3,): scratch; stack (bvh.STACK,) int: scratch."""
+    best = limit2
+    tb = -1
+    root = hu.tri_root[h]
+    if root < 0:
+        return tb, best
+    t0 = hu.tri_first[h]
+    top = 0
+    stack[0] = root
+    while top >= 0:
+        k = stack[top]
+        top -= 1
+        if bvh.box_distance2(hu.tree_lo[k], hu.tree_hi[k], q) > best:
+            continue
+        r = hu.tree_right[k]
+        if r < 0:
+            for a in range(hu.tree_first[k], hu.tree_first[k] + hu.tree_count[k]):
+                t = t0 + hu.tree_item[a]
+                d2 = _tri_closest(q, hu.tri[t], cl)
+                if d2 < best or (d2 == best and t < tb):
+                    best, tb = d2, t
+                    out_c[0], out_c[1], out_c[2] = cl[0], cl[1], cl[2]
+            continue
+        dl = bvh.box_distance2(hu.tree_lo[k + 1], hu.tree_hi[k + 1], q)
+        dr = bvh.box_distance2(hu.tree_lo[r], hu.tree_hi[r], q)
+        near, far, d_far = (k + 1, r, dr) if dl <= dr else (r, k + 1, dl)
+        if d_far <= best:  # the farther child below the nearer one: popped after it, pruned by then if it can be
+            top += 1
+            stack[top] = far
+        top += 1
+        stack[top] = near
+    return tb, best
+
+
+@njit(cache=True, error_model="numpy")
+def _hull_distance_at(hu, h, plane, tri, tri_plane, p0, q, pd, out_c, out_n, stack, cutoff=1e300):
+    """:func:`_hull_distance` of hull h of ``hu`` (its faces ``plane``, ``tri``, ``tri_plane`` sliced out, p0 its first
+    plane) at q [m], through its triangles' tree where it has one: the nearest triangle, and where q lies in front
+    of that triangle's plane (so outside the polytope) its closest point is the polytope's; otherwise (inside, or
+    nearest at an edge of a face q is behind) every face is tested as without a tree. With a tree, a point outside
+    the hull's box and farther than ``cutoff`` [m] from every triangle returns ``cutoff`` (a lower bound; out_c,
+    out_n not written). pd (F,), stack: scratch."""
+    root = hu.tri_root[h]
+    if root >= 0:
+        cl = np.empty(3)
+        t, _ = _closest_triangle(hu, h, q, out_c, cl, stack, cutoff * cutoff if cutoff < 1e150 else 1e300)
+        if t < 0:
+            if bvh.box_distance2(hu.tree_lo[root], hu.tree_hi[root], q) > 0.0:
+                return cutoff
+            t, _ = _closest_triangle(hu, h, q, out_c, cl, stack)  # inside the box: perhaps deep inside the hull
+        f = hu.tri_plane[t]
+        if hu.plane[f, 0] * q[0] + hu.plane[f, 1] * q[1] + hu.plane[f, 2] * q[2] - hu.plane[f, 3] > 0.0:
+            return _normal_from(q, out_c, out_n)
+    return _hull_distance(plane, tri, tri_plane, p0, q, pd, out_c, out_n)
+
+
+@njit(cache=True, error_model="numpy")
 def hull_distance(hu, h, q, out_c, out_n):
     """:func:`_hull_distance` of hull h of ``hu`` (:class:`Hulls`) at q [m] (its link frame), margin included:
     the distance from the surface Bullet's bodies meet."""
     p0, p1 = hu.plane_first[h], hu.plane_first[h + 1]
     t0, t1 = hu.tri_first[h], hu.tri_first[h + 1]
     pd = np.empty(p1 - p0)
-    d = _hull_distance(hu.plane[p0:p1], hu.tri[t0:t1], hu.tri_plane[t0:t1], p0, q, pd, out_c, out_n)
+    stack = np.empty(bvh.STACK, np.int64)
+    d = _hull_distance_at(hu, h, hu.plane[p0:p1], hu.tri[t0:t1], hu.tri_plane[t0:t1], p0, q, pd, out_c, out_n, stack)
     for j in range(3):
         out_c[j] += hu.margin[h] * out_n[j]
     return d - hu.margin[h]
@@ -1822,8 +1944,14 @@ def _hull_contacts(c, st, s, hu, q, x, mass, base, margin, out, sh, k_per_mass, 
     t0, t1 = hu.tri_first[h], hu.tri_first[h + 1]
     plane, tri, tri_plane = hu.plane[p0:p1], hu.tri[t0:t1], hu.tri_plane[t0:t1]
     pd = np.empty(p1 - p0)
+    tree = hu.tri_root[h] >= 0
+    stack = np.empty(bvh.STACK if tree else 1, np.int64)
     cl = np.empty(4)
     nl = np.empty(3)
+    # a node farther than this from a hull with a tree keeps the bound as its distance: it makes no row, and where a
+    # segment's row compares its depth or its distance with the nodes' (SEGMENT_DIP) the bound decides as the
+    # distance would (a segment's row is within radius + margin of the surface)
+    far = radius + margin + m + 10.0 * SEGMENT_DIP
     near = np.zeros(n, np.bool_)
     dist = np.full(n, 1e300)  # the nodes' distances from the polytope [m]
     for i in range(n):
@@ -1836,7 +1964,10 @@ def _hull_contacts(c, st, s, hu, q, x, mass, base, margin, out, sh, k_per_mass, 
         if not inside:
             continue
         near[i] = True
-        d = _hull_distance(plane, tri, tri_plane, p0, q[i], pd, cl, nl)
+        if tree:
+            d = _hull_distance_at(hu, h, plane, tri, tri_plane, p0, q[i], pd, cl, nl, stack, far)
+        else:  # (a small hull: every face, without the call in between)
+            d = _hull_distance(plane, tri, tri_plane, p0, q[i], pd, cl, nl)
         dist[i] = d
         if d - m - radius < margin:
             for j in range(3):
@@ -1852,10 +1983,17 @@ def _hull_contacts(c, st, s, hu, q, x, mass, base, margin, out, sh, k_per_mass, 
     cand_d = np.empty(e1 - e0)
     picks = np.empty(3, np.int64)
     # the edges whose boxes meet the nodes' (grown by the reach), once: the only ones a segment's box can meet (a
-    # finely faceted hull's 1605 edges were tested by every segment; the cable across it meets a few of them)
+    # finely faceted hull's 1605 edges were tested by every segment; the cable across it meets a few of them); with
+    # the edges' tree, each segment's own (its box grown by the reach, and a little more so that the test below,
+    # which rounds otherwise, decides: the same edges in the same order as from the full list)
     close = np.empty(e1 - e0, np.int64)
     n_close = 0
+    edge_tree = hu.edge_root[h] >= 0
+    seg_lo = np.empty(3 if edge_tree else 0)
+    seg_hi = np.empty(3 if edge_tree else 0)
     for e in range(e0, e1):
+        if edge_tree:
+            break
         P, A, hl = hu.edge_p[e], hu.edge_a[e], hu.edge_hl[e]
         keep = True
         for j in range(3):
@@ -1885,6 +2023,13 @@ def _hull_contacts(c, st, s, hu, q, x, mass, base, margin, out, sh, k_per_mass, 
         eb = -1
         sb = 0.0
         nc = 0
+        if edge_tree and not wrapped:
+            for j in range(3):
+                grow = reach + TREE_SLACK
+                seg_lo[j] = min(q[i, j], q[i + 1, j]) - grow
+                seg_hi[j] = max(q[i, j], q[i + 1, j]) + grow
+            n_close = bvh.overlapping(hu.tree_lo, hu.tree_hi, hu.tree_right, hu.tree_first, hu.tree_count,
+                                      hu.tree_item, hu.edge_root[h], e0, seg_lo, seg_hi, close, stack)
         for k in range(e1 - e0 if wrapped else n_close):  # (a wrapped segment keeps every edge)
             e = e0 + k if wrapped else close[k]
             P, A, hl = hu.edge_p[e], hu.edge_a[e], hu.edge_hl[e]
@@ -1956,7 +2101,10 @@ def _hull_contacts(c, st, s, hu, q, x, mass, base, margin, out, sh, k_per_mass, 
                 # the segment's point inside the polytope: it leaves by the nearest face (as in detect's boxes)
                 for j in range(3):
                     qs[j] = best_c[j] + best_c[3] * best_n[j]
-                d = _hull_distance(plane, tri, tri_plane, p0, qs, pd, cl, nl)
+                if tree:
+                    d = _hull_distance_at(hu, h, plane, tri, tri_plane, p0, qs, pd, cl, nl, stack)
+                else:
+                    d = _hull_distance(plane, tri, tri_plane, p0, qs, pd, cl, nl)
                 if d < 0.0:
                     if d > min(dist[i], dist[i + 1]) - SEGMENT_DIP:
                         continue  # the nodes are as deep: they carry it
@@ -1973,7 +2121,10 @@ def _hull_contacts(c, st, s, hu, q, x, mass, base, margin, out, sh, k_per_mass, 
                     continue
                 for j in range(3):
                     qs[j] = best_c[j] + best_c[3] * best_n[j]
-                d = _hull_distance(plane, tri, tri_plane, p0, qs, pd, cl, nl)
+                if tree:
+                    d = _hull_distance_at(hu, h, plane, tri, tri_plane, p0, qs, pd, cl, nl, stack)
+                else:
+                    d = _hull_distance(plane, tri, tri_plane, p0, qs, pd, cl, nl)
                 own1 = nl[0] * n1[0] + nl[1] * n1[1] + nl[2] * n1[2]
                 own2 = nl[0] * n2[0] + nl[1] * n2[1] + nl[2] * n2[2]
                 if max(own1, own2) < 1.0 - 1e-9:

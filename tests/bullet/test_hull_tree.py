@@ -1,0 +1,122 @@
+"""A finely faceted hull's trees (bullet_dlo.bullet.bvh) answer what testing every face and edge answers."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from bullet_dlo.bullet import bvh
+from bullet_dlo.bullet import contact as C
+from bullet_dlo.bullet.world import BulletWorld
+from bullet_dlo.core.spec import CableSpec
+
+from test_fine_hull import add_mesh, lay_across
+
+
+def ellipsoid_hull(points: int = 700, seed: int = 3) -> C.Hulls:
+    """A convex hull of points on an ellipsoid (about 2 points' worth of triangles each), margin 1 mm."""
+    rng = np.random.default_rng(seed)
+    u = rng.normal(size=(points, 3))
+    verts = u / np.linalg.norm(u, axis=1, keepdims=True) * np.array([0.05, 0.03, 0.04])
+    geo = C._hull_geometry(verts)
+    return C._pack_hulls([(*geo, 1e-3)], [0], 1)
+
+
+def without_trees(hu: C.Hulls) -> C.Hulls:
+    return hu._replace(tri_root=np.full_like(hu.tri_root, -1), edge_root=np.full_like(hu.edge_root, -1))
+
+
+def test_a_fine_hull_has_trees_and_a_coarse_one_none():
+    fine = ellipsoid_hull()
+    assert len(fine.tri) >= C.TREE_MIN_TRIANGLES and fine.tri_root[0] >= 0 and fine.edge_root[0] >= 0
+    box = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], float) * 0.05
+    coarse = C._pack_hulls([(*C._hull_geometry(box), 1e-3)], [0], 1)
+    assert coarse.tri_root[0] == -1 and coarse.edge_root[0] == -1
+
+
+def test_the_triangle_tree_gives_the_distance_of_every_face():
+    """Points inside, on and around the hull (up to 3 cm off): distance, closest point and normal as without the
+    tree (ties between triangles that share the closest point may round differently: 1e-12 m)."""
+    hu = ellipsoid_hull()
+    flat = without_trees(hu)
+    rng = np.random.default_rng(0)
+    lo, hi = hu.lo[0] - 0.03, hu.hi[0] + 0.03
+    points = list(rng.uniform(lo, hi, size=(400, 3)))
+    for t in rng.integers(0, len(hu.tri), 100):  # on and just off the surface, at vertices, edges and faces
+        w = rng.dirichlet([1, 1, 1]) if t % 3 else np.eye(3)[t % 2]
+        p = w @ hu.tri[t]
+        points += [p, p * (1 + 1e-9), p * (1 - 1e-6), p * 1.01]
+    inside = outside = 0
+    for q in points:
+        c1, n1, c2, n2 = np.empty(4), np.empty(3), np.empty(4), np.empty(3)
+        d1 = C.hull_distance(hu, 0, q, c1, n1)
+        d2 = C.hull_distance(flat, 0, q, c2, n2)
+        if np.isnan(c2).any():  # a point on a face itself: no normal either way
+            assert np.isnan(c1).any()
+            continue
+        assert d1 == pytest.approx(d2, abs=1e-12)
+        assert np.abs(c1[:3] - c2[:3]).max() < 1e-12
+        if abs(d2 + 1e-3) > 1e-7:  # (the normal of a point within round-off of the surface is round-off)
+            assert np.abs(n1 - n2).max() < 1e-6
+        inside += d2 < -1e-3
+        outside += d2 > -1e-3
+    assert inside > 20 and outside > 300
+
+
+def test_a_node_beyond_the_cutoff_gets_the_cutoff_as_a_lower_bound():
+    """The node loop's shortcut: outside the hull's box and farther than the cutoff, the cutoff; otherwise the
+    distance itself."""
+    hu = ellipsoid_hull()
+    rng = np.random.default_rng(2)
+    p0, p1, t0, t1 = hu.plane_first[0], hu.plane_first[1], hu.tri_first[0], hu.tri_first[1]
+    args = (hu.plane[p0:p1], hu.tri[t0:t1], hu.tri_plane[t0:t1], p0)
+    pd, stack = np.empty(p1 - p0), np.empty(bvh.STACK, np.int64)
+    cutoff, bounded = 0.006, 0
+    for q in rng.uniform(hu.lo[0] - 0.03, hu.hi[0] + 0.03, size=(400, 3)):
+        c, n = np.empty(4), np.empty(3)
+        exact = C._hull_distance(*args, q, pd, c, n)
+        d = C._hull_distance_at(hu, 0, *args, q, pd, c, n, stack, cutoff)
+        if d == cutoff:
+            bounded += 1
+            assert exact > cutoff and ((q < hu.lo[0]) | (q > hu.hi[0])).any()
+        else:
+            assert d == pytest.approx(exact, abs=1e-12)
+    assert bounded > 100
+
+
+def test_the_edge_tree_finds_the_edges_every_box_test_finds():
+    hu = ellipsoid_hull()
+    rng = np.random.default_rng(1)
+    e0, e1 = hu.edge_first[0], hu.edge_first[1]
+    ext = np.abs(hu.edge_a) * hu.edge_hl[:, None]
+    out = np.empty(e1 - e0, np.int64)
+    stack = np.empty(bvh.STACK, np.int64)
+    counts = []
+    for _ in range(300):
+        a = rng.uniform(hu.lo[0] - 0.02, hu.hi[0] + 0.02)
+        b = a + rng.normal(scale=0.01, size=3)
+        lo, hi = np.minimum(a, b) - 0.003, np.maximum(a, b) + 0.003
+        want = np.flatnonzero(np.all((lo <= hu.edge_p + ext) & (hi >= hu.edge_p - ext), axis=1)) + e0
+        k = bvh.overlapping(hu.tree_lo, hu.tree_hi, hu.tree_right, hu.tree_first, hu.tree_count, hu.tree_item,
+                            hu.edge_root[0], e0, lo, hi, out, stack)
+        got = out[:k]
+        assert set(want) <= set(got) and list(got) == sorted(set(got))  # (with the rest of their leaves)
+        assert k <= 4 * max(len(want), 1) + 8
+        counts.append(len(want))
+    assert max(counts) > 5 and min(counts) == 0
+
+
+def test_a_cable_on_the_duck_steps_as_without_the_trees(monkeypatch):
+    """Lying across pybullet_data's duck (1070 triangles) for 0.25 s at 240 Hz: the same rows and states as when
+    every face and edge is tested (to round-off)."""
+    states = []
+    for trees in (True, False):
+        monkeypatch.setattr(C, "TREE_MIN_TRIANGLES", 64 if trees else 10 ** 9)
+        C._HULL_TREES.clear()
+        with BulletWorld(dt=1 / 240) as world:
+            cable = lay_across(world, add_mesh(world, "duck.obj", 0.08, False), CableSpec.lv2017(n_masses=20,
+                                                                                               damping=0.02))
+            assert (cable._contact_set.hulls.tri_root >= 0).any() == trees
+            world.step(60)
+            states.append((cable.x.copy(), cable.contact_forces()["force"].sum(axis=0)))
+    assert np.abs(states[0][0] - states[1][0]).max() < 1e-9
+    assert np.abs(states[0][1] - states[1][1]).max() < 1e-6
