@@ -199,7 +199,10 @@ class Hulls(NamedTuple):
     Hierarchies (:mod:`bullet_dlo.bullet.bvh`) of a hull with at least :data:`TREE_MIN_TRIANGLES` triangles: tri_root,
     edge_root (H,) int the roots of its triangles' and its edges' trees (-1: none, every feature is tested);
     tree_lo, tree_hi (N, 3) [m], tree_right, tree_first, tree_count (N,) int, tree_item (I,) int: every tree's
-    nodes and items (:class:`bullet_dlo.bullet.bvh.Tree`, node indices global, items local to their hull).
+    nodes and items (:class:`bullet_dlo.bullet.bvh.Tree`, node indices global, items local to their hull). With the
+    trees, a grid of cubes over the hull's box (:func:`_outside_cells`): grid_cell (H,) [m] the cubes' edge, grid_dims
+    (H, 3) int their counts (from ``lo``), grid_first (H + 1,) int, grid_out (K,) bool: a cube lies wholly outside the
+    polytope (beyond one face's plane).
     """
 
     row: np.ndarray
@@ -225,9 +228,14 @@ class Hulls(NamedTuple):
     tree_first: np.ndarray
     tree_count: np.ndarray
     tree_item: np.ndarray
+    grid_cell: np.ndarray
+    grid_dims: np.ndarray
+    grid_first: np.ndarray
+    grid_out: np.ndarray
 
 
 TREE_SLACK = 1e-9  # [m] a tree's query box is grown by this beyond the exact test that follows it
+GRID_CELLS = 16  # cubes of a hull's grid along its box's longest side
 TREE_MIN_TRIANGLES = 64
 """A hull of at least this many triangles gets trees of its triangles and edges (a finely faceted mesh: the duck's
 1070 triangles cost a node 2.5 us when each was tested); a smaller one is tested feature by feature."""
@@ -343,16 +351,35 @@ _HULL_TREES: dict = {}
 entry holds it too, so the id is not reused)."""
 
 
-def _hull_trees(tri: np.ndarray, edges: list) -> tuple[bvh.Tree, bvh.Tree] | None:
-    """The trees of a hull's triangles and sharp edges, or None below TREE_MIN_TRIANGLES (or without edges)."""
+def _hull_trees(planes: np.ndarray, tri: np.ndarray, edges: list) -> tuple | None:
+    """The trees of a hull's triangles and sharp edges and its grid of outside cells (cube edge [m], counts (3,),
+    flags), or None below TREE_MIN_TRIANGLES (or without edges)."""
     if len(tri) < TREE_MIN_TRIANGLES or not edges:
         return None
     if id(tri) not in _HULL_TREES or _HULL_TREES[id(tri)][0] is not tri:
         p = np.array([e[0] for e in edges], float)
         a = np.array([e[1] for e in edges], float)
         hl = np.array([e[2] for e in edges], float)
-        _HULL_TREES[id(tri)] = (tri, bvh.build(*bvh.triangle_boxes(tri)), bvh.build(*bvh.edge_boxes(p, a, hl)))
+        _HULL_TREES[id(tri)] = (tri, bvh.build(*bvh.triangle_boxes(tri)), bvh.build(*bvh.edge_boxes(p, a, hl)),
+                                _outside_cells(planes, tri.reshape(-1, 3).min(axis=0), tri.reshape(-1, 3).max(axis=0)))
     return _HULL_TREES[id(tri)][1:]
+
+
+def _outside_cells(planes: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
+    """A grid of cubes from ``lo`` covering the box [lo, hi] [m], GRID_CELLS along its longest side: the cube edge
+    [m], the counts (3,) int and, per cube (x fastest), whether it lies wholly beyond one of the faces' ``planes``
+    (F, 4): min over the cube of n.q - d > 0 (n.centre - d - edge / 2 sum |n_j|), so every point in it is outside."""
+    cell = float(max((hi - lo).max(), 1e-9)) / GRID_CELLS
+    dims = np.maximum(1, np.ceil((hi - lo) / cell - 1e-9)).astype(np.int64)
+    ix, iy, iz = np.meshgrid(*(np.arange(d) for d in dims), indexing="ij")
+    centre = lo + cell * (np.stack([ix, iy, iz], axis=-1).reshape(-1, 3).astype(float) + 0.5)
+    # (x fastest: index ix + dims[0] (iy + dims[1] iz))
+    centre = centre.reshape(dims[0], dims[1], dims[2], 3).transpose(2, 1, 0, 3).reshape(-1, 3)
+    slack = 0.5 * cell * np.abs(planes[:, :3]).sum(axis=1) + planes[:, 3]
+    out = np.zeros(len(centre), np.bool_)
+    for k in range(0, len(centre), 512):
+        out[k:k + 512] = ((centre[k:k + 512] @ planes[:, :3].T - slack) > 0.0).any(axis=1)
+    return cell, dims, out
 
 
 def _pack_trees(hulls: list) -> dict:
@@ -360,11 +387,18 @@ def _pack_trees(hulls: list) -> dict:
     roots = np.full((2, len(hulls)), -1, np.int64)
     parts: list[bvh.Tree] = []
     nodes = items = 0
+    grid_cell, grid_dims = np.ones(len(hulls)), np.ones((len(hulls), 3), np.int64)
+    grid_first, grid_out = [0], []
     for h, hull in enumerate(hulls):
-        trees = _hull_trees(hull[1], hull[3])
+        trees = _hull_trees(hull[0], hull[1], hull[3])
         if trees is None:
+            grid_out.append(np.zeros(1, np.bool_))  # (one cube, never outside)
+            grid_first.append(grid_first[-1] + 1)
             continue
-        for kind, tree in enumerate(trees):
+        grid_cell[h], grid_dims[h], flags = trees[2]
+        grid_out.append(flags)
+        grid_first.append(grid_first[-1] + len(flags))
+        for kind, tree in enumerate(trees[:2]):
             roots[kind, h] = nodes
             parts.append(tree._replace(right=np.where(tree.right >= 0, tree.right + nodes, -1),
                                        first=tree.first + items))
@@ -377,7 +411,9 @@ def _pack_trees(hulls: list) -> dict:
     return dict(tri_root=roots[0], edge_root=roots[1], tree_lo=cat("lo", (0, 3), float),
                 tree_hi=cat("hi", (0, 3), float), tree_right=cat("right", (0,), np.int64),
                 tree_first=cat("first", (0,), np.int64), tree_count=cat("count", (0,), np.int64),
-                tree_item=cat("item", (0,), np.int64))
+                tree_item=cat("item", (0,), np.int64), grid_cell=grid_cell, grid_dims=grid_dims,
+                grid_first=np.array(grid_first, np.int64),
+                grid_out=np.concatenate(grid_out) if grid_out else np.zeros(0, np.bool_))
 
 
 class Others(NamedTuple):
@@ -1870,20 +1906,33 @@ def _closest_triangle(hu, h, q, out_c, cl, stack, limit2=1e300):
     return tb, best
 
 
+@njit(cache=True, error_model="numpy", inline="always")
+def _in_outside_cell(hu, h, q) -> bool:
+    """Whether q [m] (in hull h's box) lies in a cube of its grid that is wholly outside the polytope."""
+    k = 0
+    stride = 1
+    for j in range(3):
+        i = int((q[j] - hu.lo[h, j]) / hu.grid_cell[h])
+        i = min(max(i, 0), hu.grid_dims[h, j] - 1)
+        k += i * stride
+        stride *= hu.grid_dims[h, j]
+    return hu.grid_out[hu.grid_first[h] + k]
+
+
 @njit(cache=True, error_model="numpy")
 def _hull_distance_at(hu, h, plane, tri, tri_plane, p0, q, pd, out_c, out_n, stack, cutoff=1e300):
     """:func:`_hull_distance` of hull h of ``hu`` (its faces ``plane``, ``tri``, ``tri_plane`` sliced out, p0 its first
     plane) at q [m], through its triangles' tree where it has one: the nearest triangle, and where q lies in front
     of that triangle's plane (so outside the polytope) its closest point is the polytope's; otherwise (inside, or
-    nearest at an edge of a face q is behind) every face is tested as without a tree. With a tree, a point outside
-    the hull's box and farther than ``cutoff`` [m] from every triangle returns ``cutoff`` (a lower bound; out_c,
-    out_n not written). pd (F,), stack: scratch."""
+    nearest at an edge of a face q is behind) every face is tested as without a tree. With a tree, a point farther
+    than ``cutoff`` [m] from every triangle, outside the hull's box or in a cube of its grid that lies outside the
+    polytope, returns ``cutoff`` (a lower bound; out_c, out_n not written). pd (F,), stack: scratch."""
     root = hu.tri_root[h]
     if root >= 0:
         cl = np.empty(3)
         t, _ = _closest_triangle(hu, h, q, out_c, cl, stack, cutoff * cutoff if cutoff < 1e150 else 1e300)
         if t < 0:
-            if bvh.box_distance2(hu.tree_lo[root], hu.tree_hi[root], q) > 0.0:
+            if bvh.box_distance2(hu.tree_lo[root], hu.tree_hi[root], q) > 0.0 or _in_outside_cell(hu, h, q):
                 return cutoff
             t, _ = _closest_triangle(hu, h, q, out_c, cl, stack)  # inside the box: perhaps deep inside the hull
         f = hu.tri_plane[t]

@@ -63,24 +63,45 @@ def test_the_triangle_tree_gives_the_distance_of_every_face():
 
 
 def test_a_node_beyond_the_cutoff_gets_the_cutoff_as_a_lower_bound():
-    """The node loop's shortcut: outside the hull's box and farther than the cutoff, the cutoff; otherwise the
-    distance itself."""
+    """The node loop's shortcut: farther than the cutoff and outside the hull's box or in a cube of its grid that is
+    wholly outside the hull, the cutoff; otherwise the distance itself."""
     hu = ellipsoid_hull()
     rng = np.random.default_rng(2)
     p0, p1, t0, t1 = hu.plane_first[0], hu.plane_first[1], hu.tri_first[0], hu.tri_first[1]
     args = (hu.plane[p0:p1], hu.tri[t0:t1], hu.tri_plane[t0:t1], p0)
     pd, stack = np.empty(p1 - p0), np.empty(bvh.STACK, np.int64)
-    cutoff, bounded = 0.006, 0
-    for q in rng.uniform(hu.lo[0] - 0.03, hu.hi[0] + 0.03, size=(400, 3)):
+    cutoff, bounded, in_box = 0.006, 0, 0
+    for q in rng.uniform(hu.lo[0] - 0.03, hu.hi[0] + 0.03, size=(800, 3)):
         c, n = np.empty(4), np.empty(3)
         exact = C._hull_distance(*args, q, pd, c, n)
         d = C._hull_distance_at(hu, 0, *args, q, pd, c, n, stack, cutoff)
         if d == cutoff:
             bounded += 1
-            assert exact > cutoff and ((q < hu.lo[0]) | (q > hu.hi[0])).any()
+            in_box += bool(((q >= hu.lo[0]) & (q <= hu.hi[0])).all())
+            assert exact > cutoff
         else:
             assert d == pytest.approx(exact, abs=1e-12)
-    assert bounded > 100
+    assert bounded > 200 and in_box > 10
+
+
+def test_the_grid_marks_only_cubes_wholly_outside_the_hull():
+    """Every corner and the centre of a cube marked outside lies outside the polytope; most cubes a surface does not
+    cross and that lie outside are marked."""
+    hu = ellipsoid_hull()
+    cell, dims, first = hu.grid_cell[0], hu.grid_dims[0], hu.grid_first[0]
+    flags = hu.grid_out[first:first + dims.prod()].reshape(dims[2], dims[1], dims[0])
+    p0, p1 = hu.plane_first[0], hu.plane_first[1]
+    planes = hu.plane[p0:p1]
+    marked = free = 0
+    for iz, iy, ix in np.ndindex(*flags.shape):
+        lo = hu.lo[0] + cell * np.array([ix, iy, iz])
+        pts = lo + cell * np.array([[a, b, c] for a in (0, 1) for b in (0, 1) for c in (0, 1)] + [[0.5] * 3])
+        outside = ((pts @ planes[:, :3].T - planes[:, 3]).max(axis=1) > 0.0)
+        if flags[iz, iy, ix]:
+            marked += 1
+            assert outside.all()
+        free += bool(outside.all())
+    assert marked > 0.5 * free
 
 
 def test_the_edge_tree_finds_the_edges_every_box_test_finds():
