@@ -40,6 +40,7 @@ average 3-4: the MJCF humanoid's 11 capsule links cost 0.2 s each time the conta
 from __future__ import annotations
 
 import faulthandler
+import gc
 import os
 import pickle
 import select
@@ -101,9 +102,17 @@ def _read_in_fork(client: int, body: int, link: int):
     """``getCollisionShapeData`` asked in a forked copy of this process: its answer, or None when the copy
     died (a signal) or did not answer within FORK_TIMEOUT."""
     r, w = os.pipe()
-    with warnings.catch_warnings():  # Python >= 3.12 warns of fork in a threaded process; the copy only reads
-        warnings.simplefilter("ignore", DeprecationWarning)
-        pid = os.fork()
+    # The copy must run no finalizer of the parent's garbage: one that joins a thread the copy does not have
+    # (PyAV's scaler joining its slice threads, seen in CI) blocks it until FORK_TIMEOUT, at every link read.
+    collecting, pid = gc.isenabled(), -1
+    gc.disable()
+    try:
+        with warnings.catch_warnings():  # Python >= 3.12 warns of fork in a threaded process; the copy only reads
+            warnings.simplefilter("ignore", DeprecationWarning)
+            pid = os.fork()
+    finally:
+        if collecting and pid != 0:  # the parent collects again; the copy never does
+            gc.enable()
     if pid == 0:  # the copy: answer through the pipe and leave at once (no cleanup of the parent's state)
         status = 1
         try:

@@ -149,3 +149,21 @@ def test_collision_shapes_reads_what_pybullet_can_and_never_asks_for_a_multi_sph
     assert all(out["undescribed"].values()), out["undescribed"]
     assert all(out["fork_died"].values()), out["fork_died"]  # the crash is real: the copy that asks dies
     assert out["stepped"] == 24
+
+
+def test_the_forked_reader_runs_no_finalizer_of_the_parents_garbage(monkeypatch):
+    """The copy that reads a link's shapes collects no garbage: a finalizer that joins a thread the copy does
+    not have (PyAV's scaler after a video test, seen as a CI hang) would block it until FORK_TIMEOUT at every
+    link. The copy answers with its collector's state; the parent's collector is on again afterwards.
+
+    Fails before (32f8385): the copy's collector was on."""
+    import gc
+
+    import pybullet as pb
+
+    from bullet_dlo.bullet import shape_data
+
+    monkeypatch.setattr(pb, "getCollisionShapeData", lambda body, link, physicsClientId: gc.isenabled())
+    assert gc.isenabled()
+    assert shape_data._read_in_fork(0, 0, -1) is False  # the copy's collector was off
+    assert gc.isenabled()
