@@ -371,10 +371,8 @@ def _outside_cells(planes: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> tuple[
     (F, 4): min over the cube of n.q - d > 0 (n.centre - d - edge / 2 sum |n_j|), so every point in it is outside."""
     cell = float(max((hi - lo).max(), 1e-9)) / GRID_CELLS
     dims = np.maximum(1, np.ceil((hi - lo) / cell - 1e-9)).astype(np.int64)
-    ix, iy, iz = np.meshgrid(*(np.arange(d) for d in dims), indexing="ij")
-    centre = lo + cell * (np.stack([ix, iy, iz], axis=-1).reshape(-1, 3).astype(float) + 0.5)
-    # (x fastest: index ix + dims[0] (iy + dims[1] iz))
-    centre = centre.reshape(dims[0], dims[1], dims[2], 3).transpose(2, 1, 0, 3).reshape(-1, 3)
+    iz, iy, ix = np.meshgrid(*(np.arange(d) for d in dims[::-1]), indexing="ij")  # x fastest
+    centre = lo + cell * (np.stack([ix.ravel(), iy.ravel(), iz.ravel()], axis=1) + 0.5)
     slack = 0.5 * cell * np.abs(planes[:, :3]).sum(axis=1) + planes[:, 3]
     out = np.zeros(len(centre), np.bool_)
     for k in range(0, len(centre), 512):
