@@ -202,7 +202,9 @@ class Hulls(NamedTuple):
     nodes and items (:class:`bullet_dlo.bullet.bvh.Tree`, node indices global, items local to their hull). With the
     trees, a grid of cubes over the hull's box (:func:`_outside_cells`): grid_cell (H,) [m] the cubes' edge, grid_dims
     (H, 3) int their counts (from ``lo``), grid_first (H + 1,) int, grid_out (K,) bool: a cube lies wholly outside the
-    polytope (beyond one face's plane).
+    polytope (beyond one face's plane). hint (H, 4 n) int: the nearest triangle when last measured (-1: none) of
+    each node (first n) and of each segment's three points beside edges (3 i + pick after them), tried first
+    (:func:`_hull_distance_at`); (H, 0): no hints.
     """
 
     row: np.ndarray
@@ -232,6 +234,7 @@ class Hulls(NamedTuple):
     grid_dims: np.ndarray
     grid_first: np.ndarray
     grid_out: np.ndarray
+    hint: np.ndarray
 
 
 TREE_SLACK = 1e-9  # [m] a tree's query box is grown by this beyond the exact test that follows it
@@ -322,9 +325,10 @@ def _hull_points(vertices: np.ndarray, planes: np.ndarray, tri: np.ndarray, tri_
     return np.array(pts)
 
 
-def _pack_hulls(hulls: list, row: list, n_exact: int) -> Hulls:
+def _pack_hulls(hulls: list, row: list, n_exact: int, n: int = 0) -> Hulls:
     """The :class:`Hulls` of ``hulls`` [(planes, triangles, their planes, sharp edges, margin)], ``row``: each
-    Shapes row's hull (-1: none); the rows below n_exact (base links, read every step) are always near."""
+    Shapes row's hull (-1: none); the rows below n_exact (base links, read every step) are always near; n: the
+    cable's nodes (their hints)."""
     def cat(parts, shape, dtype=float):
         return np.concatenate(parts).astype(dtype) if parts else np.zeros(shape, dtype)
 
@@ -343,7 +347,8 @@ def _pack_hulls(hulls: list, row: list, n_exact: int) -> Hulls:
                  edge_first=first[2], edge_p=np.array([e[0] for e in edges], float).reshape(-1, 3),
                  edge_a=np.array([e[1] for e in edges], float).reshape(-1, 3),
                  edge_hl=np.array([e[2] for e in edges], float),
-                 edge_n=np.array([(e[3], e[4]) for e in edges], float).reshape(-1, 2, 3), **trees)
+                 edge_n=np.array([(e[3], e[4]) for e in edges], float).reshape(-1, 2, 3),
+                 hint=np.full((len(hulls), 4 * n if n else 0), -1, np.int64), **trees)
 
 
 _HULL_TREES: dict = {}
@@ -712,7 +717,7 @@ class ContactSet:
         self._probe_out = np.zeros((nb, n), np.bool_)  # nodes that do not touch a probed link or a hull
         for s in range(nb):
             self._probe_out[s, sorted(rows[s][10])] = True
-        self.hulls = _pack_hulls(hulls, [int(r[5][1]) if r[2] == HULL else -1 for r in rows], self.n_exact)
+        self.hulls = _pack_hulls(hulls, [int(r[5][1]) if r[2] == HULL else -1 for r in rows], self.n_exact, n)
         cap_p = 2 * (2 + PROBE_EXTRA) * n * max(1, len(probed))  # (segments: two answers beside the closest)
         self.probes = Probes(count=np.zeros(1, np.int64), shape=np.zeros(cap_p, np.int64),
                              node=np.zeros((cap_p, 2), np.int64), weight=np.zeros(cap_p), point=np.zeros((cap_p, 3)),
@@ -1796,6 +1801,14 @@ def probe_broad_with(b, x, reach):
 def _tri_closest(q, t, out_c):
     """Closest point out_c (3,) [m] of triangle t (3, 3) to q; returns the squared distance [m^2] (the
     Voronoi regions of vertices, edges and face in turn: Ericson, Real-Time Collision Detection, 5.1.5)."""
+    return _tri_closest_region(q, t, out_c)[0]
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _tri_closest_region(q, t, out_c):
+    """:func:`_tri_closest`, and whether the closest point is the projection of q onto the triangle's plane (its
+    face region: inside the triangle, on none of its edges or vertices)."""
+    face = False
     ab0, ab1, ab2 = t[1, 0] - t[0, 0], t[1, 1] - t[0, 1], t[1, 2] - t[0, 2]
     ac0, ac1, ac2 = t[2, 0] - t[0, 0], t[2, 1] - t[0, 1], t[2, 2] - t[0, 2]
     ap0, ap1, ap2 = q[0] - t[0, 0], q[1] - t[0, 1], q[2] - t[0, 2]
@@ -1828,10 +1841,11 @@ def _tri_closest(q, t, out_c):
         else:
             den = 1.0 / (va + vb + vc)
             u, v = vb * den, vc * den
+            face = True
     out_c[0] = t[0, 0] + u * ab0 + v * ac0
     out_c[1] = t[0, 1] + u * ab1 + v * ac1
     out_c[2] = t[0, 2] + u * ab2 + v * ac2
-    return (q[0] - out_c[0]) ** 2 + (q[1] - out_c[1]) ** 2 + (q[2] - out_c[2]) ** 2
+    return (q[0] - out_c[0]) ** 2 + (q[1] - out_c[1]) ** 2 + (q[2] - out_c[2]) ** 2, face
 
 
 @njit(cache=True, error_model="numpy")
@@ -1918,21 +1932,43 @@ def _in_outside_cell(hu, h, q) -> bool:
 
 
 @njit(cache=True, error_model="numpy")
-def _hull_distance_at(hu, h, plane, tri, tri_plane, p0, q, pd, out_c, out_n, stack, cutoff=1e300):
+def _hull_distance_at(hu, h, plane, tri, tri_plane, p0, q, pd, out_c, out_n, stack, cutoff=1e300, node=-1):
     """:func:`_hull_distance` of hull h of ``hu`` (its faces ``plane``, ``tri``, ``tri_plane`` sliced out, p0 its first
     plane) at q [m], through its triangles' tree where it has one: the nearest triangle, and where q lies in front
     of that triangle's plane (so outside the polytope) its closest point is the polytope's; otherwise (inside, or
     nearest at an edge of a face q is behind) every face is tested as without a tree. With a tree, a point farther
     than ``cutoff`` [m] from every triangle, outside the hull's box or in a cube of its grid that lies outside the
-    polytope, returns ``cutoff`` (a lower bound; out_c, out_n not written). pd (F,), stack: scratch."""
+    polytope, returns ``cutoff`` (a lower bound; out_c, out_n not written). pd (F,), stack: scratch.
+
+    ``node`` >= 0: q is that node's, whose nearest triangle when last measured (``hu.hint``) is tried first. The
+    face's plane supports the polytope, so nothing of it is nearer than the plane: q at least ``cutoff`` in front
+    of it returns ``cutoff`` (the bound above); q in front of it that projects inside the triangle has that
+    projection as the polytope's closest point, on the nearest triangle the tree finds (ties aside: a point on two
+    triangles is on their edge, not inside either). A resting or slowly sliding node keeps its triangle for many
+    steps and skips the tree's ~60 boxes and ~16 triangles a query."""
     root = hu.tri_root[h]
     if root >= 0:
+        limit2 = cutoff * cutoff if cutoff < 1e150 else 1e300
+        hinted = 0 <= node < hu.hint.shape[1]
+        if hinted and hu.hint[h, node] >= 0:
+            t = hu.hint[h, node]
+            f = hu.tri_plane[t]
+            ahead = hu.plane[f, 0] * q[0] + hu.plane[f, 1] * q[1] + hu.plane[f, 2] * q[2] - hu.plane[f, 3]
+            if ahead >= cutoff:  # that far in front of one face's plane: outside, and at least that far
+                return cutoff
+            d2, face = _tri_closest_region(q, hu.tri[t], out_c)
+            if face and d2 < limit2 and ahead > 0.0:
+                return _normal_from(q, out_c, out_n)
         cl = np.empty(3)
-        t, _ = _closest_triangle(hu, h, q, out_c, cl, stack, cutoff * cutoff if cutoff < 1e150 else 1e300)
+        t, _ = _closest_triangle(hu, h, q, out_c, cl, stack, limit2)
         if t < 0:
             if bvh.box_distance2(hu.tree_lo[root], hu.tree_hi[root], q) > 0.0 or _in_outside_cell(hu, h, q):
+                if hinted:  # its nearest triangle, whose plane bounds the next steps' distance
+                    hu.hint[h, node], _ = _closest_triangle(hu, h, q, out_c, cl, stack)
                 return cutoff
             t, _ = _closest_triangle(hu, h, q, out_c, cl, stack)  # inside the box: perhaps deep inside the hull
+        if hinted:
+            hu.hint[h, node] = t
         f = hu.tri_plane[t]
         if hu.plane[f, 0] * q[0] + hu.plane[f, 1] * q[1] + hu.plane[f, 2] * q[2] - hu.plane[f, 3] > 0.0:
             return _normal_from(q, out_c, out_n)
@@ -2012,7 +2048,7 @@ def _hull_contacts(c, st, s, hu, q, x, mass, base, margin, out, sh, k_per_mass, 
             continue
         near[i] = True
         if tree:
-            d = _hull_distance_at(hu, h, plane, tri, tri_plane, p0, q[i], pd, cl, nl, stack, far)
+            d = _hull_distance_at(hu, h, plane, tri, tri_plane, p0, q[i], pd, cl, nl, stack, far, i)
         else:  # (a small hull: every face, without the call in between)
             d = _hull_distance(plane, tri, tri_plane, p0, q[i], pd, cl, nl)
         dist[i] = d
@@ -2118,6 +2154,7 @@ def _hull_contacts(c, st, s, hu, q, x, mass, base, margin, out, sh, k_per_mass, 
             eb = picks[pick]
             if eb < 0:
                 continue
+            spot = n + 3 * i + pick  # (its hint: the segments' three points after the nodes)
             if pick > 0:  # (the closest edge's point and normal are best_c, best_n from the edge loop)
                 sb = _segment_axis(q[i], q[i + 1], hu.edge_p[eb], hu.edge_a[eb], hu.edge_hl[eb], m, best_c, best_n)
             best = best_c[3]
@@ -2149,7 +2186,7 @@ def _hull_contacts(c, st, s, hu, q, x, mass, base, margin, out, sh, k_per_mass, 
                 for j in range(3):
                     qs[j] = best_c[j] + best_c[3] * best_n[j]
                 if tree:
-                    d = _hull_distance_at(hu, h, plane, tri, tri_plane, p0, qs, pd, cl, nl, stack)
+                    d = _hull_distance_at(hu, h, plane, tri, tri_plane, p0, qs, pd, cl, nl, stack, 1e300, spot)
                 else:
                     d = _hull_distance(plane, tri, tri_plane, p0, qs, pd, cl, nl)
                 if d < 0.0:
@@ -2169,7 +2206,7 @@ def _hull_contacts(c, st, s, hu, q, x, mass, base, margin, out, sh, k_per_mass, 
                 for j in range(3):
                     qs[j] = best_c[j] + best_c[3] * best_n[j]
                 if tree:
-                    d = _hull_distance_at(hu, h, plane, tri, tri_plane, p0, qs, pd, cl, nl, stack)
+                    d = _hull_distance_at(hu, h, plane, tri, tri_plane, p0, qs, pd, cl, nl, stack, 1e300, spot)
                 else:
                     d = _hull_distance(plane, tri, tri_plane, p0, qs, pd, cl, nl)
                 own1 = nl[0] * n1[0] + nl[1] * n1[1] + nl[2] * n1[2]

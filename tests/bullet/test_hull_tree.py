@@ -12,13 +12,14 @@ from bullet_dlo.core.spec import CableSpec
 from test_fine_hull import add_mesh, lay_across
 
 
-def ellipsoid_hull(points: int = 700, seed: int = 3) -> C.Hulls:
-    """A convex hull of points on an ellipsoid (about 2 points' worth of triangles each), margin 1 mm."""
+def ellipsoid_hull(points: int = 700, seed: int = 3, nodes: int = 0) -> C.Hulls:
+    """A convex hull of points on an ellipsoid (about 2 points' worth of triangles each), margin 1 mm; hints for
+    ``nodes`` nodes."""
     rng = np.random.default_rng(seed)
     u = rng.normal(size=(points, 3))
     verts = u / np.linalg.norm(u, axis=1, keepdims=True) * np.array([0.05, 0.03, 0.04])
     geo = C._hull_geometry(verts)
-    return C._pack_hulls([(*geo, 1e-3)], [0], 1)
+    return C._pack_hulls([(*geo, 1e-3)], [0], 1, nodes)
 
 
 def without_trees(hu: C.Hulls) -> C.Hulls:
@@ -141,3 +142,45 @@ def test_a_cable_on_the_duck_steps_as_without_the_trees(monkeypatch):
             states.append((cable.x.copy(), cable.contact_forces()["force"].sum(axis=0)))
     assert np.abs(states[0][0] - states[1][0]).max() < 1e-9
     assert np.abs(states[0][1] - states[1][1]).max() < 1e-6
+
+
+def test_a_nodes_last_triangle_tried_first_gives_the_distance_the_tree_gives():
+    """Nodes walking slowly over, off and into the hull (steps of 0.2 mm, as a resting or sliding cable's): through
+    each node's hint (its nearest triangle when last measured) the distance, closest point and normal are the tree's
+    to the bit, at a cutoff and without, except that a point at least the cutoff in front of its hint's plane gets
+    the cutoff (a lower bound: its distance is beyond); the hint is the nearest triangle when the tree was asked, and
+    most points are answered from it (the hint is then left as it was)."""
+    hu = ellipsoid_hull(nodes=8)
+    assert hu.hint.shape == (1, 32) and (hu.hint == -1).all()
+    plain = hu._replace(hint=np.zeros((1, 0), np.int64))
+    rng = np.random.default_rng(5)
+    p0, p1, t0, t1 = hu.plane_first[0], hu.plane_first[1], hu.tri_first[0], hu.tri_first[1]
+    args = (hu.plane[p0:p1], hu.tri[t0:t1], hu.tri_plane[t0:t1], p0)
+    pd, stack = np.empty(p1 - p0), np.empty(bvh.STACK, np.int64)
+    # start each node 1 mm off the surface beside a random triangle, then walk it
+    starts = [(w @ hu.tri[t]) * 1.02 for t, w in zip(rng.integers(0, len(hu.tri), 8), rng.dirichlet([1, 1, 1], 8))]
+    q = np.array(starts)
+    kept = asked = 0
+    for step in range(300):
+        q += rng.normal(scale=2e-4, size=q.shape) - (2e-5 if step > 150 else 0.0) * q / np.linalg.norm(q, axis=1)[:, None]
+        for i in range(len(q)):
+            for cutoff in (1e300, 0.004):
+                before = hu.hint[0, i]
+                c1, n1, c2, n2 = np.full(4, 7.0), np.full(3, 7.0), np.full(4, 7.0), np.full(3, 7.0)
+                d1 = C._hull_distance_at(hu, 0, *args, q[i], pd, c1, n1, stack, cutoff, i)
+                d2 = C._hull_distance_at(plain, 0, *args, q[i], pd, c2, n2, stack, cutoff, i)
+                if d1 == cutoff:  # a lower bound (the point and normal are not written): the distance is beyond
+                    assert d2 >= cutoff and C._hull_distance(*args, q[i], pd, c2, n2) >= cutoff, (step, i, d2)
+                    continue
+                assert d1 == d2 and (c1[:3] == c2[:3]).all() and (n1 == n2).all(), (step, i, d1, d2, c1, c2)
+                if hu.hint[0, i] == before:
+                    kept += 1
+                else:
+                    asked += 1
+                    cl = np.empty(3)
+                    t, _ = C._closest_triangle(hu, 0, q[i], np.empty(4), cl, stack)
+                    assert hu.hint[0, i] == t
+    assert kept > 4 * asked > 0, (kept, asked)
+    inside = [C._hull_distance_at(hu, 0, *args, 0.5 * p, pd, np.empty(4), np.empty(3), stack, 1e300, 0) < 0
+              for p in starts]
+    assert all(inside)  # deep inside: the full scan, whatever the hint
