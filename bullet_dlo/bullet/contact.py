@@ -574,15 +574,16 @@ class ContactSet:
     cable's, and the reactions applied to it during the coming Bullet step make Bullet's semi-implicit update
     land on that velocity when nothing else touches it. A free body that Bullet also supports (a contact with the
     ground or another body in the last step) or a user constraint holds moves in the step too, under that load as
-    measured over Bullet's last step (:mod:`bullet_dlo.bullet.held_bodies`). A body that another cable touches,
-    and every link of an articulated body that no motor drives, meets the cable explicitly through Bullet instead (a
-    driven link, ``driven``, is a kinematic obstacle: see ``__init__``): with the penalty stiffness k_n = alpha
-    m_k / h^2 (alpha = 1e4) and a body of mass M that force has k_n h^2 / M = alpha m_k / M per contact, 500 for
-    a 30 g box on one 1.6 g node, far past the explicit limit (about 1), so the detector condenses the body's
-    inertia into those contacts (:func:`_condense_bodies`): lambda [1/s^2], the body's fastest contact mode
-    squared (largest eigenvalue of the 6 x 6 stiffness of its loaded contacts scaled by 1/M and 1/I_min, both
-    upper bounds), scales every contact on the body, stiffness, damping and friction cap, by 1 / (1 + h^2
-    lambda), h [s] the Bullet step: the penalty in series with the body's inertia, stable, but the body sinks
+    measured over Bullet's last step (:mod:`bullet_dlo.bullet.held_bodies`); one that other cables touch too moves in
+    it with its share of the mass (:func:`~bullet_dlo.bullet.held_bodies.share`). A body that another cable touches
+    and something else holds, and every link of an articulated body that no motor drives, meets the cable explicitly
+    through Bullet instead (a driven link, ``driven``, is a kinematic obstacle: see ``__init__``): with the penalty
+    stiffness k_n = alpha m_k / h^2 (alpha = 1e4) and a body of mass M that force has k_n h^2 / M = alpha m_k / M
+    per contact, 500 for a 30 g box on one 1.6 g node, far past the explicit limit (about 1), so the detector
+    condenses the body's inertia into those contacts (:func:`_condense_bodies`): lambda [1/s^2], the body's fastest
+    contact mode squared (largest eigenvalue of the 6 x 6 stiffness of its loaded contacts scaled by 1/M and
+    1/I_min, both upper bounds), scales every contact on the body, stiffness, damping and friction cap, by 1 / (1 +
+    h^2 lambda), h [s] the Bullet step: the penalty in series with the body's inertia, stable, but the body sinks
     about g h^2 more at rest (0.2-0.4 mm at 240 Hz, 2.7 mm at 60 Hz). Static bodies keep the full stiffness.
     The inertia is read at set-up (a later changeDynamics of mass is not seen).
 
@@ -696,8 +697,10 @@ class ContactSet:
                              owner=np.array([pairs.index(pr) for pr in pairs], dtype=np.int64),
                              slot=np.array([free_bodies.index(r[0]) if r[11] else -1 for r in rows], dtype=np.int64),
                              inertia=np.zeros((nb, 3, 3)), impact=np.zeros(nb, np.bool_))
-        self._free_slot = self.shapes.slot.copy()  # each row's slot; -1 in shapes.slot while the body is shared
-        self._shared: frozenset = frozenset()
+        self._free_slot = self.shapes.slot.copy()  # each row's slot; -1 in shapes.slot while the body is condensed
+        self._shared: frozenset = frozenset()  # free bodies another cable touched in the last step
+        self._condensed: frozenset = frozenset()  # those of them held by something else too: condensed contact
+        self._split: dict[int, int] = {}  # the others, by the number of cables sharing them: in the step with a share
         self._was_supported: frozenset = frozenset()  # the free bodies in a Bullet contact the step before (impacts)
         self._spared: set[int] = set()  # free bodies handed less than the cable felt (held_bodies.spare_thrown)
         # the load on each free body from everything but this cable and gravity, measured over the last Bullet
@@ -705,6 +708,7 @@ class ContactSet:
         ns = len(free_bodies)
         self._slot_row = np.array([int(np.flatnonzero(self._free_slot == o)[0]) for o in range(ns)], np.int64)
         self._held = frozenset(b for b in free_bodies if b in constrained)
+        self._slot_of = {b: o for o, b in enumerate(free_bodies)}
         self._vel_before = np.zeros((ns, 6))
         self._seen = np.zeros(ns, np.bool_)
         self._applied = np.zeros((ns, 6))
@@ -950,18 +954,20 @@ class ContactSet:
         """Read the moving bodies, detect the contacts of positions x [m] (n, 3) for a cable step of h [s]
         within a Bullet step of dt [s]; ``stepped``: Bullet has taken the step the last contacts were
         planned for (their work is then counted with the bodies' velocities read now). ``shared``: free bodies
-        this cable's step may not move by itself (another cable also holds them): they keep the condensed
-        contact (:func:`_condense_bodies`) this step. ``supported``: free bodies Bullet also held in the last step
-        (a contact with the ground or another body); they, and the free bodies a user constraint holds, move in
-        the cable's step under the load the rest of the world put on them in the last step (:meth:`_measure`),
-        ``support`` {body: Bullet's contact points on it} (:attr:`BulletWorld.support_points
-        <bullet_dlo.bullet.world.BulletWorld.support_points>`) changing with the body's motion in the step."""
+        another cable's contacts also touched in the last step, {body: cables sharing it} (a set: two each): each
+        moves in this cable's step with its share of the mass, or keeps the condensed contact
+        (:func:`_condense_bodies`) this step (:func:`~bullet_dlo.bullet.held_bodies.sharing`). ``supported``: free
+        bodies Bullet also held in the last step (a contact with the ground or another body); they, and the free
+        bodies a user constraint holds, move in the cable's step under the load the rest of the world put on them in
+        the last step (:meth:`_measure`), ``support`` {body: Bullet's contact points on it}
+        (:attr:`BulletWorld.support_points <bullet_dlo.bullet.world.BulletWorld.support_points>`) changing with the
+        body's motion in the step."""
         if self.free_bodies:
-            shared = frozenset(shared).intersection(self.free_bodies)
-            if shared != self._shared:  # (a resting body stays shared or not for many steps: no NumPy work then)
-                self._shared = shared
+            condensed = held_bodies.sharing(self, shared, supported, support or {})
+            if condensed != self._condensed:  # (a resting body stays shared or not for many steps: no NumPy work)
+                self._condensed = condensed
                 self.shapes.slot[:] = self._free_slot
-                for b in shared:
+                for b in condensed:
                     self.shapes.slot[self.body_ids == b] = -1
         self._read_poses()
         if self.free_bodies and stepped:
@@ -1000,6 +1006,8 @@ class ContactSet:
         count = self._detect(*args)
         if self.free_bodies:
             self.bodies.hold_count[:] = 0
+            if self._split:
+                held_bodies.share(self)
         if measured:
             self._hold(measured, dt, mass)
         if self._any_dynamic and count:

@@ -271,3 +271,41 @@ def soften_friction(c, bd, o: int, count: int, m: float, dt: float) -> None:
     k = np.flatnonzero(bd.slot[:count] == o)
     if k.size:
         c.k_t[k] /= 1.0 + dt * dt * float(c.k_t[k].sum()) / m
+
+
+
+SPLIT_SHARED = True
+"""Move a body that several cables share (and nothing else holds) in each cable's step with its share of the mass
+(:func:`share`); False: the condensed contact for every shared body, as before 2026-12-05 (for comparisons)."""
+
+
+def sharing(cs, shared, supported, support) -> frozenset:
+    """Of the free bodies another cable's contacts also touched in the last step (``shared``: {body: cables sharing
+    it}, or a set: two each), the ones this cable's step takes with their share of the mass (``cs._split``, applied by
+    :func:`share`), and the ones it leaves to the condensed contact (returned): those something else holds too (a
+    user constraint, or Bullet: a point of ``support`` {body: points} in ``supported`` that carried load), whose
+    measured load would hold the other cables' reactions. (Bullet lists a pair's points up to 2 cm apart: a box
+    resting on two cables 4 mm above the table has points on it that carry nothing.) Sets ``cs._shared`` (all of
+    them: no body-energy booking, no measured load)."""
+    counts = shared if isinstance(shared, dict) else dict.fromkeys(shared, 2)
+    shares = {b: k for b, k in counts.items() if b in cs._slot_of}
+    held = cs._held.union(b for b in supported if any(p[2] > 0.0 for p in support.get(b, ())))
+    cs._split = {b: k for b, k in shares.items() if b not in held} if SPLIT_SHARED else {}
+    cs._shared = frozenset(shares)
+    return cs._shared.difference(cs._split)
+
+
+def share(cs) -> None:
+    """Each body shared by k cables (``cs._split``) in this cable's coming step with 1/k of its mass and inertia (as
+    the detector loaded them), so with 1/k of its weight: the k cables' reactions, applied together in Bullet's step,
+    move the whole body as each share moved in its cable's step where the cables carry equal shares (mass splitting,
+    Tonge et al. 2012, one pass: otherwise the average of the shares' motions, and each share turns under its own
+    cable's support alone, which the plan of its contacts sees and Bullet does not: about h^2 g |r|^2 M / I at a
+    contact at r from the centre of mass, 0.1 mm at 240 Hz and 1.6 mm at 60 Hz for a 40 x 40 x 20 mm box on cables 20
+    mm apart; docs/concepts/contact.md, "A body on two cables")."""
+    bd = cs.bodies
+    for b, k in cs._split.items():
+        o = cs._slot_of[b]
+        if bd.active[o]:
+            bd.mass[o] /= k
+            bd.inertia[o] /= k

@@ -406,13 +406,15 @@ class BulletWorld:
         for c in self.cables.values():
             c.apply_forces(replan)
 
-    def shared_bodies(self, cable: str) -> set[int]:
-        """The free bodies the cable named ``cable`` may not move in its own step: touched by another cable's
-        contacts in the last step (each cable's step alone would carry the body's whole weight). (The bodies
-        Bullet supports, :attr:`supported_bodies`, move in it under the load Bullet put on them.)"""
+    def shared_bodies(self, cable: str) -> dict[int, int]:
+        """The free bodies another cable's contacts touched in the last step, each with the number of cables that
+        share it (this one included): the cable named ``cable`` moves such a body in its own step with that share of
+        its mass (each cable's step alone would carry the body's whole weight), or keeps the condensed contact with it
+        where something else holds it too (:meth:`ContactSet.update <bullet_dlo.bullet.contact.ContactSet.update>`).
+        (The bodies Bullet supports, :attr:`supported_bodies`, move in it under the load Bullet put on them.)"""
         if not self.model_touches:
-            return set()
-        return {b for b, names in self.model_touches.items() if names - {cable}}
+            return {}
+        return {b: len(names | {cable}) for b, names in self.model_touches.items() if names - {cable}}
 
     def touched_by_model(self, cable: str, bodies) -> None:
         """Record the free bodies the model's contacts of ``cable`` touch in the step being planned."""
