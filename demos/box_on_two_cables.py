@@ -24,38 +24,53 @@ G = 9.81
 HALF = (0.02, 0.02, 0.01)  # [m] the box's half extents
 
 
-def run(hz: float, n: int, mass: float, drop: float, offset: float, sep: float, seconds: float) -> str:
+def drop(hz: float, mass: float, offset: float = 0.0, n: int = 15, height: float = 0.005, sep: float = 0.02,
+         seconds: float = 2.0) -> dict:
+    """Drop the box (``mass`` [kg], ``offset`` [m] off the middle towards the second cable) ``height`` [m] above
+    resting on two cables ``sep`` [m] apart lying on the table, and step ``seconds`` [s] at ``hz``. Returns, in m and
+    m/s: z (its centre against resting on the cables), lowest (deepest gap to a cable, negative: into it), top (its
+    highest point against its release), speed at the end, carried (each cable's upward force on it over its weight),
+    table (the table's support over all the weights) and stopped (the reasons of the cables that stopped)."""
     spec = CableSpec.lv2017(n_masses=n, damping=0.02)
     r = spec.diameter / 2
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         with BulletWorld(dt=1.0 / hz, ground=False) as world:
+            cid = world.client
             table = world.add_box((0.3, 0.2, 0.05), (0.0, 0.0, -0.05), friction=0.5, name="table")
             cables = [world.add_cable(spec, start=(-0.15, y, r), direction=(1, 0, 0), name=f"c{k}")
                       for k, y in enumerate((-sep / 2, sep / 2))]
             world.run(0.2)
             z_on = 2 * r + HALF[2]
-            box = world.add_box(HALF, (0.0, offset, z_on + drop), mass=mass, friction=0.5)
-            gap, top = 0.0, -1.0
+            box = world.add_box(HALF, (0.0, offset, z_on + height), mass=mass, friction=0.5)
+            lowest, top = 0.0, -1.0
             for _ in range(round(seconds * hz)):
                 world.step()
-                top = max(top, pb.getBasePositionAndOrientation(box, physicsClientId=world.client)[0][2])
+                top = max(top, pb.getBasePositionAndOrientation(box, physicsClientId=cid)[0][2])
                 for c in cables:
                     cf = c.contact_forces()
                     on = cf["body"] == box
                     if on.any():
-                        gap = min(gap, float(cf["gap"][on].min()))
+                        lowest = min(lowest, float(cf["gap"][on].min()))
                 if not all(c.stable for c in cables):
                     break
-            z = pb.getBasePositionAndOrientation(box, physicsClientId=world.client)[0][2]
-            support = sum(float(c.contact_forces()["force"][c.contact_forces()["body"] == table][:, 2].sum())
-                          for c in cables)
-            support += sum(cp[9] for cp in pb.getContactPoints(box, table, physicsClientId=world.client))
-            weight = (2 * spec.mass + mass) * G
-            status = "; ".join(f"{c.name}: {c.reason}" for c in cables if not c.stable) or "stable"
-    return (f"{hz:5.0f} Hz, {mass:6.3f} kg, offset {1e3 * offset:4.1f} mm: lowest gap {1e3 * gap:7.2f} mm, "
-            f"ends at z {1e3 * z:6.2f} mm (on the cables: {1e3 * z_on:.2f}), highest {1e3 * (top - z_on - drop):+.2f} "
-            f"mm from its release, support {support / weight:.4f} of both weights, {status}")
+            table_load = -sum(float(c.body_forces().get(table, np.zeros(3))[2]) for c in cables)  # (on it: down)
+            table_load += sum(cp[9] for cp in pb.getContactPoints(box, table, physicsClientId=cid))
+            return {"z": pb.getBasePositionAndOrientation(box, physicsClientId=cid)[0][2] - z_on, "lowest": lowest,
+                    "top": top - z_on - height, "z_on": z_on,
+                    "speed": float(np.linalg.norm(pb.getBaseVelocity(box, physicsClientId=cid)[0])),
+                    "carried": [float(c.body_forces().get(box, np.zeros(3))[2]) / (mass * G) for c in cables],
+                    "table": table_load / ((2 * spec.mass + mass) * G),
+                    "stopped": [f"{c.name}: {c.reason}" for c in cables if not c.stable]}
+
+
+def run(hz: float, n: int, mass: float, height: float, offset: float, sep: float, seconds: float) -> str:
+    """One line of the printed table (:func:`drop`)."""
+    out = drop(hz, mass, offset, n, height, sep, seconds)
+    status = "; ".join(out["stopped"]) or "stable"
+    return (f"{hz:5.0f} Hz, {mass:6.3f} kg, offset {1e3 * offset:4.1f} mm: lowest gap {1e3 * out['lowest']:7.2f} mm, "
+            f"ends at z {1e3 * (out['z'] + out['z_on']):6.2f} mm (on the cables: {1e3 * out['z_on']:.2f}), highest "
+            f"{1e3 * out['top']:+.2f} mm from its release, support {out['table']:.4f} of both weights, {status}")
 
 
 def main() -> None:

@@ -10,52 +10,15 @@ Fails before (08ac6ba): a body two cables share kept the condensed contact, whic
 """
 from __future__ import annotations
 
-import warnings
+import sys
+from pathlib import Path
 
-import numpy as np
-import pybullet as pb
 import pytest
 
-from bullet_dlo.bullet.world import BulletWorld
-from bullet_dlo.core.spec import CableSpec
+sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "demos"))
+from box_on_two_cables import drop  # noqa: E402  (the demo's scene)
 
 pytestmark = pytest.mark.bullet
-
-G = 9.81
-HALF = (0.02, 0.02, 0.01)  # [m] the box's half extents
-SEP = 0.02  # [m] between the cables' axes
-
-
-def drop(hz: float, mass: float, offset: float = 0.0, seconds: float = 2.0) -> dict:
-    spec = CableSpec.lv2017(n_masses=15, damping=0.02)
-    r = spec.diameter / 2
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        with BulletWorld(dt=1.0 / hz, ground=False) as world:
-            table = world.add_box((0.3, 0.2, 0.05), (0.0, 0.0, -0.05), friction=0.5, name="table")
-            cables = [world.add_cable(spec, start=(-0.15, y, r), direction=(1, 0, 0), name=f"c{k}")
-                      for k, y in enumerate((-SEP / 2, SEP / 2))]
-            world.run(0.2)
-            z_on = 2 * r + HALF[2]
-            box = world.add_box(HALF, (0.0, offset, z_on + 0.005), mass=mass, friction=0.5)
-            lowest = 0.0
-            for _ in range(round(seconds * hz)):
-                world.step()
-                for c in cables:
-                    cf = c.contact_forces()
-                    on = cf["body"] == box
-                    if on.any():
-                        lowest = min(lowest, float(cf["gap"][on].min()))
-                if not all(c.stable for c in cables):
-                    break
-            cid = world.client
-            table_load = -sum(float(c.body_forces().get(table, np.zeros(3))[2]) for c in cables)  # (on the table: down)
-            table_load += sum(cp[9] for cp in pb.getContactPoints(box, table, physicsClientId=cid))
-            return {"z": pb.getBasePositionAndOrientation(box, physicsClientId=cid)[0][2] - z_on,
-                    "speed": float(np.linalg.norm(pb.getBaseVelocity(box, physicsClientId=cid)[0])),
-                    "lowest": lowest, "stopped": [c.reason for c in cables if not c.stable],
-                    "carried": [float(c.body_forces().get(box, np.zeros(3))[2]) / (mass * G) for c in cables],
-                    "table": table_load / ((2 * spec.mass + mass) * G)}
 
 
 @pytest.mark.parametrize("mass", [0.001, 0.03, 3.0])
