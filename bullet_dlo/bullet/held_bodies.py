@@ -273,7 +273,6 @@ def soften_friction(c, bd, o: int, count: int, m: float, dt: float) -> None:
         c.k_t[k] /= 1.0 + dt * dt * float(c.k_t[k].sum()) / m
 
 
-
 SPLIT_SHARED = True
 """Move a body that several cables share (and nothing else holds) in each cable's step with its share of the mass
 (:func:`share`); False: the condensed contact for every shared body, as before 2026-12-05 (for comparisons)."""
