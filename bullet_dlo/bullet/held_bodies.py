@@ -286,6 +286,9 @@ def sharing(cs, shared, supported, support) -> frozenset:
     measured load would hold the other cables' reactions. (Bullet lists a pair's points up to 2 cm apart: a box
     resting on two cables 4 mm above the table has points on it that carry nothing.) Sets ``cs._shared`` (all of
     them: no body-energy booking, no measured load)."""
+    if not shared:  # (the common case, every step of a scene with free bodies: nothing to build)
+        cs._split, cs._shared = {}, frozenset()
+        return cs._shared
     counts = shared if isinstance(shared, dict) else dict.fromkeys(shared, 2)
     shares = {b: k for b, k in counts.items() if b in cs._slot_of}
     held = cs._held.union(b for b in supported if any(p[2] > 0.0 for p in support.get(b, ())))
