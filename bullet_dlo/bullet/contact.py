@@ -953,15 +953,14 @@ class ContactSet:
                shared=(), supported=(), support=None) -> int:
         """Read the moving bodies, detect the contacts of positions x [m] (n, 3) for a cable step of h [s]
         within a Bullet step of dt [s]; ``stepped``: Bullet has taken the step the last contacts were
-        planned for (their work is then counted with the bodies' velocities read now). ``shared``: free bodies
-        another cable's contacts also touched in the last step, {body: cables sharing it} (a set: two each): each
-        moves in this cable's step with its share of the mass, or keeps the condensed contact
-        (:func:`_condense_bodies`) this step (:func:`~bullet_dlo.bullet.held_bodies.sharing`). ``supported``: free
-        bodies Bullet also held in the last step (a contact with the ground or another body); they, and the free
-        bodies a user constraint holds, move in the cable's step under the load the rest of the world put on them in
-        the last step (:meth:`_measure`), ``support`` {body: Bullet's contact points on it}
-        (:attr:`BulletWorld.support_points <bullet_dlo.bullet.world.BulletWorld.support_points>`) changing with the
-        body's motion in the step."""
+        planned for (their work is then counted with the bodies' velocities read now). ``shared``: free bodies another
+        cable's contacts also touched in the last step, {body: cables sharing it}: each moves in this cable's
+        step with its share of the mass, or keeps the condensed contact (:func:`_condense_bodies`) this step
+        (:func:`~bullet_dlo.bullet.held_bodies.sharing`). ``supported``: free bodies Bullet also held in the
+        last step (a contact with the ground or another body); they, and the free bodies a user constraint
+        holds, move in the cable's step under the load the rest of the world put on them in the last step
+        (:meth:`_measure`), ``support`` {body: Bullet's contact points on it} (:attr:`BulletWorld.support_points
+        <bullet_dlo.bullet.world.BulletWorld.support_points>`) changing with the body's motion in the step."""
         if self.free_bodies:
             condensed = held_bodies.sharing(self, shared, supported, support or {})
             if condensed != self._condensed:  # (a resting body stays shared or not for many steps: no NumPy work)

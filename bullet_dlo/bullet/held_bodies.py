@@ -280,17 +280,17 @@ SPLIT_SHARED = True
 
 def sharing(cs, shared, supported, support) -> frozenset:
     """Of the free bodies another cable's contacts also touched in the last step (``shared``: {body: cables sharing
-    it}, or a set: two each), the ones this cable's step takes with their share of the mass (``cs._split``, applied by
-    :func:`share`), and the ones it leaves to the condensed contact (returned): those something else holds too (a
-    user constraint, or Bullet: a point of ``support`` {body: points} in ``supported`` that carried load), whose
-    measured load would hold the other cables' reactions. (Bullet lists a pair's points up to 2 cm apart: a box
-    resting on two cables 4 mm above the table has points on it that carry nothing.) Sets ``cs._shared`` (all of
-    them: no body-energy booking, no measured load)."""
+    it}, :meth:`BulletWorld.shared_bodies <bullet_dlo.bullet.world.BulletWorld.shared_bodies>`), the ones this
+    cable's step takes with their share of the mass (``cs._split``, applied by :func:`share`), and the ones it
+    leaves to the condensed contact (returned): those something else holds too (a user constraint, or Bullet: a
+    point of ``support`` {body: points} in ``supported`` that carried load), whose measured load would hold the
+    other cables' reactions. (Bullet lists a pair's points up to 2 cm apart: a box resting on two cables 4 mm above
+    the table has points on it that carry nothing.) Sets ``cs._shared`` (all of them: no body-energy booking, no
+    measured load)."""
     if not shared:  # (the common case, every step of a scene with free bodies: nothing to build)
         cs._split, cs._shared = {}, frozenset()
         return cs._shared
-    counts = shared if isinstance(shared, dict) else dict.fromkeys(shared, 2)
-    shares = {b: k for b, k in counts.items() if b in cs._slot_of}
+    shares = {b: k for b, k in shared.items() if b in cs._slot_of}
     held = cs._held.union(b for b in supported if any(p[2] > 0.0 for p in support.get(b, ())))
     cs._split = {b: k for b, k in shares.items() if b not in held} if SPLIT_SHARED else {}
     cs._shared = frozenset(shares)
