@@ -2,7 +2,8 @@
 
 The study's cable (clamped, 5 mm move, implicit Euler, 1 kHz, ground plane; n = 10 by default) is
 stepped by :meth:`BulletWorld.step` (recording every step, as ``simulate`` does, and without a
-recorder), and each part of the step is timed on its own on the same warmed world: Bullet's step,
+recorder; its steps are plain, one compiled call each: ``bullet/plain_steps.py``), the same in Python's phases
+(``plain_steps.PLAIN_STEPS`` off), and each part of the step is timed on its own on the same warmed world: Bullet's step,
 the forces to Bullet (one compiled call), the contact query, the contact model's update (poses of
 the bodies, detection), the model's kernel as the solver calls it (sync, checks, plan, on its packed arguments:
 ``bullet/solver_call.py``; the share of it that is only Numba unboxing them, timed as an empty kernel over the same
@@ -35,12 +36,17 @@ from pathlib import Path
 import pybullet as pb
 from numba import njit
 
+from bullet_dlo.bullet import plain_steps
 from bullet_dlo.bullet.kernels import bind
 from bullet_dlo.bullet.solver_call import make_step_args, step_with
 from bullet_dlo.bullet.world import BulletWorld
 from bullet_dlo.core.boundary import Move
 from bullet_dlo.core.model import CableModel
 from bullet_dlo.core.spec import CableSpec
+
+
+PYTHON_REC = "  the same in Python's phases, recording"
+PYTHON = "  the same in Python's phases, no recorder"
 
 
 @njit
@@ -67,9 +73,10 @@ def per_call(fn, block: int) -> float:
 
 
 def in_situ(model: CableModel, rounds: int, block: int) -> tuple[dict[str, list[float]], float]:
-    """Per-part thread CPU time [us per step] inside ``BulletWorld.step`` (no recorder), each part wrapped with a
-    clock on its instance; returns the rounds of each part (the clock's cost taken off) and a wrapped call's cost
-    [us]."""
+    """Per-part thread CPU time [us per step] inside ``BulletWorld.step`` (no recorder, Python's phases: the plain
+    steps' loop has no parts to wrap), each part wrapped with a clock on its instance; returns the rounds of each part
+    (the clock's cost taken off) and a wrapped call's cost [us]."""
+    plain_steps.PLAIN_STEPS = False
     world = BulletWorld(dt=1e-3)
     cable = world.add_cable(model, record_every=10**9)
     world.step(50)
@@ -131,6 +138,7 @@ def in_situ(model: CableModel, rounds: int, block: int) -> tuple[dict[str, list[
             rounds_us[label].append(acc.get(label, 0) / block / 1e3 - (calls.get(label, 0) / block) * inner_us
                                     - inner * over)
     world.close()
+    plain_steps.PLAIN_STEPS = True
     return rounds_us, statistics.median(overs)
 
 
@@ -147,6 +155,10 @@ def main() -> None:
     model = study(args.n)
     rec_world = BulletWorld(dt=1e-3)
     rec_world.add_cable(model, record_every=1)
+    rec_python = BulletWorld(dt=1e-3)  # the same two stepped in Python's phases
+    rec_python.add_cable(model, record_every=1)
+    python = BulletWorld(dt=1e-3)
+    python.add_cable(model, record_every=10**9)
     world = BulletWorld(dt=1e-3)
     cable = world.add_cable(model, record_every=10**9)
     bare = BulletWorld(dt=1e-3)
@@ -155,7 +167,7 @@ def main() -> None:
     parked.add_cable(model, record_every=10**9)  # the default: its spheres are parked proxies
     kernel_world = BulletWorld(dt=1e-3)  # its cable is stepped by the kernel alone (no Bullet step between)
     kcable = kernel_world.add_cable(model, record_every=10**9)
-    for w in (rec_world, world, kernel_world):
+    for w in (rec_world, world, kernel_world, rec_python, python):
         w.step(50)  # compile and warm up
     # the kernel's inputs of a step: take over, cheap checks (every step by default), plan; with the recorder's
     # end loads and energy or without (the energy balance, every 10th step, is left out)
@@ -178,6 +190,8 @@ def main() -> None:
     parts = {
         "coupled step, recording every step": lambda: rec_world.step(),
         "coupled step, no recorder": lambda: world.step(),
+        PYTHON_REC: lambda: rec_python.step(),
+        PYTHON: lambda: python.step(),
         "bare stepSimulation (twin world)": lambda: pb.stepSimulation(bare.client),
         "bare stepSimulation (twin, parked spheres)": lambda: pb.stepSimulation(parked.client),
         "  Bullet's step in the coupled world": lambda: pb.stepSimulation(world.client),
@@ -196,7 +210,9 @@ def main() -> None:
     for _ in range(args.rounds):
         reset_twin()
         for name, fn in parts.items():
+            plain_steps.PLAIN_STEPS = "Python's phases" not in name
             times[name].append(per_call(fn, args.block))
+        plain_steps.PLAIN_STEPS = True
     situ, clock_us = in_situ(model, args.rounds, args.block)
     load_end = os.getloadavg()
     med = {k: statistics.median(v) for k, v in times.items()}
@@ -208,11 +224,12 @@ def main() -> None:
         print(f"  {name:44s} {med[name]:7.1f} ({min(v):.1f}-{max(v):.1f})")
     top = ("  Bullet's step in the coupled world", "  forces to Bullet (apply_forces)", "  contact query (getContactPoints)",
            "  contact model update (poses, detect)", "  model kernel (sync, checks, plan)")
-    glue = med["coupled step, no recorder"] - sum(med[k] for k in top)
+    glue = med[PYTHON] - sum(med[k] for k in top)
     bare_us = med["bare stepSimulation (twin world)"]
-    print(f"  {'  Python glue (the step minus its parts)':44s} {glue:7.1f}")
+    print(f"  {'  Python glue (the Python phases minus parts)':44s} {glue:7.1f}")
     print(f"coupled / bare: {med['coupled step, no recorder'] / bare_us:.2f}x without the recorder, "
-          f"{med['coupled step, recording every step'] / bare_us:.2f}x recording every step")
+          f"{med['coupled step, recording every step'] / bare_us:.2f}x recording every step; in Python's phases "
+          f"{med[PYTHON] / bare_us:.2f}x and {med[PYTHON_REC] / bare_us:.2f}x")
     print(f"in situ: each part inside BulletWorld.step (no recorder), us per step, median (range); the clock's own "
           f"cost ({clock_us:.2f} us per wrapped call) taken off")
     for name, v in situ.items():
@@ -227,7 +244,7 @@ def main() -> None:
          "in_situ_median_us": situ_med, "in_situ_glue_us": situ_glue, "clock_us": clock_us, "load_start": load,
          "load_end": load_end}, indent=2))
     print(f"outputs written to {out.resolve()}")
-    for w in (rec_world, world, kernel_world, bare, parked):
+    for w in (rec_world, world, kernel_world, bare, parked, rec_python, python):
         w.close()
 
 

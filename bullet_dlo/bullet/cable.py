@@ -134,6 +134,7 @@ class BulletCable:
         self._mirrored = -1  # the step whose positions the parked spheres hold in Bullet
         self._fresh: set[int] = set()  # spheres parked since the last step (see _hold_fresh)
         self._waking = False  # woken from proxies before the last step (see _finish_waking)
+        self._plain_args = None  # plain_steps' packed arguments and loop (plain_steps._packed)
         self.contact_damping = check_nonnegative("contact_damping", contact_damping)
         self.record_every = check_int("record_every", record_every, 1)
         st = (state or model.initial_state()).copy()
@@ -390,8 +391,7 @@ class BulletCable:
         record = do_sync and self.steps % self.record_every == 0
         contacts = contact.contacts
         inp = solver.step_input(self.t, self.steps if do_sync else 0, do_sync, record, contacts, idx_arr, pos, vel)
-        active = self.grip.active
-        gripped = active.tolist()
+        gripped = self.grip.active.tolist()
         if self.twist.theta.shape[0]:  # the twist state at self.t, before the plan advances it
             if not do_sync:  # planned again from self.t: from the twist of self.t, not the one planned before
                 self._twist_at_t()
@@ -403,12 +403,19 @@ class BulletCable:
                     a[...] = b
             self._twist_planned = True
         status = solver.step(self.arrays, self.control, contacts, contact.bodies, inp)
-        cs = contact.set
+        self._after_plan(status, record, do_sync, gripped)
+
+    def _after_plan(self, status: int, record: bool, do_sync: bool, gripped=(False, False)) -> None:
+        """What follows the kernel's plan (``status``) in :meth:`_advance`: the free bodies' books, a grip the end slid
+        out of (``gripped``: which ends a grip held before the plan), the record's row."""
+        solver = self.solver
+        cs = self.contact.set
         if solver.last_ratio > 0.0 and self.model_contact and cs is not None and cs.free_bodies:  # kept unconverged
             held_bodies.spare_thrown(cs, self.world.dt)
         if status == STABLE and self.model_contact and cs is not None and cs.free_bodies:
             body_energy.plan(cs, self.world.dt, solver.last_ratio == 0.0)
         if gripped[0] or gripped[1]:
+            active = self.grip.active
             for end in (0, 1):
                 if gripped[end] and not active[end]:  # the end slid out of the gripper
                     self._let_go(end)

@@ -127,6 +127,7 @@ overlap_init = c_function("b3InitAABBOverlapQuery", "u:uuu")
 overlap_results = c_function("b3GetAABBOverlapResults", "v:uu")
 collision_info_init = c_function("b3RequestCollisionInfoCommandInit", "u:ui")
 status_aabb = c_function("b3GetStatusAABB", "i:uiuu")
+step_init = c_function("b3InitStepSimulationCommand", "u:u")
 memcpy = c_function("memcpy", "u:uuu")  # reads the doubles behind the pointers the C API hands out
 _ADDRESSES = np.array([ctypes.cast(getattr(ctypes.CDLL(None) if n == "memcpy" else _lib, n), ctypes.c_void_p).value
                        for n in _KERNEL_API], dtype=np.uint64)
@@ -214,6 +215,13 @@ def disabled_warning(what: str, why: str) -> None:
 
 
 # ----- kernels (``api``: kernel_api(handle)) ----------------------------------------------------
+@njit(cache=True)
+def step_simulation(api):
+    """Bullet's step of the world, as PyBullet's ``stepSimulation`` takes it (one command, waited for)."""
+    handle = api[HANDLE]
+    submit(api, handle, step_init(api, handle))
+
+
 @njit(cache=True)
 def apply_forces(api, bodies, force, point):
     """Force [N] (k, 3) at world point [m] (k, 3) on the base of each of ``bodies`` (k,) for the coming step."""

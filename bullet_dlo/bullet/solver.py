@@ -189,7 +189,23 @@ class CableSolver:
             if self._kernel is None or any(map(is_not, held, self._packed)):
                 self._pack(held, inp)  # one of the objects was replaced: pack the ones a plain call would pass now
             status, its, ok = self._kernel(self._args, inp)
-        info = guard.info
+        return self.account(status, its, ok, inp.t)
+
+    def packed_args(self, arrays: KernelArrays, control: CableControl, contacts: Contacts, bodies: Bodies):
+        """The packed kernel arguments the last step ran on (:func:`~bullet_dlo.bullet.solver_call.step_with`'s
+        first), or None when they are not the ones a step with these objects would pass now (not packed yet, one of
+        the objects replaced since, or the plain call in use): :mod:`bullet_dlo.bullet.plain_steps` then leaves the
+        step to :meth:`step`."""
+        if self._kernel is None or self._guard is None or self._guard_contacts is not contacts:
+            return None
+        held = (self.stepper, arrays, self.plan, control.holders, self.coupling, self.workspace, self.detector,
+                contacts, bodies, self._guard)
+        return None if any(map(is_not, held, self._packed)) else self._args
+
+    def account(self, status: int, its: int, ok: bool, t: float) -> int:
+        """Count a planned step (its status, Newton iterations, convergence, and the stall guard's ``info`` it
+        left) planned from time t [s]; an unstable status stops the solver with its report. Returns the status."""
+        info = self._guard.info
         self.steps_planned += 1
         self.newton_iterations += its
         if not ok:
@@ -206,23 +222,23 @@ class CableSolver:
             self.worst_kept_ratio = max(self.worst_kept_ratio, ratio)
         if status != STABLE:
             self.status = status
-            self.time_to_instability = inp.t
+            self.time_to_instability = t
             if status == STALLED:
                 retried = (f"taken again as {' then '.join(str(2 ** k) for k in range(1, self.stall_levels + 1))} "
                            f"sub-steps it still ended at {info[FINAL_RATIO]:.3g}" if self.stall_levels > 0
                            else "not taken again (no retries allowed)")
                 self.stop_report = (
-                    f"t = {inp.t:.6g} s: the contact Newton solve of the step ended after {int(info[FIRST_ITER])} "
+                    f"t = {t:.6g} s: the contact Newton solve of the step ended after {int(info[FIRST_ITER])} "
                     f"iteration(s) with its momentum residual at {info[FIRST_RATIO]:.3g} times gravity's impulse in "
                     f"a step, having moved the momentum by {info[FIRST_MOVED]:.3g} of it: the cable would coast "
                     f"through the step as if no force acted; {retried}. The cable is stopped as unstable "
                     f"({REASONS[STALLED]}); try a smaller dt or softer contact")
-                warnings.warn(self.stop_report, RuntimeWarning, stacklevel=3)
+                warnings.warn(self.stop_report, RuntimeWarning, stacklevel=4)
         elif not self._warned_share and self.steps_planned >= NEWTON_WARN_MIN_STEPS:
             share = self.newton_failures / self.steps_planned
             if share > NEWTON_WARN_SHARE:
                 self._warned_share = True
-                warnings.warn(self.failure_message(), RuntimeWarning, stacklevel=3)
+                warnings.warn(self.failure_message(), RuntimeWarning, stacklevel=4)
         return status
 
     def stop(self, status: int, t: float, report: str) -> None:
