@@ -18,7 +18,9 @@ demos/cable_on_duck.py) and the ground; their contact-free twins have the block 
 from the cable. Step times are thread
 times (``time.thread_time``).
 
-``--split``: also the contact scene's step part by part (thread time per step, medians of the blocks):
+Worlds without a free body take plain steps (one compiled call a step, ``bullet/plain_steps.py``), both sides of
+the ratio alike. ``--split``: every step in Python's phases (the parts are timed there), and the contact scene's
+step part by part (thread time per step, medians of the blocks):
 ``ContactSet.update`` (the bodies' poses, detection), ``CableSolver.step`` (the cable's kernel: take-over,
 checks, the planned contact steps), the rest (Bullet's step, the forces to Bullet, the reactions on the bodies,
 Python), and the stall guard's copies per contact step (its save of what the step reads and writes, timed in a
@@ -47,6 +49,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pybullet as pb  # noqa: E402
 
+from bullet_dlo.bullet import plain_steps  # noqa: E402
 from bullet_dlo.bullet.world import BulletWorld  # noqa: E402
 from bullet_dlo.core.model import CableState  # noqa: E402
 from bullet_dlo.core.spec import CableSpec  # noqa: E402
@@ -150,11 +153,13 @@ def per_step(world: BulletWorld, steps: int) -> float:
 
 
 class _PartTimer:
-    """Thread time [s] spent in ``ContactSet.update`` and ``CableSolver.step`` while active (wrapped methods)."""
+    """Thread time [s] spent in ``ContactSet.update`` and ``CableSolver.step`` while active (wrapped methods; every
+    step then takes Python's phases: the plain steps' loop calls neither)."""
 
     def __init__(self):
         from bullet_dlo.bullet.contact import ContactSet
         from bullet_dlo.bullet.solver import CableSolver
+        plain_steps.PLAIN_STEPS = False
         self.spent = {"update": 0.0, "solver": 0.0}
         self._orig = [(ContactSet, "update", ContactSet.update), (CableSolver, "step", CableSolver.step)]
         for cls, name, fn in self._orig:
@@ -174,6 +179,7 @@ class _PartTimer:
     def restore(self) -> None:
         for cls, name, fn in self._orig:
             setattr(cls, name, fn)
+        plain_steps.PLAIN_STEPS = True
 
 
 def guard_copy_us(cable, calls: int = 20000) -> float:

@@ -22,6 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
+from bullet_dlo.bullet import plain_steps
 from bullet_dlo.bullet import solver as solver_mod
 from bullet_dlo.bullet.kernels import COASTED, FINAL_RATIO, FIRST_ITER, FIRST_MOVED, FIRST_RATIO, RETRY_SUBSTEPS
 
@@ -44,6 +45,7 @@ def _install(levels: int, far: float) -> None:
         return status
 
     solver_mod.CableSolver.step = step
+    plain_steps.PLAIN_STEPS = False  # every step through CableSolver.step (the plain steps' loop does not call it)
 
 
 def _q(a: np.ndarray) -> str:
