@@ -2004,6 +2004,27 @@ def _edge_cos(hu, e) -> float:
     return n1[0] * n2[0] + n1[1] * n2[1] + n1[2] * n2[2]
 
 
+@njit(cache=True, error_model="numpy", inline="always")
+def _ahead_of_a_face(hu, h, a, b, i, reach):
+    """Whether nodes i and i + 1 (a, b [m], the hull's frame) both lie more than ``reach`` [m] in front of the plane of
+    either node's last nearest triangle (``hu.hint``). Every face's plane supports the convex hull, so its edges lie
+    on or behind it, and the segment between the nodes is nowhere nearer the plane than its nearer end: no edge is
+    within reach of the segment, and :func:`_hull_contacts` makes it no row (its edge search is skipped: on the
+    duck at n = 20 about 7 of the 11 segments in the hull's box, each testing ~37 edges)."""
+    if i + 1 >= hu.hint.shape[1]:
+        return False
+    for node in (i, i + 1):
+        t = hu.hint[h, node]
+        if t < 0:
+            continue
+        f = hu.tri_plane[t]
+        da = hu.plane[f, 0] * a[0] + hu.plane[f, 1] * a[1] + hu.plane[f, 2] * a[2] - hu.plane[f, 3]
+        db = hu.plane[f, 0] * b[0] + hu.plane[f, 1] * b[1] + hu.plane[f, 2] * b[2] - hu.plane[f, 3]
+        if min(da, db) > reach + TREE_SLACK:
+            return True
+    return False
+
+
 @njit(cache=True, error_model="numpy")
 def _hull_contacts(c, st, s, hu, q, x, mass, base, margin, out, sh, k_per_mass, zeta, seg_k, seg_l, seg_b, seg_held):
     """Contacts of the nodes (local positions q (n, 3) [m]) and segments with hull row s (:class:`Hulls`): a
@@ -2109,6 +2130,8 @@ def _hull_contacts(c, st, s, hu, q, x, mass, base, margin, out, sh, k_per_mass, 
                     miss = True
             if miss:
                 continue
+        if not wrapped and _ahead_of_a_face(hu, h, q[i], q[i + 1], i, reach):
+            continue
         best = 1e300
         eb = -1
         sb = 0.0

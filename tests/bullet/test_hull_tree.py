@@ -184,3 +184,54 @@ def test_a_nodes_last_triangle_tried_first_gives_the_distance_the_tree_gives():
     inside = [C._hull_distance_at(hu, 0, *args, 0.5 * p, pd, np.empty(4), np.empty(3), stack, 1e300, 0) < 0
               for p in starts]
     assert all(inside)  # deep inside: the full scan, whatever the hint
+
+
+def _segment_distance(a: np.ndarray, b: np.ndarray, c: np.ndarray, d: np.ndarray) -> float:
+    """Exact distance [m] between segments ab and cd (closest points by clamping, as in Ericson's Real-Time Collision
+    Detection, 5.1.9)."""
+    d1, d2, r = b - a, d - c, a - c
+    p, q, f = d1 @ d1, d2 @ d2, d2 @ r
+    cc, bb = d1 @ r, d1 @ d2
+    den = p * q - bb * bb
+    s = np.clip((bb * f - cc * q) / den, 0.0, 1.0) if den > 1e-30 else 0.0
+    t = (bb * s + f) / q
+    if t < 0.0:
+        t, s = 0.0, np.clip(-cc / p, 0.0, 1.0)
+    elif t > 1.0:
+        t, s = 1.0, np.clip((bb - cc) / p, 0.0, 1.0)
+    return float(np.linalg.norm(a + s * d1 - (c + t * d2)))
+
+
+def test_a_segment_ahead_of_a_face_is_out_of_every_edges_reach():
+    """The hull contacts skip a segment's edge search where both its nodes lie more than the reach in front of one
+    node's hint plane (``_ahead_of_a_face``). Segments between points 0-6 mm off the surface (hints set by each
+    node's distance query, as in a step): wherever it skips, the exact distance from the segment to every edge of the
+    hull exceeds the reach (a wrong sign or plane would skip segments that touch an edge); it skips most segments
+    that are out of reach, and none within it."""
+    hu = ellipsoid_hull(nodes=8)
+    rng = np.random.default_rng(11)
+    p0, p1, t0, t1 = hu.plane_first[0], hu.plane_first[1], hu.tri_first[0], hu.tri_first[1]
+    args = (hu.plane[p0:p1], hu.tri[t0:t1], hu.tri_plane[t0:t1], p0)
+    pd, stack = np.empty(p1 - p0), np.empty(bvh.STACK, np.int64)
+    e0, e1 = hu.edge_first[0], hu.edge_first[1]
+    ends = [(hu.edge_p[e] - hu.edge_hl[e] * hu.edge_a[e], hu.edge_p[e] + hu.edge_hl[e] * hu.edge_a[e])
+            for e in range(e0, e1)]
+    reach = 0.0025  # [m] radius + margin + the hull's margin
+    skipped = out_of_reach = within = 0
+    for _ in range(300):
+        t = rng.integers(0, len(hu.tri))
+        centre = rng.dirichlet([1, 1, 1]) @ hu.tri[t]
+        out = centre / np.linalg.norm(centre)
+        q = [centre + out * rng.uniform(0.0, 0.006) + rng.normal(scale=0.004, size=3) for _ in range(2)]
+        for node in (0, 1):
+            C._hull_distance_at(hu, 0, *args, q[node], pd, np.empty(4), np.empty(3), stack, 1e300, node)
+        ahead = C._ahead_of_a_face(hu, 0, q[0], q[1], 0, reach)
+        nearest = min(_segment_distance(q[0], q[1], a, b) for a, b in ends)
+        if ahead:
+            assert nearest > reach, (q, nearest)
+            skipped += 1
+        if nearest > reach:
+            out_of_reach += 1
+        else:
+            within += 1
+    assert within > 20 and skipped > 0.5 * out_of_reach > 20, (within, skipped, out_of_reach)
