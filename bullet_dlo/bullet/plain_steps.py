@@ -96,6 +96,7 @@ def take(world, n: int) -> int:
     if plain:
         solver.last_ratio = 0.0
         cable.contacts_last_step = count
+        solver.judge_share()  # (the batch ends where the share is first judged: as after that step)
     world._supported = world._supported_in(())  # phase 7's books of Bullet's contacts: none read (parked spheres)
     world._supported_due = False
     if how == MOVED:  # the cable's step of the last world step, in Python

@@ -234,12 +234,19 @@ class CableSolver:
                     f"through the step as if no force acted; {retried}. The cable is stopped as unstable "
                     f"({REASONS[STALLED]}); try a smaller dt or softer contact")
                 warnings.warn(self.stop_report, RuntimeWarning, stacklevel=4)
-        elif not self._warned_share and self.steps_planned >= NEWTON_WARN_MIN_STEPS:
+        else:
+            self.judge_share()
+        return status
+
+    def judge_share(self) -> None:
+        """Warn once when more than NEWTON_WARN_SHARE of the steps planned so far ended unconverged (judged from
+        NEWTON_WARN_MIN_STEPS steps on; after every stable step, and after a batch of plain steps, whose converged
+        steps only lower the share)."""
+        if not self._warned_share and self.steps_planned >= NEWTON_WARN_MIN_STEPS:
             share = self.newton_failures / self.steps_planned
             if share > NEWTON_WARN_SHARE:
                 self._warned_share = True
-                warnings.warn(self.failure_message(), RuntimeWarning, stacklevel=4)
-        return status
+                warnings.warn(self.failure_message(), RuntimeWarning, stacklevel=5)
 
     def stop(self, status: int, t: float, report: str) -> None:
         """Stop the cable as unstable for a reason found outside the step kernel (``status``, a code of
