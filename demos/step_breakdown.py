@@ -2,8 +2,8 @@
 
 The study's cable (clamped, 5 mm move, implicit Euler, 1 kHz, ground plane; n = 10 by default) is
 stepped by :meth:`BulletWorld.step` (recording every step, as ``simulate`` does, and without a
-recorder; its steps are plain, one compiled call each: ``bullet/plain_steps.py``), the same in Python's phases
-(``plain_steps.PLAIN_STEPS`` off), and each part of the step is timed on its own on the same warmed world: Bullet's step,
+recorder; its steps are plain, one compiled call each, as in a run of at least ``plain_steps.PLAIN_FROM`` steps:
+``bullet/plain_steps.py``), the same in Python's phases (``plain_steps.PLAIN_STEPS`` off), and each part of the step is timed on its own on the same warmed world: Bullet's step,
 the forces to Bullet (one compiled call), the contact query, the contact model's update (poses of
 the bodies, detection), the model's kernel as the solver calls it (sync, checks, plan, on its packed arguments:
 ``bullet/solver_call.py``; the share of it that is only Numba unboxing them, timed as an empty kernel over the same
@@ -152,6 +152,7 @@ def main() -> None:
     args = parser.parse_args()
     if args.quick:
         args.rounds, args.block = 1, 20
+    plain_steps.PLAIN_FROM = 0  # the steady state of a long run (short runs keep Python's phases: plain_steps.py)
     model = study(args.n)
     rec_world = BulletWorld(dt=1e-3)
     rec_world.add_cable(model, record_every=1)

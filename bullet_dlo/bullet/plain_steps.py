@@ -36,6 +36,11 @@ from bullet_dlo.bullet.solver import NEWTON_WARN_MIN_STEPS
 from bullet_dlo.core.kernels.monitor import STABLE
 
 PLAIN_STEPS = True  # take plain steps in one compiled call (False: every step in Python's phases; for A/B and tests)
+PLAIN_FROM = 100_000
+"""World steps a run must reach before it takes plain steps. The loop's machine code holds its own copy of the step
+kernel and detection (a 9 MB cache entry) and loads in about 0.6 s per process, which the ~5 us it saves a step pays
+back after about 120 000 steps: a shorter run keeps Python's phases, a longer one (its length known from ``step(n)``
+or ``run_while_stable``, or the world's steps so far) takes plain steps from its start."""
 
 
 def _plain_cable(world):
@@ -75,9 +80,12 @@ def _packed(world, cable, args):
     return held[5:]
 
 
-def take(world, n: int) -> int:
+def take(world, n: int, horizon: int = 0) -> int:
     """Take up to ``n`` (>= 1) of ``world``'s next steps here while they are plain; returns how many (0: the next one
-    is not plain, take it in Python's phases)."""
+    is not plain, take it in Python's phases). ``horizon``: the steps the run still asks for, if more than ``n``
+    (:data:`PLAIN_FROM`)."""
+    if world.steps + max(n, horizon) < PLAIN_FROM:
+        return 0
     cable = _plain_cable(world)
     if cable is None:
         return 0

@@ -10,7 +10,7 @@ import os
 import time
 import weakref
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Any, Callable, Sequence
 
 import numpy as np
 import pybullet as pb
@@ -26,6 +26,7 @@ from bullet_dlo.core.spec import CableSpec
 from bullet_dlo.core.validate import ParameterError, check_int, check_nonnegative, check_positive, check_vector3
 
 SPAWN_TOLERANCE = 1e-4  # [m] penetration allowed at spawn before it counts as an overlap
+PROGRESS_EVERY = 100  # steps between the progress reports of run_while_stable
 _WORLDS: "weakref.WeakValueDictionary[int, BulletWorld]" = weakref.WeakValueDictionary()  # client -> its world
 
 
@@ -387,9 +388,16 @@ class BulletWorld:
         Plain steps (one cable on parked spheres among static bodies, no couplings, no hooks: see
         :mod:`~bullet_dlo.bullet.plain_steps`) run these phases in one compiled call, to the same results.
         """
+        self._steps(n)
+
+    def _steps(self, n: int, watch: BulletCable | None = None, horizon: int = 0) -> int:
+        """:meth:`step` ``n`` times, stopping early (before a step) once ``watch`` is unstable; returns the steps
+        taken. ``horizon``: the steps the run asks for in all, from here (plain_steps.PLAIN_FROM)."""
         done = 0
         while done < n:
-            plain = plain_steps.take(self, n - done)
+            if watch is not None and not watch.stable:
+                break
+            plain = plain_steps.take(self, n - done, horizon - done)
             if plain:
                 done += plain
                 continue
@@ -407,6 +415,7 @@ class BulletWorld:
             self.take_cable_steps()
             for hook in self.after_step:
                 hook()
+        return done
 
     def push_cables(self) -> None:
         """Phase 1 of :meth:`step`: every cable's sphere forces to Bullet (a cable first plans its coming step again
@@ -542,13 +551,19 @@ class BulletWorld:
         self.step(n)
         return n
 
-    def run_while_stable(self, steps: int, cable: BulletCable) -> float:
-        """Step up to ``steps`` times, stopping early when ``cable`` goes unstable; returns the wall time [s]."""
+    def run_while_stable(self, steps: int, cable: BulletCable,
+                         progress: Callable[[int], Any] | None = None) -> float:
+        """Step up to ``steps`` times, stopping early when ``cable`` goes unstable; returns the wall time [s].
+        ``progress(k)`` is told of every ``PROGRESS_EVERY`` steps taken (a progress bar without an ``after_step``
+        hook, which would keep every step out of the plain steps' loop)."""
         tic = time.perf_counter()
-        for _ in range(steps):
-            self.step()
-            if not cable.stable:
-                break
+        done = 0
+        while done < steps and cable.stable:
+            k = self._steps(min(PROGRESS_EVERY, steps - done) if progress is not None else steps - done, cable,
+                            steps - done)
+            done += k
+            if progress is not None:
+                progress(k)
         return time.perf_counter() - tic
 
     def step_bare(self, n: int = 1) -> None:

@@ -16,7 +16,7 @@ extensions). The coupled step itself is written once, in
 from __future__ import annotations
 
 from dataclasses import replace
-from typing import Callable
+from typing import Any, Callable
 
 import numpy as np
 
@@ -120,13 +120,13 @@ class BulletSimulation(Simulation):
         """``n`` steps of the world (phases: :meth:`~bullet_dlo.bullet.world.BulletWorld.step`)."""
         self.world.step(n)
 
-    def run(self, duration: float | None = None) -> SimulationResult:
-        """Step until ``duration`` [s] or instability. As with the core engine, a run stopped by the default
-        strain bound (50 %) is re-run without it in a fresh world: if the re-run stays finite with no energy
-        growth it is the result, stable, with a warning that the stretch is physical; otherwise the first
-        run stands, its cause confirmed."""
+    def run(self, duration: float | None = None, progress: Callable[[int], Any] | None = None) -> SimulationResult:
+        """Step until ``duration`` [s] or instability (``progress(k)``: told of every hundred or so steps taken). As
+        with the core engine, a run stopped by the default strain bound (50 %) is re-run without it in a fresh world:
+        if the re-run stays finite with no energy growth it is the result, stable, with a warning that the stretch is
+        physical; otherwise the first run stands, its cause confirmed."""
         duration = self.scene.duration if duration is None else duration
-        first = self._run_here(duration)
+        first = self._run_here(duration, progress)
         first.warnings.extend(held_move_warnings(self.model, self.scene.dt, duration))
         if first.reason != STRAIN_REASON or self.scene.detector.max_strain is not None:
             return first
@@ -137,9 +137,9 @@ class BulletSimulation(Simulation):
 
         return confirm_strain(self.model, first, rerun)
 
-    def _run_here(self, duration: float) -> SimulationResult:
+    def _run_here(self, duration: float, progress: Callable[[int], Any] | None = None) -> SimulationResult:
         cable = self.cable
-        wall = self.world.run_while_stable(self.world.steps_in(duration), cable)
+        wall = self.world.run_while_stable(self.world.steps_in(duration), cable, progress)
         rec = cable.record.arrays()
         return cable_result(cable, self.scene.dt, wall, rec["t"], rec["x"], rec["v"], rec["end_forces"],
                             rec["energy"])

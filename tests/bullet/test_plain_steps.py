@@ -36,11 +36,12 @@ def _run(monkeypatch, plain: bool, build, chunks, between=None) -> tuple[dict, i
     """Build a world (``build(world)`` returns the cable), step it ``chunks`` (a list of step counts, one
     ``world.step`` call each; ``between(world, k)`` after call k); returns the outcome and the steps taken plain."""
     monkeypatch.setattr(plain_steps, "PLAIN_STEPS", plain)
+    monkeypatch.setattr(plain_steps, "PLAIN_FROM", 0)  # (plain from the first step: these runs are short)
     taken = []
     take = plain_steps.take
 
-    def counted(world, n):
-        k = take(world, n)
+    def counted(world, n, horizon=0):
+        k = take(world, n, horizon)
         taken.append(k)
         return k
     monkeypatch.setattr(plain_steps, "take", counted)
@@ -137,3 +138,44 @@ def test_a_hook_keeps_every_step_in_python(monkeypatch):
     plain, _ = _run(monkeypatch, True, _clamped_moving, [300])
     assert n_hooked == 0
     _same(hooked_out, plain)
+
+
+def test_run_while_stable_stops_at_the_unstable_step_and_reports_progress(monkeypatch):
+    """``run_while_stable`` steps in plain batches (told to ``progress`` every PROGRESS_EVERY steps) and stops after
+    the step the cable went unstable in, as stepping one at a time and checking did."""
+    def torn():
+        world = BulletWorld(dt=1e-3)
+        spec = CableSpec.lv2017(n_masses=10, damping=0.01)
+        model = CableModel.straight(spec, ends=("clamped", "clamped"), motion=[Move("last", (2.0, 0, 0), 0.25, 0.02)])
+        return world, world.add_cable(model)
+
+    monkeypatch.setattr(plain_steps, "PLAIN_FROM", 0)
+    world, cable = torn()
+    told = []
+    with world:
+        world.run_while_stable(500, cable, told.append)
+        plain = (world.steps, cable.steps, cable.solver.time_to_instability, sum(told))
+        batched = cable._plain_args is not None
+    world, cable = torn()
+    with world:
+        for _ in range(500):
+            world.step()
+            if not cable.stable:
+                break
+        one_by_one = (world.steps, cable.steps, cable.solver.time_to_instability, world.steps)
+    assert not cable.stable and plain == one_by_one, (plain, one_by_one)
+    assert batched and len(told) > 1  # (plain batches, progress told more than once)
+
+
+def test_a_short_run_keeps_pythons_phases_and_a_long_one_is_plain_from_its_start(monkeypatch):
+    """Plain steps start where the run will reach PLAIN_FROM world steps (the loop's code costs a load per process
+    that only a long run pays back): a run asked for fewer steps takes none; one asked for more takes them from its
+    first step (its length known from ``step(n)``)."""
+    monkeypatch.setattr(plain_steps, "PLAIN_FROM", 1000)
+    world, cable = _clamped_moving()
+    with world:
+        world.step(500)
+        short = cable._plain_args
+        world.step(600)  # reaches 1100 >= PLAIN_FROM: plain from its first step
+        assert short is None and cable._plain_args is not None
+        assert world.steps == 1100 and cable.solver.steps_planned == 1101
