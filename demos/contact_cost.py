@@ -18,8 +18,9 @@ demos/cable_on_duck.py) and the ground; their contact-free twins have the block 
 from the cable. Step times are thread
 times (``time.thread_time``).
 
-Worlds without a free body take plain steps (one compiled call a step, ``bullet/plain_steps.py``), both sides of
-the ratio alike. ``--split``: every step in Python's phases (the parts are timed there), and the contact scene's
+With ``--plain``, worlds without a free body take plain steps (one compiled call a step, ``bullet/plain_steps.py``, as
+runs of at least ``plain_steps.PLAIN_FROM`` steps do), both sides of the ratio alike. ``--split``: every step in
+Python's phases (the parts are timed there), and the contact scene's
 step part by part (thread time per step, medians of the blocks):
 ``ContactSet.update`` (the bodies' poses, detection), ``CableSolver.step`` (the cable's kernel: take-over,
 checks, the planned contact steps), the rest (Bullet's step, the forces to Bullet, the reactions on the bodies,
@@ -27,7 +28,7 @@ Python), and the stall guard's copies per contact step (its save of what the ste
 compiled loop).
 
 Usage: ``python demos/contact_cost.py [--out DIR] [--masses 20 80] [--scenes table peg box hull duck resting]
-[--repeats 5] [--block 200] [--split] [--quick]``
+[--repeats 5] [--block 200] [--split] [--plain] [--quick]``
 (``--out`` defaults to ``out/contact_cost``; ``--out demos/gallery`` renews the committed pictures)
 (``--quick``: n = 20, one block of 20 steps, no pictures; for smoke tests).
 """
@@ -277,7 +278,11 @@ def main() -> None:
     ap.add_argument("--block", type=int, default=200, help="steps per timed block")
     ap.add_argument("--split", action="store_true", help="also the contact step's parts (see the module doc)")
     ap.add_argument("--quick", action="store_true", help="n = 20, one block of 20 steps, no pictures")
+    ap.add_argument("--plain", action="store_true",
+                    help="time plain steps (as a run of at least plain_steps.PLAIN_FROM steps takes them)")
     args = ap.parse_args()
+    if args.plain:
+        plain_steps.PLAIN_FROM = 0
     if args.quick:
         args.masses, args.repeats, args.block = [20], 1, 20
         print("--quick: one block of 20 steps, a smoke test; its ratios are not measurements")
