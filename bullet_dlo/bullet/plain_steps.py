@@ -103,14 +103,14 @@ def take(world, n: int, horizon: int = 0) -> int:
     solver.newton_iterations += booked
     if plain:
         solver.last_ratio = 0.0
-        cable.contacts_last_step = count
         solver.judge_share()  # (the batch ends where the share is first judged: as after that step)
+    if how != MOVED:
+        cable.contacts_last_step = count
     world._supported = world._supported_in(())  # phase 7's books of Bullet's contacts: none read (parked spheres)
     world._supported_due = False
     if how == MOVED:  # the cable's step of the last world step, in Python
         world.take_cable_steps()
     elif how == BOOK:
-        cable.contacts_last_step = count
         status = solver.account(int(last[0]), int(last[1]), bool(last[2]), cable.t)
         cable._after_plan(status, cable.steps % cable.record_every == 0, True)
     return taken

@@ -179,8 +179,7 @@ class CableSolver:
         """Take over Bullet's step (if ``inp.sync``), check it, plan the next with the contacts and the free bodies
         solved with them; returns the status (STABLE or the reason's code: then nothing is planned)."""
         guard = self.stall_guard(arrays, contacts, bodies)
-        held = (self.stepper, arrays, self.plan, control.holders, self.coupling, self.workspace, self.detector,
-                contacts, bodies, guard)
+        held = self._held(arrays, control, contacts, bodies, guard)
         if not PACK_ARGS or not hasattr(sync_and_advance, "compile"):  # (JIT disabled: a plain call)
             if self._plain is None:
                 self._plain = bind(sync_and_advance, *held[:7], inp, *held[7:])
@@ -198,9 +197,14 @@ class CableSolver:
         step to :meth:`step`."""
         if self._kernel is None or self._guard is None or self._guard_contacts is not contacts:
             return None
-        held = (self.stepper, arrays, self.plan, control.holders, self.coupling, self.workspace, self.detector,
-                contacts, bodies, self._guard)
+        held = self._held(arrays, control, contacts, bodies, self._guard)
         return None if any(map(is_not, held, self._packed)) else self._args
+
+    def _held(self, arrays: KernelArrays, control: CableControl, contacts: Contacts, bodies: Bodies,
+              guard: StallGuard) -> tuple:
+        """The kernel's per-cable arguments in :data:`~bullet_dlo.bullet.solver_call.FIELDS` order."""
+        return (self.stepper, arrays, self.plan, control.holders, self.coupling, self.workspace, self.detector,
+                contacts, bodies, guard)
 
     def account(self, status: int, its: int, ok: bool, t: float) -> int:
         """Count a planned step (its status, Newton iterations, convergence, and the stall guard's ``info`` it

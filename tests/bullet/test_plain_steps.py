@@ -70,6 +70,14 @@ def _clamped_moving(record_every: int = 1):
     return world, world.add_cable(model, record_every=record_every)
 
 
+def _torn(start: float = 0.01):
+    """The study's cable with its last end yanked 2 m in 20 ms from ``start`` [s]: the strain check stops it."""
+    world = BulletWorld(dt=1e-3)
+    spec = CableSpec.lv2017(n_masses=10, damping=0.01)
+    model = CableModel.straight(spec, ends=("clamped", "clamped"), motion=[Move("last", (2.0, 0, 0), start, 0.02)])
+    return world, world.add_cable(model)
+
+
 TABLES: dict[int, int] = {}  # {world's client: its table}
 
 
@@ -115,14 +123,8 @@ def test_a_static_body_moved_between_steps_hands_the_step_to_python(monkeypatch)
 
 def test_a_cable_torn_by_its_end_stops_at_the_same_step_with_the_same_report(monkeypatch):
     """The last end yanked 2 m in 20 ms: the strain check stops the cable inside the plain loop, booked by Python."""
-    def torn():
-        world = BulletWorld(dt=1e-3)
-        spec = CableSpec.lv2017(n_masses=10, damping=0.01)
-        model = CableModel.straight(spec, ends=("clamped", "clamped"), motion=[Move("last", (2.0, 0, 0), 0.01, 0.02)])
-        return world, world.add_cable(model)
-
-    plain, n_plain = _run(monkeypatch, True, torn, [100])
-    python, _ = _run(monkeypatch, False, torn, [100])
+    plain, n_plain = _run(monkeypatch, True, _torn, [100])
+    python, _ = _run(monkeypatch, False, _torn, [100])
     assert plain["status"] != 0 and n_plain > 0, (plain["status"], n_plain)
     _same(plain, python)
 
@@ -143,20 +145,14 @@ def test_a_hook_keeps_every_step_in_python(monkeypatch):
 def test_run_while_stable_stops_at_the_unstable_step_and_reports_progress(monkeypatch):
     """``run_while_stable`` steps in plain batches (told to ``progress`` every PROGRESS_EVERY steps) and stops after
     the step the cable went unstable in, as stepping one at a time and checking did."""
-    def torn():
-        world = BulletWorld(dt=1e-3)
-        spec = CableSpec.lv2017(n_masses=10, damping=0.01)
-        model = CableModel.straight(spec, ends=("clamped", "clamped"), motion=[Move("last", (2.0, 0, 0), 0.25, 0.02)])
-        return world, world.add_cable(model)
-
     monkeypatch.setattr(plain_steps, "PLAIN_FROM", 0)
-    world, cable = torn()
+    world, cable = _torn(0.25)
     told = []
     with world:
         world.run_while_stable(500, cable, told.append)
         plain = (world.steps, cable.steps, cable.solver.time_to_instability, sum(told))
         batched = cable._plain_args is not None
-    world, cable = torn()
+    world, cable = _torn(0.25)
     with world:
         for _ in range(500):
             world.step()
