@@ -7,7 +7,7 @@ recorder; its steps are plain, one compiled call each, as in a run of at least `
 the forces to Bullet (one compiled call), the contact query, the contact model's update (poses of
 the bodies, detection), the model's kernel as the solver calls it (sync, checks, plan, on its packed arguments:
 ``bullet/solver_call.py``; the share of it that is only Numba unboxing them, timed as an empty kernel over the same
-arguments, and beside it the unboxing of the plain call's ~150 arrays), and the recorder's row. The Python glue
+arguments, and beside it the unboxing of the same ~150 arrays passed unpacked), and the recorder's row. The Python glue
 is the whole step minus its parts. Parts are timed in interleaved rounds with
 ``time.thread_time``; medians and ranges, the machine's load beside them. The bare step is a twin
 world with the same spheres, filters and ground, its spheres live in Bullet and falling freely
@@ -21,8 +21,12 @@ glue left between them.
 
 Writes ``step_breakdown.json`` (every round of every part, the in-situ parts, the load) into ``--out``.
 
-Usage: ``python demos/step_breakdown.py [--n 10] [--rounds 9] [--block 400] [--out DIR] [--quick]``
-(``--quick``: one round of 20 calls; for smoke tests).
+``--startup K [K ...]``: instead, what plain steps cost a fresh process (readying the loop included): for each K, a
+new process steps a warmed study world K times in one ``world.step(K)``, plain from its start
+(``plain_steps.PLAIN_FROM`` 0) and in Python's phases, alternately, ``--rounds`` times each; thread CPU time [s].
+
+Usage: ``python demos/step_breakdown.py [--n 10] [--rounds 9] [--block 400] [--out DIR] [--quick]
+[--startup K ...]`` (``--quick``: one round of 20 calls; for smoke tests).
 """
 from __future__ import annotations
 
@@ -30,6 +34,8 @@ import argparse
 import json
 import os
 import statistics
+import subprocess
+import sys
 import time
 from pathlib import Path
 
@@ -142,6 +148,41 @@ def in_situ(model: CableModel, rounds: int, block: int) -> tuple[dict[str, list[
     return rounds_us, statistics.median(overs)
 
 
+def fresh_run(n: int, steps: int, plain: bool) -> tuple[bool, float]:
+    """In this process (fresh): a warmed study world stepped ``steps`` times in one ``world.step``, plain from its
+    start or in Python's phases; whether plain steps were taken and the thread CPU time [s] of that call (readying
+    the plain loop included)."""
+    plain_steps.PLAIN_FROM = 0
+    plain_steps.PLAIN_STEPS = plain
+    with BulletWorld(dt=1e-3) as world:
+        cable = world.add_cable(study(n), record_every=10**9)
+        world.step(1)  # (the cable's kernels are loaded by add_cable and its first step: both ways alike)
+        tic = time.thread_time()
+        world.step(steps)
+        return cable._plain_args is not None, time.thread_time() - tic
+
+
+def startup(n: int, counts: list[int], rounds: int) -> None:
+    """Print the fresh processes' cost of ``world.step(K)`` for each K of ``counts``, plain and in Python's phases."""
+    load = os.getloadavg()
+    print(f"n = {n}, 1 kHz: thread CPU time [s] of world.step(K) in a fresh process, plain from its start against "
+          f"Python's phases, {rounds} alternating rounds; load {load[0]:.2f} / {load[1]:.2f} / {load[2]:.2f}")
+    for k in counts:
+        took = {True: [], False: []}
+        for _ in range(rounds):
+            for plain in (True, False):
+                out = subprocess.run([sys.executable, __file__, "--n", str(n), "--fresh-run", str(k), str(int(plain))],
+                                     capture_output=True, text=True, check=True).stdout
+                taken, seconds = out.split()[-2:]
+                if (taken == "True") != plain:
+                    raise SystemExit(f"K = {k}: plain steps {'not ' if plain else ''}taken where asked "
+                                     f"{'for' if plain else 'off'}")
+                took[plain].append(float(seconds))
+        p, q = statistics.median(took[True]), statistics.median(took[False])
+        print(f"  K = {k:7d}: plain {p:.3f} ({min(took[True]):.3f}-{max(took[True]):.3f}), Python's phases {q:.3f} "
+              f"({min(took[False]):.3f}-{max(took[False]):.3f}); plain / Python {p / q:.2f}")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--n", type=int, default=10, help="masses of the cable")
@@ -149,9 +190,18 @@ def main() -> None:
     parser.add_argument("--block", type=int, default=400, help="calls per round and part")
     parser.add_argument("--out", default=os.path.join("out", "step_breakdown"), help="output folder")
     parser.add_argument("--quick", action="store_true", help="one round of 20 calls (smoke test)")
+    parser.add_argument("--startup", type=int, nargs="+", metavar="K",
+                        help="instead: fresh processes' cost of world.step(K), plain and in Python's phases")
+    parser.add_argument("--fresh-run", type=int, nargs=2, metavar=("K", "PLAIN"), help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.quick:
         args.rounds, args.block = 1, 20
+    if args.fresh_run:
+        print(*fresh_run(args.n, args.fresh_run[0], bool(args.fresh_run[1])))
+        return
+    if args.startup:
+        startup(args.n, args.startup, args.rounds)
+        return
     plain_steps.PLAIN_FROM = 0  # the steady state of a long run (short runs keep Python's phases: plain_steps.py)
     model = study(args.n)
     rec_world = BulletWorld(dt=1e-3)
@@ -202,7 +252,7 @@ def main() -> None:
                                                                      cable.stepper.h, world.dt, True),
         "  model kernel (sync, checks, plan)": lambda: kernel(packed, kargs[7]),
         "    of which unboxing its arguments": lambda: unbox(packed, kargs[7]),
-        "    (unboxing the plain call's arguments)": lambda: unbox_plain(*kargs),
+        "    (the same arrays unboxed unpacked)": lambda: unbox_plain(*kargs),
         "  model kernel, recorded step": lambda: kernel(packed, kargs_rec[7]),
         "  recorder row (Python side)": lambda: cable._record_row(from_kernel=True),
     }

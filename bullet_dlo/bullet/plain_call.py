@@ -1,20 +1,24 @@
-"""The compiled loop of :mod:`bullet_dlo.bullet.plain_steps` and its packed arguments (:class:`PlainArgs`)."""
+"""The compiled loop of :mod:`bullet_dlo.bullet.plain_steps` and its packed arguments (:class:`PlainArgs`).
+
+The loop calls the step kernel and detection through their addresses (Numba's first-class functions, held in
+:class:`PlainArgs` as ``step``, ``detect`` and ``quiet``), not as linked copies: a copy made the loop's cache entry
+9.4 MB, which took about 0.6 s to load in every process. Held in the packed arguments, they are unboxed once when the
+arguments are packed; passed at every call, their unboxing cost about 10 us a call."""
 from __future__ import annotations
 
 import numpy as np
 from numba.experimental import structref
 
-from bullet_dlo.bullet.contact import detect_with, quiet_with
 from bullet_dlo.bullet.contact_call import FixedFields
 from bullet_dlo.bullet.kernels import FINAL_RATIO, RETRY_SUBSTEPS, StepInput
 from bullet_dlo.bullet.native import read_base_states, step_simulation
-from bullet_dlo.bullet.solver_call import step_with
 from bullet_dlo.core.kernels.jit import njit
 from bullet_dlo.core.kernels.monitor import STABLE
 
 TAKEN, MOVED, BOOK = 0, 1, 2  # how run() ended: every step taken; Bullet's step taken and the cable's left to Python
 # (a body of the contact set moved); the last step taken and left to Python to book
-FIELDS = ("api", "bodies", "bases", "last_pose", "moved", "set_args", "step_args", "every", "sizes", "last")
+FIELDS = ("api", "bodies", "bases", "last_pose", "moved", "set_args", "step_args", "every", "sizes", "last", "step",
+          "detect", "quiet")
 
 
 @structref.register
@@ -28,30 +32,33 @@ class PlainArgs(structref.StructRefProxy):
     ``last_pose``, ``moved`` (:func:`~bullet_dlo.bullet.native.read_base_states`); the contact set's and the step
     kernel's packed arrays ``set_args``, ``step_args``; ``every`` (3,) int64: the detector's check and energy check
     periods and the record's [steps]; ``sizes`` (3,): dt, the cable's step h [s] and its contacts' penalty per mass
-    [1/s^2]; ``last`` (3,) int64: the last step's status, Newton iterations and convergence (1/0)."""
+    [1/s^2]; ``last`` (3,) int64: the last step's status, Newton iterations and convergence (1/0); ``step``,
+    ``detect``, ``quiet``: :func:`~bullet_dlo.bullet.solver_call.step_with`,
+    :func:`~bullet_dlo.bullet.contact.detect_with` and :func:`~bullet_dlo.bullet.contact.quiet_with` as first-class
+    functions (called through their addresses)."""
 
 
 structref.define_proxy(PlainArgs, PlainArgsType, list(FIELDS))
 
 
 @njit(cache=True)
-def make_plain_args(api, bodies, bases, last_pose, moved, set_args, step_args, every, sizes, last):
+def make_plain_args(api, bodies, bases, last_pose, moved, set_args, step_args, every, sizes, last, step, detect, quiet):
     """Pack :class:`PlainArgs` (compiled and cached, as :func:`~bullet_dlo.bullet.solver_call.make_step_args`)."""
-    return PlainArgs(api, bodies, bases, last_pose, moved, set_args, step_args, every, sizes, last)
+    return PlainArgs(api, bodies, bases, last_pose, moved, set_args, step_args, every, sizes, last, step, detect, quiet)
 
 
 @njit(cache=True)
 def run(a, n, skip_quiet, t, t_world, steps, steps_world):
     """Up to ``n`` plain world steps (:class:`PlainArgs` ``a``) from the cable's time t [s] and step count and the
-    world's; ``skip_quiet``: try :func:`~bullet_dlo.bullet.contact.quiet` before detecting
-    (``contact.SKIP_QUIET``). Returns (steps taken, how it ended: TAKEN, MOVED or BOOK, the cable's time [s] and
-    steps, the world's, the Newton iterations of the steps booked here, the last step's contact rows); the last
-    step's status, iterations and convergence into ``a.last``."""
+    world's; ``skip_quiet``: try ``a.quiet`` before detecting (``contact.SKIP_QUIET``). Returns (steps taken, how it
+    ended: TAKEN, MOVED or BOOK, the cable's time [s] and steps, the world's, the Newton iterations of the steps
+    booked here, the last step's contact rows); the last step's status, iterations and convergence into ``a.last``."""
     args, set_args = a.step_args, a.set_args
     dt, h, k_per_mass = a.sizes[0], a.sizes[1], a.sizes[2]
     x = args.coupling.x_new  # the state Bullet's step took over: the planned one (parked spheres)
     v = args.coupling.v_new
     mass = args.arrays.mass
+    step, detect, quiet = a.step, a.detect, a.quiet
     rows = args.coupling.rows
     contacts = args.contacts
     no_index = np.empty(0, np.int64)
@@ -71,14 +78,14 @@ def run(a, n, skip_quiet, t, t_world, steps, steps_world):
         t += dt
         steps += 1
         if (skip_quiet and contacts.count[0] == 0 and set_args.probes.count[0] == 0
-                and quiet_with(set_args, x, v, h, dt)):
+                and quiet(set_args, x, v, h, dt)):
             count = 0
         else:
-            count = detect_with(set_args, x, v, mass, h, k_per_mass, dt, dt)
+            count = detect(set_args, x, v, mass, h, k_per_mass, dt, dt)
         record = steps % a.every[2] == 0
         inp = StepInput(t, steps > 0 and contacts.impact[0] == 0, True, steps % a.every[0] == 0,
                         steps % a.every[1] == 0, record, no_index, no_rows, no_rows)
-        status, its, ok = step_with(args, inp)
+        status, its, ok = step(args, inp)
         info = args.guard.info
         if (status != STABLE or not ok or info[RETRY_SUBSTEPS] > 0 or info[FINAL_RATIO] > 0.0
                 or (record and rows.count[0] >= rows.t.shape[0])):

@@ -27,26 +27,35 @@ from __future__ import annotations
 
 import numpy as np
 import pybullet as pb
+from numba import typeof, types
 
 from bullet_dlo.bullet import contact
-from bullet_dlo.bullet.kernels import bind
+from bullet_dlo.bullet.contact import detect_with, quiet_with
+from bullet_dlo.bullet.kernels import StepInput, bind
 from bullet_dlo.bullet.native import kernel_api
 from bullet_dlo.bullet.plain_call import BOOK, MOVED, TAKEN, make_plain_args, run
 from bullet_dlo.bullet.solver import NEWTON_WARN_MIN_STEPS
+from bullet_dlo.bullet.solver_call import step_with
 from bullet_dlo.core.kernels.monitor import STABLE
 
+try:  # (Numba's own helper for first-class function arguments; without it every step takes Python's phases)
+    from numba.experimental.function_type import _get_wrapper_address
+except ImportError:  # pragma: no cover - a Numba that moved it
+    _get_wrapper_address = None
+
 PLAIN_STEPS = True  # take plain steps in one compiled call (False: every step in Python's phases; for A/B and tests)
-PLAIN_FROM = 100_000
-"""World steps a run must reach before it takes plain steps. The loop's machine code holds its own copy of the step
-kernel and detection (a 9 MB cache entry) and loads in about 0.6 s per process, which the ~5 us it saves a step pays
-back after about 120 000 steps: a shorter run keeps Python's phases, a longer one (its length known from ``step(n)``
-or ``run_while_stable``, or the world's steps so far) takes plain steps from its start."""
+PLAIN_FROM = 10_000
+"""World steps a run must reach before it takes plain steps. Readying the loop (loading its code and its packed
+arguments' constructor, about 1.8 MB of cache, and looking up the kernels it calls by address) takes about 0.08 s per
+process, which the 5-10 us it saves a step at n = 10 pays back after 8000-16 000 steps: a shorter run keeps Python's
+phases, a longer one (its length known from ``step(n)`` or ``run_while_stable``, or the world's steps so far) takes
+plain steps from its start."""
 
 
 def _plain_cable(world):
     """The world's one cable when its next step is plain (module doc), else None."""
-    if (not PLAIN_STEPS or world.couplings or world.before_step or world.after_physics or world.after_step
-            or world.bodies_added or world.model_touches or world._model_touches_now or len(world.cables) != 1):
+    if (not PLAIN_STEPS or _get_wrapper_address is None or world.couplings or world.before_step
+            or world.after_physics or world.after_step or world.bodies_added or world.model_touches or world._model_touches_now or len(world.cables) != 1):
         return None
     (cable,) = world.cables.values()
     if not (cable.proxy and cable.model_contact) or cable._waking or cable._fresh or cable.sync == "always":
@@ -62,6 +71,39 @@ def _plain_cable(world):
     return cable
 
 
+class _Address:
+    """A compiled function's address, as Numba's first-class function arguments take it (their wrapper address
+    protocol): looked up once, not at every call."""
+
+    __slots__ = ("address",)
+
+    def __init__(self, address: int) -> None:
+        self.address = address
+
+    def __wrapper_address__(self) -> int:
+        return self.address
+
+
+def _first_class(kernel, *args) -> tuple:
+    """``kernel``'s machine code for the argument types of ``args`` (compiled or loaded from the cache now) as a
+    first-class function: its type and address."""
+    arg_types = tuple(map(typeof, args))
+    kernel.compile(arg_types)
+    sig = kernel.overloads[arg_types].signature
+    return types.FunctionType(sig), _Address(_get_wrapper_address(kernel, sig))
+
+
+def _functions(cable, args) -> tuple:
+    """The step kernel, detection and the quiet test for the cable's packed arguments as first-class functions:
+    (their types, their addresses)."""
+    set_args, x, v = cable.contact.set._set_args, cable.solver.coupling.x_new, cable.solver.coupling.v_new
+    no_index, no_rows = np.empty(0, np.int64), np.empty((0, 3))
+    made = (_first_class(step_with, args, StepInput(0.0, True, True, True, True, True, no_index, no_rows, no_rows)),
+            _first_class(detect_with, set_args, x, v, cable.arrays.mass, 0.0, 0.0, 0.0, 0.0),
+            _first_class(quiet_with, set_args, x, v, 0.0, 0.0))
+    return tuple(m[0] for m in made), tuple(m[1] for m in made)
+
+
 def _packed(world, cable, args):
     """The cable's :class:`PlainArgs`, :func:`run` bound to them and their ``last`` (made anew when what they hold
     changed)."""
@@ -73,10 +115,13 @@ def _packed(world, cable, args):
         every = np.array([det.check_every, det.energy_every, cable.record_every], dtype=np.int64)
         sizes = np.array([world.dt, h, cs.alpha / (h * h)])  # (as ContactSet.update computes them)
         last = np.zeros(3, dtype=np.int64)
-        packed = make_plain_args(kernel_api(world.native_handle()), *cs._base_args[1:], cs._set_args, args, every,
-                                 sizes, last)
+        values = (kernel_api(world.native_handle()), *cs._base_args[1:], cs._set_args, args, every, sizes, last)
+        function_types, addresses = _functions(cable, args)
+        # (compiled for the functions' types and called as compiled: the dispatcher cannot type an address)
+        pack = make_plain_args.compile(tuple(map(typeof, values)) + function_types)
+        packed = pack(*values, *addresses)
         held = cable._plain_args = (args, cs._set_args, cs._base_args, det, cable.record_every, packed,
-                                    bind(run, packed, 1, True, 0.0, 0.0, 0, 0), last)
+                                    bind(run, packed, 1, True, 0.0, 0.0, 0, 0), last, addresses)
     return held[5:]
 
 
@@ -95,7 +140,7 @@ def take(world, n: int, horizon: int = 0) -> int:
         return 0
     if not solver._warned_share and solver.newton_failures and solver.steps_planned < NEWTON_WARN_MIN_STEPS:
         n = min(n, NEWTON_WARN_MIN_STEPS - solver.steps_planned)  # (its share is judged at that step: book it there)
-    packed, kernel, last = _packed(world, cable, args)
+    packed, kernel, last = _packed(world, cable, args)[:3]
     taken, how, cable.t, world.time, cable.steps, world.steps, booked, count = kernel(
         packed, n, contact.SKIP_QUIET, cable.t, world.time, cable.steps, world.steps)
     plain = taken - (how != TAKEN)

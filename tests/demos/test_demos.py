@@ -73,6 +73,17 @@ def test_step_breakdown_demo_quick(tmp_path):
         "  model kernel (sync, checks, plan)"]
 
 
+def test_step_breakdown_startup_runs_fresh_processes_both_ways():
+    """demos/step_breakdown.py --startup: fresh processes step plain (readying the loop) and in Python's phases, the
+    demo checking that each took the way asked, and print both times."""
+    res = subprocess.run([sys.executable, str(ROOT / "demos" / "step_breakdown.py"), "--startup", "30", "--rounds", "1"],
+                         capture_output=True, text=True, timeout=600)
+    assert res.returncode == 0, res.stderr
+    (line,) = [ln for ln in res.stdout.splitlines() if ln.strip().startswith("K =")]
+    plain, python = (float(w) for w in re.findall(r"(?:plain|phases) ([0-9.]+) \(", line))
+    assert plain > 0 and python > 0
+
+
 def test_critical_steps_demo_quick(tmp_path):
     run_demo("critical_steps.py", tmp_path)
     rows = json.loads((tmp_path / "critical_steps.json").read_text())
