@@ -235,3 +235,37 @@ def test_a_segment_ahead_of_a_face_is_out_of_every_edges_reach():
         else:
             within += 1
     assert within > 20 and skipped > 0.5 * out_of_reach > 20, (within, skipped, out_of_reach)
+
+
+def test_the_edges_columns_give_segment_axis_to_the_bit():
+    """A segment's edge search runs :func:`_segment_axis` over the edges as columns (``_edge_rows``, then
+    ``_segment_edges`` without branches, several edges at a time): for segments near, across, along and inside the
+    hull (and one of zero length), every edge kept is one whose box meets the segment's (every edge for a wrapped
+    segment) in the same order, and each gives ``_segment_axis``'s interior parameter and distance to the bit (-1
+    where it has none)."""
+    hu = ellipsoid_hull()
+    rng = np.random.default_rng(5)
+    e0, e1 = hu.edge_first[0], hu.edge_first[1]
+    every = np.arange(e0, e1)
+    rows, kept = np.empty((9, e1 - e0)), np.empty(e1 - e0, np.int64)
+    cl, nl = np.empty(4), np.empty(3)
+    reach = 0.004
+    interior = 0
+    for k in range(200):
+        t = rng.integers(0, len(hu.tri))
+        a = rng.dirichlet([1, 1, 1]) @ hu.tri[t] * rng.uniform(0.8, 1.1)
+        b = a + rng.normal(scale=[0.02, 0.005, 0.0][k % 3], size=3)  # (every third: zero length)
+        for wrapped in (False, True):
+            count = C._edge_rows(hu, every, len(every), e0, e1, wrapped, a, b, reach, rows, kept)
+            lo, hi = np.minimum(a, b), np.maximum(a, b)
+            ext = np.abs(hu.edge_a[every]) * hu.edge_hl[every, None] + reach
+            meets = ~((lo > hu.edge_p[every] + ext) | (hi < hu.edge_p[every] - ext)).any(axis=1)
+            assert list(kept[:count]) == (list(every) if wrapped else list(every[meets]))
+            C._segment_edges(a, b, rows, count)
+            for j, e in enumerate(kept[:count]):
+                s = C._segment_axis(a, b, hu.edge_p[e], hu.edge_a[e], hu.edge_hl[e], 1e-3, cl, nl)
+                assert rows[7, j] == (s if s > 0.0 else -1.0), (k, e)
+                if s > 0.0:
+                    assert np.sqrt(rows[8, j]) - 1e-3 == cl[3], (k, e)
+                    interior += 1
+    assert interior > 1000
