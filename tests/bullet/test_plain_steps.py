@@ -142,6 +142,16 @@ def test_a_hook_keeps_every_step_in_python(monkeypatch):
     _same(hooked_out, plain)
 
 
+def test_without_numbas_address_helper_every_step_keeps_pythons_phases(monkeypatch):
+    """The loop finds the kernels' addresses through a private Numba helper: where a Numba lacks it, no step is
+    plain and the results are the same."""
+    plain, n_plain = _run(monkeypatch, True, _clamped_moving, [300])
+    monkeypatch.setattr(plain_steps, "_get_wrapper_address", None)
+    without, n_without = _run(monkeypatch, True, _clamped_moving, [300])
+    assert n_plain > 0 and n_without == 0
+    _same(without, plain)
+
+
 def test_run_while_stable_stops_at_the_unstable_step_and_reports_progress(monkeypatch):
     """``run_while_stable`` steps in plain batches (told to ``progress`` every PROGRESS_EVERY steps) and stops after
     the step the cable went unstable in, as stepping one at a time and checking did."""
