@@ -15,8 +15,9 @@ from bullet_dlo.bullet.native import read_base_states, step_simulation
 from bullet_dlo.core.kernels.jit import njit
 from bullet_dlo.core.kernels.monitor import STABLE
 
-TAKEN, MOVED, BOOK = 0, 1, 2  # how run() ended: every step taken; Bullet's step taken and the cable's left to Python
-# (a body of the contact set moved); the last step taken and left to Python to book
+TAKEN, MOVED, BOOK, DETECT = 0, 1, 2, 3  # how run() ended: every step taken; Bullet's step taken and the cable's left
+# to Python (MOVED: a body of the contact set moved; DETECT: the step needs detection and ``detect`` is the stand-in
+# :func:`no_detect`); the last step taken and left to Python to book
 FIELDS = ("api", "bodies", "bases", "last_pose", "moved", "set_args", "step_args", "every", "sizes", "last", "step",
           "detect", "quiet")
 
@@ -48,10 +49,18 @@ def make_plain_args(api, bodies, bases, last_pose, moved, set_args, step_args, e
 
 
 @njit(cache=True)
+def no_detect(a, x, v, mass, h, k_per_mass, h_body, h_done):
+    """Stands in for :func:`~bullet_dlo.bullet.contact.detect_with` (the same signature) in :class:`PlainArgs` while
+    this process has not loaded detection (a cable that has touched nothing: loading it takes about 60 ms): -1, and
+    :func:`run` hands the step's cable part to Python, which detects (and loads it)."""
+    return -1
+
+
+@njit(cache=True)
 def run(a, n, skip_quiet, t, t_world, steps, steps_world):
     """Up to ``n`` plain world steps (:class:`PlainArgs` ``a``) from the cable's time t [s] and step count and the
     world's; ``skip_quiet``: try ``a.quiet`` before detecting (``contact.SKIP_QUIET``). Returns (steps taken, how it
-    ended: TAKEN, MOVED or BOOK, the cable's time [s] and steps, the world's, the Newton iterations of the steps
+    ended: TAKEN, MOVED, BOOK or DETECT, the cable's time [s] and steps, the world's, the Newton iterations of the steps
     booked here, the last step's contact rows); the last step's status, iterations and convergence into ``a.last``."""
     args, set_args = a.step_args, a.set_args
     dt, h, k_per_mass = a.sizes[0], a.sizes[1], a.sizes[2]
@@ -75,13 +84,15 @@ def run(a, n, skip_quiet, t, t_world, steps, steps_world):
                 if a.moved[b]:
                     a.last_pose[b, 0] = np.nan  # (Python's read then sees it move too)
             return k + 1, MOVED, t, t_world, steps, steps_world, booked, count
-        t += dt
-        steps += 1
         if (skip_quiet and contacts.count[0] == 0 and set_args.probes.count[0] == 0
                 and quiet(set_args, x, v, h, dt)):
             count = 0
         else:
             count = detect(set_args, x, v, mass, h, k_per_mass, dt, dt)
+            if count < 0:  # (no_detect)
+                return k + 1, DETECT, t, t_world, steps, steps_world, booked, 0
+        t += dt
+        steps += 1
         record = steps % a.every[2] == 0
         inp = StepInput(t, steps > 0 and contacts.impact[0] == 0, True, steps % a.every[0] == 0,
                         steps % a.every[1] == 0, record, no_index, no_rows, no_rows)

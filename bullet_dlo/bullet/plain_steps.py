@@ -14,7 +14,8 @@ their results are the ones of the Python phases to the bit (``tests/bullet/test_
 5.-6. nothing to do: no coupling, no hook;
 7. the cable's step: its contact set's body poses (a body that moved hands the rest of the step to Python, which
    updates the shapes), the contacts (:func:`~bullet_dlo.bullet.contact.quiet`, else
-   :func:`~bullet_dlo.bullet.contact.detect`), then the step kernel
+   :func:`~bullet_dlo.bullet.contact.detect`; until this process has loaded detection a stand-in hands that step's
+   cable part to Python, which loads it), then the step kernel
    (:func:`~bullet_dlo.bullet.kernels.sync_and_advance`: take over, check, plan, the record's row);
 8. nothing to do: no hook.
 
@@ -33,7 +34,7 @@ from bullet_dlo.bullet import contact
 from bullet_dlo.bullet.contact import detect_with, quiet_with
 from bullet_dlo.bullet.kernels import StepInput, bind
 from bullet_dlo.bullet.native import kernel_api
-from bullet_dlo.bullet.plain_call import BOOK, MOVED, TAKEN, make_plain_args, run
+from bullet_dlo.bullet.plain_call import BOOK, DETECT, MOVED, TAKEN, make_plain_args, no_detect, run
 from bullet_dlo.bullet.solver import NEWTON_WARN_MIN_STEPS
 from bullet_dlo.bullet.solver_call import step_with
 from bullet_dlo.core.kernels.monitor import STABLE
@@ -44,12 +45,13 @@ except ImportError:  # pragma: no cover - a Numba that moved it
     _get_wrapper_address = None
 
 PLAIN_STEPS = True  # take plain steps in one compiled call (False: every step in Python's phases; for A/B and tests)
-PLAIN_FROM = 10_000
+PLAIN_FROM = 2000
 """World steps a run must reach before it takes plain steps. Readying the loop (loading its code and its packed
-arguments' constructor, about 1.8 MB of cache, and looking up the kernels it calls by address) takes about 0.08 s per
-process, which the 5-10 us it saves a step at n = 10 pays back after 8000-16 000 steps: a shorter run keeps Python's
-phases, a longer one (its length known from ``step(n)`` or ``run_while_stable``, or the world's steps so far) takes
-plain steps from its start."""
+arguments' constructor, about 1.8 MB of cache, and looking up the kernels it calls by address) takes about 16 ms per
+process (detection, which takes another 60 ms to load, is loaded when a step first needs it, by the Python phases as
+without plain steps), which the 8-9 us it saves a step at n = 10 pays back after about 1800 steps: a shorter run keeps
+Python's phases, a longer one (its length known from ``step(n)`` or ``run_while_stable``, or the world's steps so
+far) takes plain steps from its start."""
 
 
 def _plain_cable(world):
@@ -93,15 +95,23 @@ def _first_class(kernel, *args) -> tuple:
     return types.FunctionType(sig), _Address(_get_wrapper_address(kernel, sig))
 
 
+def _detection_loaded(detect_args: tuple) -> bool:
+    """Whether this process has detection for these arguments ready (loaded or compiled)."""
+    return tuple(map(typeof, detect_args)) in detect_with.overloads
+
+
 def _functions(cable, args) -> tuple:
     """The step kernel, detection and the quiet test for the cable's packed arguments as first-class functions:
-    (their types, their addresses)."""
+    (their types, their addresses, whether detection is the real one). Detection not loaded in this process yet (a
+    cable that has touched nothing; it takes about 60 ms) is :func:`no_detect` until the loop needs it."""
     set_args, x, v = cable.contact.set._set_args, cable.solver.coupling.x_new, cable.solver.coupling.v_new
     no_index, no_rows = np.empty(0, np.int64), np.empty((0, 3))
+    detect_args = (set_args, x, v, cable.arrays.mass, 0.0, 0.0, 0.0, 0.0)
+    real = _detection_loaded(detect_args)
     made = (_first_class(step_with, args, StepInput(0.0, True, True, True, True, True, no_index, no_rows, no_rows)),
-            _first_class(detect_with, set_args, x, v, cable.arrays.mass, 0.0, 0.0, 0.0, 0.0),
+            _first_class(detect_with if real else no_detect, *detect_args),
             _first_class(quiet_with, set_args, x, v, 0.0, 0.0))
-    return tuple(m[0] for m in made), tuple(m[1] for m in made)
+    return tuple(m[0] for m in made), tuple(m[1] for m in made), real
 
 
 def _packed(world, cable, args):
@@ -116,12 +126,12 @@ def _packed(world, cable, args):
         sizes = np.array([world.dt, h, cs.alpha / (h * h)])  # (as ContactSet.update computes them)
         last = np.zeros(3, dtype=np.int64)
         values = (kernel_api(world.native_handle()), *cs._base_args[1:], cs._set_args, args, every, sizes, last)
-        function_types, addresses = _functions(cable, args)
+        function_types, addresses, real = _functions(cable, args)
         # (compiled for the functions' types and called as compiled: the dispatcher cannot type an address)
         pack = make_plain_args.compile(tuple(map(typeof, values)) + function_types)
         packed = pack(*values, *addresses)
         held = cable._plain_args = (args, cs._set_args, cs._base_args, det, cable.record_every, packed,
-                                    bind(run, packed, 1, True, 0.0, 0.0, 0, 0), last, addresses)
+                                    bind(run, packed, 1, True, 0.0, 0.0, 0, 0), last, addresses, real)
     return held[5:]
 
 
@@ -149,12 +159,14 @@ def take(world, n: int, horizon: int = 0) -> int:
     if plain:
         solver.last_ratio = 0.0
         solver.judge_share()  # (the batch ends where the share is first judged: as after that step)
-    if how != MOVED:
+    if how not in (MOVED, DETECT):
         cable.contacts_last_step = count
     world._supported = world._supported_in(())  # phase 7's books of Bullet's contacts: none read (parked spheres)
     world._supported_due = False
-    if how == MOVED:  # the cable's step of the last world step, in Python
+    if how in (MOVED, DETECT):  # the cable's step of the last world step, in Python
         world.take_cable_steps()
+        if how == DETECT:
+            cable._plain_args = None  # (packed anew at the next call, with the detection Python has just loaded)
     elif how == BOOK:
         status = solver.account(int(last[0]), int(last[1]), bool(last[2]), cable.t)
         cable._after_plan(status, cable.steps % cable.record_every == 0, True)

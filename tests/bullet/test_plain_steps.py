@@ -11,7 +11,7 @@ import numpy as np
 import pybullet as pb
 import pytest
 
-from bullet_dlo.bullet import native, plain_steps
+from bullet_dlo.bullet import native, plain_call, plain_steps
 from bullet_dlo.bullet.world import BulletWorld
 from bullet_dlo.core.boundary import Move
 from bullet_dlo.core.model import CableModel
@@ -105,6 +105,31 @@ def test_a_cable_landing_on_a_table_steps_plain_to_the_same_bits(monkeypatch):
     python, _ = _run(monkeypatch, False, _on_a_table, [240])
     assert n_plain > 200 and plain["contacts"] > 0
     _same(plain, python)
+
+
+def test_before_detection_is_loaded_a_stand_in_hands_each_detecting_step_to_python(monkeypatch):
+    """Until the process has loaded detection the loop holds a stand-in (``no_detect``): the first step that needs
+    detection is handed to Python after Bullet's step (which detects, as the Python phases do, loading it), the
+    arguments are packed anew with the real detection, the other steps stay plain, and the results are the same
+    bits."""
+    python, _ = _run(monkeypatch, False, _on_a_table, [10, 30, 200])
+    asked = []
+
+    def loaded(detect_args):  # (not loaded when first asked, then as it is: loaded by the Python step)
+        asked.append(detect_args)
+        return len(asked) > 1
+    monkeypatch.setattr(plain_steps, "_detection_loaded", loaded)
+    handed = []
+    run = plain_steps.run
+
+    def counted(*a):
+        out = run(*a)
+        handed.append(out[1] == plain_call.DETECT)
+        return out
+    monkeypatch.setattr(plain_steps, "bind", lambda kernel, *args: counted)
+    stand_in, n_plain = _run(monkeypatch, True, _on_a_table, [10, 30, 200])
+    assert n_plain > 0 and sum(handed) == 1 and len(asked) == 2, (n_plain, sum(handed), len(asked))
+    _same(stand_in, python)
 
 
 def test_a_static_body_moved_between_steps_hands_the_step_to_python(monkeypatch):
