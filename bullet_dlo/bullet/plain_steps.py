@@ -57,7 +57,8 @@ far) takes plain steps from its start."""
 def _plain_cable(world):
     """The world's one cable when its next step is plain (module doc), else None."""
     if (not PLAIN_STEPS or _get_wrapper_address is None or world.couplings or world.before_step
-            or world.after_physics or world.after_step or world.bodies_added or world.model_touches or world._model_touches_now or len(world.cables) != 1):
+            or world.after_physics or world.after_step or world.bodies_added or world.model_touches
+            or world._model_touches_now or len(world.cables) != 1):
         return None
     (cable,) = world.cables.values()
     if not (cable.proxy and cable.model_contact) or cable._waking or cable._fresh or cable.sync == "always":
@@ -102,16 +103,15 @@ def _detection_loaded(detect_args: tuple) -> bool:
 
 def _functions(cable, args) -> tuple:
     """The step kernel, detection and the quiet test for the cable's packed arguments as first-class functions:
-    (their types, their addresses, whether detection is the real one). Detection not loaded in this process yet (a
-    cable that has touched nothing; it takes about 60 ms) is :func:`no_detect` until the loop needs it."""
+    (their types, their addresses). Detection not loaded in this process yet (a cable that has touched nothing; it
+    takes about 60 ms) is :func:`no_detect` until the loop needs it."""
     set_args, x, v = cable.contact.set._set_args, cable.solver.coupling.x_new, cable.solver.coupling.v_new
     no_index, no_rows = np.empty(0, np.int64), np.empty((0, 3))
     detect_args = (set_args, x, v, cable.arrays.mass, 0.0, 0.0, 0.0, 0.0)
-    real = _detection_loaded(detect_args)
     made = (_first_class(step_with, args, StepInput(0.0, True, True, True, True, True, no_index, no_rows, no_rows)),
-            _first_class(detect_with if real else no_detect, *detect_args),
+            _first_class(detect_with if _detection_loaded(detect_args) else no_detect, *detect_args),
             _first_class(quiet_with, set_args, x, v, 0.0, 0.0))
-    return tuple(m[0] for m in made), tuple(m[1] for m in made), real
+    return tuple(m[0] for m in made), tuple(m[1] for m in made)
 
 
 def _packed(world, cable, args):
@@ -126,12 +126,13 @@ def _packed(world, cable, args):
         sizes = np.array([world.dt, h, cs.alpha / (h * h)])  # (as ContactSet.update computes them)
         last = np.zeros(3, dtype=np.int64)
         values = (kernel_api(world.native_handle()), *cs._base_args[1:], cs._set_args, args, every, sizes, last)
-        function_types, addresses, real = _functions(cable, args)
+        function_types, addresses = _functions(cable, args)
         # (compiled for the functions' types and called as compiled: the dispatcher cannot type an address)
         pack = make_plain_args.compile(tuple(map(typeof, values)) + function_types)
         packed = pack(*values, *addresses)
+        # (the addresses' objects kept with them: the packed functions refer to them)
         held = cable._plain_args = (args, cs._set_args, cs._base_args, det, cable.record_every, packed,
-                                    bind(run, packed, 1, True, 0.0, 0.0, 0, 0), last, addresses, real)
+                                    bind(run, packed, 1, True, 0.0, 0.0, 0, 0), last, addresses)
     return held[5:]
 
 
