@@ -14,6 +14,7 @@ batches), the frameless step's kernels beside.
     python demos/twist_cost.py
     python demos/twist_cost.py --ns 10 20 40 80 --repeats 7 --steps 1000 --method bdf2
     python demos/twist_cost.py --parts --ns 80
+    python demos/twist_cost.py --bullet --ns 10 20 40    # in a Bullet world: plain steps and Python's phases
     python demos/twist_cost.py --ns 80 --exact-from 1    # the exact Jacobian from the first Newton iteration
 """
 from __future__ import annotations
@@ -178,6 +179,41 @@ def _parts(n: int) -> None:
         print(f"n {n:3d} {name:50s} {med:8.2f} us per call ({lo:.2f}-{hi:.2f})", flush=True)
 
 
+def _bullet(ns: list[int], repeats: int, block: int = 100) -> None:
+    """Per-step thread CPU time [us] of the same cables in a Bullet world (1 kHz, BDF2, the ground below), each in
+    plain steps (one compiled call a step, ``bullet/plain_steps.py``) and in Python's phases: medians of ``repeats``
+    interleaved blocks of ``block`` ``world.step()`` calls."""
+    from bullet_dlo.bullet import plain_steps
+    from bullet_dlo.bullet.world import BulletWorld
+
+    plain_steps.PLAIN_FROM = 0  # (plain from the first steps, as a run of at least PLAIN_FROM steps)
+    for n in ns:
+        worlds = {}
+        for twist in (False, True):
+            for plain in (True, False):
+                world = BulletWorld(dt=1e-3)
+                world.add_cable(model(n, twist, 1.0), record_every=10**9, integrator="bdf2")
+                plain_steps.PLAIN_STEPS = plain
+                world.step(20)  # compile and warm up
+                worlds[twist, plain] = world
+        times: dict[tuple, list[float]] = {k: [] for k in worlds}
+        for _ in range(repeats):
+            for (twist, plain), world in worlds.items():
+                plain_steps.PLAIN_STEPS = plain
+                t0 = time.thread_time()
+                for _ in range(block):
+                    world.step()
+                times[twist, plain].append((time.thread_time() - t0) / block)
+        plain_steps.PLAIN_STEPS = True
+        med = {k: 1e6 * float(np.median(v)) for k, v in times.items()}
+        print(f"n {n:3d}, Bullet world: frameless {med[False, True]:.1f} us/step plain, {med[False, False]:.1f} in "
+              f"Python's phases; twist {med[True, True]:.1f} / {med[True, False]:.1f}; ratio "
+              f"{med[True, True] / med[False, True]:.2f} plain, {med[True, False] / med[False, False]:.2f} in Python's "
+              f"phases", flush=True)
+        for world in worlds.values():
+            world.close()
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--ns", type=int, nargs="+", default=[10, 20, 40, 80])
@@ -186,6 +222,8 @@ def main() -> None:
     parser.add_argument("--method", default="bdf2")
     parser.add_argument("--dt", type=float, default=1e-3)
     parser.add_argument("--parts", action="store_true", help="time the coupled step's kernels alone (BDF2)")
+    parser.add_argument("--bullet", action="store_true",
+                        help="instead: the same cables stepped in a Bullet world, plain and in Python's phases")
     parser.add_argument("--exact-from", type=int, default=None,
                         help="newton.exact_from: the Newton iteration from which the twisting step takes the exact "
                              "Jacobian (default: NewtonOptions')")
@@ -195,6 +233,11 @@ def main() -> None:
         NEWTON = NewtonOptions(exact_from=args.exact_from)
     if args.steps < 2:
         sys.exit(print(f"--steps must be >= 2 (got {args.steps})", file=sys.stderr) or 2)
+    if args.bullet:
+        print(f"load average {os.getloadavg()[0]:.2f}")
+        _bullet(args.ns, args.repeats)
+        print(f"load average at the end {os.getloadavg()[0]:.2f}")
+        return
     if args.parts:
         print(f"load average {os.getloadavg()[0]:.2f}")
         for n in args.ns:

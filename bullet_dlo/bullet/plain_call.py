@@ -19,7 +19,7 @@ TAKEN, MOVED, BOOK, DETECT = 0, 1, 2, 3  # how run() ended: every step taken; Bu
 # to Python (MOVED: a body of the contact set moved; DETECT: the step needs detection and ``detect`` is the stand-in
 # :func:`no_detect`); the last step taken and left to Python to book
 FIELDS = ("api", "bodies", "bases", "last_pose", "moved", "set_args", "step_args", "every", "sizes", "last", "step",
-          "detect", "quiet")
+          "detect", "quiet", "twist_now")
 
 
 @structref.register
@@ -36,16 +36,32 @@ class PlainArgs(structref.StructRefProxy):
     [1/s^2]; ``last`` (3,) int64: the last step's status, Newton iterations and convergence (1/0); ``step``,
     ``detect``, ``quiet``: :func:`~bullet_dlo.bullet.solver_call.step_with`,
     :func:`~bullet_dlo.bullet.contact.detect_with` and :func:`~bullet_dlo.bullet.contact.quiet_with` as first-class
-    functions (called through their addresses)."""
+    functions (called through their addresses); ``twist_now``: a twisting cable's twist state at its time t, which each
+    step copies before its plan advances the cable's (``BulletCable._twist_now``; a frameless cable's own empty one)."""
 
 
 structref.define_proxy(PlainArgs, PlainArgsType, list(FIELDS))
 
 
 @njit(cache=True)
-def make_plain_args(api, bodies, bases, last_pose, moved, set_args, step_args, every, sizes, last, step, detect, quiet):
+def make_plain_args(api, bodies, bases, last_pose, moved, set_args, step_args, every, sizes, last, step, detect, quiet,
+                    twist_now):
     """Pack :class:`PlainArgs` (compiled and cached, as :func:`~bullet_dlo.bullet.solver_call.make_step_args`)."""
-    return PlainArgs(api, bodies, bases, last_pose, moved, set_args, step_args, every, sizes, last, step, detect, quiet)
+    return PlainArgs(api, bodies, bases, last_pose, moved, set_args, step_args, every, sizes, last, step, detect, quiet,
+                     twist_now)
+
+
+@njit(cache=True)
+def _keep_twist(m, now):
+    """The twist state of kernel arrays ``m`` copied into ``now`` (a TwistState; nothing for a frameless cable)."""
+    if now.theta.shape[0]:
+        now.theta[:] = m.tw_theta
+        now.omega[:] = m.tw_omega
+        now.ref[:] = m.tw_ref
+        now.tan[:] = m.tw_tan
+        now.mref[:] = m.tw_mref
+        now.flag[:] = m.tw_flag
+        now.prev[:] = m.tw_prev
 
 
 @njit(cache=True)
@@ -96,6 +112,7 @@ def run(a, n, skip_quiet, t, t_world, steps, steps_world):
         record = steps % a.every[2] == 0
         inp = StepInput(t, steps > 0 and contacts.impact[0] == 0, True, steps % a.every[0] == 0,
                         steps % a.every[1] == 0, record, no_index, no_rows, no_rows)
+        _keep_twist(args.arrays, a.twist_now)  # (the twist state at t, before the plan advances it)
         status, its, ok = step(args, inp)
         info = args.guard.info
         if (status != STABLE or not ok or info[RETRY_SUBSTEPS] > 0 or info[FINAL_RATIO] > 0.0

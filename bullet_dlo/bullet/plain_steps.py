@@ -5,9 +5,10 @@ into PyBullet or into a compiled kernel. For one cable at n = 10 that Python cos
 and more than Bullet's step (``demos/step_breakdown.py``). A step in which Python has nothing to decide is *plain*: the
 world holds one cable, its spheres are parked proxies (Bullet does not move them, so no forces go to them and none are
 read back), its contacts are the model's with static bodies only (no free body, no other cable, no probed link), its
-ends are not in friction grips, it has no material frame, and the world has no couplings and no hooks (:func:`take`
-checks each). Plain steps run here, phase by phase in the order of ``BulletWorld.step`` and on the same arrays, so
-their results are the ones of the Python phases to the bit (``tests/bullet/test_plain_steps.py``):
+ends are not in friction grips, and the world has no couplings and no hooks (:func:`take` checks each; a material
+frame is fine after the cable's first step). Plain steps run here, phase by phase in the order of
+``BulletWorld.step`` and on the same arrays, so their results are the ones of the Python phases to the bit
+(``tests/bullet/test_plain_steps.py``):
 
 1.-3. nothing to do: no forces for parked spheres, no coupling, no hook;
 4. Bullet's step (:func:`~bullet_dlo.bullet.native.step_simulation`);
@@ -16,7 +17,8 @@ their results are the ones of the Python phases to the bit (``tests/bullet/test_
    updates the shapes), the contacts (:func:`~bullet_dlo.bullet.contact.quiet`, else
    :func:`~bullet_dlo.bullet.contact.detect`; until this process has loaded detection a stand-in hands that step's
    cable part to Python, which loads it), then the step kernel
-   (:func:`~bullet_dlo.bullet.kernels.sync_and_advance`: take over, check, plan, the record's row);
+   (:func:`~bullet_dlo.bullet.kernels.sync_and_advance`: take over, check, plan, the record's row), a twisting
+   cable's twist state at t kept before the plan (``BulletCable._twist_now``);
 8. nothing to do: no hook.
 
 The loop stops after a step whose outcome Python books (Newton not converged, a retry, an unstable status, a full
@@ -63,7 +65,9 @@ def _plain_cable(world):
     (cable,) = world.cables.values()
     if not (cable.proxy and cable.model_contact) or cable._waking or cable._fresh or cable.sync == "always":
         return None
-    if cable.solver.status != STABLE or cable.twist.theta.shape[0] or True in cable.grip.active.tolist():
+    if cable.solver.status != STABLE or True in cable.grip.active.tolist():
+        return None
+    if cable.twist.theta.shape[0] and cable._twist_now is None:  # (a twisting cable's first step keeps Python's phases)
         return None
     cs = cable.contact.set
     if (cs is None or cs.free_bodies or cs._dynamic_rows or cs.other_cables or cs._probe_rows
@@ -120,19 +124,21 @@ def _packed(world, cable, args):
     cs, det = cable.contact.set, cable.solver.detector
     held = cable._plain_args
     if (held is None or held[0] is not args or held[1] is not cs._set_args or held[2] is not cs._base_args
-            or held[3] is not det or held[4] != cable.record_every):
+            or held[3] is not det or held[4] != cable.record_every
+            or (cable._twist_now is not None and held[9] is not cable._twist_now)):
         h = cable.solver.stepper.h
         every = np.array([det.check_every, det.energy_every, cable.record_every], dtype=np.int64)
         sizes = np.array([world.dt, h, cs.alpha / (h * h)])  # (as ContactSet.update computes them)
         last = np.zeros(3, dtype=np.int64)
         values = (kernel_api(world.native_handle()), *cs._base_args[1:], cs._set_args, args, every, sizes, last)
         function_types, addresses = _functions(cable, args)
+        now = cable._twist_now if cable._twist_now is not None else cable.twist  # (frameless: its empty state)
         # (compiled for the functions' types and called as compiled: the dispatcher cannot type an address)
-        pack = make_plain_args.compile(tuple(map(typeof, values)) + function_types)
-        packed = pack(*values, *addresses)
+        pack = make_plain_args.compile(tuple(map(typeof, values)) + function_types + (typeof(now),))
+        packed = pack(*values, *addresses, now)
         # (the addresses' objects kept with them: the packed functions refer to them)
         held = cable._plain_args = (args, cs._set_args, cs._base_args, det, cable.record_every, packed,
-                                    bind(run, packed, 1, True, 0.0, 0.0, 0, 0), last, addresses)
+                                    bind(run, packed, 1, True, 0.0, 0.0, 0, 0), last, addresses, now)
     return held[5:]
 
 
@@ -157,6 +163,8 @@ def take(world, n: int, horizon: int = 0) -> int:
     plain = taken - (how != TAKEN)
     solver.steps_planned += plain
     solver.newton_iterations += booked
+    if cable._twist_now is not None and (plain or how == BOOK):
+        cable._twist_planned = True  # (each step the loop planned advanced the twist state on from _twist_now)
     if plain:
         solver.last_ratio = 0.0
         solver.judge_share()  # (the batch ends where the share is first judged: as after that step)

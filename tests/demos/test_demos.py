@@ -84,6 +84,17 @@ def test_step_breakdown_startup_runs_fresh_processes_both_ways():
     assert plain > 0 and python > 0
 
 
+def test_twist_cost_demo_times_twisting_cables_in_a_bullet_world():
+    """demos/twist_cost.py --bullet: the twisting and the frameless cable stepped in a Bullet world, plain and in
+    Python's phases, with the twisting one the dearer of the two either way."""
+    res = subprocess.run([sys.executable, str(ROOT / "demos" / "twist_cost.py"), "--bullet", "--ns", "6", "--repeats",
+                          "1"], capture_output=True, text=True, timeout=600)
+    assert res.returncode == 0, res.stderr
+    (line,) = [ln for ln in res.stdout.splitlines() if "Bullet world" in ln]
+    plain, python = (float(v) for v in re.findall(r"ratio ([0-9.]+) plain, ([0-9.]+) in", line)[0])
+    assert plain > 1.0 and python > 1.0, line
+
+
 def test_critical_steps_demo_quick(tmp_path):
     run_demo("critical_steps.py", tmp_path)
     rows = json.loads((tmp_path / "critical_steps.json").read_text())
