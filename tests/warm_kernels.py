@@ -41,7 +41,7 @@ def core() -> None:
 
 def bullet() -> None:
     """A dual-arm environment (arms, grasps, sensors, IK, model contact with the arms' links), then a twisting
-    cable under a light box."""
+    cable under a light box, then a cable's plain steps."""
     import gymnasium as gym
 
     import bullet_dlo  # noqa: F401  (registers the environments)
@@ -62,6 +62,14 @@ def bullet() -> None:
         world.add_cable(spec, start=(0.0, 0.0, 0.5 * spec.diameter))
         world.add_box((0.01, 0.01, 0.01), (0.05, 0.0, spec.diameter + 0.0102), mass=0.01)
         world.step(5)
+    # plain steps (one compiled loop a run, bullet/plain_steps.py: runs of PLAIN_FROM steps and more take them, so many
+    # tests' do): a cable falling onto the ground, plain from its second step
+    from bullet_dlo.bullet import plain_steps
+
+    plain_steps.PLAIN_FROM = 0
+    with BulletWorld(dt=1e-3) as world:
+        world.add_cable(CableSpec.lv2017(n_masses=6), start=(0.0, 0.0, 0.5 * spec.diameter + 1e-3))
+        world.step(100)
 
 
 if __name__ == "__main__":
