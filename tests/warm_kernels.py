@@ -62,13 +62,14 @@ def bullet() -> None:
         world.add_cable(spec, start=(0.0, 0.0, 0.5 * spec.diameter))
         world.add_box((0.01, 0.01, 0.01), (0.05, 0.0, spec.diameter + 0.0102), mass=0.01)
         world.step(5)
-    # plain steps (one compiled loop a run, bullet/plain_steps.py: runs of PLAIN_FROM steps and more take them, so many
-    # tests' do): a cable falling onto the ground, plain from its second step
+    # plain steps (bullet/plain_steps.py: every run of at least PLAIN_FROM steps takes them, so many tests do): a cable
+    # falling 1 mm onto the ground, plain from its second step
     from bullet_dlo.bullet import plain_steps
 
     plain_steps.PLAIN_FROM = 0
+    falling = CableSpec.lv2017(n_masses=6)
     with BulletWorld(dt=1e-3) as world:
-        world.add_cable(CableSpec.lv2017(n_masses=6), start=(0.0, 0.0, 0.5 * spec.diameter + 1e-3))
+        world.add_cable(falling, start=(0.0, 0.0, 0.5 * falling.diameter + 1e-3))
         world.step(100)
 
 
