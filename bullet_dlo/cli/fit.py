@@ -78,8 +78,10 @@ def cmd_fit(args: argparse.Namespace) -> int:
     length = args.length or recs[0].length
     if length is None:
         raise ParameterError("--length is required: the recording does not state its cable's length [m]")
-    if args.diameter is None and not all(strips):
-        raise ParameterError("--diameter is required: the cable's diameter [m], > 0")
+    diameter = args.diameter or stated_diameter(recs)
+    if diameter is None and not all(strips):
+        raise ParameterError("--diameter is required: the cable's diameter [m], > 0 (the recording does not state "
+                             "it)")
     if args.mass is None and not any(r.force is not None or r.linear_obs is not None for r in recs):
         raise ParameterError("--mass is required for recordings without forces or torques (marker positions see "
                              "E I / (rho A) only): give the cable's mass [kg]")
@@ -102,7 +104,7 @@ def cmd_fit(args: argparse.Namespace) -> int:
         spec = Strip().rectangle_spec(n_masses)
         spec = spec.with_(youngs_modulus=args.youngs_modulus or spec.youngs_modulus, mass=args.mass or spec.mass)
     else:
-        spec = CableSpec(length=length, diameter=args.diameter, mass=args.mass or max(weight / 9.81, 1e-4),
+        spec = CableSpec(length=length, diameter=diameter, mass=args.mass or max(weight / 9.81, 1e-4),
                          youngs_modulus=args.youngs_modulus or 1e8, n_masses=n_masses, twist=args.twist)
     from bullet_dlo.cli.quiet import elapsed
 
@@ -127,6 +129,13 @@ def cmd_fit(args: argparse.Namespace) -> int:
 
 
 DEFAULT_N_MASSES = 10
+
+
+def stated_diameter(recs) -> float | None:
+    """The cable diameter [m] the recordings state (simulated files: a dataset episode's parameters, a series
+    file's ``cable``), when every recording that states one states the same; else None."""
+    values = {r.source["diameter"] for r in recs if r.source and "diameter" in r.source}
+    return values.pop() if len(values) == 1 else None
 
 
 def model_masses(recs) -> int:
@@ -290,9 +299,11 @@ def add_parsers(sub, common: argparse.ArgumentParser) -> None:
     s.add_argument("recording", nargs="+", help="recording file(s) (.csv, .npz, .h5, DEFORM .pkl, beam_handling "
                    ".csv); several: fitted together")
     s.add_argument("--length", type=float, help="cable length [m], > 0 (required unless the recording states it: "
-                   "a DEFORM trial's length between the held markers)")
-    s.add_argument("--diameter", type=float, help="cable diameter [m], > 0 (required but for beam_handling "
-                   "recordings, whose strip is known: 0.52 x 0.08 x 0.001 m steel)")
+                   "a DEFORM trial's length between the held markers, a dataset episode's or grasp --series file's "
+                   "simulated cable)")
+    s.add_argument("--diameter", type=float, help="cable diameter [m], > 0 (required unless the recording states "
+                   "it: a dataset episode's or grasp --series file's simulated cable; beam_handling recordings' "
+                   "strip is known: 0.52 x 0.08 x 0.001 m steel)")
     s.add_argument("--mass", type=float, help="cable mass [kg], > 0, if known (else it is fitted)")
     s.add_argument("--youngs-modulus", type=float, help="start value of E [Pa], > 0 (1e8; a beam_handling "
                    "strip: 197.5e9)")

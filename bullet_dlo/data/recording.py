@@ -26,8 +26,9 @@ naming the columns ``t, left_x, left_y, left_z, left_qx, left_qy, left_qz, left_
 left_fy, left_fz`` and the same with ``right_``, in any order, each optionally with its unit in
 brackets: ``t [s], left_x [m], ..., left_fx [N]``; lines before the header that start with ``#`` are
 comments, and one holding a JSON object gives the file's attributes, as ``write_series`` writes a simulation's
-``integrator``, ``dt`` and ``n_masses``). A recording from a real robot in any of these
-formats needs only ``t``, ``ee_pos``, ``ee_quat`` and ``wrench_world`` (forces; moments optional).
+``integrator``, ``dt``, ``n_masses`` and its cable's ``length`` and ``diameter``, which the fit then takes). A
+recording from a real robot in any of these formats needs only ``t``, ``ee_pos``, ``ee_quat`` and ``wrench_world``
+(forces; moments optional).
 
 Optional columns a fit also uses (NPZ/HDF5): ``grasp_moment`` (k, 2, 3), the measured moments
 about the grasp points [N m] (``wrench_world`` moments are about the sensor origin and are not
@@ -229,6 +230,8 @@ def read_recording(path: str | Path, forces: str = "wrench_world", units: str | 
         raise ParameterError(f"recording {path.name} cannot be read as {fmt} (damaged or truncated?): "
                              f"{text[:200]}") from None
     rec = check_recording(raw, path.name, flag_units, window, source, cable)
+    if rec.length is None and source and "length" in source:  # (a simulated file states its cable's length)
+        rec = replace(rec, length=source["length"])
     delay = _wrench_delay(source) if forces == "wrench_world" else 0.0
     rec = replace(rec, force_delay=delay) if delay else rec
     fresh = fresh_samples(rec.force, rec.moment) if rec.force is not None else None
@@ -573,7 +576,8 @@ def _read_h5(path: Path, forces: str, window: Any, flag_units: dict[str, str]) -
 
 
 def _episode_params(attrs: Any) -> dict[str, Any]:
-    """``integrator``, ``dt`` and ``n_masses`` from a dataset episode's ``params`` (a JSON object), or {}."""
+    """``integrator``, ``dt``, ``n_masses`` and the cable's ``length`` and ``diameter`` from a dataset episode's
+    ``params`` (a JSON object), or {}."""
     text = attrs.get("params")
     if isinstance(text, bytes):
         text = text.decode("utf-8", "replace")
@@ -581,7 +585,8 @@ def _episode_params(attrs: Any) -> dict[str, Any]:
         params = json.loads(text) if isinstance(text, str) else {}
     except ValueError:
         return {}
-    return {k: params[k] for k in ("integrator", "dt", "n_masses") if isinstance(params, dict) and k in params}
+    return {k: params[k] for k in ("integrator", "dt", "n_masses", "length", "diameter")
+            if isinstance(params, dict) and k in params}
 
 
 def _wanted(forces: str) -> tuple[list[str], list[str]]:
@@ -643,9 +648,11 @@ def _wrench_delay(source: dict[str, Any] | None) -> float:
 
 def _source(attrs: dict[str, Any]) -> dict[str, Any] | None:
     """{"integrator", "dt"} from a simulated series file's attributes (None when it does not say), with
-    "n_masses" where they give the simulated cable's (``n_masses``, or ``cable`` holding it: a dict or JSON)."""
+    "n_masses", "length" [m] and "diameter" [m] where they give the simulated cable's (each as an attribute of its
+    own, or in ``cable``: a dict or JSON)."""
     integrator, dt = attrs.get("integrator"), attrs.get("dt")
     n = _cable_n(attrs)
+    sizes = {k: v for k in ("length", "diameter") if (v := _cable_size(attrs, k)) is not None}
     if isinstance(integrator, bytes):
         integrator = integrator.decode("utf-8", "replace")
     try:
@@ -654,14 +661,14 @@ def _source(attrs: dict[str, Any]) -> dict[str, Any] | None:
         dt = None
     if not integrator or not dt or not math.isfinite(dt) or dt <= 0:
         return None
-    return {"integrator": str(integrator), "dt": dt} | ({"n_masses": n} if n else {})
+    return {"integrator": str(integrator), "dt": dt} | ({"n_masses": n} if n else {}) | sizes
 
 
-def _cable_n(attrs: dict[str, Any]) -> int | None:
-    """The simulated cable's number of masses from series attributes (``n_masses`` or ``cable``), or None."""
-    n = attrs.get("n_masses")
+def _cable_entry(attrs: dict[str, Any], key: str) -> Any:
+    """Series attribute ``key``, else the entry ``key`` of its ``cable`` attribute (a dict or JSON), or None."""
+    value = attrs.get(key)
     cable = attrs.get("cable")
-    if n is None and cable is not None:
+    if value is None and cable is not None:
         if isinstance(cable, bytes):
             cable = cable.decode("utf-8", "replace")
         if isinstance(cable, str):
@@ -669,7 +676,23 @@ def _cable_n(attrs: dict[str, Any]) -> int | None:
                 cable = json.loads(cable)
             except ValueError:
                 cable = None
-        n = cable.get("n_masses") if isinstance(cable, dict) else None
+        value = cable.get(key) if isinstance(cable, dict) else None
+    return value
+
+
+def _cable_size(attrs: dict[str, Any], key: str) -> float | None:
+    """The simulated cable's ``length`` or ``diameter`` [m] from series attributes (:func:`_cable_entry`), or None
+    where absent or not a plausible size (0 < value <= 100 m)."""
+    try:
+        value = float(_cable_entry(attrs, key))
+    except (TypeError, ValueError):
+        return None
+    return value if math.isfinite(value) and 0.0 < value <= 100.0 else None
+
+
+def _cable_n(attrs: dict[str, Any]) -> int | None:
+    """The simulated cable's number of masses from series attributes (``n_masses`` or ``cable``), or None."""
+    n = _cable_entry(attrs, "n_masses")
     try:
         n = int(n) if n is not None and float(n) == int(n) else None
     except (TypeError, ValueError, OverflowError):

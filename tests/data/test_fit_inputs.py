@@ -455,3 +455,37 @@ def test_the_fit_takes_the_recording_simulations_number_of_masses_unless_given(t
     real = read_recording(write_series(tmp_path / f"real{fmt}", cols))
     assert real.source is None and model_masses([real]) == DEFAULT_N_MASSES
     assert model_masses([sim, real]) == DEFAULT_N_MASSES  # (they do not agree on one)
+
+
+@pytest.mark.parametrize("fmt", FORMATS)
+def test_a_simulated_file_states_its_cables_length_and_diameter(tmp_path, capsys, fmt):
+    """A dataset episode states its cable (``params``), a grasp --series file too (``cable``), yet `fit` asked for
+    --length and --diameter ("the recording does not state its cable's length"). Both are now read from the
+    file; a file that states one of them still needs the other, and a real file both."""
+    from bullet_dlo.cli.fit import stated_diameter
+    from bullet_dlo.data.recording import write_series
+
+    a = base()
+    cols = {"t": a["t"], "ee_pos": a["ee_pos"], "ee_quat": a["ee_quat"],
+            "wrench_world": np.concatenate((a["force"], np.zeros_like(a["force"])), axis=2)}
+    series = read_recording(write_series(tmp_path / f"series{fmt}", cols, {
+        "integrator": "bdf2", "dt": 0.01, "cable": {"n_masses": 14, "length": 0.31, "diameter": 0.004}}))
+    assert series.length == 0.31 and stated_diameter([series]) == 0.004
+    half = read_recording(write_series(tmp_path / f"half{fmt}", cols, {
+        "integrator": "bdf2", "dt": 0.01, "cable": {"length": 0.31}}))
+    assert half.length == 0.31 and stated_diameter([half]) is None
+    assert stated_diameter([series, half]) == 0.004  # (the one stated)
+    out = ["--out", str(tmp_path / "fit")]
+    code, lines = run_cli(capsys, ["fit", str(tmp_path / f"half{fmt}"), *out])
+    assert code == 2 and lines == ["error: --diameter is required: the cable's diameter [m], > 0 (the recording "
+                                   "does not state it)"], lines
+    code, lines = run_cli(capsys, ["fit", str(write(tmp_path / f"real{fmt}", base())), *out])
+    assert code == 2 and lines == ["error: --length is required: the recording does not state its cable's length "
+                                   "[m]"], lines
+    if fmt == ".h5":  # a dataset episode: the cable in its ``params`` (JSON), as bullet-dlo capture writes it
+        path = write(tmp_path / "episode.h5", base())
+        with h5py.File(path, "a") as f:
+            f.attrs["params"] = json.dumps({"integrator": "bdf2", "dt": 0.001, "n_masses": 12, "length": 0.3,
+                                            "diameter": 0.005, "mass": 0.035})
+        episode = read_recording(path)
+        assert episode.length == 0.3 and stated_diameter([episode]) == 0.005 and episode.source["n_masses"] == 12
