@@ -13,6 +13,7 @@
 Prints ratios and rates; writes nothing. ``--quick`` for a short run (smoke test).
 
     python demos/env_speed.py [--quick] [--robots panda kuka] [--masses 10 40] [--python-too] [--envs-only] [--env-steps N]
+    python demos/env_speed.py --resets N
 """
 from __future__ import annotations
 
@@ -109,6 +110,38 @@ def reset_time(resets: int) -> float:
         times.append(time.perf_counter() - tic)
     env.close()
     return statistics.median(times)
+
+
+def resets_vs_episodes(resets: int, steps: int = 50) -> None:
+    """Each environment's reset (a new scene: world, arms, settling, cable) in CPU time of this thread: median and
+    range of ``resets`` resets after a first one, beside its episode's steps (the median of ``steps`` random env
+    steps times the episode's length): the reset's share of an episode."""
+    import gymnasium as gym
+
+    import bullet_dlo.envs  # noqa: F401 - registers the environments
+
+    print(f"load average {os.getloadavg()[0]:.2f}; resets in CPU time of this thread, median (range) of {resets}")
+    for env_id in ENVS:
+        env = gym.make(env_id)
+        env.reset(seed=0)
+        times = []
+        for seed in range(1, resets + 1):
+            tic = CLOCK()
+            env.reset(seed=seed)
+            times.append(CLOCK() - tic)
+        rng = np.random.default_rng(0)
+        per_step = []
+        for _ in range(steps):
+            tic = CLOCK()
+            _, _, term, trunc, _ = env.step(rng.uniform(-0.2, 0.2, env.action_space.shape).astype(np.float32))
+            per_step.append(CLOCK() - tic)
+            if term or trunc:
+                env.reset(seed=seed + 1)
+        length = env.spec.max_episode_steps
+        env.close()
+        reset, step = statistics.median(times), statistics.median(per_step)
+        print(f"  {env_id}: reset {reset * 1e3:.1f} ms ({min(times) * 1e3:.1f}-{max(times) * 1e3:.1f}); an episode of "
+              f"{length} steps at {step * 1e3:.2f} ms: the reset is {reset / (reset + length * step):.0%} of it")
 
 
 def env_rate(steps: int) -> tuple[float, float]:
@@ -311,7 +344,12 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--envs-only", action="store_true",
                         help="only part 2: each environment's step against its physical floor, and its split")
     parser.add_argument("--env-steps", type=int, default=None, help="env steps of part 2 (default 150; 10 with --quick)")
+    parser.add_argument("--resets", type=int, default=None,
+                        help="instead: each environment's reset, N times, against its episode's steps")
     args = parser.parse_args(argv)
+    if args.resets is not None:
+        resets_vs_episodes(args.resets)
+        return
     blocks, env_steps = (5, 10) if args.quick else (60, 150)
     if args.env_steps is not None:
         env_steps = args.env_steps

@@ -324,13 +324,14 @@ class BulletCable:
         """(Re)read the world's bodies for the contact model when they changed (:meth:`CableContacts.refresh`)."""
         self.contact.refresh()
 
-    def exclude_contact(self, body: int, link: int | None = None, nodes=None) -> None:
+    def exclude_contact(self, body: int, link: int | None = None, nodes=None, rebuild: bool = True) -> None:
         """Leave ``body`` (its link ``link``; None: every link) out of the cable's contact model: entirely
         (``nodes`` None) or only for the given node indices and the segments next to them (a gripper holding
         an end: its fingers do not push the held end, the rest of the cable still meets them). Bullet's own
         collisions of those spheres with it are switched off too: the cable passes through. Only for
-        ``contact="model"``."""
-        self.contact.exclude(body, link, nodes)
+        ``contact="model"``. ``rebuild`` False: the contact set is rebuilt at the cable's next step, or by the next
+        call with ``rebuild`` True (several exclusions, one rebuild)."""
+        self.contact.exclude(body, link, nodes, rebuild)
 
     def disable_bullet_collisions(self) -> None:
         """Leave the world's bodies, the cable's self-contact and its contacts with the other cables the

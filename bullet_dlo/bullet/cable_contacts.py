@@ -113,12 +113,13 @@ class CableContacts:
         if self.bullet_off:
             self.exclude_model_bodies()
 
-    def exclude(self, body: int, link: int | None = None, nodes=None) -> None:
+    def exclude(self, body: int, link: int | None = None, nodes=None, rebuild: bool = True) -> None:
         """Leave ``body`` (its link ``link``; None: every link) out of the cable's contact model: entirely
         (``nodes`` None) or only for the given node indices and the segments next to them (a gripper holding
         an end: its fingers do not push the held end, the rest of the cable still meets them). Bullet's own
         collisions of those spheres with it are switched off too: the cable passes through. Only for
-        ``contact="model"``."""
+        ``contact="model"``. ``rebuild`` False: the set is rebuilt at the next :meth:`refresh` (the cable's next
+        step, or the next exclusion that rebuilds): building it takes milliseconds with an arm's meshes."""
         cable = self.cable
         cid = cable.world.client
         n = cable.model.n
@@ -140,7 +141,8 @@ class CableContacts:
             for b in spheres:
                 pb.setCollisionFilterPair(b, int(body), -1, lk, 0, physicsClientId=cid)
         self.bodies_seen = -1  # rebuild the contact set
-        self.refresh()
+        if rebuild:
+            self.refresh()
 
     def exclude_model_bodies(self) -> None:
         """Keep Bullet from also colliding the spheres with the dynamic bodies the contact model handles.

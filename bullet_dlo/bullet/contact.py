@@ -325,30 +325,76 @@ def _hull_points(vertices: np.ndarray, planes: np.ndarray, tri: np.ndarray, tri_
     return np.array(pts)
 
 
-def _pack_hulls(hulls: list, row: list, n_exact: int, n: int = 0) -> Hulls:
+_CHECK_POINTS: dict = {}
+""":func:`_check_points` by the hull geometry's identity and the radius, with the geometry (kept alive, so the id is
+not reused): the points and their distances do not depend on the link's pose, which the check's queries do."""
+
+
+def _check_points(vertices: np.ndarray, geo: tuple, radius: float) -> tuple[np.ndarray, Hulls, np.ndarray]:
+    """The check points round a hull (:func:`_hull_points`, link frame [m]), the hull packed alone (no margin) and
+    its distances [m] at them: once per hull geometry and radius (an environment's reset checks the same arm
+    links at new poses)."""
+    key = (id(geo), radius)
+    hit = _CHECK_POINTS.get(key)
+    if hit is not None and hit[0] is geo:
+        return hit[1]
+    planes, tri, tri_plane, edges = geo
+    points = _hull_points(vertices, planes, tri, tri_plane, edges, radius)
+    hu = _pack_hulls([(planes, tri, tri_plane, edges, 0.0)], [0], 1, keep=False)
+    answer = (points, hu, hull_distances(hu, 0, points))
+    if len(_CHECK_POINTS) >= HULL_MEMO_SIZE:
+        _CHECK_POINTS.clear()
+    _CHECK_POINTS[key] = (geo, answer)
+    return answer
+
+
+def _pack_hulls(hulls: list, row: list, n_exact: int, n: int = 0, keep: bool = True) -> Hulls:
     """The :class:`Hulls` of ``hulls`` [(planes, triangles, their planes, sharp edges, margin)], ``row``: each
     Shapes row's hull (-1: none); the rows below n_exact (base links, read every step) are always near; n: the
-    cable's nodes (their hints)."""
+    cable's nodes (their hints). The hulls' own arrays are packed once per list of hulls (:func:`_packed_geometry`;
+    ``keep`` False: not kept); ``row``, ``near`` and ``hint``, which a contact set writes, are its own."""
+    row_a = np.array(row, np.int64)
+    return Hulls(row=row_a, near=(row_a >= 0) & (np.arange(len(row)) < n_exact),
+                 hint=np.full((len(hulls), 4 * n if n else 0), -1, np.int64), **_packed_geometry(hulls, keep))
+
+
+_PACKED_HULLS: dict = {}
+"""The packed arrays of a list of hulls (:func:`_packed_geometry`) by the ids of its hulls, with the hulls (kept
+alive, so that the ids are not reused while the entry lives). A world rebuilds its contact sets as bodies come
+and go, and an environment's reset builds a new world of the same meshes: packing them took 9 ms a set with the
+Panda's links (three sets a dual-arm reset)."""
+PACKED_HULLS_SIZE = 32  # entries kept (the dict is emptied when full)
+
+
+def _packed_geometry(hulls: list, keep: bool = True) -> dict:
+    """The fields of :class:`Hulls` that hold the hulls themselves (all but row, near and hint), packed once per list
+    of the same hull objects (their arrays are only read: the contact sets that share them cannot change them)."""
+    key = (TREE_MIN_TRIANGLES, *map(id, hulls))  # (the trees depend on that threshold)
+    hit = _PACKED_HULLS.get(key)
+    if hit is not None and all(a is b for a, b in zip(hit[0], hulls)):
+        return hit[1]
+
     def cat(parts, shape, dtype=float):
         return np.concatenate(parts).astype(dtype) if parts else np.zeros(shape, dtype)
 
     first = [np.cumsum([0] + [len(h[i]) for h in hulls]).astype(np.int64) for i in (0, 1, 3)]
     edges = [e for h in hulls for e in h[3]]
     verts = [h[1].reshape(-1, 3) for h in hulls]
-    row_a = np.array(row, np.int64)
-    trees = _pack_trees(hulls)
-    return Hulls(row=row_a, near=(row_a >= 0) & (np.arange(len(row)) < n_exact),
-                 margin=np.array([h[4] for h in hulls], float),
-                 lo=np.array([v.min(axis=0) for v in verts]).reshape(-1, 3),
-                 hi=np.array([v.max(axis=0) for v in verts]).reshape(-1, 3),
-                 plane_first=first[0], plane=cat([h[0] for h in hulls], (0, 4)),
-                 tri_first=first[1], tri=cat([h[1] for h in hulls], (0, 3, 3)),
-                 tri_plane=cat([h[2] + f for h, f in zip(hulls, first[0][:-1])], (0,), np.int64),
-                 edge_first=first[2], edge_p=np.array([e[0] for e in edges], float).reshape(-1, 3),
-                 edge_a=np.array([e[1] for e in edges], float).reshape(-1, 3),
-                 edge_hl=np.array([e[2] for e in edges], float),
-                 edge_n=np.array([(e[3], e[4]) for e in edges], float).reshape(-1, 2, 3),
-                 hint=np.full((len(hulls), 4 * n if n else 0), -1, np.int64), **trees)
+    fields = dict(margin=np.array([h[4] for h in hulls], float),
+                  lo=np.array([v.min(axis=0) for v in verts]).reshape(-1, 3),
+                  hi=np.array([v.max(axis=0) for v in verts]).reshape(-1, 3),
+                  plane_first=first[0], plane=cat([h[0] for h in hulls], (0, 4)),
+                  tri_first=first[1], tri=cat([h[1] for h in hulls], (0, 3, 3)),
+                  tri_plane=cat([h[2] + f for h, f in zip(hulls, first[0][:-1])], (0,), np.int64),
+                  edge_first=first[2], edge_p=np.array([e[0] for e in edges], float).reshape(-1, 3),
+                  edge_a=np.array([e[1] for e in edges], float).reshape(-1, 3),
+                  edge_hl=np.array([e[2] for e in edges], float),
+                  edge_n=np.array([(e[3], e[4]) for e in edges], float).reshape(-1, 2, 3), **_pack_trees(hulls))
+    if keep:
+        if len(_PACKED_HULLS) >= PACKED_HULLS_SIZE:
+            _PACKED_HULLS.clear()
+        _PACKED_HULLS[key] = (tuple(hulls), fields)
+    return fields
 
 
 _HULL_TREES: dict = {}
@@ -840,25 +886,24 @@ class ContactSet:
             self._hull_probe = pb.createCollisionShape(pb.GEOM_CAPSULE, radius=radius, height=1e-8,
                                                        physicsClientId=cid)
         rot = _rotation(orn)
-        hu = _pack_hulls([(planes, tri, tri_plane, edges, 0.0)], [0], 1)
-        cl, nl = np.zeros(3), np.zeros(3)
-        offsets, inside = [], []
-        for p in _hull_points(vertices, planes, tri, tri_plane, edges, radius):
-            where = (np.asarray(com) + rot @ p).tolist()
-            res = pb.getClosestPoints(-1, body, 1.0, -1, link, self._hull_probe, -1, where, physicsClientId=cid)
+        points, hu, near = _check_points(vertices, geo, radius)
+        at = np.asarray(com, float)
+        closest = []
+        for p in points:
+            res = pb.getClosestPoints(-1, body, 1.0, -1, link, self._hull_probe, -1, (at + rot @ p).tolist(),
+                                      physicsClientId=cid)
             if not res:
                 return None
-            closest = min(res, key=_distance)
-            offsets.append(hull_distance(hu, 0, p, cl, nl) - radius - _distance(closest))
-            on_link = rot.T @ (np.asarray(closest[6]) - np.asarray(com))  # Bullet's closest point on the link
-            inside.append(hull_distance(hu, 0, on_link, cl, nl))
-        offsets = np.array(offsets)
+            closest.append(min(res, key=_distance))
+        offsets = near - radius - np.array([_distance(c) for c in closest])
+        on_link = np.array([rot.T @ (np.asarray(c[6]) - at) for c in closest])  # Bullet's closest points on the link
+        inside = hull_distances(hu, 0, on_link)
         # Bullet's distance is never below the true one (HULL_GJK_TOL): the margin is the offsets' top, taken as the
         # median of those near it (Bullet's rounding is some 1e-9 m either way)
         agree = offsets.max() - offsets <= HULL_CHECK_TOL
         margin = float(np.median(offsets[agree]))
         if not (0.0 <= margin < 0.05 and agree.mean() >= 0.5 and (margin - offsets).max() <= HULL_GJK_TOL
-                and max(inside) <= margin + HULL_CHECK_TOL):
+                and inside.max() <= margin + HULL_CHECK_TOL):
             return None
         return planes, tri, tri_plane, edges, margin
 
@@ -1994,6 +2039,17 @@ def hull_distance(hu, h, q, out_c, out_n):
     for j in range(3):
         out_c[j] += hu.margin[h] * out_n[j]
     return d - hu.margin[h]
+
+
+@njit(cache=True, error_model="numpy")
+def hull_distances(hu, h, points):
+    """:func:`hull_distance` of hull h of ``hu`` at each of ``points`` (k, 3) [m] (its link frame), one call: (k,)
+    [m], each the same as a call of its own."""
+    out = np.empty(points.shape[0])
+    out_c, out_n = np.zeros(3), np.zeros(3)
+    for k in range(points.shape[0]):
+        out[k] = hull_distance(hu, h, points[k], out_c, out_n)
+    return out
 
 
 @njit(cache=True, inline="always")

@@ -7,9 +7,11 @@ Loading, composing and simulating them is the robots layer's job (:mod:`bullet_d
 """
 from __future__ import annotations
 
+import copy
 import functools
 import warnings
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import TYPE_CHECKING, Any, Callable, Mapping
 
 import numpy as np
@@ -147,17 +149,35 @@ class RobotSpec:
         object.__setattr__(self, "inertias", tuple(out))
 
 
+_ROBOT_FILES: dict = {}
+"""Each ``robots/*.yaml`` as read, by path: ((size, modification time), its data). Every scene check reads the robot
+names and an environment's reset the spec (15 ms of YAML a reset)."""
+
+
+def _robot_files() -> list[tuple[Path, dict]]:
+    """The robot descriptions in ``robots/``, sorted by path: (path, its data, read again when the file changed;
+    not to be changed by the caller)."""
+    out = []
+    for path in sorted(ROBOTS_DIR.glob("*.yaml")):
+        st = path.stat()
+        stamp = (st.st_size, st.st_mtime_ns)
+        hit = _ROBOT_FILES.get(str(path))
+        if hit is None or hit[0] != stamp:
+            hit = _ROBOT_FILES[str(path)] = (stamp, yaml.safe_load(path.read_text()))
+        out.append((path, hit[1]))
+    return out
+
+
 def robot_names() -> list[str]:
     """Names of the robots described in ``robots/``."""
-    return sorted(yaml.safe_load(p.read_text())["name"] for p in ROBOTS_DIR.glob("*.yaml"))
+    return sorted(data["name"] for _, data in _robot_files())
 
 
 def load_robot_spec(name: str) -> RobotSpec:
     """The description of robot ``name`` (e.g. ``kuka``, ``panda``); ParameterError if unknown."""
-    for path in sorted(ROBOTS_DIR.glob("*.yaml")):
-        data = yaml.safe_load(path.read_text())
+    for path, data in _robot_files():
         if data.get("name") == name:
-            data = dict(data)
+            data = copy.deepcopy(data)
             for key in ("home", "mount_xyz", "finger_joints"):
                 if key in data:
                     data[key] = tuple(data[key])

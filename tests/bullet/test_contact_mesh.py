@@ -211,3 +211,38 @@ def test_a_mesh_added_after_the_cable_holds_it(tmp_path):
         world.run(0.5)
         assert cable.x[:, 2].min() > top
         assert cable.body_forces().get(body, np.zeros(3))[2] == pytest.approx(-spec.mass * G, rel=0.01)
+
+
+def test_worlds_of_the_same_meshes_share_the_packed_hulls_and_the_grasp_rebuilds_once(monkeypatch):
+    """A dual-arm scene (an environment's reset builds one) packed the Panda links' hulls anew in each contact set it
+    built, and built three (the cable, then one per gripper's exclusion): 27 of a reset's 125 ms. The hulls' arrays
+    are now packed once per list of hulls (equal to a fresh pack, shared by the sets; each set keeps its own row,
+    near and hint), and both grippers' exclusions rebuild the set once."""
+    from bullet_dlo.bullet import cable_contacts, contact
+    from bullet_dlo.config.robot import DualArmSpec
+    from bullet_dlo.robots.dual_arm import DualArmScene
+
+    built = []
+
+    class Counted(contact.ContactSet):
+        def __init__(self, *args, **kwargs):
+            built.append(1)
+            super().__init__(*args, **kwargs)
+
+    monkeypatch.setattr(cable_contacts, "ContactSet", Counted)
+    sets = []
+    for _ in range(2):
+        built.clear()
+        with DualArmScene(DualArmSpec(robot="panda")) as scene:
+            sets.append(scene.cable.contact.set)
+            assert len(built) == 2  # (the cable's own, then one for both grippers' exclusions)
+    a, b = (s.hulls for s in sets)
+    assert len(a.margin) > 0  # (the Panda's links as hulls)
+    shared = [f for f in a._fields if f not in ("row", "near", "hint")]
+    assert all(getattr(a, f) is getattr(b, f) for f in shared)
+    assert a.hint is not b.hint and a.near is not b.near and a.row is not b.row
+    (hulls,) = [h for h, fields in contact._PACKED_HULLS.values() if fields["tri"] is b.tri]
+    monkeypatch.setattr(contact, "_PACKED_HULLS", {})  # a fresh pack of the same hulls: the same arrays
+    fresh = contact._packed_geometry(list(hulls))
+    for f in shared:
+        np.testing.assert_array_equal(getattr(b, f), fresh[f])

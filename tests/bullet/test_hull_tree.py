@@ -269,3 +269,18 @@ def test_the_edges_columns_give_segment_axis_to_the_bit():
                     assert np.sqrt(rows[8, j]) - 1e-3 == cl[3], (k, e)
                     interior += 1
     assert interior > 1000
+
+
+def test_hull_distances_in_one_call_give_each_call_to_the_bit():
+    """The hull check (``ContactSet._checked_hull``) takes its distances at ~200 points a link in one compiled call
+    (:func:`hull_distances`) instead of one call each (30 of a Routing-v0 reset's 278 ms): the same values to the
+    bit, inside, on and outside the hull, with the margin."""
+    hu = ellipsoid_hull()
+    rng = np.random.default_rng(3)
+    points = rng.normal(scale=0.03, size=(300, 3))
+    points[:50] = hu.tri[rng.integers(0, len(hu.tri), 50), 0]  # on its vertices
+    one = C.hull_distances(hu, 0, points)
+    cl, nl = np.zeros(3), np.zeros(3)
+    each = np.array([C.hull_distance(hu, 0, p, cl, nl) for p in points])
+    assert (one < 0).any() and (one > 0).any()
+    assert np.array_equal(one, each)

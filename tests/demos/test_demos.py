@@ -161,6 +161,15 @@ def test_env_speed_demo_quick():
     assert "env steps/s" in res.stdout and "Bullet stepSimulation" in res.stdout
 
 
+def test_env_speed_demo_times_resets():
+    """``--resets N``: each environment's reset against its episode's steps, one line each."""
+    res = subprocess.run([sys.executable, str(ROOT / "demos" / "env_speed.py"), "--resets", "2"],
+                         capture_output=True, text=True, timeout=600)
+    assert res.returncode == 0, res.stderr
+    shares = re.findall(r"-v0: reset ([0-9.]+) ms .* the reset is ([0-9]+)% of it", res.stdout)
+    assert len(shares) == 2 and all(float(ms) > 0 and 0 < int(p) < 100 for ms, p in shares), res.stdout
+
+
 def test_panda_peg_scene_renders(tmp_path):
     """demos/scenes/panda_peg.yaml: two Pandas drape a cord over a peg (model contact, wrist forces beside)."""
     import yaml

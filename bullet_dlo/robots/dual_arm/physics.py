@@ -185,8 +185,9 @@ class DualArmPhysics:
                     pb.setCollisionFilterPair(robot.body, sphere, link, -1, 0, physicsClientId=cid)
         if cable.model_contact:  # the same ends out of the contact model's contact with their arm (the grasp)
             n = cable.model.n
-            for robot, nodes in zip(self.robots, (range(NO_CONTACT_NODES), range(n - NO_CONTACT_NODES, n))):
-                cable.exclude_contact(robot.body, nodes=nodes)
+            held = list(zip(self.robots, (range(NO_CONTACT_NODES), range(n - NO_CONTACT_NODES, n))))
+            for k, (robot, nodes) in enumerate(held):
+                cable.exclude_contact(robot.body, nodes=nodes, rebuild=k == len(held) - 1)  # (one rebuild for both)
         return cable
 
     def settled_state(self, model: CableModel) -> CableState:
