@@ -20,6 +20,12 @@ from bullet_dlo.robots.ik import ChainIK, chain_of
 from bullet_dlo.robots.transforms import angle_between
 
 
+
+_SOLVED: dict = {}
+""":meth:`Robot.solve_ik`'s answers by (robot spec, the twin's base pose, target, seed, tolerance, iterations): PyBullet's
+IK on a twin set to the seed is a function of those."""
+SOLVED_SIZE = 1024  # answers kept (the dict is emptied when full)
+
 @dataclass
 class Robot:
     """An arm in a Bullet world, with a kinematic twin (own DIRECT client) for IK and FK.
@@ -157,10 +163,25 @@ class Robot:
         """
         pos = check_vector3("target position", position)
         q = self.joint_positions() if seed is None else np.asarray(seed, float)
+        # the same problem on the same twin has the same answer: kept (an environment's reset solves its grasp poses
+        # again, 15 ms), and the twin left where the solve leaves it
+        key = (self.spec, pb.getBasePositionAndOrientation(self.kin_body, physicsClientId=self.kin_client),
+               pos.tobytes(), np.asarray(quat, float).tobytes(), q.tobytes(), float(tol), int(iterations))
+        try:
+            solved = _SOLVED.get(key)
+        except TypeError:  # (a spec holding lists: not hashable, solved every time)
+            solved = key = None
+        if solved is not None:
+            self._set_twin(solved)
+            return solved.copy()
         err_p = err_r = np.inf
         for k in range(iterations):
             err_p, err_r = self._twin_miss(q, pos, quat)
             if err_p < tol and err_r < 10 * tol:
+                if key is not None:
+                    if len(_SOLVED) >= SOLVED_SIZE:
+                        _SOLVED.clear()
+                    _SOLVED[key] = q.copy()
                 return q
             q = self._ik(pos, quat, null_space=k < iterations // 2, iterations=100, residual=1e-7)
         raise ParameterError(f"pose unreachable for robot {self.spec.name!r}: target {np.round(pos, 4).tolist()} "

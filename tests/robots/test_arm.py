@@ -62,6 +62,40 @@ def test_solve_ik_reaches_the_pose_within_limits(arm):
     assert err_p < 1e-4 and err_r < 1e-3  # solve_ik's own tolerances, checked on the simulated arm
 
 
+def test_a_solved_pose_is_solved_once(arm, monkeypatch):
+    """An environment's reset solved its grasp poses again (15 ms): the same target from the same seed on the same
+    twin now returns the answer kept, the same bits, and leaves the twin where the solve left it; another seed or
+    another robot base is solved."""
+    from bullet_dlo.robots import arm as arm_module
+
+    monkeypatch.setattr(arm_module, "_SOLVED", {})
+    calls = []
+    real = arm._ik
+    monkeypatch.setattr(arm, "_ik", lambda *a, **k: calls.append(1) or real(*a, **k))
+    home_pos, quat = arm.grasp_pose()
+    target = home_pos + np.array([0.05, -0.04, -0.06])
+    home = np.array(arm.spec.home)
+    q = arm.solve_ik(target, quat, seed=home)
+    solves = len(calls)
+    twin = arm.grasp_pose(kinematic=True)
+    arm._set_twin(home)
+    again = arm.solve_ik(target, quat, seed=home)
+    assert solves > 0 and len(calls) == solves and np.array_equal(again, q)
+    assert all(np.array_equal(a, b) for a, b in zip(arm.grasp_pose(kinematic=True), twin))
+    arm.solve_ik(target, quat, seed=home + 0.01)
+    assert len(calls) > solves
+    client = pb.connect(pb.DIRECT)
+    try:  # the same robot elsewhere: its own problem
+        other = Robot.load(arm.spec, client, (0.1, 0.0, 0.0))
+        before = len(calls)
+        monkeypatch.setattr(other, "_ik", lambda *a, **k: calls.append(1) or Robot._ik(other, *a, **k))
+        other.solve_ik(target, quat, seed=home)
+        assert len(calls) > before
+        other.close()
+    finally:
+        pb.disconnect(client)
+
+
 def test_track_follows_a_nearby_target(arm):
     """One IK solve from the current joints (what runs every step of a move) lands within 0.1 mm."""
     pos, quat = arm.grasp_pose()
