@@ -22,9 +22,29 @@ from bullet_dlo.robots.transforms import angle_between
 
 
 _SOLVED: dict = {}
-""":meth:`Robot.solve_ik`'s answers by (robot spec, the twin's base pose, target, seed, tolerance, iterations): PyBullet's
-IK on a twin set to the seed is a function of those."""
+""":meth:`Robot.solve_ik`'s answers by (robot spec, the twin's base pose, target, seed, tolerance, iterations):
+PyBullet's IK on a twin set to the seed is a function of those."""
 SOLVED_SIZE = 1024  # answers kept (the dict is emptied when full)
+
+_TWINS: dict = {}
+"""Kinematic twins closed robots gave back, by (URDF path, base position, base quaternion): lists of (client, body).
+An environment's reset closed its arms' twins and connected and loaded new ones (5 ms an arm). A twin's joints are set
+before every use (a new robot sets them to its home pose; the compiled IK's chain is read at zero angles), so a given
+back twin answers as a new one."""
+TWINS_KEPT = 8  # twins kept in all (the others are disconnected)
+
+
+def _free_twin(key: tuple, flags: int) -> tuple[int, int]:
+    """A kinematic twin (DIRECT client, body) of the URDF at the base pose of ``key`` (:data:`_TWINS`): one given back
+    if still connected, else a new one loaded with ``flags``."""
+    free = _TWINS.get(key, [])
+    while free:
+        client, body = free.pop()
+        if pb.isConnected(client):
+            return client, body
+    client = pb.connect(pb.DIRECT)
+    path, pos, quat = key
+    return client, pb.loadURDF(path, list(pos), list(quat), useFixedBase=True, flags=flags, physicsClientId=client)
 
 @dataclass
 class Robot:
@@ -103,12 +123,14 @@ class Robot:
                                  f"the arm has {len(arm)} joints")
         # the wrist joint reports its reaction wrench (for a WristSensor) from the next step on
         pb.enableJointForceTorqueSensor(body, joint_index[spec.sensor_joint], True, physicsClientId=client)
-        kin_client = pb.connect(pb.DIRECT)  # the twin, once the description is known to fit
-        # kinematics only: without meshes the twin loads in 2 ms instead of 58 (Panda), a third of a reset
+        # the twin, once the description is known to fit: kinematics only (without meshes the twin loads in 2 ms
+        # instead of 58 for the Panda), one a closed robot of the same description and base gave back if there is
+        twin_key = (path, tuple(pos), tuple(quat))
         twin_flags = flags | pb.URDF_IGNORE_VISUAL_SHAPES | pb.URDF_IGNORE_COLLISION_SHAPES
-        kin_body = pb.loadURDF(path, pos, quat, useFixedBase=True, flags=twin_flags, physicsClientId=kin_client)
+        kin_client, kin_body = _free_twin(twin_key, twin_flags)
         robot = cls(spec, client, body, kin_client, kin_body, arm, movable, np.array(lower), np.array(upper),
                     np.array(force), link_index, joint_index)
+        robot._twin_key = twin_key
         robot.reset_joints(np.array(spec.home))
         return robot
 
@@ -280,6 +302,13 @@ class Robot:
         return out
 
     def close(self) -> None:
-        """Disconnect the kinematic twin (the arm goes with its world)."""
-        if pb.isConnected(self.kin_client):
+        """Give the kinematic twin back for the next robot of the same description and base (:func:`_free_twin`;
+        one built otherwise is disconnected): the arm goes with its world."""
+        if not pb.isConnected(self.kin_client):
+            return
+        key = getattr(self, "_twin_key", None)
+        if key is not None and sum(map(len, _TWINS.values())) < TWINS_KEPT:
+            _TWINS.setdefault(key, []).append((self.kin_client, self.kin_body))
+            self.kin_client = -1  # (this robot's IK is over; the twin is another's from now on)
+        else:
             pb.disconnect(self.kin_client)

@@ -196,3 +196,43 @@ def test_robot_descriptions_are_read_again_only_when_they_change(monkeypatch, tm
     assert load_robot_spec("panda2").name == "panda2"
     with pytest.raises(ParameterError, match="unknown robot 'panda'"):
         load_robot_spec("panda")
+
+
+def test_a_closed_robots_twin_serves_the_next_robot_with_the_same_answers(monkeypatch):
+    """An environment's reset disconnected both arms' kinematic twins and connected and loaded new ones (5 ms an arm).
+    A closed robot now gives its twin back to the next robot of the same description and base: the same client, and
+    the same IK answers (PyBullet's, without the kept answers) and compiled chain as a new twin gives; another base
+    gets a twin of its own; a robot whose twin was given back has none."""
+    from bullet_dlo.robots import arm as arm_module
+
+    monkeypatch.setattr(arm_module, "_TWINS", {})
+    spec = load_robot_spec("panda")
+    answers = []
+    for fresh in (True, False, True):
+        monkeypatch.setattr(arm_module, "_SOLVED", {})
+        if fresh:
+            monkeypatch.setattr(arm_module, "_TWINS", {})
+        client = pb.connect(pb.DIRECT)
+        try:
+            robot = Robot.load(spec, client, (0.0, 0.0, 0.0))
+            pos, quat = robot.grasp_pose()
+            q = robot.solve_ik(pos + np.array([0.04, -0.03, -0.05]), quat, seed=np.array(spec.home))
+            answers.append((robot.kin_client, q, robot.chain_ik.chain))
+            robot.close()
+            assert robot.kin_client == -1 and len(arm_module._TWINS[robot._twin_key]) == 1
+        finally:
+            pb.disconnect(client)
+    (c0, q0, ch0), (c1, q1, ch1), (c2, q2, ch2) = answers
+    assert c1 == c0 and c2 != c1  # (the second took the first one's twin; the third a new one)
+    assert np.array_equal(q0, q1) and np.array_equal(q1, q2)
+    import dataclasses
+
+    for f in dataclasses.fields(ch0):
+        assert np.array_equal(getattr(ch0, f.name), getattr(ch1, f.name)), f.name
+    client = pb.connect(pb.DIRECT)
+    try:
+        elsewhere = Robot.load(spec, client, (0.2, 0.0, 0.0))
+        assert elsewhere.kin_client not in (c0, c2)
+        elsewhere.close()
+    finally:
+        pb.disconnect(client)
