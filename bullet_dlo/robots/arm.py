@@ -19,8 +19,6 @@ from bullet_dlo.robots.compose import robot_urdf
 from bullet_dlo.robots.ik import ChainIK, chain_of
 from bullet_dlo.robots.transforms import angle_between
 
-
-
 _SOLVED: dict = {}
 """:meth:`Robot.solve_ik`'s answers by (robot spec, the twin's base pose, target, seed, tolerance, iterations):
 PyBullet's IK on a twin set to the seed is a function of those."""
@@ -45,6 +43,7 @@ def _free_twin(key: tuple, flags: int) -> tuple[int, int]:
     client = pb.connect(pb.DIRECT)
     path, pos, quat = key
     return client, pb.loadURDF(path, list(pos), list(quat), useFixedBase=True, flags=flags, physicsClientId=client)
+
 
 @dataclass
 class Robot:
