@@ -70,7 +70,9 @@ def run(hz: float, n: int, mass: float, height: float, offset: float, sep: float
     status = "; ".join(out["stopped"]) or "stable"
     return (f"{hz:5.0f} Hz, {mass:6.3f} kg, offset {1e3 * offset:4.1f} mm: lowest gap {1e3 * out['lowest']:7.2f} mm, "
             f"ends at z {1e3 * (out['z'] + out['z_on']):6.2f} mm (on the cables: {1e3 * out['z_on']:.2f}), highest "
-            f"{1e3 * out['top']:+.2f} mm from its release, support {out['table']:.4f} of both weights, {status}")
+            f"{1e3 * out['top']:+.2f} mm from its release, speed {out['speed']:.1e} m/s, cables carry "
+            f"{out['carried'][0]:.3f} + {out['carried'][1]:.3f} of its weight, support {out['table']:.4f} of both "
+            f"weights, {status}")
 
 
 def main() -> None:
@@ -84,8 +86,12 @@ def main() -> None:
     parser.add_argument("--seconds", type=float, default=2.0)
     parser.add_argument("--condensed", action="store_true",
                         help="a shared body keeps the condensed contact (held_bodies.SPLIT_SHARED = False)")
+    parser.add_argument("--split", action="store_true",
+                        help="a shared body moves in each cable's step with its share of the mass, without the other "
+                             "cables' reactions (held_bodies.COUPLE_SHARED = False)")
     args = parser.parse_args()
     held_bodies.SPLIT_SHARED = not args.condensed
+    held_bodies.COUPLE_SHARED = not args.split
     for hz, mass, offset in itertools.product(args.hz, args.mass, args.offset):
         print(run(hz, args.n, mass, args.drop, offset, args.sep, args.seconds), flush=True)
 

@@ -379,7 +379,7 @@ class BulletCable:
             if free:
                 self.contacts_last_step = cs.update(x0, v0, self.arrays.mass, solver.stepper.h, world.dt, do_sync,
                                                     world.shared_bodies(self.name), world.supported_bodies,
-                                                    world.support_points)
+                                                    world.support_points, world.other_shares(self.name))
             else:
                 self.contacts_last_step = cs.update(x0, v0, self.arrays.mass, solver.stepper.h, world.dt, do_sync)
             if free and len(world.cables) > 1:  # (only another cable can share a body this way)
@@ -415,6 +415,8 @@ class BulletCable:
             held_bodies.spare_thrown(cs, self.world.dt)
         if status == STABLE and self.model_contact and cs is not None and cs.free_bodies:
             body_energy.plan(cs, self.world.dt, solver.last_ratio == 0.0)
+            if len(self.world.cables) > 1:  # (only another cable can share a body)
+                self.world.record_shares(self.name, held_bodies.shares_of(cs, self.world.steps))
         if gripped[0] or gripped[1]:
             active = self.grip.active
             for end in (0, 1):
@@ -449,8 +451,8 @@ class BulletCable:
         solver = self.solver
         if solver.status != STABLE:
             return
-        if replan and self.model_contact:  # bodies added since the coming step was planned: plan it again with
-            self._replan()  # them (a free body placed on the cable meets it in its first step)
+        if replan:
+            self.plan_again()
         if self.proxy:  # parked spheres: Bullet does not move them (module doc); the touched bodies' reactions only
             if self._fresh:
                 self._hold_fresh()
@@ -473,6 +475,12 @@ class BulletCable:
         cs = self.contact.set
         if cs is not None:
             cs.apply_to_bodies()
+
+    def plan_again(self) -> None:
+        """Plan the coming step again because bodies were added since it was planned (a free body placed on the
+        cable meets it in its first step)."""
+        if self.solver.status == STABLE and self.model_contact:
+            self._replan()
 
     def sync_after_step(self, touched) -> None:
         """Take over Bullet's step: ``touched`` holds the spheres that had contacts (read back)."""

@@ -747,6 +747,7 @@ class ContactSet:
         self._shared: frozenset = frozenset()  # free bodies another cable touched in the last step
         self._condensed: frozenset = frozenset()  # those of them held by something else too: condensed contact
         self._split: dict[int, int] = {}  # the others, by the number of cables sharing them: in the step with a share
+        self._coupled = False  # bodies.other_mass holds other cables' reactions (held_bodies.couple)
         self._was_supported: frozenset = frozenset()  # the free bodies in a Bullet contact the step before (impacts)
         self._spared: set[int] = set()  # free bodies handed less than the cable felt (held_bodies.spare_thrown)
         # the load on each free body from everything but this cable and gravity, measured over the last Bullet
@@ -995,7 +996,7 @@ class ContactSet:
             self.shapes.ang_vel[:self.n_exact][dyn] = bases[dyn, 10:13]
 
     def update(self, x: np.ndarray, v: np.ndarray, mass: np.ndarray, h: float, dt: float, stepped: bool,
-               shared=(), supported=(), support=None) -> int:
+               shared=(), supported=(), support=None, others=None) -> int:
         """Read the moving bodies, detect the contacts of positions x [m] (n, 3) for a cable step of h [s]
         within a Bullet step of dt [s]; ``stepped``: Bullet has taken the step the last contacts were
         planned for (their work is then counted with the bodies' velocities read now). ``shared``: free bodies another
@@ -1005,7 +1006,10 @@ class ContactSet:
         last step (a contact with the ground or another body); they, and the free bodies a user constraint
         holds, move in the cable's step under the load the rest of the world put on them in the last step
         (:meth:`_measure`), ``support`` {body: Bullet's contact points on it} (:attr:`BulletWorld.support_points
-        <bullet_dlo.bullet.world.BulletWorld.support_points>`) changing with the body's motion in the step."""
+        <bullet_dlo.bullet.world.BulletWorld.support_points>`) changing with the body's motion in the step.
+        ``others``: {body: the other cables' :class:`~bullet_dlo.bullet.held_bodies.Share` of it}: a shared body
+        moves with its whole mass and their reactions (:func:`~bullet_dlo.bullet.held_bodies.couple`) where the
+        cable's step is the Bullet step (h == dt), else with its share of the mass."""
         if self.free_bodies:
             condensed = held_bodies.sharing(self, shared, supported, support or {})
             if condensed != self._condensed:  # (a resting body stays shared or not for many steps: no NumPy work)
@@ -1050,8 +1054,14 @@ class ContactSet:
         count = self._detect(*args)
         if self.free_bodies:
             self.bodies.hold_count[:] = 0
+            if self._coupled:
+                self.bodies.other_mass[:] = 0.0
+                self._coupled = False
             if self._split:
-                held_bodies.share(self)
+                if others is not None and h == dt and held_bodies.COUPLE_SHARED:
+                    held_bodies.couple(self, others, dt)
+                else:
+                    held_bodies.share(self)
         if measured:
             self._hold(measured, dt, mass)
         if self._any_dynamic and count:

@@ -68,6 +68,7 @@ These functions hold no compiled code, so changing them does not empty the Numba
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -273,6 +274,14 @@ def soften_friction(c, bd, o: int, count: int, m: float, dt: float) -> None:
         c.k_t[k] /= 1.0 + dt * dt * float(c.k_t[k].sum()) / m
 
 
+COUPLE_SHARED = True
+"""Move a body that several cables share (and nothing else holds) in each cable's step with its whole mass and the
+other cables' reactions (:func:`couple`, :func:`settle`); False: with its share of the mass (:func:`share`), as before
+2026-12-06 (for comparisons)."""
+
+MISMATCH = 1e-5  # [m] a cable's plan of a shared body this far from all the cables' together is planned again
+SHARED_PASSES = 4  # at most this many plans again of the cables sharing bodies, per Bullet step
+
 SPLIT_SHARED = True
 """Move a body that several cables share (and nothing else holds) in each cable's step with its share of the mass
 (:func:`share`); False: the condensed contact for every shared body, as before 2026-12-05 (for comparisons)."""
@@ -311,3 +320,124 @@ def share(cs) -> None:
         if bd.active[o]:
             bd.mass[o] /= k
             bd.inertia[o] /= k
+
+
+@dataclasses.dataclass(frozen=True)
+class Share:
+    """One cable's part in a free body that several cables touch, as its last plan left it (:func:`shares_of`): the
+    reaction of its rows on the body, linear in the body's velocity delta = (U', Omega') about the planned one,
+    impulse - load_mass (delta - vel) (module doc, "Bodies on several cables")."""
+
+    cs: object  # the cable's ContactSet
+    slot: int  # the body's slot in it
+    impulse: np.ndarray  # (6,) [N s, N m s] the rows' reaction on the body over the Bullet step (torque about the com)
+    load_mass: np.ndarray  # (6, 6) [kg, kg m, kg m^2] -d impulse / d delta, symmetrised
+    vel: np.ndarray  # (6,) [m/s, rad/s] the body's velocity at the step's end in that plan
+    step: int  # the world's step count when it was planned
+    coupled: bool  # the plan had other cables' reactions on the body (other_mass)
+
+
+def body_mass(cs, o: int) -> np.ndarray:
+    """The 6 x 6 mass matrix diag(M I, I_world) [kg, kg m^2] of the free body of slot ``o`` at the step's start."""
+    s = int(cs._slot_row[o])
+    out = np.zeros((6, 6))
+    out[:3, :3] = np.eye(3) / cs.shapes.inv_mass[s]
+    out[3:, 3:] = cs.shapes.inertia[s]
+    return out
+
+
+def shares_of(cs, step: int) -> dict[int, Share]:
+    """The Share of each free body in the plan just made by the cable of contact set ``cs`` (its world at step count
+    ``step``) for the bodies it moved in its step."""
+    bd = cs.bodies
+    out = {}
+    for o in np.flatnonzero(bd.active).tolist():
+        e = bd.load_mass[o]
+        out[cs.free_bodies[o]] = Share(cs, o, bd.impulse[o].copy(), 0.5 * (e + e.T), bd.vel[o].copy(), step,
+                                       bool(bd.other_mass[o].any()))
+    return out
+
+
+def couple(cs, others: dict[int, list[Share]], dt: float) -> None:
+    """Each body of ``cs._split`` (touched by other cables in the last step, nothing else holding it) into the coming
+    step with its whole mass and the other cables' reactions as their last plans left them (``others`` {body: their
+    Shares}): bodies.other_mass = sum load_mass, and the body's start velocity V such that (M_b + other_mass)
+    (delta - V) = M_b (delta - U) - sum [impulse - load_mass (delta - vel)] (module doc). dt [s]: the Bullet step."""
+    bd = cs.bodies
+    for b in cs._split:
+        o = cs._slot_of[b]
+        parts = others.get(b, ())
+        if not bd.active[o] or not parts:
+            continue
+        mb = body_mass(cs, o)
+        e = sum(p.load_mass for p in parts)
+        rhs = mb @ bd.vel[o] + sum(p.impulse + p.load_mass @ p.vel for p in parts)
+        bd.vel[o] = np.linalg.solve(mb + e, rhs)
+        bd.other_mass[o] = e
+        cs._coupled = True
+
+
+def _together(parts: list[Share], dt: float) -> np.ndarray:
+    """The velocity delta* [m/s, rad/s] of a body under the reactions of the cables' plans ``parts`` together, each
+    linear about its own plan (:func:`settle`); dt [s] the Bullet step."""
+    cs, o = parts[0].cs, parts[0].slot
+    mb = body_mass(cs, o)
+    e = sum(p.load_mass for p in parts)
+    rhs = mb @ cs.velocity_now[o] + sum(p.impulse + p.load_mass @ p.vel for p in parts)
+    rhs[:3] += dt * mb[0, 0] * cs.bodies.gravity
+    return np.linalg.solve(mb + e, rhs)
+
+
+def _settled(parts: dict[str, Share], step: int) -> list[Share] | None:
+    """The Shares of step count ``step`` of a body that :func:`settle` combines, or None (one cable alone moved it,
+    or something else holds it: its load is in no Share)."""
+    now = [p for p in parts.values() if p.step == step]
+    if not now or (len(now) == 1 and not now[0].coupled):
+        return None
+    if any(p.slot in p.cs._measured for p in now):
+        return None
+    return now
+
+
+def unsettled(shares: dict[int, dict[str, Share]], step: int, dt: float) -> set[str]:
+    """The cables whose plan of step count ``step`` moved a body they share (:func:`settle`) more than MISMATCH [m]
+    away from where all the cables' reactions together take it in the Bullet step of dt [s] (at its radius of
+    gyration for the turn): their plans assumed the others' reactions of the step before, or none (the first step
+    in contact). Planned again with the others' reactions of this step (block Gauss-Seidel), they agree."""
+    out = set()
+    for parts in shares.values():
+        now = _settled(parts, step)
+        if now is None:
+            continue
+        target = _together(now, dt)
+        cs, o = now[0].cs, now[0].slot
+        s = int(cs._slot_row[o])
+        gyration = math.sqrt(3.0 * float(np.trace(cs.shapes.inertia[s])) * cs.shapes.inv_mass[s] / 2.0)
+        for name, p in parts.items():
+            d = target - p.vel
+            if p.step == step and dt * (np.linalg.norm(d[:3]) + gyration * np.linalg.norm(d[3:])) > MISMATCH:
+                out.add(name)
+    return out
+
+
+def settle(shares: dict[int, dict[str, Share]], step: int, dt: float) -> None:
+    """Before Bullet's step of dt [s]: each free body that two or more cables moved in their plans of this step
+    (``shares`` {body: {cable: Share}}, those of world step count ``step``), or that one moved with the others'
+    reactions of the step before, gets the velocity delta* of all of them together, (M_b + sum load_mass) delta* =
+    M_b U + dt M g + sum (impulse + load_mass vel) (each cable's reaction linear about its own plan), and each cable
+    hands it impulse - load_mass (delta* - vel): Bullet's update under their sum lands the body on delta* (module doc,
+    "Bodies on several cables"). The Shares are updated to what was handed; such a body's work is not booked by any
+    of the cables' energy checks (each would count the others' as made)."""
+    for parts in shares.values():
+        now = _settled(parts, step)
+        if now is None:
+            continue
+        target = _together(now, dt)
+        for name, p in parts.items():
+            if p.step != step:
+                continue
+            handed = p.impulse - p.load_mass @ (target - p.vel)
+            p.cs.bodies.impulse[p.slot] = handed
+            if len(now) > 1:
+                p.cs.energy_check.planned[p.slot] = False
+            parts[name] = dataclasses.replace(p, impulse=handed, vel=target)

@@ -17,7 +17,7 @@ import pybullet as pb
 import pybullet_data
 
 from bullet_dlo.assets import URDF_DIR as PROJECT_URDF
-from bullet_dlo.bullet import plain_steps
+from bullet_dlo.bullet import held_bodies, plain_steps
 from bullet_dlo.bullet.cable import BulletCable
 from bullet_dlo.core.boundary import Move
 from bullet_dlo.core.integrators import NewtonOptions
@@ -97,6 +97,7 @@ class BulletWorld:
         self._supported_due = False  # phase 7 left the contact query for supported_bodies to its first reader
         self.model_touches: dict[int, set[str]] = {}
         self._model_touches_now: dict[int, set[str]] = {}
+        self.shares: dict[int, dict[str, held_bodies.Share]] = {}  # free bodies' parts in the cables' last plans
         self.bodies_added = False  # a dynamic body was added since the cables planned their coming step
         self.bodies: dict[int, str] = {}  # non-cable bodies and their names (for messages)
         # bodies left out of every cable's contact model (a scene obstacle's ``contact: false``); a cable's
@@ -422,18 +423,58 @@ class BulletWorld:
         when a dynamic body was added since it was planned: a body placed on the cable meets it in its first step;
         a static one joins the next step's contacts)."""
         replan, self.bodies_added = self.bodies_added, False
-        for c in self.cables.values():
-            c.apply_forces(replan)
+        cables = self.cables.values()
+        if replan:
+            for c in cables:
+                c.plan_again()
+        if self.shares:  # bodies several cables moved in their plans: their reactions together (held_bodies.settle)
+            for _ in range(held_bodies.SHARED_PASSES):
+                again = held_bodies.unsettled(self.shares, self.steps, self.dt)
+                if not again:
+                    break
+                for c in cables:
+                    if c.name in again:
+                        c.plan_again()
+            held_bodies.settle(self.shares, self.steps, self.dt)
+        for c in cables:
+            c.apply_forces()
 
     def shared_bodies(self, cable: str) -> dict[int, int]:
-        """The free bodies another cable's contacts touched in the last step, each with the number of cables that
-        share it (this one included): the cable named ``cable`` moves such a body in its own step with that share of
+        """The free bodies another cable's contacts touched in the last step or in its plan of this one, each with the
+        number of cables that share it (this one included): the cable named ``cable`` moves such a body in its own step with that share of
         its mass (each cable's step alone would carry the body's whole weight), or keeps the condensed contact with it
         where something else holds it too (:meth:`ContactSet.update <bullet_dlo.bullet.contact.ContactSet.update>`).
         (The bodies Bullet supports, :attr:`supported_bodies`, move in it under the load Bullet put on them.)"""
-        if not self.model_touches:
+        if not self.model_touches and not self._model_touches_now:
             return {}
-        return {b: len(names | {cable}) for b, names in self.model_touches.items() if names - {cable}}
+        touches = {b: set(names) for b, names in self.model_touches.items()}
+        for b, names in self._model_touches_now.items():  # the plans of this step so far (the cables before this
+            touches.setdefault(b, set()).update(names)  # one, or all of them when the step is planned again)
+        return {b: len(names | {cable}) for b, names in touches.items() if names - {cable}}
+
+    def other_shares(self, cable: str) -> dict[int, list[held_bodies.Share]]:
+        """The other cables' parts (:class:`~bullet_dlo.bullet.held_bodies.Share`) in the free bodies they moved in
+        their plans of this step (planned before this cable's) or of the last one: the reactions the cable named
+        ``cable`` takes with a body they share (:func:`~bullet_dlo.bullet.held_bodies.couple`)."""
+        out: dict[int, list] = {}
+        for body, parts in self.shares.items():
+            for name, p in parts.items():
+                if name != cable and p.step >= self.steps - 1:
+                    out.setdefault(body, []).append(p)
+        return out
+
+    def record_shares(self, cable: str, shares: dict) -> None:
+        """Keep the parts of the cable named ``cable`` in the free bodies of its plan just made ({body: Share}), and
+        forget the parts older than the last step."""
+        for body in list(self.shares):
+            parts = self.shares[body]
+            parts.pop(cable, None)
+            for name in [k for k, p in parts.items() if p.step < self.steps - 1]:
+                del parts[name]
+            if not parts:
+                del self.shares[body]
+        for body, p in shares.items():
+            self.shares.setdefault(body, {})[cable] = p
 
     def touched_by_model(self, cable: str, bodies) -> None:
         """Record the free bodies the model's contacts of ``cable`` touch in the step being planned."""

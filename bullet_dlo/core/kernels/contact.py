@@ -138,6 +138,12 @@ class Bodies(NamedTuple):
     (:func:`_holder_change`): a body the step lifts off its holder loses that support in the same step, as in
     Bullet. Pressing into it adds nothing (the measured load and the apparent mass of bullet/held_bodies.py hold it).
 
+    A body other cables touch too (bullet/held_bodies.py, "Bodies on several cables"): other_mass (S, 6, 6) [kg, kg m,
+    kg m^2], the other cables' load_mass summed, is in the body's mass matrix, (M_b + other_mass) (delta - delta_0):
+    their reactions, linear in the body's velocity, in this cable's step. load_mass (S, 6, 6), out: this cable's
+    -d(reaction impulse)/d(delta) at the solve's last Newton matrix (its contact rows' J^T G J less C^T A^-1 C, the
+    cable's nodes yielding), zero for a body not in the step.
+
     The Bodies are not a field of :class:`Contacts`: every compiled call that passes a NamedTuple takes and
     drops a reference to each of its arrays, and the contact kernels that run several times per Newton
     iteration need none of these (while they were a field, the detection of a cable on the ground, no body in
@@ -168,6 +174,8 @@ class Bodies(NamedTuple):
     hold_load: np.ndarray
     hold_vel: np.ndarray
     hold_c: np.ndarray
+    other_mass: np.ndarray
+    load_mass: np.ndarray
 
 
 HOLD_POINTS = 8  # Bullet's contact points kept per held body (a manifold holds up to 4 per pair of links)
@@ -185,7 +193,7 @@ def make_bodies(n: int, capacity: int, slots: int) -> Bodies:
                   arm=f((m, 3)), point0=f((m, 3)), anchor0=f((m, 3)), impulse=f((s, 6)),
                   felt_ratio=np.full(1, WILD_RATIO), hold_count=np.zeros(s, np.int64),
                   hold_arm=f((s, HOLD_POINTS, 3)), hold_normal=f((s, HOLD_POINTS, 3)), hold_load=f((s, HOLD_POINTS)),
-                  hold_vel=f((s, HOLD_POINTS)), hold_c=f(s))
+                  hold_vel=f((s, HOLD_POINTS)), hold_c=f(s), other_mass=f((s, 6, 6)), load_mass=f((s, 6, 6)))
 
 
 class Contacts(NamedTuple):
@@ -1463,6 +1471,11 @@ def body_residual(c, bd, h, vel):
             for q in range(3):
                 acc += bd.inertia[s, j, q] * (vel[s, 3 + q] - bd.vel[s, 3 + q])
             res[s, 3 + j] = -acc
+        for j in range(6):  # the other cables' reactions on a body they share (zero for the others)
+            acc = 0.0
+            for q in range(6):
+                acc += bd.other_mass[s, j, q] * (vel[s, q] - bd.vel[s, q])
+            res[s, j] -= acc
     _add_reactions(c, bd, h, res)
     _add_holders(bd, h, vel, res)
 
@@ -1507,8 +1520,8 @@ def _add_holders(bd, h, vel, out):
 @njit(cache=True, error_model="numpy")
 def body_potential(bd, h, vel):
     """The free bodies' part [J] of the step's incremental potential at velocities vel (S, 6): 1/2 (delta -
-    delta_0)^T M_b (delta - delta_0) - h M g . U (implicit Euler; the rows' contact potential is the cable's) plus
-    the holders' (:func:`_holder_change`)."""
+    delta_0)^T (M_b + other_mass) (delta - delta_0) - h M g . U (implicit Euler; the rows' contact potential is the
+    cable's) plus the holders' (:func:`_holder_change`)."""
     phi = 0.0
     for s in range(bd.active.shape[0]):
         if not bd.active[s]:
@@ -1518,6 +1531,9 @@ def body_potential(bd, h, vel):
             phi += 0.5 * bd.mass[s] * du * du - h * bd.mass[s] * bd.gravity[j] * vel[s, j]
             for q in range(3):
                 phi += 0.5 * (vel[s, 3 + j] - bd.vel[s, 3 + j]) * bd.inertia[s, j, q] * (vel[s, 3 + q] - bd.vel[s, 3 + q])
+        for j in range(6):
+            for q in range(6):
+                phi += 0.5 * (vel[s, j] - bd.vel[s, j]) * bd.other_mass[s, j, q] * (vel[s, q] - bd.vel[s, q])
         for p in range(bd.hold_count[s]):  # h times the holder's potential in v_n: its slope is -(change of load)
             cv, load = max(bd.hold_c[s] * _holder_speed(bd, s, p, vel), 0.0), bd.hold_load[s, p]
             phi += h * (0.5 * cv * cv if cv < load else load * cv - 0.5 * load * load) / bd.hold_c[s]
@@ -1574,8 +1590,19 @@ def _bodies_under_reactions(c, bd, h):
     the solve (:func:`felt_forces` with the bodies' rows), the start of a next sub-step."""
     load = np.zeros((bd.active.shape[0], 6))
     _add_reactions(c, bd, h, load)
+    mb = np.zeros((6, 6))
     for s in range(bd.active.shape[0]):
         if not bd.active[s]:
+            continue
+        if np.any(bd.other_mass[s] != 0.0):  # a shared body: its mass matrix holds the other cables' reactions
+            for j in range(3):
+                load[s, j] += h * bd.mass[s] * bd.gravity[j]
+                for q in range(6):
+                    mb[j, q] = bd.other_mass[s, j, q] + (bd.mass[s] if q == j else 0.0)
+                    mb[3 + j, q] = bd.other_mass[s, 3 + j, q] + (bd.inertia[s, j, q - 3] if q >= 3 else 0.0)
+            dv = np.linalg.pinv(mb) @ load[s]
+            for j in range(6):
+                bd.vel_new[s, j] = bd.vel[s, j] + dv[j]
             continue
         turn = np.linalg.pinv(bd.inertia[s]) @ load[s, 3:]  # (pinv: a point or flat body has no turn about some axes)
         for j in range(3):
@@ -1716,7 +1743,8 @@ def coupled_solve(c, bd, held, x, kx, kv, hf, band, r):
     row's 3x3 contact stiffness (normal at the closest point's weights w, friction at the anchor's) and J =
     [I, -[arm]x] maps a body's (U', Omega') to its surface point's velocity; solved by the Schur complement
     S = D - C^T A^-1 C (6S x 6S, dense). Held nodes keep their identity rows (no coupling). D also holds hf hold_c
-    J^T n n^T J of each holder contact that still pushes at bd.vel_new (hf [s] the step's force weight).
+    J^T n n^T J of each holder contact that still pushes at bd.vel_new (hf [s] the step's force weight) and the other
+    cables' other_mass; bd.load_mass gets each active body's block of S less those (this cable's part).
     """
     ns = bd.active.shape[0]
     size = 6 * ns
@@ -1732,7 +1760,15 @@ def coupled_solve(c, bd, held, x, kx, kv, hf, band, r):
             else:  # identity rows: a zero step
                 D[6 * s + j, 6 * s + j] = 1.0
                 D[6 * s + 3 + j, 6 * s + 3 + j] = 1.0
+        if bd.active[s]:
+            for j in range(6):
+                for q in range(6):
+                    D[6 * s + j, 6 * s + q] += bd.other_mass[s, j, q]
     _add_holder_block(bd, hf, D)
+    for s in range(ns):  # load_mass <- minus the body's own block now, plus its block of the Schur complement below
+        for j in range(6):
+            for q in range(6):
+                bd.load_mass[s, j, q] = -D[6 * s + j, 6 * s + q] if bd.active[s] else 0.0
     G = np.empty((2, 3, 3))
     GJ = np.empty((3, 6))
     J = np.zeros((3, 6))
@@ -1817,6 +1853,11 @@ def coupled_solve(c, bd, held, x, kx, kv, hf, band, r):
             for i in range(lo[s], hi[s] + 1):
                 acc -= C[i, row] * W[i, q]
             D[row, col] += acc
+    for s in range(ns):
+        if bd.active[s]:
+            for j in range(6):
+                for q in range(6):
+                    bd.load_mass[s, j, q] += D[6 * s + j, 6 * s + q]
     flat = rb.reshape(size)
     _dense_solve(D, flat, size)
     for i in range(work.shape[0]):  # dv = y - A^-1 C d_delta
