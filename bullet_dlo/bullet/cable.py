@@ -415,8 +415,10 @@ class BulletCable:
             held_bodies.spare_thrown(cs, self.world.dt)
         if status == STABLE and self.model_contact and cs is not None and cs.free_bodies:
             body_energy.plan(cs, self.world.dt, solver.last_ratio == 0.0)
-            if len(self.world.cables) > 1:  # (only another cable can share a body)
-                self.world.record_shares(self.name, held_bodies.shares_of(cs, self.world.steps))
+            world = self.world
+            if len(world.cables) > 1 and solver.stepper.h == world.dt and held_bodies.COUPLE_SHARED:
+                # (only another cable can share a body; a sub-stepped plan's load masses are of its last sub-step)
+                world.record_shares(self.name, held_bodies.shares_of(cs, world.steps, solver.coupling.v_new))
         if gripped[0] or gripped[1]:
             active = self.grip.active
             for end in (0, 1):

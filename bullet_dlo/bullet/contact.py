@@ -621,7 +621,8 @@ class ContactSet:
     land on that velocity when nothing else touches it. A free body that Bullet also supports (a contact with the
     ground or another body in the last step) or a user constraint holds moves in the step too, under that load as
     measured over Bullet's last step (:mod:`bullet_dlo.bullet.held_bodies`); one that other cables touch too moves in
-    it with its share of the mass (:func:`~bullet_dlo.bullet.held_bodies.share`). A body that another cable touches
+    it with its whole mass and their reactions, and all the cables' reactions are combined before Bullet's step
+    (:func:`~bullet_dlo.bullet.held_bodies.couple`, :func:`~bullet_dlo.bullet.held_bodies.settle`). A body that another cable touches
     and something else holds, and every link of an articulated body that no motor drives, meets the cable explicitly
     through Bullet instead (a driven link, ``driven``, is a kinematic obstacle: see ``__init__``): with the penalty
     stiffness k_n = alpha m_k / h^2 (alpha = 1e4) and a body of mass M that force has k_n h^2 / M = alpha m_k / M
@@ -746,7 +747,7 @@ class ContactSet:
         self._free_slot = self.shapes.slot.copy()  # each row's slot; -1 in shapes.slot while the body is condensed
         self._shared: frozenset = frozenset()  # free bodies another cable touched in the last step
         self._condensed: frozenset = frozenset()  # those of them held by something else too: condensed contact
-        self._split: dict[int, int] = {}  # the others, by the number of cables sharing them: in the step with a share
+        self._split: dict[int, int] = {}  # the others, by the number of cables sharing them: in the step (couple)
         self._coupled = False  # bodies.other_mass holds other cables' reactions (held_bodies.couple)
         self._was_supported: frozenset = frozenset()  # the free bodies in a Bullet contact the step before (impacts)
         self._spared: set[int] = set()  # free bodies handed less than the cable felt (held_bodies.spare_thrown)
@@ -1000,16 +1001,17 @@ class ContactSet:
         """Read the moving bodies, detect the contacts of positions x [m] (n, 3) for a cable step of h [s]
         within a Bullet step of dt [s]; ``stepped``: Bullet has taken the step the last contacts were
         planned for (their work is then counted with the bodies' velocities read now). ``shared``: free bodies another
-        cable's contacts also touched in the last step, {body: cables sharing it}: each moves in this cable's
-        step with its share of the mass, or keeps the condensed contact (:func:`_condense_bodies`) this step
+        cable's contacts also touched in the last step or this one, {body: cables sharing it}: each moves in this
+        cable's step (``others``), or keeps the condensed contact (:func:`_condense_bodies`) this step
         (:func:`~bullet_dlo.bullet.held_bodies.sharing`). ``supported``: free bodies Bullet also held in the
         last step (a contact with the ground or another body); they, and the free bodies a user constraint
         holds, move in the cable's step under the load the rest of the world put on them in the last step
         (:meth:`_measure`), ``support`` {body: Bullet's contact points on it} (:attr:`BulletWorld.support_points
         <bullet_dlo.bullet.world.BulletWorld.support_points>`) changing with the body's motion in the step.
-        ``others``: {body: the other cables' :class:`~bullet_dlo.bullet.held_bodies.Share` of it}: a shared body
-        moves with its whole mass and their reactions (:func:`~bullet_dlo.bullet.held_bodies.couple`) where the
-        cable's step is the Bullet step (h == dt), else with its share of the mass."""
+        ``others``: the other cables' reactions on the bodies they share with this one, {body: [(impulse, load_mass,
+        ref)]} (:meth:`BulletWorld.other_shares <bullet_dlo.bullet.world.BulletWorld.other_shares>`): a shared body
+        moves in the step with its whole mass and those reactions (:func:`~bullet_dlo.bullet.held_bodies.couple`)
+        where the cable's step is the Bullet step (h == dt), else with its share of the mass."""
         if self.free_bodies:
             condensed = held_bodies.sharing(self, shared, supported, support or {})
             if condensed != self._condensed:  # (a resting body stays shared or not for many steps: no NumPy work)
@@ -1059,7 +1061,7 @@ class ContactSet:
                 self._coupled = False
             if self._split:
                 if others is not None and h == dt and held_bodies.COUPLE_SHARED:
-                    held_bodies.couple(self, others, dt)
+                    held_bodies.couple(self, others)
                 else:
                     held_bodies.share(self)
         if measured:

@@ -64,6 +64,26 @@ box rolling its load from one ground point of an edge to the other loses the par
 takes no more): one of the 72 drops at 60 Hz is stopped as energy growth. HOLD_RATE 30 kept the three 3 kg drops that
 fail at 100 but failed five others (one stopped), and let the duck at 1.5 m/s end 0.12 mm inside the cable; 50 was
 no better.
+Bodies on several cables. A free body that two or more cables touch, and that nothing else holds, moves in each
+cable's step with its whole mass and the other cables' reactions, each linear in the body's velocity delta = (U',
+Omega'): impulse_i - E_i (delta - ref_i), E_i = -d impulse_i / d delta (6 x 6, its load mass: cable i's block of the
+Schur complement of its Newton matrix, its rows' J^T G J less C^T A^-1 C as its nodes yield; ``Bodies.load_mass``),
+kept from cable i's last plan (:class:`Share`) and put in the body's mass matrix (``Bodies.other_mass``,
+:func:`couple`). ref_i is the velocity of cable i's plan when that plan is of this step (the cables before this one);
+when it is of the last step, the velocity that keeps its contacts as they are (the mean velocity of its nodes at the
+rows, no turn), since a contact's spring load follows the body's position: its load stays until the body moves
+into or out of it. After every cable has planned, the body's velocity under all the reactions together,
+(M_b + sum E_i) delta* = M_b U + dt M g + sum (impulse_i + E_i vel_i), is where Bullet's step takes it when each cable
+hands it impulse_i - E_i (delta* - vel_i) (:func:`settle`); a cable whose plan moved the body more than MISMATCH from
+delta* (at its radius of gyration for the turn) is planned again first with the others' reactions of this step, up to
+SHARED_PASSES rounds (block Gauss-Seidel on the body's velocity: :func:`unsettled`; in the first step of contact
+every cable planned without the others and carried the whole body, and the cable with the far support then tipped
+the box over the other one in its plan). This is a joint Newton step of the cables and the body, linearised about
+each cable's plan, without a joint solve. Mass splitting (:func:`share`, each cable's step with 1/k of the mass,
+Tonge et al. 2012, one pass) remains for cables that take several sub-steps per Bullet step (the load masses relate
+one sub-step's impulse to its velocity there): each share turns under its own cable's support alone, about h^2 g
+|r|^2 M / I a step, which put boxes through two cables at 60 Hz (docs/concepts/contact.md, "A body on two cables").
+
 These functions hold no compiled code, so changing them does not empty the Numba cache.
 """
 from __future__ import annotations
@@ -333,6 +353,8 @@ class Share:
     impulse: np.ndarray  # (6,) [N s, N m s] the rows' reaction on the body over the Bullet step (torque about the com)
     load_mass: np.ndarray  # (6, 6) [kg, kg m, kg m^2] -d impulse / d delta, symmetrised
     vel: np.ndarray  # (6,) [m/s, rad/s] the body's velocity at the step's end in that plan
+    rest: np.ndarray  # (6,) the velocity at which the body keeps its contacts with the cable as they are: (the mean
+    # velocity of the cable's nodes at its rows on the body, 0)
     step: int  # the world's step count when it was planned
     coupled: bool  # the plan had other cables' reactions on the body (other_mass)
 
@@ -346,23 +368,30 @@ def body_mass(cs, o: int) -> np.ndarray:
     return out
 
 
-def shares_of(cs, step: int) -> dict[int, Share]:
+def shares_of(cs, step: int, v: np.ndarray) -> dict[int, Share]:
     """The Share of each free body in the plan just made by the cable of contact set ``cs`` (its world at step count
-    ``step``) for the bodies it moved in its step."""
-    bd = cs.bodies
+    ``step``) for the bodies it moved in its step; v (n, 3) [m/s]: the cable's planned node velocities."""
+    bd, c = cs.bodies, cs.contacts
+    count = int(c.count[0])
     out = {}
     for o in np.flatnonzero(bd.active).tolist():
         e = bd.load_mass[o]
-        out[cs.free_bodies[o]] = Share(cs, o, bd.impulse[o].copy(), 0.5 * (e + e.T), bd.vel[o].copy(), step,
+        k = np.flatnonzero(bd.slot[:count] == o)
+        rest = np.zeros(6)
+        if k.size:
+            w = c.weight[k]
+            rest[:3] = (w[:, :1] * v[c.node[k, 0]] + w[:, 1:] * v[c.node[k, 1]]).mean(axis=0)
+        out[cs.free_bodies[o]] = Share(cs, o, bd.impulse[o].copy(), 0.5 * (e + e.T), bd.vel[o].copy(), rest, step,
                                        bool(bd.other_mass[o].any()))
     return out
 
 
-def couple(cs, others: dict[int, list[Share]], dt: float) -> None:
-    """Each body of ``cs._split`` (touched by other cables in the last step, nothing else holding it) into the coming
-    step with its whole mass and the other cables' reactions as their last plans left them (``others`` {body: their
-    Shares}): bodies.other_mass = sum load_mass, and the body's start velocity V such that (M_b + other_mass)
-    (delta - V) = M_b (delta - U) - sum [impulse - load_mass (delta - vel)] (module doc). dt [s]: the Bullet step."""
+def couple(cs, others: dict[int, list[tuple]]) -> None:
+    """Each body of ``cs._split`` (touched by other cables, nothing else holding it) into the coming step with its
+    whole mass and the other cables' reactions, ``others`` {body: [(impulse, load_mass, ref)]}, each linear in the
+    body's velocity delta, impulse - load_mass (delta - ref) (:meth:`BulletWorld.other_shares
+    <bullet_dlo.bullet.world.BulletWorld.other_shares>`): bodies.other_mass = sum load_mass, and the body's start
+    velocity V (bodies.vel, U before) solves (M_b + other_mass) V = M_b U + sum (impulse + load_mass ref)."""
     bd = cs.bodies
     for b in cs._split:
         o = cs._slot_of[b]
@@ -370,8 +399,8 @@ def couple(cs, others: dict[int, list[Share]], dt: float) -> None:
         if not bd.active[o] or not parts:
             continue
         mb = body_mass(cs, o)
-        e = sum(p.load_mass for p in parts)
-        rhs = mb @ bd.vel[o] + sum(p.impulse + p.load_mass @ p.vel for p in parts)
+        e = sum(p[1] for p in parts)
+        rhs = mb @ bd.vel[o] + sum(p[0] + p[1] @ p[2] for p in parts)
         bd.vel[o] = np.linalg.solve(mb + e, rhs)
         bd.other_mass[o] = e
         cs._coupled = True

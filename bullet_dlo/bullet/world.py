@@ -383,7 +383,8 @@ class BulletWorld:
         5. each coupling's ``read()``: it reads Bullet's bodies back (the dual-arm grasp: both arms,
            the held ends follow the measured grasp frames, the wrist sensors sample);
         6. ``after_physics`` hooks;
-        7. :meth:`take_cable_steps`: contacts read back, each cable's own (implicit) step;
+        7. :meth:`take_cable_steps`: contacts read back, each cable's own (implicit) step; the bodies several
+           cables moved get their reactions together (:meth:`settle_shares`);
         8. ``after_step`` hooks (recorders, progress, user extensions).
 
         Plain steps (one cable on parked spheres among static bodies, no couplings, no hooks: see
@@ -427,17 +428,25 @@ class BulletWorld:
         if replan:
             for c in cables:
                 c.plan_again()
-        if self.shares:  # bodies several cables moved in their plans: their reactions together (held_bodies.settle)
-            for _ in range(held_bodies.SHARED_PASSES):
-                again = held_bodies.unsettled(self.shares, self.steps, self.dt)
-                if not again:
-                    break
-                for c in cables:
-                    if c.name in again:
-                        c.plan_again()
-            held_bodies.settle(self.shares, self.steps, self.dt)
+            self.settle_shares()
         for c in cables:
             c.apply_forces()
+
+    def settle_shares(self) -> None:
+        """The free bodies several cables moved in their plans of the coming step: each cable whose plan is off where
+        all their reactions together take the body is planned again with the others' reactions of this step (block
+        Gauss-Seidel, at most ``held_bodies.SHARED_PASSES`` rounds), then the reactions handed to each body are
+        combined (:func:`~bullet_dlo.bullet.held_bodies.settle`)."""
+        if not self.shares:
+            return
+        for _ in range(held_bodies.SHARED_PASSES):
+            again = held_bodies.unsettled(self.shares, self.steps, self.dt)
+            if not again:
+                break
+            for c in self.cables.values():
+                if c.name in again:
+                    c.plan_again()
+        held_bodies.settle(self.shares, self.steps, self.dt)
 
     def shared_bodies(self, cable: str) -> dict[int, int]:
         """The free bodies another cable's contacts touched in the last step or in its plan of this one, each with the
@@ -452,15 +461,21 @@ class BulletWorld:
             touches.setdefault(b, set()).update(names)  # one, or all of them when the step is planned again)
         return {b: len(names | {cable}) for b, names in touches.items() if names - {cable}}
 
-    def other_shares(self, cable: str) -> dict[int, list[held_bodies.Share]]:
-        """The other cables' parts (:class:`~bullet_dlo.bullet.held_bodies.Share`) in the free bodies they moved in
-        their plans of this step (planned before this cable's) or of the last one: the reactions the cable named
-        ``cable`` takes with a body they share (:func:`~bullet_dlo.bullet.held_bodies.couple`)."""
+    def other_shares(self, cable: str) -> dict[int, list[tuple]]:
+        """The other cables' reactions on the free bodies they moved in their plans of this step (planned before this
+        cable's) or of the last one, which the cable named ``cable`` takes with a body they share
+        (:func:`~bullet_dlo.bullet.held_bodies.couple`): {body: [(impulse, load_mass, ref)]}, each linear in the
+        body's velocity delta, impulse - load_mass (delta - ref) (:class:`~bullet_dlo.bullet.held_bodies.Share`).
+        ref is the velocity of a plan of this step; of the last step's, the one that keeps its contacts as they are
+        (``Share.rest``): their springs' load stays with the body's position, not its velocity (taking that plan's
+        velocity instead had a 1 g box landing on three cables at 60 Hz pulled into them by 5000 times its weight in
+        the next plan)."""
         out: dict[int, list] = {}
         for body, parts in self.shares.items():
             for name, p in parts.items():
                 if name != cable and p.step >= self.steps - 1:
-                    out.setdefault(body, []).append(p)
+                    ref = p.vel if p.step == self.steps else p.rest
+                    out.setdefault(body, []).append((p.impulse, p.load_mass, ref))
         return out
 
     def record_shares(self, cable: str, shares: dict) -> None:
@@ -555,6 +570,7 @@ class BulletWorld:
             if several:
                 self._pending = set()
             self._supported_due = False  # (not asked in phase 7: no free body in any set, the empty set holds)
+        self.settle_shares()
 
     def _take_cable_steps(self, cables, contacts) -> None:
         if not contacts:
