@@ -1061,7 +1061,7 @@ class ContactSet:
                 self._coupled = False
             if self._split:
                 if others is not None and h == dt and held_bodies.COUPLE_SHARED:
-                    held_bodies.couple(self, others)
+                    held_bodies.couple(self, others, dt)
                 else:
                     held_bodies.share(self)
         if measured:

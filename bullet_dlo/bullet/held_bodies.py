@@ -386,13 +386,17 @@ def shares_of(cs, step: int, v: np.ndarray) -> dict[int, Share]:
     return out
 
 
-def couple(cs, others: dict[int, list[tuple]]) -> None:
-    """Each body of ``cs._split`` (touched by other cables, nothing else holding it) into the coming step with its
-    whole mass and the other cables' reactions, ``others`` {body: [(impulse, load_mass, ref)]}, each linear in the
-    body's velocity delta, impulse - load_mass (delta - ref) (:meth:`BulletWorld.other_shares
+def couple(cs, others: dict[int, list[tuple]], dt: float) -> None:
+    """Each body of ``cs._split`` (touched by other cables, nothing else holding it) into the coming step of dt [s]
+    with its whole mass and the other cables' reactions, ``others`` {body: [(impulse, load_mass, ref)]}, each linear
+    in the body's velocity delta, impulse - load_mass (delta - ref) (:meth:`BulletWorld.other_shares
     <bullet_dlo.bullet.world.BulletWorld.other_shares>`): bodies.other_mass = sum load_mass, and the body's start
-    velocity V (bodies.vel, U before) solves (M_b + other_mass) V = M_b U + sum (impulse + load_mass ref)."""
+    velocity V (bodies.vel, U before) solves (M_b + other_mass) V = M_b U + sum (impulse + load_mass ref). The
+    friction springs on it are put in series with its mass (:func:`soften_friction`): at their full stiffness (that
+    of the cable's mass) a row's stick or slip changed between the plans of a step, and a 10 kg box across cables 30
+    mm apart at 60 Hz kept rocking by 0.03 mm at 2-3 mm/s (period three steps) with mu 0.5 and 1."""
     bd = cs.bodies
+    count = int(cs.contacts.count[0])
     for b in cs._split:
         o = cs._slot_of[b]
         parts = others.get(b, ())
@@ -403,6 +407,7 @@ def couple(cs, others: dict[int, list[tuple]]) -> None:
         rhs = mb @ bd.vel[o] + sum(p[0] + p[1] @ p[2] for p in parts)
         bd.vel[o] = np.linalg.solve(mb + e, rhs)
         bd.other_mass[o] = e
+        soften_friction(cs.contacts, bd, o, count, mb[0, 0], dt)
         cs._coupled = True
 
 
