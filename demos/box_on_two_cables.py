@@ -1,7 +1,7 @@
 """A box dropped across two (or ``--cables``) parallel cables lying on a table (docs/concepts/contact.md, "A body on
 two cables"): each cable's step moves a body they share with its whole mass and the other cables' reactions, and
 their reactions are combined before Bullet's step (bullet/held_bodies.py, "Bodies on several cables"; ``--split``:
-each step with its share of the mass instead, as before 2026-12-06; ``--condensed``: the condensed contact, as before
+each step with its share of the mass instead, as in the morning of 2026-12-05; ``--condensed``: the condensed contact, as before
 2026-12-05, which sinks by about g h^2, 2.7 mm at 60 Hz). Prints, per run, the box's lowest gap to the cables
 (negative: into them), where it ends (z of its centre against resting on the cables), its highest point against its
 release, its speed at the end, each cable's share of its weight, the table's support over all the weights, and the

@@ -297,7 +297,7 @@ def soften_friction(c, bd, o: int, count: int, m: float, dt: float) -> None:
 COUPLE_SHARED = True
 """Move a body that several cables share (and nothing else holds) in each cable's step with its whole mass and the
 other cables' reactions (:func:`couple`, :func:`settle`); False: with its share of the mass (:func:`share`), as before
-2026-12-06 (for comparisons)."""
+the afternoon of 2026-12-05 (for comparisons)."""
 
 MISMATCH = 1e-5  # [m] a cable's plan of a shared body this far from all the cables' together is planned again
 SHARED_PASSES = 4  # at most this many plans again of the cables sharing bodies, per Bullet step
@@ -433,40 +433,40 @@ def _settled(parts: dict[str, Share], step: int) -> list[Share] | None:
     return now
 
 
-def unsettled(shares: dict[int, dict[str, Share]], step: int, dt: float) -> set[str]:
+def unsettled(shares: dict[int, dict[str, Share]], step: int, dt: float) -> tuple[set[str], dict]:
     """The cables whose plan of step count ``step`` moved a body they share (:func:`settle`) more than MISMATCH [m]
     away from where all the cables' reactions together take it in the Bullet step of dt [s] (at its radius of
-    gyration for the turn): their plans assumed the others' reactions of the step before, or none (the first step
-    in contact). Planned again with the others' reactions of this step (block Gauss-Seidel), they agree."""
-    out = set()
-    for parts in shares.values():
+    gyration for the turn), and those velocities, {body: delta*}: their plans assumed the others' reactions of the
+    step before, or none (the first step in contact). Planned again with the others' reactions of this step (block
+    Gauss-Seidel), they agree."""
+    out, targets = set(), {}
+    for body, parts in shares.items():
         now = _settled(parts, step)
         if now is None:
             continue
-        target = _together(now, dt)
+        target = targets[body] = _together(now, dt)
         cs, o = now[0].cs, now[0].slot
         s = int(cs._slot_row[o])
-        gyration = math.sqrt(3.0 * float(np.trace(cs.shapes.inertia[s])) * cs.shapes.inv_mass[s] / 2.0)
+        gyration = math.sqrt(1.5 * float(np.trace(cs.shapes.inertia[s])) * cs.shapes.inv_mass[s])
         for name, p in parts.items():
             d = target - p.vel
             if p.step == step and dt * (np.linalg.norm(d[:3]) + gyration * np.linalg.norm(d[3:])) > MISMATCH:
                 out.add(name)
-    return out
+    return out, targets
 
 
-def settle(shares: dict[int, dict[str, Share]], step: int, dt: float) -> None:
+def settle(shares: dict[int, dict[str, Share]], step: int, targets: dict) -> None:
     """Before Bullet's step of dt [s]: each free body that two or more cables moved in their plans of this step
     (``shares`` {body: {cable: Share}}, those of world step count ``step``), or that one moved with the others'
-    reactions of the step before, gets the velocity delta* of all of them together, (M_b + sum load_mass) delta* =
-    M_b U + dt M g + sum (impulse + load_mass vel) (each cable's reaction linear about its own plan), and each cable
+    reactions of the step before, gets the velocity delta* of all of them together (``targets`` {body: delta*},
+    :func:`unsettled`), (M_b + sum load_mass) delta* = M_b U + dt M g + sum (impulse + load_mass vel) (each cable's
+    reaction linear about its own plan), and each cable
     hands it impulse - load_mass (delta* - vel): Bullet's update under their sum lands the body on delta* (module doc,
     "Bodies on several cables"). The Shares are updated to what was handed; such a body's work is not booked by any
     of the cables' energy checks (each would count the others' as made)."""
-    for parts in shares.values():
-        now = _settled(parts, step)
-        if now is None:
-            continue
-        target = _together(now, dt)
+    for body, target in targets.items():
+        parts = shares[body]
+        now = [p for p in parts.values() if p.step == step]
         for name, p in parts.items():
             if p.step != step:
                 continue

@@ -439,14 +439,15 @@ class BulletWorld:
         combined (:func:`~bullet_dlo.bullet.held_bodies.settle`)."""
         if not self.shares:
             return
+        again, targets = held_bodies.unsettled(self.shares, self.steps, self.dt)
         for _ in range(held_bodies.SHARED_PASSES):
-            again = held_bodies.unsettled(self.shares, self.steps, self.dt)
             if not again:
                 break
             for c in self.cables.values():
                 if c.name in again:
                     c.plan_again()
-        held_bodies.settle(self.shares, self.steps, self.dt)
+            again, targets = held_bodies.unsettled(self.shares, self.steps, self.dt)
+        held_bodies.settle(self.shares, self.steps, targets)
 
     def shared_bodies(self, cable: str) -> dict[int, int]:
         """The free bodies another cable's contacts touched in the last step or in its plan of this one, each with the

@@ -9,7 +9,7 @@ weights.
 
 Fails before (08ac6ba): a body two cables share kept the condensed contact, which sinks about g h^2 (the box rested
 0.5 mm into the cables at 240 Hz and 0.03 mm at 1 kHz, after dipping 1.7 / 0.4 mm). The cases at 60 and 120 Hz fail
-before 2026-12-06 (each cable's step with its share of the mass, ``held_bodies.COUPLE_SHARED = False``): every box went
+on 286b99f (each cable's step with its share of the mass, ``held_bodies.COUPLE_SHARED = False``): every box went
 through both cables to the table at 60 Hz, off-centre ones at 120 Hz too.
 """
 from __future__ import annotations
