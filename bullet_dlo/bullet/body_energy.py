@@ -29,8 +29,10 @@ rises by less than half its size) plus the kinetic energy it came into
 the plan with and the sum of |W| since, as the cable's scale holds the holders' sum |dW|: without gravity a box
 thrown at a cable has no other (the scale was 0 there, and the first rounding stopped the run).
 
-Steps where something else can do work on the body are not booked: a body a user constraint holds, a body shared
-with another cable (condensed, not in this cable's step), and a step in which Bullet held the body by a link or body
+A body several cables move in their steps (bullet/held_bodies.py, "Bodies on several cables") is booked by one of
+them (the first by name) with the work of all their reactions together (:func:`plan_shared`). Steps where something
+else can do work on the body are not booked: a body a user constraint holds, a body shared with another cable and held
+by something else too (condensed, not in the cables' steps), and a step in which Bullet held the body by a link or body
 that is not fixed (a robot's finger, another dynamic body), whose work the plan cannot see.
 These functions hold no compiled code, so changing them does not empty the Numba cache.
 """
@@ -152,19 +154,37 @@ def plan(cs, dt: float, converged: bool) -> None:
         be.planned[o] = bool(bd.active[o]) and body not in cs._held and body not in cs._shared
         if not be.planned[o]:
             continue
-        if not be.current[o]:  # (not booked after the last step: it was not in that plan)
-            be.energy[o] = _energy_now(cs, o, body)
-            be.current[o] = True
-            if not be.entered[o]:
-                v = cs.velocity_now[o].tolist()
-                be.exchanged[o] += kinetic_energy(1.0 / cs.shapes.inv_mass[cs._slot_row[o]],
-                                                  cs.shapes.inertia[cs._slot_row[o]], v[:3], v[3:])
-                be.entered[o] = True
+        _enter(cs, o, body)
         if converged:
             v, u, j = cs.velocity_now[o].tolist(), bd.vel[o].tolist(), bd.impulse[o].tolist()
             be.work[o] = 0.5 * sum(a * (b + c) for a, b, c in zip(j, v, u))
         else:
             be.work[o] = _unplanned_work(cs, o, dt)
+
+
+def _enter(cs, o: int, body: int) -> None:
+    """The free body of slot ``o`` (id ``body``) is in the coming step's plan: its energy now, if it was not read
+    after the last step, and its kinetic energy into its scale the first time."""
+    be = cs.energy_check
+    if not be.current[o]:  # (not booked after the last step: it was not in that plan)
+        be.energy[o] = _energy_now(cs, o, body)
+        be.current[o] = True
+        if not be.entered[o]:
+            v = cs.velocity_now[o].tolist()
+            be.exchanged[o] += kinetic_energy(1.0 / cs.shapes.inv_mass[cs._slot_row[o]],
+                                              cs.shapes.inertia[cs._slot_row[o]], v[:3], v[3:])
+            be.entered[o] = True
+
+
+def plan_shared(cs, o: int, work: float) -> None:
+    """The free body of slot ``o`` of the contact set ``cs``, which several cables move, is booked by this cable's
+    check with ``work`` [J], the work all the cables' reactions do on it in the coming Bullet step
+    (:func:`bullet_dlo.bullet.held_bodies.settle`); nothing else may hold it (a body something else holds is not
+    shared this way)."""
+    be = cs.energy_check
+    _enter(cs, o, cs.free_bodies[o])
+    be.planned[o] = True
+    be.work[o] = work
 
 
 def _unplanned_work(cs, o: int, dt: float) -> float:

@@ -455,23 +455,30 @@ def unsettled(shares: dict[int, dict[str, Share]], step: int, dt: float) -> tupl
     return out, targets
 
 
-def settle(shares: dict[int, dict[str, Share]], step: int, targets: dict) -> None:
+def settle(shares: dict[int, dict[str, Share]], step: int, targets: dict) -> list[tuple]:
     """Before Bullet's step of dt [s]: each free body that two or more cables moved in their plans of this step
     (``shares`` {body: {cable: Share}}, those of world step count ``step``), or that one moved with the others'
     reactions of the step before, gets the velocity delta* of all of them together (``targets`` {body: delta*},
     :func:`unsettled`), (M_b + sum load_mass) delta* = M_b U + dt M g + sum (impulse + load_mass vel) (each cable's
     reaction linear about its own plan), and each cable
     hands it impulse - load_mass (delta* - vel): Bullet's update under their sum lands the body on delta* (module doc,
-    "Bodies on several cables"). The Shares are updated to what was handed; such a body's work is not booked by any
-    of the cables' energy checks (each would count the others' as made)."""
+    "Bodies on several cables"). The Shares are updated to what was handed. Returns, per body, who books its energy:
+    (contact set, slot, work [J]), the first of those cables by name with the work of all the reactions, (sum handed)
+    . (U + delta*) / 2 (:func:`~bullet_dlo.bullet.body_energy.plan_shared`); the others do not book it (each would
+    count the others' work as made)."""
+    bookings = []
     for body, target in targets.items():
         parts = shares[body]
-        now = [p for p in parts.values() if p.step == step]
+        total = np.zeros(6)
         for name, p in parts.items():
             if p.step != step:
                 continue
             handed = p.impulse - p.load_mass @ (target - p.vel)
             p.cs.bodies.impulse[p.slot] = handed
-            if len(now) > 1:
-                p.cs.energy_check.planned[p.slot] = False
+            p.cs.energy_check.planned[p.slot] = False
+            total += handed
             parts[name] = dataclasses.replace(p, impulse=handed, vel=target)
+        booking = parts[min(name for name, p in parts.items() if p.step == step)]
+        cs, o = booking.cs, booking.slot
+        bookings.append((cs, o, 0.5 * float(total @ (cs.velocity_now[o] + target))))
+    return bookings

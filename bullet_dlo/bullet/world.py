@@ -17,7 +17,7 @@ import pybullet as pb
 import pybullet_data
 
 from bullet_dlo.assets import URDF_DIR as PROJECT_URDF
-from bullet_dlo.bullet import held_bodies, plain_steps
+from bullet_dlo.bullet import body_energy, held_bodies, plain_steps
 from bullet_dlo.bullet.cable import BulletCable
 from bullet_dlo.core.boundary import Move
 from bullet_dlo.core.integrators import NewtonOptions
@@ -436,7 +436,8 @@ class BulletWorld:
         """The free bodies several cables moved in their plans of the coming step: each cable whose plan is off where
         all their reactions together take the body is planned again with the others' reactions of this step (block
         Gauss-Seidel, at most ``held_bodies.SHARED_PASSES`` rounds), then the reactions handed to each body are
-        combined (:func:`~bullet_dlo.bullet.held_bodies.settle`)."""
+        combined (:func:`~bullet_dlo.bullet.held_bodies.settle`), and one of them books the body's energy with the
+        work of them all (:func:`~bullet_dlo.bullet.body_energy.plan_shared`)."""
         if not self.shares:
             return
         again, targets = held_bodies.unsettled(self.shares, self.steps, self.dt)
@@ -447,7 +448,8 @@ class BulletWorld:
                 if c.name in again:
                     c.plan_again()
             again, targets = held_bodies.unsettled(self.shares, self.steps, self.dt)
-        held_bodies.settle(self.shares, self.steps, targets)
+        for cs, slot, work in held_bodies.settle(self.shares, self.steps, targets):
+            body_energy.plan_shared(cs, slot, work)
 
     def shared_bodies(self, cable: str) -> dict[int, int]:
         """The free bodies another cable's contacts touched in the last step or in its plan of this one, each with the

@@ -19,6 +19,8 @@ from pathlib import Path
 
 import pytest
 
+from bullet_dlo.bullet import held_bodies
+
 sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "demos"))
 from box_on_two_cables import drop  # noqa: E402  (the demo's scene)
 
@@ -96,3 +98,23 @@ def test_a_box_across_three_cables_rests_with_a_third_on_each(mass):
     assert not off["stopped"] and off["speed"] < 1e-4 and abs(off["z"]) < 2e-4, off
     far = off["y"] / 0.015
     assert off["carried"] == pytest.approx([0.0, 1.0 - far, far], abs=0.01), off
+
+
+def test_a_shared_body_that_gains_energy_from_the_cables_stops_the_run(monkeypatch):
+    """The energy check books a body several cables move, in one of them, with the work of all their reactions: the
+    reactions handed twice over (as a broken coupling would hand them) stop the run as the body's energy growth, where
+    the same drop without that rests (the tests above). Fails before 2026-12-05 afternoon: a body two cables share was
+    booked by neither, and the box was thrown off the cables with both reporting "stable"."""
+    real = held_bodies.settle
+
+    def doubled(shares, step, targets):
+        out = real(shares, step, targets)
+        for body in targets:
+            for p in shares[body].values():
+                if p.step == step:
+                    p.cs.bodies.impulse[p.slot] *= 50.0
+        return out
+
+    monkeypatch.setattr(held_bodies, "settle", doubled)
+    out = drop(240.0, 0.03)
+    assert any("a body gained energy from contact" in s for s in out["stopped"]), out
