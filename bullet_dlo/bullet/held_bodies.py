@@ -353,8 +353,7 @@ class Share:
     impulse: np.ndarray  # (6,) [N s, N m s] the rows' reaction on the body over the Bullet step (torque about the com)
     load_mass: np.ndarray  # (6, 6) [kg, kg m, kg m^2] -d impulse / d delta, symmetrised
     vel: np.ndarray  # (6,) [m/s, rad/s] the body's velocity at the step's end in that plan
-    rest: np.ndarray  # (6,) the velocity at which the body keeps its contacts with the cable as they are: (the mean
-    # velocity of the cable's nodes at its rows on the body, 0)
+    rest: np.ndarray  # (6,) the velocity that keeps its contacts as they are: its nodes' mean velocity there, no turn
     step: int  # the world's step count when it was planned
     coupled: bool  # the plan had other cables' reactions on the body (other_mass)
 
@@ -456,13 +455,13 @@ def unsettled(shares: dict[int, dict[str, Share]], step: int, dt: float) -> tupl
 
 
 def settle(shares: dict[int, dict[str, Share]], step: int, targets: dict) -> list[tuple]:
-    """Before Bullet's step of dt [s]: each free body that two or more cables moved in their plans of this step
-    (``shares`` {body: {cable: Share}}, those of world step count ``step``), or that one moved with the others'
-    reactions of the step before, gets the velocity delta* of all of them together (``targets`` {body: delta*},
-    :func:`unsettled`), (M_b + sum load_mass) delta* = M_b U + dt M g + sum (impulse + load_mass vel) (each cable's
-    reaction linear about its own plan), and each cable
-    hands it impulse - load_mass (delta* - vel): Bullet's update under their sum lands the body on delta* (module doc,
-    "Bodies on several cables"). The Shares are updated to what was handed. Returns, per body, who books its energy:
+    """Before Bullet's step: each free body that two or more cables moved in their plans of this step (``shares``
+    {body: {cable: Share}}, those of world step count ``step``), or that one moved with the others' reactions of the
+    step before, gets the velocity delta* of all of them together (``targets`` {body: delta*}, :func:`unsettled`:
+    (M_b + sum load_mass) delta* = M_b U + dt M g + sum (impulse + load_mass vel), each cable's reaction linear about
+    its own plan), and each cable hands it impulse - load_mass (delta* - vel): Bullet's update under their sum lands
+    the body on delta* (module doc, "Bodies on several cables"). The Shares are updated to what was handed. Returns,
+    per body, who books its energy:
     (contact set, slot, work [J]), the first of those cables by name with the work of all the reactions, (sum handed)
     . (U + delta*) / 2 (:func:`~bullet_dlo.bullet.body_energy.plan_shared`); the others do not book it (each would
     count the others' work as made)."""
