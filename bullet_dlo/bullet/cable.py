@@ -379,7 +379,8 @@ class BulletCable:
             if free:
                 self.contacts_last_step = cs.update(x0, v0, self.arrays.mass, solver.stepper.h, world.dt, do_sync,
                                                     world.shared_bodies(self.name), world.supported_bodies,
-                                                    world.support_points, world.other_shares(self.name))
+                                                    world.support_points, world.other_shares(self.name),
+                                                    world.applied_by_others(self.name))
             else:
                 self.contacts_last_step = cs.update(x0, v0, self.arrays.mass, solver.stepper.h, world.dt, do_sync)
             if free and len(world.cables) > 1:  # (only another cable can share a body this way)

@@ -621,10 +621,11 @@ class ContactSet:
     land on that velocity when nothing else touches it. A free body that Bullet also supports (a contact with the
     ground or another body in the last step) or a user constraint holds moves in the step too, under that load as
     measured over Bullet's last step (:mod:`bullet_dlo.bullet.held_bodies`); one that other cables touch too moves in
-    it with its whole mass and their reactions, and all the cables' reactions are combined before Bullet's step
-    (:func:`~bullet_dlo.bullet.held_bodies.couple`, :func:`~bullet_dlo.bullet.held_bodies.settle`). A body that another cable touches
-    and something else holds, and every link of an articulated body that no motor drives, meets the cable explicitly
-    through Bullet instead (a driven link, ``driven``, is a kinematic obstacle: see ``__init__``): with the penalty
+    it with its whole mass and their reactions, held or not, and all the cables' reactions are combined before
+    Bullet's step (:func:`~bullet_dlo.bullet.held_bodies.couple`, :func:`~bullet_dlo.bullet.held_bodies.settle`). A
+    body that another sub-stepped cable touches and something else holds, and every link of an articulated body that
+    no motor drives, meets the cable explicitly through Bullet instead (a driven link, ``driven``, is a kinematic
+    obstacle: see ``__init__``): with the penalty
     stiffness k_n = alpha m_k / h^2 (alpha = 1e4) and a body of mass M that force has k_n h^2 / M = alpha m_k / M
     per contact, 500 for a 30 g box on one 1.6 g node, far past the explicit limit (about 1), so the detector
     condenses the body's inertia into those contacts (:func:`_condense_bodies`): lambda [1/s^2], the body's fastest
@@ -997,7 +998,7 @@ class ContactSet:
             self.shapes.ang_vel[:self.n_exact][dyn] = bases[dyn, 10:13]
 
     def update(self, x: np.ndarray, v: np.ndarray, mass: np.ndarray, h: float, dt: float, stepped: bool,
-               shared=(), supported=(), support=None, others=None) -> int:
+               shared=(), supported=(), support=None, others=None, others_applied=None) -> int:
         """Read the moving bodies, detect the contacts of positions x [m] (n, 3) for a cable step of h [s]
         within a Bullet step of dt [s]; ``stepped``: Bullet has taken the step the last contacts were
         planned for (their work is then counted with the bodies' velocities read now). ``shared``: free bodies another
@@ -1011,9 +1012,13 @@ class ContactSet:
         ``others``: the other cables' reactions on the bodies they share with this one, {body: [(impulse, load_mass,
         ref)]} (:meth:`BulletWorld.other_shares <bullet_dlo.bullet.world.BulletWorld.other_shares>`): a shared body
         moves in the step with its whole mass and those reactions (:func:`~bullet_dlo.bullet.held_bodies.couple`)
-        where the cable's step is the Bullet step (h == dt), else with its share of the mass."""
+        where the cable's step is the Bullet step (h == dt), also where something else holds it, else with its share of
+        the mass or, held, by the condensed contact. ``others_applied``: {body: the force and torque [N, N m] the other
+        cables applied to it in Bullet's last step} (:meth:`BulletWorld.applied_by_others
+        <bullet_dlo.bullet.world.BulletWorld.applied_by_others>`), left out of a held body's measured load."""
+        coupling = others is not None and h == dt and held_bodies.COUPLE_SHARED
         if self.free_bodies:
-            condensed = held_bodies.sharing(self, shared, supported, support or {})
+            condensed = held_bodies.sharing(self, shared, supported, support or {}, coupling)
             if condensed != self._condensed:  # (a resting body stays shared or not for many steps: no NumPy work)
                 self._condensed = condensed
                 self.shapes.slot[:] = self._free_slot
@@ -1026,7 +1031,8 @@ class ContactSet:
             self._read_others(dt)
         if self._probe_rows:
             self._probe(x, v, h, dt)
-        measured = self._measure(dt, stepped, supported, support or {}) if self.free_bodies else ()
+        measured = (self._measure(dt, stepped, supported, support or {}, others_applied or {}) if self.free_bodies
+                    else ())
         self._inv_dt[0] = 1.0 / dt
         packed = self._set_args
         if (SKIP_QUIET and not self.other_cables and not self.free_bodies and self.contacts.count.item(0) == 0
@@ -1059,13 +1065,12 @@ class ContactSet:
             if self._coupled:
                 self.bodies.other_mass[:] = 0.0
                 self._coupled = False
-            if self._split:
-                if others is not None and h == dt and held_bodies.COUPLE_SHARED:
-                    held_bodies.couple(self, others, dt)
-                else:
-                    held_bodies.share(self)
+            if self._split and not coupling:
+                held_bodies.share(self)
         if measured:
             self._hold(measured, dt, mass)
+        if self._split and coupling:  # (after the held load: the other cables' reactions join its apparent mass)
+            held_bodies.couple(self, others, dt)
         if self._any_dynamic and count:
             self._report_bodies_inside(x, count, dt)
         return count
@@ -1082,9 +1087,9 @@ class ContactSet:
         for b in new:
             impact[self.body_ids == b] = True
 
-    def _measure(self, dt: float, stepped: bool, supported, support: dict) -> list[int]:
+    def _measure(self, dt: float, stepped: bool, supported, support: dict, others_applied: dict) -> list[int]:
         """See :func:`bullet_dlo.bullet.held_bodies.measure`."""
-        return held_bodies.measure(self, dt, stepped, supported, support)
+        return held_bodies.measure(self, dt, stepped, supported, support, others_applied)
 
     def _hold(self, measured: list[int], dt: float, mass: np.ndarray) -> None:
         """See :func:`bullet_dlo.bullet.held_bodies.hold`."""

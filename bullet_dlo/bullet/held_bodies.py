@@ -64,25 +64,29 @@ box rolling its load from one ground point of an edge to the other loses the par
 takes no more): one of the 72 drops at 60 Hz is stopped as energy growth. HOLD_RATE 30 kept the three 3 kg drops that
 fail at 100 but failed five others (one stopped), and let the duck at 1.5 m/s end 0.12 mm inside the cable; 50 was
 no better.
-Bodies on several cables. A free body that two or more cables touch, and that nothing else holds, moves in each
-cable's step with its whole mass and the other cables' reactions, each linear in the body's velocity delta = (U',
-Omega'): impulse_i - E_i (delta - ref_i), E_i = -d impulse_i / d delta (6 x 6, its load mass: cable i's block of the
-Schur complement of its Newton matrix, its rows' J^T G J less C^T A^-1 C as its nodes yield; ``Bodies.load_mass``),
-kept from cable i's last plan (:class:`Share`) and put in the body's mass matrix (``Bodies.other_mass``,
-:func:`couple`). ref_i is the velocity of cable i's plan when that plan is of this step (the cables before this one);
-when it is of the last step, the velocity that keeps its contacts as they are (the mean velocity of its nodes at the
-rows, no turn), since a contact's spring load follows the body's position: its load stays until the body moves
-into or out of it. After every cable has planned, the body's velocity under all the reactions together,
-(M_b + sum E_i) delta* = M_b U + dt M g + sum (impulse_i + E_i vel_i), is where Bullet's step takes it when each cable
-hands it impulse_i - E_i (delta* - vel_i) (:func:`settle`); a cable whose plan moved the body more than MISMATCH from
-delta* (at its radius of gyration for the turn) is planned again first with the others' reactions of this step, up to
-SHARED_PASSES rounds (block Gauss-Seidel on the body's velocity: :func:`unsettled`; in the first step of contact
-every cable planned without the others and carried the whole body, and the cable with the far support then tipped
-the box over the other one in its plan). This is a joint Newton step of the cables and the body, linearised about
-each cable's plan, without a joint solve. Mass splitting (:func:`share`, each cable's step with 1/k of the mass,
-Tonge et al. 2012, one pass) remains for cables that take several sub-steps per Bullet step (the load masses relate
-one sub-step's impulse to its velocity there): each share turns under its own cable's support alone, about h^2 g
-|r|^2 M / I a step, which put boxes through two cables at 60 Hz (docs/concepts/contact.md, "A body on two cables").
+Bodies on several cables. A free body that two or more cables touch moves in each cable's step with its whole mass and
+the other cables' reactions, each linear in the body's velocity delta = (U', Omega'): impulse_i - E_i (delta - ref_i),
+E_i = -d impulse_i / d delta (6 x 6, its load mass: cable i's block of the Schur complement of its Newton matrix, its
+rows' J^T G J less C^T A^-1 C as its nodes yield; ``Bodies.load_mass``), kept from cable i's last plan (:class:`Share`)
+and put in the body's mass matrix (``Bodies.other_mass``, :func:`couple`). ref_i is the velocity of cable i's plan when
+that plan is of this step (the cables before this one); when it is of the last step, the velocity that keeps its
+contacts as they are (the mean velocity of its nodes at the rows, no turn), since a contact's spring load follows the
+body's position: its load stays until the body moves into or out of it. After every cable has planned, the body's
+velocity under all the reactions together, (M_b + sum E_i) delta* = M_b U + dt M g + sum (impulse_i + E_i vel_i), is
+where Bullet's step takes it when each cable hands it impulse_i - E_i (delta* - vel_i) (:func:`settle`); a cable whose
+plan moved the body more than MISMATCH from delta* (at its radius of gyration for the turn) is planned again first with
+the others' reactions of this step, up to SHARED_PASSES rounds (block Gauss-Seidel on the body's velocity:
+:func:`unsettled`; in the first step of contact every cable planned without the others and carried the whole body, and
+the cable with the far support then tipped the box over the other one in its plan). This is a joint Newton step of the
+cables and the body, linearised about each cable's plan, without a joint solve. Mass splitting (:func:`share`, each
+cable's step with 1/k of the mass, Tonge et al. 2012, one pass) remains for cables that take several sub-steps per
+Bullet step (the load masses relate one sub-step's impulse to its velocity there): each share turns under its own
+cable's support alone, about h^2 g |r|^2 M / I a step, which put boxes through two cables at 60 Hz
+(docs/concepts/contact.md, "A body on two cables"). A shared body that something else holds too (the table under a box
+tipped across two cables) is held as above and coupled on top: its measured load leaves out every cable's reaction
+(:meth:`BulletWorld.applied_by_others <bullet_dlo.bullet.world.BulletWorld.applied_by_others>`), the other cables' load
+masses join its apparent mass, and the combined velocity counts that load. (Before, such a body kept the condensed
+contact, and boxes went through the cables to the table at 60 Hz; with sub-steps it still does.)
 
 These functions hold no compiled code, so changing them does not empty the Numba cache.
 """
@@ -101,12 +105,13 @@ RELAX = 0.5  # share of the newly measured load taken each step (1: the last ste
 HOLD_RATE = 100.0  # a holder lets go of HOLD_RATE M v_n / dt of its load as the body leaves it at v_n [m/s]
 
 
-def measure(cs, dt: float, stepped: bool, supported, support: dict) -> list[int]:
+def measure(cs, dt: float, stepped: bool, supported, support: dict, others_applied: dict) -> list[int]:
     """The slots of the free bodies of the contact set ``cs`` (:class:`~bullet_dlo.bullet.contact.ContactSet`) that
     something besides this cable holds (``supported``: bodies with a Bullet contact in the last step; the bodies a
-    user constraint holds; not the bodies another cable shares), with, in ``cs.held_load``, the force and torque
-    [N, N m] (about the centre of mass, world frame) the world put on each in Bullet's last step of dt [s] besides
-    gravity and this cable's reaction (module doc); before a step was measured (a new contact set), the body's weight.
+    user constraint holds; not the bodies another cable shares that keep the condensed contact), with, in
+    ``cs.held_load``, the force and torque [N, N m] (about the centre of mass, world frame) the world put on each in
+    Bullet's last step of dt [s] besides gravity and the cables' reactions (this one's, and ``others_applied`` {body:
+    force and torque} of the others; module doc); before a step was measured (a new contact set), the body's weight.
     After a re-plan (``stepped`` False) the last step's. ``support`` {body: Bullet's contact points on it in the last
     step} (:attr:`BulletWorld.support_points <bullet_dlo.bullet.world.BulletWorld.support_points>`): their normal
     forces, ``cs.support_load``, are taken whole, and only the rest of the load (friction, constraints, ...) is
@@ -123,7 +128,7 @@ def measure(cs, dt: float, stepped: bool, supported, support: dict) -> list[int]
     cs.velocity_now = now
     if not stepped and cs._seen.any():
         return cs._measured
-    want = cs._held.union(supported).difference(cs._shared) if supported or cs._held else ()
+    want = cs._held.union(supported).difference(cs._condensed) if supported or cs._held else ()
     before = cs._measured  # held in the last step too: its load there is the one to relax from
     measured = []
     for o, body in enumerate(cs.free_bodies):
@@ -137,6 +142,8 @@ def measure(cs, dt: float, stepped: bool, supported, support: dict) -> list[int]
             load = np.empty(6)
             load[:3] = m * (dv[:3] - cs.bodies.gravity) - cs._applied[o, :3]
             load[3:] = sh.inertia[s] @ dv[3:] - cs._applied[o, 3:]
+            if body in others_applied:
+                load -= others_applied[body]
             relax = RELAX if o in before else 1.0
             rest = cs.held_load[o] - cs.support_load[o]
             rest += relax * (load - pressed - rest)  # (module doc: the lag's limit cycle)
@@ -307,21 +314,26 @@ SPLIT_SHARED = True
 (:func:`share`); False: the condensed contact for every shared body, as before 2026-12-05 (for comparisons)."""
 
 
-def sharing(cs, shared, supported, support) -> frozenset:
+def sharing(cs, shared, supported, support, coupling: bool = False) -> frozenset:
     """Of the free bodies another cable's contacts also touched in the last step (``shared``: {body: cables sharing
     it}, :meth:`BulletWorld.shared_bodies <bullet_dlo.bullet.world.BulletWorld.shared_bodies>`), the ones this
     cable's step takes with their share of the mass (``cs._split``, applied by :func:`share`), and the ones it
     leaves to the condensed contact (returned): those something else holds too (a user constraint, or Bullet: a
     point of ``support`` {body: points} in ``supported`` that carried load), whose measured load would hold the
     other cables' reactions. (Bullet lists a pair's points up to 2 cm apart: a box resting on two cables 4 mm above
-    the table has points on it that carry nothing.) Sets ``cs._shared`` (all of them: no body-energy booking, no
-    measured load)."""
+    the table has points on it that carry nothing.) ``coupling``: the cable's step takes every shared body with the
+    other cables' reactions (:func:`couple`), a held one too (its measured load then leaves out every cable's
+    reaction): none is left to the condensed contact. Sets ``cs._shared`` (all of them: no body-energy booking by
+    this cable's plan)."""
     if not shared:  # (the common case, every step of a scene with free bodies: nothing to build)
         cs._split, cs._shared = {}, frozenset()
         return cs._shared
     shares = {b: k for b, k in shared.items() if b in cs._slot_of}
-    held = cs._held.union(b for b in supported if any(p[2] > 0.0 for p in support.get(b, ())))
-    cs._split = {b: k for b, k in shares.items() if b not in held} if SPLIT_SHARED else {}
+    if coupling:
+        cs._split = shares
+    else:
+        held = cs._held.union(b for b in supported if any(p[2] > 0.0 for p in support.get(b, ())))
+        cs._split = {b: k for b, k in shares.items() if b not in held} if SPLIT_SHARED else {}
     cs._shared = frozenset(shares)
     return cs._shared.difference(cs._split)
 
@@ -401,12 +413,15 @@ def couple(cs, others: dict[int, list[tuple]], dt: float) -> None:
         parts = others.get(b, ())
         if not bd.active[o] or not parts:
             continue
-        mb = body_mass(cs, o)
+        mb = np.zeros((6, 6))  # the mass matrix the step has for it: a held body's apparent one (hold)
+        mb[:3, :3] = bd.mass[o] * np.eye(3)
+        mb[3:, 3:] = bd.inertia[o]
         e = sum(p[1] for p in parts)
         rhs = mb @ bd.vel[o] + sum(p[0] + p[1] @ p[2] for p in parts)
         bd.vel[o] = np.linalg.solve(mb + e, rhs)
         bd.other_mass[o] = e
-        soften_friction(cs.contacts, bd, o, count, mb[0, 0], dt)
+        if o not in cs._measured:  # (hold softened a held body's already)
+            soften_friction(cs.contacts, bd, o, count, float(bd.mass[o]), dt)
         cs._coupled = True
 
 
@@ -418,16 +433,18 @@ def _together(parts: list[Share], dt: float) -> np.ndarray:
     e = sum(p.load_mass for p in parts)
     rhs = mb @ cs.velocity_now[o] + sum(p.impulse + p.load_mass @ p.vel for p in parts)
     rhs[:3] += dt * mb[0, 0] * cs.bodies.gravity
+    for p in parts:  # what else holds it, as measured over Bullet's last step (measure)
+        if p.slot in p.cs._measured:
+            rhs += dt * p.cs.held_load[p.slot]
+            break
     return np.linalg.solve(mb + e, rhs)
 
 
 def _settled(parts: dict[str, Share], step: int) -> list[Share] | None:
-    """The Shares of step count ``step`` of a body that :func:`settle` combines, or None (one cable alone moved it,
-    or something else holds it: its load is in no Share)."""
+    """The Shares of step count ``step`` of a body that :func:`settle` combines, or None (one cable alone moved
+    it)."""
     now = [p for p in parts.values() if p.step == step]
     if not now or (len(now) == 1 and not now[0].coupled):
-        return None
-    if any(p.slot in p.cs._measured for p in now):
         return None
     return now
 

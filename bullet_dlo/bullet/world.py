@@ -481,6 +481,18 @@ class BulletWorld:
                     out.setdefault(body, []).append((p.impulse, p.load_mass, ref))
         return out
 
+    def applied_by_others(self, cable: str) -> dict[int, np.ndarray]:
+        """{body: force and torque [N, N m] (about its centre of mass)} the cables other than the one named ``cable``
+        applied in Bullet's last step to the free bodies they share with it (a held body's measured load leaves
+        them out: :func:`~bullet_dlo.bullet.held_bodies.measure`)."""
+        out: dict[int, np.ndarray] = {}
+        for body, parts in self.shares.items():
+            for name, p in parts.items():
+                if name != cable:
+                    applied = p.cs._applied[p.slot]
+                    out[body] = out[body] + applied if body in out else applied.copy()
+        return out
+
     def record_shares(self, cable: str, shares: dict) -> None:
         """Keep the parts of the cable named ``cable`` in the free bodies of its plan just made ({body: Share}), and
         forget the parts older than the last step."""

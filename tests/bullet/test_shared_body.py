@@ -17,6 +17,8 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
+import numpy as np
+import pybullet as pb
 import pytest
 
 from bullet_dlo.bullet import held_bodies
@@ -118,3 +120,60 @@ def test_a_shared_body_that_gains_energy_from_the_cables_stops_the_run(monkeypat
     monkeypatch.setattr(held_bodies, "settle", doubled)
     out = drop(240.0, 0.03)
     assert any("a body gained energy from contact" in s for s in out["stopped"]), out
+
+
+def _tipped_across(hz: float, mass: float, scene: str) -> dict:
+    """A 40 x 40 x 20 mm box that two cables lying on the table share while the table holds it too: ``crossing``,
+    dropped 4 mm onto two cables crossing at right angles (the second over the first), 10 mm off the crossing along
+    both, so that it tips an edge onto the table; ``lean``, dropped 4 mm onto two parallel cables 5 and 15 mm off its
+    middle, so that it leans on the table and the inner cable. After 2 s: its lowest gap to a cable over the run
+    (negative: into it), centre height z, speed, and the cables' and the table's support over its weight."""
+    from bullet_dlo.bullet.world import BulletWorld
+    from bullet_dlo.core.spec import CableSpec
+
+    spec = CableSpec.lv2017(n_masses=15, damping=0.02)
+    r = spec.diameter / 2
+    with BulletWorld(dt=1.0 / hz, ground=False) as world:
+        cid = world.client
+        table = world.add_box((0.3, 0.3, 0.05), (0.0, 0.0, -0.05), friction=0.5, name="table")
+        if scene == "crossing":
+            cables = [world.add_cable(spec, start=(-0.15, 0.0, r), direction=(1, 0, 0), name="c0"),
+                      world.add_cable(spec, start=(0.0, -0.15, 3 * r + 5e-4), direction=(0, 1, 0), name="c1")]
+            at = (0.01, 0.01)
+        else:
+            cables = [world.add_cable(spec, start=(x, -0.15, r), direction=(0, 1, 0), name=f"c{k}")
+                      for k, x in enumerate((0.005, 0.015))]
+            at = (0.0, 0.0)
+        world.run(0.5)
+        top = max(float(c.x[:, 2].max()) for c in cables)
+        box = world.add_box((0.02, 0.02, 0.01), (*at, top + r + 0.014), mass=mass, friction=0.5)
+        lowest = 0.0
+        for _ in range(round(2.0 * hz)):
+            world.step()
+            for c in cables:
+                cf = c.contact_forces()
+                on = cf["body"] == box
+                if on.any():
+                    lowest = min(lowest, float(cf["gap"][on].min()))
+        weight = mass * 9.81
+        return {"lowest": lowest, "z": pb.getBasePositionAndOrientation(box, physicsClientId=cid)[0][2],
+                "speed": float(np.linalg.norm(pb.getBaseVelocity(box, physicsClientId=cid)[0])),
+                "cables": [float(c.body_forces().get(box, np.zeros(3))[2]) / weight for c in cables],
+                "table": sum(cp[9] for cp in pb.getContactPoints(box, table, physicsClientId=cid)) / weight,
+                "stopped": [c.reason for c in cables if not c.stable]}
+
+
+@pytest.mark.parametrize("scene, mass", [("crossing", 0.3), ("crossing", 3.0), ("lean", 0.003), ("lean", 3.0)])
+def test_a_box_two_cables_and_the_table_share_comes_to_rest_on_them_at_60_hz(scene, mass):
+    """A box that two cables share while the table holds it too (in the landing, or at rest: the 3 kg box across the
+    crossing), at 60 Hz: never through a cable (less than 3 of its 4 mm into it; measured 2.2 mm for the 3 kg box
+    across the crossing as it tips onto the table, 0.35 mm at most for the others), at rest within 2 s (below 2e-4
+    m/s: a box leaning on a cable and the table creeps at about 1e-4 m/s), tilted on its supports (its centre above
+    lying flat on the table, 10 mm), which carry its weight within 1 %. Three of the four fail on a916460, where such a
+    body kept the condensed contact: they went through the cables to the table (9-13 mm into them); the 300 g box
+    across the crossing, which ends on the cables alone, passes there too."""
+    out = _tipped_across(60.0, mass, scene)
+    assert not out["stopped"], out
+    assert out["lowest"] > -3e-3 and out["z"] > 0.012 and out["speed"] < 2e-4, out
+    assert sum(out["cables"]) + out["table"] == pytest.approx(1.0, abs=0.01), out
+    assert min(out["cables"]) > -0.01 and max(out["cables"]) > 0.1, out
