@@ -31,9 +31,9 @@ thrown at a cable has no other (the scale was 0 there, and the first rounding st
 
 A body several cables move in their steps (bullet/held_bodies.py, "Bodies on several cables") is booked by one of
 them (the first by name) with the work of all their reactions together (:func:`plan_shared`). Steps where something
-else can do work on the body are not booked: a body a user constraint holds, a body shared with another cable and held
-by something else too (condensed, not in the cables' steps), and a step in which Bullet held the body by a link or body
-that is not fixed (a robot's finger, another dynamic body), whose work the plan cannot see.
+else can do work on the body are not booked: a body a user constraint holds, a body a sub-stepped cable shares with
+another and something else holds (condensed, not in the cables' steps), and a step in which Bullet held the body by a
+link or body that is not fixed (a robot's finger, another dynamic body), whose work the plan cannot see.
 These functions hold no compiled code, so changing them does not empty the Numba cache.
 """
 from __future__ import annotations
@@ -179,9 +179,12 @@ def _enter(cs, o: int, body: int) -> None:
 def plan_shared(cs, o: int, work: float) -> None:
     """The free body of slot ``o`` of the contact set ``cs``, which several cables move, is booked by this cable's
     check with ``work`` [J], the work all the cables' reactions do on it in the coming Bullet step
-    (:func:`bullet_dlo.bullet.held_bodies.settle`); nothing else may hold it (a body something else holds is not
-    shared this way)."""
+    (:func:`bullet_dlo.bullet.held_bodies.settle`). What else holds it is booked as for a body on one cable: a fixed
+    holder does no work, a step in which a moving one held it is not booked (:func:`book`), nor a body a user
+    constraint holds."""
     be = cs.energy_check
+    if cs.free_bodies[o] in cs._held:
+        return
     _enter(cs, o, cs.free_bodies[o])
     be.planned[o] = True
     be.work[o] = work

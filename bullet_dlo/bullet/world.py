@@ -453,10 +453,11 @@ class BulletWorld:
 
     def shared_bodies(self, cable: str) -> dict[int, int]:
         """The free bodies another cable's contacts touched in the last step or in its plan of this one, each with the
-        number of cables that share it (this one included): the cable named ``cable`` moves such a body in its own step with that share of
-        its mass (each cable's step alone would carry the body's whole weight), or keeps the condensed contact with it
-        where something else holds it too (:meth:`ContactSet.update <bullet_dlo.bullet.contact.ContactSet.update>`).
-        (The bodies Bullet supports, :attr:`supported_bodies`, move in it under the load Bullet put on them.)"""
+        number of cables that share it (this one included): the cable named ``cable`` moves such a body in its own
+        step with the other cables' reactions (each cable's step alone would carry the body's whole weight; a
+        sub-stepped cable with its share of the mass, or the condensed contact where something else holds it too:
+        :meth:`ContactSet.update <bullet_dlo.bullet.contact.ContactSet.update>`). (The bodies Bullet supports,
+        :attr:`supported_bodies`, move in it under the load Bullet put on them.)"""
         if not self.model_touches and not self._model_touches_now:
             return {}
         touches = {b: set(names) for b, names in self.model_touches.items()}
