@@ -370,13 +370,18 @@ class Share:
     coupled: bool  # the plan had other cables' reactions on the body (other_mass)
 
 
-def body_mass(cs, o: int) -> np.ndarray:
-    """The 6 x 6 mass matrix diag(M I, I_world) [kg, kg m^2] of the free body of slot ``o`` at the step's start."""
-    s = int(cs._slot_row[o])
+def mass_matrix(mass: float, inertia: np.ndarray) -> np.ndarray:
+    """The 6 x 6 mass matrix diag(M I, I_world) [kg, kg m^2] of a body of mass [kg] and world inertia (3, 3)."""
     out = np.zeros((6, 6))
-    out[:3, :3] = np.eye(3) / cs.shapes.inv_mass[s]
-    out[3:, 3:] = cs.shapes.inertia[s]
+    out[:3, :3] = mass * np.eye(3)
+    out[3:, 3:] = inertia
     return out
+
+
+def body_mass(cs, o: int) -> np.ndarray:
+    """The mass matrix (:func:`mass_matrix`) of the free body of slot ``o`` at the step's start, as Bullet has it."""
+    s = int(cs._slot_row[o])
+    return mass_matrix(1.0 / cs.shapes.inv_mass[s], cs.shapes.inertia[s])
 
 
 def shares_of(cs, step: int, v: np.ndarray) -> dict[int, Share]:
@@ -413,9 +418,7 @@ def couple(cs, others: dict[int, list[tuple]], dt: float) -> None:
         parts = others.get(b, ())
         if not bd.active[o] or not parts:
             continue
-        mb = np.zeros((6, 6))  # the mass matrix the step has for it: a held body's apparent one (hold)
-        mb[:3, :3] = bd.mass[o] * np.eye(3)
-        mb[3:, 3:] = bd.inertia[o]
+        mb = mass_matrix(float(bd.mass[o]), bd.inertia[o])  # the step's: a held body's apparent one (hold)
         e = sum(p[1] for p in parts)
         rhs = mb @ bd.vel[o] + sum(p[0] + p[1] @ p[2] for p in parts)
         bd.vel[o] = np.linalg.solve(mb + e, rhs)
