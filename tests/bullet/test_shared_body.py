@@ -87,6 +87,29 @@ def test_a_box_dropped_across_two_cables_rests_on_both_at_60_and_120_hz(hz, mass
     assert out["table"] == pytest.approx(1.0, abs=0.01), out
 
 
+@pytest.mark.xfail(strict=True, reason="known defect (2026-12-05 evening, docs/development.md 'Not yet here'): "
+                   "face rows found from the box's side edges double the bottom face's stiffness where a segment "
+                   "crosses a bottom edge, and come and go with the margin, which grows with the box's speed")
+def test_a_10_kg_box_across_two_cables_near_its_edges_comes_to_rest_at_60_hz():
+    """10 kg, centred on two n = 30 cables 30 mm apart (each 5 mm inside the box's side faces) at 60 Hz: at rest within
+    2 s (below 1e-4 m/s), level, each cable carrying half the weight and the table all the weights within 1 %.
+    Measured on b79f737: the box keeps rocking about the cables' direction at 0.8 mm/s (0.6 at n = 20, 1.5 at n = 40),
+    period three steps; at rest with the table's friction 0.1 or 0.3 (some rows under the box slide), or with 20 mm
+    between the cables. Each segment crossing a bottom edge of the box has, beside that edge's row, a row of the bottom
+    face found from the vertical edge whose end is the corner nearby (`detect`'s rows beside a face: the bottom face is
+    that edge's end, not one of its faces), and segments along the cable a row found from the bottom edge parallel to
+    them (closest point anywhere along it). Both are admitted within a margin that grows with the box's speed: they
+    came and went with the rocking (period three), and with them the face's stiffness at the crossing. Tried
+    (2026-12-05): leaving out the corner's rows (at rest, but a tipping 300 g box then kicked at 2e-4 m/s as a row
+    near its corner changed face), keeping beside rows a radius longer once in (at rest, but the duplicates stay, and
+    the outer two of three cables under a box carry 0.34 / 0.35 of it instead of a third)."""
+    out = drop(60.0, 10.0, n=30, sep=0.03)
+    assert not out["stopped"], out
+    assert out["speed"] < 1e-4 and out["tilt"] < 1e-3, out
+    assert out["carried"] == pytest.approx([0.5, 0.5], abs=0.01), out
+    assert out["table"] == pytest.approx(1.0, abs=0.01), out
+
+
 @pytest.mark.parametrize("mass", [0.001, 3.0])
 def test_a_box_across_three_cables_rests_with_a_third_on_each(mass):
     """1 g and 3 kg across three alike cables 15 mm apart at 60 Hz: at rest on them within 0.2 mm, a third of the
