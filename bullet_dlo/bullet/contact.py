@@ -78,6 +78,7 @@ S_MIN = 1e-3  # segment interior: 0 < s < 1 away from the nodes by this much (no
 # a probed segment contact must come closer than both its nodes by this much [m] (above the narrow phase's
 # noise, 1e-9 m measured): on a flat face a capsule's closest point is anywhere along it, and the nodes carry it
 SEGMENT_DIP = 1e-7
+ALONG_EDGE = 0.1  # [rad] a segment this close to parallel to a box edge has no well-defined closest point to it
 # Bullet answers a query against a triangle mesh triangle by triangle: answers whose normals lie within this angle
 # of a closer one are the same contact (a face split into triangles, an edge seen from its two faces); the others
 # are further contacts of the same node (segment), up to PROBE_EXTRA of them (a concave corner's other faces)
@@ -1712,6 +1713,24 @@ def _make_wrap(c, k, axis, side, ks, l0, kb_a, kb_b, edge_r, fresh, x):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
+def _along_edge(qa, qb, ax) -> bool:
+    """Segment qa-qb (shape frame) within ALONG_EDGE of parallel to a box edge along axis ``ax``."""
+    e2 = 0.0
+    for j in range(3):
+        e2 += (qb[j] - qa[j]) ** 2
+    return (qb[ax] - qa[ax]) ** 2 > e2 * (1.0 - ALONG_EDGE ** 2)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _row_near(c, first, i, s, ds) -> bool:
+    """A row (from row ``first`` on) on segment i (nodes i, i + 1) within ds of its parameter s [-]."""
+    for k in range(first, c.count[0]):
+        if c.node[k, 0] == i and c.node[k, 1] == i + 1 and abs(c.weight[k, 1] - s) < ds:
+            return True
+    return False
+
+
+@njit(cache=True, error_model="numpy", inline="always")
 def _edge_point(qn, P, A, hl, out_c, out_n):
     """Node qn against the capped line P + t A (|t| <= hl) (shape frame): its closest point to the node in out_c, the
     unit normal from it to the node in out_n; returns the distance [m] (out_c[3]; 1e300 on the line)."""
@@ -2578,6 +2597,7 @@ def detect(x, v, mass, sh, c, bd, st, h, k_per_mass, zeta, self_mu, h_body, h_do
         if _out_of_reach(q, kind, size, radius + margin_s):
             continue  # the cable's bounding box misses the shape's: nothing of it can touch
         base = s * per_shape
+        first = c.count[0]  # this shape's first row
         for i in range(n):
             d = _node_closest(kind, size, q[i], cl, nl)
             if d - radius < margin_s:
@@ -2638,6 +2658,8 @@ def detect(x, v, mass, sh, c, bd, st, h, k_per_mass, zeta, self_mu, h_body, h_do
                         # outside, the edge is the segment's nearest feature only where the direction from it lies
                         # between its two faces' normals; elsewhere (beside a face) the face is, with its normal
                         beside = sp > 0.0 and not inside and (nl[o1] * P[o1] < 0.0 or nl[o2] * P[o2] < 0.0)
+                        if beside and not wraps_i and _along_edge(q[i], q[i + 1], ax):
+                            continue  # (its closest point to the edge lies anywhere along it: the nodes carry it)
                         if (inside or beside) and not wraps_i:
                             # the direction from the edge to the segment's point then points into the box, and
                             # the distance is no depth: left so, the penalty pulled the segment through the edge,
@@ -2660,6 +2682,11 @@ def detect(x, v, mass, sh, c, bd, st, h, k_per_mass, zeta, self_mu, h_body, h_do
                                 continue
                             if beside and (reach - radius >= margin_s
                                            or nl[o1] * P[o1] < 0.0 or nl[o2] * P[o2] < 0.0):
+                                continue
+                            # the face's contact there is already a row (an edge the segment crosses, found first)
+                            if beside and _row_near(c, first, i, sp, radius / math.sqrt(
+                                    (q[i + 1, 0] - q[i, 0]) ** 2 + (q[i + 1, 1] - q[i, 1]) ** 2
+                                    + (q[i + 1, 2] - q[i, 2]) ** 2)):
                                 continue
                         # a wrap is kept while the path wraps, even with the chord deep in the box
                         if sp > 0.0 and (cl[3] - radius < margin_s or wrapped or cuts):
