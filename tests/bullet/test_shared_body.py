@@ -105,7 +105,7 @@ def test_a_10_kg_box_across_two_cables_near_its_edges_comes_to_rest_at_60_hz(n):
 
 
 def test_a_segment_meets_a_box_face_once_where_it_crosses_its_edge():
-    """A box resting across a cable on the table (the scene above, one cable 5 mm inside the box's side face): each
+    """The 10 kg box resting across the two cables of the test above (each 5 mm inside the box's side faces): each
     step, no two of the box's rows on one segment lie within the cable radius of each other along it, and the rows
     are the same in every step of the last half second. Fails on 0ec665f: where a segment crossed a bottom edge the
     edge's row and a row of the bottom face found from the corner's vertical edge lay 0.03 mm apart, and rows found
