@@ -9,7 +9,11 @@ and a picture of each scene (``contact_table.png``, ``contact_peg.png``) rendere
 ``bullet_dlo.render``.
 
 Scenes: ``table``: the Lv cable lying on the ground (every node in contact); ``resting``: the same with a
-30 g box (4 x 4 x 2 cm, dynamic) resting across it (its twin: the box on the ground, the cable in the air); ``peg``: a soft
+30 g box (4 x 4 x 2 cm, dynamic) resting across it (its twin: the same cable in the air, with no box: until
+2026-12-05 the twin had the box on the ground, whose held load the cable's step then measured every step at about
+190 us, which made the ratio look below 1; ``resting-far``: the cable on the ground with that box on the ground 30 cm
+away, its twin the same cable on the ground with no box: what a free body that never touches the cable costs);
+``peg``: a soft
 cable (0.6 m, E 2 MPa) over a fixed 20 mm cylinder, both sides hanging with 50 g weights; ``box``
 and ``hull``: the Lv cable lying on a 0.4 x 0.2 x 0.1 m block, a Bullet box (exact geometry) or the
 same block as a convex hull mesh (the project's exact hull geometry since 2026-12-01); ``duck``: the Lv cable
@@ -27,7 +31,7 @@ checks, the planned contact steps), the rest (Bullet's step, the forces to Bulle
 Python), and the stall guard's copies per contact step (its save of what the step reads and writes, timed in a
 compiled loop).
 
-Usage: ``python demos/contact_cost.py [--out DIR] [--masses 20 80] [--scenes table peg box hull duck resting]
+Usage: ``python demos/contact_cost.py [--out DIR] [--masses 20 80] [--scenes table peg box hull duck resting resting-far]
 [--repeats 5] [--block 200] [--split] [--plain] [--quick]``
 (``--out`` defaults to ``out/contact_cost``; ``--out demos/gallery`` renews the committed pictures)
 (``--quick``: n = 20, one block of 20 steps, no pictures; for smoke tests).
@@ -59,7 +63,7 @@ HZ = 240.0
 Q_AXIS_Y = (math.sin(math.pi / 4), 0.0, 0.0, math.cos(math.pi / 4))
 R_PEG = 0.02
 COLORS = {"table": "#c46a2b", "peg": "#3b6ea5", "box": "#6a9a3b", "hull": "#8a4fa0", "duck": "#b8a030",
-          "resting": "#a03b4f"}
+          "resting": "#a03b4f", "resting-far": "#d08090"}
 RESTING_HALF = (0.02, 0.02, 0.01)  # [m] the resting box: 4 cm square across the cable, 2 cm tall (30 g)
 
 
@@ -121,9 +125,16 @@ def scene(kind: str, n: int, contact: bool, renderer: str | None = None):
         if contact:
             cable = world.add_cable(spec, start=(-0.15, 0, r), direction=(1, 0, 0))
             world.add_box(RESTING_HALF, (0.0, 0.0, 2 * r + RESTING_HALF[2]), mass=0.03, friction=0.5)
-        else:  # the same box resting on the ground, the cable in the air
+        else:  # the same cable in the air, no box
             cable = world.add_cable(spec, start=(-0.15, 0, 0.5), direction=(1, 0, 0), ends=("clamped", "clamped"))
-            world.add_box(RESTING_HALF, (0.0, 0.0, RESTING_HALF[2]), mass=0.03, friction=0.5)
+        return world, cable
+    if kind == "resting-far":
+        spec = CableSpec.lv2017(n_masses=n, damping=0.02)
+        world = BulletWorld(dt=1 / HZ, renderer=renderer)
+        r = spec.diameter / 2
+        cable = world.add_cable(spec, start=(-0.15, 0, r), direction=(1, 0, 0))
+        if contact:  # (its twin: the same cable on the ground, no box)
+            world.add_box(RESTING_HALF, (0.0, 0.3, RESTING_HALF[2]), mass=0.03, friction=0.5)
         return world, cable
     if kind == "table":
         spec = CableSpec.lv2017(n_masses=n, damping=0.02)
@@ -273,7 +284,7 @@ def main() -> None:
                     help="output folder (default out/contact_cost; --out demos/gallery renews the committed pictures)")
     ap.add_argument("--masses", type=int, nargs="+", default=[20, 80])
     ap.add_argument("--scenes", nargs="+", default=["table", "peg", "box", "hull", "duck", "resting"],
-                    choices=["table", "peg", "box", "hull", "duck", "resting"])
+                    choices=["table", "peg", "box", "hull", "duck", "resting", "resting-far"])
     ap.add_argument("--repeats", type=int, default=5)
     ap.add_argument("--block", type=int, default=200, help="steps per timed block")
     ap.add_argument("--split", action="store_true", help="also the contact step's parts (see the module doc)")

@@ -105,7 +105,7 @@ RELAX = 0.5  # share of the newly measured load taken each step (1: the last ste
 HOLD_RATE = 100.0  # a holder lets go of HOLD_RATE M v_n / dt of its load as the body leaves it at v_n [m/s]
 
 
-def measure(cs, dt: float, stepped: bool, supported, support: dict, others_applied: dict) -> list[int]:
+def measure(cs, dt: float, stepped: bool, supported, support: dict, others_applied: dict, near=None) -> list[int]:
     """The slots of the free bodies of the contact set ``cs`` (:class:`~bullet_dlo.bullet.contact.ContactSet`) that
     something besides this cable holds (``supported``: bodies with a Bullet contact in the last step; the bodies a
     user constraint holds; not the bodies another cable shares that keep the condensed contact), with, in
@@ -115,7 +115,10 @@ def measure(cs, dt: float, stepped: bool, supported, support: dict, others_appli
     After a re-plan (``stepped`` False) the last step's. ``support`` {body: Bullet's contact points on it in the last
     step} (:attr:`BulletWorld.support_points <bullet_dlo.bullet.world.BulletWorld.support_points>`): their normal
     forces, ``cs.support_load``, are taken whole, and only the rest of the load (friction, constraints, ...) is
-    relaxed; the step changes them with the body's motion (:func:`hold_points`)."""
+    relaxed; the step changes them with the body's motion (:func:`hold_points`). ``near`` (S,) bool: the bodies that
+    may come within the cable's reach in the coming step (:meth:`ContactSet._near_free_bodies
+    <bullet_dlo.bullet.contact.ContactSet._near_free_bodies>`); only their loads are measured (None: every body's).
+    Every body's velocity is kept, so a body coming near takes its whole load as measured over the last step."""
     sh, rows = cs.shapes, cs._slot_row
     if cs._spared and stepped:  # Bullet moved a spared body (spare_thrown) where the plan did not: as an impact, the
         for body in cs._spared:  # penetration that made is let out without the penalty's energy (Store.sink)
@@ -132,7 +135,7 @@ def measure(cs, dt: float, stepped: bool, supported, support: dict, others_appli
     before = cs._measured  # held in the last step too: its load there is the one to relax from
     measured = []
     for o, body in enumerate(cs.free_bodies):
-        if body not in want:
+        if body not in want or (near is not None and not near[o]):
             continue
         s = int(rows[o])
         m = 1.0 / sh.inv_mass[s]
