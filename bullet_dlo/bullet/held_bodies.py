@@ -418,7 +418,7 @@ def couple(cs, others: dict[int, list[tuple]], dt: float) -> None:
     count = int(cs.contacts.count[0])
     for b in cs._split:
         o = cs._slot_of[b]
-        parts = others.get(b, ())
+        parts = [p for p in others.get(b, ()) if p[0].any() or p[1].any()]  # (a cable whose rows carry nothing: none)
         if not bd.active[o] or not parts:
             continue
         mb = mass_matrix(float(bd.mass[o]), bd.inertia[o])  # the step's: a held body's apparent one (hold)
@@ -460,11 +460,18 @@ def unsettled(shares: dict[int, dict[str, Share]], step: int, dt: float) -> tupl
     away from where all the cables' reactions together take it in the Bullet step of dt [s] (at its radius of
     gyration for the turn), and those velocities, {body: delta*}: their plans assumed the others' reactions of the
     step before, or none (the first step in contact). Planned again with the others' reactions of this step (block
-    Gauss-Seidel), they agree."""
+    Gauss-Seidel), they agree. A plan whose rows carry nothing (no reaction, no load mass) does not count: where it
+    leaves one plan that took no other cable's reaction, that plan's velocity is the body's."""
     out, targets = set(), {}
     for body, parts in shares.items():
         now = _settled(parts, step)
         if now is None:
+            continue
+        loaded = [p for p in now if p.impulse.any() or p.load_mass.any()]
+        if len(loaded) <= 1 and not any(p.coupled for p in loaded):
+            # the others' rows carry nothing (within reach, not touching): the loaded plan stands as made (it has the
+            # body's holders and apparent mass, which _together leaves out), and with none loaded nothing is handed
+            targets[body] = (loaded or now)[0].vel.copy()
             continue
         target = targets[body] = _together(now, dt)
         cs, o = now[0].cs, now[0].slot
