@@ -9,8 +9,12 @@ Printed per case: ``rest`` when the box last moved faster than 1e-4 m/s [s], ``c
 last second [m/s], ``kick`` its largest speed after the first second [m/s] and when, ``support`` (cables' and table's
 push on the box) / its weight at the end, and the cables' status.
 
-Usage: python demos/leaning_on_two_cables.py [--hz 60 240] [--mass 0.003 0.03 0.3 3] [--friction 0.5 2]
-[--second 0.015] [--seconds 5]
+``--scene crossing``: the same box dropped onto two cables crossing at right angles (the second over the first), 10
+mm off the crossing along both, so that it tips an edge onto the table and ends on the table and the cables
+(``--second`` unused).
+
+Usage: python demos/leaning_on_two_cables.py [--scene lean] [--hz 60 240] [--mass 0.003 0.03 0.3 3]
+[--friction 0.5 2] [--second 0.015] [--seconds 5]
 """
 from __future__ import annotations
 
@@ -26,18 +30,24 @@ G = 9.81
 HALF = (0.02, 0.02, 0.01)  # [m] the box
 
 
-def lean(hz: float, mass: float, friction: float, second: float, seconds: float) -> dict:
+def lean(hz: float, mass: float, friction: float, second: float, seconds: float, scene: str = "lean") -> dict:
     """Run one case; the box's speeds [m/s] after each step, and the supports at the end over its weight."""
     spec = CableSpec.lv2017(n_masses=15, damping=0.02)
     r = spec.diameter / 2
     with BulletWorld(dt=1.0 / hz, ground=False) as world:
         cid = world.client
         table = world.add_box((0.3, 0.3, 0.05), (0.0, 0.0, -0.05), friction=friction, name="table")
-        cables = [world.add_cable(spec, start=(x, -0.15, r), direction=(0, 1, 0), name=f"c{k}")
-                  for k, x in enumerate((0.005, second))]
+        if scene == "crossing":
+            cables = [world.add_cable(spec, start=(-0.15, 0.0, r), direction=(1, 0, 0), name="c0"),
+                      world.add_cable(spec, start=(0.0, -0.15, 3 * r + 5e-4), direction=(0, 1, 0), name="c1")]
+            at = (0.01, 0.01)
+        else:
+            cables = [world.add_cable(spec, start=(x, -0.15, r), direction=(0, 1, 0), name=f"c{k}")
+                      for k, x in enumerate((0.005, second))]
+            at = (0.0, 0.0)
         world.run(0.5)
         top = max(float(c.x[:, 2].max()) for c in cables)
-        box = world.add_box(HALF, (0.0, 0.0, top + r + 0.014), mass=mass, friction=friction)
+        box = world.add_box(HALF, (*at, top + r + 0.014), mass=mass, friction=friction)
         speeds = []
         for _ in range(world.steps_in(seconds)):
             world.step()
@@ -57,11 +67,13 @@ def main() -> None:
                     help="the table's and the box's friction coefficient (Bullet combines them as a product)")
     ap.add_argument("--second", type=float, default=0.015, help="[m] the second cable's offset from the middle")
     ap.add_argument("--seconds", type=float, default=5.0, help="[s] simulated after the drop")
+    ap.add_argument("--scene", choices=("lean", "crossing"), default="lean",
+                    help="lean: two parallel cables, the box leaning on the first; crossing: two crossing cables")
     args = ap.parse_args()
     for hz in args.hz:
         for mass in args.mass:
             for friction in args.friction:
-                out = lean(hz, mass, friction, args.second, args.seconds)
+                out = lean(hz, mass, friction, args.second, args.seconds, args.scene)
                 sp, n1 = out["speeds"], int(round(hz))
                 moving = np.flatnonzero(sp > 1e-4)
                 rest = (moving[-1] + 1) / hz if moving.size else 0.0
