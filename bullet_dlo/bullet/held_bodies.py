@@ -516,8 +516,8 @@ def unsettled(shares: dict[int, dict[str, Share]], step: int, dt: float) -> tupl
             continue
         loaded = [p for p in now if p.impulse.any() or p.load_mass.any()]
         if len(loaded) <= 1 and not any(p.coupled for p in loaded):
-            # the others' rows carry nothing (within reach, not touching): the loaded plan stands as made (it has the
-            # body's holders and apparent mass, which _together leaves out), and with none loaded nothing is handed
+            # the others' rows carry nothing (within reach, not touching): the loaded plan stands as made (to the bit;
+            # _together would give it to round-off), and with none loaded nothing is handed
             targets[body] = (loaded or now)[0].vel.copy()
             continue
         target = targets[body] = _together(now, dt)
