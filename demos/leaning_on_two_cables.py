@@ -30,24 +30,31 @@ G = 9.81
 HALF = (0.02, 0.02, 0.01)  # [m] the box
 
 
-def lean(hz: float, mass: float, friction: float, second: float, seconds: float, scene: str = "lean") -> dict:
-    """Run one case; the box's speeds [m/s] after each step, and the supports at the end over its weight."""
+def build(world: BulletWorld, mass: float, friction: float, scene: str = "lean", second: float = 0.015):
+    """The scene in ``world`` (no ground of its own): the table, the two cables (Lv, 15 masses) settled 0.5 s, and the
+    box 4 mm above them. Returns (table, cables, box)."""
     spec = CableSpec.lv2017(n_masses=15, damping=0.02)
     r = spec.diameter / 2
+    table = world.add_box((0.3, 0.3, 0.05), (0.0, 0.0, -0.05), friction=friction, name="table")
+    if scene == "crossing":
+        cables = [world.add_cable(spec, start=(-0.15, 0.0, r), direction=(1, 0, 0), name="c0"),
+                  world.add_cable(spec, start=(0.0, -0.15, 3 * r + 5e-4), direction=(0, 1, 0), name="c1")]
+        at = (0.01, 0.01)
+    else:
+        cables = [world.add_cable(spec, start=(x, -0.15, r), direction=(0, 1, 0), name=f"c{k}")
+                  for k, x in enumerate((0.005, second))]
+        at = (0.0, 0.0)
+    world.run(0.5)
+    top = max(float(c.x[:, 2].max()) for c in cables)
+    box = world.add_box(HALF, (*at, top + r + 0.014), mass=mass, friction=friction)
+    return table, cables, box
+
+
+def lean(hz: float, mass: float, friction: float, second: float, seconds: float, scene: str = "lean") -> dict:
+    """Run one case; the box's speeds [m/s] after each step, and the supports at the end over its weight."""
     with BulletWorld(dt=1.0 / hz, ground=False) as world:
         cid = world.client
-        table = world.add_box((0.3, 0.3, 0.05), (0.0, 0.0, -0.05), friction=friction, name="table")
-        if scene == "crossing":
-            cables = [world.add_cable(spec, start=(-0.15, 0.0, r), direction=(1, 0, 0), name="c0"),
-                      world.add_cable(spec, start=(0.0, -0.15, 3 * r + 5e-4), direction=(0, 1, 0), name="c1")]
-            at = (0.01, 0.01)
-        else:
-            cables = [world.add_cable(spec, start=(x, -0.15, r), direction=(0, 1, 0), name=f"c{k}")
-                      for k, x in enumerate((0.005, second))]
-            at = (0.0, 0.0)
-        world.run(0.5)
-        top = max(float(c.x[:, 2].max()) for c in cables)
-        box = world.add_box(HALF, (*at, top + r + 0.014), mass=mass, friction=friction)
+        table, cables, box = build(world, mass, friction, scene, second)
         speeds = []
         for _ in range(world.steps_in(seconds)):
             world.step()

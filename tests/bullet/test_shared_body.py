@@ -25,6 +25,7 @@ from bullet_dlo.bullet import held_bodies
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "demos"))
 from box_on_two_cables import drop  # noqa: E402  (the demo's scene)
+from leaning_on_two_cables import build, lean  # noqa: E402  (the demo's scene)
 
 pytestmark = pytest.mark.bullet
 
@@ -184,24 +185,10 @@ def _tipped_across(hz: float, mass: float, scene: str) -> dict:
     middle, so that it leans on the table and the inner cable. After 2 s: its lowest gap to a cable over the run
     (negative: into it), centre height z, speed, and the cables' and the table's support over its weight."""
     from bullet_dlo.bullet.world import BulletWorld
-    from bullet_dlo.core.spec import CableSpec
 
-    spec = CableSpec.lv2017(n_masses=15, damping=0.02)
-    r = spec.diameter / 2
     with BulletWorld(dt=1.0 / hz, ground=False) as world:
         cid = world.client
-        table = world.add_box((0.3, 0.3, 0.05), (0.0, 0.0, -0.05), friction=0.5, name="table")
-        if scene == "crossing":
-            cables = [world.add_cable(spec, start=(-0.15, 0.0, r), direction=(1, 0, 0), name="c0"),
-                      world.add_cable(spec, start=(0.0, -0.15, 3 * r + 5e-4), direction=(0, 1, 0), name="c1")]
-            at = (0.01, 0.01)
-        else:
-            cables = [world.add_cable(spec, start=(x, -0.15, r), direction=(0, 1, 0), name=f"c{k}")
-                      for k, x in enumerate((0.005, 0.015))]
-            at = (0.0, 0.0)
-        world.run(0.5)
-        top = max(float(c.x[:, 2].max()) for c in cables)
-        box = world.add_box((0.02, 0.02, 0.01), (*at, top + r + 0.014), mass=mass, friction=0.5)
+        table, cables, box = build(world, mass, 0.5, scene)
         lowest = 0.0
         for _ in range(round(2.0 * hz)):
             world.step()
@@ -255,8 +242,6 @@ def test_a_cable_within_reach_that_carries_nothing_changes_nothing(hz, mass, fri
     cable out of reach, and rests with its weight carried. On ac3ebf8 the idle cable's zero share made the body's
     velocity one combined without the table's hold points, and the box's speed differed by 0.011-0.039 m/s from
     the run without it (3 g at 60 Hz, friction 2: kicked from rest to 0.058 m/s at 3.7 s)."""
-    from leaning_on_two_cables import lean
-
     idle, alone = lean(hz, mass, friction, 0.015, 2.0), lean(hz, mass, friction, 0.06, 2.0)
     assert not idle["stopped"], idle["stopped"]
     assert np.array_equal(idle["speeds"], alone["speeds"])
@@ -270,8 +255,6 @@ def test_the_cables_together_move_a_held_body_by_the_equation_of_their_plans(mon
     the shares is that plan's own velocity: the same body equation with the apparent mass and the table's hold points
     (median difference below 1e-9 m/s and rad/s over the steps; on ac3ebf8 its equation left both out: 0.9 mm/s
     and 0.14 rad/s in the median)."""
-    from leaning_on_two_cables import lean
-
     differences = []
     unsettled = held_bodies.unsettled
 
