@@ -39,7 +39,8 @@ from bullet_dlo.core.kernels.steppers import Workspace, make_workspace
 from bullet_dlo.core.kernels.twist import TwistState
 from bullet_dlo.core.model import CableControl, CableModel, CableState, KernelArrays
 
-STALL_RETRIES = 2  # a stalled contact step is taken again as 2, then 4 sub-steps (0: stop at a coast; -1: no guard)
+STALL_RETRIES = 4  # a coasting contact step is taken again as 2, 4, 8, then 16 sub-steps (a wild one as 2, then 4:
+# kernels.WILD_LEVELS); 0: stop at a coast; -1: no guard
 STALL_FAR = 0.1  # [-] far from convergence: momentum residual above this share of gravity's impulse in a step
 STALL_WILD = WILD_RATIO  # [-] wildly far: with a free body in the solve, taken again as sub-steps even when it moved
 # the momentum (and if the retry stays that far, the bodies get the reaction the cable felt: Bodies.felt_ratio)
