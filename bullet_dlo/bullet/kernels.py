@@ -152,9 +152,10 @@ def external_samples(ext, e, tau0, hs, samples, normal):
 FIRST_RATIO, FIRST_ITER, FINAL_RATIO, RETRY_SUBSTEPS, COASTED, FIRST_MOVED = range(6)
 COAST_MOVE = 1e-3  # [-] a far solve that moved no node's momentum by this share of gravity's impulse coasted
 # (implicit Euler's tolerance; far solves of a cable resting on a table edge moved at least 0.011)
-WILD_LEVELS = 2  # a solve taken again for ending wildly far (it moved the momentum) gets 2, then 4 sub-steps at most:
-# 8 and 16 let a duck thrown at the cable at 60 Hz 0.19 mm into it (tests/bullet/test_contact_compound.py); a coast,
-# which would stop the run, gets all of StallGuard.levels (a 1 g box rolling off the cable at 1 kHz needs 8 or 16)
+WILD_LEVELS = 2  # a solve taken again for ending wildly far (it moved the momentum) is kept from 2 or 4 sub-steps
+# (8 and 16 let a duck thrown at the cable at 60 Hz 0.19 mm into it, tests/bullet/test_contact_compound.py) unless
+# they coast; a coast, which would stop the run, goes on to all of StallGuard.levels (a 1 g box rolling off the cable
+# at 1 kHz needs 8 or 16)
 
 
 class StallGuard(NamedTuple):
@@ -162,7 +163,7 @@ class StallGuard(NamedTuple):
 
     levels: retries at most, with 2, 4, ..., 2**levels sub-steps of the same integrator (0: none, a coast stops
     the run at once; -1: no guard, nothing stops the run, the behaviour before it, with ``info`` still written); a
-    wild solve that moved the momentum gets at most :data:`WILD_LEVELS` of them;
+    wild solve that moved the momentum is kept from at most :data:`WILD_LEVELS` of them unless their sub-steps coast;
     far [-]: a solve ends far from
     convergence when its largest momentum residual exceeds ``far`` times the scale newton's tolerance
     multiplies (gravity's and the external forces' impulse on the heaviest node in a step, plus the step's
@@ -316,9 +317,9 @@ def _guarded_contact_step(stepper, m, plan, ext, cp, ws, t, k, prev, contacts, b
         return its, ok, max(ratio, body), coast
     hs = stepper.h
     worst = max(ratio, body)
-    levels = guard.levels if coast else min(guard.levels, WILD_LEVELS)
-    for level in range(1, levels + 1):
-        last = level == levels
+    top = guard.levels if coast else min(guard.levels, WILD_LEVELS)  # the attempt kept however it ends
+    for level in range(1, guard.levels + 1):
+        last = level >= top
         sub = 2 ** level
         hsub = hs / sub
         sstep = Stepper(stepper.method, hsub, stepper.max_iter, stepper.tol, stepper.definite,
@@ -347,6 +348,9 @@ def _guarded_contact_step(stepper, m, plan, ext, cp, ws, t, k, prev, contacts, b
                 if worst > guard.far and not last:
                     break  # this attempt failed: on to the next
         contacts.impact[0] = impact
+        if coast and worst > guard.far and last and level < guard.levels:
+            top = guard.levels  # kept, a coast would stop the run (a wild first attempt's sub-steps may coast): on as
+            continue  # for a coast (kept at 8 sub-steps far, such a retry handed a 1 g box energy: the run stopped)
         if worst <= guard.far or last:
             info[RETRY_SUBSTEPS] = sub
             # the rows report the step's mean force, as the cable's momentum change over the step felt it (the last
