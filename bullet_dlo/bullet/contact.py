@@ -1075,6 +1075,7 @@ class ContactSet:
         count = self._detect(*args)
         if self.free_bodies:
             self.bodies.hold_count[:] = 0
+            self.bodies.held_dv[:] = 0.0
             if self._coupled:
                 self.bodies.other_mass[:] = 0.0
                 self._coupled = False

@@ -193,11 +193,13 @@ def hold(cs, measured: list[int], dt: float, mass: np.ndarray) -> None:
         scale = 1.0 + CARRY_FACTOR * carried / m  # the apparent mass over the true one
         bd.mass[o] = scale * m
         bd.inertia[o] *= scale
-        bd.vel[o, :3] += dt * ((m * g + held) / (scale * m) - g)
+        # (kept apart in held_dv too: sub-steps of the Bullet step each take their share, bullet.kernels.spread_held)
+        bd.held_dv[o, :3] = dt * ((m * g + held) / (scale * m) - g)
         try:
-            bd.vel[o, 3:] += dt * np.linalg.solve(bd.inertia[o], cs.held_load[o, 3:])
+            bd.held_dv[o, 3:] = dt * np.linalg.solve(bd.inertia[o], cs.held_load[o, 3:])
         except np.linalg.LinAlgError:  # a point or flat body's inertia: no turn where it has none
-            bd.vel[o, 3:] += dt * (np.linalg.pinv(bd.inertia[o]) @ cs.held_load[o, 3:])
+            bd.held_dv[o, 3:] = dt * (np.linalg.pinv(bd.inertia[o]) @ cs.held_load[o, 3:])
+        bd.vel[o] += bd.held_dv[o]
         soften_friction(c, bd, o, count, m, dt)
         hold_points(cs, o, dt)
 
@@ -425,6 +427,7 @@ def couple(cs, others: dict[int, list[tuple]], dt: float) -> None:
         e = sum(p[1] for p in parts)
         rhs = mb @ bd.vel[o] + sum(p[0] + p[1] @ p[2] for p in parts)
         bd.vel[o] = np.linalg.solve(mb + e, rhs)
+        bd.held_dv[o] = np.linalg.solve(mb + e, mb @ bd.held_dv[o])  # (the held load's part of it, as above)
         bd.other_mass[o] = e
         if o not in cs._measured:  # (hold softened a held body's already)
             soften_friction(cs.contacts, bd, o, count, float(bd.mass[o]), dt)

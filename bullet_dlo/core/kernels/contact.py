@@ -137,6 +137,9 @@ class Bodies(NamedTuple):
     it go by hold_c v_n while the body's point leaves the holder at v_n (relative to the holder's), down to nothing
     (:func:`_holder_change`): a body the step lifts off its holder loses that support in the same step, as in
     Bullet. Pressing into it adds nothing (the measured load and the apparent mass of bullet/held_bodies.py hold it).
+    held_dv (S, 6) [m/s, rad/s]: the part of ``vel`` that the held load gives over the Bullet step
+    (bullet/held_bodies.py folds it in, as one step's impulse): cable sub-steps and a retry's sub-steps
+    (bullet/kernels.py, :func:`~bullet_dlo.bullet.kernels.spread_held`) give each of their steps its share.
 
     A body other cables touch too (bullet/held_bodies.py, "Bodies on several cables"): other_mass (S, 6, 6) [kg, kg m,
     kg m^2], the other cables' load_mass summed, is in the body's mass matrix, (M_b + other_mass) (delta - delta_0):
@@ -176,6 +179,7 @@ class Bodies(NamedTuple):
     hold_c: np.ndarray
     other_mass: np.ndarray
     load_mass: np.ndarray
+    held_dv: np.ndarray
 
 
 HOLD_POINTS = 8  # Bullet's contact points kept per held body (a manifold holds up to 4 per pair of links)
@@ -193,7 +197,8 @@ def make_bodies(n: int, capacity: int, slots: int) -> Bodies:
                   arm=f((m, 3)), point0=f((m, 3)), anchor0=f((m, 3)), impulse=f((s, 6)),
                   felt_ratio=np.full(1, WILD_RATIO), hold_count=np.zeros(s, np.int64),
                   hold_arm=f((s, HOLD_POINTS, 3)), hold_normal=f((s, HOLD_POINTS, 3)), hold_load=f((s, HOLD_POINTS)),
-                  hold_vel=f((s, HOLD_POINTS)), hold_c=f(s), other_mass=f((s, 6, 6)), load_mass=f((s, 6, 6)))
+                  hold_vel=f((s, HOLD_POINTS)), hold_c=f(s), other_mass=f((s, 6, 6)), load_mass=f((s, 6, 6)),
+                  held_dv=f((s, 6)))
 
 
 class Contacts(NamedTuple):
