@@ -1809,16 +1809,8 @@ def _near_bodies(x, v, dt, com, lin_vel, slot_row, bound, near):
     """near (S,) <- whether free body s (its centre of mass com[slot_row[s]] [m], velocity lin_vel[slot_row[s]]
     [m/s], Shapes rows) lies within bound[s] [m] plus the distance both can move in 2 dt [s] of the box of the nodes x
     [m] (n, 3) moving at v [m/s]; returns whether any does."""
-    vmax = 0.0
-    for i in range(v.shape[0]):
-        for j in range(3):
-            vmax = max(vmax, abs(v[i, j]))
     lo, hi = np.empty(3), np.empty(3)
-    for j in range(3):
-        lo[j], hi[j] = x[0, j], x[0, j]
-        for i in range(1, x.shape[0]):
-            lo[j] = min(lo[j], x[i, j])
-            hi[j] = max(hi[j], x[i, j])
+    vmax = _nodes_box(x, v, lo, hi)
     anyone = False
     for s in range(near.shape[0]):
         r = slot_row[s]
@@ -1837,19 +1829,34 @@ def _near_bodies(x, v, dt, com, lin_vel, slot_row, bound, near):
 def _reach_box(x, v, radius, h, out):
     """The contact margin [m] of positions x (n, 3) [m] moving at v [m/s] over a step of h [s], as in
     :func:`detect`, and the nodes' bounding box grown by the reach (radius + margin) into ``out`` (2, 3)."""
+    vmax = _nodes_box(x, v, out[0], out[1])
+    margin = radius + 2.0 * vmax * h + 1e-3
+    for j in range(3):
+        out[0, j] = out[0, j] - radius - margin
+        out[1, j] = out[1, j] + radius + margin
+    return margin
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _nodes_box(x, v, lo, hi):
+    """The nodes' bounding box: lo, hi (3,) [m] <- the smallest and largest coordinates of x (n, 3) [m]; returns the
+    largest speed component |v[i, j]| [m/s] of v (n, 3) (:func:`_largest_speed`)."""
+    for j in range(3):
+        lo[j], hi[j] = x[0, j], x[0, j]
+        for i in range(1, x.shape[0]):
+            lo[j] = min(lo[j], x[i, j])
+            hi[j] = max(hi[j], x[i, j])
+    return _largest_speed(v)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _largest_speed(v):
+    """The largest speed component |v[i, j]| [m/s] of v (n, 3): the cable's part of the contact margin."""
     vmax = 0.0
     for i in range(v.shape[0]):
         for j in range(3):
             vmax = max(vmax, abs(v[i, j]))
-    margin = radius + 2.0 * vmax * h + 1e-3
-    for j in range(3):
-        lo, hi = x[0, j], x[0, j]
-        for i in range(1, x.shape[0]):
-            lo = min(lo, x[i, j])
-            hi = max(hi, x[i, j])
-        out[0, j] = lo - radius - margin
-        out[1, j] = hi + radius + margin
-    return margin
+    return vmax
 
 
 @njit(cache=True, error_model="numpy")
@@ -2518,10 +2525,7 @@ def detect(x, v, mass, sh, c, bd, st, h, k_per_mass, zeta, self_mu, h_body, h_do
     stiffness [N/m] and rest length [m]) and ``seg_b`` (the nodes' bending constants [N m/rad^2]) are given; a segment near two edges keeps capsule contacts with
     both (one wrap per segment); ``seg_held`` (n,) bool, when given, keeps segments next to a held node from
     wrapping."""
-    vmax = 0.0
-    for i in range(v.shape[0]):
-        for j in range(3):
-            vmax = max(vmax, abs(v[i, j]))
+    vmax = _largest_speed(v)
     margin = c.reach[0] + 2.0 * vmax * h + 1e-3  # (reach: a flat section's half diagonal, else the radius)
     previous = st.keys[:c.count[0]].copy()  # the keys in contact last step (their rows get overwritten)
     had_wrap = np.zeros(sh.kind.shape[0], np.bool_)  # shapes with a wrapped segment last step
@@ -2882,10 +2886,7 @@ def quiet(x, v, h, sh, hu, radius, self_mu, h_body):
     culled) and, unless self_mu[0] < 0, no pair of segments within the margin (:func:`_self_touches`). With no
     contact in the last step, no probed answer, no other cable and no free body, such a detect() changes nothing but
     the count (0): the caller skips it (``ContactSet.update``)."""
-    vmax = 0.0
-    for i in range(v.shape[0]):
-        for j in range(3):
-            vmax = max(vmax, abs(v[i, j]))
+    vmax = _largest_speed(v)
     r = radius[0]
     margin = r + 2.0 * vmax * h + 1e-3
     n = x.shape[0]
