@@ -407,6 +407,12 @@ def shares_of(cs, step: int, v: np.ndarray) -> dict[int, Share]:
     return out
 
 
+def carries(impulse: np.ndarray, load_mass: np.ndarray) -> bool:
+    """Whether a cable's plan of a body loads it: a reaction (impulse (6,)) or a load mass (6, 6). A cable within reach
+    whose rows carry nothing neither moves the body nor joins its combination (:func:`couple`, :func:`unsettled`)."""
+    return bool(impulse.any() or load_mass.any())
+
+
 def couple(cs, others: dict[int, list[tuple]], dt: float) -> None:
     """Each body of ``cs._split`` (touched by other cables, nothing else holding it) into the coming step of dt [s]
     with its whole mass and the other cables' reactions, ``others`` {body: [(impulse, load_mass, ref)]}, each linear
@@ -420,7 +426,7 @@ def couple(cs, others: dict[int, list[tuple]], dt: float) -> None:
     count = int(cs.contacts.count[0])
     for b in cs._split:
         o = cs._slot_of[b]
-        parts = [p for p in others.get(b, ()) if p[0].any() or p[1].any()]  # (a cable whose rows carry nothing: none)
+        parts = [p for p in others.get(b, ()) if carries(p[0], p[1])]
         if not bd.active[o] or not parts:
             continue
         mb = mass_matrix(float(bd.mass[o]), bd.inertia[o])  # the step's: a held body's apparent one (hold)
@@ -517,7 +523,7 @@ def unsettled(shares: dict[int, dict[str, Share]], step: int, dt: float) -> tupl
         now = _settled(parts, step)
         if now is None:
             continue
-        loaded = [p for p in now if p.impulse.any() or p.load_mass.any()]
+        loaded = [p for p in now if carries(p.impulse, p.load_mass)]
         if len(loaded) <= 1 and not any(p.coupled for p in loaded):
             # the others' rows carry nothing (within reach, not touching): the loaded plan stands as made (to the bit;
             # _together would give it to round-off), and with none loaded nothing is handed
