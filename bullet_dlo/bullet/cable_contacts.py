@@ -112,6 +112,8 @@ class CableContacts:
                               section=flat_section(spec))
         if self.bullet_off:
             self.exclude_model_bodies()
+        if self.set.free_bodies:
+            cable.world.solve_free_bodies()
 
     def exclude(self, body: int, link: int | None = None, nodes=None, rebuild: bool = True) -> None:
         """Leave ``body`` (its link ``link``; None: every link) out of the cable's contact model: entirely

@@ -27,6 +27,18 @@ from bullet_dlo.core.validate import ParameterError, check_int, check_nonnegativ
 
 SPAWN_TOLERANCE = 1e-4  # [m] penetration allowed at spawn before it counts as an overlap
 PROGRESS_EVERY = 100  # steps between the progress reports of run_while_stable
+FREE_BODY_RESIDUAL = 1e-12
+"""Bullet's solver residual threshold [N^2 s^2] once a cable's contact model meets a free body (:meth:`BulletWorld.
+solve_free_bodies`). Bullet's constraint solver stops iterating when an iteration's squared impulse changes, summed
+over the world's constraints, fall below its ``solverResidualThreshold``; its default, 1e-7, is (3.2e-4 N s)^2, more
+than a light body's whole contact impulse a step (a 30 g box weighs 4.9e-3 N s a step at 60 Hz; a 1 g box 4.1e-5
+N s at 240 Hz), so on such a body the solver stops after an iteration or two. A 30 g box leaning on the cable and
+on one corner on the ground (n 25, 60 Hz) turned at 16 mrad/s for seconds with that corner sliding at 0.7 mm/s under
+a sixth of its friction limit: one Bullet step from rest under the cable's reaction alone gave it that turn, and
+with the threshold at 1e-12 or 0 none (2026-12-05, docs/concepts/contact.md, "Bullet's solver and light bodies").
+At 1e-12 every off-centre drop of the resting-bodies grid comes to rest; the scaled (1e-3 m g dt)^2 left a 3 kg
+box creeping at 240 Hz. The price is Bullet iterating to its iteration count where there are contacts: a resting
+box's bare step 8 -> 18 us at n 20; a world without free bodies keeps its threshold."""
 _WORLDS: "weakref.WeakValueDictionary[int, BulletWorld]" = weakref.WeakValueDictionary()  # client -> its world
 
 
@@ -60,6 +72,9 @@ class BulletWorld:
         ground: add a ground plane at ``ground_height`` [m].
         ground_friction: lateral friction of the ground.
         solver_iterations: Bullet constraint-solver iterations (None: Bullet's default).
+        solver_residual: Bullet's solver residual threshold [N^2 s^2] (``solverResidualThreshold``; None: Bullet's
+            default, 1e-7), lowered to :data:`FREE_BODY_RESIDUAL` once a cable meets a free body
+            (:meth:`solve_free_bodies`).
         renderer: set up an image renderer now (``auto``/``tiny``/``egl``, see
             :class:`bullet_dlo.bullet.renderer.Renderer`); None: no rendering. The EGL plugin only draws
             bodies created after it was loaded, so a world that will be filmed says so here.
@@ -67,7 +82,8 @@ class BulletWorld:
 
     def __init__(self, dt: float = 1.0 / 240.0, gravity: Sequence[float] = STANDARD_GRAVITY, *, gui: bool = False,
                  ground: bool = True, ground_height: float = 0.0, ground_friction: float = 0.5,
-                 solver_iterations: int | None = None, renderer: str | None = None):
+                 solver_iterations: int | None = None, solver_residual: float | None = None,
+                 renderer: str | None = None):
         self.dt = check_positive("dt", dt)
         self.gravity = check_vector3("gravity", gravity)
         self.ground_height = float(ground_height)
@@ -86,6 +102,10 @@ class BulletWorld:
             self.renderer = Renderer(self.client, renderer)
         if solver_iterations is not None:
             pb.setPhysicsEngineParameter(numSolverIterations=int(solver_iterations), physicsClientId=self.client)
+        self.solver_residual = 1e-7  # [N^2 s^2] Bullet's default
+        if solver_residual is not None:
+            self.solver_residual = check_positive("solver_residual", solver_residual)
+            pb.setPhysicsEngineParameter(solverResidualThreshold=self.solver_residual, physicsClientId=self.client)
         self.cables: dict[str, BulletCable] = {}
         self._owners: dict[int, tuple[str, int]] = {}  # sphere body id -> (cable name, mass index)
         # free bodies that a cable's step may not move by itself (contact.Bodies): those in a Bullet contact
@@ -237,6 +257,14 @@ class BulletWorld:
         self.bodies[body] = name
         self.bodies_added = self.bodies_added or mass > 0
         return body
+
+    def solve_free_bodies(self) -> None:
+        """Lower Bullet's solver residual threshold to :data:`FREE_BODY_RESIDUAL` (once; a lower one is kept): a
+        cable's contact model met a free body, which Bullet's step must move to the cable's precision (its default
+        threshold stops the solver after an iteration or two on a light body)."""
+        if self.solver_residual > FREE_BODY_RESIDUAL:
+            self.solver_residual = FREE_BODY_RESIDUAL
+            pb.setPhysicsEngineParameter(solverResidualThreshold=FREE_BODY_RESIDUAL, physicsClientId=self.client)
 
     def next_cable_group(self) -> int:
         """A collision-group bit of its own for a cable whose spheres never collide with each other (bits 2-14;

@@ -108,10 +108,10 @@ class DualArmPhysics:
         opts = spec.bullet
         self.world = BulletWorld(dt=spec.dt, gravity=spec.gravity, ground=opts.ground,
                                  ground_height=opts.ground_height, ground_friction=opts.ground_friction,
-                                 renderer=spec.renderer)
+                                 solver_residual=SOLVER_RESIDUAL, renderer=spec.renderer)
         # Bullet's solver stops at a residual of 1e-7 by default, which left the KUKA's wrist reaction
-        # 1.6 mN sideways at rest (0.5 % of a 30 g cable's weight); at 1e-9 it is 0.006 mN, same cost
-        pb.setPhysicsEngineParameter(solverResidualThreshold=SOLVER_RESIDUAL, physicsClientId=self.world.client)
+        # 1.6 mN sideways at rest (0.5 % of a 30 g cable's weight); at 1e-9 it is 0.006 mN, same cost (lower still
+        # once the cable meets a free body: BulletWorld.solve_free_bodies)
         try:
             self._add_table()
             add_obstacles(self.world, opts.obstacles)  # pegs, fixtures: the cable touches them
