@@ -88,6 +88,7 @@ class BulletWorld:
         self.gravity = check_vector3("gravity", gravity)
         self.ground_height = float(ground_height)
         ground_friction = check_nonnegative("ground_friction", ground_friction)
+        residual = None if solver_residual is None else check_positive("solver_residual", solver_residual)
         self.client = pb.connect(pb.GUI if gui else pb.DIRECT)
         if self.client < 0:
             raise ParameterError("could not connect to PyBullet (GUI mode needs a display; use gui=False)")
@@ -103,9 +104,9 @@ class BulletWorld:
         if solver_iterations is not None:
             pb.setPhysicsEngineParameter(numSolverIterations=int(solver_iterations), physicsClientId=self.client)
         self.solver_residual = 1e-7  # [N^2 s^2] Bullet's default
-        if solver_residual is not None:
-            self.solver_residual = check_positive("solver_residual", solver_residual)
-            pb.setPhysicsEngineParameter(solverResidualThreshold=self.solver_residual, physicsClientId=self.client)
+        if residual is not None:
+            self.solver_residual = residual
+            pb.setPhysicsEngineParameter(solverResidualThreshold=residual, physicsClientId=self.client)
         self.cables: dict[str, BulletCable] = {}
         self._owners: dict[int, tuple[str, int]] = {}  # sphere body id -> (cable name, mass index)
         # free bodies that a cable's step may not move by itself (contact.Bodies): those in a Bullet contact

@@ -110,6 +110,10 @@ def test_bad_input_gives_clear_errors():
         BulletWorld(dt=0.0)
     with pytest.raises(ParameterError, match="dt"):
         BulletWorld(dt=-1e-3)
+    with pytest.raises(ParameterError, match="solver_residual must be a finite number > 0"):
+        BulletWorld(dt=1e-3, solver_residual=-1e-9)
+    with pytest.raises(ParameterError, match="solver_residual"):
+        BulletWorld(dt=1e-3, solver_residual=float("nan"))
     with BulletWorld(dt=1e-3) as world:
         with pytest.raises(ParameterError, match="overlaps the ground at spawn"):
             world.add_cable(spec, start=(0.0, 0.0, 0.001))
