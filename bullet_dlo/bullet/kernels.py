@@ -397,6 +397,7 @@ def coupled_targets(stepper, m, plan, ext, cp, ws, t, has_prev, contacts, bodies
     cp.x_new[:, :] = cp.x
     cp.v_new[:, :] = cp.v
     bodies.impulse[:, :] = 0.0  # the reactions on the free bodies over this Bullet step (Bullet gets their mean)
+    bodies.travel[:, :] = 0.0  # and their planned displacement over it
     hs = stepper.h
     iters = 0
     ok_all = True

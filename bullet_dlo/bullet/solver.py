@@ -59,7 +59,7 @@ CONTACT_ROWS = ("point", "anchor", "state", "cap", "normal")  # by contact row (
 CONTACT_WHOLE = ("body_work", "impact")
 GRIP_WHOLE = ("active", "offset", "state")
 BODY_ROWS = ("arm",)
-BODY_WHOLE = ("vel", "impulse")
+BODY_WHOLE = ("vel", "impulse", "travel")
 
 
 def step_state(contacts: Contacts, bodies: Bodies) -> tuple[list, list]:

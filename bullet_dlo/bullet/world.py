@@ -582,8 +582,25 @@ class BulletWorld:
         return {b for cp in contacts if cp[1] not in owners and cp[2] not in owners for b in (cp[1], cp[2])}
 
     def step_physics(self) -> None:
-        """Phase 4 of :meth:`step`: Bullet's own step; the clock advances by ``dt``."""
+        """Phase 4 of :meth:`step`: Bullet's own step; the clock advances by ``dt``. A free body one cable's plan moved
+        over several sub-steps is then put where the plan took it (:meth:`BulletCable.land_free_bodies`)."""
+        landing = [(c, c.free_bodies_to_land()) for c in self.cables.values()] if self.cables else []
+        landing = [(c, bodies) for c, bodies in landing if bodies]
+        before = {}
+        if landing:
+            count: dict[int, int] = {}
+            for c in self.cables.values():
+                cs = c.contact.set
+                if cs is not None and cs.free_bodies:
+                    for o, body in enumerate(cs.free_bodies):
+                        count[body] = count.get(body, 0) + int(cs.bodies.active[o])
+            landing = [(c, [(o, b) for o, b in bodies if count[b] == 1]) for c, bodies in landing]
+            before = {b: pb.getBasePositionAndOrientation(b, physicsClientId=self.client)
+                      for _, bodies in landing for _, b in bodies}
         pb.stepSimulation(self.client)
+        for c, bodies in landing:
+            if bodies:
+                c.land_free_bodies(bodies, before)
         self.time += self.dt
         self.steps += 1
 

@@ -140,6 +140,9 @@ class Bodies(NamedTuple):
     held_dv (S, 6) [m/s, rad/s]: the part of ``vel`` that the held load gives over the Bullet step
     (bullet/held_bodies.py folds it in, as one step's impulse): cable sub-steps and a retry's sub-steps
     (bullet/kernels.py, :func:`~bullet_dlo.bullet.kernels.spread_held`) give each of their steps its share.
+    travel (S, 6) [m, rad]: the body's planned displacement over the Bullet step, h times its solved velocity summed over
+    the (sub-)steps (its centre of mass, and a rotation vector): Bullet's update of the mean reaction lands the
+    velocity of the last sub-step, not this place (bullet/cable.py, :meth:`BulletCable.land_free_bodies`).
 
     A body other cables touch too (bullet/held_bodies.py, "Bodies on several cables"): other_mass (S, 6, 6) [kg, kg m,
     kg m^2], the other cables' load_mass summed, is in the body's mass matrix, (M_b + other_mass) (delta - delta_0):
@@ -180,6 +183,7 @@ class Bodies(NamedTuple):
     other_mass: np.ndarray
     load_mass: np.ndarray
     held_dv: np.ndarray
+    travel: np.ndarray
 
 
 HOLD_POINTS = 8  # Bullet's contact points kept per held body (a manifold holds up to 4 per pair of links)
@@ -198,7 +202,7 @@ def make_bodies(n: int, capacity: int, slots: int) -> Bodies:
                   felt_ratio=np.full(1, WILD_RATIO), hold_count=np.zeros(s, np.int64),
                   hold_arm=f((s, HOLD_POINTS, 3)), hold_normal=f((s, HOLD_POINTS, 3)), hold_load=f((s, HOLD_POINTS)),
                   hold_vel=f((s, HOLD_POINTS)), hold_c=f(s), other_mass=f((s, 6, 6)), load_mass=f((s, 6, 6)),
-                  held_dv=f((s, 6)))
+                  held_dv=f((s, 6)), travel=f((s, 6)))
 
 
 class Contacts(NamedTuple):
@@ -1676,8 +1680,8 @@ def body_stall_ratio(bd, hf):
 
 @njit(cache=True, error_model="numpy")
 def _end_bodies(c, bd, h):
-    """After the step of h [s]: the free bodies' solved velocity is their start for a next sub-step, and each
-    row's arm turns with the body (the points stay where the step left them)."""
+    """After the step of h [s]: the free bodies' solved velocity is their start for a next sub-step (and h times it
+    joins their travel), and each row's arm turns with the body (the points stay where the step left them)."""
     for k in range(c.count[0]):
         s = bd.slot[k]
         if s < 0:
@@ -1691,6 +1695,7 @@ def _end_bodies(c, bd, h):
         if bd.active[s]:
             for j in range(6):
                 bd.vel[s, j] = bd.vel_new[s, j]
+                bd.travel[s, j] += h * bd.vel_new[s, j]
 
 
 @njit(cache=True, error_model="numpy")
