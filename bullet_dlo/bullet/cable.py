@@ -512,9 +512,9 @@ class BulletCable:
             if any(cp[2] not in owners for cp in pb.getContactPoints(bodyA=body, physicsClientId=cid)):
                 continue
             pos, orn = before[body]
-            turn = travel[o, 3:]
+            turn = travel[o, 3:]  # (a rotation vector [rad], world frame)
             angle = float(np.linalg.norm(turn))
-            q = (0.0, 0.0, 0.0, 1.0) if angle == 0.0 else (*(math.sin(0.5 * angle) / angle * turn), math.cos(0.5 * angle))
+            q = pb.getQuaternionFromAxisAngle((turn / angle).tolist(), angle) if angle > 0.0 else (0.0, 0.0, 0.0, 1.0)
             _, orn_new = pb.multiplyTransforms((0.0, 0.0, 0.0), q, (0.0, 0.0, 0.0), orn)
             lin, ang = pb.getBaseVelocity(body, physicsClientId=cid)
             pb.resetBasePositionAndOrientation(body, (np.asarray(pos) + travel[o, :3]).tolist(), orn_new,
