@@ -498,19 +498,16 @@ class BulletCable:
         return [(o, body) for o, body in enumerate(cs.free_bodies) if active[o]]
 
     def land_free_bodies(self, bodies: list[tuple[int, int]], before: dict) -> None:
-        """After Bullet's step: put each free body of ``bodies`` (:meth:`free_bodies_to_land`) where the plan's
-        sub-steps took it, its pose ``before`` the step {body: (centre of mass [m], quaternion)} moved by the plan's
-        travel (``Bodies.travel``), its velocity left as Bullet's update made it (the plan's last sub-step's).
-        Bullet's update puts a body at x + dt U_k where the plan put it at x + h (U_1 + ... + U_k): a 30 g box
-        resting on a cable of two sub-steps at 60 Hz rose at 0.11 mm/s with the nodes under it, until the energy
-        check stopped the run (2026-12-05). Only bodies nothing else touched in Bullet's step (no contact point but
-        with the cables' spheres) and no other cable planned: there Bullet's own response is part of the motion."""
-        cs, cid = self.contact.set, self.world.client
-        owners = self.world._owners
-        travel = cs.bodies.travel
+        """After Bullet's step: put each free body of ``bodies`` (slot, body id; of :meth:`free_bodies_to_land`, those
+        nothing else touched: :meth:`BulletWorld.step_physics <bullet_dlo.bullet.world.BulletWorld.step_physics>`)
+        where the plan's sub-steps took it, its pose ``before`` the step {body: (centre of mass [m], quaternion)}
+        moved by the plan's travel (``Bodies.travel``), its velocity left as Bullet's update made it (the plan's last
+        sub-step's). Bullet's update puts a body at x + dt U_k where the plan put it at x + h (U_1 + ... + U_k): a 30 g
+        box resting on a cable of two sub-steps at 60 Hz rose at 0.11 mm/s with the nodes under it, until the energy
+        check stopped the run (2026-12-05)."""
+        cid = self.world.client
+        travel = self.contact.set.bodies.travel
         for o, body in bodies:
-            if any(cp[2] not in owners for cp in pb.getContactPoints(bodyA=body, physicsClientId=cid)):
-                continue
             pos, orn = before[body]
             turn = travel[o, 3:]  # (a rotation vector [rad], world frame)
             angle = float(np.linalg.norm(turn))

@@ -576,33 +576,32 @@ class BulletWorld:
 
     def _supported_in(self, contacts) -> set[int]:
         self._support_contacts, self._support_points = contacts, None
+        return self._in_bullet_contact(contacts)
+
+    def _in_bullet_contact(self, contacts) -> set[int]:
+        """The bodies of Bullet's ``contacts`` (``getContactPoints`` rows) in a contact not with a cable's sphere."""
         if not contacts:
             return set()
         owners = self._owners
         return {b for cp in contacts if cp[1] not in owners and cp[2] not in owners for b in (cp[1], cp[2])}
 
     def step_physics(self) -> None:
-        """Phase 4 of :meth:`step`: Bullet's own step; the clock advances by ``dt``. A free body one cable's plan moved
-        over several sub-steps is then put where the plan took it (:meth:`BulletCable.land_free_bodies`)."""
+        """Phase 4 of :meth:`step`: Bullet's own step; the clock advances by ``dt``. A free body that one cable's plan
+        moved over several sub-steps and nothing else touched in Bullet's step is then put where the plan took it
+        (:meth:`BulletCable.land_free_bodies`; a body several cables planned, :meth:`touched_by_model`, or one in a
+        Bullet contact, keeps Bullet's place: their motion is not one plan's)."""
         landing = [(c, c.free_bodies_to_land()) for c in self.cables.values()] if self.cables else []
-        landing = [(c, bodies) for c, bodies in landing if bodies]
-        before = {}
-        if landing:
-            count: dict[int, int] = {}
-            for c in self.cables.values():
-                cs = c.contact.set
-                if cs is not None and cs.free_bodies:
-                    for o, body in enumerate(cs.free_bodies):
-                        count[body] = count.get(body, 0) + int(cs.bodies.active[o])
-            landing = [(c, [(o, b) for o, b in bodies if count[b] == 1]) for c, bodies in landing]
-            before = {b: pb.getBasePositionAndOrientation(b, physicsClientId=self.client)
-                      for _, bodies in landing for _, b in bodies}
+        landing = [(c, [(o, b) for o, b in bodies if len(self._model_touches_now.get(b, ())) <= 1])
+                   for c, bodies in landing if bodies]
+        before = {b: pb.getBasePositionAndOrientation(b, physicsClientId=self.client)
+                  for _, bodies in landing for _, b in bodies}
         pb.stepSimulation(self.client)
-        for c, bodies in landing:
-            if bodies:
-                c.land_free_bodies(bodies, before)
         self.time += self.dt
         self.steps += 1
+        if before:
+            held = self._in_bullet_contact(self.contacts())  # (the step's one contact query, shared with phase 7)
+            for c, bodies in landing:
+                c.land_free_bodies([(o, b) for o, b in bodies if b not in held], before)
 
     def take_cable_steps(self) -> None:
         """Phase 7 of :meth:`step`: the spheres that touched something are read back (one contact query
