@@ -336,7 +336,7 @@ def _guarded_contact_step(stepper, m, plan, ext, cp, ws, t, k, prev, contacts, b
         sub = 2 ** level
         hsub = hs / sub
         sstep = Stepper(stepper.method, hsub, stepper.max_iter, stepper.tol, stepper.definite,
-                        stepper.exact_from)
+                        stepper.exact_from, stepper.reuse)
         cp.x_new[:, :] = guard.x0
         cp.v_new[:, :] = guard.v0
         _copy_rows(guard.rows, nc, not save)  # back (save is True here)

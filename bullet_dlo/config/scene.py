@@ -148,7 +148,7 @@ class Scene:
         det = section(data.get("detector"), "detector")
         only_keys(det, ("max_strain", "energy_factor", "check_every", "energy_every"), "detector")
         nwt = section(data.get("newton"), "newton")
-        only_keys(nwt, ("max_iter", "tol", "definite", "exact_from"), "newton")
+        only_keys(nwt, ("max_iter", "tol", "definite", "exact_from", "reuse_matrix"), "newton")
         bullet = BulletOptions.from_dict(data.get("bullet"))
         check_steps(dt, duration, bullet.substeps, duration_name="duration x bullet.substeps")
         arms = ArmsOptions.from_dict(data["arms"]) if data.get("arms") is not None else None

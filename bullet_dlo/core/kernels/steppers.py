@@ -47,8 +47,9 @@ RK4_C = (0.0, 0.5, 0.5, 1.0)
 class Stepper(NamedTuple):
     """How to take a step: method code (above), step h [s], and the Newton settings of the
     implicit methods: at most ``max_iter`` iterations, residual tolerance ``tol`` (relative, see
-    :class:`~bullet_dlo.core.integrators.NewtonOptions`), ``definite`` stiffness filter, and the iteration
-    ``exact_from`` from which the coupled twisting step takes its exact Jacobian."""
+    :class:`~bullet_dlo.core.integrators.NewtonOptions`), ``definite`` stiffness filter, the iteration
+    ``exact_from`` from which the coupled twisting step takes its exact Jacobian, and whether that step reuses
+    its factored Newton matrix within a step (``reuse``)."""
 
     method: int
     h: float
@@ -56,6 +57,7 @@ class Stepper(NamedTuple):
     tol: float
     definite: bool
     exact_from: int
+    reuse: bool
 
 
 class Workspace(NamedTuple):
@@ -70,7 +72,10 @@ class Workspace(NamedTuple):
     v_new, v_try [m/s]: Newton iterate of v' and the line-search trial, (n, 3);
     residual, residual_try [N s]: momentum residuals of both, (3n,);
     jacobian [N/m]: block-banded dF/dx, (n, 5, 3, 3); band: Newton matrix, (3n, 2*HALF+1);
-    x_prev [m], v_prev [m/s]: state before the last step (BDF2), (n, 3).
+    x_prev [m], v_prev [m/s]: state before the last step (BDF2), (n, 3);
+    tw_band, tw_lower, tw_upper: the coupled twisting step's Newton matrix (upper band, lower band by columns, the
+    exact matrix's extra upper entries) and, once eliminated, its factors, (4n, HALF_T + 1);
+    tw_matrices [-]: how many Newton matrices the coupled twisting step has built and factored, a running count, (1,).
     """
 
     force: np.ndarray
@@ -90,12 +95,21 @@ class Workspace(NamedTuple):
     band: np.ndarray
     x_prev: np.ndarray
     v_prev: np.ndarray
+    tw_band: np.ndarray
+    tw_lower: np.ndarray
+    tw_upper: np.ndarray
+    tw_matrices: np.ndarray
+
+
+HALF_T = 10
+"""Scalar half-bandwidth of the coupled twisting step's interleaved (x_i, theta_i) layout (twist_coupled)."""
 
 
 def make_workspace(n: int) -> Workspace:
     """Zeroed scratch arrays for an n-node cable."""
     shapes = {"kx": (4, n, 3), "kv": (4, n, 3), "residual": (3 * n,), "residual_try": (3 * n,),
-              "jacobian": (n, 5, 3, 3), "band": (3 * n, 2 * HALF + 1)}
+              "jacobian": (n, 5, 3, 3), "band": (3 * n, 2 * HALF + 1), "tw_band": (4 * n, HALF_T + 1),
+              "tw_lower": (4 * n, HALF_T + 1), "tw_upper": (4 * n, HALF_T + 1), "tw_matrices": (1,)}
     return Workspace(*(np.zeros(shapes.get(name, (n, 3))) for name in Workspace._fields))
 
 
