@@ -16,6 +16,8 @@ batches), the frameless step's kernels beside.
     python demos/twist_cost.py --parts --ns 80
     python demos/twist_cost.py --bullet --ns 10 20 40    # in a Bullet world: plain steps and Python's phases
     python demos/twist_cost.py --ns 80 --exact-from 1    # the exact Jacobian from the first Newton iteration
+    python demos/twist_cost.py --section rectangle       # a flat strip (4 d x d/2) against the round frameless cable
+    python demos/twist_cost.py --no-reuse                # a fresh Newton matrix every iteration (before 2026-12-06)
 """
 from __future__ import annotations
 
@@ -34,8 +36,12 @@ from bullet_dlo.core.model import CableModel
 from bullet_dlo.core.spec import CableSpec
 
 
-def model(n: int, twist: bool, duration: float) -> CableModel:
+def model(n: int, twist: bool, duration: float, section: str = "round") -> CableModel:
+    """The scene; a twisting ``section`` "rectangle" is 4 d wide and d/2 thick (d the round cable's diameter)."""
     spec = CableSpec.lv2017(n_masses=n, twist=twist, damping_rate=2.0)
+    if twist and section == "rectangle":
+        spec = CableSpec.lv2017(n_masses=n, damping_rate=2.0, section="rectangle", width=4 * spec.diameter,
+                                thickness=spec.diameter / 2)
     move = Move("last", displacement=(-0.05 * spec.length, 0.0, 0.0), rotation=(math.pi / 2, 0.0, 0.0),
                 duration=duration)
     return CableModel.straight(spec, ends=("clamped", "clamped"), motion=[move])
@@ -227,10 +233,15 @@ def main() -> None:
     parser.add_argument("--exact-from", type=int, default=None,
                         help="newton.exact_from: the Newton iteration from which the twisting step takes the exact "
                              "Jacobian (default: NewtonOptions')")
+    parser.add_argument("--no-reuse", action="store_true",
+                        help="newton.reuse_matrix False: the twisting step builds and factors its Newton matrix every "
+                             "iteration (as before 2026-12-06)")
+    parser.add_argument("--section", choices=("round", "rectangle"), default="round",
+                        help="the twisting cable's section: round (as the frameless one) or a rectangle 4 d x d/2")
     args = parser.parse_args()
     global NEWTON
-    if args.exact_from is not None:
-        NEWTON = NewtonOptions(exact_from=args.exact_from)
+    NEWTON = NewtonOptions(reuse_matrix=not args.no_reuse,
+                           **({} if args.exact_from is None else {"exact_from": args.exact_from}))
     if args.steps < 2:
         sys.exit(print(f"--steps must be >= 2 (got {args.steps})", file=sys.stderr) or 2)
     if args.bullet:
@@ -248,7 +259,7 @@ def main() -> None:
     print(f"{args.method}, dt {args.dt:g} s, {args.steps} steps per run, {args.repeats} interleaved repeats; "
           f"load average {os.getloadavg()[0]:.2f} {os.getloadavg()[1]:.2f} {os.getloadavg()[2]:.2f}")
     for n in args.ns:
-        models = {"frameless": model(n, False, duration), "twist": model(n, True, duration)}
+        models = {"frameless": model(n, False, duration), "twist": model(n, True, duration, args.section)}
         for m in models.values():  # compile and warm up
             step_cost(m, args.method, args.dt, 20)
         costs: dict[str, list[float]] = {k: [] for k in models}

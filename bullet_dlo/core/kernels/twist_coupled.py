@@ -55,6 +55,10 @@ Newton converges quadratically in the twist as in the positions (the frameless K
 dampers' position terms, left out of :func:`~bullet_dlo.core.kernels.forces.add_damping_jacobian`, aside). Newton iterates to the stepper's tolerance
 with the line search of :func:`~bullet_dlo.core.kernels.steppers.newton` on the incremental potential (kinetic and
 dissipative terms of the twist included), so the coupled step has the method's order (2 for BDF2 and implicit midpoint).
+By default (``NewtonOptions.reuse_matrix``) the step builds and factors one matrix and takes its factors again in the
+iterations after while each leaves at most :data:`CHORD_CONTRACTION` of the residual (chord iterations, as stiff ODE
+codes do; a fresh matrix where one does not), and BDF2 starts Newton from velocities extrapolated from the last two
+steps: the matrix and its elimination cost 1.5-2x a residual, so a step pays for one instead of 2.5-3.
 
 In contact (:func:`coupled_contact`, called by :func:`~bullet_dlo.core.kernels.contact.contact_step` when no free
 body is in the solve) the same system takes the contact and grip forces on the position rows, their stiffness on
@@ -184,7 +188,49 @@ def make_scratch(n: int) -> Scratch:
                    np.empty((6, max(n - 1, 0))), np.empty((12, n)), np.zeros(2, dtype=np.int64))
 
 
-_make_scratch = njit(cache=True)(make_scratch)  # the same, called from the compiled step
+@njit(cache=True)
+def _make_scratch(n):
+    """:func:`make_scratch` from the compiled step: its float arrays as views of one buffer (one allocation a step
+    instead of 16, about 0.5 us of a 19 us twisting step at n = 10)."""
+    ns = max(n - 1, 0)
+    buf = np.empty(3 + 3 + 9 + 9 + 1 + 11 + 24 + 36 + 11 + 8 * (n + 1) + 6 * n + 216 + 88 + 3 * n + 6 * ns + 12 * n)
+    o = 0
+    ga = buf[o:o + 3]
+    o += 3
+    gb = buf[o:o + 3]
+    o += 3
+    pa = buf[o:o + 9].reshape((3, 3))
+    o += 9
+    pb = buf[o:o + 9].reshape((3, 3))
+    o += 9
+    energy = buf[o:o + 1]
+    o += 1
+    gv = buf[o:o + 11]
+    o += 11
+    jrow = buf[o:o + 24].reshape((4, 6))
+    o += 24
+    hb = buf[o:o + 36].reshape((6, 6))
+    o += 36
+    cg = buf[o:o + 11]
+    o += 11
+    edges = buf[o:o + 8 * (n + 1)].reshape((8, n + 1))
+    o += 8 * (n + 1)
+    geo = buf[o:o + 6 * n].reshape((6, n))
+    o += 6 * n
+    xw = buf[o:o + 216].reshape((36, 6))
+    o += 216
+    zw = buf[o:o + 88].reshape((8, 11))
+    o += 88
+    xs = buf[o:o + 3 * n].reshape((3, n))
+    o += 3 * n
+    rt = buf[o:o + 6 * ns].reshape((6, ns))
+    o += 6 * ns
+    nd = buf[o:o + 12 * n].reshape((12, n))
+    energy[:] = 0.0
+    xw[:, :] = 0.0
+    zw[:, :] = 0.0
+    return Scratch(ga, gb, pa, pb, energy, gv, jrow, hb, cg, edges, geo, xw, zw, xs, rt, nd,
+                   np.zeros(2, dtype=np.int64))
 
 
 @njit(cache=True, error_model="numpy")
@@ -1197,8 +1243,13 @@ def coupled_implicit(stepper, m, x, v, samples, ws, has_prev):
     frac = 0.5 if method == IMPLICIT_MIDPOINT else 1.0  # the residual's time in the step
     size = 4 * n
     band, lower, upx = ws.tw_band, ws.tw_lower, ws.tw_upper
-    r, r_try, r_keep = np.empty(size), np.empty(size), np.empty(size)
-    wn, w_try, wv, rate, tq = omega0.copy(), np.empty(ns), np.empty(ns), np.zeros(n), np.empty(ns)
+    buf = np.empty(3 * size + 4 * ns + n)  # (one allocation for the step's vectors)
+    r, r_try, r_keep = buf[:size], buf[size:2 * size], buf[2 * size:3 * size]
+    o = 3 * size
+    wn, w_try, wv, tq = buf[o:o + ns], buf[o + ns:o + 2 * ns], buf[o + 2 * ns:o + 3 * ns], buf[o + 3 * ns:o + 4 * ns]
+    rate = buf[o + 4 * ns:]
+    wn[:] = omega0
+    rate[:] = 0.0
     sc = _make_scratch(n)
     mp = _frameless(m)
     vn, v_try = ws.v_new, ws.v_try
