@@ -106,9 +106,10 @@ class NewtonOptions:
     Gauss-Newton step and leaves more than a quarter of the residual switches the rest of the step to the exact
     Jacobian (``twist_coupled.CONTRACTION``); reuse_matrix: the implicit step of a cable with a material frame
     factors its Newton matrix once a step and takes the same factors (a chord iteration) while each iteration leaves
-    at most a quarter of the residual, and starts BDF2's Newton from the velocities extrapolated from the last two
-    steps (the solution is the same to the tolerance; about 1.3-1.6x faster a step, docs/concepts/model.md); False
-    builds and factors the matrix every iteration from the last velocities, as before 2026-12-06.
+    at most a tenth of the residual (``twist_coupled.CHORD_CONTRACTION``), and starts BDF2's Newton from the
+    velocities extrapolated from the last two steps (the solution is the same to the tolerance; a step 1.4-1.6x
+    faster for a round section, 1.5-2.2x for a rectangle, docs/concepts/model.md); False builds and factors the
+    matrix every iteration from the last velocities, as before 2026-12-06.
     """
 
     max_iter: int | None = None
