@@ -188,44 +188,30 @@ def make_scratch(n: int) -> Scratch:
                    np.empty((6, max(n - 1, 0))), np.empty((12, n)), np.zeros(2, dtype=np.int64))
 
 
+@njit(cache=True, inline="always")
+def _view(buf, o, rows, cols):
+    """(the (rows, cols) view of buf from offset o, the offset after it)."""
+    return buf[o:o + rows * cols].reshape((rows, cols)), o + rows * cols
+
+
 @njit(cache=True)
 def _make_scratch(n):
     """:func:`make_scratch` from the compiled step: its float arrays as views of one buffer (one allocation a step
     instead of 16, about 0.5 us of a 19 us twisting step at n = 10)."""
     ns = max(n - 1, 0)
     buf = np.empty(3 + 3 + 9 + 9 + 1 + 11 + 24 + 36 + 11 + 8 * (n + 1) + 6 * n + 216 + 88 + 3 * n + 6 * ns + 12 * n)
-    o = 0
-    ga = buf[o:o + 3]
-    o += 3
-    gb = buf[o:o + 3]
-    o += 3
-    pa = buf[o:o + 9].reshape((3, 3))
-    o += 9
-    pb = buf[o:o + 9].reshape((3, 3))
-    o += 9
-    energy = buf[o:o + 1]
-    o += 1
-    gv = buf[o:o + 11]
-    o += 11
-    jrow = buf[o:o + 24].reshape((4, 6))
-    o += 24
-    hb = buf[o:o + 36].reshape((6, 6))
-    o += 36
-    cg = buf[o:o + 11]
-    o += 11
-    edges = buf[o:o + 8 * (n + 1)].reshape((8, n + 1))
-    o += 8 * (n + 1)
-    geo = buf[o:o + 6 * n].reshape((6, n))
-    o += 6 * n
-    xw = buf[o:o + 216].reshape((36, 6))
-    o += 216
-    zw = buf[o:o + 88].reshape((8, 11))
-    o += 88
-    xs = buf[o:o + 3 * n].reshape((3, n))
-    o += 3 * n
-    rt = buf[o:o + 6 * ns].reshape((6, ns))
-    o += 6 * ns
-    nd = buf[o:o + 12 * n].reshape((12, n))
+    ga, gb, energy, gv, cg = buf[0:3], buf[3:6], buf[6:7], buf[7:18], buf[18:29]
+    pa, o = _view(buf, 29, 3, 3)
+    pb, o = _view(buf, o, 3, 3)
+    jrow, o = _view(buf, o, 4, 6)
+    hb, o = _view(buf, o, 6, 6)
+    edges, o = _view(buf, o, 8, n + 1)
+    geo, o = _view(buf, o, 6, n)
+    xw, o = _view(buf, o, 36, 6)
+    zw, o = _view(buf, o, 8, 11)
+    xs, o = _view(buf, o, 3, n)
+    rt, o = _view(buf, o, 6, ns)
+    nd, o = _view(buf, o, 12, n)
     energy[:] = 0.0
     xw[:, :] = 0.0
     zw[:, :] = 0.0
