@@ -108,7 +108,7 @@ class NewtonOptions:
     factors its Newton matrix once a step and takes the same factors (a chord iteration) while each iteration leaves
     at most a tenth of the residual (``twist_coupled.CHORD_CONTRACTION``), and starts BDF2's Newton from the
     velocities extrapolated from the last two steps (the solution is the same to the tolerance; a step 1.4-1.6x
-    faster for a round section, 1.5-2.2x for a rectangle, docs/concepts/model.md); False builds and factors the
+    faster for a round section, 1.5-2.3x for a rectangle, docs/concepts/model.md); False builds and factors the
     matrix every iteration from the last velocities, as before 2026-12-06.
     """
 

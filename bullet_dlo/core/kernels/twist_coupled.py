@@ -1214,8 +1214,8 @@ def coupled_implicit(stepper, m, x, v, samples, ws, has_prev):
     the method's evaluation time (as :func:`~bullet_dlo.core.kernels.steppers.advance` sets them).
 
     With ``stepper.reuse`` the step factors its Newton matrix once and takes the same factors in the iterations
-    after (chord iterations) while each leaves at most :data:`CONTRACTION` of the residual, and BDF2 starts from
-    the velocities extrapolated from the last two steps (:func:`_extrapolate`): where the matrix costs more than
+    after (chord iterations) while each leaves at most :data:`CHORD_CONTRACTION` of the residual, and BDF2 starts
+    from the velocities extrapolated from the last two steps (:func:`_extrapolate`): where the matrix costs more than
     the residual (a twisting step at n = 10: 3.2 + 1.6 us against 2.3 us), the second iteration then costs a
     residual and a substitution. The solution is Newton's to the same tolerance; nothing is kept between steps.
     Returns (Newton iterations, converged)."""
