@@ -22,9 +22,14 @@ Contact sets a floor on n before the convergence test (the rollouts have no obst
 cannot see it): a cable wrapping a cylinder or sphere of radius R follows it with a polygon,
 whose segments cut into the arc by l^2 / (8 (R + r)); keeping that sag within half the cable
 radius r needs l <= 2 sqrt((R + r) r), i.e. n >= L / l + 1 for the smallest curved obstacle of
-the scene (:attr:`ResolveProblem.cylinder_radii`: its ``bullet.obstacles`` cylinders). Boxes and the
-ground set no floor: segments collide
-as capsules, so an edge is caught at any n. :attr:`Resolution.why` says which bound chose n.
+the scene (:attr:`ResolveProblem.cylinder_radii`: its ``bullet.obstacles`` cylinders). A passage
+of width w between two bodies (a clip's slot, :attr:`ResolveProblem.passage_widths`) leaves the
+segment capsules' centre line a free width w - 2 r; a straight segment longer than that, turned
+across the passage, spans it wall to wall and wedges like a stick in a channel (a real cable bends
+out of it; the chain of rigid segments cannot, and its contact forces then grow with the
+penetration until the solve stalls), so l <= w - 2 r, i.e. n >= L / (w - 2 r) + 1. Edges set no
+floor: segments collide as capsules, so an edge is caught at any n. :attr:`Resolution.why` says
+which bound chose n.
 
 The predicted error is the sum of both differences. When it changes n, resolve keeps the
 damping rate gamma = k_d n / M fixed (k_d is the paper's per-mass coefficient), so that all
@@ -70,6 +75,8 @@ class ResolveProblem:
     scene's run [s]; run(cable, integrator, dt, duration): one run of the scene with that cable,
     integrator, step [s] and duration [s], its core-engine result (about 200 records are enough);
     cylinder_radii: radii [m] of the scene's cylinder obstacles (the contact floor on n);
+    passage_widths: widths [m] of the gaps between the scene's bodies wider than the cable (the passage floor on
+    n; :meth:`bullet_dlo.bullet.world.BulletWorld.passages`);
     holders: the scene's two held ends (first, last) with their motion, for :func:`twist_need`
     (empty: the scene is taken not to roll its ends).
     """
@@ -78,6 +85,7 @@ class ResolveProblem:
     duration: float
     run: Callable[[CableSpec, str, float, float], SimulationResult]
     cylinder_radii: tuple[float, ...] = ()
+    passage_widths: tuple[float, ...] = ()
     holders: tuple[EndHolder, ...] = ()
 
 
@@ -148,18 +156,40 @@ def _cable(problem: ResolveProblem, n: int) -> CableSpec:
 
 
 def contact_floor(problem: ResolveProblem) -> tuple[int, str]:
-    """The fewest masses the scene's curved obstacles need (see module doc): (n, why); (2, "") if none."""
+    """The fewest masses the scene's curved obstacles and passages need (see module doc): (n, why); (2, "") if
+    none. The larger of the two floors binds; ``why`` names it."""
     c = problem.cable
     r = c.diameter / 2
-    radii = problem.cylinder_radii
-    if not radii:
-        return 2, ""
-    radius = min(radii)
-    seg = 2.0 * np.sqrt((radius + r) * r)
-    n = int(np.ceil(c.length / seg)) + 1
-    why = (f"contact floor n >= {n}: the smallest cylinder (radius {radius * 1e3:.1f} mm) is wrapped by segments of "
-           f"at most {seg * 1e3:.1f} mm (chord sag within half the cable radius)")
-    return n, why
+    floors = [(2, "")]
+    if problem.cylinder_radii:
+        radius = min(problem.cylinder_radii)
+        seg = 2.0 * np.sqrt((radius + r) * r)
+        floors.append((int(np.ceil(c.length / seg)) + 1,
+                       f"the smallest cylinder (radius {radius * 1e3:.1f} mm) is wrapped by segments of at most "
+                       f"{seg * 1e3:.1f} mm (chord sag within half the cable radius)"))
+    widths = [w for w in problem.passage_widths if w > c.diameter]
+    if widths:
+        width = min(widths)
+        seg = passage_segment(width, c.diameter)
+        floors.append((passage_masses(c.length, c.diameter, width),
+                       f"the narrowest passage ({width * 1e3:.1f} mm) is threaded by segments of at most "
+                       f"{seg * 1e3:.1f} mm (shorter than its free width: none can wedge across it)"))
+    n, why = max(floors)
+    return n, (f"contact floor n >= {n}: {why}" if why else "")
+
+
+def passage_segment(width: float, diameter: float) -> float:
+    """The longest segment [m] that cannot wedge across a passage ``width`` [m] wide: its free width for the
+    centre line of a cable ``diameter`` [m] thick, width - diameter."""
+    return width - diameter
+
+
+def passage_masses(length: float, diameter: float, width: float) -> int:
+    """The fewest masses of a cable ``length`` [m] long and ``diameter`` [m] thick whose segments cannot wedge across
+    a passage ``width`` [m] wide (:func:`passage_segment`); ParameterError if the cable cannot enter it."""
+    if width <= diameter:
+        raise ParameterError(f"a passage {width} m wide cannot take a cable {diameter} m thick")
+    return int(np.ceil(length / passage_segment(width, diameter))) + 1
 
 
 def _rollout(problem: ResolveProblem, n: int, integrator: str, dt: float,

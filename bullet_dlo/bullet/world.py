@@ -259,6 +259,20 @@ class BulletWorld:
         self.bodies_added = self.bodies_added or mass > 0
         return body
 
+    def passages(self, narrowest: float, widest: float) -> list[tuple[float, str, str]]:
+        """The gaps between the world's bodies (not the cables) that a cable could thread: (width [m], name,
+        name) of each pair of bodies whose closest distance (Bullet's narrow phase, every link, any shape) lies
+        in (``narrowest``, ``widest``], narrowest first. Bodies out of the cables' contact model are left out."""
+        bodies = [b for b in self.bodies if b not in self.no_cable_contact]
+        found = []
+        for k, a in enumerate(bodies):
+            for b in bodies[k + 1:]:
+                points = pb.getClosestPoints(a, b, widest, physicsClientId=self.client)
+                gap = min((p[8] for p in points), default=np.inf)
+                if narrowest < gap <= widest:
+                    found.append((float(gap), self.bodies[a], self.bodies[b]))
+        return sorted(found)
+
     def solve_free_bodies(self) -> None:
         """Lower Bullet's solver residual threshold to :data:`FREE_BODY_RESIDUAL` (once; a lower one is kept): a
         cable's contact model met a free body, which Bullet's step must move to the cable's precision (its default

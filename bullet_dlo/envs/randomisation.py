@@ -84,6 +84,18 @@ class EnvRandomisation:
             return [dist.value]
         return list(dist.values) if dist.dist == "choice" else []
 
+    def support(self, key: str) -> tuple[float, float] | None:
+        """Smallest and largest value parameter ``key`` can draw [its unit]; None for ``auto``."""
+        from bullet_dlo.config.capture import PARAMETERS, support
+
+        dist = self.spec.sample.get(key)
+        if dist is None:
+            value = PARAMETERS[key][1]["value"]
+            return float(value), float(value)
+        if dist.dist == "fixed" and dist.value == "auto":
+            return None
+        return support(dist, PARAMETERS[key][2])
+
 
 def check_control_period(control_dt: float, dt: float) -> int:
     """Physics steps per control step: ``control_dt / dt`` [s / s] must be a whole number >= 1 (as dm_control asks)."""

@@ -56,8 +56,9 @@ cable threaded: +10 on that step and the episode terminates. **Termination** als
 ``end_force`` [N].
 
 **Randomisation** (``default_randomisation``): Panda arms, a soft cord 0.6 m long, 6 mm thick
-(mass 20-40 g, Young's modulus 1e7-3e7 Pa log-uniform, 20 masses, friction 0.5), held
-0.27-0.30 m above the floor (table top 0.2 m); the pegs and clip as above. A baseline that uses
+(mass 20-40 g, Young's modulus 1e7-3e7 Pa log-uniform, 35 masses, friction 0.5), held
+0.27-0.30 m above the floor (table top 0.2 m); the pegs and clip as above. The masses are the fewest whose
+segments are shorter than the slot's free width (:func:`slot_masses`); a randomisation with fewer is refused. A baseline that uses
 the observation only: :class:`RoutingPolicy` (taut-string waypoints).
 """
 from __future__ import annotations
@@ -70,6 +71,7 @@ from typing import Any
 import numpy as np
 from gymnasium import spaces
 
+from bullet_dlo.analysis.resolve import passage_masses
 from bullet_dlo.bullet.world import add_obstacles
 from bullet_dlo.core.validate import ParameterError
 from bullet_dlo.envs import params
@@ -328,6 +330,18 @@ def _route_ok(route: Route, half: float, reach: tuple[float, float, float]) -> b
     return x_min <= end[0] <= x_max and abs(end[1]) <= y_max and all(np.linalg.norm(end - p) > 0.06 for p in things)
 
 
+def slot_masses(length: float, diameter: float) -> int:
+    """The fewest masses of a cable ``length`` [m] long and ``diameter`` [m] thick whose segments are shorter than
+    the clip slot's free width (``CLIP_GAP`` less the diameter; resolve's passage floor): a longer straight segment
+    turned across the slot spans it wall to wall and wedges there like a stick in a channel, which the real cable
+    would bend out of (at n 20, 31.6 mm segments in the 18 mm free width: 0.4-1.1 kN on both boxes and the contact
+    solve stalled, or not, with a change of Newton's tolerance)."""
+    return passage_masses(length, diameter, CLIP_GAP)
+
+
+LENGTH, DIAMETER = 0.6, 0.006  # [m] the default cable
+
+
 class RoutingEnv(DualArmEnv):
     """Cable routing around pegs into a clip (see the module doc); arguments of :class:`DualArmEnv` plus:
 
@@ -341,11 +355,11 @@ class RoutingEnv(DualArmEnv):
     default_randomisation = {
         "sample": {
             "robot": {"dist": "fixed", "value": "panda"},
-            "length": {"dist": "fixed", "value": 0.6},
-            "diameter": {"dist": "fixed", "value": 0.006},
+            "length": {"dist": "fixed", "value": LENGTH},
+            "diameter": {"dist": "fixed", "value": DIAMETER},
             "mass": {"dist": "uniform", "low": 0.02, "high": 0.04},
             "youngs_modulus": {"dist": "log_uniform", "low": 1.0e7, "high": 3.0e7},
-            "n_masses": {"dist": "fixed", "value": 20},
+            "n_masses": {"dist": "fixed", "value": slot_masses(LENGTH, DIAMETER)},  # 35: 17.6 mm segments
             "damping": {"dist": "uniform", "low": 0.01, "high": 0.03},
             "dynamic_friction": {"dist": "fixed", "value": 0.5},
             "static_friction": {"dist": "fixed", "value": 0.5},  # (before 0.4: the default 0.3, below the dynamic)
@@ -359,6 +373,19 @@ class RoutingEnv(DualArmEnv):
         self.force_soft = params.number("force_soft", force_soft)
         self.overload = params.number("overload", overload)
         super().__init__(*args, max_speed=max_speed, **kwargs)
+        self._check_slot_resolution()
+
+    def _check_slot_resolution(self) -> None:
+        """Refuse (ParameterError) a randomisation that can draw a cable whose segments wedge across the clip's slot
+        (:func:`slot_masses`), and ``n_masses: auto`` (its convergence test runs without the task's obstacles)."""
+        r = self.randomisation
+        masses, length, diameter = r.support("n_masses"), r.support("length"), r.support("diameter")
+        need = slot_masses(length[1], diameter[1])
+        got = "auto" if masses is None else f"{masses[0]:g}"
+        if masses is None or masses[0] < need:
+            raise ParameterError(
+                f"n_masses must be a number >= {need} for Routing-v0's cable (up to {length[1]} m long, {diameter[1]} "
+                f"m thick), got {got}: longer segments wedge across the clip's {CLIP_GAP} m slot")
 
     # ----- action -----------------------------------------------------------------------------------
     def _action_space(self) -> spaces.Box:

@@ -39,7 +39,7 @@ ENGINES = Engine.names()  # core | bullet | arms (bullet_dlo.core.enums.Engine)
 
 def resolve_problem(scene: Scene) -> ResolveProblem:
     """``scene`` as :func:`bullet_dlo.analysis.resolve.resolve` takes it: its cable, duration, cylinder
-    obstacles and a rollout with the core engine (the scene's ends, motion, start, Newton and detector
+    obstacles, passages (:func:`passage_widths`) and a rollout with the core engine (the scene's ends, motion, start, Newton and detector
     settings; no obstacles: the contact floor stands for them)."""
     def run(cable: CableSpec, integrator: str, dt: float, duration: float) -> SimulationResult:
         trial = replace(scene, cable=cable, integrator=integrator, dt=dt, duration=duration)
@@ -49,7 +49,18 @@ def resolve_problem(scene: Scene) -> ResolveProblem:
 
     radii = tuple(float(ob["radius"]) for ob in scene.bullet.obstacles if ob["type"] == "cylinder")
     model = scene.build_model()  # its held ends and motion: whether the scene rolls a clamp (twist_need)
-    return ResolveProblem(scene.cable, scene.duration, run, radii, (model.first, model.last))
+    return ResolveProblem(scene.cable, scene.duration, run, radii, passage_widths(scene), (model.first, model.last))
+
+
+def passage_widths(scene: Scene) -> tuple[float, ...]:
+    """Widths [m] of the gaps between the scene's obstacles and its ground that its cable could thread (wider
+    than its diameter, at most its length), measured by Bullet's narrow phase in a world of their own."""
+    opts = scene.bullet
+    if not opts.obstacles:
+        return ()
+    with BulletWorld(ground=opts.ground, ground_height=opts.ground_height) as world:
+        add_obstacles(world, opts.obstacles)
+        return tuple(w for w, _, _ in world.passages(scene.cable.diameter, scene.cable.length))
 
 
 def with_needed_twist(scene: Scene) -> Scene:

@@ -24,6 +24,7 @@ pytestmark = pytest.mark.bullet
 
 NAN, INF = math.nan, math.inf
 TINY_DT = {"sample": {"dt": {"dist": "fixed", "value": 1e-5}}}  # [s] the smallest physics step a spec allows
+SLOT_N = {"dist": "fixed", "value": 16}  # Routing-v0 with the capture spec's default cable (0.3 m, 4 mm): its slot floor
 
 
 def env_class(env_id: str) -> type:
@@ -190,8 +191,10 @@ VALID = [
     ("bullet_dlo/Shaping-v0", {"privileged": False, "inward": 0, "lateral": 0.5, "vertical": 0.0,
                                "success_error": 0.5, "shape_points": 2, "camera": "depth"}),
     ("bullet_dlo/Routing-v0", {"max_yaw_rate": 10, "force_soft": 1000.0, "overload": 0.5, "camera": "rgb",
-                               "max_speed": 0.1, "workspace": 0.1, "randomisation": {"sample": {"robot": "panda"}}}),
-    ("bullet_dlo/Routing-v0", {"randomisation": TINY_DT, "control_dt": 0.1, "settle_time": 1.0}),  # both caps exactly
+                               "max_speed": 0.1, "workspace": 0.1,
+                               "randomisation": {"sample": {"robot": "panda", "n_masses": SLOT_N}}}),
+    ("bullet_dlo/Routing-v0", {"randomisation": {"sample": {**TINY_DT["sample"], "n_masses": SLOT_N}},
+                               "control_dt": 0.1, "settle_time": 1.0}),  # both caps exactly
 ]
 
 
