@@ -18,6 +18,7 @@ batches), the frameless step's kernels beside.
     python demos/twist_cost.py --ns 80 --exact-from 1    # the exact Jacobian from the first Newton iteration
     python demos/twist_cost.py --section rectangle       # a flat strip (4 d x d/2) against the round frameless cable
     python demos/twist_cost.py --no-reuse                # a fresh Newton matrix every iteration (before 2026-12-06)
+    python demos/twist_cost.py --reuse-gain --ns 10 20 80 320   # chord iterations on / off, frameless and twisting
 """
 from __future__ import annotations
 
@@ -50,10 +51,10 @@ def model(n: int, twist: bool, duration: float, section: str = "round") -> Cable
 NEWTON = NewtonOptions()
 
 
-def step_cost(m: CableModel, method: str, dt: float, steps: int) -> float:
-    """Thread CPU time per step [s] of one run."""
+def step_cost(m: CableModel, method: str, dt: float, steps: int, newton: NewtonOptions | None = None) -> float:
+    """Thread CPU time per step [s] of one run (``newton``: None takes ``NEWTON``, the command line's)."""
     t0 = time.thread_time()
-    res = simulate(m, method, dt, steps * dt, record_every=steps, newton=NEWTON)
+    res = simulate(m, method, dt, steps * dt, record_every=steps, newton=NEWTON if newton is None else newton)
     cost = (time.thread_time() - t0) / steps
     if not res.stable:
         raise RuntimeError(f"unstable run: {res.reason}")
@@ -185,6 +186,33 @@ def _parts(n: int) -> None:
         print(f"n {n:3d} {name:50s} {med:8.2f} us per call ({lo:.2f}-{hi:.2f})", flush=True)
 
 
+def _reuse_gain(ns: list[int], method: str, dt: float, steps: int, repeats: int, section: str) -> None:
+    """Per-step thread CPU time [us] of the frameless and the twisting cable with ``reuse_matrix`` on (chord iterations,
+    BDF2's extrapolated start) and off (a fresh Newton matrix every iteration): the four runs interleaved ``repeats``
+    times, steps alone as in the default table; the gain is off / on."""
+    options = {"on": NewtonOptions(reuse_matrix=True), "off": NewtonOptions(reuse_matrix=False)}
+    for n in ns:
+        runs = {(kind, k): (m, o) for kind, m in (("frameless", model(n, False, steps * dt)),
+                                                  ("twist", model(n, True, steps * dt, section)))
+                for k, o in options.items()}
+        for m, o in runs.values():  # compile and warm up
+            step_cost(m, method, dt, 20, o)
+        costs: dict[tuple, list[float]] = {k: [] for k in runs}
+        fixed: dict[tuple, list[float]] = {k: [] for k in runs}
+        for _ in range(repeats):
+            for k, (m, o) in runs.items():
+                costs[k].append(step_cost(m, method, dt, steps, o))
+                fixed[k].append(step_cost(m, method, dt, 1, o))
+        alone = {k: 1e6 * (steps * float(np.median(costs[k])) - float(np.median(fixed[k]))) / (steps - 1)
+                 for k in runs}
+        spread = {k: (1e6 * min(v), 1e6 * max(v)) for k, v in costs.items()}
+        for kind in ("frameless", "twist"):
+            on, off = alone[kind, "on"], alone[kind, "off"]
+            print(f"n {n:3d} {kind:9s}: reuse on {on:7.1f} us/step ({spread[kind, 'on'][0]:.1f}-{spread[kind, 'on'][1]:.1f}"
+                  f" per step with the fixed cost), off {off:7.1f} ({spread[kind, 'off'][0]:.1f}-"
+                  f"{spread[kind, 'off'][1]:.1f}); gain {off / on:.2f}x", flush=True)
+
+
 def _bullet(ns: list[int], repeats: int, block: int = 100) -> None:
     """Per-step thread CPU time [us] of the same cables in a Bullet world (1 kHz, BDF2, the ground below), each in
     plain steps (one compiled call a step, ``bullet/plain_steps.py``) and in Python's phases: medians of ``repeats``
@@ -234,8 +262,11 @@ def main() -> None:
                         help="newton.exact_from: the Newton iteration from which the twisting step takes the exact "
                              "Jacobian (default: NewtonOptions')")
     parser.add_argument("--no-reuse", action="store_true",
-                        help="newton.reuse_matrix False: the twisting step builds and factors its Newton matrix every "
+                        help="newton.reuse_matrix False: the implicit steps build and factor their Newton matrix every "
                              "iteration (as before 2026-12-06)")
+    parser.add_argument("--reuse-gain", action="store_true",
+                        help="instead: the frameless and the twisting step with newton.reuse_matrix on and off, "
+                             "interleaved (the gain of chord iterations and BDF2's extrapolated start)")
     parser.add_argument("--section", choices=("round", "rectangle"), default="round",
                         help="the twisting cable's section: round (as the frameless one) or a rectangle 4 d x d/2")
     args = parser.parse_args()
@@ -247,6 +278,12 @@ def main() -> None:
     if args.bullet:
         print(f"load average {os.getloadavg()[0]:.2f}")
         _bullet(args.ns, args.repeats)
+        print(f"load average at the end {os.getloadavg()[0]:.2f}")
+        return
+    if args.reuse_gain:
+        print(f"{args.method}, dt {args.dt:g} s, {args.steps} steps per run, {args.repeats} interleaved repeats; "
+              f"load average {os.getloadavg()[0]:.2f}")
+        _reuse_gain(args.ns, args.method, args.dt, args.steps, args.repeats, args.section)
         print(f"load average at the end {os.getloadavg()[0]:.2f}")
         return
     if args.parts:

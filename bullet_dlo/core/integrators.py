@@ -104,12 +104,12 @@ class NewtonOptions:
     and blow up with it), the Gauss-Newton matrix for round and tube sections (cheaper per iteration, and as
     fast to converge unless the cable is twisted by turns). With any value, an iteration that takes a full
     Gauss-Newton step and leaves more than a quarter of the residual switches the rest of the step to the exact
-    Jacobian (``twist_coupled.CONTRACTION``); reuse_matrix: the implicit step of a cable with a material frame
-    factors its Newton matrix once a step and takes the same factors (a chord iteration) while each iteration leaves
-    at most a tenth of the residual (``twist_coupled.CHORD_CONTRACTION``), and starts BDF2's Newton from the
-    velocities extrapolated from the last two steps (the solution is the same to the tolerance; a step 1.4-1.6x
-    faster for a round section, 1.5-2.3x for a rectangle, docs/concepts/model.md); False builds and factors the
-    matrix every iteration from the last velocities, as before 2026-12-06.
+    Jacobian (``twist_coupled.CONTRACTION``); reuse_matrix: the implicit step out of contact (with or without a
+    material frame) factors its Newton matrix once a step and takes the same factors (a chord iteration) while each
+    iteration leaves at most a tenth of the residual (``steppers.CHORD_CONTRACTION``), and starts BDF2's Newton from
+    the velocities extrapolated from the last two steps (the solution is the same to the tolerance; a frameless step
+    1.5-1.7x faster from n = 20 on, a twisting one 1.3-1.6x, a rectangle 1.5-2.3x, docs/concepts/model.md); False
+    builds and factors the matrix every iteration from the last velocities, as before 2026-12-06.
     """
 
     max_iter: int | None = None

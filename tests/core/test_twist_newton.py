@@ -86,7 +86,8 @@ def _twisting_run(spec: CableSpec, reuse: bool, steps: int = 300, h: float = 1e-
     model = CableModel.straight(spec, ends=("clamped", "clamped"), motion=[move])
     control = model.control(None)
     state = model.initial_state()
-    m, plan = model.kernel_arrays(control, model.twist_state()), model.holder_plan(control)
+    twist = model.twist_state() if spec.twist_enabled else None
+    m, plan = model.kernel_arrays(control, twist), model.holder_plan(control)
     x, v, ws, samples = state.x.copy(), state.v.copy(), make_workspace(spec.n_masses), empty_samples()
     stepper = make_stepper("bdf2", h, NewtonOptions(reuse_matrix=reuse))
     iterations = failures = 0
@@ -95,17 +96,18 @@ def _twisting_run(spec: CableSpec, reuse: bool, steps: int = 300, h: float = 1e-
         its, ok = advance(stepper, m, x, v, samples, ws, k > 0)
         iterations += its
         failures += not ok
-    return x, m.tw_theta.copy(), iterations, ws.tw_matrices[0], failures
+    return x, m.tw_theta.copy(), iterations, ws.matrices[0], failures
 
 
-@pytest.mark.parametrize("section", ["round", "rectangle"])
-def test_the_twisting_step_factors_its_matrix_once_a_step_and_reaches_the_same_solution(section):
-    """With ``reuse_matrix`` (the default) the coupled step builds and factors one Newton matrix a step and takes
+@pytest.mark.parametrize("section", ["frameless", "round", "rectangle"])
+def test_the_implicit_step_factors_its_matrix_once_a_step_and_reaches_the_same_solution(section):
+    """With ``reuse_matrix`` (the default) the implicit step builds and factors one Newton matrix a step and takes
     its factors again in the iterations after (chord iterations), where it built one every iteration (2.5 a step
-    over these 0.3 s): the end state is the same to Newton's tolerance (measured 3e-10 / 7e-10 m and 2e-10 / 7e-9
-    rad, round / strip), every step converges, and the iterations do not grow (BDF2 starts from extrapolated
-    velocities: 691 / 732 against 740 / 741)."""
-    spec = CableSpec.lv2017(n_masses=20, twist=True, damping_rate=2.0)
+    over these 0.3 s): the end state is the same to Newton's tolerance (the twisting steps measured 3e-10 / 7e-10 m
+    and 2e-10 / 7e-9 rad, round / strip), every step converges, and the iterations do not grow (BDF2 starts from
+    extrapolated velocities: 691 / 732 against 740 / 741). A cable without a material frame alike (691 against
+    740 iterations, 3e-10 m)."""
+    spec = CableSpec.lv2017(n_masses=20, twist=section != "frameless", damping_rate=2.0)
     if section == "rectangle":
         spec = CableSpec.lv2017(n_masses=20, damping_rate=2.0, section="rectangle", width=4 * spec.diameter,
                                 thickness=spec.diameter / 2)
@@ -116,4 +118,4 @@ def test_the_twisting_step_factors_its_matrix_once_a_step_and_reaches_the_same_s
     assert mat1 <= 1.1 * 300, mat1 / 300
     assert it1 <= it0, (it1, it0)
     assert np.abs(x1 - x0).max() < 1e-8
-    assert np.abs(th1 - th0).max() < 1e-7
+    assert th0.size == 0 or np.abs(th1 - th0).max() < 1e-7

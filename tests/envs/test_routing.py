@@ -175,16 +175,18 @@ def test_an_unstable_step_terminates_with_finite_observations():
 
 @pytest.mark.parametrize("tolerance", [0.8, 1.0, 1.25])
 def test_the_scripted_policy_wraps_the_pegs_and_threads_the_clip(tolerance, monkeypatch):
-    """Seed 3 (one peg): the cable really bends around the peg in contact (wrap beyond WRAP_MIN, touching it),
-    lies in the slot, and the episode ends in success with the bonus; the left gripper never moved. The same at
-    Newton's tolerance times 0.8 and 1.25: the episode does not hang on the solver's round-off. At n 20 (segments
-    31.6 mm, longer than the slot's 18 mm free width) a segment wedged across the slot at 0.4-1.1 kN and the
-    episode ended unstable, in overload or in success as the tolerance changed."""
+    """Seed 4 (two pegs, turns of 29 and 27 deg): the cable really bends around the pegs in contact (wraps beyond
+    WRAP_MIN, touching them), lies in the slot, and the episode ends in success with the bonus; the left gripper
+    never moved. The same at Newton's tolerance times 0.8 and 1.25: the episode does not hang on the solver's
+    round-off. At n 20 (segments 31.6 mm, longer than the slot's 18 mm free width) a segment wedged across the slot
+    at 0.4-1.1 kN, and seed 3 (the test's episode then) ended unstable, in overload or in success as the tolerance
+    changed. Seed 3's one peg turns the route by 22 deg, and the policy's wrap ends within 2 deg of WRAP_MIN (15
+    deg) either way: a tolerance-sized change decides it, so it is no test of the physics."""
     default = NewtonOptions.tolerance
     monkeypatch.setattr(NewtonOptions, "tolerance", lambda self, integrator: tolerance * default(self, integrator))
     env = RoutingEnv()
     try:
-        obs, _ = env.reset(seed=3)
+        obs, _ = env.reset(seed=4)
         left = obs["gripper_pos"][0].copy()
         policy = RoutingPolicy()
         for _ in range(250):

@@ -83,6 +83,25 @@ def band_solve(band, rhs):
     return min_pivot
 
 
+@njit(cache=True, error_model="numpy")
+def band_substitute(band, rhs):
+    """Solve in place with a band already eliminated by :func:`band_solve` (its multipliers are the upper entries
+    over the pivots): the same forward elimination on rhs (3n,) and back substitution, without the O(n HALF^2)
+    elimination of the matrix. A chord iteration takes the factors of an earlier iterate this way."""
+    size = rhs.shape[0]
+    for k in range(size):
+        piv = band[k, HALF]
+        last = min(k + HALF, size - 1)
+        for i in range(k + 1, last + 1):
+            rhs[i] -= band[k, i - k + HALF] / piv * rhs[k]
+    for k in range(size - 1, -1, -1):
+        acc = rhs[k]
+        last = min(k + HALF, size - 1)
+        for j in range(k + 1, last + 1):
+            acc -= band[k, j - k + HALF] * rhs[j]
+        rhs[k] = acc / band[k, HALF]
+
+
 def band_matrix_to_dense(band: np.ndarray) -> np.ndarray:
     """Expand scalar band storage (3n, 2*HALF+1) to a dense (3n, 3n) matrix (tests)."""
     size = band.shape[0]

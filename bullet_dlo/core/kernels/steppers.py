@@ -25,7 +25,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from bullet_dlo.core.kernels.banded import HALF, assemble_system, band_solve
+from bullet_dlo.core.kernels.banded import HALF, assemble_system, band_solve, band_substitute
 from bullet_dlo.core.kernels.drag import has_drag
 from bullet_dlo.core.kernels.gauss_legendre import gauss_legendre_step
 from bullet_dlo.core.kernels.forces import (
@@ -70,12 +70,14 @@ class Workspace(NamedTuple):
     velocity v' to the evaluation state, X = x_base + cx v', V = v_base + cv v', and the
     velocity its momentum balance starts from, M (v' - v_avg) = hf F(X, V), (n, 3);
     v_new, v_try [m/s]: Newton iterate of v' and the line-search trial, (n, 3);
-    residual, residual_try [N s]: momentum residuals of both, (3n,);
+    residual, residual_try [N s]: momentum residuals of both, (3n,); residual_kept [N s]: the residual a chord
+    iteration started from (kept in case its direction fails), (3n,);
     jacobian [N/m]: block-banded dF/dx, (n, 5, 3, 3); band: Newton matrix, (3n, 2*HALF+1);
     x_prev [m], v_prev [m/s]: state before the last step (BDF2), (n, 3);
     tw_band, tw_lower, tw_upper: the coupled twisting step's Newton matrix (upper band, lower band by columns, the
     exact matrix's extra upper entries) and, once eliminated, its factors, (4n, HALF_T + 1);
-    tw_matrices [-]: how many Newton matrices the coupled twisting step has built and factored, a running count, (1,).
+    matrices [-]: how many Newton matrices the implicit steps without contact have built and factored, a running
+    count, (1,).
     """
 
     force: np.ndarray
@@ -91,6 +93,7 @@ class Workspace(NamedTuple):
     v_try: np.ndarray
     residual: np.ndarray
     residual_try: np.ndarray
+    residual_kept: np.ndarray
     jacobian: np.ndarray
     band: np.ndarray
     x_prev: np.ndarray
@@ -98,7 +101,7 @@ class Workspace(NamedTuple):
     tw_band: np.ndarray
     tw_lower: np.ndarray
     tw_upper: np.ndarray
-    tw_matrices: np.ndarray
+    matrices: np.ndarray
 
 
 HALF_T = 10
@@ -108,8 +111,9 @@ HALF_T = 10
 def make_workspace(n: int) -> Workspace:
     """Zeroed scratch arrays for an n-node cable."""
     shapes = {"kx": (4, n, 3), "kv": (4, n, 3), "residual": (3 * n,), "residual_try": (3 * n,),
-              "jacobian": (n, 5, 3, 3), "band": (3 * n, 2 * HALF + 1), "tw_band": (4 * n, HALF_T + 1),
-              "tw_lower": (4 * n, HALF_T + 1), "tw_upper": (4 * n, HALF_T + 1), "tw_matrices": (1,)}
+              "residual_kept": (3 * n,), "jacobian": (n, 5, 3, 3), "band": (3 * n, 2 * HALF + 1),
+              "tw_band": (4 * n, HALF_T + 1), "tw_lower": (4 * n, HALF_T + 1), "tw_upper": (4 * n, HALF_T + 1),
+              "matrices": (1,)}
     return Workspace(*(np.zeros(shapes.get(name, (n, 3))) for name in Workspace._fields))
 
 
@@ -349,6 +353,24 @@ def _cable_matrix(stepper, m, imp, ws):
     assemble_system(m, ws.jacobian, 1.0, imp.hf * imp.cx, imp.hf * imp.cv, ws.band)
 
 
+CHORD_CONTRACTION = 0.1
+"""The residual share [-] a Newton iteration must leave at most for the next to take the same factors (a chord
+iteration, ``NewtonOptions.reuse_matrix``): a chord converges only linearly, so at a quarter a twisting step far from
+its solution ran out of iterations (the study's cable turned three times in 1 s at 60 Hz: 6 of 90 steps); at a tenth
+none did. The first iteration of a step always takes a fresh matrix, and nothing is kept between steps."""
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def extrapolate(held, v_avg, vn):
+    """BDF2's first Newton iterate, in place: the free nodes' velocities vn (the current ones on entry) extrapolated
+    linearly from the last two steps, v' = 2 v - v_prev (v_prev = 4 v - 3 v_avg, as BDF2's v_avg = (4 v - v_prev)
+    / 3); held nodes keep their prescribed end-of-step velocities."""
+    for i in range(vn.shape[0]):
+        if not held[i]:
+            for j in range(3):
+                vn[i, j] = 3.0 * v_avg[i, j] - 2.0 * vn[i, j]
+
+
 @njit(cache=True, error_model="numpy")
 def newton(stepper, m, x, imp, ws, c=None, cap_tol=1e-3, max_passes=10, bd=None):
     """Newton with line search on v' (in ws.v_new, started from the current velocity): the one
@@ -401,10 +423,18 @@ def newton(stepper, m, x, imp, ws, c=None, cap_tol=1e-3, max_passes=10, bd=None)
     converged = False
     if c is None:
         rnorm = _cable_residual(m, imp, ws, vn, r)
+        factored = False  # ws.band holds this step's last fresh matrix, eliminated (a chord iteration's)
         while it < stepper.max_iter:
             it += 1
-            _cable_matrix(stepper, m, imp, ws)
-            band_solve(ws.band, r)  # r becomes the Newton direction dv
+            chord = factored
+            if chord:
+                ws.residual_kept[:] = r
+                band_substitute(ws.band, r)
+            else:
+                _cable_matrix(stepper, m, imp, ws)
+                band_solve(ws.band, r)  # r becomes the Newton direction dv
+                ws.matrices[0] += 1.0
+                factored = stepper.reuse
             phi0 = np.nan
             alpha = 1.0
             accepted = False
@@ -416,6 +446,8 @@ def newton(stepper, m, x, imp, ws, c=None, cap_tol=1e-3, max_passes=10, bd=None)
                 if rn_try < rnorm or rn_try <= tol * r_scale + r_floor:
                     accepted = True
                     break
+                if chord:  # a chord direction is taken whole or not at all
+                    break
                 if phi0 != phi0:  # merit at the current iterate, computed once when first needed
                     _residual(m, imp, ws, vn, r_try)
                     phi0 = _merit(m, imp, ws, vn)
@@ -425,9 +457,16 @@ def newton(stepper, m, x, imp, ws, c=None, cap_tol=1e-3, max_passes=10, bd=None)
                     break
                 alpha *= 0.5
             if not accepted:
+                if chord:  # the old factors failed here: a fresh matrix at the same iterate (not counted)
+                    factored = False
+                    r[:] = ws.residual_kept
+                    it -= 1
+                    continue
                 break  # stagnated: keep the current iterate (reported as not converged)
             vn[:, :] = v_try
             r[:] = r_try
+            if rn_try > CHORD_CONTRACTION * rnorm:
+                factored = False  # contracted poorly: a fresh matrix next
             rnorm = rn_try
             # residual tolerance relative to the momentum change of this step
             if rnorm <= tol * (r_scale + _momentum_change(m, ws, vn)) + r_floor:
@@ -546,6 +585,8 @@ def _implicit(stepper, m, x, v, samples, ws, has_prev):
     n = x.shape[0]
     imp = _start_implicit(method, m, x, v, h, samples, ws, has_prev)
     vn = ws.v_new
+    if stepper.reuse and method == BDF2 and has_prev:
+        extrapolate(m.held, ws.v_avg, vn)
     its, converged = newton(stepper, m, x, imp, ws)
     for i in range(n):
         for j in range(3):

@@ -114,9 +114,11 @@ from bullet_dlo.core.kernels.gauss_legendre import (
 from bullet_dlo.core.kernels.jit import njit
 from bullet_dlo.core.kernels.steppers import (
     BDF2,
+    CHORD_CONTRACTION,
     HALF_T,
     IMPLICIT_MIDPOINT,
     ImplicitMap,
+    extrapolate,
     _momentum_change,
     _set_held,
     _start_implicit,
@@ -1214,11 +1216,12 @@ def coupled_implicit(stepper, m, x, v, samples, ws, has_prev):
     the method's evaluation time (as :func:`~bullet_dlo.core.kernels.steppers.advance` sets them).
 
     With ``stepper.reuse`` the step factors its Newton matrix once and takes the same factors in the iterations
-    after (chord iterations) while each leaves at most :data:`CHORD_CONTRACTION` of the residual, and BDF2 starts
-    from the velocities extrapolated from the last two steps (:func:`_extrapolate`): where the matrix costs more than
-    the residual (a twisting step at n = 10: 3.2 + 1.6 us against 2.3 us), the second iteration then costs a
-    residual and a substitution. The solution is Newton's to the same tolerance; nothing is kept between steps.
-    Returns (Newton iterations, converged)."""
+    after (chord iterations) while each leaves at most
+    :data:`~bullet_dlo.core.kernels.steppers.CHORD_CONTRACTION` of the residual, and BDF2 starts from the velocities
+    extrapolated from the last two steps (:func:`~bullet_dlo.core.kernels.steppers.extrapolate`; the frameless step
+    alike): where the matrix costs more than the residual (a twisting step at n = 10: 3.2 + 1.6 us against 2.3
+    us), the second iteration then costs a residual and a substitution. The solution is Newton's to the same
+    tolerance; nothing is kept between steps. Returns (Newton iterations, converged)."""
     method, h = stepper.method, stepper.h
     n = x.shape[0]
     ns = n - 1
@@ -1241,8 +1244,10 @@ def coupled_implicit(stepper, m, x, v, samples, ws, has_prev):
     vn, v_try = ws.v_new, ws.v_try
     tol = stepper.tol
     r_scale, r_floor = _scales(m, x, hf, theta0)
-    if stepper.reuse and method == BDF2 and has_prev:
-        _extrapolate(m.held, v, ws.v_avg, omega0, wa, vn, wn)
+    if stepper.reuse and method == BDF2 and has_prev:  # (vn holds v: _start_implicit)
+        extrapolate(m.held, ws.v_avg, vn)
+        for k in range(ns):  # the twist rates alike (wa = (4 omega - omega_prev) / 3)
+            wn[k] = 3.0 * wa[k] - 2.0 * omega0[k]
     it = 0
     converged = False
     rnorm = _residual(m, mp, imp, ws, samples, frac, h, tb, wb, wa, vn, wn, wv, rate, tq, r, g, sc)
@@ -1267,7 +1272,7 @@ def coupled_implicit(stepper, m, x, v, samples, ws, has_prev):
             if not exact:
                 _newton_matrix(stepper, m, mp, imp, ws, band, g, sc, exact, lower, upx, samples, frac, h)
                 band_solve_upper(band, r, HALF_T, 4)  # r becomes the Newton direction
-            ws.tw_matrices[0] += 1.0
+            ws.matrices[0] += 1.0
             if stepper.reuse:
                 factored = EXACT_FACTORS if exact else GAUSS_NEWTON_FACTORS
         phi0 = np.nan
@@ -1318,23 +1323,6 @@ def coupled_implicit(stepper, m, x, v, samples, ws, has_prev):
 
 NOT_FACTORED, GAUSS_NEWTON_FACTORS, EXACT_FACTORS = range(3)
 """What the coupled step's band holds between its iterations (:func:`coupled_implicit`)."""
-CHORD_CONTRACTION = 0.1
-"""The residual share [-] a chord iteration (old factors) must leave at most for the next to keep the factors; a
-chord converges only linearly, so at a quarter (:data:`CONTRACTION`) a step far from its solution ran out of
-iterations (the study's cable turned three times in 1 s at 60 Hz: 6 of 90 steps)."""
-
-
-@njit(cache=True, error_model="numpy", inline="always")
-def _extrapolate(held, v, v_avg, omega0, w_avg, vn, wn):
-    """BDF2's first Newton iterate: the free nodes' velocities and the twist rates extrapolated linearly from the
-    last two steps, v' = 2 v - v_prev (v_prev = 4 v - 3 v_avg, BDF2's v_avg = (4 v - v_prev) / 3), the same for
-    the twist rates; held nodes keep their prescribed velocities."""
-    for i in range(v.shape[0]):
-        if not held[i]:
-            for j in range(3):
-                vn[i, j] = 3.0 * v_avg[i, j] - 2.0 * v[i, j]
-    for k in range(wn.shape[0]):
-        wn[k] = 3.0 * w_avg[k] - 2.0 * omega0[k]
 
 
 @njit(cache=True, error_model="numpy")
