@@ -208,9 +208,10 @@ def _reuse_gain(ns: list[int], method: str, dt: float, steps: int, repeats: int,
         spread = {k: (1e6 * min(v), 1e6 * max(v)) for k, v in costs.items()}
         for kind in ("frameless", "twist"):
             on, off = alone[kind, "on"], alone[kind, "off"]
-            print(f"n {n:3d} {kind:9s}: reuse on {on:7.1f} us/step ({spread[kind, 'on'][0]:.1f}-{spread[kind, 'on'][1]:.1f}"
-                  f" per step with the fixed cost), off {off:7.1f} ({spread[kind, 'off'][0]:.1f}-"
-                  f"{spread[kind, 'off'][1]:.1f}); gain {off / on:.2f}x", flush=True)
+            lo_on, hi_on = spread[kind, "on"]
+            lo_off, hi_off = spread[kind, "off"]
+            print(f"n {n:3d} {kind:9s}: reuse on {on:7.1f} us/step ({lo_on:.1f}-{hi_on:.1f} per step with the fixed "
+                  f"cost), off {off:7.1f} ({lo_off:.1f}-{hi_off:.1f}); gain {off / on:.2f}x", flush=True)
 
 
 def _bullet(ns: list[int], repeats: int, block: int = 100) -> None:

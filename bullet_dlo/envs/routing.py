@@ -58,8 +58,8 @@ cable threaded: +10 on that step and the episode terminates. **Termination** als
 **Randomisation** (``default_randomisation``): Panda arms, a soft cord 0.6 m long, 6 mm thick
 (mass 20-40 g, Young's modulus 1e7-3e7 Pa log-uniform, 35 masses, friction 0.5), held
 0.27-0.30 m above the floor (table top 0.2 m); the pegs and clip as above. The masses are the fewest whose
-segments are shorter than the slot's free width (:func:`slot_masses`); a randomisation with fewer is refused. A baseline that uses
-the observation only: :class:`RoutingPolicy` (taut-string waypoints).
+segments are shorter than the slot's free width (:func:`slot_masses`); a randomisation with fewer is refused.
+A baseline that uses the observation only: :class:`RoutingPolicy` (taut-string waypoints).
 """
 from __future__ import annotations
 

@@ -39,8 +39,8 @@ ENGINES = Engine.names()  # core | bullet | arms (bullet_dlo.core.enums.Engine)
 
 def resolve_problem(scene: Scene) -> ResolveProblem:
     """``scene`` as :func:`bullet_dlo.analysis.resolve.resolve` takes it: its cable, duration, cylinder
-    obstacles, passages (:func:`passage_widths`) and a rollout with the core engine (the scene's ends, motion, start, Newton and detector
-    settings; no obstacles: the contact floor stands for them)."""
+    obstacles, passages (:func:`passage_widths`) and a rollout with the core engine (the scene's ends, motion,
+    start, Newton and detector settings; no obstacles: the contact floor stands for them)."""
     def run(cable: CableSpec, integrator: str, dt: float, duration: float) -> SimulationResult:
         trial = replace(scene, cable=cable, integrator=integrator, dt=dt, duration=duration)
         model = trial.build_model()

@@ -24,7 +24,7 @@ pytestmark = pytest.mark.bullet
 
 NAN, INF = math.nan, math.inf
 TINY_DT = {"sample": {"dt": {"dist": "fixed", "value": 1e-5}}}  # [s] the smallest physics step a spec allows
-SLOT_N = {"dist": "fixed", "value": 16}  # Routing-v0 with the capture spec's default cable (0.3 m, 4 mm): its slot floor
+SLOT_N = {"dist": "fixed", "value": 16}  # Routing-v0 with the capture spec's cable (0.3 m, 4 mm): its slot floor
 
 
 def env_class(env_id: str) -> type:

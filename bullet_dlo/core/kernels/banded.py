@@ -52,6 +52,18 @@ def _assemble(mass, damp, held, jac, m_coef, k_coef, c_coef, band):
                 band[3 * i + r, HALF] += m_coef * mass[i] + c_coef * damp[i]
 
 
+@njit(cache=True, error_model="numpy", inline="always")
+def _back_substitute(band, rhs):
+    """Back substitution in place with the upper band of an eliminated matrix: rhs (3n,) becomes the solution."""
+    size = rhs.shape[0]
+    for k in range(size - 1, -1, -1):
+        acc = rhs[k]
+        last = min(k + HALF, size - 1)
+        for j in range(k + 1, last + 1):
+            acc -= band[k, j - k + HALF] * rhs[j]
+        rhs[k] = acc / band[k, HALF]
+
+
 @njit(cache=True, error_model="numpy")
 def band_solve(band, rhs):
     """Solve band * y = rhs in place for a *symmetric* band matrix (rhs, shape (3n,), becomes y).
@@ -74,12 +86,7 @@ def band_solve(band, rhs):
             for j in range(i, last + 1):
                 band[i, j - i + HALF] -= f * band[k, j - k + HALF]
             rhs[i] -= f * rhs[k]
-    for k in range(size - 1, -1, -1):
-        acc = rhs[k]
-        last = min(k + HALF, size - 1)
-        for j in range(k + 1, last + 1):
-            acc -= band[k, j - k + HALF] * rhs[j]
-        rhs[k] = acc / band[k, HALF]
+    _back_substitute(band, rhs)
     return min_pivot
 
 
@@ -94,12 +101,7 @@ def band_substitute(band, rhs):
         last = min(k + HALF, size - 1)
         for i in range(k + 1, last + 1):
             rhs[i] -= band[k, i - k + HALF] / piv * rhs[k]
-    for k in range(size - 1, -1, -1):
-        acc = rhs[k]
-        last = min(k + HALF, size - 1)
-        for j in range(k + 1, last + 1):
-            acc -= band[k, j - k + HALF] * rhs[j]
-        rhs[k] = acc / band[k, HALF]
+    _back_substitute(band, rhs)
 
 
 def band_matrix_to_dense(band: np.ndarray) -> np.ndarray:
