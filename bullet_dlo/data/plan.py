@@ -75,7 +75,7 @@ def add_needed_twist(spec: CaptureSpec, params: dict[str, Any]) -> None:
     the wrists would read no torsion): ``params["twist"]`` becomes True and ``params["twist_reason"]`` says why."""
     if params.get("twist", False):
         return
-    why = twist_need(resolve_problem(episode_scene(spec, params)))
+    why = twist_need(resolve_problem(episode_scene(spec, params), passages=False))
     if why:
         params["twist"], params["twist_reason"] = True, why
 

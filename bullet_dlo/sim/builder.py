@@ -37,10 +37,12 @@ ENGINES = Engine.names()  # core | bullet | arms (bullet_dlo.core.enums.Engine)
 """What :func:`build` can make (see the module doc)."""
 
 
-def resolve_problem(scene: Scene) -> ResolveProblem:
+def resolve_problem(scene: Scene, passages: bool = True) -> ResolveProblem:
     """``scene`` as :func:`bullet_dlo.analysis.resolve.resolve` takes it: its cable, duration, cylinder
-    obstacles, passages (:func:`passage_widths`) and a rollout with the core engine (the scene's ends, motion,
-    start, Newton and detector settings; no obstacles: the contact floor stands for them)."""
+    obstacles, passages (:func:`passage_widths`; ``passages`` False leaves them out, for
+    :func:`~bullet_dlo.analysis.resolve.twist_need`, which reads the held ends only: they cost a Bullet world, about
+    20 ms) and a rollout with the core engine (the scene's ends, motion, start, Newton and detector settings; no
+    obstacles: the contact floor stands for them)."""
     def run(cable: CableSpec, integrator: str, dt: float, duration: float) -> SimulationResult:
         trial = replace(scene, cable=cable, integrator=integrator, dt=dt, duration=duration)
         model = trial.build_model()
@@ -49,7 +51,8 @@ def resolve_problem(scene: Scene) -> ResolveProblem:
 
     radii = tuple(float(ob["radius"]) for ob in scene.bullet.obstacles if ob["type"] == "cylinder")
     model = scene.build_model()  # its held ends and motion: whether the scene rolls a clamp (twist_need)
-    return ResolveProblem(scene.cable, scene.duration, run, radii, passage_widths(scene), (model.first, model.last))
+    widths = passage_widths(scene) if passages else ()
+    return ResolveProblem(scene.cable, scene.duration, run, radii, widths, (model.first, model.last))
 
 
 def passage_widths(scene: Scene) -> tuple[float, ...]:
@@ -72,7 +75,7 @@ def with_needed_twist(scene: Scene) -> Scene:
     wrist), which is silently wrong, not a cheaper model."""
     if scene.cable.twist or scene.twist_reason:  # asked for, or said already
         return scene
-    why = twist_need(resolve_problem(scene))  # (a non-round section has the frame already: only the reason is new)
+    why = twist_need(resolve_problem(scene, passages=False))  # (a non-round section has its frame: only the why is new)
     if not why:
         return scene
     cable = scene.cable if scene.cable.twist_enabled else scene.cable.with_(twist=True)
