@@ -153,9 +153,9 @@ def test_auto_masses_resolves_on_the_drawn_motion(monkeypatch):
     seen = []
     problem_of = plan.resolve_problem
 
-    def problem(scene):
+    def problem(scene, **options):
         seen.append(scene)
-        return problem_of(scene)
+        return problem_of(scene, **options)
 
     monkeypatch.setattr(plan, "resolve_problem", problem)
     monkeypatch.setattr(plan, "resolve_masses", lambda problem, tol, target: (12, 0.01))
