@@ -65,7 +65,8 @@ from bullet_dlo.bullet.native import (BASE_STATE, HANDLE, collision_info_init, d
                                       overlapping, read_base_states, status_aabb, submit)
 from bullet_dlo.bullet.shape_data import collision_shapes
 from bullet_dlo.core.kernels.contact import (PENALTY, STICK, WRAP, Bodies, Contacts, _gap, _wrap_cap, make_bodies,
-                                             make_contacts, mark_wrap_neighbours, wrap_active, wrap_energy, wrap_start)
+                                             make_contacts, mark_wrap_neighbours, wrap_active, wrap_arc_share,
+                                             wrap_energy, wrap_start)
 from bullet_dlo.core.kernels.jit import njit
 
 BOX, SPHERE, CYLINDER, CAPSULE, PROBE, HULL = range(6)  # PROBE: a link measured by Bullet's narrow phase
@@ -1791,6 +1792,35 @@ def _box_wrap(c, k, rot, A, P, o1, o2, ks, l0, kb_a, kb_b, fresh, x):
 
 
 @njit(cache=True, error_model="numpy")
+def _off_edge_end(c, k, x, za, zb, hl) -> bool:
+    """Whether wrap row k's arc lies beyond an end of its edge at x: the edge spans |z| <= hl [m] along its line, za
+    and zb [m] are the segment's nodes' coordinates along it from its middle (:func:`wrap_arc_share`). The wrap's
+    geometry is the whole line: kept past the end, a cable sliding along the edge off it hung on the line beyond it,
+    and a node reaching the line there (its distance from it 0) blew the row up (Routing-v0's clip, 2026-12-06)."""
+    s = wrap_arc_share(c, k, x)
+    return s >= 0.0 and abs(za + s * (zb - za)) > hl
+
+
+@njit(cache=True, error_model="numpy")
+def _unwrap(c, k, x):
+    """Turn WRAP row k back into the segment's capsule contact with the edge (its point and normal those of the
+    row as added), with a fresh friction anchor at its material point. The wrap's energy against the chord's goes
+    as the model's switch, as a new wrap's comes (:func:`_make_wrap`): counted as work on the cable."""
+    c.body_work[0] -= wrap_energy(c, k, x)
+    c.kind[k] = PENALTY
+    a, b = c.node[k, 0], c.node[k, 1]
+    wa, wb = c.weight[k, 0], c.weight[k, 1]
+    g = 0.0
+    for j in range(3):
+        c.anchor[k, j] = wa * x[a, j] + wb * x[b, j]
+        g += c.normal[k, j] * (c.anchor[k, j] - c.point[k, j])
+    c.anchor[k, 3] = wb
+    c.state[k] = STICK
+    g -= c.radius[0]
+    c.cap[k] = c.static_friction[k] * c.k_n[k] * (-g) if g < 0.0 else 0.0
+
+
+@njit(cache=True, error_model="numpy")
 def _one_wrap_per_segment(c, first, n):
     """A segment with more than one WRAP row (across two edges, of one box or two) keeps capsule contacts with
     them instead: the wraps' potentials each replace the segment's whole spring and do not add."""
@@ -2488,9 +2518,22 @@ def _hull_contacts(c, st, s, hu, q, x, mass, base, margin, out, sh, k_per_mass, 
                 c.point[k, j] = pos[j] + e_j
                 axis[j] = rot[j, 0] * A[0] + rot[j, 1] * A[1] + rot[j, 2] * A[2]
                 side[j] = (rot[j, 0] * (n1[0] + n2[0]) + rot[j, 1] * (n1[1] + n2[1]) + rot[j, 2] * (n1[2] + n2[2])) / bl
+            cp0, cp1, cp2 = c.point[k, 0], c.point[k, 1], c.point[k, 2]  # (the rounding's point: a capsule row's)
             _make_wrap(c, k, axis, side, seg_k[i], seg_l[i], seg_b[i], seg_b[i + 1], m, fresh, x)
             if best - radius >= margin and not wrap_active(c, k, x):
                 c.count[0] = k  # the chord has left the edge: the wrap is over
+            else:
+                za, zb = 0.0, 0.0
+                for j in range(3):
+                    za += (q[i, j] - hu.edge_p[eb, j]) * A[j]
+                    zb += (q[i + 1, j] - hu.edge_p[eb, j]) * A[j]
+                # (a chord through the hull keeps its wrap; one past the edge's end along it is not through it)
+                through = cuts and abs(za + sb * (zb - za)) < hu.edge_hl[eb]
+                if not through and _off_edge_end(c, k, x, za, zb, hu.edge_hl[eb]):
+                    c.point[k, 0], c.point[k, 1], c.point[k, 2] = cp0, cp1, cp2
+                    _unwrap(c, k, x)  # the cable has slid off the edge's end
+                    if best - radius >= margin:
+                        c.count[0] = k
 
 
 @njit(cache=True, error_model="numpy")
@@ -2757,8 +2800,14 @@ def detect(x, v, mass, sh, c, bd, st, h, k_per_mass, zeta, self_mu, h_body, h_do
                                     and (wrapped or cuts or before or _taut(x, i, seg_k[i], seg_l[i], seg_b))):
                                 k = c.count[0] - 1
                                 _box_wrap(c, k, rot, A, P, o1, o2, seg_k[i], seg_l[i], seg_b[i], seg_b[i + 1], fresh, x)
-                                if (cl[3] - radius >= margin_s or reaching) and not wrap_active(c, k, x):
-                                    c.count[0] = k  # the chord has left the edge (or a node's row would be doubled)
+                                gone = cl[3] - radius >= margin_s or reaching  # (or a node's row would be doubled)
+                                if gone and not wrap_active(c, k, x):
+                                    c.count[0] = k  # the chord has left the edge
+                                elif not inside and _off_edge_end(c, k, x, q[i, ax], q[i + 1, ax], size[ax]):
+                                    # (a chord through the box keeps its wrap; not one past the edge's end)
+                                    _unwrap(c, k, x)  # the cable has slid off the edge's end
+                                    if gone:
+                                        c.count[0] = k
         elif kind == SPHERE:
             P[:] = 0.0
             for i in range(n - 1):

@@ -16,7 +16,8 @@ import numpy as np
 import pybullet as pb
 import pybullet_data
 import pytest
-from test_edge_slide import HOLD, MU, SLID, TABLE, layout, lumped_fraction, mu_for, soft_cable, threshold
+from test_edge_slide import (HOLD, MU, SLID, TABLE, layout, lumped_fraction, mu_for, soft_cable, threshold,
+                             wrap_ends_past_the_edge_s_end)
 
 from bullet_dlo.bullet import contact as bc
 from bullet_dlo.bullet.world import BulletWorld
@@ -171,3 +172,11 @@ def test_a_low_friction_cable_below_the_threshold_rests_on_a_hull_edge():
     travel, cab = hang_on_hull(soft_cable(40, mu_for(lumped_fraction(x) / 0.9)), threshold(0.1), 0.05, 240.0)
     assert cab.stable, cab.reason
     assert travel < HOLD
+
+
+def test_a_hull_edge_s_wrap_ends_where_the_cable_slides_past_the_edge_s_end():
+    """tests/bullet/test_edge_slide.py's ``wrap_ends_past_the_edge_s_end`` on the hull table: a hull edge's wrap is
+    the edge's whole line too, and ends where the arc passes the edge's end. (Short of the end it is checked at the
+    edge's middle: within 5 mm of the end the hull wraps the end face's top edge, the closer to the chord's
+    point.)"""
+    wrap_ends_past_the_edge_s_end(lambda world: box_hull(world, TABLE, (-TABLE[0], 0.0, -TABLE[2]), MU), TABLE[1])

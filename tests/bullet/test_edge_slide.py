@@ -37,7 +37,7 @@ import numpy as np
 import pytest
 
 from bullet_dlo.bullet.world import BulletWorld
-from bullet_dlo.core.kernels.contact import WRAP, _arc_middle, _path, _recentre_wrap, _wrap_eval, make_contacts
+from bullet_dlo.core.kernels.contact import PENALTY, WRAP, _arc_middle, _path, _recentre_wrap, _wrap_eval, make_contacts
 from bullet_dlo.core.model import CableState
 from bullet_dlo.core.spec import CableSpec
 
@@ -498,3 +498,49 @@ def test_the_bend_at_b_is_continuous_where_the_next_segment_starts_to_wrap():
     assert arcs[0] > 0.0 > arcs[-1]
     dW = np.abs(np.diff(W))
     assert dW.max() < 1.5 * np.median(dW), dW
+
+
+
+def rows_slid_along_the_edge(shift: float, add_table=None) -> list[tuple[int, int, int, int]]:
+    """The soft cable (n 20) draped round the table edge at rest length, its contacts detected there (the segment
+    across the edge wraps it), then detected again with every node moved ``shift`` [m] along the edge (y): the
+    second detection's rows as (kind, node a, node b, the axis x / y / z (0 / 1 / 2) of a WRAP row's edge, else -1).
+    ``add_table(world)`` adds the table (default: the box)."""
+    spec = soft_cable(20)
+    x, _ = layout(spec, threshold(MU), 0.5, wrapped=True)
+    with BulletWorld(dt=1.0 / 240.0, ground=False) as world:
+        if add_table is None:
+            world.add_box(TABLE, (-TABLE[0], 0.0, -TABLE[2]), friction=MU)
+        else:
+            add_table(world)
+        cable = world.add_cable(spec, state=CableState(x.copy(), np.zeros_like(x)))
+        cs = cable._contact_set
+        mass = cable.model.arrays.mass
+        cs.update(x, np.zeros_like(x), mass, world.dt, world.dt, False)
+        c = cs.contacts
+        assert WRAP in c.kind[:int(c.count[0])]  # (the layout's premise)
+        cs.update(x + (0.0, shift, 0.0), np.zeros_like(x), mass, world.dt, world.dt, False)
+        return [(int(c.kind[k]), int(c.node[k, 0]), int(c.node[k, 1]),
+                 int(np.argmax(np.abs(c.axis[k]))) if c.kind[k] == WRAP else -1) for k in range(int(c.count[0]))]
+
+
+def wrap_ends_past_the_edge_s_end(add_table=None, before: float = 0.001) -> None:
+    """Slid along the edge until the wrap's arc lies ``before`` [m] short of, 1 mm past and 10 mm past the edge's end
+    (the table's half width): short of it the segment wraps the edge (y), 1 mm past no longer (its capsule still
+    touches the corner: a penalty row on the same segment; it may wrap the end face's top edge, x, which it passes 1 mm
+    off), 10 mm past nothing of it touches the table."""
+    short = rows_slid_along_the_edge(TABLE[1] - before, add_table)
+    wrapped = [(a, b) for kind, a, b, axis in short if kind == WRAP and axis == 1]
+    assert len(wrapped) == 1
+    past = rows_slid_along_the_edge(TABLE[1] + 0.001, add_table)
+    assert not [row for row in past if row[0] == WRAP and row[3] == 1]
+    assert [row for row in past if row[1:3] == wrapped[0]]
+    far = rows_slid_along_the_edge(TABLE[1] + 0.01, add_table)
+    assert not [row for row in far if row[1:3] == wrapped[0]]
+
+
+def test_a_wrap_ends_where_the_cable_slides_past_the_edge_s_end():
+    """A wrap's geometry is the edge's whole line (:func:`wrap_ends_past_the_edge_s_end` on the box table). On the
+    code before the wrap was kept round the line beyond the edge's end: a cable slid off the edge hung there, and in
+    Routing-v0 a node that reached the line beyond the clip's end blew the row up to 1e12 N (2026-12-06)."""
+    wrap_ends_past_the_edge_s_end()

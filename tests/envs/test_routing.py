@@ -203,6 +203,34 @@ def test_the_scripted_policy_wraps_the_pegs_and_threads_the_clip(tolerance, monk
         env.close()
 
 
+@pytest.mark.parametrize("seed, tolerance", [(2, 1.25), (3, 0.5)])
+def test_the_clip_s_edges_do_not_hold_the_cable_beyond_their_ends(seed, tolerance, monkeypatch):
+    """Seeds 2 and 3 at these Newton tolerances: the cable crosses the end of a clip box's top edges, and its wraps
+    round them were kept round the edges' whole lines beyond the box (2026-12-06). As the policy pulled the cable into
+    the slot a node reached the line past the edge's end, the row's geometry divided by its distance from it, and the
+    contact solve blew up at 1e12 N on the step that threaded the clip: success and unstable at once (reward 0).
+    Now the wrap ends where its arc passes the edge's end: success, stable, and the episode ends as at the default
+    tolerance."""
+    default = NewtonOptions.tolerance
+    ends = []
+    for scale in (1.0, tolerance):
+        monkeypatch.setattr(NewtonOptions, "tolerance", lambda self, integrator: scale * default(self, integrator))
+        env = RoutingEnv()
+        try:
+            obs, _ = env.reset(seed=seed)
+            policy = RoutingPolicy()
+            for steps in range(1, 251):
+                obs, reward, terminated, _, info = env.step(policy(obs))
+                if terminated:
+                    break
+            assert info["is_success"] and not info["unstable"], (scale, info["reason"])
+            assert reward > routing.SUCCESS_BONUS
+            ends.append((steps, np.round(info["wraps"], 3).tolist()))
+        finally:
+            env.close()
+    assert ends[0] == ends[1]
+
+
 def test_a_cable_whose_segments_could_wedge_in_the_slot_is_refused():
     """The default cable has the fewest masses whose segments are shorter than the slot's free width; fewer masses,
     a longer or thicker cable drawn with the same masses, or ``auto`` (blind to the clip) are refused by name."""

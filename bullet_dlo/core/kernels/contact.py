@@ -1170,6 +1170,23 @@ def wrap_active(c, k, x):
 
 
 @njit(cache=True, error_model="numpy")
+def wrap_arc_share(c, k, x):
+    """Where wrap row k's arc lies on its path at x: the share [-] of the path across the edge from node a to the
+    arc's middle, (t_a + r alpha / 2) / P (:func:`_wrap_eval`). Along the edge the unrolled path is straight, so the
+    arc's middle lies that share of the way from a's coordinate along the edge to b's. -1 when the path does not
+    wrap."""
+    geo = np.zeros(10)
+    ev = np.empty((4, 3))
+    g6 = np.empty(6)
+    h6 = np.empty((6, 6))
+    a, b = c.node[k, 0], c.node[k, 1]
+    alpha = _path_terms(c.point[k], c.axis[k], c.side[k], c.radius[0] + c.seg[k, 4], x[a], x[b], False, geo, ev,
+                        g6, g6, g6, h6, h6)
+    r = c.radius[0] + c.seg[k, 4]
+    return (geo[5] + 0.5 * r * alpha) / geo[1] if alpha > 0.0 else -1.0
+
+
+@njit(cache=True, error_model="numpy")
 def _wrap_cap(c, k, x):
     """The capstan's friction limit [N] of wrap row k at x: (exp(mu alpha) - 1) T_small (mu_s while stuck,
     mu_d while sliding; the tensions with the caps in c.cap)."""
