@@ -20,6 +20,13 @@ same drag, phi growing by 1/(n - 1) as each node passes the edge), the yardstick
 
     PYTHONPATH=. python demos/edge_slide.py --lumped [--rates 60 240 1000] [--n 10 20 40] [--places 0.25 0.5 0.75]
 
+``--corner``: the draped cable (0.2 hanging, mu 0.3) pushed along the edge off the table's corner (tests/bullet/
+test_edge_slide.py's ``push_off_the_corner``) for each push [m/s^2] and start [m] of ``--pushes`` / ``--starts``
+(paired), rate and n: whether it stayed stable, when it had left the table, how high a node rose after the push
+began (a cable sliding off a corner falls; docs/concepts/contact.md, "Corners"):
+
+    PYTHONPATH=. python demos/edge_slide.py --corner [--rates 60 240 1000] [--n 10 20 40 80]
+
 ``--trace PHI``: one run well above the threshold, the model's and the rope's travel and speed every 0.1 s (where the
 model loses its speed: at each node's crossing of the edge):
 
@@ -107,6 +114,24 @@ def trace(hz: float, n: int, place: float, phi: float, mu: float, seconds: float
                       f"{rv * 1e3:.1f} | {edge} |", flush=True)
 
 
+def corner(pushes: list[float], starts: list[float], rates: list[float], ns: list[int]) -> None:
+    """Print one row per push, rate and n of the cable pushed off the table's corner (``push_off_the_corner``, 2 s)."""
+    from test_edge_slide import push_off_the_corner, soft_cable
+
+    print("| push [m/s^2] | start [m] | Hz | n | stable | off the table at [s] | highest rise [mm] |")
+    print("|---|---|---|---|---|---|---|")
+    done, total = 0, 0
+    for (push, start), hz, n in itertools.product(zip(pushes, starts), rates, ns):
+        top, passed, cable = push_off_the_corner(n, hz, 2.0, push, start)
+        rise = (top - soft_cable(n).diameter / 2) * 1e3
+        off = f"{passed:.2f}" if passed is not None else "no"
+        done += cable.stable and passed is not None
+        total += 1
+        print(f"| {push:g} | {start:g} | {hz:g} | {n} | {cable.stable or cable.reason} | {off} | {rise:.1f} |",
+              flush=True)
+    print(f"stable and off the table: {done} of {total}")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--rates", type=float, nargs="+", default=[60.0, 240.0, 1000.0])
@@ -118,8 +143,18 @@ def main() -> None:
     ap.add_argument("--trace", type=float, metavar="PHI",
                     help="one run (the first rate, n and place) released with hanging fraction PHI at --mu: the "
                          "model's and the rope's travel and speed every 0.1 s")
+    ap.add_argument("--corner", action="store_true", help="push the draped cable along the edge off the table's corner")
+    ap.add_argument("--pushes", type=float, nargs="+", default=[5.0, 3.5, 8.0],
+                    help="--corner: push accelerations [m/s^2], each > 0.3 g (default 5 3.5 8)")
+    ap.add_argument("--starts", type=float, nargs="+", default=[0.07, 0.05, 0.05],
+                    help="--corner: start positions along the edge [m], one per push, below 0.1 (default 0.07 0.05 0.05)")
     args = ap.parse_args()
     sys.path.insert(0, str(TESTS))
+    if args.corner:
+        if len(args.starts) != len(args.pushes) or min(args.pushes) <= 0.3 * 9.81 or max(args.starts) >= 0.1:
+            sys.exit(print("--pushes and --starts need one start (< 0.1 m) per push (> 0.3 g)", file=sys.stderr) or 2)
+        corner(args.pushes, args.starts, args.rates, args.n)
+        return
     if args.trace is not None:
         trace(args.rates[0], args.n[0], args.places[0], args.trace, args.mu)
         return

@@ -64,9 +64,9 @@ from bullet_dlo.bullet.kernels import bind
 from bullet_dlo.bullet.native import (BASE_STATE, HANDLE, collision_info_init, disabled_warning, kernel_api,
                                       overlapping, read_base_states, status_aabb, submit)
 from bullet_dlo.bullet.shape_data import collision_shapes
-from bullet_dlo.core.kernels.contact import (PENALTY, STICK, WRAP, Bodies, Contacts, _gap, _wrap_cap, make_bodies,
-                                             make_contacts, mark_wrap_neighbours, wrap_active, wrap_arc_share,
-                                             wrap_energy, wrap_start)
+from bullet_dlo.core.kernels.contact import (PENALTY, STICK, WRAP, Bodies, Contacts, _arc_middle, _gap, _wrap_cap,
+                                             make_bodies, make_contacts, mark_wrap_neighbours, wrap_active,
+                                             wrap_arc_share, wrap_energy, wrap_start)
 from bullet_dlo.core.kernels.jit import njit
 
 BOX, SPHERE, CYLINDER, CAPSULE, PROBE, HULL = range(6)  # PROBE: a link measured by Bullet's narrow phase
@@ -1821,17 +1821,24 @@ def _unwrap(c, k, x):
 
 
 @njit(cache=True, error_model="numpy")
-def _one_wrap_per_segment(c, first, n):
-    """A segment with more than one WRAP row (across two edges, of one box or two) keeps capsule contacts with
-    them instead: the wraps' potentials each replace the segment's whole spring and do not add."""
-    count = np.zeros(n, np.int64)
+def _one_wrap_per_segment(c, first, n, x):
+    """A segment with more than one WRAP row (across two edges, of one box or two: near a corner) keeps the wrap whose
+    path turns the most (the largest arc alpha at x) and capsule contacts with the others (:func:`_unwrap`): the
+    wraps' potentials each replace the segment's whole spring and do not add. Until 2026-12-06 all of them went back
+    to capsules: a chord cutting the corner of the edge it wrapped then met that edge as a capsule whose normal, from
+    the edge to the chord, pointed into the body and pulled the segment in (a cable slid off a table's corner)."""
+    keep = np.full(n, -1, np.int64)
+    most = np.full(n, -np.inf)
     for k in range(first, c.count[0]):
         if c.kind[k] == WRAP:
-            count[c.node[k, 0]] += 1
+            alpha = _arc_middle(c, k, x)[1]
+            i = c.node[k, 0]
+            if alpha > most[i]:
+                most[i] = alpha
+                keep[i] = k
     for k in range(first, c.count[0]):
-        if c.kind[k] == WRAP and count[c.node[k, 0]] > 1:
-            c.kind[k] = PENALTY
-            c.anchor[k, 3] = c.weight[k, 1]
+        if c.kind[k] == WRAP and keep[c.node[k, 0]] != k:
+            _unwrap(c, k, x)
 
 
 @njit(cache=True, error_model="numpy")
@@ -2841,7 +2848,7 @@ def detect(x, v, mass, sh, c, bd, st, h, k_per_mass, zeta, self_mu, h_body, h_do
                         continue  # beyond a cylinder's flat end: the nodes handle it
                     key = base + n + i
                     _add(c, st, key, s, i, i + 1, 1.0 - sp, sp, cl, nl, sh, k_per_mass, zeta, mass, x)
-    _one_wrap_per_segment(c, first_edge, n)
+    _one_wrap_per_segment(c, first_edge, n, x)
     mark_wrap_neighbours(c, first_edge)  # after the last change of a row's kind
     if self_mu[0] >= 0.0:
         _self_contacts(x, v, h, mass, c, st, sh.kind.shape[0] * per_shape, self_mu, margin, k_per_mass, zeta)

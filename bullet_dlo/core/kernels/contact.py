@@ -1106,8 +1106,9 @@ def mark_wrap_neighbours(c, first):
 @njit(cache=True, error_model="numpy")
 def _arc_middle(c, k, x):
     """The angle [rad] from the side B of the middle of wrap row k's arc at x (where its two tangent points'
-    angles meet when the path does not wrap), the arc alpha [rad] and the unrolled path's length L [m] (0 when
-    not wrapped)."""
+    angles meet when the path does not wrap), the arc alpha [rad], the unrolled path's length L [m] (0 when
+    not wrapped) and the share [-] of the path across the edge from node a to the arc's middle, (t_a + r alpha / 2) /
+    P (-1 when not wrapped)."""
     geo = np.zeros(10)
     ev = np.empty((4, 3))
     g6 = np.empty(6)
@@ -1115,7 +1116,10 @@ def _arc_middle(c, k, x):
     a, b = c.node[k, 0], c.node[k, 1]
     alpha = _path_terms(c.point[k], c.axis[k], c.side[k], c.radius[0] + c.seg[k, 4], x[a], x[b], False, geo, ev,
                         g6, g6, g6, h6, h6)
-    return 0.5 * (geo[8] + geo[9]), alpha, geo[2] if alpha > 0.0 else 0.0
+    r = c.radius[0] + c.seg[k, 4]
+    wrapped = alpha > 0.0
+    return (0.5 * (geo[8] + geo[9]), alpha, geo[2] if wrapped else 0.0,
+            (geo[5] + 0.5 * r * alpha) / geo[1] if wrapped else -1.0)
 
 
 @njit(cache=True, error_model="numpy")
@@ -1139,7 +1143,7 @@ def _recentre_wrap(c, k, x):
     friction. The change of the stored energy counts as work on the cable, as a new wrap's energy does."""
     g = np.empty(12)
     h = np.empty((12, 12))
-    psi, alpha, L = _arc_middle(c, k, x)
+    psi, alpha, L, _ = _arc_middle(c, k, x)
     if L == 0.0 or abs(c.anchor[k, 0] - psi) <= 0.5 * alpha:
         return
     _, _, T1, T2, _, _, f_old, e_old = _wrap_eval(c, k, x, g, h, False)
@@ -1175,15 +1179,7 @@ def wrap_arc_share(c, k, x):
     arc's middle, (t_a + r alpha / 2) / P (:func:`_wrap_eval`). Along the edge the unrolled path is straight, so the
     arc's middle lies that share of the way from a's coordinate along the edge to b's. -1 when the path does not
     wrap."""
-    geo = np.zeros(10)
-    ev = np.empty((4, 3))
-    g6 = np.empty(6)
-    h6 = np.empty((6, 6))
-    a, b = c.node[k, 0], c.node[k, 1]
-    alpha = _path_terms(c.point[k], c.axis[k], c.side[k], c.radius[0] + c.seg[k, 4], x[a], x[b], False, geo, ev,
-                        g6, g6, g6, h6, h6)
-    r = c.radius[0] + c.seg[k, 4]
-    return (geo[5] + 0.5 * r * alpha) / geo[1] if alpha > 0.0 else -1.0
+    return _arc_middle(c, k, x)[3]
 
 
 @njit(cache=True, error_model="numpy")
