@@ -37,7 +37,7 @@ import numpy as np
 import pytest
 
 from bullet_dlo.bullet.world import BulletWorld
-from bullet_dlo.core.kernels.contact import PENALTY, WRAP, _arc_middle, _path, _recentre_wrap, _wrap_eval, make_contacts
+from bullet_dlo.core.kernels.contact import WRAP, _arc_middle, _path, _recentre_wrap, _wrap_eval, make_contacts
 from bullet_dlo.core.model import CableState
 from bullet_dlo.core.spec import CableSpec
 
@@ -498,7 +498,6 @@ def test_the_bend_at_b_is_continuous_where_the_next_segment_starts_to_wrap():
     assert arcs[0] > 0.0 > arcs[-1]
     dW = np.abs(np.diff(W))
     assert dW.max() < 1.5 * np.median(dW), dW
-
 
 
 def rows_slid_along_the_edge(shift: float, add_table=None) -> list[tuple[int, int, int, int]]:
