@@ -83,6 +83,7 @@ S_MIN = 1e-3  # segment interior: 0 < s < 1 away from the nodes by this much (no
 SEGMENT_DIP = 1e-7
 ALONG_EDGE = 0.1  # [rad] a segment this close to parallel to a box edge has no well-defined closest point to it
 WRAP_ALONG = math.radians(15.0)  # [rad] a segment this close to parallel to an edge lies along it: no wrap (detect)
+WRAP_ALONG_SIN2 = math.sin(WRAP_ALONG) ** 2
 # Bullet answers a query against a triangle mesh triangle by triangle: answers whose normals lie within this angle
 # of a closer one are the same contact (a face split into triangles, an edge seen from its two faces); the others
 # are further contacts of the same node (segment), up to PROBE_EXTRA of them (a concave corner's other faces)
@@ -1655,9 +1656,7 @@ def _sink_unplanned(c, st, key, k, x):
     g = _gap(c, k, x)
     extra = -g - st.depth[key]
     if extra > 0.0:
-        st.sink[key] += extra
-        for j in range(3):
-            c.point[k, j] -= extra * c.normal[k, j]
+        _to_sink(c, st, k, extra)
         g += extra
         c.cap[k] = c.static_friction[k] * c.k_n[k] * (-g) if g < 0.0 else 0.0
     _last_use = c, st, x  # (a last use after the branches: tests/llvm_loops.py)
@@ -1740,23 +1739,14 @@ def _make_wrap(c, k, axis, side, ks, l0, kb_a, kb_b, edge_r, fresh, x):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _along_edge(qa, qb, ax) -> bool:
-    """Segment qa-qb (shape frame) within ALONG_EDGE of parallel to a box edge along axis ``ax``."""
-    e2 = 0.0
-    for j in range(3):
-        e2 += (qb[j] - qa[j]) ** 2
-    return (qb[ax] - qa[ax]) ** 2 > e2 * (1.0 - ALONG_EDGE ** 2)
-
-
-@njit(cache=True, error_model="numpy", inline="always")
-def _parallel(qa, qb, A) -> bool:
-    """Segment qa-qb within WRAP_ALONG of parallel to the unit direction A (one frame)."""
+def _parallel(qa, qb, A, sin2) -> bool:
+    """Segment qa-qb within an angle of parallel to the unit direction A (one frame): sin2 the angle's sine squared."""
     e2 = 0.0
     ea = 0.0
     for j in range(3):
         e2 += (qb[j] - qa[j]) ** 2
         ea += (qb[j] - qa[j]) * A[j]
-    return ea * ea > e2 * math.cos(WRAP_ALONG) ** 2
+    return ea * ea > e2 * (1.0 - sin2)
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -1860,9 +1850,7 @@ def _unwrap(c, st, k, x):
     c.state[k] = STICK
     g -= c.radius[0]
     if g < 0.0:
-        st.sink[st.keys[k]] -= g
-        for j in range(3):
-            c.point[k, j] += g * c.normal[k, j]
+        _to_sink(c, st, k, -g)
     c.cap[k] = 0.0
 
 
@@ -1885,10 +1873,17 @@ def _sink_unwrapped(c, st, sh, first, x, wrapped_before):
             continue
         g = _gap(c, k, x)
         if g < 0.0:
-            st.sink[st.keys[k]] -= g
-            for j in range(3):
-                c.point[k, j] += g * c.normal[k, j]
+            _to_sink(c, st, k, -g)
             c.cap[k] = 0.0
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _to_sink(c, st, k, depth):
+    """Row k's surface point ``depth`` [m] further inside its body, kept in the sink (Store.sink) and let out over
+    SINK_TIME (:func:`detect`)."""
+    st.sink[st.keys[k]] += depth
+    for j in range(3):
+        c.point[k, j] -= depth * c.normal[k, j]
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -2600,7 +2595,7 @@ def _hull_contacts(c, st, s, hu, q, x, mass, base, margin, out, sh, k_per_mass, 
             # the segment before a wrapped one wraps too while its own path goes round the edge: its row then bends the
             # node between them (the turn over the edge is the edge's), continuously (mark_wrap_neighbours)
             before = i + 2 < n and st.active[key + 1] and st.wrap[key + 1]
-            along = _parallel(q[i], q[i + 1], hu.edge_a[eb])  # (no wrap: see detect's boxes)
+            along = _parallel(q[i], q[i + 1], hu.edge_a[eb], WRAP_ALONG_SIN2)  # (no wrap: see detect's boxes)
             if k < 0 or not (sharp and st.keys[k] == key
                              and (held or ((cuts or before or _taut(x, i, seg_k[i], seg_l[i], seg_b))
                                            and not along))):
@@ -2874,7 +2869,7 @@ def detect(x, v, mass, sh, c, bd, st, h, k_per_mass, zeta, self_mu, h_body, h_do
                         # outside, the edge is the segment's nearest feature only where the direction from it lies
                         # between its two faces' normals; elsewhere (beside a face) the face is, with its normal
                         beside = sp > 0.0 and not inside and (nl[o1] * P[o1] < 0.0 or nl[o2] * P[o2] < 0.0)
-                        if beside and not wraps_i and _along_edge(q[i], q[i + 1], ax):
+                        if beside and not wraps_i and _parallel(q[i], q[i + 1], A, ALONG_EDGE ** 2):
                             continue  # (its closest point to the edge lies anywhere along it: the nodes carry it)
                         if (inside or beside) and not wraps_i:
                             # the direction from the edge to the segment's point then points into the box, and
@@ -2915,7 +2910,7 @@ def detect(x, v, mass, sh, c, bd, st, h, k_per_mass, zeta, self_mu, h_body, h_do
                             # cylinder, where the path's tangents vanish and their curvature 1/t diverges (a cable
                             # slid off a table's corner onto the end face's edge stalled Newton at 1e5 times gravity's
                             # impulse); its nodes' rows carry it, as they do a cable lying on a face
-                            along = _parallel(q[i], q[i + 1], A)
+                            along = _parallel(q[i], q[i + 1], A, WRAP_ALONG_SIN2)
                             if (wraps_i and c.count[0] > 0 and st.keys[c.count[0] - 1] == key
                                     and (wrapped or ((cuts or before or _taut(x, i, seg_k[i], seg_l[i], seg_b))
                                                      and not along))):
