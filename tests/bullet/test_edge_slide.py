@@ -581,16 +581,19 @@ def push_off_the_corner(n: int, hz: float, seconds: float = 1.0, push: float = 5
 def test_a_cable_pushed_off_the_table_s_corner_slides_off(n, hz, push, start, rise):
     """:func:`push_off_the_corner`: stable, off the table within 0.7 s of the push, and no node rises more than
     ``rise`` [m] (1 cm) above its resting height r (a cable sliding off a corner falls; nothing throws it: n 80 arches
-    by 7 mm as it goes). n 80 at 1 kHz: 2 cm, it rises 16 mm (a wrap ends at the edge's end with the node between two
-    wraps on the vertex's rounding; the turn the edge carried becomes the node's bend at once and straightens: there
-    is no wrap round a vertex, docs/concepts/contact.md "Corners"). Before 2026-12-06, n 10 at 60 Hz and n 20 at 240 and 1000 Hz were stopped as "segment strain beyond bound"
-    (a node thrown up to 0.14 m): a segment near the corner wrapped two edges at once, and both went back to capsule
-    rows, the one whose corner the chord cut with its normal pointing into the table (docs/concepts/contact.md,
-    "Corners"). Until 2026-12-06 (noon): n 10 at 240 Hz lifted a node 15 mm; n 40 at 60 Hz hung on the corner (a wrap
-    of the end face's top edge kept with a node past its end behind both its faces, and the vertical edge's capsule
-    pointing into the table); n 40 at 1 kHz (push 3.5) hung there, then stalled Newton lying along the end face's top
-    edge with its segments wrapped round it; n 80 at 1 kHz stalled, and once it went, a wrap ending at the corner
-    started its capsule 0.9 mm deep and threw the cable's end up 15 mm."""
+    by 7 mm as it goes). n 80 at 1 kHz: 2 cm, it rises 16 mm (the node between two wraps of the table's edge lies on
+    the vertex; when their arcs pass the edge's end both end, the turn the edge carried becomes that node's bend at
+    once and straightens: there is no wrap round a vertex, docs/concepts/contact.md "Corners").
+
+    Before 2026-12-06, n 10 at 60 Hz and n 20 at 240 and 1000 Hz were stopped as "segment strain beyond bound" (a node
+    thrown up to 0.14 m): a segment near the corner wrapped two edges at once, and both went back to capsule rows, the
+    one whose corner the chord cut with its normal pointing into the table. On cc2e568 (2026-12-06, morning) n 40 at 60
+    Hz and at 1 kHz (push 3.5) hung on the corner (a wrap of the end face's top edge kept with a node past its end
+    behind both its faces; the chord's capsules with the corner's other edges pointing into the table or along the
+    side face), n 10 at 240 Hz lifted a node 15.5 mm and n 80 at 1 kHz stopped as a contact Newton stall. On the way:
+    a cable lying along the end face's top edge with its segments wrapped round it stalled Newton, and a wrap ending
+    at the corner that started its capsules 0.9 mm deep threw the cable's end up (rules in
+    :func:`bullet_dlo.bullet.contact.detect`)."""
     top, passed, cable = push_off_the_corner(n, hz, push=push, start=start)
     assert cable.stable, cable.reason
     assert passed is not None and passed < 1.0
