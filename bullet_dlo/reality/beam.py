@@ -18,7 +18,7 @@ with the flange's full orientation: tangent the strip axis, section axis d1 the 
 :class:`Mounting`), and follows the flange's translation and rotation, under the full gravity;
 its clamp force and moment (twist moment included) are the load on the flange.
 
-**Two planar runs (``strip_model="planes"``, the default).** The model from before the core had sections: two
+**Two planar runs (``strip_model="planes"``).** The model from before the core had sections: two
 superposed planar runs (:class:`PlaneRun`) of an isotropic cable, each with that plane's EI (and
 the strip's EA and mass per length) clamped at the flange:
 
@@ -34,8 +34,15 @@ On a motion within the weak plane the two models agree (``tests/reality/test_bea
 nine recordings their predictions differ by at most 3 % (measured with the rectangle at dt 0.1 ms, when the core
 still advanced its twist in a staggered sub-step). The core's BDF2 step now solves the twist with the positions
 (one Newton system), and the rectangle's band-passed torque on ocp_Z_15cm is 1.608 / 1.607 / 1.607 / 1.607 N m
-at dt 1 / 0.5 / 0.25 / 0.1 ms (planes 1.608): both run at dt 1 ms. The coupling and twist the rectangle adds change
-nothing measurable here, so the pair stays the default.
+at dt 1 / 0.5 / 0.25 / 0.1 ms (planes 1.608): both run at dt 1 ms.
+
+**Which one (``strip_model="auto"``, the default; :func:`choose_strip_model`).** Each planar run keeps the start
+pose's axes, so a flange that turns out of the weak plane (about the strip axis or the thickness normal) leaves the
+weak run's strip behind: after a 10 degree turn about the normal its weight moment has not turned at all
+(``tests/reality/test_beam_turn.py``; the rectangle's turns by the flange's 10.000 degrees). ``auto`` runs the
+planes while that turn stays within :data:`PLANES_MAX_TURN` (the nine recordings: 0.2-0.45 degrees in all), where
+the coupling and twist the rectangle adds change nothing measurable and the arm-strip loop
+(:mod:`bullet_dlo.reality.beam_arm`) can carry the strip, and the rectangle beyond.
 """
 from __future__ import annotations
 
@@ -64,10 +71,19 @@ TICK = 1e-3  # [s] libfranka's control period: one row per tick
 GROUPS = ("q", "q_d", "dq", "dq_d", "tau_J", "tau_ext_hat_filtered")
 COLUMNS = ("duration", "success rate", *(f"{g}[{j}]" for g in GROUPS for j in range(N_JOINTS)))
 MOUNT_YAW = math.pi / 4  # [rad] beam frame = flange frame turned about its z (the xacro writes pi as 3.1415)
-STRIP_MODELS = ("rectangle", "planes")  # one 3-D run of a rectangle-section cable | two planar isotropic runs
+# one 3-D run of a rectangle-section cable | two planar isotropic runs | per recording, planes while the flange
+# keeps the weak plane (:func:`choose_strip_model`)
+STRIP_MODELS = ("rectangle", "planes", "auto")
 # [s] default steps: with BDF2 the core couples the rectangle's twist into its Newton step, converged at 1 ms
 # (module doc; it used to be a staggered first-order sub-step that needed 0.1 ms)
-DEFAULT_DT = {"rectangle": 1e-3, "planes": 1e-3}
+DEFAULT_DT = {"rectangle": 1e-3, "planes": 1e-3, "auto": 1e-3}
+PLANES_MAX_TURN = math.radians(1.0)
+"""[rad] Largest turn of the flange out of the strip's weak plane (about the strip axis or the thickness normal, from
+its start pose) for which ``auto`` keeps the planes: each plane's run keeps its start-pose axes, so a flange turned by
+theta about the normal leaves the weak run's weight moment m g L/2 sin(theta) off (``demos/beam_turn.py``: with 1-30
+degrees of joint 6 added to ocp_Z_25cm's motion, 0.015 N m RMS per degree on joint 3, and its peak-to-peak over the
+first 0.5 s after the motion 1.8 % off at 1 degree, 13 % at 10). The nine beam_handling motions turn the flange by
+0.2-0.45 degrees in all."""
 
 
 def check_strip_model(name: str) -> str:
@@ -75,6 +91,36 @@ def check_strip_model(name: str) -> str:
     if name not in STRIP_MODELS:
         raise ParameterError(f"strip model must be one of {', '.join(STRIP_MODELS)}, got {name!r}")
     return name
+
+
+def off_plane_turn(rot: np.ndarray, mounting: "Mounting") -> float:
+    """Largest turn [rad] of the flange rotations ``rot`` (m, 3, 3) from ``rot[0]`` about the strip's axis and its
+    thickness normal at the start pose: the part of its rotation the planes cannot follow (a turn about the width
+    axis stays in the weak plane)."""
+    axis, _, normal = mounting.axes(rot[0])
+    rotvec = Rotation.from_matrix(rot @ rot[0].T).as_rotvec()
+    return float(np.max(np.hypot(rotvec @ axis, rotvec @ normal), initial=0.0))
+
+
+def choose_strip_model(requested: str, rot: np.ndarray, mounting: "Mounting") -> tuple[str, str]:
+    """The strip model for a recording whose flange takes the rotations ``rot`` (m, 3, 3), and why.
+
+    ``auto``: the planes while the flange turns out of the weak plane by at most :data:`PLANES_MAX_TURN`,
+    the rectangle beyond. ``planes`` or ``rectangle`` as asked; the planes beyond the bound with a warning in the
+    reason (it starts with ``"warning:"``)."""
+    turn = math.degrees(off_plane_turn(rot, mounting))
+    bound = math.degrees(PLANES_MAX_TURN)
+    if requested == "rectangle":
+        return "rectangle", "asked for"
+    if turn <= bound:
+        return "planes", (f"the flange turns {turn:.2f} deg out of the weak plane, within the planes' "
+                          f"{bound:g} deg" + (" (auto)" if requested == "auto" else ""))
+    if requested == "auto":
+        return "rectangle", (f"auto: the flange turns {turn:.1f} deg out of the weak plane, beyond the planes' "
+                             f"{bound:g} deg (their runs keep the start pose's axes)")
+    return "planes", (f"warning: the flange turns {turn:.1f} deg out of the weak plane, beyond the planes' {bound:g} "
+                      "deg: their runs keep the start pose's axes, so the weight moment and the vibration's plane lag "
+                      "the flange; use --strip-model rectangle or auto")
 
 
 # ----- the recording ---------------------------------------------------------------------------
@@ -335,7 +381,7 @@ class Numerics:
     (encoder noise would otherwise become huge accelerations at the clamp). BDF2: its numerical
     damping is 100x below the strip's (:func:`free_vibration`)."""
 
-    strip_model: str = "planes"
+    strip_model: str = "auto"
     integrator: str = "bdf2"
     n_masses: int = 20
     dt: float | None = None  # None: DEFAULT_DT of the strip model
@@ -367,6 +413,8 @@ class Prediction:
     warnings: list[str] = field(default_factory=list)
     tip: np.ndarray | None = None  # the strip's free tip [m], (k, 3), world (planes: the weak-plane run's)
     arm_deviation: np.ndarray | None = None  # [rad], (k, 7): the compliant arm's q - q_ref (beam_arm); None: rigid
+    strip_model: str = ""  # the model that ran (rectangle | planes) and why (:func:`choose_strip_model`)
+    strip_reason: str = ""
 
 
 def low_passed_q(rec: BeamRecording, numerics: Numerics) -> np.ndarray:
@@ -493,8 +541,8 @@ def predict_torques(rec: BeamRecording, panda: Panda, strip: Strip = Strip(), da
     rotvec = Rotation.from_matrix(rot @ rot[0].T).as_rotvec()
     axis, width, normal = mounting.axes(rot[0])
     g = np.asarray(gravity, dtype=float)
-    check_strip_model(numerics.strip_model)
-    if numerics.strip_model == "rectangle":
+    model, reason = choose_strip_model(check_strip_model(numerics.strip_model), rot, mounting)
+    if model == "rectangle":
         t, force, moment, warnings, tip = run_rectangle(strip, numerics, damping or {}, clamp[0],
                                                         (axis, width, normal), times, disp, rotvec, g, duration)
     else:
@@ -507,6 +555,8 @@ def predict_torques(rec: BeamRecording, panda: Panda, strip: Strip = Strip(), da
             force = f @ run.force.T + (0 if force is None else force)
             moment = mo @ run.moment.T + (0 if moment is None else moment)
             warnings += [f"{run.plane} plane: {x}" for x in w]
+    if reason.startswith("warning:"):
+        warnings.append(reason)
     k = min(len(t), int(np.searchsorted(rec.t, t[-1] + 1e-9)))
     t, force, moment, tip = t[:k], force[:k], moment[:k], tip[:k]
     rows = np.clip(np.searchsorted(rec.t, t - 1e-9), 0, len(rec.t) - 1)
@@ -521,12 +571,12 @@ def predict_torques(rec: BeamRecording, panda: Panda, strip: Strip = Strip(), da
     filtered = estimate.apply(tau, 1.0 / TICK)
     return Prediction(t=t, force=force, moment=moment, wrench=wrench, torques=tau, torques_filtered=filtered,
                       cpu_s=_time.thread_time() - tic, simulated_s=float(t[-1] - t[0]), warnings=warnings,
-                      tip=tip)
+                      tip=tip, strip_model=model, strip_reason=reason)
 
 
 def strip_spec(strip: Strip, numerics: Numerics, damping: dict[str, float] | None = None) -> CableSpec:
     """The cable ``numerics.strip_model`` vibrates in the weak plane: the rectangle-section cable, or the
-    planar pair's weak-plane run."""
+    planar pair's weak-plane run (also for ``auto``: in the weak plane the two agree)."""
     if check_strip_model(numerics.strip_model) == "rectangle":
         return strip.rectangle_spec(numerics.n_masses, **(damping or {}))
     return strip.cable_spec("weak", numerics.n_masses, **(damping or {}))
@@ -613,6 +663,7 @@ def stepped_start(model: CableModel, state, h: float) -> tuple:
 
 
 __all__ = ["BeamRecording", "read_beam_csv", "beam_files", "EstimateFilter", "identify_filter", "Strip",
-           "Mounting", "payload_torques", "PlaneRun", "plane_runs", "STRIP_MODELS", "run_rectangle", "Numerics",
+           "Mounting", "payload_torques", "PlaneRun", "plane_runs", "STRIP_MODELS", "PLANES_MAX_TURN", "off_plane_turn",
+           "choose_strip_model", "run_rectangle", "Numerics",
            "Prediction", "predict_torques", "free_vibration", "fit_recording", "stepped_start"]
 

@@ -61,6 +61,7 @@ from bullet_dlo.reality.beam import (
     Numerics,
     Prediction,
     Strip,
+    choose_strip_model,
     flange_motion,
     low_passed_q,
     payload_torques,
@@ -75,6 +76,8 @@ ARM_MODES = ("measured", "compliant", "loop")  # clamp on the measured path | su
 MIN_R2 = 0.5  # [-] a joint whose impedance law explains less of its torque band is held rigid
 SETTLE = 0.3  # [s] after the motion's end: the identification window starts there
 SPAN = 5.7  # [s] length of the identification window
+LOOP_PLANES_ONLY = ("the arm-strip loop runs the planes strip only (the strong plane, first mode near 240 Hz, is a "
+                    "rigid part of the arm there: in the loop its stiff clamp with the one-step lag rang at 200 Hz)")
 MAX_DEVIATION = 0.05  # [rad] an arm deviation beyond it is an unstable loop (the real ones are a few mrad)
 SUB_CUTOFF_HZ = 20.0  # [Hz] low-pass of the de-filtered estimate (undoing the filter amplifies noise)
 
@@ -243,9 +246,8 @@ def predict_torques_compliant(rec: BeamRecording, panda: Panda, impedance: ArmIm
         raise ParameterError("the arm-strip loop holds the wrist joints 5 and 6 rigid (their inertia is too small for "
                              "the staggered step against the strip's stiff strong-plane clamp); give an impedance with "
                              "compliant joints among 0-4")
-    if numerics.strip_model != "planes":
-        raise ParameterError("--arm compliant/loop runs the planes strip model only (the rectangle strip's 0.1 ms "
-                             "steps would take 10x the Python step loop's time); use --strip-model planes")
+    if numerics.strip_model == "rectangle":
+        raise ParameterError(LOOP_PLANES_ONLY + "; use --strip-model planes or auto")
     if drive not in ("measured", "desired"):
         raise ParameterError(f"drive must be measured or desired, got {drive!r}")
     tic = time.thread_time()
@@ -254,6 +256,9 @@ def predict_torques_compliant(rec: BeamRecording, panda: Panda, impedance: ArmIm
     ref = rec if drive == "measured" else BeamRecording(rec.t, rec.q_d.copy(), rec.q_d, rec.dq_d, rec.dq_d, rec.tau_J,
                                                         rec.tau_ext_hat_filtered, rec.name)
     times, pos, rot = flange_motion(ref, panda, numerics, duration)
+    chosen, reason = choose_strip_model(numerics.strip_model, rot, mounting)
+    if chosen != "planes":
+        raise ParameterError(f"{rec.name}: {LOOP_PLANES_ONLY}, and this recording needs the rectangle ({reason})")
     clamp = mounting.clamp_point(pos, rot)
     disp = clamp - clamp[0]
     rotvec = Rotation.from_matrix(rot @ rot[0].T).as_rotvec()
@@ -371,10 +376,11 @@ def predict_torques_compliant(rec: BeamRecording, panda: Panda, impedance: ArmIm
     tau = tau - tau[0] + payload + np.einsum("kij,kj->ki", added, acc_rec)
     filtered = estimate.apply(tau, 1.0 / TICK)
     warnings = [] if not failures else [f"Newton did not converge in {failures} strip steps"]
+    warnings += [reason] if reason.startswith("warning:") else []
     moment = w_rec[:, 3:] - np.cross(lever, w_rec[:, :3])
     return Prediction(t=t_rec, force=w_rec[:, :3].copy(), moment=moment, wrench=w_rec, torques=tau,
                       torques_filtered=filtered, cpu_s=time.thread_time() - tic, simulated_s=float(t_rec[-1]),
-                      warnings=warnings, tip=tip, arm_deviation=dev_rec)
+                      warnings=warnings, tip=tip, arm_deviation=dev_rec, strip_model=chosen, strip_reason=reason)
 
 
 __all__ = ["ARM_MODES", "ArmImpedance", "identify_arm", "strip_torque_real", "ArmLoop", "predict_torques_compliant",

@@ -61,6 +61,8 @@ from bullet_dlo.reality.beam import (
     Prediction,
     Strip,
     beam_files,
+    choose_strip_model,
+    flange_motion,
     free_vibration,
     identify_filter,
     low_passed_q,
@@ -68,7 +70,13 @@ from bullet_dlo.reality.beam import (
     predict_torques,
     read_beam_csv,
 )
-from bullet_dlo.reality.beam_arm import ArmImpedance, check_arm_mode, identify_arm, predict_torques_compliant
+from bullet_dlo.reality.beam_arm import (
+    LOOP_PLANES_ONLY,
+    ArmImpedance,
+    check_arm_mode,
+    identify_arm,
+    predict_torques_compliant,
+)
 from bullet_dlo.reality.beam_law import AMPLITUDE_DAMPING_MAX, file_decay, measured_law
 from bullet_dlo.reality.panda import Panda
 from bullet_dlo.reality.vibration import (
@@ -88,6 +96,8 @@ BENDING = {
                  "nu 0.3), clamped with the flange's full orientation (tangent the strip axis, section axis the width)",
     "planes": "two superposed planar runs (weak EI about the width axis, strong EI about the normal) of an isotropic "
               "cable: no plane coupling, no twist",
+    "auto": "per recording: the planes while the flange turns out of the weak plane by at most 1 degree, the "
+            "rectangle beyond (each file's strip_model and strip_model_reason)",
 }
 STRIP_LIMITS = {
     "rectangle": "the twist is solved with the positions in BDF2's Newton step (the implicit Euler and midpoint "
@@ -96,6 +106,9 @@ STRIP_LIMITS = {
     "planes": "the strip's two bending planes are two superposed isotropic-cable runs: plane coupling, twist and the "
               "turning of the projection axes are left out (--strip-model rectangle has them: within 3 % on these "
               "recordings)",
+    "auto": "the planes where the flange keeps the weak plane (plane coupling and twist left out: within 3 % of "
+            "the rectangle on the nine recordings), the rectangle where it turns out of it by more than 1 degree, "
+            "there on the measured flange path (the arm-strip loop runs the planes only)",
 }
 ARM_LIMITS = {
     "measured": "the clamp follows the flange path of the measured joint angles, and after the motion that path "
@@ -161,6 +174,17 @@ def predict(rec: BeamRecording, panda: Panda, strip: Strip, damping: dict[str, f
     :func:`~bullet_dlo.reality.beam_arm.predict_torques_compliant` (the strip on the compliant arm)."""
     law = float(damping.get("amplitude_damping", 0.0))
     damping = {k: v for k, v in damping.items() if k != "amplitude_damping"}
+    if arm is not None and numerics.strip_model == "auto":
+        rot = flange_motion(rec if arm.drive == "measured" else replace(rec, q=rec.q_d), panda, numerics,
+                            float(rec.t[-1]) if duration is None else duration)[2]
+        model, reason = choose_strip_model("auto", rot, mounting)
+        if model != "planes":  # the loop runs the planes only: this recording on the measured flange path
+            pred = predict_torques(rec, panda, strip, damping, replace(numerics, strip_model=model), estimate,
+                                   mounting, duration=duration)
+            pred.strip_reason = f"{reason}; on the measured flange path ({LOOP_PLANES_ONLY})"
+            pred.warnings.append(f"--arm {arm.mode} replaced by the measured flange path for {rec.name}: "
+                                 + pred.strip_reason)
+            return pred
     if arm is None:
         if law:
             raise ParameterError("--amplitude-damping runs in the stepped arm-strip loop: use --arm compliant or loop")
@@ -463,6 +487,7 @@ def file_result(rec: BeamRecording, m: Measured, pred: Prediction) -> dict[str, 
             "rms_torque_error": float(np.sqrt(np.mean(err[:, m.joint] ** 2))),
             "rms_torque_error_all_joints": float(np.sqrt(np.mean(err**2))),
             "rms_measured_deviation": float(np.sqrt(np.mean(m.dev[:k, m.joint] ** 2))),
+            "strip_model": pred.strip_model, "strip_model_reason": pred.strip_reason,
             "simulated_s": pred.simulated_s, "cpu_s": pred.cpu_s, "warnings": pred.warnings}
 
 
@@ -517,8 +542,9 @@ def validate_beam(fit_dir: str | Path, predict_dir: str | Path, *, damping: str 
     arm: how the strip's clamp moves (:mod:`bullet_dlo.reality.beam_arm`): ``"measured"`` (the flange path of the
     measured q), ``"compliant"`` (the strip on the arm's joint impedance identified on ``fit_dir``, substituted about
     the measured q) or ``"loop"`` (the same arm in the full loop driven by q_d); None (default): ``"compliant"`` for
-    the planes strip (better on the held-out files: docs/guides/validate.md), ``"measured"`` for the rectangle strip
-    (the loop runs the planes only); ``arm_dir``: the
+    the planes and ``auto`` strips (better on the held-out files: docs/guides/validate.md), ``"measured"`` for the
+    rectangle strip (the loop runs the planes only: with ``auto`` a recording that needs the rectangle runs on its
+    measured flange path, and says so); ``arm_dir``: the
     folder whose recordings identify the arm's impedance instead of ``fit_dir`` (the controller is one for all
     motions, but a folder of Z motions does not move joints 0 and 2 enough to identify them).
     amplitude_damping: the measured damping law's amplitude-dependent part, zeta = c A_tip
@@ -530,7 +556,7 @@ def validate_beam(fit_dir: str | Path, predict_dir: str | Path, *, damping: str 
     Returns the JSON-ready summary and, per predicted file, (recording, measurement, prediction).
     """
     if arm is None:
-        arm = "compliant" if numerics.strip_model == "planes" else "measured"
+        arm = "measured" if numerics.strip_model == "rectangle" else "compliant"
     check_arm_mode(arm)
     amplitude_damping = _mode_or_number(amplitude_damping, "--amplitude-damping", ("off", "law"), 0.0,
                                         AMPLITUDE_DAMPING_MAX, "a slope", " 1/m")

@@ -127,7 +127,7 @@ def test_substitution_keeps_the_measured_path_when_the_model_strip_is_the_real_o
     substitute (the strip's load acting on it alone) deflects 10x more: sign, lag and filter inversion agree."""
     t, q, dq = swing()
     est = EstimateFilter(4.2, 0.0065)
-    numerics = Numerics(n_masses=8)
+    numerics = Numerics(strip_model="planes", n_masses=8)  # the loop's model (the swing turns the flange 8.6 deg)
     damping = {"damping_rate": 0.3}
     base = synthetic("self", t, q, q, dq, dq, np.zeros_like(q), np.zeros_like(q))
     rigid = predict_torques(base, panda, Strip(), damping, numerics, est)
@@ -153,7 +153,7 @@ def test_compliant_arm_needs_the_planes_strip(panda):
     t, q, dq = swing(0.5)
     rec = synthetic("x", t, q, q, dq, dq, np.zeros_like(q), np.zeros_like(q))
     imp = ArmImpedance(K_TRUE, D_TRUE, np.ones(7), np.arange(7) < 5)
-    with pytest.raises(ParameterError, match="planes strip model only"):
+    with pytest.raises(ParameterError, match="runs the planes strip only"):
         predict_torques_compliant(rec, panda, imp, numerics=Numerics(strip_model="rectangle"))
     with pytest.raises(ParameterError, match="wrist joints 5 and 6 rigid"):
         predict_torques_compliant(rec, panda, ArmImpedance(K_TRUE, D_TRUE, np.ones(7), np.ones(7, dtype=bool)))
@@ -200,7 +200,7 @@ def test_a_stiff_arm_in_the_loop_is_the_rigid_prescribed_path(panda):
     samples, BDF2 history, clamp loads) and the prescribed strong plane are the same model."""
     t, q, dq = swing(1.2)
     est = EstimateFilter(4.2, 0.0065)
-    numerics = Numerics(n_masses=8)
+    numerics = Numerics(strip_model="planes", n_masses=8)  # the loop's model (the swing turns the flange 8.6 deg)
     damping = {"damping_rate": 0.3}
     rec = synthetic("stiff", t, q + 0.01, q, dq, dq, np.zeros_like(q), np.zeros_like(q))  # q far off: not used
     stiff = ArmImpedance(np.full(7, 1e7), np.full(7, 1e3), np.ones(7), np.arange(7) < 5)
