@@ -96,6 +96,12 @@ def cmd_beam(args: argparse.Namespace) -> int:
               f"{num['implicit_euler_damping_ratio']:.2g}); frequency vs n {num['convergence_n']}: "
               + ", ".join(f"{f:.4f}" for f in num["convergence_frequency_hz"])
               + f" Hz, order {num['observed_order']:.2f}")
+    ran = summary["model"]["strip_models_run"]
+    print(f"strip model ({args.strip_model}) per predicted file: "
+          + "; ".join(f"{k} {', '.join(v)}" for k, v in ran.items() if v))
+    for name, f in summary["files"].items():
+        for w in f["warnings"]:
+            print(f"warning: {name}: {w.removeprefix('warning: ')}")
     print("limits of the match: " + "; ".join(summary["limits"]))
     print_outputs(out, *plots)
     return 0

@@ -662,6 +662,8 @@ def validate_beam(fit_dir: str | Path, predict_dir: str | Path, *, damping: str 
         "model": {"integrator": numerics.integrator, "n": numerics.n_masses, "dt": numerics.dt,
                   "knot_step_s": numerics.knot_step, "q_cutoff_hz": numerics.q_cutoff_hz,
                   "strip_model": numerics.strip_model, "bending": BENDING[numerics.strip_model],
+                  "strip_models_run": {k: [name for name, f in files.items() if f["strip_model"] == k]
+                                       for k in ("planes", "rectangle")},
                   "torque_sign": "tau = -J^T w, w the strip's wrench on the flange about its origin"},
         "estimate_filter": {"cutoff_hz": estimate.cutoff_hz, "delay_s": estimate.delay_s, "source": estimate.source,
                             "gain_at_2.9_hz": float(abs(estimate.response(2.9))),
