@@ -162,7 +162,8 @@ def add_parsers(sub, common: argparse.ArgumentParser) -> None:
                         "with the strip about the measured path, so that the model strip's load moves the arm where it "
                         "differs from the real strip's); measured (the default with the rectangle strip: the flange "
                         "path of the measured joint angles); loop (the compliant arm in the full loop driven by q_d). "
-                        "compliant and loop run the planes strip only")
+                        "compliant and loop run the planes strip only (with --strip-model auto a file that needs the "
+                        "rectangle runs on its measured flange path, and says so)")
     b.add_argument("--arm-dir", metavar="DIR", help="with --arm compliant/loop: identify the arm's joint impedance on "
                    "the beam_handling *.csv of DIR instead of FIT_DIR (it uses tau_J and q - q_d only; Z motions alone "
                    "leave joints 0 and 2 unidentified, and they are then held rigid)")
