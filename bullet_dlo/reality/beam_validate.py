@@ -171,7 +171,9 @@ def predict(rec: BeamRecording, panda: Panda, strip: Strip, damping: dict[str, f
             estimate: EstimateFilter, mounting: Mounting = Mounting(), duration: float | None = None,
             arm: ArmSetting | None = None) -> Prediction:
     """:func:`~bullet_dlo.reality.beam.predict_torques` (clamp on the measured flange path, ``arm`` None) or
-    :func:`~bullet_dlo.reality.beam_arm.predict_torques_compliant` (the strip on the compliant arm)."""
+    :func:`~bullet_dlo.reality.beam_arm.predict_torques_compliant` (the strip on the compliant arm). With the ``auto``
+    strip a recording whose flange turns out of the weak plane gets the rectangle, and with an arm on its measured
+    flange path (the loop runs the planes only; its warnings say so)."""
     law = float(damping.get("amplitude_damping", 0.0))
     damping = {k: v for k, v in damping.items() if k != "amplitude_damping"}
     if arm is not None and numerics.strip_model == "auto":
@@ -184,6 +186,8 @@ def predict(rec: BeamRecording, panda: Panda, strip: Strip, damping: dict[str, f
             pred.strip_reason = f"{reason}; on the measured flange path ({LOOP_PLANES_ONLY})"
             pred.warnings.append(f"--arm {arm.mode} replaced by the measured flange path for {rec.name}: "
                                  + pred.strip_reason)
+            if law:
+                pred.warnings.append("--amplitude-damping left out for this file (it runs in the arm loop only)")
             return pred
     if arm is None:
         if law:

@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 
 from bullet_dlo.core.model import STANDARD_GRAVITY
-from bullet_dlo.reality.beam import (PLANES_MAX_TURN, BeamRecording, Mounting, Numerics, Strip, choose_strip_model,
-                                     off_plane_turn, predict_torques)
+from bullet_dlo.reality.beam import (PLANES_MAX_TURN, BeamRecording, EstimateFilter, Mounting, Numerics, Strip,
+                                     choose_strip_model, off_plane_turn, predict_torques)
 from bullet_dlo.reality.beam_arm import ArmImpedance
 from bullet_dlo.reality.beam_validate import ArmSetting, predict
 from bullet_dlo.reality.panda import Panda
@@ -98,11 +98,10 @@ def test_the_bound_is_on_the_out_of_plane_turn():
 
 def test_the_compliant_arm_leaves_a_turned_recording_on_its_measured_path(panda):
     """The arm-strip loop runs the planes only: with ``auto`` a recording that needs the rectangle is predicted on its
-    measured flange path (the rigid prediction's torques), and its warnings say so."""
+    measured flange path (the rigid prediction's torques), and its warnings say so (and that an amplitude-dependent
+    damping, which runs in the loop only, is left out there)."""
     rec = turned(6, math.radians(5.0), duration=1.5)
     arm = ArmSetting("compliant", ArmImpedance(np.full(7, 1500.0), np.full(7, 40.0), np.ones(7), np.arange(7) < 5))
-    from bullet_dlo.reality.beam import EstimateFilter
-
     est = EstimateFilter()
     pred = predict(rec, panda, Strip(), DAMPING, Numerics(**NUM), est, arm=arm)
     rigid = predict_torques(rec, panda, Strip(), DAMPING, Numerics(strip_model="rectangle", **NUM), est)
@@ -110,3 +109,5 @@ def test_the_compliant_arm_leaves_a_turned_recording_on_its_measured_path(panda)
     assert any(w.startswith("--arm compliant replaced") for w in pred.warnings)
     assert pred.arm_deviation is None
     np.testing.assert_array_equal(pred.torques, rigid.torques)
+    with_law = predict(rec, panda, Strip(), {**DAMPING, "amplitude_damping": 0.3}, Numerics(**NUM), est, arm=arm)
+    assert any(w.startswith("--amplitude-damping left out") for w in with_law.warnings)  # (it needs the loop)
