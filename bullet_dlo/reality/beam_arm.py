@@ -38,7 +38,7 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -64,6 +64,7 @@ from bullet_dlo.reality.beam import (
     choose_strip_model,
     flange_motion,
     low_passed_q,
+    predict_torques,
     payload_torques,
     plane_runs,
     run_plane,
@@ -238,7 +239,9 @@ def predict_torques_compliant(rec: BeamRecording, panda: Panda, impedance: ArmIm
                               amplitude_damping: float = 0.0) -> Prediction:
     """:func:`~bullet_dlo.reality.beam.predict_torques` with the strip on the compliant arm (module doc):
     ``drive`` ``"measured"`` (substitution about the measured q) or ``"desired"`` (full loop from q_d). The
-    planar-pair strip only; the returned prediction carries the arm's deviation (``arm_deviation`` [rad], (k, 7)).
+    planar-pair strip only (``auto``: a recording whose flange turns out of the weak plane is predicted on its
+    measured flange path with the rectangle instead, :func:`~bullet_dlo.reality.beam.predict_torques`, and its
+    warnings say so); the returned prediction carries the arm's deviation (``arm_deviation`` [rad], (k, 7)).
     ``amplitude_damping`` c [1/m]: the measured damping law's amplitude-dependent part, zeta = c A (A the strip's tip
     amplitude), as the weak-plane run's bending dampers set each step
     (:class:`bullet_dlo.reality.beam_law.AmplitudeDamping`); 0: none."""
@@ -257,8 +260,14 @@ def predict_torques_compliant(rec: BeamRecording, panda: Panda, impedance: ArmIm
                                                         rec.tau_ext_hat_filtered, rec.name)
     times, pos, rot = flange_motion(ref, panda, numerics, duration)
     chosen, reason = choose_strip_model(numerics.strip_model, rot, mounting)
-    if chosen != "planes":
-        raise ParameterError(f"{rec.name}: {LOOP_PLANES_ONLY}, and this recording needs the rectangle ({reason})")
+    if chosen != "planes":  # (auto) the loop runs the planes only: this recording on its measured flange path
+        pred = predict_torques(rec, panda, strip, damping, replace(numerics, strip_model=chosen), estimate, mounting,
+                               duration=duration, gravity=gravity)
+        pred.strip_reason = f"{reason}; on the measured flange path ({LOOP_PLANES_ONLY})"
+        pred.warnings.append(f"the arm loop replaced by the measured flange path for {rec.name}: {pred.strip_reason}")
+        if amplitude_damping:
+            pred.warnings.append("--amplitude-damping left out for this file (it runs in the arm loop only)")
+        return pred
     clamp = mounting.clamp_point(pos, rot)
     disp = clamp - clamp[0]
     rotvec = Rotation.from_matrix(rot @ rot[0].T).as_rotvec()

@@ -61,8 +61,6 @@ from bullet_dlo.reality.beam import (
     Prediction,
     Strip,
     beam_files,
-    choose_strip_model,
-    flange_motion,
     free_vibration,
     identify_filter,
     low_passed_q,
@@ -70,13 +68,7 @@ from bullet_dlo.reality.beam import (
     predict_torques,
     read_beam_csv,
 )
-from bullet_dlo.reality.beam_arm import (
-    LOOP_PLANES_ONLY,
-    ArmImpedance,
-    check_arm_mode,
-    identify_arm,
-    predict_torques_compliant,
-)
+from bullet_dlo.reality.beam_arm import ArmImpedance, check_arm_mode, identify_arm, predict_torques_compliant
 from bullet_dlo.reality.beam_law import AMPLITUDE_DAMPING_MAX, file_decay, measured_law
 from bullet_dlo.reality.panda import Panda
 from bullet_dlo.reality.vibration import (
@@ -171,24 +163,10 @@ def predict(rec: BeamRecording, panda: Panda, strip: Strip, damping: dict[str, f
             estimate: EstimateFilter, mounting: Mounting = Mounting(), duration: float | None = None,
             arm: ArmSetting | None = None) -> Prediction:
     """:func:`~bullet_dlo.reality.beam.predict_torques` (clamp on the measured flange path, ``arm`` None) or
-    :func:`~bullet_dlo.reality.beam_arm.predict_torques_compliant` (the strip on the compliant arm). With the ``auto``
-    strip a recording whose flange turns out of the weak plane gets the rectangle, and with an arm on its measured
-    flange path (the loop runs the planes only; its warnings say so)."""
+    :func:`~bullet_dlo.reality.beam_arm.predict_torques_compliant` (the strip on the compliant arm; with the ``auto``
+    strip a recording whose flange turns out of the weak plane gets the rectangle on its measured flange path)."""
     law = float(damping.get("amplitude_damping", 0.0))
     damping = {k: v for k, v in damping.items() if k != "amplitude_damping"}
-    if arm is not None and numerics.strip_model == "auto":
-        rot = flange_motion(rec if arm.drive == "measured" else replace(rec, q=rec.q_d), panda, numerics,
-                            float(rec.t[-1]) if duration is None else duration)[2]
-        model, reason = choose_strip_model("auto", rot, mounting)
-        if model != "planes":  # the loop runs the planes only: this recording on the measured flange path
-            pred = predict_torques(rec, panda, strip, damping, replace(numerics, strip_model=model), estimate,
-                                   mounting, duration=duration)
-            pred.strip_reason = f"{reason}; on the measured flange path ({LOOP_PLANES_ONLY})"
-            pred.warnings.append(f"--arm {arm.mode} replaced by the measured flange path for {rec.name}: "
-                                 + pred.strip_reason)
-            if law:
-                pred.warnings.append("--amplitude-damping left out for this file (it runs in the arm loop only)")
-            return pred
     if arm is None:
         if law:
             raise ParameterError("--amplitude-damping runs in the stepped arm-strip loop: use --arm compliant or loop")

@@ -106,7 +106,7 @@ def test_the_compliant_arm_leaves_a_turned_recording_on_its_measured_path(panda)
     pred = predict(rec, panda, Strip(), DAMPING, Numerics(**NUM), est, arm=arm)
     rigid = predict_torques(rec, panda, Strip(), DAMPING, Numerics(strip_model="rectangle", **NUM), est)
     assert pred.strip_model == "rectangle" and "measured flange path" in pred.strip_reason
-    assert any(w.startswith("--arm compliant replaced") for w in pred.warnings)
+    assert any(w.startswith("the arm loop replaced by the measured flange path") for w in pred.warnings)
     assert pred.arm_deviation is None
     np.testing.assert_array_equal(pred.torques, rigid.torques)
     with_law = predict(rec, panda, Strip(), {**DAMPING, "amplitude_damping": 0.3}, Numerics(**NUM), est, arm=arm)
