@@ -158,9 +158,8 @@ def add_parsers(sub, common: argparse.ArgumentParser) -> None:
     b.add_argument("--arm", choices=["measured", "compliant", "loop"],
                    help="how the strip's clamp moves: compliant (the default with the planes and auto strips: the "
                         "strip on the arm's joint impedance K, D identified on FIT_DIR from tau_J against q - q_d, "
-                        "stepped together "
-                        "with the strip about the measured path, so that the model strip's load moves the arm where it "
-                        "differs from the real strip's); measured (the default with the rectangle strip: the flange "
+                        "stepped together with the strip about the measured path, so that the model strip's load "
+                        "moves the arm where it differs from the real strip's); measured (the default with the rectangle strip: the flange "
                         "path of the measured joint angles); loop (the compliant arm in the full loop driven by q_d). "
                         "compliant and loop run the planes strip only (with --strip-model auto a file that needs the "
                         "rectangle runs on its measured flange path, and says so)")
