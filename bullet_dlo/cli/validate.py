@@ -149,30 +149,28 @@ def add_parsers(sub, common: argparse.ArgumentParser) -> None:
                         "in the strip's bending dampers, set each step from the current amplitude: off (default), law "
                         "(c from the drag law zeta0 + c A fitted across FIT_DIR's decay envelopes, from the "
                         "recordings alone, then held while --damping is fitted with it) or a slope c [1/m] in [0, 10]; "
-                        "needs --arm compliant or loop")
+                        "needs --arm compliant or loop and the planes' weak run (--strip-model planes or auto)")
     b.add_argument("--clamp-mass", default="off", metavar="{off,fit,KG}",
                    help="a rigid payload at the clamp (the clamp hardware) that Franka's estimate does not know: its "
                         "weight change and inertia m (g - a) join the predicted torques; off (default), fit (fitted on "
                         "FIT_DIR by linear least squares of the 1.5-8 Hz torque residual over the whole recordings, "
                         "then held) or a mass [kg] in [0, 10]")
     b.add_argument("--arm", choices=["measured", "compliant", "loop"],
-                   help="how the strip's clamp moves: compliant (the default with the planes and auto strips: the "
-                        "strip on the arm's joint impedance K, D identified on FIT_DIR from tau_J against q - q_d, "
-                        "stepped together with the strip about the measured path, so that the model strip's load "
-                        "moves the arm where it differs from the real strip's); measured (the default with the rectangle strip: the flange "
-                        "path of the measured joint angles); loop (the compliant arm in the full loop driven by q_d). "
-                        "compliant and loop run the planes strip only (with --strip-model auto a file that needs the "
-                        "rectangle runs on its measured flange path, and says so)")
+                   help="how the strip's clamp moves: compliant (default: the strip on the arm's joint impedance K, D "
+                        "identified on FIT_DIR from tau_J against q - q_d, stepped together with the strip about the "
+                        "measured path, so that the model strip's load moves the arm where it differs from the real "
+                        "strip's); measured (the flange path of the measured joint angles); loop (the compliant arm in "
+                        "the full loop driven by q_d)")
     b.add_argument("--arm-dir", metavar="DIR", help="with --arm compliant/loop: identify the arm's joint impedance on "
                    "the beam_handling *.csv of DIR instead of FIT_DIR (it uses tau_J and q - q_d only; Z motions alone "
                    "leave joints 0 and 2 unidentified, and they are then held rigid)")
-    b.add_argument("--strip-model", default="auto", choices=["auto", "planes", "rectangle"],
-                   help="planes: two superposed planar runs of an isotropic cable, one per bending plane, each keeping "
-                        "the start pose's axes; rectangle: one 3-D run of a rectangle-section cable with twist, "
-                        "clamped with the flange's orientation (within 3 %% of planes on the nine recordings); auto "
-                        "(default): per recording, the planes while the flange turns out of the weak plane by at most "
-                        "1 degree, the rectangle beyond (on the measured flange path: the arm loop runs the planes "
-                        "only); each file's JSON entry says which ran and why")
+    b.add_argument("--strip-model", default="rectangle", choices=["rectangle", "auto", "planes"],
+                   help="rectangle (default): one 3-D run of a rectangle-section cable with twist, clamped with the "
+                        "flange's orientation, whatever the flange does; planes: two superposed planar runs of an "
+                        "isotropic cable, one per bending plane, each keeping the start pose's axes (within 3 %% of "
+                        "the rectangle on the nine recordings, about 12 %% cheaper); auto: per recording, the planes "
+                        "while the flange turns out of the weak plane by at most 1 degree, the rectangle beyond; each "
+                        "file's JSON entry says which ran and why")
     b.add_argument("--integrator", default="bdf2", choices=["bdf2", "implicit_euler", "implicit_midpoint"],
                    help="core integrator (bdf2: its numerical damping is measured and reported; implicit_euler "
                         "adds ~0.009, as much as the physical damping; implicit_midpoint rings)")

@@ -36,13 +36,15 @@ still advanced its twist in a staggered sub-step). The core's BDF2 step now solv
 (one Newton system), and the rectangle's band-passed torque on ocp_Z_15cm is 1.608 / 1.607 / 1.607 / 1.607 N m
 at dt 1 / 0.5 / 0.25 / 0.1 ms (planes 1.608): both run at dt 1 ms.
 
-**Which one (``strip_model="auto"``, the default; :func:`choose_strip_model`).** Each planar run keeps the start
-pose's axes, so a flange that turns out of the weak plane (about the strip axis or the thickness normal) leaves the
-weak run's strip behind: after a 10 degree turn about the normal its weight moment has not turned at all
+**Which one.** ``rectangle`` is the default: one run per recording whatever the flange does, on the measured flange
+path or on the compliant arm (:mod:`bullet_dlo.reality.beam_arm`). ``auto`` (:func:`choose_strip_model`) takes the
+planes where they hold, about 12 % cheaper on the compliant arm: each planar run keeps the start pose's axes, so a
+flange that turns out of the weak plane (about the strip axis or the thickness normal) leaves the weak run's strip
+behind: after a 10 degree turn about the normal its weight moment has not turned at all
 (``tests/reality/test_beam_turn.py``; the rectangle's turns by the flange's 10.000 degrees). ``auto`` runs the
 planes while that turn stays within :data:`PLANES_MAX_TURN` (the nine recordings: 0.2-0.45 degrees in all), where
-the coupling and twist the rectangle adds change nothing measurable and the arm-strip loop
-(:mod:`bullet_dlo.reality.beam_arm`) can carry the strip, and the rectangle beyond.
+the coupling and twist the rectangle adds change nothing measurable (on the compliant arm every held-out ratio of
+the two within 0.01, docs/guides/validate.md), and the rectangle beyond.
 """
 from __future__ import annotations
 
@@ -111,7 +113,7 @@ def choose_strip_model(requested: str, rot: np.ndarray, mounting: "Mounting") ->
     turn = math.degrees(off_plane_turn(rot, mounting))
     bound = math.degrees(PLANES_MAX_TURN)
     if requested == "rectangle":
-        return "rectangle", "asked for"
+        return "rectangle", "asked for (the default): one 3-D run, whatever the flange does"
     if turn <= bound:
         return "planes", (f"the flange turns {turn:.2f} deg out of the weak plane, within the planes' "
                           f"{bound:g} deg" + (" (auto)" if requested == "auto" else ""))
@@ -376,12 +378,12 @@ def plane_runs(axis: np.ndarray, width: np.ndarray, normal: np.ndarray) -> list[
 
 @dataclass(frozen=True)
 class Numerics:
-    """Strip model (``rectangle`` | ``planes``, module doc), integrator, point masses n, step dt [s],
-    the flange-path knot spacing [s] and the low-pass [Hz] applied to q before the kinematics
+    """Strip model (``rectangle`` (default) | ``planes`` | ``auto``, module doc), integrator, point masses n, step
+    dt [s], the flange-path knot spacing [s] and the low-pass [Hz] applied to q before the kinematics
     (encoder noise would otherwise become huge accelerations at the clamp). BDF2: its numerical
     damping is 100x below the strip's (:func:`free_vibration`)."""
 
-    strip_model: str = "auto"
+    strip_model: str = "rectangle"
     integrator: str = "bdf2"
     n_masses: int = 20
     dt: float | None = None  # None: DEFAULT_DT of the strip model
@@ -465,13 +467,21 @@ def run_plane(strip: Strip, run: PlaneRun, numerics: Numerics, damping: dict[str
     """One planar run from the static equilibrium at the start pose: recorded times [s], clamp force
     [N] and moment about the clamp [N m] on the holder (world, (k, 3) each) and the run's warnings.
     ``disp`` [m] and ``rotvec`` [rad], (m, 3), are the clamp's motion relative to its start at ``times``."""
+    model = plane_model(strip, run, numerics, damping, clamp0, axis, times, disp, rotvec, gravity)
+    state = solve_static(model).state()
+    return clamp_loads(model, state, numerics, duration, f"the {run.plane}-plane run")
+
+
+def plane_model(strip: Strip, run: PlaneRun, numerics: Numerics, damping: dict[str, float], clamp0: np.ndarray,
+                axis: np.ndarray, times: np.ndarray, disp: np.ndarray, rotvec: np.ndarray,
+                gravity: np.ndarray) -> CableModel:
+    """The cable of one planar run (:func:`run_plane`): the plane's isotropic core cable clamped at ``clamp0`` [m]
+    along ``axis``, driven by the run's projection of the clamp's motion."""
     spec = strip.cable_spec(run.plane, numerics.n_masses, **damping)
     path = Waypoints("first", tuple(times), tuple(map(tuple, disp @ run.translate.T)),
                      tuple(map(tuple, rotvec @ run.rotate.T)), rest=False)
-    model = CableModel.straight(spec, start=clamp0, direction=axis, ends=("clamped", "free"), motion=[path],
-                                gravity=run.translate @ gravity)
-    state = solve_static(model).state()
-    return clamp_loads(model, state, numerics, duration, f"the {run.plane}-plane run")
+    return CableModel.straight(spec, start=clamp0, direction=axis, ends=("clamped", "free"), motion=[path],
+                               gravity=run.translate @ gravity)
 
 
 class ClampLoads(NamedTuple):
@@ -510,13 +520,21 @@ def run_rectangle(strip: Strip, numerics: Numerics, damping: dict[str, float], c
     """The strip as one rectangle-section cable clamped with the flange's orientation (``axes``: strip
     axis, width, normal at the start), from its static equilibrium there, driven by the clamp's
     displacement [m] and rotation vector [rad], (m, 3), at ``times`` [s]: as :func:`run_plane`."""
+    model = rectangle_model(strip, numerics, damping, clamp0, axes, times, disp, rotvec, gravity)
+    state = solve_static(model).state()
+    return clamp_loads(model, state, numerics, duration, "the rectangle-strip run")
+
+
+def rectangle_model(strip: Strip, numerics: Numerics, damping: dict[str, float], clamp0: np.ndarray,
+                    axes: tuple[np.ndarray, np.ndarray, np.ndarray], times: np.ndarray, disp: np.ndarray,
+                    rotvec: np.ndarray, gravity: np.ndarray) -> CableModel:
+    """The cable of :func:`run_rectangle`: the rectangle-section strip clamped at ``clamp0`` [m] with the flange's
+    start orientation (``axes``: strip axis, width, normal), driven by the clamp's whole motion."""
     axis, width, _ = axes
     spec = strip.rectangle_spec(numerics.n_masses, **damping)
     path = Waypoints("first", tuple(times), tuple(map(tuple, disp)), tuple(map(tuple, rotvec)), rest=False)
-    model = CableModel.straight(spec, start=clamp0, direction=axis, ends=("clamped", "free"), motion=[path],
-                                gravity=gravity, roll=(clamp_roll(axis, width), 0.0))
-    state = solve_static(model).state()
-    return clamp_loads(model, state, numerics, duration, "the rectangle-strip run")
+    return CableModel.straight(spec, start=clamp0, direction=axis, ends=("clamped", "free"), motion=[path],
+                               gravity=gravity, roll=(clamp_roll(axis, width), 0.0))
 
 
 def predict_torques(rec: BeamRecording, panda: Panda, strip: Strip = Strip(), damping: dict[str, float] | None = None,
@@ -653,9 +671,11 @@ def with_damping(damping: dict[str, float], name: str, value: float) -> dict[str
 def stepped_start(model: CableModel, state, h: float) -> tuple:
     """What a run of ``model`` stepped by hand (the core's ``advance``) needs to start from ``state``
     (:class:`~bullet_dlo.core.model.CableState`) with steps of h [s]: (kernel arrays, holder plan, the first
-    step's held-end samples, x [m] and v [m/s] copies, a step workspace)."""
+    step's held-end samples, x [m] and v [m/s] copies, a step workspace). A cable with a material frame starts from
+    the state's twist (a copy), as ``simulate`` does."""
     control = model.control(None)
-    m = model.kernel_arrays(control, model.twist_state())
+    twist = state.twist.copy() if getattr(state, "twist", None) is not None else model.twist_state()
+    m = model.kernel_arrays(control, twist)
     plan = model.holder_plan(control)
     smp = empty_samples()
     sample_holders(plan, 0.0, h, smp)
@@ -664,6 +684,6 @@ def stepped_start(model: CableModel, state, h: float) -> tuple:
 
 __all__ = ["BeamRecording", "read_beam_csv", "beam_files", "EstimateFilter", "identify_filter", "Strip",
            "Mounting", "payload_torques", "PlaneRun", "plane_runs", "STRIP_MODELS", "PLANES_MAX_TURN", "off_plane_turn",
-           "choose_strip_model", "run_rectangle", "Numerics",
+           "choose_strip_model", "run_rectangle", "rectangle_model", "plane_model", "Numerics",
            "Prediction", "predict_torques", "free_vibration", "fit_recording", "stepped_start"]
 

@@ -21,9 +21,15 @@ q_ref obeys M(q_ref) delta'' + D delta' + K delta = -(tau_ext,model - tau_sub) o
 clamp follows FK(q_ref) + J(q_ref) delta (first order in delta, a few mrad at most), step by step at the strip's dt:
 the strip's clamp load at t gives tau_ext,model, one arm step (Newmark average acceleration, no numerical damping)
 gives delta at t + dt, the strip steps to t + dt with its clamp there (a one-step lag; halving dt changes the
-goal's peak-to-peak by 0.1-0.3 %). Only the weak-plane run is stepped in the loop: the strong plane (first mode near
-240 Hz) is a rigid part of the arm, its load along q_ref from a prescribed run and its inertia against delta in the
-arm's mass matrix (stepped in the loop, its stiff clamp with the one-step lag rang the loop at 200 Hz).
+goal's peak-to-peak by 0.1-0.3 %). The rectangle strip (the default) is stepped in the loop whole: the deviation moves
+its clamp's position, tangent and section axis (the full rotation J(q_ref)[3:] delta), and its clamp load, twist
+moment and strong plane's inertia included, is what the arm feels. Of the planes only the weak-plane run is stepped
+in the loop: their strong plane (first mode near 240 Hz) is a rigid part of the arm, its load along q_ref from a
+prescribed run and its inertia against delta in the arm's mass matrix (stepped in the loop, the planes' strong run
+with the one-step lag rang the loop at 200 Hz). Both were measured stable on the nine recordings with joints 0-4
+compliant, driven by the measured path and by q_d, and they give the same held-out ratios (docs/guides/validate.md).
+Taking the rectangle's rigid strong-plane inertia into the arm's mass matrix as well (the lagged part of its load
+cancelled) made the loop unstable instead: on ocp_Xup_35cm driven by q_d the joint torques grew to 70 N m at 7.3 s.
 
 * ``drive="measured"`` (substitution): q_ref = the measured q and tau_sub = the real strip's external torque
   (Franka's estimate with the identified filter undone: advanced by its delay, plus its derivative over the
@@ -38,7 +44,7 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -64,9 +70,11 @@ from bullet_dlo.reality.beam import (
     choose_strip_model,
     flange_motion,
     low_passed_q,
-    predict_torques,
     payload_torques,
+    PlaneRun,
+    plane_model,
     plane_runs,
+    rectangle_model,
     run_plane,
     stepped_start,
 )
@@ -77,8 +85,6 @@ ARM_MODES = ("measured", "compliant", "loop")  # clamp on the measured path | su
 MIN_R2 = 0.5  # [-] a joint whose impedance law explains less of its torque band is held rigid
 SETTLE = 0.3  # [s] after the motion's end: the identification window starts there
 SPAN = 5.7  # [s] length of the identification window
-LOOP_PLANES_ONLY = ("the arm-strip loop runs the planes strip only (the strong plane, first mode near 240 Hz, is a "
-                    "rigid part of the arm there: in the loop its stiff clamp with the one-step lag rang at 200 Hz)")
 MAX_DEVIATION = 0.05  # [rad] an arm deviation beyond it is an unstable loop (the real ones are a few mrad)
 SUB_CUTOFF_HZ = 20.0  # [Hz] low-pass of the de-filtered estimate (undoing the filter amplifies noise)
 
@@ -238,19 +244,20 @@ def predict_torques_compliant(rec: BeamRecording, panda: Panda, impedance: ArmIm
                               gravity: tuple[float, float, float] = STANDARD_GRAVITY,
                               amplitude_damping: float = 0.0) -> Prediction:
     """:func:`~bullet_dlo.reality.beam.predict_torques` with the strip on the compliant arm (module doc):
-    ``drive`` ``"measured"`` (substitution about the measured q) or ``"desired"`` (full loop from q_d). The
-    planar-pair strip only (``auto``: a recording whose flange turns out of the weak plane is predicted on its
-    measured flange path with the rectangle instead, :func:`~bullet_dlo.reality.beam.predict_torques`, and its
-    warnings say so); the returned prediction carries the arm's deviation (``arm_deviation`` [rad], (k, 7)).
-    ``amplitude_damping`` c [1/m]: the measured damping law's amplitude-dependent part, zeta = c A (A the strip's tip
-    amplitude), as the weak-plane run's bending dampers set each step
-    (:class:`bullet_dlo.reality.beam_law.AmplitudeDamping`); 0: none."""
+    ``drive`` ``"measured"`` (substitution about the measured q) or ``"desired"`` (full loop from q_d). The strip
+    model as :func:`~bullet_dlo.reality.beam.choose_strip_model` picks it: the planes' weak run stepped in the loop
+    (their strong run prescribed, its rigid inertia in the arm's), or the rectangle stepped in the loop whole. The
+    returned prediction carries the arm's deviation (``arm_deviation`` [rad], (k, 7)). ``amplitude_damping`` c
+    [1/m]: the measured damping law's amplitude-dependent part, zeta = c A (A the strip's tip amplitude), as the
+    weak-plane run's bending dampers set each step (:class:`bullet_dlo.reality.beam_law.AmplitudeDamping`; the planes
+    only: a file that runs the rectangle under ``auto`` leaves it out with a warning); 0: none."""
     if impedance.compliant[5:].any():
         raise ParameterError("the arm-strip loop holds the wrist joints 5 and 6 rigid (their inertia is too small for "
                              "the staggered step against the strip's stiff strong-plane clamp); give an impedance with "
                              "compliant joints among 0-4")
-    if numerics.strip_model == "rectangle":
-        raise ParameterError(LOOP_PLANES_ONLY + "; use --strip-model planes or auto")
+    if numerics.strip_model == "rectangle" and amplitude_damping:
+        raise ParameterError("--amplitude-damping sets the planes' weak-plane bending dampers; use --strip-model "
+                             "planes or auto")
     if drive not in ("measured", "desired"):
         raise ParameterError(f"drive must be measured or desired, got {drive!r}")
     tic = time.thread_time()
@@ -260,18 +267,15 @@ def predict_torques_compliant(rec: BeamRecording, panda: Panda, impedance: ArmIm
                                                         rec.tau_ext_hat_filtered, rec.name)
     times, pos, rot = flange_motion(ref, panda, numerics, duration)
     chosen, reason = choose_strip_model(numerics.strip_model, rot, mounting)
-    if chosen != "planes":  # (auto) the loop runs the planes only: this recording on its measured flange path
-        pred = predict_torques(rec, panda, strip, damping, replace(numerics, strip_model=chosen), estimate, mounting,
-                               duration=duration, gravity=gravity)
-        pred.strip_reason = f"{reason}; on the measured flange path ({LOOP_PLANES_ONLY})"
-        pred.warnings.append(f"the arm loop replaced by the measured flange path for {rec.name}: {pred.strip_reason}")
-        if amplitude_damping:
-            pred.warnings.append("--amplitude-damping left out for this file (it runs in the arm loop only)")
-        return pred
+    warnings = [reason] if reason.startswith("warning:") else []
+    if amplitude_damping and chosen != "planes":
+        warnings.append(f"--amplitude-damping left out for {rec.name}: it runs with the planes strip only")
+        amplitude_damping = 0.0
     clamp = mounting.clamp_point(pos, rot)
     disp = clamp - clamp[0]
     rotvec = Rotation.from_matrix(rot @ rot[0].T).as_rotvec()
-    axis, width, normal = mounting.axes(rot[0])
+    axes = mounting.axes(rot[0])
+    axis, width, normal = axes
     g = np.asarray(gravity, dtype=float)
     h = float(numerics.dt)
     n_steps = int(round(duration / h))
@@ -287,30 +291,19 @@ def predict_torques_compliant(rec: BeamRecording, panda: Panda, impedance: ArmIm
     payload = (payload_torques(panda, q_ref, 1.0 / TICK, mounting, mounting.clamp_mass, gravity)
                if mounting.clamp_mass else np.zeros((k_rows, N_JOINTS)))
     sub = strip_torque_real(rec, estimate)[src] if drive == "measured" else np.zeros((k_rows, N_JOINTS))
-    weak_run, strong_run = plane_runs(axis, width, normal)
-    # the strong plane (E I 6400x the weak one, first mode near 240 Hz) is a rigid part of the arm for the loop: its
-    # load along the reference path comes from a prescribed run, its inertia against the arm's deviation joins the arm's
-    # mass matrix (rigid strip: translation along the width, rotation about the normal). Stepped in the loop, its stiff
-    # clamp with the one-step lag rings the loop at 200 Hz.
-    strong = run_plane(strip, strong_run, numerics, damping, clamp[0], axis, times, disp, rotvec, g, duration)
     lever = clamp[0] - pos[0]  # [m] flange origin -> clamp (rigid; it turns by < 0.5 degrees here)
-    f_s = strong.force[:k_rows] @ strong_run.force.T
-    w_strong = np.hstack([f_s, strong.moment[:k_rows] @ strong_run.moment.T + np.cross(lever, f_s)])
-    if len(w_strong) < k_rows:
-        w_strong = np.vstack([w_strong, np.repeat(w_strong[-1:], k_rows - len(w_strong), axis=0)])
-    sigma = float(np.cross(normal, axis) @ width)
-    m_s, length = strip.mass, strip.length
-    rigid = np.array([[m_s, sigma * m_s * length / 2], [sigma * m_s * length / 2, m_s * length**2 / 3]])
-    j_s = np.stack([np.einsum("i,kij->kj", width, jac[:, :3]), np.einsum("i,kij->kj", normal, jac[:, 3:])], axis=1)
-    added = np.einsum("kai,ab,kbj->kij", j_s, rigid, j_s)  # [kg m^2] (k, 7, 7)
-    mass = mass + added
+    if chosen == "planes":
+        run = plane_runs(*axes)[0]
+        model = plane_model(strip, run, numerics, damping, clamp[0], axis, times, disp, rotvec, g)
+        w_strong, added = _strong_plane(strip, numerics, damping, clamp[0], axes, times, disp, rotvec, g, duration,
+                                        jac, lever, k_rows)
+        mass = mass + added
+    else:  # the rectangle in the loop whole: its strong plane's inertia is in its own clamp load
+        run = PlaneRun("both", np.eye(3), np.eye(3), np.eye(3), np.eye(3))
+        model = rectangle_model(strip, numerics, damping, clamp[0], axes, times, disp, rotvec, g)
+        w_strong, added = np.zeros((k_rows, 6)), np.zeros((k_rows, N_JOINTS, N_JOINTS))
     arm = ArmLoop(mass, impedance, h)
     stepper = make_stepper(numerics.integrator, h, NewtonOptions())
-    spec = strip.cable_spec("weak", numerics.n_masses, **damping)
-    path = Waypoints("first", tuple(times), tuple(map(tuple, disp @ weak_run.translate.T)),
-                     tuple(map(tuple, rotvec @ weak_run.rotate.T)), rest=False)
-    model = CableModel.straight(spec, start=clamp[0], direction=axis, ends=("clamped", "free"), motion=[path],
-                                gravity=weak_run.translate @ g)
     m, plan, smp, x, v, ws = stepped_start(model, solve_static(model).state(), h)
     law = None
     if amplitude_damping:
@@ -321,24 +314,25 @@ def predict_torques_compliant(rec: BeamRecording, panda: Panda, impedance: ArmIm
     force, moment = np.zeros((2, 3)), np.zeros((2, 3))
     end_forces(m, x, v, smp.dir[0], smp.acc[0], force)
     clamp_moments(m, x, v, smp.dir[0], moment)
+    section = plan.normal  # the clamp's section axis at the step's samples ((0, 2, 3): no material frame)
 
     lx, ly, lz = (float(c) for c in lever)
 
-    def wrench_weak() -> np.ndarray:
-        f = weak_run.force @ force[0]
+    def wrench_in_loop() -> np.ndarray:
+        f = run.force @ force[0]
         fx, fy, fz = (float(c) for c in f)  # lever x f in floats: np.cross costs 30x more on (3,) vectors
         turn = (ly * fz - lz * fy, lz * fx - lx * fz, lx * fy - ly * fx)
-        return np.concatenate([f, weak_run.moment @ moment[0] + turn])
+        return np.concatenate([f, run.moment @ moment[0] + turn])
 
     w_rec = np.zeros((k_rows, 6))
     tip = np.zeros((k_rows, 3))
     tip[0] = x[-1]
     dev_rec = np.zeros((k_rows, N_JOINTS))
     acc_rec = np.zeros((k_rows, N_JOINTS))
-    w_rec[0] = wrench_weak()
-    tau0 = external_torques(jac[0], w_rec[0])  # the weak run's torque at rest
+    w_rec[0] = wrench_in_loop()
+    tau0 = external_torques(jac[0], w_rec[0])  # the stepped run's torque at rest
     tau_strong = external_torques(jac, w_strong) - external_torques(jac[0], w_strong[0])  # (k, 7), prescribed
-    tau_now = np.zeros(N_JOINTS)  # the weak run's torque deviation at the current state
+    tau_now = np.zeros(N_JOINTS)  # the stepped run's torque deviation at the current state
     failures = 0
     for step in range(n_steps):
         t = step * h
@@ -348,14 +342,16 @@ def predict_torques_compliant(rec: BeamRecording, panda: Panda, impedance: ArmIm
         after = (arm.full(arm.q), arm.full(arm.v), arm.full(arm.a))
         rows = (row, min(int((t + 0.5 * h) / TICK + 1e-9), k_rows - 1), min(int((t + h) / TICK + 1e-9), k_rows - 1))
         sample_holders(plan, t, h, smp)
-        for s, r in enumerate(rows):
+        for s, r in enumerate(rows):  # the clamp moved by the arm's deviation (first order in it)
             wgt = 0.5 * s
             dq, dv, da = ((1 - wgt) * b0 + wgt * b1 for b0, b1 in zip(before, after))
             dx = jac[r] @ dq
-            smp.pos[s, 0] += weak_run.translate @ dx[:3]
-            smp.vel[s, 0] += weak_run.translate @ (jac[r, :3] @ dv)
-            smp.acc[s, 0] += weak_run.translate @ (jac[r, :3] @ da)
-            smp.dir[s, 0] = _turn(smp.dir[s, 0], weak_run.rotate @ dx[3:])
+            smp.pos[s, 0] += run.translate @ dx[:3]
+            smp.vel[s, 0] += run.translate @ (jac[r, :3] @ dv)
+            smp.acc[s, 0] += run.translate @ (jac[r, :3] @ da)
+            smp.dir[s, 0] = _turn(smp.dir[s, 0], run.rotate @ dx[3:])
+            if len(section):  # the rectangle's section turns with its clamp
+                section[s, 0] = _turn(section[s, 0], dx[3:])
         _, ok = advance(stepper, m, x, v, smp, ws, step > 0)
         failures += 0 if ok else 1
         if law is not None:  # the dampers for the next step from the amplitude now
@@ -363,10 +359,10 @@ def predict_torques_compliant(rec: BeamRecording, panda: Panda, impedance: ArmIm
         end_forces(m, x, v, smp.dir[2], smp.acc[2], force)
         clamp_moments(m, x, v, smp.dir[2], moment)
         if not (np.all(np.isfinite(x)) and np.all(np.isfinite(force))):
-            raise ParameterError(f"the weak-plane run on the compliant arm went unstable at t = {t + h:.4g} s; "
+            raise ParameterError(f"the {chosen} strip on the compliant arm went unstable at t = {t + h:.4g} s; "
                                  "use a smaller --dt")
         r_new = rows[2]
-        w = wrench_weak()
+        w = wrench_in_loop()
         tau_now = external_torques(jac[r_new], w) - tau0
         if not np.all(np.abs(arm.q) < MAX_DEVIATION):
             raise ParameterError(f"the arm-strip loop went unstable at t = {t + h:.4g} s (arm deviation above "
@@ -381,15 +377,36 @@ def predict_torques_compliant(rec: BeamRecording, panda: Panda, impedance: ArmIm
     t_rec, w_rec, dev_rec, acc_rec, tip, jac, payload, added = (
         a[:keep] for a in (t_rec, w_rec, dev_rec, acc_rec, tip, jac, payload, added))
     tau = external_torques(jac, w_rec)
-    # plus the rigid strong plane's inertia against the deviation (in the arm's mass matrix in the loop)
+    # plus the planes' rigid strong plane's inertia against the deviation (in the arm's mass matrix in the loop)
     tau = tau - tau[0] + payload + np.einsum("kij,kj->ki", added, acc_rec)
     filtered = estimate.apply(tau, 1.0 / TICK)
-    warnings = [] if not failures else [f"Newton did not converge in {failures} strip steps"]
-    warnings += [reason] if reason.startswith("warning:") else []
+    warnings += [] if not failures else [f"Newton did not converge in {failures} strip steps"]
     moment = w_rec[:, 3:] - np.cross(lever, w_rec[:, :3])
     return Prediction(t=t_rec, force=w_rec[:, :3].copy(), moment=moment, wrench=w_rec, torques=tau,
                       torques_filtered=filtered, cpu_s=time.thread_time() - tic, simulated_s=float(t_rec[-1]),
                       warnings=warnings, tip=tip, arm_deviation=dev_rec, strip_model=chosen, strip_reason=reason)
+
+
+def _strong_plane(strip: Strip, numerics: Numerics, damping: dict[str, float], clamp0: np.ndarray,
+                  axes: tuple[np.ndarray, np.ndarray, np.ndarray], times: np.ndarray, disp: np.ndarray,
+                  rotvec: np.ndarray, gravity: np.ndarray, duration: float, jac: np.ndarray, lever: np.ndarray,
+                  k_rows: int) -> tuple[np.ndarray, np.ndarray]:
+    """The planes' strong plane as a rigid part of the arm (E I 6400x the weak one, first mode near 240 Hz): its
+    wrench on the flange [N, N m] along the reference path, (k, 6), from a prescribed run, and its rigid inertia
+    against the arm's deviation [kg m^2], (k, 7, 7) (translation along the width, rotation about the normal).
+    Stepped in the loop, the planes' strong run rang the loop at 200 Hz through its one-step lag."""
+    axis, width, normal = axes
+    _, strong_run = plane_runs(*axes)
+    strong = run_plane(strip, strong_run, numerics, damping, clamp0, axis, times, disp, rotvec, gravity, duration)
+    f_s = strong.force[:k_rows] @ strong_run.force.T
+    w_strong = np.hstack([f_s, strong.moment[:k_rows] @ strong_run.moment.T + np.cross(lever, f_s)])
+    if len(w_strong) < k_rows:
+        w_strong = np.vstack([w_strong, np.repeat(w_strong[-1:], k_rows - len(w_strong), axis=0)])
+    sigma = float(np.cross(normal, axis) @ width)
+    m_s, length = strip.mass, strip.length
+    rigid = np.array([[m_s, sigma * m_s * length / 2], [sigma * m_s * length / 2, m_s * length**2 / 3]])
+    j_s = np.stack([np.einsum("i,kij->kj", width, jac[:, :3]), np.einsum("i,kij->kj", normal, jac[:, 3:])], axis=1)
+    return w_strong, np.einsum("kai,ab,kbj->kij", j_s, rigid, j_s)
 
 
 __all__ = ["ARM_MODES", "ArmImpedance", "identify_arm", "strip_torque_real", "ArmLoop", "predict_torques_compliant",

@@ -15,7 +15,7 @@ The fitted value is the mean over the fit recordings; its interval is their spre
 and a leave-one-out check predicts each fit recording's damping ratio from the others' mean.
 The run at 0 also shows how much damping the arm brings: through the measured flange path (``arm``
 ``measured``: the recorded arm's reaction to the real strip) or through the arm's identified joint impedance the
-model strip loads (``compliant``, the default with the planes strip, and ``loop``: :mod:`bullet_dlo.reality.beam_arm`).
+model strip loads (``compliant``, the default, and ``loop``: :mod:`bullet_dlo.reality.beam_arm`).
 
 The measured damping is amplitude dependent (larger at large amplitude): reported per recording
 over successive windows and as a fitted law (below).
@@ -99,8 +99,7 @@ STRIP_LIMITS = {
               "turning of the projection axes are left out (--strip-model rectangle has them: within 3 % on these "
               "recordings)",
     "auto": "the planes where the flange keeps the weak plane (plane coupling and twist left out: within 3 % of "
-            "the rectangle on the nine recordings), the rectangle where it turns out of it by more than 1 degree, "
-            "there on the measured flange path (the arm-strip loop runs the planes only)",
+            "the rectangle on the nine recordings), the rectangle where it turns out of it by more than 1 degree",
 }
 ARM_LIMITS = {
     "measured": "the clamp follows the flange path of the measured joint angles, and after the motion that path "
@@ -163,8 +162,7 @@ def predict(rec: BeamRecording, panda: Panda, strip: Strip, damping: dict[str, f
             estimate: EstimateFilter, mounting: Mounting = Mounting(), duration: float | None = None,
             arm: ArmSetting | None = None) -> Prediction:
     """:func:`~bullet_dlo.reality.beam.predict_torques` (clamp on the measured flange path, ``arm`` None) or
-    :func:`~bullet_dlo.reality.beam_arm.predict_torques_compliant` (the strip on the compliant arm; with the ``auto``
-    strip a recording whose flange turns out of the weak plane gets the rectangle on its measured flange path)."""
+    :func:`~bullet_dlo.reality.beam_arm.predict_torques_compliant` (the strip on the compliant arm)."""
     law = float(damping.get("amplitude_damping", 0.0))
     damping = {k: v for k, v in damping.items() if k != "amplitude_damping"}
     if arm is None:
@@ -523,10 +521,8 @@ def validate_beam(fit_dir: str | Path, predict_dir: str | Path, *, damping: str 
     damping is fitted) or a mass [kg] in [0, 10].
     arm: how the strip's clamp moves (:mod:`bullet_dlo.reality.beam_arm`): ``"measured"`` (the flange path of the
     measured q), ``"compliant"`` (the strip on the arm's joint impedance identified on ``fit_dir``, substituted about
-    the measured q) or ``"loop"`` (the same arm in the full loop driven by q_d); None (default): ``"compliant"`` for
-    the planes and ``auto`` strips (better on the held-out files: docs/guides/validate.md), ``"measured"`` for the
-    rectangle strip (the loop runs the planes only: with ``auto`` a recording that needs the rectangle runs on its
-    measured flange path, and says so); ``arm_dir``: the
+    the measured q) or ``"loop"`` (the same arm in the full loop driven by q_d); None (default): ``"compliant"``
+    (better on the held-out files: docs/guides/validate.md), with any strip model; ``arm_dir``: the
     folder whose recordings identify the arm's impedance instead of ``fit_dir`` (the controller is one for all
     motions, but a folder of Z motions does not move joints 0 and 2 enough to identify them).
     amplitude_damping: the measured damping law's amplitude-dependent part, zeta = c A_tip
@@ -538,12 +534,15 @@ def validate_beam(fit_dir: str | Path, predict_dir: str | Path, *, damping: str 
     Returns the JSON-ready summary and, per predicted file, (recording, measurement, prediction).
     """
     if arm is None:
-        arm = "measured" if numerics.strip_model == "rectangle" else "compliant"
+        arm = "compliant"
     check_arm_mode(arm)
     amplitude_damping = _mode_or_number(amplitude_damping, "--amplitude-damping", ("off", "law"), 0.0,
                                         AMPLITUDE_DAMPING_MAX, "a slope", " 1/m")
     if amplitude_damping != "off" and arm == "measured":
         raise ParameterError("--amplitude-damping runs in the stepped arm-strip loop: use --arm compliant or loop")
+    if amplitude_damping != "off" and numerics.strip_model == "rectangle":
+        raise ParameterError("--amplitude-damping sets the planes' weak-plane bending dampers; use --strip-model "
+                             "planes or auto")
     if drag == "fit" and damping != "damping_rate":
         raise ParameterError("--drag-coefficient fit fits C_d together with damping_rate: use --damping damping_rate")
     drag = _mode_or_number(drag, "--drag-coefficient", ("off", "fit"), 0.0, 1e3, "a number", "")

@@ -186,9 +186,10 @@ def test_validate_beam_on_the_recordings(tmp_path, z_split):
     assert law["shared"]["drag"]["params"]["c"] > 0.1  # [1/m]
     assert "amplitude_damping" not in summary["parameters"]  # the law stays out of the default model
     assert summary["limits"][2].startswith("the damping is amplitude dependent")
-    # auto (the default) keeps the planes on a motion that turns the flange by 0.2 degrees
-    assert entry["strip_model"] == "planes" and "within the planes'" in entry["strip_model_reason"]
-    assert summary["model"]["strip_models_run"] == {"planes": ["ocp_Z_35cm_0.61s_1"], "rectangle": []}
+    # the rectangle (the default) runs on the compliant arm, one run per recording
+    assert entry["strip_model"] == "rectangle" and entry["strip_model_reason"].startswith("asked for (the default)")
+    assert summary["model"]["strip_models_run"] == {"planes": [], "rectangle": ["ocp_Z_35cm_0.61s_1"]}
+    assert summary["arm"]["mode"] == "compliant"
 
 
 @pytest.mark.bullet

@@ -121,13 +121,17 @@ def swing(duration: float = 2.0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return t, q, dqt
 
 
-def test_substitution_keeps_the_measured_path_when_the_model_strip_is_the_real_one(panda):
+@pytest.mark.parametrize("strip_model", ["planes", "rectangle"])
+def test_substitution_keeps_the_measured_path_when_the_model_strip_is_the_real_one(panda, strip_model):
     """A recording made by the model itself (its rigid-path torques through Franka's filter as the estimate): the
     substituted arm barely moves (the model's torque equals the 'real' one), while the same arm with no real torque to
-    substitute (the strip's load acting on it alone) deflects 10x more: sign, lag and filter inversion agree."""
+    substitute (the strip's load acting on it alone) deflects 10x more: sign, lag and filter inversion agree. Both
+    strip models in the loop: the planes' weak run (their strong run prescribed, its inertia in the arm's) and the
+    rectangle whole, its clamp and section axis turned by the arm's deviation (the swing turns the flange 8.6 deg,
+    which the rectangle follows and the planes do not; each is checked against its own rigid-path prediction)."""
     t, q, dq = swing()
     est = EstimateFilter(4.2, 0.0065)
-    numerics = Numerics(strip_model="planes", n_masses=8)  # the loop's model (the swing turns the flange 8.6 deg)
+    numerics = Numerics(strip_model=strip_model, n_masses=8)
     damping = {"damping_rate": 0.3}
     base = synthetic("self", t, q, q, dq, dq, np.zeros_like(q), np.zeros_like(q))
     rigid = predict_torques(base, panda, Strip(), damping, numerics, est)
@@ -149,12 +153,12 @@ def test_substitution_keeps_the_measured_path_when_the_model_strip_is_the_real_o
     assert np.max(np.abs(sub.torques[:n, 0] - rigid.torques[:n, 0])) < 0.05 * swing_
 
 
-def test_compliant_arm_needs_the_planes_strip(panda):
+def test_compliant_arm_keeps_the_amplitude_law_on_the_planes_and_the_wrist_rigid(panda):
     t, q, dq = swing(0.5)
     rec = synthetic("x", t, q, q, dq, dq, np.zeros_like(q), np.zeros_like(q))
     imp = ArmImpedance(K_TRUE, D_TRUE, np.ones(7), np.arange(7) < 5)
-    with pytest.raises(ParameterError, match="runs the planes strip only"):
-        predict_torques_compliant(rec, panda, imp, numerics=Numerics(strip_model="rectangle"))
+    with pytest.raises(ParameterError, match="--amplitude-damping sets the planes"):
+        predict_torques_compliant(rec, panda, imp, numerics=Numerics(strip_model="rectangle"), amplitude_damping=0.3)
     with pytest.raises(ParameterError, match="wrist joints 5 and 6 rigid"):
         predict_torques_compliant(rec, panda, ArmImpedance(K_TRUE, D_TRUE, np.ones(7), np.ones(7, dtype=bool)))
 
@@ -233,13 +237,15 @@ def beam_translation_integral(strip: Strip, omega: float) -> float:
     return float(np.trapezoid(coef @ basis(x, 0), x))
 
 
-def test_the_strip_on_a_compliant_joint_rings_at_the_closed_form_coupled_frequency(panda):
+@pytest.mark.parametrize("strip_model", ["rectangle", "planes"])
+def test_the_strip_on_a_compliant_joint_rings_at_the_closed_form_coupled_frequency(panda, strip_model):
     """Joint 3 alone compliant (K 1000 N m/rad, undamped), the strip undamped and weightless: the strip's mode on
     the compliant joint against the same strip on a rigid arm, both from the loop; closed form: the joint's
     inertia (URDF, plus the strip's rigid strong-plane mass) on its spring, loaded by the Euler-Bernoulli strip
     whose clamp translates along its normal, K - w^2 I - w^2 rho A c^2 int w_u(w) = 0 (c: the clamp's normal speed
     per joint rate; joint 3 turns the clamp about the strip axis, not about its width). The shift (-1.1 %) within
-    0.1 % of the frequency."""
+    0.1 % of the frequency, with both strip models in the loop (the rectangle's strong-plane mass in its own clamp
+    load and its section rolled with the clamp, the planes' in the arm's mass matrix)."""
     from scipy.optimize import brentq
 
     from bullet_dlo.reality.beam import Mounting
@@ -274,8 +280,8 @@ def test_the_strip_on_a_compliant_joint_rings_at_the_closed_form_coupled_frequen
     freq = {}
     for name, stiffness in (("compliant", k), ("rigid", 1e7)):
         imp = ArmImpedance(np.where(np.arange(7) == j, stiffness, 1.0), np.zeros(7), np.ones(7), np.arange(7) == j)
-        pred = predict_torques_compliant(rec, panda, imp, strip, {}, Numerics(n_masses=20), EstimateFilter(),
-                                         drive="desired", gravity=(0.0, 0.0, 0.0))
+        pred = predict_torques_compliant(rec, panda, imp, strip, {}, Numerics(strip_model, n_masses=20),
+                                         EstimateFilter(), drive="desired", gravity=(0.0, 0.0, 0.0))
         y = sosfiltfilt(sos, pred.torques[:, j])
         w = (pred.t > 1.0) & (pred.t < 4.8)
         freq[name] = fit_damped_sine(pred.t[w], y[w])[0]

@@ -151,7 +151,8 @@ def test_the_recordings_ask_for_damping_that_grows_with_the_amplitude():
 @pytest.mark.bullet
 @pytest.mark.parametrize("args, word", [(["--amplitude-damping", "soft"], "--amplitude-damping"),
                                         (["--amplitude-damping", "11"], "--amplitude-damping"),
-                                        (["--amplitude-damping", "0.4", "--arm", "measured"], "--arm compliant")])
+                                        (["--amplitude-damping", "0.4", "--arm", "measured"], "--arm compliant"),
+                                        (["--amplitude-damping", "0.4"], "--strip-model planes or auto")])
 def test_validate_beam_bad_amplitude_damping_is_one_line_exit_2(tmp_path, capsys, args, word):
     from bullet_dlo.cli.main import main
 
