@@ -168,7 +168,7 @@ def add_parsers(sub, common: argparse.ArgumentParser) -> None:
                    help="rectangle (default): one 3-D run of a rectangle-section cable with twist, clamped with the "
                         "flange's orientation, whatever the flange does; planes: two superposed planar runs of an "
                         "isotropic cable, one per bending plane, each keeping the start pose's axes (within 3 %% of "
-                        "the rectangle on the nine recordings, about 12 %% cheaper); auto: per recording, the planes "
+                        "the rectangle on the nine recordings, about 15 %% cheaper); auto: per recording, the planes "
                         "while the flange turns out of the weak plane by at most 1 degree, the rectangle beyond; each "
                         "file's JSON entry says which ran and why")
     b.add_argument("--integrator", default="bdf2", choices=["bdf2", "implicit_euler", "implicit_midpoint"],

@@ -38,7 +38,7 @@ at dt 1 / 0.5 / 0.25 / 0.1 ms (planes 1.608): both run at dt 1 ms.
 
 **Which one.** ``rectangle`` is the default: one run per recording whatever the flange does, on the measured flange
 path or on the compliant arm (:mod:`bullet_dlo.reality.beam_arm`). ``auto`` (:func:`choose_strip_model`) takes the
-planes where they hold, about 12 % cheaper on the compliant arm: each planar run keeps the start pose's axes, so a
+planes where they hold, about 15 % cheaper on the compliant arm: each planar run keeps the start pose's axes, so a
 flange that turns out of the weak plane (about the strip axis or the thickness normal) leaves the weak run's strip
 behind: after a 10 degree turn about the normal its weight moment has not turned at all
 (``tests/reality/test_beam_turn.py``; the rectangle's turns by the flange's 10.000 degrees). ``auto`` runs the

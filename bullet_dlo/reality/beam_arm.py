@@ -16,7 +16,8 @@ Xdown_15cm with gain 0.9-1.0 and correlation 0.97-0.99 (0.67-1.02 and 0.84-0.99 
 them) are held rigid, and so are the wrist joints 5 and 6 (R^2 0.1-0.3 on the recordings: they barely move either,
 and their small inertia would make the staggered step below ring against the strip's stiff clamp).
 
-**The closed loop** (:func:`predict_torques_compliant`). The arm's deviation delta from a reference joint path
+**The closed loop** (:func:`predict_torques_compliant`; its steps in one compiled call,
+:func:`bullet_dlo.reality.arm_loop.run_arm_loop`). The arm's deviation delta from a reference joint path
 q_ref obeys M(q_ref) delta'' + D delta' + K delta = -(tau_ext,model - tau_sub) on its compliant joints; the strip's
 clamp follows FK(q_ref) + J(q_ref) delta (first order in delta, a few mrad at most), step by step at the strip's dt:
 the strip's clamp load at t gives tau_ext,model, one arm step (Newmark average acceleration, no numerical damping)
@@ -53,9 +54,7 @@ from scipy.spatial.transform import Rotation
 
 from bullet_dlo.core.boundary import Waypoints
 from bullet_dlo.core.integrators import NewtonOptions, make_stepper
-from bullet_dlo.core.kernels.holders import sample_holders
 from bullet_dlo.core.kernels.monitor import clamp_moments, end_forces
-from bullet_dlo.core.kernels.steppers import advance
 from bullet_dlo.core.model import STANDARD_GRAVITY, CableModel
 from bullet_dlo.core.statics import solve_static
 from bullet_dlo.core.validate import ParameterError
@@ -78,6 +77,8 @@ from bullet_dlo.reality.beam import (
     run_plane,
     stepped_start,
 )
+from bullet_dlo.reality.arm_loop import (ARM_UNSTABLE, STRIP_UNSTABLE, Arm, Coupling, Law, LoopRecords,
+                                         newmark_step, run_arm_loop)
 from bullet_dlo.reality.panda import N_JOINTS, Panda, external_torques
 from bullet_dlo.reality.vibration import BAND, motion_span
 
@@ -185,22 +186,26 @@ def mass_matrices(panda: Panda, q: np.ndarray, every: int = 10) -> np.ndarray:
 
 class ArmLoop:
     """The arm's deviation delta [rad] from q_ref on its compliant joints, advanced by Newmark's average
-    acceleration (trapezoidal, no numerical damping) with the forcing held over a step.
+    acceleration (trapezoidal, no numerical damping) with the forcing held over a step: the step of the compiled
+    loop (:func:`bullet_dlo.reality.arm_loop.run_arm_loop`) one call at a time.
 
     mass: (k, 7, 7) joint inertia along the reference rows (every ``row_dt`` s); impedance: K, D and which
     joints are compliant; h: step [s]."""
 
     def __init__(self, mass: np.ndarray, impedance: ArmImpedance, h: float, row_dt: float = TICK):
         self.idx = np.flatnonzero(impedance.compliant)
-        self.mass = mass[:, self.idx][:, :, self.idx]
-        self.k = np.diag(impedance.stiffness[self.idx])
-        self.d = np.diag(impedance.damping[self.idx])
-        self.h, self.row_dt = float(h), float(row_dt)
         nc = len(self.idx)
-        self.q, self.v, self.a = np.zeros(nc), np.zeros(nc), np.zeros(nc)
+        self.arm = Arm(self.idx, np.ascontiguousarray(mass[:, self.idx][:, :, self.idx]),
+                       impedance.stiffness[self.idx].copy(), impedance.damping[self.idx].copy(), np.zeros(nc),
+                       np.zeros(nc), np.zeros(nc), MAX_DEVIATION)
+        self.h, self.row_dt = float(h), float(row_dt)
+
+    q = property(lambda self: self.arm.q, doc="deviation [rad] of the compliant joints")
+    v = property(lambda self: self.arm.v, doc="its rate [rad/s]")
+    a = property(lambda self: self.arm.a, doc="its acceleration [rad/s^2]")
 
     def row(self, t: float) -> int:
-        return min(int(t / self.row_dt + 1e-9), len(self.mass) - 1)
+        return min(int(t / self.row_dt + 1e-9), len(self.arm.mass) - 1)
 
     def full(self, y: np.ndarray) -> np.ndarray:
         """A compliant-joint vector as (7,) with zeros at the rigid joints."""
@@ -210,31 +215,7 @@ class ArmLoop:
 
     def step(self, t: float, force: np.ndarray) -> None:
         """From t to t + h under joint torques ``force`` [N m], (7,) (held over the step)."""
-        if not len(self.idx):
-            return
-        h, q, v, a = self.h, self.q, self.v, self.a
-        m = self.mass[self.row(t + h)]
-        s = m + 0.5 * h * self.d + 0.25 * h * h * self.k
-        a1 = np.linalg.solve(s, force[self.idx] - self.d @ (v + 0.5 * h * a) - self.k @ (q + h * v + 0.25 * h * h * a))
-        self.q = q + h * v + 0.25 * h * h * (a + a1)
-        self.v = v + 0.5 * h * (a + a1)
-        self.a = a1
-
-
-def _turn(direction: np.ndarray, rotvec: np.ndarray) -> np.ndarray:
-    """``direction`` (3,) turned by the small rotation vector ``rotvec`` [rad] (exact rotation: Rodrigues' formula),
-    unit. In Python floats: three calls a step of the arm-strip loop, where scipy's Rotation took a fifth of it."""
-    dx, dy, dz = (float(c) for c in direction)
-    rx, ry, rz = (float(c) for c in rotvec)
-    angle = math.sqrt(rx * rx + ry * ry + rz * rz)
-    if angle > 0.0:
-        kx, ky, kz = rx / angle, ry / angle, rz / angle
-        c, s = math.cos(angle), math.sin(angle)
-        kd = (kx * dx + ky * dy + kz * dz) * (1.0 - c)
-        dx, dy, dz = (dx * c + (ky * dz - kz * dy) * s + kx * kd, dy * c + (kz * dx - kx * dz) * s + ky * kd,
-                      dz * c + (kx * dy - ky * dx) * s + kz * kd)
-    norm = math.sqrt(dx * dx + dy * dy + dz * dz)
-    return np.array([dx / norm, dy / norm, dz / norm])
+        newmark_step(self.arm, np.ascontiguousarray(force, dtype=float), self.row(t + self.h), self.h)
 
 
 def predict_torques_compliant(rec: BeamRecording, panda: Panda, impedance: ArmImpedance, strip: Strip = Strip(),
@@ -302,76 +283,38 @@ def predict_torques_compliant(rec: BeamRecording, panda: Panda, impedance: ArmIm
         run = PlaneRun("both", np.eye(3), np.eye(3), np.eye(3), np.eye(3))
         model = rectangle_model(strip, numerics, damping, clamp[0], axes, times, disp, rotvec, g)
         w_strong, added = np.zeros((k_rows, 6)), np.zeros((k_rows, N_JOINTS, N_JOINTS))
-    arm = ArmLoop(mass, impedance, h)
     stepper = make_stepper(numerics.integrator, h, NewtonOptions())
     m, plan, smp, x, v, ws = stepped_start(model, solve_static(model).state(), h)
-    law = None
+    law = Law(np.zeros(5), np.zeros((2, 3)), np.zeros(0))
     if amplitude_damping:
         from bullet_dlo.reality.beam_law import AmplitudeDamping, first_omega
 
         law = AmplitudeDamping(m, amplitude_damping, first_omega(strip), damping.get("internal_damping", 0.0), x,
-                               smp.dir[0, 0])
+                               smp.dir[0, 0]).law
     force, moment = np.zeros((2, 3)), np.zeros((2, 3))
     end_forces(m, x, v, smp.dir[0], smp.acc[0], force)
     clamp_moments(m, x, v, smp.dir[0], moment)
-    section = plan.normal  # the clamp's section axis at the step's samples ((0, 2, 3): no material frame)
-
-    lx, ly, lz = (float(c) for c in lever)
-
-    def wrench_in_loop() -> np.ndarray:
-        f = run.force @ force[0]
-        fx, fy, fz = (float(c) for c in f)  # lever x f in floats: np.cross costs 30x more on (3,) vectors
-        turn = (ly * fz - lz * fy, lz * fx - lx * fz, lx * fy - ly * fx)
-        return np.concatenate([f, run.moment @ moment[0] + turn])
-
-    w_rec = np.zeros((k_rows, 6))
-    tip = np.zeros((k_rows, 3))
-    tip[0] = x[-1]
-    dev_rec = np.zeros((k_rows, N_JOINTS))
-    acc_rec = np.zeros((k_rows, N_JOINTS))
-    w_rec[0] = wrench_in_loop()
-    tau0 = external_torques(jac[0], w_rec[0])  # the stepped run's torque at rest
+    f0 = run.force @ force[0]
+    w0 = np.concatenate([f0, run.moment @ moment[0] + np.cross(lever, f0)])  # the stepped run's wrench at rest
+    recs = LoopRecords(np.zeros((k_rows, 6)), np.zeros((k_rows, N_JOINTS)), np.zeros((k_rows, N_JOINTS)),
+                       np.zeros((k_rows, 3)), np.zeros(3))
+    recs.w[0], recs.tip[0] = w0, x[-1]
+    idx = np.flatnonzero(impedance.compliant)
+    arm = Arm(idx, np.ascontiguousarray(mass[:, idx][:, :, idx]), impedance.stiffness[idx].copy(),
+              impedance.damping[idx].copy(), np.zeros(len(idx)), np.zeros(len(idx)), np.zeros(len(idx)),
+              MAX_DEVIATION)
     tau_strong = external_torques(jac, w_strong) - external_torques(jac[0], w_strong[0])  # (k, 7), prescribed
-    tau_now = np.zeros(N_JOINTS)  # the stepped run's torque deviation at the current state
-    failures = 0
-    for step in range(n_steps):
-        t = step * h
-        row = min(int(t / TICK + 1e-9), k_rows - 1)
-        before = (arm.full(arm.q), arm.full(arm.v), arm.full(arm.a))
-        arm.step(t, -(tau_now + tau_strong[row] + payload[row] - sub[row]))
-        after = (arm.full(arm.q), arm.full(arm.v), arm.full(arm.a))
-        rows = (row, min(int((t + 0.5 * h) / TICK + 1e-9), k_rows - 1), min(int((t + h) / TICK + 1e-9), k_rows - 1))
-        sample_holders(plan, t, h, smp)
-        for s, r in enumerate(rows):  # the clamp moved by the arm's deviation (first order in it)
-            wgt = 0.5 * s
-            dq, dv, da = ((1 - wgt) * b0 + wgt * b1 for b0, b1 in zip(before, after))
-            dx = jac[r] @ dq
-            smp.pos[s, 0] += run.translate @ dx[:3]
-            smp.vel[s, 0] += run.translate @ (jac[r, :3] @ dv)
-            smp.acc[s, 0] += run.translate @ (jac[r, :3] @ da)
-            smp.dir[s, 0] = _turn(smp.dir[s, 0], run.rotate @ dx[3:])
-            if len(section):  # the rectangle's section turns with its clamp
-                section[s, 0] = _turn(section[s, 0], dx[3:])
-        _, ok = advance(stepper, m, x, v, smp, ws, step > 0)
-        failures += 0 if ok else 1
-        if law is not None:  # the dampers for the next step from the amplitude now
-            law.update(x, smp.dir[2, 0], h)
-        end_forces(m, x, v, smp.dir[2], smp.acc[2], force)
-        clamp_moments(m, x, v, smp.dir[2], moment)
-        if not (np.all(np.isfinite(x)) and np.all(np.isfinite(force))):
-            raise ParameterError(f"the {chosen} strip on the compliant arm went unstable at t = {t + h:.4g} s; "
-                                 "use a smaller --dt")
-        r_new = rows[2]
-        w = wrench_in_loop()
-        tau_now = external_torques(jac[r_new], w) - tau0
-        if not np.all(np.abs(arm.q) < MAX_DEVIATION):
-            raise ParameterError(f"the arm-strip loop went unstable at t = {t + h:.4g} s (arm deviation above "
-                                 f"{MAX_DEVIATION} rad); use a smaller --dt")
-        if (step + 1) % every == 0:
-            w_rec[r_new] = w
-            dev_rec[r_new] = after[0]
-            acc_rec[r_new] = after[2]
-            tip[r_new] = x[-1]
+    coupling = Coupling(np.ascontiguousarray(jac), tau_strong + payload - sub, run.translate, run.rotate, run.force,
+                        run.moment, np.asarray(lever, dtype=float), external_torques(jac[0], w0), TICK)
+    run_arm_loop(stepper, m, plan, smp, x, v, ws, arm, coupling, law, recs, n_steps, every)
+    status, failures, t_stop = int(recs.out[0]), int(recs.out[1]), float(recs.out[2])
+    if status == STRIP_UNSTABLE:
+        raise ParameterError(f"the {chosen} strip on the compliant arm went unstable at t = {t_stop:.4g} s; "
+                             "use a smaller --dt")
+    if status == ARM_UNSTABLE:
+        raise ParameterError(f"the arm-strip loop went unstable at t = {t_stop:.4g} s (arm deviation above "
+                             f"{MAX_DEVIATION} rad); use a smaller --dt")
+    w_rec, dev_rec, acc_rec, tip = recs.w, recs.dev, recs.acc, recs.tip
     w_rec = w_rec + w_strong
     keep = min(k_rows, int(np.searchsorted(rec.t, t_rec[-1] + 1e-9)))  # as predict_torques: the recording's rows
     t_rec, w_rec, dev_rec, acc_rec, tip, jac, payload, added = (

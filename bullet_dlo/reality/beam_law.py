@@ -221,34 +221,31 @@ class AmplitudeDamping:
 
     def __init__(self, m, slope: float, omega: float, tau0: float, x: np.ndarray, direction: np.ndarray) -> None:
         from bullet_dlo.core.validate import ParameterError
+        from bullet_dlo.reality.arm_loop import Law
 
         if not (math.isfinite(slope) and 0.0 <= slope <= AMPLITUDE_DAMPING_MAX):
             raise ParameterError(f"amplitude_damping must be in [0, {AMPLITUDE_DAMPING_MAX:g}] 1/m, got {slope}")
-        self.m, self.slope, self.omega, self.tau0 = m, float(slope), float(omega), float(tau0)
-        self.k_bend = np.array(m.k_bend, dtype=float)
-        self.rest = self._deflection(x, direction)
-        self.prev = self.rest.copy()
-        self.amplitude = 0.0  # [m] the strip starts at rest
-        self.tau = self.tau0
-
-    @staticmethod
-    def _deflection(x: np.ndarray, direction: np.ndarray) -> np.ndarray:
+        self.m = m
         d = np.asarray(direction, dtype=float)
         d = d / np.linalg.norm(d)
         r = x[-1] - x[0]
-        return r - (r @ d) * d
+        rest = r - (r @ d) * d  # the tip's deflection from the clamp's tangent line at rest (the sag) [m]
+        # the state the compiled step carries (arm_loop.law_update); the strip starts at rest: amplitude 0
+        self.law = Law(np.array([slope, omega, tau0, 0.0, SMOOTHING_PERIODS], dtype=float), np.stack([rest, rest]),
+                       np.array(m.k_bend, dtype=float))
+
+    @property
+    def amplitude(self) -> float:
+        """The current amplitude estimate [m]."""
+        return float(self.law.par[3])
 
     def update(self, x: np.ndarray, direction: np.ndarray, h: float) -> float:
         """After a step of h [s] to positions x [m] (n, 3) with the clamp's tangent ``direction``: new amplitude
         estimate, new dampers (in ``m.c_bend``) for the next step. Returns the amplitude [m]."""
-        e = self._deflection(x, direction)
-        rate = (e - self.prev) / h
-        self.prev = e
-        raw = math.sqrt(float((e - self.rest) @ (e - self.rest)) + float(rate @ rate) / self.omega**2)
-        alpha = min(1.0, h * self.omega / (2 * math.pi * SMOOTHING_PERIODS))
-        self.amplitude += alpha * (raw - self.amplitude)
-        self.tau = self.tau0 + 2.0 * self.slope * self.amplitude / self.omega
-        self.m.c_bend[:] = self.k_bend * self.tau
+        from bullet_dlo.reality.arm_loop import law_update
+
+        law_update(self.law, self.m, np.ascontiguousarray(x, dtype=float),
+                   np.ascontiguousarray(direction, dtype=float), float(h))
         return self.amplitude
 
 
