@@ -299,10 +299,7 @@ def predict_torques_compliant(rec: BeamRecording, panda: Panda, impedance: ArmIm
     recs = LoopRecords(np.zeros((k_rows, 6)), np.zeros((k_rows, N_JOINTS)), np.zeros((k_rows, N_JOINTS)),
                        np.zeros((k_rows, 3)), np.zeros(3))
     recs.w[0], recs.tip[0] = w0, x[-1]
-    idx = np.flatnonzero(impedance.compliant)
-    arm = Arm(idx, np.ascontiguousarray(mass[:, idx][:, :, idx]), impedance.stiffness[idx].copy(),
-              impedance.damping[idx].copy(), np.zeros(len(idx)), np.zeros(len(idx)), np.zeros(len(idx)),
-              MAX_DEVIATION)
+    arm = ArmLoop(mass, impedance, h).arm
     tau_strong = external_torques(jac, w_strong) - external_torques(jac[0], w_strong[0])  # (k, 7), prescribed
     coupling = Coupling(np.ascontiguousarray(jac), tau_strong + payload - sub, run.translate, run.rotate, run.force,
                         run.moment, np.asarray(lever, dtype=float), external_torques(jac[0], w0), TICK)
