@@ -52,10 +52,9 @@ import numpy as np
 from scipy.signal import butter, sosfiltfilt
 from scipy.spatial.transform import Rotation
 
-from bullet_dlo.core.boundary import Waypoints
 from bullet_dlo.core.integrators import NewtonOptions, make_stepper
 from bullet_dlo.core.kernels.monitor import clamp_moments, end_forces
-from bullet_dlo.core.model import STANDARD_GRAVITY, CableModel
+from bullet_dlo.core.model import STANDARD_GRAVITY
 from bullet_dlo.core.statics import solve_static
 from bullet_dlo.core.validate import ParameterError
 from bullet_dlo.reality.beam import (
