@@ -61,8 +61,9 @@ def step_cost(m: CableModel, method: str, dt: float, steps: int, newton: NewtonO
     return cost
 
 
-def _parts(n: int) -> None:
-    """Per-call thread CPU time [us] of the coupled twisting step's kernels at n (and the frameless ones)."""
+def _parts(n: int, section: str = "round") -> None:
+    """Per-call thread CPU time [us] of the coupled twisting step's kernels at n, the twisting cable's ``section``
+    round or a rectangle (and the frameless ones)."""
     from numba import njit
 
     from bullet_dlo.core.integrators import NewtonOptions, make_stepper
@@ -74,7 +75,7 @@ def _parts(n: int) -> None:
     from bullet_dlo.core.kernels.twist import set_clamp, update_frames
 
     def state(twist: bool):
-        cm = model(n, twist, 1.0)
+        cm = model(n, twist, 1.0, section)
         st = simulate(cm, "bdf2", 1e-3, 0.3, record_every=300).final_state.copy()
         control = cm.control(None)
         m = cm.kernel_arrays(control, st.twist if st.twist is not None else cm.twist_state())
@@ -290,7 +291,7 @@ def main() -> None:
     if args.parts:
         print(f"load average {os.getloadavg()[0]:.2f}")
         for n in args.ns:
-            _parts(n)
+            _parts(n, args.section)
         print(f"load average at the end {os.getloadavg()[0]:.2f}")
         return
     duration = args.steps * args.dt

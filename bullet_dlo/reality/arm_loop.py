@@ -175,12 +175,9 @@ def run_arm_loop(stepper, m, plan, smp, x, v, ws, arm, cp, law, rec, n_steps, ev
     h = stepper.h
     k_rows = cp.jac.shape[0]
     nc = arm.idx.shape[0]
-    force, moment = np.zeros((2, 3)), np.zeros((2, 3))
-    end_forces(m, x, v, smp.dir[0], smp.acc[0], force)
-    clamp_moments(m, x, v, smp.dir[0], moment)
+    force, moment = np.empty((2, 3)), np.empty((2, 3))  # (each step's, written after its strip step)
     w = np.empty(6)
-    _wrench(cp, force[0], moment[0], w)
-    tau_now = np.zeros(7)
+    tau_now = np.zeros(7)  # the strip's torque on the arm, deviation from rest: none before the first step
     tau = np.empty(7)
     full = np.zeros((2, 3, 7))  # the deviation before and after the step: q, v, a on all 7 joints
     dq = np.empty((3, 7))  # the deviation at a sample: q, v, a [rad, rad/s, rad/s^2]
