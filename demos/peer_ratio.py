@@ -8,7 +8,7 @@ n = 10 and 5e-4 s and the flexcomp at n = 16 and 5e-4 s. Each side's cost is tha
 (ours: ``simulate`` with its set-up; the peer: its timed phase), as ``bench peers`` reports it; the cost per step is that
 times dt. ``PYTHONPATH=TREE`` measures another source tree of ours the same way (interleave trees for an A/B).
 
-Usage: ``python demos/peer_ratio.py [--reps 7] [--only S1|S2]``
+Usage: ``python demos/peer_ratio.py [--reps 7] [--only S1|S2] [--tight]`` (``--tight``: the runs within 0.1 %)
 """
 from __future__ import annotations
 
@@ -22,13 +22,17 @@ RUNS = (("S1", dict(scenario="S1", integrator="implicit_euler", n=12, dt=1 / 60)
         ("S1", dict(scenario="S1", integrator="implicit_euler", n=12, dt=1 / 60), ("discrete", 1 / 60, 12)),
         ("S2", dict(scenario="S2", integrator="gauss_legendre", n=12, dt=5e-3), ("discrete chain", 5e-4, 10)),
         ("S2", dict(scenario="S2", integrator="gauss_legendre", n=12, dt=5e-3), ("discrete", 5e-4, 16)))
-"""(scenario, our run, MuJoCo's (integrator, dt [s], n))."""
+"""(scenario, our run, MuJoCo's (integrator, dt [s], n)): the cheapest runs within 1 %."""
+RUNS_TIGHT = (("S1", dict(scenario="S1", integrator="implicit_euler", n=40, dt=1 / 60), ("discrete chain", 1 / 60, 40)),
+              ("S2", dict(scenario="S2", integrator="gauss_legendre", n=40, dt=3e-3), ("discrete chain", 2e-4, 40)))
+"""The same within 0.1 % (``bench peers``, 2026-12-03; docs/results/speed.md): the joint chain only."""
 
 
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--reps", type=int, default=7, help="interleaved pairs per run (>= 1)")
     p.add_argument("--only", choices=("S1", "S2"), default=None)
+    p.add_argument("--tight", action="store_true", help="the runs within 0.1 %% instead of 1 %%")
     a = p.parse_args(argv)
     if a.reps < 1:
         p.error("--reps must be >= 1")
@@ -36,7 +40,7 @@ def main(argv: list[str] | None = None) -> int:
     load0 = os.getloadavg()
     print(f"MuJoCo / ours, thread CPU per simulated second, median (range) of {a.reps} interleaved pairs; "
           f"load {load0[0]:.2f} / {load0[1]:.2f} / {load0[2]:.2f}")
-    for sc, ours, (integ, dt, n) in RUNS:
+    for sc, ours, (integ, dt, n) in (RUNS_TIGHT if a.tight else RUNS):
         if a.only and sc != a.only:
             continue
         case = PeerCase("mujoco", integ, dt, n, sc)

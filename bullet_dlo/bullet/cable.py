@@ -707,6 +707,7 @@ class BulletCable:
     def _replan(self) -> None:
         """Re-plan the coming step after the end conditions changed (the forces must match)."""
         if self.status == STABLE:
+            self.solver.forget_factors()
             self._advance(None)
 
     # ----- read-outs ----------------------------------------------------------------------

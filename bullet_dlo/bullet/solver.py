@@ -148,6 +148,11 @@ class CableSolver:
         cp = self.coupling
         self.detector = start_detector(self.detector_options, model, arrays, cp.x, cp.v, cp.samples)
 
+    def forget_factors(self) -> None:
+        """Drop the Newton factors an earlier step kept for later ones (``Workspace.matrices``): a step planned again
+        from the same state then starts as a step after a contact solve does, whatever plans came between."""
+        self.workspace.matrices[1] = 0.0
+
     def step_input(self, t: float, steps: int, sync: bool, record: bool, contacts: Contacts, index: np.ndarray,
                    pos: np.ndarray, vel: np.ndarray) -> StepInput:
         """What a step needs from the caller: the time t [s] of the state the next step is planned from, the

@@ -108,8 +108,10 @@ class NewtonOptions:
     material frame) factors its Newton matrix once a step and takes the same factors (a chord iteration) while each
     iteration leaves at most a tenth of the residual (``steppers.CHORD_CONTRACTION``), and starts BDF2's Newton from
     the velocities extrapolated from the last two steps (the solution is the same to the tolerance; a frameless step
-    1.5-1.7x faster from n = 20 on, a twisting one 1.3-1.6x, a rectangle 1.5-2.3x, docs/concepts/model.md); False
-    builds and factors the matrix every iteration from the last velocities, as before 2026-12-06.
+    1.5-1.7x faster from n = 20 on, a twisting one 1.3-1.6x, a rectangle 1.5-2.3x, docs/concepts/model.md); the
+    frameless step also keeps its factors for the steps after while they serve (a settled cable builds none;
+    ``steppers._kept``, ``steppers.BACKOFF``); False builds and factors the matrix every iteration from the last
+    velocities, as before 2026-12-06.
     """
 
     max_iter: int | None = None

@@ -77,7 +77,9 @@ class Workspace(NamedTuple):
     tw_band, tw_lower, tw_upper: the coupled twisting step's Newton matrix (upper band, lower band by columns, the
     exact matrix's extra upper entries) and, once eliminated, its factors, (4n, HALF_T + 1);
     matrices [-]: how many Newton matrices the implicit steps without contact have built and factored, a running
-    count, (1,).
+    count, in slot 0; then the key of the factors ``band`` keeps for later frameless steps (slot 1: whether it
+    does, 2-4: the hf, cx, cv they were built with), slot 5 the steps to wait before trying them (:data:`BACKOFF`),
+    and from :data:`KEPT` on the held nodes they were built with (1.0 held), (KEPT + n,).
     """
 
     force: np.ndarray
@@ -106,6 +108,11 @@ class Workspace(NamedTuple):
 
 HALF_T = 10
 """Scalar half-bandwidth of the coupled twisting step's interleaved (x_i, theta_i) layout (twist_coupled)."""
+KEPT = 6
+"""Slots of ``Workspace.matrices`` before its held-node key (the count, the kept factors' key, the back-off)."""
+BACKOFF = 8
+"""Steps that start from a fresh matrix after an earlier step's factors needed one (a moving cable's matrix ages
+within a step or two: each try costs a residual and a substitution)."""
 
 
 def make_workspace(n: int) -> Workspace:
@@ -113,7 +120,7 @@ def make_workspace(n: int) -> Workspace:
     shapes = {"kx": (4, n, 3), "kv": (4, n, 3), "residual": (3 * n,), "residual_try": (3 * n,),
               "residual_kept": (3 * n,), "jacobian": (n, 5, 3, 3), "band": (3 * n, 2 * HALF + 1),
               "tw_band": (4 * n, HALF_T + 1), "tw_lower": (4 * n, HALF_T + 1), "tw_upper": (4 * n, HALF_T + 1),
-              "matrices": (1,)}
+              "matrices": (KEPT + n,)}
     return Workspace(*(np.zeros(shapes.get(name, (n, 3))) for name in Workspace._fields))
 
 
@@ -357,7 +364,9 @@ CHORD_CONTRACTION = 0.1
 """The residual share [-] a Newton iteration must leave at most for the next to take the same factors (a chord
 iteration, ``NewtonOptions.reuse_matrix``): a chord converges only linearly, so at a quarter a twisting step far from
 its solution ran out of iterations (the study's cable turned three times in 1 s at 60 Hz: 6 of 90 steps); at a tenth
-none did. The first iteration of a step always takes a fresh matrix, and nothing is kept between steps."""
+none did. Out of contact the frameless step keeps its last factors for the steps after (:func:`_kept`): a static or
+slowly loaded cable then takes no matrix at all (S1, the static cantilever: 1.5-1.75x cheaper), while a moving one,
+whose matrix ages within a step or two, tries them again only :data:`BACKOFF` steps after they last failed."""
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -369,6 +378,28 @@ def extrapolate(held, v_avg, vn):
         if not held[i]:
             for j in range(3):
                 vn[i, j] = 3.0 * v_avg[i, j] - 2.0 * vn[i, j]
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _kept(m, imp, ws):
+    """Whether ws.band holds factors of an earlier step's matrix built with this step's hf, cx, cv and held nodes."""
+    k = ws.matrices
+    if k[1] != 1.0 or k[2] != imp.hf or k[3] != imp.cx or k[4] != imp.cv:
+        return False
+    for i in range(m.held.shape[0]):
+        if k[KEPT + i] != (1.0 if m.held[i] else 0.0):
+            return False
+    return True
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _keep(m, imp, ws, kept):
+    """Book the factors just left in ws.band (kept: whether a later step may take them)."""
+    k = ws.matrices
+    k[1] = 1.0 if kept else 0.0
+    k[2], k[3], k[4] = imp.hf, imp.cx, imp.cv
+    for i in range(m.held.shape[0]):
+        k[KEPT + i] = 1.0 if m.held[i] else 0.0
 
 
 @njit(cache=True, error_model="numpy")
@@ -423,7 +454,14 @@ def newton(stepper, m, x, imp, ws, c=None, cap_tol=1e-3, max_passes=10, bd=None)
     converged = False
     if c is None:
         rnorm = _cable_residual(m, imp, ws, vn, r)
-        factored = False  # ws.band holds this step's last fresh matrix, eliminated (a chord iteration's)
+        # ws.band holds this step's last fresh matrix, eliminated (a chord iteration's), or an earlier step's
+        factored = False
+        if stepper.reuse and stepper.max_iter > 1 and _kept(m, imp, ws):
+            if ws.matrices[5] > 0.0:
+                ws.matrices[5] -= 1.0
+            else:
+                factored = True
+        tried = factored
         while it < stepper.max_iter:
             it += 1
             chord = factored
@@ -435,6 +473,10 @@ def newton(stepper, m, x, imp, ws, c=None, cap_tol=1e-3, max_passes=10, bd=None)
                 band_solve(ws.band, r)  # r becomes the Newton direction dv
                 ws.matrices[0] += 1.0
                 factored = stepper.reuse
+                _keep(m, imp, ws, factored)
+                if tried:  # the earlier step's factors did not carry this one: start the next few fresh
+                    ws.matrices[5] = BACKOFF
+                    tried = False
             phi0 = np.nan
             alpha = 1.0
             accepted = False
@@ -473,6 +515,7 @@ def newton(stepper, m, x, imp, ws, c=None, cap_tol=1e-3, max_passes=10, bd=None)
                 converged = True
                 break
         return it, converged
+    ws.matrices[1] = 0.0  # (the contact solve writes ws.band)
     nc = c.count[0]
     max_iter = max(stepper.max_iter, _contact.MIN_CONTACT_ITER)
     caps_new = np.empty(max(nc, 1))
