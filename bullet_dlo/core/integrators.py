@@ -110,7 +110,7 @@ class NewtonOptions:
     the velocities extrapolated from the last two steps (the solution is the same to the tolerance; a frameless step
     1.5-1.7x faster from n = 20 on, a twisting one 1.3-1.6x, a rectangle 1.5-2.3x, docs/concepts/model.md); the
     frameless step also keeps its factors for the steps after while they serve (a settled cable builds none;
-    ``steppers._kept``, ``steppers.BACKOFF``); False builds and factors the matrix every iteration from the last
+    ``steppers._kept``, ``steppers.QUIET_START``); False builds and factors the matrix every iteration from the last
     velocities, as before 2026-12-06.
     """
 

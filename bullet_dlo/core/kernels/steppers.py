@@ -78,8 +78,7 @@ class Workspace(NamedTuple):
     exact matrix's extra upper entries) and, once eliminated, its factors, (4n, HALF_T + 1);
     matrices [-]: how many Newton matrices the implicit steps without contact have built and factored, a running
     count, in slot 0; then the key of the factors ``band`` keeps for later frameless steps (slot 1: whether it
-    does, 2-4: the hf, cx, cv they were built with), slot 5 the steps to wait before trying them (:data:`BACKOFF`),
-    and from :data:`KEPT` on the held nodes they were built with (1.0 held), (KEPT + n,).
+    does, 2-4: the hf, cx, cv they were built with, from :data:`KEPT` on the held nodes, 1.0 held), (KEPT + n,).
     """
 
     force: np.ndarray
@@ -108,11 +107,13 @@ class Workspace(NamedTuple):
 
 HALF_T = 10
 """Scalar half-bandwidth of the coupled twisting step's interleaved (x_i, theta_i) layout (twist_coupled)."""
-KEPT = 6
-"""Slots of ``Workspace.matrices`` before its held-node key (the count, the kept factors' key, the back-off)."""
-BACKOFF = 8
-"""Steps that start from a fresh matrix after an earlier step's factors needed one (a moving cable's matrix ages
-within a step or two: each try costs a residual and a substitution)."""
+KEPT = 5
+"""Slots of ``Workspace.matrices`` before its held-node key (the count and the kept factors' key)."""
+QUIET_START = 10.0
+"""A frameless step takes an earlier step's factors only where its first residual is within this many times the
+convergence threshold (module :func:`newton`): a settled or slowly loaded cable. Taken at every step, a moving
+cable's chord iterations stopped just under the tolerance where Newton lands far below it: a falling cable with
+drag lost its first order at 100 Hz and undamped swings at 60 Hz were stopped as energy growth (2026-12-06)."""
 
 
 def make_workspace(n: int) -> Workspace:
@@ -364,9 +365,8 @@ CHORD_CONTRACTION = 0.1
 """The residual share [-] a Newton iteration must leave at most for the next to take the same factors (a chord
 iteration, ``NewtonOptions.reuse_matrix``): a chord converges only linearly, so at a quarter a twisting step far from
 its solution ran out of iterations (the study's cable turned three times in 1 s at 60 Hz: 6 of 90 steps); at a tenth
-none did. Out of contact the frameless step keeps its last factors for the steps after (:func:`_kept`): a static or
-slowly loaded cable then takes no matrix at all (S1, the static cantilever: 1.5-1.75x cheaper), while a moving one,
-whose matrix ages within a step or two, tries them again only :data:`BACKOFF` steps after they last failed."""
+none did. Out of contact the frameless step keeps its last factors for the steps after (:func:`_kept`), and a step
+that starts nearly converged (:data:`QUIET_START`) takes them: a settled cable then builds no matrix at all."""
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -455,13 +455,10 @@ def newton(stepper, m, x, imp, ws, c=None, cap_tol=1e-3, max_passes=10, bd=None)
     if c is None:
         rnorm = _cable_residual(m, imp, ws, vn, r)
         # ws.band holds this step's last fresh matrix, eliminated (a chord iteration's), or an earlier step's
-        factored = False
-        if stepper.reuse and stepper.max_iter > 1 and _kept(m, imp, ws):
-            if ws.matrices[5] > 0.0:
-                ws.matrices[5] -= 1.0
-            else:
-                factored = True
-        tried = factored
+        # an earlier step's factors only where this step starts within QUIET_START of converged (a settled or
+        # slowly loaded cable): elsewhere a chord stops just under the tolerance where Newton lands far below it
+        factored = (stepper.reuse and stepper.max_iter > 1 and rnorm <= QUIET_START * (tol * r_scale + r_floor)
+                    and _kept(m, imp, ws))
         while it < stepper.max_iter:
             it += 1
             chord = factored
@@ -474,9 +471,6 @@ def newton(stepper, m, x, imp, ws, c=None, cap_tol=1e-3, max_passes=10, bd=None)
                 ws.matrices[0] += 1.0
                 factored = stepper.reuse
                 _keep(m, imp, ws, factored)
-                if tried:  # the earlier step's factors did not carry this one: start the next few fresh
-                    ws.matrices[5] = BACKOFF
-                    tried = False
             phi0 = np.nan
             alpha = 1.0
             accepted = False
