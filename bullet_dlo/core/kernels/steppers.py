@@ -454,9 +454,8 @@ def newton(stepper, m, x, imp, ws, c=None, cap_tol=1e-3, max_passes=10, bd=None)
     converged = False
     if c is None:
         rnorm = _cable_residual(m, imp, ws, vn, r)
-        # ws.band holds this step's last fresh matrix, eliminated (a chord iteration's), or an earlier step's
-        # an earlier step's factors only where this step starts within QUIET_START of converged (a settled or
-        # slowly loaded cable): elsewhere a chord stops just under the tolerance where Newton lands far below it
+        # ws.band holds this step's last fresh matrix, eliminated (a chord iteration's), or an earlier step's where
+        # this step starts within QUIET_START of converged (a settled or slowly loaded cable; QUIET_START: why)
         factored = (stepper.reuse and stepper.max_iter > 1 and rnorm <= QUIET_START * (tol * r_scale + r_floor)
                     and _kept(m, imp, ws))
         while it < stepper.max_iter:
