@@ -1377,31 +1377,6 @@ def elastic_caps(c, x, out):
 
 
 @njit(cache=True, error_model="numpy")
-def bounded_caps(c, x, X, mass, held, cx, hf, out):
-    """out <- :func:`elastic_caps` at the predictor's positions X (the step's map at the start velocities), except that
-    the depth a penalty row's own motion adds over the step (its predicted depth beyond its depth at the step's start
-    positions x) is taken with the stiffness the step's inertia gives it, min(k_n, m_row / (cx hf)) (m_row the row
-    point's effective mass; a held node: none): the force that stops the row within the step, not the penalty's at a
-    depth the solve will not reach. The limits a contact solve starts from when the one from :func:`elastic_caps`
-    ended unconverged (:func:`~bullet_dlo.core.kernels.steppers.newton`)."""
-    for k in range(c.count[0]):
-        if c.kind[k] == WRAP:
-            out[k] = _wrap_cap(c, k, X)
-            continue
-        mu = c.static_friction[k] if c.state[k] == STICK else c.dynamic_friction[k]
-        depth = max(-_gap(c, k, X), 0.0)
-        start = max(-_gap(c, k, x), 0.0)
-        kn = c.k_n[k]
-        inv = 0.0  # 1 / m_row: the row's point p = w0 x_a + w1 x_b moves as a mass m_row under a force at it
-        for q in range(2):
-            i, w = c.node[k, q], c.weight[k, q]
-            if w != 0.0 and not held[i]:
-                inv += w * w / mass[i]
-        k_step = kn if inv == 0.0 else min(kn, 1.0 / (inv * cx * hf))
-        out[k] = mu * (kn * depth if depth <= start else kn * start + k_step * (depth - start))
-
-
-@njit(cache=True, error_model="numpy")
 def caps_settled(c, x, caps_new, cap_tol) -> bool:
     """caps_new <- the friction limits at x (:func:`elastic_caps`); whether they differ from those the solve used
     (c.cap) by at most cap_tol of the largest (the contact Newton solves' outer fixed point on the caps)."""
