@@ -86,12 +86,12 @@ def _parts(n: int, section: str = "round") -> None:
     @njit
     def residuals(reps, m, mp, imp, ws, samples, tb, wb, wa, vn, wn, wv, rate, tq, r, g, sc):
         for _ in range(reps):
-            tc._residual(m, mp, imp, ws, samples, False, 1e-3, tb, wb, wa, vn, wn, wv, rate, tq, r, g, sc)
+            tc._residual(m, mp, imp, ws, samples, 1.0, 1e-3, tb, wb, wa, vn, wn, wv, rate, tq, r, g, sc)
 
     @njit
     def matrices(reps, stepper, m, mp, imp, ws, band, g, sc, lower, upx, samples, exact):
         for _ in range(reps):
-            tc._newton_matrix(stepper, m, mp, imp, ws, band, g, sc, exact, lower, upx, samples, False, 1e-3)
+            tc._newton_matrix(stepper, m, mp, imp, ws, band, g, sc, exact, lower, upx, samples, 1.0, 1e-3)
 
     @njit
     def sym_solves(reps, band, r, bcopy, rcopy):
