@@ -1,15 +1,16 @@
 """A cable lying on itself: folded flat along its length, and a coil whose stacked turns settle on each other.
 
     PYTHONPATH=. python demos/self_contact.py [--rates 60 240 1000] [--n 40 80 160]
+    PYTHONPATH=. python demos/self_contact.py --coils --rates 1000 --n 30 40 50 --turns 1.8 2.2 2.6 --duration 3
 
 Fold: a soft 0.3 m Lv cable (E 0.1 MPa) lies 0.165 m on the ground along x, turns up and back, and the rest lies
 along the lower strand 0.1 mm above contact; after 1 s, per rate and n: the vertical self-contact force on the upper
 strand's nodes and on the lower strand's over the upper strand's weight (equal and opposite; the U-turn holds the
 rest of it), the sum of all self-contact forces over the weight (internal: 0), the ground's support over the weight,
 the largest speed and the lowest node of the upper strand away from the U-turn over the radius (3: on the lower one).
-Coil: a 0.6 m, 60 g cable (E 1 MPa) wound as a 2.2-turn helix standing on the ground, turns 0.1 mm apart, after
-1.5 s: the same sums, the closest approach of segments far apart along the cable over the run over the diameter, and
-whether the run was stopped. See docs/concepts/contact.md, "Self-contact".
+Coil: a 0.6 m, 60 g cable (E 1 MPa) wound as a helix of 2.2 turns (``--turns``) standing on the ground, turns 0.1 mm
+apart, after 1.5 s (``--duration``): the same sums, the closest approach of segments far apart along the cable over the run over the diameter, and
+whether the run was stopped (``--coils``: the coils alone). See docs/concepts/contact.md, "Self-contact".
 """
 from __future__ import annotations
 
@@ -39,11 +40,11 @@ def fold_row(rate: float, n: int) -> str:
             f"{x[strand, 2].min() / r:>7.4f}  {cable.reason or '-'}")
 
 
-def coil_row(rate: float, n: int) -> str:
-    cable, spec, cf, ground, closest = coil(rate, n)
+def coil_row(rate: float, n: int, turns: float, duration: float) -> str:
+    cable, spec, cf, ground, closest = coil(rate, n, duration, turns)
     weight = spec.mass * 9.81
     own = cf["body"] == -1
-    return (f"{rate:>5.0f} {n:>4} {np.abs(cf['force'][own].sum(axis=0)).max() / weight:>9.1e} "
+    return (f"{rate:>5.0f} {n:>4} {turns:>5.2f} {np.abs(cf['force'][own].sum(axis=0)).max() / weight:>9.1e} "
             f"{cf['force'][cf['body'] == ground, 2].sum() / weight:>8.4f} {np.abs(cable.v).max():>8.1e} "
             f"{closest / spec.diameter:>8.4f}  {cable.reason or '-'}")
 
@@ -52,18 +53,27 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--rates", type=float, nargs="+", default=[60, 240, 1000], help="Bullet step rates [Hz]")
     ap.add_argument("--n", type=int, nargs="+", default=[40, 80], help="node counts")
+    ap.add_argument("--turns", type=float, nargs="+", default=[2.2], help="the coil's turns")
+    ap.add_argument("--duration", type=float, default=1.5, help="the coil's settling time [s]")
+    ap.add_argument("--coils", action="store_true", help="the coils alone (no fold)")
     a = ap.parse_args()
+    if not a.coils:
+        fold_table(a.rates, a.n)
+    print("coil")
+    print(f"{'rate':>5} {'n':>4} {'turns':>5} {'net/W':>9} {'ground/W':>8} {'|v| max':>8} {'min/d':>8}  stopped")
+    for rate in a.rates:
+        for n in a.n:
+            for turns in a.turns:
+                print(coil_row(rate, n, turns, a.duration), flush=True)
+
+
+def fold_table(rates: list[float], ns: list[int]) -> None:
     print("fold")
     print(f"{'rate':>5} {'n':>4} {'up/Wup':>8} {'low/Wup':>9} {'net/W':>9} {'ground/W':>8} {'|v| max':>8} "
           f"{'z_up/r':>7}  stopped")
-    for rate in a.rates:
-        for n in a.n:
+    for rate in rates:
+        for n in ns:
             print(fold_row(rate, n), flush=True)
-    print("coil")
-    print(f"{'rate':>5} {'n':>4} {'net/W':>9} {'ground/W':>8} {'|v| max':>8} {'min/d':>8}  stopped")
-    for rate in a.rates:
-        for n in a.n:
-            print(coil_row(rate, n), flush=True)
 
 
 if __name__ == "__main__":

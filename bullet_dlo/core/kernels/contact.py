@@ -65,6 +65,7 @@ ARC_BLEND = 0.1  # [rad] a node between two wrapped paths loses its kink's bend 
 DEFAULT_ALPHA = 1.0e4  # k_n h^2 / m: contact frequency times step, squared
 MIN_CONTACT_ITER = 30  # Newton iterations allowed in contact at least (stick/slide kinks need more than 8)
 WILD_RATIO = 10.0  # [-] a solve ending this far from convergence (stall_ratio) is wildly far (Bodies.felt_ratio)
+RETRY_RATIO = 100.0  # [-] a cable-only solve ending this far is solved again from bounded_caps (steppers.newton)
 SUPPORT_COLS = 26  # Contacts.support's columns
 SUPPORT_ROUNDING = 1e-3  # [-] a flat section's support is rounded over a tilt of at least this (set_support)
 
@@ -1374,6 +1375,31 @@ def elastic_caps(c, x, out):
         g = _gap(c, k, x)
         mu = c.static_friction[k] if c.state[k] == STICK else c.dynamic_friction[k]
         out[k] = mu * c.k_n[k] * (-g) if g < 0.0 else 0.0
+
+
+@njit(cache=True, error_model="numpy")
+def bounded_caps(c, x, X, mass, held, cx, hf, out):
+    """out <- :func:`elastic_caps` at the predictor's positions X (the step's map at the start velocities), except that
+    the depth a penalty row's own motion adds over the step (its predicted depth beyond its depth at the step's start
+    positions x) is taken with the stiffness the step's inertia gives it, min(k_n, m_row / (cx hf)) (m_row the row
+    point's effective mass, its held nodes left out; all held: k_n): the force that stops the row within the step, not
+    the penalty's at a depth the solve will not reach. The limits a contact solve starts from again when the one from
+    :func:`elastic_caps` ended wildly far from convergence (:func:`~bullet_dlo.core.kernels.steppers.newton`)."""
+    for k in range(c.count[0]):
+        if c.kind[k] == WRAP:
+            out[k] = _wrap_cap(c, k, X)
+            continue
+        mu = c.static_friction[k] if c.state[k] == STICK else c.dynamic_friction[k]
+        depth = max(-_gap(c, k, X), 0.0)
+        start = max(-_gap(c, k, x), 0.0)
+        kn = c.k_n[k]
+        inv = 0.0  # 1 / m_row: the row's point p = w0 x_a + w1 x_b moves as a mass m_row under a force at it
+        for q in range(2):
+            i, w = c.node[k, q], c.weight[k, q]
+            if w != 0.0 and not held[i]:
+                inv += w * w / mass[i]
+        k_step = kn if inv == 0.0 else min(kn, 1.0 / (inv * cx * hf))
+        out[k] = mu * (kn * depth if depth <= start else kn * start + k_step * (depth - start))
 
 
 @njit(cache=True, error_model="numpy")

@@ -422,7 +422,11 @@ def newton(stepper, m, x, imp, ws, c=None, cap_tol=1e-3, max_passes=10, bd=None)
     cycle between stick and slide; 30 halvings at most), and the friction caps are an outer fixed
     point: re-taken from the converged X until they change by less than ``cap_tol`` (relative) or
     after ``max_passes`` passes (without free bodies each row's cap moves part way where it overshoots:
-    :func:`~bullet_dlo.core.kernels.contact.relax_caps`). Returns (iterations, converged).
+    :func:`~bullet_dlo.core.kernels.contact.relax_caps`); a solve without free bodies that ends more than
+    :data:`~bullet_dlo.core.kernels.contact.RETRY_RATIO` times gravity's impulse in a step from convergence is taken
+    again from the same start with the caps started from what stops each row within the step
+    (:func:`~bullet_dlo.core.kernels.contact.bounded_caps`), and the closer of the two kept. Returns (iterations,
+    converged).
     """
     n = x.shape[0]
     vn, v_try, r, r_try = ws.v_new, ws.v_try, ws.residual, ws.residual_try
@@ -510,17 +514,57 @@ def newton(stepper, m, x, imp, ws, c=None, cap_tol=1e-3, max_passes=10, bd=None)
         return it, converged
     ws.matrices[1] = 0.0  # (the contact solve writes ws.band)
     nc = c.count[0]
-    max_iter = max(stepper.max_iter, _contact.MIN_CONTACT_ITER)
-    caps_new = np.empty(max(nc, 1))
-    history = np.zeros((max(nc, 1), 2))  # (contact.relax_caps)
     # bd: free bodies solved with the cable (their velocities: bd.vel_new, started by the caller)
     nb = 0
     for s in range(bd.active.shape[0]):
         nb += 1 if bd.active[s] else 0
+    v_start = vn.copy()
+    # a cable-only solve that ends beyond RETRY_RATIO times gravity's impulse from convergence (kept, it kicked a node
+    # off a table at 2.7 m/s; coils on themselves were stopped as energy growth) is solved again from friction limits
+    # bounded by the step's inertia (contact.bounded_caps), the closer kept; not a nearer miss, where from those limits
+    # draped cables slid below the capstan threshold and a coil settled elsewhere (docs/concepts/contact.md, "Edges")
+    it, converged, rnorm = _contact_solve(stepper, m, x, imp, ws, c, bd, nb, False, cap_tol, max_passes, phi_scale,
+                                          r_scale, r_floor)
+    if not converged and nb == 0 and _contact.stall_ratio(m, ws, imp.hf) > _contact.RETRY_RATIO:
+        v_first, cap_first, r_first = vn.copy(), c.cap[:nc].copy(), rnorm
+        vn[:, :] = v_start
+        it_again, converged, rnorm = _contact_solve(stepper, m, x, imp, ws, c, bd, nb, True, cap_tol, max_passes,
+                                                    phi_scale, r_scale, r_floor)
+        it += it_again
+        if not converged and rnorm >= r_first:  # (the forces at the kept iterate: below)
+            vn[:, :] = v_first
+            c.cap[:nc] = cap_first
+    c.lock[:nc] = 0  # (converged: every row was in its Coulomb regime, so the forces are the unlocked ones)
+    if not converged:  # (converged: the last residual was taken at vn, with the bodies' rows at vel_new)
+        if nb > 0:
+            _contact.load_bodies(c, bd, imp.hf, bd.vel_new)
+        _residual(m, imp, ws, vn, r, c)  # forces and c.f_n, c.f_t at the accepted iterate
+    return it, converged
+
+
+@njit(cache=True, error_model="numpy")
+def _contact_solve(stepper, m, x, imp, ws, c, bd, nb, bounded, cap_tol, max_passes, phi_scale, r_scale, r_floor):
+    """:func:`newton`'s contact solve of the step from x [m] (its start) from the iterate in ws.v_new (and the free
+    bodies' in bd.vel_new, ``nb`` of them active): Newton iterations with the friction caps frozen, the caps then an
+    outer fixed point started from the predictor's penetration (``bounded``: bounded by the step's inertia,
+    ``contact.bounded_caps``). Returns (Newton iterations, converged, the last residual's norm [N s]); ws.v_new holds
+    the last accepted iterate."""
+    n = ws.v_new.shape[0]
+    vn, v_try, r, r_try = ws.v_new, ws.v_try, ws.residual, ws.residual_try
+    tol = stepper.tol
+    nc = c.count[0]
+    max_iter = max(stepper.max_iter, _contact.MIN_CONTACT_ITER)
+    caps_new = np.empty(max(nc, 1))
+    history = np.zeros((max(nc, 1), 2))  # (contact.relax_caps)
+    it = 0
+    converged = False
     if nb > 0:
         _contact.load_bodies(c, bd, imp.hf, bd.vel_new)
     _residual(m, imp, ws, vn, r)  # X at the predictor: caps from its penetration
-    _contact.elastic_caps(c, ws.x_stage, c.cap)
+    if bounded:
+        _contact.bounded_caps(c, x, ws.x_stage, m.mass, m.held, imp.cx, imp.hf, c.cap)
+    else:
+        _contact.elastic_caps(c, ws.x_stage, c.cap)
     rnorm = _contact_residual(m, imp, ws, r, c)  # the first residual: the same X, V and elastic forces
     # ``fresh``: r, rnorm, ws.x_stage, v_stage and the contact forces are those of vn with the caps in use (the
     # first residual, or an accepted trial's): the loop does not take them again (each residual and its
@@ -590,12 +634,7 @@ def newton(stepper, m, x, imp, ws, c=None, cap_tol=1e-3, max_passes=10, bd=None)
         fresh = True
         if nb > 0:
             bd.vel_new[:, :] = bd.vel_try
-    c.lock[:nc] = 0  # (converged: every row was in its Coulomb regime, so the forces are the unlocked ones)
-    if not converged:  # (converged: the last residual was taken at vn, with the bodies' rows at vel_new)
-        if nb > 0:
-            _contact.load_bodies(c, bd, imp.hf, bd.vel_new)
-        _residual(m, imp, ws, vn, r, c)  # forces and c.f_n, c.f_t at the accepted iterate
-    return it, converged
+    return it, converged, rnorm
 
 
 @njit(cache=True, error_model="numpy", inline="always")  # (m, ws: ~0.5-1 us a call, Numba's pipeline)
