@@ -9,7 +9,7 @@ strand's nodes and on the lower strand's over the upper strand's weight (equal a
 rest of it), the sum of all self-contact forces over the weight (internal: 0), the ground's support over the weight,
 the largest speed and the lowest node of the upper strand away from the U-turn over the radius (3: on the lower one).
 Coil: a 0.6 m, 60 g cable (E 1 MPa) wound as a helix of 2.2 turns (``--turns``) standing on the ground, turns 0.1 mm
-apart, after 1.5 s (``--duration``): the same sums, the closest approach of segments far apart along the cable over the run over the diameter, and
+apart (with a material frame: ``--twist``), after 1.5 s (``--duration``): the same sums, the closest approach of segments far apart along the cable over the run over the diameter, and
 whether the run was stopped (``--coils``: the coils alone). See docs/concepts/contact.md, "Self-contact".
 """
 from __future__ import annotations
@@ -40,8 +40,8 @@ def fold_row(rate: float, n: int) -> str:
             f"{x[strand, 2].min() / r:>7.4f}  {cable.reason or '-'}")
 
 
-def coil_row(rate: float, n: int, turns: float, duration: float) -> str:
-    cable, spec, cf, ground, closest = coil(rate, n, duration, turns)
+def coil_row(rate: float, n: int, turns: float, duration: float, twist: bool) -> str:
+    cable, spec, cf, ground, closest = coil(rate, n, duration, turns, twist)
     weight = spec.mass * 9.81
     own = cf["body"] == -1
     return (f"{rate:>5.0f} {n:>4} {turns:>5.2f} {np.abs(cf['force'][own].sum(axis=0)).max() / weight:>9.1e} "
@@ -56,6 +56,7 @@ def main() -> None:
     ap.add_argument("--turns", type=float, nargs="+", default=[2.2], help="the coil's turns")
     ap.add_argument("--duration", type=float, default=1.5, help="the coil's settling time [s]")
     ap.add_argument("--coils", action="store_true", help="the coils alone (no fold)")
+    ap.add_argument("--twist", action="store_true", help="coils with a material frame")
     a = ap.parse_args()
     if not a.coils:
         fold_table(a.rates, a.n)
@@ -64,7 +65,7 @@ def main() -> None:
     for rate in a.rates:
         for n in a.n:
             for turns in a.turns:
-                print(coil_row(rate, n, turns, a.duration), flush=True)
+                print(coil_row(rate, n, turns, a.duration, a.twist), flush=True)
 
 
 def fold_table(rates: list[float], ns: list[int]) -> None:

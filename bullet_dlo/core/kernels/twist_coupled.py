@@ -1694,10 +1694,12 @@ def coupled_contact(stepper, method, m, x, v, samples, ws, has_prev, c, cap_tol=
     rest, their potential in the merit; accepted on a potential decrease only and the friction caps an outer fixed
     point, as :func:`~bullet_dlo.core.kernels.steppers.newton` does with contacts (without its friction active set,
     which only solves with free bodies use), relaxed where a row's cap overshoots
-    (:func:`~bullet_dlo.core.kernels.contact.relax_caps`). An exact matrix that is indefinite is scaled on its
-    diagonal before Gauss-Newton's is taken (:data:`SHIFTS`). Advances x, v and the twist state in place and leaves
-    the contact forces at the solution in ``c`` and the position rows of its residual in ws.residual (the stall
-    guard's measure).
+    (:func:`~bullet_dlo.core.kernels.contact.relax_caps`); a solve that ends more than
+    :data:`~bullet_dlo.core.kernels.contact.RETRY_RATIO` times gravity's impulse from convergence is taken again from
+    the caps of :func:`~bullet_dlo.core.kernels.contact.bounded_caps`, the closer of the two kept (as ``newton``
+    does). An exact matrix that is indefinite is scaled on its diagonal before Gauss-Newton's is taken
+    (:data:`SHIFTS`). Advances x, v and the twist state in place and leaves the contact forces at the solution in
+    ``c`` and the position rows of its residual in ws.residual (the stall guard's measure).
     Returns (Newton iterations, converged)."""
     h = stepper.h
     n = x.shape[0]
@@ -1726,15 +1728,77 @@ def coupled_contact(stepper, method, m, x, v, samples, ws, has_prev, c, cap_tol=
     max_iter = max(stepper.max_iter, _contact.MIN_CONTACT_ITER)
     caps_new = np.empty(max(nc, 1))
     history = np.zeros((max(nc, 1), 2))  # (relax_caps)
-    _residual(m, mp, imp, ws, samples, frac, h, tb, wb, wa, vn, wn, wv, rate, tq, r, g, sc)  # X at the predictor
-    _contact.set_support(c, sc.edges, wv, m.tw_ref, m.tw_tan)  # (a flat section's reach at the predictor: caps)
-    _contact.elastic_caps(c, ws.x_stage, c.cap)  # caps from its penetration
-    rnorm = _add_contacts(m, imp, ws, r, c, sc, wv)
+    first_exact = _first_exact(stepper, m)
+    # a solve that ends beyond RETRY_RATIO times gravity's impulse from convergence is solved again from friction
+    # limits bounded by the step's inertia (contact.bounded_caps), the closer kept: as steppers.newton does
+    v_start, w_start = vn.copy(), wn.copy()
+    v_first, w_first, cap_first = vn.copy(), wn.copy(), np.empty(max(nc, 1))
+    r_first = np.inf
+    its = 0
+    rnorm = 0.0
+    converged = False
+    for attempt in range(2):
+        if attempt == 1:
+            if converged:
+                break
+            _residual(m, mp, imp, ws, samples, frac, h, tb, wb, wa, vn, wn, wv, rate, tq, r, g, sc)
+            rnorm = _add_contacts(m, imp, ws, r, c, sc, wv)  # (r may hold the last Newton direction)
+            for i in range(n):
+                for j in range(3):
+                    ws.residual[3 * i + j] = r[4 * i + j]
+            if _contact.stall_ratio(m, ws, hf) <= _contact.RETRY_RATIO:
+                break
+            v_first[:, :] = vn
+            w_first[:] = wn
+            cap_first[:nc] = c.cap[:nc]
+            r_first = rnorm
+            vn[:, :] = v_start
+            wn[:] = w_start
+            history[:, :] = 0.0
+        _residual(m, mp, imp, ws, samples, frac, h, tb, wb, wa, vn, wn, wv, rate, tq, r, g, sc)  # X at the predictor
+        _contact.set_support(c, sc.edges, wv, m.tw_ref, m.tw_tan)  # (a flat section's reach at the predictor: caps)
+        if attempt == 0:
+            _contact.elastic_caps(c, ws.x_stage, c.cap)  # caps from its penetration
+        else:
+            _contact.bounded_caps(c, x, ws.x_stage, m.mass, m.held, cx, hf, c.cap)
+        rnorm = _add_contacts(m, imp, ws, r, c, sc, wv)
+        it, converged, rnorm = _contact_newton(stepper, m, mp, imp, ws, samples, frac, h, tb, wb, wa, vn, wn, wv,
+                                              rate, tq, r, r_try, v_try, w_try, g, sc, band, lower, upx, cb, c,
+                                              caps_new, history, rnorm, max_iter, first_exact, cap_tol, max_passes,
+                                              r_scale, r_floor, phi_scale)
+        its += it
+    if r_first < np.inf and not converged and rnorm >= r_first:  # the first solve was closer: kept
+        vn[:, :] = v_first
+        wn[:] = w_first
+        c.cap[:nc] = cap_first[:nc]
+    c.lock[:nc] = 0
+    if not converged:  # forces, c.f_n, c.f_t and the frames at the accepted iterate
+        _residual(m, mp, imp, ws, samples, frac, h, tb, wb, wa, vn, wn, wv, rate, tq, r, g, sc)
+        _add_contacts(m, imp, ws, r, c, sc, wv)
+    for i in range(n):
+        for j in range(3):
+            ws.residual[3 * i + j] = r[4 * i + j]
+    kept = bool(1)  # the last residual is at the solution (a runtime True: a literal compiles _finish twice)
+    _finish(method, m, x, v, samples, ws, has_prev, h, cx, theta0, omega0, tb, wn, kept, sc)
+    return its, converged
+
+
+@njit(cache=True, error_model="numpy")
+def _contact_newton(stepper, m, mp, imp, ws, samples, frac, h, tb, wb, wa, vn, wn, wv, rate, tq, r, r_try, v_try,
+                    w_try, g, sc, band, lower, upx, cb, c, caps_new, history, rnorm, max_iter, first_exact, cap_tol,
+                    max_passes, r_scale, r_floor, phi_scale):
+    """:func:`coupled_contact`'s Newton iterations from (vn, wn), whose residual r and its max ``rnorm`` were taken
+    with the caps in use, the caps an outer fixed point; (vn, wn) left at the last accepted iterate, r its residual.
+    Returns (Newton iterations, converged, the last residual's max)."""
+    n = vn.shape[0]
+    ns = n - 1
+    nc = c.count[0]
+    cx, cv, hf = imp.cx, imp.cv, imp.hf
+    tol = stepper.tol
     fresh = True  # r, rnorm, the scratch and the contact forces are those of (vn, wn) with the caps in use
     it = 0
     passes = 0
     converged = False
-    first_exact = _first_exact(stepper, m)
     slow = False  # a Gauss-Newton iteration contracted poorly: the exact Jacobian from then on (as coupled_implicit)
     descent = False  # an exact direction found no lower potential: the Gauss-Newton matrix for the rest of the step
     c.lock[:nc] = 0
@@ -1796,16 +1860,7 @@ def coupled_contact(stepper, method, m, x, v, samples, ws, has_prev, c, cap_tol=
         slow = slow or not _contracted(rn_try, rnorm, alpha)
         rnorm = rn_try
         fresh = True
-    c.lock[:nc] = 0
-    if not converged:  # forces, c.f_n, c.f_t and the frames at the accepted iterate
-        _residual(m, mp, imp, ws, samples, frac, h, tb, wb, wa, vn, wn, wv, rate, tq, r, g, sc)
-        _add_contacts(m, imp, ws, r, c, sc, wv)
-    for i in range(n):
-        for j in range(3):
-            ws.residual[3 * i + j] = r[4 * i + j]
-    kept = bool(1)  # the last residual is at the solution (a runtime True: a literal compiles _finish twice)
-    _finish(method, m, x, v, samples, ws, has_prev, h, cx, theta0, omega0, tb, wn, kept, sc)
-    return it, converged
+    return it, converged, rnorm
 
 
 # The kernel arrays' type (model.py imports the kernels, so the module object is bound here; Numba resolves
