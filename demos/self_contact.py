@@ -9,8 +9,9 @@ strand's nodes and on the lower strand's over the upper strand's weight (equal a
 rest of it), the sum of all self-contact forces over the weight (internal: 0), the ground's support over the weight,
 the largest speed and the lowest node of the upper strand away from the U-turn over the radius (3: on the lower one).
 Coil: a 0.6 m, 60 g cable (E 1 MPa) wound as a helix of 2.2 turns (``--turns``) standing on the ground, turns 0.1 mm
-apart (with a material frame: ``--twist``), after 1.5 s (``--duration``): the same sums, the closest approach of segments far apart along the cable over the run over the diameter, and
-whether the run was stopped (``--coils``: the coils alone). See docs/concepts/contact.md, "Self-contact".
+apart (with a material frame: ``--twist``), after 1.5 s (``--duration``): the same sums, the closest approach of
+segments far apart along the cable over the run over the diameter, and whether the run was stopped (``--coils``: the
+coils alone). See docs/concepts/contact.md, "Self-contact".
 """
 from __future__ import annotations
 

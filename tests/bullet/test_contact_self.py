@@ -109,6 +109,16 @@ def coil(rate: float, n: int, duration: float = 1.5, turns: float = 2.2, twist: 
         return cable, spec, cable.contact_forces(), world.ground_id, closest
 
 
+def assert_coil_at_rest(cable, spec, cf, ground, closest) -> None:
+    """A settled coil (:func:`coil`'s results): stable, no turn closer to another than a diameter (0.1 mm penetration
+    allowed), the ground carrying the weight within 15 %, every node below 1e-3 m/s."""
+    assert cable.stable, cable.reason
+    assert closest > spec.diameter - 1e-4
+    weight = spec.mass * 9.81
+    assert cf["force"][cf["body"] == ground, 2].sum() == pytest.approx(weight, rel=0.15)
+    assert np.abs(cable.v).max() < 1e-3
+
+
 @pytest.mark.parametrize("rate", [60, 240, 1000])
 def test_coil_settles_on_itself(rate):
     """The stacked turns settle on each other: the run stays stable, no turn passes through another, and the ground
@@ -116,12 +126,7 @@ def test_coil_settles_on_itself(rate):
     2 k_n h v of imbalance at a creep v). Before, the runs at 240 and 1000 Hz were stopped (segment strain or energy
     growth) in their first 0.1 s and at 60 Hz the turns sank 0.4 mm into each other: nodes without rows sank, and
     each side of a pair took up the whole penetration and the whole slip while the other did too."""
-    cable, spec, cf, ground, closest = coil(rate, 40)
-    assert cable.stable, cable.reason
-    assert closest > spec.diameter - 1e-4  # never closer than a diameter (0.1 mm penetration allowed)
-    weight = spec.mass * 9.81
-    assert cf["force"][cf["body"] == ground, 2].sum() == pytest.approx(weight, rel=0.15)
-    assert np.abs(cable.v).max() < 1e-3
+    assert_coil_at_rest(*coil(rate, 40))
 
 
 @pytest.mark.parametrize("turns, n, twist", [(2.2, 30, False), (2.2, 50, False), (2.6, 40, False), (2.2, 50, True)])
@@ -132,12 +137,7 @@ def test_coils_of_other_turns_and_masses_come_to_rest_at_1_khz(turns, n, twist):
     convergence were kept; 2.2 turns at n 30 still moved at 2.5e-3 m/s after 3 s. A cable-only solve ending beyond
     ``contact.RETRY_RATIO`` of it is now solved again from friction limits bounded by the step's inertia
     (``steppers.newton``, ``twist_coupled.coupled_contact``, ``contact.bounded_caps``)."""
-    cable, spec, cf, ground, closest = coil(1000, n, duration=3.0, turns=turns, twist=twist)
-    assert cable.stable, cable.reason
-    assert closest > spec.diameter - 1e-4
-    weight = spec.mass * 9.81
-    assert cf["force"][cf["body"] == ground, 2].sum() == pytest.approx(weight, rel=0.15)
-    assert np.abs(cable.v).max() < 1e-3
+    assert_coil_at_rest(*coil(1000, n, duration=3.0, turns=turns, twist=twist))
 
 
 @pytest.mark.xfail(strict=True, reason="known defect (docs/concepts/contact.md, Self-contact, 2026-12-07): a coil of "
