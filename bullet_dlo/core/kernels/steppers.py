@@ -525,6 +525,8 @@ def newton(stepper, m, x, imp, ws, c=None, cap_tol=1e-3, max_passes=10, bd=None)
     # draped cables slid below the capstan threshold and a coil settled elsewhere (docs/concepts/contact.md, "Edges")
     it, converged, rnorm = _contact_solve(stepper, m, x, imp, ws, c, bd, nb, False, cap_tol, max_passes, phi_scale,
                                           r_scale, r_floor)
+    if not converged and nb == 0:
+        _residual(m, imp, ws, vn, r, c)  # (after a failed line search r holds the last Newton direction)
     if not converged and nb == 0 and _contact.stall_ratio(m, ws, imp.hf) > _contact.RETRY_RATIO:
         v_first, cap_first, r_first = vn.copy(), c.cap[:nc].copy(), rnorm
         vn[:, :] = v_start
