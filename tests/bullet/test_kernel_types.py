@@ -8,11 +8,14 @@ another 2-3 minutes.
 """
 from __future__ import annotations
 
+import os
+
 import numba
 import numpy as np
 import pytest
 
 from bullet_dlo.bullet.world import BulletWorld
+from bullet_dlo.core.kernels import steppers
 from bullet_dlo.core.spec import CableSpec
 
 pytestmark = pytest.mark.bullet
@@ -48,3 +51,16 @@ def test_every_cable_passes_the_coupled_step_one_argument_type():
         finally:
             world.close()
 
+
+
+@pytest.mark.skipif(os.environ.get("NUMBA_DISABLE_JIT", "0") != "0", reason="NUMBA_DISABLE_JIT: nothing is compiled")
+def test_the_contact_solve_compiles_once():
+    """Newton's contact solve (Newton and the friction caps' fixed point, about 11 s of CPU cold each time) is
+    compiled once: a count of free bodies started as a literal 0 and the solve's ``bounded`` flag passed as a
+    literal False in one call and True in the other compiled it four times (2026-12-07, a ``numba:compile``
+    listener on the Bullet part of tests/warm_kernels.py). Numba's cache index holds every signature compiled for
+    the present sources, by any process."""
+    world, _ = world_cable(box=True)  # lying on the ground with a free box on it: the solve with contacts and bodies
+    world.close()
+    signatures = [key[0] for key in steppers._contact_solve._cache._cache_file._load_index()]
+    assert len(signatures) == 1, f"_contact_solve compiled {len(signatures)} times"

@@ -515,7 +515,7 @@ def newton(stepper, m, x, imp, ws, c=None, cap_tol=1e-3, max_passes=10, bd=None)
     ws.matrices[1] = 0.0  # (the contact solve writes ws.band)
     nc = c.count[0]
     # bd: free bodies solved with the cable (their velocities: bd.vel_new, started by the caller)
-    nb = 0
+    nb = np.int64(0)  # (a literal 0 is typed Literal[int](0) first: _contact_solve was compiled for both)
     for s in range(bd.active.shape[0]):
         nb += 1 if bd.active[s] else 0
     v_start = vn.copy()
@@ -523,14 +523,14 @@ def newton(stepper, m, x, imp, ws, c=None, cap_tol=1e-3, max_passes=10, bd=None)
     # off a table at 2.7 m/s; coils on themselves were stopped as energy growth) is solved again from friction limits
     # bounded by the step's inertia (contact.bounded_caps), the closer kept; not a nearer miss, where from those limits
     # draped cables slid below the capstan threshold and a coil settled elsewhere (docs/concepts/contact.md, "Edges")
-    it, converged, rnorm = _contact_solve(stepper, m, x, imp, ws, c, bd, nb, False, cap_tol, max_passes, phi_scale,
+    it, converged, rnorm = _contact_solve(stepper, m, x, imp, ws, c, bd, nb, bool(0), cap_tol, max_passes, phi_scale,
                                           r_scale, r_floor)
     if not converged and nb == 0:
         _residual(m, imp, ws, vn, r, c)  # (after a failed line search r holds the last Newton direction)
     if not converged and nb == 0 and _contact.stall_ratio(m, ws, imp.hf) > _contact.RETRY_RATIO:
         v_first, cap_first, r_first = vn.copy(), c.cap[:nc].copy(), rnorm
         vn[:, :] = v_start
-        it_again, converged, rnorm = _contact_solve(stepper, m, x, imp, ws, c, bd, nb, True, cap_tol, max_passes,
+        it_again, converged, rnorm = _contact_solve(stepper, m, x, imp, ws, c, bd, nb, bool(1), cap_tol, max_passes,
                                                     phi_scale, r_scale, r_floor)
         it += it_again
         if not converged and rnorm >= r_first:  # (the forces at the kept iterate: below)

@@ -1718,7 +1718,6 @@ def coupled_contact(stepper, method, m, x, v, samples, ws, has_prev, c, cap_tol=
     sc = _make_scratch(n)
     mp = _frameless(m)
     vn, v_try = ws.v_new, ws.v_try
-    tol = stepper.tol
     r_scale, r_floor = _scales(m, x, hf, theta0)
     g_norm = np.sqrt(0.0 + m.gravity[0] * m.gravity[0] + m.gravity[1] * m.gravity[1] + m.gravity[2] * m.gravity[2])
     phi_scale = 0.0  # the potential's scale (round-off allowance of the line search)
