@@ -52,7 +52,6 @@ def test_every_cable_passes_the_coupled_step_one_argument_type():
             world.close()
 
 
-
 @pytest.mark.skipif(os.environ.get("NUMBA_DISABLE_JIT", "0") != "0", reason="NUMBA_DISABLE_JIT: nothing is compiled")
 def test_the_contact_solve_compiles_once():
     """Newton's contact solve (Newton and the friction caps' fixed point, about 11 s of CPU cold each time) is
