@@ -525,19 +525,22 @@ def newton(stepper, m, x, imp, ws, c=None, cap_tol=1e-3, max_passes=10, bd=None)
     # draped cables slid below the capstan threshold and a coil settled elsewhere (docs/concepts/contact.md, "Edges")
     it, converged, rnorm = _contact_solve(stepper, m, x, imp, ws, c, bd, nb, bool(0), cap_tol, max_passes, phi_scale,
                                           r_scale, r_floor)
-    if not converged and nb == 0:
-        _residual(m, imp, ws, vn, r, c)  # (after a failed line search r holds the last Newton direction)
+    taken = True  # ws.residual and the rows' forces are those of vn with the caps in use (_contact_solve's return)
     if not converged and nb == 0 and _contact.stall_ratio(m, ws, imp.hf) > _contact.RETRY_RATIO:
         v_first, cap_first, r_first = vn.copy(), c.cap[:nc].copy(), rnorm
         vn[:, :] = v_start
         it_again, converged, rnorm = _contact_solve(stepper, m, x, imp, ws, c, bd, nb, bool(1), cap_tol, max_passes,
                                                     phi_scale, r_scale, r_floor)
         it += it_again
-        if not converged and rnorm >= r_first:  # (the forces at the kept iterate: below)
+        if not converged and rnorm >= r_first:
             vn[:, :] = v_first
             c.cap[:nc] = cap_first
+            taken = False
+    for k in range(nc):  # a row locked in a regime (solves with free bodies): its forces are taken again unlocked
+        if c.lock[k] != 0:
+            taken = False
     c.lock[:nc] = 0  # (converged: every row was in its Coulomb regime, so the forces are the unlocked ones)
-    if not converged:  # (converged: the last residual was taken at vn, with the bodies' rows at vel_new)
+    if not converged and not taken:  # (converged: the last residual was taken at vn, bodies' rows at vel_new)
         if nb > 0:
             _contact.load_bodies(c, bd, imp.hf, bd.vel_new)
         _residual(m, imp, ws, vn, r, c)  # forces and c.f_n, c.f_t at the accepted iterate
@@ -549,8 +552,9 @@ def _contact_solve(stepper, m, x, imp, ws, c, bd, nb, bounded, cap_tol, max_pass
     """:func:`newton`'s contact solve of the step from x [m] (its start) from the iterate in ws.v_new (and the free
     bodies' in bd.vel_new, ``nb`` of them active): Newton iterations with the friction caps frozen, the caps then an
     outer fixed point started from the predictor's penetration (``bounded``: bounded by the step's inertia,
-    ``contact.bounded_caps``). Returns (Newton iterations, converged, the last residual's norm [N s]); ws.v_new holds
-    the last accepted iterate."""
+    ``contact.bounded_caps``). Returns (Newton iterations, converged, the residual's norm [N s] at the last accepted
+    iterate); ws.v_new holds that iterate and ws.residual, ws.x_stage, ws.v_stage and the rows' forces are its, taken
+    with the caps and locks in use (however the solve ended)."""
     n = ws.v_new.shape[0]
     vn, v_try, r, r_try = ws.v_new, ws.v_try, ws.residual, ws.residual_try
     tol = stepper.tol
@@ -628,7 +632,10 @@ def _contact_solve(stepper, m, x, imp, ws, c, bd, nb, bounded, cap_tol, max_pass
                 accepted = True
                 break
             alpha *= 0.5
-        if not accepted:
+        if not accepted:  # r holds the Newton direction, the contact forces the last trial's: both of vn again
+            if nb > 0:
+                _contact.load_bodies(c, bd, imp.hf, bd.vel_new)
+            rnorm = _residual(m, imp, ws, vn, r, c)
             break
         vn[:, :] = v_try
         r[:] = r_try  # the residual at the accepted iterate (the merit after it wrote nothing)

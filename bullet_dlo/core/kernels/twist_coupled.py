@@ -1740,9 +1740,7 @@ def coupled_contact(stepper, method, m, x, v, samples, ws, has_prev, c, cap_tol=
         if attempt == 1:
             if converged:
                 break
-            _residual(m, mp, imp, ws, samples, frac, h, tb, wb, wa, vn, wn, wv, rate, tq, r, g, sc)
-            rnorm = _add_contacts(m, imp, ws, r, c, sc, wv)  # (r may hold the last Newton direction)
-            for i in range(n):
+            for i in range(n):  # (r: the residual at the first solve's iterate, _contact_newton's return)
                 for j in range(3):
                     ws.residual[3 * i + j] = r[4 * i + j]
             if _contact.stall_ratio(m, ws, hf) <= _contact.RETRY_RATIO:
@@ -1766,12 +1764,13 @@ def coupled_contact(stepper, method, m, x, v, samples, ws, has_prev, c, cap_tol=
                                               caps_new, history, rnorm, max_iter, first_exact, cap_tol, max_passes,
                                               r_scale, r_floor, phi_scale)
         its += it
-    if r_first < np.inf and not converged and rnorm >= r_first:  # the first solve was closer: kept
+    kept_first = r_first < np.inf and not converged and rnorm >= r_first
+    if kept_first:  # the first solve was closer: kept
         vn[:, :] = v_first
         wn[:] = w_first
         c.cap[:nc] = cap_first[:nc]
     c.lock[:nc] = 0
-    if not converged:  # forces, c.f_n, c.f_t and the frames at the accepted iterate
+    if kept_first:  # forces, c.f_n, c.f_t and the frames at the kept iterate (else _contact_newton left them)
         _residual(m, mp, imp, ws, samples, frac, h, tb, wb, wa, vn, wn, wv, rate, tq, r, g, sc)
         _add_contacts(m, imp, ws, r, c, sc, wv)
     for i in range(n):
@@ -1787,8 +1786,9 @@ def _contact_newton(stepper, m, mp, imp, ws, samples, frac, h, tb, wb, wa, vn, w
                     w_try, g, sc, band, lower, upx, cb, c, caps_new, history, rnorm, max_iter, first_exact, cap_tol,
                     max_passes, r_scale, r_floor, phi_scale):
     """:func:`coupled_contact`'s Newton iterations from (vn, wn), whose residual r and its max ``rnorm`` were taken
-    with the caps in use, the caps an outer fixed point; (vn, wn) left at the last accepted iterate, r its residual.
-    Returns (Newton iterations, converged, the last residual's max)."""
+    with the caps in use, the caps an outer fixed point; (vn, wn) left at the last accepted iterate, r, the scratch
+    and the contact forces its (however the solve ended). Returns (Newton iterations, converged, that residual's
+    max)."""
     n = vn.shape[0]
     ns = n - 1
     nc = c.count[0]
@@ -1852,6 +1852,9 @@ def _contact_newton(stepper, m, mp, imp, ws, samples, frac, h, tb, wb, wa, vn, w
             if exact:  # (the exact matrix is not symmetric: its direction need not descend) Gauss-Newton's from here,
                 descent = True  # the residual at the current iterate taken again (fresh is False)
                 continue
+            # r holds the Newton direction, the scratch and the contact forces the last trial's: those of (vn, wn)
+            _residual(m, mp, imp, ws, samples, frac, h, tb, wb, wa, vn, wn, wv, rate, tq, r, g, sc)
+            rnorm = _add_contacts(m, imp, ws, r, c, sc, wv)
             break
         vn[:, :] = v_try
         wn[:] = w_try
