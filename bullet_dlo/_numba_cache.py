@@ -55,8 +55,9 @@ def cache_folder(pkg: Path = PACKAGE) -> Path:
 
 def kernels_cold(pkg: Path = PACKAGE) -> bool:
     """Whether the core time loop has no cached build (a fresh install, an upgrade or an edited kernel
-    starts a new cache folder): the first run then compiles for about a minute. A cache filled by other
-    commands may still lack some kernels; those compile on their first call."""
+    starts a new cache folder): the first run then compiles for minutes (``bullet-dlo warmup`` compiles every family
+    in about 14 minutes of CPU). A cache filled by other commands may still lack some kernels; those compile on their
+    first call."""
     return not any(cache_folder(pkg).glob("core/kernels/loop.run_loop-*.nbi"))
 
 

@@ -88,10 +88,11 @@ def test_cable_folded_on_itself_rests(rate, n):
     assert x[strand, 2].min() > 3 * r - 2e-5  # on the lower strand (centre lines a diameter apart), not in it
 
 
-def coil(rate: float, n: int, duration: float = 1.5, turns: float = 2.2, twist: bool = False):
+def coil(rate: float, n: int, duration: float = 1.5, turns: float = 2.2, twist: bool = False, each_step=None):
     """A 0.6 m cable (E 1 MPa, 60 g; with a material frame if ``twist``) wound as a helix of ``turns`` turns standing
     on the ground, turns stacked 0.1 mm apart, let settle for ``duration`` [s] at ``rate`` [Hz]: the cable, its spec,
-    its contacts, the ground's id and the closest approach of segments far apart along the cable over the run [m]."""
+    its contacts, the ground's id and the closest approach of segments far apart along the cable over the run [m].
+    ``each_step``: called with the cable after every step (demos/self_contact.py's checks)."""
     spec = CableSpec.lv2017(length=0.6, mass=0.06, n_masses=n, damping=0.02, youngs_modulus=1e6, twist=twist)
     r = spec.diameter / 2
     radius = spec.length / (2 * np.pi * turns)
@@ -102,6 +103,8 @@ def coil(rate: float, n: int, duration: float = 1.5, turns: float = 2.2, twist: 
         cable = world.add_cable(spec, state=CableState.along(path, spec.rest_length, n), self_collision="all")
         for k in range(int(round(duration * rate))):
             world.step()
+            if each_step is not None:
+                each_step(cable)
             if not cable.stable:
                 break
             if k % max(1, int(rate) // 60) == 0:
