@@ -14,8 +14,7 @@ segments far apart along the cable over the run over the diameter, the steps who
 and whether the run was stopped (``--coils``: the coils alone). ``--coulomb`` adds the reported rows
 (``contact_forces()`` after every step) whose friction exceeds mu_s times their normal force: in the steps whose
 solve ended unconverged, in the others (of these, how many with f_n = 0), and the largest ratio to mu_s f_n in the
-others. See
-docs/concepts/contact.md, "Self-contact".
+others. See docs/concepts/contact.md, "Self-contact".
 
     PYTHONPATH=. python demos/self_contact.py --coils --coulomb --rates 240 --n 40 --duration 1
 """
