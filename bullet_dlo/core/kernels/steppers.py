@@ -536,9 +536,10 @@ def newton(stepper, m, x, imp, ws, c=None, cap_tol=1e-3, max_passes=10, bd=None)
             vn[:, :] = v_first
             c.cap[:nc] = cap_first
             taken = False
-    for k in range(nc):  # a row locked in a regime (solves with free bodies): its forces are taken again unlocked
-        if c.lock[k] != 0:
-            taken = False
+    if not converged:
+        for k in range(nc):  # a row locked in a regime (solves with free bodies): its forces are taken again unlocked
+            if c.lock[k] != 0:
+                taken = False
     c.lock[:nc] = 0  # (converged: every row was in its Coulomb regime, so the forces are the unlocked ones)
     if not converged and not taken:  # (converged: the last residual was taken at vn, bodies' rows at vel_new)
         if nb > 0:
