@@ -143,9 +143,11 @@ def test_coils_of_other_turns_and_masses_come_to_rest_at_1_khz(turns, n, twist):
     assert_coil_at_rest(*coil(1000, n, duration=3.0, turns=turns, twist=twist))
 
 
-@pytest.mark.xfail(strict=True, reason="known defect (docs/concepts/contact.md, Self-contact, 2026-12-07): a coil of "
+# not strict: whether the period-2 mode takes hold depends on the compiled code's rounding (Numba compiles for the
+# host CPU): it rang on the Intel Xeon it was found on (1.7e-3 m/s at 3 s) and came to rest on an AMD EPYC (1e-14 m/s)
+@pytest.mark.xfail(strict=False, reason="known defect (docs/concepts/contact.md, Self-contact, 2026-12-07): a coil of "
                    "1.8 turns at n 30, 240 Hz, keeps a node pressed between two turns reversing its velocity every "
-                   "step (1.7e-3 m/s) for seconds: a period-2 mode of the two sides' lagged coupling")
+                   "step (1.7e-3 m/s) for seconds on some CPUs: a period-2 mode of the two sides' lagged coupling")
 def test_a_coil_that_rings_comes_to_rest():
     """1.8 turns, n 30, 240 Hz, 3 s: the coil comes to rest like its neighbours (below 1e-3 m/s). Each side of a
     self-contact is solved against the other held where it was at the step's start (the Newton matrix stays banded)."""
