@@ -262,11 +262,18 @@ class _Newton:
         self.dirs = model.holder_plan().start_dir
         scale = model.spec.mass * float(np.linalg.norm(a.gravity)) + float(np.abs(self.fe).sum()) + 1e-30
         self.target = tol * scale
-        self.work_scale = scale * model.spec.length  # [J]: the load's work over the cable's length
         self.step_floor = 1e3 * np.finfo(float).eps * (float(np.abs(x).max()) + model.spec.length)  # [m]
         self.frame = (_CondensedTwist(a, x, self.dirs, self.free, model.spec.length)
                       if a.tw_k_twist.shape[0] > 0 else None)
         self.f = np.zeros((n, 3))
+        # [J]: the work of the load, or of the start's elastic forces, over the cable's length: the potential's
+        # round-off scale (pot_floor). The elastic part keeps it where no load is (gravity off): with the load's
+        # alone a nearly straight cable held in two grippers (ends 1.7e-7 m closer than its length) had its
+        # round-off steps refused, their potential rising by 5e-23 J against a floor of 1.6e-23 J, and the
+        # solve ended unconverged at a residual of 2e-12 N
+        self.set_load(0.0)
+        elastic = self.residual(x)[1]  # [N] the largest elastic force on a free node at the start
+        self.work_scale = (scale + elastic) * model.spec.length
         self.jac = np.zeros((n, 5, 3, 3))
         self.band = np.zeros((3 * n, 2 * HALF + 1))
         # Regularisation in units of M^-1 K: start tiny, grow when a step fails.

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -97,3 +98,32 @@ def test_start_is_never_taken_for_converged():
     """No step taken, not converged: a residual below some floor proves nothing."""
     res = solve_static(cantilever_model(small_deflection_spec(1000)), max_iter=0)
     assert not res.converged and res.iterations == 0
+
+
+@pytest.mark.parametrize("twist", [False, True])
+@pytest.mark.parametrize("n", [8, 16])
+@pytest.mark.parametrize("shorter", [1e-7, -1e-6])
+def test_gravity_off_clamps_a_hair_off_the_cable_length_converge_to_the_bar_force(twist, n, shorter):
+    """Gravity off, both ends clamped ``shorter`` [m] closer than the cable's length (negative: farther), tangents
+    5e-8 rad apart, as two grippers hold a cable to the IK's precision: converged, and the clamps carry the bar's
+    force E A shorter / L, equal and opposite. Before, the potential's round-off floor scaled with the load alone
+    (none here): the steps at round-off were refused and the solve ended unconverged at 1e-12 N (a dual-arm scene
+    with gravity off refused its settled start)."""
+    from bullet_dlo.core.kernels.forces import total_forces
+    from bullet_dlo.core.model import default_normal
+
+    spec = CableSpec(length=0.3, diameter=0.004, mass=0.03, youngs_modulus=126e6, n_masses=n, twist=twist)
+    d0, d1 = np.array([1.0, 0.0, -5e-8]), np.array([1.0, 5e-8, 5e-8])
+    model = CableModel.straight(spec, (0.0, 0.0, 0.35), d0 / np.linalg.norm(d0), ("clamped", "clamped"), (),
+                                (0.0, 0.0, 0.0))
+    end = np.array([spec.length - shorter, 0.0, 0.35])
+    d1 /= np.linalg.norm(d1)
+    model = replace(model, last=replace(model.last, position=end, direction=d1, normal=default_normal(d1)))
+    start = model.x0 + np.outer(np.linspace(0.0, 1.0, n), end - model.x0[-1])
+    res = solve_static(model, start)
+    assert res.converged
+    f = np.zeros_like(res.x)
+    total_forces(model.kernel_arrays(), res.x, np.zeros_like(res.x), model.holder_plan().start_dir, f)
+    bar = spec.youngs_modulus * math.pi * spec.diameter ** 2 / 4 * shorter / spec.length  # [N] compression
+    assert f[0, 0] == pytest.approx(-bar, rel=1e-3)  # the cable pushes the first clamp back (pulls, if longer)
+    assert np.abs(f[0] + f[-1]).max() < 1e-6 * abs(bar)

@@ -120,3 +120,25 @@ def test_calibrated_payload_matches_the_urdf_and_reads_the_model(robot):
     assert np.allclose(fit.com, com_sensor, atol=5e-4), (fit.com, com_sensor)
     for k, (sensor_f, model) in enumerate(holds):
         assert np.all(np.abs(sensor_f - model) <= 0.005 * weight + 1e-3), (k, sensor_f, model)
+
+
+def test_gravity_off_the_settled_hold_starts_and_the_wrists_read_the_bar_tension():
+    """Gravity off (a space scene): the settled start is taken (before, its static solve ended unconverged at
+    2e-12 N, the grippers 1.7e-7 m closer than the cable's length, and the scene was refused), and after the right
+    gripper pulls 0.5 mm along the cable both wrists read the model's end forces, the bar's tension
+    E A (|x_n - x_1| - L) / L along the cable, equal and opposite."""
+    config = DualArmConfig(robot="panda", cable=CABLE, dt=1e-3, integrator="bdf2", gravity=(0.0, 0.0, 0.0))
+    with DualArmScene(config) as scene:
+        scene.grasp()
+        scene.follow_motion([Move("last", (5e-4, 0.0, 0.0), 0.1, 0.3)])
+        scene.run(0.8)
+        w = scene.window_mean(0.3)
+        x = scene.cable.x
+        assert scene.cable.stable
+    sensor, model = w["wrench_world"][:, :3], w["end_forces"]
+    stretch = np.linalg.norm(x[-1] - x[0]) - CABLE.length
+    tension = CABLE.youngs_modulus * np.pi * CABLE.diameter ** 2 / 4 * stretch / CABLE.length
+    assert tension > 1.0  # [N] (about 2.6 N: the pull arrived)
+    assert np.abs(sensor - model).max() <= 1e-3 * tension
+    assert model[1, 0] == pytest.approx(-tension, rel=2e-3) and model[0, 0] == pytest.approx(tension, rel=2e-3)
+    assert np.abs(sensor.sum(axis=0)).max() <= 1e-3 * tension
