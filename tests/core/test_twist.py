@@ -190,6 +190,21 @@ def test_pure_torsion_static_is_exact_at_every_n(n):
     assert internal_energy(m, st.x, dirs) == pytest.approx(0.5 * expected * theta, rel=1e-12)
 
 
+@pytest.mark.parametrize("n", [11, 17])
+def test_pure_torsion_under_the_paper_discretisation_has_its_clamp_convention(n):
+    """``discretisation: paper`` gives a clamp the interior springs (its bending convention, G J / l0 for the twist
+    too): n springs in series, so pure torsion reads G J theta / (L + l0), (n - 1)/n of the exact value
+    (docs/concepts/model.md, "Two discretisations"; an independent check found the -5.9 % at n = 17)."""
+    spec = CableSpec.lv2017(n_masses=n, twist=True, discretisation="paper")
+    theta = 0.7
+    model = CableModel.straight(spec, ends=("clamped", "clamped"), roll=(0.0, theta), gravity=(0, 0, 0))
+    st = model.initial_state()
+    dirs = model.holder_plan().start_dir
+    l0 = spec.length / (n - 1)
+    t0 = clamp_torque(model.kernel_arrays(), st.x, st.v, dirs, 0)
+    assert t0 @ dirs[0] == pytest.approx(spec.torsional_rigidity * theta / (spec.length + l0), rel=1e-12)
+
+
 @pytest.mark.parametrize("integrator", ["implicit_euler", "bdf2", "implicit_midpoint"])
 def test_gripper_turned_about_the_cable_axis_feels_torsion(integrator):
     """A clamp turned by 90 degrees about the cable axis in a run: the engine's end moments read
