@@ -15,11 +15,20 @@ every later process (seen on 2026-11-30: a Bullet step ran the twisting step of 
 previous version, with nothing to say so). Now it writes to its own hash's folder, which no process
 with the new sources reads. Where the package folder is not writable, Numba's own locations are
 used (cached per function file, as before).
+
+Numba has no lock between processes: two processes that meet the same cold kernel at once both compile it (test
+workers, capture workers, the suite's two warm-up processes: in a CI-like cold run 187 of the Bullet part's 457
+compiles were compiled by the core suite's process too, 200 s of CPU on each side, measured 2026-12-07).
+:func:`ensure_fresh_cache` therefore wraps ``Dispatcher.compile`` for the package's cached kernels in a file lock
+per kernel and signature (:func:`_compile_locked`): the second process waits and then loads the first one's build
+from the cache. Call graphs are acyclic, so two processes never wait for each other.
 """
 from __future__ import annotations
 
 import hashlib
+import os
 import shutil
+import time
 from pathlib import Path
 
 PACKAGE = Path(__file__).resolve().parent
@@ -96,6 +105,7 @@ def ensure_fresh_cache() -> None:
         return
     locators[:] = [c for c in locators if getattr(c, "__name__", "") != "DigestLocator"]
     locators.insert(0, _locator_class(folder))
+    _lock_compiles(folder / "locks")
     for old in CACHE_ROOT.glob("numba-*"):
         if old != folder:
             shutil.rmtree(old, ignore_errors=True)
@@ -105,3 +115,94 @@ def ensure_fresh_cache() -> None:
             if folder not in old.parents:
                 old.unlink(missing_ok=True)
         legacy.unlink(missing_ok=True)
+
+
+LOCK_WAIT = 3600.0
+"""[s] the longest a process waits for another one's compile of a kernel before compiling it itself (a cold
+coupled step takes minutes; a process that dies releases its locks at once)."""
+
+
+_HELD: set[str] = set()  # the lock keys this process holds
+
+
+def _lock_compiles(locks: Path) -> None:
+    """Make ``Dispatcher.compile`` of the package's cached kernels wait for another process compiling the same
+    kernel and signature (module doc); once per process."""
+    try:
+        import fcntl  # noqa: F401  (POSIX; elsewhere each process compiles on its own, as Numba does)
+
+        from numba.core.dispatcher import Dispatcher
+    except ImportError:
+        return
+    if getattr(Dispatcher.compile, "locked_by_bullet_dlo", False):
+        return
+    try:
+        locks.mkdir(exist_ok=True)
+    except OSError:
+        return
+    compile_unlocked = Dispatcher.compile
+
+    def compile(self, sig):
+        return _compile_locked(self, sig, compile_unlocked, locks)
+
+    compile.locked_by_bullet_dlo = True
+    compile.__doc__ = compile_unlocked.__doc__
+    Dispatcher.compile = compile
+
+
+def _compile_locked(dispatcher, sig, compile_unlocked, locks: Path):
+    """``compile_unlocked(dispatcher, sig)`` holding the file lock of the kernel and signature when the kernel is
+    one of the package's cached ones and not yet built in this process (it then loads from the cache what another
+    process compiled while this one waited)."""
+    from numba.core import sigutils
+    from numba.core.compiler_lock import global_compiler_lock
+
+    impl = getattr(getattr(dispatcher, "_cache", None), "_impl", None)
+    if getattr(type(getattr(impl, "_locator", None)), "__name__", "") != "DigestLocator":
+        return compile_unlocked(dispatcher, sig)
+    args, _ = sigutils.normalize_signature(sig)
+    if tuple(args) in dispatcher.overloads:
+        return compile_unlocked(dispatcher, sig)
+    func = dispatcher.py_func
+    path = lock_file(locks, func, tuple(args))
+    key = path.name
+    # the file lock is taken inside Numba's compiler lock (it is re-entrant): a thread of this process never holds
+    # a kernel's file lock while waiting for a compiler lock another thread holds waiting for that file lock
+    with global_compiler_lock:
+        if key in _HELD:  # this process is compiling it already (a recursive kernel): no second lock on it
+            return compile_unlocked(dispatcher, sig)
+        try:
+            fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
+        except OSError:
+            return compile_unlocked(dispatcher, sig)
+        _HELD.add(key)
+        try:
+            _acquire(fd)
+            return compile_unlocked(dispatcher, sig)
+        finally:
+            _HELD.discard(key)
+            os.close(fd)  # (releases the lock)
+
+
+def lock_file(locks: Path, py_func, arg_types: tuple) -> Path:
+    """The lock file in the folder ``locks`` of the kernel with Python function ``py_func`` for the Numba argument
+    types ``arg_types``."""
+    key = hashlib.sha1(f"{py_func.__module__}.{py_func.__qualname__}{arg_types}".encode()).hexdigest()[:20]
+    return locks / f"{py_func.__name__}-{key}.lock"
+
+
+def _acquire(fd: int) -> None:
+    """Take the exclusive lock of ``fd``, polling (a blocking wait could not give up after :data:`LOCK_WAIT`)."""
+    import fcntl
+
+    deadline = time.monotonic() + LOCK_WAIT
+    while True:
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            return
+        except BlockingIOError:
+            if time.monotonic() > deadline:
+                return
+            time.sleep(0.05)
+        except OSError:  # a file system without locks: compile unlocked
+            return

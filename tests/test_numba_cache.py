@@ -52,3 +52,38 @@ def test_a_change_of_the_sources_means_another_folder_and_the_old_one_goes(tmp_p
     _numba_cache.ensure_fresh_cache()
     assert not stale.exists() and cache_folder().is_dir()
     assert Path(bullet_dlo.__file__).resolve().parent == PACKAGE
+
+
+def test_a_process_waits_for_another_one_compiling_the_same_kernel():
+    """Two processes meeting one cold kernel compile it once: the second waits on the kernel's lock file and then
+    loads the first one's build from the cache (``_numba_cache._compile_locked``). Here this process holds the
+    lock of ``band_solve`` for its argument types: a fresh process calling it does not return until it lets go."""
+    import fcntl
+    import os
+    import subprocess
+    import sys
+    import time
+
+    import numpy as np
+    from numba import typeof
+
+    from bullet_dlo.core.kernels.banded import band_solve
+
+    band, rhs = np.zeros((6, 17)), np.ones(6)  # (a diagonal 2 in the band's layout, half-width 8)
+    band[:, 8] = 2.0
+    band_solve(band.copy(), rhs.copy())  # (in the cache: the other process then loads it in milliseconds)
+    path = _numba_cache.lock_file(cache_folder() / "locks", band_solve.py_func, (typeof(band), typeof(rhs)))
+    script = ("import numpy as np\nfrom bullet_dlo.core.kernels.banded import band_solve\n"
+              "band, rhs = np.zeros((6, 17)), np.ones(6)\nband[:, 8] = 2.0\nprint('ready', flush=True)\n"
+              "band_solve(band, rhs)\nprint('done', rhs[0], flush=True)\n")
+    fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX)
+        proc = subprocess.Popen([sys.executable, "-c", script], stdout=subprocess.PIPE, text=True)
+        assert proc.stdout.readline().strip() == "ready"
+        time.sleep(2.0)
+        assert proc.poll() is None  # waiting for this process's lock (unlocked, a cached kernel loads at once)
+    finally:
+        os.close(fd)
+    out, _ = proc.communicate(timeout=120)
+    assert proc.returncode == 0 and out.split() == ["done", "0.5"]
