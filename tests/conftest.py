@@ -36,7 +36,7 @@ def _selects_a_directory(config) -> bool:
 
 def pytest_sessionstart(session):
     """With pytest-xdist (``-n N``): compile the shared Numba kernels into the cache before the workers
-    start (``tests/warm_kernels.py``, its two parts in parallel). On a cold cache the workers, the core
+    start (``tests/warm_kernels.py``, its parts in parallel). On a cold cache the workers, the core
     runner and the demos' subprocesses otherwise compile the same kernels at the same time, each."""
     config = session.config
     if hasattr(config, "workerinput") or not getattr(config.option, "numprocesses", None):
@@ -45,7 +45,7 @@ def pytest_sessionstart(session):
         return
     if not _selects_a_directory(config):
         return  # a few files or tests: their own kernels compile faster than the whole warm-up (~3 min)
-    warm = ["core", "bullet"]
+    warm = ["core", "bullet", "step"]
     if _selects_the_core_runner(config):
         # the core suite starts now, beside the Bullet part, and compiles the core's kernels itself
         # (tests/core_runner.py); the core part would compile them first, before the suite could start

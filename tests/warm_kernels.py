@@ -6,9 +6,12 @@ kernels several times over (minutes each). ``tests/conftest.py`` runs this modul
 the parts in parallel, before the workers start; each part is a few short runs that reach the
 kernels the suite uses (the runs' results are not checked here: the tests check them).
 
-Numba has no lock between processes: a kernel both parts reach before either has cached it is compiled
-twice. The coupled Bullet step (``sync_and_advance`` and the chain below it, one argument type for every
-cable, about 150 s of CPU cold) is therefore reached in the Bullet part only.
+A kernel two parts reach at once is compiled by one of them while the other waits for it (``bullet_dlo/_numba_cache.py``
+locks each kernel's compile between processes), so the parts can share kernels. Three parts: ``core``, ``bullet``
+(the dual-arm environment: IK, sensors, hulls, detection) and ``step`` (the coupled Bullet step, about 200 s of CPU
+cold, then the twist's and the free bodies' kernels and the plain steps), which starts on the step at once instead of
+after the environment's 170 s; the environment then loads it. Cold, beside the core suite's runner (2026-12-07,
+2-core AMD EPYC): the environment and the step in one part took 393 s of wall, the critical path of the warm-up.
 
 A kernel called with an argument of another type (a writable array where models pass read-only ones) is
 compiled again with everything below it: two core tests that replaced a model array by a writable one compiled
@@ -16,7 +19,7 @@ the coupled twist step's Newton matrix and residual anew (44 and 26 s of CPU, 20
 arrays now, and the core part of the warm-up no longer runs them: cold, 291 s of CPU for the core part with them
 taking 14 s, against 347 s with 81 s before (2026-11-30, ``NUMBA_CACHE_DIR`` empty, ``/usr/bin/time``).
 
-Usage: ``python tests/warm_kernels.py core|bullet``.
+Usage: ``python tests/warm_kernels.py core|bullet|step``.
 """
 from __future__ import annotations
 
@@ -40,8 +43,7 @@ def core() -> None:
 
 
 def bullet() -> None:
-    """A dual-arm environment (arms, grasps, sensors, IK, model contact with the arms' links), then a twisting
-    cable under a light box, then a cable's plain steps."""
+    """A dual-arm environment (arms, grasps, sensors, IK, model contact with the arms' links)."""
     import gymnasium as gym
 
     import bullet_dlo  # noqa: F401  (registers the environments)
@@ -51,12 +53,19 @@ def bullet() -> None:
     for _ in range(2):
         env.step(env.action_space.sample())
     env.close()
-    # a twisting cable lying on the ground of a bare Bullet world with a light box dropped on it: the kernels the
-    # environment does not reach (the twist's and the free bodies'); the coupled step itself has one argument type
-    # for every cable, compiled above in this process (the core part would compile it a second time, in parallel)
+
+
+def step() -> None:
+    """The coupled Bullet step (one argument type for every cable) on a cable falling in a world without ground
+    (nothing to detect), then a twisting cable under a light box, then a cable's plain steps."""
     from bullet_dlo.bullet.world import BulletWorld
     from bullet_dlo.core.spec import CableSpec
 
+    with BulletWorld(dt=1e-3, ground=False) as world:
+        world.add_cable(CableSpec.lv2017(n_masses=6), start=(0.0, 0.0, 1.0))
+        world.step(2)
+    # a twisting cable lying on the ground of a bare Bullet world with a light box dropped on it: the kernels the
+    # environment does not reach (the twist's and the free bodies')
     spec = CableSpec.lv2017(n_masses=6, twist=True)
     with BulletWorld(dt=1e-3) as world:
         world.add_cable(spec, start=(0.0, 0.0, 0.5 * spec.diameter))
@@ -74,4 +83,4 @@ def bullet() -> None:
 
 
 if __name__ == "__main__":
-    {"core": core, "bullet": bullet}[sys.argv[1]]()
+    {"core": core, "bullet": bullet, "step": step}[sys.argv[1]]()

@@ -125,6 +125,33 @@ def test_a_box_resting_on_the_cable_stays_outside_it(hz):
         assert depth.max() < -0.5 * r, f"a node {1e3 * (depth.max() + r):.2f} mm into the box"
 
 
+
+@pytest.mark.xfail(strict=True, reason="known defect (docs/concepts/contact.md, 'Bodies resting on the cable', "
+                   "2026-12-07): the normal penalty is 1e4 m_node / h^2 per row, from the cable's node mass, not the "
+                   "load: a 2 kg box on an 8 g cable at 60 Hz rests 1.33 mm into a 1.25 mm radius, silently")
+def test_a_heavy_box_on_a_thin_light_cable_at_60_hz_stays_outside_it():
+    """A 2 kg, 1 cm cube dropped 1 cm onto a thin light cable (0.25 m, 2.5 mm, 8 g, E 2 GPa, n 40) at 60 Hz: at rest
+    after 1.5 s the cable's centre line is at least half a radius outside the box, as for the 30 g box above (or the
+    run says it is not: the report of a body inside starts half a radius into it). Found by an independent check
+    (2026-12-07): the centre line rests 0.08 mm inside the box, and nothing is reported."""
+    half = (0.005, 0.005, 0.005)
+    spec = CableSpec(length=0.25, diameter=0.0025, mass=0.008, youngs_modulus=2e9, n_masses=40, damping=0.02)
+    r = spec.diameter / 2
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        with BulletWorld(dt=1.0 / 60.0) as world:
+            cable = world.add_cable(spec, start=(-0.125, 0.0, r), direction=(1, 0, 0))
+            world.run(0.1)
+            box = world.add_box(half, (0.0, 0.0, 2 * r + half[2] + 0.01), mass=2.0)
+            world.run(1.5)
+            assert cable.stable, cable.reason
+            pos, orn = pb.getBasePositionAndOrientation(box, physicsClientId=world.client)
+            rot = np.array(pb.getMatrixFromQuaternion(orn)).reshape(3, 3)
+            local = (cable.x - np.asarray(pos)) @ rot
+    reported = any("inside it" in str(w.message) for w in caught)
+    depth = np.min(np.asarray(half) - np.abs(local), axis=1)  # > 0: the centre line is inside the box
+    assert reported or depth.max() < -0.5 * r, f"a node {1e3 * (depth.max() + r):.2f} mm into the box, unreported"
+
 def test_a_body_that_goes_into_the_cable_is_reported():
     """A body the contact model misjudges is not silent when it goes into the cable: a 30 g box made 3 kg after
     the contact set read its inertia (a later changeDynamics is not seen) sinks into the cable, and a RuntimeWarning
