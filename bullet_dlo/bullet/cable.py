@@ -62,6 +62,7 @@ x + h v'). Bullet clamps body speeds at 100 m/s: only an unstable run gets there
 from __future__ import annotations
 
 import math
+import warnings
 import numpy as np
 import pybullet as pb
 
@@ -90,6 +91,7 @@ from bullet_dlo.core.validate import (
 
 SELF_COLLISION = SelfCollision.names()
 BULLET_SPHERES = ("auto", "live")
+ROLL_WITHOUT_OMEGA = 0.1  # [rad] roll of a held section given with omega zero before set_external_pose warns
 # a parked proxy sphere: may sleep, is not woken by Bullet (its contacts or its velocity), asleep now
 _PARK = pb.ACTIVATION_STATE_ENABLE_SLEEPING | pb.ACTIVATION_STATE_DISABLE_WAKEUP
 _LIVE = pb.ACTIVATION_STATE_ENABLE_WAKEUP | pb.ACTIVATION_STATE_DISABLE_SLEEPING  # then WAKE_UP (a call of its own)
@@ -144,6 +146,8 @@ class BulletCable:
         self.twist = st.twist if st.twist is not None else model.twist_state()
         self.arrays = kernel_arrays(model.arrays, self.control, self.twist)
         self.ext = self.control.holders  # measured holder poses (set_external_pose)
+        self._unseen_roll = [0.0, 0.0]  # [rad] per end: roll given by set_external_pose with omega zero
+        self._roll_warned: set[int] = set()
         # the stepper, its scratch, the held ends' plan, the detector and the Bullet step's buffers
         self.solver = CableSolver(model, self.arrays, self.control, st, method=self.method, newton=newton,
                                   detector=detector, dt=world.dt, substeps=self.substeps, gravity=world.gravity)
@@ -676,17 +680,36 @@ class BulletCable:
         velocity)."""
         e = self.ext
         if self.control.k_twist.shape[0]:
+            d_old = e.dir[end].copy()
+            d_new = np.asarray(direction, dtype=float) / np.linalg.norm(direction)
             if normal is None:
-                d_old = e.dir[end].copy()
-                d_new = np.asarray(direction, dtype=float) / np.linalg.norm(direction)
                 transport(e.normal[end].copy(), d_old, d_new, e.normal[end])
             else:
+                if not any(omega) and e.active[end]:
+                    self._roll_without_omega(end, d_old, d_new, np.asarray(normal, dtype=float))
                 e.normal[end] = normal
         e.pos[end], e.vel[end], e.acc[end], e.omega[end] = position, velocity, acceleration, omega
         e.alpha[end] = angular_acceleration
         dx, dy, dz = direction  # normalised in scalars: this runs twice per coupled step
         scale = 1.0 / math.sqrt(dx * dx + dy * dy + dz * dz)
         e.dir[end] = (dx * scale, dy * scale, dz * scale)
+
+    def _roll_without_omega(self, end: int, d_old: np.ndarray, d_new: np.ndarray, normal: np.ndarray) -> None:
+        """Warn once per end when a held section has turned about the cable by more than :data:`ROLL_WITHOUT_OMEGA`
+        [rad] in poses given with ``omega`` zero: the energy check counts the holder's work from omega, so the
+        twist's energy then looks like energy from nowhere and a large roll stops the run as "energy growth" (an
+        independent check, 2026-12-07: round cables rolled by 1.55-1.61 rad so)."""
+        carried = np.empty(3)
+        transport(self.ext.normal[end].copy(), d_old, d_new, carried)  # the last section axis on the new tangent
+        turn = math.atan2(float(np.cross(carried, normal) @ d_new), float(carried @ normal))
+        self._unseen_roll[end] += abs(turn)
+        if self._unseen_roll[end] > ROLL_WITHOUT_OMEGA and end not in self._roll_warned:
+            self._roll_warned.add(end)
+            warnings.warn(f"cable {self.name!r}: set_external_pose turned end {end}'s section by "
+                          f"{self._unseen_roll[end]:.3g} rad about the cable with omega = 0: the energy check counts "
+                          "the holder's work from omega, so this roll's work looks like energy from nowhere (a large "
+                          "one stops the run as energy growth); pass the holder's angular velocity [rad/s]",
+                          RuntimeWarning, stacklevel=3)
 
     def set_external_force(self, node: int, force) -> None:
         """Apply the external force ``force`` [N] (3,), world frame, to node ``node`` from now on (it stays until

@@ -113,6 +113,8 @@ HULL_CHECK_TOL = 1e-4
 HULL_GJK_TOL = 5e-4
 INSIDE_REPORTED = 0.5  # a dynamic body holding the cable's centre line this many radii deep is reported (a box
 # dropped 1 cm crosses it by 0.2 mm for a step at 240 Hz and rests 1.6 mm outside; at 60 Hz it ends 2 mm inside)
+INSIDE_KEPT = 0.1  # [s] ... or holding it inside at all for this long: a 2 kg box resting on an 8 g cable at 60 Hz
+# kept its centre line 0.08 mm inside, silently (an independent check, 2026-12-07)
 EMPTY_LINK_BOX = 3e-3  # [m] broad-phase box of a link without a collision shape is at most this wide (2 mm measured)
 HULL_MAX_FACES = 4096  # hulls with more triangles stay with Bullet's narrow phase (the exact query loops over faces)
 _HULL_MEMO: dict = {}  # ContactSet._hull's answers by their inputs: an environment's reset and each exclusion rebuild
@@ -855,6 +857,7 @@ class ContactSet:
         self._deepest = None  # _deepest_dynamic, bound likewise
         self._loads = None  # apply_to_bodies' per-row force, torque and touched rows (made on first use)
         self._inside_reported: set[int] = set()  # bodies already reported holding the cable's centre line
+        self._inside_since: dict[int, int] = {}  # body -> consecutive steps it has held the centre line inside
         # native reads of every row's base state (bullet.native), once checked against PyBullet's
         ne = self.n_exact
         self._bases = np.zeros((ne, BASE_STATE))
@@ -1090,6 +1093,8 @@ class ContactSet:
             held_bodies.couple(self, others, dt)
         if self._any_dynamic and count:
             self._report_bodies_inside(x, count, dt)
+        elif self._inside_since:
+            self._inside_since.clear()  # (no row: no body holds the centre line)
         return count
 
     def _mark_impacts(self, supported) -> None:
@@ -1133,15 +1138,17 @@ class ContactSet:
 
     def _report_bodies_inside(self, x: np.ndarray, count: int, dt: float) -> None:
         """Warn, once per body, when a dynamic body holds part of the cable's centre line (x [m]) deeper than
-        INSIDE_REPORTED radii: it went into the cable instead of resting on it (a contact too soft for the body at this step of dt [s]);
-        silently the run would go on with a body lying through the cable."""
+        INSIDE_REPORTED radii, or inside it at all for INSIDE_KEPT seconds on end: it went into the cable instead of
+        resting on it (a contact too soft for the body at this step of dt [s]); silently the run would go on with a
+        body lying through the cable. (A drop's one-step crossing is neither.)"""
         c, st = self.contacts, self.store
         args = (x, c.count, c.node, c.weight, c.normal, c.point, st.body, self.dynamic, st.keys, st.sink)
         if self._deepest is None:
             self._deepest = bind(_deepest_dynamic, *args)
         # one compiled pass over the rows (this check in NumPy cost 28 us a step with a box on the cable); the
-        # rows are looked at again below only when one may be deep enough (the same test in NumPy decides)
-        if not self._deepest(*args) > INSIDE_REPORTED * float(c.radius[0]) * (1.0 - 1e-9):
+        # rows are looked at again below only when one may be inside (the same test in NumPy decides)
+        if not self._deepest(*args) > 0.0:
+            self._inside_since.clear()
             return
         sink = st.sink[st.keys[:count]]  # the rows' surface points sit that much inside the body (Store)
         rows = st.body[:count]
@@ -1151,12 +1158,18 @@ class ContactSet:
         p = c.weight[k, 0:1] * x[c.node[k, 0]] + c.weight[k, 1:2] * x[c.node[k, 1]]
         radius = float(c.radius[0])
         depth = sink[k] - np.einsum("ij,ij->i", c.normal[k], p - c.point[k])  # of the centre line inside the body [m]
-        for j in np.flatnonzero(depth > INSIDE_REPORTED * radius).tolist():
+        inside: dict[int, float] = {}
+        for j in np.flatnonzero(depth > 0.0).tolist():
             body = int(self.body_ids[rows[k[j]]])
+            inside[body] = max(inside.get(body, 0.0), float(depth[j]))
+        self._inside_since = {body: self._inside_since.get(body, 0) + 1 for body in inside}
+        for body, deepest in inside.items():
             if body in self._inside_reported:
                 continue
+            if deepest <= INSIDE_REPORTED * radius and self._inside_since[body] * dt < INSIDE_KEPT - 1e-9 * dt:
+                continue
             self._inside_reported.add(body)
-            warnings.warn(f"body {body} holds the cable's centre line {1e3 * depth[j]:.2f} mm inside "
+            warnings.warn(f"body {body} holds the cable's centre line {1e3 * deepest:.2f} mm inside "
                           f"it: it went into the cable instead of resting on it (its contacts are too soft for its "
                           f"mass and inertia at dt = {dt:.4g} s; bodies rest on the cable at dt <= 1/240 s, see "
                           "docs/concepts/contact.md, 'Bodies resting on the cable')", RuntimeWarning, stacklevel=2)
