@@ -685,7 +685,9 @@ class BulletCable:
             if normal is None:
                 transport(e.normal[end].copy(), d_old, d_new, e.normal[end])
             else:
-                if not any(omega) and e.active[end]:
+                if any(omega):
+                    self._unseen_roll[end] = 0.0
+                elif e.active[end]:
                     self._roll_without_omega(end, d_old, d_new, np.asarray(normal, dtype=float))
                 e.normal[end] = normal
         e.pos[end], e.vel[end], e.acc[end], e.omega[end] = position, velocity, acceleration, omega
@@ -696,19 +698,19 @@ class BulletCable:
 
     def _roll_without_omega(self, end: int, d_old: np.ndarray, d_new: np.ndarray, normal: np.ndarray) -> None:
         """Warn once per end when a held section has turned about the cable by more than :data:`ROLL_WITHOUT_OMEGA`
-        [rad] in poses given with ``omega`` zero: the energy check counts the holder's work from omega, so the
-        twist's energy then looks like energy from nowhere and a large roll stops the run as "energy growth" (an
-        independent check, 2026-12-07: round cables rolled by 1.55-1.61 rad so)."""
+        [rad] in poses given with ``omega`` zero since the last pose with omega (the net turn: a still holder's
+        jitter does not add up): the energy check counts the holder's work from omega, so the twist's energy then
+        looks like energy from nowhere and a large roll stops the run as "energy growth" (an independent check,
+        2026-12-07: round cables rolled by 1.55-1.61 rad so)."""
         carried = np.empty(3)
         transport(self.ext.normal[end].copy(), d_old, d_new, carried)  # the last section axis on the new tangent
-        turn = math.atan2(float(np.cross(carried, normal) @ d_new), float(carried @ normal))
-        self._unseen_roll[end] += abs(turn)
-        if self._unseen_roll[end] > ROLL_WITHOUT_OMEGA and end not in self._roll_warned:
+        self._unseen_roll[end] += math.atan2(float(np.cross(carried, normal) @ d_new), float(carried @ normal))
+        if abs(self._unseen_roll[end]) > ROLL_WITHOUT_OMEGA and end not in self._roll_warned:
             self._roll_warned.add(end)
             warnings.warn(f"cable {self.name!r}: set_external_pose turned end {end}'s section by "
-                          f"{self._unseen_roll[end]:.3g} rad about the cable with omega = 0: the energy check counts "
-                          "the holder's work from omega, so this roll's work looks like energy from nowhere (a large "
-                          "one stops the run as energy growth); pass the holder's angular velocity [rad/s]",
+                          f"{abs(self._unseen_roll[end]):.3g} rad about the cable with omega = 0: the energy check "
+                          "counts the holder's work from omega, so this roll's work looks like energy from nowhere "
+                          "(a large one stops the run as energy growth); pass the holder's angular velocity [rad/s]",
                           RuntimeWarning, stacklevel=3)
 
     def set_external_force(self, node: int, force) -> None:

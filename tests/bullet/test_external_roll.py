@@ -58,3 +58,26 @@ def test_a_clamp_rolled_with_omega_left_at_zero_is_told_why():
     told = [m for m in caught if "omega = 0" in m]
     assert len(told) == 1 and "end 1" in told[0] and "angular velocity" in told[0]
     assert not stable  # (the check still stops the run: the roll's work is not counted)
+
+
+def test_a_still_holder_s_jitter_with_omega_zero_is_not_taken_for_a_roll():
+    """The warning counts the net turn since the last pose given with omega: a section jittering by +-0.05 rad for
+    1000 poses is not a roll; one turned by 0.002 rad a pose is, once past 0.1 rad (no step is needed: the check is
+    in ``set_external_pose``)."""
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        with BulletWorld(dt=DT, gravity=(0.0, 0.0, 0.0)) as world:
+            cable = world.add_cable(TUBE, start=(0.0, 0.0, 0.5), integrator="bdf2")
+            x0 = cable.x.copy()
+            zero = np.zeros(3)
+            cable.set_external_pose(1, x0[-1], zero, zero, zero, (1.0, 0.0, 0.0))
+            cable.hold_externally(1, "clamped")
+            for k in range(1000):
+                a = 0.05 * (-1) ** k
+                cable.set_external_pose(1, x0[-1], zero, zero, zero, (1.0, 0.0, 0.0), (0.0, math.cos(a), math.sin(a)))
+            jitter = [str(w.message) for w in caught if "omega = 0" in str(w.message)]
+            for k in range(100):
+                a = 0.05 + 0.002 * (k + 1)
+                cable.set_external_pose(1, x0[-1], zero, zero, zero, (1.0, 0.0, 0.0), (0.0, math.cos(a), math.sin(a)))
+    assert jitter == []
+    assert len([w for w in caught if "omega = 0" in str(w.message)]) == 1
