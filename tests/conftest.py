@@ -37,7 +37,8 @@ def _selects_a_directory(config) -> bool:
 def pytest_sessionstart(session):
     """With pytest-xdist (``-n N``): compile the shared Numba kernels into the cache before the workers
     start (``tests/warm_kernels.py``, its parts in parallel). On a cold cache the workers, the core
-    runner and the demos' subprocesses otherwise compile the same kernels at the same time, each."""
+    runner and the demos' subprocesses otherwise meet the same cold kernels at once: each is compiled once (the
+    kernels are locked between processes, ``bullet_dlo/_numba_cache.py``) while the others wait for it."""
     config = session.config
     if hasattr(config, "workerinput") or not getattr(config.option, "numprocesses", None):
         return  # a worker (the controller warmed the cache), or one process (it compiles each kernel once)
@@ -47,7 +48,7 @@ def pytest_sessionstart(session):
         return  # a few files or tests: their own kernels compile faster than the whole warm-up (~3 min)
     warm = ["core", "bullet", "step"]
     if _selects_the_core_runner(config):
-        # the core suite starts now, beside the Bullet part, and compiles the core's kernels itself
+        # the core suite starts now, beside the Bullet parts, and compiles the core's kernels itself
         # (tests/core_runner.py); the core part would compile them first, before the suite could start
         out = tempfile.mkdtemp(prefix="bullet_dlo_core_suite_")
         os.environ[core_runner.ENV] = out  # set before pytest-xdist starts the workers: the runner test reads it
