@@ -297,7 +297,8 @@ def soften_friction(c, bd, o: int, count: int, m: float, dt: float) -> None:
     the Bullet step dt [s]: k_t <- k_t / (1 + dt^2 lambda), lambda = sum k_t / m [1/s^2] over its rows (module doc).
     The body's translation in series only: with the rotation too (lambda bounded with the smallest principal inertia,
     as ``_condense_bodies`` does) k_t fell a million-fold under a 1 g box and every box from 1 g to 30 g crept alike at
-    0.08 mm/s for 2 s. dt^2 lambda is alpha m_c / m a row at any dt (alpha = 1e4, m_c the cable's mass at the row):
+    0.08 mm/s for 2 s. dt^2 lambda is alpha m_c / m a row at any dt (alpha = 1e4, m_c the cable's mass at the row; more
+    where a row stiffens to a heavy body's load, contact._follow_loads):
     under the leaning box (six rows on 1.5 g nodes) k_t drops 1e5-fold under 1 g and 33-fold under 3 kg; the rows then
     stick within mu f_n / k_t, about mu (f_n / m) dt^2 times the rows: 0.8-1.4 mm at 60 Hz and 2-7 um at 1 kHz under a 1
     g or a 3 kg leaning box (the price: that much elastic slip before a row slides)."""

@@ -336,7 +336,9 @@ class BulletWorld:
                 ``bullet`` (Bullet resolves the spheres' contacts) or ``auto`` (model for the
                 implicit integrators, bullet for the explicit ones). See :mod:`bullet_dlo.bullet.contact`.
             contact_stiffness: alpha = k_n h^2 / m of the model's contact penalty, > 0 (1e4: the
-                contact's natural period is 2 pi h / 100; penetration at rest about g h^2 / alpha).
+                contact's natural period is 2 pi h / 100; penetration at rest about g h^2 / alpha). The rows
+                a free body presses, and the table's under them, stiffen to their load: a body's
+                weight presses them at most ``contact.LOAD_DEPTH`` of the radius deep.
             contact_damping: damping ratio of the model's normal contact, >= 0.
             bullet_spheres: ``auto`` (the spheres are parked proxies, asleep in Bullet and written there only when
                 read, while the rule of :meth:`update_proxies` holds: model contact, and nothing in Bullet collides

@@ -37,7 +37,8 @@ def _store(keys: int, rows: int) -> C.Store:
     z = np.zeros
     return C.Store(anchor=z((keys, 4)), state=z(keys, np.int64), active=np.arange(keys) % 2 == 0,
                    keys=z(rows, np.int64), body=z(rows, np.int64), wrap=z(keys, np.bool_), drift=z((keys, 3)),
-                   sink=np.full(keys, 1e-5), depth=z(keys))
+                   sink=np.full(keys, 1e-5), depth=z(keys), load=z(keys),
+                   stiffness=z(keys))
 
 
 @njit

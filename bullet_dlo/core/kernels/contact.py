@@ -31,7 +31,8 @@ leaves it (the grip is lost) once |xi| exceeds the finger's reach.
 
 Stiffness: k_n = alpha m_k / h^2 per contact, m_k the cable mass at the contact point (one
 stiffness for all contacts would load the half-mass end nodes wrongly), alpha = 1e4 by default
-(penetration about g h^2 / alpha at rest: microns at 60 Hz); k_t = k_n.
+(penetration about g h^2 / alpha at rest: microns at 60 Hz), raised by the detector to the row's last
+load over LOAD_DEPTH of the radius under a free body (bullet.contact, ``_follow_loads``); k_t = k_n.
 """
 from __future__ import annotations
 
