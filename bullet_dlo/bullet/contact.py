@@ -3031,17 +3031,18 @@ def _follow_loads(c, st, sh, x):
     """Stiffen the rows under a heavy body to their load. A row's stiffness alpha m_c / h^2 holds the cable's own
     weight microns deep, but not a body's: a 2 kg cube on a 0.2 g node at 60 Hz rested 1.33 mm into a 1.25 mm radius,
     and a 10 kg box pressed a node's centre half a radius under the table top. A PENALTY row on a free body (one
-    solved in the cable's step, Shapes.slot >= 0), and a static row of a node such a row presses, that carried f [N]
-    at the end of the last step is at least f / (LOAD_DEPTH r) stiff, so no body's weight presses it deeper than
-    LOAD_DEPTH r (at most LOAD_STIFFNESS_MAX times its own stiffness). Where a row is stiffer than in the last step,
+    solved in the cable's step, Shapes.slot >= 0) that carried f [N] at the end of the last step is at least
+    f / (LOAD_DEPTH r) stiff, and a static row (the table) as far as free bodies' rows press within NEAR_NODES nodes
+    of its own, so no body's weight presses a row deeper than LOAD_DEPTH r (at most LOAD_STIFFNESS_MAX times its own
+    stiffness). Where a row is stiffer than in the last step,
     the part of its depth the new stiffness would push back at once goes into the sink (Store.sink, let out over
     SINK_TIME and paid as the body's work): it starts with the last step's force, not with a kick.
 
     Only these rows, and a static row only as far as free bodies press its nodes: the load of a body's weight is a
     force, and a stiffer row carries the same force less deep. A squeeze between a driven link (an arm) or two static
     bodies is a displacement: there each stiffer step would press harder, and the next stiffen more (a geometric
-    growth to the cap), so those rows keep alpha m_c / h^2. (A first version stiffened a static row to its whole load
-    wherever a free body touched its node: a fixture squeezing the cable beside a 10 g box on it grew 37 -> 165 N.)"""
+    growth to the cap), so those rows keep alpha m_c / h^2. (Stiffened to its whole load wherever a free body touched
+    its node, a static row let a fixture's squeeze beside a 10 g box on the cable grow from 37 to 165 N.)"""
     n = x.shape[0]
     pressing = np.zeros(n)  # [N] the load free bodies' rows put on each node at the end of the last step
     found = False
