@@ -2996,7 +2996,8 @@ def detect(x, v, mass, sh, c, bd, st, h, k_per_mass, zeta, self_mu, h_body, h_do
     if oc.x.shape[0] > 0:
         _cable_contacts(x, mass, c, st, oc, sh.kind.shape[0] * per_shape + 2 * (n - 1) * (2 * n - 1),  # self_keys(n)
                         margin + 2.0 * oc.vmax[0] * h_body, k_per_mass, zeta)
-    _follow_loads(c, st, sh, x)
+    if bd.mass.shape[0] > 0:  # free bodies in the world: the rows they press follow their load
+        _follow_loads(c, st, sh, x)
     _condense_bodies(c, st, sh, x, v, h_body)
     if bd.mass.shape[0] > 0:  # free bodies in the world (a pass of its own: nothing to pay without them)
         _load_free_bodies(c, bd, st, sh)
