@@ -11,7 +11,8 @@ the run. Compare with older code by running it with ``PYTHONPATH=<tree>``.
 
 ``--cable soft`` takes a soft cable instead (0.3 m, 5 mm, 30 g, E 1 MPa) and ``--table hull`` lays the cable on a
 static convex-hull slab (Bullet's mesh, 1 mm collision margin) instead of the ground: a soft cable under a 3-10 kg box
-on the hull at 60 Hz is the known regression of docs/concepts/contact.md ("Bodies resting on the cable").
+on the hull at 60 Hz is the marginal case, before and after, of docs/concepts/contact.md ("Bodies resting on the
+cable").
 
 Usage: python demos/heavy_on_thin.py [--masses 0.03 0.3 3 10] [--ns 13 40] [--hz 60 240] [--seconds 2]
        [--cable thin|soft] [--table ground|hull]
