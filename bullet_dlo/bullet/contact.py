@@ -1636,6 +1636,48 @@ def _segment_axis(qa, qb, P, A, hl, R, out_c, out_n):
     return s
 
 
+@njit(cache=True, error_model="numpy")
+def _cylinder_side(qa, qb, s, R, hl) -> int:
+    """Which face of an upright cylinder (axis z, radius R [m], half length hl [m], shape frame) segment qa-qb
+    presses, given :func:`_segment_axis`'s interior parameter s (-1: none): 0, the mantle, where the segment's point s
+    lies beside it or inside nearer to it; else the flat end it is near, +1 (top) or -1 (bottom), whose rows are
+    :func:`_rim_row`'s. (Everything inside was the mantle's before: a cylinder standing on a cable had the segment
+    under its flat end pushed sideways by up to R, a 3 kg one shoved 9 mm and tipped, a 10 kg one stopped as energy
+    growth, a puck between two nodes of a coarse cable pushed through it.)"""
+    if s > 0.0:
+        p0, p1, p2 = qa[0] + s * (qb[0] - qa[0]), qa[1] + s * (qb[1] - qa[1]), qa[2] + s * (qb[2] - qa[2])
+        rho = math.sqrt(p0 * p0 + p1 * p1)
+        cap = abs(p2) - hl  # [m] beyond the flat end (> 0) or inside (< 0)
+        if cap < 0.0 and (rho >= R or R - rho <= -cap):
+            return 0
+        return 1 if p2 >= 0.0 else -1
+    return 1 if qa[2] + qb[2] >= 0.0 else -1
+
+
+@njit(cache=True, error_model="numpy")
+def _rim_row(qa, qb, R, hl, sz, end, out_c, out_n):
+    """The flat end sz (+1 top, -1 bottom) of an upright cylinder (as :func:`_cylinder_side`) against segment qa-qb
+    where the segment's chord over the end's disk meets the rim: its entry (end 0) or exit (end 1). Fills the row's
+    surface point (above the segment's point, on the end face) and normal (+-z) and its distance beyond the face into
+    out_c[3]; returns the segment's parameter there, or -1 where that chord end is a node (over the disk: its own row
+    carries it, as nodes on a box's face) or the segment misses the disk. The rim takes the segment as a box's edge
+    does: a level segment under a level end rests on both chord ends, a tilted end digs in at one."""
+    d0, d1 = qb[0] - qa[0], qb[1] - qa[1]
+    a = d0 * d0 + d1 * d1
+    b = qa[0] * d0 + qa[1] * d1
+    disc = b * b - a * (qa[0] * qa[0] + qa[1] * qa[1] - R * R)
+    if a <= 0.0 or disc <= 0.0:
+        return -1.0  # along the axis, or off the disk
+    root = math.sqrt(disc)
+    t = (-b - root) / a if end == 0 else (-b + root) / a
+    if t <= S_MIN or t >= 1.0 - S_MIN:
+        return -1.0
+    q2 = qa[2] + t * (qb[2] - qa[2])
+    out_n[0], out_n[1], out_n[2] = 0.0, 0.0, float(sz)
+    out_c[0], out_c[1], out_c[2], out_c[3] = qa[0] + t * d0, qa[1] + t * d1, sz * hl, sz * q2 - hl
+    return t
+
+
 @njit(cache=True, error_model="numpy", inline="always")  # (~45 arrays: 2 us a row called, under Numba's own pipeline)
 def _add(c, st, key, shape, ia, ib, wa, wb, cl, nl, sh, k_per_mass, zeta, mass, x):
     """Append a contact (surface point cl, normal nl in the shape frame) unless the arrays are full."""
@@ -2983,11 +3025,15 @@ def detect(x, v, mass, sh, c, bd, st, h, k_per_mass, zeta, self_mu, h_body, h_do
             A[0], A[1], A[2] = 0.0, 0.0, 1.0
             for i in range(n - 1):
                 sp = _segment_axis(q[i], q[i + 1], P, A, size[1], size[0], cl, nl)
-                if sp > 0.0 and cl[3] - radius < margin_s:
-                    if kind == CYLINDER and abs(cl[2] - size[0] * nl[2]) >= size[1]:
-                        continue  # beyond a cylinder's flat end: the nodes handle it
+                side = _cylinder_side(q[i], q[i + 1], sp, size[0], size[1]) if kind == CYLINDER else 0
+                if side == 0 and sp > 0.0 and cl[3] - radius < margin_s:
                     key = base + n + i
                     _add(c, st, key, s, i, i + 1, 1.0 - sp, sp, cl, nl, sh, k_per_mass, zeta, mass, x)
+                for end in range(2 if side != 0 else 0):  # a flat end's rim, as a box's edges (their keys)
+                    sr = _rim_row(q[i], q[i + 1], size[0], size[1], side, end, cl, nl)
+                    if sr > 0.0 and cl[3] - radius < margin_s:
+                        key = base + n + (n - 1) * (1 + end) + i
+                        _add(c, st, key, s, i, i + 1, 1.0 - sr, sr, cl, nl, sh, k_per_mass, zeta, mass, x)
     _one_wrap_per_segment(c, st, first_edge, n, x)
     _sink_unwrapped(c, st, sh, first_edge, x, seg_wrapped)
     mark_wrap_neighbours(c, first_edge)  # after the last change of a row's kind

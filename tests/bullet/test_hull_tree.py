@@ -186,20 +186,19 @@ def test_a_nodes_last_triangle_tried_first_gives_the_distance_the_tree_gives():
     assert all(inside)  # deep inside: the full scan, whatever the hint
 
 
-def _segment_distance(a: np.ndarray, b: np.ndarray, c: np.ndarray, d: np.ndarray) -> float:
-    """Exact distance [m] between segments ab and cd (closest points by clamping, as in Ericson's Real-Time Collision
-    Detection, 5.1.9)."""
+def _segment_distances(a: np.ndarray, b: np.ndarray, c: np.ndarray, d: np.ndarray) -> np.ndarray:
+    """Exact distances [m] between segment ab and each segment c[k] d[k] ((K, 3) arrays; closest points by clamping,
+    as in Ericson's Real-Time Collision Detection, 5.1.9), all edges at once."""
     d1, d2, r = b - a, d - c, a - c
-    p, q, f = d1 @ d1, d2 @ d2, d2 @ r
-    cc, bb = d1 @ r, d1 @ d2
+    p, q, f = d1 @ d1, np.einsum("kj,kj->k", d2, d2), np.einsum("kj,kj->k", d2, r)
+    cc, bb = r @ d1, d2 @ d1
     den = p * q - bb * bb
-    s = np.clip((bb * f - cc * q) / den, 0.0, 1.0) if den > 1e-30 else 0.0
+    s = np.where(den > 1e-30, np.clip((bb * f - cc * q) / np.where(den > 1e-30, den, 1.0), 0.0, 1.0), 0.0)
     t = (bb * s + f) / q
-    if t < 0.0:
-        t, s = 0.0, np.clip(-cc / p, 0.0, 1.0)
-    elif t > 1.0:
-        t, s = 1.0, np.clip((bb - cc) / p, 0.0, 1.0)
-    return float(np.linalg.norm(a + s * d1 - (c + t * d2)))
+    low, high = t < 0.0, t > 1.0
+    s = np.where(low, np.clip(-cc / p, 0.0, 1.0), np.where(high, np.clip((bb - cc) / p, 0.0, 1.0), s))
+    t = np.clip(t, 0.0, 1.0)
+    return np.linalg.norm(a + s[:, None] * d1 - (c + t[:, None] * d2), axis=1)
 
 
 def test_a_segment_ahead_of_a_face_is_out_of_every_edges_reach():
@@ -214,8 +213,8 @@ def test_a_segment_ahead_of_a_face_is_out_of_every_edges_reach():
     args = (hu.plane[p0:p1], hu.tri[t0:t1], hu.tri_plane[t0:t1], p0)
     pd, stack = np.empty(p1 - p0), np.empty(bvh.STACK, np.int64)
     e0, e1 = hu.edge_first[0], hu.edge_first[1]
-    ends = [(hu.edge_p[e] - hu.edge_hl[e] * hu.edge_a[e], hu.edge_p[e] + hu.edge_hl[e] * hu.edge_a[e])
-            for e in range(e0, e1)]
+    starts = hu.edge_p[e0:e1] - hu.edge_hl[e0:e1, None] * hu.edge_a[e0:e1]
+    ends = hu.edge_p[e0:e1] + hu.edge_hl[e0:e1, None] * hu.edge_a[e0:e1]
     reach = 0.0025  # [m] radius + margin + the hull's margin
     skipped = out_of_reach = within = 0
     for _ in range(300):
@@ -226,7 +225,7 @@ def test_a_segment_ahead_of_a_face_is_out_of_every_edges_reach():
         for node in (0, 1):
             C._hull_distance_at(hu, 0, *args, q[node], pd, np.empty(4), np.empty(3), stack, 1e300, node)
         ahead = C._ahead_of_a_face(hu, 0, q[0], q[1], 0, reach)
-        nearest = min(_segment_distance(q[0], q[1], a, b) for a, b in ends)
+        nearest = _segment_distances(q[0], q[1], starts, ends).min()
         if ahead:
             assert nearest > reach, (q, nearest)
             skipped += 1

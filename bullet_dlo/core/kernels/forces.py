@@ -51,6 +51,8 @@ from bullet_dlo.core.kernels.twist import (
     add_cross_matrix,
     add_twist_forces,
     add_twist_jacobian,
+    damper_tensors,
+    flat_dampers,
     has_twist,
     scatter_edge,
     scatter_node_hessian,
@@ -246,6 +248,14 @@ def clamp_damping_torque(m, x, v, dirs, end):
     kd = ka if end == 0 else kb
     d = dirs[0] if end == 0 else dirs[1]
     c = m.c_bend[i]
+    if flat_dampers(m):  # C_i phi_dot for a flat section (:func:`~bullet_dlo.core.kernels.twist.damper_tensors`)
+        cten = np.empty((n, 3, 3))
+        damper_tensors(m, x, dirs, cten)
+        cr = np.empty(3)
+        for r in range(3):
+            cr[r] = cten[i, r, 0] * rate[0] + cten[i, r, 1] * rate[1] + cten[i, r, 2] * rate[2]
+        rate[:] = cr
+        c = 1.0
     q0 = c * (kd[0, 0] * rate[0] + kd[1, 0] * rate[1] + kd[2, 0] * rate[2])  # K_d^T c phi_dot
     q1 = c * (kd[0, 1] * rate[0] + kd[1, 1] * rate[1] + kd[2, 1] * rate[2])
     q2 = c * (kd[0, 2] * rate[0] + kd[1, 2] * rate[1] + kd[2, 2] * rate[2])
@@ -445,7 +455,36 @@ def _stretch_rate(x, v, i):
 @njit(cache=True, error_model="numpy", inline="always")  # only the dampers' arrays are passed (see internal_forces)
 def internal_damping_forces(m, x, v, dirs, out):
     """Add the Kelvin-Voigt damping forces -dR/dv [N], (n, 3), to ``out`` (see the block comment)."""
-    _damper_forces(m.c_stretch, m.c_bend, x, v, dirs, out)
+    if flat_dampers(m):  # a flat section: each bending plane damped by its own stiffness
+        _flat_damper_forces(m, x, v, dirs, out)
+    else:
+        _damper_forces(m.c_stretch, m.c_bend, x, v, dirs, out)
+
+
+@njit(cache=True, error_model="numpy")
+def _flat_damper_forces(m, x, v, dirs, out):
+    """:func:`internal_damping_forces` of a flat section: the stretch dampers, and the bending dampers' forces
+    -G^T C_i phi_dot with the tensors C_i of :func:`~bullet_dlo.core.kernels.twist.damper_tensors`."""
+    n = x.shape[0]
+    _damper_forces(m.c_stretch, np.zeros(n), x, v, dirs, out)
+    cten = np.empty((n, 3, 3))
+    damper_tensors(m, x, dirs, cten)
+    g = np.empty((5, 3, 3))
+    rate = np.empty(3)
+    q = np.empty(3)
+    for i in range(n):
+        if m.c_bend[i] == 0.0:
+            continue
+        _bend_node_blocks(x, i, dirs, g)
+        _bend_rate(x, v, i, g, rate)
+        for r in range(3):
+            q[r] = cten[i, r, 0] * rate[0] + cten[i, r, 1] * rate[1] + cten[i, r, 2] * rate[2]
+        for k in range(3):
+            p = i - 1 + k
+            if p < 0 or p >= n:
+                continue
+            for col in range(3):
+                out[p, col] -= g[k, 0, col] * q[0] + g[k, 1, col] * q[1] + g[k, 2, col] * q[2]
 
 
 @njit(cache=True, error_model="numpy")
@@ -502,13 +541,21 @@ def dissipation(m, x, v, dirs):
         r_sum += 0.5 * c_s * rel * rel
     g = np.empty((5, 3, 3))
     rate = np.empty(3)
+    flat = flat_dampers(m)
+    cten = np.empty((n if flat else 0, 3, 3))
+    if flat:
+        damper_tensors(m, x, dirs, cten)
     for i in range(n):
         c_b = m.c_bend[i]
         if c_b == 0.0:
             continue
         _bend_node_blocks(x, i, dirs, g)
         _bend_rate(x, v, i, g, rate)
-        r_sum += 0.5 * c_b * (rate[0] * rate[0] + rate[1] * rate[1] + rate[2] * rate[2])
+        if flat:  # 1/2 phi_dot^T C_i phi_dot
+            for r in range(3):
+                r_sum += 0.5 * rate[r] * (cten[i, r, 0] * rate[0] + cten[i, r, 1] * rate[1] + cten[i, r, 2] * rate[2])
+        else:
+            r_sum += 0.5 * c_b * (rate[0] * rate[0] + rate[1] * rate[1] + rate[2] * rate[2])
     return r_sum
 
 
@@ -521,7 +568,43 @@ def add_damping_jacobian(m, x, dirs, scale, jac):
     :func:`bullet_dlo.core.kernels.banded.assemble_system`). No-op without internal damping.
     """
     if _has_internal_damping(m):
-        _damper_jacobian(m.c_stretch, m.c_bend, x, dirs, scale, jac)
+        if flat_dampers(m):
+            _flat_damper_jacobian(m, x, dirs, scale, jac)
+        else:
+            _damper_jacobian(m.c_stretch, m.c_bend, x, dirs, scale, jac)
+
+
+@njit(cache=True, error_model="numpy")
+def _flat_damper_jacobian(m, x, dirs, scale, jac):
+    """:func:`add_damping_jacobian` of a flat section: the stretch dampers', and -G^T C_i G per bending node
+    (:func:`~bullet_dlo.core.kernels.twist.damper_tensors`)."""
+    n = x.shape[0]
+    _damper_jacobian(m.c_stretch, np.zeros(n), x, dirs, scale, jac)
+    cten = np.empty((n, 3, 3))
+    damper_tensors(m, x, dirs, cten)
+    g = np.empty((5, 3, 3))
+    cg = np.empty((3, 3))
+    for i in range(n):
+        if m.c_bend[i] == 0.0:
+            continue
+        _bend_node_blocks(x, i, dirs, g)
+        for q_k in range(3):
+            q = i - 1 + q_k
+            if q < 0 or q >= n:
+                continue
+            for r in range(3):  # cg <- C_i G_q
+                for col in range(3):
+                    cg[r, col] = (cten[i, r, 0] * g[q_k, 0, col] + cten[i, r, 1] * g[q_k, 1, col]
+                                  + cten[i, r, 2] * g[q_k, 2, col])
+            for k in range(3):
+                p = i - 1 + k
+                if p < 0 or p >= n:
+                    continue
+                o = q - p + BAND
+                for r in range(3):
+                    for col in range(3):
+                        acc = g[k, 0, r] * cg[0, col] + g[k, 1, r] * cg[1, col] + g[k, 2, r] * cg[2, col]
+                        jac[p, o, r, col] -= scale * acc
 
 
 @njit(cache=True, error_model="numpy")

@@ -759,6 +759,54 @@ def twist_clamp_torque(m, x, dirs, end):
     return out
 
 
+@njit(cache=True, error_model="numpy", inline="always")
+def flat_dampers(m):
+    """Whether the Kelvin-Voigt bending dampers of ``m`` need :func:`damper_tensors`: a material frame with an
+    anisotropic section (some k_aniso != 0) and internal damping on bending (some c_bend > 0). The frame's arrays,
+    not ``has_twist``: the coupled twisting step passes them without the twist springs (``_frameless``)."""
+    aniso = False
+    for i in range(m.tw_k_aniso.shape[0]):
+        if m.tw_k_aniso[i] != 0.0:
+            aniso = True
+            break
+    if not aniso:
+        return False
+    for i in range(m.c_bend.shape[0]):
+        if m.c_bend[i] > 0.0:
+            return True
+    return False
+
+
+@njit(cache=True, error_model="numpy")
+def damper_tensors(m, x, dirs, out):
+    """out (n, 3, 3) <- each node's Kelvin-Voigt bending damper C_i [N m s/rad^2] on the turning angle's rate
+    phi_dot (its Rayleigh term 1/2 phi_dot^T C_i phi_dot): tau times the Gauss-Newton Hessian of the node's bending
+    energy in phi, C_i = c_b I + tau Delta/2 sum_k (m1_k m1_k^T - m2_k m2_k^T) over the frames of its two edges
+    (tau = c_b / k_b), which is tau/2 sum_k (k1 m1_k m1_k^T + k2 m2_k m2_k^T + kbar t_k t_k^T): each bending plane
+    damped by its own stiffness, so mode k of either plane decays as exp(-tau omega_k^2 t / 2). (c_b I alone, the
+    round section's damper, damped a flat strip's weak plane with the mean stiffness: 3200 times too much on a
+    40 x 0.5 mm strip, which crept back instead of ringing.) The frames' own rates are left out, as
+    :func:`add_twist_forces` leaves out their turn: phi . dm/dt, second order in the curvature."""
+    if has_twist(m):  # (without the springs, the coupled step's view: its frames are built)
+        twist_ready(m, x, dirs)
+    n = x.shape[0]
+    g = np.empty((12, 3))
+    for i in range(n):
+        cb = m.c_bend[i]
+        for r in range(3):
+            for col in range(3):
+                out[i, r, col] = cb if r == col else 0.0
+        dl = m.tw_k_aniso[i]
+        if cb == 0.0 or dl == 0.0 or m.k_bend[i] == 0.0:
+            continue
+        node_geometry(x, dirs, m.tw_theta, m.tw_ref, m.tw_tan, m.tw_clamp, m.tw_mref, i, g)
+        w = 0.5 * dl * cb / m.k_bend[i]
+        for r in range(3):
+            for col in range(3):
+                out[i, r, col] += w * (g[4, r] * g[4, col] - g[5, r] * g[5, col] + g[6, r] * g[6, col]
+                                       - g[7, r] * g[7, col])
+
+
 # ----- the twist sub-step ---------------------------------------------------------------------------
 @njit(cache=True, error_model="numpy")
 def theta_gradient(m, x, dirs, theta, grad, hdiag):
