@@ -158,7 +158,12 @@ def test_newton_converges_quadratically_with_the_exact_matrix():
         histories[exact] = hist
     ex, gn = histories[True], histories[False]
     print("exact", ex, "Gauss-Newton", gn)
-    assert ex[3] / ex[2] < 1e-2 * ex[2] / ex[1] or ex[3] < 1e-12 * ex[0]  # the ratio falls by orders: quadratic
+    # the ratio falls by orders (quadratic), or the residual has reached the round-off floor of the stiff springs'
+    # forces (as steppers.newton takes it, 10 eps h k_s (|x| + l0): 4e-13 N s here; from the state of 2026-12-07,
+    # the strip's weak plane damped by its own stiffness, the third step lands at 2e-14, where further steps stay)
+    m = s["m"]
+    floor = 10.0 * 2.2e-16 * H * m.k_stretch.max() * (np.abs(s["ws"].x_base).max() + m.rest_length.max())
+    assert ex[3] / ex[2] < 1e-2 * ex[2] / ex[1] or ex[3] < floor
     assert ex[3] < 1e-8 * ex[0]
     assert gn[3] / gn[2] > 0.1 * gn[2] / gn[1]  # about constant: linear
     assert gn[3] > 1e2 * ex[3]
