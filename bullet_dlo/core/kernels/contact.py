@@ -66,6 +66,9 @@ ARC_BLEND = 0.1  # [rad] a node between two wrapped paths loses its kink's bend 
 DEFAULT_ALPHA = 1.0e4  # k_n h^2 / m: contact frequency times step, squared
 MIN_CONTACT_ITER = 30  # Newton iterations allowed in contact at least (stick/slide kinks need more than 8)
 WILD_RATIO = 10.0  # [-] a solve ending this far from convergence (stall_ratio) is wildly far (Bodies.felt_ratio)
+BODY_TOL = 0.1  # [-] a free body's residual tolerance, as a share of the solve's: its velocity is off by at most that
+# times tol g h (Bullet integrates the reaction impulse the rows carry, not the solved velocity): at tol 1e-3 and 60 Hz
+# 1.6e-4 m/s, above a resting body's 1e-4; a 1 g box on the cable was kicked to 1.1-1.6e-4 m/s every 25 steps
 RETRY_RATIO = 100.0  # [-] a cable-only solve ending this far is solved again from bounded_caps (steppers.newton)
 SUPPORT_COLS = 26  # Contacts.support's columns
 SUPPORT_ROUNDING = 1e-3  # [-] a flat section's support is rounded over a tilt of at least this (set_support)
@@ -1591,9 +1594,10 @@ def body_potential(bd, h, vel):
 
 @njit(cache=True, error_model="numpy")
 def bodies_converged(bd, h, tol, floor):
-    """Whether every active body's residual is within ``tol`` of its momentum scale (h M |g| plus its momentum
-    change; for rotation the same times its radius of gyration plus I |dOmega|), plus a round-off ``floor``
+    """Whether every active body's residual is within BODY_TOL ``tol`` of its momentum scale (h M |g| plus its
+    momentum change; for rotation the same times its radius of gyration plus I |dOmega|), plus a round-off ``floor``
     [N s] (the cable's, of the stiff springs' forces)."""
+    tol = BODY_TOL * tol
     g = math.sqrt(bd.gravity[0] ** 2 + bd.gravity[1] ** 2 + bd.gravity[2] ** 2)
     for s in range(bd.active.shape[0]):
         if not bd.active[s]:
