@@ -43,8 +43,13 @@ def _bent(n=7, ends=("free", "free"), tau=0.01, seed=0):
 @pytest.mark.parametrize("ends", [("free", "free"), ("clamped", "clamped"), ("clamped", "free")])
 def test_damping_forces_derive_from_the_dissipation_function_with_exact_jacobian(ends):
     model, x, rng = _bent(ends=ends)
-    m, dirs = model.kernel_arrays(), model.holder_plan().start_dir
-    v = rng.standard_normal(x.shape)
+    check_dampers(model.kernel_arrays(), x, rng.standard_normal(x.shape), model.holder_plan().start_dir)
+
+
+def check_dampers(m, x, v, dirs) -> None:
+    """The Kelvin-Voigt forces of kernel arrays ``m`` at positions x [m], velocities v [m/s] are -dR/dv of the
+    dissipation function (central differences), and the damping Jacobian is their exact, symmetric, negative
+    semi-definite velocity derivative (also used by tests/core/test_flat_section_damping.py)."""
     f = np.zeros_like(x)
     internal_damping_forces(m, x, v, dirs, f)
     grad = np.zeros_like(v)
@@ -56,7 +61,7 @@ def test_damping_forces_derive_from_the_dissipation_function_with_exact_jacobian
             vm[i, j] -= eps
             grad[i, j] = (dissipation(m, x, vp, dirs) - dissipation(m, x, vm, dirs)) / (2 * eps)
     assert np.allclose(f, -grad, rtol=0, atol=1e-7 * np.abs(f).max())
-    jac = np.zeros((model.n, 5, 3, 3))
+    jac = np.zeros((x.shape[0], 5, 3, 3))
     add_damping_jacobian(m, x, dirs, 1.0, jac)
     dense = jacobian_blocks_to_dense(jac)
     assert np.allclose(dense @ v.ravel(), f.ravel(), atol=1e-12 * np.abs(f).max())  # F linear in v: exact

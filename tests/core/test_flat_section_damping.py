@@ -14,12 +14,9 @@ import numpy as np
 import pytest
 
 from bullet_dlo.core.engine import simulate
-from bullet_dlo.core.kernels.forces import (
-    add_damping_jacobian,
-    dissipation,
-    internal_damping_forces,
-    jacobian_blocks_to_dense,
-)
+from test_damping import check_dampers  # tests/core/test_damping.py (pytest puts this folder on the path)
+
+from bullet_dlo.core.kernels.forces import dissipation, internal_damping_forces
 from bullet_dlo.core.model import CableModel
 from bullet_dlo.core.spec import CableSpec
 from bullet_dlo.core.statics import solve_static
@@ -44,24 +41,7 @@ def _bent(tau=1e-3, n=8, seed=1, ends=("clamped", "free")):
 
 def test_a_flat_sections_dampers_derive_from_its_dissipation_function_with_exact_jacobian():
     m, x, dirs, rng = _bent()
-    v = rng.standard_normal(x.shape)
-    f = np.zeros_like(x)
-    internal_damping_forces(m, x, v, dirs, f)
-    grad = np.zeros_like(v)
-    eps = 1e-6
-    for i in range(v.shape[0]):
-        for j in range(3):
-            vp, vm = v.copy(), v.copy()
-            vp[i, j] += eps
-            vm[i, j] -= eps
-            grad[i, j] = (dissipation(m, x, vp, dirs) - dissipation(m, x, vm, dirs)) / (2 * eps)
-    assert np.allclose(f, -grad, rtol=0, atol=1e-7 * np.abs(f).max())
-    jac = np.zeros((x.shape[0], 5, 3, 3))
-    add_damping_jacobian(m, x, dirs, 1.0, jac)
-    dense = jacobian_blocks_to_dense(jac)
-    assert np.allclose(dense @ v.ravel(), f.ravel(), atol=1e-12 * np.abs(f).max())  # linear in v: exact
-    assert np.allclose(dense, dense.T, atol=1e-14 * np.abs(dense).max())
-    assert np.all(np.linalg.eigvalsh(dense) <= 1e-12 * np.abs(dense).max())  # dissipative
+    check_dampers(m, x, rng.standard_normal(x.shape), dirs)
 
 
 def test_a_flat_strip_translating_and_turning_in_its_plane_feels_no_internal_damping():
