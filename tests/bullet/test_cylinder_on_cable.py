@@ -3,8 +3,8 @@
 A segment passing under a cylinder's flat end is pressed by that end, not by the mantle. Before, every segment
 point inside a cylinder got the mantle's row: the segment under the flat end of a standing cylinder was pushed
 sideways by up to the cylinder's radius. A 3 kg cylinder (r 15 mm) dropped on a thin cable at 60 Hz was shoved 9 mm
-and tipped with the cable reported 15 mm inside it; a 10 kg one stopped the run as energy growth; a narrow one
-(r 4 mm) between two nodes of a coarse cable was pushed through it to the ground or thrown 0.2 m aside.
+and tipped with the cable reported 15 mm inside it; a 10 kg one stopped the run as energy growth; a puck (r 12 mm)
+between two nodes of a coarse cable was pushed through it to the ground, or below it.
 Closed forms: at rest the cable's centre line is outside the body (by at least its radius less twice the load depth,
 :data:`bullet_dlo.bullet.contact.LOAD_DEPTH`), the body has not been pushed along the ground, and the ground carries
 the cable's and the body's weight. A level segment under a level flat end rests on the two points where its chord
@@ -25,7 +25,8 @@ G = 9.81
 
 
 def _inside(cable, body: int, radius: float, half_height: float, cid: int) -> float:
-    """How far [m] the cable's centre line reaches inside the upright cylinder ``body`` at its deepest (< 0: outside)."""
+    """How far [m] the cable's centre line reaches inside the upright cylinder ``body`` at its deepest (< 0:
+    outside)."""
     pos, orn = pb.getBasePositionAndOrientation(body, physicsClientId=cid)
     rot = np.array(pb.getMatrixFromQuaternion(orn)).reshape(3, 3)
     s = np.linspace(0.0, 1.0, 33)
@@ -39,9 +40,9 @@ def _inside(cable, body: int, radius: float, half_height: float, cid: int) -> fl
 
 def _drop(spec: CableSpec, hz: float, m_body: float, radius: float, height: float, seconds: float = 2.0,
           x0: float = 0.0):
-    """A cylinder dropped 1 cm, upright, on the cable lying on the ground, x0 [m] from its middle. Returns (deepest [m] the
-    centre line reached inside it, at the end [m], its sideways move [m], its final speed [m/s], the cable's status,
-    the ground's load / both weights at the end, the inside warnings)."""
+    """A cylinder dropped 1 cm, upright, on the cable lying on the ground, x0 [m] from its middle. Returns (deepest
+    [m] the centre line reached inside it, at the end [m], its sideways move [m], its final speed [m/s], the cable's
+    status, the ground's load / both weights at the end, the inside warnings)."""
     r = spec.diameter / 2
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
