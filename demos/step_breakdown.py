@@ -44,7 +44,7 @@ from numba import njit
 
 from bullet_dlo.bullet import plain_steps
 from bullet_dlo.bullet.kernels import bind
-from bullet_dlo.bullet.solver_call import make_step_args, step_with
+from bullet_dlo.bullet.solver_call import pack_step_args, step_with
 from bullet_dlo.bullet.world import BulletWorld
 from bullet_dlo.core.boundary import Move
 from bullet_dlo.core.model import CableModel
@@ -227,7 +227,7 @@ def main() -> None:
     kargs = kargs[:7] + (kargs[7]._replace(check=True),) + kargs[8:]
     kargs_rec = kargs_rec[:7] + (kargs_rec[7]._replace(check=True),) + kargs_rec[8:]
     unbox_plain = bind(_unbox_only, *kargs)
-    packed = make_step_args(*kargs[:7], *kargs[8:])  # the solver's step kernel, packed and bound as CableSolver.step
+    packed, _calls = pack_step_args(kargs[:7] + kargs[8:])  # the solver's step kernel, packed and bound as CableSolver.step
     kernel = bind(step_with, packed, kargs[7])
     unbox = bind(_unbox_packed, packed, kargs[7])
     cs = cable._contact_set

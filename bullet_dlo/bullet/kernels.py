@@ -19,7 +19,7 @@ from bullet_dlo.core.kernels.forces import clamp_torque, mechanical_energy
 from bullet_dlo.core.kernels.holders import ExternalHolders, HeldSamples, rotate, sample_end  # noqa: F401 (re-exported)
 from bullet_dlo.core.kernels.jit import njit
 from bullet_dlo.core.kernels.monitor import STABLE, STALLED, end_forces, monitor
-from bullet_dlo.core.kernels.steppers import BDF2, IMPLICIT_EULER, Stepper, advance
+from bullet_dlo.core.kernels.steppers import BDF2, IMPLICIT_EULER, Stepper
 from bullet_dlo.core.kernels.twist import has_twist, set_clamp, twist_ready
 
 
@@ -290,7 +290,7 @@ def spread_held(bodies, s, sub, part):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _guarded_contact_step(stepper, m, plan, ext, cp, ws, t, k, prev, contacts, bodies, guard):
+def _guarded_contact_step(stepper, m, plan, ext, cp, ws, t, k, prev, contacts, bodies, guard, contact_call):
     """Contact sub-step k of the coming Bullet step on (cp.x_new, cp.v_new), taken again from its start as 2,
     4, ... sub-steps when its Newton solve coasts (:func:`_coasted`: far from convergence with the momentum where
     it started), or ends beyond ``guard.wild`` with a free body in it or a flat section (:class:`StallGuard`): the
@@ -305,7 +305,7 @@ def _guarded_contact_step(stepper, m, plan, ext, cp, ws, t, k, prev, contacts, b
         _copy_rows(guard.rows, nc, save)  # (save: a runtime True; literals compiled each copy twice)
         _copy_whole(guard.whole, save)
     has_prev = prev and contacts.impact[0] == 0
-    its, ok = contact_step(stepper, m, cp.x_new, cp.v_new, cp.samples, ws, has_prev, contacts, bodies)
+    its, ok = contact_call(stepper, m, cp.x_new, cp.v_new, cp.samples, ws, has_prev, contacts, bodies)
     if ok:
         return its, ok, 0.0, False
     hf = _force_weight(stepper, has_prev)
@@ -350,7 +350,7 @@ def _guarded_contact_step(stepper, m, plan, ext, cp, ws, t, k, prev, contacts, b
             spread_held(bodies, s, sub, 1.0 / cp.substeps)  # (the share of this cable step: its own)
             use_prev = s > 0 and contacts.impact[0] == 0  # BDF2: history only within the sub-steps
             guard.vs[:, :] = cp.v_new
-            its_s, ok_s = contact_step(sstep, m, cp.x_new, cp.v_new, cp.samples, ws, use_prev, contacts, bodies)
+            its_s, ok_s = contact_call(sstep, m, cp.x_new, cp.v_new, cp.samples, ws, use_prev, contacts, bodies)
             _add_row_forces(contacts, nc, 1.0 / sub, mean)
             its += its_s
             impact = max(impact, contacts.impact[0])
@@ -379,7 +379,7 @@ def _guarded_contact_step(stepper, m, plan, ext, cp, ws, t, k, prev, contacts, b
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def coupled_targets(stepper, m, plan, ext, cp, ws, t, has_prev, contacts, bodies, guard):
+def coupled_targets(stepper, m, plan, ext, cp, ws, t, has_prev, contacts, bodies, guard, contact_call, advance_call):
     """Plan the coming Bullet step from (cp.x, cp.v) at time t [s].
 
     Runs ``cp.substeps`` integrator steps into cp.x_new, cp.v_new (held ends in ``ext.active``
@@ -393,6 +393,7 @@ def coupled_targets(stepper, m, plan, ext, cp, ws, t, has_prev, contacts, bodies
     make Bullet's semi-implicit update land on x_new into cp.force:
     F = m ((x_new - x)/dt - v_bullet)/dt - m g_bullet. Returns (Newton iterations, all converged, a contact
     solve coasted far from convergence even in the retry's sub-steps: the planned step is not to be taken).
+    ``contact_call``, ``advance_call``: the contact step and the step without contact (:func:`sync_and_advance`).
     """
     cp.x_new[:, :] = cp.x
     cp.v_new[:, :] = cp.v
@@ -410,13 +411,13 @@ def coupled_targets(stepper, m, plan, ext, cp, ws, t, has_prev, contacts, bodies
         prev = has_prev or k > 0
         if (contacts.count[0] > 0 or grip_active(contacts.grip)) and stepper.method >= IMPLICIT_EULER:
             its, ok, ratio, coast = _guarded_contact_step(stepper, m, plan, ext, cp, ws, t, k, prev, contacts, bodies,
-                                                          guard)
+                                                          guard, contact_call)
             guard.info[FINAL_RATIO] = max(guard.info[FINAL_RATIO], ratio)
             if coast:
                 guard.info[COASTED] = 1.0
                 stalled = guard.levels >= 0
         else:
-            its, ok = advance(stepper, m, cp.x_new, cp.v_new, cp.samples, ws, prev)
+            its, ok = advance_call(stepper, m, cp.x_new, cp.v_new, cp.samples, ws, prev)
         iters += its
         ok_all = ok_all and ok
         if stalled:
@@ -456,7 +457,7 @@ def take_over(cp, inp):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def sync_and_advance(stepper, m, plan, ext, cp, ws, det, inp, contacts, bodies, guard):
+def sync_and_advance(stepper, m, plan, ext, cp, ws, det, inp, contacts, bodies, guard, contact_call, advance_call):
     """One Bullet step's work on the model side: take over (if ``inp.sync``), check, plan the next.
 
     ``contacts``: the model's contacts for the coming step (detected from the taken-over state), ``bodies``: the
@@ -468,7 +469,10 @@ def sync_and_advance(stepper, m, plan, ext, cp, ws, det, inp, contacts, bodies, 
     on a recorded step cp.energy (the recorder's row without calls of its own: they cost about a third of a step
     at n = 10).
     ``guard``: the stalled contact step's retry (:class:`StallGuard`); a contact solve that coasts far from
-    convergence even so makes the status STALLED. Returns (status, Newton iterations, converged); an unstable
+    convergence even so makes the status STALLED. ``contact_call``, ``advance_call``: the core's
+    :func:`~bullet_dlo.core.kernels.contact.contact_step` and :func:`~bullet_dlo.core.kernels.steppers.advance`, or
+    their machine code as first-class functions (:func:`~bullet_dlo.bullet.solver_call.step_with`, whose compile
+    then does not link and optimise their code again). Returns (status, Newton iterations, converged); an unstable
     status plans nothing (its planned forces are not to be applied).
     """
     status = STABLE
@@ -491,7 +495,7 @@ def sync_and_advance(stepper, m, plan, ext, cp, ws, det, inp, contacts, bodies, 
     its, ok = 0, True
     if status == STABLE:
         its, ok, stalled = coupled_targets(stepper, m, plan, ext, cp, ws, inp.t, inp.has_prev, contacts, bodies,
-                                           guard)
+                                           guard, contact_call, advance_call)
         if stalled:
             status = STALLED
     grip = contacts.grip

@@ -30,7 +30,7 @@ from __future__ import annotations
 
 import numpy as np
 import pybullet as pb
-from numba import typeof, types
+from numba import typeof
 
 from bullet_dlo.bullet import contact
 from bullet_dlo.bullet.contact import detect_with, quiet_with
@@ -38,13 +38,9 @@ from bullet_dlo.bullet.kernels import StepInput, bind
 from bullet_dlo.bullet.native import kernel_api
 from bullet_dlo.bullet.plain_call import BOOK, DETECT, MOVED, TAKEN, make_plain_args, no_detect, run
 from bullet_dlo.bullet.solver import NEWTON_WARN_MIN_STEPS
-from bullet_dlo.bullet.solver_call import step_with
+from bullet_dlo.bullet.solver_call import _get_wrapper_address, first_class, step_with
 from bullet_dlo.core.kernels.monitor import STABLE
 
-try:  # (Numba's own helper for first-class function arguments; without it every step takes Python's phases)
-    from numba.experimental.function_type import _get_wrapper_address
-except ImportError:  # pragma: no cover - a Numba that moved it
-    _get_wrapper_address = None
 
 PLAIN_STEPS = True  # take plain steps in one compiled call (False: every step in Python's phases; for A/B and tests)
 PLAIN_FROM = 2000
@@ -78,26 +74,9 @@ def _plain_cable(world):
     return cable
 
 
-class _Address:
-    """A compiled function's address, as Numba's first-class function arguments take it (their wrapper address
-    protocol): looked up once, not at every call."""
-
-    __slots__ = ("address",)
-
-    def __init__(self, address: int) -> None:
-        self.address = address
-
-    def __wrapper_address__(self) -> int:
-        return self.address
-
-
 def _first_class(kernel, *args) -> tuple:
-    """``kernel``'s machine code for the argument types of ``args`` (compiled or loaded from the cache now) as a
-    first-class function: its type and address."""
-    arg_types = tuple(map(typeof, args))
-    kernel.compile(arg_types)
-    sig = kernel.overloads[arg_types].signature
-    return types.FunctionType(sig), _Address(_get_wrapper_address(kernel, sig))
+    """``kernel``'s machine code for the argument types of ``args`` as a first-class function (:func:`first_class`)."""
+    return first_class(kernel, tuple(map(typeof, args)))
 
 
 def _detection_loaded(detect_args: tuple) -> bool:

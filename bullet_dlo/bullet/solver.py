@@ -29,13 +29,13 @@ import numpy as np
 from bullet_dlo.bullet.kernels import (COASTED, FINAL_RATIO, FIRST_ITER, FIRST_MOVED, FIRST_RATIO, RETRY_SUBSTEPS,
                                        WILD_RATIO, Coupling, StallGuard, StepInput, bind, make_record_rows,
                                        sync_and_advance)
-from bullet_dlo.bullet.solver_call import make_step_args, step_with
+from bullet_dlo.bullet.solver_call import _get_wrapper_address, pack_step_args, step_with
 from bullet_dlo.core.engine import NEWTON_WARN_SHARE, DetectorOptions, start_detector
 from bullet_dlo.core.integrators import Integrator, NewtonOptions, make_stepper
-from bullet_dlo.core.kernels.contact import Bodies, Contacts
+from bullet_dlo.core.kernels.contact import Bodies, Contacts, contact_step
 from bullet_dlo.core.kernels.holders import empty_samples, sample_holders
 from bullet_dlo.core.kernels.monitor import REASONS, STABLE, STALLED
-from bullet_dlo.core.kernels.steppers import Workspace, make_workspace
+from bullet_dlo.core.kernels.steppers import Workspace, advance, make_workspace
 from bullet_dlo.core.kernels.twist import TwistState
 from bullet_dlo.core.model import CableControl, CableModel, CableState, KernelArrays
 
@@ -141,6 +141,7 @@ class CableSolver:
         self._kernel = None  # step_with's machine code (sync_and_advance on packed arguments), bound on first use
         self._packed: tuple = ()  # the objects packed into self._args (solver_call.StepArgs)
         self._args = None
+        self._addresses: tuple = ()  # the first-class functions packed into self._args (kept alive with them)
         self._plain = None  # sync_and_advance's machine code (PACK_ARGS off)
 
     def restart_detector(self, model: CableModel, arrays: KernelArrays) -> None:
@@ -165,7 +166,8 @@ class CableSolver:
 
     def kernel_args(self, arrays: KernelArrays, control: CableControl, contacts: Contacts, bodies: Bodies,
                     inp: StepInput) -> tuple:
-        """Arguments of :func:`~bullet_dlo.bullet.kernels.sync_and_advance` (the same objects every step)."""
+        """Arguments of :func:`~bullet_dlo.bullet.kernels.sync_and_advance` but the two kernels it calls (the same
+        objects every step)."""
         return (self.stepper, arrays, self.plan, control.holders, self.coupling, self.workspace, self.detector, inp,
                 contacts, bodies, self.stall_guard(arrays, contacts, bodies))
 
@@ -186,10 +188,12 @@ class CableSolver:
         solved with them; returns the status (STABLE or the reason's code: then nothing is planned)."""
         guard = self.stall_guard(arrays, contacts, bodies)
         held = self._held(arrays, control, contacts, bodies, guard)
-        if not PACK_ARGS or not hasattr(sync_and_advance, "compile"):  # (JIT disabled: a plain call)
+        if not PACK_ARGS or not hasattr(sync_and_advance, "compile") or _get_wrapper_address is None:
+            # (JIT disabled, or a Numba without first-class functions: a plain call)
+            calls = (contact_step, advance)
             if self._plain is None:
-                self._plain = bind(sync_and_advance, *held[:7], inp, *held[7:])
-            status, its, ok = self._plain(*held[:7], inp, *held[7:])
+                self._plain = bind(sync_and_advance, *held[:7], inp, *held[7:], *calls)
+            status, its, ok = self._plain(*held[:7], inp, *held[7:], *calls)
         else:
             if self._kernel is None or any(map(is_not, held, self._packed)):
                 self._pack(held, inp)  # one of the objects was replaced: pack the ones a plain call would pass now
@@ -270,7 +274,7 @@ class CableSolver:
         """Pack ``held`` (the kernel's per-cable arguments, :data:`~bullet_dlo.bullet.solver_call.FIELDS`) into one
         StructRef and bind the kernel to its type (Numba unboxes one pointer a step instead of ~150 arrays)."""
         old = numba.typeof(self._args) if self._args is not None else None
-        self._args = make_step_args(*held)
+        self._args, self._addresses = pack_step_args(held)
         self._packed = held
         if self._kernel is None or numba.typeof(self._args) != old:
             self._kernel = bind(step_with, self._args, inp)

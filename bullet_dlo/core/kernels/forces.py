@@ -51,6 +51,7 @@ from bullet_dlo.core.kernels.twist import (
     add_cross_matrix,
     add_twist_forces,
     add_twist_jacobian,
+    damper_tensor,
     damper_tensors,
     flat_dampers,
     has_twist,
@@ -59,6 +60,7 @@ from bullet_dlo.core.kernels.twist import (
     twist_clamp_torque,
     twist_energy,
     twist_kinetic,
+    twist_ready,
 )
 
 BAND = 2  # block half-bandwidth of the force Jacobian
@@ -249,11 +251,13 @@ def clamp_damping_torque(m, x, v, dirs, end):
     d = dirs[0] if end == 0 else dirs[1]
     c = m.c_bend[i]
     if flat_dampers(m):  # C_i phi_dot for a flat section (:func:`~bullet_dlo.core.kernels.twist.damper_tensors`)
-        cten = np.empty((n, 3, 3))
-        damper_tensors(m, x, dirs, cten)
+        if has_twist(m):
+            twist_ready(m, x, dirs)
+        cten = np.empty((3, 3))
+        damper_tensor(m, x, dirs, i, np.empty((12, 3)), cten)
         cr = np.empty(3)
         for r in range(3):
-            cr[r] = cten[i, r, 0] * rate[0] + cten[i, r, 1] * rate[1] + cten[i, r, 2] * rate[2]
+            cr[r] = cten[r, 0] * rate[0] + cten[r, 1] * rate[1] + cten[r, 2] * rate[2]
         rate[:] = cr
         c = 1.0
     q0 = c * (kd[0, 0] * rate[0] + kd[1, 0] * rate[1] + kd[2, 0] * rate[2])  # K_d^T c phi_dot

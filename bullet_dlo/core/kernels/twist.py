@@ -789,22 +789,27 @@ def damper_tensors(m, x, dirs, out):
     :func:`add_twist_forces` leaves out their turn: phi . dm/dt, second order in the curvature."""
     if has_twist(m):  # (without the springs, the coupled step's view: its frames are built)
         twist_ready(m, x, dirs)
-    n = x.shape[0]
     g = np.empty((12, 3))
-    for i in range(n):
-        cb = m.c_bend[i]
-        for r in range(3):
-            for col in range(3):
-                out[i, r, col] = cb if r == col else 0.0
-        dl = m.tw_k_aniso[i]
-        if cb == 0.0 or dl == 0.0 or m.k_bend[i] == 0.0:
-            continue
-        node_geometry(x, dirs, m.tw_theta, m.tw_ref, m.tw_tan, m.tw_clamp, m.tw_mref, i, g)
-        w = 0.5 * dl * cb / m.k_bend[i]
-        for r in range(3):
-            for col in range(3):
-                out[i, r, col] += w * (g[4, r] * g[4, col] - g[5, r] * g[5, col] + g[6, r] * g[6, col]
-                                       - g[7, r] * g[7, col])
+    for i in range(x.shape[0]):
+        damper_tensor(m, x, dirs, i, g, out[i])
+
+
+@njit(cache=True, error_model="numpy")
+def damper_tensor(m, x, dirs, i, g, out):
+    """out (3, 3) <- node i's damper C_i of :func:`damper_tensors` (its frames already built: ``twist_ready``);
+    g (12, 3): scratch."""
+    cb = m.c_bend[i]
+    for r in range(3):
+        for col in range(3):
+            out[r, col] = cb if r == col else 0.0
+    dl = m.tw_k_aniso[i]
+    if cb == 0.0 or dl == 0.0 or m.k_bend[i] == 0.0:
+        return
+    node_geometry(x, dirs, m.tw_theta, m.tw_ref, m.tw_tan, m.tw_clamp, m.tw_mref, i, g)
+    w = 0.5 * dl * cb / m.k_bend[i]
+    for r in range(3):
+        for col in range(3):
+            out[r, col] += w * (g[4, r] * g[4, col] - g[5, r] * g[5, col] + g[6, r] * g[6, col] - g[7, r] * g[7, col])
 
 
 # ----- the twist sub-step ---------------------------------------------------------------------------
