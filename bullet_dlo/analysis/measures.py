@@ -3,7 +3,7 @@
 
 * oscillations: frequency from upward zero crossings, amplitude over a full period;
 * end forces as a 5 Hz force sensor sees them: means over 0.2 s blocks, RMS difference
-  relative to the reference's peak force;
+  relative to the reference's peak force; the end moments alike (:func:`wrench_error`);
 * shapes: largest distance between two polylines with different numbers of masses.
 """
 from __future__ import annotations
@@ -57,6 +57,22 @@ def block_means(t: np.ndarray, f: np.ndarray, edges: np.ndarray) -> np.ndarray:
     return np.array([f[(t >= lo) & (t < hi)].mean(axis=0) for lo, hi in zip(edges[:-1], edges[1:])])
 
 
+def block_rms(t: np.ndarray, f: np.ndarray, t_ref: np.ndarray, f_ref: np.ndarray,
+              block: float = FORCE_BLOCK) -> float:
+    """RMS difference of the ``block``-second means of f (k, 2, 3) against those of f_ref (k_ref, 2, 3), in
+    their unit (a run shorter than one block is compared by its last sample)."""
+    edges = np.arange(t_ref[0], t_ref[-1] + 1e-12, block)
+    if edges.size < 2:
+        a, b = f[-1:], f_ref[-1:]
+    else:
+        a, b = block_means(t, f, edges), block_means(t_ref, f_ref, edges)
+    return float(np.sqrt(np.mean(np.sum((a - b) ** 2, axis=-1))))
+
+
+def _peak(f: np.ndarray) -> float:
+    return float(np.max(np.abs(f))) if f.size else 0.0
+
+
 def force_error(t: np.ndarray, f: np.ndarray, t_ref: np.ndarray, f_ref: np.ndarray,
                 block: float = FORCE_BLOCK) -> float:
     """RMS difference of end forces f (k, 2, 3) [N] against f_ref (k_ref, 2, 3) [N] in ``block``-second
@@ -66,13 +82,25 @@ def force_error(t: np.ndarray, f: np.ndarray, t_ref: np.ndarray, f_ref: np.ndarr
     axial and clamp modes that a move excites ring on, and refining n adds new ones. A run
     shorter than one block is compared by its last sample.
     """
-    edges = np.arange(t_ref[0], t_ref[-1] + 1e-12, block)
-    if edges.size < 2:
-        a, b = f[-1:], f_ref[-1:]
-    else:
-        a, b = block_means(t, f, edges), block_means(t_ref, f_ref, edges)
-    scale = max(float(np.max(np.abs(f_ref))), 1e-12)
-    return float(np.sqrt(np.mean(np.sum((a - b) ** 2, axis=-1)))) / scale
+    return block_rms(t, f, t_ref, f_ref, block) / max(_peak(f_ref), 1e-12)
+
+
+MOMENT_FLOOR = 0.01
+"""End moments are judged relative to at least this share of the reference's peak force times the cable's length
+[-] (:func:`wrench_error`)."""
+
+
+def wrench_error(t: np.ndarray, f: np.ndarray, m: np.ndarray, t_ref: np.ndarray, f_ref: np.ndarray,
+                 m_ref: np.ndarray, length: float, block: float = FORCE_BLOCK) -> float:
+    """The larger of the end forces' error (:func:`force_error` of f against f_ref, (k, 2, 3) [N]) and the end
+    moments' m against m_ref ((k, 2, 3) [N m]), measured alike but relative to the larger of the reference's peak
+    moment and MOMENT_FLOOR times its peak force times ``length`` [m] [-].
+
+    A wrist sensor reads both: a clamp turned about the cable (torsion) loads it with moments alone, where the forces
+    say nothing. The floor keeps moments that are round-off beside the forces (a straight cable hanging from a
+    clamp) from being judged on their own."""
+    scale = max(_peak(m_ref), MOMENT_FLOOR * _peak(f_ref) * length, 1e-12)
+    return max(force_error(t, f, t_ref, f_ref, block), block_rms(t, m, t_ref, m_ref, block) / scale)
 
 
 # ----- shapes ------------------------------------------------------------------------------------

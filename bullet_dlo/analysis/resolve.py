@@ -7,8 +7,9 @@ comes as a :class:`ResolveProblem`: its cable, duration, curved obstacles and a 
 it (:func:`bullet_dlo.sim.resolve_problem` makes one from a scene), so this layer knows no scene type.
 
 
-Forces are compared as a 5 Hz force sensor would see them (0.2 s block means, RMS over the
-rollout, relative to the peak force); shape as the largest distance between the final
+Forces are compared as a 5 Hz force-torque sensor would see them (0.2 s block means, RMS over the
+rollout, relative to the peak force; the end moments alike, relative to their peak:
+:func:`~bullet_dlo.analysis.measures.wrench_error`); shape as the largest distance between the final
 shapes, relative to the largest displacement of the cable during the rollout.
 
 1. spatial: for n = 5, 7, 10, 14, 20, 28, 40, 56, 80, compare a run with n masses against one
@@ -51,7 +52,7 @@ from typing import Callable
 
 import numpy as np
 
-from bullet_dlo.analysis.measures import force_error, shape_error
+from bullet_dlo.analysis.measures import force_error, shape_error, wrench_error
 from bullet_dlo.core.boundary import ROLL_SAMPLES, ROLL_TOL, EndHolder, end_roll  # (ROLL_TOL, end_roll: re-exported)
 from bullet_dlo.core.engine import SimulationResult
 from bullet_dlo.core.enums import ToleranceTarget, name_of
@@ -202,13 +203,18 @@ def _rollout(problem: ResolveProblem, n: int, integrator: str, dt: float,
 def _difference(a: SimulationResult, b: SimulationResult, target: str, length: float) -> float:
     """Relative difference of run ``a`` from run ``b`` in what the scene needs.
 
-    forces: end forces as a 5 Hz force sensor sees them (0.2 s means; pointwise force histories
-    of lightly damped cables carry stiff modes that refining n only adds to); shape: the final
-    shapes, relative to how far the cable moved from its start (1e-3 L at least).
+    forces: end forces and moments as a 5 Hz force-torque sensor sees them (0.2 s means; pointwise force
+    histories of lightly damped cables carry stiff modes that refining n only adds to; the moments where both runs
+    recorded them: a clamp rolled about the cable loads it with moments alone); shape: the final shapes, relative
+    to how far the cable moved from its start (1e-3 L at least).
     """
     errs = []
     if target in ("forces", "both"):
-        errs.append(force_error(a.t, a.end_forces, b.t, b.end_forces))
+        if a.end_moment_history is not None and b.end_moment_history is not None:
+            errs.append(wrench_error(a.t, a.end_forces, a.end_moment_history, b.t, b.end_forces,
+                                     b.end_moment_history, length))
+        else:
+            errs.append(force_error(a.t, a.end_forces, b.t, b.end_forces))
     if target in ("shape", "both"):
         moved = float(np.max(np.linalg.norm(b.x[-1] - b.x[0], axis=1)))
         errs.append(shape_error(a.final_state.x, b.final_state.x, max(moved, 1e-3 * length)))

@@ -12,7 +12,7 @@ from pathlib import Path
 
 from bullet_dlo.bench import peers as peer_mod
 from bullet_dlo.bench import plots, sweeps
-from bullet_dlo.bench.scenarios import s1, s1_spec, s3, s3_model, s4, s4_model
+from bullet_dlo.bench.scenarios import s1, s1_spec, s3_model, s3_wrench_error, s4, s4_model
 from bullet_dlo.cli.quiet import bar
 from bullet_dlo.core.engine import simulate
 from bullet_dlo.core.integrators import INTEGRATORS
@@ -140,21 +140,23 @@ def resolve_check(args) -> int:
     out = _out(args)
     tol = 0.05 if args.quick else TOL
     cases = {
-        "S1": (Scene(cable=s1_spec(10), ends=("clamped", "free"), duration=1.0, name="S1"), "shape", s1),
+        "S1": (Scene(cable=s1_spec(10), ends=("clamped", "free"), duration=1.0, name="S1"), "shape",
+               lambda *a: s1(*a).error),
+        # (target forces: the clamps' moments too, as resolve judges them)
         "S3": (Scene(cable=s3_model(10).spec, motion=s3_model(10).last.moves, duration=0.6, initial="static",
-                     name="S3"), "forces", s3),
+                     name="S3"), "forces", s3_wrench_error),
         "S4": (Scene(cable=s4_model(10).spec, ends=("pinned", "pinned"), motion=s4_model(10).last.moves,
-                     duration=2.0, name="S4"), "both", s4),
+                     duration=2.0, name="S4"), "both", lambda *a: s4(*a).error),
     }
     results, lines = {}, []
     for name in _progress(args, "resolve", "scene")(list(cases)):
-        scene, target, runner = cases[name]
+        scene, target, measured = cases[name]
         r = resolve(resolve_problem(scene), tol, target)
-        check = runner(r.n_masses, r.integrator, r.dt)
-        meets = bool(check.error <= tol)
-        results[name] = dict(r.to_dict(), measured_error=check.error, meets=meets)
+        error = measured(r.n_masses, r.integrator, r.dt)
+        meets = bool(error <= tol)
+        results[name] = dict(r.to_dict(), measured_error=error, meets=meets)
         lines.append(f"{name}: n={r.n_masses} {r.integrator} dt={r.dt:.4g}s predicted {r.predicted_error:.4f}, "
-                     f"measured against the reference {check.error:.4f} (tol {tol}): {'ok' if meets else 'MISSED'}")
+                     f"measured against the reference {error:.4f} (tol {tol}): {'ok' if meets else 'MISSED'}")
     print("\n".join(lines))
     (out / "resolve.json").write_text(json.dumps(results, indent=2, default=float))
     return 0

@@ -45,7 +45,7 @@ def add_parsers(sub, common: argparse.ArgumentParser) -> None:
     s.add_argument("scene", help="scene YAML file")
     s.add_argument("--tol", type=float, default=0.01, help="relative tolerance (default 0.01)")
     s.add_argument("--target", default="both", choices=["forces", "shape", "both"],
-                   help="what must be accurate: end forces (0.2 s means), final shape, or both (default)")
+                   help="what must be accurate: end forces and moments (0.2 s means), final shape, or both (default)")
     s.add_argument("--rollout", type=float, default=None, help="seconds simulated per trial (default: the scene's "
                    "duration, at most 2)")
     s.add_argument("--json", metavar="OUT.json", help="write n_masses, dt, integrator, predicted_error, "

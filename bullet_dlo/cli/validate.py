@@ -108,12 +108,46 @@ def cmd_beam(args: argparse.Namespace) -> int:
 
 
 def cmd_deform(args: argparse.Namespace) -> int:
-    try:
-        from bullet_dlo.reality import deform
-        run = deform.main
-    except (ImportError, AttributeError) as err:
-        raise ParameterError(f"validate deform is not available yet (bullet_dlo.reality.deform: {err})") from None
-    return int(run(args) or 0)
+    from bullet_dlo.reality import deform
+
+    return int(deform.main(args) or 0)
+
+
+def add_deform_arguments(parser: argparse.ArgumentParser) -> None:
+    """The options of ``bullet-dlo validate deform`` (:func:`bullet_dlo.reality.deform.main` reads them). Here, not
+    beside it: building the command line's parser then imports no fit code (SciPy's optimisers and splines, about
+    0.3 s in every ``bullet-dlo`` process)."""
+    parser.add_argument("dlo_dir", metavar="DLO_DIR", help="folder with train/ and eval/ of DEFORM *.pkl trials")
+    parser.add_argument("--json", required=True, metavar="OUT", help="output JSON file")
+    parser.add_argument("--plots", metavar="DIR", help="folder for the PNG plots (default: OUT's folder)")
+    parser.add_argument("--no-plots", action="store_true", help="write no plots")
+    parser.add_argument("--n-masses", type=int, help="point masses of the model (default 21)")
+    parser.add_argument("--dt", type=float, help="time step [s], in [1e-5, 0.01] (default 0.002)")
+    parser.add_argument("--integrator",
+                        choices=["bdf2", "implicit_midpoint", "implicit_euler"],
+                        help="core integrator (default bdf2: numerical damping ~1 %% of the fitted; implicit_euler ~10 %%)")
+    parser.add_argument("--twist", action="store_true",
+                        help="give the cable the core's material frame (twist springs; the clamps' roll by "
+                             "parallel transport of the held pairs: a marker pair does not fix it)")
+    parser.add_argument("--max-train-trials", type=int, default=8,
+                        help="train trials the fit uses, evenly spread over the folder, >= 2 (8)")
+    parser.add_argument("--max-eval-trials", type=int, help="eval trials predicted (default: all)")
+    parser.add_argument("--max-evaluations", type=int, default=60,
+                        help="forward runs of the train set allowed, about (60)")
+    parser.add_argument("--intervals", default="linearised", choices=["linearised", "refit"],
+                        help="leave-one-trial-out intervals: linearised (one Gauss-Newton step per trial left "
+                             "out, no runs) or refit (each left-out fit rerun from the optimum; N x the fit's cost)")
+    parser.add_argument("--rest-shape", action="store_true",
+                        help="also fit a curved rest shape (rest curvature at the free markers' places, the energy "
+                             "1/2 k (beta - beta0)^2 of a cable that keeps a set) and predict with it; the straight "
+                             "model's results are written beside it")
+    parser.add_argument("--fit-gravity-tilt", action="store_true",
+                        help="also fit gravity's direction in the motion-capture frame (two tilt angles [rad], "
+                             "shared by the cable's trials); default: gravity along -z")
+    parser.add_argument("--fit-drag", action="store_true",
+                        help="also fit quadratic air drag, drag_per_mass = 1/2 rho_air C_d d / (rho A) [1/m]")
+    parser.add_argument("--no-numerics-check", action="store_true",
+                        help="skip the numerical-damping and convergence-in-n checks")
 
 
 def add_parsers(sub, common: argparse.ArgumentParser) -> None:
@@ -199,14 +233,8 @@ def add_parsers(sub, common: argparse.ArgumentParser) -> None:
     d = vsub.add_parser("deform", parents=[common], help="DEFORM motion capture: fit on DLO_DIR/train, predict "
                         "DLO_DIR/eval", description="Fit on DLO_DIR/train, predict every eval trial open-loop "
                         "(bullet_dlo.reality.deform).")
-    try:
-        from bullet_dlo.reality import deform
-        add_arguments = deform.add_arguments
-    except (ImportError, AttributeError):  # until bullet_dlo.reality.deform lands with add_arguments and main
-        d.add_argument("rest", nargs=argparse.REMAINDER, help="(validate deform is not available yet)")
-    else:
-        add_arguments(d)
+    add_deform_arguments(d)
     d.set_defaults(func=cmd_deform)
 
 
-__all__ = ["add_parsers", "cmd_beam", "cmd_deform"]
+__all__ = ["add_deform_arguments", "add_parsers", "cmd_beam", "cmd_deform"]

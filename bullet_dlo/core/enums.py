@@ -82,7 +82,7 @@ class InitialShape(NamedSet):
 
 
 class ToleranceTarget(NamedSet):
-    """What ``tolerance.target`` converges: end ``forces``, the ``shape``, or ``both``."""
+    """What ``tolerance.target`` converges: the end ``forces`` (and moments), the ``shape``, or ``both``."""
 
     FORCES = "forces"
     SHAPE = "shape"

@@ -951,41 +951,6 @@ LIMITS = [
 ]
 
 
-def add_arguments(parser: argparse.ArgumentParser) -> None:
-    """The options of ``bullet-dlo validate deform``."""
-    parser.add_argument("dlo_dir", metavar="DLO_DIR", help="folder with train/ and eval/ of DEFORM *.pkl trials")
-    parser.add_argument("--json", required=True, metavar="OUT", help="output JSON file")
-    parser.add_argument("--plots", metavar="DIR", help="folder for the PNG plots (default: OUT's folder)")
-    parser.add_argument("--no-plots", action="store_true", help="write no plots")
-    parser.add_argument("--n-masses", type=int, default=Numerics.n_masses, help="point masses of the model (21)")
-    parser.add_argument("--dt", type=float, default=Numerics.dt, help="time step [s], in [1e-5, 0.01] (0.002)")
-    parser.add_argument("--integrator", default=Numerics.integrator,
-                        choices=["bdf2", "implicit_midpoint", "implicit_euler"],
-                        help="core integrator (bdf2: numerical damping ~1 %% of the fitted; implicit_euler ~10 %%)")
-    parser.add_argument("--twist", action="store_true",
-                        help="give the cable the core's material frame (twist springs; the clamps' roll by "
-                             "parallel transport of the held pairs: a marker pair does not fix it)")
-    parser.add_argument("--max-train-trials", type=int, default=8,
-                        help="train trials the fit uses, evenly spread over the folder, >= 2 (8)")
-    parser.add_argument("--max-eval-trials", type=int, help="eval trials predicted (default: all)")
-    parser.add_argument("--max-evaluations", type=int, default=60,
-                        help="forward runs of the train set allowed, about (60)")
-    parser.add_argument("--intervals", default="linearised", choices=["linearised", "refit"],
-                        help="leave-one-trial-out intervals: linearised (one Gauss-Newton step per trial left "
-                             "out, no runs) or refit (each left-out fit rerun from the optimum; N x the fit's cost)")
-    parser.add_argument("--rest-shape", action="store_true",
-                        help="also fit a curved rest shape (rest curvature at the free markers' places, the energy "
-                             "1/2 k (beta - beta0)^2 of a cable that keeps a set) and predict with it; the straight "
-                             "model's results are written beside it")
-    parser.add_argument("--fit-gravity-tilt", action="store_true",
-                        help="also fit gravity's direction in the motion-capture frame (two tilt angles [rad], "
-                             "shared by the cable's trials); default: gravity along -z")
-    parser.add_argument("--fit-drag", action="store_true",
-                        help="also fit quadratic air drag, drag_per_mass = 1/2 rho_air C_d d / (rho A) [1/m]")
-    parser.add_argument("--no-numerics-check", action="store_true",
-                        help="skip the numerical-damping and convergence-in-n checks")
-
-
 def pick(files: list[Path], most: int | None) -> list[Path]:
     """At most ``most`` of ``files``, evenly spread (all if None)."""
     if most is None or most >= len(files):
@@ -998,9 +963,10 @@ def main(args: argparse.Namespace) -> int:
     root = Path(args.dlo_dir)
     if not root.is_dir():
         raise ParameterError(f"DLO_DIR: {root} is not a folder (it must hold train/ and eval/ with *.pkl trials)")
-    check_int("--n-masses", args.n_masses, 4, 2000)  # the command line's names (Numerics checks its fields)
-    check_in_range("--dt", args.dt, DT_MIN, 0.01)
-    num = Numerics(integrator=args.integrator, n_masses=args.n_masses, dt=args.dt, twist=bool(args.twist))
+    num = Numerics()  # (an option not given keeps its default)
+    n_masses = check_int("--n-masses", num.n_masses if args.n_masses is None else args.n_masses, 4, 2000)
+    dt = check_in_range("--dt", num.dt if args.dt is None else args.dt, DT_MIN, 0.01)  # (the command line's names)
+    num = Numerics(integrator=args.integrator or num.integrator, n_masses=n_masses, dt=dt, twist=bool(args.twist))
     most_train = check_int("--max-train-trials", args.max_train_trials, 2)  # (the intervals leave one trial out)
     most_eval = None if args.max_eval_trials is None else check_int("--max-eval-trials", args.max_eval_trials, 1)
     max_eval = check_int("--max-evaluations", args.max_evaluations, 2)

@@ -13,6 +13,7 @@ from bullet_dlo.analysis.measures import (
     relative_error,
     shape_error,
     upward_crossings,
+    wrench_error,
     zero_crossing_frequency,
 )
 
@@ -50,6 +51,30 @@ def test_force_error_sees_block_means_not_ripple():
     assert force_error(t, ripple, t, ref) < 1e-3  # what a 5 Hz sensor sees: nothing
     short = t[t < 0.1]
     assert force_error(short, offset[: short.size], short, ref[: short.size]) == pytest.approx(0.003 / math.sqrt(2) / 0.15)
+
+
+def test_wrench_error_judges_moments_as_forces_and_round_off_not_at_all():
+    """A clamp turned about the cable loads it with moments alone: their error counts as the forces' does, relative
+    to their peak; moments at round-off beside a force (a straight cable hanging from a clamp) count for nothing."""
+    t = np.linspace(0.0, 0.6, 601)
+    none = np.zeros((t.size, 2, 3))
+    torque = none.copy()
+    torque[:, 1, 0] = 0.02  # a torsion moment of 20 mN m on the last clamp
+    off = torque.copy()
+    off[:, 1, 0] += 0.001  # 1 mN m off in every block
+    assert force_error(t, none, t, none) == 0.0  # the forces say nothing
+    assert wrench_error(t, none, off, t, none, torque, 0.5) == pytest.approx(0.001 / math.sqrt(2) / 0.02, rel=1e-9)
+    weight = none.copy()
+    weight[:, :, 2] = -0.15
+    forces_off = weight.copy()
+    forces_off[:, 0, 2] += 0.003
+    tiny = none + 1e-17
+    assert wrench_error(t, forces_off, tiny, t, weight, none, 0.5) == pytest.approx(
+        force_error(t, forces_off, t, weight), rel=1e-12)
+    # a moment as large as the floor (1 % of the peak force times the length) is judged against it
+    small = none.copy()
+    small[:, 0, 1] = 0.01 * 0.15 * 0.5
+    assert wrench_error(t, weight, 2 * small, t, weight, small, 0.5) == pytest.approx(1 / math.sqrt(2), rel=1e-9)
 
 
 def test_shape_error_resamples_by_arc_length():

@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from bullet_dlo.cli.validate import add_deform_arguments
 from bullet_dlo.core.boundary import Move, Sine
 from bullet_dlo.core.engine import simulate
 from bullet_dlo.core.model import CableModel, CableState
@@ -135,7 +136,7 @@ def test_fit_recovers_hidden_parameters_within_its_intervals(synthetic):
 
 def run_main(folder: Path, out: Path, *extra: str) -> dict:
     parser = argparse.ArgumentParser()
-    deform.add_arguments(parser)
+    add_deform_arguments(parser)
     args = parser.parse_args([str(folder), "--json", str(out), *extra])
     assert deform.main(args) == 0
     return json.loads(out.read_text())

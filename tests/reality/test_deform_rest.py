@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from bullet_dlo.cli.validate import add_deform_arguments
 from bullet_dlo.core.boundary import Move
 from bullet_dlo.core.engine import simulate
 from bullet_dlo.core.model import CableModel, CableState
@@ -116,7 +117,7 @@ def test_validate_deform_rest_shape_on_real_dlo3_reports_both(tmp_path):
     import json
 
     parser = argparse.ArgumentParser()
-    deform.add_arguments(parser)
+    add_deform_arguments(parser)
     out = tmp_path / "dlo3.json"
     args = parser.parse_args([str(DATA / "DLO3"), "--json", str(out), "--max-train-trials", "2", "--max-eval-trials",
                               "1", "--max-evaluations", "6", "--n-masses", "11", "--no-numerics-check", "--no-plots",

@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from bullet_dlo.cli.validate import add_deform_arguments
 from bullet_dlo.core.boundary import Move, Sine
 from bullet_dlo.core.engine import simulate
 from bullet_dlo.core.model import STANDARD_GRAVITY, CableModel, CableState, build_arrays
@@ -122,7 +123,7 @@ def test_validate_deform_with_fit_gravity_tilt_writes_the_tilts_and_the_untilted
         for seed in seeds:
             tilted_trial(tmp_path / split / f"{seed}.pkl", MOTIONS[seed], HIDDEN, duration=1.0, seed=seed)
     parser = argparse.ArgumentParser()
-    deform.add_arguments(parser)
+    add_deform_arguments(parser)
     common = ["--json", str(tmp_path / "o.json"), "--n-masses", "11", "--max-evaluations", "8",
               "--no-numerics-check", "--no-plots", "--fit-gravity-tilt"]
     assert deform.main(parser.parse_args([str(tmp_path), *common])) == 0
