@@ -8,7 +8,7 @@ kernels the suite uses (the runs' results are not checked here: the tests check 
 
 A kernel two parts reach at once is compiled by one of them while the other waits for it (``bullet_dlo/_numba_cache.py``
 locks each kernel's compile between processes), so the parts can share kernels. Three parts: ``core``, ``bullet``
-(the compliant arm's loop, then the dual-arm environment: IK, sensors, hulls, detection) and ``step`` (the coupled Bullet step, about 200 s of CPU
+(the dual-arm environment: IK, sensors, hulls, detection) and ``step`` (the coupled Bullet step, about 200 s of CPU
 cold, then the twist's and the free bodies' kernels and the plain steps), which starts on the step at once instead of
 after the environment's 170 s; the environment then loads it. Cold, beside the core suite's runner (2026-12-07,
 2-core AMD EPYC): the environment and the step in one part took 393 s of wall, the critical path of the warm-up.
@@ -43,27 +43,10 @@ def core() -> None:
 
 
 def bullet() -> None:
-    """The strip on the compliant Panda (``reality/arm_loop.py``'s ``run_arm_loop``: 29 s of CPU cold, which only
-    ``tests/reality/test_beam_arm.py`` reaches; compiled by a worker, it sat in the test phase, where both cores are
-    busy, while this part waits on the step part's kernels for most of its time), then a dual-arm environment (arms,
-    grasps, sensors, IK, model contact with the arms' links)."""
+    """A dual-arm environment (arms, grasps, sensors, IK, model contact with the arms' links)."""
     import gymnasium as gym
-    import numpy as np
 
     import bullet_dlo  # noqa: F401  (registers the environments)
-    from bullet_dlo.reality.beam import BeamRecording, Numerics
-    from bullet_dlo.reality.beam_arm import ArmImpedance, predict_torques_compliant
-    from bullet_dlo.reality.panda import Panda
-
-    t = np.arange(0.0, 0.05, 1e-3)
-    q = np.tile([0.0, -0.3, 0.0, -2.2, 0.0, 2.0, 0.785], (t.size, 1))
-    s = np.clip((t - 0.01) / 0.02, 0.0, 1.0)
-    q[:, 0] += 0.01 * (10 * s**3 - 15 * s**4 + 6 * s**5)  # a small rest-to-rest turn of joint 0
-    dq, z = np.gradient(q, t, axis=0), np.zeros_like(q)
-    rec = BeamRecording(t=t, q=q, q_d=q, dq=dq, dq_d=dq, tau_J=z, tau_ext_hat_filtered=z, name="warm")
-    with Panda() as panda:
-        predict_torques_compliant(rec, panda, ArmImpedance(np.full(7, 1e3), np.full(7, 10.0), np.ones(7),
-                                                           np.arange(7) < 5), numerics=Numerics(n_masses=8))
 
     env = gym.make("bullet_dlo/TensionTracking-v0")
     env.reset(seed=0)
