@@ -123,9 +123,9 @@ def add_deform_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--no-plots", action="store_true", help="write no plots")
     parser.add_argument("--n-masses", type=int, help="point masses of the model (default 21)")
     parser.add_argument("--dt", type=float, help="time step [s], in [1e-5, 0.01] (default 0.002)")
-    parser.add_argument("--integrator",
-                        choices=["bdf2", "implicit_midpoint", "implicit_euler"],
-                        help="core integrator (default bdf2: numerical damping ~1 %% of the fitted; implicit_euler ~10 %%)")
+    parser.add_argument("--integrator", choices=["bdf2", "implicit_midpoint", "implicit_euler"],
+                        help="core integrator (default bdf2: numerical damping ~1 %% of the fitted; implicit_euler "
+                             "~10 %%)")
     parser.add_argument("--twist", action="store_true",
                         help="give the cable the core's material frame (twist springs; the clamps' roll by "
                              "parallel transport of the held pairs: a marker pair does not fix it)")
