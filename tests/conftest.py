@@ -11,6 +11,7 @@ import shutil
 import subprocess
 import sys
 import tempfile
+import time
 import warnings
 from pathlib import Path
 
@@ -56,12 +57,38 @@ def pytest_sessionstart(session):
                                          stderr=subprocess.DEVNULL))
         warm.remove("core")
     script = Path(__file__).with_name("warm_kernels.py")
-    parts = [subprocess.Popen([sys.executable, str(script), part], stdout=subprocess.DEVNULL,
-                              stderr=subprocess.PIPE, text=True) for part in warm]
-    for part in parts:
-        _, err = part.communicate()
+    start = time.monotonic()
+    logs = [tempfile.TemporaryFile(mode="w+") for _ in warm]
+    parts = [subprocess.Popen([sys.executable, str(script), part], stdout=subprocess.DEVNULL, stderr=log, text=True)
+             for part, log in zip(warm, logs)]
+    ended = _wait_timed(parts, start)
+    report = session.config.pluginmanager.get_plugin("terminalreporter")
+    if report is not None:  # (where CI's time goes: the workers start when the last part ends)
+        report.write_line("kernel warm-up: " + ", ".join(f"{name} part ended at {t:.0f} s ({cpu:.0f} s of CPU)"
+                                                        for name, (t, cpu) in zip(warm, ended))
+                          + (", the core suite runs beside them" if _STARTED else ""))
+    for part, log in zip(parts, logs):
         if part.returncode:  # the tests that use these kernels will fail and say why; warn only
-            warnings.warn(f"warming the kernel cache failed ({part.args[-1]}): {err.strip()[-400:]}")
+            log.seek(0)
+            warnings.warn(f"warming the kernel cache failed ({part.args[-1]}): {log.read().strip()[-400:]}")
+        log.close()
+
+
+def _wait_timed(procs: list[subprocess.Popen], start: float) -> list[tuple[float, float]]:
+    """Wait for ``procs`` (only these: the core suite's run is left running); for each, when it ended [s after
+    ``start``, monotonic] and its CPU time (user + system) [s]."""
+    ended: dict[int, tuple[float, float]] = {}
+    while len(ended) < len(procs):
+        for proc in procs:
+            if proc.pid in ended:
+                continue
+            pid, status, usage = os.wait4(proc.pid, os.WNOHANG)
+            if pid:
+                proc.returncode = os.waitstatus_to_exitcode(status)
+                ended[pid] = (time.monotonic() - start, usage.ru_utime + usage.ru_stime)
+        if len(ended) < len(procs):
+            time.sleep(0.2)
+    return [ended[proc.pid] for proc in procs]
 
 
 def _selects_the_core_runner(config) -> bool:
