@@ -32,6 +32,8 @@ import shutil
 import time
 from pathlib import Path
 
+from bullet_dlo import _numba_link
+
 PACKAGE = Path(__file__).resolve().parent
 CACHE_ROOT = PACKAGE / "__pycache__"
 """Where the kernels' cache folders (``numba-<hash>``) live."""
@@ -107,6 +109,7 @@ def ensure_fresh_cache() -> None:
     locators[:] = [c for c in locators if getattr(c, "__name__", "") != "DigestLocator"]
     locators.insert(0, _locator_class(folder))
     _lock_compiles(folder / "locks")
+    _numba_link.install()
     for old in CACHE_ROOT.glob("numba-*"):
         if old != folder:
             shutil.rmtree(old, ignore_errors=True)
@@ -158,28 +161,30 @@ def _compile_locked(dispatcher, sig, compile_unlocked, locks: Path):
     from numba.core import sigutils
     from numba.core.compiler_lock import global_compiler_lock
 
+    args, _ = sigutils.normalize_signature(sig)
+    args = tuple(args)
     impl = getattr(getattr(dispatcher, "_cache", None), "_impl", None)
     if getattr(type(getattr(impl, "_locator", None)), "__name__", "") != "DigestLocator":
-        return compile_unlocked(dispatcher, sig)
-    args, _ = sigutils.normalize_signature(sig)
-    if tuple(args) in dispatcher.overloads:
+        # another cached kernel (a user's) may call the package's kernels, by symbol: it too is built again when they were
+        return _numba_link.compile_linked(dispatcher, sig, args, compile_unlocked, mark_build=False)
+    if args in dispatcher.overloads:
         return compile_unlocked(dispatcher, sig)
     func = dispatcher.py_func
-    path = lock_file(locks, func, tuple(args))
+    path = lock_file(locks, func, args)
     key = path.name
     # the file lock is taken inside Numba's compiler lock (it is re-entrant): a thread of this process never holds
     # a kernel's file lock while waiting for a compiler lock another thread holds waiting for that file lock
     with global_compiler_lock:
         if key in _HELD:  # this process is compiling it already (a recursive kernel): no second lock on it
-            return compile_unlocked(dispatcher, sig)
+            return _numba_link.compile_linked(dispatcher, sig, args, compile_unlocked)
         try:
             fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
         except OSError:
-            return compile_unlocked(dispatcher, sig)
+            return _numba_link.compile_linked(dispatcher, sig, args, compile_unlocked)
         _HELD.add(key)
         try:
             _acquire(fd)
-            return compile_unlocked(dispatcher, sig)
+            return _numba_link.compile_linked(dispatcher, sig, args, compile_unlocked)
         finally:
             _HELD.discard(key)
             os.close(fd)  # (releases the lock)
