@@ -165,7 +165,7 @@ def _compile_locked(dispatcher, sig, compile_unlocked, locks: Path):
     args = tuple(args)
     impl = getattr(getattr(dispatcher, "_cache", None), "_impl", None)
     if getattr(type(getattr(impl, "_locator", None)), "__name__", "") != "DigestLocator":
-        # another cached kernel (a user's) may call the package's kernels, by symbol: it too is built again when they were
+        # a user's cached kernel may call the package's kernels by symbol: it too is built again when they were
         return _numba_link.compile_linked(dispatcher, sig, args, compile_unlocked, mark_build=False)
     if args in dispatcher.overloads:
         return compile_unlocked(dispatcher, sig)

@@ -14,7 +14,8 @@ import textwrap
 import numpy as np
 
 # leaf is long enough that LLVM does not inline it: its callers call it
-TERMS = "\n    ".join(f"    s += np.exp(-abs(a[{k} % a.shape[0]] - {k / 7:.3f})) * np.arctan(s + {k})" for k in range(40))
+TERMS = "\n    ".join(f"    s += np.exp(-abs(a[{k} % a.shape[0]] - {k / 7:.3f})) * np.arctan(s + {k})"
+                       for k in range(40))
 KERNELS = textwrap.dedent('''
     import numpy as np
     from numba import njit
@@ -87,7 +88,8 @@ def _expected() -> float:
 def test_a_cached_caller_loads_its_callees_and_computes_the_same(tmp_path):
     (tmp_path / "toy.py").write_text(KERNELS)
     first = _run(tmp_path)  # compiles all three and caches them
-    assert first["stats"] == {"leaf": [0, 2], "mid": [0, 1], "top": [0, 1], "inner": [0, 0], "outer": [0, 0]}  # leaf: for int64 and for literal 3
+    # leaf compiles for int64 and for the literal 3
+    assert first["stats"] == {"leaf": [0, 2], "mid": [0, 1], "top": [0, 1], "inner": [0, 0], "outer": [0, 0]}
     again = _run(tmp_path)  # only top is called: its callees are loaded from the cache before it
     assert again["stats"] == {"leaf": [2, 0], "mid": [1, 0], "top": [1, 0], "inner": [0, 0], "outer": [0, 0]}
     assert again["value"] == first["value"]
@@ -105,7 +107,8 @@ def test_a_caller_of_a_rebuilt_callee_is_rebuilt_not_run(tmp_path):
     assert rebuilt["stats"]["mid"] == [0, 1] and rebuilt["stats"]["top"] == [0, 1]
     assert rebuilt["value"] == first["value"]
     third = _run(tmp_path)  # and the rebuilt caller is the one cached
-    assert third["stats"] == {"leaf": [2, 0], "mid": [1, 0], "top": [1, 0], "inner": [0, 0], "outer": [0, 0]} and third["value"] == first["value"]
+    assert third["stats"] == {"leaf": [2, 0], "mid": [1, 0], "top": [1, 0], "inner": [0, 0], "outer": [0, 0]}
+    assert third["value"] == first["value"]
 
 
 def test_a_caller_built_on_cached_callees_loads_what_they_call(tmp_path):
