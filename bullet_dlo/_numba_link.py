@@ -3,8 +3,8 @@
 Numba links every kernel a kernel calls into its code as a private copy (``linkonce_odr``): the caller's module is
 optimised and turned into machine code with all of its callees' code, and so is the caller's caller. The coupled
 Bullet step's kernels emitted the time stepper (``advance``, 4.4 MB of machine code) again in every loop that calls
-it, and the cache held 118 MB for about 20 MB of distinct code. A cold start spent about a quarter of its compile
-time on machine code that already existed (2026-12-07, 2-core AMD EPYC, ``cProfile`` of the core kernels' compile).
+it, and the suite's cache held 118 MB. A cold start spent about a quarter of its compile time emitting machine code
+(2026-12-07, 2-core AMD EPYC, ``cProfile`` of the core kernels' compile), much of it code that already existed.
 
 Here a callee that is one of the package's cached kernels is linked ``available_externally`` instead: the caller's
 optimiser still sees its body and inlines it where it would have (so the compiled code runs as fast), but a call it
@@ -12,7 +12,7 @@ does not inline calls the callee's own compiled code, which is not emitted again
 loaded in the process: the callee is recorded in the caller's ``reload_init`` (:class:`Callee`), which Numba runs
 before it loads a kernel from the cache, and which loads the callee (from the cache, or compiles it). A cached callee
 recompiled since the caller was built has another symbol (Numba names each build uniquely); the caller is then
-built again (:class:`StaleCallee`, handled in ``_numba_cache._compile_locked``).
+built again (:class:`StaleCallee`, handled in :func:`compile_linked`).
 
 Only kernels whose cache is the package's (``_numba_cache.DigestLocator``) and that can be found again by module and
 name are linked so; everything else (Numba's own helpers, kernels made in functions) is copied as Numba does.
