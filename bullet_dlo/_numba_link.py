@@ -142,10 +142,22 @@ def _finalize(self) -> None:
     self._finalize_final_module()
 
 
+PACKAGE_SYMBOLS = "_ZN10bullet_dlo"
+"""How the native functions of the package's kernels begin (Numba's Itanium mangling of ``bullet_dlo.<...>``)."""
+
+
 def _serialize_using_object_code(self):
     """``CPUCodeLibrary.serialize_using_object_code`` with the names the library defines beside its object code and
-    its module for linking, so that loading it need not read the module (:func:`_unserialize`)."""
+    its module for linking, so that loading it need not read the module (:func:`_unserialize`). Only for the
+    package's kernels: another kernel cached in Numba's format (a user's) still loads where this package is not
+    imported."""
+    import llvmlite.binding as ll
+
     self._ensure_finalized()
+    own = [fn.name for fn in self._final_module.functions  # (external: its own; copies of others are linkonce)
+           if not fn.is_declaration and fn.linkage == ll.Linkage.external]
+    if not any(name.startswith(PACKAGE_SYMBOLS) for name in own):
+        return _NUMBA["serialize_using_object_code"](self)
     shared = self._get_module_for_linking()
     defined = tuple(sorted(value.name for values in (shared.functions, shared.global_variables) for value in values
                            if not value.is_declaration))
@@ -198,7 +210,8 @@ def install() -> bool:
     library = codegen.CPUCodeLibrary
     if not _NUMBA:
         _NUMBA.update(_unserialize=library.__dict__["_unserialize"],
-                      _get_module_for_linking=library._get_module_for_linking)
+                      _get_module_for_linking=library._get_module_for_linking,
+                      serialize_using_object_code=library.serialize_using_object_code)
         library.finalize = _finalize
         library.serialize_using_object_code = _serialize_using_object_code
         library._unserialize = classmethod(_unserialize)

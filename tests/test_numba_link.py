@@ -127,3 +127,23 @@ def test_a_caller_built_on_cached_callees_loads_what_they_call(tmp_path):
     exec(KERNELS.replace("@njit(cache=True)", ""), namespace)
     expected = 2.0 * namespace["leaf"](np.linspace(-1.0, 2.0, 9), 2)
     assert abs(loaded["value"] - expected) <= 1e-12 * abs(expected)
+
+
+def test_a_users_kernel_cached_beside_the_package_loads_without_it(tmp_path):
+    """A user's cached kernel compiled in a process that imported the package keeps Numba's cache format: a process
+    that does not import the package loads it (the package's own format made Numba raise there)."""
+    (tmp_path / "user.py").write_text(textwrap.dedent('''
+        from numba import njit
+
+        @njit(cache=True)
+        def f(x):
+            return 2.0 * x + 1.0
+    '''))
+    run = "import json, sys, user; print(json.dumps([user.f(3.0), sum(user.f.stats.cache_hits.values())]))"
+    with_package = subprocess.run([sys.executable, "-c", "import bullet_dlo; " + run], cwd=tmp_path,
+                                  capture_output=True, text=True, timeout=300)
+    assert with_package.returncode == 0, with_package.stderr[-2000:]
+    assert json.loads(with_package.stdout.strip().splitlines()[-1]) == [7.0, 0]
+    without = subprocess.run([sys.executable, "-c", run], cwd=tmp_path, capture_output=True, text=True, timeout=300)
+    assert without.returncode == 0, without.stderr[-2000:]
+    assert json.loads(without.stdout.strip().splitlines()[-1]) == [7.0, 1]  # loaded from the cache
