@@ -147,3 +147,38 @@ def test_a_users_kernel_cached_beside_the_package_loads_without_it(tmp_path):
     without = subprocess.run([sys.executable, "-c", run], cwd=tmp_path, capture_output=True, text=True, timeout=300)
     assert without.returncode == 0, without.stderr[-2000:]
     assert json.loads(without.stdout.strip().splitlines()[-1]) == [7.0, 1]  # loaded from the cache
+
+
+def test_a_stale_build_is_built_again_without_reading_the_cache():
+    """``compile_linked`` on a build whose load raised ``StaleCallee``: the retry reads nothing from the cache, saves
+    through it, and leaves the dispatcher's cache as it was (the path a user's cached kernel takes; the package's own
+    is run for real above). Numba's compile is stood in for by one that loads, raises when what it loaded is stale,
+    and otherwise builds and saves."""
+    from bullet_dlo import _numba_link
+
+    events = []
+
+    class Cache:
+        def load_overload(self, sig, target_context):
+            return "stale build"
+
+        def save_overload(self, sig, cres):
+            events.append(("save", cres))
+
+    class Dispatcher:
+        _cache = Cache()
+        overloads: dict = {}
+
+    def compile_unlocked(dispatcher, sig):
+        loaded = dispatcher._cache.load_overload(sig, None)
+        events.append(("load", loaded))
+        if loaded is not None:
+            raise _numba_link.StaleCallee("a callee was built again")
+        dispatcher._cache.save_overload(sig, "new build")
+        return "entry point"
+
+    disp = Dispatcher()
+    cache = disp._cache
+    assert _numba_link.compile_linked(disp, (), (), compile_unlocked, mark_build=False) == "entry point"
+    assert events == [("load", "stale build"), ("load", None), ("save", "new build")]
+    assert disp._cache is cache
