@@ -55,7 +55,7 @@ import numpy as np
 from bullet_dlo.analysis.measures import force_error, shape_error, wrench_error
 from bullet_dlo.core.boundary import ROLL_SAMPLES, ROLL_TOL, EndHolder, end_roll  # (ROLL_TOL, end_roll: re-exported)
 from bullet_dlo.core.engine import SimulationResult
-from bullet_dlo.core.enums import ToleranceTarget, name_of
+from bullet_dlo.core.enums import EndMode, ToleranceTarget, name_of
 from bullet_dlo.core.spec import CableSpec
 from bullet_dlo.core.validate import ParameterError, check_positive
 
@@ -117,8 +117,8 @@ class Resolution:
 def twist_need(problem: ResolveProblem) -> str:
     """Why the scene needs the material frame (issue 22), or "" when a round cable's ends never roll.
 
-    A non-round section always has it; otherwise the largest roll about the cable axis of a clamped end
-    over the scene's duration (:func:`end_roll` at :data:`ROLL_SAMPLES` instants) must exceed
+    A non-round section always has it; otherwise the largest roll about the cable axis of a clamped or fork
+    end over the scene's duration (:func:`end_roll` at :data:`ROLL_SAMPLES` instants) must exceed
     :data:`ROLL_TOL`. A pinned end does not hold the roll.
     """
     c = problem.cable
@@ -131,13 +131,13 @@ def twist_need(problem: ResolveProblem) -> str:
     times = np.linspace(0.0, problem.duration, ROLL_SAMPLES)
     rolls = []
     for name, holder in zip(("first", "last"), problem.holders):
-        if holder.mode != "clamped" or not holder.moves:
+        if not EndMode(holder.mode).holds_roll or not holder.moves:
             continue
         roll = float(np.max(np.abs(np.unwrap(end_roll(holder, times)))))  # (a roll past half a turn: unwrapped)
         if roll > ROLL_TOL:
-            rolls.append(f"the {name} clamp rolls {np.degrees(roll):.3g} deg about the cable axis")
+            rolls.append(f"the {name} {EndMode(holder.mode).holder} rolls {np.degrees(roll):.3g} deg about the cable axis")
     if rolls:
-        return "material frame on: " + " and ".join(rolls) + " (a clamp holds the twist)"
+        return "material frame on: " + " and ".join(rolls) + " (a clamp or a fork holds the twist)"
     return ""
 
 

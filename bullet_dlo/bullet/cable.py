@@ -575,11 +575,12 @@ class BulletCable:
     def hold_externally(self, end: int, mode: str = "clamped") -> None:
         """Make end ``end`` (0 first, 1 last) follow poses given by :meth:`set_external_pose`.
 
-        mode: ``clamped`` (position and tangent held, like a gripper) or ``pinned``.
+        mode: ``clamped`` (position and tangent held, like a gripper), ``fork`` (position and the roll about
+        the holder's axis held) or ``pinned``.
         The clamp's bending stiffness is the spec's half-segment value (see CableSpec).
         """
-        if mode not in (EndMode.CLAMPED, EndMode.PINNED):
-            raise ParameterError(f"grasp mode must be one of clamped, pinned, got {mode!r}")
+        if mode not in (EndMode.CLAMPED, EndMode.FORK, EndMode.PINNED):
+            raise ParameterError(f"grasp mode must be one of clamped, fork, pinned, got {mode!r}")
         mode = str(EndMode(mode))
         c, spec, n = self.control, self.model.spec, self.model.n
         node = 0 if end == 0 else n - 1
@@ -644,10 +645,10 @@ class BulletCable:
         self.grip.active[end] = False
 
     def _hold_twist(self, end: int, mode: str) -> None:
-        """A cable with a material frame: end ``end``'s twist spring for ``mode`` (a clamp holds the twist,
-        a pin or a free end does not: :func:`~bullet_dlo.core.model.end_twist_constants`); a clamp takes the
-        section as it is now (no twist added, :func:`~bullet_dlo.core.kernels.twist.grip_section`) and its
-        axis becomes the holder's ``ext.normal``, which the holder then turns (the gripper's roll)."""
+        """A cable with a material frame: end ``end``'s twist spring for ``mode`` (a clamp or a fork holds the
+        twist, a pin or a free end does not: :func:`~bullet_dlo.core.model.end_twist_constants`); a clamp or a
+        fork takes the section as it is now (no twist added, :func:`~bullet_dlo.core.kernels.twist.grip_section`)
+        and its axis becomes the holder's ``ext.normal``, which the holder then turns (the gripper's roll)."""
         c = self.control
         if not c.k_twist.shape[0]:
             return
@@ -655,7 +656,7 @@ class BulletCable:
         node = 0 if end == 0 else self.model.n - 1
         c.k_twist[node], c.k_aniso[node] = end_twist_constants(spec, mode)
         c.c_twist[node] = c.k_twist[node] * spec.internal_damping
-        if mode == "clamped":
+        if EndMode(mode).holds_roll:
             self._twist_at_t()  # the section as it is at t, with the positions (a re-plan follows)
             self.ext.normal[end] = grip_section(self.arrays, self.x, self.ext.dir, end)
 

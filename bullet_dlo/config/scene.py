@@ -5,7 +5,7 @@ Schema (extra keys are rejected with a message naming them)::
     cable: {length: 0.3, diameter: 0.004, mass: 0.03, youngs_modulus: 126.0e6,
             n_masses: 10, damping: 0.01}           # or {preset: lv2017, n_masses: 20}
     layout: {start: [0, 0, 0.5], direction: [1, 0, 0]}   # straight from mass 0
-    ends: {first: clamped, last: clamped}                 # free | pinned | clamped
+    ends: {first: clamped, last: clamped}                 # free | pinned | fork | clamped
     motion: [{end: last, displacement: [0, 0, 0.005], start: 0.5, duration: 0.1}]
     gravity: [0, 0, -9.81]
     integrator: implicit_euler
@@ -138,7 +138,7 @@ class Scene:
         motion = keyed("motion", parse_motion, data.get("motion"))
         for mv in motion:
             if ends[0 if mv.end == "first" else 1] == "free":
-                raise ParameterError(f"motion: end '{mv.end}' is free; only pinned or clamped ends can be moved")
+                raise ParameterError(f"motion: end '{mv.end}' is free; only pinned, fork or clamped ends can be moved")
         gravity = tuple(keyed("gravity", check_vector3, "gravity", data.get("gravity", STANDARD_GRAVITY)))
         integrator = one_of("integrator", data.get("integrator", "implicit_euler"), IntegratorName)
         dt = keyed("dt", check_positive, "dt", data.get("dt", 1e-3))
@@ -184,6 +184,12 @@ class Scene:
         return "straight" if self.initial == "straight" else "settled"
 
 
+def holds_moment(model: CableModel, mode: str) -> bool:
+    """Whether an end held in ``mode`` takes a moment from ``model``'s cable: a clamp, or a fork of a cable with a
+    material frame (the twist about its axis)."""
+    return mode == "clamped" or (mode == "fork" and model.spec.twist_enabled)
+
+
 def result_json(scene: Scene, model: CableModel, result: SimulationResult, engine: str = "core") -> dict[str, Any]:
     """The portable output of ``bullet-dlo simulate`` (see README for the keys)."""
     def vec(a: np.ndarray) -> list[float]:
@@ -204,8 +210,8 @@ def result_json(scene: Scene, model: CableModel, result: SimulationResult, engin
             "last": vec(forces[1]) if held[-1] and ok else None,
         },
         "end_moments": {
-            "first": vec(result.end_moments[0]) if scene.ends[0] == "clamped" and ok else None,
-            "last": vec(result.end_moments[1]) if scene.ends[1] == "clamped" and ok else None,
+            "first": vec(result.end_moments[0]) if holds_moment(model, scene.ends[0]) and ok else None,
+            "last": vec(result.end_moments[1]) if holds_moment(model, scene.ends[1]) and ok else None,
         },
         "steps": result.steps,
         "wall_time_s": result.wall_time_s,

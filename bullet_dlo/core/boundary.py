@@ -1,7 +1,8 @@
 """Boundary conditions: how each cable end is held, and prescribed motion of held ends.
 
-An end is ``free``, ``pinned`` (position held) or ``clamped`` (position and tangent held,
-like a gripper). A held end follows a pose trajectory: its start pose plus the superposition
+An end is ``free``, ``pinned`` (position held), ``fork`` (position and the section's roll about the
+holder's axis held, the direction free: see :class:`~bullet_dlo.core.enums.EndMode`) or ``clamped`` (position,
+tangent and roll held, like a gripper). A held end follows a pose trajectory: its start pose plus the superposition
 of motion items, all relative to that start pose (displacements [m], rotation vectors [rad]
 about world axes, turning the clamp direction about the held node):
 
@@ -36,12 +37,12 @@ from bullet_dlo.core.kernels.holders import (
 from bullet_dlo.core.enums import EndMode
 from bullet_dlo.core.validate import ParameterError, check_nonnegative, check_positive, check_vector3
 
-END_MODES = EndMode.names()  # free | pinned | clamped (bullet_dlo.core.enums.EndMode)
+END_MODES = EndMode.names()  # free | pinned | fork | clamped (bullet_dlo.core.enums.EndMode)
 END_NAMES = ("first", "last")
 
 
 def check_end_mode(name: str, what: str = "end") -> str:
-    """``free``/``pinned``/``clamped`` in lower case, raising ParameterError for anything else."""
+    """``free``/``pinned``/``fork``/``clamped`` in lower case, raising ParameterError for anything else."""
     key = str(name).lower()
     if key not in END_MODES:
         raise ParameterError(f"{what} must be one of {', '.join(END_MODES)}, got {name!r}")
@@ -256,12 +257,12 @@ class EndHolder:
     """How one end is held and where it goes.
 
     Attributes:
-        mode: ``free`` | ``pinned`` | ``clamped``.
+        mode: ``free`` | ``pinned`` | ``fork`` | ``clamped``.
         position: start position of the held node [m], shape (3,).
-        direction: start tangent held by a clamp, pointing along the cable from first to last
-            node (unit vector), shape (3,).
+        direction: start tangent held by a clamp (a fork's axis, about which it holds the roll), pointing
+            along the cable from first to last node (unit vector), shape (3,).
         moves: prescribed motion items of this end (Move, Waypoints, Sine).
-        normal: start orientation of the section held by a clamp: its first axis d1 (unit, normal to
+        normal: start orientation of the section held by a clamp or a fork: its first axis d1 (unit, normal to
             ``direction``), shape (3,); None: :func:`default_normal` of the direction. Only a cable with a
             material frame (``CableSpec.twist_enabled``) feels it; the motion's rotations turn it with the clamp.
     """
@@ -275,7 +276,7 @@ class EndHolder:
     def __post_init__(self) -> None:
         object.__setattr__(self, "mode", check_end_mode(self.mode))
         if self.moves and self.mode == "free":
-            raise ParameterError("a free end cannot follow prescribed motion; make it pinned or clamped")
+            raise ParameterError("a free end cannot follow prescribed motion; make it pinned, fork or clamped")
         d = np.asarray(self.direction, dtype=float)
         if self.normal is None:
             object.__setattr__(self, "normal", default_normal(d))
@@ -287,7 +288,7 @@ class EndHolder:
 
     @property
     def held(self) -> bool:
-        """Whether the end node is kinematic (pinned or clamped)."""
+        """Whether the end node is kinematic (pinned, fork or clamped)."""
         return self.mode != "free"
 
     def move_table(self) -> np.ndarray:

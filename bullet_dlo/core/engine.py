@@ -31,6 +31,7 @@ from typing import Callable
 import numpy as np
 
 from bullet_dlo.core.boundary import ROLL_SAMPLES, ROLL_TOL, end_roll, turns
+from bullet_dlo.core.enums import EndMode
 from bullet_dlo.core.integrators import NewtonOptions, get_integrator, make_stepper
 from bullet_dlo.core.kernels.forces import clamp_torque, internal_energy, max_strain, mechanical_energy
 from bullet_dlo.core.kernels.holders import HeldSamples, HolderPlan, empty_samples, peak_speeds, sample_holders
@@ -206,7 +207,7 @@ _ROLL_MEMO: dict[tuple, tuple] = {}
 
 
 def unfelt_roll_warnings(model: CableModel, duration: float) -> list[str]:
-    """A warning when a clamp's motion rolls it about the cable's axis by more than
+    """A warning when a clamp's (or a fork's) motion rolls it about the cable's axis by more than
     :data:`~bullet_dlo.core.boundary.ROLL_TOL` within ``duration`` [s] while the cable has no material frame (a
     round cable without ``twist``): the roll is not felt, no torsion, no torque about the axis (scene files and the
     dual-arm scene turn the frame on for it; the core API leaves the model as given). Remembered per pair of
@@ -220,13 +221,13 @@ def unfelt_roll_warnings(model: CableModel, duration: float) -> list[str]:
     times = np.linspace(0.0, duration, ROLL_SAMPLES)
     out = []
     for name, holder in (("first", model.first), ("last", model.last)):
-        if holder.mode != "clamped" or not any(map(turns, holder.moves)):
+        if not EndMode(holder.mode).holds_roll or not any(map(turns, holder.moves)):
             continue
         roll = float(np.max(np.abs(np.unwrap(end_roll(holder, times)))))
         if roll > ROLL_TOL:
-            out.append(f"the {name} clamp rolls {math.degrees(roll):.3g} deg about the cable's axis, but the cable has "
-                       "no material frame (a round section without twist): the roll is not felt (no torsion); give "
-                       "the cable twist=True")
+            out.append(f"the {name} {EndMode(holder.mode).holder} rolls {math.degrees(roll):.3g} deg about the "
+                       "cable's axis, but the cable has no material frame (a round section without twist): the "
+                       "roll is not felt (no torsion); give the cable twist=True")
     if len(_ROLL_MEMO) >= 64:
         _ROLL_MEMO.clear()
     _ROLL_MEMO[key] = (model.first, model.last, tuple(out))

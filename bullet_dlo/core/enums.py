@@ -44,11 +44,24 @@ class IntegratorName(NamedSet):
 
 
 class EndMode(NamedSet):
-    """How a cable end is held: ``free``, ``pinned`` (position) or ``clamped`` (position and tangent)."""
+    """How a cable end is held: ``free``, ``pinned`` (position), ``fork`` (position and the roll about the
+    holder's axis, the direction free: a fork support, a ball joint whose roll is locked) or ``clamped``
+    (position, tangent and roll). Only a cable with a material frame feels a roll."""
 
     FREE = "free"
     PINNED = "pinned"
+    FORK = "fork"
     CLAMPED = "clamped"
+
+    @property
+    def holds_roll(self) -> bool:
+        """Whether the holder holds the section's roll about its axis (a twist spring at the end node)."""
+        return self in (EndMode.FORK, EndMode.CLAMPED)
+
+    @property
+    def holder(self) -> str:
+        """What holds an end in this mode, for messages: ``free end``, ``pin``, ``fork`` or ``clamp``."""
+        return {"free": "free end", "pinned": "pin", "fork": "fork", "clamped": "clamp"}[self.value]
 
 
 class Section(NamedSet):

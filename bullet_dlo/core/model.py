@@ -18,6 +18,7 @@ from typing import NamedTuple, Sequence
 import numpy as np
 
 from bullet_dlo.core.boundary import EndHolder, Motion, default_normal, holder_plan
+from bullet_dlo.core.enums import EndMode
 from bullet_dlo.core.kernels.contact import Grip, make_grip
 from bullet_dlo.core.kernels.holders import ExternalHolders, HolderPlan
 from bullet_dlo.core.kernels.twist import (
@@ -288,8 +289,8 @@ class CableModel:
             spec: cable parameters.
             start: position of node 0 [m].
             direction: direction from node 0 to node n-1 (normalised).
-            ends: mode of the first and last end (``free``/``pinned``/``clamped``); a clamped
-                end holds the initial tangent ``direction``.
+            ends: mode of the first and last end (``free``/``pinned``/``fork``/``clamped``); a clamped
+                end holds the initial tangent ``direction``, a fork the roll about it.
             motion: prescribed moves of held ends.
             gravity: gravitational acceleration [m/s^2].
             roll: angles [rad] by which the first and last clamp hold the section turned about
@@ -373,7 +374,8 @@ def with_arrays(model: CableModel, **arrays: np.ndarray) -> CableModel:
 
 
 def build_arrays(spec: CableSpec, first_mode: str, last_mode: str, gravity: np.ndarray) -> ModelArrays:
-    """The model's parameters for ``spec`` with end modes ``free``/``pinned``/``clamped`` (read-only arrays)."""
+    """The model's parameters for ``spec`` with end modes ``free``/``pinned``/``fork``/``clamped`` (read-only
+    arrays)."""
     n = spec.n_masses
     k_bend = np.full(n, spec.k_bend)
     k_bend[0] = spec.k_bend_clamp if first_mode == "clamped" else 0.0
@@ -431,11 +433,12 @@ def aniso_constant(spec: CableSpec) -> float:
 def end_twist_constants(spec: CableSpec, mode: str) -> tuple[float, float]:
     """Twist spring [N m/rad] and anisotropic bending constant [N m/rad^2] of an end node held in ``mode``:
     a clamp holds the twist with its half Voronoi length (the interior values times k_bend_clamp / k_bend,
-    as its bending spring); a pinned or free end holds none (0, 0)."""
-    if mode != "clamped":
+    as its bending spring); a fork holds the same twist and no bending (0 for the anisotropic part, as its
+    isotropic bending spring is 0); a pinned or free end holds neither (0, 0)."""
+    if not EndMode(mode).holds_roll:
         return 0.0, 0.0
     clamp = spec.k_bend_clamp / spec.k_bend
-    return spec.k_twist * clamp, aniso_constant(spec) * clamp
+    return spec.k_twist * clamp, (aniso_constant(spec) * clamp if mode == "clamped" else 0.0)
 
 
 @dataclass

@@ -75,7 +75,7 @@ def test_unstable_run_is_reported_not_raised(tmp_path, capsys):
         (lambda d: d.update(dt=0), "dt: dt must be a finite number > 0"),
         (lambda d: d.update(dt=".nan"), "dt"),
         (lambda d: d.update(integrator="verlet"), "integrator must be one of"),
-        (lambda d: d["ends"].update(first="glued"), "ends.first must be one of free, pinned, clamped"),
+        (lambda d: d["ends"].update(first="glued"), "ends.first must be one of free, pinned, fork, clamped"),
         (lambda d: d.update(colour="red"), "unknown key(s) colour in scene"),
         (lambda d: d["layout"].update(direction=[0, 0, 0]), "layout.direction"),
         (lambda d: d["motion"][0].update(end="middle"), "motion: motion end must be 'first' or 'last'"),

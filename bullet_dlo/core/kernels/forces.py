@@ -198,27 +198,32 @@ def clamp_torque(m, x, v, dirs, end):
 
     The clamp spring pulls the clamp direction towards the adjacent segment with magnitude
     k * beta about the axis d x e; with internal damping its Kelvin-Voigt damper adds
-    -d x (K_d^T c phi_dot) (see :func:`clamp_damping_torque`). Zero when the end is not clamped.
+    -d x (K_d^T c phi_dot) (see :func:`clamp_damping_torque`); a material frame adds the twist spring's
+    moment (:func:`~bullet_dlo.core.kernels.twist.twist_clamp_torque`), which a fork (no bending spring)
+    has too. Zero at a pinned or free end.
     """
     n = x.shape[0]
     out = np.zeros(3)
     if end == 0:
-        k = m.k_bend[0]
+        i = 0
         d = dirs[0]
         e0, e1, e2 = x[1, 0] - x[0, 0], x[1, 1] - x[0, 1], x[1, 2] - x[0, 2]
     else:
-        k = m.k_bend[n - 1]
+        i = n - 1
         d = -dirs[1]  # direction from the clamp into the cable
         e0, e1, e2 = x[n - 2, 0] - x[n - 1, 0], x[n - 2, 1] - x[n - 1, 1], x[n - 2, 2] - x[n - 1, 2]
-    if k == 0.0:
+    k = m.k_bend[i]
+    holds_roll = has_twist(m) and m.tw_k_twist[i] != 0.0
+    if k == 0.0 and not holds_roll:
         return out
-    _, s, c, la, lb, ux, uy, uz, wx, wy, wz, ratio, _ = _angle_terms(d[0], d[1], d[2], e0, e1, e2)
-    # k * beta * (u x w)/|u x w| = k * (beta/s) * (u x w)
-    out[0] = k * ratio * (uy * wz - uz * wy)
-    out[1] = k * ratio * (uz * wx - ux * wz)
-    out[2] = k * ratio * (ux * wy - uy * wx)
-    if _has_internal_damping(m):
-        out += clamp_damping_torque(m, x, v, dirs, end)
+    if k != 0.0:
+        _, s, c, la, lb, ux, uy, uz, wx, wy, wz, ratio, _ = _angle_terms(d[0], d[1], d[2], e0, e1, e2)
+        # k * beta * (u x w)/|u x w| = k * (beta/s) * (u x w)
+        out[0] = k * ratio * (uy * wz - uz * wy)
+        out[1] = k * ratio * (uz * wx - ux * wz)
+        out[2] = k * ratio * (ux * wy - uy * wx)
+        if _has_internal_damping(m):
+            out += clamp_damping_torque(m, x, v, dirs, end)
     if has_twist(m):
         out += twist_clamp_torque(m, x, dirs, end)
     return out
