@@ -22,9 +22,9 @@ TUBE = CableSpec(length=0.3, diameter=0.006, inner_diameter=0.004, mass=0.02, yo
 DT, RAMP, STEPS = 1e-3, 500, 800  # [s], steps of the roll, steps in all
 
 
-def roll(turn: float, pass_omega: bool):
-    """The last clamp rolled by ``turn`` [rad] about the cable (x) at a constant rate over RAMP steps, then held:
-    (stable, the clamps' moments about x [N m] (2,), the warnings)."""
+def roll(turn: float, pass_omega: bool, mode: str = "clamped"):
+    """The last end (held in ``mode``, the first alike) rolled by ``turn`` [rad] about the cable (x) at a constant
+    rate over RAMP steps, then held: (stable, the ends' moments about x [N m] (2,), the warnings)."""
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         with BulletWorld(dt=DT, gravity=(0.0, 0.0, 0.0)) as world:
@@ -32,7 +32,7 @@ def roll(turn: float, pass_omega: bool):
             x0 = cable.x.copy()
             for end, node in ((0, 0), (1, -1)):
                 cable.set_external_pose(end, x0[node], np.zeros(3), np.zeros(3), np.zeros(3), (1.0, 0.0, 0.0))
-                cable.hold_externally(end, "clamped")
+                cable.hold_externally(end, mode)
             for k in range(STEPS):
                 a = turn * min(1.0, k / RAMP)
                 rate = turn / (RAMP * DT) if k < RAMP and pass_omega else 0.0
@@ -51,6 +51,17 @@ def test_a_clamp_rolled_with_its_angular_velocity_reads_the_torsion(turn):
     assert stable
     assert moments[0] == pytest.approx(expected, rel=1e-3) and moments[1] == pytest.approx(-expected, rel=1e-3)
     assert not [m for m in caught if "omega" in m]
+
+
+def test_a_fork_rolled_through_set_external_pose_reads_the_torsion():
+    """Forks (``hold_externally(end, "fork")``: position and roll held, direction free) take the roll as clamps do:
+    G J theta / L at both ends; pinned ends feel nothing (the test can fail)."""
+    stable, moments, _ = roll(2.0, True, "fork")
+    expected = TUBE.torsional_rigidity * 2.0 / TUBE.length
+    assert stable
+    assert moments[0] == pytest.approx(expected, rel=1e-3) and moments[1] == pytest.approx(-expected, rel=1e-3)
+    stable, moments, _ = roll(2.0, True, "pinned")
+    assert stable and np.abs(moments).max() == 0.0
 
 
 def test_a_clamp_rolled_with_omega_left_at_zero_is_told_why():
