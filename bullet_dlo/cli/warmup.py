@@ -1,8 +1,8 @@
 """``bullet-dlo warmup``: compile the numerical kernels once, ahead of the first real run.
 
 Numba compiles the kernels on their first call and caches them on disk beside the package; on a fresh
-install (or after an upgrade) that first call takes minutes of CPU (about 16 for the main demo's kernels on a
-2.0 GHz Intel Xeon, 2026-12-01). This runs every core
+install (or after an upgrade) that first call takes minutes of CPU (about 8 for the main demo's kernels on a
+2-core AMD EPYC, 2026-12-07). This runs every core
 integrator, the twisting cable, model-owned contact with a Bullet world and the two arms for a few
 steps each, so that later commands start at once. It prints what it compiled and how long it took.
 """
