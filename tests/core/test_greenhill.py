@@ -23,6 +23,8 @@ import math
 import numpy as np
 import pytest
 
+from bullet_dlo.core.boundary import Move
+from bullet_dlo.core.engine import simulate
 from bullet_dlo.core.kernels.forces import clamp_torque, internal_energy, internal_forces
 from bullet_dlo.core.kernels.twist import twist_solve, update_frames
 from bullet_dlo.core.model import CableModel
@@ -127,3 +129,30 @@ def test_twisted_rod_between_forks_buckles_at_the_semi_tangential_torque():
     assert 0 < errors[41] < 0.02 and 0 < errors[21] < 0.05, errors
     order = math.log(errors[21] / errors[41]) / math.log(40 / 20)
     assert 0.9 < order < 1.4, (errors, order)
+
+
+def test_the_time_stepper_between_forks_buckles_only_above_the_threshold():
+    """BDF2 at 1 ms, the last fork rolled over 1 s to 0.95 and 1.05 of the n = 21 rod's own critical roll (the
+    stiffness's, above), then held, a 1 uN sideways load at midspan: below, the midspan stays within 1e-6 m of the
+    axis to t = 6 s (measured 4e-7 m) and the torque reads 0.95 M_c; above, it leaves the axis and keeps going
+    (measured 1.6e-5 m at 1.5 s, 1.4e-3 m at 6 s): the dynamics' threshold is the stiffness's within 5 %."""
+    n = 21
+    spec = CableSpec(length=1.0, diameter=0.01, mass=0.1, youngs_modulus=1e9, n_masses=n, twist=True,
+                     damping_rate=5.0)
+    roll_c = critical_torque(n, "fork", GREENHILL_FORK) * spec.bending_rigidity / spec.torsional_rigidity
+    side = {}
+    for frac in (0.95, 1.05):
+        model = CableModel.straight(spec, ends=("fork", "fork"), gravity=(0, 0, 0),
+                                    motion=[Move("last", rotation=(frac * roll_c, 0, 0), duration=1.0)])
+        f = np.zeros((n, 3))
+        f[n // 2, 1] = 1e-6
+        res = simulate(model, "bdf2", 1e-3, 6.0, f_ext=f)
+        assert res.stable
+        away = np.linalg.norm(res.x[:, n // 2, 1:] - model.x0[n // 2, 1:], axis=1)
+        side[frac] = (away, away[np.searchsorted(res.t, 1.5)])
+        if frac < 1:
+            torque = -res.end_moments[-1, 0] * spec.length / spec.bending_rigidity
+            assert torque == pytest.approx(frac * critical_torque(n, "fork", GREENHILL_FORK), rel=0.01)
+    (below, _), (above, above_early) = side[0.95], side[1.05]
+    assert below.max() < 1e-6
+    assert above[-1] > 100 * below.max() and above[-1] > 10 * above_early
