@@ -14,12 +14,13 @@ import pytest
 from bullet_dlo.core.boundary import EndHolder, Move
 from bullet_dlo.core.engine import simulate
 from bullet_dlo.core.enums import EndMode
-from bullet_dlo.core.kernels.forces import clamp_torque, internal_energy, internal_forces
+from bullet_dlo.core.kernels.forces import clamp_torque, internal_energy
 from bullet_dlo.core.kernels.twist import twist_ready, twist_solve, update_frames
 from bullet_dlo.core.model import CableModel
 from bullet_dlo.core.spec import CableSpec
 from bullet_dlo.core.statics import solve_static
 from bullet_dlo.core.validate import ParameterError
+from condensed import lowest_condensed_stiffness
 
 
 def test_fork_is_an_end_mode_that_holds_the_roll_and_not_the_direction():
@@ -133,25 +134,7 @@ def loaded_stiffness(spec: CableSpec, load: float) -> float:
     assert np.abs(x0[:, 2]).max() < 1e-12  # in its plane until it buckles
     update_frames(m, x0, dirs)
     twist_solve(m, x0, dirs, 1.0, False, m.tw_mref)
-    theta0 = m.tw_theta.copy()
-    f = np.zeros_like(x0)
-
-    def forces(x):
-        m.tw_theta[:] = theta0
-        twist_solve(m, x, dirs, 1.0, False, m.tw_mref)  # twist in equilibrium (envelope: -dE/dx)
-        internal_forces(m, x, dirs, f)
-        return f[1:-1].ravel().copy()
-
-    h = 1e-7 * spec.length
-    dof = 3 * (n - 2)
-    k = np.empty((dof, dof))
-    for c in range(dof):
-        xp, xm = x0.copy(), x0.copy()
-        xp[1 + c // 3, c % 3] += h
-        xm[1 + c // 3, c % 3] -= h
-        k[:, c] = -(forces(xp) - forces(xm)) / (2 * h)
-    m.tw_theta[:] = theta0
-    return float(np.linalg.eigvalsh(0.5 * (k + k.T))[0])
+    return lowest_condensed_stiffness(m, x0, dirs, slice(1, -1), 1e-7 * spec.length)
 
 
 def critical_load(n: int, tol: float = 1e-5) -> float:

@@ -25,10 +25,11 @@ import pytest
 
 from bullet_dlo.core.boundary import Move
 from bullet_dlo.core.engine import simulate
-from bullet_dlo.core.kernels.forces import clamp_torque, internal_energy, internal_forces
+from bullet_dlo.core.kernels.forces import clamp_torque, internal_energy
 from bullet_dlo.core.kernels.twist import twist_solve, update_frames
 from bullet_dlo.core.model import CableModel
 from bullet_dlo.core.spec import CableSpec
+from condensed import lowest_condensed_stiffness
 
 GREENHILL = 2.8606 * math.pi  # M_c L / (E I), clamped-clamped (8.9868)
 
@@ -63,25 +64,8 @@ def lowest_stiffness(spec: CableSpec, roll: float, ends: str = "clamped") -> tup
         m.tw_normal[:, 1] = m.tw_clamp[1] = math.cos(a) * d1 + math.sin(a) * d2
         update_frames(m, x0, dirs)
         twist_solve(m, x0, dirs, 1.0, False, m.tw_mref)
-    theta0 = m.tw_theta.copy()
-    n = spec.n_masses
-    f = np.zeros_like(x0)
-
-    def forces(x):
-        m.tw_theta[:] = theta0
-        twist_solve(m, x, dirs, 1.0, False, m.tw_mref)  # (envelope theorem: -dE/dx at the equilibrium twist)
-        internal_forces(m, x, dirs, f)
-        return f[1:-1].ravel().copy()
-
-    h = 1e-7 * spec.length
-    k = np.empty((3 * (n - 2), 3 * (n - 2)))
-    for c in range(3 * (n - 2)):
-        xp, xm = x0.copy(), x0.copy()
-        xp[1 + c // 3, c % 3] += h
-        xm[1 + c // 3, c % 3] -= h
-        k[:, c] = -(forces(xp) - forces(xm)) / (2 * h)
-    m.tw_theta[:] = theta0
-    return float(np.linalg.eigvalsh(0.5 * (k + k.T))[0]), float(clamp_torque(m, x0, np.zeros_like(x0), dirs, 0)[0])
+    low = lowest_condensed_stiffness(m, x0, dirs, slice(1, -1), 1e-7 * spec.length)
+    return low, float(clamp_torque(m, x0, np.zeros_like(x0), dirs, 0)[0])
 
 
 def critical_torque(n: int, ends: str = "clamped", closed: float = GREENHILL) -> float:

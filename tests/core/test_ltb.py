@@ -17,11 +17,11 @@ import numpy as np
 import pytest
 
 from bullet_dlo.core.engine import simulate
-from bullet_dlo.core.kernels.forces import internal_forces
 from bullet_dlo.core.kernels.twist import twist_ready, twist_solve, update_frames
 from bullet_dlo.core.model import CableModel
 from bullet_dlo.core.spec import CableSpec
 from bullet_dlo.core.statics import solve_static
+from condensed import lowest_condensed_stiffness
 
 GAMMA = 4.013  # P_c L^2 / sqrt(E I_weak G J), tip load at the centroid, no warping stiffness
 
@@ -53,25 +53,7 @@ def loaded_stiffness(spec: CableSpec, load: float) -> tuple[float, float]:
     x0 = res.x
     update_frames(m, x0, dirs)  # frames transported to the loaded state (where the DER gradients are exact)
     twist_solve(m, x0, dirs, 1.0, False, m.tw_mref)
-    theta0 = m.tw_theta.copy()
-    f = np.zeros_like(x0)
-
-    def forces(x):
-        m.tw_theta[:] = theta0
-        twist_solve(m, x, dirs, 1.0, False, m.tw_mref)  # twist in equilibrium (envelope: -dE/dx)
-        internal_forces(m, x, dirs, f)
-        return f[1:].ravel().copy()
-
-    h = 1e-7 * spec.length
-    dof = 3 * (n - 1)
-    k = np.empty((dof, dof))
-    for c in range(dof):
-        xp, xm = x0.copy(), x0.copy()
-        xp[1 + c // 3, c % 3] += h
-        xm[1 + c // 3, c % 3] -= h
-        k[:, c] = -(forces(xp) - forces(xm)) / (2 * h)
-    m.tw_theta[:] = theta0
-    return float(np.linalg.eigvalsh(0.5 * (k + k.T))[0]), float(x0[-1, 2])
+    return lowest_condensed_stiffness(m, x0, dirs, slice(1, None), 1e-7 * spec.length), float(x0[-1, 2])
 
 
 def critical_load(n: int, tol: float = 1e-6) -> float:
