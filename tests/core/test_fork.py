@@ -1,8 +1,8 @@
 """Fork ends (issue 22): an end held in position and in roll about the holder's axis, its direction free (a fork
 support; a ball joint whose roll is locked). Checked against closed forms: pure torsion between forks, a fork's
 free direction (no bending moment), and the lateral-torsional buckling of a strip between forks under a midspan
-load. Greenhill's problem between forks is in ``test_greenhill.py``, a scene file with forks in
-``tests/sim/test_fork_scene.py``."""
+load. Greenhill's problem between forks is in ``test_greenhill.py``, a fork turned in a run in ``test_twist.py``,
+a scene file with forks in ``tests/sim/test_fork_scene.py``."""
 from __future__ import annotations
 
 import math
@@ -49,21 +49,6 @@ def test_pure_torsion_between_forks_is_exact(n):
     assert t1 @ dirs[0] == pytest.approx(-expected, rel=1e-12)
     assert np.linalg.norm(np.cross(t0, dirs[0])) < 1e-12 * expected
     assert internal_energy(m, st.x, dirs) == pytest.approx(0.5 * expected * theta, rel=1e-12)
-
-
-@pytest.mark.parametrize("integrator", ["implicit_euler", "bdf2", "implicit_midpoint"])
-def test_fork_turned_about_the_cable_axis_in_a_run_reads_the_torsion(integrator):
-    """A fork turned by 90 degrees about the cable's axis in a run: the engine's end moments read G J (pi/2) / L
-    about the axis at both ends within 1 %, and the cable stays straight."""
-    spec = CableSpec.lv2017(n_masses=11, twist=True, damping_rate=5.0, internal_damping=1e-3)
-    model = CableModel.straight(spec, ends=("fork", "fork"), gravity=(0, 0, 0),
-                                motion=[Move("last", rotation=(math.pi / 2, 0, 0), duration=0.4)])
-    res = simulate(model, integrator, 1e-3, 0.8)
-    assert res.stable
-    expected = spec.torsional_rigidity * (math.pi / 2) / spec.length
-    assert res.end_moments[0, 0] == pytest.approx(expected, rel=0.01)
-    assert res.end_moments[1, 0] == pytest.approx(-expected, rel=0.01)
-    assert np.allclose(res.x[-1], model.x0, atol=1e-9)
 
 
 def test_a_fork_lets_the_direction_turn_freely():

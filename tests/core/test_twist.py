@@ -205,12 +205,13 @@ def test_pure_torsion_under_the_paper_discretisation_has_its_clamp_convention(n)
     assert t0 @ dirs[0] == pytest.approx(spec.torsional_rigidity * theta / (spec.length + l0), rel=1e-12)
 
 
+@pytest.mark.parametrize("ends", ["clamped", "fork"])
 @pytest.mark.parametrize("integrator", ["implicit_euler", "bdf2", "implicit_midpoint"])
-def test_gripper_turned_about_the_cable_axis_feels_torsion(integrator):
-    """A clamp turned by 90 degrees about the cable axis in a run: the engine's end moments read
-    G J (pi/2) / L about the axis at both ends (within 1 %; the cable stays straight)."""
+def test_gripper_turned_about_the_cable_axis_feels_torsion(integrator, ends):
+    """A clamp (or a fork: the roll held, the direction free) turned by 90 degrees about the cable axis in a run: the
+    engine's end moments read G J (pi/2) / L about the axis at both ends (within 1 %; the cable stays straight)."""
     spec = CableSpec.lv2017(n_masses=11, twist=True, damping_rate=5.0, internal_damping=1e-3)
-    model = CableModel.straight(spec, ends=("clamped", "clamped"), gravity=(0, 0, 0),
+    model = CableModel.straight(spec, ends=(ends, ends), gravity=(0, 0, 0),
                                 motion=[Move("last", rotation=(math.pi / 2, 0, 0), duration=0.4)])
     res = simulate(model, integrator, 1e-3, 0.8)
     assert res.stable
