@@ -1,8 +1,8 @@
 """Fork ends (issue 22): an end held in position and in roll about the holder's axis, its direction free (a fork
-support; a ball joint whose roll is locked). Checked against closed forms: pure torsion between forks, a fork's
-free direction (no bending moment), and the lateral-torsional buckling of a strip between forks under a midspan
-load. Greenhill's problem between forks is in ``test_greenhill.py``, a fork turned in a run in ``test_twist.py``,
-a scene file with forks in ``tests/sim/test_fork_scene.py``."""
+support; a ball joint whose roll is locked). Checked against closed forms: a fork's free direction (no bending
+moment), every method's torsion at a rolled fork, and the lateral-torsional buckling of a strip between forks under
+a midspan load. Greenhill's problem between forks is in ``test_greenhill.py``, pure torsion and a fork turned in a
+run in ``test_twist.py``, a scene file with forks in ``tests/sim/test_fork_scene.py``."""
 from __future__ import annotations
 
 import math
@@ -14,7 +14,6 @@ import pytest
 from bullet_dlo.core.boundary import EndHolder, Move
 from bullet_dlo.core.engine import simulate
 from bullet_dlo.core.enums import EndMode
-from bullet_dlo.core.kernels.forces import clamp_torque, internal_energy
 from bullet_dlo.core.kernels.twist import twist_ready, twist_solve, update_frames
 from bullet_dlo.core.model import CableModel
 from bullet_dlo.core.spec import CableSpec
@@ -31,24 +30,6 @@ def test_fork_is_an_end_mode_that_holds_the_roll_and_not_the_direction():
     assert a.tw.k_twist[0] > 0.0 and a.tw.k_twist[-1] == 0.0  # the fork holds the twist, the pin does not
     with pytest.raises(ParameterError, match="free, pinned, fork, clamped"):
         EndHolder("forked", np.zeros(3), np.array([1.0, 0.0, 0.0]))
-
-
-@pytest.mark.parametrize("n", [3, 10, 40])
-def test_pure_torsion_between_forks_is_exact(n):
-    """A straight cable between two forks, the last turned by theta: torque G J theta / L at both ends, about
-    the axis only (as between clamps: the same twist springs in series, exact at every n)."""
-    spec = CableSpec.lv2017(n_masses=n, twist=True)
-    theta = 0.7
-    model = CableModel.straight(spec, ends=("fork", "fork"), roll=(0.0, theta), gravity=(0, 0, 0))
-    st = model.initial_state()
-    dirs = model.holder_plan().start_dir
-    expected = spec.torsional_rigidity * theta / spec.length
-    m = model.kernel_arrays()
-    t0, t1 = clamp_torque(m, st.x, st.v, dirs, 0), clamp_torque(m, st.x, st.v, dirs, 1)
-    assert t0 @ dirs[0] == pytest.approx(expected, rel=1e-12)
-    assert t1 @ dirs[0] == pytest.approx(-expected, rel=1e-12)
-    assert np.linalg.norm(np.cross(t0, dirs[0])) < 1e-12 * expected
-    assert internal_energy(m, st.x, dirs) == pytest.approx(0.5 * expected * theta, rel=1e-12)
 
 
 def test_a_fork_lets_the_direction_turn_freely():
