@@ -72,13 +72,13 @@ def _clamped_moving(record_every: int = 1):
     return world, world.add_cable(model, record_every=record_every)
 
 
-def _twisting():
-    """A cable with a material frame (n 12, clamped both ends) on a table at 1 kHz, its last end turned a quarter turn
-    about the cable and moved 2 cm in 0.2 s: the twist springs load the clamps."""
+def _twisting(ends: str = "clamped"):
+    """A cable with a material frame (n 12, both ends held in ``ends``: clamps, or forks) on a table at 1 kHz, its last
+    end turned a quarter turn about the cable and moved 2 cm in 0.2 s: the twist springs load the holders."""
     world = BulletWorld(dt=1e-3, ground=False)
     TABLES[world.client] = world.add_box((0.3, 0.1, 0.05), (0.0, 0.0, -0.05), friction=0.5, name="table")
     spec = CableSpec.lv2017(n_masses=12, twist=True, damping=0.02)
-    model = CableModel.straight(spec, start=(-0.15, 0.0, spec.diameter / 2 + 0.002), ends=("clamped", "clamped"),
+    model = CableModel.straight(spec, start=(-0.15, 0.0, spec.diameter / 2 + 0.002), ends=(ends, ends),
                                 motion=[Move("last", (-0.02, 0.0, 0.0), 0.0, 0.2, rotation=(np.pi / 2, 0.0, 0.0))])
     return world, world.add_cable(model)
 
@@ -145,11 +145,13 @@ def test_before_detection_is_loaded_a_stand_in_hands_each_detecting_step_to_pyth
     _same(stand_in, python)
 
 
-def test_a_twisting_cable_steps_plain_to_the_same_bits(monkeypatch):
-    """A cable with a material frame, its clamp rolled and moved on a table: plain after its first step (which keeps
-    Python's phases), every state, twist state, record row (the clamps' torques with the twist's) and counter equal."""
+@pytest.mark.parametrize("ends", ["clamped", "fork"])
+def test_a_twisting_cable_steps_plain_to_the_same_bits(monkeypatch, ends):
+    """A cable with a material frame, its clamp (or fork) rolled and moved on a table: plain after its first step
+    (which keeps Python's phases), every state, twist state, record row (the holders' torques with the twist's) and
+    counter equal."""
     def outcome(plain):
-        out, n_plain = _run(monkeypatch, plain, _twisting, [1, 150, 150])
+        out, n_plain = _run(monkeypatch, plain, lambda: _twisting(ends), [1, 150, 150])
         return out, n_plain
     plain, n_plain = outcome(True)
     python, _ = outcome(False)
