@@ -42,6 +42,35 @@ box's bare step 8 -> 18 us at n 20; a world without free bodies keeps its thresh
 _WORLDS: "weakref.WeakValueDictionary[int, BulletWorld]" = weakref.WeakValueDictionary()  # client -> its world
 
 
+class SupportPoints:
+    """Bullet's contact points of a step on the bodies they hold, as ``get(body, default)`` of a dict {body: points}
+    (:attr:`BulletWorld.support_points`), each body's list built when first asked: a contact set asks for the bodies
+    near its cable, so the points of a body lying far away (every box on a table holds four) are never built."""
+
+    __slots__ = ("_contacts", "_owners", "_points")
+
+    def __init__(self, contacts: Sequence[tuple], owners: dict):
+        self._contacts, self._owners = contacts, owners  # getContactPoints rows; sphere body ids of the cables
+        self._points: dict[int, list[tuple]] = {}
+
+    def get(self, body: int, default=()):
+        """[(point on ``body`` [m], unit normal from the holder into it, normal force [N], holder body, holder link)],
+        in Bullet's order, or ``default`` when no contact but a cable's sphere's touched it."""
+        points = self._points.get(body)
+        if points is None:
+            owners, points = self._owners, []
+            for cp in self._contacts:
+                if cp[1] in owners or cp[2] in owners:
+                    continue
+                if cp[1] == body:
+                    points.append((cp[5], cp[7], cp[9], cp[2], cp[4]))  # normal on B, from B towards A
+                if cp[2] == body:  # (also: a body's two links touching each other give it both sides)
+                    normal = cp[7]
+                    points.append((cp[6], (-normal[0], -normal[1], -normal[2]), cp[9], cp[1], cp[3]))
+            self._points[body] = points
+        return points if points else default
+
+
 def sync_bullet_spheres(client: int) -> None:
     """Write the parked proxy spheres of the world on PyBullet client ``client`` (if it is a
     :class:`BulletWorld`'s) into Bullet (:meth:`BulletWorld.sync_bullet_spheres`): what reads Bullet's poses of
@@ -113,7 +142,7 @@ class BulletWorld:
         # in the last step (the ground or another body supports them) and, per cable, the free bodies touched by
         # the model's contacts of each cable in the last step (a body on two cables is moved by neither alone)
         self._supported: set[int] = set()  # see supported_bodies
-        self._support_points: dict[int, list[tuple]] | None = {}  # see support_points (None: not built yet)
+        self._support_points: SupportPoints | None = SupportPoints((), {})  # see support_points (None: not made yet)
         self._support_contacts: tuple = ()  # the contacts supported_bodies was taken from
         self._supported_due = False  # phase 7 left the contact query for supported_bodies to its first reader
         self.model_touches: dict[int, set[str]] = {}
@@ -575,19 +604,12 @@ class BulletWorld:
         self._supported = bodies
 
     @property
-    def support_points(self) -> dict[int, list[tuple]]:
-        """Bullet's contact points of the last step on each body of :attr:`supported_bodies`: {body: [(point on it
-        [m], unit normal from the holder into it, normal force [N], holder body, holder link)]}."""
+    def support_points(self) -> "SupportPoints":
+        """Bullet's contact points of the last step on each body of :attr:`supported_bodies`, ``get(body, ())``: [(point
+        on it [m], unit normal from the holder into it, normal force [N], holder body, holder link)]."""
         self.supported_bodies  # (taken with it)
-        if self._support_points is None:  # built on first demand: only a free body in a contact set asks
-            owners, points = self._owners, {}
-            for cp in self._support_contacts:
-                if cp[1] in owners or cp[2] in owners:
-                    continue
-                normal = cp[7]  # on B, from B towards A
-                points.setdefault(cp[1], []).append((cp[5], normal, cp[9], cp[2], cp[4]))
-                points.setdefault(cp[2], []).append((cp[6], (-normal[0], -normal[1], -normal[2]), cp[9], cp[1], cp[3]))
-            self._support_points = points
+        if self._support_points is None:  # made on first demand: only a free body in a contact set asks
+            self._support_points = SupportPoints(self._support_contacts, self._owners)
         return self._support_points
 
     def _supported_in(self, contacts) -> set[int]:
