@@ -135,7 +135,8 @@ def twist_need(problem: ResolveProblem) -> str:
             continue
         roll = float(np.max(np.abs(np.unwrap(end_roll(holder, times)))))  # (a roll past half a turn: unwrapped)
         if roll > ROLL_TOL:
-            rolls.append(f"the {name} {EndMode(holder.mode).holder} rolls {np.degrees(roll):.3g} deg about the cable axis")
+            held_by = EndMode(holder.mode).holder
+            rolls.append(f"the {name} {held_by} rolls {np.degrees(roll):.3g} deg about the cable axis")
     if rolls:
         return "material frame on: " + " and ".join(rolls) + " (a clamp or a fork holds the twist)"
     return ""

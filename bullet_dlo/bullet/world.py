@@ -55,7 +55,7 @@ class SupportPoints:
 
     def get(self, body: int, default=()):
         """[(point on ``body`` [m], unit normal from the holder into it, normal force [N], holder body, holder link)],
-        in Bullet's order, or ``default`` when no contact but a cable's sphere's touched it."""
+        in Bullet's order, or ``default`` when Bullet reported none on it (a cable's spheres' contacts left out)."""
         points = self._points.get(body)
         if points is None:
             owners, points = self._owners, []
