@@ -612,6 +612,38 @@ def _rotation(quat) -> np.ndarray:
     return np.array(pb.getMatrixFromQuaternion(quat)).reshape(3, 3)
 
 
+@njit(cache=True, error_model="numpy")
+def _quaternion_matrix(x, y, z, w, out):
+    """out (3, 3) <- the rotation of the quaternion (x, y, z, w) as Bullet builds it (``btMatrix3x3::setRotation``,
+    what ``getMatrixFromQuaternion`` returns): the same operations in the same order, so the same bits."""
+    s = 2.0 / (x * x + y * y + z * z + w * w)
+    xs, ys, zs = x * s, y * s, z * s
+    wx, wy, wz = w * xs, w * ys, w * zs
+    xx, xy, xz = x * xs, x * ys, x * zs
+    yy, yz, zz = y * ys, y * zs, z * zs
+    out[0, 0], out[0, 1], out[0, 2] = 1.0 - (yy + zz), xy - wz, xz + wy
+    out[1, 0], out[1, 1], out[1, 2] = xy + wz, 1.0 - (xx + zz), yz - wx
+    out[2, 0], out[2, 1], out[2, 2] = xz - wy, yz + wx, 1.0 - (xx + yy)
+
+
+@njit(cache=True, error_model="numpy")
+def set_frames(bases, moved, lpos, lrot, free_slot, inertia_diag, com, pos, rot, inertia):
+    """Each shape s with ``moved[s]``: its frame from its body's base state ``bases[s]`` (CoM position [m], then the
+    quaternion x, y, z, w): com, pos = com + R lpos, rot = R lrot and, for a free body's base (``free_slot[s]`` >= 0),
+    the world inertia R diag R^T [kg m^2]; R the quaternion's rotation. :meth:`ContactSet._set_pose` for all of them in
+    one call (the products are NumPy's, through the same BLAS, so the same bits)."""
+    r = np.empty((3, 3))
+    for s in range(moved.shape[0]):
+        if not moved[s]:
+            continue
+        _quaternion_matrix(bases[s, 3], bases[s, 4], bases[s, 5], bases[s, 6], r)
+        com[s, :] = bases[s, 0:3]
+        pos[s, :] = bases[s, 0:3] + np.dot(r, lpos[s])
+        rot[s, :, :] = np.dot(r, lrot[s])
+        if free_slot[s] >= 0:
+            inertia[s, :, :] = np.dot(r * inertia_diag[s], r.T)
+
+
 def _constrained_bodies(client: int) -> set[int]:
     """The bodies some user constraint (``createConstraint``) joins to the world or to another body."""
     out = set()
@@ -754,6 +786,10 @@ class ContactSet:
         free_bodies = sorted({r[0] for r in rows if r[11]})
         self.free_bodies = free_bodies  # body ids of the free bodies, by slot (contact.Bodies)
         self._inertia_diag = np.array([r[12] for r in rows]).reshape(nb, 3)  # [kg m^2] principal, CoM frame
+        # each exact shape's place in its body's base frame: position [m] (k, 3) and rotation (k, 3, 3)
+        self._local = (np.array([r[3] for r in exact], float).reshape(-1, 3),
+                       np.array([r[4] for r in exact], float).reshape(-1, 3, 3))
+        self._frames = None  # set_frames bound to its argument types (at the first pose read)
         self.shapes = Shapes(kind=np.array([r[2] for r in rows], dtype=np.int64), pos=np.zeros((nb, 3)),
                              rot=np.zeros((nb, 3, 3)), size=np.array([r[5] for r in rows]).reshape(nb, 3),
                              com=np.zeros((nb, 3)), lin_vel=np.zeros((nb, 3)), ang_vel=np.zeros((nb, 3)),
@@ -1014,8 +1050,12 @@ class ContactSet:
             return
         bases = self._bases
         if self._read_bases(*self._base_args):  # some pose changed
-            for s in np.flatnonzero(self._base_args[4]).tolist():
-                self._set_pose(s, bases[s, 0:3], bases[s, 3:7].tolist())  # (PyBullet reads a list 3x faster)
+            sh = self.shapes
+            args = (bases, self._base_args[4], *self._local, self._free_slot, self._inertia_diag, sh.com, sh.pos,
+                    sh.rot, sh.inertia)
+            if self._frames is None:
+                self._frames = bind(set_frames, *args)  # (skips Numba's dispatch)
+            self._frames(*args)
         lin, ang = self.shapes.lin_vel, self.shapes.ang_vel
         for s in self._dynamic_exact:  # (row by row: a boolean mask's copies cost 9 us a step for one body)
             lin[s] = bases[s, 7:10]
