@@ -1031,15 +1031,14 @@ class ContactSet:
         self._set_pose(s, *pose)
 
     def _set_pose(self, s: int, com, orn) -> None:
-        """Shape ``s``'s frame from its body's base pose: CoM position [m] (3,), quaternion (4,)."""
-        lpos, lrot = self.rows[s][3:5]
-        rot = _rotation(orn)
+        """Shape ``s``'s frame from its body's base pose: CoM position [m] (3,), quaternion (4,) (:func:`set_frames`
+        for this one shape; a free body's base frame is its inertial frame, principal axes)."""
+        state = np.zeros((s + 1, 7))
+        state[s, :3], state[s, 3:] = com, orn
+        moved = np.zeros(s + 1, np.bool_)
+        moved[s] = True
         sh = self.shapes
-        sh.com[s] = com
-        sh.pos[s] = np.asarray(com) + rot @ lpos
-        sh.rot[s] = rot @ lrot
-        if self._free_slot[s] >= 0:  # the base's frame is its inertial frame: principal axes
-            sh.inertia[s] = (rot * self._inertia_diag[s]) @ rot.T
+        set_frames(state, moved, *self._local, self._free_slot, self._inertia_diag, sh.com, sh.pos, sh.rot, sh.inertia)
 
     def _read_poses(self) -> None:
         """Every shape's body pose (velocity too where it moves by dynamics): static bodies too, as a

@@ -1,6 +1,6 @@
-"""The shapes' frames from their bodies' base states in one compiled call (``contact.set_frames``), against what the
-Python step computed before (``ContactSet._set_pose``, still the path without native reads): PyBullet's
-quaternion matrix and NumPy's products, to the bit."""
+"""The shapes' frames from their bodies' base states in one compiled call (``contact.set_frames``, also what
+``ContactSet._set_pose`` calls for one shape without native reads), against what the Python step computed before:
+PyBullet's quaternion matrix and NumPy's products, to the bit."""
 from __future__ import annotations
 
 import numpy as np
