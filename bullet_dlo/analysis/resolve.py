@@ -165,8 +165,8 @@ def contact_floor(problem: ResolveProblem) -> tuple[int, str]:
     floors = [(2, "")]
     if problem.cylinder_radii:
         radius = min(problem.cylinder_radii)
-        seg = 2.0 * np.sqrt((radius + r) * r)
-        floors.append((int(np.ceil(c.length / seg)) + 1,
+        seg = cylinder_segment(radius, c.diameter)
+        floors.append((cylinder_masses(c.length, c.diameter, radius),
                        f"the smallest cylinder (radius {radius * 1e3:.1f} mm) is wrapped by segments of at most "
                        f"{seg * 1e3:.1f} mm (chord sag within half the cable radius)"))
     widths = [w for w in problem.passage_widths if w > c.diameter]
@@ -178,6 +178,19 @@ def contact_floor(problem: ResolveProblem) -> tuple[int, str]:
                        f"{seg * 1e3:.1f} mm (shorter than its free width: none can wedge across it)"))
     n, why = max(floors)
     return n, (f"contact floor n >= {n}: {why}" if why else "")
+
+
+def cylinder_segment(radius: float, diameter: float) -> float:
+    """The longest segment [m] of a cable ``diameter`` [m] thick that follows a cylinder of ``radius`` [m]: its chord
+    round the cylinder sags into the rounding radius + r by at most half the cable radius r, 2 sqrt((radius + r) r)."""
+    r = diameter / 2
+    return 2.0 * float(np.sqrt((radius + r) * r))
+
+
+def cylinder_masses(length: float, diameter: float, radius: float) -> int:
+    """The fewest masses of a cable ``length`` [m] long and ``diameter`` [m] thick whose segments follow a cylinder of
+    ``radius`` [m] (:func:`cylinder_segment`)."""
+    return int(np.ceil(length / cylinder_segment(radius, diameter))) + 1
 
 
 def passage_segment(width: float, diameter: float) -> float:

@@ -9,9 +9,13 @@ holds one and delegates to it; the contacts it detects enter the cable's step th
 """
 from __future__ import annotations
 
+import warnings
+
+import numpy as np
 import pybullet as pb
 
-from bullet_dlo.bullet.contact import ContactSet
+from bullet_dlo.analysis.resolve import cylinder_masses
+from bullet_dlo.bullet.contact import CYLINDER, ContactSet
 from bullet_dlo.core.kernels.contact import Bodies, Contacts, make_bodies, make_contacts
 from bullet_dlo.core.validate import ParameterError
 
@@ -29,6 +33,25 @@ def flat_section(spec) -> tuple[float, float]:
     if spec.section == "rectangle":
         return float(spec.width), float(spec.thickness)
     return 0.0, 0.0
+
+
+STRADDLE_SPAN = 1.9
+"""A segment longer than STRADDLE_SPAN times the radius its centre line keeps from a static cylinder's axis, R + r,
+can lie straight across the cylinder (its rounding's diameter is 2 (R + r)), and there the model holds a cable that
+should slide: the cylinder pushes the chord at one point, square to it, and the turn over the cylinder sits at the
+segment's nodes as bends, which a sliding cable would carry from node to node. Measured (``python
+demos/cylinder_edge_slide.py``: a frictionless cylinder at a table's edge, the rope's pull 1.2 times what the table's
+friction holds; docs/concepts/contact.md, "A cable over a cylinder"): every cable that held had segments of at least
+1.95 (R + r), 19 of the 24 layouts at 60, 240 and 1000 Hz with friction 0.4 held; none of the 16 with shorter ones
+held. Resolve's contact floor (:func:`~bullet_dlo.analysis.resolve.cylinder_segment`) is well within."""
+
+
+def straddled_cylinders(cs: ContactSet, radius: float, longest: float) -> np.ndarray:
+    """The shape indices of the static cylinders of contact set ``cs`` whose axis a segment ``longest`` [m] long, of a
+    cable of ``radius`` [m], can straddle (:data:`STRADDLE_SPAN`)."""
+    sh = cs.shapes
+    return np.flatnonzero((sh.kind == CYLINDER) & (sh.inv_mass == 0.0)
+                          & (STRADDLE_SPAN * (sh.size[:, 0] + radius) < longest))
 
 
 class CableContacts:
@@ -52,6 +75,8 @@ class CableContacts:
         self.partners_seen: tuple = ()
         self.none = make_contacts(cable.model.n, 1, cable.radius, cable.grip)
         self.no_bodies = make_bodies(cable.model.n, 1, 0)
+        self.straddled = np.zeros(0, np.int64)  # static cylinders a segment can lie across (straddled_cylinders)
+        self.straddle_warned: set[int] = set()  # their bodies warned of (warn_straddled)
         self.refresh()
 
     @property
@@ -110,10 +135,39 @@ class CableContacts:
                               segments=(cable.model.arrays.k_stretch, cable.model.arrays.rest_length,
                                         cable.control.k_bend, cable.control.held),
                               section=flat_section(spec))
+        self.straddled = straddled_cylinders(self.set, cable.radius, float(np.max(cable.model.arrays.rest_length)))
         if self.bullet_off:
             self.exclude_model_bodies()
         if self.set.free_bodies:
             cable.world.solve_free_bodies()
+
+    def warn_straddled(self) -> None:
+        """Warn, once per body, where a segment rests across a static cylinder it is long enough to straddle
+        (:data:`STRADDLE_SPAN`): the cable may hold there where a real one slides. Cheap where no such cylinder is
+        in the world (the usual case); called by :meth:`BulletWorld.step
+        <bullet_dlo.bullet.world.BulletWorld.step>` after its steps."""
+        cs = self.set
+        if cs is None or not self.straddled.size:
+            return
+        c = cs.contacts
+        count = int(c.count[0])
+        across = cs.store.body[:count][c.node[:count, 0] != c.node[:count, 1]]  # the shapes segments touch
+        cable = self.cable
+        r = cable.radius
+        for s in np.intersect1d(across, self.straddled).tolist():
+            body = int(cs.body_ids[s])
+            if body in self.straddle_warned:
+                continue
+            self.straddle_warned.add(body)
+            R = float(cs.shapes.size[s, 0])
+            spec = cable.model.spec
+            longest = float(np.max(cable.model.arrays.rest_length))
+            warnings.warn(f"cable {cable.name!r} lies across cylinder body {body} (radius {R * 1e3:.3g} mm) with "
+                          f"segments of {longest * 1e3:.3g} mm, longer than {STRADDLE_SPAN:g} (R + r) = "
+                          f"{STRADDLE_SPAN * (R + r) * 1e3:.3g} mm: the turn over it sits at the nodes, and the model "
+                          f"can hold the cable there where a real one slides (docs/concepts/contact.md, \"A cable over a "
+                          f"cylinder\"); n_masses >= {cylinder_masses(spec.length, 2 * r, R)} (resolve's "
+                          "contact floor) follows it", stacklevel=3)
 
     def exclude(self, body: int, link: int | None = None, nodes=None, rebuild: bool = True) -> None:
         """Leave ``body`` (its link ``link``; None: every link) out of the cable's contact model: entirely

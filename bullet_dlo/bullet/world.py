@@ -463,8 +463,13 @@ class BulletWorld:
 
         Plain steps (one cable on parked spheres among static bodies, no couplings, no hooks: see
         :mod:`~bullet_dlo.bullet.plain_steps`) run these phases in one compiled call, to the same results.
+
+        After the steps, a cable lying across a static cylinder whose axis its segments can straddle is warned of
+        (:meth:`CableContacts.warn_straddled <bullet_dlo.bullet.cable_contacts.CableContacts.warn_straddled>`).
         """
         self._steps(n)
+        for cable in self.cables.values():
+            cable.contact.warn_straddled()
 
     def _steps(self, n: int, watch: BulletCable | None = None, horizon: int = 0) -> int:
         """:meth:`step` ``n`` times, stopping early (before a step) once ``watch`` is unstable; returns the steps
