@@ -144,8 +144,8 @@ class CableContacts:
     def warn_straddled(self) -> None:
         """Warn, once per body, where a segment rests across a static cylinder it is long enough to straddle
         (:data:`STRADDLE_SPAN`): the cable may hold there where a real one slides. Cheap where no such cylinder is
-        in the world (the usual case); called by :meth:`BulletWorld.step
-        <bullet_dlo.bullet.world.BulletWorld.step>` after its steps."""
+        in the world (the usual case); called after the steps of :meth:`BulletWorld.step
+        <bullet_dlo.bullet.world.BulletWorld.step>` and :meth:`~bullet_dlo.bullet.world.BulletWorld.run_while_stable`."""
         cs = self.set
         if cs is None or not self.straddled.size:
             return
@@ -167,7 +167,7 @@ class CableContacts:
                           f"{STRADDLE_SPAN * (R + r) * 1e3:.3g} mm: the turn over it sits at the nodes, and the model "
                           f"can hold the cable there where a real one slides (docs/concepts/contact.md, \"A cable over a "
                           f"cylinder\"); n_masses >= {cylinder_masses(spec.length, 2 * r, R)} (resolve's "
-                          "contact floor) follows it", stacklevel=3)
+                          "contact floor) follows it", stacklevel=4)  # (the caller of the world's step)
 
     def exclude(self, body: int, link: int | None = None, nodes=None, rebuild: bool = True) -> None:
         """Leave ``body`` (its link ``link``; None: every link) out of the cable's contact model: entirely

@@ -468,6 +468,11 @@ class BulletWorld:
         (:meth:`CableContacts.warn_straddled <bullet_dlo.bullet.cable_contacts.CableContacts.warn_straddled>`).
         """
         self._steps(n)
+        self._warn_straddled()
+
+    def _warn_straddled(self) -> None:
+        """After a run of steps: each cable lying across a static cylinder it can straddle is warned of, once per
+        cylinder (:meth:`CableContacts.warn_straddled <bullet_dlo.bullet.cable_contacts.CableContacts.warn_straddled>`)."""
         for cable in self.cables.values():
             cable.contact.warn_straddled()
 
@@ -723,6 +728,7 @@ class BulletWorld:
             k = self._steps(min(PROGRESS_EVERY, steps - done) if progress is not None else steps - done, cable,
                             steps - done)
             done += k
+            self._warn_straddled()
             if progress is not None:
                 progress(k)
         return time.perf_counter() - tic

@@ -140,6 +140,13 @@ def test_a_cable_lying_across_a_cylinder_it_can_straddle_is_warned_of_once():
     straddles = [w for w in caught if STRADDLE in str(w.message)]
     assert len(straddles) == 1
     assert "radius 2 mm" in str(straddles[0].message) and "n_masses >= 111" in str(straddles[0].message)
+    assert straddles[0].filename == __file__  # it points at the step's caller
+    x0, _ = layout(thin_cable(35), R, 0.8)
+    with pytest.warns(UserWarning, match=STRADDLE), BulletWorld(dt=1.0 / 240.0, ground=False) as world:
+        world.add_box(TABLE, (-TABLE[0], 0.0, -TABLE[2]), friction=MU)
+        world.add_cylinder(R, 0.2, (R, 0.0, -R), Q_AXIS_Y, friction=0.0)
+        cable = world.add_cable(thin_cable(35), state=CableState(x0, np.zeros_like(x0)))
+        world.run_while_stable(24, cable)  # (the scene runner's loop: rendered scenes, the benchmarks)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         release(thin_cable(80), R, 0.8, 240.0, seconds=0.1)  # 6.3 mm segments: within 1.9 (R + r) = 6.65 mm
