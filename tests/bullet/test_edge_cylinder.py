@@ -10,10 +10,9 @@ the angle theta from the top pulls its weight times sin(theta), one below the ar
 Cylinders have no wrap (box edges and a hull's sharp edges do: docs/concepts/contact.md, "Edges"). A segment about as
 long as the diameter 2 (R + r) can lie straight across the cylinder, which pushes its chord at one point, square to
 it, while the turn over the cylinder sits at the segment's nodes as bends: the model then holds a cable that should
-slide
-(docs/concepts/contact.md, "A cable over a cylinder"; ``python demos/cylinder_edge_slide.py`` measures where). Within
-resolve's contact floor (:func:`~bullet_dlo.analysis.resolve.cylinder_segment`) it slides at the threshold, and a
-cable that lies across a cylinder it can straddle is warned of.
+slide (docs/concepts/contact.md, "A cable over a cylinder"; ``python demos/cylinder_edge_slide.py`` measures where).
+Within resolve's contact floor (:func:`~bullet_dlo.analysis.resolve.cylinder_segment`) it slides at the threshold, and
+a cable that lies across a cylinder it can straddle is warned of.
 """
 from __future__ import annotations
 
