@@ -15,7 +15,7 @@ import numpy as np
 import pybullet as pb
 
 from bullet_dlo.analysis.resolve import cylinder_masses
-from bullet_dlo.bullet.contact import CYLINDER, ContactSet
+from bullet_dlo.bullet.contact import CAPSULE, CYLINDER, ContactSet
 from bullet_dlo.core.kernels.contact import Bodies, Contacts, make_bodies, make_contacts
 from bullet_dlo.core.validate import ParameterError
 
@@ -47,10 +47,10 @@ held. Resolve's contact floor (:func:`~bullet_dlo.analysis.resolve.cylinder_segm
 
 
 def straddled_cylinders(cs: ContactSet, radius: float, longest: float) -> np.ndarray:
-    """The shape indices of the static cylinders of contact set ``cs`` whose axis a segment ``longest`` [m] long, of a
-    cable of ``radius`` [m], can straddle (:data:`STRADDLE_SPAN`)."""
+    """The shape indices of the static cylinders and capsules (the same rows along their axis) of contact set ``cs``
+    whose axis a segment ``longest`` [m] long, of a cable of ``radius`` [m], can straddle (:data:`STRADDLE_SPAN`)."""
     sh = cs.shapes
-    return np.flatnonzero((sh.kind == CYLINDER) & (sh.inv_mass == 0.0)
+    return np.flatnonzero(((sh.kind == CYLINDER) | (sh.kind == CAPSULE)) & (sh.inv_mass == 0.0)
                           & (STRADDLE_SPAN * (sh.size[:, 0] + radius) < longest))
 
 
@@ -142,7 +142,7 @@ class CableContacts:
             cable.world.solve_free_bodies()
 
     def warn_straddled(self) -> None:
-        """Warn, once per body, where a segment rests across a static cylinder it is long enough to straddle
+        """Warn, once per body, where a segment rests across a static cylinder or capsule it is long enough to straddle
         (:data:`STRADDLE_SPAN`): the cable may hold there where a real one slides. Cheap where no such cylinder is
         in the world (the usual case); called after the steps of :meth:`BulletWorld.step
         <bullet_dlo.bullet.world.BulletWorld.step>` and :meth:`~bullet_dlo.bullet.world.BulletWorld.run_while_stable`."""
@@ -162,7 +162,8 @@ class CableContacts:
             R = float(cs.shapes.size[s, 0])
             spec = cable.model.spec
             longest = float(np.max(cable.model.arrays.rest_length))
-            warnings.warn(f"cable {cable.name!r} lies across cylinder body {body} (radius {R * 1e3:.3g} mm) with "
+            what = "capsule" if cs.shapes.kind[s] == CAPSULE else "cylinder"
+            warnings.warn(f"cable {cable.name!r} lies across {what} body {body} (radius {R * 1e3:.3g} mm) with "
                           f"segments of {longest * 1e3:.3g} mm, longer than {STRADDLE_SPAN:g} (R + r) = "
                           f"{STRADDLE_SPAN * (R + r) * 1e3:.3g} mm: the turn over it sits at the nodes, and the model "
                           f"can hold the cable there where a real one slides (docs/concepts/contact.md, \"A cable over a "

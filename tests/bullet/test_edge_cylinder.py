@@ -20,6 +20,7 @@ import math
 import warnings
 
 import numpy as np
+import pybullet as pb
 import pytest
 
 from bullet_dlo.analysis.resolve import cylinder_masses
@@ -131,8 +132,9 @@ def test_a_coarse_cable_slides_over_a_frictionless_cylinder_above_the_threshold(
 
 def test_a_cable_lying_across_a_cylinder_it_can_straddle_is_warned_of_once():
     """Segments longer than 1.9 (R + r) resting across a static cylinder (cable_contacts.STRADDLE_SPAN): one warning
-    naming the cylinder and the masses that follow it (resolve's contact floor); none for shorter segments, none for
-    a cylinder the cable does not touch."""
+    naming the cylinder and the masses that follow it (resolve's contact floor), also from run_while_stable, and for a
+    capsule (it holds the cable the same way: 0.0 mm at 1.2 times the threshold, n 35, 60 Hz); none for shorter
+    segments, none for a cylinder the cable does not touch."""
     R = 0.002
     with pytest.warns(UserWarning, match=STRADDLE) as caught:
         release(thin_cable(35), R, 0.8, 240.0, seconds=0.1)
@@ -146,6 +148,12 @@ def test_a_cable_lying_across_a_cylinder_it_can_straddle_is_warned_of_once():
         world.add_cylinder(R, 0.2, (R, 0.0, -R), Q_AXIS_Y, friction=0.0)
         cable = world.add_cable(thin_cable(35), state=CableState(x0, np.zeros_like(x0)))
         world.run_while_stable(24, cable)  # (the scene runner's loop: rendered scenes, the benchmarks)
+    with pytest.warns(UserWarning, match="lies across capsule"), BulletWorld(dt=1.0 / 240.0, ground=False) as world:
+        world.add_box(TABLE, (-TABLE[0], 0.0, -TABLE[2]), friction=MU)  # a static capsule as the rod: the same rows
+        rod = pb.createCollisionShape(pb.GEOM_CAPSULE, radius=R, height=0.2, physicsClientId=world.client)
+        pb.createMultiBody(0, rod, -1, [R, 0.0, -R], Q_AXIS_Y, physicsClientId=world.client)
+        world.add_cable(thin_cable(35), state=CableState(x0, np.zeros_like(x0)))
+        world.step(24)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         release(thin_cable(80), R, 0.8, 240.0, seconds=0.1)  # 6.3 mm segments: within 1.9 (R + r) = 6.65 mm
