@@ -12,9 +12,10 @@ and watched for ``--seconds``: "held" when the table end moved less than 2 mm, "
 below 1 and slid above.
 
 Cylinders have no wrap (box edges and a hull's sharp edges do: docs/concepts/contact.md, "Edges"), so a segment
-longer than 2 (R + r) can lie straight across the cylinder, which pushes its chord at one point, square to it, while
-the turn over the cylinder sits at the segment's nodes as bends: a coarse cable hooks above the threshold
-(docs/concepts/contact.md, "A cable over a cylinder"), the table this script measures.
+about as long as the rounding's diameter 2 (R + r) or longer can lie straight across the cylinder, which pushes its
+chord at one point, square to it, while the turn over the cylinder sits at the segment's nodes as bends: a coarse
+cable hooks above the threshold (docs/concepts/contact.md, "A cable over a cylinder"), the table this script
+measures.
 
     python demos/cylinder_edge_slide.py [--hz 60 240 1000] [--n 13 20 35] [--R 0.002 0.006 0.012 0.02] [--f 0.8 1.2]
 """
