@@ -23,7 +23,7 @@ Contact sets a floor on n before the convergence test (the rollouts have no obst
 cannot see it): a cable wrapping a cylinder or sphere of radius R follows it with a polygon,
 whose segments cut into the arc by l^2 / (8 (R + r)); keeping that sag within half the cable
 radius r needs l <= 2 sqrt((R + r) r), i.e. n >= L / l + 1 for the smallest curved obstacle of
-the scene (:attr:`ResolveProblem.cylinder_radii`: its ``bullet.obstacles`` cylinders). A passage
+the scene (:attr:`ResolveProblem.cylinder_radii`: its obstacles' cylinders and capsules, a URDF's links too). A passage
 of width w between two bodies (a clip's slot, :attr:`ResolveProblem.passage_widths`) leaves the
 segment capsules' centre line a free width w - 2 r; a straight segment longer than that, turned
 across the passage, spans it wall to wall and wedges like a stick in a channel (a real cable bends
@@ -75,7 +75,8 @@ class ResolveProblem:
     cable: the scene's cable (its n_masses is a start; its k_d is rescaled with n); duration: the
     scene's run [s]; run(cable, integrator, dt, duration): one run of the scene with that cable,
     integrator, step [s] and duration [s], its core-engine result (about 200 records are enough);
-    cylinder_radii: radii [m] of the scene's cylinder obstacles (the contact floor on n);
+    cylinder_radii: radii [m] of the cylinders and capsules among the scene's obstacles' collision shapes (the contact
+    floor on n; :meth:`bullet_dlo.bullet.world.BulletWorld.round_radii`);
     passage_widths: widths [m] of the gaps between the scene's bodies wider than the cable (the passage floor on
     n; :meth:`bullet_dlo.bullet.world.BulletWorld.passages`);
     holders: the scene's two held ends (first, last) with their motion, for :func:`twist_need`

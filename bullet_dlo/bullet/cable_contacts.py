@@ -15,7 +15,8 @@ import numpy as np
 import pybullet as pb
 
 from bullet_dlo.analysis.resolve import cylinder_masses
-from bullet_dlo.bullet.contact import CAPSULE, CYLINDER, ContactSet
+from bullet_dlo.bullet.contact import CAPSULE, CYLINDER, PROBE, ContactSet
+from bullet_dlo.bullet.shape_data import collision_shapes, fixed_link, round_shapes
 from bullet_dlo.core.kernels.contact import Bodies, Contacts, make_bodies, make_contacts
 from bullet_dlo.core.validate import ParameterError
 
@@ -46,12 +47,30 @@ friction holds; docs/concepts/contact.md, "A cable over a cylinder"): every cabl
 held. Resolve's contact floor (:func:`~bullet_dlo.analysis.resolve.cylinder_segment`) is well within."""
 
 
-def straddled_cylinders(cs: ContactSet, radius: float, longest: float) -> np.ndarray:
-    """The shape indices of the static cylinders and capsules (the same rows along their axis) of contact set ``cs``
-    whose axis a segment ``longest`` [m] long, of a cable of ``radius`` [m], can straddle (:data:`STRADDLE_SPAN`)."""
-    sh = cs.shapes
-    return np.flatnonzero(((sh.kind == CYLINDER) | (sh.kind == CAPSULE)) & (sh.inv_mass == 0.0)
-                          & (STRADDLE_SPAN * (sh.size[:, 0] + radius) < longest))
+def static_round_shapes(cs: ContactSet) -> tuple[np.ndarray, np.ndarray]:
+    """The static cylinders and capsules among the shapes of contact set ``cs``: (kind, CYLINDER or CAPSULE, -1
+    elsewhere; radius [m], 0 elsewhere), per shape. An exact shape on a fixed body, or a fixed link (of a fixed base,
+    by fixed joints) whose one collision shape is a cylinder or capsule: Bullet's narrow phase (a PROBE row) meets a
+    segment's chord there as the exact cylinder does."""
+    kind, radius = np.full(len(cs.rows), -1, dtype=np.int64), np.zeros(len(cs.rows))
+    round_kinds = {pb.GEOM_CYLINDER: CYLINDER, pb.GEOM_CAPSULE: CAPSULE}
+    for s, row in enumerate(cs.rows):  # (body, link, kind, local position, local rotation, size, dynamic, ...)
+        body, link, shape_kind, size, dynamic = row[0], row[1], row[2], row[5], row[6]
+        if shape_kind in (CYLINDER, CAPSULE) and not dynamic:
+            kind[s], radius[s] = shape_kind, size[0]
+        elif shape_kind == PROBE:
+            data = collision_shapes(cs.client, body, link)
+            if len(data) == 1 and round_shapes(data) and fixed_link(cs.client, body, link):
+                geom, radius[s] = round_shapes(data)[0]
+                kind[s] = round_kinds[geom]
+    return kind, radius
+
+
+def straddled_cylinders(kind: np.ndarray, radius: np.ndarray, cable_radius: float, longest: float) -> np.ndarray:
+    """The shape indices among the static cylinders and capsules (the same rows along their axis) ``kind`` and
+    ``radius`` [m] (:func:`static_round_shapes`) whose axis a segment ``longest`` [m] long, of a cable of
+    ``cable_radius`` [m], can straddle (:data:`STRADDLE_SPAN`)."""
+    return np.flatnonzero((kind >= 0) & (STRADDLE_SPAN * (radius + cable_radius) < longest))
 
 
 class CableContacts:
@@ -75,6 +94,7 @@ class CableContacts:
         self.partners_seen: tuple = ()
         self.none = make_contacts(cable.model.n, 1, cable.radius, cable.grip)
         self.no_bodies = make_bodies(cable.model.n, 1, 0)
+        self.round = (np.zeros(0, np.int64), np.zeros(0))  # the set's static cylinders (static_round_shapes)
         self.straddled = np.zeros(0, np.int64)  # static cylinders a segment can lie across (straddled_cylinders)
         self.straddle_warned: set[int] = set()  # their bodies warned of (warn_straddled)
         self.refresh()
@@ -135,7 +155,8 @@ class CableContacts:
                               segments=(cable.model.arrays.k_stretch, cable.model.arrays.rest_length,
                                         cable.control.k_bend, cable.control.held),
                               section=flat_section(spec))
-        self.straddled = straddled_cylinders(self.set, cable.radius, float(np.max(cable.model.arrays.rest_length)))
+        self.round = static_round_shapes(self.set)
+        self.straddled = straddled_cylinders(*self.round, cable.radius, float(np.max(cable.model.arrays.rest_length)))
         if self.bullet_off:
             self.exclude_model_bodies()
         if self.set.free_bodies:
@@ -155,15 +176,16 @@ class CableContacts:
         cable = self.cable
         r = cable.radius
         for s in np.intersect1d(across, self.straddled).tolist():
-            body = int(cs.body_ids[s])
+            body, link = int(cs.body_ids[s]), int(cs.links[s])
             if body in self.straddle_warned:
                 continue
             self.straddle_warned.add(body)
-            R = float(cs.shapes.size[s, 0])
+            R = float(self.round[1][s])
             spec = cable.model.spec
             longest = float(np.max(cable.model.arrays.rest_length))
-            what = "capsule" if cs.shapes.kind[s] == CAPSULE else "cylinder"
-            warnings.warn(f"cable {cable.name!r} lies across {what} body {body} (radius {R * 1e3:.3g} mm) with "
+            what = ("capsule" if self.round[0][s] == CAPSULE else "cylinder") + f" body {body}"
+            what += f" link {link}" if link >= 0 else ""
+            warnings.warn(f"cable {cable.name!r} lies across {what} (radius {R * 1e3:.3g} mm) with "
                           f"segments of {longest * 1e3:.3g} mm, longer than {STRADDLE_SPAN:g} (R + r) = "
                           f"{STRADDLE_SPAN * (R + r) * 1e3:.3g} mm: the turn over it sits at the nodes, and the model "
                           f"can hold the cable there where a real one slides (docs/concepts/contact.md, \"A cable over a "

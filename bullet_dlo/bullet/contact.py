@@ -63,7 +63,7 @@ from bullet_dlo.bullet.contact_call import make_broad_args, make_set_args
 from bullet_dlo.bullet.kernels import bind
 from bullet_dlo.bullet.native import (BASE_STATE, HANDLE, collision_info_init, disabled_warning, kernel_api,
                                       overlapping, read_base_states, status_aabb, submit)
-from bullet_dlo.bullet.shape_data import collision_shapes
+from bullet_dlo.bullet.shape_data import collision_shapes, fixed_link
 from bullet_dlo.core.kernels.contact import (PENALTY, STICK, WRAP, Bodies, Contacts, _arc_middle, _gap, _wrap_cap,
                                              make_bodies, make_contacts, mark_wrap_neighbours, wrap_active,
                                              wrap_arc_share, wrap_energy, wrap_start)
@@ -738,14 +738,18 @@ class ContactSet:
                 info = pb.getDynamicsInfo(body, link, physicsClientId=client)
                 mass, mu_b = info[0:2]
                 i_min = min(info[2]) if mass > 0.0 else 0.0
+                # a link fixed to a fixed base cannot move, whatever mass its URDF gives it: static in the cable's step
+                # (as a movable link's condensed contact, a fixture's 0.2 kg peg was 170 times softer at 60 Hz: the
+                # cable sank 5 mm into it); still dynamic for Bullet, so its reactions reach its joint sensors
+                fixed = mass > 0.0 and link >= 0 and fixed_link(client, body, link)
                 # a free body (one dynamic link, no joints) moves in the cable's step (contact.Bodies), with what
                 # else holds it (a user constraint, Bullet's contacts) as measured over the last step; the links of
                 # an articulated body (an arm) keep the condensed contact (_condense_bodies)
                 free = (mass > 0.0 and link < 0 and pb.getNumJoints(body, physicsClientId=client) == 0 and i_min > 0.0
                         and body not in driven)
-                inv_m = 1.0 / mass if mass > 0.0 else 0.0
-                inv_i = 1.0 / i_min if i_min > 0.0 else 0.0
-                if mass > 0.0 and body in driven and (driven[body] is None or link in driven[body]):
+                inv_m = 1.0 / mass if mass > 0.0 and not fixed else 0.0
+                inv_i = 1.0 / i_min if i_min > 0.0 and not fixed else 0.0
+                if mass > 0.0 and not fixed and body in driven and (driven[body] is None or link in driven[body]):
                     # a motor-held link: kinematic in the cable's step
                     inv_m = inv_i = DRIVEN_INV_MASS
                 common = (mass > 0.0, float(mu_b), inv_m, inv_i, frozenset(out), free, np.asarray(info[2], float))

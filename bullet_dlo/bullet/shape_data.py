@@ -69,6 +69,25 @@ def collision_shapes(client: int, body: int, link: int) -> tuple:
     return () if answer is None else answer
 
 
+def round_shapes(data) -> list[tuple[int, float]]:
+    """(geometry, radius [m]) of each cylinder and capsule among a link's collision shapes ``data`` (as
+    :func:`collision_shapes` lists them: a cylinder's or capsule's dimensions are (length, radius, 0))."""
+    return [(int(d[2]), float(d[3][1])) for d in data if d[2] in (pb.GEOM_CYLINDER, pb.GEOM_CAPSULE)]
+
+
+def fixed_link(client: int, body: int, link: int) -> bool:
+    """Can ``body``'s ``link`` (-1: the base) not move? Its body's base is fixed (Bullet gives a fixed base no
+    mass) and every joint between the link and the base is a fixed one."""
+    if pb.getDynamicsInfo(body, -1, physicsClientId=client)[0] != 0.0:
+        return False
+    while link >= 0:
+        info = pb.getJointInfo(body, link, physicsClientId=client)
+        if info[2] != pb.JOINT_FIXED:
+            return False
+        link = info[16]  # the parent link
+    return True
+
+
 def _readable(client: int, body: int, link: int) -> bool:
     """Can the link's shapes be read in this process (no btMultiSphereShape can be among them)? See the
     module's docstring for the three cases."""

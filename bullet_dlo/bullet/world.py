@@ -19,6 +19,7 @@ import pybullet_data
 from bullet_dlo.assets import URDF_DIR as PROJECT_URDF
 from bullet_dlo.bullet import body_energy, held_bodies, plain_steps
 from bullet_dlo.bullet.cable import BulletCable
+from bullet_dlo.bullet.shape_data import collision_shapes, round_shapes
 from bullet_dlo.core.boundary import Move
 from bullet_dlo.core.integrators import NewtonOptions
 from bullet_dlo.core.model import STANDARD_GRAVITY, CableModel, CableState
@@ -301,6 +302,18 @@ class BulletWorld:
                 if narrowest < gap <= widest:
                     found.append((float(gap), self.bodies[a], self.bodies[b]))
         return sorted(found)
+
+    def round_radii(self) -> tuple[float, ...]:
+        """Radii [m] of the cylinders and capsules among the collision shapes of every link of the world's bodies (not
+        the cables, not the bodies out of the cables' contact model), smallest first: what resolve's contact floor
+        on n reads (:func:`~bullet_dlo.analysis.resolve.cylinder_segment`)."""
+        radii = []
+        for b in self.bodies:
+            if b in self.no_cable_contact:
+                continue
+            for link in range(-1, pb.getNumJoints(b, physicsClientId=self.client)):
+                radii += [r for _, r in round_shapes(collision_shapes(self.client, b, link))]
+        return tuple(sorted(radii))
 
     def solve_free_bodies(self) -> None:
         """Lower Bullet's solver residual threshold to :data:`FREE_BODY_RESIDUAL` (once; a lower one is kept): a

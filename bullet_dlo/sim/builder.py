@@ -38,32 +38,38 @@ ENGINES = Engine.names()  # core | bullet | arms (bullet_dlo.core.enums.Engine)
 
 
 def resolve_problem(scene: Scene, passages: bool = True) -> ResolveProblem:
-    """``scene`` as :func:`bullet_dlo.analysis.resolve.resolve` takes it: its cable, duration, cylinder
-    obstacles, passages (:func:`passage_widths`; ``passages`` False leaves them out, for
-    :func:`~bullet_dlo.analysis.resolve.twist_need`, which reads the held ends only: they cost a Bullet world, about
-    20 ms) and a rollout with the core engine (the scene's ends, motion, start, Newton and detector settings; no
-    obstacles: the contact floor stands for them)."""
+    """``scene`` as :func:`bullet_dlo.analysis.resolve.resolve` takes it: its cable, duration, the radii of its
+    obstacles' cylinders and capsules and its passages (:func:`obstacle_floors`; ``passages`` False leaves the
+    passages and the URDFs' cylinders out, for :func:`~bullet_dlo.analysis.resolve.twist_need`, which reads the held
+    ends only: they cost a Bullet world, about 20 ms) and a rollout with the core engine (the scene's ends, motion,
+    start, Newton and detector settings; no obstacles: the contact floor stands for them)."""
     def run(cable: CableSpec, integrator: str, dt: float, duration: float) -> SimulationResult:
         trial = replace(scene, cable=cable, integrator=integrator, dt=dt, duration=duration)
         model = trial.build_model()
         return simulate(model, integrator, dt, duration, state=trial.initial_state(model), max_records=201,
                         newton=trial.newton, detector=trial.detector)
 
-    radii = tuple(float(ob["radius"]) for ob in scene.bullet.obstacles if ob["type"] == "cylinder")
     model = scene.build_model()  # its held ends and motion: whether the scene rolls a clamp (twist_need)
-    widths = passage_widths(scene) if passages else ()
+    if passages:
+        widths, radii = obstacle_floors(scene)
+    else:
+        widths, radii = (), tuple(float(ob["radius"]) for ob in scene.bullet.obstacles
+                                  if ob["type"] == "cylinder" and ob.get("contact", True))
     return ResolveProblem(scene.cable, scene.duration, run, radii, widths, (model.first, model.last))
 
 
-def passage_widths(scene: Scene) -> tuple[float, ...]:
-    """Widths [m] of the gaps between the scene's obstacles and its ground that its cable could thread (wider
-    than its diameter, at most its length), measured by Bullet's narrow phase in a world of their own."""
+def obstacle_floors(scene: Scene) -> tuple[tuple[float, ...], tuple[float, ...]]:
+    """What the scene's obstacles ask of its segments, read in a Bullet world of their own: (widths [m] of the gaps
+    between them and the ground that its cable could thread, wider than its diameter and at most its length,
+    measured by Bullet's narrow phase; radii [m] of every cylinder and capsule among their links' collision shapes,
+    a URDF's child links too). Obstacles with ``contact: false`` are left out."""
     opts = scene.bullet
     if not opts.obstacles:
-        return ()
+        return (), ()
     with BulletWorld(ground=opts.ground, ground_height=opts.ground_height) as world:
         add_obstacles(world, opts.obstacles)
-        return tuple(w for w, _, _ in world.passages(scene.cable.diameter, scene.cable.length))
+        widths = tuple(w for w, _, _ in world.passages(scene.cable.diameter, scene.cable.length))
+        return widths, world.round_radii()
 
 
 def with_needed_twist(scene: Scene) -> Scene:

@@ -33,7 +33,8 @@ TWO_LINKS = """<?xml version="1.0"?>
     <collision><origin xyz="0.5 0 0"/><geometry><box size="0.05 0.05 0.05"/></geometry></collision>
   </link>
   <link name="top">
-    <inertial><mass value="0"/><inertia ixx="0" ixy="0" ixz="0" iyy="0" iyz="0" izz="0"/></inertial>
+    <inertial><mass value="{mass}"/><inertia ixx="{inertia}" ixy="0" ixz="0" iyy="{inertia}" iyz="0" izz="{inertia}"/>
+    </inertial>
     <collision><geometry><box size="0.2 0.2 0.2"/></geometry></collision>
   </link>
   <joint name="fix" type="{joint}"><parent link="foot"/><child link="top"/><origin xyz="0 0 0.1"/>
@@ -62,15 +63,19 @@ def add_support(world: BulletWorld, kind: str, tmp_path) -> tuple[int, int, floa
         body = pb.createMultiBody(0, col, -1, [0, 0, BOX[2]], physicsClientId=cid)
         return body, -1, 2 * BOX[2] + HULL_MARGIN
     urdf = tmp_path / "stand.urdf"
-    urdf.write_text(TWO_LINKS.format(joint="fixed" if kind == "child_link" else "revolute"))
+    # heavy_child: the fixed child link has a mass, as real fixtures' links do (it cannot move all the same)
+    mass = 2.0 if kind == "heavy_child" else 0.0
+    urdf.write_text(TWO_LINKS.format(joint="revolute" if kind == "revolute_child" else "fixed", mass=mass,
+                                     inertia=mass * 0.2 ** 2 / 6))
     body = world.add_urdf(urdf, (0.0, 0.0, 0.0))
     return body, 0, 2 * BOX[2]
 
 
-@pytest.mark.parametrize("kind", ["hull", "trimesh", "child_link", "revolute_child"])
+@pytest.mark.parametrize("kind", ["hull", "trimesh", "child_link", "heavy_child", "revolute_child"])
 @pytest.mark.parametrize("integrator,hz,n", [("implicit_euler", 240, 20), ("bdf2", 60, 10)])
 def test_cable_rests_on_a_mesh_or_child_link(kind, integrator, hz, n, tmp_path):
-    """An Lv cable laid across the cube's top (over two edges): the body carries its weight, no strain."""
+    """An Lv cable laid across the cube's top (over two edges): the body carries its weight, no strain; also on a
+    fixed child link with a mass (2 kg), as static as one without (test_contact_urdf: the capstan on such a peg)."""
     with BulletWorld(dt=1.0 / hz) as world:
         body, link, top = add_support(world, kind, tmp_path)
         spec = CableSpec.lv2017(n_masses=n, damping=0.02)

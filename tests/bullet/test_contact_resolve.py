@@ -12,6 +12,7 @@ from bullet_dlo.config.scene import BulletOptions, Scene
 from bullet_dlo.core.spec import CableSpec
 from bullet_dlo.core.validate import ParameterError
 from bullet_dlo.sim import resolve_problem
+from test_edge_cylinder import rod_urdf  # (tests/bullet is on sys.path: pytest puts each test file's folder there)
 
 
 def _scene(radius: float | None) -> ResolveProblem:
@@ -72,3 +73,19 @@ def test_the_binding_floor_is_the_larger_one():
     both = replace(slot, cylinder_radii=peg.cylinder_radii)
     assert contact_floor(both) == contact_floor(peg)  # 35 > 20: the peg's sag binds
     assert contact_floor(replace(slot, cylinder_radii=(0.05,)))[0] == contact_floor(slot)[0] == 20
+
+
+def test_a_urdf_rod_on_a_child_link_sets_the_contact_floor(tmp_path):
+    """A cylinder on a URDF's child link binds n as a scene cylinder of the same radius does (before, only the scene's
+    own ``cylinder`` obstacles were read: the floor was 2); one out of the cables' contact model sets none."""
+    urdf = rod_urdf(tmp_path / "rod.urdf", 0.008, at=(0.0, 0.0, 0.3))
+
+    def problem(contact: bool) -> ResolveProblem:
+        obstacles = ({"type": "urdf", "path": urdf, "position": [0, 0, 0], "contact": contact},)
+        return resolve_problem(Scene(cable=CableSpec.lv2017(n_masses=10, damping=0.05), ends=("pinned", "free"),
+                                     direction=(0, 0, -1), dt=1e-3, duration=0.1,
+                                     bullet=BulletOptions(obstacles=obstacles)))
+    assert problem(True).cylinder_radii == pytest.approx((0.008,))
+    assert contact_floor(problem(True)) == contact_floor(_scene(0.008))
+    assert contact_floor(problem(True))[0] == 35
+    assert problem(False).cylinder_radii == () and contact_floor(problem(False)) == (2, "")
