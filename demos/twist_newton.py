@@ -54,7 +54,7 @@ def main() -> None:
     ap.add_argument("--dts", nargs="+", type=float, default=[1e-3, 1 / 240],
                     help="time steps [s] (default 0.001 and 1/240)")
     ap.add_argument("--max-iter", nargs="+", type=int, default=[None],
-                    help="Newton iteration caps per step (default: each method's, 8, and 24 for gauss_legendre)")
+                    help="Newton iteration caps per step (default: each method's, 8, and 32 for gauss_legendre)")
     ap.add_argument("--turns", nargs="+", type=float, default=[3.0],
                     help="turns of the pushed cable's last clamp (default 3)")
     ap.add_argument("--frameless", action="store_true",

@@ -16,19 +16,28 @@ implicit methods' residual,
 
     R_s = h F(X_s, V_s) - M sum_q (A^-1)_sq (V_q - v) = 0,    s = 1, 2,
 
-are solved by Newton with the exact Jacobian of the coupled system (the same force Jacobians as the
-other implicit methods: dF/dx of the elastic forces, dF/dv of the dampers and the drag; the dampers'
-x-dependence is not differentiated, as there):
+are solved by a simplified Newton method (the same force Jacobians as the other implicit methods: dF/dx of
+the elastic forces, dF/dv of the dampers and the drag; the dampers' x-dependence is not differentiated, as
+there). The exact Jacobian of the stage system is
 
-    dR_s/dV_q = h^2 a_sq dF/dx(X_s) + h delta_sq dF/dv(X_s, V_s) - M (A^-1)_sq,
+    dR_s/dV_q = h^2 a_sq dF/dx(X_s) + h delta_sq dF/dv(X_s, V_s) - M (A^-1)_sq;
 
-stored by nodes (node i's unknowns: stage 1 xyz, stage 2 xyz), so that it is banded with a scalar
-half-width of 6 * 2 + 5 = 17; it is not symmetric, but its symmetric part is positive definite where
-the other methods' matrix is (the symmetric part of A^-1 is 3 I), so it is factorised without pivoting.
-Simplified Newton: the factorisation (about 18 us of a 35 us iteration at n = 20) is kept for the next
-iterations while each cuts the residual at least 4x (:data:`CONTRACTION`), else it is made again at the
-current iterate; an old matrix that does not lower the residual at all is replaced at once. On S2 (n = 20,
-5 ms) a step takes 4.2 iterations instead of 2.9, one of them with a factorisation, and 11-21 % less CPU.
+with K = dF/dx and D = dF/dv taken once, at the mean of the two stage states, it is
+-(A^-1 (x) M - h^2 A (x) K - h I (x) D), and A's eigenvectors T (A = T diag(lam, conj lam) T^-1, lam =
+1/4 + i sqrt(3)/12) split it into one complex system per eigenvalue, C = M / lam - h^2 lam K - h D of the 3n
+node unknowns, whose conjugate is the other's (Butcher's transformation, as in Radau5 and other implicit
+Runge-Kutta codes): the Newton direction is dV_s = 2 Re(T_s0 C^-1 (T^-1 R)_0), one complex banded system of
+scalar half-width 8 instead of the real 6n one of half-width 17 (at n = 12 its factorisation took 17.6 of a
+48 us step). C's Hermitian part is positive definite where the other methods' matrix is (Re 1/lam = 3,
+Re lam = 1/4), so it is factorised without pivoting. The factors are kept for the next iterations while each
+cuts the residual at least 4x (:data:`CONTRACTION`), else made again at the current iterate; factors that do not
+lower the residual at all are replaced at once. Where fresh factors of C do not lower it within four halvings
+(their one Jacobian is no descent direction there: the first step from a released stiff cantilever, whose
+stage states differ most) or leave more than a quarter of it (a cable buckling at 60 Hz: 16.7 iterations a step
+against 12.9, three solves at the cap), the rest of the step takes the exact real Jacobian of the stage system, node-major
+(node i's unknowns: stage 1 xyz, stage 2 xyz), banded with a scalar half-width of 6 * 2 + 5 = 17, factorised
+without pivoting too (the symmetric part of A^-1 is 3 I). Before 2026-12-08 every step took that exact matrix
+(S2, n = 12, 5 ms: 48 us a step against 28 us now, 4.6 iterations against 5.5).
 Convergence rules as in :func:`~bullet_dlo.core.kernels.steppers.newton`: a step is accepted when it
 lowers the residual (halved up to 12 times, else the iteration stops and the step is reported as not
 converged; there is no incremental potential to fall back on), converged when the residual is below
@@ -48,6 +57,7 @@ import math
 
 import numpy as np
 
+from bullet_dlo.core.kernels.banded import HALF
 from bullet_dlo.core.kernels.drag import add_drag_jacobian
 from bullet_dlo.core.kernels.forces import BAND, add_damping_jacobian, force_jacobian, total_forces
 from bullet_dlo.core.kernels.jit import njit
@@ -64,7 +74,12 @@ AI11 = 3.0
 AI12 = 2.0 * SQRT3 - 3.0
 AI21 = -3.0 - 2.0 * SQRT3
 AI22 = 3.0
-GL_HALF = 6 * BAND + 5  # scalar half-bandwidth of the stage system: 17
+_T = np.linalg.eig(np.array([[A11, A12], [A21, A22]]))[1]
+_T = np.array([_T[:, 0], np.conj(_T[:, 0])]).T  # A's eigenvectors, the second the first's conjugate
+LAM = complex((np.array([[A11, A12], [A21, A22]]) @ _T[:, 0])[0] / _T[0, 0])  # its eigenvalue 1/4 +- i sqrt(3)/12
+T0, T1 = complex(_T[0, 0]), complex(_T[1, 0])  # the first eigenvector's stage components
+U0, U1 = (complex(u) for u in np.linalg.inv(_T)[0])  # the first row of T^-1
+GL_HALF = 6 * BAND + 5  # scalar half-bandwidth of the exact real stage system: 17
 CONTRACTION = 0.25  # a simplified Newton iteration must cut the residual at least this much, else a fresh Jacobian
 
 
@@ -216,6 +231,64 @@ def _gl_matrix(m, h, xs, vstage, hdir, definite, jx, jv, band):
 
 
 @njit(cache=True, error_model="numpy")
+def _gl_transformed_matrix(m, h, xs, vstage, hdir, definite, xm, vm, dm, jx, jv, band):
+    """band <- C = M / lam - h^2 lam K - h D (module doc; complex, (3n, 2 HALF + 1)), K and D at the mean of the
+    two stage states xs, vstage (and of the held ends' stage directions hdir); held nodes as identity rows and
+    columns. xm, vm (n, 3), dm (2, 3), jx, jv (n, 5, 3, 3): scratch."""
+    n = xs.shape[1]
+    held = m.held
+    for i in range(n):
+        for j in range(3):
+            xm[i, j] = 0.5 * (xs[0, i, j] + xs[1, i, j])
+            vm[i, j] = 0.5 * (vstage[0, i, j] + vstage[1, i, j])
+    for e in range(2):
+        norm = 0.0
+        for j in range(3):
+            dm[e, j] = hdir[0, e, j] + hdir[1, e, j]
+            norm += dm[e, j] * dm[e, j]
+        norm = math.sqrt(norm)
+        if norm > 0.0:
+            for j in range(3):
+                dm[e, j] /= norm
+    force_jacobian(m, xm, dm, definite, jx)
+    jv[:, :, :, :] = 0.0
+    add_damping_jacobian(m, xm, dm, 1.0, jv)
+    add_drag_jacobian(m, xm, vm, 1.0, jv)
+    band[:, :] = 0.0
+    ck = -h * h * LAM
+    for i in range(n):
+        if held[i]:
+            for r in range(3):
+                band[3 * i + r, HALF] = 1.0
+            continue
+        for o in range(2 * BAND + 1):
+            j = i + o - BAND
+            if j < 0 or j >= n or held[j]:
+                continue
+            for r in range(3):
+                for c in range(3):
+                    band[3 * i + r, 3 * j + c - 3 * i - r + HALF] = ck * jx[i, o, r, c] - h * jv[i, o, r, c]
+        for r in range(3):
+            band[3 * i + r, HALF] += m.mass[i] / LAM + h * m.damp[i]
+
+
+@njit(cache=True, error_model="numpy")
+def _gl_direction(band, r, w, dv):
+    """dv <- the Newton direction (6n,) for the stage residual r (6n,, node-major) with the factors of C in band
+    (module doc): w = (T^-1 R)_0 (3n, complex scratch), C^-1 w, dV_s = 2 Re(T_s0 C^-1 w)."""
+    n = w.shape[0] // 3
+    for i in range(n):
+        for j in range(3):
+            w[3 * i + j] = U0 * r[6 * i + j] + U1 * r[6 * i + 3 + j]
+    gl_band_substitute(band, w, HALF)
+    for i in range(n):
+        for j in range(3):
+            y = w[3 * i + j]
+            dv[6 * i + j] = 2.0 * (T0 * y).real
+            dv[6 * i + 3 + j] = 2.0 * (T1 * y).real
+
+
+@njit(cache=True, error_model="numpy")
 def gl_band_factor(band, half):
     """LU-factorise a general band matrix of half-width ``half`` stored as band[r, c - r + half] in place
     (Gaussian elimination without pivoting; the multipliers are kept below the diagonal). Returns min |pivot|."""
@@ -283,9 +356,14 @@ def gauss_legendre_step(stepper, m, x, v, samples):
     r = np.empty(6 * n)
     r_try = np.empty(6 * n)
     dv = np.empty(6 * n)
-    jx = np.empty((2, n, 2 * BAND + 1, 3, 3))
+    jx = np.empty((2, n, 2 * BAND + 1, 3, 3))  # (the transformed matrix uses the first stage's slot)
     jv = np.empty((2, n, 2 * BAND + 1, 3, 3))
-    band = np.empty((6 * n, 2 * GL_HALF + 1))
+    xm = np.empty((n, 3))
+    vm = np.empty((n, 3))
+    dm = np.empty((2, 3))
+    band = np.empty((3 * n, 2 * HALF + 1), dtype=np.complex128)
+    w = np.empty(3 * n, dtype=np.complex128)
+    exact_band = np.empty((0, 2 * GL_HALF + 1))  # the exact real matrix, made where the transformed one fails
     # first iterate: the current velocities (held nodes at their stage velocities); a guess v + c_s h a from
     # the forces at x was tried: the stiff stretch modes make it worse (5.9 against 4.2 iterations, S2 n = 20, 5 ms)
     for s in range(2):
@@ -320,19 +398,29 @@ def gauss_legendre_step(stepper, m, x, v, samples):
     it = 0
     converged = False
     refresh = True  # factorise the Jacobian at the current iterate in this iteration
+    exact = False  # the exact real matrix instead of the transformed one (for the rest of the step)
     while it < stepper.max_iter:
         it += 1
         fresh = refresh  # is the factorised matrix the Jacobian at the current iterate?
-        if refresh:
-            _gl_matrix(m, h, xs, vstage, hdir, stepper.definite, jx, jv, band)
-            gl_band_factor(band, GL_HALF)
+        if refresh and exact:
+            if exact_band.shape[0] == 0:
+                exact_band = np.empty((6 * n, 2 * GL_HALF + 1))
+            _gl_matrix(m, h, xs, vstage, hdir, stepper.definite, jx, jv, exact_band)
+            gl_band_factor(exact_band, GL_HALF)
             refresh = False
-        dv[:] = r
-        gl_band_substitute(band, dv, GL_HALF)  # the Newton direction dV (simplified: an older matrix)
+        elif refresh:
+            _gl_transformed_matrix(m, h, xs, vstage, hdir, stepper.definite, xm, vm, dm, jx[0], jv[0], band)
+            gl_band_factor(band, HALF)
+            refresh = False
+        if exact:
+            dv[:] = r
+            gl_band_substitute(exact_band, dv, GL_HALF)
+        else:
+            _gl_direction(band, r, w, dv)  # the Newton direction dV (simplified: an older matrix)
         alpha = 1.0
         accepted = False
         rn_try = rnorm
-        for _ in range(12 if fresh else 1):
+        for _ in range(12 if fresh and exact else (4 if fresh else 1)):
             for s in range(2):
                 for i in range(n):
                     for j in range(3):
@@ -343,14 +431,18 @@ def gauss_legendre_step(stepper, m, x, v, samples):
                 break
             alpha *= 0.5
         if not accepted:
-            if fresh:
+            if fresh and exact:
                 break  # stagnated with the exact Jacobian: keep the current iterate (reported as not converged)
+            if fresh:  # the transformed matrix's one Jacobian is no descent direction here: the exact matrix
+                exact = True
             # the old matrix no longer contracts: the stage states back at the iterate, then a fresh Jacobian
             rnorm = _gl_residual(m, x, v, h, vs, xs, vstage, f, hpos, hvel, hdir, r)
             refresh = True
             it -= 1  # a rejected simplified iteration is not counted
             continue
         refresh = rn_try > CONTRACTION * rnorm  # slow contraction: refresh the Jacobian next iteration
+        if refresh and fresh and not exact:
+            exact = True  # fresh factors of C contracted slowly: its one Jacobian does not serve this step
         vs[:, :, :] = v_try
         r[:] = r_try
         rnorm = rn_try
