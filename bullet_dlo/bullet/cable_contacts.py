@@ -95,7 +95,7 @@ class CableContacts:
         self.none = make_contacts(cable.model.n, 1, cable.radius, cable.grip)
         self.no_bodies = make_bodies(cable.model.n, 1, 0)
         self.round = (np.zeros(0, np.int64), np.zeros(0))  # the set's static cylinders (static_round_shapes)
-        self.straddled = np.zeros(0, np.int64)  # static cylinders a segment can lie across (straddled_cylinders)
+        self.any_round = False  # whether the set has any (warn_straddled looks further only then)
         self.straddle_warned: set[int] = set()  # their bodies warned of (warn_straddled)
         self.refresh()
 
@@ -156,7 +156,7 @@ class CableContacts:
                                         cable.control.k_bend, cable.control.held),
                               section=flat_section(spec))
         self.round = static_round_shapes(self.set)
-        self.straddled = straddled_cylinders(*self.round, cable.radius, float(np.max(cable.model.arrays.rest_length)))
+        self.any_round = bool((self.round[0] >= 0).any())
         if self.bullet_off:
             self.exclude_model_bodies()
         if self.set.free_bodies:
@@ -168,21 +168,24 @@ class CableContacts:
         in the world (the usual case); called after the steps of :meth:`BulletWorld.step
         <bullet_dlo.bullet.world.BulletWorld.step>` and :meth:`~bullet_dlo.bullet.world.BulletWorld.run_while_stable`."""
         cs = self.set
-        if cs is None or not self.straddled.size:
+        if cs is None or not self.any_round:
+            return
+        cable = self.cable
+        r = cable.radius
+        longest = float(np.max(cable.model.arrays.rest_length))  # (now: set_parameters may change the rest lengths)
+        straddled = straddled_cylinders(*self.round, r, longest)
+        if not straddled.size:
             return
         c = cs.contacts
         count = int(c.count[0])
         across = cs.store.body[:count][c.node[:count, 0] != c.node[:count, 1]]  # the shapes segments touch
-        cable = self.cable
-        r = cable.radius
-        for s in np.intersect1d(across, self.straddled).tolist():
+        for s in np.intersect1d(across, straddled).tolist():
             body, link = int(cs.body_ids[s]), int(cs.links[s])
             if body in self.straddle_warned:
                 continue
             self.straddle_warned.add(body)
             R = float(self.round[1][s])
             spec = cable.model.spec
-            longest = float(np.max(cable.model.arrays.rest_length))
             what = ("capsule" if self.round[0][s] == CAPSULE else "cylinder") + f" body {body}"
             what += f" link {link}" if link >= 0 else ""
             warnings.warn(f"cable {cable.name!r} lies across {what} (radius {R * 1e3:.3g} mm) with "
