@@ -99,8 +99,8 @@ class NewtonOptions:
     solve, so a second iteration runs only when the linearisation visibly failed), 1e-6
     for the second-order methods and 1e-9 for ``gauss_legendre`` (its simplified Newton iteration converges
     linearly and stops just under the tolerance, and its 4th-order error at short steps is below what 1e-6
-    solves: a swinging cantilever's error at 0.5 ms was 5.7e-9 m against 6.3e-12 m solved to 1e-9); definite: filter the compressive stretch Hessian so the
-    system stays positive definite; exact_from: the Newton iteration (1-based) from which the implicit step of a
+    solves: a swinging cantilever's error at 0.5 ms was 5.7e-9 m against 6.3e-12 m solved to 1e-9);
+    definite: filter the compressive stretch Hessian so the system stays positive definite; exact_from: the Newton iteration (1-based) from which the implicit step of a
     cable with a material frame takes the exact Jacobian of its residual (earlier iterations: the symmetric
     Gauss-Newton matrix, cheaper per iteration; see :mod:`~bullet_dlo.core.kernels.twist_coupled`), in
     [1, 1001]; 1001 (the default) chooses: the exact Jacobian from the first iteration for anisotropic sections

@@ -34,10 +34,10 @@ cuts the residual at least 4x (:data:`CONTRACTION`), else made again at the curr
 lower the residual at all are replaced at once. Where fresh factors of C do not lower it within four halvings
 (their one Jacobian is no descent direction there: the first step from a released stiff cantilever, whose
 stage states differ most) or leave more than a quarter of it (a cable buckling at 60 Hz: 16.7 iterations a step
-against 12.9, three solves at the cap), the rest of the step takes the exact real Jacobian of the stage system, node-major
-(node i's unknowns: stage 1 xyz, stage 2 xyz), banded with a scalar half-width of 6 * 2 + 5 = 17, factorised
-without pivoting too (the symmetric part of A^-1 is 3 I). Before 2026-12-08 every step took that exact matrix
-(S2, n = 12, 5 ms: 48 us a step against 28 us now, 4.6 iterations against 5.5).
+against 12.9, three solves at the cap), the rest of the step takes the exact real Jacobian of the stage system,
+node-major (node i's unknowns: stage 1 xyz, stage 2 xyz), banded with a scalar half-width of 6 * 2 + 5 = 17,
+factorised without pivoting too (the symmetric part of A^-1 is 3 I). Before 2026-12-08 every step took that exact
+matrix (S2, n = 12, 5 ms: 48 us a step, 4.6 iterations, against 33 us and 5.9 iterations now).
 Convergence rules as in :func:`~bullet_dlo.core.kernels.steppers.newton`: a step is accepted when it
 lowers the residual (halved up to 12 times, else the iteration stops and the step is reported as not
 converged; there is no incremental potential to fall back on), converged when the residual is below
@@ -74,9 +74,9 @@ AI11 = 3.0
 AI12 = 2.0 * SQRT3 - 3.0
 AI21 = -3.0 - 2.0 * SQRT3
 AI22 = 3.0
-_T = np.linalg.eig(np.array([[A11, A12], [A21, A22]]))[1]
-_T = np.array([_T[:, 0], np.conj(_T[:, 0])]).T  # A's eigenvectors, the second the first's conjugate
-LAM = complex((np.array([[A11, A12], [A21, A22]]) @ _T[:, 0])[0] / _T[0, 0])  # its eigenvalue 1/4 +- i sqrt(3)/12
+_LAMS, _VECS = np.linalg.eig(np.array([[A11, A12], [A21, A22]]))
+LAM = complex(_LAMS[0])  # an eigenvalue of A, 1/4 +- i sqrt(3)/12 (the other is its conjugate)
+_T = np.array([_VECS[:, 0], np.conj(_VECS[:, 0])]).T  # its eigenvector and the conjugate's: T
 T0, T1 = complex(_T[0, 0]), complex(_T[1, 0])  # the first eigenvector's stage components
 U0, U1 = (complex(u) for u in np.linalg.inv(_T)[0])  # the first row of T^-1
 GL_HALF = 6 * BAND + 5  # scalar half-bandwidth of the exact real stage system: 17
